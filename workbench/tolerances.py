@@ -1,0 +1,28 @@
+"""Numeric tolerances in one place, instead of literals scattered through the code."""
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Tolerances used by the numerical core.
+
+    Attributes
+    ----------
+    eigen_rel : float
+        Eigenvalues below ``eigen_rel * largest`` are treated as zero (rank determination of the capture).
+    kkt : float
+        Relative tolerance of the KKT checks of the constrained solvers (scaled by the size of the problem).
+    active_set_max_iter : int
+        Iterations of the batched active-set solver before a frame falls back to SciPy's per-frame solver.
+    zero_displacement : float
+        Frames whose displacement norm is below this (in data units) have no per-frame displacement alpha.
+    """
+
+    eigen_rel: float = 1e-12
+    kkt: float = 1e-9
+    active_set_max_iter: int = 60
+    zero_displacement: float = 1e-9
+
+
+TOL = Tolerances()
