@@ -1,0 +1,174 @@
+"""Known-answer tests of eigenfaces (eq. 2), quasi-eigen projection (eq. 3-4) and the post-treatment."""
+
+import numpy as np
+import pytest
+
+from workbench.bases import (Eigenfaces, build_quasi_eigen_basis, covariance_eigen, empty_axes, flip_signs,
+                             n_components_for_coverage, pca_to_qe_weights, quasi_eigen_faces)
+from workbench.errors import WorkbenchError
+
+
+def low_rank_capture(n_frames, n_dims, stds, seed=0):
+    """A capture whose PCA is known exactly: mean + orthogonal centred scores x orthonormal axes."""
+    rng = np.random.default_rng(seed)
+    k = len(stds)
+    axes = np.linalg.qr(rng.standard_normal((n_dims, k)))[0].T  # (k, n_dims), orthonormal rows
+    raw = rng.standard_normal((n_frames, k))
+    scores = np.linalg.qr(raw - raw.mean(axis=0))[0]  # orthonormal, centred columns
+    scores *= np.sqrt(n_frames) * np.asarray(stds)  # sample variance of column i is stds[i]**2
+    mean = rng.standard_normal(n_dims) * 10
+    return mean + scores @ axes, mean, axes, np.asarray(stds) ** 2
+
+
+@pytest.mark.parametrize("n_frames,n_dims,expected_method", [(400, 30, "covariance"), (25, 120, "gram")])
+def test_pca_recovers_known_eigenvalues_and_axes(n_frames, n_dims, expected_method):
+    stds = [5.0, 3.0, 2.0, 1.0, 0.5]
+    capture, mean, axes, variances = low_rank_capture(n_frames, n_dims, stds)
+    pca = Eigenfaces(n_components=5).fit(capture)
+    assert pca.method_ == expected_method
+    np.testing.assert_allclose(pca.mean_, mean, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(pca.explained_variance_, variances, rtol=1e-9)
+    np.testing.assert_allclose(np.abs(pca.components_ @ axes.T), np.eye(5), atol=1e-9)
+    np.testing.assert_allclose(pca.components_ @ pca.components_.T, np.eye(5), atol=1e-10)
+    np.testing.assert_allclose(pca.explained_variance_ratio_, variances / variances.sum(), rtol=1e-9)
+
+
+def test_covariance_and_gram_routes_agree():
+    capture, *_ = low_rank_capture(60, 59, [4.0, 2.0, 1.0], seed=3)
+    centred = capture - capture.mean(axis=0)
+    values_cov, vectors_cov, method_cov = covariance_eigen(centred)
+    # One zero column more than there are frames sends the same data down the Gram route.
+    values_gram, vectors_gram, method_gram = covariance_eigen(np.hstack([centred, np.zeros((60, 2))]))
+    assert (method_cov, method_gram) == ("covariance", "gram")
+    np.testing.assert_allclose(values_gram, values_cov, rtol=1e-10)
+    np.testing.assert_allclose(vectors_gram[:, :-2], vectors_cov, atol=1e-9)
+    np.testing.assert_allclose(vectors_gram[:, -2:], 0.0, atol=1e-12)
+
+
+def test_coverage_picks_smallest_m():
+    ratio = np.array([0.6, 0.3, 0.05, 0.04, 0.01])
+    assert n_components_for_coverage(ratio, 0.6) == 1
+    assert n_components_for_coverage(ratio, 0.9) == 2
+    assert n_components_for_coverage(ratio, 0.95) == 3
+    assert n_components_for_coverage(ratio, 0.96) == 4
+    assert n_components_for_coverage(ratio, 1.0) == 5
+
+
+def test_coverage_threshold_on_fit():
+    capture, *_ = low_rank_capture(300, 40, [10.0, 5.0, 1.0, 0.1])
+    variances = np.array([100.0, 25.0, 1.0, 0.01])
+    cumulative = np.cumsum(variances) / variances.sum()
+    pca = Eigenfaces(coverage=0.995).fit(capture)
+    assert pca.n_components_ == 3
+    assert pca.coverage_ == pytest.approx(cumulative[2], rel=1e-9)
+    assert Eigenfaces(coverage=0.99).fit(capture).n_components_ == 2  # cumulative[1] = 0.99207
+
+
+@pytest.mark.parametrize("coverage", [0.0, -0.1, 1.5])
+def test_coverage_outside_unit_interval_is_refused(coverage):
+    capture, *_ = low_rank_capture(50, 10, [1.0, 0.5])
+    with pytest.raises(WorkbenchError, match="coverage"):
+        Eigenfaces(coverage=coverage).fit(capture)
+
+
+def test_fixed_m_larger_than_rank_is_refused():
+    capture, *_ = low_rank_capture(50, 10, [1.0, 0.5])
+    with pytest.raises(WorkbenchError, match="n_components.*rank 2"):
+        Eigenfaces(n_components=3).fit(capture)
+
+
+def test_unfitted_and_bad_capture_errors():
+    with pytest.raises(WorkbenchError, match="not fitted"):
+        Eigenfaces().reconstruct(np.zeros((2, 3)))
+    with pytest.raises(WorkbenchError, match="NaN or Inf"):
+        Eigenfaces().fit(np.array([[0.0, np.nan], [1.0, 2.0]]))
+    with pytest.raises(WorkbenchError, match="no variance"):
+        Eigenfaces().fit(np.ones((5, 3)))
+
+
+def test_signs_are_deterministic():
+    capture, *_ = low_rank_capture(200, 20, [3.0, 2.0, 1.0])
+    components = Eigenfaces(n_components=3).fit(capture).components_
+    np.testing.assert_array_equal(flip_signs(-components), components)
+    assert np.all(components[np.arange(3), np.argmax(np.abs(components), axis=1)] > 0)
+
+
+def test_pca_reconstruction_is_exact_inside_the_span():
+    capture, *_ = low_rank_capture(100, 30, [3.0, 2.0, 1.0])
+    pca = Eigenfaces(coverage=1.0).fit(capture)
+    np.testing.assert_allclose(pca.reconstruct(capture), capture, atol=1e-9)
+
+
+@pytest.fixture
+def fitted():
+    capture, mean, axes, _ = low_rank_capture(500, 24, [6.0, 4.0, 2.0, 1.0], seed=7)
+    return Eigenfaces(coverage=1.0).fit(capture), mean, axes
+
+
+@pytest.mark.parametrize("projection", ["affine", "linear"])
+def test_hand_shape_on_hyperplane_comes_back_unchanged(fitted, projection):
+    pca, mean, axes = fitted
+    rng = np.random.default_rng(1)
+    on_plane = rng.standard_normal((5, 4)) @ axes
+    if projection == "affine":
+        on_plane = on_plane + mean
+    weights = pca_to_qe_weights(on_plane, pca.components_, pca.mean_, projection)
+    np.testing.assert_allclose(quasi_eigen_faces(weights, pca.components_, pca.mean_, projection), on_plane,
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize("projection", ["affine", "linear"])
+def test_projection_is_idempotent_and_moves_by_least_distance(fitted, projection):
+    pca, _, _ = fitted
+    rng = np.random.default_rng(2)
+    hand = rng.standard_normal((6, 24)) * 5
+    once = quasi_eigen_faces(pca_to_qe_weights(hand, pca.components_, pca.mean_, projection),
+                             pca.components_, pca.mean_, projection)
+    twice = quasi_eigen_faces(pca_to_qe_weights(once, pca.components_, pca.mean_, projection),
+                              pca.components_, pca.mean_, projection)
+    np.testing.assert_allclose(twice, once, atol=1e-9)
+    # The move is orthogonal to the hyperplane, so it is the least Euclidean distance onto it.
+    np.testing.assert_allclose((hand - once) @ pca.components_.T, 0.0, atol=1e-9)
+
+
+def test_eq3_weights_match_the_formula(fitted):
+    pca, _, _ = fitted
+    hand = np.random.default_rng(4).standard_normal((3, 24))
+    weights = pca_to_qe_weights(hand, pca.components_, pca.mean_, "affine")
+    for i in range(3):
+        for j in range(4):
+            assert weights[i, j] == pytest.approx(pca.components_[j] @ (hand[i] - pca.mean_), abs=1e-12)
+    linear = pca_to_qe_weights(hand, pca.components_, pca.mean_, "linear")
+    np.testing.assert_allclose(linear, hand @ pca.components_.T, atol=1e-12)
+
+
+def test_post_treatment_finds_and_appends_the_empty_axis(fitted):
+    pca, _, _ = fitted
+    rng = np.random.default_rng(5)
+    # Hand shapes with nothing along eigenface 3 (index 2), plus some off-plane noise.
+    coefficients = rng.standard_normal((5, 4)) * 10
+    coefficients[:, 2] = 0.0
+    off_plane = rng.standard_normal((5, 24))
+    off_plane -= (off_plane @ pca.components_.T) @ pca.components_
+    hand = coefficients @ pca.components_ + off_plane
+    result = build_quasi_eigen_basis(hand, [f"h{i}" for i in range(5)], pca, projection="linear",
+                                     empty_axis_eps=0.01, append_empty_axes=True)
+    assert result.empty_axes == (2,)
+    assert result.appended_axes == (2,)
+    assert result.names[-1] == "pca_3"
+    np.testing.assert_allclose(result.shapes[-1], pca.components_[2])
+    assert result.shapes.shape == (6, 24)
+    np.testing.assert_array_equal(empty_axes(result.weights, result.thresholds), [2])
+    kept = build_quasi_eigen_basis(hand, [f"h{i}" for i in range(5)], pca, projection="linear",
+                                   empty_axis_eps=0.01)
+    assert kept.empty_axes == (2,) and kept.appended_axes == () and kept.shapes.shape == (5, 24)
+
+
+def test_quasi_eigen_basis_validates_its_inputs(fitted):
+    pca, _, _ = fitted
+    with pytest.raises(WorkbenchError, match="24 columns"):
+        build_quasi_eigen_basis(np.ones((2, 23)), ["a", "b"], pca)
+    with pytest.raises(WorkbenchError, match="2 shapes but 1 names"):
+        build_quasi_eigen_basis(np.ones((2, 24)), ["a"], pca)
+    with pytest.raises(WorkbenchError, match="projection"):
+        build_quasi_eigen_basis(np.ones((2, 24)), ["a", "b"], pca, projection="oblique")

@@ -1,0 +1,356 @@
+"""Bases of the study: eigenfaces (eq. 2), quasi-eigen faces (eq. 3-4) and the post-treatment.
+
+Pure numerical code: arrays in, arrays and frozen dataclasses out. Frames are rows: a capture is an array of
+shape ``(n_frames, n_dims)`` with ``n_dims = 3 * n_points`` (the paper's ``3N x L`` matrix, transposed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.tolerances import TOL, Tolerances
+
+PROJECTIONS = ("affine", "linear")
+EMPTY_AXIS_SCALES = ("axis_std", "absolute")
+
+
+def _check_matrix(name: str, array, n_dims: int | None = None) -> np.ndarray:
+    array = np.asarray(array, dtype=np.float64)
+    if array.ndim != 2:
+        raise WorkbenchError(f"{name} must be a 2-D array (rows x dims), got shape {array.shape}")
+    if array.shape[0] == 0 or array.shape[1] == 0:
+        raise WorkbenchError(f"{name} must not be empty, got shape {array.shape}")
+    if n_dims is not None and array.shape[1] != n_dims:
+        raise WorkbenchError(f"{name} must have {n_dims} columns to match the capture, got {array.shape[1]}")
+    if not np.all(np.isfinite(array)):
+        raise WorkbenchError(f"{name} holds NaN or Inf values ({int(np.sum(~np.isfinite(array)))} entries)")
+    return array
+
+
+def flip_signs(components: np.ndarray) -> np.ndarray:
+    """Make eigenvector signs deterministic: the largest-magnitude entry of each row is positive.
+
+    Parameters
+    ----------
+    components : ndarray of shape (m, n_dims)
+
+    Returns
+    -------
+    ndarray of shape (m, n_dims)
+        The same rows, some multiplied by -1 (scikit-learn's ``svd_flip`` convention).
+    """
+    pivots = np.argmax(np.abs(components), axis=1)
+    signs = np.sign(components[np.arange(components.shape[0]), pivots])
+    signs[signs == 0] = 1.0
+    return components * signs[:, None]
+
+
+def covariance_eigen(centred: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.ndarray, np.ndarray, str]:
+    """Eigen-decomposition of the capture covariance ``C = D~ D~^T / L`` (eq. 2), largest first.
+
+    Uses the covariance (``n_dims x n_dims``) or the frame Gram matrix (``L x L``), whichever is smaller; both
+    have the same non-zero eigenvalues and the Gram eigenvectors are lifted to eigenfaces by ``D~^T``.
+
+    Parameters
+    ----------
+    centred : ndarray of shape (n_frames, n_dims)
+        The capture minus its mean (``D~`` transposed).
+    tol : Tolerances
+        ``eigen_rel`` sets which eigenvalues count as zero (rank of the capture).
+
+    Returns
+    -------
+    eigenvalues : ndarray of shape (rank,)
+        Non-zero eigenvalues, descending.
+    eigenvectors : ndarray of shape (rank, n_dims)
+        Unit eigenfaces as rows, with deterministic signs.
+    method : str
+        ``"covariance"`` or ``"gram"``.
+    """
+    n_frames, n_dims = centred.shape
+    if n_dims <= n_frames:
+        method = "covariance"
+        values, vectors = np.linalg.eigh(centred.T @ centred / n_frames)
+        values, vectors = values[::-1], vectors[:, ::-1].T
+    else:
+        method = "gram"
+        values, frame_vectors = np.linalg.eigh(centred @ centred.T / n_frames)
+        values, frame_vectors = values[::-1], frame_vectors[:, ::-1]
+    keep = values > tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, dtype=bool)
+    values = values[keep]
+    if method == "gram":
+        # C e = lambda e with e = D~^T u / sqrt(L lambda), for each Gram eigenpair (lambda, u).
+        vectors = (centred.T @ frame_vectors[:, keep]).T / np.sqrt(n_frames * values)[:, None]
+    else:
+        vectors = vectors[keep]
+    return values, flip_signs(vectors), method
+
+
+def n_components_for_coverage(explained_variance_ratio: np.ndarray, coverage: float) -> int:
+    """Smallest ``m`` with ``sum_{i<=m} lambda_i / sum_i lambda_i >= coverage`` (section 4).
+
+    Parameters
+    ----------
+    explained_variance_ratio : ndarray of shape (rank,)
+        ``lambda_i / sum lambda``, descending.
+    coverage : float
+        Threshold in (0, 1]; the paper used 0.995.
+
+    Returns
+    -------
+    int
+    """
+    if not 0.0 < coverage <= 1.0:
+        raise WorkbenchError(f"coverage must be in (0, 1], got {coverage}")
+    cumulative = np.cumsum(explained_variance_ratio)
+    # Round-off can leave the full sum a hair below 1; the last component always reaches full coverage.
+    reached = np.flatnonzero(cumulative >= coverage - 1e-12)
+    return int(reached[0]) + 1 if reached.size else len(cumulative)
+
+
+class Eigenfaces:
+    """PCA of a capture with ``m`` chosen by coverage or fixed: the eigenfaces ``E^PCA`` (eq. 2).
+
+    Parameters
+    ----------
+    coverage : float, default 0.995
+        Keep the smallest ``m`` whose cumulative explained variance reaches this (ignored when
+        ``n_components`` is given).
+    n_components : int or None
+        Fixed ``m``; must not exceed the rank of the capture.
+    tol : Tolerances
+
+    Attributes
+    ----------
+    mean_ : ndarray of shape (n_dims,)
+        The capture mean ``mu`` (of whatever the capture holds; the workbench fits displacements from neutral).
+    components_ : ndarray of shape (m, n_dims)
+        Orthonormal eigenfaces, largest variance first.
+    explained_variance_ : ndarray of shape (rank,)
+        All non-zero eigenvalues of the covariance, descending.
+    explained_variance_ratio_ : ndarray of shape (rank,)
+    n_components_ : int
+    coverage_ : float
+        Cumulative explained variance of the kept components.
+    method_ : str
+        Which matrix was decomposed (``"covariance"`` or ``"gram"``).
+    """
+
+    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, tol: Tolerances = TOL):
+        self.coverage = coverage
+        self.n_components = n_components
+        self.tol = tol
+
+    def fit(self, capture) -> "Eigenfaces":
+        """Fit on a capture.
+
+        Parameters
+        ----------
+        capture : array-like of shape (n_frames, n_dims)
+
+        Returns
+        -------
+        self
+        """
+        capture = _check_matrix("capture", capture)
+        if capture.shape[0] < 2:
+            raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
+        if self.n_components is None and not 0.0 < self.coverage <= 1.0:
+            raise WorkbenchError(f"coverage must be in (0, 1], got {self.coverage}")
+        mean = capture.mean(axis=0)
+        values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
+        if values.size == 0:
+            raise WorkbenchError("capture has no variance: every frame is the same")
+        ratio = values / values.sum()
+        if self.n_components is None:
+            m = n_components_for_coverage(ratio, self.coverage)
+        else:
+            m = int(self.n_components)
+            if not 1 <= m <= values.size:
+                raise WorkbenchError(
+                    f"n_components must be between 1 and the capture's rank {values.size}, got {self.n_components}")
+        self.mean_ = mean
+        self.components_ = vectors[:m]
+        self.explained_variance_ = values
+        self.explained_variance_ratio_ = ratio
+        self.n_components_ = m
+        self.coverage_ = float(ratio[:m].sum())
+        self.method_ = method
+        return self
+
+    def _check_fitted(self):
+        if not hasattr(self, "components_"):
+            raise WorkbenchError("Eigenfaces is not fitted yet: call fit(capture) first")
+
+    def reconstruct(self, frames) -> np.ndarray:
+        """PCA reconstruction: the mean plus the orthogonal projection onto the eigenfaces.
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+
+        Returns
+        -------
+        ndarray of shape (n_frames, n_dims)
+        """
+        self._check_fitted()
+        frames = _check_matrix("frames", frames, self.mean_.shape[0])
+        coefficients = (frames - self.mean_) @ self.components_.T
+        return self.mean_ + coefficients @ self.components_
+
+
+def pca_to_qe_weights(hand: np.ndarray, components: np.ndarray, mean: np.ndarray,
+                      projection: str = "affine") -> np.ndarray:
+    """``w_ij = e_j^PCA . (e_i^H - mu)`` (eq. 3), or ``e_j^PCA . e_i^H`` for the linear reading.
+
+    Parameters
+    ----------
+    hand : ndarray of shape (n_shapes, n_dims)
+        Hand-made shapes as displacements from neutral.
+    components : ndarray of shape (m, n_dims)
+        Orthonormal eigenfaces.
+    mean : ndarray of shape (n_dims,)
+        Capture mean ``mu`` in the same displacement space as ``hand``.
+    projection : {"affine", "linear"}
+        ``affine`` projects through ``mu`` exactly as eq. 3-4 are written; ``linear`` projects through the
+        origin of displacement space (the neutral face), ignoring ``mu``.
+
+    Returns
+    -------
+    ndarray of shape (n_shapes, m)
+        ``W^{PCA-to-QE}``.
+    """
+    if projection not in PROJECTIONS:
+        raise WorkbenchError(f"projection must be one of {PROJECTIONS}, got {projection!r}")
+    offset = mean if projection == "affine" else np.zeros_like(mean)
+    return (hand - offset) @ components.T
+
+
+def quasi_eigen_faces(weights: np.ndarray, components: np.ndarray, mean: np.ndarray,
+                      projection: str = "affine") -> np.ndarray:
+    """``e_i^QE = mu + sum_j w_ij e_j^PCA`` (eq. 4), or without ``mu`` for the linear reading.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (n_shapes, m)
+        ``W^{PCA-to-QE}`` from :func:`pca_to_qe_weights`.
+    components : ndarray of shape (m, n_dims)
+    mean : ndarray of shape (n_dims,)
+    projection : {"affine", "linear"}
+
+    Returns
+    -------
+    ndarray of shape (n_shapes, n_dims)
+        Quasi-eigen faces as displacements from neutral.
+    """
+    if projection not in PROJECTIONS:
+        raise WorkbenchError(f"projection must be one of {PROJECTIONS}, got {projection!r}")
+    projected = weights @ components
+    return mean + projected if projection == "affine" else projected
+
+
+def empty_axes(weights: np.ndarray, threshold) -> np.ndarray:
+    """Post-treatment test: axes ``j`` with ``sum_i |w_ij| < epsilon`` are left empty by the quasi-eigen basis.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (n_shapes, m)
+        ``W^{PCA-to-QE}``.
+    threshold : float or ndarray of shape (m,)
+        ``epsilon`` in data units, one value or one per axis.
+
+    Returns
+    -------
+    ndarray of int
+        Indices of the empty axes, ascending.
+    """
+    return np.flatnonzero(np.abs(weights).sum(axis=0) < threshold)
+
+
+@dataclass(frozen=True)
+class QuasiEigenBasis:
+    """A quasi-eigen basis with what its construction found.
+
+    Attributes
+    ----------
+    shapes : ndarray of shape (n_shapes + n_appended, n_dims)
+        Quasi-eigen faces (displacements), then any appended eigenfaces.
+    names : tuple of str
+        Hand-shape names, then ``pca_<j>`` for appended axes (1-based ``j`` as in the paper).
+    weights : ndarray of shape (n_shapes, m)
+        ``W^{PCA-to-QE}`` (eq. 3).
+    projection : str
+    empty_axes : tuple of int
+        0-based indices of the eigenface axes the quasi-eigen faces leave empty.
+    appended_axes : tuple of int
+        The empty axes whose eigenfaces were appended to the basis.
+    axis_sums : ndarray of shape (m,)
+        ``sum_i |w_ij|`` per axis.
+    thresholds : ndarray of shape (m,)
+        ``epsilon`` per axis in data units.
+    """
+
+    shapes: np.ndarray
+    names: tuple[str, ...]
+    weights: np.ndarray
+    projection: str
+    empty_axes: tuple[int, ...]
+    appended_axes: tuple[int, ...]
+    axis_sums: np.ndarray
+    thresholds: np.ndarray
+
+
+def build_quasi_eigen_basis(hand, names, eigenfaces: Eigenfaces, *, projection: str = "affine",
+                            empty_axis_eps: float = 0.05, empty_axis_scale: str = "axis_std",
+                            append_empty_axes: bool = False) -> QuasiEigenBasis:
+    """Project the hand basis onto the eigenface hyperplane (eq. 3-4) and apply the post-treatment.
+
+    Parameters
+    ----------
+    hand : array-like of shape (n_shapes, n_dims)
+        Hand-made shapes as displacements from neutral.
+    names : sequence of str
+        One name per hand shape.
+    eigenfaces : Eigenfaces
+        Fitted on the training capture.
+    projection : {"affine", "linear"}
+    empty_axis_eps : float
+        ``epsilon`` of the post-treatment. With ``empty_axis_scale="axis_std"`` it is a fraction of each axis's
+        standard deviation in the capture (``sqrt(lambda_j)``), so the test does not depend on units; with
+        ``"absolute"`` it is in data units, as the paper writes it.
+    empty_axis_scale : {"axis_std", "absolute"}
+    append_empty_axes : bool
+        Append the eigenface of every empty axis to the basis (the paper's simplest remedy).
+
+    Returns
+    -------
+    QuasiEigenBasis
+    """
+    eigenfaces._check_fitted()
+    hand = _check_matrix("hand basis", hand, eigenfaces.mean_.shape[0])
+    names = tuple(str(name) for name in names)
+    if len(names) != hand.shape[0]:
+        raise WorkbenchError(f"hand basis has {hand.shape[0]} shapes but {len(names)} names")
+    if empty_axis_scale not in EMPTY_AXIS_SCALES:
+        raise WorkbenchError(f"empty_axis_scale must be one of {EMPTY_AXIS_SCALES}, got {empty_axis_scale!r}")
+    if not empty_axis_eps >= 0:
+        raise WorkbenchError(f"empty_axis_eps must be >= 0, got {empty_axis_eps}")
+    components, mean = eigenfaces.components_, eigenfaces.mean_
+    weights = pca_to_qe_weights(hand, components, mean, projection)
+    shapes = quasi_eigen_faces(weights, components, mean, projection)
+    m = components.shape[0]
+    if empty_axis_scale == "axis_std":
+        thresholds = empty_axis_eps * np.sqrt(eigenfaces.explained_variance_[:m])
+    else:
+        thresholds = np.full(m, float(empty_axis_eps))
+    empty = empty_axes(weights, thresholds)
+    appended = empty if append_empty_axes else np.array([], dtype=int)
+    if appended.size:
+        shapes = np.vstack([shapes, components[appended]])
+        names = names + tuple(f"pca_{j + 1}" for j in appended)
+    return QuasiEigenBasis(shapes=shapes, names=names, weights=weights, projection=projection,
+                           empty_axes=tuple(int(j) for j in empty), appended_axes=tuple(int(j) for j in appended),
+                           axis_sums=np.abs(weights).sum(axis=0), thresholds=thresholds)
