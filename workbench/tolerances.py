@@ -17,12 +17,16 @@ class Tolerances:
         Iterations of the batched active-set solver before a frame falls back to SciPy's per-frame solver.
     zero_displacement : float
         Frames whose displacement norm is below this (in data units) have no per-frame displacement alpha.
+    gram_ridge : float
+        The constrained weight solvers add ``gram_ridge * largest eigenvalue`` to the diagonal of the gram
+        matrix when its smallest eigenvalue is at or below that (duplicate or nearly collinear shapes).
     """
 
     eigen_rel: float = 1e-12
     kkt: float = 1e-9
     active_set_max_iter: int = 60
     zero_displacement: float = 1e-9
+    gram_ridge: float = 1e-12
 
 
 TOL = Tolerances()

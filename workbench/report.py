@@ -1,0 +1,142 @@
+"""Alpha tables: tidy DataFrame from a study's rows, and its Markdown text."""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import pandas as pd
+
+from workbench.errors import WorkbenchError
+
+TABLE_COLUMNS = ("basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
+                 "alpha_disp_mean", "alpha_disp_pooled", "rms_mm", "paper_alpha")
+FLOAT_FORMATS = {"coverage": "{:.4f}", "alpha_abs_mean": "{:.3f}", "alpha_abs_pooled": "{:.3f}",
+                 "alpha_disp_mean": "{:.2f}", "alpha_disp_pooled": "{:.2f}", "rms_mm": "{:.3f}",
+                 "paper_alpha": "{:.2f}"}
+
+
+def alpha_table(rows: Sequence, *, m: int, coverage: float, paper_alpha: Mapping[str, float]) -> pd.DataFrame:
+    """One row per (basis, solver) with every alpha variant and the paper's value beside it.
+
+    Parameters
+    ----------
+    rows : sequence of workbench.pipeline.Row
+    m : int
+        Number of eigenfaces.
+    coverage : float
+        Explained variance the ``m`` eigenfaces reach.
+    paper_alpha : mapping
+        The paper's alpha per basis label (``H``, ``QE``, ``PCA``); other labels get NaN.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``TABLE_COLUMNS``.
+    """
+    records = [{
+        "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
+        "m": m, "coverage": coverage,
+        "alpha_abs_mean": row.alpha.absolute_mean, "alpha_abs_pooled": row.alpha.absolute_pooled,
+        "alpha_disp_mean": row.alpha.displacement_mean, "alpha_disp_pooled": row.alpha.displacement_pooled,
+        "rms_mm": row.alpha.rms_mm, "paper_alpha": paper_alpha.get(row.basis, math.nan),
+    } for row in rows]
+    return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS))
+
+
+def format_cell(column: str, value) -> str:
+    """Text of one table cell: fixed decimals per column, ``-`` for a missing number."""
+    if isinstance(value, float) and math.isnan(value):
+        return "-"
+    if column in FLOAT_FORMATS:
+        return FLOAT_FORMATS[column].format(value)
+    return str(value)
+
+
+def markdown_table(table: pd.DataFrame) -> str:
+    """GitHub-flavoured Markdown of a table, numbers right-aligned.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+
+    Returns
+    -------
+    str
+        Lines joined by newlines, with a trailing newline.
+    """
+    columns = list(table.columns)
+    cells = [[format_cell(column, value) for column, value in zip(columns, row)]
+             for row in table.itertuples(index=False)]
+    numeric = [pd.api.types.is_numeric_dtype(table[column]) for column in columns]
+    widths = [max([len(column)] + [len(line[i]) for line in cells]) for i, column in enumerate(columns)]
+
+    def line(values):
+        padded = [value.rjust(width) if is_number else value.ljust(width)
+                  for value, width, is_number in zip(values, widths, numeric)]
+        return "| " + " | ".join(padded) + " |"
+
+    rule = "|" + "|".join(("-" * (width + 1) + ":") if is_number else ("-" * (width + 2))
+                          for width, is_number in zip(widths, numeric)) + "|"
+    return "\n".join([line(columns), rule] + [line(values) for values in cells]) + "\n"
+
+
+def study_header(result, cfg: Mapping) -> str:
+    """The lines printed above the alpha table: data, m, coverage, and the choices the paper leaves open."""
+    capture, eigenfaces = result.capture, result.eigenfaces
+    paper = cfg["paper"]
+    basis = cfg["basis"]
+    empty = "; ".join(
+        f"{projection}: {[j + 1 for j in qe.empty_axes] or 'none'}"
+        + (f" (appended {[j + 1 for j in qe.appended_axes]})" if qe.appended_axes else "")
+        for projection, qe in result.quasi_eigen.items())
+    rule = (f"coverage threshold {basis['coverage']}" if basis["n_components"] is None
+            else f"fixed m = {basis['n_components']}")
+    lines = [
+        f"Study '{cfg['study']}' on {capture.name}",
+        f"  {len(capture.train)} training frames, {len(capture.eval)} evaluated, {capture.n_points} points, "
+        f"{len(capture.hand_names)} hand shapes",
+        f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} ({rule}); "
+        f"paper: m = {paper['m']} at {paper['coverage']}",
+        f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {capture.origin}; "
+        "disp: 100|d*-d|/|d*|; mean: of per-frame values; pooled: over all frames",
+        f"  QE: affine projects through the capture mean (eq. 3-4 as written), linear through the neutral face; "
+        f"empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
+        "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values, for comparison only",
+    ]
+    lines += [f"  note: {note}" for note in capture.notes]
+    return "\n".join(lines) + "\n"
+
+
+def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float]) -> str:
+    """One line per solver: the configured alpha of H, QE and PCA beside the paper's values.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`alpha_table`.
+    metric : mapping
+        The ``metric`` config group: ``headline_normalisation`` (absolute | displacement) and
+        ``headline_aggregate`` (mean | pooled).
+    paper_alpha : mapping
+        The paper's alpha per basis label.
+
+    Returns
+    -------
+    str
+    """
+    short = {"absolute": "abs", "displacement": "disp"}
+    normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
+    if normalisation not in short or aggregate not in ("mean", "pooled"):
+        raise WorkbenchError(f"metric.headline_normalisation must be absolute|displacement and headline_aggregate "
+                         f"mean|pooled, got {normalisation!r}, {aggregate!r}")
+    column = f"alpha_{short[normalisation]}_{aggregate}"
+    pca = table.loc[table["basis"] == "PCA", column].iloc[0]
+    lines = []
+    for solver in table.loc[table["basis"] != "PCA", "solver"].unique():
+        rows = table[table["solver"] == solver].set_index("basis")[column]
+        parts = [f"{basis} {rows[basis]:.2f}" for basis in rows.index]
+        lines.append(f"{column} with {solver}: " + ", ".join(parts) + f", PCA {pca:.2f}")
+    paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
+    lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
+    return "\n".join(lines) + "\n"
