@@ -1,0 +1,129 @@
+"""The paper study end to end: records, the table, independent recomputation, determinism, the CLI."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.optimize import lsq_linear
+
+from workbench.cli import run
+from workbench.config import REPO_ROOT, compose
+
+SMALL = ["dataset.n_frames=4000", "save_inputs=true"]  # 33 s of performance: enough motion above the noise
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    output = tmp_path_factory.mktemp("paper")
+    text = run(compose("paper", SMALL), output)
+    return output, text
+
+
+def test_run_writes_a_complete_record(small_run):
+    output, text = small_run
+    for name in ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.json", "timings.json",
+                 "inputs.npz", "done"):
+        assert (output / name).is_file(), name
+    assert not list(output.glob(".*.tmp"))
+    metrics = json.loads((output / "metrics.json").read_text())
+    assert metrics["dataset"]["n_points"] == 66
+    assert "synthetic" in metrics["dataset"]["name"]
+    assert len(metrics["intuitiveness"]) == 2 * 18
+    assert (output / "alpha_table.md").read_text() == text
+    assert "paper: m = 18 at 0.995" in text
+
+
+def test_table_has_every_basis_and_solver(small_run):
+    table = pd.read_csv(small_run[0] / "alpha_table.csv")
+    assert list(table["basis"]) == ["H", "QE", "QE-linear"] * 3 + ["PCA"]
+    assert list(table["solver"]) == ["lstsq"] * 3 + ["nnls"] * 3 + ["box"] * 3 + ["projection"]
+    assert table.loc[table["basis"] == "QE", "paper_alpha"].iloc[0] == 0.72
+    assert (table["alpha_abs_mean"] >= 0).all()
+
+
+def test_quasi_eigen_beats_hand_basis_under_least_squares(small_run):
+    table = pd.read_csv(small_run[0] / "alpha_table.csv").set_index(["basis", "solver"])
+    for column in ("alpha_abs_mean", "alpha_disp_pooled"):
+        assert table.loc[("QE", "lstsq"), column] < 0.6 * table.loc[("H", "lstsq"), column]
+
+
+def test_table_recomputed_independently_from_inputs(small_run):
+    """Recompute H, QE and PCA rows from inputs.npz with plain NumPy/SciPy (SVD, per-frame lsq_linear)."""
+    output, _ = small_run
+    data = np.load(output / "inputs.npz", allow_pickle=False)
+    table = pd.read_csv(output / "alpha_table.csv").set_index(["basis", "solver"])
+    train, evaluate, neutral, hand = data["train"], data["eval"], data["neutral"], data["hand"]
+    mean = train.mean(axis=0)
+    _, singular, vt = np.linalg.svd(train - mean, full_matrices=False)
+    variance = singular ** 2
+    m = int(np.searchsorted(np.cumsum(variance) / variance.sum(), 0.995) + 1)
+    assert m == table["m"].iloc[0]
+    axes = vt[:m]
+    np.testing.assert_allclose(np.abs(axes @ data["components"].T), np.eye(m), atol=1e-6)
+    quasi_eigen = mean + ((hand - mean) @ axes.T) @ axes
+
+    def alpha_abs_mean(reconstruction):
+        target = neutral + evaluate
+        return np.mean(100 * np.linalg.norm(target - (neutral + reconstruction), axis=1)
+                       / np.linalg.norm(target, axis=1))
+
+    pca = mean + ((evaluate - mean) @ axes.T) @ axes
+    assert alpha_abs_mean(pca) == pytest.approx(table.loc[("PCA", "projection"), "alpha_abs_mean"], rel=1e-6)
+    for label, basis in (("H", hand), ("QE", quasi_eigen)):
+        weights = np.linalg.lstsq(basis.T, evaluate.T, rcond=None)[0].T
+        assert alpha_abs_mean(weights @ basis) == pytest.approx(table.loc[(label, "lstsq"), "alpha_abs_mean"],
+                                                                rel=1e-6)
+        boxed = np.array([lsq_linear(basis.T, frame, bounds=(0, 1), method="bvls", tol=1e-12).x
+                          for frame in evaluate])
+        assert alpha_abs_mean(boxed @ basis) == pytest.approx(table.loc[(label, "box"), "alpha_abs_mean"],
+                                                              rel=1e-5)
+
+
+def test_same_config_gives_identical_tables(small_run, tmp_path):
+    run(compose("paper", SMALL), tmp_path)
+    assert (tmp_path / "alpha_table.csv").read_bytes() == (small_run[0] / "alpha_table.csv").read_bytes()
+
+
+def run_cli(*overrides, cwd):
+    return subprocess.run([sys.executable, "-m", "workbench", *overrides], capture_output=True, text=True,
+                          cwd=cwd, timeout=600, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+
+
+def test_cli_runs_and_prints_the_table(tmp_path):
+    result = run_cli("dataset.n_frames=300", "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    first_cells = [line.split("|")[1].strip() for line in result.stdout.splitlines() if line.startswith("|")]
+    assert first_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(first_cells)
+    assert (tmp_path / "run" / "done").is_file()
+
+
+def test_cli_bad_parameter_is_one_line(tmp_path):
+    result = run_cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}",
+                     cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.strip() == "workbench: error: coverage must be in (0, 1], got 1.5"
+    assert not (tmp_path / "run" / "done").exists()
+
+
+def test_cli_multirun_sweeps(tmp_path):
+    result = run_cli("-m", "dataset.n_frames=300", "solver=box", "basis.coverage=0.99,0.995",
+                     f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    coverages = sorted(float(pd.read_csv(tmp_path / "sweep" / str(job) / "alpha_table.csv")["coverage"][0])
+                       for job in (0, 1))
+    assert coverages[0] <= coverages[1]
+
+
+@pytest.mark.slow
+def test_paper_scale_default_study(tmp_path):
+    """The README's run command at paper scale (35,000 frames, 66 markers)."""
+    result = run_cli(f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    table = pd.read_csv(tmp_path / "run" / "alpha_table.csv").set_index(["basis", "solver"])
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert len(metrics["dataset"]["hand_names"]) == 18 and metrics["dataset"]["n_eval_frames"] == 35000
+    assert table.loc[("QE", "lstsq"), "alpha_abs_mean"] < 0.6 * table.loc[("H", "lstsq"), "alpha_abs_mean"]
