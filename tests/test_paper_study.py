@@ -30,9 +30,9 @@ def test_run_writes_a_complete_record(small_run):
         assert (output / name).is_file(), name
     assert not list(output.glob(".*.tmp"))
     metrics = json.loads((output / "metrics.json").read_text())
-    assert metrics["dataset"]["n_points"] == 66
+    assert list(metrics["data"]) == ["markers"] and metrics["data"]["markers"]["n_points"] == 66
     assert "synthetic" in metrics["dataset"]["name"]
-    assert len(metrics["intuitiveness"]) == 2 * 18
+    assert len(metrics["data"]["markers"]["intuitiveness"]) == 2 * 18
     assert (output / "alpha_table.md").read_text() == text
     assert "paper: m = 18 at 0.995" in text
 
@@ -40,6 +40,7 @@ def test_run_writes_a_complete_record(small_run):
 def test_table_has_every_basis_and_solver(small_run):
     table = pd.read_csv(small_run[0] / "alpha_table.csv")
     assert list(table["basis"]) == ["H", "QE", "QE-linear"] * 3 + ["PCA"]
+    assert set(table["data"]) == {"markers"}
     assert list(table["solver"]) == ["lstsq"] * 3 + ["nnls"] * 3 + ["box"] * 3 + ["projection"]
     assert table.loc[table["basis"] == "QE", "paper_alpha"].iloc[0] == 0.72
     assert (table["alpha_abs_mean"] >= 0).all()
@@ -96,8 +97,8 @@ def run_cli(*overrides, cwd):
 def test_cli_runs_and_prints_the_table(tmp_path):
     result = run_cli("dataset.n_frames=300", "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    first_cells = [line.split("|")[1].strip() for line in result.stdout.splitlines() if line.startswith("|")]
-    assert first_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(first_cells)
+    basis_cells = [line.split("|")[2].strip() for line in result.stdout.splitlines() if line.startswith("|")]
+    assert basis_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(basis_cells)
     assert (tmp_path / "run" / "done").is_file()
 
 
@@ -125,5 +126,17 @@ def test_paper_scale_default_study(tmp_path):
     assert result.returncode == 0, result.stderr
     table = pd.read_csv(tmp_path / "run" / "alpha_table.csv").set_index(["basis", "solver"])
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
-    assert len(metrics["dataset"]["hand_names"]) == 18 and metrics["dataset"]["n_eval_frames"] == 35000
+    assert len(metrics["dataset"]["hand_names"]) == 18 and metrics["data"]["markers"]["n_eval_frames"] == 35000
     assert table.loc[("QE", "lstsq"), "alpha_abs_mean"] < 0.6 * table.loc[("H", "lstsq"), "alpha_abs_mean"]
+
+
+def test_markers_and_mesh_in_one_run(tmp_path):
+    """dataset.train_on as a list runs the method on each data variant of the same take, one table."""
+    text = run(compose("paper", ["dataset.n_frames=600", "dataset.train_on=[markers,mesh]", "solver=lstsq",
+                                 "save_inputs=true"]), tmp_path)
+    table = pd.read_csv(tmp_path / "alpha_table.csv")
+    assert list(table["data"]) == ["markers"] * 4 + ["mesh"] * 4
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["data"]["markers"]["n_points"] == 66 and metrics["data"]["mesh"]["n_points"] == 4200
+    assert (tmp_path / "inputs_markers.npz").is_file() and (tmp_path / "inputs_mesh.npz").is_file()
+    assert "data 'mesh': 600 training frames" in text and "mesh: alpha_abs_mean with lstsq" in text

@@ -22,28 +22,28 @@ PAPER = {"H": 5.2, "QE": 0.72, "PCA": 0.62}
 
 
 def test_markdown_table_exact_text():
-    table = alpha_table(ROWS, m=12, coverage=0.99512, paper_alpha={"H": 5.2, "PCA": 0.62})
+    table = alpha_table(ROWS, data="markers", m=12, coverage=0.99512, paper_alpha={"H": 5.2, "PCA": 0.62})
     expected = (
-        "| basis | projection | solver     |  n |  m | coverage | alpha_abs_mean | alpha_abs_pooled "
+        "| data    | basis | projection | solver     |  n |  m | coverage | alpha_abs_mean | alpha_abs_pooled "
         "| alpha_disp_mean | alpha_disp_pooled | rms_mm | paper_alpha |\n"
-        "|-------|------------|------------|---:|---:|---------:|---------------:|-----------------:"
+        "|---------|-------|------------|------------|---:|---:|---------:|---------------:|-----------------:"
         "|----------------:|------------------:|-------:|------------:|\n"
-        "| H     | -          | box        | 18 | 12 |   0.9951 |          5.123 |            5.636 "
+        "| markers | H     | -          | box        | 18 | 12 |   0.9951 |          5.123 |            5.636 "
         "|           40.00 |             36.00 |  3.500 |        5.20 |\n"
-        "| QE    | affine     | box        | 18 | 12 |   0.9951 |          0.700 |            0.770 "
+        "| markers | QE    | affine     | box        | 18 | 12 |   0.9951 |          0.700 |            0.770 "
         "|            6.25 |              5.62 |  0.410 |           - |\n"
-        "| PCA   | -          | projection | 12 | 12 |   0.9951 |          0.610 |            0.671 "
+        "| markers | PCA   | -          | projection | 12 | 12 |   0.9951 |          0.610 |            0.671 "
         "|            5.00 |              4.50 |  0.300 |        0.62 |\n")
     assert markdown_table(table) == expected
 
 
 def test_missing_paper_value_is_nan_in_the_frame():
-    table = alpha_table(ROWS, m=12, coverage=0.995, paper_alpha={})
+    table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha={})
     assert all(math.isnan(value) for value in table["paper_alpha"])
 
 
 def test_headline_exact_text():
-    table = alpha_table(ROWS, m=12, coverage=0.995, paper_alpha=PAPER)
+    table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
     text = headline(table, {"headline_normalisation": "absolute", "headline_aggregate": "mean"}, PAPER)
     assert text == ("alpha_abs_mean with box: H 5.12, QE 0.70, PCA 0.61\n"
                     "paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): "

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import hydra
 import numpy as np
+import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs, searchpath_override
@@ -49,26 +50,54 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
     started = time.time()
     plain = resolved_without_hydra(cfg)
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
-    result = run_study(plain)
-    eigenfaces = result.eigenfaces
-    table = alpha_table(result.rows, m=eigenfaces.n_components_, coverage=eigenfaces.coverage_,
-                        paper_alpha=plain["paper"]["alpha"])
-    text = (study_header(result, plain) + "\n" + markdown_table(table) + "\n"
-            + headline(table, plain["metric"], plain["paper"]["alpha"]))
+    results = run_study(plain)
+    paper_alpha = plain["paper"]["alpha"]
+    table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
+                                   coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
+                       for result in results], ignore_index=True)
+    text = (study_header(results, plain) + "\n" + markdown_table(table) + "\n"
+            + headline(table, plain["metric"], paper_alpha))
 
     output_dir = Path(output_dir)
     write_atomic(output_dir / "config.yaml", resolved_yaml)
     write_atomic(output_dir / "alpha_table.csv", table.to_csv(index=False))
     write_atomic(output_dir / "alpha_table.md", text)
-    capture = result.capture
+    capture = results[0].capture
+    rows = [result_row for result in results for result_row in result.rows]
     metrics = {
         "study": plain["study"],
         "config_hash": config_hash(resolved_yaml),
         "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
-                    "n_points": capture.n_points, "n_train_frames": len(capture.train),
-                    "n_eval_frames": len(capture.eval), "frame_rate": capture.frame_rate,
-                    "hand_names": list(capture.hand_names), "notes": list(capture.notes),
+                    "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
                     "provenance": capture.provenance},
+        "data": {result.data: data_metrics(result) for result in results},
+        "rows": [dict(table.iloc[i].to_dict(), solver_iterations=row.n_iterations,
+                      solver_fallback_frames=row.n_fallback_frames,
+                      solver_max_kkt_violation=row.max_kkt_violation,
+                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
+                 for i, row in enumerate(rows)],
+        "versions": versions(),
+        "git": git_state(REPO_ROOT),
+    }
+    write_json(output_dir / "metrics.json", metrics)
+    write_json(output_dir / "timings.json", dict(results[0].timings.seconds, total=time.time() - started))
+    if plain.get("save_inputs", False):
+        for result in results:
+            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data}.npz"
+            write_npz(output_dir / name, {
+                "train": result.capture.train, "eval": result.capture.eval, "neutral": result.capture.neutral,
+                "hand": result.capture.hand, "hand_names": np.array(result.capture.hand_names),
+                "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_})
+    write_atomic(output_dir / "done", "")
+    return text
+
+
+def data_metrics(result) -> dict:
+    """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
+    capture, eigenfaces = result.capture, result.eigenfaces
+    return {
+        "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
+        "notes": list(capture.notes),
         "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
                 "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
                 "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
@@ -77,23 +106,7 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
                                      "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
                         for projection, qe in result.quasi_eigen.items()},
         "intuitiveness": intuitiveness_table(result),
-        "rows": [dict(table.iloc[i].to_dict(), solver_iterations=row.n_iterations,
-                      solver_fallback_frames=row.n_fallback_frames,
-                      solver_max_kkt_violation=row.max_kkt_violation,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
-                 for i, row in enumerate(result.rows)],
-        "versions": versions(),
-        "git": git_state(REPO_ROOT),
     }
-    write_json(output_dir / "metrics.json", metrics)
-    write_json(output_dir / "timings.json", dict(result.timings.seconds, total=time.time() - started))
-    if plain.get("save_inputs", False):
-        write_npz(output_dir / "inputs.npz", {
-            "train": capture.train, "eval": capture.eval, "neutral": capture.neutral, "hand": capture.hand,
-            "hand_names": np.array(capture.hand_names), "mean": eigenfaces.mean_,
-            "components": eigenfaces.components_})
-    write_atomic(output_dir / "done", "")
-    return text
 
 
 @hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)
@@ -107,8 +120,26 @@ def _hydra_main(cfg: DictConfig) -> None:
     print(text + f"\nrecord: {output_dir}")
 
 
+# Subcommands other than running a study: name -> "module:function", the function taking the remaining
+# arguments (a list of str) and returning an exit code. Imported only when used.
+COMMANDS: dict[str, str] = {}
+
+
 def main() -> None:
-    """Entry point of the ``workbench`` command."""
+    """Entry point of the ``workbench`` command.
+
+    ``workbench [--config-name STUDY] [overrides...]`` runs a study through Hydra; ``workbench <command> ...``
+    runs one of :data:`COMMANDS`.
+    """
+    if len(sys.argv) > 1 and sys.argv[1] in COMMANDS:
+        import importlib
+
+        module, function = COMMANDS[sys.argv[1]].split(":")
+        try:
+            sys.exit(getattr(importlib.import_module(module), function)(sys.argv[2:]))
+        except WorkbenchError as error:
+            print(f"workbench {sys.argv[1]}: error: {error}", file=sys.stderr)
+            sys.exit(2)
     try:
         check_config_dirs()
     except WorkbenchError as error:

@@ -1,7 +1,8 @@
 """One run of the paper study: dataset -> bases -> solve -> metrics, returned as plain results.
 
-``run_study`` takes a plain mapping (a resolved config) and returns a :class:`StudyResult`; writing files is
-``workbench.record``'s job and printing is ``workbench.report``'s.
+``run_study`` takes a plain mapping (a resolved config) and returns one :class:`StudyResult` per data variant
+(``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record``'s job and printing is
+``workbench.report``'s.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from workbench.bases import Eigenfaces, build_quasi_eigen_basis
-from workbench.dataset import build_capture
+from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.errors import WorkbenchError
 from workbench.metrics import AlphaSummary, intuitiveness, summarise_alpha
@@ -56,6 +57,8 @@ class StudyResult:
 
     Attributes
     ----------
+    data : str
+        The data variant trained and evaluated on (``dataset.train_on``: ``markers``, ``mesh``, ...).
     capture : Capture
     eigenfaces : Eigenfaces
     quasi_eigen : dict
@@ -66,6 +69,7 @@ class StudyResult:
     timings : Timings
     """
 
+    data: str
     capture: Capture
     eigenfaces: Eigenfaces
     quasi_eigen: dict
@@ -87,8 +91,9 @@ def check_solver_config(name: str, solver: Mapping) -> dict:
     return {"kind": kind, "lower": lower, "upper": upper}
 
 
-def run_study(cfg: Mapping) -> StudyResult:
-    """Fit eigenfaces and quasi-eigen faces on the training frames and score every basis on the evaluated ones.
+def run_study(cfg: Mapping) -> list[StudyResult]:
+    """Build the data, then for each data variant fit eigenfaces and quasi-eigen faces on the training frames
+    and score every basis on the evaluated ones.
 
     Parameters
     ----------
@@ -97,15 +102,38 @@ def run_study(cfg: Mapping) -> StudyResult:
 
     Returns
     -------
-    StudyResult
+    list of StudyResult
+        One per ``dataset.train_on`` variant, in the configured order; they share one :class:`Timings`.
     """
     timings = Timings()
     solvers = {name: check_solver_config(name, spec) for name, spec in cfg["solver"].items()}
     if not solvers:
         raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
-    basis_cfg = cfg["basis"]
     with timings.stage("dataset"):
-        capture = build_capture(cfg["dataset"])
+        captures = build_captures(cfg["dataset"])
+    return [run_on_capture(data, capture, cfg["basis"], solvers, timings) for data, capture in captures.items()]
+
+
+def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
+                   timings: Timings) -> StudyResult:
+    """The paper's method on one capture: eigenfaces, quasi-eigen faces, weights of every basis and solver, alpha.
+
+    Parameters
+    ----------
+    data : str
+        Name of the data variant, kept in the result.
+    capture : Capture
+    basis_cfg : mapping
+        The ``basis`` config group.
+    solvers : mapping
+        Solver name -> keyword arguments of :func:`workbench.solve.solve_weights` (see :func:`check_solver_config`).
+    timings : Timings
+        Stage times are added to it.
+
+    Returns
+    -------
+    StudyResult
+    """
     with timings.stage("pca"):
         eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
         eigenfaces.fit(capture.train)
@@ -135,7 +163,7 @@ def run_study(cfg: Mapping) -> StudyResult:
         summary = summarise_alpha(capture.neutral, capture.eval, eigenfaces.reconstruct(capture.eval))
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
-    return StudyResult(capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
+    return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
                        weights=weights, timings=timings)
 
 

@@ -9,19 +9,22 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 
-TABLE_COLUMNS = ("basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
+TABLE_COLUMNS = ("data", "basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
                  "alpha_disp_mean", "alpha_disp_pooled", "rms_mm", "paper_alpha")
 FLOAT_FORMATS = {"coverage": "{:.4f}", "alpha_abs_mean": "{:.3f}", "alpha_abs_pooled": "{:.3f}",
                  "alpha_disp_mean": "{:.2f}", "alpha_disp_pooled": "{:.2f}", "rms_mm": "{:.3f}",
                  "paper_alpha": "{:.2f}"}
 
 
-def alpha_table(rows: Sequence, *, m: int, coverage: float, paper_alpha: Mapping[str, float]) -> pd.DataFrame:
+def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
+                paper_alpha: Mapping[str, float]) -> pd.DataFrame:
     """One row per (basis, solver) with every alpha variant and the paper's value beside it.
 
     Parameters
     ----------
     rows : sequence of workbench.pipeline.Row
+    data : str
+        The data variant the rows were computed on (``markers``, ``mesh``, ...).
     m : int
         Number of eigenfaces.
     coverage : float
@@ -35,7 +38,7 @@ def alpha_table(rows: Sequence, *, m: int, coverage: float, paper_alpha: Mapping
         Columns ``TABLE_COLUMNS``.
     """
     records = [{
-        "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
+        "data": data, "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
         "m": m, "coverage": coverage,
         "alpha_abs_mean": row.alpha.absolute_mean, "alpha_abs_pooled": row.alpha.absolute_pooled,
         "alpha_disp_mean": row.alpha.displacement_mean, "alpha_disp_pooled": row.alpha.displacement_pooled,
@@ -81,30 +84,45 @@ def markdown_table(table: pd.DataFrame) -> str:
     return "\n".join([line(columns), rule] + [line(values) for values in cells]) + "\n"
 
 
-def study_header(result, cfg: Mapping) -> str:
-    """The lines printed above the alpha table: data, m, coverage, and the choices the paper leaves open."""
-    capture, eigenfaces = result.capture, result.eigenfaces
-    paper = cfg["paper"]
-    basis = cfg["basis"]
-    empty = "; ".join(
-        f"{projection}: {[j + 1 for j in qe.empty_axes] or 'none'}"
-        + (f" (appended {[j + 1 for j in qe.appended_axes]})" if qe.appended_axes else "")
-        for projection, qe in result.quasi_eigen.items())
+def study_header(results: Sequence, cfg: Mapping) -> str:
+    """The lines printed above the alpha table: data, m, coverage, and the choices the paper leaves open.
+
+    Parameters
+    ----------
+    results : sequence of workbench.pipeline.StudyResult
+        One per data variant, all from the same dataset.
+    cfg : mapping
+        The resolved study config.
+
+    Returns
+    -------
+    str
+    """
+    paper, basis = cfg["paper"], cfg["basis"]
+    first = results[0].capture
     rule = (f"coverage threshold {basis['coverage']}" if basis["n_components"] is None
             else f"fixed m = {basis['n_components']}")
     lines = [
-        f"Study '{cfg['study']}' on {capture.name}",
-        f"  {len(capture.train)} training frames, {len(capture.eval)} evaluated, {capture.n_points} points, "
-        f"{len(capture.hand_names)} hand shapes",
-        f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} ({rule}); "
-        f"paper: m = {paper['m']} at {paper['coverage']}",
-        f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {capture.origin}; "
+        f"Study '{cfg['study']}' on {first.name}",
+        f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "
         "disp: 100|d*-d|/|d*|; mean: of per-frame values; pooled: over all frames",
-        f"  QE: affine projects through the capture mean (eq. 3-4 as written), linear through the neutral face; "
-        f"empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
+        "  QE: affine projects through the capture mean (eq. 3-4 as written), linear through the neutral face",
         "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values, for comparison only",
     ]
-    lines += [f"  note: {note}" for note in capture.notes]
+    for result in results:
+        capture, eigenfaces = result.capture, result.eigenfaces
+        empty = "; ".join(
+            f"{projection}: {[j + 1 for j in qe.empty_axes] or 'none'}"
+            + (f" (appended {[j + 1 for j in qe.appended_axes]})" if qe.appended_axes else "")
+            for projection, qe in result.quasi_eigen.items())
+        lines += [
+            f"data '{result.data}': {len(capture.train)} training frames, {len(capture.eval)} evaluated, "
+            f"{capture.n_points} points, {len(capture.hand_names)} hand shapes",
+            f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} ({rule}); "
+            f"paper: m = {paper['m']} at {paper['coverage']}",
+            f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
+        ]
+        lines += [f"  note: {note}" for note in capture.notes]
     return "\n".join(lines) + "\n"
 
 
@@ -131,12 +149,15 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
         raise WorkbenchError(f"metric.headline_normalisation must be absolute|displacement and headline_aggregate "
                          f"mean|pooled, got {normalisation!r}, {aggregate!r}")
     column = f"alpha_{short[normalisation]}_{aggregate}"
-    pca = table.loc[table["basis"] == "PCA", column].iloc[0]
     lines = []
-    for solver in table.loc[table["basis"] != "PCA", "solver"].unique():
-        rows = table[table["solver"] == solver].set_index("basis")[column]
-        parts = [f"{basis} {rows[basis]:.2f}" for basis in rows.index]
-        lines.append(f"{column} with {solver}: " + ", ".join(parts) + f", PCA {pca:.2f}")
+    several = table["data"].nunique() > 1
+    for data, part in table.groupby("data", sort=False):
+        pca = part.loc[part["basis"] == "PCA", column].iloc[0]
+        for solver in part.loc[part["basis"] != "PCA", "solver"].unique():
+            rows = part[part["solver"] == solver].set_index("basis")[column]
+            parts = [f"{basis} {rows[basis]:.2f}" for basis in rows.index]
+            lines.append((f"{data}: " if several else "") + f"{column} with {solver}: " + ", ".join(parts)
+                         + f", PCA {pca:.2f}")
     paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
     lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
     return "\n".join(lines) + "\n"

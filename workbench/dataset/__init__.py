@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -43,8 +43,18 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
     return frames[:-n_eval], frames[-n_eval:]
 
 
-def build_synthetic(cfg: Mapping) -> Capture:
-    """The synthetic actor's capture: stabilised markers (or the dense mesh) as displacements from rest.
+def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
+    """``dataset.train_on`` as a list of distinct names (one name or a list of them), each in ``allowed``."""
+    value = cfg.get("train_on", allowed[0])
+    names = [value] if isinstance(value, str) else list(value)
+    if not names or any(name not in allowed for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"dataset.train_on must be one of {tuple(allowed)} or a list of distinct ones, "
+                             f"got {value!r}")
+    return names
+
+
+def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
+    """The synthetic actor's capture: stabilised markers and/or the dense mesh, as displacements from rest.
 
     Parameters
     ----------
@@ -53,19 +63,22 @@ def build_synthetic(cfg: Mapping) -> Capture:
 
     Returns
     -------
-    Capture
+    dict
+        ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, all from the same take.
     """
     from workbench.dataset.synthetic import make_synthetic_take
 
-    train_on = cfg.get("train_on", "markers")
-    if train_on not in TRAIN_ON:
-        raise WorkbenchError(f"dataset.train_on must be one of {TRAIN_ON}, got {train_on!r}")
+    names = train_on_list(cfg, TRAIN_ON)
     take = make_synthetic_take(
         n_frames=cfg["n_frames"], frame_rate=cfg["frame_rate"], n_face_markers=cfg["n_face_markers"],
         n_head_markers=cfg["n_head_markers"], head_rotation_deg=cfg["head_rotation_deg"],
         head_translation_mm=cfg["head_translation_mm"], marker_noise_mm=cfg["marker_noise_mm"],
         seed=cfg["seed"], mesh_rows=cfg["mesh_rows"], mesh_cols=cfg["mesh_cols"])
     hand_mesh = take.hand_shapes_mesh()
+    return {name: _synthetic_capture(take, hand_mesh, name, cfg) for name in names}
+
+
+def _synthetic_capture(take, hand_mesh: np.ndarray, train_on: str, cfg: Mapping) -> Capture:
     notes = []
     if train_on == "markers":
         face = take.face_marker_vertices
@@ -101,10 +114,11 @@ def build_synthetic(cfg: Mapping) -> Capture:
 
 
 BUILDERS = {"synthetic": build_synthetic}
+"""``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
 
 
-def build_capture(cfg: Mapping) -> Capture:
-    """Build the capture a dataset config describes.
+def build_captures(cfg: Mapping) -> dict[str, Capture]:
+    """Build the captures a dataset config describes, one per ``dataset.train_on`` name.
 
     Parameters
     ----------
@@ -113,7 +127,8 @@ def build_capture(cfg: Mapping) -> Capture:
 
     Returns
     -------
-    Capture
+    dict
+        ``train_on`` name -> :class:`Capture`, in the configured order.
     """
     kind = cfg.get("kind")
     if kind not in BUILDERS:
