@@ -87,7 +87,8 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
             write_npz(output_dir / name, {
                 "train": result.capture.train, "eval": result.capture.eval, "neutral": result.capture.neutral,
                 "hand": result.capture.hand, "hand_names": np.array(result.capture.hand_names),
-                "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_})
+                "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_,
+                **({"faces": result.capture.faces} if result.capture.faces is not None else {})})
     write_atomic(output_dir / "done", "")
     return text
 

@@ -79,7 +79,7 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
 
 
 def _synthetic_capture(take, hand_mesh: np.ndarray, train_on: str, cfg: Mapping) -> Capture:
-    notes = []
+    notes, faces = [], None
     if train_on == "markers":
         face = take.face_marker_vertices
         neutral = take.mesh.vertices[face]
@@ -101,6 +101,7 @@ def _synthetic_capture(take, hand_mesh: np.ndarray, train_on: str, cfg: Mapping)
         frames = (take.mesh_sequence() - neutral).reshape(take.activations.shape[0], -1)
         hand = hand_mesh
         labels = tuple(f"v{i}" for i in range(len(neutral)))
+        faces = take.mesh.faces
         notes.append("trained on the dense ground-truth mesh (no head motion, no marker noise)")
     train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
     notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
@@ -110,7 +111,7 @@ def _synthetic_capture(take, hand_mesh: np.ndarray, train_on: str, cfg: Mapping)
         hand=hand.reshape(hand.shape[0], -1), hand_names=tuple(take.muscle_names), point_labels=labels,
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
         frame_rate=float(cfg["frame_rate"]), provenance=dict(take.provenance, train_on=train_on),
-        notes=tuple(notes))
+        notes=tuple(notes), faces=faces)
 
 
 BUILDERS = {"synthetic": build_synthetic}

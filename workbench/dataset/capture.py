@@ -37,6 +37,8 @@ class Capture:
         Where the data came from (kind, seed, files, licence), written into every run record.
     notes : tuple of str
         Facts about the preparation worth reporting (stabilisation residual, split, ...).
+    faces : ndarray of shape (n_faces, 3) of int, or None
+        Triangles over the points when they are the vertices of a mesh (for figures); None for markers.
     """
 
     name: str
@@ -51,6 +53,7 @@ class Capture:
     frame_rate: float
     provenance: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    faces: np.ndarray | None = None
 
     @property
     def n_points(self) -> int:
