@@ -172,3 +172,43 @@ def test_quasi_eigen_basis_validates_its_inputs(fitted):
         build_quasi_eigen_basis(np.ones((2, 24)), ["a"], pca)
     with pytest.raises(WorkbenchError, match="projection"):
         build_quasi_eigen_basis(np.ones((2, 24)), ["a", "b"], pca, projection="oblique")
+
+
+def decaying_capture(rng, n_frames=600, n_dims=300, rank=12, noise=1e-3):
+    """Frames on a rank-``rank`` affine subspace with decaying variances, plus a little isotropic noise."""
+    axes = np.linalg.qr(rng.standard_normal((n_dims, rank)))[0].T
+    scores = rng.standard_normal((n_frames, rank)) * np.geomspace(10.0, 0.3, rank)
+    return 5.0 + scores @ axes + noise * rng.standard_normal((n_frames, n_dims))
+
+
+@pytest.mark.parametrize("coverage", [0.9, 0.99, 0.999])
+def test_randomized_solver_matches_exact(coverage):
+    capture = decaying_capture(np.random.default_rng(3))
+    exact = Eigenfaces(coverage=coverage, svd_solver="exact").fit(capture)
+    fast = Eigenfaces(coverage=coverage, svd_solver="randomized").fit(capture)
+    assert fast.method_ == "randomized" and fast.n_components_ == exact.n_components_
+    m = exact.n_components_
+    np.testing.assert_allclose(fast.explained_variance_[:m], exact.explained_variance_[:m], rtol=1e-9)
+    np.testing.assert_allclose(fast.explained_variance_ratio_[:m], exact.explained_variance_ratio_[:m], rtol=1e-9)
+    np.testing.assert_allclose(fast.components_, exact.components_, atol=1e-7)
+    assert fast.coverage_ == pytest.approx(exact.coverage_, rel=1e-9)
+
+
+def test_randomized_solver_grows_until_coverage_is_reached():
+    """More than the first 32 eigenpairs are needed: the solver doubles until the coverage is reached."""
+    rng = np.random.default_rng(4)
+    capture = rng.standard_normal((500, 120)) * np.linspace(1.0, 0.9, 120)  # nearly flat spectrum
+    exact = Eigenfaces(coverage=0.9, svd_solver="exact").fit(capture)
+    fast = Eigenfaces(coverage=0.9, svd_solver="randomized").fit(capture)
+    assert exact.n_components_ > 32
+    assert fast.n_components_ == exact.n_components_
+    np.testing.assert_allclose(fast.explained_variance_[:10], exact.explained_variance_[:10], rtol=1e-6)
+
+
+def test_randomized_solver_is_deterministic_and_rejects_unknown_solver():
+    capture = decaying_capture(np.random.default_rng(5))
+    first = Eigenfaces(n_components=5, svd_solver="randomized", seed=7).fit(capture).components_
+    second = Eigenfaces(n_components=5, svd_solver="randomized", seed=7).fit(capture).components_
+    assert np.array_equal(first, second)
+    with pytest.raises(WorkbenchError, match="svd_solver must be"):
+        Eigenfaces(svd_solver="arpack").fit(capture)

@@ -89,6 +89,50 @@ def covariance_eigen(centred: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.
     return values, flip_signs(vectors), method
 
 
+def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: int, rng: np.random.Generator, *,
+                                n_power_iter: int = 6, oversample: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """Leading eigenpairs of the covariance by randomised subspace iteration (Halko, Martinsson & Tropp 2011).
+
+    The centred capture is never formed: products with ``D~ = D - 1 mu^T`` are corrected by the mean, so memory
+    stays at the capture plus ``(n_frames + n_dims) x (n_eigen + oversample)``.
+
+    Parameters
+    ----------
+    capture : ndarray of shape (n_frames, n_dims)
+        The capture, not centred.
+    mean : ndarray of shape (n_dims,)
+    n_eigen : int
+        Number of eigenpairs wanted.
+    rng : numpy.random.Generator
+        Draws the random test matrix.
+    n_power_iter : int
+        Subspace iterations; each sharpens the decay by a power of the eigenvalue ratios.
+    oversample : int
+        Extra test vectors beyond ``n_eigen``.
+
+    Returns
+    -------
+    eigenvalues : ndarray of shape (n_eigen,)
+        Descending.
+    eigenvectors : ndarray of shape (n_eigen, n_dims)
+        Unit eigenfaces as rows, with deterministic signs.
+    """
+    n_frames, n_dims = capture.shape
+    width = min(n_eigen + oversample, n_frames, n_dims)
+
+    def times(matrix):  # D~ @ matrix, (n_frames, width)
+        return capture @ matrix - (mean @ matrix)[None, :]
+
+    def transposed_times(matrix):  # D~^T @ matrix, (n_dims, width)
+        return capture.T @ matrix - np.outer(mean, matrix.sum(axis=0))
+
+    basis = np.linalg.qr(times(rng.standard_normal((n_dims, width))))[0]
+    for _ in range(n_power_iter):
+        basis = np.linalg.qr(times(np.linalg.qr(transposed_times(basis))[0]))[0]
+    _, singular, vt = np.linalg.svd(transposed_times(basis).T, full_matrices=False)
+    return singular[:n_eigen] ** 2 / n_frames, flip_signs(vt[:n_eigen])
+
+
 def n_components_for_coverage(explained_variance_ratio: np.ndarray, coverage: float) -> int:
     """Smallest ``m`` with ``sum_{i<=m} lambda_i / sum_i lambda_i >= coverage`` (section 4).
 
@@ -121,6 +165,13 @@ class Eigenfaces:
         ``n_components`` is given).
     n_components : int or None
         Fixed ``m``; must not exceed the rank of the capture.
+    svd_solver : {"auto", "exact", "randomized"}
+        ``exact`` decomposes the covariance or the frame Gram matrix, whichever is smaller, and finds every
+        eigenvalue. ``randomized`` finds only the leading ones by :func:`randomized_covariance_eigen`, enough
+        to reach the coverage (doubling their number until it does); ratios are then taken against the total
+        variance (the trace). ``auto`` is ``exact`` unless both dimensions exceed ``RANDOMIZED_ABOVE``.
+    seed : int
+        Seed of the randomised solver's test matrix.
     tol : Tolerances
 
     Attributes
@@ -129,19 +180,26 @@ class Eigenfaces:
         The capture mean ``mu`` (of whatever the capture holds; the workbench fits displacements from neutral).
     components_ : ndarray of shape (m, n_dims)
         Orthonormal eigenfaces, largest variance first.
-    explained_variance_ : ndarray of shape (rank,)
-        All non-zero eigenvalues of the covariance, descending.
-    explained_variance_ratio_ : ndarray of shape (rank,)
+    explained_variance_ : ndarray of shape (k,)
+        Non-zero eigenvalues of the covariance, descending: all ``rank`` of them with the exact solver, the
+        leading ``k >= m`` with the randomised one.
+    explained_variance_ratio_ : ndarray of shape (k,)
+        Each eigenvalue over the total variance.
     n_components_ : int
     coverage_ : float
         Cumulative explained variance of the kept components.
     method_ : str
-        Which matrix was decomposed (``"covariance"`` or ``"gram"``).
+        How it was decomposed (``"covariance"``, ``"gram"`` or ``"randomized"``).
     """
 
-    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, tol: Tolerances = TOL):
+    RANDOMIZED_ABOVE = 4000
+
+    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, svd_solver: str = "auto",
+                 seed: int = 0, tol: Tolerances = TOL):
         self.coverage = coverage
         self.n_components = n_components
+        self.svd_solver = svd_solver
+        self.seed = seed
         self.tol = tol
 
     def fit(self, capture) -> "Eigenfaces":
@@ -160,11 +218,20 @@ class Eigenfaces:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
         if self.n_components is None and not 0.0 < self.coverage <= 1.0:
             raise WorkbenchError(f"coverage must be in (0, 1], got {self.coverage}")
+        if self.svd_solver not in ("auto", "exact", "randomized"):
+            raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
         mean = capture.mean(axis=0)
-        values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
+        randomized = self.svd_solver == "randomized" or (
+            self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
+        if randomized:
+            values, vectors, total = self._randomized(capture, mean)
+            method = "randomized"
+        else:
+            values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
+            total = values.sum()
         if values.size == 0:
             raise WorkbenchError("capture has no variance: every frame is the same")
-        ratio = values / values.sum()
+        ratio = values / total
         if self.n_components is None:
             m = n_components_for_coverage(ratio, self.coverage)
         else:
@@ -180,6 +247,25 @@ class Eigenfaces:
         self.coverage_ = float(ratio[:m].sum())
         self.method_ = method
         return self
+
+    def _randomized(self, capture: np.ndarray, mean: np.ndarray):
+        """Leading eigenpairs, as many as the coverage or ``n_components`` needs; and the total variance."""
+        rng = np.random.default_rng(self.seed)
+        n_frames = capture.shape[0]
+        # Sum of squares of the centred capture, a chunk of frames at a time (no full centred copy).
+        total = sum(float(np.sum((capture[start:start + 4096] - mean) ** 2))
+                    for start in range(0, n_frames, 4096)) / n_frames
+        limit = min(capture.shape) - 1
+        n_eigen = min(self.n_components or 32, limit)
+        while True:
+            values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng)
+            keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
+            values, vectors = values[keep], vectors[keep]
+            enough = (self.n_components is not None or values.size < n_eigen
+                      or values.sum() >= (self.coverage - 1e-12) * total)
+            if enough or n_eigen >= limit:
+                return values, vectors, total
+            n_eigen = min(2 * n_eigen, limit)
 
     def _check_fitted(self):
         if not hasattr(self, "components_"):
