@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
+import workbench.solve
 from workbench.errors import WorkbenchError
 from workbench.solve import WeightSolution, kkt_violation, reconstruct, solve_weights
 from workbench.tolerances import TOL
@@ -141,6 +142,18 @@ def test_nnls_agrees_with_scipy_per_frame(seed, n_shapes, n_dims):
     assert sol.lower == 0.0 and sol.upper is None
     assert np.all(sol.weights >= 0.0)
     assert sol.max_kkt_violation <= TOL.kkt
+
+
+@pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0)])
+def test_more_than_62_shapes(kind, lower, upper):
+    # Free sets of more than 62 shapes do not fit one integer key; frames are grouped by their rows instead.
+    basis, targets = random_problem(18, 70, 120, n_frames=60)
+    sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
+    expected = scipy_reference(basis, targets, lower, upper)
+    np.testing.assert_allclose(
+        objective(basis, targets, sol.weights), objective(basis, targets, expected), rtol=1e-8, atol=0
+    )
+    assert sol.n_fallback_frames == 0 and sol.max_kkt_violation <= TOL.kkt
 
 
 def test_nnls_keeps_feasible_frames_unconstrained_and_zero_targets_at_zero():
@@ -308,7 +321,126 @@ def test_more_shapes_than_dims_and_zero_shape():
 
 
 # ----------------------------------------------------------------------------------------------------------
-# Fallback to SciPy: iteration cap, cycling, failed KKT check
+# Rank-deficient bases: known answers, all frames solved in batch
+# ----------------------------------------------------------------------------------------------------------
+
+N_MANY = 2000
+
+STRUCTURES = ["duplicates", "combinations", "projected", "affine_projected", "nearly_projected"]
+
+
+def rank_deficient_problem(structure, seed, n_shapes=18, n_dims=198, rank=13, n_frames=N_MANY):
+    """A basis of ``n_shapes`` shapes spanning (about) ``rank`` dimensions, and targets off its span.
+
+    ``duplicates``: ``rank`` random shapes and copies of some of them; ``combinations``: ``rank`` random
+    shapes and random linear combinations of them; ``projected``: random shapes projected onto a random
+    ``rank``-dimensional subspace, as the quasi-eigen faces are with the linear projection;
+    ``affine_projected``: projected onto an affine subspace through a random offset instead (``rank + 1``
+    dimensions, like the affine projection); ``nearly_projected``: ``projected`` plus a 1e-9 perturbation
+    (full rank, singular values down to ~1e-10 of the largest).  Rows are shuffled.  Targets mix the
+    original shapes with weights in [-0.3, 1.2] (so both bounds of [0, 1] are often active) plus noise.
+    """
+    rng = np.random.default_rng(seed)
+    shapes = rng.standard_normal((n_shapes, n_dims)) * rng.uniform(0.5, 2.0, (n_shapes, 1))
+    if structure == "duplicates":
+        basis = shapes[np.concatenate([np.arange(rank), rng.integers(0, rank, n_shapes - rank)])]
+    elif structure == "combinations":
+        basis = np.vstack([shapes[:rank], rng.standard_normal((n_shapes - rank, rank)) @ shapes[:rank]])
+    else:
+        axes = np.linalg.qr(rng.standard_normal((n_dims, rank)))[0]
+        offset = rng.standard_normal(n_dims) if structure == "affine_projected" else np.zeros(n_dims)
+        basis = offset + (shapes - offset) @ axes @ axes.T
+        if structure == "nearly_projected":
+            basis += 1e-9 * rng.standard_normal(basis.shape)
+    basis = basis[rng.permutation(n_shapes)]
+    mix = rng.uniform(-0.3, 1.2, (n_frames, n_shapes))
+    targets = mix @ shapes + 0.3 * rng.standard_normal((n_frames, n_dims))
+    return basis, targets
+
+
+def scipy_reference(basis, targets, lower, upper):
+    """Per-frame SciPy NNLS (``lower=None``) or BVLS, with a generous iteration cap.
+
+    With its default cap (the number of variables) SciPy's BVLS stops early on rank-deficient bases, at
+    weights that fail the KKT conditions; with 1000 iterations it converges.
+    """
+    if lower is None:
+        return np.array([nnls(basis.T, d, maxiter=1000)[0] for d in targets])
+    bounds = (lower, upper)
+    return np.array([lsq_linear(basis.T, d, bounds=bounds, method="bvls", tol=1e-12, max_iter=1000).x
+                     for d in targets])
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0)])
+def test_rank_deficient_basis_matches_scipy_without_fallback(structure, kind, lower, upper):
+    basis, targets = rank_deficient_problem(structure, STRUCTURES.index(structure))
+    singular = np.linalg.svd(basis, compute_uv=False)
+    assert singular[13 if structure == "affine_projected" else 12] > 1e-3 * singular[0]
+    assert singular[-1] < 1e-8 * singular[0]
+    sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
+    assert sol.n_fallback_frames == 0
+    assert sol.max_kkt_violation <= TOL.kkt
+    assert_kkt(basis, targets, sol.weights, 0.0 if kind == "nnls" else lower, upper)
+    some = slice(None, None, 20)
+    expected = scipy_reference(basis, targets[some], lower, upper)
+    gram, rhs = basis @ basis.T, targets[some] @ basis.T
+    assert np.all(kkt_violation(gram, rhs, expected, sol.lower, sol.upper) <= 1e-8)  # a trustworthy reference
+    np.testing.assert_allclose(
+        objective(basis, targets[some], sol.weights[some]), objective(basis, targets[some], expected),
+        rtol=1e-8, atol=0,
+    )
+
+
+@pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0)])
+def test_rank_deficient_basis_without_warm_start(monkeypatch, kind, lower, upper):
+    # The ADMM warm start only saves iterations: from the clipped unconstrained weights alone, the active-set
+    # method reaches the same objective, still without SciPy.
+    basis, targets = rank_deficient_problem("affine_projected", 5, n_frames=500)
+    warm = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
+    monkeypatch.setattr(workbench.solve, "_ADMM_STEPS", 0)
+    cold = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
+    assert cold.n_fallback_frames == 0 and cold.max_kkt_violation <= TOL.kkt
+    np.testing.assert_allclose(
+        objective(basis, targets, cold.weights), objective(basis, targets, warm.weights), rtol=1e-10, atol=0
+    )
+
+
+@pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0)])
+def test_rank_deficient_basis_falls_back_to_exact_scipy(kind, lower, upper):
+    basis, targets = rank_deficient_problem("projected", 6, n_frames=100)
+    sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper,
+                        tol=replace(TOL, active_set_max_iter=0))
+    assert sol.n_fallback_frames >= 90
+    assert sol.max_kkt_violation <= TOL.kkt
+    expected = scipy_reference(basis, targets, lower, upper)
+    np.testing.assert_allclose(
+        objective(basis, targets, sol.weights), objective(basis, targets, expected), rtol=1e-8, atol=0
+    )
+
+
+def test_kkt_violation_accepts_every_optimum_of_a_singular_gram():
+    # With duplicate shapes the optimal weights are not unique: moving weight between two copies keeps the
+    # reconstruction, so the moved weights are optimal too and must pass; weights that change the
+    # reconstruction must not.
+    basis, targets = rank_deficient_problem("duplicates", 7, n_frames=300)
+    same = (basis[:, None] == basis[None]).all(axis=2) & ~np.eye(len(basis), dtype=bool)
+    i, j = np.argwhere(same)[0]
+    gram, rhs = basis @ basis.T, targets @ basis.T
+    assert np.linalg.matrix_rank(gram) == 13
+    sol = solve_weights(basis, targets, kind="box", lower=0.0, upper=1.0)
+    moved = sol.weights.copy()
+    shift = 0.5 * np.minimum(1.0 - moved[:, i], moved[:, j])
+    moved[:, i] += shift
+    moved[:, j] -= shift
+    assert np.count_nonzero(shift > 0.05) > 20
+    np.testing.assert_allclose(reconstruct(basis, moved), reconstruct(basis, sol.weights), rtol=0, atol=1e-12)
+    assert np.all(kkt_violation(gram, rhs, moved, 0.0, 1.0) <= TOL.kkt)
+    assert np.all(kkt_violation(gram, rhs, np.clip(sol.weights + 1e-3, 0.0, 1.0), 0.0, 1.0) > 1e-6)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Fallback to SciPy: iteration cap, failed KKT check (and a frame that made the old method cycle)
 # ----------------------------------------------------------------------------------------------------------
 
 
@@ -325,9 +457,10 @@ def test_iteration_cap_falls_back_to_scipy(max_iter, kind, lower, upper):
     assert_kkt(basis, targets, sol.weights, 0.0 if kind == "nnls" else lower, upper)
 
 
-def test_cycling_frame_falls_back_to_scipy():
-    # G = B B^T is positive definite but not an M-matrix; from this frame's first guess the primal-dual
-    # active-set iteration visits four active sets and returns to the first one.
+def test_frame_on_which_primal_dual_active_set_cycles_is_solved_in_batch():
+    # G = B B^T is positive definite but not an M-matrix; from this frame's first guess a primal-dual
+    # active-set iteration visits four active sets and returns to the first one.  The batched primal
+    # active-set method lowers the objective at every step, so it cannot cycle and needs no SciPy.
     basis = np.array(
         [
             [5.42132742, 0.99506762, 1.68317221],
@@ -338,7 +471,7 @@ def test_cycling_frame_falls_back_to_scipy():
     targets = np.array([[-4.43382301, -4.43059603, -0.84204664]])
     lower, upper = -0.9965387373771148, 0.385709670364331
     sol = solve_weights(basis, targets, kind="box", lower=lower, upper=upper)
-    assert sol.n_fallback_frames == 1
+    assert sol.n_fallback_frames == 0
     assert sol.n_iterations < TOL.active_set_max_iter
     np.testing.assert_allclose(sol.weights, scipy_bvls(basis, targets, lower, upper), rtol=0, atol=1e-9)
     assert_kkt(basis, targets, sol.weights, lower, upper)
