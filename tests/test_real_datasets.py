@@ -1,0 +1,183 @@
+"""The real-data datasets ``ict_livelink`` and ``animface``: what they build, their errors, and the paper study on
+each (at reduced size: every k-th frame, a coarser mesh)."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.cli import resolved_without_hydra, run
+from workbench.config import REPO_ROOT, compose
+from workbench.dataset import build_captures
+from workbench.errors import WorkbenchError
+
+UPPER = {"browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "browDown_L", "browDown_R"}
+
+
+def dataset_cfg(shared_data, name, *overrides):
+    cfg = resolved_without_hydra(compose("paper", [f"dataset={name}", f"paths.data_root={shared_data}", *overrides]))
+    return cfg["dataset"]
+
+
+@pytest.fixture(scope="module")
+def ict_livelink(shared_data):
+    return build_captures(dataset_cfg(shared_data, "ict_livelink", "dataset.frame_step=40"))
+
+
+@pytest.fixture(scope="module")
+def animface(shared_data):
+    return build_captures(dataset_cfg(shared_data, "animface", "dataset.frame_step=20"))
+
+
+def test_ict_livelink_mesh_and_virtual_markers(ict_livelink):
+    assert list(ict_livelink) == ["mesh", "markers"]
+    mesh, markers = ict_livelink["mesh"], ict_livelink["markers"]
+    assert mesh.n_points == 9409 and mesh.faces.shape == (18460, 3) and markers.n_points == 41
+    assert mesh.train.shape == (101, 3 * 9409) and mesh.frame_rate == pytest.approx(30.0 / 40)
+    assert mesh.units == "mm" and "ICT FaceKit model origin" in mesh.origin
+    # The default hand basis: 18 FACS-style shapes, 6 upper face and 12 lower face.
+    assert len(mesh.hand_names) == 18 and len(UPPER & set(mesh.hand_names)) == 6
+    assert not {"mouthClose", "PupilDilate_L", "PupilDilate_R"} & set(mesh.hand_names)
+    # Virtual markers are the mesh's own vertices: the same motion and hand shapes there.
+    vertices = np.array([mesh.point_labels.index(f"v{v}") for v in
+                         mesh.provenance["virtual_marker_vertices"].values()])
+    as_points = mesh.train.reshape(101, -1, 3)[:, vertices]
+    np.testing.assert_allclose(markers.train.reshape(101, -1, 3), as_points)
+    np.testing.assert_allclose(markers.hand.reshape(18, -1, 3), mesh.hand.reshape(18, -1, 3)[:, vertices])
+    assert sum("TongueOut" in note for note in mesh.notes) == 1
+    assert any("cm" in note and "mm" in note for note in mesh.notes)
+    assert mesh.provenance["arkit_mapping"]["BrowInnerUp"] == ["browInnerUp_L", "browInnerUp_R"]
+    assert any("MIT" in credit and "Donciu-Julin" in credit for credit in mesh.provenance["credits"])
+
+
+def test_ict_livelink_performance_is_the_weighted_blend(shared_data, ict_livelink):
+    """One frame of the mesh performance against an independent sum over the ARKit channels."""
+    from workbench.dataset.livelink import read_livelink_csv
+    from workbench.dataset.meshes import load_blendshapes
+
+    mesh = ict_livelink["mesh"]
+    mapping = mesh.provenance["arkit_mapping"]
+    take = read_livelink_csv(shared_data / "livelinkface" / "alex_rom_3.csv")
+    face = load_blendshapes(shared_data / "ict-facekit" / "FaceXModel", neutral_file="generic_neutral_mesh.obj",
+                            names=sorted({shape for targets in mapping.values() for shape in targets}),
+                            region_vertices=9409, unit_mm=10.0)
+    frame = 37  # of every 40th: frame 1480 of the take
+    expected = np.zeros((9409, 3))
+    for channel, weight in zip(take.names, take.weights[frame * 40]):
+        for shape in mapping[channel]:
+            expected += weight * face.shapes([shape])[0]
+    np.testing.assert_allclose(mesh.train[frame].reshape(-1, 3), expected, atol=1e-9)
+    np.testing.assert_allclose(mesh.neutral.reshape(-1, 3), face.neutral)
+
+
+def test_animface_markers_and_mesh(animface, shared_data):
+    assert list(animface) == ["markers", "mesh"]
+    markers, mesh = animface["markers"], animface["mesh"]
+    n_frames = sum(len(range(0, n, 20)) for n in (1590, 1499, 902))
+    assert markers.train.shape == (n_frames, 123) and mesh.train.shape == (n_frames, 3 * 9409)
+    assert markers.point_labels[0] == "ForeHead_M" and markers.frame_rate == 60.0 and markers.units == "mm"
+    for capture in (markers, mesh):
+        assert "performer and basis come from different faces" in capture.notes[0]
+        assert any("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0" in credit
+                   for credit in capture.provenance["credits"])
+    # RBF with smoothing 0 reproduces the marker displacements at the markers' vertices.
+    vertices = list(markers.provenance["placement"]["vertices"].values())
+    at_markers = mesh.train.reshape(n_frames, -1, 3)[:, vertices]
+    np.testing.assert_allclose(at_markers, markers.train.reshape(n_frames, -1, 3), atol=1e-8)
+    # The hand basis at the markers is the mesh's hand basis at their vertices (one scaled ICT face).
+    np.testing.assert_allclose(markers.hand.reshape(18, -1, 3), mesh.hand.reshape(18, -1, 3)[:, vertices])
+    scale = markers.provenance["placement"]["scale"]
+    assert 0.9 < scale < 1.1
+    residual = markers.provenance["per_take"]["animface_eyebrows.c3d"]["stabilisation_residual_rms_mm"]
+    assert residual["mean"] < 2.5 and residual["max"] < 5.0
+
+
+def test_animface_takes_are_configurable(shared_data):
+    cfg = dataset_cfg(shared_data, "animface", "dataset.takes=[animface/animface_eyebrows.c3d]",
+                      "dataset.max_frames_per_take=50", "dataset.train_on=markers")
+    captures = build_captures(cfg)
+    assert list(captures) == ["markers"] and captures["markers"].train.shape == (50, 123)
+    assert "animface_eyebrows 50 frames" in captures["markers"].notes[1]
+
+
+@pytest.mark.parametrize("override,message", [
+    ("dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
+     r"animface_jaw\.c3d: unknown marker label\(s\) \['Ear_L'\] named in dataset\.rigid_markers"),
+    ("dataset.hand_shapes=[jawOpen,smile]", r"dataset\.hand_shapes names \['smile'\], which the blendshape folder"),
+    ("dataset.takes=[animface/none.c3d]", r"none\.c3d: C3D file not found"),
+    ("dataset.rbf.kernel=spline", r"rbf\.kernel must be one of"),
+])
+def test_animface_configuration_errors(shared_data, override, message):
+    with pytest.raises(WorkbenchError, match=message):
+        build_captures(dataset_cfg(shared_data, "animface", "dataset.max_frames_per_take=20", override))
+
+
+def test_missing_data_root_is_a_clear_error(tmp_path):
+    cfg = resolved_without_hydra(compose("paper", ["dataset=ict_livelink", f"paths.data_root={tmp_path / 'none'}"]))
+    with pytest.raises(WorkbenchError, match=r"dataset\.data_root .* is not a folder: set WORKBENCH_DATA_ROOT"):
+        build_captures(cfg["dataset"])
+
+
+def test_geodesic_rbf_beats_euclidean_on_the_ict_ground_truth(ict_livelink):
+    """Interpolating the ICT performance from its virtual markers: the configured geodesic RBF is closer to the
+    true dense motion than Euclidean thin-plate splines (the reason for animface's default)."""
+    from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
+
+    mesh, markers = ict_livelink["mesh"], ict_livelink["markers"]
+    vertices = np.array(list(mesh.provenance["virtual_marker_vertices"].values()))
+    truth = mesh.train.reshape(len(mesh.train), -1, 3)
+    neutral = mesh.neutral.reshape(-1, 3)
+    errors = {}
+    for metric, kernel, epsilon, degree in (("geodesic", "inverse_multiquadric", 0.05, 0),
+                                            ("euclidean", "thin_plate_spline", None, 1)):
+        operator = mesh_rbf_operator(neutral, mesh.faces, vertices, np.arange(len(neutral)), metric=metric,
+                                     kernel=kernel, epsilon=epsilon, degree=degree)
+        estimate = interpolate_frames(operator, markers.train.reshape(len(markers.train), -1, 3))
+        errors[metric] = np.sqrt(np.mean(np.sum((estimate - truth) ** 2, axis=2)))
+    assert errors["geodesic"] < 0.8 * errors["euclidean"]
+
+
+def paper_table(shared_data, tmp_path, *overrides):
+    text = run(compose("paper", [f"paths.data_root={shared_data}", *overrides]), tmp_path)
+    return text, pd.read_csv(tmp_path / "alpha_table.csv"), json.loads((tmp_path / "metrics.json").read_text())
+
+
+def test_paper_study_on_ict_livelink(shared_data, tmp_path):
+    text, table, metrics = paper_table(shared_data, tmp_path, "dataset=ict_livelink", "dataset.frame_step=20",
+                                       "dataset.mesh_vertex_step=4")
+    assert list(table["data"].unique()) == ["mesh", "markers"]
+    assert {"H", "QE", "QE-linear", "PCA"} == set(table["basis"])
+    rows = table.set_index(["data", "basis", "solver"])
+    for data in ("mesh", "markers"):
+        assert rows.loc[(data, "QE", "lstsq"), "alpha_abs_mean"] < rows.loc[(data, "H", "lstsq"), "alpha_abs_mean"]
+    assert metrics["data"]["mesh"]["n_points"] == 2353 and metrics["data"]["markers"]["n_points"] == 41
+    assert "Live Link Face" in metrics["dataset"]["name"] and "| mesh " in text and "| markers " in text
+
+
+def test_paper_study_on_animface_trains_on_markers_and_mesh(shared_data, tmp_path):
+    text, table, metrics = paper_table(shared_data, tmp_path, "dataset=animface", "dataset.frame_step=10",
+                                       "dataset.mesh_vertex_step=4")
+    assert list(table["data"].unique()) == ["markers", "mesh"]
+    assert len(table) == 2 * 10
+    assert "performer and basis come from different faces" in text
+    assert metrics["dataset"]["provenance"]["performer_and_basis"] == "different faces"
+    rows = table.set_index(["data", "basis", "solver"])
+    for data in ("markers", "mesh"):
+        assert rows.loc[(data, "QE", "lstsq"), "alpha_abs_mean"] < rows.loc[(data, "H", "lstsq"), "alpha_abs_mean"]
+        assert rows.loc[(data, "H", "lstsq"), "rms_mm"] < 10.0  # millimetres, not an RBF blow-up
+
+
+def test_cli_names_an_unknown_marker_label_in_one_line(shared_data, tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "dataset=animface", f"paths.data_root={shared_data}",
+         "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]", f"hydra.run.dir={tmp_path / 'run'}"],
+        capture_output=True, text=True, cwd=tmp_path, timeout=600,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("workbench: error: ")
+    assert "animface_jaw.c3d: unknown marker label(s) ['Ear_L'] named in dataset.rigid_markers" in lines[0]

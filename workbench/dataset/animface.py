@@ -1,0 +1,215 @@
+"""Dataset ``animface``: real optical facial capture (AnimFace C3D takes) with an ICT FaceKit hand basis.
+
+The performer and the hand basis come from different faces, as in the paper (its hand shapes were sculpted on
+a model apart from the actor). The capture's head motion is removed on rigid markers, the ICT face is placed on
+the performer by a similarity alignment, each marker gets a vertex (the correspondence table), and the hand basis
+is the ICT shapes at those vertices, scaled into the performer's frame. ``markers`` trains on the markers
+directly; ``mesh`` on the ICT face-region vertices, moved by a radial-basis interpolation of the marker
+displacements (the paper's "markers interpolated onto the mesh").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
+from workbench.dataset.capture import Capture
+from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
+from workbench.dataset.meshes import Blendshapes, expression_names
+from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
+from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
+                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
+from workbench.dataset.rigid import stabilise
+from workbench.errors import WorkbenchError
+
+TRAIN_ON = ("markers", "mesh")
+DIFFERENT_FACES = ("performer and basis come from different faces: the motion is the AnimFace performer's, the hand "
+                   "shapes are the ICT FaceKit generic face's")
+ORIGIN = ("ICT FaceKit model origin (midline, near the centre of the head) placed on the performer by the "
+          "similarity alignment; axes x to the face's left, y up, z out of the face")
+RBF_DEFAULTS = {"metric": "euclidean", "kernel": "thin_plate_spline", "smoothing": 0.0, "epsilon": None, "degree": 1}
+
+
+@dataclass(frozen=True)
+class StabilisedTakes:
+    """The selected frames of every take, head motion removed, concatenated in time.
+
+    Attributes
+    ----------
+    positions : ndarray of shape (n_frames, n_markers, 3)
+        Markers in the table's order, in the neutral frame's head pose, in mm.
+    neutral : ndarray of shape (n_markers, 3)
+        The neutral frame's markers.
+    notes : list of str
+        One entry per take: frames kept and the stabilisation residual.
+    record : dict
+        Per take, for the provenance.
+    """
+
+    positions: np.ndarray
+    neutral: np.ndarray
+    notes: list
+    record: dict
+
+
+def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
+    """Select frames, remove head motion on ``dataset.rigid_markers`` and concatenate the takes.
+
+    The rigid markers' reference is their position in the neutral frame (``dataset.neutral_take``,
+    ``dataset.neutral_frame``). Frames that miss a marker of the table after stabilisation are dropped and counted.
+    """
+    rigid_labels = list(cfg.get("rigid_markers") or [])
+    neutral_take, neutral_frame = int(cfg.get("neutral_take", 0)), int(cfg.get("neutral_frame", 0))
+    if not 0 <= neutral_take < len(takes) or not 0 <= neutral_frame < takes[neutral_take].n_frames:
+        raise WorkbenchError(f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
+                             f"the {len(takes)} takes")
+    first = takes[neutral_take]
+    reference = first.positions[neutral_frame, first.index_of(rigid_labels, named_in="dataset.rigid_markers")]
+    if not np.all(np.isfinite(reference)):
+        raise WorkbenchError(f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
+                             "another dataset.neutral_frame")
+    # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
+    neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
+
+    pieces, notes, record = [], [], {}
+    for take in takes:
+        selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
+                                   "dataset.max_frames_per_take")
+        stable = stabilise(take.positions[selected], take.index_of(rigid_labels, named_in="dataset.rigid_markers"),
+                           reference)
+        markers = stable.markers[:, take.index_of(table.labels, named_in=str(table.path))]
+        complete = np.all(np.isfinite(markers), axis=(1, 2))
+        pieces.append(markers[complete])
+        residual_mean, residual_max = float(np.nanmean(stable.residual_rms)), float(np.nanmax(stable.residual_rms))
+        dropped = int((~complete).sum())
+        notes.append(f"{take.path.stem} {int(complete.sum())} frames (residual mean {residual_mean:.2f}, max "
+                     f"{residual_max:.2f} mm" + (f"; {dropped} frames missing a marker dropped" if dropped else "")
+                     + ")")
+        record[take.path.name] = {
+            "frames_in_file": take.n_frames, "frames_used": int(complete.sum()), "frames_dropped_for_gaps": dropped,
+            "missing_samples_in_file": take.n_missing, "units_in_file": take.units,
+            "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max}}
+    positions = np.concatenate(pieces)
+    if len(positions) < 2:
+        raise WorkbenchError(f"{len(positions)} complete frames in the takes after dropping gaps; need at least 2")
+    return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record)
+
+
+def mesh_displacements(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
+                       marker_displacements: np.ndarray, rbf: Mapping) -> np.ndarray:
+    """Marker displacements carried onto mesh points of the scaled basis face by RBF interpolation.
+
+    Parameters
+    ----------
+    basis : Blendshapes
+    scale : float
+        Performer size over basis size: the face interpolated on is ``scale * basis.neutral``.
+    marker_vertices : ndarray of shape (n_markers,) of int
+    mesh_points : ndarray of shape (n_points,) of int
+    marker_displacements : ndarray of shape (n_frames, n_markers, 3)
+    rbf : mapping
+        ``dataset.rbf`` (metric, kernel, smoothing, epsilon, degree).
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_points, 3)
+    """
+    settings = {**RBF_DEFAULTS, **rbf}
+    operator = mesh_rbf_operator(scale * basis.neutral, basis.triangles, marker_vertices, mesh_points,
+                                 metric=settings["metric"], kernel=settings["kernel"],
+                                 smoothing=float(settings["smoothing"]), epsilon=settings["epsilon"],
+                                 degree=int(settings["degree"]))
+    return interpolate_frames(operator, marker_displacements)
+
+
+def build_animface(cfg: Mapping) -> dict[str, Capture]:
+    """Real optical takes with ICT hand shapes, on the markers and/or interpolated onto the ICT face.
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group (see ``conf/dataset/animface.yaml``).
+
+    Returns
+    -------
+    dict
+        ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
+    """
+    from workbench.dataset import split_frames, train_on_list
+
+    names = train_on_list(cfg, TRAIN_ON)
+    take_files = list(cfg.get("takes") or [])
+    if not take_files:
+        raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
+    takes = [read_c3d_markers(data_path(cfg, name, "takes")) for name in take_files]
+    if len({take.frame_rate for take in takes}) != 1:
+        raise WorkbenchError(f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
+                             "concatenating them needs one")
+    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
+    hand_names = hand_shape_names(cfg, expression_names(folder, cfg["blendshapes"]["neutral"]))
+    basis = load_basis(cfg, hand_names)
+    table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
+    stable = stabilised_takes(takes, table, cfg)
+
+    placement = place_markers(table, stable.neutral, basis.neutral,
+                              refine_iterations=int(cfg.get("refine_iterations", 0)))
+    similarity, scale = placement.mesh_to_capture, placement.mesh_to_capture.scale
+    # Express the capture in the ICT head frame (axes and origin) while keeping the performer's size: the rigid
+    # part of the inverse similarity. The ICT face then sits at scale * its own coordinates.
+    neutral = (stable.neutral - similarity.translation) @ similarity.rotation
+    displacements = (stable.positions - similarity.translation) @ similarity.rotation - neutral
+    hand = scale * basis.shapes(hand_names)
+
+    rbf = {**RBF_DEFAULTS, **(cfg.get("rbf") or {})}
+    rigid_labels = list(cfg.get("rigid_markers") or [])
+    neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {int(cfg.get('neutral_frame', 0))}"
+    notes_common = [
+        DIFFERENT_FACES + f" (scaled by {scale:.3f} into the performer's frame)",
+        f"takes concatenated in time at {takes[0].frame_rate:g} Hz: " + "; ".join(stable.notes),
+        f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
+        f"{neutral_name} (the neutral); residual = their RMS distance from it",
+        placement.describe(),
+    ]
+    provenance = {
+        "kind": "animface", "data_root": str(cfg["data_root"]), "takes": take_files, "per_take": stable.record,
+        "credits": [ANIMFACE_CREDIT, ICT_CREDIT], "performer_and_basis": "different faces",
+        "neutral": neutral_name, "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
+        "marker_table": str(table.path), "rbf": rbf,
+        "placement": {"scale": scale, "rotation": similarity.rotation.tolist(),
+                      "translation_mm": similarity.translation.tolist(),
+                      "landmark_rms_mm": placement.landmark_rms, "refine_iterations": placement.refine_iterations,
+                      "vertices": dict(zip(table.labels, placement.vertices.tolist())),
+                      "distance_mm": dict(zip(table.labels, np.round(placement.distances, 2).tolist()))},
+    }
+    captures = {}
+    for name in names:
+        notes = list(notes_common)
+        if name == "markers":
+            points_neutral, frames = neutral, displacements
+            points_hand, labels, faces = hand[:, placement.vertices], table.labels, None
+            notes.append(f"markers: the {len(table.labels)} markers of {table.path.name}; the rigid ones stay "
+                         "training points (they move only by the stabilisation residual)")
+        else:
+            mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
+            frames = mesh_displacements(basis, scale, placement.vertices, mesh_points, displacements, rbf)
+            points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
+            labels = tuple(f"v{i}" for i in mesh_points)
+            faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
+            notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
+                         f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
+                         "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
+                         f"the performer; largest displacement {np.linalg.norm(frames, axis=2).max():.1f} mm on the "
+                         f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers")
+        train, evaluate = split_frames(frames.reshape(len(frames), -1), cfg.get("split", "same"),
+                                       cfg.get("eval_fraction", 0.2))
+        notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+        captures[name] = Capture(
+            name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
+            neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
+            hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
+            units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(takes[0].frame_rate),
+            provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces)
+    return captures

@@ -1,0 +1,137 @@
+"""Labelled optical markers from C3D files (read with the ``c3d`` package from PyPI).
+
+Positions are converted to millimetres from the file's ``POINT:UNITS``; samples the file marks invalid (a
+negative residual, the C3D convention for a gap) become NaN.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+
+MM_PER_UNIT = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "m": 1000.0, "meter": 1000.0,
+               "metre": 1000.0, "in": 25.4, "inch": 25.4}
+
+
+@dataclass(frozen=True)
+class MarkerTake:
+    """One C3D take.
+
+    Attributes
+    ----------
+    labels : tuple of str
+        Marker labels, in the file's order (surrounding blanks removed).
+    positions : ndarray of shape (n_frames, n_markers, 3)
+        Positions in millimetres; NaN where the file marks a sample invalid.
+    frame_rate : float
+        ``POINT:RATE`` in frames per second.
+    units : str
+        The file's ``POINT:UNITS`` (converted to mm in ``positions``).
+    first_frame : int
+        Number of the first frame in the file.
+    path : pathlib.Path
+    """
+
+    labels: tuple[str, ...]
+    positions: np.ndarray
+    frame_rate: float
+    units: str
+    first_frame: int
+    path: Path
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_missing(self) -> int:
+        """Samples (marker, frame) with no position."""
+        return int(np.isnan(self.positions[..., 0]).sum())
+
+    def index_of(self, labels: Sequence[str], *, named_in: str) -> np.ndarray:
+        """Positions of ``labels`` in :attr:`labels`, with a clear error for a label the file does not have.
+
+        Parameters
+        ----------
+        labels : sequence of str
+        named_in : str
+            Where the labels come from (for the error message), e.g. ``"dataset.rigid_markers"``.
+
+        Returns
+        -------
+        ndarray of shape (len(labels),) of int
+        """
+        position = {label: i for i, label in enumerate(self.labels)}
+        unknown = [label for label in labels if label not in position]
+        if unknown:
+            raise WorkbenchError(f"{self.path}: unknown marker label(s) {unknown} named in {named_in}; the file's "
+                                 f"{len(self.labels)} labels are {', '.join(self.labels)}")
+        return np.array([position[label] for label in labels], dtype=np.int64)
+
+
+def units_to_mm(units: str, path: Path) -> float:
+    """Millimetres per unit of a C3D ``POINT:UNITS`` string."""
+    key = units.strip().lower()
+    if key not in MM_PER_UNIT:
+        raise WorkbenchError(f"{path}: POINT:UNITS {units.strip()!r} is not one of {sorted(set(MM_PER_UNIT))}")
+    return MM_PER_UNIT[key]
+
+
+def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
+    """Read the labelled 3-D marker trajectories of a C3D file.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    MarkerTake
+
+    Raises
+    ------
+    WorkbenchError
+        If the file is missing, not a C3D file, truncated (fewer frames than its header declares), has no
+        markers, duplicate labels or unknown units.
+    """
+    import c3d
+
+    path = Path(path)
+    if not path.is_file():
+        raise WorkbenchError(f"{path}: C3D file not found")
+    with open(path, "rb") as handle, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the reader warns (rather than fails) on a short file: checked below
+        try:
+            reader = c3d.Reader(handle)
+            declared = reader.last_frame - reader.first_frame + 1
+            labels = tuple(str(label).strip() for label in reader.point_labels)
+            units_parameter = reader.get("POINT:UNITS")
+            units = units_parameter.string_value if units_parameter is not None else "mm"
+            frame_rate = float(reader.point_rate)
+            frames = [points[:, :4].astype(np.float64) for _, points, _ in reader.read_frames(copy=True)]
+        except WorkbenchError:
+            raise
+        except Exception as error:  # the reader raises many kinds of error on a damaged file
+            raise WorkbenchError(f"{path}: not a readable C3D file ({type(error).__name__}: {error})") from None
+    if len(frames) < declared:
+        raise WorkbenchError(f"{path}: truncated: its header declares {declared} frames but the data ends after "
+                             f"{len(frames)}")
+    if not labels or not frames:
+        raise WorkbenchError(f"{path}: holds no marker trajectories ({len(labels)} labels, {len(frames)} frames)")
+    if len(set(labels)) != len(labels):
+        duplicates = sorted({label for label in labels if labels.count(label) > 1})
+        raise WorkbenchError(f"{path}: duplicate marker labels {duplicates}")
+    if not frame_rate > 0:
+        raise WorkbenchError(f"{path}: POINT:RATE must be positive, got {frame_rate}")
+    data = np.stack(frames)
+    positions = data[:, :, :3] * units_to_mm(units, path)
+    positions[data[:, :, 3] < 0] = np.nan
+    return MarkerTake(labels=labels, positions=positions, frame_rate=frame_rate, units=units.strip(),
+                      first_frame=int(reader.first_frame), path=path)

@@ -1,0 +1,102 @@
+"""Dataset ``ict_livelink``: a FACS-based blendshape face (ICT FaceKit) driven by real ARKit weight curves.
+
+The performance is the linear blendshape face of eq. 1 driven, frame by frame, with the weights a Live Link
+Face take recorded from a real person: real human motion on a real FACS-based face. ``mesh`` trains on the
+face-region vertices, ``markers`` on virtual markers at the vertices of a marker table.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+from workbench.dataset.capture import Capture
+from workbench.dataset.correspondence import read_marker_table
+from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
+from workbench.dataset.meshes import expression_names
+from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
+                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
+
+TRAIN_ON = ("mesh", "markers")
+
+
+def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
+    """The ICT face driven by a Live Link Face take, on the mesh and/or at virtual markers.
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group (see ``conf/dataset/ict_livelink.yaml``).
+
+    Returns
+    -------
+    dict
+        ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
+    """
+    from workbench.dataset import split_frames, train_on_list
+
+    names = train_on_list(cfg, TRAIN_ON)
+    take = read_livelink_csv(data_path(cfg, cfg.get("livelink_csv"), "livelink_csv"),
+                             timecode_rate=float(cfg.get("timecode_rate", 60.0)))
+    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
+    available = expression_names(folder, cfg["blendshapes"]["neutral"])
+    hand_names = hand_shape_names(cfg, available)
+    folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
+    driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
+    basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
+    mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
+
+    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
+    frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
+    weights = take.weights[frames]
+
+    marker_table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"),
+                                     n_vertices=len(basis.neutral))
+    marker_vertices = marker_table.require_vertices("dataset ict_livelink's virtual markers")
+    mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
+    points = {"mesh": mesh_points, "markers": marker_vertices}
+    labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
+
+    notes_common = [
+        "ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take: the motion "
+        f"is a linear blend of the {len(driven)} driven ICT shapes (eq. 1), with no capture noise",
+        f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
+        f"{basis.n_vertices_in_file} vertices",
+        *folder_mapping.describe(),
+        f"frames: {len(frames)} of {take.n_frames} (every {int(cfg.get('frame_step', 1))}), "
+        f"{frame_rate:.2f} Hz from the timecodes",
+    ]
+    provenance = {
+        "kind": "ict_livelink", "data_root": str(cfg["data_root"]),
+        "files": {"blendshapes": cfg["blendshapes"]["folder"], "livelink_csv": cfg["livelink_csv"],
+                  "marker_table": str(marker_table.path)},
+        "credits": [ICT_CREDIT, LIVELINK_CREDIT],
+        "unit_mm": basis.unit_mm, "region_vertices": len(basis.neutral),
+        "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
+        "n_frames_in_file": take.n_frames, "frames_used": len(frames), "frame_step": int(cfg.get("frame_step", 1)),
+        "virtual_marker_vertices": dict(zip(marker_table.labels, marker_vertices.tolist())),
+    }
+    hand_index = [basis.names.index(name) for name in hand_names]
+    captures = {}
+    for name in names:
+        index = points[name]
+        neutral = basis.neutral[index]
+        deltas = basis.deltas[:, index].reshape(len(basis.names), -1)
+        displacements = drive_blendshapes(weights, mapping, deltas)
+        train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+        notes = list(notes_common)
+        if name == "markers":
+            notes.append(f"virtual markers: {len(index)} ICT vertices of {marker_table.path.name} (the AnimFace "
+                         "marker layout placed on the ICT face), exact (no noise)")
+        else:
+            notes.append(f"mesh: {len(index)} face-region vertices (every {int(cfg.get('mesh_vertex_step', 1))})")
+        notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+        faces = basis.triangles if name == "mesh" and len(index) == len(basis.neutral) else None
+        captures[name] = Capture(
+            name="ICT FaceKit face driven by a Live Link Face take (real ARKit weights)",
+            neutral=neutral.reshape(-1), train=train, eval=evaluate, hand=deltas[hand_index],
+            hand_names=tuple(hand_names), point_labels=labels[name], units="mm",
+            origin=origin_text("ICT FaceKit model origin: midline, about nose-tip height, near the centre of the "
+                               "head", neutral),
+            frame_rate=float(frame_rate), provenance=dict(provenance, train_on=name), notes=tuple(notes),
+            faces=faces)
+    return captures

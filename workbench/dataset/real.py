@@ -1,0 +1,116 @@
+"""Helpers shared by the real-data builders: paths, the blendshape basis, frame selection, wording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset.meshes import Blendshapes, load_blendshapes
+from workbench.errors import WorkbenchError
+
+ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
+LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
+                   "Motionbuilder), MIT licence")
+ANIMFACE_CREDIT = ("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0 (bigoMay/AnimFace; thesis 'Efficient Facial "
+                   "Animation Integrating Euclidean and Geodesic Distance-Based Algorithms into Radial Basis Function "
+                   "Interpolation', Bournemouth University, 2019)")
+
+
+def data_root(cfg: Mapping) -> Path:
+    """The configured data root (``dataset.data_root``, usually ``paths.data_root``), which must exist."""
+    root = cfg.get("data_root")
+    if not root:
+        raise WorkbenchError("dataset.data_root is not set (it defaults to ${paths.data_root})")
+    path = Path(root).expanduser()
+    if not path.is_dir():
+        raise WorkbenchError(f"dataset.data_root {path} (resolved {path.resolve()}) is not a folder: set "
+                             "WORKBENCH_DATA_ROOT or paths.data_root=... to where the shared face data lives")
+    return path
+
+
+def data_path(cfg: Mapping, relative: str, key: str) -> Path:
+    """A file or folder named by ``dataset.<key>``, relative to the data root unless absolute."""
+    if not relative:
+        raise WorkbenchError(f"dataset.{key} is not set")
+    path = Path(relative).expanduser()
+    return path if path.is_absolute() else data_root(cfg) / path
+
+
+def conf_path(relative: str, key: str) -> Path:
+    """A file named by ``dataset.<key>``, relative to the workbench's ``conf/`` folder unless absolute."""
+    from workbench.config import CONF_DIR
+
+    if not relative:
+        raise WorkbenchError(f"dataset.{key} is not set")
+    path = Path(relative).expanduser()
+    return path if path.is_absolute() else CONF_DIR / path
+
+
+def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
+    """The blendshape basis a dataset config names (``dataset.blendshapes``), in millimetres.
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group.
+    names : sequence of str, optional
+        Expressions to read; all in the folder when None.
+
+    Returns
+    -------
+    Blendshapes
+    """
+    spec = cfg.get("blendshapes") or {}
+    for key in ("folder", "neutral", "unit_mm"):
+        if spec.get(key) is None:
+            raise WorkbenchError(f"dataset.blendshapes.{key} is not set")
+    return load_blendshapes(data_path(cfg, spec["folder"], "blendshapes.folder"), neutral_file=spec["neutral"],
+                            names=names, region_vertices=spec.get("region_vertices"), unit_mm=float(spec["unit_mm"]))
+
+
+def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
+    """``dataset.hand_shapes``: distinct names of shapes the basis folder has."""
+    names = list(cfg.get("hand_shapes") or [])
+    if not names:
+        raise WorkbenchError("dataset.hand_shapes is empty: list the blendshape names that form the hand basis")
+    if len(set(names)) != len(names):
+        raise WorkbenchError(f"dataset.hand_shapes must be distinct, got {names}")
+    unknown = [name for name in names if name not in available]
+    if unknown:
+        raise WorkbenchError(f"dataset.hand_shapes names {unknown}, which the blendshape folder does not have; "
+                             f"it has {list(available)}")
+    return names
+
+
+def frame_selection(n_frames: int, frame_step: int, max_frames: int | None, what: str) -> np.ndarray:
+    """Indices of every ``frame_step``-th frame, at most ``max_frames`` of them (from the start).
+
+    Returns
+    -------
+    ndarray of shape (n_selected,) of int
+    """
+    if int(frame_step) < 1:
+        raise WorkbenchError(f"dataset.frame_step must be >= 1, got {frame_step}")
+    index = np.arange(0, n_frames, int(frame_step))
+    if max_frames is not None:
+        if int(max_frames) < 2:
+            raise WorkbenchError(f"{what} must be at least 2 (or null for all), got {max_frames}")
+        index = index[: int(max_frames)]
+    if index.size < 2:
+        raise WorkbenchError(f"{n_frames} frames with frame_step {frame_step} leave {index.size}; need at least 2")
+    return index
+
+
+def mesh_point_indices(n_vertices: int, vertex_step: int) -> np.ndarray:
+    """Vertices used as mesh points: every ``vertex_step``-th one (1 keeps the whole mesh, for full runs)."""
+    if int(vertex_step) < 1:
+        raise WorkbenchError(f"dataset.mesh_vertex_step must be >= 1, got {vertex_step}")
+    return np.arange(0, n_vertices, int(vertex_step))
+
+
+def origin_text(description: str, neutral_points: np.ndarray) -> str:
+    """``Capture.origin``: where the origin is, and how far the capture's points lie from it (it scales alpha)."""
+    distance = np.linalg.norm(neutral_points.reshape(-1, 3), axis=1)
+    return f"{description} (the points lie {distance.min():.0f}-{distance.max():.0f} mm from it)"
