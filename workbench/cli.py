@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import sys
 import time
+from datetime import datetime, timezone
 from pathlib import Path
+from typing import Sequence
 
 import hydra
 import numpy as np
@@ -19,6 +21,9 @@ from workbench.errors import WorkbenchError
 from workbench.pipeline import intuitiveness_table, run_study
 from workbench.record import (config_hash, git_state, versions, write_atomic, write_json, write_npz)
 from workbench.report import alpha_table, headline, markdown_table, study_header
+from workbench.tracking import DONE, prepare_run_dir, record_state, register_resolvers
+
+register_resolvers()
 
 
 def resolved_without_hydra(cfg: DictConfig) -> dict:
@@ -33,7 +38,12 @@ def resolved_without_hydra(cfg: DictConfig) -> dict:
     return plain
 
 
-def run(cfg: DictConfig, output_dir: Path) -> str:
+def resolved_yaml_text(cfg: DictConfig) -> str:
+    """The resolved config (without Hydra's node) as YAML: what ``config.yaml`` holds and the config hash hashes."""
+    return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(cfg)))
+
+
+def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_num: int | None = None) -> str:
     """Run the study a config describes, write its record into ``output_dir`` and return the printed text.
 
     Parameters
@@ -41,6 +51,11 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
     cfg : omegaconf.DictConfig
         A composed study config (without or with its ``hydra`` node).
     output_dir : pathlib.Path
+        Must not hold a complete record (one with ``done``): records are never overwritten.
+    overrides : sequence of str
+        The command-line and sweep overrides that made ``cfg``, kept in the record.
+    job_num : int, optional
+        The run's position in its sweep (Hydra's job number), kept so that tables list runs in sweep order.
 
     Returns
     -------
@@ -48,6 +63,10 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
         The header and the Markdown alpha table.
     """
     started = time.time()
+    started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    if record_state(output_dir) == "complete":
+        raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
+                             "overwritten: write the run elsewhere")
     plain = resolved_without_hydra(cfg)
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
@@ -63,34 +82,53 @@ def run(cfg: DictConfig, output_dir: Path) -> str:
     write_atomic(output_dir / "alpha_table.csv", table.to_csv(index=False))
     write_atomic(output_dir / "alpha_table.md", text)
     capture = results[0].capture
-    rows = [result_row for result in results for result_row in result.rows]
+    rows = [(result, result_row) for result in results for result_row in result.rows]
     metrics = {
         "study": plain["study"],
         "config_hash": config_hash(resolved_yaml),
+        "overrides": list(overrides),
+        "job_num": job_num,
         "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
                     "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
                     "provenance": capture.provenance},
         "data": {result.data: data_metrics(result) for result in results},
-        "rows": [dict(table.iloc[i].to_dict(), solver_iterations=row.n_iterations,
+        "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
+                      eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
                       solver_fallback_frames=row.n_fallback_frames,
                       solver_max_kkt_violation=row.max_kkt_violation,
                       undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
-                 for i, row in enumerate(rows)],
+                 for i, (result, row) in enumerate(rows)],
         "versions": versions(),
         "git": git_state(REPO_ROOT),
+        "started_at": started_at,
+        "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
     write_json(output_dir / "metrics.json", metrics)
     write_json(output_dir / "timings.json", dict(results[0].timings.seconds, total=time.time() - started))
     if plain.get("save_inputs", False):
-        for result in results:
-            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data}.npz"
+        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file
+        for result in [result for result in results if result.transfer == "identity"]:
+            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
             write_npz(output_dir / name, {
                 "train": result.capture.train, "eval": result.capture.eval, "neutral": result.capture.neutral,
                 "hand": result.capture.hand, "hand_names": np.array(result.capture.hand_names),
                 "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_,
                 **({"faces": result.capture.faces} if result.capture.faces is not None else {})})
+        write_npz(output_dir / "alpha_per_frame.npz", alpha_per_frame_arrays(results))
     write_atomic(output_dir / "done", "")
     return text
+
+
+def alpha_per_frame_arrays(results) -> dict:
+    """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
+    of shape (n_rows, n_eval_frames), and ``<data>.basis`` / ``<data>.solver`` naming the rows in table order."""
+    arrays = {}
+    for result in results:
+        arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
+        arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
+        arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
+        arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
+    return arrays
 
 
 def data_metrics(result) -> dict:
@@ -112,18 +150,40 @@ def data_metrics(result) -> dict:
 
 @hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)
 def _hydra_main(cfg: DictConfig) -> None:
-    output_dir = Path(hydra.core.hydra_config.HydraConfig.get().runtime.output_dir)
+    from hydra.types import RunMode
+
+    hydra_cfg = hydra.core.hydra_config.HydraConfig.get()
+    output_dir = Path(hydra_cfg.runtime.output_dir)
     try:
-        text = run(cfg, output_dir)
+        hash_of_config = config_hash(resolved_yaml_text(cfg))
+        if not prepare_run_dir(output_dir, hash_of_config):
+            print(f"skip {output_dir}: complete record (config hash {hash_of_config})")
+            return
+        multirun = hydra_cfg.mode == RunMode.MULTIRUN
+        text = run(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
+                   job_num=int(hydra_cfg.job.num) if multirun else None)
     except WorkbenchError as error:
         print(f"workbench: error: {error}", file=sys.stderr)
         sys.exit(2)
-    print(text + f"\nrecord: {output_dir}")
+    if multirun:
+        print(f"done {output_dir}: {first_headline(text)}")
+    else:
+        print(text + f"\nrecord: {output_dir}")
+
+
+def first_headline(text: str) -> str:
+    """The first line after the alpha table of a run's printed text (its headline), for a sweep's one-line log."""
+    lines = text.splitlines()
+    last_table_line = max((i for i, line in enumerate(lines) if line.startswith("|")), default=-1)
+    return next((line for line in lines[last_table_line + 1:] if line.strip()), "")
 
 
 # Subcommands other than running a study: name -> "module:function", the function taking the remaining
 # arguments (a list of str) and returning an exit code. Imported only when used.
-COMMANDS: dict[str, str] = {}
+COMMANDS: dict[str, str] = {
+    "report": "workbench.reporting:main",
+    "collect": "workbench.collect:main",
+}
 
 
 def main() -> None:

@@ -7,16 +7,18 @@
 
 from __future__ import annotations
 
+import re
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-from typing import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from workbench.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
+from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
 from workbench.metrics import AlphaSummary, intuitiveness, summarise_alpha
 from workbench.solve import reconstruct, solve_weights
@@ -67,6 +69,13 @@ class StudyResult:
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n_shapes).
     timings : Timings
+    train_on : str
+        The data variant the bases were fitted on (``data`` unless ``dataset.eval_on`` is set).
+    eval_on : str
+        The data variant scored (``capture`` is its capture).
+    transfer : str
+        How the fitted bases were carried from ``train_on``'s points to ``eval_on``'s (``identity`` when the
+        same; see :mod:`workbench.dataset.transfer`).
     """
 
     data: str
@@ -76,6 +85,9 @@ class StudyResult:
     rows: list
     weights: dict
     timings: Timings
+    train_on: str = ""
+    eval_on: str = ""
+    transfer: str = "identity"
 
 
 def check_solver_config(name: str, solver: Mapping) -> dict:
@@ -93,7 +105,7 @@ def check_solver_config(name: str, solver: Mapping) -> dict:
 
 def run_study(cfg: Mapping) -> list[StudyResult]:
     """Build the data, then for each data variant fit eigenfaces and quasi-eigen faces on the training frames
-    and score every basis on the evaluated ones.
+    and score every basis on the evaluated ones (of the same variant, or of each ``dataset.eval_on`` variant).
 
     Parameters
     ----------
@@ -103,15 +115,166 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     Returns
     -------
     list of StudyResult
-        One per ``dataset.train_on`` variant, in the configured order; they share one :class:`Timings`.
+        One per ``dataset.train_on`` variant, in the configured order (times each ``dataset.eval_on`` variant
+        when that is set); they share one :class:`Timings`.
     """
     timings = Timings()
     solvers = {name: check_solver_config(name, spec) for name, spec in cfg["solver"].items()}
     if not solvers:
         raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
+    dataset_cfg, basis_cfg = cfg["dataset"], cfg["basis"]
+    train_names, eval_names = data_variants(dataset_cfg)
+    build_names = train_names + [name for name in eval_names or () if name not in train_names]
     with timings.stage("dataset"):
-        captures = build_captures(cfg["dataset"])
-    return [run_on_capture(data, capture, cfg["basis"], solvers, timings) for data, capture in captures.items()]
+        captures = build_captures(dict(dataset_cfg, train_on=build_names) if eval_names else dataset_cfg)
+    if not eval_names:
+        return [run_on_capture(data, subset_hand_shapes(capture, basis_cfg), basis_cfg, solvers, timings)
+                for data, capture in captures.items()]
+    results = []
+    for train_on in train_names:
+        source = subset_hand_shapes(captures[train_on], basis_cfg)
+        eigenfaces, quasi_eigen = fit_bases(source, basis_cfg, timings)
+        for eval_on in eval_names:
+            target = select_shapes(captures[eval_on], source.hand_names)
+            with timings.stage("transfer"):
+                transfer = point_transfer(source.neutral.reshape(-1, 3), target.neutral.reshape(-1, 3))
+            note = (f"bases fitted on '{train_on}' ({source.n_points} points) and carried onto '{eval_on}' "
+                    f"({target.n_points} points): {transfer.describe()}")
+            target = replace(target, notes=target.notes + (note,))
+            carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
+                       for projection, qe in quasi_eigen.items()}
+            rows, weights = score_bases(target, eigenfaces, carried, pca_reconstruction(eigenfaces, transfer),
+                                        solvers, timings)
+            results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
+                                       quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
+                                       train_on=train_on, eval_on=eval_on, transfer=transfer.method))
+    return results
+
+
+def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
+    """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
+    def names(key):
+        value = dataset_cfg.get(key)
+        return None if value is None else [value] if isinstance(value, str) else list(value)
+
+    train_names, eval_names = names("train_on"), names("eval_on")
+    if eval_names is not None and (not eval_names or len(set(eval_names)) != len(eval_names)):
+        raise WorkbenchError(f"dataset.eval_on must be a data variant or a list of distinct ones, "
+                             f"got {dataset_cfg.get('eval_on')!r}")
+    if eval_names is not None and train_names is None:
+        raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
+    return train_names or [], eval_names
+
+
+def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
+    """Which hand shapes a ``basis.hand_subset`` setting keeps.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The capture's hand-shape names.
+    spec : str or sequence of str
+        ``all``; ``upper`` or ``lower`` (the synthetic actor's 6 upper-face and 12 lower-face muscles, as in
+        the paper's section 5.3); ``random<k>`` (``k`` shapes drawn without replacement); or a list of names.
+    seed : int
+        Seed of the draw for ``random<k>`` (``basis.subset_seed``).
+
+    Returns
+    -------
+    ndarray of int
+        Indices into ``names``, ascending.
+    """
+    from workbench.dataset.synthetic.muscles import LOWER_FACE, UPPER_FACE
+
+    names = list(names)
+    if isinstance(spec, str) and spec == "all":
+        return np.arange(len(names))
+    if isinstance(spec, str) and spec in ("upper", "lower"):
+        region = UPPER_FACE if spec == "upper" else LOWER_FACE
+        index = np.array([i for i, name in enumerate(names) if name in region], dtype=int)
+        if index.size == 0:
+            raise WorkbenchError(f"basis.hand_subset={spec} names the synthetic actor's {spec}-face muscles, and "
+                                 "this dataset's hand shapes include none of them; list the shapes by name instead")
+        return index
+    if isinstance(spec, str):
+        match = re.fullmatch(r"random(\d+)", spec)
+        if match is None:
+            raise WorkbenchError(f"basis.hand_subset must be all, upper, lower, random<k> or a list of hand-shape "
+                                 f"names, got {spec!r}")
+        k = int(match.group(1))
+        if not 1 <= k <= len(names):
+            raise WorkbenchError(f"basis.hand_subset=random{k} needs 1 <= k <= {len(names)} (the hand shapes)")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise WorkbenchError(f"basis.subset_seed must be a non-negative integer, got {seed!r}")
+        return np.sort(np.random.default_rng(int(seed)).choice(len(names), size=k, replace=False))
+    unknown = [name for name in spec if name not in names]
+    if unknown or not spec or len(set(spec)) != len(spec):
+        raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; "
+                             f"got {list(spec)}")
+    return np.array(sorted(names.index(name) for name in spec), dtype=int)
+
+
+def subset_hand_shapes(capture: Capture, basis_cfg: Mapping) -> Capture:
+    """The capture with only the hand shapes ``basis.hand_subset`` keeps."""
+    spec = basis_cfg.get("hand_subset", "all")
+    index = hand_subset_indices(capture.hand_names, spec, basis_cfg.get("subset_seed", 0))
+    if index.size == len(capture.hand_names):
+        return capture
+    return select_shapes(capture, [capture.hand_names[i] for i in index])
+
+
+def select_shapes(capture: Capture, names: Sequence[str]) -> Capture:
+    """The capture with the hand shapes of these names, in this order."""
+    if tuple(names) == tuple(capture.hand_names):
+        return capture
+    missing = [name for name in names if name not in capture.hand_names]
+    if missing:
+        raise WorkbenchError(f"hand shapes {missing} are missing from the evaluated data's hand basis")
+    index = [capture.hand_names.index(name) for name in names]
+    return replace(capture, hand=capture.hand[index], hand_names=tuple(names))
+
+
+def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[Eigenfaces, dict]:
+    """Eigenfaces (eq. 2) of the training frames and the quasi-eigen faces (eq. 3-4) of each projection.
+
+    Returns
+    -------
+    eigenfaces : Eigenfaces
+    quasi_eigen : dict
+        Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
+    """
+    with timings.stage("pca"):
+        eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
+        eigenfaces.fit(capture.train)
+    with timings.stage("quasi_eigen"):
+        quasi_eigen = {
+            projection: build_quasi_eigen_basis(
+                capture.hand, capture.hand_names, eigenfaces, projection=projection,
+                empty_axis_eps=basis_cfg["empty_axis_eps"], empty_axis_scale=basis_cfg["empty_axis_scale"],
+                append_empty_axes=basis_cfg["append_empty_axes"])
+            for projection in basis_cfg["projections"]}
+    return eigenfaces, quasi_eigen
+
+
+def pca_reconstruction(eigenfaces: Eigenfaces, transfer: PointTransfer) -> Callable[[np.ndarray], np.ndarray]:
+    """PCA's reconstruction of frames at the evaluated points: the (carried) mean plus the orthogonal projection
+    onto the span of the (carried) eigenfaces.
+
+    Returns
+    -------
+    callable
+        ``frames`` of shape (n_frames, n_dims) -> reconstruction of the same shape.
+    """
+    if transfer.operator is None:
+        return eigenfaces.reconstruct
+    mean = transfer.apply_one(eigenfaces.mean_)
+    # carried eigenfaces are no longer orthonormal: project onto an orthonormal basis of their span
+    orthonormal, _ = np.linalg.qr(transfer.apply(eigenfaces.components_).T)
+
+    def reconstruct(frames: np.ndarray) -> np.ndarray:
+        return mean + ((frames - mean) @ orthonormal) @ orthonormal.T
+
+    return reconstruct
 
 
 def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
@@ -134,19 +297,37 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
     -------
     StudyResult
     """
-    with timings.stage("pca"):
-        eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
-        eigenfaces.fit(capture.train)
-    with timings.stage("quasi_eigen"):
-        quasi_eigen = {
-            projection: build_quasi_eigen_basis(
-                capture.hand, capture.hand_names, eigenfaces, projection=projection,
-                empty_axis_eps=basis_cfg["empty_axis_eps"], empty_axis_scale=basis_cfg["empty_axis_scale"],
-                append_empty_axes=basis_cfg["append_empty_axes"])
-            for projection in basis_cfg["projections"]}
+    eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
+    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, eigenfaces.reconstruct, solvers, timings)
+    return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
+                       weights=weights, timings=timings, train_on=data, eval_on=data)
+
+
+def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, reconstruct_pca: Callable,
+                solvers: Mapping[str, Mapping], timings: Timings) -> tuple[list, dict]:
+    """Weights (eq. 5) and alpha (eq. 6) of H and every quasi-eigen basis with every solver, then PCA.
+
+    Parameters
+    ----------
+    capture : Capture
+        The evaluated data; its ``hand`` is the H basis.
+    eigenfaces : Eigenfaces
+        For ``m`` of the PCA row.
+    quasi_eigen : mapping
+        Projection name -> :class:`workbench.bases.QuasiEigenBasis` at the capture's points.
+    reconstruct_pca : callable
+        PCA's reconstruction of frames at the capture's points.
+    solvers : mapping
+    timings : Timings
+
+    Returns
+    -------
+    rows : list of Row
+    weights : dict
+        ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n_shapes).
+    """
     bases = [("H", "-", capture.hand)] + [
         (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()]
-
     rows, weights = [], {}
     for solver_name, solver in solvers.items():
         for label, projection, shapes in bases:
@@ -160,11 +341,10 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
                             n_fallback_frames=solution.n_fallback_frames,
                             max_kkt_violation=solution.max_kkt_violation))
     with timings.stage("pca_reconstruction"):
-        summary = summarise_alpha(capture.neutral, capture.eval, eigenfaces.reconstruct(capture.eval))
+        summary = summarise_alpha(capture.neutral, capture.eval, reconstruct_pca(capture.eval))
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
-    return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
-                       weights=weights, timings=timings)
+    return rows, weights
 
 
 def intuitiveness_table(result: StudyResult) -> list[dict]:

@@ -16,7 +16,7 @@ from typing import Mapping
 
 import numpy as np
 
-RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf")
+RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification")
 
 
 def write_atomic(path: Path, data: bytes | str) -> None:

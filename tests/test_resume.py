@@ -1,0 +1,142 @@
+"""Resumable sweeps: a sweep killed part-way (SIGKILL) resumes, redoes nothing finished and loses nothing."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from workbench.cli import run
+from workbench.config import REPO_ROOT, compose
+from workbench.errors import WorkbenchError
+from workbench.record import config_hash
+from workbench.tracking import clear_partial, prepare_run_dir, record_state, run_dir_name
+
+SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
+N_RUNS = 6
+
+
+def sweep_command(sweep_dir: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "workbench", *SWEEP, f"hydra.sweep.dir={sweep_dir}", *extra]
+
+
+def cli_env() -> dict:
+    return dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+
+
+def run_sweep(sweep_dir: Path, cwd: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(sweep_command(sweep_dir, *extra), capture_output=True, text=True, cwd=cwd, timeout=600,
+                          env=cli_env())
+
+
+def snapshot(folder: Path) -> dict:
+    """Every file of a run folder: inode, modification time (ns) and content."""
+    return {path.name: (path.stat().st_ino, path.stat().st_mtime_ns, path.read_bytes())
+            for path in sorted(folder.iterdir())}
+
+
+def comparable(table: pd.DataFrame) -> pd.DataFrame:
+    """A collected table without what differs between two sweeps of the same runs (folders, timings)."""
+    if "metric" in table.columns:
+        table = table[~table["metric"].str.startswith("time_")].reset_index(drop=True)
+    return table.drop(columns=[column for column in table.columns
+                               if column == "sweep" or column.startswith("time_")])
+
+
+def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
+    sweep = tmp_path / "killed"
+    process = subprocess.Popen(sweep_command(sweep), cwd=tmp_path, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, env=cli_env(), start_new_session=True)
+    deadline = time.monotonic() + 300
+    while not list(sweep.glob("*/done")):
+        assert process.poll() is None, "the sweep ended before any run finished"
+        assert time.monotonic() < deadline, "no run finished in time"
+        time.sleep(0.005)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.wait()
+
+    finished = {path.parent.name: snapshot(path.parent) for path in sweep.glob("*/done")}
+    assert 1 <= len(finished) < N_RUNS, "the kill came too late to test a resume"
+    # a run killed while writing its record: a folder without 'done' holding a stale file
+    unfinished = run_dir_name("basis.coverage=0.99,dataset.n_frames=500,dataset.seed=1")
+    assert unfinished not in finished
+    (sweep / unfinished).mkdir(exist_ok=True)
+    (sweep / unfinished / "alpha_table.csv").write_text("stale")
+
+    resumed = run_sweep(sweep, tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    skipped = [line for line in resumed.stdout.splitlines() if line.startswith("skip ")]
+    assert len(skipped) == len(finished)
+    for name, files in finished.items():
+        assert snapshot(sweep / name) == files, f"finished run {name} was touched"
+    assert sum(1 for _ in sweep.glob("*/done")) == N_RUNS
+    assert (sweep / unfinished / "alpha_table.csv").read_text() != "stale"
+
+    uninterrupted = tmp_path / "uninterrupted"
+    complete = run_sweep(uninterrupted, tmp_path)
+    assert complete.returncode == 0, complete.stderr
+    for name in ("runs", "summary"):
+        pd.testing.assert_frame_equal(comparable(pd.read_parquet(sweep / "collected" / f"{name}.parquet")),
+                                      comparable(pd.read_parquet(uninterrupted / "collected" / f"{name}.parquet")))
+    assert (sweep / "collected" / "alpha_table.md").read_text() == \
+        (uninterrupted / "collected" / "alpha_table.md").read_text()
+    assert sorted(path.name for path in sweep.iterdir()) == sorted(path.name for path in uninterrupted.iterdir())
+
+
+def test_parallel_sweep_with_joblib_launcher(tmp_path):
+    """The sweep through Hydra's joblib launcher (two worker processes) names and records its runs the same way."""
+    sweep = tmp_path / "parallel"
+    result = run_sweep(sweep, tmp_path, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "dataset.seed=0",
+                       "basis.coverage=0.9,0.99")
+    assert result.returncode == 0, result.stderr
+    assert sorted(path.parent.name for path in sweep.glob("*/done")) == [
+        "basis.coverage=0.9,dataset.n_frames=500,dataset.seed=0",
+        "basis.coverage=0.99,dataset.n_frames=500,dataset.seed=0"]
+    assert "collected 2 runs" in result.stdout
+
+
+def test_run_ids_are_stable_readable_and_distinct():
+    assert run_dir_name("basis.coverage=0.99,dataset.seed=1") == "basis.coverage=0.99,dataset.seed=1"
+    assert run_dir_name("") == "default"
+    unsafe = run_dir_name("dataset.train_on=[markers,mesh]")
+    assert unsafe.startswith("dataset.train_on=_markers,mesh_-") and "/" not in unsafe
+    assert unsafe != run_dir_name("dataset.train_on=(markers,mesh)")
+    long = run_dir_name("x=" + "1" * 300)
+    assert len(long) <= 120 and long == run_dir_name("x=" + "1" * 300) != run_dir_name("x=" + "1" * 299)
+
+
+def test_complete_record_is_skipped_refused_or_never_cleared(tmp_path):
+    folder = tmp_path / "run"
+    assert record_state(folder) == "absent" and prepare_run_dir(folder, "abc")
+    folder.mkdir()
+    (folder / "config.yaml").write_text("partial")
+    (folder / ".metrics.json.x.tmp").write_text("")
+    assert record_state(folder) == "partial"
+    assert prepare_run_dir(folder, "abc") and list(folder.iterdir()) == []
+    (folder / "metrics.json").write_text(json.dumps({"config_hash": "abc"}))
+    (folder / "done").write_text("")
+    assert record_state(folder) == "complete"
+    assert prepare_run_dir(folder, "abc") is False
+    with pytest.raises(WorkbenchError, match="another config .*never overwritten"):
+        prepare_run_dir(folder, "def")
+    with pytest.raises(WorkbenchError, match="never cleared"):
+        clear_partial(folder)
+    assert sorted(path.name for path in folder.iterdir()) == ["done", "metrics.json"]
+
+
+def test_run_refuses_to_overwrite_a_complete_record(tmp_path):
+    cfg = compose("paper", ["dataset.n_frames=300", "solver=lstsq"])
+    run(cfg, tmp_path, overrides=["dataset.n_frames=300"], job_num=3)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["overrides"] == ["dataset.n_frames=300"] and metrics["job_num"] == 3
+    assert metrics["config_hash"] == config_hash((tmp_path / "config.yaml").read_text())
+    assert metrics["started_at"] <= metrics["finished_at"]
+    before = snapshot(tmp_path)
+    with pytest.raises(WorkbenchError, match="never overwritten"):
+        run(cfg, tmp_path)
+    assert snapshot(tmp_path) == before
