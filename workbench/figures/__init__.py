@@ -1,0 +1,120 @@
+"""Figures of the paper and plots of its studies, drawn from run records.
+
+Modules:
+
+- :mod:`workbench.figures.analogy`: figure 1, the analogical 3-D drawing, computed by the core on a small example.
+- :mod:`workbench.figures.render`: off-screen mesh rendering with pyvista (headless, through EGL or OSMesa).
+- :mod:`workbench.figures.faces`: figures 2-4 (hand versus quasi-eigen shapes, reconstructed frames, marker
+  errors of one frame).
+- :mod:`workbench.figures.studies`: coverage curve, alpha against a swept setting with confidence bands, marker
+  versus mesh, alpha per frame over time.
+
+Every figure is a :class:`matplotlib.figure.Figure` built without pyplot (no display, no global figure state)
+and written by :func:`save_figure` as PNG and SVG.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+from matplotlib.figure import Figure
+
+FORMATS = ("png", "svg")
+PNG_DPI = 100
+# PNGs above this size are re-encoded with a 256-colour palette, which keeps committed reports small.
+PNG_MAX_BYTES = 200_000
+
+# Basis colours shared by every plot, so a basis looks the same everywhere.
+BASIS_COLOURS = {"H": "#1f5fbf", "QE": "#8e2bb0", "QE-linear": "#d17a00", "PCA": "#c0392b"}
+BASIS_LABELS = {"H": "hand $E^H$", "QE": "quasi-eigen $E^{QE}$ (affine)",
+                "QE-linear": "quasi-eigen (linear)", "PCA": "PCA $E^{PCA}$"}
+
+# Colours kept exactly when a PNG is reduced to a palette: text, markers and lines.
+FIXED_COLOURS = (*BASIS_COLOURS.values(), "#d62728", "#000000", "#ffffff", "#333333", "#808080", "#b0b0b0",
+                 "#e0e0e0")
+
+
+def _rgb(colour: str) -> tuple[int, int, int]:
+    return tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))
+
+
+# Text-as-text SVG with a fixed hash salt and no date: the same figure gives the same bytes on every rebuild.
+SVG_RC = {"svg.fonttype": "none", "svg.hashsalt": "workbench"}
+
+
+def new_figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` x ``height`` inches with constrained layout, not attached to any GUI."""
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def wrap_title(text: str, width_inches: float, fontsize: float = 11) -> str:
+    """Wrap each line of a title to the width of a figure (about 0.55 of the font size per character)."""
+    import textwrap
+
+    chars = max(int(width_inches * 72 / (0.55 * fontsize)), 20)
+    return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
+
+
+def basis_colour(basis: str) -> str:
+    return BASIS_COLOURS.get(basis, "#555555")
+
+
+def basis_label(basis: str) -> str:
+    return BASIS_LABELS.get(basis, basis)
+
+
+def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] = FORMATS) -> list[Path]:
+    """Write a figure as ``<folder>/<stem>.<format>`` for each format.
+
+    Parameters
+    ----------
+    figure : matplotlib.figure.Figure
+    folder : pathlib.Path
+    stem : str
+        File name without extension.
+    formats : sequence of str
+        Any of ``png``, ``svg``, ``pdf``.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order of ``formats``.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for fmt in formats:
+        path = folder / f"{stem}.{fmt}"
+        if fmt == "png":
+            path.write_bytes(png_bytes(figure))
+        else:
+            with matplotlib.rc_context(SVG_RC):
+                figure.savefig(path, format=fmt, metadata={"Date": None} if fmt == "svg" else None)
+        written.append(path)
+    return written
+
+
+def png_bytes(figure: Figure, *, dpi: int = PNG_DPI, max_bytes: int = PNG_MAX_BYTES) -> bytes:
+    """PNG of a figure; re-encoded with an adaptive, dithered 256-colour palette when the full-colour file is
+    bigger than ``max_bytes``."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    data = buffer.getvalue()
+    if len(data) <= max_bytes:
+        return data
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(data)).convert("RGB")
+    # Median-cut keeps the shading of rendered meshes; the fixed colours keep thin text and markers in their
+    # own colour (median-cut would give their few pixels none); dithering keeps colour bars smooth.
+    fixed = [channel for colour in FIXED_COLOURS for channel in _rgb(colour)]
+    found = image.quantize(colors=256 - len(FIXED_COLOURS), method=Image.Quantize.MEDIANCUT).getpalette()
+    palette = Image.new("P", (1, 1))
+    palette.putpalette(fixed + found[:3 * (256 - len(FIXED_COLOURS))])
+    indexed = image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG)
+    buffer = io.BytesIO()
+    indexed.save(buffer, format="png", optimize=True)
+    return buffer.getvalue()

@@ -1,0 +1,275 @@
+"""Figures 2-4 of the paper: hand shapes beside their quasi-eigen faces, captured frames beside their
+reconstructions, and one frame's reconstruction error at the markers.
+
+The functions here only draw: they take arrays the report prepared from a run record (shapes, frames,
+reconstructions, per-frame alpha) and text that labels them. Arrays are flattened point sets
+``[x0, y0, z0, x1, ...]`` in millimetres, the convention of :class:`workbench.dataset.capture.Capture`.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from workbench.figures import basis_colour, basis_label, new_figure, wrap_title
+from workbench.figures.render import MeshView, crop_background, render_meshes
+
+DISPLACEMENT_CMAP = "YlGnBu"
+ERROR_CMAP = "YlOrRd"
+CAPTURED_RED, RECONSTRUCTED_BLUE = "#d62728", "#1f5fbf"
+
+
+def point_norms(flat: np.ndarray) -> np.ndarray:
+    """Length of each 3-D point of flattened point sets.
+
+    Parameters
+    ----------
+    flat : ndarray of shape (..., 3 * n_points)
+
+    Returns
+    -------
+    ndarray of shape (..., n_points)
+    """
+    flat = np.asarray(flat)
+    return np.linalg.norm(flat.reshape(*flat.shape[:-1], -1, 3), axis=-1)
+
+
+def spread_by_rank(values: Sequence[float], n: int) -> list[int]:
+    """Indices of ``n`` entries spread evenly over the ranks of ``values`` (lowest, ..., highest).
+
+    Parameters
+    ----------
+    values : sequence of float
+    n : int
+
+    Returns
+    -------
+    list of int
+        Distinct indices, in ascending order of their value.
+    """
+    order = np.argsort(np.asarray(values), kind="stable")
+    if n >= len(order):
+        return [int(i) for i in order]
+    return [int(order[k]) for k in np.round(np.linspace(0, len(order) - 1, n)).astype(int)]
+
+
+def expressive_frames(captured: np.ndarray, n: int) -> list[int]:
+    """The frame with the largest displacement in each of ``n`` equal stretches of the take.
+
+    Parameters
+    ----------
+    captured : ndarray of shape (n_frames, 3 * n_points)
+        Captured displacements.
+    n : int
+
+    Returns
+    -------
+    list of int
+        Ascending frame indices.
+    """
+    norms = np.linalg.norm(captured, axis=1)
+    edges = np.linspace(0, len(norms), n + 1).astype(int)
+    return [int(start + np.argmax(norms[start:stop])) for start, stop in zip(edges[:-1], edges[1:]) if stop > start]
+
+
+def _upper_limit(values: Sequence[np.ndarray], percentile: float = 99.5) -> float:
+    """A colour-range top shared by several panels: a high percentile of every value, never zero."""
+    top = float(np.percentile(np.concatenate([np.ravel(v) for v in values]), percentile))
+    return top if top > 0 else 1.0
+
+
+def _show(ax, image: np.ndarray) -> None:
+    ax.imshow(image)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+
+
+def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.ndarray, quasi_eigen: np.ndarray,
+                               names: Sequence[str], relative_distance: Sequence[float],
+                               cosine: Sequence[float], *, title: str, qe_label: str) -> Figure:
+    """Figure 2: hand shapes (top row) above their quasi-eigen faces (bottom row), rendered meshes coloured by
+    displacement length, with each pair's intuitiveness numbers.
+
+    Each pair (column) has its own colour range and colour bar: hand shapes differ in size by a factor of
+    several (a jaw opening against a brow), and one shared range would leave the small ones blank.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (3 * n_vertices,)
+    faces : ndarray of shape (n_faces, 3)
+    hand, quasi_eigen : ndarray of shape (n_shown, 3 * n_vertices)
+        Displacements from neutral.
+    names : sequence of str
+        One per shown shape.
+    relative_distance, cosine : sequence of float
+        ``|e^QE - e^H| / |e^H|`` and the cosine between them, one per shown shape.
+    title : str
+        Figure title (dataset, data variant, m).
+    qe_label : str
+        Label of the quasi-eigen row, e.g. naming the projection.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    n = len(names)
+    images, views = [], []
+    for k in range(n):
+        pair = (hand[k], quasi_eigen[k])
+        lengths = [point_norms(shape) for shape in pair]
+        views.append(MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, _upper_limit(lengths))))
+        images += render_meshes([neutral + shape for shape in pair], faces, lengths, views[-1])
+    images = crop_background(images)
+    width = 2.5 * n + 0.4
+    figure = new_figure(width, 7.4)
+    axes = figure.subplots(2, n, squeeze=False)
+    for k in range(n):
+        _show(axes[0, k], images[2 * k])
+        _show(axes[1, k], images[2 * k + 1])
+        axes[0, k].set_title(names[k], fontsize=11)
+        axes[1, k].set_xlabel(f"rel. distance {relative_distance[k]:.2f}, cosine {cosine[k]:.3f}", fontsize=10)
+        figure.colorbar(ScalarMappable(Normalize(*views[k].clim), DISPLACEMENT_CMAP), ax=axes[:, k],
+                        location="bottom", shrink=0.85, aspect=14, label="|d| (mm)")
+    axes[0, 0].set_ylabel("hand $e_i^H$", fontsize=11)
+    axes[1, 0].set_ylabel(qe_label, fontsize=11)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
+
+
+def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.ndarray,
+                           reconstructed: Mapping[str, np.ndarray], row_labels: Sequence[str],
+                           panel_notes: Mapping[str, Sequence[str]], *, title: str) -> Figure:
+    """Figure 3: captured frames (left column) beside their reconstructions with each basis.
+
+    The captured column is coloured by displacement length; the reconstructions by their per-vertex error
+    against the captured frame, on one shared scale.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (3 * n_vertices,)
+    faces : ndarray of shape (n_faces, 3)
+    captured : ndarray of shape (n_shown, 3 * n_vertices)
+        Captured displacements of the shown frames.
+    reconstructed : mapping
+        Basis label -> ndarray of shape (n_shown, 3 * n_vertices), reconstructed displacements.
+    row_labels : sequence of str
+        One per shown frame (frame index, time).
+    panel_notes : mapping
+        Basis label -> one text per shown frame (its alpha), written under the panel.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    labels = list(reconstructed)
+    n_rows, n_cols = len(captured), 1 + len(labels)
+    lengths = list(point_norms(captured))
+    errors = {label: list(point_norms(frames - captured)) for label, frames in reconstructed.items()}
+    captured_view = MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, _upper_limit(lengths)))
+    error_view = MeshView(cmap=ERROR_CMAP, clim=(0.0, _upper_limit([e for v in errors.values() for e in v])))
+    images = render_meshes(neutral + captured, faces, lengths, captured_view)
+    for label in labels:
+        images += render_meshes(neutral + reconstructed[label], faces, errors[label], error_view)
+    images = crop_background(images)
+
+    width = 2.4 * n_cols + 0.5
+    figure = new_figure(width, 2.8 * n_rows + 1.6)
+    axes = figure.subplots(n_rows, n_cols, squeeze=False)
+    for i in range(n_rows):
+        _show(axes[i, 0], images[i])
+        axes[i, 0].set_ylabel(row_labels[i], fontsize=10)
+        for j, label in enumerate(labels, start=1):
+            _show(axes[i, j], images[n_rows * j + i])
+            axes[i, j].set_xlabel(panel_notes[label][i], fontsize=9)
+    axes[0, 0].set_title("captured", fontsize=11)
+    for j, label in enumerate(labels, start=1):
+        axes[0, j].set_title(f"reconstructed with\n{basis_label(label)}", fontsize=10, color=basis_colour(label))
+    figure.colorbar(ScalarMappable(Normalize(*captured_view.clim), DISPLACEMENT_CMAP), ax=axes[:, 0],
+                    location="bottom", shrink=0.9, label="captured |d*| (mm)")
+    figure.colorbar(ScalarMappable(Normalize(*error_view.clim), ERROR_CMAP), ax=axes[:, 1:], location="bottom",
+                    shrink=0.6, label="reconstruction error |d - d*| per vertex (mm)")
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
+
+
+def nice_exaggeration(largest_error: float, target: float) -> int:
+    """The factor from 1, 2, 5, 10, 20, ... that draws ``largest_error`` closest to, and at most, ``target``."""
+    if largest_error <= 0:
+        return 1
+    factors = [base * 10 ** power for power in range(4) for base in (1, 2, 5)]
+    fitting = [f for f in factors if f * largest_error <= target]
+    return fitting[-1] if fitting else 1
+
+
+def _padded_range(values: np.ndarray, pad: float) -> tuple[float, float]:
+    return float(np.min(values)) - pad, float(np.max(values)) + pad
+
+
+def figure_marker_errors(neutral: np.ndarray, captured: np.ndarray, reconstructed: Mapping[str, np.ndarray],
+                         panel_titles: Mapping[str, str], *, title: str, units: str = "mm",
+                         target_fraction: float = 0.1) -> Figure:
+    """Figure 4: one frame's reconstruction error at the markers, captured (red) and reconstructed (blue),
+    for each basis a front view (x-y) and a side view (z-y).
+
+    Offsets between captured and reconstructed markers are drawn magnified by one factor for every panel
+    (stated in the legend), because sub-millimetre errors are invisible at face scale.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (3 * n_markers,)
+    captured : ndarray of shape (3 * n_markers,)
+        Captured displacement of the frame.
+    reconstructed : mapping
+        Basis label -> ndarray of shape (3 * n_markers,), the reconstructed displacement.
+    panel_titles : mapping
+        Basis label -> title (its alpha and RMS error on this frame).
+    title : str
+    units : str
+    target_fraction : float
+        The largest offset is drawn at most this fraction of the face's height.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    captured_points = (neutral + captured).reshape(-1, 3)
+    offsets = {label: (shape - captured).reshape(-1, 3) for label, shape in reconstructed.items()}
+    largest = max(float(np.max(np.linalg.norm(o, axis=1))) for o in offsets.values())
+    factor = nice_exaggeration(largest, target_fraction * float(np.ptp(captured_points[:, 1])))
+    labels = list(reconstructed)
+    width = 5.4 * len(labels) + 0.4
+    figure = new_figure(width, 5.8)
+    # Panel widths follow the data's extent in x and z, so equal aspect needs no clipping.
+    reach = factor * largest
+    extents = [float(np.ptp(captured_points[:, axis])) + 2 * reach + 10.0 for axis in (0, 2)]
+    axes = figure.subplots(1, 2 * len(labels), squeeze=False, width_ratios=extents * len(labels),
+                           sharey=True)[0]
+    views = (("front", 0, "x"), ("side", 2, "z"))
+    for j, label in enumerate(labels):
+        drawn = captured_points + factor * offsets[label]
+        for i, (view, horizontal, name) in enumerate(views):
+            ax = axes[2 * j + i]
+            ax.plot(np.c_[captured_points[:, horizontal], drawn[:, horizontal]].T,
+                    np.c_[captured_points[:, 1], drawn[:, 1]].T, color="0.45", linewidth=0.9)
+            ax.scatter(captured_points[:, horizontal], captured_points[:, 1], s=9, color=CAPTURED_RED, zorder=3,
+                       label="captured")
+            ax.scatter(drawn[:, horizontal], drawn[:, 1], s=9, color=RECONSTRUCTED_BLUE, zorder=3,
+                       label=f"reconstructed (offset from captured drawn x{factor})")
+            ax.set_xlim(*_padded_range(captured_points[:, horizontal], reach + 5.0))
+            ax.set_ylim(*_padded_range(captured_points[:, 1], reach + 5.0))
+            ax.set_aspect("equal", adjustable="box")
+            ax.set_xlabel(f"{name} ({units}), {view} view")
+            ax.grid(alpha=0.3)
+        axes[2 * j].set_ylabel(f"y ({units})")
+        axes[2 * j].set_title(panel_titles[label], fontsize=10, color=basis_colour(label), loc="left")
+    handles, legend_labels = axes[0].get_legend_handles_labels()
+    figure.legend(handles, legend_labels, loc="outside lower center", ncols=2, fontsize=9, frameon=False)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure

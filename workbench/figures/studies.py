@@ -1,0 +1,305 @@
+"""Plots of the studies: coverage curve, alpha against a swept setting, marker versus mesh, alpha over time.
+
+The sweep plots read one tidy table (a :class:`pandas.DataFrame`, one row per swept value x data variant x
+basis x solver), the schema ``workbench collect`` and :func:`workbench.reporting.summarise_runs` produce:
+
+========================  ====================================================================================
+column                    meaning
+========================  ====================================================================================
+``data``                  data variant (``markers``, ``mesh``, ...)
+``basis``                 ``H``, ``QE``, ``QE-linear``, ``PCA``
+``solver``                ``lstsq``, ``nnls``, ``box``; ``projection`` for PCA
+``<x>``                   the swept setting, named by its config key (``basis.coverage``,
+                          ``dataset.marker_noise_mm``, ...) or a table column (``m``, ``n_hand``); numeric,
+                          or text (categories, drawn in order of appearance)
+``<y>``                   an alpha column of the alpha table (``alpha_abs_mean``, ...), the mean over seeds
+``<y>_ci_low/_ci_high``   95 % confidence interval of that mean over seeds (or plain ``ci_low``/``ci_high``,
+                          which then belong to ``<y>``); optional, no band when absent or NaN
+``n_seeds``               runs behind the mean; optional
+========================  ====================================================================================
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from workbench.errors import WorkbenchError
+from workbench.figures import basis_colour, basis_label, new_figure, wrap_title
+
+BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
+DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
+AXIS_LABELS = {
+    "alpha_abs_mean": "alpha, absolute, mean of frames (%)",
+    "alpha_abs_pooled": "alpha, absolute, pooled (%)",
+    "alpha_disp_mean": "alpha, displacement, mean of frames (%)",
+    "alpha_disp_pooled": "alpha, displacement, pooled (%)",
+    "rms_mm": "RMS point error (mm)",
+    "m": "eigenfaces m",
+    "n": "basis size n",
+    "n_hand": "hand shapes in the basis",
+    "basis.hand_subset": "hand shapes kept",
+    "basis.coverage": "coverage threshold",
+    "basis.n_components": "eigenfaces m (fixed)",
+    "dataset.marker_noise_mm": "marker noise (mm per coordinate)",
+    "dataset.n_frames": "frames in the capture",
+}
+
+
+def axis_label(column: str) -> str:
+    return AXIS_LABELS.get(column, column)
+
+
+def ci_columns(table: pd.DataFrame, y: str) -> tuple[str, str] | None:
+    """The confidence-interval columns of ``y`` in a tidy table, or None when it has none."""
+    for low, high in ((f"{y}_ci_low", f"{y}_ci_high"), ("ci_low", "ci_high")):
+        if low in table.columns and high in table.columns:
+            return low, high
+    return None
+
+
+def _check_columns(table: pd.DataFrame, columns) -> None:
+    missing = [column for column in columns if column not in table.columns]
+    if missing:
+        raise WorkbenchError(f"the table has no column(s) {missing}; it has {list(table.columns)}")
+
+
+def _solver_rows(table: pd.DataFrame, solver: str) -> pd.DataFrame:
+    """Rows of one solver plus the PCA rows (PCA reconstructs by projection, without a solver)."""
+    return table[(table["solver"] == solver) | (table["basis"] == "PCA")]
+
+
+def _ordered_bases(bases) -> list[str]:
+    present = list(dict.fromkeys(bases))
+    return [b for b in BASIS_ORDER if b in present] + [b for b in present if b not in BASIS_ORDER]
+
+
+def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str, int], *,
+                        threshold: float | None, title: str) -> Figure:
+    """Cumulative explained variance against m, the coverage threshold and the chosen m, per data variant.
+
+    Left: the cumulative explained variance near the chosen m. Right: the variance left out,
+    ``1 - cumulative``, on a log scale over every recorded eigenvalue, where the threshold ``1 - coverage``
+    and the noise floor are readable.
+
+    Parameters
+    ----------
+    ratios : mapping
+        Data variant -> ndarray of shape (k,), explained-variance ratios of the leading eigenvalues, descending.
+    chosen_m : mapping
+        Data variant -> the m the run kept.
+    threshold : float or None
+        The coverage threshold (None when m was fixed).
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    width = 10.0
+    figure = new_figure(width, 4.4)
+    near, tail = figure.subplots(1, 2)
+    zoom = max(3 * max(chosen_m.values()), 12)
+    for k, (data, ratio) in enumerate(ratios.items()):
+        cumulative = np.cumsum(np.asarray(ratio, dtype=float))
+        m_values = np.arange(1, len(cumulative) + 1)
+        colour = DATA_COLOURS.get(data, f"C{k}")
+        m = chosen_m[data]
+        label = f"{data}: m = {m}" + (f", {cumulative[m - 1]:.4f}" if m <= len(cumulative) else "")
+        near.plot(m_values[:zoom], cumulative[:zoom], marker="o", markersize=3, color=colour, label=label)
+        left_out = np.clip(1.0 - cumulative, 1e-12, None)
+        tail.semilogy(m_values, left_out, marker="o", markersize=2, color=colour, label=data)
+        if m <= len(cumulative):
+            near.plot([m], [cumulative[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
+            tail.plot([m], [left_out[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
+    if threshold is not None:
+        near.axhline(threshold, color="0.2", linestyle="--", linewidth=1, label=f"threshold {threshold}")
+        tail.axhline(1.0 - threshold, color="0.2", linestyle="--", linewidth=1,
+                     label=f"1 - threshold = {1.0 - threshold:.3g}")
+    near.set_xlabel("eigenfaces m")
+    near.set_ylabel("cumulative explained variance")
+    near.set_title("near the chosen m (circled)", fontsize=10)
+    tail.set_xlabel("eigenfaces m")
+    tail.set_ylabel("variance left out (1 - cumulative)")
+    tail.set_title(f"every recorded eigenvalue (first {max(len(r) for r in ratios.values())})", fontsize=10)
+    for ax in (near, tail):
+        ax.grid(alpha=0.3)
+        ax.legend(loc="lower right" if ax is near else "upper right", fontsize=9)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
+
+
+LINE_STYLES = ("-", "--", ":", "-.")
+MAX_PANEL_COLUMNS = 3
+MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
+                       title: str, by: Sequence[str] = (), log_x: bool = False) -> Figure:
+    """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 %
+    confidence band over seeds where the table has one.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        A tidy table (module docstring) with columns ``data``, ``basis``, ``solver``, ``x``, ``y``.
+    x : str
+        Column of the swept setting; a text or boolean column is drawn as categories.
+    y : str
+        Alpha column.
+    solver : str
+        Rows of this solver are drawn (and PCA's).
+    title : str
+    by : sequence of str
+        Other swept settings of a grid: each combination of their values gets its own line per basis (line style
+        and marker), so that lines never join points of different settings.
+    log_x : bool
+        Logarithmic x axis.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    _check_columns(table, ["data", "basis", "solver", x, y, *by])
+    rows = _solver_rows(table, solver)
+    if rows.empty:
+        raise WorkbenchError(f"the table has no rows for solver {solver!r}")
+    ci = ci_columns(rows, y)
+    data_variants = list(dict.fromkeys(rows["data"]))
+    n_cols = min(len(data_variants), MAX_PANEL_COLUMNS)
+    n_rows = -(-len(data_variants) // n_cols)
+    width = max(4.6 * n_cols + 0.8, 8.0 if by else 0.0)
+    figure = new_figure(width, 3.9 * n_rows + 0.7 + 0.25 * len(by))
+    grid = figure.subplots(n_rows, n_cols, squeeze=False, sharey=True)
+    axes = grid.ravel()[:len(data_variants)]
+    for unused in grid.ravel()[len(data_variants):]:
+        unused.set_visible(False)
+    categories = None
+    if not pd.api.types.is_numeric_dtype(rows[x]) or pd.api.types.is_bool_dtype(rows[x]):
+        # A categorical setting (e.g. basis.hand_subset=all|upper|lower): positions in order of appearance.
+        categories = list(dict.fromkeys(rows[x].astype(str)))
+        rows = rows.assign(**{x: rows[x].astype(str).map({c: i for i, c in enumerate(categories)})})
+    groups = list(rows.groupby(list(by), sort=False, dropna=False)) if by else [((), rows)]
+    for ax, data in zip(axes, data_variants):
+        span = float(np.ptp(rows[x].to_numpy(dtype=float))) or 1.0
+        for k, (values, group) in enumerate(groups):
+            values = values if isinstance(values, tuple) else (values,)
+            setting = ", ".join(f"{key.split('.')[-1]}={value}" for key, value in zip(by, values))
+            part = group[group["data"] == data]
+            for b, basis in enumerate(_ordered_bases(part["basis"])):
+                line = part[part["basis"] == basis].sort_values(x, kind="stable")
+                colour = basis_colour(basis)
+                label = f"{basis} ({setting})" if setting else basis_label(basis)
+                has_ci = ci is not None and line[list(ci)].notna().all(axis=None)
+                if line[x].duplicated().any():
+                    # Several settings share an x (e.g. hand subsets 'lower' and 'random12', both 12 shapes):
+                    # points with error bars, never a line zigzagging between them.
+                    errors = np.vstack([line[y] - line[ci[0]], line[ci[1]] - line[y]]) if has_ci else None
+                    dodge = span * 0.012 * (b - 1.5 + 4 * k)
+                    ax.errorbar(line[x] + dodge, line[y], yerr=errors, color=colour, marker=MARKERS[k % len(MARKERS)],
+                                markersize=5, linestyle="none", capsize=3, label=label)
+                    continue
+                ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
+                        linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
+                if has_ci:
+                    ax.fill_between(line[x], line[ci[0]], line[ci[1]], color=colour, alpha=0.15, linewidth=0)
+        if categories is not None:
+            ax.set_xticks(range(len(categories)), categories)
+        ax.set_xlabel(axis_label(x))
+        ax.set_title(f"data: {data}", fontsize=10)
+        ax.grid(alpha=0.3)
+        if log_x:
+            ax.set_xscale("log")
+    for row in grid:
+        row[0].set_ylabel(axis_label(y))
+    drawn = ci is not None and rows[list(ci)].notna().any(axis=None)
+    band = " (bands: 95 % CI over seeds)" if drawn else ""
+    handles, labels = axes[-1].get_legend_handles_labels()
+    # As many legend columns as the longest label leaves room for (about 5 points per character at size 8).
+    columns = max(1, min(4, int(width * 72 / (5.0 * max(len(label) for label in labels) + 40))))
+    figure.legend(handles, labels, loc="outside lower center", ncols=columns, fontsize=8, frameon=False)
+    figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", width), fontsize=11)
+    return figure
+
+
+def plot_marker_vs_mesh(table: pd.DataFrame, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
+                        title: str) -> Figure:
+    """Alpha of each basis trained on each data variant, side by side (bars, with 95 % CI when present).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Alpha table or tidy table with at least two ``data`` variants.
+    y : str
+    solver : str
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    _check_columns(table, ["data", "basis", "solver", y])
+    rows = _solver_rows(table, solver)
+    data_variants = list(dict.fromkeys(rows["data"]))
+    bases = _ordered_bases(rows["basis"])
+    ci = ci_columns(rows, y)
+    width = 0.8 / len(data_variants)
+    figure = new_figure(6.8, 4.4)
+    ax = figure.add_subplot()
+    for k, data in enumerate(data_variants):
+        part = rows[rows["data"] == data].set_index("basis").reindex(bases)
+        positions = np.arange(len(bases)) + (k - (len(data_variants) - 1) / 2) * width
+        errors = None
+        if ci is not None and part[list(ci)].notna().all(axis=None):
+            errors = np.vstack([part[y] - part[ci[0]], part[ci[1]] - part[y]])
+        bars = ax.bar(positions, part[y], width=width * 0.95, yerr=errors, capsize=3,
+                      color=DATA_COLOURS.get(data, f"C{k}"), label=f"trained on {data}")
+        ax.bar_label(bars, fmt="%.3g", fontsize=8, padding=2)
+    ax.set_xticks(np.arange(len(bases)), [basis_label(b) for b in bases], fontsize=9)
+    ax.set_ylabel(axis_label(y))
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=9)
+    ax.margins(y=0.12)
+    band = ", error bars: 95 % CI over seeds" if ci is not None else ""
+    ax.set_title(wrap_title(f"{title}\nsolver {solver}{band}", 6.8, 10), fontsize=10)
+    return figure
+
+
+def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_rate: float, *, ylabel: str,
+                         title: str) -> Figure:
+    """Per-frame alpha over the take, one panel per data variant and one line per basis.
+
+    Parameters
+    ----------
+    series : mapping
+        Data variant -> (basis label -> ndarray of shape (n_frames,), per-frame alpha; NaN where undefined).
+    frame_rate : float
+        Frames per second, for the time axis.
+    ylabel : str
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    figure = new_figure(9.0, 3.1 * len(series) + 1.0)
+    axes = figure.subplots(len(series), 1, squeeze=False, sharex=True)[:, 0]
+    for ax, (data, per_basis) in zip(axes, series.items()):
+        for basis in _ordered_bases(per_basis):
+            values = np.asarray(per_basis[basis], dtype=float)
+            seconds = np.arange(len(values)) / frame_rate
+            # Thousands of points per line: drawn as a raster inside an SVG, which stays small.
+            ax.plot(seconds, values, color=basis_colour(basis), linewidth=0.7, rasterized=len(values) > 2000,
+                    linestyle="--" if basis == "PCA" else "-",
+                    label=f"{basis_label(basis)}: mean {np.nanmean(values):.3g}")
+        ax.set_ylabel(ylabel, fontsize=9)
+        ax.set_title(f"data: {data}", fontsize=10, loc="left")
+        ax.grid(alpha=0.3)
+        # Above the panel, right-aligned: inside it would hide the peaks.
+        ax.legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2, frameon=False)
+    axes[-1].set_xlabel("time in the take (s)")
+    figure.suptitle(wrap_title(title, 9.0), fontsize=11)
+    return figure
