@@ -56,3 +56,33 @@ def test_intuitiveness_known_values():
     distance, cosine = intuitiveness(hand, qe)
     np.testing.assert_allclose(distance, [0.0, np.sqrt(8) / 2, 1.0])
     np.testing.assert_allclose(cosine, [1.0, 0.0, 1 / np.sqrt(2)])
+
+
+def test_summary_equals_the_equation_functions_on_random_frames():
+    rng = np.random.default_rng(7)
+    neutral = rng.normal(50.0, 20.0, 3 * 40)
+    captured = rng.normal(0.0, 2.0, (500, 3 * 40))
+    captured[3] = 0.0  # a frame at rest: displacement alpha undefined
+    reconstructed = captured + rng.normal(0.0, 0.3, captured.shape)
+    summary = summarise_alpha(neutral, captured, reconstructed)
+    np.testing.assert_allclose(summary.absolute_per_frame,
+                               alpha_per_frame(neutral + captured, neutral + reconstructed), rtol=1e-10)
+    np.testing.assert_allclose(summary.displacement_per_frame, alpha_per_frame(captured, reconstructed),
+                               rtol=1e-10)
+    assert np.isnan(summary.displacement_per_frame[3]) and summary.n_undefined_displacement_frames == 1
+    np.testing.assert_allclose(summary.absolute_pooled,
+                               alpha_pooled(neutral + captured, neutral + reconstructed), rtol=1e-10)
+    np.testing.assert_allclose(summary.displacement_pooled, alpha_pooled(captured, reconstructed), rtol=1e-10)
+    np.testing.assert_allclose(summary.rms_mm, rms_point_error(captured, reconstructed), rtol=1e-10)
+
+
+def test_summary_from_a_chunked_reconstruction_equals_the_whole_one():
+    rng = np.random.default_rng(8)
+    neutral = rng.normal(50.0, 20.0, 30)
+    captured = rng.normal(0.0, 2.0, (1000, 30))
+    reconstructed = captured + rng.normal(0.0, 0.3, captured.shape)
+    whole = summarise_alpha(neutral, captured, reconstructed)
+    chunked = summarise_alpha(neutral, captured, lambda rows: reconstructed[rows], chunk_frames=77)
+    np.testing.assert_array_equal(whole.absolute_per_frame, chunked.absolute_per_frame)
+    assert (whole.absolute_pooled, whole.displacement_mean, whole.rms_mm) == \
+           (chunked.absolute_pooled, chunked.displacement_mean, chunked.rms_mm)

@@ -284,8 +284,11 @@ class Eigenfaces:
         """
         self._check_fitted()
         frames = _check_matrix("frames", frames, self.mean_.shape[0])
-        coefficients = (frames - self.mean_) @ self.components_.T
-        return self.mean_ + coefficients @ self.components_
+        # (frames - mean) C^T without the centred copy of the frames
+        coefficients = frames @ self.components_.T - self.mean_ @ self.components_.T
+        reconstruction = coefficients @ self.components_
+        reconstruction += self.mean_
+        return reconstruction
 
 
 def pca_to_qe_weights(hand: np.ndarray, components: np.ndarray, mean: np.ndarray,

@@ -98,8 +98,9 @@ class AlphaSummary:
     n_undefined_displacement_frames: int
 
 
-def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.ndarray, *,
-                    tol: Tolerances = TOL) -> AlphaSummary:
+def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
+                    tol: Tolerances = TOL, chunk_frames: int = 4096,
+                    squares: tuple[np.ndarray, np.ndarray] | None = None) -> AlphaSummary:
     """Every error measure of one reconstruction.
 
     Parameters
@@ -108,27 +109,68 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np
         Neutral positions ``v0`` (their origin is the origin of the absolute alpha).
     captured : ndarray of shape (n_frames, n_dims)
         Captured displacements ``d*``.
-    reconstructed : ndarray of shape (n_frames, n_dims)
-        Reconstructed displacements ``d``.
+    reconstructed : ndarray of shape (n_frames, n_dims), or callable
+        Reconstructed displacements ``d``, or a function of a ``slice`` of frames returning those frames'
+        reconstruction, so that a mesh-scale reconstruction is never held whole.
     tol : Tolerances
+    chunk_frames : int
+        Frames handled at once; memory beyond the inputs stays O(chunk_frames * n_dims).
+    squares : tuple of two ndarrays of shape (n_frames,), optional
+        :func:`reference_squares` of ``(neutral, captured)``, when several reconstructions of the same frames
+        are scored (saves two passes over the frames each).
 
     Returns
     -------
     AlphaSummary
     """
-    absolute = alpha_per_frame(neutral + captured, neutral + reconstructed, tol=tol)
-    displacement = alpha_per_frame(captured, reconstructed, tol=tol)
+    # Eq. 6 in both normalisations from three row-wise squared norms, one pass over the frames each: the error
+    # v* - v equals d* - d, and |v0 + d*|^2 = |v0|^2 + 2 v0.d* + |d*|^2 (same values as alpha_per_frame and
+    # alpha_pooled, without forming the absolute positions).
+    error_sq = np.empty(captured.shape[0])
+    for start in range(0, captured.shape[0], chunk_frames):
+        rows = slice(start, start + chunk_frames)
+        estimate = reconstructed(rows) if callable(reconstructed) else reconstructed[rows]
+        difference = captured[rows] - estimate
+        error_sq[rows] = np.einsum("ij,ij->i", difference, difference)
+    displacement_sq, position_sq = squares if squares is not None else reference_squares(neutral, captured)
+    absolute = _alpha_from_squares(error_sq, position_sq, tol)
+    displacement = _alpha_from_squares(error_sq, displacement_sq, tol)
     n_undefined = int(np.isnan(displacement).sum())
+    n_points = captured.shape[1] // 3
     return AlphaSummary(
         absolute_per_frame=absolute,
         displacement_per_frame=displacement,
         absolute_mean=float(np.nanmean(absolute)),
-        absolute_pooled=alpha_pooled(neutral + captured, neutral + reconstructed),
+        absolute_pooled=float(100.0 * np.sqrt(error_sq.sum() / position_sq.sum())),
         displacement_mean=float(np.nanmean(displacement)) if n_undefined < len(displacement) else float("nan"),
-        displacement_pooled=alpha_pooled(captured, reconstructed),
-        rms_mm=rms_point_error(captured, reconstructed),
+        displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
+        rms_mm=float(np.sqrt(error_sq.sum() / (captured.shape[0] * n_points))),
         n_undefined_displacement_frames=n_undefined,
     )
+
+
+def reference_squares(neutral: np.ndarray, captured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared norms of each captured frame as a displacement, ``|d*|^2``, and as positions, ``|v0 + d*|^2``.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (n_dims,)
+    captured : ndarray of shape (n_frames, n_dims)
+
+    Returns
+    -------
+    displacement_sq, position_sq : ndarray of shape (n_frames,)
+    """
+    displacement_sq = np.einsum("ij,ij->i", captured, captured)
+    position_sq = np.maximum(displacement_sq + 2.0 * (captured @ neutral) + neutral @ neutral, 0.0)
+    return displacement_sq, position_sq
+
+
+def _alpha_from_squares(error_sq: np.ndarray, reference_sq: np.ndarray, tol: Tolerances) -> np.ndarray:
+    """Per-frame ``100 |error| / |reference|`` from squared norms, NaN where the reference is (near) zero."""
+    defined = reference_sq > tol.zero_displacement ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(defined, 100.0 * np.sqrt(error_sq / reference_sq), np.nan)
 
 
 def intuitiveness(hand: np.ndarray, quasi_eigen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,7 @@ from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
-from workbench.metrics import AlphaSummary, intuitiveness, summarise_alpha
+from workbench.metrics import AlphaSummary, intuitiveness, reference_squares, summarise_alpha
 from workbench.solve import reconstruct, solve_weights
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
@@ -126,7 +126,8 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     train_names, eval_names = data_variants(dataset_cfg)
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
     with timings.stage("dataset"):
-        captures = build_captures(dict(dataset_cfg, train_on=build_names) if eval_names else dataset_cfg)
+        captures = build_captures(dict(dataset_cfg, train_on=build_names) if eval_names else dataset_cfg,
+                                  cache_dir=cfg.get("paths", {}).get("cache_dir"))
     if not eval_names:
         return [run_on_capture(data, subset_hand_shapes(capture, basis_cfg), basis_cfg, solvers, timings)
                 for data, capture in captures.items()]
@@ -329,19 +330,23 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     bases = [("H", "-", capture.hand)] + [
         (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()]
     rows, weights = [], {}
+    with timings.stage("metrics"):
+        squares = reference_squares(capture.neutral, capture.eval)
     for solver_name, solver in solvers.items():
         for label, projection, shapes in bases:
             with timings.stage(f"solve_{solver_name}"):
                 solution = solve_weights(shapes, capture.eval, **solver)
             with timings.stage("metrics"):
-                summary = summarise_alpha(capture.neutral, capture.eval, reconstruct(shapes, solution.weights))
+                summary = summarise_alpha(capture.neutral, capture.eval,
+                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares)
             weights[(label, solver_name)] = solution.weights
             rows.append(Row(basis=label, projection=projection, solver=solver_name, n_shapes=shapes.shape[0],
                             alpha=summary, n_iterations=solution.n_iterations,
                             n_fallback_frames=solution.n_fallback_frames,
                             max_kkt_violation=solution.max_kkt_violation))
     with timings.stage("pca_reconstruction"):
-        summary = summarise_alpha(capture.neutral, capture.eval, reconstruct_pca(capture.eval))
+        summary = summarise_alpha(capture.neutral, capture.eval, lambda rows: reconstruct_pca(capture.eval[rows]),
+                                  squares=squares)
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
     return rows, weights

@@ -8,6 +8,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.animface import build_animface
+from workbench.dataset.cache import cached_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import fill_gaps, make_gap_mask
@@ -242,13 +243,18 @@ BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "a
 """``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
 
 
-def build_captures(cfg: Mapping) -> dict[str, Capture]:
+def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capture]:
     """Build the captures a dataset config describes, one per ``dataset.train_on`` name.
+
+    The same config (and dataset code and source files) gives the captures built before: from memory within a
+    process, from ``cache_dir`` across processes when it is set (:mod:`workbench.dataset.cache`).
 
     Parameters
     ----------
     cfg : mapping
         The ``dataset`` config group; ``kind`` selects the builder.
+    cache_dir : str, optional
+        Folder of the disk cache (``paths.cache_dir``); memory only when None.
 
     Returns
     -------
@@ -258,4 +264,4 @@ def build_captures(cfg: Mapping) -> dict[str, Capture]:
     kind = cfg.get("kind")
     if kind not in BUILDERS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(BUILDERS)}, got {kind!r}")
-    return BUILDERS[kind](cfg)
+    return cached_captures(cfg, BUILDERS[kind], cache_dir)

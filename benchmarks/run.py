@@ -1,0 +1,183 @@
+"""Speed and memory of the workbench's fast paths against their baselines, in one process, on the same data.
+
+Run from the repository root (not part of the test suite):
+
+    python benchmarks/run.py markers      # paper scale on markers: 35,000 frames x 66 markers, n = 18
+    python benchmarks/run.py sweep        # 100 runs of the paper study on markers at paper scale, one process
+    python benchmarks/run.py mesh         # mesh scale: the synthetic actor's 4,200-vertex mesh
+    python benchmarks/run.py all
+
+Each scenario prints absolute times, the ratio fast/baseline, agreement of the results and the peak resident
+memory of the process. Per-frame SciPy baselines that would take minutes are timed on a random subset of frames
+(``--baseline-frames``) and extrapolated; the output says so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+import numpy as np
+from scipy.optimize import lsq_linear, nnls
+
+from workbench.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.dataset import build_captures
+from workbench.metrics import summarise_alpha
+from workbench.solve import reconstruct, solve_weights
+
+SYNTHETIC = {"kind": "synthetic", "n_frames": 35000, "frame_rate": 120.0, "n_face_markers": 66,
+             "n_head_markers": 7, "head_rotation_deg": 3.0, "head_translation_mm": 5.0, "marker_noise_mm": 0.05,
+             "seed": 0, "mesh_rows": 70, "mesh_cols": 60, "stabilise": True, "split": "same"}
+
+
+def peak_mb() -> float:
+    """Peak resident memory of this process so far, in MB (Linux reports kilobytes)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def timed(function, *args, **kwargs):
+    start = time.perf_counter()
+    value = function(*args, **kwargs)
+    return value, time.perf_counter() - start
+
+
+def paper_method(capture, *, kind="box", lower=0.0, upper=1.0, svd_solver="auto"):
+    """PCA, affine QE, weights of H and QE, and alpha of H, QE and PCA: what a run of the study computes."""
+    eigenfaces = Eigenfaces(coverage=0.995, svd_solver=svd_solver).fit(capture.train)
+    qe = build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces, projection="affine")
+    alphas = {}
+    for label, shapes in (("H", capture.hand), ("QE", qe.shapes)):
+        weights = solve_weights(shapes, capture.eval, kind=kind, lower=lower, upper=upper).weights
+        alphas[label] = summarise_alpha(capture.neutral, capture.eval,
+                                        lambda rows: reconstruct(shapes, weights[rows])).absolute_mean
+    alphas["PCA"] = summarise_alpha(capture.neutral, capture.eval,
+                                    lambda rows: eigenfaces.reconstruct(capture.eval[rows])).absolute_mean
+    return eigenfaces, qe, alphas
+
+
+def per_frame(solver, shapes, frames):
+    """Weights of each frame by a per-frame SciPy call (the baseline), shape (n_frames, n_shapes)."""
+    if solver.startswith("lsq_linear"):  # "lsq_linear" (SciPy's default method, trf) or "lsq_linear/bvls"
+        method = solver.partition("/")[2] or "trf"
+        return np.array([lsq_linear(shapes.T, frame, bounds=(0.0, 1.0), method=method).x for frame in frames])
+    return np.array([nnls(shapes.T, frame)[0] for frame in frames])
+
+
+def objective(shapes, frames, weights):
+    return np.sum((frames - weights @ shapes) ** 2, axis=1)
+
+
+def bench_markers(args) -> None:
+    print(f"== markers, paper scale: {args.frames} frames x 66 markers, n = 18 (synthetic actor, seed 0)")
+    captures, build_seconds = timed(build_captures, dict(SYNTHETIC, n_frames=args.frames, train_on="markers"))
+    capture = captures["markers"]
+    print(f"dataset build (not part of the method): {build_seconds:.2f} s")
+    paper_method(capture)  # warm-up: first calls pay for imports and BLAS start-up
+    repeats = [timed(paper_method, capture) for _ in range(args.repeats)]
+    (eigenfaces, qe, alphas), fast_seconds = repeats[0][0], float(np.median([seconds for _, seconds in repeats]))
+    print(f"fast path: PCA + QE + box [0,1] weights of H and QE + alpha of H, QE, PCA: {fast_seconds:.3f} s, "
+          f"median of {args.repeats} (min {min(seconds for _, seconds in repeats):.3f} s) "
+          f"(m = {eigenfaces.n_components_}; alpha_abs_mean H {alphas['H']:.3f}, QE {alphas['QE']:.3f}, "
+          f"PCA {alphas['PCA']:.3f})")
+
+    centred = capture.train - capture.train.mean(axis=0)
+    _, svd_seconds = timed(np.linalg.svd, centred, full_matrices=False)
+    _, pca_seconds = timed(Eigenfaces(coverage=0.995).fit, capture.train)
+    print(f"PCA: eigenfaces {pca_seconds:.3f} s vs full SVD {svd_seconds:.3f} s  (x{svd_seconds / pca_seconds:.1f})")
+
+    rng = np.random.default_rng(0)
+    for label, shapes in (("H", capture.hand), ("QE", qe.shapes)):
+        for kind, baseline, upper, n_timed in (("box", "lsq_linear", 1.0, args.baseline_frames // 4),
+                                               ("box", "lsq_linear/bvls", 1.0, args.baseline_frames),
+                                               ("nnls", "nnls", None, len(capture.eval))):
+            solution, fast = timed(solve_weights, shapes, capture.eval, kind=kind, lower=0.0, upper=upper)
+            subset = np.sort(rng.choice(len(capture.eval), size=min(n_timed, len(capture.eval)), replace=False))
+            frames = capture.eval[subset]
+            reference, slow = timed(per_frame, baseline, shapes, frames)
+            scale = len(capture.eval) / len(frames)
+            mine = solution.weights[subset]
+            gap = np.max(np.abs(objective(shapes, frames, mine) - objective(shapes, frames, reference))
+                         / np.maximum(objective(shapes, frames, reference), 1e-12))
+            note = "" if scale == 1 else f" (timed on {len(frames)} frames, x{scale:.0f} extrapolated)"
+            print(f"{label} {kind}: batched {fast:.3f} s vs per-frame {baseline} {slow * scale:.2f} s{note}  "
+                  f"x{slow * scale / fast:.0f}; max relative objective gap {gap:.1e}; "
+                  f"fallback frames {solution.n_fallback_frames}")
+    print(f"peak memory {peak_mb():.0f} MB")
+
+
+def bench_mesh(args) -> None:
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.pipeline import run_study
+
+    print(f"== mesh scale: {args.mesh_frames} frames x 4,200 vertices (synthetic actor's dense mesh), n = 18")
+    cfg = resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.mesh_frames}", "dataset.train_on=mesh",
+                                                   "solver=all"]))
+    captures, build_seconds = timed(build_captures, cfg["dataset"])
+    capture = captures["mesh"]
+    print(f"dataset build: {build_seconds:.1f} s; capture {capture.train.nbytes / 2**30:.2f} GiB; "
+          f"peak so far {peak_mb():.0f} MB")
+    (eigenfaces, _, alphas), fast_seconds = timed(paper_method, capture)
+    print(f"paper method (randomised PCA, QE, box weights, alpha): {fast_seconds:.1f} s, m = "
+          f"{eigenfaces.n_components_} ({eigenfaces.method_}); alpha_abs_mean H {alphas['H']:.3f}, "
+          f"QE {alphas['QE']:.3f}, PCA {alphas['PCA']:.3f}; peak {peak_mb():.0f} MB")
+    results, study_seconds = timed(run_study, cfg)  # the dataset comes from the cache
+    stages = ", ".join(f"{name} {seconds:.1f} s" for name, seconds in results[0].timings.seconds.items())
+    print(f"whole paper study (solver=all, affine and linear QE, every alpha; dataset cached): {study_seconds:.1f} s "
+          f"({stages}); peak {peak_mb():.0f} MB")
+    if args.with_exact_pca:
+        exact, exact_seconds = timed(Eigenfaces(coverage=0.995, svd_solver="exact").fit, capture.train)
+        fast, randomized_seconds = timed(Eigenfaces(coverage=0.995, svd_solver="randomized").fit, capture.train)
+        print(f"PCA: randomised {randomized_seconds:.1f} s vs exact ({exact.method_}) {exact_seconds:.1f} s "
+              f"(x{exact_seconds / randomized_seconds:.1f}); same m: {exact.n_components_ == fast.n_components_}; "
+              f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB")
+
+
+def bench_sweep(args) -> None:
+    """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
+    the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
+    both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.pipeline import run_study
+
+    coverages = np.linspace(0.95, 0.999, args.sweep_runs)
+    print(f"== sweep: {args.sweep_runs} runs of the paper study (solver={args.solver}) on {args.frames} frames x 66 markers, "
+          f"basis.coverage {coverages[0]:.3f} ... {coverages[-1]:.3f}")
+    configs = [resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", f"solver={args.solver}",
+                                                         f"basis.coverage={coverage:.6f}"]))
+               for coverage in coverages]
+    start = time.perf_counter()
+    first, first_seconds = timed(run_study, configs[0])
+    for cfg in configs[1:]:
+        run_study(cfg)
+    total = time.perf_counter() - start
+    print(f"first run (builds the dataset) {first_seconds:.2f} s; all {args.sweep_runs} runs {total:.1f} s "
+          f"({(total - first_seconds) / max(1, args.sweep_runs - 1):.2f} s a run after the first); "
+          f"peak {peak_mb():.0f} MB")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "all"])
+    parser.add_argument("--repeats", type=int, default=5, help="timed repeats of the marker fast path (median)")
+    parser.add_argument("--solver", default="box", help="solver group of the sweep scenario (box, all, ...)")
+    parser.add_argument("--sweep-runs", type=int, default=100, help="runs of the sweep scenario")
+    parser.add_argument("--frames", type=int, default=35000, help="frames of the marker scenario")
+    parser.add_argument("--baseline-frames", type=int, default=2000,
+                        help="frames on which per-frame lsq_linear/bvls is timed, a quarter of them for the slower "
+                             "default lsq_linear (then extrapolated)")
+    parser.add_argument("--mesh-frames", type=int, default=35000, help="frames of the mesh scenario")
+    parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
+    args = parser.parse_args()
+    if args.scenario in ("markers", "all"):
+        bench_markers(args)
+    if args.scenario in ("sweep", "all"):
+        bench_sweep(args)
+    if args.scenario in ("mesh", "all"):
+        bench_mesh(args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,172 @@
+"""Captures cached by content hash, so a sweep builds each dataset once.
+
+The key is a hash of the ``dataset`` config group and of the source of ``workbench/dataset`` (a code change
+invalidates it). Captures are kept in memory for the process (the last ``MEMORY_SLOTS`` datasets: a Hydra sweep
+runs its jobs in one process, a joblib worker runs many) and, when a cache folder is given, on disk as
+``<key>.npz`` (arrays, no pickle) plus ``<key>.json`` (everything else, written last: a key with both files is
+complete). Cached arrays are read-only, so no run can change what the next one gets.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections import OrderedDict
+from functools import lru_cache
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from workbench.dataset.capture import Capture
+from workbench.record import write_atomic, write_npz
+
+MEMORY_SLOTS = 2
+_ARRAYS = ("neutral", "train", "eval", "hand", "faces")
+_memory: "OrderedDict[str, dict[str, Capture]]" = OrderedDict()
+
+
+@lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """Hash of every Python source file of the dataset stage."""
+    digest = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def dataset_key(cfg: Mapping) -> str:
+    """Content hash of a dataset config (order of keys does not matter), of the dataset code and of the size and
+    modification time of every source file the config names under its ``data_root``."""
+    text = json.dumps(cfg, sort_keys=True, default=str)
+    sources = json.dumps(source_file_stats(cfg))
+    return hashlib.sha256((text + sources + code_fingerprint()).encode()).hexdigest()[:24]
+
+
+def source_file_stats(cfg: Mapping) -> list[tuple[str, int, int]]:
+    """(path, size, mtime_ns) of each file, or file in a folder, that a string value of ``cfg`` names under
+    ``cfg["data_root"]``; empty for generated datasets. Editing a source file changes the cache key."""
+    root = cfg.get("data_root")
+    if not root:
+        return []
+    stats = []
+    for value in _strings(cfg):
+        path = Path(root) / value
+        if value and path.is_file():
+            files = [path]
+        elif value and path.is_dir() and path.resolve() != Path(root).resolve():
+            files = sorted(item for item in path.iterdir() if item.is_file())
+        else:
+            continue
+        stats += [(str(item), item.stat().st_size, item.stat().st_mtime_ns) for item in files]
+    return stats
+
+
+def _strings(value):
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, Mapping):
+        for item in value.values():
+            yield from _strings(item)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _strings(item)
+
+
+def cached_captures(cfg: Mapping, build: Callable[[Mapping], dict], cache_dir: str | Path | None = None
+                    ) -> dict[str, Capture]:
+    """``build(cfg)``, or the captures it returned before for the same config.
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group.
+    build : callable
+        Builds ``{name: Capture}`` from ``cfg`` on a miss.
+    cache_dir : str or Path, optional
+        Folder of the disk cache; memory only when None.
+
+    Returns
+    -------
+    dict
+        ``name -> Capture`` with read-only arrays.
+    """
+    key = dataset_key(cfg)
+    if key in _memory:
+        _memory.move_to_end(key)
+        return _memory[key]
+    folder = Path(cache_dir) if cache_dir else None
+    captures = _load(folder, key) if folder else None
+    if captures is None:
+        captures = {name: _read_only(capture) for name, capture in build(cfg).items()}
+        if folder:
+            _save(folder, key, captures)
+    _memory[key] = captures
+    while len(_memory) > MEMORY_SLOTS:
+        _memory.popitem(last=False)
+    return captures
+
+
+def clear_memory() -> None:
+    """Forget the captures held in memory (the disk cache stays)."""
+    _memory.clear()
+
+
+def _read_only(capture: Capture) -> Capture:
+    for name in _ARRAYS:
+        array = getattr(capture, name)
+        if isinstance(array, np.ndarray):
+            array.flags.writeable = False
+    return capture
+
+
+def _plain(value):
+    """JSON-ready copy of provenance values (NumPy scalars and arrays become numbers and lists)."""
+    if isinstance(value, Mapping):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _save(folder: Path, key: str, captures: dict[str, Capture]) -> None:
+    arrays, meta = {}, {}
+    for index, (name, capture) in enumerate(captures.items()):
+        same_frames = capture.eval is capture.train
+        for field in _ARRAYS:
+            array = getattr(capture, field)
+            if array is not None and not (field == "eval" and same_frames):
+                arrays[f"{index}_{field}"] = array
+        meta[name] = {"index": index, "same_frames": same_frames, "name": capture.name,
+                      "hand_names": list(capture.hand_names), "point_labels": list(capture.point_labels),
+                      "units": capture.units, "origin": capture.origin, "frame_rate": capture.frame_rate,
+                      "provenance": _plain(capture.provenance), "notes": list(capture.notes)}
+    write_npz(folder / f"{key}.npz", arrays)
+    write_atomic(folder / f"{key}.json", json.dumps(meta, indent=1))
+
+
+def _load(folder: Path, key: str) -> dict[str, Capture] | None:
+    meta_path, array_path = folder / f"{key}.json", folder / f"{key}.npz"
+    if not (meta_path.is_file() and array_path.is_file()):
+        return None
+    meta = json.loads(meta_path.read_text())
+    with np.load(array_path, allow_pickle=False) as stored:
+        arrays = {name: stored[name] for name in stored.files}
+    captures = {}
+    for name, info in meta.items():
+        index = info["index"]
+        train = arrays[f"{index}_train"]
+        capture = Capture(
+            name=info["name"], neutral=arrays[f"{index}_neutral"], train=train,
+            eval=train if info["same_frames"] else arrays[f"{index}_eval"], hand=arrays[f"{index}_hand"],
+            hand_names=tuple(info["hand_names"]), point_labels=tuple(info["point_labels"]), units=info["units"],
+            origin=info["origin"], frame_rate=info["frame_rate"], provenance=info["provenance"],
+            notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"))
+        captures[name] = _read_only(capture)
+    return captures
