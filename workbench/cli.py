@@ -145,6 +145,7 @@ def data_metrics(result) -> dict:
                                      "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
                         for projection, qe in result.quasi_eigen.items()},
         "intuitiveness": intuitiveness_table(result),
+        **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
     }
 
 

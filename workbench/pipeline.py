@@ -76,6 +76,9 @@ class StudyResult:
     transfer : str
         How the fitted bases were carried from ``train_on``'s points to ``eval_on``'s (``identity`` when the
         same; see :mod:`workbench.dataset.transfer`).
+    basis_intuitiveness : dict
+        Closeness, locality and usage of every basis (:func:`basis_intuitiveness`) when ``basis.alternatives``
+        is set; empty otherwise.
     """
 
     data: str
@@ -88,6 +91,7 @@ class StudyResult:
     train_on: str = ""
     eval_on: str = ""
     transfer: str = "identity"
+    basis_intuitiveness: dict = field(default_factory=dict)
 
 
 def check_solver_config(name: str, solver: Mapping) -> dict:
@@ -128,6 +132,9 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     with timings.stage("dataset"):
         captures = build_captures(dict(dataset_cfg, train_on=build_names) if eval_names else dataset_cfg,
                                   cache_dir=cfg.get("paths", {}).get("cache_dir"))
+    if eval_names and basis_cfg.get("alternatives"):
+        raise WorkbenchError("basis.alternatives are fitted and scored on each data variant's own points; "
+                             "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset")
     if not eval_names:
         return [run_on_capture(data, subset_hand_shapes(capture, basis_cfg), basis_cfg, solvers, timings)
                 for data, capture in captures.items()]
@@ -300,8 +307,16 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
     """
     eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
     rows, weights = score_bases(capture, eigenfaces, quasi_eigen, eigenfaces.reconstruct, solvers, timings)
+    alternatives = fit_alternative_bases(capture, basis_cfg, timings)
+    measured = {}
+    if alternatives:
+        more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings)
+        rows, weights = rows + more_rows, {**weights, **more_weights}
+        with timings.stage("intuitiveness"):
+            measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights,
+                                           basis_cfg.get("intuitiveness") or {})
     return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
-                       weights=weights, timings=timings, train_on=data, eval_on=data)
+                       weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured)
 
 
 def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, reconstruct_pca: Callable,
@@ -363,3 +378,133 @@ def intuitiveness_table(result: StudyResult) -> list[dict]:
             records.append({"projection": projection, "shape": name, "relative_distance": float(d),
                             "cosine": float(c), "hand_norm": float(norm)})
     return records
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Other bases beside the paper's (basis.alternatives) and the intuitiveness of every basis
+# ---------------------------------------------------------------------------------------------------------------
+
+ALTERNATIVE_OPTIONS = {"SPCA": "spca", "ICA": "ica", "NMF": "nmf", "SPLOCS": "splocs", "H-fit": "hand_fit"}
+"""Basis label -> the ``basis`` config key holding its options."""
+
+
+def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> dict:
+    """Fit the bases ``basis.alternatives`` names on the training frames (:mod:`workbench.alternatives`).
+
+    Returns
+    -------
+    dict
+        Label (``SPCA``, ``ICA``, ``NMF``, ``SPLOCS``, ``H-fit``) -> ndarray of shape (n, n_dims), in the
+        configured order; ``n`` is ``basis.alternatives_n`` or the hand basis size (H-fit: always the latter).
+    """
+    from workbench import alternatives as alt
+
+    names = basis_cfg.get("alternatives") or []
+    names = [names] if isinstance(names, str) else list(names)
+    if any(name not in ALTERNATIVE_OPTIONS for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_OPTIONS)}, "
+                             f"got {names}")
+    n = basis_cfg.get("alternatives_n") or capture.hand.shape[0]
+    seed = int(basis_cfg.get("alternatives_seed") or 0)
+    bases = {}
+    for name in names:
+        key = ALTERNATIVE_OPTIONS[name]
+        options = dict(basis_cfg.get(key) or {})
+        with timings.stage(f"fit_{key}"):
+            if name == "SPCA":
+                bases[name] = alt.sparse_pca_basis(capture.train, n_components=n, **options)
+            elif name == "ICA":
+                bases[name] = alt.ica_basis(capture.train, n_components=n, seed=seed, **options)
+            elif name == "NMF":
+                bases[name] = alt.nmf_basis(capture.train, n_components=n, seed=seed, **options)
+            elif name == "SPLOCS":
+                distance = alt.SurfaceDistance(capture.neutral, capture.faces)
+                bases[name] = alt.splocs_basis(capture.train, distance, n_components=n, **options)
+            else:
+                bases[name] = alt.fitted_hand_basis(capture.train, capture.hand, **options)
+    return bases
+
+
+def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], solvers: Mapping[str, Mapping],
+                            timings: Timings) -> tuple[list, dict]:
+    """Weights (eq. 5) and alpha (eq. 6) of each alternative basis with every solver, exactly as H and QE.
+
+    Returns
+    -------
+    rows : list of Row
+        Projection ``-``; solver by solver, bases in the configured order.
+    weights : dict
+        ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
+    """
+    visible = getattr(capture, "eval_visible", None)
+    masked = {} if visible is None else {"visible": visible}  # frames with capture gaps: visible points only
+    with timings.stage("metrics"):
+        squares = reference_squares(capture.neutral, capture.eval, **masked)
+    rows, weights = [], {}
+    for solver_name, solver in solvers.items():
+        for label, shapes in bases.items():
+            with timings.stage(f"solve_{solver_name}"):
+                solution = solve_weights(shapes, capture.eval, **solver, **masked)
+            with timings.stage("metrics"):
+                summary = summarise_alpha(capture.neutral, capture.eval,
+                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares,
+                                          **masked)
+            weights[(label, solver_name)] = solution.weights
+            rows.append(Row(basis=label, projection="-", solver=solver_name, n_shapes=shapes.shape[0],
+                            alpha=summary, n_iterations=solution.n_iterations,
+                            n_fallback_frames=solution.n_fallback_frames,
+                            max_kkt_violation=solution.max_kkt_violation))
+    return rows, weights
+
+
+def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping,
+                        alternatives: Mapping[str, np.ndarray], weights: Mapping, settings: Mapping) -> dict:
+    """Closeness to the hand shapes, locality and usage of H, each quasi-eigen basis, PCA and the alternatives
+    (:mod:`workbench.intuitiveness`), as plain values for the run record.
+
+    Parameters
+    ----------
+    capture : Capture
+    eigenfaces : Eigenfaces
+    quasi_eigen : mapping
+        Projection -> :class:`workbench.bases.QuasiEigenBasis`.
+    alternatives : mapping
+        Label -> shapes of shape (n, n_dims).
+    weights : mapping
+        ``(basis, solver)`` -> weights of the evaluated frames, shape (n_eval_frames, n).
+    settings : mapping
+        ``locality_energy`` and ``usage_threshold`` (``basis.intuitiveness``).
+
+    Returns
+    -------
+    dict
+        ``locality_energy``, ``usage_threshold``, ``point_weights`` and ``bases``: one entry per basis with
+        ``basis``, ``n``, ``matched_abs_cosine`` (mean over matched pairs), ``locality`` (mean over elements),
+        ``usage`` (solver -> mean elements used per evaluated frame) and ``elements`` (per element: the matched
+        hand shape, its ``|cosine|`` and the element's locality).
+    """
+    from workbench.intuitiveness import (LOCALITY_ENERGY, USAGE_THRESHOLD, locality, matched_closeness,
+                                         point_areas, usage)
+
+    energy = float(settings.get("locality_energy", LOCALITY_ENERGY))
+    threshold = float(settings.get("usage_threshold", USAGE_THRESHOLD))
+    areas = point_areas(capture.neutral, capture.faces)
+    bases = {"H": capture.hand, **{QE_LABELS[p]: qe.shapes for p, qe in quasi_eigen.items()},
+             "PCA": eigenfaces.components_, **alternatives}
+    per_basis = {label: {solver: w for (b, solver), w in weights.items() if b == label} for label in bases}
+    if getattr(capture, "eval_visible", None) is None:  # PCA's weights: the projection coefficients
+        per_basis["PCA"] = {"projection": (capture.eval - eigenfaces.mean_) @ eigenfaces.components_.T}
+    entries = []
+    for label, shapes in bases.items():
+        element, hand_index, cosine = matched_closeness(shapes, capture.hand)
+        local = locality(shapes, areas, energy)
+        entries.append({
+            "basis": label, "n": int(shapes.shape[0]), "matched_abs_cosine": float(cosine.mean()),
+            "locality": float(np.nanmean(local)),
+            "usage": {solver: float(usage(w, shapes, threshold).mean()) for solver, w in per_basis[label].items()},
+            "elements": [{"element": int(e), "hand_shape": capture.hand_names[h], "abs_cosine": float(c),
+                          "locality": float(local[e])} for e, h, c in zip(element, hand_index, cosine)],
+        })
+    return {"locality_energy": energy, "usage_threshold": threshold,
+            "point_weights": "mesh triangle areas" if capture.faces is not None else "equal per point",
+            "bases": entries}

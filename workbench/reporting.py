@@ -739,7 +739,7 @@ def cell_text(column: str, value) -> str:
     if isinstance(value, (float, np.floating)):
         if base in FLOAT_FORMATS:
             return FLOAT_FORMATS[base].format(value)
-        if base in ("relative", "cosine"):  # intuitiveness columns
+        if base in ("relative", "cosine", *INTUITIVENESS_COLUMNS):  # intuitiveness columns
             return f"{value:.3f}"
         return f"{value:.4g}"
     return str(value)
@@ -942,6 +942,108 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
 
 
 # ---------------------------------------------------------------------------------------------------------------
+# Other bases (basis.alternatives): alpha against intuitiveness
+# ---------------------------------------------------------------------------------------------------------------
+
+INTUITIVENESS_COLUMNS = ("matched_abs_cosine", "locality", "usage")
+
+
+def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
+    """Per data variant and basis of a run that scored other bases: its headline alpha with the figures' solver
+    (PCA: its projection) beside the basis's closeness, locality and usage (usage with that solver's weights).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``data``, ``basis``, ``n``, the headline alpha column and :data:`INTUITIVENESS_COLUMNS`; empty
+        when the run scored no other bases.
+    """
+    column = headline_column(record.config)
+    solver, _ = figure_solver(record.config)
+    rows = []
+    for data, values in record.metrics["data"].items():
+        table = record.table[record.table["data"] == data]
+        for entry in (values.get("basis_intuitiveness") or {}).get("bases", []):
+            alpha = table.loc[(table["basis"] == entry["basis"]) & table["solver"].isin([solver, "projection"]),
+                              column]
+            rows.append({"data": data, "basis": entry["basis"], "n": entry["n"],
+                         column: float(alpha.iloc[0]) if len(alpha) else math.nan,
+                         "matched_abs_cosine": entry["matched_abs_cosine"], "locality": entry["locality"],
+                         "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan))})
+    return pd.DataFrame.from_records(rows)
+
+
+def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
+    """Mean and Student-t confidence interval over runs (seeds) per data variant and basis.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``data``, ``basis``, ``n`` (mean: PCA's m can differ between takes), ``n_seeds``, then per column its
+        mean, ``<column>_ci_low`` and ``<column>_ci_high`` (NaN with a single run).
+    """
+    from scipy import stats
+
+    records = []
+    for (data, basis), group in per_run.groupby(["data", "basis"], sort=False):
+        count = len(group)
+        row = {"data": data, "basis": basis, "n": float(group["n"].mean()), "n_seeds": count}
+        for column in columns:
+            mean = float(group[column].mean())
+            half = (stats.t.ppf(0.5 + confidence / 2, count - 1) * float(group[column].std(ddof=1)) / math.sqrt(count)
+                    if count > 1 else math.nan)
+            row.update({column: mean, f"{column}_ci_low": mean - half, f"{column}_ci_high": mean + half})
+        records.append(row)
+    return pd.DataFrame.from_records(records)
+
+
+def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir: Path,
+                       formats: Sequence[str]) -> list:
+    """The report's sections with one on the other bases inserted before its figures: the table of alpha,
+    closeness, locality and usage of every basis (means over the runs) and the figure of alpha against each.
+    Unchanged when no run scored other bases."""
+    from workbench.figures.studies import plot_alpha_against_intuitiveness
+
+    found = [(record, basis_intuitiveness_rows(record)) for record in records]
+    found = [(record, frame) for record, frame in found if not frame.empty]
+    if not found:
+        return sections
+    first = found[0][0]
+    column = headline_column(first.config)
+    solver, _ = figure_solver(first.config)
+    settings = next(values["basis_intuitiveness"] for values in first.metrics["data"].values()
+                    if values.get("basis_intuitiveness"))
+    energy, threshold = settings["locality_energy"], settings["usage_threshold"]
+    summary = summarise_intuitiveness(pd.concat([frame for _, frame in found], ignore_index=True),
+                                      [column, *INTUITIVENESS_COLUMNS])
+    several = int(summary["n_seeds"].max()) > 1
+    caption = (f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
+               f"shapes, its locality and its usage" + (", means over runs with 95 % confidence intervals as error "
+                                                         "bars." if several else "."))
+    title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
+    entry = make_figures([("alpha_vs_intuitiveness", "Alpha against intuitiveness", caption,
+                           lambda _, options: plot_alpha_against_intuitiveness(
+                               summary, column, energy=energy, threshold=threshold, title=title))],
+                         None, figures_dir, formats, {})[0]
+    shown = summary[["data", "basis", "n", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
+                                                                if several else []), *INTUITIVENESS_COLUMNS]]
+    section = Section("Other bases: alpha against intuitiveness", [
+        f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
+        f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
+                                                  else "one run."),
+        [f"`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
+         "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
+         f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
+         "element's squared displacement, mean over elements (small: local).",
+         f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
+         f"largest, mean over the evaluated frames (weights of solver {solver})."],
+        shown, entry])
+    headings = [item.heading for item in sections]
+    at = headings.index("Figures") if "Figures" in headings else len(sections)
+    return [*sections[:at], section, *sections[at:]]
+
+
+# ---------------------------------------------------------------------------------------------------------------
 # The command
 # ---------------------------------------------------------------------------------------------------------------
 
@@ -986,6 +1088,7 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     _clear_figures(figures_dir)
     entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), options or {})
     title, sections = run_sections(record, entries, command)
+    sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
     shutil.copyfile(record.folder / "alpha_table.csv", out / "alpha_table.csv")
     shutil.copyfile(record.folder / "config.yaml", out / "run_config.yaml")
@@ -1018,6 +1121,7 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     _clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept), None, figures_dir, _with_png(formats), {})
     title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
+    sections = with_bases_section(sections, records, figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
     summary.to_csv(out / "summary.csv", index=False)
     per_run.to_csv(out / "runs.csv", index=False)

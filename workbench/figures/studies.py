@@ -303,3 +303,81 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_r
     axes[-1].set_xlabel("time in the take (s)")
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
+
+
+# Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.figures).
+OTHER_BASIS_COLOURS = {"SPCA": "#2ca02c", "ICA": "#17becf", "NMF": "#8c564b", "SPLOCS": "#e377c2",
+                       "H-fit": "#4a4a4a"}
+BASIS_MARKERS = {"H": "s", "QE": "o", "QE-linear": "o", "PCA": "D", "SPCA": "^", "ICA": "v", "NMF": "P",
+                 "SPLOCS": "X", "H-fit": "s"}
+INTUITIVENESS_AXES = (
+    ("matched_abs_cosine", "closeness to the hand shapes:\nmean matched |cos| (higher: closer)"),
+    ("locality",
+     "locality: area holding {energy_percent:g} % of an\nelement's squared displacement (lower: more local)"),
+    ("usage", "usage: elements a frame uses\n(contribution > {threshold:g} x largest; lower: fewer)"),
+)
+
+
+def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_mean", *, title: str,
+                                     energy: float = 0.9, threshold: float = 0.1) -> Figure:
+    """Alpha against each measure of intuitiveness, one point per basis: the trade-off in one picture.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        One row per data variant and basis: ``data``, ``basis``, ``y``, ``matched_abs_cosine``, ``locality``,
+        ``usage``, each optionally with ``<column>_ci_low`` and ``<column>_ci_high`` (95 % interval over seeds,
+        drawn as error bars).
+    y : str
+        Alpha column.
+    title : str
+    energy, threshold : float
+        The locality energy and usage threshold the measures used (for the axis labels).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One row of three panels (closeness, locality, usage) per data variant, sharing the alpha axis.
+    """
+    _check_columns(table, ["data", "basis", y, *(column for column, _ in INTUITIVENESS_AXES)])
+    data_variants = list(dict.fromkeys(table["data"]))
+    width = 12.0
+    figure = new_figure(width, 3.8 * len(data_variants) + 1.2)
+    grid = figure.subplots(len(data_variants), len(INTUITIVENESS_AXES), squeeze=False, sharey="row")
+    bases = _ordered_bases(table["basis"])
+    for row, data in zip(grid, data_variants):
+        part = table[table["data"] == data].set_index("basis")
+        for ax, (column, label) in zip(row, INTUITIVENESS_AXES):
+            for basis in bases:
+                if basis not in part.index or pd.isna(part.loc[basis, column]):
+                    continue
+                values = part.loc[basis]
+                errors = {}
+                for axis, name in (("xerr", column), ("yerr", y)):
+                    low, high = f"{name}_ci_low", f"{name}_ci_high"
+                    if low in part.columns and pd.notna(values[low]) and values[high] > values[low]:
+                        errors[axis] = [[values[name] - values[low]], [values[high] - values[name]]]
+                colour = OTHER_BASIS_COLOURS.get(basis, basis_colour(basis))
+                ax.errorbar(values[column], values[y], **errors, color=colour, marker=BASIS_MARKERS.get(basis, "o"),
+                            markersize=8, linestyle="none", capsize=3,
+                            markerfacecolor="none" if basis in ("QE-linear", "H-fit") else colour, label=basis)
+                ax.annotate(basis, (values[column], values[y]), textcoords="offset points", xytext=(6, 4),
+                            fontsize=8, color=colour)
+            ax.set_xlabel(label.format(energy_percent=energy * 100, threshold=threshold), fontsize=9)
+            ax.grid(alpha=0.3)
+            ax.margins(x=0.15, y=0.12)
+        values = part[y].dropna()
+        log_y = len(values) and values.min() > 0 and values.max() / values.min() > 5
+        if log_y:  # a few bases far above the rest (the hand basis): a log axis keeps the rest apart
+            from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
+            row[0].set_yscale("log")
+            row[0].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            row[0].yaxis.set_major_formatter(FormatStrFormatter("%g"))
+            row[0].yaxis.set_minor_formatter(NullFormatter())
+        row[0].set_ylabel(f"{axis_label(y)}{', log scale' if log_y else ''}\n(lower: more accurate)", fontsize=9)
+        row[0].set_title(f"data: {data}", fontsize=10, loc="left")
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 9), fontsize=9, frameon=False)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
