@@ -26,7 +26,8 @@ def sweep_command(sweep_dir: Path, *extra: str) -> list[str]:
 
 
 def cli_env() -> dict:
-    return dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    # one BLAS thread in every process, so that sums are added in the same order in parallel and sequential runs
+    return dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
 
 
 def run_sweep(sweep_dir: Path, cwd: Path, *extra: str) -> subprocess.CompletedProcess:
@@ -98,6 +99,13 @@ def test_parallel_sweep_with_joblib_launcher(tmp_path):
         "basis.coverage=0.9,dataset.n_frames=500,dataset.seed=0",
         "basis.coverage=0.99,dataset.n_frames=500,dataset.seed=0"]
     assert "collected 2 runs" in result.stdout
+    # determinism: the same runs in one sequential process give byte-identical tables (same BLAS thread count)
+    sequential = tmp_path / "sequential"
+    result = run_sweep(sequential, tmp_path, "dataset.seed=0", "basis.coverage=0.9,0.99")
+    assert result.returncode == 0, result.stderr
+    for done in sorted(sweep.glob("*/done")):
+        table = done.parent.name + "/alpha_table.csv"
+        assert (sweep / table).read_bytes() == (sequential / table).read_bytes(), table
 
 
 def test_run_ids_are_stable_readable_and_distinct():

@@ -18,7 +18,10 @@ EMPTY_AXIS_SCALES = ("axis_std", "absolute")
 
 
 def _check_matrix(name: str, array, n_dims: int | None = None) -> np.ndarray:
-    array = np.asarray(array, dtype=np.float64)
+    try:
+        array = np.asarray(array, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise WorkbenchError(f"{name} must be a numeric 2-D array (rows x dims): {error}") from None
     if array.ndim != 2:
         raise WorkbenchError(f"{name} must be a 2-D array (rows x dims), got shape {array.shape}")
     if array.shape[0] == 0 or array.shape[1] == 0:
@@ -28,6 +31,72 @@ def _check_matrix(name: str, array, n_dims: int | None = None) -> np.ndarray:
     if not np.all(np.isfinite(array)):
         raise WorkbenchError(f"{name} holds NaN or Inf values ({int(np.sum(~np.isfinite(array)))} entries)")
     return array
+
+
+def _shown(value) -> str:
+    """A setting as an error message quotes it: text in quotes, numbers as written."""
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_coverage(coverage) -> float:
+    """``coverage`` as a float, or a :class:`WorkbenchError` unless it is a number in (0, 1]."""
+    if not _is_number(coverage) or not 0.0 < coverage <= 1.0:
+        raise WorkbenchError(f"coverage must be in (0, 1], got {_shown(coverage)}")
+    return float(coverage)
+
+
+def check_n_components(n_components) -> int | None:
+    """``n_components`` as an int (or None), or a :class:`WorkbenchError` unless it is a positive integer."""
+    if n_components is None:
+        return None
+    if not _is_number(n_components) or not float(n_components).is_integer() or n_components < 1:
+        raise WorkbenchError(f"n_components must be a positive integer or None, got {_shown(n_components)}")
+    return int(n_components)
+
+
+def check_hand_basis(hand: np.ndarray, names, *, tol: Tolerances = TOL) -> None:
+    """Raise a :class:`WorkbenchError` unless every hand shape moves some point and adds a direction of its own.
+
+    The rules, in the order they are checked: no shape is all zero (norm at most ``tol.zero_displacement``);
+    no two shapes are the same (their difference at most ``sqrt(tol.eigen_rel)`` times the largest shape);
+    the shapes are linearly independent (every eigenvalue of their Gram matrix above ``tol.eigen_rel`` times the
+    largest, the rule that sets the rank of a capture).
+
+    Parameters
+    ----------
+    hand : ndarray of shape (n_shapes, n_dims)
+        Finite hand-made shapes as displacements from neutral.
+    names : sequence of str
+        One name per shape, for the message.
+    tol : Tolerances
+    """
+    names = list(names)
+    norms = np.linalg.norm(hand, axis=1)
+    zero = [names[i] for i in np.flatnonzero(norms <= tol.zero_displacement)]
+    if zero:
+        raise WorkbenchError(f"hand basis shape(s) {zero} are all zero (norm <= {tol.zero_displacement:g}); every "
+                             "hand shape must move some point")
+    gram = hand @ hand.T
+    squared = np.diag(gram)
+    distance_sq = squared[:, None] + squared[None, :] - 2.0 * gram
+    first, second = np.triu_indices(len(names), k=1)
+    same = np.flatnonzero(distance_sq[first, second] <= tol.eigen_rel * squared.max())
+    if same.size:
+        a, b = first[same[0]], second[same[0]]
+        raise WorkbenchError(f"hand basis shapes {names[a]!r} and {names[b]!r} are the same shape (duplicates); "
+                             "every hand shape must differ from the others")
+    values, vectors = np.linalg.eigh(gram)
+    dependent = values <= tol.eigen_rel * values[-1]
+    if dependent.any():
+        combination = np.abs(vectors[:, 0])
+        involved = [names[i] for i in np.flatnonzero(combination >= np.sqrt(tol.eigen_rel) * combination.max())]
+        raise WorkbenchError(f"hand basis is rank-deficient: its {len(names)} shapes span only "
+                             f"{int((~dependent).sum())} dimensions (shapes {involved} are linearly dependent); "
+                             "every hand shape must add a direction the others lack")
 
 
 def flip_signs(components: np.ndarray) -> np.ndarray:
@@ -147,8 +216,7 @@ def n_components_for_coverage(explained_variance_ratio: np.ndarray, coverage: fl
     -------
     int
     """
-    if not 0.0 < coverage <= 1.0:
-        raise WorkbenchError(f"coverage must be in (0, 1], got {coverage}")
+    coverage = check_coverage(coverage)
     cumulative = np.cumsum(explained_variance_ratio)
     # Round-off can leave the full sum a hair below 1; the last component always reaches full coverage.
     reached = np.flatnonzero(cumulative >= coverage - 1e-12)
@@ -212,19 +280,25 @@ class Eigenfaces:
         Returns
         -------
         self
+
+        Raises
+        ------
+        WorkbenchError
+            A capture that is not a finite, non-empty 2-D array of at least 2 frames, or has no variance; a
+            ``coverage`` outside (0, 1]; an ``n_components`` that is not a positive integer or exceeds the rank.
         """
         capture = _check_matrix("capture", capture)
         if capture.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
-        if self.n_components is None and not 0.0 < self.coverage <= 1.0:
-            raise WorkbenchError(f"coverage must be in (0, 1], got {self.coverage}")
+        n_components = check_n_components(self.n_components)
+        coverage = check_coverage(self.coverage) if n_components is None else None
         if self.svd_solver not in ("auto", "exact", "randomized"):
             raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
         mean = capture.mean(axis=0)
         randomized = self.svd_solver == "randomized" or (
             self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
         if randomized:
-            values, vectors, total = self._randomized(capture, mean)
+            values, vectors, total = self._randomized(capture, mean, n_components, coverage)
             method = "randomized"
         else:
             values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
@@ -232,10 +306,10 @@ class Eigenfaces:
         if values.size == 0:
             raise WorkbenchError("capture has no variance: every frame is the same")
         ratio = values / total
-        if self.n_components is None:
-            m = n_components_for_coverage(ratio, self.coverage)
+        if n_components is None:
+            m = n_components_for_coverage(ratio, coverage)
         else:
-            m = int(self.n_components)
+            m = n_components
             if not 1 <= m <= values.size:
                 raise WorkbenchError(
                     f"n_components must be between 1 and the capture's rank {values.size}, got {self.n_components}")
@@ -248,21 +322,23 @@ class Eigenfaces:
         self.method_ = method
         return self
 
-    def _randomized(self, capture: np.ndarray, mean: np.ndarray):
-        """Leading eigenpairs, as many as the coverage or ``n_components`` needs; and the total variance."""
+    def _randomized(self, capture: np.ndarray, mean: np.ndarray, n_components: int | None,
+                    coverage: float | None):
+        """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs; and the
+        total variance."""
         rng = np.random.default_rng(self.seed)
         n_frames = capture.shape[0]
         # Sum of squares of the centred capture, a chunk of frames at a time (no full centred copy).
         total = sum(float(np.sum((capture[start:start + 4096] - mean) ** 2))
                     for start in range(0, n_frames, 4096)) / n_frames
         limit = min(capture.shape) - 1
-        n_eigen = min(self.n_components or 32, limit)
+        n_eigen = min(n_components or 32, limit)
         while True:
             values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng)
             keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
             values, vectors = values[keep], vectors[keep]
-            enough = (self.n_components is not None or values.size < n_eigen
-                      or values.sum() >= (self.coverage - 1e-12) * total)
+            enough = (n_components is not None or values.size < n_eigen
+                      or values.sum() >= (coverage - 1e-12) * total)
             if enough or n_eigen >= limit:
                 return values, vectors, total
             n_eigen = min(2 * n_eigen, limit)
@@ -417,16 +493,30 @@ def build_quasi_eigen_basis(hand, names, eigenfaces: Eigenfaces, *, projection: 
     Returns
     -------
     QuasiEigenBasis
+
+    Raises
+    ------
+    WorkbenchError
+        Unfitted ``eigenfaces``; a hand basis that is not finite, has the wrong number of columns or names, or
+        breaks a rule of :func:`check_hand_basis` (all-zero, duplicate or linearly dependent shapes); an unknown
+        ``projection`` or ``empty_axis_scale``, a negative or non-finite ``empty_axis_eps``.
     """
     eigenfaces._check_fitted()
     hand = _check_matrix("hand basis", hand, eigenfaces.mean_.shape[0])
     names = tuple(str(name) for name in names)
     if len(names) != hand.shape[0]:
         raise WorkbenchError(f"hand basis has {hand.shape[0]} shapes but {len(names)} names")
+    if len(set(names)) != len(names):
+        raise WorkbenchError(f"hand basis names must be distinct, got {list(names)}")
+    if projection not in PROJECTIONS:
+        raise WorkbenchError(f"projection must be one of {PROJECTIONS}, got {projection!r}")
     if empty_axis_scale not in EMPTY_AXIS_SCALES:
         raise WorkbenchError(f"empty_axis_scale must be one of {EMPTY_AXIS_SCALES}, got {empty_axis_scale!r}")
-    if not empty_axis_eps >= 0:
-        raise WorkbenchError(f"empty_axis_eps must be >= 0, got {empty_axis_eps}")
+    if not _is_number(empty_axis_eps) or not 0 <= empty_axis_eps < np.inf:
+        raise WorkbenchError(f"empty_axis_eps must be a finite number >= 0, got {_shown(empty_axis_eps)}")
+    if not isinstance(append_empty_axes, (bool, np.bool_)):
+        raise WorkbenchError(f"append_empty_axes must be true or false, got {_shown(append_empty_axes)}")
+    check_hand_basis(hand, names, tol=eigenfaces.tol)
     components, mean = eigenfaces.components_, eigenfaces.mean_
     weights = pca_to_qe_weights(hand, components, mean, projection)
     shapes = quasi_eigen_faces(weights, components, mean, projection)

@@ -5,8 +5,10 @@ The Hydra entry point is thin: it hands the composed config to :func:`run`.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
+import traceback
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Sequence
@@ -96,6 +98,8 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
                       eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
                       solver_fallback_frames=row.n_fallback_frames,
                       solver_max_kkt_violation=row.max_kkt_violation,
+                      max_abs_weight=row.max_abs_weight,
+                      basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
                       undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
                  for i, (result, row) in enumerate(rows)],
         "versions": versions(),
@@ -113,7 +117,9 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
                 "train": result.capture.train, "eval": result.capture.eval, "neutral": result.capture.neutral,
                 "hand": result.capture.hand, "hand_names": np.array(result.capture.hand_names),
                 "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_,
-                **({"faces": result.capture.faces} if result.capture.faces is not None else {})})
+                **({"faces": result.capture.faces} if result.capture.faces is not None else {}),
+                **({"eval_visible": result.capture.eval_visible} if result.capture.eval_visible is not None
+                   else {})})
         write_npz(output_dir / "alpha_per_frame.npz", alpha_per_frame_arrays(results))
     write_atomic(output_dir / "done", "")
     return text
@@ -163,9 +169,8 @@ def _hydra_main(cfg: DictConfig) -> None:
         multirun = hydra_cfg.mode == RunMode.MULTIRUN
         text = run(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
                    job_num=int(hydra_cfg.job.num) if multirun else None)
-    except WorkbenchError as error:
-        print(f"workbench: error: {error}", file=sys.stderr)
-        sys.exit(2)
+    except Exception as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
+        exit_on_error("workbench", error)
     if multirun:
         print(f"done {output_dir}: {first_headline(text)}")
     else:
@@ -187,25 +192,78 @@ COMMANDS: dict[str, str] = {
 }
 
 
+VERBOSE_FLAG = "--verbose"
+_verbose = False
+
+
+def exit_on_error(program: str, error: BaseException) -> None:
+    """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
+
+    A :class:`WorkbenchError` is bad input or configuration (exit 2); anything else is unexpected (exit 3) and
+    names its type, since its message alone may not say where it came from.
+    """
+    if isinstance(error, SystemExit):
+        raise error
+    if _verbose:
+        traceback.print_exception(error, file=sys.stderr)
+    if isinstance(error, WorkbenchError):
+        print(f"{program}: error: {error}", file=sys.stderr)
+        sys.exit(2)
+    hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
+    print(f"{program}: error: unexpected {type(error).__name__}: {error}{hint}", file=sys.stderr)
+    sys.exit(3)
+
+
 def main() -> None:
     """Entry point of the ``workbench`` command.
 
     ``workbench [--config-name STUDY] [overrides...]`` runs a study through Hydra; ``workbench <command> ...``
-    runs one of :data:`COMMANDS`.
+    runs one of :data:`COMMANDS`. ``--verbose`` anywhere adds the traceback to an error's one line (Hydra's own
+    errors: set ``HYDRA_FULL_ERROR=1``).
     """
+    global _verbose
+    if VERBOSE_FLAG in sys.argv[1:]:
+        _verbose = True
+        sys.argv = [arg for arg in sys.argv if arg != VERBOSE_FLAG]
     if len(sys.argv) > 1 and sys.argv[1] in COMMANDS:
         import importlib
 
         module, function = COMMANDS[sys.argv[1]].split(":")
         try:
-            sys.exit(getattr(importlib.import_module(module), function)(sys.argv[2:]))
-        except WorkbenchError as error:
-            print(f"workbench {sys.argv[1]}: error: {error}", file=sys.stderr)
-            sys.exit(2)
+            code = getattr(importlib.import_module(module), function)(sys.argv[2:])
+        except Exception as error:  # noqa: BLE001
+            exit_on_error(f"workbench {sys.argv[1]}", error)
+        sys.exit(code)
     try:
         check_config_dirs()
-    except WorkbenchError as error:
-        print(f"workbench: error: {error}", file=sys.stderr)
-        sys.exit(2)
+    except Exception as error:  # noqa: BLE001
+        exit_on_error("workbench", error)
     sys.argv.append(searchpath_override())
-    _hydra_main()
+    # Hydra reports a bad override or config choice in several lines of its own; let it raise instead, and print
+    # one line (unless the user asked for Hydra's full error or --verbose).
+    full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        _hydra_main()
+    except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
+        if full_error or _verbose:
+            raise
+        print(f"workbench: error: {one_line(error)}", file=sys.stderr)
+        sys.exit(2)
+
+
+def one_line(error: BaseException) -> str:
+    """Hydra's multi-line message of a config error (and its cause's) as one line: lists such as the available
+    options of a config group are joined, the config search path is left out."""
+    text = str(error)
+    if error.__cause__ is not None and str(error.__cause__) not in text:
+        text += "\n" + str(error.__cause__)
+    parts = []
+    for line in text.split("Config search path:")[0].splitlines():
+        if not line.strip() or line.strip().startswith(("full_key:", "object_type=", "Set the environment variable")):
+            continue
+        if line.startswith(("\t", "    ")) and parts and parts[-1].endswith((":", ",")):
+            parts[-1] += (" " if parts[-1].endswith(":") else " ") + line.strip() + ","
+        else:
+            parts.append(line.strip())
+    return "; ".join(part.rstrip(",.") for part in parts)

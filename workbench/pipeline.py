@@ -20,7 +20,8 @@ from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
-from workbench.metrics import AlphaSummary, intuitiveness, reference_squares, summarise_alpha
+from workbench.metrics import (AlphaSummary, Conditioning, basis_conditioning, intuitiveness, reference_squares,
+                               summarise_alpha)
 from workbench.solve import reconstruct, solve_weights
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
@@ -51,6 +52,8 @@ class Row:
     n_iterations: int = 0
     n_fallback_frames: int = 0
     max_kkt_violation: float = 0.0
+    max_abs_weight: float = float("nan")
+    conditioning: Conditioning | None = None
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,8 @@ def check_solver_config(name: str, solver: Mapping) -> dict:
         raise WorkbenchError(f"solver.{name} is a box solver without bounds: set lower and/or upper")
     if kind == "lstsq":
         lower = upper = None
+    if kind == "box" and lower is not None and upper is not None and np.any(np.asarray(lower) > np.asarray(upper)):
+        raise WorkbenchError(f"solver.{name}.lower ({lower}) must not exceed solver.{name}.upper ({upper})")
     return {"kind": kind, "lower": lower, "upper": upper}
 
 
@@ -138,6 +143,11 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     if not eval_names:
         return [run_on_capture(data, subset_hand_shapes(capture, basis_cfg), basis_cfg, solvers, timings)
                 for data, capture in captures.items()]
+    masked = [name for name in eval_names if captures[name].eval_visible is not None]
+    if masked:
+        raise WorkbenchError(f"dataset.gap_policy 'masked' leaves gaps in the evaluated frames of {masked}; "
+                             "carrying bases onto them (dataset.eval_on) is not supported: use gap_policy linear "
+                             "or drop, or leave dataset.eval_on unset")
     results = []
     for train_on in train_names:
         source = subset_hand_shapes(captures[train_on], basis_cfg)
@@ -345,23 +355,36 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     bases = [("H", "-", capture.hand)] + [
         (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()]
     rows, weights = [], {}
+    visible = capture.eval_visible
     with timings.stage("metrics"):
-        squares = reference_squares(capture.neutral, capture.eval)
+        squares = reference_squares(capture.neutral, capture.eval, visible=visible)
+        conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
     for solver_name, solver in solvers.items():
         for label, projection, shapes in bases:
             with timings.stage(f"solve_{solver_name}"):
-                solution = solve_weights(shapes, capture.eval, **solver)
+                solution = solve_weights(shapes, capture.eval, visible=visible, **solver)
             with timings.stage("metrics"):
                 summary = summarise_alpha(capture.neutral, capture.eval,
-                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares)
+                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares,
+                                          visible=visible)
             weights[(label, solver_name)] = solution.weights
             rows.append(Row(basis=label, projection=projection, solver=solver_name, n_shapes=shapes.shape[0],
                             alpha=summary, n_iterations=solution.n_iterations,
                             n_fallback_frames=solution.n_fallback_frames,
-                            max_kkt_violation=solution.max_kkt_violation))
+                            max_kkt_violation=solution.max_kkt_violation,
+                            max_abs_weight=float(np.abs(solution.weights).max()),
+                            conditioning=conditioning[label]))
     with timings.stage("pca_reconstruction"):
-        summary = summarise_alpha(capture.neutral, capture.eval, lambda rows: reconstruct_pca(capture.eval[rows]),
-                                  squares=squares)
+        if visible is not None:
+            # with gaps the orthogonal projection becomes least squares on the eigenfaces over the seen points
+            offsets = solve_weights(eigenfaces.components_, capture.eval - eigenfaces.mean_, visible=visible).weights
+            summary = summarise_alpha(
+                capture.neutral, capture.eval,
+                lambda rows: eigenfaces.mean_ + reconstruct(eigenfaces.components_, offsets[rows]),
+                squares=squares, visible=visible)
+        else:
+            summary = summarise_alpha(capture.neutral, capture.eval,
+                                      lambda rows: reconstruct_pca(capture.eval[rows]), squares=squares)
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
     return rows, weights

@@ -16,7 +16,21 @@ from typing import Mapping
 
 import numpy as np
 
-RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification")
+RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
+                   "scikit-learn")
+TEMPORARY_SUFFIX = ".tmp"
+"""A file being written is ``.<name>.<random>.tmp`` beside its final name; a kill can leave one behind, never a
+part of a final file. Readers look only at final names; a rerun clears a killed run's folder."""
+
+
+def _file_mode() -> int:
+    """Permissions of a new file under the process's umask (the temporary file is created private)."""
+    umask = os.umask(0o022)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+FILE_MODE = _file_mode()
 
 
 def write_atomic(path: Path, data: bytes | str) -> None:
@@ -24,8 +38,9 @@ def write_atomic(path: Path, data: bytes | str) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = data.encode() if isinstance(data, str) else data
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
     try:
+        os.fchmod(handle, FILE_MODE)
         with os.fdopen(handle, "wb") as stream:
             stream.write(payload)
             stream.flush()

@@ -122,8 +122,52 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
             f"paper: m = {paper['m']} at {paper['coverage']}",
             f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
         ]
+        lines += conditioning_lines(result.rows)
         lines += [f"  note: {note}" for note in capture.notes]
     return "\n".join(lines) + "\n"
+
+
+ILL_CONDITIONED = 1e6
+"""A full-rank basis whose condition number exceeds this gets a warning: its weights amplify noise that much."""
+
+
+def conditioning_lines(rows: Sequence) -> list[str]:
+    """Header lines on how well each basis determines its weights: condition number or rank, and warnings for
+    zero shapes, near-duplicate shapes and ill-conditioning (weights then swing wildly from frame to frame).
+
+    Parameters
+    ----------
+    rows : sequence of workbench.pipeline.Row
+        Rows with ``conditioning`` set (the first row of each basis is used).
+
+    Returns
+    -------
+    list of str
+    """
+    seen, parts, warnings = set(), [], []
+    for row in rows:
+        report = getattr(row, "conditioning", None)
+        if report is None or row.basis in seen:
+            continue
+        seen.add(row.basis)
+        if report.rank < report.n_shapes:
+            parts.append(f"{row.basis} rank {report.rank} of {report.n_shapes} (weights not unique; minimum-norm "
+                         "for lstsq)")
+        else:
+            parts.append(f"{row.basis} condition number {report.condition_number:.3g}")
+        problems = []
+        if report.zero_shapes:
+            problems.append(f"all-zero shapes {list(report.zero_shapes)}")
+        if report.near_duplicates:
+            problems.append("near-duplicate shapes " + ", ".join(f"{i}~{j} (cos {c:.4f})"
+                                                                  for i, j, c in report.near_duplicates[:5]))
+        if report.rank == report.n_shapes and report.condition_number > ILL_CONDITIONED:
+            problems.append(f"condition number {report.condition_number:.3g} > {ILL_CONDITIONED:g}")
+        if problems and row.basis == "H":
+            largest = max(r.max_abs_weight for r in rows if r.basis == row.basis)
+            warnings.append(f"  WARNING: basis {row.basis} is ill-conditioned: {'; '.join(problems)}; its weights "
+                            f"are unstable (largest |w| {largest:.3g})")
+    return ([f"  bases: {'; '.join(parts)}"] if parts else []) + warnings
 
 
 def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float]) -> str:

@@ -18,7 +18,6 @@ import argparse
 import html
 import json
 import math
-import shutil
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -29,6 +28,7 @@ import pandas as pd
 import yaml
 
 from workbench.errors import WorkbenchError
+from workbench.record import write_atomic
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS = ("png", "svg")
@@ -434,7 +434,12 @@ def draw_marker_errors(record: RunRecord):
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
     label = _qe_label(record)
-    frame = expressive_frames(inputs["eval"], 1)[0]
+    # with capture gaps (gap_policy masked) the figure shows a frame that saw every marker
+    seen_all = (np.flatnonzero(inputs["eval_visible"].all(axis=1)) if "eval_visible" in inputs
+                else np.arange(len(inputs["eval"])))
+    if seen_all.size == 0:
+        return "needs an evaluated frame that saw every marker (every frame has a gap)"
+    frame = int(seen_all[expressive_frames(inputs["eval"][seen_all], 1)[0]])
     captured = inputs["eval"][[frame]]
     bases = {"H": inputs["hand"],
              label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label], _appended_axes(record, data, label))}
@@ -1090,8 +1095,8 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     title, sections = run_sections(record, entries, command)
     sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
-    shutil.copyfile(record.folder / "alpha_table.csv", out / "alpha_table.csv")
-    shutil.copyfile(record.folder / "config.yaml", out / "run_config.yaml")
+    write_atomic(out / "alpha_table.csv", (record.folder / "alpha_table.csv").read_bytes())
+    write_atomic(out / "run_config.yaml", (record.folder / "config.yaml").read_bytes())
     return out / "index.html"
 
 
@@ -1123,8 +1128,8 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
     sections = with_bases_section(sections, records, figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
-    summary.to_csv(out / "summary.csv", index=False)
-    per_run.to_csv(out / "runs.csv", index=False)
+    write_atomic(out / "summary.csv", summary.to_csv(index=False))
+    write_atomic(out / "runs.csv", per_run.to_csv(index=False))
     return out / "index.html"
 
 
@@ -1133,8 +1138,6 @@ def _with_png(formats: Sequence[str]) -> list[str]:
 
 
 def _write_documents(out: Path, title: str, sections: Sequence[Section]) -> None:
-    from workbench.record import write_atomic
-
     write_atomic(out / "index.html", render_html(title, sections))
     write_atomic(out / "README.md", render_markdown(title, sections))
 

@@ -44,6 +44,12 @@ Frames still unfinished after ``tol.active_set_max_iter`` iterations, and frames
 re-solved one by one with SciPy (``scipy.optimize.nnls`` or ``scipy.optimize.lsq_linear(method="bvls")``) on
 the reduced problem; ``WeightSolution.n_fallback_frames`` counts them.
 
+Capture gaps (occluded markers) are solved by masking: given which points of each frame were seen, each frame's
+weights minimise eq. 5 over its visible points only (the targets may hold NaN elsewhere).  Each frame then has
+its own gram ``G_f`` (a sum of per-point ``n x n`` blocks over its visible points, one matrix product for all
+frames); the unconstrained weights come from a batched eigendecomposition of the ``G_f``, and the bounded ones
+from the same ADMM start and primal active-set method, run with one gram per frame.
+
 Rank-deficient bases (duplicate, linearly dependent or nearly collinear shapes; the quasi-eigen faces are 18
 shapes in the 13- or 14-dimensional eigenface hyperplane) make ``G`` singular and the weights non-unique --
 only the objective is.  When the smallest eigenvalue of ``G`` is at or below ``tol.gram_ridge`` times its
@@ -144,6 +150,7 @@ def solve_weights(
     kind: str = "lstsq",
     lower=None,
     upper=None,
+    visible=None,
     tol: Tolerances = TOL,
 ) -> WeightSolution:
     """Weights of every frame in ``basis`` minimising eq. 5, ``|d* - sum_i w_i e_i|^2``.
@@ -159,6 +166,10 @@ def solve_weights(
     lower, upper : float, array_like of shape (n_shapes,) or None
         Bounds of ``"box"`` (at least one given; ``None`` or an infinite value leaves that side open).
         ``"nnls"`` accepts only ``lower`` in ``{None, 0}`` and ``upper=None``; ``"lstsq"`` accepts neither.
+    visible : array_like of bool, shape (n_frames, n_points), optional
+        Which points (``n_dims = 3 * n_points``, coordinates ``[x0, y0, z0, x1, ...]``) each frame saw.  Each
+        frame's weights then minimise eq. 5 over its visible points only, and ``targets`` may hold NaN at the
+        others.  Every frame must see at least one point.  None: every point of every frame.
     tol : Tolerances
         ``kkt``, ``active_set_max_iter`` and ``gram_ridge`` are used.
 
@@ -172,6 +183,8 @@ def solve_weights(
     WorkbenchError
         Bad shapes, empty or non-finite arrays, an unknown ``kind`` or inconsistent bounds.
     """
+    if visible is not None:
+        return _solve_masked(basis, targets, visible, kind=kind, lower=lower, upper=upper, tol=tol)
     basis = _as_matrix("basis", basis)
     targets = _as_matrix("targets", targets)
     _check_columns(basis, targets)
@@ -183,8 +196,105 @@ def solve_weights(
         return WeightSolution(start, kind, None, None, 0, 0, 0.0)
     gram = basis @ basis.T
     rhs = targets @ basis.T
-    weights, n_iter, n_fallback, violation = _solve_bounded(gram, rhs, lo, hi, start, reduction, kind, tol)
+    ridge = _ridge(reduction.singular, gram.shape[0], tol.gram_ridge)
+    weights, n_iter, n_fallback, violation = _solve_bounded(
+        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduction, lo, hi, frames, kind, ridge), tol)
     return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
+
+
+def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> WeightSolution:
+    """:func:`solve_weights` over each frame's visible points, for all frames at once.
+
+    With the basis's thin SVD ``B^T = U S V^T`` (rank ``r``, cut-off as for ``"lstsq"``), a frame's masked
+    problem in ``y = S V^T w`` has the ``r x r`` gram ``U^T M_f U`` (a sum of per-point blocks over the visible
+    points: one matrix product for all frames, near the identity when few points are missing). One batched
+    Cholesky solve gives ``y`` for every frame, with ``tol.gram_ridge`` added to the diagonal so that a frame whose
+    visible points do not determine all ``r`` directions still gets the minimum-norm ``y``; the unconstrained
+    weights are ``w = V S^-1 y``, the minimum-norm minimiser when the visible points determine ``y``.  The bounded
+    kinds run the same ADMM start and primal active-set method as the unmasked problem with one gram per frame,
+    ``G_f = B M_f B^T``, every frame with the ridge ``tol.gram_ridge * s_max^2`` (a masked frame's gram can be
+    singular even when the basis is not).
+    """
+    basis = _as_matrix("basis", basis)
+    targets = _as_matrix("targets", targets, allow_nan=True)
+    _check_columns(basis, targets)
+    kind = _check_kind(kind)
+    lo, hi, lower_out, upper_out = _bounds(kind, lower, upper, basis.shape[0])
+    visible = check_visible(visible, targets.shape)
+    seen = np.repeat(visible, 3, axis=1)
+    if not np.isfinite(targets[seen]).all():
+        raise WorkbenchError("targets must be finite at every visible point; found "
+                             f"{np.count_nonzero(~np.isfinite(targets[seen]))} NaN/Inf values there")
+    observed = np.where(seen, targets, 0.0)
+    u, singular, vt = np.linalg.svd(basis.T, full_matrices=False)
+    cutoff = np.finfo(float).eps * max(basis.shape) * singular.max(initial=0.0)
+    rank = int((singular > cutoff).sum())
+    start = np.zeros((len(targets), basis.shape[0]))
+    if rank:
+        u, singular, vt = u[:, :rank], singular[:rank], vt[:rank]
+        reduced_gram = masked_grams(u.T, visible) + tol.gram_ridge * np.eye(rank)
+        y = np.linalg.solve(reduced_gram, (observed @ u)[:, :, None])[:, :, 0]
+        start = (y / singular) @ vt
+    if kind == "lstsq":
+        return WeightSolution(start, kind, None, None, 0, 0, 0.0)
+    gram = masked_grams(basis, visible)
+    rhs = observed @ basis.T
+    largest = float(singular.max(initial=0.0)) ** 2
+    ridge = tol.gram_ridge * largest if largest > 0 else 1.0
+
+    def fallback(frames):
+        # |L^T w - L^-1 c|^2 = w^T (G + r I) w - 2 c^T w + const, with G + r I = L L^T
+        factor = np.linalg.cholesky(gram[frames] + ridge * np.eye(gram.shape[-1]))
+        projected = np.linalg.solve(factor, rhs[frames][:, :, None])[:, :, 0]
+        return _per_frame_designs(np.swapaxes(factor, 1, 2), projected, lo, hi, kind, np.zeros(len(frames)))
+
+    weights, n_iter, n_fallback, violation = _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol)
+    return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
+
+
+def masked_grams(basis: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """Each frame's gram of the basis over its visible points, ``G_f = sum_{p visible in f} B_p B_p^T``.
+
+    Parameters
+    ----------
+    basis : ndarray of shape (n_shapes, 3 * n_points)
+    visible : ndarray of bool, shape (n_frames, n_points)
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_shapes, n_shapes)
+    """
+    n = basis.shape[0]
+    per_point = basis.reshape(n, -1, 3)
+    point_grams = np.einsum("ipk,jpk->pij", per_point, per_point).reshape(-1, n * n)
+    return (visible.astype(float) @ point_grams).reshape(-1, n, n)
+
+
+def check_visible(visible, targets_shape: tuple[int, int]) -> np.ndarray:
+    """A visibility mask as a boolean array of shape (n_frames, n_points), checked against the targets' shape.
+
+    Parameters
+    ----------
+    visible : array_like of bool, shape (n_frames, n_points)
+    targets_shape : tuple of int
+        ``(n_frames, 3 * n_points)``.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_frames, n_points)
+    """
+    visible = np.asarray(visible)
+    n_frames, n_dims = targets_shape
+    if visible.dtype != bool:
+        raise WorkbenchError(f"visible must be a boolean mask, got dtype {visible.dtype}")
+    if visible.shape != (n_frames, n_dims // 3) or n_dims % 3:
+        raise WorkbenchError(f"visible must have shape (n_frames, n_points) = ({n_frames}, {n_dims // 3}) for "
+                             f"targets of shape {targets_shape}, got {visible.shape}")
+    empty = np.flatnonzero(~visible.any(axis=1))
+    if empty.size:
+        raise WorkbenchError(f"visible: {empty.size} frame(s) see no point at all (first: frame {empty[0]}); "
+                             "drop them before solving")
+    return visible
 
 
 def reconstruct(basis, weights) -> np.ndarray:
@@ -220,8 +330,8 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
 
     Parameters
     ----------
-    gram : array_like of shape (n_shapes, n_shapes)
-        Symmetric ``G = B B^T``.
+    gram : array_like of shape (n_shapes, n_shapes) or (n_frames, n_shapes, n_shapes)
+        Symmetric ``G = B B^T``, shared by every frame or one per frame (masked solves).
     rhs : array_like of shape (n_frames, n_shapes)
         ``c = targets @ B.T``, one row per frame.
     weights : array_like of shape (n_frames, n_shapes)
@@ -236,17 +346,17 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
     gram = np.asarray(gram, dtype=float)
     rhs = np.atleast_2d(np.asarray(rhs, dtype=float))
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
-    n = gram.shape[0]
-    if gram.shape != (n, n) or rhs.shape[1] != n or weights.shape != rhs.shape:
+    n = gram.shape[-1]
+    if gram.shape not in ((n, n), (len(rhs), n, n)) or rhs.shape[1] != n or weights.shape != rhs.shape:
         raise WorkbenchError(
-            f"kkt_violation needs gram (n, n), rhs and weights (n_frames, n); got gram {gram.shape}, "
-            f"rhs {rhs.shape}, weights {weights.shape}"
+            f"kkt_violation needs gram (n, n) or (n_frames, n, n), rhs and weights (n_frames, n); got gram "
+            f"{gram.shape}, rhs {rhs.shape}, weights {weights.shape}"
         )
     lo = _bound_vector("lower", lower, n, -np.inf)[0]
     hi = _bound_vector("upper", upper, n, np.inf)[0]
-    grad = weights @ gram.T - rhs
+    grad = _times(weights, np.swapaxes(gram, -1, -2)) - rhs
     w_size = np.abs(weights).max(axis=1)
-    g_scale = _positive(np.abs(rhs).max(axis=1) + np.abs(gram).max() * w_size)[:, None]
+    g_scale = _positive(np.abs(rhs).max(axis=1) + _largest_entry(gram) * w_size)[:, None]
     w_scale = _positive(np.maximum(w_size, _largest_finite(lo, hi)))[:, None]
     with np.errstate(invalid="ignore"):
         as_free = np.abs(grad) / g_scale
@@ -264,8 +374,9 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------------
 
 
-def _as_matrix(name: str, value) -> np.ndarray:
-    """``value`` as a finite, non-empty 2D float array, or a WorkbenchError naming ``name``."""
+def _as_matrix(name: str, value, allow_nan: bool = False) -> np.ndarray:
+    """``value`` as a finite (NaN allowed with ``allow_nan``), non-empty 2D float array, or a WorkbenchError
+    naming ``name``."""
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -274,7 +385,7 @@ def _as_matrix(name: str, value) -> np.ndarray:
         raise WorkbenchError(f"{name} must be 2-dimensional, got shape {array.shape}")
     if array.size == 0:
         raise WorkbenchError(f"{name} must not be empty, got shape {array.shape}")
-    if not np.isfinite(array).all():
+    if not allow_nan and not np.isfinite(array).all():
         raise WorkbenchError(f"{name} must be finite, found {np.count_nonzero(~np.isfinite(array))} NaN/Inf")
     return array
 
@@ -379,28 +490,48 @@ def _ridge(singular: np.ndarray, n_shapes: int, relative: float) -> float:
 # ----------------------------------------------------------------------------------------------------------
 
 
-def _solve_bounded(gram, rhs, lo, hi, start, reduction, kind, tol):
-    """Bounded weights of every frame; returns (weights, n_iterations, n_fallback_frames, max violation)."""
-    ridge = _ridge(reduction.singular, gram.shape[0], tol.gram_ridge)
-    work = gram + ridge * np.eye(gram.shape[0])
+def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
+    """Bounded weights of every frame; returns (weights, n_iterations, n_fallback_frames, max violation).
+
+    ``gram`` is one ``(n, n)`` matrix for every frame or one per frame, ``(n_frames, n, n)``, with ``ridge`` a
+    float or one per frame; ``fallback(frames)`` solves the given frames one by one with SciPy.
+    """
+    n = gram.shape[-1]
     weights = start.copy()
     done = np.ones(len(rhs), dtype=bool)
     pending = np.flatnonzero(((start < lo) | (start > hi)).any(axis=1))
     n_iter = 0
     if pending.size:
         c = rhs[pending]
+        work = _frames_of(gram, pending) + np.multiply.outer(_frames_of(ridge, pending), np.eye(n))
         guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
         weights[pending], done[pending], n_iter = _primal_active_set(
             work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
     violation = kkt_violation(gram, rhs, weights, lo, hi)
     redo = np.flatnonzero(~done | (violation > tol.kkt))
     if redo.size:
-        candidate = _per_frame(reduction, lo, hi, redo, kind, ridge)
-        candidate_violation = kkt_violation(gram, rhs[redo], candidate, lo, hi)
+        candidate = fallback(redo)
+        candidate_violation = kkt_violation(_frames_of(gram, redo), rhs[redo], candidate, lo, hi)
         better = ~done[redo] | (candidate_violation < violation[redo])
         weights[redo[better]] = candidate[better]
         violation[redo[better]] = candidate_violation[better]
     return weights, n_iter, int(redo.size), float(violation.max())
+
+
+def _frames_of(per_frame, frames):
+    """The values of ``frames``: a shared value (an ``(n, n)`` gram, a float ridge) itself, or those rows of
+    per-frame ones (``(n_frames, n, n)`` grams, ``(n_frames,)`` ridges)."""
+    return per_frame if np.ndim(per_frame) in (0, 2) else per_frame[frames]
+
+
+def _times(rows, gram):
+    """``rows[f] @ gram`` (shared gram) or ``rows[f] @ gram[f]`` (per-frame grams), shape (n_frames, n)."""
+    return rows @ gram if gram.ndim == 2 else np.einsum("fi,fij->fj", rows, gram)
+
+
+def _largest_entry(gram):
+    """``max|G|``: a float for a shared gram, shape (n_frames,) for per-frame grams."""
+    return np.abs(gram).max() if gram.ndim == 2 else np.abs(gram).max(axis=(1, 2))
 
 
 def _admm(gram, c, lo, hi, start, steps: int):
@@ -415,8 +546,8 @@ def _admm(gram, c, lo, hi, start, steps: int):
 
     Parameters
     ----------
-    gram : ndarray of shape (n, n)
-        Symmetric positive semi-definite.
+    gram : ndarray of shape (n, n) or (n_frames, n, n)
+        Symmetric positive semi-definite; one for every frame, or one per frame.
     c : ndarray of shape (n_frames, n)
     lo, hi : ndarray of shape (n,)
     start : ndarray of shape (n_frames, n)
@@ -428,14 +559,14 @@ def _admm(gram, c, lo, hi, start, steps: int):
     ndarray of shape (n_frames, n)
         ``z``, within the bounds.
     """
-    penalty = _ADMM_RHO * _positive(np.diag(gram).copy())
-    inverse = np.linalg.inv(gram + np.diag(penalty))
-    offset = c @ inverse
-    gain = penalty[:, None] * inverse
+    penalty = _ADMM_RHO * _positive(np.diagonal(gram, axis1=-2, axis2=-1).copy())
+    inverse = np.linalg.inv(gram + penalty[..., None] * np.eye(gram.shape[-1]))
+    offset = _times(c, inverse)
+    gain = penalty[..., :, None] * inverse
     s = np.clip(start, lo, hi)
     for _ in range(steps):
         z = np.clip(s, lo, hi)
-        x = (2.0 * z - s) @ gain
+        x = _times(2.0 * z - s, gain)
         x += offset
         x -= z
         x *= _ADMM_RELAX
@@ -465,8 +596,8 @@ def _primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float
 
     Parameters
     ----------
-    gram : ndarray of shape (n, n)
-        Symmetric positive definite (regularised if needed).
+    gram : ndarray of shape (n, n) or (n_frames, n, n)
+        Symmetric positive definite (regularised if needed); one for every frame, or one per frame.
     rhs : ndarray of shape (n_frames, n)
     lo, hi : ndarray of shape (n,)
     start : ndarray of shape (n_frames, n)
@@ -493,8 +624,9 @@ def _primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float
     pending = np.arange(len(rhs))
     c = rhs
     c_size = np.abs(rhs).max(axis=1)
-    g_max = np.abs(gram).max()
-    curvature = _positive(np.diag(gram).copy())
+    shared = gram.ndim == 2
+    g_max = _largest_entry(gram)
+    curvature = _positive(np.diagonal(gram, axis1=-2, axis2=-1).copy())
     freed = np.full(len(rhs), -1)
     n_iter = 0
     while pending.size and n_iter < max_iter:
@@ -526,12 +658,12 @@ def _primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float
         u = np.flatnonzero(~blocked)
         if u.size:
             wu = z[u]
-            grad = wu @ gram - c[u]
-            small = (threshold * (c_size[u] + g_max * np.abs(wu).max(axis=1)))[:, None]
+            grad = _times(wu, _frames_of(gram, u)) - c[u]
+            small = (threshold * (c_size[u] + (g_max if shared else g_max[u]) * np.abs(wu).max(axis=1)))[:, None]
             wanted = at_lo[u] & (grad < -small)
             if upper:
                 wanted |= at_hi[u] & (grad > small)
-            pull = grad * grad * (wanted & movable) / curvature
+            pull = grad * grad * (wanted & movable) / (curvature if shared else curvature[u])
             best = pull.argmax(axis=1)
             grows = pull[np.arange(u.size), best] > 0.0
             at_lo[u[grows], best[grows]] = False
@@ -545,6 +677,8 @@ def _primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float
             keep = ~finished
             pending, w, c, c_size, at_lo, at_hi, freed = (
                 pending[keep], w[keep], c[keep], c_size[keep], at_lo[keep], at_hi[keep], freed[keep])
+            if not shared:
+                gram, g_max, curvature = gram[keep], g_max[keep], curvature[keep]
     return weights, done, n_iter
 
 
@@ -559,8 +693,8 @@ def _pinned_solve(gram, c, w, free):
 
     Parameters
     ----------
-    gram : ndarray of shape (n, n)
-        Symmetric.
+    gram : ndarray of shape (n, n) or (n_frames, n, n)
+        Symmetric; one for every frame, or one per frame.
     c : ndarray of shape (n_frames, n)
     w : ndarray of shape (n_frames, n)
         Finite; its pinned entries are kept (exactly).
@@ -572,7 +706,14 @@ def _pinned_solve(gram, c, w, free):
     """
     n_frames, n = c.shape
     pinned = w * ~free
-    b = (c - pinned @ gram if pinned.any() else c) * free + pinned  # pinned all zero: the nnls case
+    b = (c - _times(pinned, gram) if pinned.any() else c) * free + pinned  # pinned all zero: the nnls case
+    if gram.ndim == 3:  # one gram per frame: nothing to share, one batched solve per block of frames
+        out = np.empty_like(b)
+        block = max(1, _SYSTEM_ENTRIES // (n * n))
+        for part in range(0, n_frames, block):
+            rows = slice(part, part + block)
+            out[rows] = _identity_pinned_solve(gram[rows], free[rows], b[rows, :, None])[:, :, 0]
+        return out
     _, first, group, count = np.unique(_set_key(free), return_index=True, return_inverse=True,
                                        return_counts=True, axis=0)
     group = group.ravel()
@@ -600,7 +741,7 @@ def _identity_pinned_solve(gram, free, rhs):
 
     Parameters
     ----------
-    gram : ndarray of shape (n, n)
+    gram : ndarray of shape (n, n) or (n_systems, n, n)
     free : ndarray of bool, shape (n_systems, n)
     rhs : ndarray of shape (n_systems, n, width)
 
@@ -608,7 +749,7 @@ def _identity_pinned_solve(gram, free, rhs):
     -------
     ndarray of shape (n_systems, n, width)
     """
-    n = gram.shape[0]
+    n = gram.shape[-1]
     matrices = np.where(free[:, :, None] & free[:, None, :], gram, 0.0)
     matrices[:, np.arange(n), np.arange(n)] += ~free
     try:
@@ -626,29 +767,42 @@ def _set_key(free):
 
 
 def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, kind: str, ridge: float) -> np.ndarray:
-    """SciPy's per-frame solver on the reduced problem ``|diag(s) Vt w - (U^T d*)_f|^2`` for ``frames``.
+    """SciPy's per-frame solver on the reduced problem ``|diag(s) Vt w - (U^T d*)_f|^2`` for ``frames``."""
+    design = reduction.singular[:, None] * reduction.vt
+    return _per_frame_designs(np.broadcast_to(design, (len(frames),) + design.shape), reduction.projected[frames],
+                              lo, hi, kind, np.full(len(frames), ridge))
+
+
+def _per_frame_designs(designs, projected, lo, hi, kind: str, ridges) -> np.ndarray:
+    """SciPy's per-frame solver on ``|design_f w - projected_f|^2``, one frame at a time.
 
     With a ridge the design gets ``sqrt(ridge) * I`` rows (zero targets), matching the batched solver.
-    Design and targets are divided by the largest singular value so SciPy's absolute tolerances apply to
-    an O(1) problem.
+    Design and targets are divided by the design's largest singular value so SciPy's absolute tolerances apply
+    to an O(1) problem.
+
+    Parameters
+    ----------
+    designs : ndarray of shape (n_frames, k, n)
+    projected : ndarray of shape (n_frames, k)
+    lo, hi : ndarray of shape (n,)
+    kind : {"nnls", "box"}
+    ridges : ndarray of shape (n_frames,)
     """
-    design = reduction.singular[:, None] * reduction.vt
-    projected = reduction.projected[frames]
-    if ridge > 0.0:
-        n = design.shape[1]
-        design = np.vstack([design, np.sqrt(ridge) * np.eye(n)])
-        projected = np.hstack([projected, np.zeros((len(frames), n))])
-    unit = float(reduction.singular.max(initial=0.0)) or 1.0
-    design, projected = design / unit, projected / unit
+    n = designs.shape[2]
     # Shapes with lower == upper are fixed; SciPy's bounded solver needs lower < upper for the others.
     fixed = lo == hi
-    weights = np.tile(np.where(fixed, lo, 0.0), (len(frames), 1))
+    weights = np.tile(np.where(fixed, lo, 0.0), (len(designs), 1))
     if fixed.all():
         return weights
-    projected = projected - design[:, fixed] @ lo[fixed]
-    design, lo, hi = design[:, ~fixed], lo[~fixed], hi[~fixed]
     solve_one = _nnls_one if kind == "nnls" else _bvls_one
-    weights[:, ~fixed] = np.array([solve_one(design, b, lo, hi) for b in projected])
+    for f, (design, target, ridge) in enumerate(zip(designs, projected, ridges)):
+        if ridge > 0.0:
+            design = np.vstack([design, np.sqrt(ridge) * np.eye(n)])
+            target = np.concatenate([target, np.zeros(n)])
+        unit = float(np.linalg.norm(design, 2)) or 1.0
+        design, target = design / unit, target / unit
+        target = target - design[:, fixed] @ lo[fixed]
+        weights[f, ~fixed] = solve_one(design[:, ~fixed], target, lo[~fixed], hi[~fixed])
     return weights
 
 

@@ -114,6 +114,11 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
     state = record_state(folder)
     if state == "complete":
         recorded = recorded_config_hash(folder)
+        if recorded is None:
+            raise WorkbenchError(
+                f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json is missing, unreadable or "
+                "has no config_hash; records are never overwritten: move that record away or use another sweep "
+                "folder (hydra.sweep.dir=...)")
         if recorded != config_hash:
             raise WorkbenchError(
                 f"{folder} holds a complete record of another config (config hash {recorded}, this run "

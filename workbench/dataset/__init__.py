@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Mapping, Sequence
 
@@ -11,7 +12,7 @@ from workbench.dataset.animface import build_animface
 from workbench.dataset.cache import cached_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.decimate import Decimation, decimate
-from workbench.dataset.gaps import fill_gaps, make_gap_mask
+from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.rigid import stabilise
@@ -21,6 +22,22 @@ from workbench.progress import progress
 
 SPLITS = ("same", "tail")
 TRAIN_ON = ("markers", "mesh", "mesh_rbf")
+
+
+def seed_setting(value, key: str) -> int:
+    """A seed setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule."""
+    whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not whole or value < 0:
+        raise WorkbenchError(f"{key} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def number_setting(value, key: str, rule: str, check) -> float:
+    """A numeric setting as a float if ``check(value)`` holds, else a :class:`WorkbenchError` quoting ``rule``."""
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not number or not check(float(value)):
+        raise WorkbenchError(f"{key} must be {rule}, got {value!r}")
+    return float(value)
 
 
 def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -43,8 +60,8 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
         raise WorkbenchError(f"dataset.split must be one of {SPLITS}, got {split!r}")
     if split == "same":
         return frames, frames
-    if not 0.0 < eval_fraction < 1.0:
-        raise WorkbenchError(f"dataset.eval_fraction must be in (0, 1) for split 'tail', got {eval_fraction}")
+    eval_fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'",
+                                   lambda value: 0.0 < value < 1.0)
     n_eval = int(round(eval_fraction * len(frames)))
     if n_eval < 1 or n_eval > len(frames) - 2:
         raise WorkbenchError(f"dataset.eval_fraction {eval_fraction} leaves {n_eval} of {len(frames)} frames "
@@ -80,7 +97,9 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
     split = cfg.get("split", "same")
     if split not in SPLITS + ("other_take",):
         raise WorkbenchError(f"dataset.split must be one of {SPLITS + ('other_take',)}, got {split!r}")
-    seeds = [int(cfg["seed"])] + ([_eval_seed(cfg)] if split == "other_take" else [])
+    if not isinstance(cfg.get("stabilise", True), bool):
+        raise WorkbenchError(f"dataset.stabilise must be true or false, got {cfg.get('stabilise')!r}")
+    seeds = [seed_setting(cfg["seed"], "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
     takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
     decimation = _mesh_decimation(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), cfg.get("mesh_fraction", 1.0))
     hand_mesh = takes[0].hand_shapes_mesh()
@@ -138,43 +157,75 @@ def _mesh_frames(key: tuple, mesh_fraction: float) -> np.ndarray:
 
 def _eval_seed(cfg: Mapping) -> int:
     seed = cfg.get("eval_seed")
-    return int(cfg["seed"]) + 1 if seed is None else int(seed)
+    return seed_setting(cfg["seed"], "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")
 
 
-def _face_marker_frames(take, cfg: Mapping) -> tuple[np.ndarray, tuple[str, ...], dict]:
+def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     """Stabilised face markers of one take as displacements from rest, after the gap policy.
 
-    Returns
-    -------
-    frames : ndarray of shape (n_frames, n_face_markers, 3)
-    notes : tuple of str
-    gaps : dict
-        The gap policy's report (empty without dropout).
+    With ``drop`` and ``linear`` the policy acts on all markers before head-motion removal (gaps filled or frames
+    dropped, as a capture pipeline does); with ``masked`` the head motion is removed on the head markers each
+    frame has, and the face markers keep their gaps for the evaluation (see :mod:`workbench.dataset.gaps`).
     """
-    positions, notes, gaps = take.markers, [], {}
-    rate = float(cfg.get("gap_rate", 0.0))
+    positions, notes, gaps, visible = take.markers, [], {}, None
+    kept = np.ones(len(positions), dtype=bool)
+    rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
+    policy = cfg.get("gap_policy", "linear")
+    max_fill = cfg.get("gap_max_fill_frames")
+    head = np.asarray(take.head_marker_index)
+    face_index = np.setdiff1d(np.arange(take.markers.shape[1]), head)
     if rate > 0:
         # the take draws from the first three children of its seed; gaps use the fourth
         rng = np.random.default_rng(np.random.SeedSequence(take.provenance["seed"], spawn_key=(3,)))
         mask = make_gap_mask(positions.shape[0], positions.shape[1], rate,
                              float(cfg.get("gap_mean_frames", 12)), rng)
-        positions, report = fill_gaps(np.where(mask[:, :, None], np.nan, positions),
-                                      cfg.get("gap_policy", "linear"))
-        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.get("gap_mean_frames", 12)))
-        notes.append(f"marker dropout (seed {take.provenance['seed']}): {report.n_missing_samples} missing samples "
-                     f"({100 * report.missing_fraction:.2f} %, longest gap {report.longest_gap_frames} frames), "
-                     f"filled by policy '{report.policy}' before head-motion removal")
-    head = np.asarray(take.head_marker_index)
+        positions = np.where(mask[:, :, None], np.nan, positions)
+        if policy != "masked":
+            outcome = apply_gap_policy(positions, policy, max_fill)
+            positions, kept, report = outcome.positions, outcome.kept, outcome.report
     if cfg.get("stabilise", True):
         stable = stabilise(positions, head, take.head_marker_rest)
         positions = stable.markers
         notes.append(f"head motion removed with {head.size} head markers; rigid residual RMS "
-                     f"{np.mean(stable.residual_rms):.3f} mm (mean over frames)")
+                     f"{np.nanmean(stable.residual_rms):.3f} mm (mean over frames)")
     else:
         notes.append("head motion NOT removed (dataset.stabilise=false)")
-    face_index = np.setdiff1d(np.arange(take.markers.shape[1]), head)
+    if rate > 0 and policy == "masked":
+        outcome = apply_gap_policy(positions[:, face_index], policy)
+        positions, kept, report, visible = outcome.positions, outcome.kept, outcome.report, outcome.visible
+    else:
+        positions = positions[:, face_index]
+    if rate > 0:
+        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.get("gap_mean_frames", 12)))
+        where = "before" if policy != "masked" else "after"
+        notes.append(f"marker dropout (seed {take.provenance['seed']}): {report.describe()} ({where} head-motion "
+                     "removal)")
     neutral = take.mesh.vertices[take.face_marker_vertices]
-    return positions[:, face_index] - neutral, tuple(notes), gaps
+    return MarkerFrames(positions - neutral, tuple(notes), gaps, kept, visible)
+
+
+@dataclass(frozen=True)
+class MarkerFrames:
+    """Face markers of one synthetic take after gaps and stabilisation.
+
+    Attributes
+    ----------
+    frames : ndarray of shape (n_kept, n_face_markers, 3)
+        Displacements from rest, complete (filled where the gap policy fills).
+    notes : tuple of str
+    gaps : dict
+        The gap policy's report (empty without dropout).
+    kept : ndarray of shape (n_frames,) of bool
+        Frames of the take that the gap policy kept (the dense mesh keeps the same ones).
+    visible : ndarray of shape (n_kept, n_face_markers) of bool, or None
+        Markers each kept frame saw, under the ``masked`` policy.
+    """
+
+    frames: np.ndarray
+    notes: tuple
+    gaps: dict
+    kept: np.ndarray
+    visible: np.ndarray | None
 
 
 def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decimation, markers, train_on: str,
@@ -192,14 +243,16 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     train_on : {"markers", "mesh", "mesh_rbf"}
     cfg : mapping
     """
-    take, notes, faces = takes[0], [], None
+    take, notes, faces, source = takes[0], [], None, None
     vertices = take.mesh.vertices
     provenance = dict(take.provenance, train_on=train_on)
+    visible = None
     if train_on == "markers":
         points = take.face_marker_vertices
-        per_take = [frames.reshape(len(frames), -1) for frames, _, _ in markers]
-        notes += markers[0][1]
+        per_take = [part.frames.reshape(len(part.frames), -1) for part in markers]
+        notes += markers[0].notes
         labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
+        visible = [part.visible for part in markers] if markers[0].visible is not None else None
     else:
         points = decimation.kept
         faces = decimation.faces
@@ -211,32 +264,95 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         if train_on == "mesh":
             per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0))
                         for t in takes]
+            if markers is not None:  # the frames the markers' gap policy kept
+                per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
             notes.append("the dense ground-truth mesh (no head motion, no marker noise)")
         else:
             operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
                                          metric="euclidean")
-            per_take = [apply_point_operator(operator, frames).reshape(len(frames), -1) for frames, _, _ in markers]
-            notes += markers[0][1]
+            per_take = [apply_point_operator(operator, part.frames).reshape(len(part.frames), -1)
+                        for part in markers]
+            source = [part.frames.reshape(len(part.frames), -1) for part in markers]
+            notes += markers[0].notes
             notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
                          "RBF (Euclidean, linear polynomial)")
-    if markers is not None and markers[0][2] and train_on != "mesh":
-        provenance["gaps"] = markers[0][2]
+    if markers is not None and markers[0].gaps and train_on != "mesh":
+        provenance["gaps"] = markers[0].gaps
     split = cfg.get("split", "same")
+    eval_visible = None
+    mapped = {}
     if split == "other_take":
         train, evaluate = per_take
+        eval_visible = visible[1] if visible else None
+        if source is not None:
+            mapped = {"train_source": source[0], "train_operator": point_operator_matrix(operator)}
         notes.append(f"split 'other_take': {len(train)} training frames of take seed {takes[0].provenance['seed']}, "
                      f"{len(evaluate)} evaluated of take seed {takes[1].provenance['seed']}")
         provenance["eval_seed"] = takes[1].provenance["seed"]
     else:
         train, evaluate = split_frames(per_take[0], split, cfg.get("eval_fraction", 0.2))
+        eval_visible = visible[0][len(visible[0]) - len(evaluate):] if visible else None
+        if source is not None:
+            mapped = {"train_source": source[0][:len(train)], "train_operator": point_operator_matrix(operator)}
         notes.append(f"split '{split}': {len(train)} training frames, {len(evaluate)} evaluated")
+    if eval_visible is not None:
+        evaluate = masked_frames(evaluate, eval_visible)
+        train, note = masked_training_frames(train, visible[0][:len(train)], cfg.get("gap_fit_on", "filled"))
+        notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
+                     f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
+                     + note)
     hand = hand_mesh[:, points]
     return Capture(
         name="synthetic actor (generated by the workbench; not real capture)",
         neutral=vertices[points].reshape(-1), train=train, eval=evaluate,
         hand=hand.reshape(hand.shape[0], -1), hand_names=tuple(take.muscle_names), point_labels=labels,
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
-        frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces)
+        frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
+        eval_visible=eval_visible, **mapped)
+
+
+def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
+    """A map of per-point values, shape (n_target, n_source), as the matrix acting on flattened frames
+    ``[x0, y0, z0, x1, ...]``: ``kron(operator, I_3)``, shape (3 * n_target, 3 * n_source)."""
+    return np.kron(operator, np.eye(3))
+
+
+GAP_FIT_ON = ("complete", "filled")
+
+
+def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) -> tuple[np.ndarray, str]:
+    """The frames the bases are fitted on under the ``masked`` gap policy, and a note saying which.
+
+    Parameters
+    ----------
+    train : ndarray of shape (n_train, 3 * n_points)
+        Training frames with their gaps filled linearly.
+    visible : ndarray of shape (n_train, n_points) of bool
+        Which markers each training frame saw.
+    fit_on : {"complete", "filled"}
+        ``complete``: only the frames that saw every marker (the fill's errors stay out of the PCA, whose coverage
+        rule would otherwise keep axes for them); ``filled``: every frame, gaps filled.
+
+    Returns
+    -------
+    train : ndarray of shape (n_fit, 3 * n_points)
+    note : str
+    """
+    if fit_on not in GAP_FIT_ON:
+        raise WorkbenchError(f"dataset.gap_fit_on must be one of {GAP_FIT_ON}, got {fit_on!r}")
+    if fit_on == "filled":
+        return train, f"the bases are fitted on all {len(train)} training frames, their gaps filled linearly"
+    complete = visible.all(axis=1)
+    if complete.sum() < 2:
+        raise WorkbenchError(f"dataset.gap_fit_on 'complete': only {int(complete.sum())} of {len(train)} training "
+                             "frames saw every marker; need at least 2 (use gap_fit_on filled)")
+    return train[complete], (f"the bases are fitted on the {int(complete.sum())} of {len(train)} training frames "
+                             "that saw every marker")
+
+
+def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """``frames`` (n_frames, 3 * n_points) with NaN at the points ``visible`` (n_frames, n_points) marks unseen."""
+    return np.where(np.repeat(visible, 3, axis=1), frames, np.nan)
 
 
 BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface}

@@ -17,11 +17,13 @@ import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
 from workbench.dataset.capture import Capture
+from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.meshes import Blendshapes, expression_names
 from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
+                                    hand_shape_names, integer_setting, load_basis, mesh_point_indices,
+                                    origin_text)
 from workbench.dataset.rigid import stabilise
 from workbench.errors import WorkbenchError
 
@@ -30,6 +32,9 @@ DIFFERENT_FACES = ("performer and basis come from different faces: the motion is
                    "shapes are the ICT FaceKit generic face's")
 ORIGIN = ("ICT FaceKit model origin (midline, near the centre of the head) placed on the performer by the "
           "similarity alignment; axes x to the face's left, y up, z out of the face")
+FACE_SCALE_RANGE = (0.5, 2.0)
+"""Scales of the similarity alignment (basis face onto the performer) that two human faces can differ by; outside
+it the takes' ``POINT:UNITS`` and ``dataset.blendshapes.unit_mm`` disagree (a unit mismatch gives 10, 25.4 or 1000)."""
 RBF_DEFAULTS = {"metric": "euclidean", "kernel": "thin_plate_spline", "smoothing": 0.0, "epsilon": None, "degree": 1}
 
 
@@ -47,22 +52,28 @@ class StabilisedTakes:
         One entry per take: frames kept and the stabilisation residual.
     record : dict
         Per take, for the provenance.
+    visible : ndarray of shape (n_frames, n_markers) of bool, or None
+        Under gap policy ``masked``: the markers each frame saw (``positions`` is filled there for training).
     """
 
     positions: np.ndarray
     neutral: np.ndarray
     notes: list
     record: dict
+    visible: np.ndarray | None = None
 
 
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
     """Select frames, remove head motion on ``dataset.rigid_markers`` and concatenate the takes.
 
     The rigid markers' reference is their position in the neutral frame (``dataset.neutral_take``,
-    ``dataset.neutral_frame``). Frames that miss a marker of the table after stabilisation are dropped and counted.
+    ``dataset.neutral_frame``). Gaps (samples the file lacks, plus ``dataset.gap_rate`` of simulated dropout) are
+    handled after stabilisation by ``dataset.gap_policy`` (:func:`workbench.dataset.gaps.apply_gap_policy`; the
+    default ``drop`` keeps the frames that saw every marker of the table), per take.
     """
     rigid_labels = list(cfg.get("rigid_markers") or [])
-    neutral_take, neutral_frame = int(cfg.get("neutral_take", 0)), int(cfg.get("neutral_frame", 0))
+    neutral_take = integer_setting(cfg.get("neutral_take", 0), "dataset.neutral_take", minimum=0)
+    neutral_frame = integer_setting(cfg.get("neutral_frame", 0), "dataset.neutral_frame", minimum=0)
     if not 0 <= neutral_take < len(takes) or not 0 <= neutral_frame < takes[neutral_take].n_frames:
         raise WorkbenchError(f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
                              f"the {len(takes)} takes")
@@ -74,33 +85,45 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
 
-    pieces, notes, record = [], [], {}
-    for take in takes:
+    from workbench.dataset import number_setting, seed_setting
+
+    policy = cfg.get("gap_policy", "drop")
+    rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
+    gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
+    pieces, visible, notes, record = [], [], [], {}
+    for number, take in enumerate(takes):
         selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
                                    "dataset.max_frames_per_take")
         stable = stabilise(take.positions[selected], take.index_of(rigid_labels, named_in="dataset.rigid_markers"),
                            reference)
         markers = stable.markers[:, take.index_of(table.labels, named_in=str(table.path))]
-        complete = np.all(np.isfinite(markers), axis=(1, 2))
-        pieces.append(markers[complete])
+        if rate > 0:
+            rng = np.random.default_rng(np.random.SeedSequence(gap_seed, spawn_key=(number,)))
+            mask = make_gap_mask(len(markers), markers.shape[1], rate, float(cfg.get("gap_mean_frames", 12)), rng)
+            markers = np.where(mask[:, :, None], np.nan, markers)
+        outcome = apply_gap_policy(markers, policy, cfg.get("gap_max_fill_frames"))
+        pieces.append(outcome.positions)
+        visible.append(outcome.visible)
         residual_mean, residual_max = float(np.nanmean(stable.residual_rms)), float(np.nanmax(stable.residual_rms))
-        dropped = int((~complete).sum())
-        notes.append(f"{take.path.stem} {int(complete.sum())} frames (residual mean {residual_mean:.2f}, max "
-                     f"{residual_max:.2f} mm" + (f"; {dropped} frames missing a marker dropped" if dropped else "")
+        report = outcome.report
+        notes.append(f"{take.path.stem} {len(outcome.positions)} frames (residual mean {residual_mean:.2f}, max "
+                     f"{residual_max:.2f} mm" + (f"; {report.describe()}" if report.n_missing_samples else "")
                      + ")")
         record[take.path.name] = {
-            "frames_in_file": take.n_frames, "frames_used": int(complete.sum()), "frames_dropped_for_gaps": dropped,
-            "missing_samples_in_file": take.n_missing, "units_in_file": take.units,
+            "frames_in_file": take.n_frames, "frames_used": len(outcome.positions),
+            "frames_dropped_for_gaps": report.n_dropped_frames, "missing_samples_in_file": take.n_missing,
+            "simulated_dropout_rate": rate, "gaps": report.as_dict(), "units_in_file": take.units,
             "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max}}
     positions = np.concatenate(pieces)
     if len(positions) < 2:
-        raise WorkbenchError(f"{len(positions)} complete frames in the takes after dropping gaps; need at least 2")
-    return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record)
+        raise WorkbenchError(f"{len(positions)} frames in the takes after gap policy {policy!r}; need at least 2")
+    return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
+                           visible=np.concatenate(visible) if policy == "masked" else None)
 
 
-def mesh_displacements(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
-                       marker_displacements: np.ndarray, rbf: Mapping) -> np.ndarray:
-    """Marker displacements carried onto mesh points of the scaled basis face by RBF interpolation.
+def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
+                  rbf: Mapping) -> np.ndarray:
+    """The RBF interpolation from marker displacements to mesh points of the scaled basis face (a linear map).
 
     Parameters
     ----------
@@ -109,20 +132,19 @@ def mesh_displacements(basis: Blendshapes, scale: float, marker_vertices: np.nda
         Performer size over basis size: the face interpolated on is ``scale * basis.neutral``.
     marker_vertices : ndarray of shape (n_markers,) of int
     mesh_points : ndarray of shape (n_points,) of int
-    marker_displacements : ndarray of shape (n_frames, n_markers, 3)
     rbf : mapping
         ``dataset.rbf`` (metric, kernel, smoothing, epsilon, degree).
 
     Returns
     -------
-    ndarray of shape (n_frames, n_points, 3)
+    ndarray of shape (n_points, n_markers)
+        Mesh displacements are ``operator @ marker_displacements`` per coordinate.
     """
     settings = {**RBF_DEFAULTS, **rbf}
-    operator = mesh_rbf_operator(scale * basis.neutral, basis.triangles, marker_vertices, mesh_points,
-                                 metric=settings["metric"], kernel=settings["kernel"],
-                                 smoothing=float(settings["smoothing"]), epsilon=settings["epsilon"],
-                                 degree=int(settings["degree"]))
-    return interpolate_frames(operator, marker_displacements)
+    return mesh_rbf_operator(scale * basis.neutral, basis.triangles, marker_vertices, mesh_points,
+                             metric=settings["metric"], kernel=settings["kernel"],
+                             smoothing=float(settings["smoothing"]), epsilon=settings["epsilon"],
+                             degree=int(settings["degree"]))
 
 
 def build_animface(cfg: Mapping) -> dict[str, Capture]:
@@ -138,7 +160,8 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
-    from workbench.dataset import split_frames, train_on_list
+    from workbench.dataset import (masked_frames, masked_training_frames, point_operator_matrix, split_frames,
+                                   train_on_list)
 
     names = train_on_list(cfg, TRAIN_ON)
     take_files = list(cfg.get("takes") or [])
@@ -155,8 +178,15 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     stable = stabilised_takes(takes, table, cfg)
 
     placement = place_markers(table, stable.neutral, basis.neutral,
-                              refine_iterations=int(cfg.get("refine_iterations", 0)))
+                              refine_iterations=integer_setting(cfg.get("refine_iterations", 0),
+                                                                "dataset.refine_iterations", minimum=0))
     similarity, scale = placement.mesh_to_capture, placement.mesh_to_capture.scale
+    if not FACE_SCALE_RANGE[0] <= scale <= FACE_SCALE_RANGE[1]:
+        raise WorkbenchError(
+            f"unit mismatch: the basis face must be scaled by {scale:.4g} to fit the performer's markers "
+            f"({table.path.name}), and two faces differ by less than {FACE_SCALE_RANGE[1]:g}x; check "
+            f"dataset.blendshapes.unit_mm ({cfg['blendshapes']['unit_mm']} mm per OBJ unit) against the takes' "
+            f"POINT:UNITS ({', '.join(sorted({take.units for take in takes}))})")
     # Express the capture in the ICT head frame (axes and origin) while keeping the performer's size: the rigid
     # part of the inverse similarity. The ICT face then sits at scale * its own coordinates.
     neutral = (stable.neutral - similarity.translation) @ similarity.rotation
@@ -194,7 +224,8 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
                          "training points (they move only by the stabilisation residual)")
         else:
             mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
-            frames = mesh_displacements(basis, scale, placement.vertices, mesh_points, displacements, rbf)
+            operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
+            frames = interpolate_frames(operator, displacements)
             points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
             labels = tuple(f"v{i}" for i in mesh_points)
             faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
@@ -206,10 +237,26 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
         train, evaluate = split_frames(frames.reshape(len(frames), -1), cfg.get("split", "same"),
                                        cfg.get("eval_fraction", 0.2))
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+        eval_visible = None
+        if stable.visible is not None and name == "markers":
+            eval_visible = stable.visible[len(stable.visible) - len(evaluate):]
+            evaluate = masked_frames(evaluate, eval_visible)
+            train, note = masked_training_frames(train, stable.visible[:len(train)], cfg.get("gap_fit_on", "filled"))
+            notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
+                         f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
+                         + note)
+        elif stable.visible is not None:
+            notes.append("mesh: interpolated from the markers with their gaps filled linearly (the RBF needs every "
+                         "marker)")
+        mapped = {}
+        if name == "mesh":  # the PCA of the mesh frames is computed on the markers and lifted
+            mapped = {"train_source": displacements.reshape(len(displacements), -1)[:len(train)],
+                      "train_operator": point_operator_matrix(operator)}
         captures[name] = Capture(
             name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
             neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
             hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
             units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(takes[0].frame_rate),
-            provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces)
+            provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces,
+            eval_visible=eval_visible, **mapped)
     return captures

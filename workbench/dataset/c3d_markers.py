@@ -1,7 +1,7 @@
 """Labelled optical markers from C3D files (read with the ``c3d`` package from PyPI).
 
 Positions are converted to millimetres from the file's ``POINT:UNITS``; samples the file marks invalid (a
-negative residual, the C3D convention for a gap) become NaN.
+negative residual, the C3D convention for a gap), and samples holding NaN or Inf (some exporters' gaps), become NaN.
 """
 
 from __future__ import annotations
@@ -132,6 +132,7 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
         raise WorkbenchError(f"{path}: POINT:RATE must be positive, got {frame_rate}")
     data = np.stack(frames)
     positions = data[:, :, :3] * units_to_mm(units, path)
-    positions[data[:, :, 3] < 0] = np.nan
+    # A sample is missing when the file marks it invalid, or when it holds NaN or Inf where a position should be.
+    positions[(data[:, :, 3] < 0) | ~np.all(np.isfinite(positions), axis=2)] = np.nan
     return MarkerTake(labels=labels, positions=positions, frame_rate=frame_rate, units=units.strip(),
                       first_frame=int(reader.first_frame), path=path)

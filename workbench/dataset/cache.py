@@ -22,7 +22,7 @@ from workbench.dataset.capture import Capture
 from workbench.record import write_atomic, write_npz
 
 MEMORY_SLOTS = 2
-_ARRAYS = ("neutral", "train", "eval", "hand", "faces")
+_ARRAYS = ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator")
 _memory: "OrderedDict[str, dict[str, Capture]]" = OrderedDict()
 
 
@@ -167,6 +167,8 @@ def _load(folder: Path, key: str) -> dict[str, Capture] | None:
             eval=train if info["same_frames"] else arrays[f"{index}_eval"], hand=arrays[f"{index}_hand"],
             hand_names=tuple(info["hand_names"]), point_labels=tuple(info["point_labels"]), units=info["units"],
             origin=info["origin"], frame_rate=info["frame_rate"], provenance=info["provenance"],
-            notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"))
+            notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"),
+            eval_visible=arrays.get(f"{index}_eval_visible"), train_source=arrays.get(f"{index}_train_source"),
+            train_operator=arrays.get(f"{index}_train_operator"))
         captures[name] = _read_only(capture)
     return captures

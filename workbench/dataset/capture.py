@@ -39,6 +39,13 @@ class Capture:
         Facts about the preparation worth reporting (stabilisation residual, split, ...).
     faces : ndarray of shape (n_faces, 3) of int, or None
         Triangles over the points when they are the vertices of a mesh (for figures); None for markers.
+    eval_visible : ndarray of shape (n_eval_frames, n_points) of bool, or None
+        Which points each evaluated frame saw, under the ``masked`` gap policy: ``eval`` is NaN at the others,
+        and weights and alpha use the visible points only. None: every point of every frame was seen.
+    train_source, train_operator : ndarray of shape (n_train_frames, k) and (3 * n_points, k), or None
+        Set when the training frames are a fixed linear map of smaller data, ``train = train_source @
+        train_operator.T`` (mesh frames interpolated from markers by RBF): the PCA is then computed in the small
+        space and lifted (:meth:`workbench.bases.Eigenfaces.fit_mapped`).
     """
 
     name: str
@@ -54,6 +61,13 @@ class Capture:
     provenance: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     faces: np.ndarray | None = None
+    eval_visible: np.ndarray | None = None
+    train_source: np.ndarray | None = None
+    train_operator: np.ndarray | None = None
+
+    def __post_init__(self):
+        if (self.train_source is None) != (self.train_operator is None):
+            raise ValueError("Capture: train_source and train_operator are given together or not at all")
 
     @property
     def n_points(self) -> int:

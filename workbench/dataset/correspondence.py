@@ -89,8 +89,11 @@ def read_marker_table(path: str | os.PathLike, *, n_vertices: int | None = None)
     path = Path(path)
     if not path.is_file():
         raise WorkbenchError(f"{path}: correspondence table not found")
-    with open(path, newline="") as handle:
-        lines = [line for line in handle if line.strip() and not line.lstrip().startswith("#")]
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            lines = [line for line in handle if line.strip() and not line.lstrip().startswith("#")]
+    except UnicodeDecodeError as error:
+        raise WorkbenchError(f"{path}: not a text CSV file ({error})") from None
     reader = csv.DictReader(lines, skipinitialspace=True)
     header = [name.strip() for name in (reader.fieldnames or [])]
     missing = [column for column in TABLE_COLUMNS[:3] if column not in header]

@@ -1,9 +1,18 @@
-"""Marker dropout (gaps) and how a capture fills them.
+"""Marker dropout (gaps) and the policies that handle it.
 
 An optical system loses a marker when it is occluded, for a run of frames at a time. :func:`make_gap_mask` draws
-such runs; :func:`fill_gaps` applies a gap policy to trajectories with missing (NaN) samples. Only ``linear``
-(interpolate each coordinate linearly in time, hold the nearest sample before the first or after the last one)
-is implemented; dropping frames or a masked solve would be further policies of :data:`GAP_POLICIES`.
+such runs; :func:`apply_gap_policy` handles trajectories with missing (NaN) samples by one of
+:data:`GAP_POLICIES`:
+
+``drop``
+    keep only the frames that saw every marker;
+``linear``
+    fill each gap by linear interpolation in time (holding the nearest sample before the first or after the last
+    one), gaps longer than ``max_fill_frames`` excepted: frames still missing a marker are dropped;
+``masked``
+    keep every frame that saw at least one marker; the bases are fitted on the linearly filled frames (PCA needs
+    complete data), while each evaluated frame's weights and alpha use only the markers it saw, so no filled value
+    is ever scored.
 """
 
 from __future__ import annotations
@@ -14,7 +23,7 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 
-GAP_POLICIES = ("linear",)
+GAP_POLICIES = ("drop", "linear", "masked")
 
 
 @dataclass(frozen=True)
@@ -30,16 +39,33 @@ class GapReport:
         ``n_missing_samples`` over all marker samples.
     longest_gap_frames : int
         Longest run of consecutive missing frames of one marker.
+    n_filled_samples : int
+        Samples given a value by interpolation (for ``masked``: in the training frames only).
+    n_dropped_frames : int
+        Frames left out.
     """
 
     policy: str
     n_missing_samples: int
     missing_fraction: float
     longest_gap_frames: int
+    n_filled_samples: int = 0
+    n_dropped_frames: int = 0
 
     def as_dict(self) -> dict:
         return {"policy": self.policy, "n_missing_samples": self.n_missing_samples,
-                "missing_fraction": self.missing_fraction, "longest_gap_frames": self.longest_gap_frames}
+                "missing_fraction": self.missing_fraction, "longest_gap_frames": self.longest_gap_frames,
+                "n_filled_samples": self.n_filled_samples, "n_dropped_frames": self.n_dropped_frames}
+
+    def describe(self) -> str:
+        """One line for the run's notes."""
+        text = (f"{self.n_missing_samples} missing marker samples ({100 * self.missing_fraction:.2f} %, longest "
+                f"gap {self.longest_gap_frames} frames), gap policy '{self.policy}'")
+        if self.n_filled_samples:
+            text += f": {self.n_filled_samples} samples filled by linear interpolation"
+        if self.n_dropped_frames:
+            text += f"; {self.n_dropped_frames} frames dropped"
+        return text
 
 
 def make_gap_mask(n_frames: int, n_markers: int, rate: float, mean_length: float,
@@ -101,36 +127,117 @@ def longest_run(mask: np.ndarray) -> int:
     return longest
 
 
-def fill_gaps(positions: np.ndarray, policy: str = "linear") -> tuple[np.ndarray, GapReport]:
-    """Fill missing (NaN) samples of marker trajectories by a gap policy.
+def fill_gaps(positions: np.ndarray, policy: str = "linear",
+              max_fill_frames: int | None = None) -> tuple[np.ndarray, GapReport]:
+    """Fill missing (NaN) samples of marker trajectories by linear interpolation in time.
 
     Parameters
     ----------
     positions : ndarray of shape (n_frames, n_markers, 3)
         Marker positions with NaN where a marker is missing (all three coordinates together).
     policy : {"linear"}
-        ``linear``: each coordinate is interpolated linearly in time between the samples around a gap; before
-        the first and after the last sample the nearest sample is held.
+        Kept for the record; only linear interpolation fills.
+    max_fill_frames : int, optional
+        Gaps longer than this stay NaN. None: fill every gap.
 
     Returns
     -------
     filled : ndarray of shape (n_frames, n_markers, 3)
     report : GapReport
     """
+    if policy != "linear":
+        raise WorkbenchError(f"fill_gaps fills by policy 'linear' only, got {policy!r}")
+    missing = np.isnan(positions).any(axis=2)
+    filled = _interpolate(positions, missing, max_fill_frames)
+    still = np.isnan(filled).any(axis=2)
+    return filled, GapReport(policy=policy, n_missing_samples=int(missing.sum()),
+                             missing_fraction=float(missing.mean()) if missing.size else 0.0,
+                             longest_gap_frames=longest_run(missing), n_filled_samples=int((missing & ~still).sum()))
+
+
+@dataclass(frozen=True)
+class GapOutcome:
+    """Trajectories after a gap policy.
+
+    Attributes
+    ----------
+    positions : ndarray of shape (n_kept, n_markers, 3)
+        Complete trajectories of the kept frames (filled where the policy fills), for training.
+    visible : ndarray of shape (n_kept, n_markers) of bool, or None
+        ``masked``: which markers each kept frame saw; None for the other policies (every kept frame is complete
+        as it was captured, or filled).
+    kept : ndarray of shape (n_frames,) of bool
+        Frames kept.
+    report : GapReport
+    """
+
+    positions: np.ndarray
+    visible: np.ndarray | None
+    kept: np.ndarray
+    report: GapReport
+
+
+def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | None = None) -> GapOutcome:
+    """Handle missing (NaN) samples of marker trajectories by one of :data:`GAP_POLICIES`.
+
+    Parameters
+    ----------
+    positions : ndarray of shape (n_frames, n_markers, 3)
+        NaN where a marker is missing.
+    policy : {"drop", "linear", "masked"}
+    max_fill_frames : int, optional
+        ``linear``: gaps longer than this are not filled (their frames are dropped). None: no limit.
+
+    Returns
+    -------
+    GapOutcome
+    """
     if policy not in GAP_POLICIES:
         raise WorkbenchError(f"dataset.gap_policy must be one of {GAP_POLICIES}, got {policy!r}")
+    if max_fill_frames is not None and (int(max_fill_frames) != max_fill_frames or max_fill_frames < 1):
+        raise WorkbenchError(f"dataset.gap_max_fill_frames must be a whole number >= 1 or null, got "
+                             f"{max_fill_frames!r}")
     missing = np.isnan(positions).any(axis=2)
+    if policy == "drop":
+        filled, kept = positions, ~missing.any(axis=1)
+    else:
+        filled = _interpolate(positions, missing, max_fill_frames if policy == "linear" else None)
+        kept = (~np.isnan(filled).any(axis=(1, 2))) if policy == "linear" else (~missing).any(axis=1)
+    if not kept.any():
+        raise WorkbenchError(f"gap policy {policy!r} keeps no frame: every frame misses a marker")
     report = GapReport(policy=policy, n_missing_samples=int(missing.sum()),
                        missing_fraction=float(missing.mean()) if missing.size else 0.0,
-                       longest_gap_frames=longest_run(missing))
-    if not missing.any():
-        return positions, report
+                       longest_gap_frames=longest_run(missing),
+                       n_filled_samples=int((missing[kept] & ~np.isnan(filled[kept]).any(axis=2)).sum())
+                       if policy != "drop" else 0,
+                       n_dropped_frames=int((~kept).sum()))
+    return GapOutcome(positions=filled[kept], visible=~missing[kept] if policy == "masked" else None, kept=kept,
+                      report=report)
+
+
+def _interpolate(positions: np.ndarray, missing: np.ndarray, max_fill_frames: int | None) -> np.ndarray:
+    """Linear interpolation in time of each missing sample (see :func:`fill_gaps`); a copy."""
     filled = np.array(positions, dtype=np.float64)
+    if not missing.any():
+        return filled
     frames = np.arange(positions.shape[0])
     for marker in np.flatnonzero(missing.any(axis=0)):
         seen = ~missing[:, marker]
         if not seen.any():
             raise WorkbenchError(f"marker {marker} is missing in every frame: no gap policy can fill it")
+        fill = ~seen
+        if max_fill_frames is not None:
+            fill &= _run_lengths(missing[:, marker]) <= max_fill_frames
         for axis in range(3):
-            filled[~seen, marker, axis] = np.interp(frames[~seen], frames[seen], positions[seen, marker, axis])
-    return filled, report
+            filled[fill, marker, axis] = np.interp(frames[fill], frames[seen], positions[seen, marker, axis])
+    return filled
+
+
+def _run_lengths(column: np.ndarray) -> np.ndarray:
+    """For each frame, the length of the run of True values it belongs to (0 where False); shape (n_frames,)."""
+    padded = np.concatenate([[False], column, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    lengths = np.zeros(column.shape[0], dtype=int)
+    for start, stop in zip(edges[::2], edges[1::2]):
+        lengths[start:stop] = stop - start
+    return lengths

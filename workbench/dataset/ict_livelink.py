@@ -14,7 +14,8 @@ from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
+                                    hand_shape_names, load_basis, mesh_point_indices, origin_text,
+                                    positive_setting)
 
 TRAIN_ON = ("mesh", "markers")
 
@@ -36,7 +37,7 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
 
     names = train_on_list(cfg, TRAIN_ON)
     take = read_livelink_csv(data_path(cfg, cfg.get("livelink_csv"), "livelink_csv"),
-                             timecode_rate=float(cfg.get("timecode_rate", 60.0)))
+                             timecode_rate=positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate"))
     folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
     available = expression_names(folder, cfg["blendshapes"]["neutral"])
     hand_names = hand_shape_names(cfg, available)

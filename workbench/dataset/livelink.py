@@ -29,6 +29,10 @@ ARKIT_NAMES = (
 )
 """The 52 ARKit blendshape channels, in Live Link Face's column order."""
 
+WEIGHT_SLACK = 0.1
+"""ARKit weights are fractions in [0, 1]; exports overshoot by a little (up to about 1.004 seen), so a weight is
+refused only outside ``[-WEIGHT_SLACK, 1 + WEIGHT_SLACK]``: such values are in other units (percent)."""
+
 ROTATION_NAMES = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
                   "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
 
@@ -102,21 +106,28 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     Raises
     ------
     WorkbenchError
-        If the file is missing, has no ``Timecode`` column, lacks any of the 52 ARKit weight columns, holds a
-        value that is not a finite number, or has fewer than 2 frames.
+        If the file is missing or not a readable CSV, has no ``Timecode`` column, lacks any of the 52 ARKit weight
+        columns or repeats one, holds a value that is not a finite number or a weight outside [0, 1] (beyond
+        :data:`WEIGHT_SLACK`), or has fewer than 2 frames.
     """
     import pandas as pd
 
     path = Path(path)
     if not path.is_file():
         raise WorkbenchError(f"{path}: Live Link Face CSV not found")
-    if not timecode_rate > 0:
-        raise WorkbenchError(f"timecode_rate must be positive, got {timecode_rate}")
+    rate_is_number = isinstance(timecode_rate, (int, float, np.integer, np.floating)) and not isinstance(
+        timecode_rate, (bool, np.bool_))
+    if not rate_is_number or not 0 < timecode_rate < np.inf:
+        raise WorkbenchError(f"timecode_rate must be a positive, finite number, got {timecode_rate!r}")
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
         raise WorkbenchError(f"{path}: not a readable CSV ({error})") from None
     table.columns = [str(column).strip() for column in table.columns]
+    header = _header(path)
+    repeated = sorted({name for name in header if header.count(name) > 1 and name in ARKIT_NAMES + ("Timecode",)})
+    if repeated:
+        raise WorkbenchError(f"{path}: column(s) {repeated} appear more than once; each ARKit channel needs one column")
     if "Timecode" not in table.columns:
         raise WorkbenchError(f"{path}: no 'Timecode' column; a Live Link Face CSV starts with Timecode, "
                              "BlendShapeCount and the 52 ARKit weights")
@@ -126,6 +137,12 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     if len(table) < 2:
         raise WorkbenchError(f"{path}: {len(table)} frame(s); a take needs at least 2")
     weights = _numeric_block(table, ARKIT_NAMES, path)
+    outside = (weights < -WEIGHT_SLACK) | (weights > 1.0 + WEIGHT_SLACK)
+    if outside.any():
+        row, column = np.argwhere(outside)[0]
+        raise WorkbenchError(f"{path}: row {row + 2}, column {ARKIT_NAMES[column]}: weight {weights[row, column]:g} is "
+                             f"outside [0, 1] ({int(outside.sum())} such cells); ARKit weights are fractions, not "
+                             "percent")
     rotations = (_numeric_block(table, ROTATION_NAMES, path)
                  if all(name in table.columns for name in ROTATION_NAMES) else None)
     seconds = parse_timecodes(table["Timecode"].tolist(), timecode_rate, path)
@@ -136,6 +153,14 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
                              "does not)")
     return LiveLinkTake(names=ARKIT_NAMES, weights=weights, seconds=seconds, frame_rate=1.0 / interval,
                         rotations=rotations, path=path)
+
+
+def _header(path: Path) -> list[str]:
+    """The column names of a CSV's first line, as written (pandas renames repeated ones)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8", errors="replace") as handle:
+        return [name.strip() for name in next(csv.reader(handle), [])]
 
 
 def _numeric_block(table, columns: Sequence[str], path: Path) -> np.ndarray:

@@ -49,17 +49,23 @@ def _parse_vertices(lines: list[bytes], path: Path) -> np.ndarray:
     tokens = b" ".join(line[2:] for line in lines).split()
     try:
         if len(tokens) == 3 * len(lines):
-            return np.array(tokens, dtype=np.float64).reshape(-1, 3)
-        # Some writers add a w or a colour after x y z: keep the first three numbers of each line.
-        rows = [line.split()[1:4] for line in lines]
-        short = next((i for i, row in enumerate(rows) if len(row) < 3), None)
-        if short is not None:
-            raise WorkbenchError(f"{path}: vertex {short + 1} has fewer than 3 coordinates: {lines[short]!r}")
-        return np.array(rows, dtype=np.float64)
+            vertices = np.array(tokens, dtype=np.float64).reshape(-1, 3)
+        else:
+            # Some writers add a w or a colour after x y z: keep the first three numbers of each line.
+            rows = [line.split()[1:4] for line in lines]
+            short = next((i for i, row in enumerate(rows) if len(row) < 3), None)
+            if short is not None:
+                raise WorkbenchError(f"{path}: vertex {short + 1} has fewer than 3 coordinates: {lines[short]!r}")
+            vertices = np.array(rows, dtype=np.float64)
     except ValueError as error:
         if isinstance(error, WorkbenchError):
             raise
         raise WorkbenchError(f"{path}: a 'v' line holds something that is not a number ({error})") from None
+    bad = np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))
+    if bad.size:
+        raise WorkbenchError(f"{path}: vertex {int(bad[0]) + 1} is not finite ({lines[bad[0]]!r}; {bad.size} such "
+                             "vertices); coordinates must be finite numbers")
+    return vertices
 
 
 def _parse_polygons(lines: list[bytes], vertices_before, n_vertices: int,

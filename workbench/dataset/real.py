@@ -18,6 +18,33 @@ ANIMFACE_CREDIT = ("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0 (bigoMay/An
                    "Interpolation', Bournemouth University, 2019)")
 
 
+def integer_setting(value, key: str, *, minimum: int) -> int:
+    """A whole-number setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule.
+
+    Parameters
+    ----------
+    value
+        The configured value (an int, or a float with no fraction).
+    key : str
+        Its config key for the message, e.g. ``"dataset.frame_step"``.
+    minimum : int
+        Smallest allowed value.
+    """
+    whole = (isinstance(value, (int, np.integer)) or (isinstance(value, (float, np.floating))
+                                                       and float(value).is_integer()))
+    if isinstance(value, (bool, np.bool_)) or not whole or value < minimum:
+        raise WorkbenchError(f"{key} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def positive_setting(value, key: str) -> float:
+    """A positive, finite number setting as a float, or a :class:`WorkbenchError` naming ``key`` and the rule."""
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not number or not 0 < value < np.inf:
+        raise WorkbenchError(f"{key} must be a positive, finite number, got {value!r}")
+    return float(value)
+
+
 def data_root(cfg: Mapping) -> Path:
     """The configured data root (``dataset.data_root``, usually ``paths.data_root``), which must exist."""
     root = cfg.get("data_root")
@@ -66,8 +93,11 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
     for key in ("folder", "neutral", "unit_mm"):
         if spec.get(key) is None:
             raise WorkbenchError(f"dataset.blendshapes.{key} is not set")
+    region = spec.get("region_vertices")
+    region = None if region is None else integer_setting(region, "dataset.blendshapes.region_vertices", minimum=3)
     return load_blendshapes(data_path(cfg, spec["folder"], "blendshapes.folder"), neutral_file=spec["neutral"],
-                            names=names, region_vertices=spec.get("region_vertices"), unit_mm=float(spec["unit_mm"]))
+                            names=names, region_vertices=region,
+                            unit_mm=positive_setting(spec["unit_mm"], "dataset.blendshapes.unit_mm"))
 
 
 def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
@@ -91,13 +121,10 @@ def frame_selection(n_frames: int, frame_step: int, max_frames: int | None, what
     -------
     ndarray of shape (n_selected,) of int
     """
-    if int(frame_step) < 1:
-        raise WorkbenchError(f"dataset.frame_step must be >= 1, got {frame_step}")
-    index = np.arange(0, n_frames, int(frame_step))
+    frame_step = integer_setting(frame_step, "dataset.frame_step", minimum=1)
+    index = np.arange(0, n_frames, frame_step)
     if max_frames is not None:
-        if int(max_frames) < 2:
-            raise WorkbenchError(f"{what} must be at least 2 (or null for all), got {max_frames}")
-        index = index[: int(max_frames)]
+        index = index[: integer_setting(max_frames, f"{what} (or null for all)", minimum=2)]
     if index.size < 2:
         raise WorkbenchError(f"{n_frames} frames with frame_step {frame_step} leave {index.size}; need at least 2")
     return index
@@ -105,9 +132,7 @@ def frame_selection(n_frames: int, frame_step: int, max_frames: int | None, what
 
 def mesh_point_indices(n_vertices: int, vertex_step: int) -> np.ndarray:
     """Vertices used as mesh points: every ``vertex_step``-th one (1 keeps the whole mesh, for full runs)."""
-    if int(vertex_step) < 1:
-        raise WorkbenchError(f"dataset.mesh_vertex_step must be >= 1, got {vertex_step}")
-    return np.arange(0, n_vertices, int(vertex_step))
+    return np.arange(0, n_vertices, integer_setting(vertex_step, "dataset.mesh_vertex_step", minimum=1))
 
 
 def origin_text(description: str, neutral_points: np.ndarray) -> str:

@@ -22,6 +22,8 @@ from typing import Sequence
 import matplotlib
 from matplotlib.figure import Figure
 
+from workbench.record import write_atomic
+
 FORMATS = ("png", "svg")
 PNG_DPI = 100
 # PNGs above this size are re-encoded with a 256-colour palette, which keeps committed reports small.
@@ -89,10 +91,13 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     for fmt in formats:
         path = folder / f"{stem}.{fmt}"
         if fmt == "png":
-            path.write_bytes(png_bytes(figure))
+            data = png_bytes(figure)
         else:
+            buffer = io.BytesIO()
             with matplotlib.rc_context(SVG_RC):
-                figure.savefig(path, format=fmt, metadata={"Date": None} if fmt == "svg" else None)
+                figure.savefig(buffer, format=fmt, metadata={"Date": None} if fmt == "svg" else None)
+            data = buffer.getvalue()
+        write_atomic(path, data)  # a killed report leaves whole figures or none
         written.append(path)
     return written
 

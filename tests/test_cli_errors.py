@@ -1,0 +1,40 @@
+"""The command line's error behaviour: one line naming the problem, non-zero exit, the traceback only with
+``--verbose``."""
+
+import os
+import subprocess
+import sys
+
+from workbench.config import REPO_ROOT
+
+
+def run_cli(*args, cwd):
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
+    quiet = run_cli("basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path)
+    assert quiet.returncode == 2
+    assert quiet.stderr.strip().splitlines() == ["workbench: error: coverage must be in (0, 1], got 1.5"]
+    assert "Traceback" not in quiet.stdout + quiet.stderr
+
+    verbose = run_cli("--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}",
+                      cwd=tmp_path)
+    assert verbose.returncode == 2
+    assert "Traceback (most recent call last)" in verbose.stderr and "bases.py" in verbose.stderr
+    assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: coverage must be in (0, 1], got 1.5"
+
+
+def test_bad_solver_bounds_name_the_setting(tmp_path):
+    result = run_cli("solver=box", "solver.box.lower=2", "solver.box.upper=1", "dataset.n_frames=300",
+                     f"paths.output_root={tmp_path}", cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.strip() == "workbench: error: solver.box.lower (2) must not exceed solver.box.upper (1)"
+
+
+def test_subcommand_errors_are_one_line(tmp_path):
+    result = run_cli("report", str(tmp_path / "nowhere"), cwd=tmp_path)
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert result.stderr.startswith("workbench report: error: ") and "nowhere" in result.stderr
