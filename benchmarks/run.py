@@ -5,6 +5,8 @@ Run from the repository root (not part of the test suite):
     python benchmarks/run.py markers      # paper scale on markers: 35,000 frames x 66 markers, n = 18
     python benchmarks/run.py sweep        # 100 runs of the paper study on markers at paper scale, one process
     python benchmarks/run.py mesh         # mesh scale: the synthetic actor's 4,200-vertex mesh
+    python benchmarks/run.py gaps         # masked solve (capture gaps) against per-frame solves on the seen markers
+    python benchmarks/run.py mapped       # PCA of RBF-interpolated mesh frames in marker space, lifted, vs direct
     python benchmarks/run.py all
 
 Each scenario prints absolute times, the ratio fast/baseline, agreement of the results and the peak resident
@@ -134,6 +136,83 @@ def bench_mesh(args) -> None:
               f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB")
 
 
+def per_frame_masked(solver, shapes, frames, visible):
+    """The baseline of the masked solve: each frame alone, on the coordinates of the markers it saw."""
+    weights = []
+    for frame, seen in zip(frames, visible):
+        dims = np.repeat(seen, 3)
+        design, target = shapes[:, dims].T, frame[dims]
+        if solver == "lstsq":
+            weights.append(np.linalg.lstsq(design, target, rcond=None)[0])
+        elif solver == "nnls":
+            weights.append(nnls(design, target)[0])
+        else:
+            weights.append(lsq_linear(design, target, bounds=(0.0, 1.0), method="bvls").x)
+    return np.array(weights)
+
+
+def masked_objective(shapes, frames, weights, visible):
+    error = np.where(np.repeat(visible, 3, axis=1), frames - weights @ shapes, 0.0)
+    return np.sum(error ** 2, axis=1)
+
+
+def bench_gaps(args) -> None:
+    """The masked solve of eq. 5 (capture gaps) on the synthetic actor's markers with 5 % of the samples in
+    occlusion gaps, against the same solve frame by frame (NumPy lstsq, SciPy nnls and bounded lsq_linear)."""
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+
+    cfg = resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", "dataset.gap_rate=0.05",
+                                                   "dataset.gap_policy=masked", "dataset.train_on=markers"]))
+    capture = build_captures(cfg["dataset"])["markers"]
+    visible = capture.eval_visible
+    print(f"== gaps: {len(capture.eval)} frames x 66 markers, {100 * (~visible).mean():.2f} % of the marker "
+          f"samples missing; masked solve (each frame on the markers it saw), n = 18")
+    eigenfaces = Eigenfaces(coverage=0.995).fit(capture.train)
+    qe = build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces, projection="affine")
+    rng = np.random.default_rng(0)
+    for label, shapes in (("H", capture.hand), ("QE", qe.shapes)):
+        for kind, bounds in (("lstsq", {}), ("nnls", {}), ("box", {"lower": 0.0, "upper": 1.0})):
+            solution, fast = timed(solve_weights, shapes, capture.eval, kind=kind, visible=visible, **bounds)
+            _, unmasked = timed(solve_weights, shapes, capture.train, kind=kind, **bounds)
+            subset = np.sort(rng.choice(len(capture.eval), size=min(args.baseline_frames, len(capture.eval)),
+                                        replace=False))
+            frames, seen = capture.eval[subset], visible[subset]
+            reference, slow = timed(per_frame_masked, kind, shapes, frames, seen)
+            scale = len(capture.eval) / len(frames)
+            ours = masked_objective(shapes, frames, solution.weights[subset], seen)
+            theirs = masked_objective(shapes, frames, reference, seen)
+            gap = np.max((ours - theirs) / np.maximum(theirs, 1e-12))
+            print(f"{label} {kind}: masked batched {fast:.3f} s (unmasked {unmasked:.3f} s) vs per-frame "
+                  f"{slow * scale:.2f} s (timed on {len(frames)} frames, x{scale:.1f} extrapolated)  "
+                  f"x{slow * scale / fast:.0f}; max relative objective excess {gap:.1e}; "
+                  f"fallback frames {solution.n_fallback_frames}")
+    print(f"peak memory {peak_mb():.0f} MB")
+
+
+def bench_mapped(args) -> None:
+    """PCA of mesh frames that are an RBF map of marker frames: computed on the markers and lifted
+    (``Eigenfaces.fit_mapped``) against the PCA of the materialised mesh frames, on the same capture."""
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+
+    overrides = (["dataset=animface", "dataset.train_on=mesh"] if args.mapped_dataset == "animface" else
+                 [f"dataset.n_frames={args.frames}", "dataset.train_on=mesh_rbf"])
+    cfg = resolved_without_hydra(compose("paper", overrides))
+    capture = next(iter(build_captures(cfg["dataset"]).values()))
+    print(f"== mapped PCA: {args.mapped_dataset}, {capture.train.shape[0]} frames x {capture.n_points} mesh points "
+          f"interpolated from {capture.train_source.shape[1] // 3} markers")
+    lifted, lifted_seconds = timed(Eigenfaces(coverage=0.995).fit_mapped, capture.train_source,
+                                   capture.train_operator)
+    direct, direct_seconds = timed(Eigenfaces(coverage=0.995).fit, capture.train)
+    m = min(lifted.n_components_, direct.n_components_)
+    agreement = np.abs(np.abs(np.sum(lifted.components_[:m] * direct.components_[:m], axis=1)) - 1).max()
+    print(f"lifted {lifted_seconds:.2f} s vs direct ({direct.method_}) {direct_seconds:.2f} s  "
+          f"x{direct_seconds / lifted_seconds:.1f}; m {lifted.n_components_} vs {direct.n_components_}; coverage "
+          f"{lifted.coverage_:.10f} vs {direct.coverage_:.10f}; max |1 - |cos|| between eigenfaces {agreement:.1e}; "
+          f"peak {peak_mb():.0f} MB")
+
+
 def bench_sweep(args) -> None:
     """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
     the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
@@ -160,7 +239,9 @@ def bench_sweep(args) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "all"])
+    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "all"])
+    parser.add_argument("--mapped-dataset", choices=["animface", "synthetic"], default="animface",
+                        help="data of the mapped scenario (animface reads ../shared/data or WORKBENCH_DATA_ROOT)")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats of the marker fast path (median)")
     parser.add_argument("--solver", default="box", help="solver group of the sweep scenario (box, all, ...)")
     parser.add_argument("--sweep-runs", type=int, default=100, help="runs of the sweep scenario")
@@ -175,6 +256,10 @@ def main() -> None:
         bench_markers(args)
     if args.scenario in ("sweep", "all"):
         bench_sweep(args)
+    if args.scenario in ("gaps", "all"):
+        bench_gaps(args)
+    if args.scenario in ("mapped", "all"):
+        bench_mapped(args)
     if args.scenario in ("mesh", "all"):
         bench_mesh(args)
 

@@ -303,6 +303,45 @@ class Eigenfaces:
         else:
             values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
             total = values.sum()
+        return self._keep(mean, values, vectors, total, method, n_components, coverage)
+
+    def fit_mapped(self, frames, operator) -> "Eigenfaces":
+        """Fit on the capture ``frames @ operator.T`` without forming it: the PCA of data that is a fixed linear map
+        of smaller data (mesh frames interpolated from markers by RBF), computed in the small space and lifted.
+
+        With the thin QR ``operator = Q R``, the centred capture is ``S~ R^T Q^T`` (``S~`` the centred small
+        frames), so its covariance has the eigenvalues of the ``k x k`` covariance of ``S~ R^T`` and the
+        eigenfaces ``Q w`` for its eigenvectors ``w``: exact, at a cost independent of ``n_dims`` but for the QR.
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, k)
+            The small data (e.g. marker displacements, flattened).
+        operator : array-like of shape (n_dims, k)
+            The linear map (e.g. the RBF interpolation matrix, one block per coordinate).
+
+        Returns
+        -------
+        self
+            As :meth:`fit` on ``frames @ operator.T``, with ``method_ = "mapped"``.
+        """
+        frames = _check_matrix("frames", frames)
+        operator = _check_matrix("operator", operator)
+        if operator.shape[1] != frames.shape[1]:
+            raise WorkbenchError(f"operator must have shape (n_dims, {frames.shape[1]}) to map the frames, got "
+                                 f"{operator.shape}")
+        if frames.shape[0] < 2:
+            raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {frames.shape[0]}")
+        n_components = check_n_components(self.n_components)
+        coverage = check_coverage(self.coverage) if n_components is None else None
+        small_mean = frames.mean(axis=0)
+        q, r = np.linalg.qr(operator)
+        values, small_vectors, _ = covariance_eigen((frames - small_mean) @ r.T, tol=self.tol)
+        vectors = flip_signs(small_vectors @ q.T)
+        return self._keep(operator @ small_mean, values, vectors, values.sum(), "mapped", n_components, coverage)
+
+    def _keep(self, mean, values, vectors, total, method, n_components, coverage) -> "Eigenfaces":
+        """Choose m from the eigenpairs (by coverage or fixed) and set the fitted attributes."""
         if values.size == 0:
             raise WorkbenchError("capture has no variance: every frame is the same")
         ratio = values / total

@@ -263,7 +263,10 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
     """
     with timings.stage("pca"):
         eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
-        eigenfaces.fit(capture.train)
+        if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
+            eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
+        else:
+            eigenfaces.fit(capture.train)
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
