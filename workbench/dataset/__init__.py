@@ -15,6 +15,7 @@ from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
+from workbench.dataset.real import number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
@@ -22,22 +23,6 @@ from workbench.progress import progress
 
 SPLITS = ("same", "tail")
 TRAIN_ON = ("markers", "mesh", "mesh_rbf")
-
-
-def seed_setting(value, key: str) -> int:
-    """A seed setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule."""
-    whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-    if not whole or value < 0:
-        raise WorkbenchError(f"{key} must be a non-negative integer, got {value!r}")
-    return int(value)
-
-
-def number_setting(value, key: str, rule: str, check) -> float:
-    """A numeric setting as a float if ``check(value)`` holds, else a :class:`WorkbenchError` quoting ``rule``."""
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not check(float(value)):
-        raise WorkbenchError(f"{key} must be {rule}, got {value!r}")
-    return float(value)
 
 
 def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:

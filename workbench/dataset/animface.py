@@ -17,13 +17,13 @@ import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
 from workbench.dataset.capture import Capture
-from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
+from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
 from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
-                                    origin_text)
+                                    number_setting, origin_text, seed_setting)
 from workbench.dataset.rigid import stabilise
 from workbench.errors import WorkbenchError
 
@@ -84,8 +84,6 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
                              "another dataset.neutral_frame")
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
-
-    from workbench.dataset import number_setting, seed_setting
 
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)

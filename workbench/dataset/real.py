@@ -39,9 +39,22 @@ def integer_setting(value, key: str, *, minimum: int) -> int:
 
 def positive_setting(value, key: str) -> float:
     """A positive, finite number setting as a float, or a :class:`WorkbenchError` naming ``key`` and the rule."""
+    return number_setting(value, key, "a positive, finite number", lambda number: 0 < number < np.inf)
+
+
+def seed_setting(value, key: str) -> int:
+    """A seed setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule."""
+    whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not whole or value < 0:
+        raise WorkbenchError(f"{key} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def number_setting(value, key: str, rule: str, check) -> float:
+    """A numeric setting as a float if ``check(value)`` holds, else a :class:`WorkbenchError` quoting ``rule``."""
     number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not 0 < value < np.inf:
-        raise WorkbenchError(f"{key} must be a positive, finite number, got {value!r}")
+    if not number or not check(float(value)):
+        raise WorkbenchError(f"{key} must be {rule}, got {value!r}")
     return float(value)
 
 
