@@ -13,7 +13,7 @@ import pytest
 from workbench.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.dataset import build_captures
 from workbench.dataset.decimate import decimate
-from workbench.dataset.gaps import fill_gaps, longest_run, make_gap_mask
+from workbench.dataset.gaps import apply_gap_policy, longest_run, make_gap_mask
 from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, make_face_mesh, make_synthetic_take
 from workbench.dataset.transfer import point_transfer
 from workbench.errors import WorkbenchError
@@ -62,7 +62,8 @@ def test_linear_gap_filling():
     holed = positions.copy()
     holed[3:6, 0] = np.nan  # inside: linear interpolation is exact for the linear coordinates
     holed[:2, 1] = np.nan  # at the start: the first sample is held
-    filled, report = fill_gaps(holed)
+    outcome = apply_gap_policy(holed, "linear")
+    filled, report = outcome.positions, outcome.report
     np.testing.assert_allclose(filled[:, 0, :2], positions[:, 0, :2])
     np.testing.assert_allclose(filled[3:6, 0, 2], np.interp([3, 4, 5], [2, 6], [4, 36]))
     np.testing.assert_allclose(filled[:2, 1], np.repeat(positions[2:3, 1], 2, axis=0))
@@ -70,7 +71,7 @@ def test_linear_gap_filling():
     assert longest_run(np.isnan(holed[:, :, 0])) == 3
     holed[:, 1] = np.nan
     with pytest.raises(WorkbenchError, match="missing in every frame"):
-        fill_gaps(holed)
+        apply_gap_policy(holed, "linear")
 
 
 def test_decimation_keeps_original_vertices():

@@ -127,34 +127,6 @@ def longest_run(mask: np.ndarray) -> int:
     return longest
 
 
-def fill_gaps(positions: np.ndarray, policy: str = "linear",
-              max_fill_frames: int | None = None) -> tuple[np.ndarray, GapReport]:
-    """Fill missing (NaN) samples of marker trajectories by linear interpolation in time.
-
-    Parameters
-    ----------
-    positions : ndarray of shape (n_frames, n_markers, 3)
-        Marker positions with NaN where a marker is missing (all three coordinates together).
-    policy : {"linear"}
-        Kept for the record; only linear interpolation fills.
-    max_fill_frames : int, optional
-        Gaps longer than this stay NaN. None: fill every gap.
-
-    Returns
-    -------
-    filled : ndarray of shape (n_frames, n_markers, 3)
-    report : GapReport
-    """
-    if policy != "linear":
-        raise WorkbenchError(f"fill_gaps fills by policy 'linear' only, got {policy!r}")
-    missing = np.isnan(positions).any(axis=2)
-    filled = _interpolate(positions, missing, max_fill_frames)
-    still = np.isnan(filled).any(axis=2)
-    return filled, GapReport(policy=policy, n_missing_samples=int(missing.sum()),
-                             missing_fraction=float(missing.mean()) if missing.size else 0.0,
-                             longest_gap_frames=longest_run(missing), n_filled_samples=int((missing & ~still).sum()))
-
-
 @dataclass(frozen=True)
 class GapOutcome:
     """Trajectories after a gap policy.
@@ -216,7 +188,9 @@ def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | 
 
 
 def _interpolate(positions: np.ndarray, missing: np.ndarray, max_fill_frames: int | None) -> np.ndarray:
-    """Linear interpolation in time of each missing sample (see :func:`fill_gaps`); a copy."""
+    """Each coordinate of each missing sample interpolated linearly in time between the samples around its gap,
+    the nearest sample held before the first or after the last one; gaps longer than ``max_fill_frames`` stay NaN.
+    A copy."""
     filled = np.array(positions, dtype=np.float64)
     if not missing.any():
         return filled
