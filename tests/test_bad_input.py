@@ -436,10 +436,11 @@ def test_correspondence_table_garbage_and_unknown_marker_label(tmp_path):
 
 
 def test_complete_record_with_a_corrupt_metrics_file_is_named_not_overwritten(tmp_path):
+    from workbench.record import DONE
     from workbench.tracking import prepare_run_dir
 
     (tmp_path / "metrics.json").write_text('{"config_hash": "ab')  # cut short
-    (tmp_path / "done").write_text("")
+    (tmp_path / DONE).write_text("")
     with pytest.raises(WorkbenchError, match=re.escape(
             f"{tmp_path} holds a complete record ('done' exists) whose metrics.json is missing, unreadable or has "
             "no config_hash; records are never overwritten")):

@@ -13,7 +13,7 @@ from workbench.cli import resolved_without_hydra
 from workbench.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.errors import WorkbenchError
 from workbench.pipeline import run_study
-from workbench.reporting import main as report_main
+from workbench.reporting.pages import main as report_main
 
 ALTERNATIVES = ["SPCA", "ICA", "NMF", "SPLOCS", "H-fit"]
 
@@ -87,7 +87,7 @@ def test_intuitiveness_is_in_the_run_record(bases_sweep):
 
 def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     sweep, _, _ = bases_sweep
-    assert report_main([str(sweep), "--out", str(tmp_path), "--formats", "png,svg"]) == 0
+    assert report_main([str(sweep), "--out", str(tmp_path / "bases_small"), "--formats", "png,svg"]) == 0
     report = tmp_path / "bases_small"
     readme = (report / "README.md").read_text()
     section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]

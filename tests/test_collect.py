@@ -1,13 +1,16 @@
 """workbench collect: records into tidy tables, confidence intervals by hand, exact table text."""
 
-import json
 import math
 
 import pandas as pd
 import pytest
+import yaml
 
-from workbench.collect import (collect_and_write, collect_runs, format_estimate, latex_grid, main, markdown_grid,
-                               natural_key, summarise, t_interval)
+from workbench import record
+
+from workbench.reporting.collect import collect_and_write, format_estimate, main
+from workbench.reporting.runs import collect_runs, natural_key, summarise, t_interval
+from workbench.tables import latex_table, markdown_table
 from workbench.errors import WorkbenchError
 
 ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
@@ -18,25 +21,29 @@ M = {0.9: (4, 5, 6), 0.99: (12, 12, 12)}
 
 
 def write_record(folder, coverage, seed, job_num, complete=True):
-    """A run record as cli.run writes it, with chosen numbers (rows: H and QE with lstsq, then PCA)."""
-    folder.mkdir(parents=True)
+    """A run record as the workbench writes it (through workbench.record), with chosen numbers (rows: H and QE
+    with lstsq, then PCA)."""
     h, qe, pca = ALPHA[(coverage, seed)]
     m = M[coverage][seed]
     rows = [{"data": "markers", "basis": basis, "projection": projection, "solver": solver, "n": n, "m": m,
              "coverage": coverage + 0.001, "alpha_abs_mean": value, "alpha_abs_pooled": value * 1.1,
              "alpha_disp_mean": value * 50, "alpha_disp_pooled": value * 20, "rms_mm": value / 2,
-             "paper_alpha": paper, "train_on": "markers", "eval_on": "markers"}
+             "paper_alpha": paper}
             for basis, projection, solver, n, value, paper in (
                 ("H", "-", "lstsq", 18, h, 5.2), ("QE", "affine", "lstsq", 18, qe, 0.72),
                 ("PCA", "-", "projection", m, pca, 0.62))]
+    config = {"study": "coverage", "dataset": {"kind": "synthetic", "seed": seed}, "basis": {"coverage": coverage},
+              "paths": {"output_root": f"/x{seed}"}}
     metrics = {"study": "coverage", "config_hash": f"hash{coverage}{seed}", "job_num": job_num,
                "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}", "paths.output_root=/x"],
+               "dataset": {"name": "test", "frame_rate": 120.0},
                "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
-               "rows": rows, "git": {"commit": "abc", "dirty": False}}
-    (folder / "metrics.json").write_text(json.dumps(metrics))
-    (folder / "timings.json").write_text(json.dumps({"pca": 0.5, "total": 1.0 + seed}))
-    if complete:
-        (folder / "done").write_text("")
+               "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
+               "git": {"commit": "abc", "dirty": False}}
+    record.write_record(folder, resolved_yaml=yaml.safe_dump(config), table=pd.DataFrame(rows), text="",
+                        metrics=metrics, timings={"pca": 0.5, "total": 1.0 + seed})
+    if not complete:
+        (folder / record.DONE).unlink()
 
 
 @pytest.fixture
@@ -159,7 +166,7 @@ def test_formatting_helpers():
     assert format_estimate(0.31949, 0.01234, "{:.3f}") == "0.319 ± 0.012"
     assert format_estimate(0.31949, float("nan"), "{:.3f}") == "0.319"
     assert sorted(["random12", "random3", "all"], key=natural_key) == ["all", "random3", "random12"]
-    assert markdown_grid(["k", "v"], [["a", "1.0"]], 1) == "| k |   v |\n|---|----:|\n| a | 1.0 |\n"
-    assert latex_grid(["a_b", "v"], [["x%", "1 ± 2"]], 1) == (
+    assert markdown_table(["k", "v"], [["a", "1.0"]], [False, True]) == "| k |   v |\n|---|----:|\n| a | 1.0 |\n"
+    assert latex_table(["a_b", "v"], [["x%", "1 ± 2"]], [False, True]) == (
         "\\begin{tabular}{lr}\n\\toprule\na\\_b & v \\\\\n\\midrule\nx\\% & 1 $\\pm$ 2 \\\\\n"
         "\\bottomrule\n\\end{tabular}\n")

@@ -8,7 +8,7 @@ from workbench.cli import resolved_without_hydra
 from workbench.config import compose
 from workbench.metrics import basis_conditioning
 from workbench.pipeline import run_study
-from workbench.report import conditioning_lines, study_header
+from workbench.run_text import conditioning_lines, study_header
 
 
 def test_conditioning_known_values():

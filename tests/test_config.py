@@ -1,6 +1,5 @@
 """Every study and every config-group option composes."""
 
-from pathlib import Path
 
 import pytest
 

@@ -13,11 +13,11 @@ from matplotlib.collections import PolyCollection
 from PIL import Image
 
 from workbench.errors import WorkbenchError
-from workbench.figures import FIXED_COLOURS, _rgb, png_bytes, save_figure
-from workbench.figures.analogy import figure_analogy, make_analogy_example
-from workbench.figures.faces import expressive_frames, nice_exaggeration, point_norms, spread_by_rank
-from workbench.figures.render import MeshView, crop_background, render_meshes
-from workbench.figures.studies import (ci_columns, plot_alpha_against, plot_alpha_over_time, plot_coverage_curve,
+from workbench.reporting.figures import FIXED_COLOURS, _rgb, png_bytes, save_figure
+from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
+from workbench.reporting.figures.faces import expressive_frames, nice_exaggeration, point_norms, spread_by_rank
+from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
+from workbench.reporting.figures.studies import (ci_columns, plot_alpha_against, plot_alpha_over_time, plot_coverage_curve,
                                        plot_marker_vs_mesh)
 
 
@@ -61,7 +61,7 @@ def test_svg_and_png_are_byte_identical_when_rebuilt(tmp_path):
 
 
 def test_large_png_is_reduced_to_a_palette_that_keeps_the_fixed_colours():
-    from workbench.figures import new_figure
+    from workbench.reporting.figures import new_figure
 
     figure = new_figure(8, 6)
     ax = figure.add_subplot()
@@ -92,7 +92,7 @@ def test_render_meshes_gives_one_shaded_coloured_image_per_mesh():
 def test_rendering_works_in_a_plain_subprocess_without_a_display(tmp_path):
     script = (
         "import numpy as np\n"
-        "from workbench.figures.render import MeshView, render_meshes\n"
+        "from workbench.reporting.figures.render import MeshView, render_meshes\n"
         "v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.3]], float)\n"
         "f = np.array([[0, 1, 2], [1, 3, 2]])\n"
         "image = render_meshes([v], f, [v[:, 2]], MeshView(cmap='viridis', clim=(0, 0.3), window_size=(64, 48)))[0]\n"

@@ -211,7 +211,7 @@ def test_masked_policy_can_fit_on_the_complete_frames_only():
 
 def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_path):
     from workbench.cli import run
-    from workbench.reporting import main
+    from workbench.reporting.pages import main
 
     record = tmp_path / "run"
     run(compose("paper", ["dataset.n_frames=600", "dataset.gap_rate=0.02", "dataset.gap_policy=masked",
@@ -219,6 +219,6 @@ def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_
     with np.load(record / "inputs.npz", allow_pickle=False) as inputs:
         visible = inputs["eval_visible"]
         assert np.isnan(inputs["eval"][np.repeat(~visible, 3, axis=1)]).all()
-    assert main([str(record), "--out", str(tmp_path / "reports"), "--formats", "png"]) == 0
+    assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
     # figure 4 is drawn (before the fix, its frame's NaN samples stopped the report)
     assert (tmp_path / "reports" / "paper" / "figures" / "fig4_marker_errors.png").is_file()

@@ -11,6 +11,7 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from workbench.cli import run
+from workbench.record import DONE
 from workbench.config import REPO_ROOT, compose
 
 SMALL = ["dataset.n_frames=4000", "save_inputs=true"]  # 33 s of performance: enough motion above the noise
@@ -26,7 +27,7 @@ def small_run(tmp_path_factory):
 def test_run_writes_a_complete_record(small_run):
     output, text = small_run
     for name in ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.json", "timings.json",
-                 "inputs.npz", "done"):
+                 "inputs.npz", DONE):
         assert (output / name).is_file(), name
     assert not list(output.glob(".*.tmp"))
     metrics = json.loads((output / "metrics.json").read_text())
@@ -99,7 +100,7 @@ def test_cli_runs_and_prints_the_table(tmp_path):
     assert result.returncode == 0, result.stderr
     basis_cells = [line.split("|")[2].strip() for line in result.stdout.splitlines() if line.startswith("|")]
     assert basis_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(basis_cells)
-    assert (tmp_path / "run" / "done").is_file()
+    assert (tmp_path / "run" / DONE).is_file()
 
 
 def test_cli_bad_parameter_is_one_line(tmp_path):
@@ -107,7 +108,7 @@ def test_cli_bad_parameter_is_one_line(tmp_path):
                      cwd=tmp_path)
     assert result.returncode == 2
     assert result.stderr.strip() == "workbench: error: coverage must be in (0, 1], got 1.5"
-    assert not (tmp_path / "run" / "done").exists()
+    assert not (tmp_path / "run" / DONE).exists()
 
 
 def test_cli_multirun_sweeps(tmp_path):

@@ -6,7 +6,8 @@ import numpy as np
 
 from workbench.metrics import AlphaSummary
 from workbench.pipeline import Row
-from workbench.report import alpha_table, headline, markdown_table
+from workbench.run_text import alpha_table, headline
+from workbench.tables import markdown_frame as markdown_table
 
 
 def summary(absolute, displacement, rms):

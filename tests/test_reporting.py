@@ -16,9 +16,11 @@ from scipy import stats
 from workbench.cli import COMMANDS, run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
-from workbench.reporting import (RUN_FIGURES, figure_solver, find_runs, flatten, frame_alpha, headline_table,
-                                 load_run, main, markdown_frame, quasi_eigen_shapes, reconstruct_frames,
-                                 summarise_runs, varying_keys)
+from workbench.record import find_records, load_record
+from workbench.reporting.pages import (RUN_FIGURES, figure_solver, frame_alpha, headline_table, main,
+                                       quasi_eigen_shapes, reconstruct_frames)
+from workbench.reporting.runs import flatten, summarise, varying_keys, wide
+from workbench.tables import markdown_frame
 
 # A small run on both data variants: 5 s of performance on a coarse mesh (1,050 vertices), inputs saved.
 TINY = ["dataset.train_on=[markers,mesh]", "dataset.n_frames=600", "dataset.mesh_rows=35", "dataset.mesh_cols=30",
@@ -39,7 +41,7 @@ def tiny_report(tmp_path_factory):
     record = tmp_path_factory.mktemp("run")
     run(compose("paper", TINY), record)
     out = tmp_path_factory.mktemp("reports")
-    assert main([str(record), "--out", str(out)]) == 0
+    assert main([str(record), "--out", str(out / "paper")]) == 0
     return record, out / "paper"
 
 
@@ -87,7 +89,7 @@ def test_report_documents_hold_tables_figures_provenance_choices_and_versions(ti
     printed = (record / "alpha_table.md").read_text()
     assert table_after("## Full alpha table", readme) == table_after("| data", printed)
     pd.testing.assert_frame_equal(pd.read_csv(report / "alpha_table.csv"), pd.read_csv(record / "alpha_table.csv"))
-    assert yaml.safe_load((report / "run_config.yaml").read_text()) == load_run(record).config
+    assert yaml.safe_load((report / "run_config.yaml").read_text()) == load_record(record).config
 
 
 def table_after(marker: str, text: str) -> str:
@@ -100,7 +102,7 @@ def table_after(marker: str, text: str) -> str:
 
 def test_headline_table_puts_the_paper_beside_the_measured_values(tiny_report):
     record, _ = tiny_report
-    table = load_run(record).table
+    table = load_record(record).table
     headline = headline_table(table, "alpha_abs_mean")
     assert list(headline.columns) == ["data", "basis", "paper_alpha", "alpha_abs_mean lstsq", "alpha_abs_mean nnls",
                                       "alpha_abs_mean box"]
@@ -117,7 +119,7 @@ def test_headline_table_puts_the_paper_beside_the_measured_values(tiny_report):
 def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
     """The arrays behind figures 3-4, recomputed from inputs with the core, give the run's per-frame alpha."""
     record, _ = tiny_report
-    loaded = load_run(record)
+    loaded = load_record(record)
     _, solver = figure_solver(loaded.config)
     per_frame = loaded.load_alpha_per_frame()
     for data in ("markers", "mesh"):
@@ -138,7 +140,7 @@ def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
 def test_figures_that_need_inputs_are_listed_not_drawn_without_them(tmp_path):
     record = tmp_path / "run"
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
-    assert main([str(record), "--out", str(tmp_path / "reports"), "--formats", "png"]) == 0
+    assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
     readme = (tmp_path / "reports" / "paper" / "README.md").read_text()
     assert "**Figure 2: hand shapes beside their quasi-eigen faces**: not drawn (needs a mesh data variant" in readme
     assert "**Alpha per frame over time**: not drawn" in readme
@@ -160,8 +162,8 @@ def make_sweep(root, coverages=(0.99, 0.999), seeds=(0, 1)):
 
 def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
     root = make_sweep(tmp_path / "sweep")
-    assert [path.name for path in find_runs(root)] == ["0", "1", "2", "3"]
-    assert main([str(root), "--out", str(tmp_path / "reports"), "--name", "coverage"]) == 0
+    assert [path.name for path in find_records([root])[0]] == ["0", "1", "2", "3"]
+    assert main([str(root), "--out", str(tmp_path / "reports" / "coverage")]) == 0
     report = tmp_path / "reports" / "coverage"
     summary = pd.read_csv(report / "summary.csv")
     assert set(summary["basis.coverage"]) == {0.99, 0.999} and (summary["n_seeds"] == 2).all()
@@ -179,11 +181,31 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
     assert "sweep over basis.coverage" in page and "replicates over dataset.seed 0, 1" in page
 
 
+def test_collect_and_report_give_the_same_numbers_for_one_sweep(tmp_path):
+    from workbench.record import ALPHA_COLUMNS
+    from workbench.reporting.collect import collect_and_write
+
+    root = make_sweep(tmp_path / "sweep", coverages=(0.99, 0.995))
+    assert main([str(root), "--formats", "png"]) == 0  # beside the runs: <sweep>/report
+    collect_and_write([root], tmp_path / "collected")
+    reported = pd.read_csv(root / "report" / "summary.csv")
+    collected = pd.read_csv(tmp_path / "collected" / "summary.csv")
+    keys = ["basis.coverage", "data", "basis", "solver"]
+    for column in ALPHA_COLUMNS:
+        long = collected[collected["metric"] == column].set_index(keys)
+        both = reported.set_index(keys)[[column, f"{column}_ci_low", f"{column}_ci_high"]].join(long, how="outer")
+        assert len(both) == len(reported) == len(long), column
+        np.testing.assert_array_equal(both[column], both["mean"])
+        np.testing.assert_array_equal(both[f"{column}_ci_low"], both["ci95_low"])
+        np.testing.assert_array_equal(both[f"{column}_ci_high"], both["ci95_high"])
+
+
 def test_summarise_runs_known_answer():
     per_run = pd.DataFrame({
-        "noise": [0.1, 0.1, 0.1, 0.2], "data": "markers", "basis": "H", "projection": "-", "solver": "lstsq",
+        "study": "noise", "dataset.noise": [0.1, 0.1, 0.1, 0.2], "dataset.seed": [0, 1, 2, 0], "data": "markers",
+        "train_on": "markers", "eval_on": "markers", "basis": "H", "projection": "-", "solver": "lstsq",
         "m": [10, 11, 12, 13], "n": 18, "alpha_abs_mean": [1.0, 2.0, 3.0, 5.0]})
-    summary = summarise_runs(per_run, ["noise"], columns=["alpha_abs_mean"])
+    summary = wide(summarise(per_run, metrics=["alpha_abs_mean", "m"]))
     first, second = summary.iloc[0], summary.iloc[1]
     assert first["n_seeds"] == 3 and first["m"] == 11.0 and first["alpha_abs_mean"] == 2.0
     half = stats.t.ppf(0.975, 2) * 1.0 / math.sqrt(3)
@@ -201,7 +223,7 @@ def test_varying_keys_leave_out_paths_and_identical_settings():
 
 
 def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
-    assert COMMANDS["report"] == "workbench.reporting:main"
+    assert COMMANDS["report"] == "workbench.reporting.pages:main"
     with pytest.raises(WorkbenchError, match="not a folder"):
         main([str(tmp_path / "missing")])
     with pytest.raises(WorkbenchError, match="no complete run record"):
@@ -230,7 +252,7 @@ def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_
             assert fresh_flat.get(key) == value, key
     record = tmp_path / "run"
     run(fresh_config, record)
-    assert main([str(record), "--out", str(tmp_path / "reports"), "--name", name, "--formats", "png"]) == 0
+    assert main([str(record), "--out", str(tmp_path / "reports" / name), "--formats", "png"]) == 0
     fresh = tmp_path / "reports" / name
     expected, got = pd.read_csv(reference / "alpha_table.csv"), pd.read_csv(fresh / "alpha_table.csv")
     pd.testing.assert_frame_equal(got, expected, rtol=1e-9, atol=1e-12)

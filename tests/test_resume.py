@@ -14,7 +14,7 @@ import pytest
 from workbench.cli import run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
-from workbench.record import config_hash
+from workbench.record import DONE, config_hash
 from workbench.tracking import clear_partial, prepare_run_dir, record_state, run_dir_name
 
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
@@ -127,14 +127,14 @@ def test_complete_record_is_skipped_refused_or_never_cleared(tmp_path):
     assert record_state(folder) == "partial"
     assert prepare_run_dir(folder, "abc") and list(folder.iterdir()) == []
     (folder / "metrics.json").write_text(json.dumps({"config_hash": "abc"}))
-    (folder / "done").write_text("")
+    (folder / DONE).write_text("")
     assert record_state(folder) == "complete"
     assert prepare_run_dir(folder, "abc") is False
     with pytest.raises(WorkbenchError, match="another config .*never overwritten"):
         prepare_run_dir(folder, "def")
     with pytest.raises(WorkbenchError, match="never cleared"):
         clear_partial(folder)
-    assert sorted(path.name for path in folder.iterdir()) == ["done", "metrics.json"]
+    assert sorted(path.name for path in folder.iterdir()) == [DONE, "metrics.json"]
 
 
 def test_run_refuses_to_overwrite_a_complete_record(tmp_path):

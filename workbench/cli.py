@@ -14,16 +14,16 @@ from pathlib import Path
 from typing import Sequence
 
 import hydra
-import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs, searchpath_override
 from workbench.errors import WorkbenchError
-from workbench.pipeline import intuitiveness_table, run_study
-from workbench.record import (config_hash, git_state, versions, write_atomic, write_json, write_npz)
-from workbench.report import alpha_table, headline, markdown_table, study_header
-from workbench.tracking import DONE, prepare_run_dir, record_state, register_resolvers
+from workbench.pipeline import run_study
+from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
+from workbench.run_text import alpha_table, headline, study_header
+from workbench.tables import markdown_frame
+from workbench.tracking import prepare_run_dir, register_resolvers
 
 register_resolvers()
 
@@ -76,83 +76,15 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
                                    coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
                        for result in results], ignore_index=True)
-    text = (study_header(results, plain) + "\n" + markdown_table(table) + "\n"
+    text = (study_header(results, plain) + "\n" + markdown_frame(table) + "\n"
             + headline(table, plain["metric"], paper_alpha))
 
-    output_dir = Path(output_dir)
-    write_atomic(output_dir / "config.yaml", resolved_yaml)
-    write_atomic(output_dir / "alpha_table.csv", table.to_csv(index=False))
-    write_atomic(output_dir / "alpha_table.md", text)
-    capture = results[0].capture
-    rows = [(result, result_row) for result in results for result_row in result.rows]
-    metrics = {
-        "study": plain["study"],
-        "config_hash": config_hash(resolved_yaml),
-        "overrides": list(overrides),
-        "job_num": job_num,
-        "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
-                    "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
-                    "provenance": capture.provenance},
-        "data": {result.data: data_metrics(result) for result in results},
-        "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
-                      eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
-                      solver_fallback_frames=row.n_fallback_frames,
-                      solver_max_kkt_violation=row.max_kkt_violation,
-                      max_abs_weight=row.max_abs_weight,
-                      basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
-                 for i, (result, row) in enumerate(rows)],
-        "versions": versions(),
-        "git": git_state(REPO_ROOT),
-        "started_at": started_at,
-        "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-    }
-    write_json(output_dir / "metrics.json", metrics)
-    write_json(output_dir / "timings.json", dict(results[0].timings.seconds, total=time.time() - started))
-    if plain.get("save_inputs", False):
-        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file
-        for result in [result for result in results if result.transfer == "identity"]:
-            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
-            write_npz(output_dir / name, {
-                "train": result.capture.train, "eval": result.capture.eval, "neutral": result.capture.neutral,
-                "hand": result.capture.hand, "hand_names": np.array(result.capture.hand_names),
-                "mean": result.eigenfaces.mean_, "components": result.eigenfaces.components_,
-                **({"faces": result.capture.faces} if result.capture.faces is not None else {}),
-                **({"eval_visible": result.capture.eval_visible} if result.capture.eval_visible is not None
-                   else {})})
-        write_npz(output_dir / "alpha_per_frame.npz", alpha_per_frame_arrays(results))
-    write_atomic(output_dir / "done", "")
+    metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
+                          job_num=job_num, started_at=started_at, repository=REPO_ROOT)
+    write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
+                 timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
+                 save_inputs=bool(plain.get("save_inputs", False)))
     return text
-
-
-def alpha_per_frame_arrays(results) -> dict:
-    """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
-    of shape (n_rows, n_eval_frames), and ``<data>.basis`` / ``<data>.solver`` naming the rows in table order."""
-    arrays = {}
-    for result in results:
-        arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
-        arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
-        arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
-        arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
-    return arrays
-
-
-def data_metrics(result) -> dict:
-    """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
-    capture, eigenfaces = result.capture, result.eigenfaces
-    return {
-        "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
-        "notes": list(capture.notes),
-        "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
-                "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
-                "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
-        "quasi_eigen": {projection: {"empty_axes": [j + 1 for j in qe.empty_axes],
-                                     "appended_axes": [j + 1 for j in qe.appended_axes],
-                                     "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
-                        for projection, qe in result.quasi_eigen.items()},
-        "intuitiveness": intuitiveness_table(result),
-        **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
-    }
 
 
 @hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)
@@ -187,8 +119,8 @@ def first_headline(text: str) -> str:
 # Subcommands other than running a study: name -> "module:function", the function taking the remaining
 # arguments (a list of str) and returning an exit code. Imported only when used.
 COMMANDS: dict[str, str] = {
-    "report": "workbench.reporting:main",
-    "collect": "workbench.collect:main",
+    "report": "workbench.reporting.pages:main",
+    "collect": "workbench.reporting.collect:main",
 }
 
 

@@ -2,7 +2,7 @@
 
 ``run_study`` takes a plain mapping (a resolved config) and returns one :class:`StudyResult` per data variant
 (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record``'s job and printing is
-``workbench.report``'s.
+``workbench.run_text``'s.
 """
 
 from __future__ import annotations

@@ -1,4 +1,18 @@
-"""Run records: every file written atomically (temporary file, then rename), the ``done`` marker last."""
+"""The run record, both ways: writing it (every file atomically, the ``done`` marker last) and reading it back.
+
+A run record is a folder holding
+
+- ``config.yaml``: the resolved config (without Hydra's own node);
+- ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the text the run printed;
+- ``metrics.json``: study, config hash, overrides, dataset facts, per-data-variant metrics, every table row with
+  its solver diagnostics, versions, git state and times;
+- ``timings.json``: seconds per stage;
+- optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
+- ``done``: written last; a folder without it is not a record (a run still going, or one that was killed).
+
+This module is the only place that knows these names; everything that reads records (``workbench collect``,
+``workbench report``, the tracking export) reads them through :class:`RunRecord`.
+"""
 
 from __future__ import annotations
 
@@ -10,11 +24,17 @@ import platform
 import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 
 import numpy as np
+
+from workbench.errors import WorkbenchError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
                    "scikit-learn")
@@ -89,3 +109,356 @@ def versions() -> dict:
         except metadata.PackageNotFoundError:
             found[package] = None
     return found
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The record's files
+# ---------------------------------------------------------------------------------------------------------------
+
+DONE = "done"
+"""The completion marker, written last into a run folder."""
+CONFIG_FILE = "config.yaml"
+TABLE_FILE = "alpha_table.csv"
+TEXT_FILE = "alpha_table.md"
+METRICS_FILE = "metrics.json"
+TIMINGS_FILE = "timings.json"
+ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
+ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
+"""The alpha-table columns every row of a record must have (numbers)."""
+
+
+def record_state(folder: Path) -> str:
+    """``complete`` (has ``done``), ``partial`` (exists without it) or ``absent``."""
+    folder = Path(folder)
+    if (folder / DONE).is_file():
+        return "complete"
+    return "partial" if folder.exists() else "absent"
+
+
+def is_complete(folder: Path) -> bool:
+    """Whether ``folder`` holds a complete record (its ``done`` marker exists)."""
+    return record_state(folder) == "complete"
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def alpha_per_frame_arrays(results) -> dict:
+    """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
+    of shape (n_rows, n_eval_frames), and ``<data>.basis`` / ``<data>.solver`` naming the rows in table order."""
+    arrays = {}
+    for result in results:
+        arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
+        arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
+        arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
+        arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
+    return arrays
+
+
+def data_metrics(result) -> dict:
+    """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
+    from workbench.pipeline import intuitiveness_table
+
+    capture, eigenfaces = result.capture, result.eigenfaces
+    return {
+        "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
+        "notes": list(capture.notes),
+        "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
+                "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
+                "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
+        "quasi_eigen": {projection: {"empty_axes": [j + 1 for j in qe.empty_axes],
+                                     "appended_axes": [j + 1 for j in qe.appended_axes],
+                                     "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
+                        for projection, qe in result.quasi_eigen.items()},
+        "intuitiveness": intuitiveness_table(result),
+        **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
+    }
+
+
+def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Sequence[str],
+                job_num: int | None, started_at: str, repository: Path) -> dict:
+    """The content of ``metrics.json`` for a finished run.
+
+    Parameters
+    ----------
+    results : sequence of workbench.pipeline.StudyResult
+        One per data variant.
+    table : pandas.DataFrame
+        The run's alpha table (``workbench.run_text.alpha_table`` of every result, concatenated).
+    study : str
+    resolved_yaml : str
+        The resolved config as written to ``config.yaml`` (its hash identifies the run).
+    overrides : sequence of str
+        The command-line and sweep overrides that made the config.
+    job_num : int or None
+        The run's position in its sweep.
+    started_at : str
+        ISO time the run started.
+    repository : pathlib.Path
+        The workbench's checkout, for the git commit.
+
+    Returns
+    -------
+    dict
+    """
+    from datetime import datetime, timezone
+
+    capture = results[0].capture
+    rows = [(result, result_row) for result in results for result_row in result.rows]
+    return {
+        "study": study,
+        "config_hash": config_hash(resolved_yaml),
+        "overrides": list(overrides),
+        "job_num": job_num,
+        "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
+                    "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
+                    "provenance": capture.provenance},
+        "data": {result.data: data_metrics(result) for result in results},
+        "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
+                      eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
+                      solver_fallback_frames=row.n_fallback_frames,
+                      solver_max_kkt_violation=row.max_kkt_violation,
+                      max_abs_weight=row.max_abs_weight,
+                      basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
+                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
+                 for i, (result, row) in enumerate(rows)],
+        "versions": versions(),
+        "git": git_state(repository),
+        "started_at": started_at,
+        "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def input_arrays(result) -> dict:
+    """The arrays of ``inputs.npz``: what figures 2-4 need to recompute a few frames with the core."""
+    capture = result.capture
+    return {"train": capture.train, "eval": capture.eval, "neutral": capture.neutral, "hand": capture.hand,
+            "hand_names": np.array(capture.hand_names), "mean": result.eigenfaces.mean_,
+            "components": result.eigenfaces.components_,
+            **({"faces": capture.faces} if capture.faces is not None else {}),
+            **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {})}
+
+
+def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics: Mapping, timings: Mapping,
+                 results=(), save_inputs: bool = False) -> None:
+    """Write a run record into ``folder``, every file atomically and ``done`` last.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    resolved_yaml : str
+        ``config.yaml``.
+    table : pandas.DataFrame
+        ``alpha_table.csv``.
+    text : str
+        ``alpha_table.md``: what the run printed.
+    metrics, timings : mapping
+        ``metrics.json`` (:func:`run_metrics`) and ``timings.json``.
+    results : sequence of workbench.pipeline.StudyResult
+        Needed with ``save_inputs``: the arrays of ``inputs.npz`` and ``alpha_per_frame.npz``.
+    save_inputs : bool
+    """
+    folder = Path(folder)
+    write_atomic(folder / CONFIG_FILE, resolved_yaml)
+    write_atomic(folder / TABLE_FILE, table.to_csv(index=False))
+    write_atomic(folder / TEXT_FILE, text)
+    write_json(folder / METRICS_FILE, dict(metrics))
+    write_json(folder / TIMINGS_FILE, dict(timings))
+    if save_inputs:
+        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file
+        for result in [result for result in results if result.transfer == "identity"]:
+            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
+            write_npz(folder / name, input_arrays(result))
+        write_npz(folder / ALPHA_PER_FRAME_FILE, alpha_per_frame_arrays(results))
+    write_atomic(folder / DONE, "")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A complete run record, read back.
+
+    Attributes
+    ----------
+    folder : pathlib.Path
+    config : dict
+        The resolved config (``config.yaml``).
+    table : pandas.DataFrame
+        The alpha table (``alpha_table.csv``), one row per data variant, basis and solver.
+    metrics : dict
+        ``metrics.json``.
+    timings : dict
+        ``timings.json``: seconds per stage (empty when the record has none).
+    """
+
+    folder: Path
+    config: dict
+    table: "pd.DataFrame"
+    metrics: dict
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def study(self) -> str:
+        return str(self.metrics.get("study") or self.config.get("study"))
+
+    @property
+    def config_hash(self) -> str | None:
+        return self.metrics.get("config_hash")
+
+    @property
+    def overrides(self) -> list[str]:
+        return list(self.metrics.get("overrides") or [])
+
+    @property
+    def job_num(self) -> int | None:
+        return self.metrics.get("job_num")
+
+    @property
+    def git(self) -> dict:
+        return dict(self.metrics.get("git") or {})
+
+    @property
+    def data_variants(self) -> list[str]:
+        return list(self.metrics["data"])
+
+    def rows(self) -> list[dict]:
+        """Every row of the alpha table with its solver diagnostics (``metrics.json``'s ``rows``)."""
+        return [dict(row) for row in self.metrics["rows"]]
+
+    def inputs_path(self, data: str) -> Path:
+        single = self.folder / "inputs.npz"
+        return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
+
+    def load_inputs(self, data: str) -> dict | None:
+        """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
+        return _load_arrays(self.inputs_path(data))
+
+    def load_alpha_per_frame(self) -> dict | None:
+        """The arrays of ``alpha_per_frame.npz``, or None when the run did not save them."""
+        return _load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+
+
+def _load_arrays(path: Path) -> dict | None:
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            return {key: arrays[key] for key in arrays.files}
+    except (OSError, ValueError, EOFError) as error:
+        raise WorkbenchError(f"{path}: not a readable NumPy archive ({error})") from None
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise WorkbenchError(f"run record {path.parent}: {path.name} is missing") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise WorkbenchError(f"run record {path.parent}: {path.name} cannot be read ({error})") from None
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        value = json.loads(_read_text(path))
+    except ValueError as error:
+        raise WorkbenchError(f"{path}: not valid JSON ({error})") from None
+    if not isinstance(value, dict):
+        raise WorkbenchError(f"{path}: must hold a JSON object, got {type(value).__name__}")
+    return value
+
+
+def _check_metrics(path: Path, metrics: Mapping) -> None:
+    """The fields of ``metrics.json`` that readers rely on, with their types."""
+    for key, kind in (("study", str), ("config_hash", str), ("rows", list), ("data", dict), ("dataset", dict)):
+        if not isinstance(metrics.get(key), kind):
+            raise WorkbenchError(f"{path}: field '{key}' must be a {kind.__name__}, got "
+                                 f"{type(metrics.get(key)).__name__ if key in metrics else 'nothing'}")
+    for i, row in enumerate(metrics["rows"]):
+        if not isinstance(row, dict):
+            raise WorkbenchError(f"{path}: rows[{i}] must be an object")
+        for key in ("data", "basis", "solver", *ALPHA_COLUMNS):
+            if key not in row:
+                raise WorkbenchError(f"{path}: rows[{i}] has no '{key}'")
+
+
+def load_record(folder: Path) -> RunRecord:
+    """Read and check a complete run record.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+
+    Returns
+    -------
+    RunRecord
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the file and field when the folder is not a complete record or a file of it is damaged.
+    """
+    import pandas as pd
+    import yaml
+
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
+    try:
+        config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
+    except yaml.YAMLError as error:
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: not valid YAML ({str(error).splitlines()[0]})") from None
+    if not isinstance(config, dict) or not isinstance(config.get("study"), str):
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: must be a mapping with a 'study' name")
+    metrics = _read_json(folder / METRICS_FILE)
+    _check_metrics(folder / METRICS_FILE, metrics)
+    timings = _read_json(folder / TIMINGS_FILE) if (folder / TIMINGS_FILE).exists() else {}
+    try:
+        table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
+                            na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)})
+    except (ValueError, pd.errors.ParserError) as error:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
+    missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)
+               if column not in table.columns]
+    if missing:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: missing column(s) {missing}")
+    bad = [column for column in ALPHA_COLUMNS if not pd.api.types.is_numeric_dtype(table[column])]
+    if bad:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: column(s) {bad} must hold numbers")
+    if len(table) != len(metrics["rows"]):
+        raise WorkbenchError(f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists "
+                             f"{len(metrics['rows'])}")
+    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings)
+
+
+def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:
+    """Run folders under the given paths (each a run folder, a sweep folder or any folder above them).
+
+    Returns
+    -------
+    complete : list of pathlib.Path
+        Folders with a ``done`` marker, in natural order of their paths.
+    incomplete : list of pathlib.Path
+        Folders that look like runs (they hold a ``config.yaml`` or ``metrics.json``) but have no marker.
+    """
+    complete, candidates = set(), set()
+    for path in map(Path, paths):
+        if not path.exists():
+            raise WorkbenchError(f"{path} does not exist")
+        complete.update(marker.parent for marker in path.rglob(DONE) if marker.is_file())
+        for name in (CONFIG_FILE, METRICS_FILE):
+            # Hydra's own .hydra/config.yaml is not a run; a folder inside a complete record is part of it
+            candidates.update(found.parent for found in path.rglob(name)
+                              if not any(part.startswith(".") for part in found.relative_to(path).parts))
+    incomplete = {folder for folder in candidates
+                  if folder not in complete and not any(parent in complete for parent in folder.parents)}
+    return sorted(complete, key=_natural_path), sorted(incomplete, key=_natural_path)
+
+
+def _natural_path(path: Path) -> list:
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part) for part in path.parts]

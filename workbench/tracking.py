@@ -14,9 +14,8 @@ import re
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
+from workbench.record import DONE, METRICS_FILE, record_state
 
-DONE = "done"
-"""The completion marker, written last into a run folder."""
 RUN_ID_MAX = 120
 """Longest run folder name made from the overrides alone; longer ones are cut and get a hash."""
 
@@ -53,18 +52,10 @@ def register_resolvers() -> None:
         OmegaConf.register_new_resolver("run_id", run_dir_name)
 
 
-def record_state(folder: Path) -> str:
-    """``complete`` (has ``done``), ``partial`` (exists without it) or ``absent``."""
-    folder = Path(folder)
-    if (folder / DONE).is_file():
-        return "complete"
-    return "partial" if folder.exists() else "absent"
-
-
 def recorded_config_hash(folder: Path) -> str | None:
     """The config hash a complete record was made with (from its ``metrics.json``), or None if unreadable."""
     try:
-        return json.loads((Path(folder) / "metrics.json").read_text())["config_hash"]
+        return json.loads((Path(folder) / METRICS_FILE).read_text())["config_hash"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
 
@@ -128,35 +119,3 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
     if state == "partial":
         clear_partial(folder)
     return True
-
-
-try:
-    from hydra.experimental.callback import Callback
-except ImportError:  # pragma: no cover - Hydra is a dependency; this keeps the module importable without it
-    Callback = object
-
-
-class CollectSweep(Callback):
-    """Hydra callback: when a study's sweep ends, collect its records into tables (the study's report step).
-
-    Configured in a study's ``hydra.callbacks.collect`` with the layout of its alpha table; the arguments are
-    those of :func:`workbench.collect.collect_and_write`.
-    """
-
-    def __init__(self, **layout):
-        self.layout = layout
-
-    def on_multirun_end(self, config, **kwargs) -> None:
-        import sys
-
-        from workbench.collect import collect_and_write
-
-        sweep_dir = Path(str(config.hydra.sweep.dir))
-        try:
-            written = collect_and_write([sweep_dir], sweep_dir / "collected", **self.layout)
-        except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
-            print(f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
-                  file=sys.stderr)
-            return
-        print(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}")
-        print(written["markdown"], end="")

@@ -1,4 +1,4 @@
-"""Alpha tables: tidy DataFrame from a study's rows, and its Markdown text."""
+"""What a run prints: its alpha table as a tidy DataFrame, the header above it and the headline below it."""
 
 from __future__ import annotations
 
@@ -11,9 +11,6 @@ from workbench.errors import WorkbenchError
 
 TABLE_COLUMNS = ("data", "basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
                  "alpha_disp_mean", "alpha_disp_pooled", "rms_mm", "paper_alpha")
-FLOAT_FORMATS = {"coverage": "{:.4f}", "alpha_abs_mean": "{:.3f}", "alpha_abs_pooled": "{:.3f}",
-                 "alpha_disp_mean": "{:.2f}", "alpha_disp_pooled": "{:.2f}", "rms_mm": "{:.3f}",
-                 "paper_alpha": "{:.2f}"}
 
 
 def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
@@ -45,43 +42,6 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
         "rms_mm": row.alpha.rms_mm, "paper_alpha": paper_alpha.get(row.basis, math.nan),
     } for row in rows]
     return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS))
-
-
-def format_cell(column: str, value) -> str:
-    """Text of one table cell: fixed decimals per column, ``-`` for a missing number."""
-    if isinstance(value, float) and math.isnan(value):
-        return "-"
-    if column in FLOAT_FORMATS:
-        return FLOAT_FORMATS[column].format(value)
-    return str(value)
-
-
-def markdown_table(table: pd.DataFrame) -> str:
-    """GitHub-flavoured Markdown of a table, numbers right-aligned.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-
-    Returns
-    -------
-    str
-        Lines joined by newlines, with a trailing newline.
-    """
-    columns = list(table.columns)
-    cells = [[format_cell(column, value) for column, value in zip(columns, row)]
-             for row in table.itertuples(index=False)]
-    numeric = [pd.api.types.is_numeric_dtype(table[column]) for column in columns]
-    widths = [max([len(column)] + [len(line[i]) for line in cells]) for i, column in enumerate(columns)]
-
-    def line(values):
-        padded = [value.rjust(width) if is_number else value.ljust(width)
-                  for value, width, is_number in zip(values, widths, numeric)]
-        return "| " + " | ".join(padded) + " |"
-
-    rule = "|" + "|".join(("-" * (width + 1) + ":") if is_number else ("-" * (width + 2))
-                          for width, is_number in zip(widths, numeric)) + "|"
-    return "\n".join([line(columns), rule] + [line(values) for values in cells]) + "\n"
 
 
 def study_header(results: Sequence, cfg: Mapping) -> str:

@@ -28,7 +28,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from workbench.errors import WorkbenchError
-from workbench.figures import basis_colour, basis_label, new_figure, wrap_title
+from workbench.reporting.figures import basis_colour, basis_label, new_figure, wrap_title
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
@@ -305,7 +305,7 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_r
     return figure
 
 
-# Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.figures).
+# Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.reporting.figures).
 OTHER_BASIS_COLOURS = {"SPCA": "#2ca02c", "ICA": "#17becf", "NMF": "#8c564b", "SPLOCS": "#e377c2",
                        "H-fit": "#4a4a4a"}
 BASIS_MARKERS = {"H": "s", "QE": "o", "QE-linear": "o", "PCA": "D", "SPCA": "^", "ICA": "v", "NMF": "P",

@@ -2,11 +2,11 @@
 
 Modules:
 
-- :mod:`workbench.figures.analogy`: figure 1, the analogical 3-D drawing, computed by the core on a small example.
-- :mod:`workbench.figures.render`: off-screen mesh rendering with pyvista (headless, through EGL or OSMesa).
-- :mod:`workbench.figures.faces`: figures 2-4 (hand versus quasi-eigen shapes, reconstructed frames, marker
+- :mod:`workbench.reporting.figures.analogy`: figure 1, the analogical 3-D drawing, computed by the core on a small example.
+- :mod:`workbench.reporting.figures.render`: off-screen mesh rendering with pyvista (headless, through EGL or OSMesa).
+- :mod:`workbench.reporting.figures.faces`: figures 2-4 (hand versus quasi-eigen shapes, reconstructed frames, marker
   errors of one frame).
-- :mod:`workbench.figures.studies`: coverage curve, alpha against a swept setting with confidence bands, marker
+- :mod:`workbench.reporting.figures.studies`: coverage curve, alpha against a swept setting with confidence bands, marker
   versus mesh, alpha per frame over time.
 
 Every figure is a :class:`matplotlib.figure.Figure` built without pyplot (no display, no global figure state)

@@ -15,8 +15,8 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from workbench.figures import basis_colour, basis_label, new_figure, wrap_title
-from workbench.figures.render import MeshView, crop_background, render_meshes
+from workbench.reporting.figures import basis_colour, basis_label, new_figure, wrap_title
+from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
 
 DISPLACEMENT_CMAP = "YlGnBu"
 ERROR_CMAP = "YlOrRd"

@@ -25,192 +25,16 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from workbench.errors import WorkbenchError
-from workbench.record import write_atomic
+from workbench.record import DONE, RunRecord, find_records, is_complete, load_record, write_atomic
+from workbench.reporting.runs import is_replicate_key, runs_table, summarise, t_interval, varying_keys, wide
+from workbench.tables import html_frame, markdown_frame
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS = ("png", "svg")
 QE_PROJECTIONS = {"QE": "affine", "QE-linear": "linear"}
-# Settings whose runs are replicates of one another: every seed (of the data, of a random draw of hand shapes).
-REPLICATE_SUFFIX = "seed"
-# Config keys that differ between runs without being a studied setting.
-IGNORED_KEYS = ("paths.", "save_inputs", "hydra")
-ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 REPORT_PACKAGES = ("matplotlib", "pyvista", "vtk", "pandas", "numpy")
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Reading records
-# ---------------------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class RunRecord:
-    """A complete run record as written by ``workbench.cli.run``.
-
-    Attributes
-    ----------
-    folder : pathlib.Path
-    config : dict
-        The resolved config (``config.yaml``).
-    table : pandas.DataFrame
-        ``alpha_table.csv``.
-    metrics : dict
-        ``metrics.json``.
-    """
-
-    folder: Path
-    config: dict
-    table: pd.DataFrame
-    metrics: dict
-
-    @property
-    def data_variants(self) -> list[str]:
-        return list(self.metrics["data"])
-
-    def inputs_path(self, data: str) -> Path:
-        single = self.folder / "inputs.npz"
-        return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
-
-    def load_inputs(self, data: str) -> dict | None:
-        """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
-        path = self.inputs_path(data)
-        if not path.is_file():
-            return None
-        with np.load(path, allow_pickle=False) as arrays:
-            return {key: arrays[key] for key in arrays.files}
-
-    def load_alpha_per_frame(self) -> dict | None:
-        path = self.folder / "alpha_per_frame.npz"
-        if not path.is_file():
-            return None
-        with np.load(path, allow_pickle=False) as arrays:
-            return {key: arrays[key] for key in arrays.files}
-
-
-def is_run(folder: Path) -> bool:
-    return (Path(folder) / "done").is_file()
-
-
-def load_run(folder: Path) -> RunRecord:
-    """Read a complete run record.
-
-    Parameters
-    ----------
-    folder : pathlib.Path
-
-    Returns
-    -------
-    RunRecord
-    """
-    folder = Path(folder)
-    if not is_run(folder):
-        raise WorkbenchError(f"{folder} is not a complete run record (no 'done' file)")
-    for name in ("config.yaml", "alpha_table.csv", "metrics.json"):
-        if not (folder / name).is_file():
-            raise WorkbenchError(f"run record {folder} has no {name}")
-    return RunRecord(folder=folder, config=yaml.safe_load((folder / "config.yaml").read_text()),
-                     table=pd.read_csv(folder / "alpha_table.csv", keep_default_na=False,
-                                       na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)}),
-                     metrics=json.loads((folder / "metrics.json").read_text()))
-
-
-def find_runs(folder: Path) -> list[Path]:
-    """Complete run records under ``folder`` (at any depth, the folder itself excluded), in natural order."""
-    folder = Path(folder)
-    found = [path.parent for path in folder.rglob("done") if path.parent != folder and is_run(path.parent)]
-    return sorted(found, key=lambda path: [int(part) if part.isdigit() else part
-                                           for part in path.relative_to(folder).parts])
-
-
-def flatten(config: Mapping, prefix: str = "") -> dict:
-    """Nested config -> ``{"dotted.key": value}``; lists become their text (``[markers, mesh]``)."""
-    flat = {}
-    for key, value in config.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            flat.update(flatten(value, f"{name}."))
-        elif isinstance(value, list):
-            flat[name] = "[" + ", ".join(str(item) for item in value) + "]"
-        else:
-            flat[name] = value
-    return flat
-
-
-def is_replicate_key(key: str) -> bool:
-    """Whether runs differing in this setting are replicates (``dataset.seed``, ``basis.subset_seed``, ...)."""
-    return key.rsplit(".", 1)[-1].endswith(REPLICATE_SUFFIX)
-
-
-def varying_keys(configs: Sequence[Mapping]) -> list[str]:
-    """Config keys whose value differs between runs, in config order, leaving out paths and the like."""
-    flat = [flatten(config) for config in configs]
-    keys = list(dict.fromkeys(key for config in flat for key in config))
-    return [key for key in keys if not key.startswith(IGNORED_KEYS)
-            and len({repr(config.get(key)) for config in flat}) > 1]
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Sweeps: tidy tables
-# ---------------------------------------------------------------------------------------------------------------
-
-
-def runs_table(records: Sequence[RunRecord], keys: Sequence[str], root: Path) -> pd.DataFrame:
-    """Every alpha-table row of every run, with the run folder and the given config keys as columns."""
-    parts = []
-    for record in records:
-        flat = flatten(record.config)
-        part = record.table.copy()
-        part.insert(0, "run", str(record.folder.relative_to(root)))
-        for key in keys:
-            part[key] = flat.get(key)
-        parts.append(part)
-    return pd.concat(parts, ignore_index=True)
-
-
-def summarise_runs(per_run: pd.DataFrame, by: Sequence[str], columns: Sequence[str] = ALPHA_COLUMNS,
-                   confidence: float = 0.95) -> pd.DataFrame:
-    """Mean and confidence interval over replicate runs (seeds) of every alpha column.
-
-    Parameters
-    ----------
-    per_run : pandas.DataFrame
-        From :func:`runs_table`: columns ``data``, ``basis``, ``projection``, ``solver``, ``m``, ``by`` and
-        ``columns``; one row per run and table row.
-    by : sequence of str
-        The swept settings; runs that agree on them (and differ only in seed) are replicates.
-    columns : sequence of str
-        Alpha columns to summarise.
-    confidence : float
-        Two-sided level of the Student-t interval of the mean; NaN with a single replicate.
-
-    Returns
-    -------
-    pandas.DataFrame
-        The tidy table of :mod:`workbench.figures.studies`: ``by``, ``data``, ``basis``, ``projection``,
-        ``solver``, ``n_seeds``, ``m`` and ``n`` (means), and per column its mean, ``<column>_ci_low``,
-        ``<column>_ci_high``.
-    """
-    from scipy import stats
-
-    keys = [*by, "data", "basis", "projection", "solver"]
-    records = []
-    for values, group in per_run.groupby(keys, sort=False, dropna=False):
-        row = dict(zip(keys, values))
-        n = len(group)
-        row["n_seeds"] = n
-        row["m"] = float(group["m"].mean())
-        row["n"] = float(group["n"].mean())
-        for column in columns:
-            mean = float(group[column].mean())
-            half = (stats.t.ppf(0.5 + confidence / 2, n - 1) * float(group[column].std(ddof=1)) / math.sqrt(n)
-                    if n > 1 else math.nan)
-            row.update({column: mean, f"{column}_ci_low": mean - half, f"{column}_ci_high": mean + half})
-        records.append(row)
-    summary = pd.DataFrame.from_records(records)
-    return summary.sort_values([*by], kind="stable", ignore_index=True) if by else summary
 
 
 def hand_basis_size(summary: pd.DataFrame, by: Sequence[str]) -> pd.Series:
@@ -359,14 +183,14 @@ def _appended_axes(record: RunRecord, data: str, label: str) -> list[int]:
 
 
 def draw_analogy():
-    from workbench.figures.analogy import figure_analogy, make_analogy_example
+    from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
 
     return figure_analogy(make_analogy_example(np.random.default_rng(ANALOGY_SEED)))
 
 
 def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = None):
     """Figure 2 from a record, or the reason it cannot be drawn."""
-    from workbench.figures.faces import figure_hand_vs_quasi_eigen, spread_by_rank
+    from workbench.reporting.figures.faces import figure_hand_vs_quasi_eigen, spread_by_rank
 
     found = _mesh_variant(record)
     if found is None:
@@ -397,7 +221,7 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
 
 def draw_reconstructions(record: RunRecord, n_frames: int = 3):
     """Figure 3 from a record, or the reason it cannot be drawn."""
-    from workbench.figures.faces import expressive_frames, figure_reconstructions
+    from workbench.reporting.figures.faces import expressive_frames, figure_reconstructions
 
     found = _mesh_variant(record)
     if found is None:
@@ -425,8 +249,8 @@ def draw_reconstructions(record: RunRecord, n_frames: int = 3):
 
 def draw_marker_errors(record: RunRecord):
     """Figure 4 from a record, or the reason it cannot be drawn."""
-    from workbench.figures import basis_label
-    from workbench.figures.faces import expressive_frames, figure_marker_errors
+    from workbench.reporting.figures import basis_label
+    from workbench.reporting.figures.faces import expressive_frames, figure_marker_errors
 
     found = _marker_variant(record)
     if found is None:
@@ -459,7 +283,7 @@ def draw_marker_errors(record: RunRecord):
 
 
 def draw_coverage_curve(record: RunRecord):
-    from workbench.figures.studies import plot_coverage_curve
+    from workbench.reporting.figures.studies import plot_coverage_curve
 
     pca = {data: values["pca"] for data, values in record.metrics["data"].items()}
     basis = record.config["basis"]
@@ -471,7 +295,7 @@ def draw_coverage_curve(record: RunRecord):
 
 
 def draw_alpha_over_time(record: RunRecord):
-    from workbench.figures.studies import plot_alpha_over_time
+    from workbench.reporting.figures.studies import plot_alpha_over_time
 
     arrays = record.load_alpha_per_frame()
     if arrays is None:
@@ -491,7 +315,7 @@ def draw_alpha_over_time(record: RunRecord):
 
 
 def draw_marker_vs_mesh(record: RunRecord):
-    from workbench.figures.studies import plot_marker_vs_mesh
+    from workbench.reporting.figures.studies import plot_marker_vs_mesh
 
     if record.table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
@@ -533,7 +357,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
 
 def make_figures(specs, argument, folder: Path, formats: Sequence[str], options: Mapping) -> list[FigureEntry]:
     """Draw and save each figure of ``specs``; a figure that cannot be drawn is listed with the reason."""
-    from workbench.figures import save_figure
+    from workbench.reporting.figures import save_figure
 
     entries = []
     for stem, title, caption, draw in specs:
@@ -566,7 +390,7 @@ def headline_table(table: pd.DataFrame, column: str) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        An alpha table (``workbench.report.TABLE_COLUMNS``).
+        An alpha table (``workbench.run_text.TABLE_COLUMNS``).
     column : str
         The measured alpha column.
 
@@ -732,50 +556,6 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str) ->
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def cell_text(column: str, value) -> str:
-    """Text of one table cell: the alpha table's decimals per column (also for ``<column>_ci_low``,
-    ``<column>_ci_high`` and ``<column> <solver>``), ``-`` for a missing number, four significant digits for
-    other floats."""
-    from workbench.report import FLOAT_FORMATS
-
-    if value is None or (isinstance(value, (float, np.floating)) and math.isnan(value)):
-        return "-"
-    base = column.split(" ")[0].removesuffix("_ci_low").removesuffix("_ci_high")
-    if isinstance(value, (float, np.floating)):
-        if base in FLOAT_FORMATS:
-            return FLOAT_FORMATS[base].format(value)
-        if base in ("relative", "cosine", *INTUITIVENESS_COLUMNS):  # intuitiveness columns
-            return f"{value:.3f}"
-        return f"{value:.4g}"
-    return str(value)
-
-
-def table_cells(frame: pd.DataFrame) -> tuple[list[str], list[list[str]], list[bool]]:
-    """Header, cell texts and which columns are numeric (right-aligned) of a table."""
-    columns = [str(column) for column in frame.columns]
-    numeric = [pd.api.types.is_numeric_dtype(frame[column]) and not pd.api.types.is_bool_dtype(frame[column])
-               for column in frame.columns]
-    rows = [[cell_text(column, value) for column, value in zip(columns, values)]
-            for values in frame.itertuples(index=False)]
-    return columns, rows, numeric
-
-
-def markdown_frame(frame: pd.DataFrame) -> str:
-    """GitHub-flavoured Markdown of a table, numbers right-aligned (the layout of the printed alpha table)."""
-    columns, rows, numeric = table_cells(frame)
-    # A pipe inside a cell would end the cell in Markdown.
-    rows = [[text.replace("|", "\\|") for text in row] for row in rows]
-    widths = [max([len(column)] + [len(row[i]) for row in rows]) for i, column in enumerate(columns)]
-
-    def line(values):
-        return "| " + " | ".join(value.rjust(width) if is_number else value.ljust(width)
-                                 for value, width, is_number in zip(values, widths, numeric)) + " |"
-
-    rule = "|" + "|".join(("-" * (width + 1) + ":") if is_number else ("-" * (width + 2))
-                          for width, is_number in zip(widths, numeric)) + "|"
-    return "\n".join([line(columns), rule] + [line(row) for row in rows]) + "\n"
-
-
 def render_markdown(title: str, sections: Sequence[Section]) -> str:
     """README.md of a report."""
     out = [f"# {title}", ""]
@@ -810,19 +590,6 @@ def _inline_markdown(text: str) -> str:
     text = html.escape(text)
     text = re.sub(r"`([^`]+)`", r"<code>\1</code>", text)
     return re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", text)
-
-
-def _cell_class(text: str, is_number: bool) -> str:
-    """``num`` (right-aligned), ``short`` (kept on one line) or ``txt`` (wraps)."""
-    return "num" if is_number else ("short" if len(text) <= 24 else "txt")
-
-
-def _html_table(frame: pd.DataFrame) -> str:
-    columns, rows, numeric = table_cells(frame)
-    head = "".join(f"<th>{html.escape(column)}</th>" for column in columns)
-    body = "".join("<tr>" + "".join(f"<td class=\"{_cell_class(text, is_number)}\">{html.escape(text)}</td>"
-                                    for text, is_number in zip(row, numeric)) + "</tr>" for row in rows)
-    return f"<div class=\"scroll\"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>"
 
 
 def _html_figure(entry: FigureEntry) -> str:
@@ -860,7 +627,7 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
             if isinstance(block, FigureEntry):
                 body.append(_html_figure(block))
             elif isinstance(block, pd.DataFrame):
-                body.append(_html_table(block))
+                body.append(html_frame(block))
             elif isinstance(block, list):
                 body.append("<ul>" + "".join(f"<li>{_inline_markdown(line)}</li>" for line in block) + "</ul>")
             else:
@@ -878,7 +645,7 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
 def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str]) -> list:
     """Figure specs of a sweep report: the first run's coverage curve, alpha against each swept setting (and
     against m for a coverage sweep), and marker versus mesh when the sweep ran on two data variants."""
-    from workbench.figures.studies import axis_label, plot_alpha_against, plot_marker_vs_mesh
+    from workbench.reporting.figures.studies import axis_label, plot_alpha_against, plot_marker_vs_mesh
 
     first = records[0]
     column = headline_column(first.config)
@@ -978,8 +745,8 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
     return pd.DataFrame.from_records(rows)
 
 
-def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str], confidence: float = 0.95) -> pd.DataFrame:
-    """Mean and Student-t confidence interval over runs (seeds) per data variant and basis.
+def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
+    """Mean and Student-t 95 % confidence interval over runs (seeds) per data variant and basis.
 
     Returns
     -------
@@ -987,17 +754,13 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str], confi
         ``data``, ``basis``, ``n`` (mean: PCA's m can differ between takes), ``n_seeds``, then per column its
         mean, ``<column>_ci_low`` and ``<column>_ci_high`` (NaN with a single run).
     """
-    from scipy import stats
-
     records = []
     for (data, basis), group in per_run.groupby(["data", "basis"], sort=False):
-        count = len(group)
-        row = {"data": data, "basis": basis, "n": float(group["n"].mean()), "n_seeds": count}
+        row = {"data": data, "basis": basis, "n": float(group["n"].mean()), "n_seeds": len(group)}
         for column in columns:
-            mean = float(group[column].mean())
-            half = (stats.t.ppf(0.5 + confidence / 2, count - 1) * float(group[column].std(ddof=1)) / math.sqrt(count)
-                    if count > 1 else math.nan)
-            row.update({column: mean, f"{column}_ci_low": mean - half, f"{column}_ci_high": mean + half})
+            interval = t_interval(group[column].to_numpy(float))
+            row.update({column: interval["mean"], f"{column}_ci_low": interval["ci95_low"],
+                        f"{column}_ci_high": interval["ci95_high"]})
         records.append(row)
     return pd.DataFrame.from_records(records)
 
@@ -1007,7 +770,7 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     """The report's sections with one on the other bases inserted before its figures: the table of alpha,
     closeness, locality and usage of every basis (means over the runs) and the figure of alpha against each.
     Unchanged when no run scored other bases."""
-    from workbench.figures.studies import plot_alpha_against_intuitiveness
+    from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
 
     found = [(record, basis_intuitiveness_rows(record)) for record in records]
     found = [(record, frame) for record, frame in found if not frame.empty]
@@ -1036,7 +799,7 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
         f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
         f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
                                                   else "one run."),
-        [f"`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
+        ["`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
          "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
          f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
          "element's squared displacement, mean over elements (small: local).",
@@ -1111,14 +874,11 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
         ``out / "index.html"``.
     """
     root, out = Path(root), Path(out)
-    folders = find_runs(root)
-    if not folders:
-        raise WorkbenchError(f"{root} holds no complete run record (folders with a 'done' file)")
-    records = [load_run(folder) for folder in folders]
+    records = sweep_records(root)
+    per_run = runs_table(records, root)
     keys = varying_keys([record.config for record in records])
     swept = [key for key in keys if not is_replicate_key(key) and key != "dataset.train_on"]
-    per_run = runs_table(records, keys, root)
-    summary = summarise_runs(per_run, swept)
+    summary = wide(summarise(per_run, over=[key for key in keys if key not in swept]))
     paper = per_run.groupby("basis", sort=False)["paper_alpha"].first()
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
@@ -1142,12 +902,45 @@ def _write_documents(out: Path, title: str, sections: Sequence[Section]) -> None
     write_atomic(out / "README.md", render_markdown(title, sections))
 
 
+def sweep_records(root: Path) -> list[RunRecord]:
+    """The complete run records under a sweep folder (the folder itself excluded), in natural order."""
+    folders = [folder for folder in find_records([root])[0] if folder != Path(root)]
+    if not folders:
+        raise WorkbenchError(f"{root} holds no complete run record (folders with a '{DONE}' file)")
+    return [load_record(folder) for folder in folders]
+
+
+REPORT_FOLDER = "report"
+"""Default report folder, inside the run or sweep folder it reports on."""
+
+
+def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
+    """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference``, else
+    ``<folder>/report`` beside the runs."""
+    from workbench.config import REPO_ROOT
+
+    if out is not None and reference:
+        raise WorkbenchError("give either --out or --reference, not both")
+    if name is not None and not reference:
+        raise WorkbenchError("--name names a reference report; it goes with --reference")
+    if reference:
+        name = name or default_report_name(config)
+        if not name or Path(name).name != name or name in (".", ".."):
+            raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
+        return REPO_ROOT / "reports" / name
+    return Path(out) if out is not None else Path(folder) / REPORT_FOLDER
+
+
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="workbench report", description="Build the report of a run record or of a sweep folder.")
-    parser.add_argument("folder", type=Path, help="a run record (holds 'done') or a folder of run records")
-    parser.add_argument("--out", type=Path, default=Path("reports"), help="reports root (default: reports)")
-    parser.add_argument("--name", help="report folder name (default: the study, plus the dataset unless synthetic)")
+        prog="workbench report", description="Build the report of a run record or of a sweep folder, from its "
+        "records only. It goes into <folder>/report unless --out or --reference says otherwise.")
+    parser.add_argument("folder", type=Path, help=f"a run record (holds '{DONE}') or a folder of run records")
+    parser.add_argument("--out", type=Path, help="the report folder (default: <folder>/report)")
+    parser.add_argument("--reference", action="store_true",
+                        help="(re)write the workbench's committed reference report reports/<name> of the checkout")
+    parser.add_argument("--name", help="with --reference: the report's folder name (default: the study, plus the "
+                                       "dataset unless synthetic)")
     parser.add_argument("--formats", default=",".join(FIGURE_FORMATS),
                         help="figure formats besides PNG, comma-separated: svg, pdf (default: png,svg)")
     parser.add_argument("--shapes", help="figure 2: four hand-shape names, comma-separated")
@@ -1155,7 +948,7 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str]) -> int:
-    """``workbench report <folder> [--out reports] [--name NAME] [--formats png,svg] [--shapes a,b,c,d]``."""
+    """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,svg] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
     formats = [fmt.strip() for fmt in args.formats.split(",") if fmt.strip()]
     unknown = sorted(set(formats) - {"png", "svg", "pdf"})
@@ -1165,16 +958,14 @@ def main(argv: Sequence[str]) -> int:
     if not folder.is_dir():
         raise WorkbenchError(f"{folder} is not a folder")
     command = "workbench report " + " ".join(argv)
-    if is_run(folder):
-        record = load_run(folder)
-        out = args.out / (args.name or default_report_name(record.config))
+    if is_complete(folder):
+        record = load_record(folder)
+        out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
         options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
-        runs = find_runs(folder)
-        if not runs:
-            raise WorkbenchError(f"{folder} holds no complete run record (folders with a 'done' file)")
-        out = args.out / (args.name or default_report_name(load_run(runs[0]).config))
+        first = sweep_records(folder)[0]
+        out = report_folder(folder, first.config, out=args.out, reference=args.reference, name=args.name)
         index = build_sweep_report(folder, out, formats=formats, command=command)
     print(f"report: {index}")
     return 0

@@ -1,0 +1,259 @@
+"""``workbench collect``: gather run records into tidy tables, summaries over seeds and alpha tables.
+
+Reads only complete records of one or many sweeps (through :mod:`workbench.record`), never recomputes; the tables
+come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do. Writes into the
+output folder:
+
+- ``runs.csv`` / ``runs.parquet``: one row per run and alpha-table row (data, basis, projection, solver), with
+  the config keys that differ between runs as columns, its metrics, sizes and stage timings;
+- ``summary.csv`` / ``summary.parquet``: long form, one row per condition, table row and metric, with the mean,
+  standard deviation and 95 % t-interval over the replicate (seed) settings;
+- ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``mean ± half-width`` with conditions as rows and
+  bases as columns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import WorkbenchError
+from workbench.record import DONE, write_atomic
+from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, config_columns, replicate_columns,
+                                      summarise)
+from workbench.tables import FLOAT_FORMATS, is_missing, latex_table, markdown_table
+
+EXTRA_FORMATS = {"m": "{:.1f}", "n": "{:.1f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
+ALPHA_METRICS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
+
+
+def format_value(value) -> str:
+    """Text of a condition value in a table: ``-`` for missing, ``:g`` for floats."""
+    if is_missing(value):
+        return "-"
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (float, np.floating)):
+        return f"{value:g}"
+    return str(value)
+
+
+def format_estimate(mean: float, half: float, number_format: str) -> str:
+    """``mean ± half`` in a column's number format; just the mean when there is no interval."""
+    if math.isnan(mean):
+        return "-"
+    if math.isnan(half):
+        return number_format.format(mean)
+    return f"{number_format.format(mean)} ± {number_format.format(half)}"
+
+
+def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns: str = "basis",
+               where: Mapping[str, str] | None = None, extra: Sequence[str] = ("m",)) -> tuple[list, list, int]:
+    """Lay a summary out as a grid: conditions down, ``columns`` across, ``mean ± half-width`` in the cells.
+
+    Rows are the condition columns and table-row keys that vary (``projection`` is implied by the basis label;
+    ``train_on``/``eval_on`` by ``data``). PCA has no solver, so a ``solver`` filter or a ``solver`` row keeps
+    PCA's value beside every solver.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        From :func:`summarise`.
+    metric : str
+        The metric in the cells (ignored when ``columns`` is ``metric``).
+    columns : str
+        The key whose values become columns: ``basis``, or ``metric`` for the four alpha variants side by side.
+    where : mapping, optional
+        Keep rows whose column has this value (text comparison), e.g. ``{"solver": "lstsq"}``.
+    extra : sequence of str
+        Metrics shown as columns after the row keys (their value in the row's first cell), e.g. ``m``.
+
+    Returns
+    -------
+    header : list of str
+    rows : list of list of str
+    n_row_keys : int
+        How many leading columns are row keys (text, left-aligned).
+    """
+    available = list(dict.fromkeys(summary["metric"]))
+    shown = [name for name in ALPHA_METRICS if name in available] if columns == "metric" else [metric]
+    if not shown or any(name not in available for name in shown):
+        raise WorkbenchError(f"collect --metric must be one of {available}, got {metric!r}")
+    table = summary
+    for key, value in (where or {}).items():
+        if key not in table.columns:
+            raise WorkbenchError(f"collect --where: {key!r} is not a column of the summary")
+        keep = table[key].map(format_value) == str(value)
+        if key == "solver":
+            keep |= table["solver"] == PCA_SOLVER
+        table = table[keep]
+    if table.empty:
+        raise WorkbenchError(f"collect --where {dict(where or {})} leaves no rows")
+    table = _pca_beside_every_solver(table)
+    candidates = [key for key in table.columns if key not in STATISTICS + (columns, "metric", "projection",
+                                                                           "train_on", "eval_on")]
+    row_keys = [key for key in candidates if table[key].map(format_value).nunique() > 1] or candidates[:1]
+    extras = [name for name in extra if name in available]
+    column_values = shown if columns == "metric" else list(dict.fromkeys(table[columns]))
+    header = row_keys + extras + [format_value(value) for value in column_values]
+    rows = []
+    for values, group in table.groupby(row_keys, sort=False, dropna=False):
+        values = values if isinstance(values, tuple) else (values,)
+        line = [format_value(value) for value in values]
+        for name in extras:
+            found = group[group["metric"] == name]
+            half = found["ci95_half"].iloc[0] if len(found) else math.nan
+            line.append(format_estimate(found["mean"].iloc[0], math.nan if half == 0 else half,
+                                        EXTRA_FORMATS.get(name, "{:.3f}")) if len(found) else "-")
+        for value in column_values:
+            name = value if columns == "metric" else metric
+            found = group[(group["metric"] == name) & ((columns == "metric") | (group[columns] == value))]
+            line.append(format_estimate(found["mean"].iloc[0], found["ci95_half"].iloc[0],
+                                        FLOAT_FORMATS.get(name, "{:.3f}")) if len(found) else "-")
+        rows.append(line)
+    return header, rows, len(row_keys)
+
+
+def _pca_beside_every_solver(table: pd.DataFrame) -> pd.DataFrame:
+    solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != PCA_SOLVER]
+    pca = table[table["solver"] == PCA_SOLVER]
+    if not solvers or pca.empty:
+        return table
+    parts = [table[table["solver"] != PCA_SOLVER]] + [pca.assign(solver=solver) for solver in solvers]
+    combined = pd.concat(parts, ignore_index=True)
+    # keep the solvers' order and, within one, the conditions' order of the summary
+    combined["_solver_rank"] = combined["solver"].map({solver: i for i, solver in enumerate(solvers)})
+    combined["_row"] = range(len(combined))
+    return combined.sort_values(["_solver_rank", "_row"], kind="stable").drop(columns=["_solver_rank", "_row"])
+
+
+def caption(summary: pd.DataFrame, metric: str, columns: str, where: Mapping[str, str] | None,
+            over: Sequence[str]) -> str:
+    """One line naming the metric, the filters and how many replicates each cell averages."""
+    counted = ALPHA_METRICS[0] if columns == "metric" else metric
+    counts = summary.loc[summary["metric"] == counted, "n"]
+    n_text = f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
+    what = "alpha (%) by metric" if columns == "metric" else f"{metric} (%)" if metric.startswith("alpha") \
+        else metric
+    filters = "".join(f", {key} = {value}" for key, value in (where or {}).items())
+    replicates = ", ".join(over) if over else "no replicate key"
+    return f"{what}{filters}; mean ± half-width of the 95 % t-interval over {replicates} (n = {n_text} per cell)"
+
+
+def parquet_bytes(table: pd.DataFrame) -> bytes:
+    buffer = io.BytesIO()
+    table.to_parquet(buffer, index=False)
+    return buffer.getvalue()
+
+
+def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_abs_mean",
+                      where: Mapping[str, str] | None = None, columns: str = "basis",
+                      extra: Sequence[str] = ("m",), over: Sequence[str] | None = None) -> dict:
+    """Collect the records under ``paths`` and write the runs table, the summary and the alpha table to ``out``.
+
+    Parameters
+    ----------
+    paths : iterable of pathlib.Path
+        Sweep folders (or run folders, or folders holding several sweeps).
+    out : pathlib.Path
+    metric, where, columns, extra
+        Layout of the alpha table (see :func:`alpha_grid`).
+    over : sequence of str, optional
+        Replicate columns (default: config columns naming a seed).
+
+    Returns
+    -------
+    dict
+        ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text) and ``files`` (paths written).
+    """
+    paths = [Path(path) for path in paths]
+    runs, incomplete = collect_runs(paths)
+    over = replicate_columns(config_columns(runs)) if over is None else list(over)
+    summary = summarise(runs, over)
+    header, rows, n_text = alpha_grid(summary, metric=metric, columns=columns, where=where, extra=extra)
+    title = caption(summary, metric, columns, where, over)
+    numeric = [i >= n_text for i in range(len(header))]
+    markdown = title + "\n\n" + markdown_table(header, rows, numeric)
+    out = Path(out)
+    files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
+             "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),
+             "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title)}
+    for name, content in files.items():
+        write_atomic(out / name, content)
+    n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
+    return {"n_runs": n_runs, "n_incomplete": len(incomplete), "markdown": markdown,
+            "files": [out / name for name in files]}
+
+
+def parse_where(items: Sequence[str]) -> dict:
+    where = {}
+    for item in items:
+        key, separator, value = item.partition("=")
+        if not separator or not key:
+            raise WorkbenchError(f"collect --where must be KEY=VALUE, got {item!r}")
+        where[key] = value
+    return where
+
+
+def main(argv: Sequence[str]) -> int:
+    """``workbench collect SWEEP_DIR [SWEEP_DIR ...] [--out DIR] [--metric M] [--where K=V] ...``."""
+    parser = argparse.ArgumentParser(
+        prog="workbench collect",
+        description=f"Gather run records (folders with a '{DONE}' marker) of one or many sweeps into runs.csv/"
+                    ".parquet, summary.csv/.parquet (mean and 95%% t-interval over seeds) and alpha_table.md/.tex.")
+    parser.add_argument("paths", nargs="+", type=Path, help="sweep folders, run folders or folders above them")
+    parser.add_argument("--out", type=Path, help="output folder (default: <the one path>/collected)")
+    parser.add_argument("--metric", default="alpha_abs_mean", help="metric of the alpha table")
+    parser.add_argument("--where", action="append", default=[], metavar="KEY=VALUE",
+                        help="keep only rows with this value, e.g. solver=lstsq (repeatable)")
+    parser.add_argument("--columns", default="basis", help="key whose values become the table's columns")
+    parser.add_argument("--extra", default="m", help="comma-separated metrics shown beside the row keys")
+    parser.add_argument("--over", help="comma-separated replicate columns (default: the config keys naming a seed)")
+    args = parser.parse_args(list(argv))
+    if args.out is None and len(args.paths) != 1:
+        raise WorkbenchError("collect: give --out when collecting more than one path")
+    out = args.out or args.paths[0] / "collected"
+    written = collect_and_write(
+        args.paths, out, metric=args.metric, where=parse_where(args.where), columns=args.columns,
+        extra=[name for name in args.extra.split(",") if name],
+        over=None if args.over is None else [name for name in args.over.split(",") if name])
+    print(written["markdown"], end="")
+    note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""
+    print(f"collected {written['n_runs']} runs into {out}{note}")
+    return 0
+
+
+try:
+    from hydra.experimental.callback import Callback
+except ImportError:  # pragma: no cover - Hydra is a dependency; this keeps the module importable without it
+    Callback = object
+
+
+class CollectSweep(Callback):
+    """Hydra callback: when a study's sweep ends, collect its records into tables (the study's report step).
+
+    Configured in a study's ``hydra.callbacks.collect`` with the layout of its alpha table; the arguments are
+    those of :func:`collect_and_write`.
+    """
+
+    def __init__(self, **layout):
+        self.layout = layout
+
+    def on_multirun_end(self, config, **kwargs) -> None:
+        import sys
+
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        try:
+            written = collect_and_write([sweep_dir], sweep_dir / "collected", **self.layout)
+        except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
+            print(f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
+                  file=sys.stderr)
+            return
+        print(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}")
+        print(written["markdown"], end="")

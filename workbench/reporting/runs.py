@@ -1,0 +1,245 @@
+"""The tidy runs table of many run records, and its summary over replicates (seeds).
+
+``workbench collect`` and ``workbench report`` both build their tables here, from records read through
+:class:`workbench.record.RunRecord`, so the two never disagree about the same sweep.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from workbench.errors import WorkbenchError
+from workbench.record import ALPHA_COLUMNS, DONE, RunRecord, find_records, load_record
+from workbench.tables import is_missing
+
+ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
+"""Columns that name one row of a run's alpha table."""
+SUMMARY_METRICS = (*ALPHA_COLUMNS, "m", "coverage", "n", "n_points", "time_total")
+"""Columns of the runs table summarised over replicates (those present)."""
+IGNORED_KEYS = ("paths.", "save_inputs", "hydra", "study")
+"""Config keys that differ between runs without being a studied setting."""
+REPLICATE_SUFFIX = "seed"
+"""Settings whose runs are replicates of one another: every seed (of the data, of a random draw of shapes)."""
+CONFIDENCE = 0.95
+STATISTICS = ("n", "mean", "std", "ci95_half", "ci95_low", "ci95_high")
+PCA_SOLVER = "projection"
+
+
+def flatten(config: Mapping, prefix: str = "") -> dict:
+    """Nested config -> ``{"dotted.key": value}``; lists become their text (``[markers, mesh]``)."""
+    flat = {}
+    for key, value in config.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, f"{name}."))
+        elif isinstance(value, list):
+            flat[name] = "[" + ", ".join(str(item) for item in value) + "]"
+        else:
+            flat[name] = value
+    return flat
+
+
+def is_replicate_key(key: str) -> bool:
+    """Whether runs differing in this setting are replicates (``dataset.seed``, ``basis.subset_seed``, ...)."""
+    return key.rsplit(".", 1)[-1].endswith(REPLICATE_SUFFIX)
+
+
+def varying_keys(configs: Sequence[Mapping]) -> list[str]:
+    """Config keys whose value differs between runs, in config order, leaving out paths and the like."""
+    flat = [flatten(config) for config in configs]
+    keys = list(dict.fromkeys(key for config in flat for key in config))
+    return [key for key in keys if not key.startswith(IGNORED_KEYS)
+            and len({repr(config.get(key)) for config in flat}) > 1]
+
+
+def natural_key(value) -> tuple:
+    """Sort key: numbers by value, text with embedded numbers naturally (``random3`` before ``random12``),
+    missing values last."""
+    if is_missing(value):
+        return (2, ())
+    if isinstance(value, (bool, np.bool_, int, float, np.integer, np.floating)):
+        return (0, (float(value),))
+    return (1, tuple((0, int(part), "") if part.isdigit() else (1, 0, part)
+                     for part in re.findall(r"\d+|\D+", str(value))))
+
+
+def config_columns(runs: pd.DataFrame) -> list[str]:
+    """The columns holding config values: their keys have dots (``basis.coverage``); no other column has one."""
+    return [column for column in runs.columns if "." in column]
+
+
+def replicate_columns(columns: Iterable[str]) -> list[str]:
+    """Config columns that are replicates (averaged over): those whose last key part names a seed."""
+    return [column for column in columns if is_replicate_key(column)]
+
+
+def typed_columns(runs: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """Give config columns one type each (numbers, booleans or text) so the table writes to Parquet."""
+    runs = runs.copy()
+    for column in columns:
+        values = [value for value in runs[column] if not is_missing(value)]
+        if values and all(isinstance(value, (bool, np.bool_)) for value in values):
+            runs[column] = runs[column].astype("boolean")
+        elif values and all(isinstance(value, (int, float, np.integer, np.floating))
+                            and not isinstance(value, (bool, np.bool_)) for value in values):
+            runs[column] = pd.to_numeric(runs[column])
+        else:
+            runs[column] = [None if is_missing(value) else str(value) for value in runs[column]]
+    return runs
+
+
+def record_rows(record: RunRecord, keys: Sequence[str], root: Path | None = None) -> list[dict]:
+    """One run's rows of the runs table: the run's identity, its values of ``keys``, then per alpha-table row
+    that row's values, the data variant's sizes and the stage timings."""
+    flat = flatten(record.config)
+    run = {"study": record.study, "sweep": str(record.folder.parent),
+           "run": str(record.folder.relative_to(root)) if root is not None else record.folder.name,
+           "job_num": record.job_num, "config_hash": record.config_hash,
+           "git_commit": record.git.get("commit"), "git_dirty": record.git.get("dirty")}
+    run.update({key: flat.get(key) for key in keys})
+    rows = []
+    for row in record.rows():
+        data = record.metrics["data"].get(row["data"], {})
+        entry = {**run, **{key: value for key, value in row.items() if not isinstance(value, (dict, list))}}
+        entry.setdefault("train_on", row["data"])
+        entry.setdefault("eval_on", row["data"])
+        entry.update(n_points=data.get("n_points"), n_train_frames=data.get("n_train_frames"),
+                     n_eval_frames=data.get("n_eval_frames"))
+        entry.update({f"time_{stage}": seconds for stage, seconds in record.timings.items()})
+        rows.append(entry)
+    return rows
+
+
+def runs_table(records: Sequence[RunRecord], root: Path | None = None) -> pd.DataFrame:
+    """Every alpha-table row of every run, one row each: the tidy runs table.
+
+    Parameters
+    ----------
+    records : sequence of RunRecord
+    root : pathlib.Path, optional
+        Run names are paths relative to it (default: the run folders' names).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``study``, ``sweep``, ``run``, ``job_num``, ``config_hash``, ``git_commit``, ``git_dirty``, the config
+        keys that differ between the runs (dotted names, typed), :data:`ROW_KEYS`, the alpha-table columns, the
+        solver diagnostics, ``n_points``, ``n_train_frames``, ``n_eval_frames`` and ``time_<stage>``; sorted by
+        sweep, then the sweep's job order, then the config values in natural order.
+    """
+    if not records:
+        raise WorkbenchError("no run records to tabulate")
+    keys = varying_keys([record.config for record in records])
+    runs = pd.DataFrame.from_records([row for record in records for row in record_rows(record, keys, root)])
+    sweeps = {sweep: i for i, sweep in enumerate(dict.fromkeys(runs["sweep"]))}
+    order_keys = ["study", "sweep", "job_num", *keys]
+    order = sorted(range(len(runs)), key=lambda i: tuple(
+        (0, (sweeps[runs["sweep"].iloc[i]],)) if key == "sweep" else natural_key(runs[key].iloc[i])
+        for key in order_keys))
+    runs = runs.iloc[order].reset_index(drop=True)
+    return typed_columns(runs, keys)
+
+
+def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
+    """The runs table of every complete record under ``paths``.
+
+    Returns
+    -------
+    runs : pandas.DataFrame
+    incomplete : list of pathlib.Path
+        Run folders without a completion marker (left out).
+    """
+    from workbench.progress import progress
+
+    paths = [Path(path) for path in paths]
+    complete, incomplete = find_records(paths)
+    if not complete:
+        raise WorkbenchError(f"no complete run record (a folder with '{DONE}') under "
+                             f"{', '.join(map(str, paths))}")
+    records = [load_record(folder) for folder in progress(complete, desc="records")]
+    root = paths[0] if len(paths) == 1 and paths[0] not in complete else None
+    return runs_table(records, root), incomplete
+
+
+def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> dict:
+    """Mean and two-sided Student-t confidence interval of the mean of replicate values (NaNs left out).
+
+    Parameters
+    ----------
+    values : sequence of float
+    confidence : float
+
+    Returns
+    -------
+    dict
+        ``n``, ``mean``, ``std`` (sample, ddof 1), ``ci95_half`` (``t_{(1+c)/2, n-1} std / sqrt(n)``),
+        ``ci95_low``, ``ci95_high``; the spread is NaN with fewer than two values.
+    """
+    from scipy import stats
+
+    values = np.asarray(values, dtype=np.float64)
+    values = values[~np.isnan(values)]
+    n = int(values.size)
+    mean = float(values.mean()) if n else math.nan
+    if n < 2:
+        std = half = math.nan
+    else:
+        std = float(values.std(ddof=1))
+        half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1) * std / math.sqrt(n))
+    return {"n": n, "mean": mean, "std": std, "ci95_half": half, "ci95_low": mean - half, "ci95_high": mean + half}
+
+
+def summarise(runs: pd.DataFrame, over: Sequence[str] | None = None,
+              metrics: Sequence[str] = SUMMARY_METRICS, row_keys: Sequence[str] = ROW_KEYS) -> pd.DataFrame:
+    """Mean and 95 % t-interval of every metric over the replicate settings, per condition and table row.
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        From :func:`runs_table`.
+    over : sequence of str, optional
+        Replicate columns; default the config columns naming a seed (:func:`replicate_columns`).
+    metrics : sequence of str
+        Columns to summarise (those present).
+    row_keys : sequence of str
+        Columns naming a row within a condition.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Long form: ``study``, the condition columns, ``row_keys``, ``metric``, ``n``, ``mean``, ``std``,
+        ``ci95_half``, ``ci95_low``, ``ci95_high``.
+    """
+    conditions = config_columns(runs)
+    over = replicate_columns(conditions) if over is None else list(over)
+    unknown = [column for column in over if column not in runs.columns]
+    if unknown:
+        raise WorkbenchError(f"--over: {unknown} are not config columns of these runs ({conditions})")
+    keys = ["study"] + [column for column in conditions if column not in over] + list(row_keys)
+    present = [column for column in metrics if column in runs.columns]
+    records = []
+    for group_values, group in runs.groupby(keys, sort=False, dropna=False):
+        for metric in present:
+            records.append(dict(zip(keys, group_values), metric=metric,
+                                **t_interval(pd.to_numeric(group[metric], errors="coerce").to_numpy(float))))
+    return pd.DataFrame.from_records(records)
+
+
+def wide(summary: pd.DataFrame) -> pd.DataFrame:
+    """A long summary as one row per condition and table row: per metric its mean, ``<metric>_ci_low`` and
+    ``<metric>_ci_high``, and ``n_seeds`` (the replicate count of the first metric)."""
+    keys = [column for column in summary.columns if column not in (*STATISTICS, "metric")]
+    records = []
+    for values, group in summary.groupby(keys, sort=False, dropna=False):
+        row = dict(zip(keys, values), n_seeds=int(group["n"].iloc[0]))
+        for entry in group.itertuples(index=False):
+            row.update({entry.metric: entry.mean, f"{entry.metric}_ci_low": entry.ci95_low,
+                        f"{entry.metric}_ci_high": entry.ci95_high})
+        records.append(row)
+    return pd.DataFrame.from_records(records)
