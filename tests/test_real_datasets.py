@@ -79,7 +79,7 @@ def test_animface_markers_and_mesh(animface, shared_data):
     markers, mesh = animface["markers"], animface["mesh"]
     n_frames = sum(len(range(0, n, 20)) for n in (1590, 1499, 902))
     assert markers.train.shape == (n_frames, 123) and mesh.train.shape == (n_frames, 3 * 9409)
-    assert markers.point_labels[0] == "ForeHead_M" and markers.frame_rate == 60.0 and markers.units == "mm"
+    assert markers.point_labels[0] == "ForeHead_M" and markers.frame_rate == 3.0 and markers.units == "mm"
     for capture in (markers, mesh):
         assert "performer and basis come from different faces" in capture.notes[0]
         assert any("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0" in credit
@@ -94,6 +94,29 @@ def test_animface_markers_and_mesh(animface, shared_data):
     assert 0.9 < scale < 1.1
     residual = markers.provenance["per_take"]["animface_eyebrows.c3d"]["stabilisation_residual_rms_mm"]
     assert residual["mean"] < 2.5 and residual["max"] < 5.0
+
+
+def test_animface_timeline_is_the_files_frames_and_times(animface, shared_data):
+    """Every evaluated frame names its take and its frame in that file; its time is that frame over the file's 60 Hz
+    (not the sub-sampled index over 60 Hz), so the take lasts as long as the file."""
+    from workbench.dataset.c3d_markers import read_c3d_markers
+
+    timeline = animface["markers"].timeline()
+    assert len(timeline) == len(animface["markers"].eval)
+    lengths = {}
+    for name in ("jaw", "cheeks", "eyebrows"):
+        take = read_c3d_markers(shared_data / f"animface/animface_{name}.c3d")
+        assert take.frame_rate == 60.0
+        mine = timeline.take == f"animface_{name}"
+        np.testing.assert_array_equal(timeline.frame[mine], np.arange(0, take.n_frames, 20))
+        np.testing.assert_allclose(timeline.seconds[mine], np.arange(0, take.n_frames, 20) / 60.0)
+        lengths[name] = take.n_frames / 60.0
+    assert [timeline.take[start] for start, _ in timeline.take_spans()] == ["animface_jaw", "animface_cheeks",
+                                                                          "animface_eyebrows"]
+    # one axis through the three takes: the whole capture (about 66 s), not the sub-sampled count over 60 Hz
+    assert abs(timeline.elapsed()[-1] - sum(lengths.values())) < 20 / 60.0 + 1e-9
+    assert timeline.label(1) == "animface_jaw frame 20 (t = 0.33 s)"
+    np.testing.assert_array_equal(animface["mesh"].timeline().frame, timeline.frame)
 
 
 def test_animface_takes_are_configurable(shared_data):

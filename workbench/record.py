@@ -147,13 +147,15 @@ def is_complete(folder: Path) -> bool:
 
 def alpha_per_frame_arrays(results) -> dict:
     """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
-    of shape (n_rows, n_eval_frames), and ``<data>.basis`` / ``<data>.solver`` naming the rows in table order."""
+    of shape (n_rows, n_eval_frames), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the
+    evaluated frames' take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
     arrays = {}
     for result in results:
         arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
         arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
         arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
         arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
+        arrays.update(result.capture.timeline().as_arrays(f"{result.data}."))
     return arrays
 
 
@@ -238,7 +240,10 @@ def input_arrays(result) -> dict:
             "hand_names": np.array(capture.hand_names), "mean": result.eigenfaces.mean_,
             "components": result.eigenfaces.components_,
             **({"faces": capture.faces} if capture.faces is not None else {}),
-            **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {})}
+            **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {}),
+            **({"point_support": capture.point_support} if getattr(capture, "point_support", None) is not None
+               else {}),
+            **capture.timeline().as_arrays("eval_")}
 
 
 def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics: Mapping, timings: Mapping,

@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.dataset.animface import build_animface
 from workbench.dataset.cache import cached_captures
-from workbench.dataset.capture import Capture
+from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.ict_livelink import build_ict_livelink
@@ -266,8 +266,13 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     split = cfg.get("split", "same")
     eval_visible = None
     mapped = {}
+    timelines = [Timeline.uniform(f"synthetic seed {t.provenance['seed']}",
+                                  np.flatnonzero(part.kept) if markers is not None else np.arange(t.n_frames),
+                                  float(cfg["frame_rate"]))
+                 for t, part in zip(takes, markers or [None] * len(takes))]
     if split == "other_take":
         train, evaluate = per_take
+        timeline = timelines[1]
         eval_visible = visible[1] if visible else None
         if source is not None:
             mapped = {"train_source": source[0], "train_operator": point_operator_matrix(operator)}
@@ -276,6 +281,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         provenance["eval_seed"] = takes[1].provenance["seed"]
     else:
         train, evaluate = split_frames(per_take[0], split, cfg.get("eval_fraction", 0.2))
+        timeline = timelines[0][len(timelines[0]) - len(evaluate):]
         eval_visible = visible[0][len(visible[0]) - len(evaluate):] if visible else None
         if source is not None:
             mapped = {"train_source": source[0][:len(train)], "train_operator": point_operator_matrix(operator)}
@@ -293,7 +299,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         hand=hand.reshape(hand.shape[0], -1), hand_names=tuple(take.muscle_names), point_labels=labels,
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
         frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
-        eval_visible=eval_visible, **mapped)
+        eval_visible=eval_visible, eval_timeline=timeline, **mapped)
 
 
 def point_operator_matrix(operator: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
-from workbench.dataset.capture import Capture
+from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
@@ -52,6 +52,8 @@ class StabilisedTakes:
         One entry per take: frames kept and the stabilisation residual.
     record : dict
         Per take, for the provenance.
+    timeline : Timeline
+        Take name, frame number in its file and time of every frame of ``positions``.
     visible : ndarray of shape (n_frames, n_markers) of bool, or None
         Under gap policy ``masked``: the markers each frame saw (``positions`` is filled there for training).
     """
@@ -60,6 +62,7 @@ class StabilisedTakes:
     neutral: np.ndarray
     notes: list
     record: dict
+    timeline: Timeline
     visible: np.ndarray | None = None
 
 
@@ -88,7 +91,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
     gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
-    pieces, visible, notes, record = [], [], [], {}
+    pieces, visible, notes, record, timelines = [], [], [], {}, []
     for number, take in enumerate(takes):
         selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
                                    "dataset.max_frames_per_take")
@@ -101,6 +104,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
             markers = np.where(mask[:, :, None], np.nan, markers)
         outcome = apply_gap_policy(markers, policy, cfg.get("gap_max_fill_frames"))
         pieces.append(outcome.positions)
+        timelines.append(Timeline.uniform(take.path.stem, selected[outcome.kept], take.frame_rate))
         visible.append(outcome.visible)
         residual_mean, residual_max = float(np.nanmean(stable.residual_rms)), float(np.nanmax(stable.residual_rms))
         report = outcome.report
@@ -108,7 +112,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
                      f"{residual_max:.2f} mm" + (f"; {report.describe()}" if report.n_missing_samples else "")
                      + ")")
         record[take.path.name] = {
-            "frames_in_file": take.n_frames, "frames_used": len(outcome.positions),
+            "frames_in_file": take.n_frames, "frame_rate_in_file": take.frame_rate, "frames_used": len(outcome.positions),
             "frames_dropped_for_gaps": report.n_dropped_frames, "missing_samples_in_file": take.n_missing,
             "simulated_dropout_rate": rate, "gaps": report.as_dict(), "units_in_file": take.units,
             "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max}}
@@ -116,7 +120,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     if len(positions) < 2:
         raise WorkbenchError(f"{len(positions)} frames in the takes after gap policy {policy!r}; need at least 2")
     return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
-                           visible=np.concatenate(visible) if policy == "masked" else None)
+                           timeline=Timeline.concatenate(timelines), visible=np.concatenate(visible) if policy == "masked" else None)
 
 
 def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
@@ -194,15 +198,19 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     rbf = {**RBF_DEFAULTS, **(cfg.get("rbf") or {})}
     rigid_labels = list(cfg.get("rigid_markers") or [])
     neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {int(cfg.get('neutral_frame', 0))}"
+    frame_step = integer_setting(cfg.get("frame_step", 1), "dataset.frame_step", minimum=1)
+    frame_rate = takes[0].frame_rate / frame_step
     notes_common = [
         DIFFERENT_FACES + f" (scaled by {scale:.3f} into the performer's frame)",
-        f"takes concatenated in time at {takes[0].frame_rate:g} Hz: " + "; ".join(stable.notes),
+        f"takes recorded at {takes[0].frame_rate:g} Hz, every {frame_step} frame used ({frame_rate:g} frames per "
+        "second), concatenated in time: " + "; ".join(stable.notes),
         f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
         f"{neutral_name} (the neutral); residual = their RMS distance from it",
         placement.describe(),
     ]
     provenance = {
         "kind": "animface", "data_root": str(cfg["data_root"]), "takes": take_files, "per_take": stable.record,
+        "frame_rate_in_file": takes[0].frame_rate, "frame_step": frame_step,
         "credits": [ANIMFACE_CREDIT, ICT_CREDIT], "performer_and_basis": "different faces",
         "neutral": neutral_name, "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
         "marker_table": str(table.path), "rbf": rbf,
@@ -254,7 +262,8 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
             name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
             neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
             hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
-            units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(takes[0].frame_rate),
+            units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
             provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces,
-            eval_visible=eval_visible, **mapped)
+            eval_visible=eval_visible, eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):],
+            **mapped)
     return captures

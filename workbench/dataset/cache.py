@@ -18,7 +18,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from workbench.dataset.capture import Capture
+from workbench.dataset.capture import Capture, Timeline
 from workbench.record import write_atomic, write_npz
 
 MEMORY_SLOTS = 2
@@ -143,6 +143,8 @@ def _save(folder: Path, key: str, captures: dict[str, Capture]) -> None:
             array = getattr(capture, field)
             if array is not None and not (field == "eval" and same_frames):
                 arrays[f"{index}_{field}"] = array
+        if capture.eval_timeline is not None:
+            arrays.update(capture.eval_timeline.as_arrays(f"{index}_timeline_"))
         meta[name] = {"index": index, "same_frames": same_frames, "name": capture.name,
                       "hand_names": list(capture.hand_names), "point_labels": list(capture.point_labels),
                       "units": capture.units, "origin": capture.origin, "frame_rate": capture.frame_rate,
@@ -169,6 +171,7 @@ def _load(folder: Path, key: str) -> dict[str, Capture] | None:
             origin=info["origin"], frame_rate=info["frame_rate"], provenance=info["provenance"],
             notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"),
             eval_visible=arrays.get(f"{index}_eval_visible"), train_source=arrays.get(f"{index}_train_source"),
-            train_operator=arrays.get(f"{index}_train_operator"))
+            train_operator=arrays.get(f"{index}_train_operator"),
+            eval_timeline=Timeline.from_arrays(arrays, f"{index}_timeline_"))
         captures[name] = _read_only(capture)
     return captures

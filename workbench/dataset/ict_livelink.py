@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from typing import Mapping
 
-from workbench.dataset.capture import Capture
+import numpy as np
+
+from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
@@ -36,7 +38,9 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     from workbench.dataset import split_frames, train_on_list
 
     names = train_on_list(cfg, TRAIN_ON)
-    take = read_livelink_csv(data_path(cfg, cfg.get("livelink_csv"), "livelink_csv"),
+    csv_path = data_path(cfg, cfg.get("livelink_csv"), "livelink_csv")
+    take_name = csv_path.stem
+    take = read_livelink_csv(csv_path,
                              timecode_rate=positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate"))
     folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
     available = expression_names(folder, cfg["blendshapes"]["neutral"])
@@ -49,6 +53,8 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
     frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
     weights = take.weights[frames]
+    timeline = Timeline(take=np.full(len(frames), take_name), frame=frames,
+                        seconds=take.seconds[frames] - take.seconds[0])
 
     marker_table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"),
                                      n_vertices=len(basis.neutral))
@@ -99,5 +105,5 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
             origin=origin_text("ICT FaceKit model origin: midline, about nose-tip height, near the centre of the "
                                "head", neutral),
             frame_rate=float(frame_rate), provenance=dict(provenance, train_on=name), notes=tuple(notes),
-            faces=faces)
+            faces=faces, eval_timeline=timeline[len(timeline) - len(evaluate):])
     return captures
