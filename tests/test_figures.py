@@ -13,7 +13,7 @@ from matplotlib.collections import PolyCollection
 from PIL import Image
 
 from workbench.errors import WorkbenchError
-from workbench.reporting.figures import FIXED_COLOURS, _rgb, png_bytes, save_figure
+from workbench.reporting.figures import png_bytes, save_figure
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
 from workbench.reporting.figures.faces import expressive_frames, nice_exaggeration, point_norms, spread_by_rank
 from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
@@ -60,19 +60,32 @@ def test_svg_and_png_are_byte_identical_when_rebuilt(tmp_path):
         assert one.read_bytes() == two.read_bytes(), one.name
 
 
-def test_large_png_is_reduced_to_a_palette_that_keeps_the_fixed_colours():
+def test_png_is_full_colour_at_print_resolution():
     from workbench.reporting.figures import new_figure
 
-    figure = new_figure(8, 6)
-    ax = figure.add_subplot()
-    ax.imshow(np.random.default_rng(0).random((300, 300, 3)))  # incompressible: forces the palette
-    ax.set_title("hand", color=FIXED_COLOURS[0])
-    data = png_bytes(figure, max_bytes=50_000)
-    image = Image.open(io.BytesIO(data))
-    assert image.mode == "P"
-    palette = np.array(image.getpalette()[:3 * 256]).reshape(-1, 3)
-    for colour in FIXED_COLOURS:
-        assert (palette == _rgb(colour)).all(axis=1).any(), colour
+    figure = new_figure(4, 3)
+    figure.add_subplot().imshow(np.random.default_rng(0).random((50, 50, 3)))
+    image = Image.open(io.BytesIO(png_bytes(figure)))
+    assert image.mode in ("RGB", "RGBA") and image.size == (800, 600)  # 200 dpi, no palette
+
+
+def test_openings_are_closed_by_dark_caps_and_missing_values_are_grey():
+    from workbench.reporting.figures.render import CAP_COLOUR, hole_loops
+
+    vertices, faces = grid_mesh(13)
+    centre = np.linalg.norm(vertices[:, :2], axis=1) < 20
+    holed = faces[~centre[faces].all(axis=1) & ~centre[faces].any(axis=1)]
+    loops = hole_loops(holed)
+    assert len(loops) == 1 and np.all(np.linalg.norm(vertices[loops[0], :2], axis=1) < 35)
+    values = np.where(vertices[:, 0] > 30, np.nan, 0.0)
+    image = render_meshes([vertices], holed, [values], MeshView(cmap="Greens", clim=(0.0, 1.0),
+                                                                 window_size=(200, 200), view=(0, 0, 1)))[0]
+    middle = image[90:110, 90:110].reshape(-1, 3).astype(int)
+    cap = np.array([int(CAP_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
+    assert np.all(middle.max(axis=1) < 120), "the opening shows the background"
+    assert np.abs(middle.mean(axis=0) - cap).max() < 60
+    right = image[100, 150:175].astype(int)  # x > 30: no value, grey (equal channels), not the map's green
+    assert np.all(np.ptp(right, axis=1) < 12) and np.all(right.mean(axis=1) > 90)
 
 
 def test_render_meshes_gives_one_shaded_coloured_image_per_mesh():

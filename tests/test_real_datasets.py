@@ -88,6 +88,9 @@ def test_animface_markers_and_mesh(animface, shared_data):
     vertices = list(markers.provenance["placement"]["vertices"].values())
     at_markers = mesh.train.reshape(n_frames, -1, 3)[:, vertices]
     np.testing.assert_allclose(at_markers, markers.train.reshape(n_frames, -1, 3), atol=1e-8)
+    # Vertices far from every marker (neck, back of the head) are marked extrapolated; the markers' own are not.
+    assert markers.point_support is None and mesh.point_support[vertices].all()
+    assert 0.1 < 1 - mesh.point_support.mean() < 0.6
     # The hand basis at the markers is the mesh's hand basis at their vertices (one scaled ICT face).
     np.testing.assert_allclose(markers.hand.reshape(18, -1, 3), mesh.hand.reshape(18, -1, 3)[:, vertices])
     scale = markers.provenance["placement"]["scale"]

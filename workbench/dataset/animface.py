@@ -149,6 +149,29 @@ def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray,
                              degree=int(settings["degree"]))
 
 
+def within_marker_reach(vertices: np.ndarray, marker_vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which mesh points lie within the markers' reach: no farther from the nearest marker than the median
+    distance between neighbouring markers. Farther points (neck, back of the head, ears) get their motion by
+    extrapolation of the marker interpolation.
+
+    Parameters
+    ----------
+    vertices : ndarray of shape (n_vertices, 3)
+    marker_vertices : ndarray of shape (n_markers,) of int
+    points : ndarray of shape (n_points,) of int
+        The mesh points of the capture.
+
+    Returns
+    -------
+    ndarray of shape (n_points,) of bool
+    """
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(vertices[marker_vertices])
+    spacing = float(np.median(tree.query(vertices[marker_vertices], k=2)[0][:, 1]))
+    return tree.query(vertices[points])[0] <= spacing
+
+
 def build_animface(cfg: Mapping) -> dict[str, Capture]:
     """Real optical takes with ICT hand shapes, on the markers and/or interpolated onto the ICT face.
 
@@ -223,6 +246,7 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     captures = {}
     for name in names:
         notes = list(notes_common)
+        support = None
         if name == "markers":
             points_neutral, frames = neutral, displacements
             points_hand, labels, faces = hand[:, placement.vertices], table.labels, None
@@ -235,11 +259,14 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
             points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
             labels = tuple(f"v{i}" for i in mesh_points)
             faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
+            support = within_marker_reach(scale * basis.neutral, placement.vertices, mesh_points)
             notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
                          f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
                          "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
                          f"the performer; largest displacement {np.linalg.norm(frames, axis=2).max():.1f} mm on the "
-                         f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers")
+                         f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
+                         f"{int((~support).sum())} vertices farther from every marker than the markers' median "
+                         "spacing are extrapolated (figures grey them out)")
         train, evaluate = split_frames(frames.reshape(len(frames), -1), cfg.get("split", "same"),
                                        cfg.get("eval_fraction", 0.2))
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
@@ -264,6 +291,6 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
             hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
             units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
             provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces,
-            eval_visible=eval_visible, eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):],
+            eval_visible=eval_visible, point_support=support, eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):],
             **mapped)
     return captures

@@ -22,7 +22,8 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.record import write_atomic, write_npz
 
 MEMORY_SLOTS = 2
-_ARRAYS = ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator")
+_ARRAYS = ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator",
+           "point_support")
 _memory: "OrderedDict[str, dict[str, Capture]]" = OrderedDict()
 
 
@@ -171,7 +172,7 @@ def _load(folder: Path, key: str) -> dict[str, Capture] | None:
             origin=info["origin"], frame_rate=info["frame_rate"], provenance=info["provenance"],
             notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"),
             eval_visible=arrays.get(f"{index}_eval_visible"), train_source=arrays.get(f"{index}_train_source"),
-            train_operator=arrays.get(f"{index}_train_operator"),
+            train_operator=arrays.get(f"{index}_train_operator"), point_support=arrays.get(f"{index}_point_support"),
             eval_timeline=Timeline.from_arrays(arrays, f"{index}_timeline_"))
         captures[name] = _read_only(capture)
     return captures

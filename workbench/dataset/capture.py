@@ -125,6 +125,9 @@ class Capture:
         Set when the training frames are a fixed linear map of smaller data, ``train = train_source @
         train_operator.T`` (mesh frames interpolated from markers by RBF): the PCA is then computed in the small
         space and lifted (:meth:`workbench.bases.Eigenfaces.fit_mapped`).
+    point_support : ndarray of shape (n_points,) of bool, or None
+        False at points whose motion is extrapolated far from any measured point (a mesh moved by an interpolation
+        of markers: neck, back of the head); figures grey them out. None: every point is measured or interpolated.
     eval_timeline : Timeline or None
         Take, frame number in the file and time of every evaluated frame; None: frame ``i`` of one take at
         ``i / frame_rate`` (see :meth:`timeline`).
@@ -146,6 +149,7 @@ class Capture:
     eval_visible: np.ndarray | None = None
     train_source: np.ndarray | None = None
     train_operator: np.ndarray | None = None
+    point_support: np.ndarray | None = None
     eval_timeline: Timeline | None = None
 
     def __post_init__(self):

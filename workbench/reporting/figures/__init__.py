@@ -25,23 +25,13 @@ from matplotlib.figure import Figure
 from workbench.record import write_atomic
 
 FORMATS = ("png", "svg")
-PNG_DPI = 100
-# PNGs above this size are re-encoded with a 256-colour palette, which keeps committed reports small.
-PNG_MAX_BYTES = 200_000
+# Full-colour PNGs at a resolution that survives zooming; line plots are also written as SVG.
+PNG_DPI = 200
 
 # Basis colours shared by every plot, so a basis looks the same everywhere.
 BASIS_COLOURS = {"H": "#1f5fbf", "QE": "#8e2bb0", "QE-linear": "#d17a00", "PCA": "#c0392b"}
 BASIS_LABELS = {"H": "hand $E^H$", "QE": "quasi-eigen $E^{QE}$ (affine)",
                 "QE-linear": "quasi-eigen (linear)", "PCA": "PCA $E^{PCA}$"}
-
-# Colours kept exactly when a PNG is reduced to a palette: text, markers and lines.
-FIXED_COLOURS = (*BASIS_COLOURS.values(), "#d62728", "#000000", "#ffffff", "#333333", "#808080", "#b0b0b0",
-                 "#e0e0e0")
-
-
-def _rgb(colour: str) -> tuple[int, int, int]:
-    return tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))
-
 
 # Text-as-text SVG with a fixed hash salt and no date: the same figure gives the same bytes on every rebuild.
 SVG_RC = {"svg.fonttype": "none", "svg.hashsalt": "workbench"}
@@ -102,24 +92,8 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     return written
 
 
-def png_bytes(figure: Figure, *, dpi: int = PNG_DPI, max_bytes: int = PNG_MAX_BYTES) -> bytes:
-    """PNG of a figure; re-encoded with an adaptive, dithered 256-colour palette when the full-colour file is
-    bigger than ``max_bytes``."""
+def png_bytes(figure: Figure, *, dpi: int = PNG_DPI) -> bytes:
+    """Full-colour PNG of a figure, without metadata that changes between rebuilds."""
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    data = buffer.getvalue()
-    if len(data) <= max_bytes:
-        return data
-    from PIL import Image
-
-    image = Image.open(io.BytesIO(data)).convert("RGB")
-    # Median-cut keeps the shading of rendered meshes; the fixed colours keep thin text and markers in their
-    # own colour (median-cut would give their few pixels none); dithering keeps colour bars smooth.
-    fixed = [channel for colour in FIXED_COLOURS for channel in _rgb(colour)]
-    found = image.quantize(colors=256 - len(FIXED_COLOURS), method=Image.Quantize.MEDIANCUT).getpalette()
-    palette = Image.new("P", (1, 1))
-    palette.putpalette(fixed + found[:3 * (256 - len(FIXED_COLOURS))])
-    indexed = image.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG)
-    buffer = io.BytesIO()
-    indexed.save(buffer, format="png", optimize=True)
     return buffer.getvalue()

@@ -19,6 +19,7 @@ from workbench.reporting.figures import basis_colour, basis_label, new_figure, w
 from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
 
 DISPLACEMENT_CMAP = "YlGnBu"
+NORMAL_CMAP = "RdBu_r"  # diverging, white at zero: red out of the face, blue into it
 ERROR_CMAP = "YlOrRd"
 CAPTURED_RED, RECONSTRUCTED_BLUE = "#d62728", "#1f5fbf"
 
@@ -36,6 +37,45 @@ def point_norms(flat: np.ndarray) -> np.ndarray:
     """
     flat = np.asarray(flat)
     return np.linalg.norm(flat.reshape(*flat.shape[:-1], -1, 3), axis=-1)
+
+
+def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normals at the vertices of a triangle mesh (area-weighted face normals), oriented out of the face.
+
+    Parameters
+    ----------
+    points : ndarray of shape (3 * n_vertices,) or (n_vertices, 3)
+    faces : ndarray of shape (n_faces, 3) of int
+
+    Returns
+    -------
+    ndarray of shape (n_vertices, 3)
+        Pointing away from the mesh's centroid on average (the triangles' winding is not relied on).
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    corners = points[faces]
+    face_normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_normals)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    outward = np.einsum("ij,ij->i", normals, points - points.mean(axis=0)).mean()
+    return normals if outward >= 0 else -normals
+
+
+def normal_displacement(shape: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Signed displacement along the surface normal of each vertex (positive: out of the face).
+
+    Parameters
+    ----------
+    shape : ndarray of shape (3 * n_vertices,)
+    normals : ndarray of shape (n_vertices, 3)
+
+    Returns
+    -------
+    ndarray of shape (n_vertices,)
+    """
+    return np.einsum("ij,ij->i", np.asarray(shape).reshape(-1, 3), normals)
 
 
 def spread_by_rank(values: Sequence[float], n: int) -> list[int]:
@@ -77,9 +117,15 @@ def expressive_frames(captured: np.ndarray, n: int) -> list[int]:
 
 
 def _upper_limit(values: Sequence[np.ndarray], percentile: float = 99.5) -> float:
-    """A colour-range top shared by several panels: a high percentile of every value, never zero."""
-    top = float(np.percentile(np.concatenate([np.ravel(v) for v in values]), percentile))
+    """A colour-range top shared by several panels: a high percentile of every value (NaN left out), never
+    zero."""
+    top = float(np.nanpercentile(np.concatenate([np.ravel(v) for v in values]), percentile))
     return top if top > 0 else 1.0
+
+
+def masked(values: np.ndarray, support: np.ndarray | None) -> np.ndarray:
+    """Per-vertex values with NaN where ``support`` is False (drawn grey, left out of colour ranges)."""
+    return values if support is None else np.where(support, values, np.nan)
 
 
 def _show(ax, image: np.ndarray) -> None:
@@ -92,9 +138,11 @@ def _show(ax, image: np.ndarray) -> None:
 
 def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.ndarray, quasi_eigen: np.ndarray,
                                names: Sequence[str], relative_distance: Sequence[float],
-                               cosine: Sequence[float], *, title: str, qe_label: str) -> Figure:
+                               cosine: Sequence[float], *, title: str, qe_label: str,
+                               support: np.ndarray | None = None) -> Figure:
     """Figure 2: hand shapes (top row) above their quasi-eigen faces (bottom row), rendered meshes coloured by
-    displacement length, with each pair's intuitiveness numbers.
+    the signed displacement along the surface normal (a diverging map centred at zero, so raising and lowering
+    differ), with each pair's intuitiveness numbers.
 
     Each pair (column) has its own colour range and colour bar: hand shapes differ in size by a factor of
     several (a jaw opening against a brow), and one shared range would leave the small ones blank.
@@ -113,29 +161,33 @@ def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.
         Figure title (dataset, data variant, m).
     qe_label : str
         Label of the quasi-eigen row, e.g. naming the projection.
+    support : ndarray of shape (n_vertices,) of bool, optional
+        False at extrapolated vertices, drawn grey.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     n = len(names)
+    normals = vertex_normals(neutral, faces)
     images, views = [], []
     for k in range(n):
         pair = (hand[k], quasi_eigen[k])
-        lengths = [point_norms(shape) for shape in pair]
-        views.append(MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, _upper_limit(lengths))))
-        images += render_meshes([neutral + shape for shape in pair], faces, lengths, views[-1])
+        signed = [masked(normal_displacement(shape, normals), support) for shape in pair]
+        limit = _upper_limit([np.abs(values) for values in signed])
+        views.append(MeshView(cmap=NORMAL_CMAP, clim=(-limit, limit)))
+        images += render_meshes([neutral + shape for shape in pair], faces, signed, views[-1])
     images = crop_background(images)
     width = 2.5 * n + 0.4
-    figure = new_figure(width, 7.4)
+    figure = new_figure(width, 7.6)
     axes = figure.subplots(2, n, squeeze=False)
     for k in range(n):
         _show(axes[0, k], images[2 * k])
         _show(axes[1, k], images[2 * k + 1])
         axes[0, k].set_title(names[k], fontsize=11)
         axes[1, k].set_xlabel(f"rel. distance {relative_distance[k]:.2f}, cosine {cosine[k]:.3f}", fontsize=10)
-        figure.colorbar(ScalarMappable(Normalize(*views[k].clim), DISPLACEMENT_CMAP), ax=axes[:, k],
-                        location="bottom", shrink=0.85, aspect=14, label="|d| (mm)")
+        figure.colorbar(ScalarMappable(Normalize(*views[k].clim), NORMAL_CMAP), ax=axes[:, k],
+                        location="bottom", shrink=0.85, aspect=14, label="d . normal (mm)")
     axes[0, 0].set_ylabel("hand $e_i^H$", fontsize=11)
     axes[1, 0].set_ylabel(qe_label, fontsize=11)
     figure.suptitle(wrap_title(title, width), fontsize=11)
@@ -144,7 +196,8 @@ def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.
 
 def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.ndarray,
                            reconstructed: Mapping[str, np.ndarray], row_labels: Sequence[str],
-                           panel_notes: Mapping[str, Sequence[str]], *, title: str) -> Figure:
+                           panel_notes: Mapping[str, Sequence[str]], *, title: str,
+                           support: np.ndarray | None = None) -> Figure:
     """Figure 3: captured frames (left column) beside their reconstructions with each basis.
 
     The captured column is coloured by displacement length; the reconstructions by their per-vertex error
@@ -163,6 +216,8 @@ def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.
     panel_notes : mapping
         Basis label -> one text per shown frame (its alpha), written under the panel.
     title : str
+    support : ndarray of shape (n_vertices,) of bool, optional
+        False at extrapolated vertices: drawn grey and left out of the colour ranges.
 
     Returns
     -------
@@ -170,8 +225,9 @@ def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.
     """
     labels = list(reconstructed)
     n_rows, n_cols = len(captured), 1 + len(labels)
-    lengths = list(point_norms(captured))
-    errors = {label: list(point_norms(frames - captured)) for label, frames in reconstructed.items()}
+    lengths = [masked(values, support) for values in point_norms(captured)]
+    errors = {label: [masked(values, support) for values in point_norms(frames - captured)]
+              for label, frames in reconstructed.items()}
     captured_view = MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, _upper_limit(lengths)))
     error_view = MeshView(cmap=ERROR_CMAP, clim=(0.0, _upper_limit([e for v in errors.values() for e in v])))
     images = render_meshes(neutral + captured, faces, lengths, captured_view)
