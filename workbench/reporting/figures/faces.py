@@ -329,3 +329,38 @@ def figure_marker_errors(neutral: np.ndarray, captured: np.ndarray, reconstructe
     figure.legend(handles, legend_labels, loc="outside lower center", ncols=2, fontsize=9, frameon=False)
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
+
+
+def figure_vertex_rms(neutral: np.ndarray, faces: np.ndarray, rms: Mapping[str, np.ndarray], *, title: str,
+                      support: np.ndarray | None = None) -> Figure:
+    """Per-vertex RMS reconstruction error over the whole take, one face per basis, on one shared colour bar.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (3 * n_vertices,)
+    faces : ndarray of shape (n_faces, 3)
+    rms : mapping
+        Basis label -> ndarray of shape (n_vertices,), RMS over the evaluated frames of the 3-D error (mm).
+    title : str
+    support : ndarray of shape (n_vertices,) of bool, optional
+        False at extrapolated vertices: grey, left out of the colour range.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    labels = list(rms)
+    values = [masked(np.asarray(rms[label]), support) for label in labels]
+    view = MeshView(cmap=ERROR_CMAP, clim=(0.0, _upper_limit(values)))
+    images = crop_background(render_meshes([neutral] * len(labels), faces, values, view))
+    width = 2.5 * len(labels) + 0.4
+    figure = new_figure(width, 4.6)
+    axes = figure.subplots(1, len(labels), squeeze=False)[0]
+    for ax, label, image, value in zip(axes, labels, images, values):
+        _show(ax, image)
+        ax.set_title(f"{basis_label(label)}", fontsize=10, color=basis_colour(label))
+        ax.set_xlabel(f"median {np.nanmedian(value):.2f} mm, max {np.nanmax(value):.2f} mm", fontsize=9)
+    figure.colorbar(ScalarMappable(Normalize(*view.clim), ERROR_CMAP), ax=axes, location="bottom", shrink=0.6,
+                    label="RMS error over the take per vertex (mm)")
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure

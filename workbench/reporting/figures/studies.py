@@ -78,7 +78,8 @@ def _ordered_bases(bases) -> list[str]:
 
 
 def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str, int], *,
-                        threshold: float | None, title: str) -> Figure:
+                        threshold: float | None, title: str, paper_m: int | None = None,
+                        basis_size: int | None = None) -> Figure:
     """Cumulative explained variance against m, the coverage threshold and the chosen m, per data variant.
 
     Left: the cumulative explained variance near the chosen m. Right: the variance left out,
@@ -94,6 +95,11 @@ def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str,
     threshold : float or None
         The coverage threshold (None when m was fixed).
     title : str
+    paper_m : int, optional
+        The paper's m (18), marked by a vertical line.
+    basis_size : int, optional
+        The hand basis size n, marked by a vertical line: with m > n the quasi-eigen faces cannot span the
+        eigenfaces.
 
     Returns
     -------
@@ -115,6 +121,14 @@ def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str,
         if m <= len(cumulative):
             near.plot([m], [cumulative[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
             tail.plot([m], [left_out[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
+    marks = [(paper_m, "paper: m = {}", "#b8860b", ":"), (basis_size, "hand shapes n = {}", "0.45", "-.")]
+    for value, text, colour, style in marks:
+        if value is None:
+            continue
+        for ax in (near, tail):
+            if ax is tail or value <= zoom:
+                ax.axvline(value, color=colour, linestyle=style, linewidth=1.2,
+                           label=text.format(value) if ax is near or value > zoom else None)
     if threshold is not None:
         near.axhline(threshold, color="0.2", linestyle="--", linewidth=1, label=f"threshold {threshold}")
         tail.axhline(1.0 - threshold, color="0.2", linestyle="--", linewidth=1,
@@ -138,9 +152,10 @@ MARKERS = ("o", "s", "^", "D", "v", "P")
 
 
 def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
-                       title: str, by: Sequence[str] = (), log_x: bool = False) -> Figure:
+                       title: str, by: Sequence[str] = (), log_x: bool = False,
+                       points: pd.DataFrame | None = None) -> Figure:
     """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 %
-    confidence band over seeds where the table has one.
+    confidence band over seeds where the table has one and every seed's own value as a small point.
 
     Parameters
     ----------
@@ -158,6 +173,8 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
         and marker), so that lines never join points of different settings.
     log_x : bool
         Logarithmic x axis.
+    points : pandas.DataFrame, optional
+        One row per run and table row (columns as ``table``): every seed's value, drawn as small points.
 
     Returns
     -------
@@ -182,6 +199,11 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
         # A categorical setting (e.g. basis.hand_subset=all|upper|lower): positions in order of appearance.
         categories = list(dict.fromkeys(rows[x].astype(str)))
         rows = rows.assign(**{x: rows[x].astype(str).map({c: i for i, c in enumerate(categories)})})
+    seeds = None
+    if points is not None:
+        seeds = _solver_rows(points, solver)
+        if categories is not None:
+            seeds = seeds.assign(**{x: seeds[x].astype(str).map({c: i for i, c in enumerate(categories)})})
     groups = list(rows.groupby(list(by), sort=False, dropna=False)) if by else [((), rows)]
     for ax, data in zip(axes, data_variants):
         span = float(np.ptp(rows[x].to_numpy(dtype=float))) or 1.0
@@ -204,6 +226,11 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
                     continue
                 ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
                         linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
+                if seeds is not None:
+                    mine = seeds[(seeds["data"] == data) & (seeds["basis"] == basis)]
+                    for key, value in zip(by, values):
+                        mine = mine[mine[key].astype(str) == str(value)]
+                    ax.scatter(mine[x], mine[y], s=9, color=colour, alpha=0.45, linewidths=0, zorder=3)
                 if has_ci:
                     ax.fill_between(line[x], line[ci[0]], line[ci[1]], color=colour, alpha=0.15, linewidth=0)
         if categories is not None:
@@ -216,7 +243,7 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     for row in grid:
         row[0].set_ylabel(axis_label(y))
     drawn = ci is not None and rows[list(ci)].notna().any(axis=None)
-    band = " (bands: 95 % CI over seeds)" if drawn else ""
+    band = " (bands: 95 % CI over seeds" + ("; points: each seed)" if points is not None else ")") if drawn else ""
     handles, labels = axes[-1].get_legend_handles_labels()
     # As many legend columns as the longest label leaves room for (about 5 points per character at size 8).
     columns = max(1, min(4, int(width * 72 / (5.0 * max(len(label) for label in labels) + 40))))
@@ -268,18 +295,21 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str = "alpha_abs_mean", *, solve
     return figure
 
 
-def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_rate: float, *, ylabel: str,
-                         title: str) -> Figure:
-    """Per-frame alpha over the take, one panel per data variant and one line per basis.
+def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds: np.ndarray, *, ylabel: str,
+                         title: str, takes: Sequence[tuple[str, float]] = ()) -> Figure:
+    """Per-frame alpha over the take, one panel per data variant and one line per basis, with the boundaries of
+    concatenated takes.
 
     Parameters
     ----------
     series : mapping
         Data variant -> (basis label -> ndarray of shape (n_frames,), per-frame alpha; NaN where undefined).
-    frame_rate : float
-        Frames per second, for the time axis.
+    seconds : ndarray of shape (n_frames,)
+        Time of each frame on one axis through the takes (:meth:`workbench.dataset.capture.Timeline.elapsed`).
     ylabel : str
     title : str
+    takes : sequence of (str, float)
+        Each take's name and start time on that axis; with two or more, their boundaries are drawn and named.
 
     Returns
     -------
@@ -287,10 +317,15 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_r
     """
     figure = new_figure(9.0, 3.1 * len(series) + 1.0)
     axes = figure.subplots(len(series), 1, squeeze=False, sharex=True)[:, 0]
+    seconds = np.asarray(seconds, dtype=float)
     for ax, (data, per_basis) in zip(axes, series.items()):
+        if len(takes) > 1:
+            for name, start in takes:
+                ax.axvline(start, color="0.35", linewidth=0.8, linestyle=":")
+                ax.annotate(name, (start, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -3),
+                            textcoords="offset points", fontsize=7, color="0.3", va="top")
         for basis in _ordered_bases(per_basis):
             values = np.asarray(per_basis[basis], dtype=float)
-            seconds = np.arange(len(values)) / frame_rate
             # Thousands of points per line: drawn as a raster inside an SVG, which stays small.
             ax.plot(seconds, values, color=basis_colour(basis), linewidth=0.7, rasterized=len(values) > 2000,
                     linestyle="--" if basis == "PCA" else "-",
@@ -300,7 +335,7 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], frame_r
         ax.grid(alpha=0.3)
         # Above the panel, right-aligned: inside it would hide the peaks.
         ax.legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2, frameon=False)
-    axes[-1].set_xlabel("time in the take (s)")
+    axes[-1].set_xlabel("time in the take (s)" if len(takes) < 2 else "time through the takes, one after another (s)")
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
 
@@ -380,4 +415,138 @@ def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_me
     handles, labels = grid[0, 0].get_legend_handles_labels()
     figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 9), fontsize=9, frameon=False)
     figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
+
+
+def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *,
+                          title: str) -> Figure:
+    """Alpha of each basis under each solver (bars), one panel per data variant, with the share of frames whose
+    unconstrained weights go negative: the frames a non-negative or box constraint must change.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        An alpha table: ``data``, ``basis``, ``solver``, ``y``.
+    y : str
+        Alpha column.
+    negative_share : mapping
+        Data variant -> (basis -> fraction of evaluated frames with at least one negative least-squares weight).
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    _check_columns(table, ["data", "basis", "solver", y])
+    data_variants = list(dict.fromkeys(table["data"]))
+    solvers = [s for s in dict.fromkeys(table["solver"]) if s != "projection"]
+    width = max(6.0, 4.8 * len(data_variants))
+    figure = new_figure(width, 4.6)
+    axes = figure.subplots(1, len(data_variants), squeeze=False)[0]
+    hatches = {"lstsq": "", "nnls": "//", "box": ".."}
+    for ax, data in zip(axes, data_variants):
+        part = table[table["data"] == data]
+        bases = [b for b in _ordered_bases(part["basis"]) if b != "PCA"]
+        step = 0.8 / len(solvers)
+        for k, solver in enumerate(solvers):
+            values = part[part["solver"] == solver].set_index("basis").reindex(bases)[y]
+            positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
+            bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
+                          alpha=1.0 - 0.25 * k, hatch=hatches.get(solver, ""), edgecolor="white", label=solver)
+            ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=1)
+        pca = part.loc[part["basis"] == "PCA", y]
+        if len(pca):
+            ax.axhline(float(pca.iloc[0]), color=basis_colour("PCA"), linestyle="--", linewidth=1,
+                       label=f"PCA (projection) {float(pca.iloc[0]):.3g}")
+        shares = negative_share.get(data, {})
+        ax.set_xticks(np.arange(len(bases)), [f"{b}\n{100 * shares[b]:.0f} % of frames\nneed w < 0" if b in shares
+                                              else b for b in bases], fontsize=8)
+        ax.set_ylabel(axis_label(y), fontsize=9)
+        ax.set_title(f"data: {data}", fontsize=10, loc="left")
+        ax.grid(axis="y", alpha=0.3)
+        ax.margins(y=0.15)
+        ax.legend(fontsize=8, title="solver (hatching)", title_fontsize=8)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure
+
+
+def plot_weight_curves(seconds: np.ndarray, weights: Mapping[str, np.ndarray], names: Sequence[str], *,
+                       title: str, shown: Sequence[int] | None = None) -> Figure:
+    """Weight curves w_i(t) of several bases over a stretch of the take, one panel per basis, one colour per
+    shape (the same shape the same colour in every panel).
+
+    Parameters
+    ----------
+    seconds : ndarray of shape (n_frames,)
+    weights : mapping
+        Basis label -> ndarray of shape (n_frames, n_shapes).
+    names : sequence of str
+        One per shape.
+    title : str
+    shown : sequence of int, optional
+        Shapes drawn (default: the 6 with the largest weights over the stretch in the first basis).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    labels = list(weights)
+    first = np.asarray(weights[labels[0]])
+    if shown is None:
+        shown = list(np.argsort(-np.abs(first).max(axis=0))[:6])
+    figure = new_figure(9.0, 2.5 * len(labels) + 1.4)
+    axes = figure.subplots(len(labels), 1, squeeze=False, sharex=True)[:, 0]
+    for ax, label in zip(axes, labels):
+        values = np.asarray(weights[label])
+        for k, index in enumerate(shown):
+            ax.plot(seconds, values[:, index], color=f"C{k}", linewidth=1.1, label=names[index])
+        ax.axhline(0.0, color="0.3", linewidth=0.8)
+        ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
+        ax.set_ylabel(f"w_i, {label}", fontsize=9, color=basis_colour(label))
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, ncols=min(len(shown), 3), loc="lower right", bbox_to_anchor=(1.0, 1.0), frameon=False)
+    axes[-1].set_xlabel("time in the take (s)")
+    figure.suptitle(wrap_title(title, 9.0), fontsize=11)
+    return figure
+
+
+def plot_intuitiveness_bars(names: Sequence[str], cosine: Mapping[str, Sequence[float]],
+                            relative_distance: Mapping[str, Sequence[float]], *, title: str) -> Figure:
+    """How far each hand shape moved when projected: cosine and relative distance to its quasi-eigen face, bars
+    per shape, one bar per projection.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Hand shapes.
+    cosine, relative_distance : mapping
+        Projection (``affine``, ``linear``) -> one value per shape.
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    projections = list(cosine)
+    height = 0.26 * len(names) + 1.8
+    figure = new_figure(9.0, height)
+    left, right = figure.subplots(1, 2, sharey=True)
+    step = 0.8 / len(projections)
+    colours = {"affine": basis_colour("QE"), "linear": basis_colour("QE-linear")}
+    rows = np.arange(len(names))
+    for k, projection in enumerate(projections):
+        offset = (k - (len(projections) - 1) / 2) * step
+        left.barh(rows + offset, cosine[projection], height=step * 0.9, color=colours.get(projection, f"C{k}"),
+                  label=projection)
+        right.barh(rows + offset, relative_distance[projection], height=step * 0.9,
+                   color=colours.get(projection, f"C{k}"), label=projection)
+    left.set_yticks(rows, names, fontsize=8)
+    left.invert_yaxis()
+    left.set_xlim(min(0.0, float(np.min([np.min(v) for v in cosine.values()]))), 1.0)
+    left.set_xlabel("cosine to its quasi-eigen face (1: same direction)")
+    right.set_xlabel("relative distance |e^QE - e^H| / |e^H| (0: unchanged)")
+    for ax in (left, right):
+        ax.grid(axis="x", alpha=0.3)
+    left.legend(fontsize=8, title="projection", title_fontsize=8)
+    figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
