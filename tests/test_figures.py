@@ -199,12 +199,24 @@ def test_coverage_curve_marks_threshold_and_chosen_m():
 
 
 def test_alpha_over_time_has_a_panel_per_variant_and_seconds_on_x():
+    from workbench.dataset.capture import Timeline
+
     frames = np.random.default_rng(0).random(240)
-    figure = plot_alpha_over_time({"markers": {"H": frames, "QE": frames / 2}, "mesh": {"H": frames}}, 120.0,
+    seconds = np.arange(240) / 120.0
+    figure = plot_alpha_over_time({"markers": {"H": frames, "QE": frames / 2}, "mesh": {"H": frames}}, seconds,
                                   ylabel="alpha (%)", title="over time")
     assert len(figure.axes) == 2
     assert figure.axes[0].lines[0].get_xdata()[-1] == pytest.approx(239 / 120.0)
     assert figure.axes[-1].get_xlabel() == "time in the take (s)"
+    # Two takes, each starting at 0 s in its file: one axis through both, the boundary drawn and named.
+    timeline = Timeline.concatenate([Timeline.uniform("jaw", np.arange(0, 120, 4), 60.0),
+                                     Timeline.uniform("cheeks", np.arange(0, 120, 4), 60.0)])
+    elapsed = timeline.elapsed()
+    assert elapsed[29] == pytest.approx(116 / 60) and elapsed[30] == pytest.approx(120 / 60)
+    takes = [(str(timeline.take[start]), float(elapsed[start])) for start, _ in timeline.take_spans()]
+    figure = plot_alpha_over_time({"markers": {"H": frames[:60]}}, elapsed, ylabel="alpha", title="t", takes=takes)
+    assert [t.get_text() for t in figure.axes[0].texts] == ["jaw", "cheeks"]
+    assert figure.axes[0].lines[1].get_xdata()[0] == pytest.approx(2.0)  # boundary of the second take
 
 
 def test_alpha_against_in_a_grid_keeps_settings_apart_and_wraps_panels():
