@@ -28,3 +28,19 @@ def shared_data() -> Path:
             pytest.fail(reason + " -- required because WORKBENCH_REQUIRE_DATA=1", pytrace=False)
         pytest.skip(reason)
     return root
+
+
+@pytest.fixture(scope="session")
+def chromium() -> str:
+    """Path of a headless Chromium; skipped when absent, failed when ``WORKBENCH_REQUIRE_BROWSER=1`` (as CI sets,
+    after installing Debian's ``chromium``)."""
+    import shutil
+
+    found = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome")
+                  if shutil.which(name)), None)
+    if found is None:
+        reason = "headless Chromium not found (install Debian's 'chromium' to check the report pages in a browser)"
+        if os.environ.get("WORKBENCH_REQUIRE_BROWSER") == "1":
+            pytest.fail(reason + " -- required because WORKBENCH_REQUIRE_BROWSER=1", pytrace=False)
+        pytest.skip(reason)
+    return found

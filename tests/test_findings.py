@@ -2,7 +2,7 @@
 
 import pandas as pd
 
-from workbench.findings import facts_frame, run_findings, shared_notes
+from workbench.reporting.findings import facts_frame, run_findings, shared_notes
 
 PAPER = {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}
 
@@ -41,8 +41,7 @@ def test_findings_of_a_known_table():
         "(x1.10): QE becomes worse than H (1.5 against 1.1); under least squares 62 % of the frames give QE a "
         "negative weight (H: 10 %), which the constraint must undo.",
         "**mesh**: with box [0, 1] weights QE's alpha goes from 0.25 to 1 (x4.00) and H's from 1 to 1.2 (x1.20): "
-        "QE stays better than H (1 against 1.2); under least squares 62 % of the frames give QE a negative weight "
-        "(H: 10 %), which the constraint must undo.",
+        "QE stays better than H (1 against 1.2).",
         "**mesh**: the projection changes most browDown_L (cosine 0.45, relative distance 0.90), mouthPucker "
         "(cosine 0.80, relative distance 0.60), jawOpen (cosine 0.98, relative distance 0.20); median cosine of "
         "the 3 shapes to their quasi-eigen faces 0.80.",

@@ -241,7 +241,7 @@ def input_arrays(result) -> dict:
             "components": result.eigenfaces.components_,
             **({"faces": capture.faces} if capture.faces is not None else {}),
             **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {}),
-            **({"point_support": capture.point_support} if getattr(capture, "point_support", None) is not None
+            **({"point_support": capture.point_support} if capture.point_support is not None
                else {}),
             **capture.timeline().as_arrays("eval_")}
 

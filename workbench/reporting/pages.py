@@ -26,6 +26,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import DONE, RunRecord, find_records, is_complete, load_record, write_atomic
 from workbench.reporting.runs import is_replicate_key, runs_table, summarise, t_interval, varying_keys, wide
@@ -149,25 +150,43 @@ def dataset_label(record: RunRecord) -> str:
     return record.metrics["dataset"]["name"]
 
 
+SHORT_DATASET_LABELS = {"synthetic": "synthetic actor (generated)",
+                        "ict_livelink": "ICT FaceKit face, real Live Link Face take",
+                        "animface": "AnimFace capture, ICT FaceKit hand shapes (another face)"}
+
+
+def short_label(record: RunRecord) -> str:
+    """The dataset in a few words, for figure titles."""
+    kind = record.metrics["dataset"].get("provenance", {}).get("kind")
+    return SHORT_DATASET_LABELS.get(kind, record.metrics["dataset"]["name"])
+
+
 def headline_column(config: Mapping) -> str:
     metric = config.get("metric", {})
     short = {"absolute": "abs", "displacement": "disp"}[metric.get("headline_normalisation", "absolute")]
     return f"alpha_{short}_{metric.get('headline_aggregate', 'mean')}"
 
 
-def _mesh_variant(record: RunRecord) -> tuple[str, dict] | None:
+def _inputs(record: RunRecord, data: str, cache: dict) -> dict | None:
+    key = ("inputs", data)
+    if key not in cache:
+        cache[key] = record.load_inputs(data)
+    return cache[key]
+
+
+def _mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
     """The data variant whose points are mesh vertices (saved with triangles), preferring ``mesh``."""
     for data in sorted(record.data_variants, key=lambda d: d != "mesh"):
-        inputs = record.load_inputs(data)
+        inputs = _inputs(record, data, cache)
         if inputs is not None and "faces" in inputs:
             return data, inputs
     return None
 
 
-def _marker_variant(record: RunRecord) -> tuple[str, dict] | None:
+def _marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
     """The data variant of markers (no triangles), preferring ``markers``."""
     for data in sorted(record.data_variants, key=lambda d: d != "markers"):
-        inputs = record.load_inputs(data)
+        inputs = _inputs(record, data, cache)
         if inputs is not None and "faces" not in inputs:
             return data, inputs
     return None
@@ -182,17 +201,84 @@ def _appended_axes(record: RunRecord, data: str, label: str) -> list[int]:
     return record.metrics["data"][data]["quasi_eigen"][QE_PROJECTIONS[label]]["appended_axes"]
 
 
+def record_timeline(record: RunRecord, inputs: Mapping) -> Timeline:
+    """The evaluated frames' take, frame number in the file and time (saved inputs), or frames of one take at the
+    record's frame rate for records written before runs saved them."""
+    found = Timeline.from_arrays(inputs, "eval_")
+    return found if found is not None else Timeline.uniform(
+        "take", np.arange(len(inputs["eval"])), record.metrics["dataset"]["frame_rate"])
+
+
+def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, every: bool = False) -> dict:
+    """Basis label -> shapes: H and the run's quasi-eigen basis (with ``every``: both projections the run had)."""
+    key = ("bases", data, every)
+    if key not in cache:
+        labels = [label for label, projection in QE_PROJECTIONS.items()
+                  if projection in record.config["basis"]["projections"]]
+        labels = labels if every else [_qe_label(record)]
+        cache[key] = {"H": inputs["hand"], **{label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label],
+                                                                         _appended_axes(record, data, label))
+                                              for label in labels}}
+    return cache[key]
+
+
+def frame_weights(record: RunRecord, data: str, label: str, cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of every evaluated frame that saw every point, in a basis, with the figures' solver.
+
+    Returns
+    -------
+    weights : ndarray of shape (n_complete, n_shapes)
+    complete : ndarray of shape (n_eval_frames,) of bool
+    """
+    from workbench.solve import solve_weights
+
+    key = ("weights", data, label)
+    if key not in cache:
+        inputs = _inputs(record, data, cache)
+        _, solver = figure_solver(record.config)
+        complete = np.isfinite(inputs["eval"]).all(axis=1)
+        shapes = figure_bases(record, data, inputs, cache, every=True)[label]
+        cache[key] = solve_weights(shapes, inputs["eval"][complete], **solver).weights, complete
+    return cache[key]
+
+
+def negative_weight_share(record: RunRecord, cache: dict) -> dict:
+    """Data variant -> (basis -> share of evaluated frames whose least-squares weights include a negative one),
+    for the variants whose inputs the run saved."""
+    from workbench.solve import solve_weights
+
+    shares = {}
+    for data in record.data_variants:
+        inputs = _inputs(record, data, cache)
+        if inputs is None:
+            continue
+        complete = np.isfinite(inputs["eval"]).all(axis=1)
+        shares[data] = {}
+        for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
+            weights = solve_weights(shapes, inputs["eval"][complete], kind="lstsq").weights
+            scale = float(np.max(np.abs(weights))) if weights.size else 1.0
+            shares[data][label] = float((weights < -1e-9 * scale).any(axis=1).mean())
+    return shares
+
+
+def figure3_frames(inputs: Mapping, n_frames: int = 3) -> list[int]:
+    """The frames of figure 3: the most displaced of each third of the take (figure 4 shows the first)."""
+    from workbench.reporting.figures.faces import expressive_frames
+
+    return expressive_frames(np.nan_to_num(inputs["eval"]), n_frames)
+
+
 def draw_analogy():
     from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
 
     return figure_analogy(make_analogy_example(np.random.default_rng(ANALOGY_SEED)))
 
 
-def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = None):
+def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = None, cache: dict | None = None):
     """Figure 2 from a record, or the reason it cannot be drawn."""
     from workbench.reporting.figures.faces import figure_hand_vs_quasi_eigen, spread_by_rank
 
-    found = _mesh_variant(record)
+    found = _mesh_variant(record, {} if cache is None else cache)
     if found is None:
         return "needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])"
     data, inputs = found
@@ -214,72 +300,195 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
     return figure_hand_vs_quasi_eigen(
         inputs["neutral"], inputs["faces"], inputs["hand"][chosen], quasi_eigen[chosen],
         [names[i] for i in chosen], [distance[names[i]] for i in chosen], [cosine[names[i]] for i in chosen],
-        title=(f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{dataset_label(record)}, "
-               f"data: {data}, m = {m}, {projection} projection"),
-        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})")
+        title=(f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
+               f"data {data}, m = {m}, {projection} projection"),
+        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})", support=inputs.get("point_support"))
 
 
-def draw_reconstructions(record: RunRecord, n_frames: int = 3):
+def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     """Figure 3 from a record, or the reason it cannot be drawn."""
-    from workbench.reporting.figures.faces import expressive_frames, figure_reconstructions
+    from workbench.reporting.figures.faces import figure_reconstructions
 
-    found = _mesh_variant(record)
+    cache = {} if cache is None else cache
+    found = _mesh_variant(record, cache)
     if found is None:
         return "needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])"
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
-    label = _qe_label(record)
-    frames = expressive_frames(inputs["eval"], n_frames)
+    frames = figure3_frames(inputs)
     captured = inputs["eval"][frames]
-    bases = {"H": inputs["hand"],
-             label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label], _appended_axes(record, data, label))}
-    reconstructed = {name: reconstruct_frames(shapes, captured, solver) for name, shapes in bases.items()}
+    reconstructed = {name: reconstruct_frames(shapes, captured, solver)
+                     for name, shapes in figure_bases(record, data, inputs, cache).items()}
     notes = {}
     for name, frames_out in reconstructed.items():
         alpha = frame_alpha(inputs["neutral"], captured, frames_out)
         notes[name] = [f"alpha abs {a:.3f} %, disp {d:.1f} %" for a, d in zip(alpha["absolute"],
                                                                             alpha["displacement"])]
-    rate = record.metrics["dataset"]["frame_rate"]
+    timeline = record_timeline(record, inputs)
+    labels = [timeline.label(f).replace(" (", "\n(") for f in frames]
     return figure_reconstructions(
-        inputs["neutral"], inputs["faces"], captured, reconstructed,
-        [f"frame {f} (t = {f / rate:.2f} s)" for f in frames], notes,
-        title=(f"Figure 3 (reproduced): captured frames and their reconstructions\n{dataset_label(record)}, "
-               f"data: {data}, solver {solver_name}; the most displaced frame of each third of the take"))
+        inputs["neutral"], inputs["faces"], captured, reconstructed, labels, notes,
+        title=(f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
+               f"{data}, solver {solver_name}; the most displaced frame of each third of the take"),
+        support=inputs.get("point_support"))
 
 
-def draw_marker_errors(record: RunRecord):
+def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
+    """The frame of figure 4 in a marker variant: figure 3's first frame (the same take and file frame), or,
+    without a mesh variant or when that frame misses a marker, the most displaced frame that saw every marker.
+
+    Returns
+    -------
+    index : int
+        Index among the variant's evaluated frames.
+    why : str
+        How it was chosen, for the title.
+    """
+    from workbench.reporting.figures.faces import expressive_frames
+
+    timeline = record_timeline(record, inputs)
+    seen_all = (inputs["eval_visible"].all(axis=1) if "eval_visible" in inputs
+                else np.ones(len(inputs["eval"]), dtype=bool))
+    mesh = _mesh_variant(record, cache)
+    if mesh is not None:
+        first = figure3_frames(mesh[1])[0]
+        other = record_timeline(record, mesh[1])
+        match = np.flatnonzero((timeline.take == other.take[first]) & (timeline.frame == other.frame[first]))
+        if match.size and seen_all[match[0]]:
+            return int(match[0]), "figure 3's first frame"
+    candidates = np.flatnonzero(seen_all)
+    if candidates.size == 0:
+        return -1, ""
+    return int(candidates[expressive_frames(inputs["eval"][candidates], 3)[0]]), \
+        "the most displaced of the first third that saw every marker"
+
+
+def draw_marker_errors(record: RunRecord, cache: dict | None = None):
     """Figure 4 from a record, or the reason it cannot be drawn."""
     from workbench.reporting.figures import basis_label
-    from workbench.reporting.figures.faces import expressive_frames, figure_marker_errors
+    from workbench.reporting.figures.faces import figure_marker_errors
 
-    found = _marker_variant(record)
+    cache = {} if cache is None else cache
+    found = _marker_variant(record, cache)
     if found is None:
         return "needs a marker data variant saved with save_inputs=true"
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
-    label = _qe_label(record)
-    # with capture gaps (gap_policy masked) the figure shows a frame that saw every marker
-    seen_all = (np.flatnonzero(inputs["eval_visible"].all(axis=1)) if "eval_visible" in inputs
-                else np.arange(len(inputs["eval"])))
-    if seen_all.size == 0:
+    frame, why = figure4_frame(record, inputs, cache)
+    if frame < 0:
         return "needs an evaluated frame that saw every marker (every frame has a gap)"
-    frame = int(seen_all[expressive_frames(inputs["eval"][seen_all], 1)[0]])
     captured = inputs["eval"][[frame]]
-    bases = {"H": inputs["hand"],
-             label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label], _appended_axes(record, data, label))}
     reconstructed, titles = {}, {}
-    for name, shapes in bases.items():
+    for name, shapes in figure_bases(record, data, inputs, cache).items():
         reconstructed[name] = reconstruct_frames(shapes, captured, solver)[0]
         alpha = frame_alpha(inputs["neutral"], captured, reconstructed[name][None])
         titles[name] = (f"{basis_label(name)}\nalpha abs {alpha['absolute'][0]:.3f} %, disp "
                         f"{alpha['displacement'][0]:.1f} %, RMS {alpha['rms'][0]:.3f} mm")
-    rate = record.metrics["dataset"]["frame_rate"]
     n_markers = inputs["neutral"].size // 3
     return figure_marker_errors(
         inputs["neutral"], captured[0], reconstructed, titles, units=record.metrics["dataset"]["units"],
-        title=(f"Figure 4 (reproduced): reconstruction error at the {n_markers} markers, frame {frame} "
-               f"(t = {frame / rate:.2f} s, the most displaced)\n{dataset_label(record)}, data: {data}, "
-               f"solver {solver_name}; captured red, reconstructed blue"))
+        title=(f"Figure 4 (reproduced): reconstruction error at the {n_markers} markers, "
+               f"{record_timeline(record, inputs).label(frame)}, {why}\n{short_label(record)}; data {data}, solver "
+               f"{solver_name}; captured red, reconstructed blue"))
+
+
+def draw_vertex_rms(record: RunRecord, cache: dict):
+    """Per-vertex RMS error over the whole take for H, the quasi-eigen bases and PCA, or why not drawn."""
+    from workbench.reporting.figures.faces import figure_vertex_rms
+
+    found = _mesh_variant(record, cache)
+    if found is None:
+        return "needs a mesh data variant saved with save_inputs=true"
+    data, inputs = found
+    solver_name, _ = figure_solver(record.config)
+    rms = {}
+    for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
+        weights, complete = frame_weights(record, data, label, cache)
+        rms[label] = vertex_rms(inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e)
+    complete = np.isfinite(inputs["eval"]).all(axis=1)
+    mean, components = inputs["mean"], inputs["components"]
+    rms["PCA"] = vertex_rms(inputs["eval"][complete], lambda rows: mean + (
+        (inputs["eval"][complete][rows] - mean) @ components.T) @ components)
+    return figure_vertex_rms(
+        inputs["neutral"], inputs["faces"], rms, support=inputs.get("point_support"),
+        title=(f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
+               f"{data}, solver {solver_name} (PCA: projection)"))
+
+
+def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], chunk: int = 256) -> np.ndarray:
+    """RMS over frames of the 3-D error at every point, in chunks of frames.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points)
+    reconstruct : callable
+        Rows (a slice) -> their reconstructions, ndarray of shape (n_rows, 3 * n_points).
+    chunk : int
+
+    Returns
+    -------
+    ndarray of shape (n_points,)
+    """
+    total = np.zeros(frames.shape[1] // 3)
+    for start in range(0, len(frames), chunk):
+        rows = slice(start, start + chunk)
+        error = (reconstruct(rows) - frames[rows]).reshape(-1, frames.shape[1] // 3, 3)
+        total += (error ** 2).sum(axis=(0, 2))
+    return np.sqrt(total / max(len(frames), 1))
+
+
+def draw_alpha_per_solver(record: RunRecord, cache: dict):
+    from workbench.reporting.figures.studies import plot_alpha_per_solver
+
+    column = headline_column(record.config)
+    shares = negative_weight_share(record, cache)
+    return plot_alpha_per_solver(
+        record.table, column, shares,
+        title=("Alpha per solver: constraints on the weights, and how many frames need negative weights "
+               f"without them\n{short_label(record)}"))
+
+
+def draw_weight_curves(record: RunRecord, cache: dict, seconds_shown: float = 12.0):
+    """w_i(t) of H and the quasi-eigen basis over a stretch of the take around figure 3's first frame."""
+    from workbench.reporting.figures.studies import plot_weight_curves
+
+    found = _mesh_variant(record, cache) or _marker_variant(record, cache)
+    if found is None:
+        return "needs inputs saved with save_inputs=true"
+    data, inputs = found
+    solver_name, _ = figure_solver(record.config)
+    timeline = record_timeline(record, inputs)
+    centre = figure3_frames(inputs)[0]
+    span = next((start, stop) for start, stop in timeline.take_spans() if start <= centre < stop)
+    near = np.flatnonzero(np.abs(timeline.seconds - timeline.seconds[centre]) <= seconds_shown / 2)
+    rows = near[(near >= span[0]) & (near < span[1])]
+    labels = ["H", _qe_label(record)]
+    weights = {}
+    for label in labels:
+        values, complete = frame_weights(record, data, label, cache)
+        full = np.full((len(complete), values.shape[1]), np.nan)
+        full[complete] = values
+        weights[label] = full[rows]
+    names = [str(name) for name in inputs["hand_names"]]
+    return plot_weight_curves(
+        timeline.seconds[rows], weights, names,
+        title=(f"Weights w_i(t), solver {solver_name}, {timeline.take[centre]} "
+               f"{timeline.seconds[rows[0]]:.1f}-{timeline.seconds[rows[-1]]:.1f} s (around figure 3's first frame)"
+               f"\n{short_label(record)}; data {data}; the six shapes with the largest hand weights"))
+
+
+def draw_intuitiveness_bars(record: RunRecord, cache: dict):
+    from workbench.reporting.figures.studies import plot_intuitiveness_bars
+
+    data = next((d for d in sorted(record.data_variants, key=lambda d: d != "mesh")), None)
+    rows = record.metrics["data"][data]["intuitiveness"]
+    names = list(dict.fromkeys(row["shape"] for row in rows))
+    projections = list(dict.fromkeys(row["projection"] for row in rows))
+    values = {(row["projection"], row["shape"]): row for row in rows}
+    return plot_intuitiveness_bars(
+        names, {p: [values[p, n]["cosine"] for n in names] for p in projections},
+        {p: [values[p, n]["relative_distance"] for n in names] for p in projections},
+        title=f"How far each hand shape moves when projected (data {data})\n{short_label(record)}")
 
 
 def draw_coverage_curve(record: RunRecord):
@@ -288,13 +497,15 @@ def draw_coverage_curve(record: RunRecord):
     pca = {data: values["pca"] for data, values in record.metrics["data"].items()}
     basis = record.config["basis"]
     threshold = basis["coverage"] if basis.get("n_components") is None else None
+    hand = record.table[record.table["basis"] == "H"]
     return plot_coverage_curve(
         {data: np.asarray(p["explained_variance_ratio"]) for data, p in pca.items()},
         {data: p["m"] for data, p in pca.items()}, threshold=threshold,
-        title=f"Coverage: cumulative explained variance of the leading eigenvalues\n{dataset_label(record)}")
+        paper_m=record.config.get("paper", {}).get("m"), basis_size=int(hand["n"].iloc[0]) if len(hand) else None,
+        title=f"Coverage: cumulative explained variance of the leading eigenvalues\n{short_label(record)}")
 
 
-def draw_alpha_over_time(record: RunRecord):
+def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
     from workbench.reporting.figures.studies import plot_alpha_over_time
 
     arrays = record.load_alpha_per_frame()
@@ -308,10 +519,14 @@ def draw_alpha_over_time(record: RunRecord):
         values = arrays[f"{data}.{normalisation}"]
         series[data] = {str(b): values[i] for i, (b, s) in enumerate(zip(bases, solvers))
                         if s == solver_name or b == "PCA"}
-    return plot_alpha_over_time(series, record.metrics["dataset"]["frame_rate"],
-                                ylabel=f"alpha, {normalisation} (%)",
+    first = record.data_variants[0]
+    timeline = Timeline.from_arrays(arrays, f"{first}.") or Timeline.uniform(
+        "take", np.arange(len(arrays[f"{first}.absolute"][0])), record.metrics["dataset"]["frame_rate"])
+    elapsed = timeline.elapsed()
+    takes = [(str(timeline.take[start]), float(elapsed[start])) for start, _ in timeline.take_spans()]
+    return plot_alpha_over_time(series, elapsed, ylabel=f"alpha, {normalisation} (%)", takes=takes,
                                 title=f"Alpha of every frame over the take, solver {solver_name}\n"
-                                      f"{dataset_label(record)}")
+                                      f"{short_label(record)}")
 
 
 def draw_marker_vs_mesh(record: RunRecord):
@@ -321,7 +536,7 @@ def draw_marker_vs_mesh(record: RunRecord):
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
     return plot_marker_vs_mesh(record.table, headline_column(record.config), solver=solver_name,
-                               title=f"Marker versus mesh data: the method on each\n{dataset_label(record)}")
+                               title=f"Marker versus mesh data: the method on each\n{short_label(record)}")
 
 
 RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
@@ -330,29 +545,142 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
      "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
      lambda record, options: draw_analogy()),
     ("fig2_hand_vs_quasi_eigen", "Figure 2: hand shapes beside their quasi-eigen faces",
-     "Four hand shapes (top) and their quasi-eigen faces (bottom) on the mesh, coloured by displacement length; "
-     "under each pair its relative distance |e^QE - e^H| / |e^H| and cosine. The four are spread over the "
-     "ranks of the relative distance (least to most changed) unless --shapes names them.",
-     lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"))),
+     "Four hand shapes (top) and their quasi-eigen faces (bottom) on the mesh, coloured by the signed "
+     "displacement along the surface normal (red: out of the face, blue: into it; zero white); under each pair "
+     "its relative distance |e^QE - e^H| / |e^H| and cosine. The four are spread over the ranks of the relative "
+     "distance (least to most changed) unless --shapes names them. Grey: extrapolated, far from every marker.",
+     lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"), options["cache"])),
     ("fig3_reconstructions", "Figure 3: captured frames and their reconstructions",
-     "Left: captured frames, coloured by displacement length. Right: their reconstructions with the hand basis "
-     "and the quasi-eigen basis (the run's solver), coloured by per-vertex error against the captured frame.",
-     lambda record, options: draw_reconstructions(record)),
+     "Left: captured frames (take, frame of the source file, time), coloured by displacement length. Right: "
+     "their reconstructions with the hand basis and the quasi-eigen basis (the run's solver), coloured by "
+     "per-vertex error against the captured frame. Eyes and mouth are closed by dark caps; grey: extrapolated.",
+     lambda record, options: draw_reconstructions(record, options["cache"])),
     ("fig4_marker_errors", "Figure 4: one frame's reconstruction error at the markers",
-     "Captured markers (red) and reconstructed markers (blue) of the most displaced frame, front and side "
-     "views; the offsets are magnified by the stated factor so that sub-millimetre errors show.",
-     lambda record, options: draw_marker_errors(record)),
+     "Captured markers (red) and reconstructed markers (blue) of figure 3's first frame, front and side views; "
+     "the offsets are magnified by the stated factor so that sub-millimetre errors show.",
+     lambda record, options: draw_marker_errors(record, options["cache"])),
+    ("vertex_rms", "Where each basis errs over the whole take",
+     "Per-vertex RMS reconstruction error over every evaluated frame, for the hand basis, the quasi-eigen bases "
+     "and PCA, on one shared colour bar.",
+     lambda record, options: draw_vertex_rms(record, options["cache"])),
+    ("alpha_per_solver", "Alpha per solver, and why constraints hurt the quasi-eigen basis",
+     "The headline alpha of each basis under least squares, non-negative and box weights (PCA's projection as a "
+     "dashed line), with the share of frames whose least-squares weights include a negative one: those frames "
+     "must change under a constraint.",
+     lambda record, options: draw_alpha_per_solver(record, options["cache"])),
+    ("weight_curves", "Weight curves w_i(t) of H and QE",
+     "The weights of the six shapes the hand basis uses most over a stretch of the take, in the hand basis and "
+     "in the quasi-eigen basis (same colour, same shape); dotted: w = 1, a shape fully on.",
+     lambda record, options: draw_weight_curves(record, options["cache"])),
+    ("intuitiveness", "How far each hand shape moves when projected",
+     "Cosine (1: same direction) and relative distance |e^QE - e^H| / |e^H| (0: unchanged) between each hand "
+     "shape and its quasi-eigen face, per projection.",
+     lambda record, options: draw_intuitiveness_bars(record, options["cache"])),
     ("coverage_curve", "Coverage curve",
      "Cumulative explained variance against the number of eigenfaces m (the first 60 eigenvalues kept in the "
-     "record), with the coverage threshold and the chosen m of each data variant.",
+     "record), with the coverage threshold, the chosen m of each data variant, the paper's m = 18 and the hand "
+     "basis size n.",
      lambda record, options: draw_coverage_curve(record)),
     ("alpha_over_time", "Alpha per frame over time",
-     "Per-frame alpha (the headline normalisation) of each basis over the take.",
+     "Per-frame alpha (the headline normalisation) of each basis over the take; takes concatenated in time are "
+     "drawn one after another with their boundaries named.",
      lambda record, options: draw_alpha_over_time(record)),
     ("marker_vs_mesh", "Marker versus mesh",
      "The headline alpha of each basis when the method runs on the markers and on the dense mesh.",
      lambda record, options: draw_marker_vs_mesh(record)),
 )
+
+
+@dataclass
+class FacesBlock:
+    """The interactive 3-D view (HTML) and its animation (both documents), or why they are missing."""
+
+    html: str = ""
+    animation: str = ""
+    caption: str = ""
+    missing: str = ""
+
+
+VIEW_CAPTION = ("Turn and zoom the face (drag, scroll); pick one of figure 3's frames and what is shown: the captured "
+                "frame coloured by its displacement length, or its reconstruction with a basis coloured by the "
+                "per-vertex error (one error scale for every basis and frame). Works offline from the file.")
+
+
+def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 24) -> FacesBlock:
+    """Write the interactive view's data (``figures/view3d.js``), the plotly.js bundle (``../vendor/``) and the
+    animation (``figures/captured_h_qe.gif``) of a run's mesh variant.
+
+    Parameters
+    ----------
+    record : RunRecord
+    out : pathlib.Path
+        The report folder.
+    cache : dict
+        Arrays shared with the figures.
+    n_steps : int
+        Frames of the animation: consecutive evaluated frames from figure 3's first one, in its take.
+    """
+    from workbench.reporting.figures.faces import (DISPLACEMENT_CMAP, ERROR_CMAP, _upper_limit, masked,
+                                                   point_norms)
+    from workbench.reporting.figures.interactive import (DATA_FILE, PLOTLY_FILE, ViewState, install_plotly,
+                                                         view_payload, viewer_html, write_animation,
+                                                         write_view_data)
+    from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
+
+    found = _mesh_variant(record, cache)
+    if found is None:
+        return FacesBlock(missing="needs a mesh data variant saved with save_inputs=true")
+    data, inputs = found
+    _, solver = figure_solver(record.config)
+    support = inputs.get("point_support")
+    timeline = record_timeline(record, inputs)
+    frames = figure3_frames(inputs)
+    captured = inputs["eval"][frames]
+    bases = figure_bases(record, data, inputs, cache)
+    shown = {name: reconstruct_frames(shapes, captured, solver) for name, shapes in bases.items()}
+    mean, components = inputs["mean"], inputs["components"]
+    shown["PCA"] = mean + ((captured - mean) @ components.T) @ components
+    lengths = [masked(values, support) for values in point_norms(captured)]
+    errors = {name: [masked(values, support) for values in point_norms(frames_out - captured)]
+              for name, frames_out in shown.items()}
+    length_top = _upper_limit(lengths)
+    error_top = _upper_limit([values for per_frame in errors.values() for values in per_frame])
+    states = []
+    for i, frame in enumerate(frames):
+        label = timeline.label(frame)
+        states.append(ViewState(label, "captured", captured[i], lengths[i], DISPLACEMENT_CMAP, (0.0, length_top),
+                                "|d*| (mm)"))
+        states += [ViewState(label, name, shown[name][i], errors[name][i], ERROR_CMAP, (0.0, error_top),
+                             "error (mm)") for name in shown]
+    write_view_data(out / "figures" / DATA_FILE, view_payload(
+        inputs["neutral"], inputs["faces"], states, support,
+        title=f"{short_label(record)}; data {data}"))
+    install_plotly(out.parent)
+
+    span = next((start, stop) for start, stop in timeline.take_spans() if start <= frames[0] < stop)
+    steps = np.arange(frames[0], min(frames[0] + n_steps, span[1]))
+    stretch = inputs["eval"][steps]
+    qe = _qe_label(record)
+    moving = {"H": reconstruct_frames(bases["H"], stretch, solver),
+              qe: reconstruct_frames(bases[qe], stretch, solver)}
+    size = (240, 280)
+    panels = [render_meshes(inputs["neutral"] + stretch, inputs["faces"],
+                            [masked(v, support) for v in point_norms(stretch)],
+                            MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, length_top), window_size=size))]
+    for name, frames_out in moving.items():
+        panels.append(render_meshes(inputs["neutral"] + frames_out, inputs["faces"],
+                                    [masked(v, support) for v in point_norms(frames_out - stretch)],
+                                    MeshView(cmap=ERROR_CMAP, clim=(0.0, error_top), window_size=size)))
+    cropped = crop_background([image for panel in panels for image in panel])
+    panels = [cropped[k * len(steps):(k + 1) * len(steps)] for k in range(len(panels))]
+    write_animation(out / "figures" / "captured_h_qe.gif", panels,
+                    ["captured (|d*|)", "H (error)", f"{qe} (error)"],
+                    [timeline.label(step) for step in steps])
+    caption = (f"{len(steps)} consecutive frames from figure 3's first ({timeline.label(int(steps[0]))} to frame "
+               f"{int(timeline.frame[steps[-1]])}): captured, and reconstructed with H and {qe} (solver "
+               f"{figure_solver(record.config)[0]}), coloured as in figure 3.")
+    return FacesBlock(html=viewer_html(f"../vendor/{PLOTLY_FILE}", f"figures/{DATA_FILE}", VIEW_CAPTION),
+                      animation="captured_h_qe.gif", caption=caption)
 
 
 def make_figures(specs, argument, folder: Path, formats: Sequence[str], options: Mapping) -> list[FigureEntry]:
@@ -449,10 +777,27 @@ def licence_text(provenance: Mapping) -> str:
     return "not stated in the run record"
 
 
-def provenance_value(value, limit: int = 240) -> str:
-    """A provenance entry as one line of text; long nested entries are cut (the record holds them whole)."""
-    text = value if isinstance(value, str) else json.dumps(value, separators=(", ", ": "))
-    return text if len(text) <= limit else text[:limit] + " ... (in metrics.json)"
+def provenance_value(value, limit: int = 200) -> str:
+    """A provenance entry as one line of text: an absolute path by its last parts (the machine's folders say
+    nothing to a reader), a long nested entry by its keys (the record holds it whole)."""
+    if isinstance(value, str):
+        return _display_path(value)
+    text = json.dumps(value, separators=(", ", ": "))
+    if len(text) <= limit:
+        return text
+    if isinstance(value, Mapping):
+        keys = list(value)
+        return (f"{len(keys)} entries: " + ", ".join(map(str, keys[:8])) + (", ..." if len(keys) > 8 else "")
+                + " (in full in metrics.json)")
+    return f"{len(value)} items (in full in metrics.json)"
+
+
+def _display_path(text: str) -> str:
+    """An absolute path as ``.../<parent>/<name>``; other text unchanged."""
+    path = Path(text)
+    if not path.is_absolute() or len(path.parts) < 3:
+        return text
+    return ".../" + "/".join(path.resolve().parts[-2:])
 
 
 def report_versions() -> dict:
@@ -471,10 +816,13 @@ def report_versions() -> dict:
 def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and licence") -> Section:
     dataset = metrics["dataset"]
     # The record keeps the first data variant's train_on here; the variants are listed under the choices.
-    provenance = {key: value for key, value in dataset.get("provenance", {}).items() if key != "train_on"}
+    provenance = {key: value for key, value in dataset.get("provenance", {}).items()
+                  if key not in ("train_on", "data_root")}
     return Section(heading, [
         f"**{dataset['name']}**; units {dataset['units']}; coordinate origin: {dataset['origin']}; "
-        f"{dataset['frame_rate']} frames per second.",
+        f"{float(dataset['frame_rate']):.4g} frames per second in the frames used"
+        + (f" (the file's {float(provenance['frame_rate_in_file']):.4g} Hz, every {provenance['frame_step']} "
+           "frame)" if provenance.get("frame_rate_in_file") and provenance.get("frame_step") else "") + ".",
         f"Licence: {licence_text(provenance)}.",
         pd.DataFrame({"key": list(provenance), "value": [provenance_value(v) for v in provenance.values()]}),
     ])
@@ -494,59 +842,48 @@ def versions_section(metrics: Mapping, builder: Mapping) -> Section:
 
 
 def run_facts(record: RunRecord) -> list:
-    """Bullet lines per data variant: frames, points, m and coverage, empty axes, notes."""
-    lines = []
-    for data, values in record.metrics["data"].items():
-        pca = values["pca"]
-        empty = "; ".join(f"{projection}: {qe['empty_axes'] or 'none'}"
-                          for projection, qe in values["quasi_eigen"].items())
-        lines.append(f"**{data}**: {values['n_train_frames']} training frames, {values['n_eval_frames']} evaluated, "
-                     f"{values['n_points']} points; m = {pca['m']} eigenfaces reach coverage "
-                     f"{pca['coverage_reached']:.4f} ({pca['method']}); empty PCA axes: {empty}")
-        lines += [f"{data}: {note}" for note in values.get("notes", [])]
+    """The run's facts once: a table with a row per data variant, the notes all variants share, then each
+    variant's own notes, and the paper's values."""
+    from workbench.reporting.findings import facts_frame, shared_notes
+
+    shared, own = shared_notes(record.metrics)
+    lines = [*shared, *[f"{data} only: {note}" for data, notes in own.items() for note in notes]]
     paper = record.config.get("paper", {})
     if paper:
         lines.append(f"paper: m = {paper.get('m')} at coverage {paper.get('coverage')}; alpha "
                      + ", ".join(f"{k} {v}" for k, v in paper.get("alpha", {}).items())
                      + " (absolute, QP with unstated constraints)")
-    return lines
+    return [facts_frame(record.metrics), lines]
 
 
-def intuitiveness_frame(metrics: Mapping) -> pd.DataFrame:
-    """Per data variant and hand shape: relative distance and cosine to its quasi-eigen face, per projection."""
-    records = {}
-    for data, values in metrics["data"].items():
-        for row in values["intuitiveness"]:
-            entry = records.setdefault((data, row["shape"]), {"data": data, "shape": row["shape"]})
-            entry[f"relative distance ({row['projection']})"] = row["relative_distance"]
-            entry[f"cosine ({row['projection']})"] = row["cosine"]
-    return pd.DataFrame.from_records(list(records.values()))
+def run_sections(record: RunRecord, figures: list[FigureEntry], command: str,
+                 negative_share: Mapping | None = None, faces: "FacesBlock | None" = None
+                 ) -> tuple[str, list[Section]]:
+    from workbench.reporting.findings import run_findings
 
-
-def run_sections(record: RunRecord, figures: list[FigureEntry], command: str) -> tuple[str, list[Section]]:
     column = headline_column(record.config)
     title = f"Study '{record.config['study']}' on the {dataset_label(record)}"
+    intuitiveness = {data: values["intuitiveness"] for data, values in record.metrics["data"].items()}
     sections = [
-        Section("About this report", [
-            f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`. "
+        Section("Findings", [
+            f"Generated from the run's numbers (`{column}`, %). "
             + ("The data are synthetic: generated by the workbench, not a real capture. "
                if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic" else ""),
-            "Alpha is in percent (eq. 6); only ratios between rows compare across datasets, since the absolute "
-            "alpha depends on the coordinate origin.",
-        ]),
+            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, negative_share)]),
+        Section("Run facts", run_facts(record)),
         Section("Alpha beside the paper", [
-            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values.",
+            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values; only "
+            "ratios between rows compare across datasets, since the absolute alpha depends on the coordinate "
+            "origin.",
             headline_table(record.table, column),
         ]),
-        Section("Full alpha table", [record.table]),
-        Section("Run facts", [run_facts(record)]),
+        *([Section("Faces you can turn", [faces])] if faces is not None else []),
         Section("Figures", figures),
+        Section("Full alpha table", [record.table]),
         Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
-        Section("Intuitiveness of the quasi-eigen faces", [
-            "Relative distance |e^QE - e^H| / |e^H| (0: unchanged) and cosine (1: same direction) of each hand "
-            "shape and its quasi-eigen face.", intuitiveness_frame(record.metrics)]),
         provenance_section(record.metrics),
         versions_section(record.metrics, report_versions()),
+        Section("About this report", [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`."]),
     ]
     return title, sections
 
@@ -564,6 +901,8 @@ def render_markdown(title: str, sections: Sequence[Section]) -> str:
         for block in section.blocks:
             if isinstance(block, FigureEntry):
                 out += _markdown_figure(block)
+            elif isinstance(block, FacesBlock):
+                out += _markdown_faces(block)
             elif isinstance(block, pd.DataFrame):
                 out += [markdown_frame(block)]
             elif isinstance(block, list):
@@ -581,6 +920,21 @@ def _markdown_figure(entry: FigureEntry) -> list[str]:
                        if not name.endswith(".png"))
     return [f"### {entry.title}", "", f"![{entry.title}](figures/{png})", "",
             entry.caption + (f" Also as {others}." if others else ""), ""]
+
+
+def _markdown_faces(block: FacesBlock) -> list[str]:
+    if block.missing:
+        return [f"Not drawn ({block.missing}).", ""]
+    return ["The interactive 3-D view (turn the face, pick a frame and a basis) is in `index.html`; open it in a "
+            "browser.", "", f"![captured, H and QE over a stretch of the take](figures/{block.animation})", "",
+            block.caption, ""]
+
+
+def _html_faces(block: FacesBlock) -> str:
+    if block.missing:
+        return f"<p class=\"missing\">Not drawn ({html.escape(block.missing)}).</p>"
+    return (block.html + f"<figure><img src=\"figures/{block.animation}\" alt=\"captured, H and QE over a "
+            f"stretch of the take\"><figcaption>{_inline_markdown(block.caption)}</figcaption></figure>")
 
 
 def _inline_markdown(text: str) -> str:
@@ -615,6 +969,8 @@ tbody tr:nth-child(even) { background: #fafafa; }
 figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #e3e3e3; }
 figcaption { font-size: .9em; color: #333; max-width: 1100px; } .links a { margin-left: .4em; }
 code { background: #f4f4f4; padding: 0 .25em; } .missing { color: #8a4b00; }
+.view3d-controls { margin: .4em 0; } .view3d-controls select { margin: 0 .8em 0 .3em; }
+.view3d-controls .hint { color: #666; font-size: .9em; }
 """
 
 
@@ -626,6 +982,8 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
         for block in section.blocks:
             if isinstance(block, FigureEntry):
                 body.append(_html_figure(block))
+            elif isinstance(block, FacesBlock):
+                body.append(_html_faces(block))
             elif isinstance(block, pd.DataFrame):
                 body.append(html_frame(block))
             elif isinstance(block, list):
@@ -642,9 +1000,11 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str]) -> list:
+def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str],
+                  per_run: pd.DataFrame | None = None) -> list:
     """Figure specs of a sweep report: the first run's coverage curve, alpha against each swept setting (and
-    against m for a coverage sweep), and marker versus mesh when the sweep ran on two data variants."""
+    against m for a coverage sweep) with every run's own value as a point, and marker versus mesh when the sweep
+    ran on two data variants."""
     from workbench.reporting.figures.studies import axis_label, plot_alpha_against, plot_marker_vs_mesh
 
     first = records[0]
@@ -671,6 +1031,7 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
                       + (f"; one line per value of {', '.join(others)}." if others else "."),
                       lambda _, options, x=x, others=others: plot_alpha_against(
                           summary, x, column, solver=solver, by=others,
+                          points=per_run if per_run is not None and x in per_run.columns else None,
                           title=f"Alpha against {axis_label(x)}\n{label}")))
     if summary["data"].nunique() > 1 and not targets:
         specs.append(("marker_vs_mesh", "Marker versus mesh",
@@ -825,7 +1186,7 @@ def default_report_name(config: Mapping) -> str:
 def _clear_figures(folder: Path) -> None:
     if folder.is_dir():
         for path in folder.iterdir():
-            if path.suffix in (".png", ".svg", ".pdf"):
+            if path.suffix in (".png", ".svg", ".pdf", ".gif", ".js"):
                 path.unlink()
 
 
@@ -854,8 +1215,10 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     out = Path(out)
     figures_dir = out / "figures"
     _clear_figures(figures_dir)
-    entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), options or {})
-    title, sections = run_sections(record, entries, command)
+    cache: dict = {}
+    entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), {**(options or {}), "cache": cache})
+    faces = build_faces(record, out, cache)
+    title, sections = run_sections(record, entries, command, negative_weight_share(record, cache), faces)
     sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
     write_atomic(out / "alpha_table.csv", (record.folder / "alpha_table.csv").read_bytes())
@@ -884,7 +1247,8 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     summary["n_hand"] = hand_basis_size(summary, swept)
     figures_dir = out / "figures"
     _clear_figures(figures_dir)
-    entries = make_figures(sweep_figures(records, summary, swept), None, figures_dir, _with_png(formats), {})
+    entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, _with_png(formats),
+                           {})
     title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
     sections = with_bases_section(sections, records, figures_dir, _with_png(formats))
     _write_documents(out, title, sections)

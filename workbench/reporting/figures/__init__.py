@@ -25,8 +25,12 @@ from matplotlib.figure import Figure
 from workbench.record import write_atomic
 
 FORMATS = ("png", "svg")
-# Full-colour PNGs at a resolution that survives zooming; line plots are also written as SVG.
+# Full-colour PNGs. Figures of rendered faces (raster images) at a resolution that survives zooming, and no
+# vector copy (it would only wrap the same raster); line plots at screen resolution plus their vector copy
+# (SVG, PDF), which is what survives zooming for them.
 PNG_DPI = 200
+RENDER_DPI = 170
+PLOT_DPI = 100
 
 # Basis colours shared by every plot, so a basis looks the same everywhere.
 BASIS_COLOURS = {"H": "#1f5fbf", "QE": "#8e2bb0", "QE-linear": "#d17a00", "PCA": "#c0392b"}
@@ -68,7 +72,7 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     stem : str
         File name without extension.
     formats : sequence of str
-        Any of ``png``, ``svg``, ``pdf``.
+        Any of ``png``, ``svg``, ``pdf``. A figure of rendered images (faces) is written as PNG only.
 
     Returns
     -------
@@ -77,11 +81,12 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    raster = is_raster(figure)
     written = []
-    for fmt in formats:
+    for fmt in (["png"] if raster else formats):
         path = folder / f"{stem}.{fmt}"
         if fmt == "png":
-            data = png_bytes(figure)
+            data = png_bytes(figure, dpi=RENDER_DPI if raster else PLOT_DPI)
         else:
             buffer = io.BytesIO()
             with matplotlib.rc_context(SVG_RC):
@@ -90,6 +95,11 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
         write_atomic(path, data)  # a killed report leaves whole figures or none
         written.append(path)
     return written
+
+
+def is_raster(figure: Figure) -> bool:
+    """Whether a figure shows rendered images (faces), rather than lines and points only."""
+    return any(ax.images for ax in figure.axes)
 
 
 def png_bytes(figure: Figure, *, dpi: int = PNG_DPI) -> bytes:

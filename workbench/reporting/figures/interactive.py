@@ -84,7 +84,7 @@ def view_payload(neutral: np.ndarray, faces: np.ndarray, states: Sequence[ViewSt
         ``values`` (uint8 over ``clim``), each zlib-compressed and base64-encoded; ``loops``: the mesh's openings
         (eyes, mouth) closed by dark caps in the page.
     """
-    from workbench.figures.render import hole_loops
+    from workbench.reporting.figures.render import hole_loops
 
     faces = np.asarray(faces)
     if support is not None:
@@ -168,7 +168,8 @@ VIEWER_SCRIPT = r"""
         {type: "mesh3d", x: p.x, y: p.y, z: p.z, i: fi, j: fj, k: fk, intensity: intensity,
          colorscale: state.cmap, reversescale: true, cmin: low, cmax: high, flatshading: false, hoverinfo: "skip",
          colorbar: {title: {text: state.colour_title, side: "right"}, len: 0.8},
-         lighting: {ambient: 0.45, diffuse: 0.75, specular: 0.15, roughness: 0.6}},
+         lighting: {ambient: 0.45, diffuse: 0.75, specular: 0.15, roughness: 0.6},
+         lightposition: {x: 20000, y: 60000, z: 100000}},
         {type: "mesh3d", x: c.x, y: c.y, z: c.z, i: c.i, j: c.j, k: c.k, color: "#2a2020", hoverinfo: "skip",
          showscale: false}];
     }

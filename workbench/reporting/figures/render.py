@@ -32,7 +32,7 @@ class MeshView:
 
     cmap: str
     clim: tuple[float, float]
-    window_size: tuple[int, int] = (600, 700)
+    window_size: tuple[int, int] = (480, 560)
     view: tuple[float, float, float] = FRONT_VIEW
 
 

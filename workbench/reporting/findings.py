@@ -128,9 +128,11 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         lines.append(f"**{data}**: m = {m} eigenfaces reach coverage {float(part['coverage'].iloc[0]):.4f} "
                      f"(paper: m = {paper.get('m')}); the {n} hand shapes {spans} them"
                      + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA") + ".")
-        for solver in (s for s in CONSTRAINED if s in solvers and "lstsq" in solvers):
+        constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
+        for k, solver in enumerate(constrained):  # the share of negative weights is said once
             lines.append(f"**{data}**: " + constraint_text(part, column, solver,
-                                                          (negative_share or {}).get(data)) + ".")
+                                                          (negative_share or {}).get(data) if k == 0 else None)
+                         + ".")
         closeness = closeness_text(intuitiveness.get(data, []))
         if closeness:
             lines.append(f"**{data}**: {closeness}.")
