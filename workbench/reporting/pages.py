@@ -606,7 +606,7 @@ VIEW_CAPTION = ("Turn and zoom the face (drag, scroll); pick one of figure 3's f
                 "per-vertex error (one error scale for every basis and frame). Works offline from the file.")
 
 
-def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 24) -> FacesBlock:
+def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 16) -> FacesBlock:
     """Write the interactive view's data (``figures/view3d.js``), the plotly.js bundle (``../vendor/``) and the
     animation (``figures/captured_h_qe.gif``) of a run's mesh variant.
 

@@ -29,7 +29,7 @@ FORMATS = ("png", "svg")
 # vector copy (it would only wrap the same raster); line plots at screen resolution plus their vector copy
 # (SVG, PDF), which is what survives zooming for them.
 PNG_DPI = 200
-RENDER_DPI = 170
+RENDER_DPI = 140
 PLOT_DPI = 100
 
 # Basis colours shared by every plot, so a basis looks the same everywhere.
@@ -104,6 +104,12 @@ def is_raster(figure: Figure) -> bool:
 
 def png_bytes(figure: Figure, *, dpi: int = PNG_DPI) -> bytes:
     """Full-colour PNG of a figure, without metadata that changes between rebuilds."""
+    from PIL import Image
+
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    return buffer.getvalue()
+    # re-encoded losslessly at the highest compression (matplotlib writes level 6)
+    image = Image.open(io.BytesIO(buffer.getvalue()))
+    smaller = io.BytesIO()
+    image.save(smaller, format="png", optimize=True, dpi=image.info.get("dpi", (dpi, dpi)))
+    return min(buffer.getvalue(), smaller.getvalue(), key=len)

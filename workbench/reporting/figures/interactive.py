@@ -5,8 +5,9 @@ The view uses plotly.js (its ``gl3d`` partial bundle, vendored from the npm pack
 MIT licence): a maintained WebGL library that rotates and zooms a shaded mesh with a colour bar and needs no
 server. It is a classic script, so the page works when opened from ``file://`` without network. The bundle is
 written once per reports folder (``<reports>/vendor/``), the mesh data once per report (``figures/view3d.js``):
-vertex displacements quantised to 0.01 mm and colours to 256 levels, zlib-compressed and decoded in the browser by
-``DecompressionStream``.
+vertex displacements quantised to 0.05 mm (invisible at face scale) and colours to 256 levels, their bytes split
+into planes (low bytes, then high bytes: the high ones are mostly equal and compress well), zlib-compressed and
+decoded in the browser by ``DecompressionStream``.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ PLOTLY_BUNDLE = Path(__file__).parent / "vendor" / "plotly-gl3d.min.js"
 PLOTLY_VERSION = "3.7.0"
 PLOTLY_FILE = f"plotly-gl3d-{PLOTLY_VERSION}.min.js"
 DATA_FILE = "view3d.js"
-STEP_MM = 0.01  # quantisation of the displacements in the page
+STEP_MM = 0.05  # quantisation of the displacements in the page
 # Matplotlib colour map -> plotly colour scale, reversed in the page (plotly's run from dark to light).
 COLOURSCALES = {"YlGnBu": "YlGnBu", "YlOrRd": "YlOrRd"}
 
@@ -63,6 +64,11 @@ def _packed(array: np.ndarray) -> str:
     return base64.b64encode(zlib.compress(np.ascontiguousarray(array).tobytes(), 9)).decode("ascii")
 
 
+def byte_planes(values: np.ndarray) -> np.ndarray:
+    """The bytes of little-endian int16 values as two planes, every low byte first, then every high byte."""
+    return np.ascontiguousarray(values.view(np.uint8).reshape(-1, 2).T).ravel()
+
+
 def view_payload(neutral: np.ndarray, faces: np.ndarray, states: Sequence[ViewState],
                  support: np.ndarray | None = None, title: str = "") -> dict:
     """The data of the interactive view, ready for JSON.
@@ -80,7 +86,9 @@ def view_payload(neutral: np.ndarray, faces: np.ndarray, states: Sequence[ViewSt
     Returns
     -------
     dict
-        ``neutral`` (float32), ``faces`` (uint32), per state ``displacement`` (int16 in units of ``step``) and
+        ``neutral`` (float32), ``faces`` (uint16 when the mesh has fewer than 65,536 vertices, else uint32; see
+        ``faces_bytes``), per state ``displacement`` (int16 in units of ``step``, as
+        :func:`byte_planes`; an offset from state ``base`` unless ``base`` is -1) and
         ``values`` (uint8 over ``clim``), each zlib-compressed and base64-encoded; ``loops``: the mesh's openings
         (eyes, mouth) closed by dark caps in the page.
     """
@@ -90,17 +98,24 @@ def view_payload(neutral: np.ndarray, faces: np.ndarray, states: Sequence[ViewSt
     if support is not None:
         faces = faces[np.asarray(support)[faces].all(axis=1)]
     loops = hole_loops(faces)
-    encoded = []
+    encoded, firsts = [], {}
     for state in states:
+        # a reconstruction is stored as its offset from the frame's first state (the captured frame): small
+        # numbers, which compress several times better than positions
+        base = firsts.setdefault(state.frame, len(encoded))
+        offset = np.asarray(state.displacement) - (states[base].displacement if base != len(encoded) else 0.0)
         low, high = state.clim
         levels = np.nan_to_num((np.asarray(state.values, dtype=float) - low) / max(high - low, 1e-12), nan=0.0)
         encoded.append({
             "frame": state.frame, "basis": state.basis, "cmap": COLOURSCALES[state.cmap], "clim": [low, high],
             "colour_title": state.colour_title,
-            "displacement": _packed(np.round(np.asarray(state.displacement) / STEP_MM).astype("<i2")),
+            "base": base if base != len(encoded) else -1,
+            "displacement": _packed(byte_planes(np.round(offset / STEP_MM).astype("<i2"))),
             "values": _packed(np.round(np.clip(levels, 0.0, 1.0) * 255).astype(np.uint8))})
     return {"title": title, "step": STEP_MM, "n_vertices": int(np.asarray(neutral).size // 3),
-            "neutral": _packed(np.asarray(neutral, dtype="<f4")), "faces": _packed(faces.astype("<u4")),
+            "neutral": _packed(np.asarray(neutral, dtype="<f4")),
+            "faces": _packed(faces.astype("<u2" if faces.max() < 2 ** 16 else "<u4")),
+            "faces_bytes": 2 if faces.max() < 2 ** 16 else 4,
             "loops": [loop.tolist() for loop in loops], "states": encoded}
 
 
@@ -131,6 +146,11 @@ VIEWER_SCRIPT = r"""
     const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
     return new Type(await new Response(stream).arrayBuffer());
   }
+  function planes(bytes) {  // low-byte plane, then high-byte plane -> int16
+    const n = bytes.length / 2, out = new Int16Array(n);
+    for (let v = 0; v < n; v++) out[v] = (bytes[n + v] << 8) | bytes[v];
+    return out;
+  }
   function positions(neutral, delta, step) {
     const n = neutral.length / 3, x = new Float32Array(n), y = new Float32Array(n), z = new Float32Array(n);
     for (let v = 0; v < n; v++) {
@@ -152,7 +172,8 @@ VIEWER_SCRIPT = r"""
     return {x, y, z, i, j, k};
   }
   async function main() {
-    const neutral = await unpack(view.neutral, Float32Array), faces = await unpack(view.faces, Uint32Array);
+    const neutral = await unpack(view.neutral, Float32Array);
+    const faces = await unpack(view.faces, view.faces_bytes === 2 ? Uint16Array : Uint32Array);
     const nf = faces.length / 3, fi = new Uint32Array(nf), fj = new Uint32Array(nf), fk = new Uint32Array(nf);
     for (let f = 0; f < nf; f++) { fi[f] = faces[3 * f]; fj[f] = faces[3 * f + 1]; fk[f] = faces[3 * f + 2]; }
     const frames = [...new Set(view.states.map((s) => s.frame))], bases = [...new Set(view.states.map((s) => s.basis))];
@@ -160,7 +181,12 @@ VIEWER_SCRIPT = r"""
     frames.forEach((f) => pickFrame.add(new Option(f, f)));
     bases.forEach((b) => pickBasis.add(new Option(b, b)));
     async function traces(state) {
-      const p = positions(neutral, await unpack(state.displacement, Int16Array), view.step);
+      const delta = planes(await unpack(state.displacement, Uint8Array));
+      if (state.base >= 0) {
+        const base = planes(await unpack(view.states[state.base].displacement, Uint8Array));
+        for (let v = 0; v < delta.length; v++) delta[v] += base[v];
+      }
+      const p = positions(neutral, delta, view.step);
       const levels = await unpack(state.values, Uint8Array), [low, high] = state.clim;
       const intensity = Float32Array.from(levels, (l) => low + (high - low) * l / 255);
       const c = caps(p);
@@ -255,7 +281,7 @@ def write_animation(path: Path, panels: Sequence[Sequence[np.ndarray]], titles: 
             canvas.paste(Image.fromarray(panels[p][t]), (p * width, band))
             draw.text((p * width + 8, 4), title, fill="black")
         draw.text((8, height + band + 4), caption, fill="black")
-        images.append(canvas.quantize(colors=255, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE))
+        images.append(canvas.quantize(colors=128, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE))
     buffer = io.BytesIO()
     images[0].save(buffer, format="gif", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0,
                    optimize=True)
