@@ -66,3 +66,25 @@ def test_facts_and_notes_are_stated_once():
     facts = facts_frame(metrics)
     assert list(facts["m"]) == [9, 10] and facts.loc[0, "empty PCA axes"] == "affine: none; linear: 3, 5"
     assert shared_notes(metrics) == (["shared"], {"markers": ["markers only"], "mesh": []})
+
+
+def test_sweep_findings_order_the_bases_at_each_swept_value():
+    from workbench.reporting.findings import sweep_findings
+
+    table = pd.concat([known_table().assign(**{"basis.coverage": 0.99}),
+                       known_table().assign(**{"basis.coverage": 0.995, "alpha_abs_mean": lambda t: t["alpha_abs_mean"] * 2})])
+    lines = sweep_findings(table, ["basis.coverage"], "alpha_abs_mean", "lstsq", PAPER)
+    assert lines == ["basis.coverage = 0.99: mesh PCA 0.2 < QE 0.25 < H 1",
+                     "basis.coverage = 0.995: mesh PCA 0.4 < QE 0.5 < H 2"]
+    assert sweep_findings(known_table(), [], "alpha_abs_mean", "lstsq", PAPER)[0].startswith("**mesh**")
+
+
+def test_bases_findings():
+    from workbench.reporting.findings import bases_findings
+
+    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["H", "QE", "SPCA"], "alpha_abs_mean": [1.0, 0.2, 0.1],
+                            "matched_abs_cosine": [1.0, 0.66, 0.45], "locality": [0.07, 0.27, 0.095]})
+    assert bases_findings(summary, "alpha_abs_mean") == [
+        "**mesh**: `alpha_abs_mean` from best to worst: SPCA 0.1 < QE 0.2 < H 1.",
+        "**mesh**: closest to the hand shapes: QE (mean matched |cosine| 0.66); most local: SPCA (10 % of the face "
+        "holds its elements' displacement, the hand shapes' 7 %)."]

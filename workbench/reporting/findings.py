@@ -117,16 +117,18 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
     lines = []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     for data, part in table.groupby("data", sort=False):
-        m = int(part["m"].iloc[0])
-        n = int(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
+        m = round(float(part["m"].iloc[0]), 1)
+        n = float(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
         ordering = "; ".join(f"{solver}: {ordering_text(part, solver, column)}" for solver in solvers)
         lines.append(f"**{data}**: `{column}` from best to worst, {ordering}.")
         if "lstsq" in solvers:
             lines.append(f"**{data}**: {ratio_text(part, column, paper.get('alpha', {}))} with least squares; "
                          "absolute alpha depends on the coordinate origin, the ratios compare across datasets.")
         spans = "can span" if m <= n else "cannot span"
-        lines.append(f"**{data}**: m = {m} eigenfaces reach coverage {float(part['coverage'].iloc[0]):.4f} "
-                     f"(paper: m = {paper.get('m')}); the {n} hand shapes {spans} them"
+        reach = (f" reach coverage {float(part['coverage'].iloc[0]):.4f}" if "coverage" in part.columns
+                 else " (mean over the runs)")
+        lines.append(f"**{data}**: m = {m:g} eigenfaces{reach} "
+                     f"(paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them"
                      + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA") + ".")
         constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
         for k, solver in enumerate(constrained):  # the share of negative weights is said once
@@ -171,3 +173,57 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     first = next(iter(notes.values()), [])
     shared = [note for note in first if all(note in other for other in notes.values())]
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}
+
+
+def bases_findings(summary: pd.DataFrame, column: str) -> list[str]:
+    """Findings of a run or sweep that scored other bases: per data variant, the bases from most to least
+    accurate, and which is closest to the hand shapes and most local.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        One row per data variant and basis: ``data``, ``basis``, ``column``, ``matched_abs_cosine``, ``locality``
+        (means over the runs).
+    column : str
+    """
+    lines = []
+    for data, part in summary.groupby("data", sort=False):
+        ranked = part.sort_values(column)
+        lines.append(f"**{data}**: `{column}` from best to worst: "
+                     + " < ".join(f"{row.basis} {_fmt(getattr(row, column))}" for row in ranked.itertuples()) + ".")
+        others = part[part["basis"] != "H"]
+        closest = others.sort_values("matched_abs_cosine", ascending=False).iloc[0]
+        local = others.sort_values("locality").iloc[0]
+        hand = part[part["basis"] == "H"]
+        lines.append(f"**{data}**: closest to the hand shapes: {closest['basis']} (mean matched |cosine| "
+                     f"{closest['matched_abs_cosine']:.2f}); most local: {local['basis']} ({100 * local['locality']:.0f} % "
+                     "of the face holds its elements' displacement"
+                     + (f", the hand shapes' {100 * float(hand['locality'].iloc[0]):.0f} %" if len(hand) else "")
+                     + ").")
+    return lines
+
+
+def sweep_findings(summary: pd.DataFrame, swept: Sequence[str], column: str, solver: str,
+                   paper: Mapping) -> list[str]:
+    """Findings of a sweep from its means over the runs: the run findings when nothing but the seed was swept,
+    else the ordering of H, QE and PCA at every swept value.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Means over the runs: the swept keys, ``data``, ``basis``, ``solver``, ``n``, ``m`` and ``column``.
+    swept : sequence of str
+    column : str
+    solver : str
+        The solver of the orderings.
+    paper : mapping
+    """
+    if not swept:
+        return run_findings(summary, column, paper, {})
+    lines = []
+    for values, group in summary.groupby(list(swept), sort=False):
+        values = values if isinstance(values, tuple) else (values,)
+        setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values))
+        lines.append(f"{setting}: " + "; ".join(f"{data} {ordering_text(part, solver, column)}"
+                                                for data, part in group.groupby("data", sort=False)))
+    return lines

@@ -1047,6 +1047,8 @@ def _natural(text: str):
 
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
                    swept: Sequence[str], figures: list[FigureEntry], command: str) -> tuple[str, list[Section]]:
+    from workbench.reporting.findings import sweep_findings
+
     first = records[0]
     column = headline_column(first.config)
     title = f"Study '{first.config['study']}': sweep over {', '.join(swept) or 'seeds'} on the {dataset_label(first)}"
@@ -1056,7 +1058,10 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
     shown = summary[[*swept, "data", "basis", "solver", "n_seeds", "m", column, f"{column}_ci_low",
                      f"{column}_ci_high", "paper_alpha"]]
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
+    findings = sweep_findings(summary, swept, column, figure_solver(first.config)[0], first.config.get("paper", {}))
     sections = [
+        Section("Findings", ["Generated from the means over the runs (solver "
+                             f"{figure_solver(first.config)[0]} unless named; PCA by projection).", findings]),
         Section("About this report", [
             f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
             f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
@@ -1156,6 +1161,11 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
                          None, figures_dir, formats, {})[0]
     shown = summary[["data", "basis", "n", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
                                                                 if several else []), *INTUITIVENESS_COLUMNS]]
+    from workbench.reporting.findings import bases_findings
+
+    findings = next((item for item in sections if item.heading == "Findings"), None)
+    if findings is not None:
+        findings.blocks.append(bases_findings(summary, column))
     section = Section("Other bases: alpha against intuitiveness", [
         f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
         f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
