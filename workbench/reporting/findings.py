@@ -26,7 +26,7 @@ def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
 
 
 def _fmt(value: float) -> str:
-    return f"{value:.3g}"
+    return f"{value:.4g}"
 
 
 def ordering_text(part: pd.DataFrame, solver: str, column: str, bases: Sequence[str] = PAPER_BASES) -> str:

@@ -209,6 +209,10 @@ VIEWER_SCRIPT = r"""
       await Plotly.react(root, await traces(state), camera ? {...layout, scene: {...layout.scene, camera}} : layout,
                          {displaylogo: false, responsive: true});
     }
+    // a link can open a given view: index.html#frame=2&shown=QE (frame: 1, 2, 3 in the menu's order)
+    const asked = new URLSearchParams(location.hash.slice(1));
+    if (asked.get("frame")) pickFrame.selectedIndex = Math.min(Number(asked.get("frame")), frames.length) - 1;
+    if (bases.includes(asked.get("shown"))) pickBasis.value = asked.get("shown");
     pickFrame.onchange = show; pickBasis.onchange = show;
     await show();
     // Self-check (read by the test and shown to nobody): render the scene to an image and count the pixels that

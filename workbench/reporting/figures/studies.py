@@ -456,16 +456,18 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
             ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=1)
         pca = part.loc[part["basis"] == "PCA", y]
         if len(pca):
-            ax.axhline(float(pca.iloc[0]), color=basis_colour("PCA"), linestyle="--", linewidth=1,
-                       label=f"PCA (projection) {float(pca.iloc[0]):.3g}")
+            ax.axhline(float(pca.iloc[0]), color=basis_colour("PCA"), linestyle="--", linewidth=1)
         shares = negative_share.get(data, {})
         ax.set_xticks(np.arange(len(bases)), [f"{b}\n{100 * shares[b]:.0f} % of frames\nneed w < 0" if b in shares
                                               else b for b in bases], fontsize=8)
         ax.set_ylabel(axis_label(y), fontsize=9)
-        ax.set_title(f"data: {data}", fontsize=10, loc="left")
+        ax.set_title(f"data: {data}" + (f"; PCA (dashed) {float(pca.iloc[0]):.3g}" if len(pca) else ""), fontsize=10,
+                     loc="left")
         ax.grid(axis="y", alpha=0.3)
         ax.margins(y=0.15)
-        ax.legend(fontsize=8, title="solver (hatching)", title_fontsize=8)
+    handles, labels = axes[-1].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
+                  title="solver (hatching); dashed: PCA by projection", title_fontsize=8)
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
 
@@ -543,8 +545,8 @@ def plot_intuitiveness_bars(names: Sequence[str], cosine: Mapping[str, Sequence[
     left.set_yticks(rows, names, fontsize=8)
     left.invert_yaxis()
     left.set_xlim(min(0.0, float(np.min([np.min(v) for v in cosine.values()]))), 1.0)
-    left.set_xlabel("cosine to its quasi-eigen face (1: same direction)")
-    right.set_xlabel("relative distance |e^QE - e^H| / |e^H| (0: unchanged)")
+    left.set_xlabel("cosine to its quasi-eigen face\n(1: same direction)")
+    right.set_xlabel("relative distance |e^QE - e^H| / |e^H|\n(0: unchanged)")
     for ax in (left, right):
         ax.grid(axis="x", alpha=0.3)
     left.legend(fontsize=8, title="projection", title_fontsize=8)
