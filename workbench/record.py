@@ -87,12 +87,13 @@ def config_hash(resolved_yaml: str) -> str:
 
 
 def git_state(repository: Path) -> dict:
-    """Commit of the workbench's checkout and whether its tree had uncommitted changes."""
+    """Commit of the workbench's checkout and whether its code had uncommitted changes (changes under
+    ``reports/``, the rendered reports that ``workbench report --reference`` rewrites, do not count)."""
     def git(*args):
         return subprocess.run(["git", "-C", str(repository), *args], capture_output=True, text=True, timeout=10)
     try:
         commit = git("rev-parse", "HEAD")
-        status = git("status", "--porcelain", "--untracked-files=no")
+        status = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)reports")
     except (OSError, subprocess.SubprocessError):
         return {"commit": None, "dirty": None}
     if commit.returncode != 0:

@@ -606,7 +606,7 @@ VIEW_CAPTION = ("Turn and zoom the face (drag, scroll); pick one of figure 3's f
                 "per-vertex error (one error scale for every basis and frame). Works offline from the file.")
 
 
-def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 16) -> FacesBlock:
+def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 12) -> FacesBlock:
     """Write the interactive view's data (``figures/view3d.js``), the plotly.js bundle (``../vendor/``) and the
     animation (``figures/captured_h_qe.gif``) of a run's mesh variant.
 
@@ -663,7 +663,7 @@ def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 16) ->
     qe = _qe_label(record)
     moving = {"H": reconstruct_frames(bases["H"], stretch, solver),
               qe: reconstruct_frames(bases[qe], stretch, solver)}
-    size = (240, 280)
+    size = (220, 256)
     panels = [render_meshes(inputs["neutral"] + stretch, inputs["faces"],
                             [masked(v, support) for v in point_norms(stretch)],
                             MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, length_top), window_size=size))]
