@@ -95,9 +95,11 @@ def view_payload(neutral: np.ndarray, faces: np.ndarray, states: Sequence[ViewSt
     from workbench.reporting.figures.render import hole_loops
 
     faces = np.asarray(faces)
+    loops = hole_loops(faces)  # the mesh's own openings, not the edges of a masked region
     if support is not None:
-        faces = faces[np.asarray(support)[faces].all(axis=1)]
-    loops = hole_loops(faces)
+        support = np.asarray(support)
+        faces = faces[support[faces].all(axis=1)]
+        loops = [loop for loop in loops if support[loop].all()]
     encoded, firsts = [], {}
     for state in states:
         # a reconstruction is stored as its offset from the frame's first state (the captured frame): small
