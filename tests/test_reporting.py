@@ -301,7 +301,10 @@ def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_
     committed_readme, fresh_readme = (reference / "README.md").read_text(), (fresh / "README.md").read_text()
     for heading in ("## Alpha beside the paper", "## Full alpha table", "## Run facts"):
         assert table_after(heading, fresh_readme) == table_after(heading, committed_readme), heading
-    assert section_text("## Findings", fresh_readme) == section_text("## Findings", committed_readme)
+    # the fresh run saves no inputs (they change no number), so its findings lack the share of negative weights
+    without_share = lambda text: re.sub(r"; under least squares [^.]*undo", "", text)  # noqa: E731
+    assert (without_share(section_text("## Findings", fresh_readme))
+            == without_share(section_text("## Findings", committed_readme)))
     assert_reference_is_small_and_clean(reference, committed_readme)
 
 
@@ -332,7 +335,9 @@ def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
     for seed in (0, 1):
         run(compose("bases", [*BASES_REFERENCE, f"basis.alternatives_seed={seed}"]), sweep / str(seed))
     assert main([str(sweep), "--out", str(tmp_path / "report"), "--formats", "png"]) == 0
-    numeric = lambda frame: frame.select_dtypes("number")  # noqa: E731 - the run folders' names differ
+    # the run folders' names and the timings differ between sweeps, the numbers do not
+    numeric = lambda frame: frame.select_dtypes("number").drop(  # noqa: E731
+        columns=[c for c in frame.columns if c.startswith("time")], errors="ignore")
     expected, got = pd.read_csv(reference / "summary.csv"), pd.read_csv(tmp_path / "report" / "summary.csv")
     pd.testing.assert_frame_equal(numeric(got), numeric(expected), rtol=1e-9, atol=1e-12)
     committed_readme = (reference / "README.md").read_text()

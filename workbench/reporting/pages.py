@@ -782,7 +782,7 @@ def provenance_value(value, limit: int = 200) -> str:
     nothing to a reader), a long nested entry by its keys (the record holds it whole)."""
     if isinstance(value, str):
         return _display_path(value)
-    text = json.dumps(value, separators=(", ", ": "))
+    text = json.dumps(_display_paths(value), separators=(", ", ": "))
     if len(text) <= limit:
         return text
     if isinstance(value, Mapping):
@@ -790,6 +790,17 @@ def provenance_value(value, limit: int = 200) -> str:
         return (f"{len(keys)} entries: " + ", ".join(map(str, keys[:8])) + (", ..." if len(keys) > 8 else "")
                 + " (in full in metrics.json)")
     return f"{len(value)} items (in full in metrics.json)"
+
+
+def _display_paths(value):
+    """A nested provenance entry with every absolute path in it shown by its last parts."""
+    if isinstance(value, str):
+        return _display_path(value)
+    if isinstance(value, Mapping):
+        return {key: _display_paths(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_display_paths(item) for item in value]
+    return value
 
 
 def _display_path(text: str) -> str:
