@@ -22,7 +22,7 @@ from typing import Sequence
 import matplotlib
 from matplotlib.figure import Figure
 
-from workbench.record import write_atomic
+from workbench.record import inside, write_atomic
 
 FORMATS = ("png", "svg")
 PNG_DPI = 100
@@ -89,7 +89,7 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for fmt in formats:
-        path = folder / f"{stem}.{fmt}"
+        path = inside(folder, f"{stem}.{fmt}")
         if fmt == "png":
             data = png_bytes(figure)
         else:
