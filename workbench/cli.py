@@ -23,7 +23,8 @@ from workbench.pipeline import run_study
 from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
 from workbench.run_text import alpha_table, headline, study_header
 from workbench.tables import markdown_frame
-from workbench.tracking import FolderBusy, lock_run_dir, prepare_run_dir, register_resolvers, remove_stub, unlock_run_dir
+from workbench.tracking import (FolderBusy, discard_failed_run, lock_run_dir, prepare_run_dir, register_resolvers,
+                                unlock_run_dir)
 
 register_resolvers()
 
@@ -115,8 +116,8 @@ def _hydra_main(cfg: DictConfig) -> None:
 def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
               plain: bool) -> str | None:
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
-    holds a complete record of the same config. A plain run (``plain``) that fails or is interrupted before its
-    record is written leaves no stub folder behind."""
+    holds a complete record of the same config. A plain run (``plain``) that fails or is interrupted leaves no
+    partial record and no stub folder behind (a sweep's run keeps them: its rerun clears and redoes the run)."""
     lock = lock_run_dir(output_dir)
     try:
         if not prepare_run_dir(output_dir, config_hash(resolved_yaml_text(cfg))):
@@ -124,7 +125,7 @@ def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], jo
         return run(cfg, output_dir, overrides=overrides, job_num=job_num)
     except BaseException:
         if plain:
-            remove_stub(output_dir)
+            discard_failed_run(output_dir)
         raise
     finally:
         unlock_run_dir(lock)

@@ -181,9 +181,10 @@ STUB_NAMES = (".hydra", LOCK_FILE)
 """What a plain run's folder holds before its run writes anything: Hydra's config copy, the job log, the lock."""
 
 
-def remove_stub(folder: Path) -> bool:
-    """Remove a run folder that holds nothing but Hydra's stub (``.hydra/``, an empty or not ``*.log``, the lock
-    file, temporary files of unfinished writes): what a plain run that failed before writing its record leaves.
+def discard_failed_run(folder: Path) -> bool:
+    """After a plain run failed or was interrupted: remove what it wrote of its record, and the folder itself when
+    nothing but Hydra's stub is left (``.hydra/``, ``*.log``, the lock file). A complete record is never touched.
+    Call it only while holding the folder's lock.
 
     Returns
     -------
@@ -191,12 +192,10 @@ def remove_stub(folder: Path) -> bool:
         Whether the folder was removed.
     """
     folder = Path(folder)
-    if not folder.is_dir():
+    if not folder.is_dir() or record_state(folder) == "complete":
         return False
-    from workbench.record import TEMPORARY_SUFFIX
-
-    if any(path.name not in STUB_NAMES and path.suffix not in (".log", TEMPORARY_SUFFIX)
-           for path in folder.iterdir()):
+    clear_partial(folder)
+    if any(path.name not in STUB_NAMES and path.suffix != ".log" for path in folder.iterdir()):
         return False
     shutil.rmtree(folder, ignore_errors=True)
     return True

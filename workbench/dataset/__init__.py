@@ -15,11 +15,12 @@ from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import number_setting, seed_setting
+from workbench.dataset.real import integer_setting, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
 from workbench.progress import progress
+from workbench.resources import require_memory
 
 SPLITS = ("same", "tail")
 TRAIN_ON = ("markers", "mesh", "mesh_rbf")
@@ -85,12 +86,26 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
     if not isinstance(cfg.get("stabilise", True), bool):
         raise WorkbenchError(f"dataset.stabilise must be true or false, got {cfg.get('stabilise')!r}")
     seeds = [seed_setting(cfg["seed"], "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
+    require_memory(synthetic_values(cfg, names) * len(seeds), "the synthetic dataset",
+                   "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on")
     takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
     decimation = _mesh_decimation(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), cfg.get("mesh_fraction", 1.0))
     hand_mesh = takes[0].hand_shapes_mesh()
     markers = ([_face_marker_frames(take, cfg) for take in takes]
                if {"markers", "mesh_rbf"} & set(names) else None)
     return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg) for name in names}
+
+
+def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
+    """Values one synthetic take holds: every marker's track, and the mesh's when a data variant lives on the
+    mesh (float64, x, y and z per point and frame)."""
+    n_frames = integer_setting(cfg["n_frames"], "dataset.n_frames", minimum=2)
+    points = (integer_setting(cfg["n_face_markers"], "dataset.n_face_markers", minimum=1)
+              + integer_setting(cfg["n_head_markers"], "dataset.n_head_markers", minimum=3))
+    if {"mesh", "mesh_rbf"} & set(names):
+        points += (integer_setting(cfg["mesh_rows"], "dataset.mesh_rows", minimum=2)
+                   * integer_setting(cfg["mesh_cols"], "dataset.mesh_cols", minimum=2))
+    return n_frames * points * 3
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:
