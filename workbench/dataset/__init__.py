@@ -15,7 +15,7 @@ from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import integer_setting, number_setting, seed_setting
+from workbench.dataset.real import number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
@@ -98,14 +98,14 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
 
 def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
     """Values one synthetic take holds: every marker's track, and the mesh's when a data variant lives on the
-    mesh (float64, x, y and z per point and frame)."""
-    n_frames = integer_setting(cfg["n_frames"], "dataset.n_frames", minimum=2)
-    points = (integer_setting(cfg["n_face_markers"], "dataset.n_face_markers", minimum=1)
-              + integer_setting(cfg["n_head_markers"], "dataset.n_head_markers", minimum=3))
-    if {"mesh", "mesh_rbf"} & set(names):
-        points += (integer_setting(cfg["mesh_rows"], "dataset.mesh_rows", minimum=2)
-                   * integer_setting(cfg["mesh_cols"], "dataset.mesh_cols", minimum=2))
-    return n_frames * points * 3
+    mesh (x, y and z per point and frame). An estimate only: 0 when a size is not a number (the generator
+    names the bad setting)."""
+    try:
+        n_frames, n_markers = int(cfg["n_frames"]), int(cfg["n_face_markers"]) + int(cfg["n_head_markers"])
+        n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf"} & set(names) else 0
+    except (TypeError, ValueError):
+        return 0
+    return max(n_frames, 0) * max(n_markers + n_mesh, 0) * 3
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:
