@@ -34,8 +34,8 @@ class Limits:
         A sample is an outlier when its distance from its marker's median position exceeds this many times the
         larger of the marker's own 90th-percentile distance and the median of that over all markers.
     mesh_outlier_factor : float
-        A mesh vertex is an outlier when its distance from the neutral's median vertex exceeds this many times the
-        neutral's 90th-percentile distance.
+        A mesh vertex is an outlier when its distance (along its worst axis) from the neutral's median vertex
+        exceeds this many times the neutral's 90th-percentile distance.
     used_weight : float
         A blendshape channel is used by a take when its weight exceeds this in some frame.
     rigid_flatness : float
@@ -172,16 +172,17 @@ def mesh_outlier_problems(vertices: np.ndarray, neutral: np.ndarray, source: str
     unit : str
         The coordinates' unit, for the message.
     """
+    # distances along the worst axis (not Euclidean): a coordinate of 1e300 must not overflow to inf
     centre = np.median(neutral, axis=0)
-    scale = float(np.percentile(np.linalg.norm(neutral - centre, axis=1), 90))
-    with np.errstate(over="ignore", invalid="ignore"):
-        distance = np.linalg.norm(vertices - centre, axis=1)
-        far = ~(distance <= LIMITS.mesh_outlier_factor * scale)
+    scale = float(np.percentile(np.abs(neutral - centre).max(axis=1), 90))
+    distance = np.abs(vertices - centre).max(axis=1)
+    far = ~(distance <= LIMITS.mesh_outlier_factor * scale)
     if not far.any():
         return []
     worst = int(np.argmax(np.where(far, np.nan_to_num(distance, nan=np.inf), -np.inf)))
-    return [f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre ({int(far.sum())} such "
-            f"vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent ({scale:.3g} {unit})"]
+    return [f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre along an axis "
+            f"({int(far.sum())} such vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent "
+            f"({scale:.3g} {unit})"]
 
 
 def unused_channel_problems(unmapped: Sequence[str], channels: Sequence[str], weights: np.ndarray,
