@@ -18,6 +18,7 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs, searchpath_override
+from workbench.dataset.real import bool_setting
 from workbench.errors import WorkbenchError
 from workbench.pipeline import run_study
 from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
@@ -71,6 +72,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
                              "overwritten: write the run elsewhere")
     plain = resolved_without_hydra(cfg)
+    save_inputs = bool_setting(plain.get("save_inputs", False), "save_inputs")  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
     paper_alpha = plain["paper"]["alpha"]
@@ -84,7 +86,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
                           job_num=job_num, started_at=started_at, repository=REPO_ROOT)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
                  timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
-                 save_inputs=bool(plain.get("save_inputs", False)))
+                 save_inputs=save_inputs)
     return text
 
 
