@@ -3,7 +3,6 @@ take, marker or vertex, or kept with a warning under dataset.plausibility=warn."
 
 import json
 import re
-import warnings
 
 import numpy as np
 import pytest
@@ -17,6 +16,8 @@ from workbench.dataset.cache import clear_memory
 from workbench.dataset.plausibility import check_rigid_set
 from workbench.errors import WorkbenchError
 
+from tests.test_bad_input import write_c3d
+
 TAKE = "animface/animface_eyebrows.c3d"
 
 
@@ -25,26 +26,6 @@ def empty_memory():
     clear_memory()
     yield
     clear_memory()
-
-
-def write_c3d(path, positions, labels, units="mm", rate=60.0):
-    """A float C3D of ``positions`` (frames, markers, 3); NaN samples are written invalid."""
-    import c3d
-
-    writer = c3d.Writer(point_rate=rate, point_units=units.ljust(4))
-    writer.set_point_labels(list(labels))
-    frames = []
-    for frame in positions:
-        points = np.zeros((len(labels), 5), dtype=np.float32)
-        points[:, :3] = np.nan_to_num(frame)
-        points[np.isnan(frame[:, 0]), 3] = -1.0
-        frames.append((points, np.zeros((0, 0), dtype=np.float32)))
-    writer.add_frames(frames)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with open(path, "wb") as handle:
-            writer.write(handle)
-    return path
 
 
 @pytest.fixture
