@@ -9,6 +9,8 @@ cannot be meant (a rigid-marker set with a repeated or collinear marker) are alw
 
 from __future__ import annotations
 
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -85,9 +87,18 @@ def face_spread(positions: np.ndarray) -> float:
     positions : ndarray of shape (n_frames, n_markers, 3)
         NaN where a sample is missing.
     """
-    centred = positions - np.nanmean(positions, axis=1, keepdims=True)
-    with np.errstate(invalid="ignore"):
+    with _quiet_nan():
+        centred = positions - np.nanmean(positions, axis=1, keepdims=True)
         return float(np.nanmedian(np.nanmedian(np.linalg.norm(centred, axis=2), axis=1)))
+
+
+@contextmanager
+def _quiet_nan():
+    """Silence NumPy's warnings about all-NaN slices (a frame or marker with no sample has no statistic; NaN
+    compares false, so it breaks no rule)."""
+    with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        yield
 
 
 def take_units_problems(spreads: Mapping[str, float], units: Mapping[str, str]) -> list[str]:
@@ -144,7 +155,7 @@ def outlier_problems(positions: np.ndarray, labels: Sequence[str], source: str, 
     """
     if len(positions) < 3:
         return []
-    with np.errstate(invalid="ignore"):
+    with _quiet_nan():
         distance = np.linalg.norm(positions - np.nanmedian(positions, axis=0), axis=2)
         own = np.nanpercentile(distance, 90, axis=0)
         scale = np.maximum(own, np.nanmedian(own))
