@@ -538,9 +538,13 @@ def test_unit_mismatch_between_takes_and_basis(tiny_root):
 def test_unit_mismatch_in_take_file(tiny_root, tmp_path):
     take = read_c3d_markers(tiny_root / "takes" / "take.c3d")
     write_c3d(tmp_path / "take_m.c3d", take.positions, take.labels, units="m")  # millimetre numbers said to be m
+    with pytest.raises(WorkbenchError, match=r"take_m\.c3d: markers spread 3.13e\+04 mm from their centroid \(file "
+                                             r"units 'm'\); a face spans 20-500 mm"):
+        build_animface(tiny_config(tiny_root, takes=[str(tmp_path / "take_m.c3d")]))
+    # kept as it is, the take still cannot be fitted by the basis face
     with pytest.raises(WorkbenchError, match=r"unit mismatch: the basis face must be scaled by 1000 .* "
                                              r"POINT:UNITS \(m\)"):
-        build_animface(tiny_config(tiny_root, takes=[str(tmp_path / "take_m.c3d")]))
+        build_animface(tiny_config(tiny_root, takes=[str(tmp_path / "take_m.c3d")], plausibility="warn"))
 
 
 def test_marker_label_missing_from_the_take_named_by_the_table(tiny_root, tmp_path):

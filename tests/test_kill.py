@@ -30,7 +30,7 @@ import yaml
 
 from workbench.config import REPO_ROOT
 from workbench.record import TEMPORARY_SUFFIX
-from workbench.tracking import DONE, record_state
+from workbench.tracking import DONE, LOCK_FILE, record_state
 
 RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true"]
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=300", "dataset.seed=0", "basis.coverage=0.9,0.99",
@@ -205,7 +205,7 @@ def check_run_folder(folder: Path, reference: Path, *, hydra_files: bool) -> str
         assert {path.name for path in folder.iterdir() if path.is_dir()} <= {".hydra"}, folder
     temporary = [name for name in names if temporary_of(name) is not None]
     assert all(temporary_of(name) in RECORD_FILES for name in temporary), temporary
-    unknown = set(names) - set(RECORD_FILES) - set(temporary) - (set(HYDRA_FILES) if hydra_files else set())
+    unknown = set(names) - set(RECORD_FILES) - set(temporary) - {LOCK_FILE} - (set(HYDRA_FILES) if hydra_files else set())
     assert not unknown, f"{folder}: files that are no part of a record: {unknown}"
     present = [name for name in names if name in RECORD_FILES]
     for name in present:  # every file there is whole: it parses, and equals the reference where that is fixed

@@ -18,12 +18,14 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs, searchpath_override
+from workbench.dataset.real import bool_setting
 from workbench.errors import WorkbenchError
 from workbench.pipeline import run_study
 from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
 from workbench.run_text import alpha_table, headline, study_header
 from workbench.tables import markdown_frame
-from workbench.tracking import prepare_run_dir, register_resolvers
+from workbench.tracking import (FolderBusy, discard_failed_run, lock_run_dir, prepare_run_dir, register_resolvers,
+                                unlock_run_dir)
 
 register_resolvers()
 
@@ -70,6 +72,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
                              "overwritten: write the run elsewhere")
     plain = resolved_without_hydra(cfg)
+    save_inputs = bool_setting(plain.get("save_inputs", False), "save_inputs")  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
     paper_alpha = plain["paper"]["alpha"]
@@ -83,7 +86,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
                           job_num=job_num, started_at=started_at, repository=REPO_ROOT)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
                  timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
-                 save_inputs=bool(plain.get("save_inputs", False)))
+                 save_inputs=save_inputs)
     return text
 
 
@@ -93,20 +96,41 @@ def _hydra_main(cfg: DictConfig) -> None:
 
     hydra_cfg = hydra.core.hydra_config.HydraConfig.get()
     output_dir = Path(hydra_cfg.runtime.output_dir)
+    multirun = hydra_cfg.mode == RunMode.MULTIRUN
     try:
-        hash_of_config = config_hash(resolved_yaml_text(cfg))
-        if not prepare_run_dir(output_dir, hash_of_config):
-            print(f"skip {output_dir}: complete record (config hash {hash_of_config})")
-            return
-        multirun = hydra_cfg.mode == RunMode.MULTIRUN
-        text = run(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
-                   job_num=int(hydra_cfg.job.num) if multirun else None)
-    except Exception as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
+        text = run_owned(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
+                         job_num=int(hydra_cfg.job.num) if multirun else None, plain=not multirun)
+    except FolderBusy as error:
+        if not multirun:
+            exit_on_error("workbench", error)
+        print(f"skip {output_dir}: in use by another workbench process")
+        return
+    except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
         exit_on_error("workbench", error)
-    if multirun:
+    if text is None:
+        print(f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})")
+    elif multirun:
         print(f"done {output_dir}: {first_headline(text)}")
     else:
         print(text + f"\nrecord: {output_dir}")
+
+
+def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
+              plain: bool) -> str | None:
+    """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
+    holds a complete record of the same config. A plain run (``plain``) that fails or is interrupted leaves no
+    partial record and no stub folder behind (a sweep's run keeps them: its rerun clears and redoes the run)."""
+    lock = lock_run_dir(output_dir)
+    try:
+        if not prepare_run_dir(output_dir, config_hash(resolved_yaml_text(cfg))):
+            return None
+        return run(cfg, output_dir, overrides=overrides, job_num=job_num)
+    except BaseException:
+        if plain:
+            discard_failed_run(output_dir)
+        raise
+    finally:
+        unlock_run_dir(lock)
 
 
 def first_headline(text: str) -> str:
@@ -128,22 +152,47 @@ VERBOSE_FLAG = "--verbose"
 _verbose = False
 
 
+INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
+
+
 def exit_on_error(program: str, error: BaseException) -> None:
     """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
 
-    A :class:`WorkbenchError` is bad input or configuration (exit 2); anything else is unexpected (exit 3) and
-    names its type, since its message alone may not say where it came from.
+    A :class:`WorkbenchError` is bad input or configuration, and a fault of the environment (a file that cannot
+    be read or written, a full disk, too little memory) is named with its path: both exit 2. Ctrl-C exits 130.
+    Anything else is unexpected (exit 3) and names its type, since its message alone may not say where it came
+    from.
     """
     if isinstance(error, SystemExit):
         raise error
     if _verbose:
         traceback.print_exception(error, file=sys.stderr)
-    if isinstance(error, WorkbenchError):
-        print(f"{program}: error: {error}", file=sys.stderr)
+    if isinstance(error, KeyboardInterrupt):
+        print(f"{program}: interrupted; rerun the same command to resume", file=sys.stderr)
+        sys.exit(INTERRUPTED)
+    fault = environment_fault(error)
+    if fault is not None:
+        print(f"{program}: error: {fault}", file=sys.stderr)
         sys.exit(2)
     hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
     print(f"{program}: error: unexpected {type(error).__name__}: {error}{hint}", file=sys.stderr)
     sys.exit(3)
+
+
+def environment_fault(error: BaseException) -> str | None:
+    """The one-line message of bad input (:class:`WorkbenchError`) or of a fault of the environment (an
+    ``OSError`` such as a denied permission or a full disk, naming its path; running out of memory), or None
+    for anything else."""
+    if isinstance(error, WorkbenchError):
+        return str(error)
+    if isinstance(error, MemoryError):
+        return ("out of memory (MemoryError); use a smaller dataset (dataset.n_frames, dataset.max_frames, "
+                "dataset.frame_step, dataset.mesh_vertex_step)")
+    if isinstance(error, OSError) and error.strerror:
+        paths = " -> ".join(str(path) for path in (error.filename, error.filename2) if path is not None)
+        return f"{paths or 'a file of the run'}: {error.strerror}"
+    return None
 
 
 def main() -> None:
@@ -163,7 +212,7 @@ def main() -> None:
         module, function = COMMANDS[sys.argv[1]].split(":")
         try:
             code = getattr(importlib.import_module(module), function)(sys.argv[2:])
-        except Exception as error:  # noqa: BLE001
+        except BaseException as error:  # noqa: BLE001 - SystemExit passes through, Ctrl-C is one line
             exit_on_error(f"workbench {sys.argv[1]}", error)
         sys.exit(code)
     try:
@@ -177,6 +226,8 @@ def main() -> None:
     os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
         _hydra_main()
+    except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
+        exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
         if full_error or _verbose:
             raise

@@ -16,7 +16,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.bases import Eigenfaces, build_quasi_eigen_basis
-from workbench.dataset import build_captures
+from workbench.dataset import build_captures, variant_names
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
@@ -171,14 +171,7 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
 
 def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
     """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
-    def names(key):
-        value = dataset_cfg.get(key)
-        return None if value is None else [value] if isinstance(value, str) else list(value)
-
-    train_names, eval_names = names("train_on"), names("eval_on")
-    if eval_names is not None and (not eval_names or len(set(eval_names)) != len(eval_names)):
-        raise WorkbenchError(f"dataset.eval_on must be a data variant or a list of distinct ones, "
-                             f"got {dataset_cfg.get('eval_on')!r}")
+    train_names, eval_names = variant_names(dataset_cfg, "train_on"), variant_names(dataset_cfg, "eval_on")
     if eval_names is not None and train_names is None:
         raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
     return train_names or [], eval_names

@@ -56,9 +56,12 @@ FILE_MODE = _file_mode()
 def write_atomic(path: Path, data: bytes | str) -> None:
     """Write a file so that a reader sees either the old content or the whole new content, never a part."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     payload = data.encode() if isinstance(data, str) else data
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
+    except OSError as error:
+        raise _naming(error, path) from None
     try:
         os.fchmod(handle, FILE_MODE)
         with os.fdopen(handle, "wb") as stream:
@@ -66,9 +69,16 @@ def write_atomic(path: Path, data: bytes | str) -> None:
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as error:
         Path(temporary).unlink(missing_ok=True)
+        if isinstance(error, OSError):
+            raise _naming(error, path) from None
         raise
+
+
+def _naming(error: OSError, path: Path) -> OSError:
+    """``error`` naming the file being written (a full disk fails a write on an open file, which names none)."""
+    return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
 
 
 def write_json(path: Path, value) -> None:
@@ -379,18 +389,58 @@ def _read_json(path: Path) -> dict:
     return value
 
 
+def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None:
+    """Refuse ``value`` unless it is one of ``kinds`` (a bool is not a number here)."""
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+        raise WorkbenchError(f"{path}: field '{where}' must be {rule}, got {value!r:.60}")
+
+
 def _check_metrics(path: Path, metrics: Mapping) -> None:
     """The fields of ``metrics.json`` that readers rely on, with their types."""
     for key, kind in (("study", str), ("config_hash", str), ("rows", list), ("data", dict), ("dataset", dict)):
         if not isinstance(metrics.get(key), kind):
             raise WorkbenchError(f"{path}: field '{key}' must be a {kind.__name__}, got "
                                  f"{type(metrics.get(key)).__name__ if key in metrics else 'nothing'}")
+    if not plain_name(metrics["study"]):
+        raise WorkbenchError(f"{path}: field 'study' must be a plain name, got {metrics['study']!r:.60}")
+    _check_field(path, "overrides", metrics.get("overrides", []), (list,), "a list of strings")
+    _check_field(path, "job_num", metrics.get("job_num"), (int, type(None)), "an integer or null")
+    _check_field(path, "git", metrics.get("git") or {}, (dict,), "an object")
+    for variant, facts in metrics["data"].items():
+        _check_field(path, f"data.{variant}", facts, (dict,), "an object")
     for i, row in enumerate(metrics["rows"]):
         if not isinstance(row, dict):
             raise WorkbenchError(f"{path}: rows[{i}] must be an object")
         for key in ("data", "basis", "solver", *ALPHA_COLUMNS):
             if key not in row:
                 raise WorkbenchError(f"{path}: rows[{i}] has no '{key}'")
+        for key in ("data", "basis", "solver"):
+            _check_field(path, f"rows[{i}].{key}", row[key], (str,), "a string")
+        for key in ALPHA_COLUMNS:
+            _check_field(path, f"rows[{i}].{key}", row[key], (int, float, type(None)), "a number or null")
+        if row["data"] not in metrics["data"]:
+            raise WorkbenchError(f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' "
+                                 f"({sorted(metrics['data'])})")
+
+
+def plain_name(name: str) -> bool:
+    """Whether ``name`` can name a file or folder without leaving its parent (no separator, not '.' or '..')."""
+    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
+
+
+def inside(root: Path, *parts: str) -> Path:
+    """``root / parts``, refused when it would leave ``root`` (a report or collect writes only into its output
+    folder, whatever names a record holds).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    root = Path(root)
+    path = root.joinpath(*parts)
+    if os.path.commonpath([os.path.abspath(root), os.path.abspath(path)]) != os.path.abspath(root):
+        raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}")
+    return path
 
 
 def load_record(folder: Path) -> RunRecord:
@@ -419,11 +469,16 @@ def load_record(folder: Path) -> RunRecord:
         config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
     except yaml.YAMLError as error:
         raise WorkbenchError(f"{folder / CONFIG_FILE}: not valid YAML ({str(error).splitlines()[0]})") from None
-    if not isinstance(config, dict) or not isinstance(config.get("study"), str):
-        raise WorkbenchError(f"{folder / CONFIG_FILE}: must be a mapping with a 'study' name")
+    if not isinstance(config, dict) or not isinstance(config.get("study"), str) or not plain_name(config["study"]):
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: must be a mapping whose field 'study' is a plain name "
+                             f"(no path), got {config.get('study') if isinstance(config, dict) else config!r:.60}")
+    if not isinstance(config.get("dataset", {}), dict):
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: field 'dataset' must be a mapping")
     metrics = _read_json(folder / METRICS_FILE)
     _check_metrics(folder / METRICS_FILE, metrics)
     timings = _read_json(folder / TIMINGS_FILE) if (folder / TIMINGS_FILE).exists() else {}
+    for stage, seconds in timings.items():
+        _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
     try:
         table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
                             na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)})

@@ -4,13 +4,23 @@ A study's sweep writes each run into ``<sweep dir>/<run id>``, the run id made f
 job number or a time), so re-running the same sweep finds the same folders. A folder whose ``done`` marker
 exists holds a complete record: the run is skipped if its config hash matches and refused if it does not (the
 record is never overwritten). A folder without ``done`` is what a killed run left: it is cleared and run again.
+
+A run folder belongs to one live process at a time: the run holds an advisory lock (``fcntl.flock``) on
+``<folder>/.lock`` from before it decides anything about the folder until it ends. The operating system releases
+the lock when the process ends, however it ends, so a killed run never leaves a folder locked. A second process
+finding the folder locked skips it (sweeps) or stops with one line (plain runs); it never clears the files of a
+live run.
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import hashlib
 import json
+import os
 import re
+import shutil
 from pathlib import Path
 
 from workbench.errors import WorkbenchError
@@ -75,7 +85,7 @@ def clear_partial(folder: Path) -> list[str]:
         raise WorkbenchError(f"{folder} holds a complete record ('{DONE}' exists); a record is never cleared")
     removed = []
     for path in sorted(folder.iterdir()):
-        if (path.is_file() or path.is_symlink()) and path.suffix != ".log":
+        if (path.is_file() or path.is_symlink()) and path.suffix != ".log" and path.name != LOCK_FILE:
             path.unlink()
             removed.append(path.name)
     return removed
@@ -118,4 +128,74 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
         return False
     if state == "partial":
         clear_partial(folder)
+    return True
+
+
+LOCK_FILE = ".lock"
+"""The lock file of a run folder (kept: removing it while another process waits on it would split the lock)."""
+
+
+class FolderBusy(WorkbenchError):
+    """Another live process holds the run folder's lock."""
+
+
+def lock_run_dir(folder: Path) -> int:
+    """Take the run folder's lock without waiting, for the rest of the process or until :func:`unlock_run_dir`.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The run folder (created if absent).
+
+    Returns
+    -------
+    int
+        The lock file's descriptor.
+
+    Raises
+    ------
+    FolderBusy
+        When another live process holds the lock.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    handle = os.open(folder / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as error:
+        os.close(handle)
+        if error.errno in (errno.EWOULDBLOCK, errno.EACCES):
+            raise FolderBusy(f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
+                             "held); wait for it to end or write this run elsewhere") from None
+        raise
+    return handle
+
+
+def unlock_run_dir(handle: int) -> None:
+    """Release a lock taken by :func:`lock_run_dir`."""
+    fcntl.flock(handle, fcntl.LOCK_UN)
+    os.close(handle)
+
+
+STUB_NAMES = (".hydra", LOCK_FILE)
+"""What a plain run's folder holds before its run writes anything: Hydra's config copy, the job log, the lock."""
+
+
+def discard_failed_run(folder: Path) -> bool:
+    """After a plain run failed or was interrupted: remove what it wrote of its record, and the folder itself when
+    nothing but Hydra's stub is left (``.hydra/``, ``*.log``, the lock file). A complete record is never touched.
+    Call it only while holding the folder's lock.
+
+    Returns
+    -------
+    bool
+        Whether the folder was removed.
+    """
+    folder = Path(folder)
+    if not folder.is_dir() or record_state(folder) == "complete":
+        return False
+    clear_partial(folder)
+    if any(path.name not in STUB_NAMES and path.suffix != ".log" for path in folder.iterdir()):
+        return False
+    shutil.rmtree(folder, ignore_errors=True)
     return True

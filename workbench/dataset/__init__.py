@@ -8,18 +8,19 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.animface import build_animface
+from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS, build_animface
 from workbench.dataset.cache import cached_captures
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.decimate import Decimation, decimate
-from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
-from workbench.dataset.ict_livelink import build_ict_livelink
+from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
+from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS, build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import number_setting, seed_setting
+from workbench.dataset.real import bool_setting, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
 from workbench.progress import progress
+from workbench.resources import require_memory
 
 SPLITS = ("same", "tail")
 TRAIN_ON = ("markers", "mesh", "mesh_rbf")
@@ -82,15 +83,33 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
     split = cfg.get("split", "same")
     if split not in SPLITS + ("other_take",):
         raise WorkbenchError(f"dataset.split must be one of {SPLITS + ('other_take',)}, got {split!r}")
-    if not isinstance(cfg.get("stabilise", True), bool):
-        raise WorkbenchError(f"dataset.stabilise must be true or false, got {cfg.get('stabilise')!r}")
+    bool_setting(cfg.get("stabilise", True), "dataset.stabilise")
+    gap_policy_setting(cfg.get("gap_policy", "linear"), cfg.get("gap_max_fill_frames"))  # checked even without gaps
+    gap_fit_on_setting(cfg.get("gap_fit_on", "filled"))
     seeds = [seed_setting(cfg["seed"], "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
+    if len(set(seeds)) != len(seeds):
+        raise WorkbenchError(f"dataset.eval_seed {seeds[1]} equals dataset.seed: split 'other_take' evaluates on "
+                             "another take, so the two seeds must differ (null: seed + 1)")
+    require_memory(synthetic_values(cfg, names) * len(seeds), "the synthetic dataset",
+                   "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on")
     takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
     decimation = _mesh_decimation(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), cfg.get("mesh_fraction", 1.0))
     hand_mesh = takes[0].hand_shapes_mesh()
     markers = ([_face_marker_frames(take, cfg) for take in takes]
                if {"markers", "mesh_rbf"} & set(names) else None)
     return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg) for name in names}
+
+
+def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
+    """Values one synthetic take holds: every marker's track, and the mesh's when a data variant lives on the
+    mesh (x, y and z per point and frame). An estimate only: 0 when a size is not a number (the generator
+    names the bad setting)."""
+    try:
+        n_frames, n_markers = int(cfg["n_frames"]), int(cfg["n_face_markers"]) + int(cfg["n_head_markers"])
+        n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf"} & set(names) else 0
+    except (TypeError, ValueError):
+        return 0
+    return max(n_frames, 0) * max(n_markers + n_mesh, 0) * 3
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:
@@ -311,6 +330,13 @@ def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
 GAP_FIT_ON = ("complete", "filled")
 
 
+def gap_fit_on_setting(fit_on: str) -> str:
+    """``dataset.gap_fit_on``, checked."""
+    if fit_on not in GAP_FIT_ON:
+        raise WorkbenchError(f"dataset.gap_fit_on must be one of {GAP_FIT_ON}, got {fit_on!r}")
+    return fit_on
+
+
 def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) -> tuple[np.ndarray, str]:
     """The frames the bases are fitted on under the ``masked`` gap policy, and a note saying which.
 
@@ -329,9 +355,7 @@ def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) 
     train : ndarray of shape (n_fit, 3 * n_points)
     note : str
     """
-    if fit_on not in GAP_FIT_ON:
-        raise WorkbenchError(f"dataset.gap_fit_on must be one of {GAP_FIT_ON}, got {fit_on!r}")
-    if fit_on == "filled":
+    if gap_fit_on_setting(fit_on) == "filled":
         return train, f"the bases are fitted on all {len(train)} training frames, their gaps filled linearly"
     complete = visible.all(axis=1)
     if complete.sum() < 2:
@@ -348,6 +372,22 @@ def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface}
 """``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
+VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
+"""``dataset.kind`` -> the data variants it builds (the names ``dataset.train_on`` and ``dataset.eval_on`` take)."""
+
+
+def variant_names(cfg: Mapping, key: str) -> list[str] | None:
+    """``dataset.<key>`` (``train_on`` or ``eval_on``) as a list of distinct data variants of the dataset's kind,
+    or None when not set; the message names ``key``."""
+    value = cfg.get(key)
+    if value is None:
+        return None
+    names = [value] if isinstance(value, str) else list(value)
+    allowed = VARIANTS.get(cfg.get("kind"), ())
+    if not names or len(set(names)) != len(names) or (allowed and any(name not in allowed for name in names)):
+        raise WorkbenchError(f"dataset.{key} must be one of {tuple(allowed)} or a list of distinct ones, "
+                             f"got {value!r}")
+    return names
 
 
 def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capture]:

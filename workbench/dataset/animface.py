@@ -20,6 +20,8 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
+from workbench.dataset.plausibility import (check_rigid_set, face_spread, outlier_problems, parked_marker_problems,
+                                            plausibility_policy, settle, take_units_problems, with_warnings)
 from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
@@ -56,6 +58,8 @@ class StabilisedTakes:
         Take name, frame number in its file and time of every frame of ``positions``.
     visible : ndarray of shape (n_frames, n_markers) of bool, or None
         Under gap policy ``masked``: the markers each frame saw (``positions`` is filled there for training).
+    warnings : list of str
+        Plausibility problems kept under ``dataset.plausibility: warn``.
     """
 
     positions: np.ndarray
@@ -64,6 +68,7 @@ class StabilisedTakes:
     record: dict
     timeline: Timeline
     visible: np.ndarray | None = None
+    warnings: list = ()
 
 
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
@@ -85,19 +90,21 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     if not np.all(np.isfinite(reference)):
         raise WorkbenchError(f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
                              "another dataset.neutral_frame")
+    check_rigid_set(rigid_labels, reference, f"{first.path} frame {neutral_frame}")
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
 
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
     gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
-    pieces, visible, notes, record, timelines = [], [], [], {}, []
+    pieces, visible, notes, record, timelines, problems = [], [], [], {}, [], []
     for number, take in enumerate(takes):
         selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
                                    "dataset.max_frames_per_take")
         stable = stabilise(take.positions[selected], take.index_of(rigid_labels, named_in="dataset.rigid_markers"),
                            reference)
         markers = stable.markers[:, take.index_of(table.labels, named_in=str(table.path))]
+        problems += outlier_problems(markers, table.labels, str(take.path), frames=selected)
         if rate > 0:
             rng = np.random.default_rng(np.random.SeedSequence(gap_seed, spawn_key=(number,)))
             mask = make_gap_mask(len(markers), markers.shape[1], rate, float(cfg.get("gap_mean_frames", 12)), rng)
@@ -120,7 +127,18 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     if len(positions) < 2:
         raise WorkbenchError(f"{len(positions)} frames in the takes after gap policy {policy!r}; need at least 2")
     return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
-                           timeline=Timeline.concatenate(timelines), visible=np.concatenate(visible) if policy == "masked" else None)
+                           timeline=Timeline.concatenate(timelines),
+                           visible=np.concatenate(visible) if policy == "masked" else None,
+                           warnings=settle(problems, plausibility_policy(cfg)))
+
+
+def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
+    """Plausibility of the raw takes: per-take units (face size) and markers parked at the origin."""
+    problems = take_units_problems({str(take.path): face_spread(take.positions) for take in takes},
+                                   {str(take.path): take.units for take in takes})
+    for take in takes:
+        problems += parked_marker_problems(take.positions, take.labels, str(take.path))
+    return problems
 
 
 def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
@@ -193,6 +211,7 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
     takes = [read_c3d_markers(data_path(cfg, name, "takes")) for name in take_files]
+    warnings = settle(take_problems(takes), plausibility_policy(cfg))
     if len({take.frame_rate for take in takes}) != 1:
         raise WorkbenchError(f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
                              "concatenating them needs one")
@@ -201,6 +220,7 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
     basis = load_basis(cfg, hand_names)
     table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
     stable = stabilised_takes(takes, table, cfg)
+    warnings += stable.warnings
 
     placement = place_markers(table, stable.neutral, basis.neutral,
                               refine_iterations=integer_setting(cfg.get("refine_iterations", 0),
@@ -290,7 +310,7 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
             neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
             hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
             units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
-            provenance=dict(provenance, train_on=name), notes=tuple(notes), faces=faces,
-            eval_visible=eval_visible, point_support=support, eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):],
-            **mapped)
+            **with_warnings(notes, dict(provenance, train_on=name), warnings), faces=faces,
+            eval_visible=eval_visible, point_support=support,
+            eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):], **mapped)
     return captures

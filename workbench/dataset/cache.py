@@ -1,7 +1,9 @@
 """Captures cached by content hash, so a sweep builds each dataset once.
 
-The key is a hash of the ``dataset`` config group and of the source of ``workbench/dataset`` (a code change
-invalidates it). Captures are kept in memory for the process (the last ``MEMORY_SLOTS`` datasets: a Hydra sweep
+The key is a hash of the ``dataset`` config group, of the source of ``workbench/dataset`` (a code change
+invalidates it) and of the size and modification time of every file the config names, under the data root or the
+workbench's ``conf/`` folder (editing the marker table invalidates it). An entry that cannot be read is reported
+on stderr and rebuilt. Captures are kept in memory for the process (the last ``MEMORY_SLOTS`` datasets: a Hydra sweep
 runs its jobs in one process, a joblib worker runs many) and, when a cache folder is given, on disk as
 ``<key>.npz`` (arrays, no pickle) plus ``<key>.json`` (everything else, written last: a key with both files is
 complete). Cached arrays are read-only, so no run can change what the next one gets.
@@ -11,6 +13,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
+import zipfile
 from collections import OrderedDict
 from functools import lru_cache
 from pathlib import Path
@@ -19,6 +23,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from workbench.dataset.capture import Capture, Timeline
+from workbench.errors import WorkbenchError
 from workbench.record import write_atomic, write_npz
 
 MEMORY_SLOTS = 2
@@ -40,7 +45,7 @@ def code_fingerprint() -> str:
 
 def dataset_key(cfg: Mapping) -> str:
     """Content hash of a dataset config (order of keys does not matter), of the dataset code and of the size and
-    modification time of every source file the config names under its ``data_root``."""
+    modification time of every source file the config names (:func:`source_file_stats`)."""
     text = json.dumps(cfg, sort_keys=True, default=str)
     sources = json.dumps(source_file_stats(cfg))
     return hashlib.sha256((text + sources + code_fingerprint()).encode()).hexdigest()[:24]
@@ -48,20 +53,24 @@ def dataset_key(cfg: Mapping) -> str:
 
 def source_file_stats(cfg: Mapping) -> list[tuple[str, int, int]]:
     """(path, size, mtime_ns) of each file, or file in a folder, that a string value of ``cfg`` names under
-    ``cfg["data_root"]``; empty for generated datasets. Editing a source file changes the cache key."""
-    root = cfg.get("data_root")
-    if not root:
-        return []
+    ``cfg["data_root"]``, under the workbench's ``conf/`` folder (as ``dataset.marker_table`` does) or as an absolute
+    path; empty for generated datasets without such files. Editing a source file changes the cache key."""
+    from workbench.config import CONF_DIR
+
+    roots = [Path(root) for root in (cfg.get("data_root"), CONF_DIR) if root]
     stats = []
     for value in _strings(cfg):
-        path = Path(root) / value
-        if value and path.is_file():
-            files = [path]
-        elif value and path.is_dir() and path.resolve() != Path(root).resolve():
-            files = sorted(item for item in path.iterdir() if item.is_file())
-        else:
+        if not value:
             continue
-        stats += [(str(item), item.stat().st_size, item.stat().st_mtime_ns) for item in files]
+        for root in roots:
+            path = root / value  # an absolute value stays itself
+            if path.is_file():
+                files = [path]
+            elif path.is_dir() and path.resolve() != root.resolve():
+                files = sorted(item for item in path.iterdir() if item.is_file())
+            else:
+                continue
+            stats += [(str(item), item.stat().st_size, item.stat().st_mtime_ns) for item in files]
     return stats
 
 
@@ -98,8 +107,8 @@ def cached_captures(cfg: Mapping, build: Callable[[Mapping], dict], cache_dir: s
     if key in _memory:
         _memory.move_to_end(key)
         return _memory[key]
-    folder = Path(cache_dir) if cache_dir else None
-    captures = _load(folder, key) if folder else None
+    folder = cache_folder(cache_dir)
+    captures = _load_or_report(folder, key) if folder else None
     if captures is None:
         captures = {name: _read_only(capture) for name, capture in build(cfg).items()}
         if folder:
@@ -108,6 +117,34 @@ def cached_captures(cfg: Mapping, build: Callable[[Mapping], dict], cache_dir: s
     while len(_memory) > MEMORY_SLOTS:
         _memory.popitem(last=False)
     return captures
+
+
+def cache_folder(cache_dir: str | Path | None) -> Path | None:
+    """``paths.cache_dir`` as a folder (created if absent), or None without one.
+
+    Raises
+    ------
+    WorkbenchError
+        When the path exists and is not a folder.
+    """
+    if not cache_dir:
+        return None
+    folder = Path(cache_dir)
+    if folder.exists() and not folder.is_dir():
+        raise WorkbenchError(f"paths.cache_dir {folder} is not a folder (a file is in the way); give a folder or "
+                             "null")
+    return folder
+
+
+def _load_or_report(folder: Path, key: str) -> dict[str, Capture] | None:
+    """The cached captures of ``key``, or None when there are none or they cannot be read (a truncated or
+    otherwise damaged entry is reported on stderr; the caller rebuilds it and writes it anew)."""
+    try:
+        return _load(folder, key)
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as error:
+        print(f"workbench: cache entry {folder / key}.npz/.json cannot be read ({type(error).__name__}: {error}); "
+              "rebuilding it", file=sys.stderr)
+        return None
 
 
 def clear_memory() -> None:

@@ -149,6 +149,17 @@ class GapOutcome:
     report: GapReport
 
 
+def gap_policy_setting(policy: str, max_fill_frames: int | None = None) -> str:
+    """``dataset.gap_policy`` and ``dataset.gap_max_fill_frames``, checked (whether or not the data has gaps)."""
+    if policy not in GAP_POLICIES:
+        raise WorkbenchError(f"dataset.gap_policy must be one of {GAP_POLICIES}, got {policy!r}")
+    if max_fill_frames is not None and (isinstance(max_fill_frames, bool) or not isinstance(max_fill_frames, (int, float))
+                                        or int(max_fill_frames) != max_fill_frames or max_fill_frames < 1):
+        raise WorkbenchError(f"dataset.gap_max_fill_frames must be a whole number >= 1 or null, got "
+                             f"{max_fill_frames!r}")
+    return policy
+
+
 def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | None = None) -> GapOutcome:
     """Handle missing (NaN) samples of marker trajectories by one of :data:`GAP_POLICIES`.
 
@@ -164,11 +175,7 @@ def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | 
     -------
     GapOutcome
     """
-    if policy not in GAP_POLICIES:
-        raise WorkbenchError(f"dataset.gap_policy must be one of {GAP_POLICIES}, got {policy!r}")
-    if max_fill_frames is not None and (int(max_fill_frames) != max_fill_frames or max_fill_frames < 1):
-        raise WorkbenchError(f"dataset.gap_max_fill_frames must be a whole number >= 1 or null, got "
-                             f"{max_fill_frames!r}")
+    gap_policy_setting(policy, max_fill_frames)
     missing = np.isnan(positions).any(axis=2)
     if policy == "drop":
         filled, kept = positions, ~missing.any(axis=1)

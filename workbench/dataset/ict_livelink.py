@@ -15,6 +15,7 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
+from workbench.dataset.plausibility import plausibility_policy, settle, unused_channel_problems, with_warnings
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
                                     positive_setting)
@@ -46,11 +47,15 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     available = expression_names(folder, cfg["blendshapes"]["neutral"])
     hand_names = hand_shape_names(cfg, available)
     folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
+    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
+    dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
+    warnings = settle(unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
+                                              list(take.names), take.weights[frames], f"{take.path} with {folder}"),
+                      plausibility_policy(cfg))
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
     mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
 
-    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
     frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
     weights = take.weights[frames]
     timeline = Timeline(take=np.full(len(frames), take_name), frame=frames,
@@ -104,6 +109,6 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
             hand_names=tuple(hand_names), point_labels=labels[name], units="mm",
             origin=origin_text("ICT FaceKit model origin: midline, about nose-tip height, near the centre of the "
                                "head", neutral),
-            frame_rate=float(frame_rate), provenance=dict(provenance, train_on=name), notes=tuple(notes),
+            frame_rate=float(frame_rate), **with_warnings(notes, dict(provenance, train_on=name), warnings),
             faces=faces, eval_timeline=timeline[len(timeline) - len(evaluate):])
     return captures

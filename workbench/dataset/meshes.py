@@ -307,12 +307,14 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
 
     deltas = np.empty((len(names), n_kept, 3))
     neutral_digest = _vertices_cached(*_file_key(neutral_path))[1]
+    check_vertices(neutral.vertices, neutral.vertices, neutral_path)
     for i, name in enumerate(names):
         target_path = folder / f"{name}.obj"
         vertices, digest, n_faces = _vertices_cached(*_file_key(target_path))
         if len(vertices) != neutral.n_vertices:
             raise WorkbenchError(f"{target_path}: {len(vertices)} vertices, but the neutral {neutral_path.name} "
                                  f"has {neutral.n_vertices}; every expression must have the neutral's topology")
+        check_vertices(vertices, neutral.vertices, target_path)
         # A target holding only vertices takes its polygons from the neutral.
         if n_faces and digest != neutral_digest:
             check_same_topology(read_obj(target_path), neutral)
@@ -323,6 +325,23 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
         triangles=triangulate(sizes, corners), n_polygons=int(sizes.size), n_vertices_in_file=neutral.n_vertices,
         unit_mm=float(unit_mm),
         files={"neutral": str(neutral_path), **{name: str(folder / f"{name}.obj") for name in names}})
+
+
+def check_vertices(vertices: np.ndarray, neutral: np.ndarray, path: Path) -> None:
+    """Refuse a mesh with a vertex far outside the neutral face (a coordinate at 1e6 or 1e300): no researcher
+    wants that shape (:func:`workbench.dataset.plausibility.mesh_outlier_problems`).
+
+    Parameters
+    ----------
+    vertices, neutral : ndarray of shape (n_vertices, 3)
+        In the file's units.
+    path : pathlib.Path
+    """
+    from workbench.dataset.plausibility import mesh_outlier_problems
+
+    problems = mesh_outlier_problems(vertices, neutral, str(path), unit="file units")
+    if problems:
+        raise WorkbenchError(problems[0])
 
 
 def check_same_topology(target: ObjMesh, neutral: ObjMesh) -> None:

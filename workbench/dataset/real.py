@@ -37,6 +37,13 @@ def integer_setting(value, key: str, *, minimum: int) -> int:
     return int(value)
 
 
+def bool_setting(value, key: str) -> bool:
+    """A true/false setting, or a :class:`WorkbenchError` naming ``key`` (``maybe`` or 1 is not taken as true)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise WorkbenchError(f"{key} must be true or false, got {value!r}")
+    return bool(value)
+
+
 def positive_setting(value, key: str) -> float:
     """A positive, finite number setting as a float, or a :class:`WorkbenchError` naming ``key`` and the rule."""
     return number_setting(value, key, "a positive, finite number", lambda number: 0 < number < np.inf)

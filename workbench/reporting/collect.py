@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import DONE, write_atomic
+from workbench.record import DONE, inside, write_atomic
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, config_columns, replicate_columns,
                                       summarise)
 from workbench.tables import FLOAT_FORMATS, is_missing, latex_table, markdown_table
@@ -185,7 +185,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
              "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),
              "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title)}
     for name, content in files.items():
-        write_atomic(out / name, content)
+        write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
     return {"n_runs": n_runs, "n_incomplete": len(incomplete), "markdown": markdown,
             "files": [out / name for name in files]}

@@ -28,7 +28,8 @@ import pandas as pd
 
 from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
-from workbench.record import DONE, RunRecord, find_records, is_complete, load_record, write_atomic
+from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
+                              write_atomic)
 from workbench.reporting.runs import is_replicate_key, runs_table, summarise, t_interval, varying_keys, wide
 from workbench.tables import html_frame, markdown_frame
 
@@ -1242,8 +1243,8 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     title, sections = run_sections(record, entries, command, negative_weight_share(record, cache), faces)
     sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
-    write_atomic(out / "alpha_table.csv", (record.folder / "alpha_table.csv").read_bytes())
-    write_atomic(out / "run_config.yaml", (record.folder / "config.yaml").read_bytes())
+    write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
+    write_atomic(inside(out, "run_config.yaml"), (record.folder / "config.yaml").read_bytes())
     return out / "index.html"
 
 
@@ -1273,8 +1274,8 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
     sections = with_bases_section(sections, records, figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
-    write_atomic(out / "summary.csv", summary.to_csv(index=False))
-    write_atomic(out / "runs.csv", per_run.to_csv(index=False))
+    write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
+    write_atomic(inside(out, "runs.csv"), per_run.to_csv(index=False))
     return out / "index.html"
 
 
@@ -1283,8 +1284,8 @@ def _with_png(formats: Sequence[str]) -> list[str]:
 
 
 def _write_documents(out: Path, title: str, sections: Sequence[Section]) -> None:
-    write_atomic(out / "index.html", render_html(title, sections))
-    write_atomic(out / "README.md", render_markdown(title, sections))
+    write_atomic(inside(out, "index.html"), render_html(title, sections))
+    write_atomic(inside(out, "README.md"), render_markdown(title, sections))
 
 
 def sweep_records(root: Path) -> list[RunRecord]:
@@ -1310,9 +1311,9 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         raise WorkbenchError("--name names a reference report; it goes with --reference")
     if reference:
         name = name or default_report_name(config)
-        if not name or Path(name).name != name or name in (".", ".."):
+        if not plain_name(name):
             raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
-        return REPO_ROOT / "reports" / name
+        return inside(REPO_ROOT / "reports", name)
     return Path(out) if out is not None else Path(folder) / REPORT_FOLDER
 
 

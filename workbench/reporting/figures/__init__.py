@@ -22,7 +22,7 @@ from typing import Sequence
 import matplotlib
 from matplotlib.figure import Figure
 
-from workbench.record import write_atomic
+from workbench.record import inside, write_atomic
 
 FORMATS = ("png", "svg")
 # Full-colour PNGs. Figures of rendered faces (raster images) at a resolution that survives zooming, and no
@@ -84,7 +84,7 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     raster = is_raster(figure)
     written = []
     for fmt in (["png"] if raster else formats):
-        path = folder / f"{stem}.{fmt}"
+        path = inside(folder, f"{stem}.{fmt}")
         if fmt == "png":
             data = png_bytes(figure, dpi=RENDER_DPI if raster else PLOT_DPI)
         else:

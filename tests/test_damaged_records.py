@@ -1,0 +1,110 @@
+"""`workbench report` and `workbench collect` on damaged records: one line naming the file and field (exit 2),
+and nothing written outside the output folder."""
+
+import json
+import shutil
+import sys
+
+import pytest
+
+from workbench import cli
+from workbench.cli import run
+from workbench.config import compose
+from workbench.record import inside
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("records") / "sweep" / "run"
+    cfg = compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"])
+    run(cfg, folder)
+    return folder
+
+
+def edit_json(name, change):
+    def damage(folder):
+        value = json.loads((folder / name).read_text())
+        change(value)
+        (folder / name).write_text(json.dumps(value))
+    return damage
+
+
+def write(name, text):
+    return lambda folder: (folder / name).write_text(text)
+
+
+def set_row(key, value):
+    return edit_json("metrics.json", lambda metrics: metrics["rows"][0].__setitem__(key, value))
+
+
+def replace_in(name, old, new):
+    return lambda folder: (folder / name).write_text((folder / name).read_text().replace(old, new, 1))
+
+
+DAMAGE = {
+    "metrics.json not JSON": (write("metrics.json", "{not json"), "metrics.json: not valid JSON"),
+    "metrics.json a list": (write("metrics.json", "[]"), "metrics.json: must hold a JSON object"),
+    "metrics.json missing": (lambda folder: (folder / "metrics.json").unlink(), "metrics.json is missing"),
+    "rows not a list": (edit_json("metrics.json", lambda m: m.__setitem__("rows", 3)), "field 'rows'"),
+    "a row without alpha_abs_mean": (edit_json("metrics.json", lambda m: m["rows"][0].pop("alpha_abs_mean")),
+                                     "rows[0] has no 'alpha_abs_mean'"),
+    "alpha a string": (set_row("alpha_abs_mean", "12"), "field 'rows[0].alpha_abs_mean' must be a number"),
+    "alpha a bool": (set_row("alpha_abs_mean", True), "field 'rows[0].alpha_abs_mean' must be a number"),
+    "basis a number": (set_row("basis", 4), "field 'rows[0].basis' must be a string"),
+    "row of unknown data": (set_row("data", "elsewhere"), "rows[0].data 'elsewhere' is not one of"),
+    "data entry a list": (edit_json("metrics.json", lambda m: m["data"].__setitem__("markers", [])),
+                          "field 'data.markers' must be an object"),
+    "study a path": (edit_json("metrics.json", lambda m: m.__setitem__("study", "../../../x")), "field 'study'"),
+    "job_num a string": (edit_json("metrics.json", lambda m: m.__setitem__("job_num", "3")), "field 'job_num'"),
+    "overrides a string": (edit_json("metrics.json", lambda m: m.__setitem__("overrides", "a=1")),
+                           "field 'overrides'"),
+    "timings not numbers": (write("timings.json", '{"total": "slow"}'), "timings.json: field 'total'"),
+    "config.yaml not YAML": (write("config.yaml", "study: [unclosed"), "config.yaml: not valid YAML"),
+    "config.yaml a list": (write("config.yaml", "- 1\n- 2\n"), "config.yaml: must be a mapping"),
+    "config.yaml study a path": (replace_in("config.yaml", "study: paper", "study: ../../../x"),
+                                 "config.yaml: must be a mapping whose field 'study' is a plain name"),
+    "config.yaml dataset a string": (replace_in("config.yaml", "dataset:", "dataset: 3\nunused:"),
+                                     "config.yaml: field 'dataset' must be a mapping"),
+    "CSV missing a column": (lambda folder: (folder / "alpha_table.csv").write_text(
+        "\n".join(",".join(line.split(",")[1:]) for line in (folder / "alpha_table.csv").read_text().splitlines())),
+        "alpha_table.csv: missing column(s) ['data']"),
+    "CSV missing rows": (lambda folder: (folder / "alpha_table.csv").write_text(
+        "\n".join((folder / "alpha_table.csv").read_text().splitlines()[:2]) + "\n"), "alpha_table.csv has 1 rows"),
+    "CSV empty": (write("alpha_table.csv", ""), "alpha_table.csv: not a readable CSV"),
+    "CSV binary": (lambda folder: (folder / "alpha_table.csv").write_bytes(b"\xff\xfe\x00\x01"), "alpha_table.csv"),
+}
+
+
+def cli_main(monkeypatch, capsys, *arguments):
+    monkeypatch.setattr(sys, "argv", ["workbench", *arguments])
+    with pytest.raises(SystemExit) as stopped:
+        cli.main()
+    return stopped.value.code, capsys.readouterr()
+
+
+@pytest.mark.parametrize("command", ["report", "collect"])
+@pytest.mark.parametrize("case", list(DAMAGE))
+def test_damaged_record_is_refused_in_one_line_naming_file_and_field(record, tmp_path, monkeypatch, capsys, command,
+                                                                     case):
+    damage, expected = DAMAGE[case]
+    folder = tmp_path / "sweep" / "run"
+    shutil.copytree(record, folder)
+    damage(folder)
+    out = tmp_path / "out"
+    code, captured = cli_main(monkeypatch, capsys, command, str(tmp_path / "sweep"), "--out", str(out))
+    lines = captured.err.strip().splitlines()
+    assert code == 2, captured.err
+    assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: ") and expected in lines[0], lines
+    assert str(folder) in lines[0]
+
+
+def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, tmp_path, monkeypatch, capsys):
+    code, captured = cli_main(monkeypatch, capsys, "report", str(record), "--reference", "--name", "../../x")
+    assert code == 2 and "--name must be a plain folder name" in captured.err
+
+
+def test_inside_refuses_paths_leaving_the_folder(tmp_path):
+    assert inside(tmp_path, "figures", "a.png") == tmp_path / "figures" / "a.png"
+    for escaping in (["..", "x"], ["figures/../../x"], ["/etc/passwd"]):
+        with pytest.raises(ValueError, match="is not inside the output folder"):
+            inside(tmp_path, *escaping)

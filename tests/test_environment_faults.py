@@ -1,0 +1,104 @@
+"""Faults of the environment end in one line naming the path and the fault, exit 2: a full disk, a denied
+permission, a dataset too large for memory, a cache path that is a file."""
+
+import errno
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from workbench import cli
+from workbench.config import REPO_ROOT
+from workbench.record import write_atomic
+
+SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
+
+
+def workbench(cwd: Path, *arguments: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-m", "workbench", *arguments], cwd=cwd, capture_output=True, text=True,
+                          env=env, timeout=300)
+
+
+def one_line(result: subprocess.CompletedProcess) -> str:
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert result.returncode == 2 and len(lines) == 1, (result.returncode, result.stderr)
+    return lines[0]
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    """A 40 KiB tmpfs (too small for a run record), where the test may mount one."""
+    folder = tmp_path / "small-disk"
+    folder.mkdir()
+    if shutil.which("mount") is None or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=40k", "tmpfs",
+                                                        str(folder)], capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (the simulated ENOSPC test covers the message)")
+    yield folder
+    subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_a_full_disk_names_the_file_and_leaves_no_partial_record(small_tmpfs, tmp_path):
+    folder = small_tmpfs / "run"
+    line = one_line(workbench(tmp_path, *SMALL, f"hydra.run.dir={folder}"))
+    assert line.startswith(f"workbench: error: {folder}/") and line.endswith(": cannot write (No space left on "
+                                                                             "device)"), line
+    assert not folder.exists()
+
+
+def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
+    def full(_):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr("workbench.record.os.fsync", full)
+    with pytest.raises(OSError) as raised:
+        write_atomic(tmp_path / "metrics.json", "{}")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(SystemExit) as stopped:
+        cli.exit_on_error("workbench", raised.value)
+    assert stopped.value.code == 2
+    assert capsys.readouterr().err == (f"workbench: error: {tmp_path / 'metrics.json'}: cannot write "
+                                       "(No space left on device)\n")
+
+
+@pytest.mark.parametrize("error, expected", [
+    (PermissionError(errno.EACCES, "Permission denied", "/data/animface_jaw.c3d"),
+     "/data/animface_jaw.c3d: Permission denied"),
+    (IsADirectoryError(errno.EISDIR, "Is a directory", "/data/take.csv"), "/data/take.csv: Is a directory"),
+    (MemoryError(), "out of memory (MemoryError)"),
+])
+def test_environment_faults_are_one_line_exit_2(error, expected, capsys):
+    with pytest.raises(SystemExit) as stopped:
+        cli.exit_on_error("workbench", error)
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"workbench: error: {expected}") and err.count("\n") == 1
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads any file regardless of its permissions")
+def test_an_unreadable_data_file_is_named(shared_data, tmp_path):
+    root = tmp_path / "data"
+    shutil.copytree(shared_data / "livelinkface", root / "livelinkface")
+    (root / "ict-facekit").symlink_to(shared_data / "ict-facekit")
+    (root / "livelinkface" / "alex_rom_3.csv").chmod(0)
+    line = one_line(workbench(tmp_path, "dataset=ict_livelink", f"paths.data_root={root}", "dataset.max_frames=40",
+                              f"hydra.run.dir={tmp_path / 'run'}"))
+    assert "alex_rom_3.csv" in line and "Permission denied" in line
+
+
+def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path):
+    line = one_line(workbench(tmp_path, "dataset.n_frames=100000000", f"hydra.run.dir={tmp_path / 'run'}"))
+    assert "the synthetic dataset would need about 163.2 GiB of memory but" in line
+    assert "reduce dataset.n_frames" in line
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_cache_path_that_is_a_file_is_one_line(tmp_path):
+    (tmp_path / "cache").write_text("")
+    line = one_line(workbench(tmp_path, *SMALL, f"paths.cache_dir={tmp_path / 'cache'}",
+                              f"hydra.run.dir={tmp_path / 'run'}"))
+    assert line == f"workbench: error: paths.cache_dir {tmp_path / 'cache'} is not a folder (a file is in the way); " \
+                   "give a folder or null"
