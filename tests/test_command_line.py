@@ -106,6 +106,7 @@ def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
     again = workbench("-m", *reversed(sweep), cwd=tmp_path)  # the same sweep, typed in another order
     assert again.returncode == 0, again.stderr
     assert again.stdout.count("skip ") == 2 and "done " not in again.stdout
+    assert "skip" not in log + (sweep_dir / runs[0] / "workbench.log").read_text()
     assert [(sweep_dir / run / "done").stat().st_mtime_ns for run in runs] == done_times
 
 

@@ -97,7 +97,8 @@ def _hydra_main(cfg: DictConfig) -> None:
     try:
         hash_of_config = config_hash(resolved_yaml_text(cfg))
         if not prepare_run_dir(output_dir, hash_of_config):
-            log.info(f"skip {output_dir}: complete record (config hash {hash_of_config})")
+            logging.getLogger("workbench.skip").info(f"skip {output_dir}: complete record (config hash "
+                                                     f"{hash_of_config})")
             return
         multirun = hydra_cfg.mode == RunMode.MULTIRUN
         text = run(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
