@@ -9,6 +9,7 @@ import pytest
 
 from workbench import __version__
 from workbench.config import REPO_ROOT
+from workbench.record import DONE
 
 
 def workbench(*args, cwd, env=None):
@@ -102,12 +103,12 @@ def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
     assert log.startswith(f"done {sweep_dir / runs[0]}: alpha_abs_mean with lstsq: H ")
     assert log.splitlines()[0] in first.stdout
 
-    done_times = [(sweep_dir / run / "done").stat().st_mtime_ns for run in runs]
+    done_times = [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs]
     again = workbench("-m", *reversed(sweep), cwd=tmp_path)  # the same sweep, typed in another order
     assert again.returncode == 0, again.stderr
     assert again.stdout.count("skip ") == 2 and "done " not in again.stdout
     assert "skip" not in log + (sweep_dir / runs[0] / "workbench.log").read_text()
-    assert [(sweep_dir / run / "done").stat().st_mtime_ns for run in runs] == done_times
+    assert [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs] == done_times
 
 
 def test_single_run_job_name_and_log(tmp_path):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import sys
 import time
 import traceback
@@ -142,14 +143,23 @@ def help_section(name: str) -> str:
     if name == "studies":
         entries = {study: first_comment(STUDIES_DIR / f"{study}.yaml") for study in study_names()}
     elif name == "commands":
-        entries = {command: "" for command in COMMANDS}
-        entries.update(report="HTML/Markdown report of run records (beside them unless --out)",
-                       collect="tidy CSV/Parquet and Markdown/LaTeX tables of a sweep",
-                       mlflow="log finished run records into an MLflow store (needs the [mlflow] extra)")
+        entries = {command: command_summary(target) for command, target in COMMANDS.items()}
     else:
         raise ValueError(f"workbench_help: unknown section {name!r}")
     width = max(map(len, entries))
     return "\n".join(f"{key.ljust(width)}  {text}".rstrip() for key, text in entries.items())
+
+
+def command_summary(target: str) -> str:
+    """The first sentence of the docstring of a command's module (read, not imported), without a leading
+    ```workbench <command> ...``:`` so that ``--help`` stays fast."""
+    import ast
+    import importlib.util
+
+    origin = importlib.util.find_spec(target.split(":")[0]).origin
+    text = " ".join((ast.get_docstring(ast.parse(Path(origin).read_text())) or "").split())
+    text = re.sub(r"^``workbench [^`]*``:\s*", "", text)
+    return text.split(". ")[0].rstrip(".")
 
 
 def first_comment(path: Path) -> str:

@@ -1,4 +1,4 @@
-"""Finished run records into an MLflow tracking store (the optional extra ``pip install -e '.[mlflow]'``).
+"""``workbench mlflow <folder>...``: log finished run records into an MLflow tracking store (extra: mlflow).
 
 Runs are logged from their records after the fact (at the end of a sweep, or by ``workbench mlflow <folder>``),
 so the machines that compute need no access to the store. The default store needs no server: a SQLite file and
