@@ -63,7 +63,9 @@ def test_help_lists_studies_groups_and_commands(tmp_path):
     commands = text.split("== Commands ==")[1].split("==")[0]
     assert [line.split()[0] for line in commands.strip().splitlines()] == ["report", "collect", "mlflow"]
     groups = text.split("== Configuration groups ==")[1].split("==")[0]
-    assert "dataset: animface, ict_livelink, synthetic" in groups and "solver: all, box, lstsq, nnls" in groups
+    assert groups.strip().splitlines()[1:] == [
+        "", "basis: default", "dataset: animface, ict_livelink, synthetic", "metric: default", "paths: default",
+        "solver: all, box, lstsq, nnls"]
 
 
 def test_version_is_the_workbenchs(tmp_path):

@@ -202,10 +202,11 @@ DATASET_SCHEMAS = {"synthetic": SyntheticSchema, "ict_livelink": IctLivelinkSche
 
 
 def register_schemas() -> None:
-    """Store the schemas in Hydra's ConfigStore: ``workbench_schema`` (a study) and ``schema/dataset/<kind>``."""
+    """Store the schemas in Hydra's ConfigStore: ``workbench_schema`` (a study) and ``<kind>_dataset_schema``,
+    outside any config group so that ``--help`` does not offer them as options."""
     from hydra.core.config_store import ConfigStore
 
     store = ConfigStore.instance()
     store.store(name="workbench_schema", node=StudySchema)
     for kind, schema in DATASET_SCHEMAS.items():
-        store.store(group="schema/dataset", name=kind, node=schema)
+        store.store(name=f"{kind}_dataset_schema", node=schema)
