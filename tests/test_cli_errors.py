@@ -31,7 +31,7 @@ def test_bad_solver_bounds_name_the_setting(tmp_path):
     result = run_cli("solver=box", "solver.box.lower=2", "solver.box.upper=1", "dataset.n_frames=300",
                      f"paths.output_root={tmp_path}", cwd=tmp_path)
     assert result.returncode == 2
-    assert result.stderr.strip() == "workbench: error: solver.box.lower (2) must not exceed solver.box.upper (1)"
+    assert result.stderr.strip() == "workbench: error: solver.box.lower (2.0) must not exceed solver.box.upper (1.0)"
 
 
 def test_subcommand_errors_are_one_line(tmp_path):

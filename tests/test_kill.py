@@ -48,8 +48,8 @@ RECORD_FILES = ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.jso
                 "alpha_per_frame.npz", DONE)
 SAME_BYTES = ("config.yaml", "alpha_table.csv", "alpha_table.md", DONE)
 """Files whose content is the same in every run of the same config."""
-HYDRA_FILES = ("cli.log",)
-"""A plain (untracked) run's folder also holds Hydra's job log and its ``.hydra`` folder: Hydra's, not the record."""
+LOG_FILES = ("workbench.log",)
+"""What the run printed, in every run folder (a plain run's also holds Hydra's ``.hydra`` folder): not the record."""
 COLLECTED_FILES = ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "alpha_table.md", "alpha_table.tex")
 TEMPORARY = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX) + "$")
 
@@ -205,7 +205,7 @@ def check_run_folder(folder: Path, reference: Path, *, hydra_files: bool) -> str
         assert {path.name for path in folder.iterdir() if path.is_dir()} <= {".hydra"}, folder
     temporary = [name for name in names if temporary_of(name) is not None]
     assert all(temporary_of(name) in RECORD_FILES for name in temporary), temporary
-    unknown = set(names) - set(RECORD_FILES) - set(temporary) - {LOCK_FILE} - (set(HYDRA_FILES) if hydra_files else set())
+    unknown = set(names) - set(RECORD_FILES) - set(temporary) - {LOCK_FILE} - set(LOG_FILES)
     assert not unknown, f"{folder}: files that are no part of a record: {unknown}"
     present = [name for name in names if name in RECORD_FILES]
     for name in present:  # every file there is whole: it parses, and equals the reference where that is fixed

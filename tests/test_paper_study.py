@@ -115,8 +115,10 @@ def test_cli_multirun_sweeps(tmp_path):
     result = run_cli("-m", "dataset.n_frames=300", "solver=box", "basis.coverage=0.99,0.995",
                      f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    coverages = sorted(float(pd.read_csv(tmp_path / "sweep" / str(job) / "alpha_table.csv")["coverage"][0])
-                       for job in (0, 1))
+    # each run in a folder named by its overrides, so that the same sweep run again resumes
+    coverages = sorted(float(pd.read_csv(tmp_path / "sweep" / f"basis.coverage={coverage},dataset.n_frames=300,"
+                                         "solver=box" / "alpha_table.csv")["coverage"][0])
+                       for coverage in ("0.99", "0.995"))
     assert coverages[0] <= coverages[1]
 
 

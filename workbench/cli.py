@@ -5,7 +5,9 @@ The Hydra entry point is thin: it hands the composed config to :func:`run`.
 
 from __future__ import annotations
 
+import logging
 import os
+import re
 import sys
 import time
 import traceback
@@ -17,7 +19,7 @@ import hydra
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs, searchpath_override
+from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs
 from workbench.dataset.real import bool_setting
 from workbench.errors import WorkbenchError
 from workbench.pipeline import run_study
@@ -27,7 +29,7 @@ from workbench.tables import markdown_frame
 from workbench.tracking import (FolderBusy, discard_failed_run, lock_run_dir, prepare_run_dir, register_resolvers,
                                 unlock_run_dir)
 
-register_resolvers()
+log = logging.getLogger("workbench")
 
 
 def resolved_without_hydra(cfg: DictConfig) -> dict:
@@ -103,16 +105,19 @@ def _hydra_main(cfg: DictConfig) -> None:
     except FolderBusy as error:
         if not multirun:
             exit_on_error("workbench", error)
-        print(f"skip {output_dir}: in use by another workbench process")
+        # to the console only: the folder belongs to another process
+        logging.getLogger("workbench.skip").info(f"skip {output_dir}: in use by another workbench process")
         return
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
         exit_on_error("workbench", error)
     if text is None:
-        print(f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})")
+        # to the console only: a resumed sweep never touches a complete record's log
+        logging.getLogger("workbench.skip").info(
+            f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})")
     elif multirun:
-        print(f"done {output_dir}: {first_headline(text)}")
+        log.info(f"done {output_dir}: {first_headline(text)}")
     else:
-        print(text + f"\nrecord: {output_dir}")
+        log.info(text + f"\nrecord: {output_dir}")
 
 
 def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
@@ -145,7 +150,78 @@ def first_headline(text: str) -> str:
 COMMANDS: dict[str, str] = {
     "report": "workbench.reporting.pages:main",
     "collect": "workbench.reporting.collect:main",
+    "mlflow": "workbench.reporting.mlflow_store:main",
 }
+
+
+def study_names() -> list[str]:
+    """The studies: the configs in ``studies/`` (``--config-name`` takes one)."""
+    return sorted(path.stem for path in STUDIES_DIR.glob("*.yaml"))
+
+
+def help_section(name: str) -> str:
+    """Text for the ``${workbench_help:...}`` resolver of ``conf/hydra/help/workbench.yaml``: ``version``, or the
+    ``studies`` or ``commands`` listed one a line with their first line of documentation."""
+    from workbench import __version__
+
+    if name == "version":
+        return __version__
+    if name == "studies":
+        entries = {study: first_comment(STUDIES_DIR / f"{study}.yaml") for study in study_names()}
+    elif name == "commands":
+        entries = {command: command_summary(target) for command, target in COMMANDS.items()}
+    else:
+        raise ValueError(f"workbench_help: unknown section {name!r}")
+    width = max(map(len, entries))
+    return "\n".join(f"{key.ljust(width)}  {text}".rstrip() for key, text in entries.items())
+
+
+def command_summary(target: str) -> str:
+    """The first sentence of the docstring of a command's module (read, not imported), without a leading
+    ```workbench <command> ...``:`` so that ``--help`` stays fast."""
+    import ast
+    import importlib.util
+
+    origin = importlib.util.find_spec(target.split(":")[0]).origin
+    text = " ".join((ast.get_docstring(ast.parse(Path(origin).read_text())) or "").split())
+    text = re.sub(r"^``workbench [^`]*``:\s*", "", text)
+    return text.split(". ")[0].rstrip(".")
+
+
+def first_comment(path: Path) -> str:
+    """The first comment line of a YAML file up to its first colon or full stop: what the file is."""
+    for line in path.read_text().splitlines():
+        if line.startswith("#"):
+            return line.lstrip("# ").split(": ")[0].split(". ")[0].strip()
+    return ""
+
+
+def register_cli_resolvers() -> None:
+    """What the studies' configs use: their schemas, the resolvers of run folder names and of the help text."""
+    from omegaconf import OmegaConf
+
+    from workbench.schema import register_schemas
+
+    register_schemas()
+    register_resolvers()
+    if not OmegaConf.has_resolver("workbench_help"):
+        OmegaConf.register_new_resolver("workbench_help", help_section)
+
+
+register_cli_resolvers()
+
+
+def complete_study_name() -> bool:
+    """Tab completion of ``--config-name=`` (Hydra completes groups and keys, not the primary config): print the
+    studies starting with the word being completed and return True; False when the line completes something else.
+    """
+    words = os.environ.get("COMP_LINE", "").split(" ")
+    for flag in ("--config-name=", "-cn="):
+        if words[-1].startswith(flag):
+            prefix = words[-1][len(flag):]
+            print(" ".join(flag + study for study in study_names() if study.startswith(prefix)))
+            return True
+    return False
 
 
 VERBOSE_FLAG = "--verbose"
@@ -203,6 +279,13 @@ def main() -> None:
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
     global _verbose
+    if "--version" in sys.argv[1:]:
+        from workbench import __version__
+
+        print(f"workbench {__version__}")
+        sys.exit(0)
+    if "query=bash" in sys.argv[1:] and complete_study_name():
+        sys.exit(0)
     if VERBOSE_FLAG in sys.argv[1:]:
         _verbose = True
         sys.argv = [arg for arg in sys.argv if arg != VERBOSE_FLAG]
@@ -219,7 +302,6 @@ def main() -> None:
         check_config_dirs()
     except Exception as error:  # noqa: BLE001
         exit_on_error("workbench", error)
-    sys.argv.append(searchpath_override())
     # Hydra reports a bad override or config choice in several lines of its own; let it raise instead, and print
     # one line (unless the user asked for Hydra's full error or --verbose).
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
@@ -243,7 +325,8 @@ def one_line(error: BaseException) -> str:
         text += "\n" + str(error.__cause__)
     parts = []
     for line in text.split("Config search path:")[0].splitlines():
-        if not line.strip() or line.strip().startswith(("full_key:", "object_type=", "Set the environment variable")):
+        if not line.strip() or line.strip().startswith(("full_key:", "object_type=", "reference_type=",
+                                                        "Set the environment variable")):
             continue
         if line.startswith(("\t", "    ")) and parts and parts[-1].endswith((":", ",")):
             parts[-1] += (" " if parts[-1].endswith(":") else " ") + line.strip() + ","

@@ -21,11 +21,6 @@ def check_config_dirs() -> None:
                                  "with 'pip install -e .' so that conf/ and studies/ stay beside the package")
 
 
-def searchpath_override() -> str:
-    """Hydra override that puts ``conf/`` (the config groups) on the search path of every study."""
-    return f"hydra.searchpath=[file://{CONF_DIR}]"
-
-
 def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     """Compose a study's config as the command line would, without running it.
 
@@ -42,7 +37,10 @@ def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     """
     from hydra import compose as hydra_compose, initialize_config_dir
 
+    from workbench.cli import register_cli_resolvers
+
+    register_cli_resolvers()
     check_config_dirs()
     with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
-        return hydra_compose(config_name=study, overrides=[searchpath_override(), *overrides],
+        return hydra_compose(config_name=study, overrides=list(overrides),
                              return_hydra_config=True)

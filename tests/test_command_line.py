@@ -1,0 +1,123 @@
+"""The command line keeps Hydra's conventions: completion, flags after overrides, --info, --help, --version,
+typed configs failing at composition in one line, ad-hoc sweeps that resume, and logging into workbench.log."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from workbench import __version__
+from workbench.config import REPO_ROOT
+from workbench.record import DONE
+
+
+def workbench(*args, cwd, env=None):
+    environment = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", **(env or {}))
+    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=environment,
+                          capture_output=True, text=True, timeout=300)
+
+
+def completions(line, tmp_path):
+    """Hydra's bash completion answer for a command line typed up to its end."""
+    result = workbench("-sc", "query=bash", cwd=tmp_path, env={"COMP_LINE": line, "COMP_POINT": str(len(line))})
+    assert result.returncode == 0, result.stderr
+    return result.stdout.split()
+
+
+def test_tab_completion_completes_groups_keys_and_studies(tmp_path):
+    assert completions("workbench dataset=", tmp_path) == [
+        "dataset=animface", "dataset=ict_livelink", "dataset=synthetic"]
+    assert completions("workbench dataset.n_", tmp_path) == [
+        "dataset.n_face_markers=", "dataset.n_frames=", "dataset.n_head_markers="]
+    assert completions("workbench solver=", tmp_path) == [
+        "solver=all", "solver=box", "solver=lstsq", "solver=nnls"]
+    assert completions("workbench --config-name=cov", tmp_path) == [
+        "--config-name=coverage", "--config-name=coverage_small"]
+    studies = completions("workbench --config-name=", tmp_path)
+    assert "--config-name=paper" in studies and "--config-name=noise_small" in studies and len(studies) == 15
+
+
+def test_flags_after_the_overrides(tmp_path):
+    shown = workbench("dataset.n_frames=2000", "--cfg", "job", cwd=tmp_path)
+    assert shown.returncode == 0, shown.stderr
+    assert "  n_frames: 2000\n" in shown.stdout and "hydra:" not in shown.stdout
+    resolved = workbench("dataset=ict_livelink", "paths.data_root=somewhere", "--cfg", "job", "--resolve",
+                         cwd=tmp_path)
+    assert resolved.returncode == 0 and "  data_root: somewhere\n" in resolved.stdout
+
+
+def test_bare_info_lists_the_search_path(tmp_path):
+    result = workbench("--info", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert f"file://{REPO_ROOT / 'conf'}" in result.stdout and f"file://{REPO_ROOT / 'studies'}" in result.stdout
+
+
+def test_help_lists_studies_groups_and_commands(tmp_path):
+    result = workbench("--help", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    text = result.stdout
+    assert text.startswith(f"workbench {__version__}: ") and "powered by Hydra" not in text
+    studies = text.split("== Studies")[1].split("== Commands")[0]
+    assert "coverage_small" in studies and "paper                 Paper reproduction" in studies
+    commands = text.split("== Commands ==")[1].split("==")[0]
+    assert [line.split()[0] for line in commands.strip().splitlines()] == ["report", "collect", "mlflow"]
+    groups = text.split("== Configuration groups ==")[1].split("==")[0]
+    assert groups.strip().splitlines()[1:] == [
+        "", "basis: default", "dataset: animface, ict_livelink, synthetic", "metric: default", "paths: default",
+        "solver: all, box, lstsq, nnls"]
+
+
+def test_version_is_the_workbenchs(tmp_path):
+    result = workbench("--version", cwd=tmp_path)
+    assert (result.returncode, result.stdout) == (0, f"workbench {__version__}\n")
+
+
+@pytest.mark.parametrize("override, expected", [
+    ("solver.box.lower=x", "workbench: error: Error merging override solver.box.lower=x; "
+                           "Value 'x' of type 'str' could not be converted to Float"),
+    ("basis.projections=affine", "workbench: error: Error merging override basis.projections=affine; "
+                                 "Invalid value assigned: str is not a ListConfig, list or tuple"),
+    ("dataset.n_frames=2000.5", "workbench: error: Error merging override dataset.n_frames=2000.5; "
+                                "Value '2000.5' of type 'float' could not be converted to Integer"),
+    ("basis.covrage=0.9", "workbench: error: Could not override 'basis.covrage'; To append to your config use "
+                          "+basis.covrage=0.9; Key 'covrage' not in 'BasisSchema'"),
+])
+def test_wrong_type_or_unknown_key_fails_at_composition_in_one_line(tmp_path, override, expected):
+    result = workbench(override, "paths.output_root=out", cwd=tmp_path)
+    assert (result.returncode, result.stderr.strip()) == (2, expected)
+    assert not (tmp_path / "out").exists(), "nothing may run before the config is valid"
+
+
+def test_range_checks_stay(tmp_path):
+    result = workbench("basis.coverage=1.5", "paths.output_root=out", cwd=tmp_path)
+    assert (result.returncode, result.stderr.strip()) == (2, "workbench: error: coverage must be in (0, 1], got 1.5")
+
+
+def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
+    sweep = ["dataset.n_frames=400", "solver=lstsq", "dataset.seed=0,1", "paths.output_root=out"]
+    first = workbench(*sweep, "-m", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    sweep_dir = tmp_path / "out" / "paper-multirun" / "default"
+    runs = sorted(path.name for path in sweep_dir.iterdir() if path.is_dir())
+    assert runs == ["dataset.n_frames=400,dataset.seed=0,solver=lstsq", "dataset.n_frames=400,dataset.seed=1,solver=lstsq"]
+    log = (sweep_dir / runs[0] / "workbench.log").read_text()
+    assert log.startswith(f"done {sweep_dir / runs[0]}: alpha_abs_mean with lstsq: H ")
+    assert log.splitlines()[0] in first.stdout
+
+    done_times = [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs]
+    again = workbench("-m", *reversed(sweep), cwd=tmp_path)  # the same sweep, typed in another order
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.count("skip ") == 2 and "done " not in again.stdout
+    assert "skip" not in log + (sweep_dir / runs[0] / "workbench.log").read_text()
+    assert [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs] == done_times
+
+
+def test_single_run_job_name_and_log(tmp_path):
+    result = workbench("dataset.n_frames=400", "solver=lstsq", "paths.output_root=out", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    [run_dir] = (tmp_path / "out" / "paper").iterdir()
+    assert (run_dir / "workbench.log").read_text() == result.stdout
+    assert result.stdout.startswith("Study 'paper' on synthetic actor") and "| QE " in result.stdout
+    assert result.stdout.endswith(f"\nrecord: {run_dir}\n")
+    assert "name: workbench" in (run_dir / ".hydra" / "hydra.yaml").read_text()
