@@ -86,3 +86,65 @@ def test_a_bad_frames_file_is_named(tmp_path):
     np.save(path, np.zeros((2, 3, 4)))
     with pytest.raises(WorkbenchError, match="frames.npy.*shape"):
         FramesOnDisk(path)
+
+
+def test_rows_of_frames_on_disk_read_their_part(tmp_path):
+    frames = np.arange(40.0).reshape(10, 4)
+    np.save(tmp_path / "frames.npy", frames)
+    part = FramesOnDisk(tmp_path / "frames.npy").rows(6, 10)
+    assert part.shape == (4, 4) and part.first == 6
+    np.testing.assert_array_equal(np.asarray(part), frames[6:])
+    np.testing.assert_array_equal(part[1:3], frames[7:9])
+
+
+def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
+    from workbench.bases import Eigenfaces
+
+    rng = np.random.default_rng(3)
+    frames = (rng.standard_normal((400, 12)) * np.geomspace(10, 0.1, 12)) @ rng.standard_normal((12, 90))
+    frames = frames.astype(np.float32)
+    np.save(tmp_path / "frames.npy", frames)
+    reference = Eigenfaces(coverage=0.99, svd_solver="randomized").fit(frames.astype(np.float64))
+    for stored in (frames, FramesOnDisk(tmp_path / "frames.npy")):
+        fitted = Eigenfaces(coverage=0.99, svd_solver="randomized").fit(stored)
+        assert fitted.n_components_ == reference.n_components_
+        np.testing.assert_allclose(fitted.explained_variance_, reference.explained_variance_, rtol=1e-10)
+        np.testing.assert_allclose(fitted.components_, reference.components_, atol=1e-9)
+        np.testing.assert_allclose(fitted.mean_, reference.mean_, rtol=1e-12, atol=1e-12)
+
+
+def study_alphas(tmp_path, *overrides):
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.dataset.cache import clear_memory
+    from workbench.pipeline import run_study
+
+    clear_memory()
+    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.mesh_rows=24",
+                                                   "dataset.mesh_cols=20", "dataset.train_on=mesh", "solver=all",
+                                                   f"paths.cache_dir={tmp_path}", *overrides]))
+    (result,) = run_study(cfg)
+    return result, np.array([[row.alpha.absolute_mean, row.alpha.displacement_mean, row.alpha.rms_mm]
+                             for row in result.rows])
+
+
+def test_mesh_study_in_float32_and_on_disk_matches_float64_in_memory(tmp_path):
+    _, reference = study_alphas(tmp_path)
+    float32, in_memory = study_alphas(tmp_path, "dataset.dtype=float32")
+    assert float32.capture.train.dtype == np.float32
+    np.testing.assert_allclose(in_memory, reference, rtol=1e-6)
+    on_disk, stored = study_alphas(tmp_path, "dataset.dtype=float32", "dataset.storage=disk")
+    assert isinstance(on_disk.capture.train, FramesOnDisk) and on_disk.capture.eval is on_disk.capture.train
+    np.testing.assert_allclose(stored, in_memory, rtol=1e-10)
+    again, from_cache = study_alphas(tmp_path, "dataset.dtype=float32", "dataset.storage=disk")  # from the cache
+    assert again.capture.train.path == on_disk.capture.train.path
+    np.testing.assert_array_equal(from_cache, stored)
+
+
+def test_disk_storage_needs_a_cache_dir():
+    from workbench.dataset import build_captures
+
+    with pytest.raises(WorkbenchError, match="dataset.storage=disk .*paths.cache_dir"):
+        build_captures({"kind": "synthetic", "storage": "disk"}, cache_dir=None)
+    with pytest.raises(WorkbenchError, match="dataset.dtype must be one of"):
+        build_captures({"kind": "synthetic", "dtype": "float16"}, cache_dir=None)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.frames import frame_chunks, is_stored_frames
 from workbench.tolerances import TOL, Tolerances
 
 PROJECTIONS = ("affine", "linear")
@@ -167,8 +168,9 @@ def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: 
 
     Parameters
     ----------
-    capture : ndarray of shape (n_frames, n_dims)
-        The capture, not centred.
+    capture : ndarray of shape (n_frames, n_dims) or FramesOnDisk
+        The capture, not centred; float32 and on-disk captures are read a chunk of frames at a time
+        (:func:`frames_times`).
     mean : ndarray of shape (n_dims,)
     n_eigen : int
         Number of eigenpairs wanted.
@@ -190,16 +192,48 @@ def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: 
     width = min(n_eigen + oversample, n_frames, n_dims)
 
     def times(matrix):  # D~ @ matrix, (n_frames, width)
-        return capture @ matrix - (mean @ matrix)[None, :]
+        return frames_times(capture, matrix) - (mean @ matrix)[None, :]
 
     def transposed_times(matrix):  # D~^T @ matrix, (n_dims, width)
-        return capture.T @ matrix - np.outer(mean, matrix.sum(axis=0))
+        return frames_transposed_times(capture, matrix) - np.outer(mean, matrix.sum(axis=0))
 
     basis = np.linalg.qr(times(rng.standard_normal((n_dims, width))))[0]
     for _ in range(n_power_iter):
         basis = np.linalg.qr(times(np.linalg.qr(transposed_times(basis))[0]))[0]
     _, singular, vt = np.linalg.svd(transposed_times(basis).T, full_matrices=False)
     return singular[:n_eigen] ** 2 / n_frames, flip_signs(vt[:n_eigen])
+
+
+def frames_times(capture, matrix: np.ndarray) -> np.ndarray:
+    """``capture @ matrix``, shape (n_frames, k): at once for a float64 array, else one chunk of frames at a time
+    in float64 (:func:`workbench.frames.frame_chunks`)."""
+    if not is_stored_frames(capture):
+        return capture @ matrix
+    out = np.empty((capture.shape[0], matrix.shape[1]))
+    for rows, chunk in frame_chunks(capture):
+        out[rows] = chunk @ matrix
+    return out
+
+
+def frames_transposed_times(capture, matrix: np.ndarray) -> np.ndarray:
+    """``capture.T @ matrix``, shape (n_dims, k), as :func:`frames_times` (a sum over chunks of frames)."""
+    if not is_stored_frames(capture):
+        return capture.T @ matrix
+    out = np.zeros((capture.shape[1], matrix.shape[1]))
+    for rows, chunk in frame_chunks(capture):
+        out += chunk.T @ matrix[rows]
+    return out
+
+
+def frames_mean(name: str, capture) -> np.ndarray:
+    """Mean frame of a float32 or on-disk capture, shape (n_dims,), accumulated in float64 over chunks; a
+    :class:`WorkbenchError` naming ``name`` for NaN or Inf."""
+    total = np.zeros(capture.shape[1])
+    for rows, chunk in frame_chunks(capture):
+        if not np.all(np.isfinite(chunk)):
+            raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
+        total += chunk.sum(axis=0)
+    return total / capture.shape[0]
 
 
 def n_components_for_coverage(explained_variance_ratio: np.ndarray, coverage: float) -> int:
@@ -275,7 +309,9 @@ class Eigenfaces:
 
         Parameters
         ----------
-        capture : array-like of shape (n_frames, n_dims)
+        capture : array-like of shape (n_frames, n_dims), or FramesOnDisk
+            A float32 or on-disk capture is read a chunk of frames at a time with float64 accumulation by the
+            randomised solver (the exact one converts it whole).
 
         Returns
         -------
@@ -287,16 +323,21 @@ class Eigenfaces:
             A capture that is not a finite, non-empty 2-D array of at least 2 frames, or has no variance; a
             ``coverage`` outside (0, 1]; an ``n_components`` that is not a positive integer or exceeds the rank.
         """
-        capture = _check_matrix("capture", capture)
+        stored = is_stored_frames(capture)
+        if stored and (capture.ndim != 2 or 0 in capture.shape):
+            raise WorkbenchError(f"capture must be a non-empty 2-D array (rows x dims), got shape {capture.shape}")
+        capture = capture if stored else _check_matrix("capture", capture)
         if capture.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
         n_components = check_n_components(self.n_components)
         coverage = check_coverage(self.coverage) if n_components is None else None
         if self.svd_solver not in ("auto", "exact", "randomized"):
             raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
-        mean = capture.mean(axis=0)
+        mean = frames_mean("capture", capture) if stored else capture.mean(axis=0)
         randomized = self.svd_solver == "randomized" or (
             self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
+        if not randomized and stored:  # the exact route needs the whole capture: small dims or few frames
+            capture = np.asarray(capture, dtype=np.float64)
         if randomized:
             values, vectors, total = self._randomized(capture, mean, n_components, coverage)
             method = "randomized"
@@ -368,8 +409,7 @@ class Eigenfaces:
         rng = np.random.default_rng(self.seed)
         n_frames = capture.shape[0]
         # Sum of squares of the centred capture, a chunk of frames at a time (no full centred copy).
-        total = sum(float(np.sum((capture[start:start + 4096] - mean) ** 2))
-                    for start in range(0, n_frames, 4096)) / n_frames
+        total = sum(float(np.sum((chunk - mean) ** 2)) for _, chunk in frame_chunks(capture, 4096)) / n_frames
         limit = min(capture.shape) - 1
         n_eigen = min(n_components or 32, limit)
         while True:

@@ -62,6 +62,20 @@ class FramesOnDisk:
             raise WorkbenchError(f"{self.path}: frames must be a C-ordered float32/float64 array of shape "
                                  f"(n_frames, n_dims), got shape {shape}, dtype {dtype}, fortran {fortran}")
         self.shape, self.dtype = tuple(int(n) for n in shape), dtype
+        self._first = 0
+
+    def rows(self, start: int, stop: int) -> "FramesOnDisk":
+        """Frames ``start`` to ``stop - 1`` as frames on disk (the same file, nothing read)."""
+        start, stop, _ = slice(start, stop).indices(self.shape[0])
+        part = object.__new__(FramesOnDisk)
+        part.__dict__.update(self.__dict__)
+        part.shape, part._first = (max(0, stop - start), self.shape[1]), self._first + start
+        return part
+
+    @property
+    def first(self) -> int:
+        """Row of the file where these frames start (0 unless taken with :meth:`rows`)."""
+        return self._first
 
     def __len__(self) -> int:
         return self.shape[0]
@@ -75,7 +89,7 @@ class FramesOnDisk:
         start, stop = max(0, start), min(stop, self.shape[0])
         count = max(0, stop - start) * self.shape[1]
         with open(self.path, "rb") as stream:
-            stream.seek(self._offset + start * self.shape[1] * self.dtype.itemsize)
+            stream.seek(self._offset + (self._first + start) * self.shape[1] * self.dtype.itemsize)
             values = np.fromfile(stream, dtype=self.dtype, count=count)
         if values.size != count:
             raise WorkbenchError(f"{self.path}: file is shorter than its header says ({self.shape})")
