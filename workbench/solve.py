@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
+from workbench.active_set import FINISHED, primal_active_set_frames
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
 
@@ -585,9 +586,15 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
     if pending.size:
         c = rhs[pending]
         work = _frames_of(gram, pending) + np.multiply.outer(_frames_of(ridge, pending), np.eye(n))
-        guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
-        weights[pending], done[pending], n_iter = _primal_active_set(
-            work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
+        if work.ndim == 2:  # one gram for every frame: compiled, frame by frame, from the clipped start
+            found, status, iterations = primal_active_set_frames(
+                np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, np.clip(start[pending], lo, hi),
+                tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
+            weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
+        else:
+            guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
+            weights[pending], done[pending], n_iter = _primal_active_set(
+                work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
     violation = kkt_violation(gram, rhs, weights, lo, hi)
     redo = np.flatnonzero(~done | (violation > tol.kkt))
     if redo.size:

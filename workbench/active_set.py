@@ -1,0 +1,179 @@
+"""The primal active-set method of :mod:`workbench.solve` frame by frame, compiled with numba.
+
+The reduced problems of eq. 5 are tiny (``n`` about 18) and there is one per frame: NumPy's batched version pays
+for array passes over all pending frames on every iteration, while a compiled loop keeps one frame's ``n x n``
+system in cache and stops each frame as soon as it is done. Frames run in parallel threads. The method and its
+rules (which variable is pinned or freed, when a frame is finished) are those of
+:func:`workbench.solve._primal_active_set`; each pinned system is solved by a Cholesky factorisation of its free
+block, which the caller's ridge keeps positive definite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+FINISHED, UNFINISHED, SINGULAR = 0, 1, 2
+"""Status of a frame: finished, out of iterations, or a free block that was not positive definite."""
+
+
+@njit(cache=True, fastmath=False)
+def _free_block_solve(gram, rhs, free, out, factor):
+    """``out[F] = G_FF^-1 rhs[F]`` by Cholesky; False if ``G_FF`` is not positive definite."""
+    n = gram.shape[0]
+    index = np.empty(n, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if free[i]:
+            index[k] = i
+            k += 1
+    for a in range(k):
+        for b in range(a + 1):
+            total = gram[index[a], index[b]]
+            for j in range(b):
+                total -= factor[a, j] * factor[b, j]
+            if a == b:
+                if total <= 0.0:
+                    return False
+                factor[a, a] = np.sqrt(total)
+            else:
+                factor[a, b] = total / factor[b, b]
+    y = np.empty(k)
+    for a in range(k):
+        total = rhs[index[a]]
+        for j in range(a):
+            total -= factor[a, j] * y[j]
+        y[a] = total / factor[a, a]
+    for a in range(k - 1, -1, -1):
+        total = y[a]
+        for j in range(a + 1, k):
+            total -= factor[j, a] * y[j]
+        y[a] = total / factor[a, a]
+    for a in range(k):
+        out[index[a]] = y[a]
+    return True
+
+
+@njit(cache=True)
+def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movable):
+    """The primal active-set method on one frame, from feasible ``w`` (changed in place).
+
+    Returns (status, iterations)."""
+    n = gram.shape[0]
+    at_lo = np.empty(n, dtype=np.bool_)
+    at_hi = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        at_lo[i] = w[i] <= lo[i]
+        at_hi[i] = (w[i] >= hi[i]) and not at_lo[i]
+    free = np.empty(n, dtype=np.bool_)
+    b = np.empty(n)
+    z = np.empty(n)
+    factor = np.empty((n, n))
+    c_size = 0.0
+    for i in range(n):
+        c_size = max(c_size, abs(c[i]))
+    freed = -1
+    for iteration in range(1, max_iter + 1):
+        for i in range(n):
+            free[i] = not (at_lo[i] or at_hi[i])
+        for i in range(n):  # b_F = c_F - G_FA w_A; pinned entries keep w
+            if free[i]:
+                total = c[i]
+                for j in range(n):
+                    if not free[j]:
+                        total -= gram[i, j] * w[j]
+                b[i] = total
+            else:
+                z[i] = w[i]
+        if not _free_block_solve(gram, b, free, z, factor):
+            return SINGULAR, iteration
+        step = np.inf
+        for i in range(n):
+            if free[i]:
+                if z[i] < lo[i]:
+                    step = min(step, (w[i] - lo[i]) / (w[i] - z[i]))
+                elif z[i] > hi[i]:
+                    step = min(step, (hi[i] - w[i]) / (z[i] - w[i]))
+        if step < np.inf:  # blocked: move towards z until the first free variable reaches its bound, pin it
+            stuck = False
+            for i in range(n):
+                if not free[i]:
+                    continue
+                below, above = z[i] < lo[i], z[i] > hi[i]
+                ratio = np.inf
+                if below:
+                    ratio = (w[i] - lo[i]) / (w[i] - z[i])
+                elif above:
+                    ratio = (hi[i] - w[i]) / (z[i] - w[i])
+                w[i] = min(max(w[i] + step * (z[i] - w[i]), lo[i]), hi[i])
+                if ratio <= step:
+                    if below:
+                        w[i], at_lo[i] = lo[i], True
+                    else:
+                        w[i], at_hi[i] = hi[i], True
+                    if i == freed and step <= 0.0:
+                        stuck = True
+            freed = -1
+            if stuck:  # the variable just freed went straight back: rounding, the KKT check judges the frame
+                return FINISHED, iteration
+            continue
+        w_size = 0.0
+        for i in range(n):
+            w[i] = z[i]
+            w_size = max(w_size, abs(w[i]))
+        small = threshold * (c_size + g_max * w_size)
+        best, best_pull = -1, 0.0
+        for i in range(n):
+            if not (at_lo[i] or at_hi[i]) or not movable[i]:
+                continue
+            grad = -c[i]
+            for j in range(n):
+                grad += gram[i, j] * w[j]
+            if (at_lo[i] and grad < -small) or (at_hi[i] and grad > small):
+                pull = grad * grad / curvature[i]
+                if pull > best_pull:
+                    best, best_pull = i, pull
+        if best < 0:
+            return FINISHED, iteration
+        at_lo[best], at_hi[best] = False, False
+        freed = best
+    return UNFINISHED, max_iter
+
+
+@njit(cache=True, parallel=True)
+def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold):
+    """:func:`workbench.solve._primal_active_set` for a gram shared by every frame, one frame per loop pass.
+
+    Parameters
+    ----------
+    gram : ndarray of shape (n, n)
+        Symmetric positive definite (regularised if needed).
+    rhs : ndarray of shape (n_frames, n)
+    lo, hi : ndarray of shape (n,)
+    start : ndarray of shape (n_frames, n)
+        Feasible weights to start from.
+    max_iter : int
+        Pinned solves per frame at most.
+    threshold : float
+
+    Returns
+    -------
+    weights : ndarray of shape (n_frames, n)
+    status : ndarray of int, shape (n_frames,)
+        :data:`FINISHED`, :data:`UNFINISHED` or :data:`SINGULAR`.
+    iterations : ndarray of int, shape (n_frames,)
+    """
+    n_frames, n = rhs.shape
+    weights = start.copy()
+    status = np.empty(n_frames, dtype=np.int64)
+    iterations = np.empty(n_frames, dtype=np.int64)
+    g_max = np.abs(gram).max()
+    curvature = np.empty(n)
+    movable = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        curvature[i] = gram[i, i] if gram[i, i] > 0 else 1.0
+        movable[i] = lo[i] < hi[i]
+    for f in prange(n_frames):
+        status[f], iterations[f] = _one_frame(gram, rhs[f], lo, hi, weights[f], max_iter, threshold, g_max,
+                                              curvature, movable)
+    return weights, status, iterations
