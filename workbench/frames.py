@@ -84,8 +84,8 @@ class FramesOnDisk:
     def nbytes(self) -> int:
         return self.shape[0] * self.shape[1] * self.dtype.itemsize
 
-    def read(self, start: int, stop: int) -> np.ndarray:
-        """Frames ``start`` to ``stop - 1`` as a new float64 array of shape (stop - start, n_dims)."""
+    def read(self, start: int, stop: int, dtype=np.float64) -> np.ndarray:
+        """Frames ``start`` to ``stop - 1`` as a new array of shape (stop - start, n_dims), float64 or ``dtype``."""
         start, stop = max(0, start), min(stop, self.shape[0])
         count = max(0, stop - start) * self.shape[1]
         with open(self.path, "rb") as stream:
@@ -93,7 +93,7 @@ class FramesOnDisk:
             values = np.fromfile(stream, dtype=self.dtype, count=count)
         if values.size != count:
             raise WorkbenchError(f"{self.path}: file is shorter than its header says ({self.shape})")
-        return values.reshape(-1, self.shape[1]).astype(np.float64, copy=False)
+        return values.reshape(-1, self.shape[1]).astype(dtype, copy=False)
 
     def __getitem__(self, index) -> np.ndarray:
         """Frames by a slice of step 1 (read from the file) or by any other NumPy row index, as float64."""
@@ -120,28 +120,30 @@ def is_stored_frames(frames) -> bool:
     return isinstance(frames, FramesOnDisk) or (isinstance(frames, np.ndarray) and frames.dtype == np.float32)
 
 
-def frame_chunks(frames, size: int | None = None) -> Iterator[tuple[slice, np.ndarray]]:
-    """Consecutive chunks of frames as float64 arrays.
+def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[tuple[slice, np.ndarray]]:
+    """Consecutive chunks of frames as float64 arrays (or ``dtype``).
 
     Parameters
     ----------
     frames : ndarray of shape (n_frames, n_dims) or FramesOnDisk
     size : int, optional
         Frames per chunk; :func:`chunk_frames` of ``n_dims`` when None.
+    dtype : numpy dtype
+        Type of the chunks (float32 only where the caller's arithmetic is meant to be float32).
 
     Yields
     ------
     rows : slice
         The frames of the chunk.
-    chunk : ndarray of shape (rows.stop - rows.start, n_dims), float64
-        A view of a float64 array in memory, a converted copy otherwise.
+    chunk : ndarray of shape (rows.stop - rows.start, n_dims)
+        A view of an array in memory of that type, a converted copy otherwise.
     """
     n_frames, n_dims = frames.shape
     size = size or chunk_frames(n_dims)
     for start in range(0, n_frames, size):
         rows = slice(start, min(start + size, n_frames))
-        chunk = frames.read(rows.start, rows.stop) if isinstance(frames, FramesOnDisk) else frames[rows]
-        yield rows, np.asarray(chunk, dtype=np.float64)
+        chunk = frames.read(rows.start, rows.stop, dtype) if isinstance(frames, FramesOnDisk) else frames[rows]
+        yield rows, np.asarray(chunk, dtype=dtype)
 
 
 class FrameWriter:
