@@ -140,9 +140,36 @@ def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movabl
     return UNFINISHED, max_iter
 
 
+@njit(cache=True)
+def _admm_one(c, lo, hi, s, inverse, gain, steps, relax):
+    """The ADMM warm start of :func:`workbench.solve._admm` on one frame; ``s`` (the start) is overwritten by
+    the feasible result ``z``."""
+    n = c.shape[0]
+    offset = np.zeros(n)
+    for j in range(n):
+        for i in range(n):
+            offset[j] += c[i] * inverse[i, j]
+    z = np.empty(n)
+    v = np.empty(n)
+    for i in range(n):
+        s[i] = min(max(s[i], lo[i]), hi[i])
+    for _ in range(steps):
+        for i in range(n):
+            z[i] = min(max(s[i], lo[i]), hi[i])
+            v[i] = 2.0 * z[i] - s[i]
+        for j in range(n):
+            x = offset[j]
+            for i in range(n):
+                x += v[i] * gain[i, j]
+            s[j] += relax * (x - z[j])
+    for i in range(n):
+        s[i] = min(max(s[i], lo[i]), hi[i])
+
+
 @njit(cache=True, parallel=True)
-def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold):
-    """:func:`workbench.solve._primal_active_set` for a gram shared by every frame, one frame per loop pass.
+def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold, inverse, gain, admm_steps, relax):
+    """:func:`workbench.solve._admm` and :func:`workbench.solve._primal_active_set` for a gram shared by every
+    frame, one frame per loop pass.
 
     Parameters
     ----------
@@ -151,10 +178,15 @@ def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold):
     rhs : ndarray of shape (n_frames, n)
     lo, hi : ndarray of shape (n,)
     start : ndarray of shape (n_frames, n)
-        Feasible weights to start from.
+        Finite weights to start the ADMM warm start from.
     max_iter : int
         Pinned solves per frame at most.
     threshold : float
+    inverse, gain : ndarray of shape (n, n)
+        ``(G + R)^-1`` and ``R (G + R)^-1`` of the warm start (``R`` its diagonal penalty).
+    admm_steps : int
+    relax : float
+        Over-relaxation of the warm start.
 
     Returns
     -------
@@ -174,6 +206,55 @@ def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold):
         curvature[i] = gram[i, i] if gram[i, i] > 0 else 1.0
         movable[i] = lo[i] < hi[i]
     for f in prange(n_frames):
+        _admm_one(rhs[f], lo, hi, weights[f], inverse, gain, admm_steps, relax)
         status[f], iterations[f] = _one_frame(gram, rhs[f], lo, hi, weights[f], max_iter, threshold, g_max,
                                               curvature, movable)
     return weights, status, iterations
+
+
+@njit(cache=True, parallel=True)
+def kkt_violation_frames(gram, rhs, weights, lo, hi, g_max, bound_size):
+    """:func:`workbench.solve.kkt_violation` for a gram shared by every frame, frame by frame.
+
+    Parameters
+    ----------
+    gram : ndarray of shape (n, n)
+    rhs, weights : ndarray of shape (n_frames, n)
+    lo, hi : ndarray of shape (n,)
+    g_max : float
+        ``max|G|``.
+    bound_size : float
+        The largest finite bound's magnitude (0 if none).
+
+    Returns
+    -------
+    ndarray of shape (n_frames,)
+    """
+    n_frames, n = rhs.shape
+    out = np.empty(n_frames)
+    for f in prange(n_frames):
+        w = weights[f]
+        w_size, c_size, finite = 0.0, 0.0, True
+        for i in range(n):
+            w_size = max(w_size, abs(w[i]))
+            c_size = max(c_size, abs(rhs[f, i]))
+            finite = finite and np.isfinite(w[i])
+        g_scale = c_size + g_max * w_size
+        g_scale = g_scale if g_scale > 0 else 1.0
+        w_scale = max(w_size, bound_size)
+        w_scale = w_scale if w_scale > 0 else 1.0
+        worst = 0.0
+        for i in range(n):
+            grad = -rhs[f, i]
+            for j in range(n):
+                grad += gram[i, j] * w[j]
+            as_free = abs(grad) / g_scale
+            as_lower = max(-grad, 0.0) / g_scale + max(w[i] - lo[i], 0.0) / w_scale
+            as_upper = max(grad, 0.0) / g_scale + max(hi[i] - w[i], 0.0) / w_scale
+            infeasible = max(max(lo[i] - w[i], w[i] - hi[i]), 0.0) / w_scale
+            score = min(min(as_free, as_lower), as_upper) + infeasible
+            if np.isnan(score):
+                worst = np.inf
+            worst = max(worst, score)
+        out[f] = worst if finite else np.inf
+    return out

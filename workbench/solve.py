@@ -70,7 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.active_set import FINISHED, primal_active_set_frames
+from workbench.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
 
@@ -442,6 +442,10 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
         )
     lo = _bound_vector("lower", lower, n, -np.inf)[0]
     hi = _bound_vector("upper", upper, n, np.inf)[0]
+    if gram.ndim == 2:  # one gram for every frame: compiled, frame by frame
+        return kkt_violation_frames(np.ascontiguousarray(gram.T), np.ascontiguousarray(rhs),
+                                    np.ascontiguousarray(weights), lo, hi, float(_largest_entry(gram)),
+                                    _largest_finite(lo, hi))
     grad = _times(weights, np.swapaxes(gram, -1, -2)) - rhs
     w_size = np.abs(weights).max(axis=1)
     g_scale = _positive(np.abs(rhs).max(axis=1) + _largest_entry(gram) * w_size)[:, None]
@@ -586,10 +590,13 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
     if pending.size:
         c = rhs[pending]
         work = _frames_of(gram, pending) + np.multiply.outer(_frames_of(ridge, pending), np.eye(n))
-        if work.ndim == 2:  # one gram for every frame: compiled, frame by frame, from the clipped start
+        if work.ndim == 2:  # one gram for every frame: compiled, frame by frame
+            penalty = _ADMM_RHO * _positive(np.diagonal(work).copy())
+            inverse = np.linalg.inv(work + np.diag(penalty))
             found, status, iterations = primal_active_set_frames(
-                np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, np.clip(start[pending], lo, hi),
-                tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
+                np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, start[pending],
+                tol.active_set_max_iter, _FREE_FRACTION * tol.kkt, inverse, penalty[:, None] * inverse,
+                _ADMM_STEPS, _ADMM_RELAX)
             weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
         else:
             guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
