@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Mapping, Sequence
@@ -265,8 +266,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         else:
             operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
                                          metric="euclidean")
-            per_take = [apply_point_operator(operator, part.frames).reshape(len(part.frames), -1)
-                        for part in markers]
+            per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
             source = [part.frames.reshape(len(part.frames), -1) for part in markers]
             notes += markers[0].notes
             notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
@@ -304,6 +304,32 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
         frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
         eval_visible=eval_visible, **mapped)
+
+
+def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: FrameStorage):
+    """Values at target points interpolated from source points, ``operator @ points[f]`` for every frame, written
+    chunk by chunk into ``storage`` (so a dense interpolated mesh never exists whole in float64).
+
+    Parameters
+    ----------
+    operator : ndarray of shape (n_target, n_source)
+    points : ndarray of shape (n_frames, n_source, 3)
+    storage : FrameStorage
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_target), read-only, or FramesOnDisk
+    """
+    key = (hashlib.sha256(np.ascontiguousarray(points).tobytes()).hexdigest(),
+           hashlib.sha256(np.ascontiguousarray(operator).tobytes()).hexdigest())
+    found = storage.existing("interpolated", key)
+    if found is not None:
+        return found
+    sink = storage.sink("interpolated", key, len(points), 3 * len(operator))
+    for start in range(0, len(points), sink.chunk_size):
+        rows = slice(start, min(start + sink.chunk_size, len(points)))
+        sink.write(rows, apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
+    return sink.finish()
 
 
 def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
