@@ -123,8 +123,10 @@ def bench_markers(args) -> None:
     paper_method_per_basis(capture)
     one_pass = float(np.median([streaming_pass(capture.eval) for _ in range(args.repeats)]))
     print(f"one streaming pass over the capture: {one_pass * 1e3:.1f} ms (median of {args.repeats})")
-    repeats = [timed(paper_method, capture) for _ in range(args.repeats)]
-    baseline = [timed(paper_method_per_basis, capture) for _ in range(args.repeats)]
+    repeats, baseline = [], []
+    for _ in range(args.repeats):  # interleaved, so that a change in the machine's load hits both alike
+        repeats.append(timed(paper_method, capture))
+        baseline.append(timed(paper_method_per_basis, capture))
     (eigenfaces, qe, alphas), fast_seconds = repeats[0][0], float(np.median([seconds for _, seconds in repeats]))
     base_alphas, base_seconds = baseline[0][0][2], float(np.median([seconds for _, seconds in baseline]))
     agreement = max(abs(alphas[key] - base_alphas[key]) / base_alphas[key] for key in alphas)

@@ -13,15 +13,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+_BLOCKS = 64
+"""Blocks of frames the parallel loop hands out (each allocates its work space once)."""
+
 FINISHED, UNFINISHED, SINGULAR = 0, 1, 2
 """Status of a frame: finished, out of iterations, or a free block that was not positive definite."""
 
 
 @njit(cache=True, fastmath=False)
-def _free_block_solve(gram, rhs, free, out, factor):
-    """``out[F] = G_FF^-1 rhs[F]`` by Cholesky; False if ``G_FF`` is not positive definite."""
+def _free_block_solve(gram, rhs, free, out, factor, index, y):
+    """``out[F] = G_FF^-1 rhs[F]`` by Cholesky; False if ``G_FF`` is not positive definite (``factor``, ``index``
+    and ``y`` are work space)."""
     n = gram.shape[0]
-    index = np.empty(n, dtype=np.int64)
     k = 0
     for i in range(n):
         if free[i]:
@@ -38,7 +41,6 @@ def _free_block_solve(gram, rhs, free, out, factor):
                 factor[a, a] = np.sqrt(total)
             else:
                 factor[a, b] = total / factor[b, b]
-    y = np.empty(k)
     for a in range(k):
         total = rhs[index[a]]
         for j in range(a):
@@ -55,20 +57,16 @@ def _free_block_solve(gram, rhs, free, out, factor):
 
 
 @njit(cache=True)
-def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movable):
-    """The primal active-set method on one frame, from feasible ``w`` (changed in place).
+def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movable, flags, b, z, factor, index, y):
+    """The primal active-set method on one frame, from feasible ``w`` (changed in place); ``flags`` (3, n) and
+    the rest after it are work space.
 
     Returns (status, iterations)."""
     n = gram.shape[0]
-    at_lo = np.empty(n, dtype=np.bool_)
-    at_hi = np.empty(n, dtype=np.bool_)
+    at_lo, at_hi, free = flags[0], flags[1], flags[2]
     for i in range(n):
         at_lo[i] = w[i] <= lo[i]
         at_hi[i] = (w[i] >= hi[i]) and not at_lo[i]
-    free = np.empty(n, dtype=np.bool_)
-    b = np.empty(n)
-    z = np.empty(n)
-    factor = np.empty((n, n))
     c_size = 0.0
     for i in range(n):
         c_size = max(c_size, abs(c[i]))
@@ -85,7 +83,7 @@ def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movabl
                 b[i] = total
             else:
                 z[i] = w[i]
-        if not _free_block_solve(gram, b, free, z, factor):
+        if not _free_block_solve(gram, b, free, z, factor, index, y):
             return SINGULAR, iteration
         step = np.inf
         for i in range(n):
@@ -141,27 +139,27 @@ def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movabl
 
 
 @njit(cache=True)
-def _admm_one(c, lo, hi, s, inverse, gain, steps, relax):
+def _admm_one(c, lo, hi, s, inverse, gain, steps, relax, offset, z, x):
     """The ADMM warm start of :func:`workbench.solve._admm` on one frame; ``s`` (the start) is overwritten by
-    the feasible result ``z``."""
+    the feasible result ``z`` (``offset``, ``z`` and ``x`` are work space). Products run along rows."""
     n = c.shape[0]
-    offset = np.zeros(n)
-    for j in range(n):
-        for i in range(n):
-            offset[j] += c[i] * inverse[i, j]
-    z = np.empty(n)
-    v = np.empty(n)
+    offset[:] = 0.0
+    for i in range(n):
+        ci = c[i]
+        for j in range(n):
+            offset[j] += ci * inverse[i, j]
     for i in range(n):
         s[i] = min(max(s[i], lo[i]), hi[i])
     for _ in range(steps):
         for i in range(n):
             z[i] = min(max(s[i], lo[i]), hi[i])
-            v[i] = 2.0 * z[i] - s[i]
+        x[:] = offset
+        for i in range(n):
+            vi = 2.0 * z[i] - s[i]
+            for j in range(n):
+                x[j] += vi * gain[i, j]
         for j in range(n):
-            x = offset[j]
-            for i in range(n):
-                x += v[i] * gain[i, j]
-            s[j] += relax * (x - z[j])
+            s[j] += relax * (x[j] - z[j])
     for i in range(n):
         s[i] = min(max(s[i], lo[i]), hi[i])
 
@@ -205,10 +203,18 @@ def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold, inve
     for i in range(n):
         curvature[i] = gram[i, i] if gram[i, i] > 0 else 1.0
         movable[i] = lo[i] < hi[i]
-    for f in prange(n_frames):
-        _admm_one(rhs[f], lo, hi, weights[f], inverse, gain, admm_steps, relax)
-        status[f], iterations[f] = _one_frame(gram, rhs[f], lo, hi, weights[f], max_iter, threshold, g_max,
-                                              curvature, movable)
+    n_blocks = min(n_frames, _BLOCKS)
+    for block in prange(n_blocks):  # work space once per block of frames, not per frame
+        flags = np.empty((3, n), dtype=np.bool_)
+        vectors = np.empty((5, n))
+        factor = np.empty((n, n))
+        index = np.empty(n, dtype=np.int64)
+        for f in range(block * n_frames // n_blocks, (block + 1) * n_frames // n_blocks):
+            _admm_one(rhs[f], lo, hi, weights[f], inverse, gain, admm_steps, relax, vectors[0], vectors[1],
+                      vectors[2])
+            status[f], iterations[f] = _one_frame(gram, rhs[f], lo, hi, weights[f], max_iter, threshold, g_max,
+                                                  curvature, movable, flags, vectors[0], vectors[1], factor, index,
+                                                  vectors[2])
     return weights, status, iterations
 
 

@@ -190,8 +190,9 @@ def solve_weights(
     targets = _as_matrix("targets", targets)
     _check_columns(basis, targets)
     reduction = reduce_basis(basis)
-    return solve_projected(reduction, targets @ reduction.u, kind=kind, lower=lower, upper=upper, tol=tol,
-                           rhs=targets @ basis.T)
+    both = targets @ np.hstack([reduction.u, basis.T])  # one pass over the targets for both products
+    k = reduction.u.shape[1]
+    return solve_projected(reduction, both[:, :k], kind=kind, lower=lower, upper=upper, tol=tol, rhs=both[:, k:])
 
 
 @dataclass(frozen=True)
