@@ -9,8 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from workbench.errors import WorkbenchError
+from workbench.frames import frame_chunks, is_stored_frames
 from workbench.tolerances import TOL, Tolerances
 
 PROJECTIONS = ("affine", "linear")
@@ -159,16 +161,20 @@ def covariance_eigen(centred: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.
 
 
 def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: int, rng: np.random.Generator, *,
-                                n_power_iter: int = 6, oversample: int = 20) -> tuple[np.ndarray, np.ndarray]:
+                                n_power_iter: int = 6, oversample: int = 20,
+                                iteration_dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
     """Leading eigenpairs of the covariance by randomised subspace iteration (Halko, Martinsson & Tropp 2011).
 
     The centred capture is never formed: products with ``D~ = D - 1 mu^T`` are corrected by the mean, so memory
-    stays at the capture plus ``(n_frames + n_dims) x (n_eigen + oversample)``.
+    stays at the capture plus ``(n_frames + n_dims) x (n_eigen + oversample)``. Each subspace iteration but the
+    first and the last multiplies by ``D~^T D~`` in one pass over the frames (:func:`frames_normal_times`): the
+    span is the same as orthonormalising in frame space between the two products, at half the passes.
 
     Parameters
     ----------
-    capture : ndarray of shape (n_frames, n_dims)
-        The capture, not centred.
+    capture : ndarray of shape (n_frames, n_dims) or FramesOnDisk
+        The capture, not centred; float32 and on-disk captures are read a chunk of frames at a time
+        (:func:`frames_times`).
     mean : ndarray of shape (n_dims,)
     n_eigen : int
         Number of eigenpairs wanted.
@@ -178,6 +184,10 @@ def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: 
         Subspace iterations; each sharpens the decay by a power of the eigenvalue ratios.
     oversample : int
         Extra test vectors beyond ``n_eigen``.
+    iteration_dtype : numpy dtype
+        Arithmetic of every product but the last two (which fix the result's accuracy and are always float64):
+        float32 for a float32 capture halves their cost; an error there only perturbs the subspace the later
+        iterations refine.
 
     Returns
     -------
@@ -189,17 +199,80 @@ def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: 
     n_frames, n_dims = capture.shape
     width = min(n_eigen + oversample, n_frames, n_dims)
 
-    def times(matrix):  # D~ @ matrix, (n_frames, width)
-        return capture @ matrix - (mean @ matrix)[None, :]
+    def times(matrix, dtype=np.float64):  # D~ @ matrix, (n_frames, width)
+        return frames_times(capture, matrix, dtype) - (mean @ matrix)[None, :]
 
-    def transposed_times(matrix):  # D~^T @ matrix, (n_dims, width)
-        return capture.T @ matrix - np.outer(mean, matrix.sum(axis=0))
+    def transposed_times(matrix, dtype=np.float64):  # D~^T @ matrix, (n_dims, width)
+        return frames_transposed_times(capture, matrix, dtype) - np.outer(mean, matrix.sum(axis=0))
 
-    basis = np.linalg.qr(times(rng.standard_normal((n_dims, width))))[0]
-    for _ in range(n_power_iter):
-        basis = np.linalg.qr(times(np.linalg.qr(transposed_times(basis))[0]))[0]
+    basis = _orthonormal(times(rng.standard_normal((n_dims, width)), iteration_dtype))
+    if n_power_iter:
+        basis = _orthonormal(transposed_times(basis, iteration_dtype))
+        for _ in range(n_power_iter - 1):
+            basis = _orthonormal(frames_normal_times(capture, basis, mean, iteration_dtype))
+        basis = _orthonormal(times(basis))
     _, singular, vt = np.linalg.svd(transposed_times(basis).T, full_matrices=False)
     return singular[:n_eigen] ** 2 / n_frames, flip_signs(vt[:n_eigen])
+
+
+def _orthonormal(matrix: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the columns' span (thin QR), shape of ``matrix``."""
+    return scipy.linalg.qr(matrix, mode="economic", check_finite=False)[0]
+
+
+def frames_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``capture @ matrix``, shape (n_frames, k): at once for a float64 array in float64, else one chunk of frames
+    at a time in ``dtype`` (:func:`workbench.frames.frame_chunks`)."""
+    if not is_stored_frames(capture) and dtype == np.float64:
+        return capture @ matrix
+    out = np.empty((capture.shape[0], matrix.shape[1]))
+    factor = matrix.astype(dtype)
+    for rows, chunk in frame_chunks(capture, dtype=dtype):
+        out[rows] = chunk @ factor
+    return out
+
+
+def frames_transposed_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``capture.T @ matrix``, shape (n_dims, k), as :func:`frames_times` (a float64 sum over chunks)."""
+    if not is_stored_frames(capture) and dtype == np.float64:
+        return capture.T @ matrix
+    out = np.zeros((capture.shape[1], matrix.shape[1]))
+    factor = matrix.astype(dtype)
+    for rows, chunk in frame_chunks(capture, dtype=dtype):
+        out += chunk.T @ factor[rows]
+    return out
+
+
+def frames_normal_times(capture, matrix: np.ndarray, mean: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``D~^T (D~ matrix)`` with ``D~ = capture - 1 mean^T``, shape (n_dims, k), in one pass over the frames.
+
+    ``D~^T A = D^T A - mean (1^T A)`` for ``A = D matrix - 1 (mean^T matrix)``, so each chunk of frames is read
+    once for both products (in ``dtype``; sums over chunks in float64).
+    """
+    shift = mean @ matrix
+    if not is_stored_frames(capture) and dtype == np.float64:
+        product = capture @ matrix - shift
+        return capture.T @ product - np.outer(mean, product.sum(axis=0))
+    out, column_sums = np.zeros((capture.shape[1], matrix.shape[1])), np.zeros(matrix.shape[1])
+    factor, shift = matrix.astype(dtype), shift.astype(dtype)
+    for _, chunk in frame_chunks(capture, dtype=dtype):
+        product = chunk @ factor - shift
+        out += chunk.T @ product
+        column_sums += product.sum(axis=0, dtype=np.float64)
+    return out - np.outer(mean, column_sums)
+
+
+def frames_statistics(name: str, capture) -> tuple[np.ndarray, float]:
+    """Mean frame, shape (n_dims,), and total variance ``sum |y - mean|^2 / n_frames`` of a float32 or on-disk
+    capture, in one float64 pass over chunks; a :class:`WorkbenchError` naming ``name`` for NaN or Inf."""
+    sums, squares = np.zeros(capture.shape[1]), 0.0
+    for rows, chunk in frame_chunks(capture):
+        if not np.all(np.isfinite(chunk)):
+            raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
+        sums += chunk.sum(axis=0)
+        squares += float(np.einsum("ij,ij->", chunk, chunk))
+    mean = sums / capture.shape[0]
+    return mean, max(squares / capture.shape[0] - float(mean @ mean), 0.0)
 
 
 def n_components_for_coverage(explained_variance_ratio: np.ndarray, coverage: float) -> int:
@@ -275,7 +348,9 @@ class Eigenfaces:
 
         Parameters
         ----------
-        capture : array-like of shape (n_frames, n_dims)
+        capture : array-like of shape (n_frames, n_dims), or FramesOnDisk
+            A float32 or on-disk capture is read a chunk of frames at a time with float64 accumulation by the
+            randomised solver (the exact one converts it whole).
 
         Returns
         -------
@@ -287,18 +362,23 @@ class Eigenfaces:
             A capture that is not a finite, non-empty 2-D array of at least 2 frames, or has no variance; a
             ``coverage`` outside (0, 1]; an ``n_components`` that is not a positive integer or exceeds the rank.
         """
-        capture = _check_matrix("capture", capture)
+        stored = is_stored_frames(capture)
+        if stored and (capture.ndim != 2 or 0 in capture.shape):
+            raise WorkbenchError(f"capture must be a non-empty 2-D array (rows x dims), got shape {capture.shape}")
+        capture = capture if stored else _check_matrix("capture", capture)
         if capture.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
         n_components = check_n_components(self.n_components)
         coverage = check_coverage(self.coverage) if n_components is None else None
         if self.svd_solver not in ("auto", "exact", "randomized"):
             raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
-        mean = capture.mean(axis=0)
+        mean, total = frames_statistics("capture", capture) if stored else (capture.mean(axis=0), None)
         randomized = self.svd_solver == "randomized" or (
             self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
+        if not randomized and stored:  # the exact route needs the whole capture: small dims or few frames
+            capture = np.asarray(capture, dtype=np.float64)
         if randomized:
-            values, vectors, total = self._randomized(capture, mean, n_components, coverage)
+            values, vectors, total = self._randomized(capture, mean, n_components, coverage, total)
             method = "randomized"
         else:
             values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
@@ -362,18 +442,18 @@ class Eigenfaces:
         return self
 
     def _randomized(self, capture: np.ndarray, mean: np.ndarray, n_components: int | None,
-                    coverage: float | None):
+                    coverage: float | None, total: float | None = None):
         """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs; and the
-        total variance."""
+        total variance (given, or computed here)."""
         rng = np.random.default_rng(self.seed)
         n_frames = capture.shape[0]
-        # Sum of squares of the centred capture, a chunk of frames at a time (no full centred copy).
-        total = sum(float(np.sum((capture[start:start + 4096] - mean) ** 2))
-                    for start in range(0, n_frames, 4096)) / n_frames
+        if total is None:  # sum of squares of the centred capture, a chunk of frames at a time (no centred copy)
+            total = sum(float(np.sum((chunk - mean) ** 2)) for _, chunk in frame_chunks(capture, 4096)) / n_frames
+        dtype = np.float32 if capture.dtype == np.float32 else np.float64
         limit = min(capture.shape) - 1
         n_eigen = min(n_components or 32, limit)
         while True:
-            values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng)
+            values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng, iteration_dtype=dtype)
             keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
             values, vectors = values[keep], vectors[keep]
             enough = (n_components is not None or values.size < n_eigen

@@ -211,13 +211,34 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
     with np.errstate(invalid="ignore", over="ignore"):  # NaN or Inf in the frames is named just below
         displacement_sq, position_sq = (squares if squares is not None
                                         else reference_squares(neutral, captured, visible=visible))
+    n_compared = visible.sum() if visible is not None else captured.shape[0] * (captured.shape[1] // 3)
+    return summarise_squares(error_sq, displacement_sq, position_sq, n_compared, tol=tol)
+
+
+def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, position_sq: np.ndarray,
+                      n_compared_points: int, *, tol: Tolerances = TOL) -> AlphaSummary:
+    """Every error measure of one reconstruction from per-frame squared norms (eq. 6 in both normalisations).
+
+    Parameters
+    ----------
+    error_sq : ndarray of shape (n_frames,)
+        ``|d* - d|^2`` (equal to ``|v* - v|^2``).
+    displacement_sq, position_sq : ndarray of shape (n_frames,)
+        ``|d*|^2`` and ``|v0 + d*|^2`` (:func:`reference_squares`).
+    n_compared_points : int
+        Points compared over all frames (the RMS divides by it).
+    tol : Tolerances
+
+    Returns
+    -------
+    AlphaSummary
+    """
     _check_finite("captured", displacement_sq)
     _check_finite("captured", position_sq)
     _check_finite("reconstructed", error_sq)
     absolute = _alpha_from_squares(error_sq, position_sq, tol)
     displacement = _alpha_from_squares(error_sq, displacement_sq, tol)
     n_undefined = int(np.isnan(displacement).sum())
-    n_points = captured.shape[1] // 3
     return AlphaSummary(
         absolute_per_frame=absolute,
         displacement_per_frame=displacement,
@@ -225,8 +246,7 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
         absolute_pooled=float(100.0 * np.sqrt(error_sq.sum() / position_sq.sum())),
         displacement_mean=float(np.nanmean(displacement)) if n_undefined < len(displacement) else float("nan"),
         displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
-        rms_mm=float(np.sqrt(error_sq.sum() / (visible.sum() if visible is not None
-                                               else captured.shape[0] * n_points))),
+        rms_mm=float(np.sqrt(error_sq.sum() / n_compared_points)),
         n_undefined_displacement_frames=n_undefined,
     )
 

@@ -11,7 +11,7 @@ import re
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import Callable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -21,8 +21,9 @@ from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
 from workbench.metrics import (AlphaSummary, Conditioning, basis_conditioning, intuitiveness, reference_squares,
-                               summarise_alpha)
-from workbench.solve import reconstruct, solve_weights
+                               summarise_alpha, summarise_squares)
+from workbench.reduced import FrameProjections, Subspace, project_frames
+from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
 
@@ -161,7 +162,7 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
             target = replace(target, notes=target.notes + (note,))
             carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
                        for projection, qe in quasi_eigen.items()}
-            rows, weights = score_bases(target, eigenfaces, carried, pca_reconstruction(eigenfaces, transfer),
+            rows, weights = score_bases(target, eigenfaces, carried, pca_subspace(eigenfaces, transfer),
                                         solvers, timings)
             results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
                                        quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
@@ -270,25 +271,20 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
     return eigenfaces, quasi_eigen
 
 
-def pca_reconstruction(eigenfaces: Eigenfaces, transfer: PointTransfer) -> Callable[[np.ndarray], np.ndarray]:
-    """PCA's reconstruction of frames at the evaluated points: the (carried) mean plus the orthogonal projection
-    onto the span of the (carried) eigenfaces.
+def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) -> Subspace:
+    """PCA's reconstruction at the evaluated points as an affine subspace: the (carried) mean plus the span of the
+    (carried) eigenfaces, whose orthogonal projection is the reconstruction.
 
     Returns
     -------
-    callable
-        ``frames`` of shape (n_frames, n_dims) -> reconstruction of the same shape.
+    Subspace
+        Orthonormal columns of shape (n_dims, m) and the mean as offset.
     """
-    if transfer.operator is None:
-        return eigenfaces.reconstruct
-    mean = transfer.apply_one(eigenfaces.mean_)
-    # carried eigenfaces are no longer orthonormal: project onto an orthonormal basis of their span
+    if transfer is None or transfer.operator is None:
+        return Subspace(eigenfaces.components_.T, eigenfaces.mean_)
+    # carried eigenfaces are no longer orthonormal: an orthonormal basis of their span
     orthonormal, _ = np.linalg.qr(transfer.apply(eigenfaces.components_).T)
-
-    def reconstruct(frames: np.ndarray) -> np.ndarray:
-        return mean + ((frames - mean) @ orthonormal) @ orthonormal.T
-
-    return reconstruct
+    return Subspace(orthonormal, transfer.apply_one(eigenfaces.mean_))
 
 
 def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
@@ -312,7 +308,7 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
     StudyResult
     """
     eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
-    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, eigenfaces.reconstruct, solvers, timings)
+    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings)
     alternatives = fit_alternative_bases(capture, basis_cfg, timings)
     measured = {}
     if alternatives:
@@ -325,7 +321,7 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
                        weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured)
 
 
-def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, reconstruct_pca: Callable,
+def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, pca: Subspace,
                 solvers: Mapping[str, Mapping], timings: Timings) -> tuple[list, dict]:
     """Weights (eq. 5) and alpha (eq. 6) of H and every quasi-eigen basis with every solver, then PCA.
 
@@ -334,11 +330,11 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     capture : Capture
         The evaluated data; its ``hand`` is the H basis.
     eigenfaces : Eigenfaces
-        For ``m`` of the PCA row.
+        For ``m`` of the PCA row (and its reconstruction under capture gaps).
     quasi_eigen : mapping
         Projection name -> :class:`workbench.bases.QuasiEigenBasis` at the capture's points.
-    reconstruct_pca : callable
-        PCA's reconstruction of frames at the capture's points.
+    pca : Subspace
+        PCA's reconstruction at the capture's points (:func:`pca_subspace`).
     solvers : mapping
     timings : Timings
 
@@ -350,11 +346,86 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     """
     bases = [("H", "-", capture.hand)] + [
         (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()]
+    with timings.stage("metrics"):
+        conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
+    if capture.eval_visible is None:
+        rows, weights, projections = projected_rows(capture, bases, solvers, timings, conditioning, {"PCA": pca})
+        with timings.stage("pca_reconstruction"):
+            summary = summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
+                                        projections.position_sq, len(capture.eval) * capture.n_points)
+    else:
+        rows, weights = masked_rows(capture, bases, solvers, timings, conditioning)
+        with timings.stage("pca_reconstruction"):
+            # with gaps the orthogonal projection becomes least squares on the eigenfaces over the seen points
+            visible = capture.eval_visible
+            offsets = solve_weights(eigenfaces.components_, capture.eval - eigenfaces.mean_, visible=visible).weights
+            summary = summarise_alpha(
+                capture.neutral, capture.eval,
+                lambda rows: eigenfaces.mean_ + reconstruct(eigenfaces.components_, offsets[rows]),
+                squares=reference_squares(capture.neutral, capture.eval, visible=visible), visible=visible)
+    rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
+                    alpha=summary))
+    return rows, weights
+
+
+def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, Mapping], timings: Timings,
+                   conditioning: Mapping | None = None, subspaces: Mapping[str, Subspace] | None = None
+                   ) -> tuple[list, dict, FrameProjections]:
+    """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
+
+    The pass (:func:`workbench.reduced.project_frames`) takes the frames' coordinates in every basis's span and
+    in ``subspaces``; each solver then works on the ``n``-dimensional coordinates and alpha comes from them, so
+    the frames are read once whatever the number of bases and solvers.
+
+    Parameters
+    ----------
+    capture : Capture
+        Without capture gaps (``eval_visible`` None).
+    bases : sequence of (label, projection, shapes)
+        ``shapes`` of shape (n, n_dims).
+    solvers : mapping
+    timings : Timings
+    conditioning : mapping, optional
+        Label -> :class:`Conditioning`, kept in the rows with each basis's largest weight; None: neither.
+    subspaces : mapping, optional
+        More affine subspaces to take in the same pass (label -> :class:`Subspace`), e.g. PCA's.
+
+    Returns
+    -------
+    rows : list of Row
+        Solver by solver, bases in the given order.
+    weights : dict
+        ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
+    projections : FrameProjections
+    """
+    with timings.stage("projection"):
+        reductions = {label: reduce_basis(shapes) for label, _, shapes in bases}
+        projections = project_frames(
+            capture.eval, {**{label: Subspace(r.u) for label, r in reductions.items()}, **(subspaces or {})},
+            capture.neutral)
+    n_compared = len(capture.eval) * capture.n_points
     rows, weights = [], {}
+    for solver_name, solver in solvers.items():
+        for label, projection, shapes in bases:
+            reduction, coordinates = reductions[label], projections.coordinates[label]
+            with timings.stage(f"solve_{solver_name}"):
+                solution = solve_projected(reduction, coordinates, **solver)
+            with timings.stage("metrics"):
+                error_sq = projections.distance_sq[label] + in_span_error_sq(reduction, coordinates, solution.weights)
+                summary = summarise_squares(error_sq, projections.displacement_sq, projections.position_sq,
+                                            n_compared)
+            weights[(label, solver_name)] = solution.weights
+            rows.append(solved_row(label, projection, solver_name, shapes, summary, solution, conditioning))
+    return rows, weights, projections
+
+
+def masked_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, Mapping], timings: Timings,
+                conditioning: Mapping | None = None) -> tuple[list, dict]:
+    """:func:`projected_rows` under capture gaps: each frame solved and scored on the points it saw."""
     visible = capture.eval_visible
     with timings.stage("metrics"):
         squares = reference_squares(capture.neutral, capture.eval, visible=visible)
-        conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
+    rows, weights = [], {}
     for solver_name, solver in solvers.items():
         for label, projection, shapes in bases:
             with timings.stage(f"solve_{solver_name}"):
@@ -364,26 +435,19 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
                                           lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares,
                                           visible=visible)
             weights[(label, solver_name)] = solution.weights
-            rows.append(Row(basis=label, projection=projection, solver=solver_name, n_shapes=shapes.shape[0],
-                            alpha=summary, n_iterations=solution.n_iterations,
-                            n_fallback_frames=solution.n_fallback_frames,
-                            max_kkt_violation=solution.max_kkt_violation,
-                            max_abs_weight=float(np.abs(solution.weights).max()),
-                            conditioning=conditioning[label]))
-    with timings.stage("pca_reconstruction"):
-        if visible is not None:
-            # with gaps the orthogonal projection becomes least squares on the eigenfaces over the seen points
-            offsets = solve_weights(eigenfaces.components_, capture.eval - eigenfaces.mean_, visible=visible).weights
-            summary = summarise_alpha(
-                capture.neutral, capture.eval,
-                lambda rows: eigenfaces.mean_ + reconstruct(eigenfaces.components_, offsets[rows]),
-                squares=squares, visible=visible)
-        else:
-            summary = summarise_alpha(capture.neutral, capture.eval,
-                                      lambda rows: reconstruct_pca(capture.eval[rows]), squares=squares)
-    rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
-                    alpha=summary))
+            rows.append(solved_row(label, projection, solver_name, shapes, summary, solution, conditioning))
     return rows, weights
+
+
+def solved_row(label: str, projection: str, solver_name: str, shapes: np.ndarray, summary: AlphaSummary,
+               solution, conditioning: Mapping | None) -> Row:
+    """The table row of one basis solved with one solver (its largest weight and conditioning with
+    ``conditioning``)."""
+    extra = {} if conditioning is None else {"max_abs_weight": float(np.abs(solution.weights).max()),
+                                             "conditioning": conditioning[label]}
+    return Row(basis=label, projection=projection, solver=solver_name, n_shapes=shapes.shape[0], alpha=summary,
+               n_iterations=solution.n_iterations, n_fallback_frames=solution.n_fallback_frames,
+               max_kkt_violation=solution.max_kkt_violation, **extra)
 
 
 def intuitiveness_table(result: StudyResult) -> list[dict]:
@@ -455,24 +519,10 @@ def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], s
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
     """
-    visible = getattr(capture, "eval_visible", None)
-    masked = {} if visible is None else {"visible": visible}  # frames with capture gaps: visible points only
-    with timings.stage("metrics"):
-        squares = reference_squares(capture.neutral, capture.eval, **masked)
-    rows, weights = [], {}
-    for solver_name, solver in solvers.items():
-        for label, shapes in bases.items():
-            with timings.stage(f"solve_{solver_name}"):
-                solution = solve_weights(shapes, capture.eval, **solver, **masked)
-            with timings.stage("metrics"):
-                summary = summarise_alpha(capture.neutral, capture.eval,
-                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares,
-                                          **masked)
-            weights[(label, solver_name)] = solution.weights
-            rows.append(Row(basis=label, projection="-", solver=solver_name, n_shapes=shapes.shape[0],
-                            alpha=summary, n_iterations=solution.n_iterations,
-                            n_fallback_frames=solution.n_fallback_frames,
-                            max_kkt_violation=solution.max_kkt_violation))
+    listed = [(label, "-", shapes) for label, shapes in bases.items()]
+    if getattr(capture, "eval_visible", None) is not None:  # frames with capture gaps: visible points only
+        return masked_rows(capture, listed, solvers, timings)
+    rows, weights, _ = projected_rows(capture, listed, solvers, timings)
     return rows, weights
 
 

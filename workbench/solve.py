@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
+from workbench.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
 
@@ -188,18 +189,106 @@ def solve_weights(
     basis = _as_matrix("basis", basis)
     targets = _as_matrix("targets", targets)
     _check_columns(basis, targets)
+    reduction = reduce_basis(basis)
+    both = targets @ np.hstack([reduction.u, basis.T])  # one pass over the targets for both products
+    k = reduction.u.shape[1]
+    return solve_projected(reduction, both[:, :k], kind=kind, lower=lower, upper=upper, tol=tol, rhs=both[:, k:])
+
+
+@dataclass(frozen=True)
+class BasisReduction:
+    """One thin SVD ``basis.T = u diag(singular) vt`` that every frame's problem of eq. 5 is reduced with.
+
+    A frame ``d*`` enters only through its projection ``u^T d*`` (length ``k = min(n_dims, n_shapes)``):
+    ``|d* - B^T w|^2 = |d* - u u^T d*|^2 + |u^T d* - diag(singular) vt w|^2``, so the projections of every basis
+    can be taken in one pass over the frames (:func:`workbench.reduced.project_frames`).
+
+    Attributes
+    ----------
+    basis : ndarray of shape (n_shapes, n_dims)
+    u : ndarray of shape (n_dims, k)
+        Orthonormal columns.
+    singular : ndarray of shape (k,)
+        Descending.
+    vt : ndarray of shape (k, n_shapes)
+    """
+
+    basis: np.ndarray
+    u: np.ndarray
+    singular: np.ndarray
+    vt: np.ndarray
+
+
+def reduce_basis(basis) -> BasisReduction:
+    """The thin SVD of a basis (:class:`BasisReduction`).
+
+    Parameters
+    ----------
+    basis : array_like of shape (n_shapes, n_dims)
+        Finite, non-empty.
+
+    Returns
+    -------
+    BasisReduction
+    """
+    basis = _as_matrix("basis", basis)
+    u, singular, vt = np.linalg.svd(basis.T, full_matrices=False)
+    return BasisReduction(basis=basis, u=u, singular=singular, vt=vt)
+
+
+def solve_projected(reduction: BasisReduction, projected, *, kind: str = "lstsq", lower=None, upper=None,
+                    tol: Tolerances = TOL, rhs: np.ndarray | None = None) -> WeightSolution:
+    """:func:`solve_weights` from the frames' projections ``targets @ reduction.u`` alone.
+
+    Parameters
+    ----------
+    reduction : BasisReduction
+    projected : array_like of shape (n_frames, k)
+        ``targets @ reduction.u``.
+    kind, lower, upper, tol
+        As :func:`solve_weights`.
+    rhs : ndarray of shape (n_frames, n_shapes), optional
+        ``targets @ basis.T`` when the caller has the targets; from the projections otherwise (equal to rounding).
+
+    Returns
+    -------
+    WeightSolution
+    """
+    projected = _as_matrix("projected", projected)
+    if projected.shape[1] != reduction.u.shape[1]:
+        raise WorkbenchError(f"projected has {projected.shape[1]} columns but the basis reduction has "
+                             f"{reduction.u.shape[1]}")
+    basis = reduction.basis
     kind = _check_kind(kind)
     lo, hi, lower_out, upper_out = _bounds(kind, lower, upper, basis.shape[0])
-    reduction = _reduce(basis, targets)
-    start = _unconstrained(reduction)
+    reduced = _Reduction(n_dims=basis.shape[1], singular=reduction.singular, vt=reduction.vt, projected=projected)
+    start = _unconstrained(reduced)
     if kind == "lstsq":
         return WeightSolution(start, kind, None, None, 0, 0, 0.0)
     gram = basis @ basis.T
-    rhs = targets @ basis.T
+    if rhs is None:
+        rhs = (projected * reduction.singular) @ reduction.vt  # = targets @ basis.T
     ridge = _ridge(reduction.singular, gram.shape[0], tol.gram_ridge)
     weights, n_iter, n_fallback, violation = _solve_bounded(
-        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduction, lo, hi, frames, kind, ridge), tol)
+        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduced, lo, hi, frames, kind, ridge), tol)
     return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
+
+
+def in_span_error_sq(reduction: BasisReduction, projected: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``|u^T d* - diag(s) vt w|^2`` per frame: the part of eq. 5's error inside the basis's span.
+
+    Parameters
+    ----------
+    reduction : BasisReduction
+    projected : ndarray of shape (n_frames, k)
+    weights : ndarray of shape (n_frames, n_shapes)
+
+    Returns
+    -------
+    ndarray of shape (n_frames,)
+    """
+    difference = projected - (weights @ reduction.vt.T) * reduction.singular
+    return np.einsum("ij,ij->i", difference, difference)
 
 
 def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> WeightSolution:
@@ -354,6 +443,10 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
         )
     lo = _bound_vector("lower", lower, n, -np.inf)[0]
     hi = _bound_vector("upper", upper, n, np.inf)[0]
+    if gram.ndim == 2:  # one gram for every frame: compiled, frame by frame
+        return kkt_violation_frames(np.ascontiguousarray(gram.T), np.ascontiguousarray(rhs),
+                                    np.ascontiguousarray(weights), lo, hi, float(_largest_entry(gram)),
+                                    _largest_finite(lo, hi))
     grad = _times(weights, np.swapaxes(gram, -1, -2)) - rhs
     w_size = np.abs(weights).max(axis=1)
     g_scale = _positive(np.abs(rhs).max(axis=1) + _largest_entry(gram) * w_size)[:, None]
@@ -458,12 +551,6 @@ def _is_zero_scalar(value) -> bool:
 # ----------------------------------------------------------------------------------------------------------
 
 
-def _reduce(basis: np.ndarray, targets: np.ndarray) -> _Reduction:
-    """Thin SVD of ``basis.T`` (n_dims, n_shapes) and the targets projected on its left singular vectors."""
-    u, singular, vt = np.linalg.svd(basis.T, full_matrices=False)
-    return _Reduction(n_dims=basis.shape[1], singular=singular, vt=vt, projected=targets @ u)
-
-
 def _unconstrained(reduction: _Reduction) -> np.ndarray:
     """Minimum-norm least-squares weights of every frame, shape (n_frames, n_shapes).
 
@@ -504,9 +591,18 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
     if pending.size:
         c = rhs[pending]
         work = _frames_of(gram, pending) + np.multiply.outer(_frames_of(ridge, pending), np.eye(n))
-        guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
-        weights[pending], done[pending], n_iter = _primal_active_set(
-            work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
+        if work.ndim == 2:  # one gram for every frame: compiled, frame by frame
+            penalty = _ADMM_RHO * _positive(np.diagonal(work).copy())
+            inverse = np.linalg.inv(work + np.diag(penalty))
+            found, status, iterations = primal_active_set_frames(
+                np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, start[pending],
+                tol.active_set_max_iter, _FREE_FRACTION * tol.kkt, inverse, penalty[:, None] * inverse,
+                _ADMM_STEPS, _ADMM_RELAX)
+            weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
+        else:
+            guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
+            weights[pending], done[pending], n_iter = _primal_active_set(
+                work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
     violation = kkt_violation(gram, rhs, weights, lo, hi)
     redo = np.flatnonzero(~done | (violation > tol.kkt))
     if redo.size:

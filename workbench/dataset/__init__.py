@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import hashlib
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS, build_animface
-from workbench.dataset.cache import cached_captures
+from workbench.dataset.cache import cached_captures, code_fingerprint, dataset_key
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
@@ -17,8 +18,10 @@ from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS, bu
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import bool_setting, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
+from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk
 from workbench.progress import progress
 from workbench.resources import require_memory
 
@@ -31,7 +34,7 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
 
     Parameters
     ----------
-    frames : ndarray of shape (n_frames, n_dims)
+    frames : ndarray of shape (n_frames, n_dims) or FramesOnDisk
     split : {"same", "tail"}
         ``same`` trains and evaluates on every frame, as the paper does; ``tail`` holds out the last
         ``eval_fraction`` of the take for evaluation.
@@ -46,13 +49,14 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
         raise WorkbenchError(f"dataset.split must be one of {SPLITS}, got {split!r}")
     if split == "same":
         return frames, frames
+    take = frames.rows if isinstance(frames, FramesOnDisk) else lambda start, stop: frames[start:stop]
     eval_fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'",
                                    lambda value: 0.0 < value < 1.0)
     n_eval = int(round(eval_fraction * len(frames)))
     if n_eval < 1 or n_eval > len(frames) - 2:
         raise WorkbenchError(f"dataset.eval_fraction {eval_fraction} leaves {n_eval} of {len(frames)} frames "
                              "for evaluation; need at least 1 and at least 2 for training")
-    return frames[:-n_eval], frames[-n_eval:]
+    return take(0, len(frames) - n_eval), take(len(frames) - n_eval, len(frames))
 
 
 def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
@@ -65,13 +69,15 @@ def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
     return names
 
 
-def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
+def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """The synthetic actor's capture: stabilised markers, the dense mesh and/or the markers interpolated onto it.
 
     Parameters
     ----------
     cfg : mapping
         The ``dataset`` config group (see ``conf/dataset/synthetic.yaml``).
+    storage : FrameStorage
+        Where the dense mesh frames are written, chunk by chunk (``dataset.storage``, ``dataset.dtype``).
 
     Returns
     -------
@@ -97,7 +103,7 @@ def build_synthetic(cfg: Mapping) -> dict[str, Capture]:
     hand_mesh = takes[0].hand_shapes_mesh()
     markers = ([_face_marker_frames(take, cfg) for take in takes]
                if {"markers", "mesh_rbf"} & set(names) else None)
-    return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg) for name in names}
+    return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg, storage) for name in names}
 
 
 def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
@@ -139,24 +145,28 @@ def _mesh_decimation(mesh_rows: int, mesh_cols: int, fraction: float) -> Decimat
 
 
 @lru_cache(maxsize=2)
-def _mesh_frames(key: tuple, mesh_fraction: float) -> np.ndarray:
-    """Dense ground-truth displacements at the kept vertices, shape (n_frames, 3 * n_kept), read-only.
+def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = FrameStorage()):
+    """Dense ground-truth displacements at the kept vertices, shape (n_frames, 3 * n_kept), read-only, written
+    chunk by chunk into ``storage`` (an array of its dtype, or a file found again when it exists).
 
     The muscles act on each point alone, so deforming only the kept vertices gives exactly their rows of the
     full mesh sequence, at a cost that falls with the mesh density.
     """
     from workbench.dataset.synthetic import deform
 
+    file_key = (key, mesh_fraction, code_fingerprint())
+    found = storage.existing("synthetic_mesh", file_key)
+    if found is not None:
+        return found
     take = _synthetic_take(key)
     kept = _mesh_decimation(take.mesh.grid_shape[0], take.mesh.grid_shape[1], mesh_fraction).kept
     rest = take.mesh.vertices[kept]
-    chunk = max(1, -(-take.n_frames // 20))  # frames per progress step
-    frames = np.empty((take.n_frames, len(rest), 3))
+    sink = storage.sink("synthetic_mesh", file_key, take.n_frames, 3 * len(rest))
+    chunk = max(1, min(-(-take.n_frames // 20), sink.chunk_size))
     for start in progress(range(0, take.n_frames, chunk), desc="mesh frames"):
-        frames[start:start + chunk] = deform(rest, take.activations[start:start + chunk]) - rest
-    frames = frames.reshape(take.n_frames, -1)
-    frames.setflags(write=False)
-    return frames
+        rows = slice(start, min(start + chunk, take.n_frames))
+        sink.write(rows, (deform(rest, take.activations[rows]) - rest).reshape(rows.stop - rows.start, -1))
+    return sink.finish()
 
 
 def _eval_seed(cfg: Mapping) -> int:
@@ -233,7 +243,7 @@ class MarkerFrames:
 
 
 def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decimation, markers, train_on: str,
-                       cfg: Mapping) -> Capture:
+                       cfg: Mapping, storage: FrameStorage = FrameStorage()) -> Capture:
     """One data variant of the synthetic take(s).
 
     Parameters
@@ -246,6 +256,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     markers : list of the results of :func:`_face_marker_frames`, one per take, or None
     train_on : {"markers", "mesh", "mesh_rbf"}
     cfg : mapping
+    storage : FrameStorage
     """
     take, notes, faces, source = takes[0], [], None, None
     vertices = take.mesh.vertices
@@ -266,7 +277,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
                          f"{decimation.fraction}, quadric edge collapse); data and shapes taken at the kept vertices")
         provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
         if train_on == "mesh":
-            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0))
+            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
                         for t in takes]
             if markers is not None:  # the frames the markers' gap policy kept
                 per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
@@ -274,8 +285,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         else:
             operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
                                          metric="euclidean")
-            per_take = [apply_point_operator(operator, part.frames).reshape(len(part.frames), -1)
-                        for part in markers]
+            per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
             source = [part.frames.reshape(len(part.frames), -1) for part in markers]
             notes += markers[0].notes
             notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
@@ -319,6 +329,32 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
         frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
         eval_visible=eval_visible, eval_timeline=timeline, **mapped)
+
+
+def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: FrameStorage):
+    """Values at target points interpolated from source points, ``operator @ points[f]`` for every frame, written
+    chunk by chunk into ``storage`` (so a dense interpolated mesh never exists whole in float64).
+
+    Parameters
+    ----------
+    operator : ndarray of shape (n_target, n_source)
+    points : ndarray of shape (n_frames, n_source, 3)
+    storage : FrameStorage
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_target), read-only, or FramesOnDisk
+    """
+    key = (hashlib.sha256(np.ascontiguousarray(points).tobytes()).hexdigest(),
+           hashlib.sha256(np.ascontiguousarray(operator).tobytes()).hexdigest())
+    found = storage.existing("interpolated", key)
+    if found is not None:
+        return found
+    sink = storage.sink("interpolated", key, len(points), 3 * len(operator))
+    for start in range(0, len(points), sink.chunk_size):
+        rows = slice(start, min(start + sink.chunk_size, len(points)))
+        sink.write(rows, apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
+    return sink.finish()
 
 
 def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
@@ -401,7 +437,8 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     cfg : mapping
         The ``dataset`` config group; ``kind`` selects the builder.
     cache_dir : str, optional
-        Folder of the disk cache (``paths.cache_dir``); memory only when None.
+        Folder of the disk cache (``paths.cache_dir``); memory only when None. Frames stored on disk
+        (``dataset.storage: disk``) are kept in its ``frames`` folder.
 
     Returns
     -------
@@ -411,4 +448,19 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     kind = cfg.get("kind")
     if kind not in BUILDERS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(BUILDERS)}, got {kind!r}")
-    return cached_captures(cfg, BUILDERS[kind], cache_dir)
+    storage = frame_storage(cfg, cache_dir)
+
+    def build(cfg):
+        captures = build_synthetic(cfg, storage) if kind == "synthetic" else BUILDERS[kind](cfg)
+        return {name: stored_frames(capture, storage, (dataset_key(cfg), name))
+                for name, capture in captures.items()}
+
+    return cached_captures(cfg, build, cache_dir)
+
+
+def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:
+    """The capture with its training and evaluated frames kept as ``storage`` says (the same frames once when
+    they are the same, ``split: same``)."""
+    train = storage.keep("train", key, capture.train)
+    evaluate = train if capture.eval is capture.train else storage.keep("eval", key, capture.eval)
+    return replace(capture, train=train, eval=evaluate)

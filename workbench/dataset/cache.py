@@ -24,6 +24,7 @@ import numpy as np
 
 from workbench.dataset.capture import Capture, Timeline
 from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk
 from workbench.record import write_atomic, write_npz
 
 MEMORY_SLOTS = 2
@@ -179,16 +180,25 @@ def _save(folder: Path, key: str, captures: dict[str, Capture]) -> None:
         same_frames = capture.eval is capture.train
         for field in _ARRAYS:
             array = getattr(capture, field)
-            if array is not None and not (field == "eval" and same_frames):
+            if array is not None and not (field == "eval" and same_frames) and not isinstance(array, FramesOnDisk):
                 arrays[f"{index}_{field}"] = array
         if capture.eval_timeline is not None:
             arrays.update(capture.eval_timeline.as_arrays(f"{index}_timeline_"))
         meta[name] = {"index": index, "same_frames": same_frames, "name": capture.name,
+                      "frame_files": frame_files(capture),
                       "hand_names": list(capture.hand_names), "point_labels": list(capture.point_labels),
                       "units": capture.units, "origin": capture.origin, "frame_rate": capture.frame_rate,
                       "provenance": _plain(capture.provenance), "notes": list(capture.notes)}
     write_npz(folder / f"{key}.npz", arrays)
     write_atomic(folder / f"{key}.json", json.dumps(meta, indent=1))
+
+
+def frame_files(capture: Capture) -> dict:
+    """Field -> ``[path, first row, rows]`` of the capture's frames stored on disk (``dataset.storage: disk``),
+    kept in the cache's json instead of its npz."""
+    stored = {field: getattr(capture, field) for field in ("train", "eval")}
+    return {field: [str(frames.path), frames.first, len(frames)] for field, frames in stored.items()
+            if isinstance(frames, FramesOnDisk)}
 
 
 def _load(folder: Path, key: str) -> dict[str, Capture] | None:
@@ -201,6 +211,11 @@ def _load(folder: Path, key: str) -> dict[str, Capture] | None:
     captures = {}
     for name, info in meta.items():
         index = info["index"]
+        files = info.get("frame_files") or {}
+        if not all(Path(path).is_file() for path, _, _ in files.values()):
+            return None  # frames stored on disk were deleted: build again
+        arrays.update({f"{index}_{field}": FramesOnDisk(path).rows(first, first + count)
+                       for field, (path, first, count) in files.items()})
         train = arrays[f"{index}_train"]
         capture = Capture(
             name=info["name"], neutral=arrays[f"{index}_neutral"], train=train,

@@ -1,0 +1,150 @@
+"""The shared pass over the frames (workbench.reduced) and frame storage (workbench.frames): known answers against
+the explicit residuals and reconstructions."""
+
+import numpy as np
+import pytest
+
+from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk, FrameWriter, frame_chunks, is_stored_frames
+from workbench.metrics import reference_squares, summarise_alpha, summarise_squares
+from workbench.reduced import Subspace, project_frames
+from workbench.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
+
+
+def problem(seed=0, n_frames=300, n_dims=60, n_shapes=7):
+    rng = np.random.default_rng(seed)
+    shapes = rng.standard_normal((n_shapes, n_dims))
+    frames = rng.standard_normal((n_frames, n_shapes)) @ shapes + 0.05 * rng.standard_normal((n_frames, n_dims))
+    frames[:5] = rng.standard_normal(n_shapes)[None, :] @ shapes  # exactly in the span: distance 0
+    neutral = 50.0 + rng.standard_normal(n_dims)
+    return shapes, frames, neutral
+
+
+def test_distances_equal_the_explicit_residuals_including_frames_in_the_span():
+    shapes, frames, neutral = problem()
+    reduction = reduce_basis(shapes)
+    mean = frames.mean(axis=0)
+    centred_basis = np.linalg.qr((frames - mean)[:40].T)[0][:, :5]
+    spaces = {"B": Subspace(reduction.u), "PCA": Subspace(centred_basis, mean)}
+    out = project_frames(frames, spaces, neutral, chunk_size=64)
+    explicit = frames - (frames @ reduction.u) @ reduction.u.T
+    np.testing.assert_allclose(out.distance_sq["B"], np.sum(explicit ** 2, axis=1), rtol=1e-10, atol=1e-20)
+    assert np.all(out.distance_sq["B"][:5] < 1e-20)  # no cancellation noise where the frame is in the span
+    assert out.n_explicit >= 5
+    explicit = (frames - mean) - ((frames - mean) @ centred_basis) @ centred_basis.T
+    np.testing.assert_allclose(out.distance_sq["PCA"], np.sum(explicit ** 2, axis=1), rtol=1e-10, atol=1e-20)
+    np.testing.assert_allclose(out.coordinates["PCA"], (frames - mean) @ centred_basis, rtol=1e-12, atol=1e-12)
+    displacement_sq, position_sq = reference_squares(neutral, frames)
+    np.testing.assert_allclose(out.displacement_sq, displacement_sq, rtol=1e-13)
+    np.testing.assert_allclose(out.position_sq, position_sq, rtol=1e-13)
+
+
+@pytest.mark.parametrize("kind, bounds", [("lstsq", {}), ("nnls", {}), ("box", {"lower": 0.0, "upper": 1.0})])
+def test_alpha_from_projections_equals_alpha_of_the_reconstruction(kind, bounds):
+    shapes, frames, neutral = problem(seed=1)
+    reduction = reduce_basis(shapes)
+    out = project_frames(frames, {"B": Subspace(reduction.u)}, neutral)
+    solution = solve_projected(reduction, out.coordinates["B"], kind=kind, **bounds)
+    direct = solve_weights(shapes, frames, kind=kind, **bounds)
+    np.testing.assert_allclose(solution.weights, direct.weights, rtol=1e-8, atol=1e-10)
+    error_sq = out.distance_sq["B"] + in_span_error_sq(reduction, out.coordinates["B"], solution.weights)
+    fast = summarise_squares(error_sq, out.displacement_sq, out.position_sq, frames.size // 3)
+    slow = summarise_alpha(neutral, frames, solution.weights @ shapes)
+    for field in ("absolute_mean", "absolute_pooled", "displacement_mean", "displacement_pooled", "rms_mm"):
+        assert getattr(fast, field) == pytest.approx(getattr(slow, field), rel=1e-11)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_frames_written_chunk_by_chunk_read_back(tmp_path, dtype):
+    frames = np.random.default_rng(2).standard_normal((37, 12))
+    writer = FrameWriter(tmp_path / "frames.npy", 37, 12, dtype)
+    for start in range(0, 37, 10):
+        writer.write(frames[start:start + 10])
+    stored = writer.close()
+    assert isinstance(stored, FramesOnDisk) and stored.shape == (37, 12) and is_stored_frames(stored)
+    expected = frames.astype(dtype).astype(float)
+    np.testing.assert_array_equal(np.load(tmp_path / "frames.npy"), frames.astype(dtype))
+    np.testing.assert_array_equal(np.asarray(stored), expected)
+    np.testing.assert_array_equal(stored[3:9], expected[3:9])
+    np.testing.assert_array_equal(stored[[4, 0]], expected[[4, 0]])
+    chunks = list(frame_chunks(stored, 8))
+    assert [rows.start for rows, _ in chunks] == [0, 8, 16, 24, 32]
+    np.testing.assert_array_equal(np.vstack([chunk for _, chunk in chunks]), expected)
+    assert not [path for path in tmp_path.iterdir() if path.name != "frames.npy"]  # no temporary file left
+
+
+def test_frame_writer_refuses_a_short_file(tmp_path):
+    writer = FrameWriter(tmp_path / "frames.npy", 5, 3)
+    writer.write(np.zeros((2, 3)))
+    with pytest.raises(WorkbenchError, match="2 of 5 frames written"):
+        writer.close()
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_bad_frames_file_is_named(tmp_path):
+    path = tmp_path / "frames.npy"
+    np.save(path, np.zeros((2, 3, 4)))
+    with pytest.raises(WorkbenchError, match="frames.npy.*shape"):
+        FramesOnDisk(path)
+
+
+def test_rows_of_frames_on_disk_read_their_part(tmp_path):
+    frames = np.arange(40.0).reshape(10, 4)
+    np.save(tmp_path / "frames.npy", frames)
+    part = FramesOnDisk(tmp_path / "frames.npy").rows(6, 10)
+    assert part.shape == (4, 4) and part.first == 6
+    np.testing.assert_array_equal(np.asarray(part), frames[6:])
+    np.testing.assert_array_equal(part[1:3], frames[7:9])
+
+
+def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
+    from workbench.bases import Eigenfaces
+
+    rng = np.random.default_rng(3)
+    frames = (rng.standard_normal((400, 12)) * np.geomspace(10, 0.1, 12)) @ rng.standard_normal((12, 90))
+    frames = frames.astype(np.float32)
+    np.save(tmp_path / "frames.npy", frames)
+    reference = Eigenfaces(coverage=0.99, svd_solver="randomized").fit(frames.astype(np.float64))
+    for stored in (frames, FramesOnDisk(tmp_path / "frames.npy")):
+        fitted = Eigenfaces(coverage=0.99, svd_solver="randomized").fit(stored)
+        assert fitted.n_components_ == reference.n_components_
+        np.testing.assert_allclose(fitted.explained_variance_, reference.explained_variance_, rtol=1e-10)
+        np.testing.assert_allclose(fitted.components_, reference.components_, atol=1e-9)
+        np.testing.assert_allclose(fitted.mean_, reference.mean_, rtol=1e-12, atol=1e-12)
+
+
+def study_alphas(tmp_path, *overrides):
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.dataset.cache import clear_memory
+    from workbench.pipeline import run_study
+
+    clear_memory()
+    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.mesh_rows=24",
+                                                   "dataset.mesh_cols=20", "dataset.train_on=mesh", "solver=all",
+                                                   f"paths.cache_dir={tmp_path}", *overrides]))
+    (result,) = run_study(cfg)
+    return result, np.array([[row.alpha.absolute_mean, row.alpha.displacement_mean, row.alpha.rms_mm]
+                             for row in result.rows])
+
+
+def test_mesh_study_in_float32_and_on_disk_matches_float64_in_memory(tmp_path):
+    _, reference = study_alphas(tmp_path)
+    float32, in_memory = study_alphas(tmp_path, "dataset.dtype=float32")
+    assert float32.capture.train.dtype == np.float32
+    np.testing.assert_allclose(in_memory, reference, rtol=1e-6)
+    on_disk, stored = study_alphas(tmp_path, "dataset.dtype=float32", "dataset.storage=disk")
+    assert isinstance(on_disk.capture.train, FramesOnDisk) and on_disk.capture.eval is on_disk.capture.train
+    np.testing.assert_allclose(stored, in_memory, rtol=1e-10)
+    again, from_cache = study_alphas(tmp_path, "dataset.dtype=float32", "dataset.storage=disk")  # from the cache
+    assert again.capture.train.path == on_disk.capture.train.path
+    np.testing.assert_array_equal(from_cache, stored)
+
+
+def test_disk_storage_needs_a_cache_dir():
+    from workbench.dataset import build_captures
+
+    with pytest.raises(WorkbenchError, match="dataset.storage=disk .*paths.cache_dir"):
+        build_captures({"kind": "synthetic", "storage": "disk"}, cache_dir=None)
+    with pytest.raises(WorkbenchError, match="dataset.dtype must be one of"):
+        build_captures({"kind": "synthetic", "dtype": "float16"}, cache_dir=None)

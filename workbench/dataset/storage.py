@@ -1,0 +1,112 @@
+"""Where and how a built capture's frames are kept: ``dataset.storage`` (memory or disk) and ``dataset.dtype``
+(float64 or float32).
+
+Builders of large captures write their frames chunk by chunk into a :class:`FrameSink`, so the whole float64
+array is never held: in memory the sink is an array of the chosen dtype, on disk a ``.npy`` file in
+``paths.cache_dir`` named by a content hash of what the frames are made from (the same generation parameters and
+dataset code find the file again). Other builders' frames are converted (or written out) when built.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, frame_chunks
+
+STORAGES = ("memory", "disk")
+FRAMES_FOLDER = "frames"
+"""Sub-folder of ``paths.cache_dir`` holding captures stored on disk."""
+
+
+@dataclass(frozen=True)
+class FrameStorage:
+    """How frames are kept.
+
+    Attributes
+    ----------
+    dtype : {"float64", "float32"}
+    folder : str or None
+        Folder of the ``.npy`` files (on disk); None: in memory.
+    """
+
+    dtype: str = "float64"
+    folder: str | None = None
+
+    def path(self, name: str, key) -> Path:
+        """The file of frames called ``name`` made from ``key`` (anything with a stable ``repr``)."""
+        digest = hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+        return Path(self.folder) / f"{name}_{digest}_{self.dtype}.npy"
+
+    def existing(self, name: str, key) -> FramesOnDisk | None:
+        """The frames stored before under ``name`` and ``key``, or None (always None in memory)."""
+        if self.folder is None or not self.path(name, key).is_file():
+            return None
+        return FramesOnDisk(self.path(name, key))
+
+    def sink(self, name: str, key, n_frames: int, n_dims: int) -> "FrameSink":
+        """A sink for ``n_frames`` frames of ``n_dims`` values, written in order."""
+        if self.folder is None:
+            return FrameSink(array=np.empty((n_frames, n_dims), dtype=DTYPES[self.dtype]))
+        return FrameSink(writer=FrameWriter(self.path(name, key), n_frames, n_dims, self.dtype))
+
+    def keep(self, name: str, key, frames):
+        """Frames built whole (shape (n_frames, n_dims)) kept as this storage says; float64 in memory unchanged."""
+        if isinstance(frames, FramesOnDisk) or (self.folder is None and frames.dtype == DTYPES[self.dtype]):
+            return frames
+        if self.folder is None:
+            kept = frames.astype(DTYPES[self.dtype])
+            kept.setflags(write=False)
+            return kept
+        found = self.existing(name, key)
+        if found is not None and found.shape == frames.shape:
+            return found
+        sink = self.sink(name, key, *frames.shape)
+        for rows, chunk in frame_chunks(frames):
+            sink.write(rows, chunk)
+        return sink.finish()
+
+
+class FrameSink:
+    """Frames written chunk by chunk, in order, into an array in memory or a file (:class:`FrameStorage`)."""
+
+    def __init__(self, *, array: np.ndarray | None = None, writer: FrameWriter | None = None):
+        self.array, self.writer = array, writer
+        self.shape = array.shape if array is not None else writer.shape
+
+    @property
+    def chunk_size(self) -> int:
+        """Frames per chunk that keep a float64 chunk within :data:`workbench.frames.CHUNK_ENTRIES`."""
+        return chunk_frames(self.shape[1])
+
+    def write(self, rows: slice, chunk: np.ndarray) -> None:
+        """Frames ``rows`` (the next ones), shape (rows.stop - rows.start, n_dims)."""
+        if self.array is not None:
+            self.array[rows] = chunk
+        else:
+            self.writer.write(chunk)
+
+    def finish(self):
+        """The frames: a read-only array in memory, or :class:`FramesOnDisk`."""
+        if self.array is not None:
+            self.array.setflags(write=False)
+            return self.array
+        return self.writer.close()
+
+
+def frame_storage(cfg: Mapping, cache_dir: str | None) -> FrameStorage:
+    """The ``dataset.storage`` and ``dataset.dtype`` settings, checked; disk storage lives in ``cache_dir``."""
+    storage, dtype = cfg.get("storage", "memory"), cfg.get("dtype", "float64")
+    if storage not in STORAGES:
+        raise WorkbenchError(f"dataset.storage must be one of {STORAGES}, got {storage!r}")
+    if dtype not in DTYPES:
+        raise WorkbenchError(f"dataset.dtype must be one of {tuple(DTYPES)}, got {dtype!r}")
+    if storage == "disk" and not cache_dir:
+        raise WorkbenchError("dataset.storage=disk keeps the frames in paths.cache_dir, which is not set: "
+                             "add paths.cache_dir=<folder>")
+    return FrameStorage(dtype=dtype, folder=str(Path(cache_dir) / FRAMES_FOLDER) if storage == "disk" else None)
