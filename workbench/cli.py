@@ -121,6 +121,7 @@ def first_headline(text: str) -> str:
 COMMANDS: dict[str, str] = {
     "report": "workbench.reporting.pages:main",
     "collect": "workbench.reporting.collect:main",
+    "export": "workbench.export:main",
 }
 
 

@@ -13,6 +13,7 @@ from workbench.dataset.cache import cached_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
+from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import number_setting, seed_setting
@@ -360,9 +361,13 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     Returns
     -------
     dict
-        ``train_on`` name -> :class:`Capture`, in the configured order.
+        ``train_on`` name -> :class:`Capture`, in the configured order; with ``dataset.hand_basis`` set, their
+        hand shapes read from that file (:mod:`workbench.dataset.hand_basis`).
     """
     kind = cfg.get("kind")
     if kind not in BUILDERS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(BUILDERS)}, got {kind!r}")
-    return cached_captures(cfg, BUILDERS[kind], cache_dir)
+    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
+    built = cached_captures({key: value for key, value in cfg.items() if key != "hand_basis"}, BUILDERS[kind],
+                            cache_dir)
+    return apply_hand_basis(built, cfg)
