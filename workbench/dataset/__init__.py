@@ -15,6 +15,7 @@ from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import build_ict_livelink
+from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
@@ -341,7 +342,8 @@ def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
     return np.where(np.repeat(visible, 3, axis=1), frames, np.nan)
 
 
-BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface}
+BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface,
+            "mesh_sequence": build_mesh_sequence}
 """``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
 
 

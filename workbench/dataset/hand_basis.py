@@ -78,13 +78,13 @@ def shape_subset(basis: Blendshapes, names, key: str) -> tuple[tuple[str, ...], 
     return tuple(names), basis.shapes(names)
 
 
-def check_same_points(capture: Capture, neutral: np.ndarray, key: str, path: Path) -> float:
-    """Raise unless the file's neutral (n, 3) holds the capture's points; returns the RMS distance (mm)."""
-    if len(neutral) != capture.n_points:
-        raise WorkbenchError(f"{key}.path {path}: {len(neutral)} vertices, but the data variant has "
-                             f"{capture.n_points} points; the hand basis must hold the variant's points in order "
-                             "(export that variant, or set dataset.train_on to the variant it was exported from)")
-    points = capture.neutral.reshape(-1, 3)
+def check_same_points(points: np.ndarray, neutral: np.ndarray, key: str, path: Path, what: str) -> float:
+    """Raise unless the file's neutral (n, 3) holds ``points`` (n, 3), the neutral of ``what``; returns the RMS
+    distance (mm)."""
+    if len(neutral) != len(points):
+        raise WorkbenchError(f"{key}.path {path}: {len(neutral)} vertices, but {what} has {len(points)} points; the "
+                             "shapes must hold its points in order (for an export: export that data variant, or set "
+                             "dataset.train_on to the variant it was exported from)")
     extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     distance = np.linalg.norm(neutral - points, axis=1)
     if distance.max() > NEUTRAL_MISMATCH * extent:
@@ -124,7 +124,7 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str,
     replaced = {}
     for name, capture in captures.items():
         names, shapes = shape_subset(basis, spec.get("shapes") or capture.hand_names, key)
-        rms = check_same_points(capture, basis.neutral, key, path)
+        rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
         note = (f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)")
         replaced[name] = replace(capture, hand=shapes.reshape(len(names), -1), hand_names=names,
                                  notes=capture.notes + (note,),
