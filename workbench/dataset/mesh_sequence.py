@@ -142,7 +142,7 @@ def build_mesh_sequence(cfg: Mapping) -> dict[str, Capture]:
         name=f"mesh sequence {path.name}", neutral=neutral.reshape(-1), train=train, eval=evaluate,
         hand=hand.reshape(len(hand_names), -1), hand_names=hand_names,
         point_labels=tuple(f"v{i}" for i in range(vertices.shape[1])), units="mm",
-        origin=origin_text("the sequence file's origin", neutral), frame_rate=frame_rate / step,
+        origin=origin_text("origin of the sequence file", neutral), frame_rate=frame_rate / step,
         provenance={"kind": "mesh_sequence", "data_root": str(cfg.get("data_root")),
                     "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
                     "unit_mm": unit_mm, "n_frames_in_file": len(vertices), "frames_used": len(index),
