@@ -94,7 +94,8 @@ def test_bad_sequences_are_one_line_errors(scan):
     fails(r"bad\.npz: 'faces' must be integer triangles of shape \(n, 3\)", vertices=frames, faces=triangles * 1.0)
     fails(r"dataset.neutral_frame 40 is outside the sequence's 40 frames", "dataset.neutral_frame=40",
           vertices=frames)
-    fails(r"dataset.blendshapes.path .*basis: 42 vertices, but the sequence bad\.npz has 41 points", vertices=frames[:, :41])
+    fails(r"dataset.blendshapes.path .*basis: 42 vertices, but the sequence bad\.npz has 41 points",
+          vertices=frames[:, :41])
     fails(r"its neutral lies up to .* other units \(unit_mm\)", "dataset.unit_mm=1.0", vertices=frames)
     fails(r"dataset.hand_shapes: needs distinct shape names of the file's \['side', 'up'\]; missing \['down'\]",
           "dataset.hand_shapes=[down]", vertices=frames)
@@ -121,7 +122,8 @@ def test_ict_performance_as_a_sequence_gives_the_ict_livelink_mesh_table(tmp_pat
     hand = ",".join(capture.hand_names)
     sequence = ["dataset=mesh_sequence", f"dataset.sequence={tmp_path / 'take.npz'}",
                 f"dataset.neutral={tmp_path / 'neutral.obj'}", "dataset.frame_rate=30",
-                "dataset.blendshapes.path=ict-facekit/FaceXModel", "dataset.blendshapes.neutral=generic_neutral_mesh.obj",
+                "dataset.blendshapes.path=ict-facekit/FaceXModel",
+                "dataset.blendshapes.neutral=generic_neutral_mesh.obj",
                 "dataset.blendshapes.unit_mm=10", "dataset.blendshapes.region_vertices=9409",
                 f"dataset.hand_shapes=[{hand}]", *common]
     run(compose("paper", ict), tmp_path / "ict")

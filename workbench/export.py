@@ -317,7 +317,8 @@ def export_run(folder: Path, out: Path, *, data: str | None = None, bases: Seque
     manifest = {
         "run": str(Path(folder).resolve()), "config_hash": record.config_hash, "data": data,
         "dataset": capture.name, "credits": capture.provenance.get("credits", []),
-        "n_points": capture.n_points, "points": "mesh vertices" if capture.faces is not None else "markers",
+        "n_points": capture.n_points, "points": ("mesh vertices" if capture.faces is not None
+                                          else "points without triangles (markers, or a thinned mesh)"),
         "n_triangles": None if capture.faces is None else int(len(capture.faces)),
         "n_frames": int(len(capture.eval)), "frame_rate": capture.frame_rate,
         "frames": "the run's evaluated frames in order; time = frame / frame_rate",

@@ -265,9 +265,10 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
                                  f"{count} vertices")
         neutral.append(positions)
         # pygltflib loads morph targets as plain dicts
-        moved = [target.get("POSITION") if isinstance(target, dict) else target.POSITION for target in primitive.targets]
-        deltas.append(np.stack([np.zeros((count, 3)) if accessor is None else _accessor_array(gltf, blob, accessor, path)
-                                for accessor in moved]))
+        moved = [target.get("POSITION") if isinstance(target, dict) else target.POSITION
+                 for target in primitive.targets]
+        deltas.append(np.stack([np.zeros((count, 3)) if accessor is None
+                                else _accessor_array(gltf, blob, accessor, path) for accessor in moved]))
         triangles.append(index.reshape(-1, 3) + offset)
         offset += count
     names = (mesh.extras or {}).get("targetNames") or [f"target_{i + 1:02d}" for i in range(n_targets)]
