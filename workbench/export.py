@@ -168,6 +168,13 @@ def rebuild_results(record):
     return results
 
 
+def csv_text(table: pd.DataFrame, float_format: str) -> str:
+    """A table as CSV text (no index column), numbers in ``float_format``; written by the atomic writer."""
+    buffer = io.StringIO()
+    table.to_csv(buffer, index=False, float_format=float_format)
+    return buffer.getvalue()
+
+
 def frame_seconds(n_frames: int, frame_rate: float) -> np.ndarray:
     """Time of each evaluated frame from the first, at the capture's rate."""
     return np.arange(n_frames) / float(frame_rate)
@@ -178,7 +185,7 @@ def weights_csv(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray) 
     table = pd.DataFrame(weights, columns=list(names))
     table.insert(0, "time", seconds)
     table.insert(0, "frame", np.arange(len(weights)))
-    return table.to_csv(index=False, float_format="%.9g")
+    return csv_text(table, "%.9g")
 
 
 def livelink_csv(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray) -> tuple[str, int] | None:
@@ -204,7 +211,7 @@ def livelink_csv(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray)
     table = pd.DataFrame(np.clip(channels, 0.0, 1.0), columns=list(ARKIT_NAMES))
     table.insert(0, "BlendShapeCount", len(ARKIT_NAMES))
     table.insert(0, "Timecode", [timecode(second) for second in seconds])
-    return table.to_csv(index=False, float_format="%.6g"), clipped
+    return csv_text(table, "%.6g"), clipped
 
 
 def timecode(seconds: float, rate: float = LIVELINK_TIMECODE_RATE) -> str:
@@ -227,7 +234,7 @@ def marker_basis_csv(labels: Sequence[str], neutral: np.ndarray, names: Sequence
     columns = [f"{label}_{axis}" for label in labels for axis in "xyz"]
     table = pd.DataFrame(np.vstack([neutral, shapes]), columns=columns)
     table.insert(0, "shape", ["neutral", *names])
-    return table.to_csv(index=False, float_format="%.9g")
+    return csv_text(table, "%.9g")
 
 
 def export_basis(out: Path, result, basis: ExportedBasis, *, run_name: str) -> dict:
