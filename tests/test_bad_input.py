@@ -647,7 +647,8 @@ SYNTHETIC = {"kind": "synthetic", "n_frames": 200, "frame_rate": 120.0, "n_face_
 
 
 @pytest.mark.parametrize("changes,message", [
-    ({"kind": "scan"}, r"dataset\.kind must be one of \['animface', 'ict_livelink', 'synthetic'\], got 'scan'"),
+    ({"kind": "scan"}, r"dataset\.kind must be one of \['animface', 'ict_livelink', 'mesh_sequence', 'synthetic'\], "
+                       r"got 'scan'"),
     ({"n_frames": 0}, r"n_frames must be a positive integer, got 0"),
     ({"n_frames": "many"}, r"n_frames must be a positive integer, got 'many'"),
     ({"marker_noise_mm": -1.0}, r"marker_noise_mm must be >= 0, got -1"),

@@ -11,15 +11,23 @@ from workbench.errors import WorkbenchError
 LABELS = ["Nose", "Chin", "Brow"]
 
 
-def write_c3d(path, positions, *, labels=LABELS, units="m", rate=100.0, gaps=()):
-    """A float C3D with ``positions`` (frames, markers, 3) in ``units``; ``gaps``: (frame, marker) invalid."""
+def write_c3d(path, positions, *, labels=LABELS, units="m", rate=100.0, gaps=(), n_markers=None):
+    """A float C3D with ``positions`` (frames, markers, 3) in ``units``; ``gaps``: (frame, marker) invalid;
+    ``n_markers`` points per frame (default: one per label)."""
     import c3d
 
     writer = c3d.Writer(point_rate=rate, point_units=units.ljust(4))
-    writer.set_point_labels(labels)
+    writer.set_point_labels(labels[:255])
+    # A parameter holds at most 255 entries: more labels go on in LABELS2, LABELS3, ... (as Vicon writes them).
+    for group, start in enumerate(range(255, len(labels), 255), start=2):
+        text, size = c3d.Writer.pack_labels(labels[start:start + 255])
+        writer.point_group.add_str(f"LABELS{group}", "More point labels.", text, size, len(labels[start:start + 255]))
+    if len(labels) > 255:
+        writer.point_group.add_str("DESCRIPTIONS", "Point descriptions.", " " * 255, 1, 255)
+    n_markers = len(labels) if n_markers is None else n_markers
     frames = []
     for f, frame in enumerate(positions):
-        points = np.zeros((len(labels), 5), dtype=np.float32)
+        points = np.zeros((n_markers, 5), dtype=np.float32)
         points[:, :3] = frame
         for gap_frame, marker in gaps:
             if gap_frame == f:
@@ -97,3 +105,20 @@ def test_animface_takes(shared_data, take_name, n_frames):
     assert 20 < np.linalg.norm(eyes[0] - eyes[1]) < 45
     height = np.ptp(take.positions[0, :, 1])
     assert 120 < height < 250
+
+
+def test_more_than_255_markers_read_every_label_group(tmp_path):
+    """Vicon-style files continue the labels in LABELS2: 300 markers must come back with 300 labels."""
+    labels = [f"M{i:03d}" for i in range(300)]
+    positions = np.random.default_rng(1).uniform(-0.1, 0.1, (4, 300, 3)).astype(np.float32)
+    take = read_c3d_markers(write_c3d(tmp_path / "many.c3d", positions, labels=labels))
+    assert take.labels == tuple(labels) and take.positions.shape == (4, 300, 3)
+    np.testing.assert_allclose(take.positions, positions.astype(float) * 1000.0, atol=1e-3)
+    np.testing.assert_array_equal(take.index_of(["M299", "M254", "M255"], named_in="a test"), [299, 254, 255])
+
+
+def test_label_count_other_than_marker_count_is_one_clear_error(tmp_path, positions):
+    short = write_c3d(tmp_path / "short.c3d", np.zeros((2, 4, 3), np.float32), labels=LABELS, n_markers=4)
+    with pytest.raises(WorkbenchError, match=r"short\.c3d: 3 labels in POINT:LABELS, LABELS2, \.\.\. for 4 markers "
+                                             r"\(POINT:USED\); every marker needs one label$"):
+        read_c3d_markers(short)

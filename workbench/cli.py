@@ -151,6 +151,7 @@ COMMANDS: dict[str, str] = {
     "report": "workbench.reporting.pages:main",
     "collect": "workbench.reporting.collect:main",
     "mlflow": "workbench.reporting.mlflow_store:main",
+    "export": "workbench.export:main",
 }
 
 

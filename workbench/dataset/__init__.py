@@ -14,7 +14,9 @@ from workbench.dataset.cache import cached_captures, code_fingerprint, dataset_k
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
+from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS, build_ict_livelink
+from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import bool_setting, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
@@ -406,7 +408,8 @@ def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
     return np.where(np.repeat(visible, 3, axis=1), frames, np.nan)
 
 
-BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface}
+BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface,
+            "mesh_sequence": build_mesh_sequence}
 """``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
 VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
 """``dataset.kind`` -> the data variants it builds (the names ``dataset.train_on`` and ``dataset.eval_on`` take)."""
@@ -443,7 +446,8 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     Returns
     -------
     dict
-        ``train_on`` name -> :class:`Capture`, in the configured order.
+        ``train_on`` name -> :class:`Capture`, in the configured order; with ``dataset.hand_basis`` set, their
+        hand shapes read from that file (:mod:`workbench.dataset.hand_basis`).
     """
     kind = cfg.get("kind")
     if kind not in BUILDERS:
@@ -455,7 +459,9 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
         return {name: stored_frames(capture, storage, (dataset_key(cfg), name))
                 for name, capture in captures.items()}
 
-    return cached_captures(cfg, build, cache_dir)
+    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
+    built = cached_captures({key: value for key, value in cfg.items() if key != "hand_basis"}, build, cache_dir)
+    return apply_hand_basis(built, cfg)
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

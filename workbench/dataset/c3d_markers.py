@@ -84,6 +84,19 @@ def units_to_mm(units: str, path: Path) -> float:
     return MM_PER_UNIT[key]
 
 
+def point_labels(reader) -> tuple[str, ...]:
+    """Every marker label of a C3D file, surrounding blanks removed.
+
+    A parameter holds at most 255 entries, so files with more markers (Vicon's, among others) continue the list in
+    ``POINT:LABELS2``, ``POINT:LABELS3``, ...; they are read in that order until one is missing.
+    """
+    labels, group = [], 1
+    while (parameter := reader.get("POINT:LABELS" + (str(group) if group > 1 else ""))) is not None:
+        labels += [str(label).strip() for label in parameter.string_array]
+        group += 1
+    return tuple(labels)
+
+
 def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     """Read the labelled 3-D marker trajectories of a C3D file.
 
@@ -99,7 +112,7 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     ------
     WorkbenchError
         If the file is missing, not a C3D file, truncated (fewer frames than its header declares), has no
-        markers, duplicate labels or unknown units.
+        markers, a label count other than its marker count, duplicate labels or unknown units.
     """
     import c3d
 
@@ -111,7 +124,8 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
         try:
             reader = c3d.Reader(handle)
             declared = reader.last_frame - reader.first_frame + 1
-            labels = tuple(str(label).strip() for label in reader.point_labels)
+            labels = point_labels(reader)
+            n_markers = int(reader.point_used)
             units_parameter = reader.get("POINT:UNITS")
             units = units_parameter.string_value if units_parameter is not None else "mm"
             frame_rate = float(reader.point_rate)
@@ -120,6 +134,9 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
             raise
         except Exception as error:  # the reader raises many kinds of error on a damaged file
             raise WorkbenchError(f"{path}: not a readable C3D file ({type(error).__name__}: {error})") from None
+    if len(labels) != n_markers:
+        raise WorkbenchError(f"{path}: {len(labels)} labels in POINT:LABELS, LABELS2, ... for {n_markers} markers "
+                             "(POINT:USED); every marker needs one label")
     if len(frames) < declared:
         raise WorkbenchError(f"{path}: truncated: its header declares {declared} frames but the data ends after "
                              f"{len(frames)}")

@@ -19,6 +19,7 @@ from workbench.dataset.plausibility import plausibility_policy, settle, unused_c
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
                                     positive_setting)
+from workbench.dataset.weight_curves import read_weight_curves
 
 TRAIN_ON = ("mesh", "markers")
 
@@ -39,10 +40,14 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     from workbench.dataset import split_frames, train_on_list
 
     names = train_on_list(cfg, TRAIN_ON)
-    csv_path = data_path(cfg, cfg.get("livelink_csv"), "livelink_csv")
-    take_name = csv_path.stem
-    take = read_livelink_csv(csv_path,
-                             timecode_rate=positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate"))
+    timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
+    curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"
+    curves_path = data_path(cfg, cfg.get(curves_key), curves_key)
+    take_name = curves_path.stem
+    if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.dataset.weight_curves)
+        take = read_weight_curves(curves_path, frame_rate=cfg.get("weight_frame_rate"), timecode_rate=timecode_rate)
+    else:
+        take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
     folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
     available = expression_names(folder, cfg["blendshapes"]["neutral"])
     hand_names = hand_shape_names(cfg, available)
@@ -69,7 +74,9 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
 
     notes_common = [
-        "ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take: the motion "
+        ("ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take"
+         if curves_key == "livelink_csv" else f"ICT FaceKit generic face driven by the weight curves of "
+         f"{curves_path.name}") + ": the motion "
         f"is a linear blend of the {len(driven)} driven ICT shapes (eq. 1), with no capture noise",
         f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
         f"{basis.n_vertices_in_file} vertices",
@@ -79,9 +86,9 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
     ]
     provenance = {
         "kind": "ict_livelink", "data_root": str(cfg["data_root"]),
-        "files": {"blendshapes": cfg["blendshapes"]["folder"], "livelink_csv": cfg["livelink_csv"],
+        "files": {"blendshapes": cfg["blendshapes"]["folder"], curves_key: cfg[curves_key],
                   "marker_table": str(marker_table.path)},
-        "credits": [ICT_CREDIT, LIVELINK_CREDIT],
+        "credits": [ICT_CREDIT] + ([LIVELINK_CREDIT] if curves_key == "livelink_csv" else []),
         "unit_mm": basis.unit_mm, "region_vertices": len(basis.neutral),
         "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
         "n_frames_in_file": take.n_frames, "frames_used": len(frames), "frame_step": int(cfg.get("frame_step", 1)),
@@ -104,7 +111,8 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
         faces = basis.triangles if name == "mesh" and len(index) == len(basis.neutral) else None
         captures[name] = Capture(
-            name="ICT FaceKit face driven by a Live Link Face take (real ARKit weights)",
+            name=("ICT FaceKit face driven by a Live Link Face take (real ARKit weights)" if curves_key == "livelink_csv"
+                  else f"ICT FaceKit face driven by the weight curves of {curves_path.name}"),
             neutral=neutral.reshape(-1), train=train, eval=evaluate, hand=deltas[hand_index],
             hand_names=tuple(hand_names), point_labels=labels[name], units="mm",
             origin=origin_text("ICT FaceKit model origin: midline, about nose-tip height, near the centre of the "

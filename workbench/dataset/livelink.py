@@ -136,23 +136,34 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
         raise WorkbenchError(f"{path}: missing {len(missing)} of the 52 ARKit weight columns: {', '.join(missing)}")
     if len(table) < 2:
         raise WorkbenchError(f"{path}: {len(table)} frame(s); a take needs at least 2")
-    weights = _numeric_block(table, ARKIT_NAMES, path)
-    outside = (weights < -WEIGHT_SLACK) | (weights > 1.0 + WEIGHT_SLACK)
-    if outside.any():
-        row, column = np.argwhere(outside)[0]
-        raise WorkbenchError(f"{path}: row {row + 2}, column {ARKIT_NAMES[column]}: weight {weights[row, column]:g} is "
-                             f"outside [0, 1] ({int(outside.sum())} such cells); ARKit weights are fractions, not "
-                             "percent")
+    weights = check_weight_range(_numeric_block(table, ARKIT_NAMES, path), ARKIT_NAMES, path)
     rotations = (_numeric_block(table, ROTATION_NAMES, path)
                  if all(name in table.columns for name in ROTATION_NAMES) else None)
     seconds = parse_timecodes(table["Timecode"].tolist(), timecode_rate, path)
+    return LiveLinkTake(names=ARKIT_NAMES, weights=weights, seconds=seconds,
+                        frame_rate=frame_rate_of(seconds, path, "timecodes"), rotations=rotations, path=path)
+
+
+def check_weight_range(weights: np.ndarray, names: Sequence[str], path: Path, first_row: int = 2) -> np.ndarray:
+    """``weights`` (n_frames, n_channels) if every one is a fraction in [0, 1] (within :data:`WEIGHT_SLACK`),
+    else a :class:`WorkbenchError` naming the row (``first_row`` is the first frame's) and the channel."""
+    outside = (weights < -WEIGHT_SLACK) | (weights > 1.0 + WEIGHT_SLACK)
+    if outside.any():
+        row, column = np.argwhere(outside)[0]
+        raise WorkbenchError(f"{path}: row {row + first_row}, column {names[column]}: weight {weights[row, column]:g} "
+                             f"is outside [0, 1] ({int(outside.sum())} such cells); ARKit weights are fractions, not "
+                             "percent")
+    return weights
+
+
+def frame_rate_of(seconds: np.ndarray, path: Path, what: str, first_row: int = 2) -> float:
+    """Frames per second of increasing frame times (the inverse of the median interval), or a
+    :class:`WorkbenchError` naming the first row (``first_row`` is the first frame's) whose time does not increase."""
     steps = np.diff(seconds)
-    interval = float(np.median(steps))
-    if not interval > 0 or np.any(steps <= 0):
-        raise WorkbenchError(f"{path}: timecodes must increase from row to row (row {int(np.argmax(steps <= 0)) + 3} "
-                             "does not)")
-    return LiveLinkTake(names=ARKIT_NAMES, weights=weights, seconds=seconds, frame_rate=1.0 / interval,
-                        rotations=rotations, path=path)
+    if steps.size == 0 or np.any(~(steps > 0)):
+        bad = int(np.argmax(~(steps > 0))) + first_row + 1 if steps.size else first_row
+        raise WorkbenchError(f"{path}: {what} must increase from row to row (row {bad} does not)")
+    return 1.0 / float(np.median(steps))
 
 
 def _header(path: Path) -> list[str]:

@@ -1,0 +1,132 @@
+"""A hand basis read from a file instead of the dataset's own: an OBJ blendshape folder or a glTF file's morph
+targets (``dataset.hand_basis``), e.g. a basis exported by ``workbench export`` or a rig made in another tool.
+
+The file's mesh must hold the capture's points in the capture's order (the vertices of the mesh data variant, as
+an export of that variant writes them): its shapes then replace the capture's hand shapes point for point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from workbench.dataset.capture import Capture
+from workbench.dataset.meshes import Blendshapes, expression_names, load_blendshapes
+from workbench.errors import WorkbenchError
+
+NEUTRAL_MISMATCH = 0.1
+"""A hand basis whose neutral lies further than this fraction of the capture's extent from the capture's neutral is
+refused (a wrong file, or wrong units)."""
+KEYS = ("path", "neutral", "unit_mm", "mesh", "shapes", "region_vertices")
+
+
+def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
+    """Shapes of an OBJ blendshape folder or of a ``.glb`` file's morph targets, in millimetres.
+
+    Parameters
+    ----------
+    spec : mapping
+        ``neutral`` (folder: the neutral OBJ's name, default ``neutral.obj``), ``unit_mm`` (folder: mm per OBJ
+        unit, default 1), ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
+        first vertices only).
+    key : str
+        Config key of ``spec`` for messages, e.g. ``"dataset.hand_basis"``.
+    path : pathlib.Path
+        A folder or a ``.glb`` file.
+
+    Returns
+    -------
+    Blendshapes
+        Every shape of the file.
+    """
+    from workbench.dataset.real import integer_setting, positive_setting
+    from workbench.gltf import read_morph_mesh
+
+    unknown = sorted(set(spec) - set(KEYS))
+    if unknown:
+        raise WorkbenchError(f"{key} has unknown key(s) {unknown}; known: {list(KEYS)}")
+    region = spec.get("region_vertices")
+    region = None if region is None else integer_setting(region, f"{key}.region_vertices", minimum=3)
+    if path.is_dir():
+        neutral = spec.get("neutral") or "neutral.obj"
+        return load_blendshapes(path, neutral_file=neutral, names=expression_names(path, neutral),
+                                region_vertices=region,
+                                unit_mm=positive_setting(spec.get("unit_mm", 1.0), f"{key}.unit_mm"))
+    if path.suffix.lower() != ".glb":
+        raise WorkbenchError(f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) "
+                             "or a .glb file")
+    mesh = read_morph_mesh(path, mesh_name=spec.get("mesh"))
+    n_kept = len(mesh.neutral) if region is None else region
+    if n_kept > len(mesh.neutral):
+        raise WorkbenchError(f"{key}.region_vertices {region} exceeds the {len(mesh.neutral)} vertices of {path}")
+    kept_triangles = mesh.triangles[np.all(mesh.triangles < n_kept, axis=1)]
+    return Blendshapes(neutral=mesh.neutral[:n_kept], names=mesh.names, deltas=mesh.deltas[:, :n_kept],
+                       triangles=kept_triangles, n_polygons=len(kept_triangles),
+                       n_vertices_in_file=len(mesh.neutral), unit_mm=1000.0, files={"glb": str(path)})
+
+
+def shape_subset(basis: Blendshapes, names, key: str) -> tuple[tuple[str, ...], np.ndarray]:
+    """The named shapes of ``basis`` (all when ``names`` is None), shape (n, n_vertices, 3)."""
+    names = list(basis.names) if names is None else list(names)
+    missing = [name for name in names if name not in basis.names]
+    if missing or not names or len(set(names)) != len(names):
+        raise WorkbenchError(f"{key}: needs distinct shape names of the file's {list(basis.names)}; "
+                             f"{'missing ' + str(missing) if missing else 'got ' + str(names)}")
+    return tuple(names), basis.shapes(names)
+
+
+def check_same_points(points: np.ndarray, neutral: np.ndarray, key: str, path: Path, what: str) -> float:
+    """Raise unless the file's neutral (n, 3) holds ``points`` (n, 3), the neutral of ``what``; returns the RMS
+    distance (mm)."""
+    if len(neutral) != len(points):
+        raise WorkbenchError(f"{key}.path {path}: {len(neutral)} vertices, but {what} has {len(points)} points; the "
+                             "shapes must hold its points in order (for an export: export that data variant, or set "
+                             "dataset.train_on to the variant it was exported from)")
+    extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    distance = np.linalg.norm(neutral - points, axis=1)
+    if distance.max() > NEUTRAL_MISMATCH * extent:
+        raise WorkbenchError(f"{key}.path {path}: its neutral lies up to {distance.max():.3g} mm from the data's "
+                             f"(more than {NEUTRAL_MISMATCH:g} of the data's {extent:.3g} mm extent): another face, "
+                             "another vertex order or other units (unit_mm)")
+    return float(np.sqrt(np.mean(distance ** 2)))
+
+
+def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str, Capture]:
+    """The captures with their hand basis read from ``dataset.hand_basis`` (unchanged when it is not set).
+
+    Parameters
+    ----------
+    captures : mapping
+        Data variant -> :class:`Capture`.
+    cfg : mapping
+        The ``dataset`` config group; ``hand_basis`` has ``path`` (relative to the data root unless absolute) and
+        optionally ``shapes`` (default: the capture's hand shape names), plus the keys of :func:`read_shape_file`.
+
+    Returns
+    -------
+    dict
+    """
+    from workbench.dataset.real import data_path
+
+    spec = cfg.get("hand_basis")
+    if not spec:
+        return dict(captures)
+    key = "dataset.hand_basis"
+    if not isinstance(spec, Mapping) or not spec.get("path"):
+        raise WorkbenchError(f"{key} must be a mapping with a 'path' (an OBJ blendshape folder or a .glb file)")
+    path = data_path(cfg, spec["path"], "hand_basis.path")
+    if not path.exists():
+        raise WorkbenchError(f"{key}.path {path}: not found")
+    basis = read_shape_file(spec, key, path)
+    replaced = {}
+    for name, capture in captures.items():
+        names, shapes = shape_subset(basis, spec.get("shapes") or capture.hand_names, key)
+        rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
+        note = (f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)")
+        replaced[name] = replace(capture, hand=shapes.reshape(len(names), -1), hand_names=names,
+                                 notes=capture.notes + (note,),
+                                 provenance=dict(capture.provenance, hand_basis=str(path)))
+    return replaced
