@@ -134,6 +134,8 @@ class SyntheticSchema:
     gap_policy: str = "linear"
     gap_max_fill_frames: Optional[int] = None
     gap_fit_on: str = "filled"
+    storage: str = "memory"
+    dtype: str = "float64"
 
 
 @dataclass
@@ -160,6 +162,9 @@ class IctLivelinkSchema:
     train_on: Any = MISSING
     split: str = "same"
     eval_fraction: float = 0.2
+    plausibility: str = "error"
+    storage: str = "memory"
+    dtype: str = "float64"
 
 
 @dataclass
@@ -196,6 +201,9 @@ class AnimfaceSchema:
     train_on: Any = MISSING
     split: str = "same"
     eval_fraction: float = 0.2
+    plausibility: str = "error"
+    storage: str = "memory"
+    dtype: str = "float64"
 
 
 DATASET_SCHEMAS = {"synthetic": SyntheticSchema, "ict_livelink": IctLivelinkSchema, "animface": AnimfaceSchema}
