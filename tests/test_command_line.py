@@ -27,7 +27,7 @@ def completions(line, tmp_path):
 
 def test_tab_completion_completes_groups_keys_and_studies(tmp_path):
     assert completions("workbench dataset=", tmp_path) == [
-        "dataset=animface", "dataset=ict_livelink", "dataset=synthetic"]
+        "dataset=animface", "dataset=ict_livelink", "dataset=mesh_sequence", "dataset=synthetic"]
     assert completions("workbench dataset.n_", tmp_path) == [
         "dataset.n_face_markers=", "dataset.n_frames=", "dataset.n_head_markers="]
     assert completions("workbench solver=", tmp_path) == [
@@ -61,10 +61,10 @@ def test_help_lists_studies_groups_and_commands(tmp_path):
     studies = text.split("== Studies")[1].split("== Commands")[0]
     assert "coverage_small" in studies and "paper                 Paper reproduction" in studies
     commands = text.split("== Commands ==")[1].split("==")[0]
-    assert [line.split()[0] for line in commands.strip().splitlines()] == ["report", "collect", "mlflow"]
+    assert [line.split()[0] for line in commands.strip().splitlines()] == ["report", "collect", "mlflow", "export"]
     groups = text.split("== Configuration groups ==")[1].split("==")[0]
     assert groups.strip().splitlines()[1:] == [
-        "", "basis: default", "dataset: animface, ict_livelink, synthetic", "metric: default", "paths: default",
+        "", "basis: default", "dataset: animface, ict_livelink, mesh_sequence, synthetic", "metric: default", "paths: default",
         "solver: all, box, lstsq, nnls"]
 
 

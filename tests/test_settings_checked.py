@@ -7,14 +7,12 @@ import pytest
 from workbench.cli import run
 from workbench.config import compose
 from workbench.errors import WorkbenchError
+from workbench.record import DONE
 
 
 @pytest.mark.parametrize("override, message", [
     ("dataset.gap_policy=spline", "dataset.gap_policy must be one of ('drop', 'linear', 'masked'), got 'spline'"),
-    ("dataset.gap_max_fill_frames=abc", "dataset.gap_max_fill_frames must be a whole number >= 1 or null, got 'abc'"),
     ("dataset.gap_fit_on=all", "dataset.gap_fit_on must be one of ('complete', 'filled'), got 'all'"),
-    ("save_inputs=maybe", "save_inputs must be true or false, got 'maybe'"),
-    ("save_inputs=1", "save_inputs must be true or false, got 1"),
     ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list of distinct "
                                "ones, got ['scan']"),
     ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list "
@@ -24,7 +22,23 @@ def test_unused_settings_are_checked(tmp_path, override, message):
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
     with pytest.raises(WorkbenchError, match=re.escape(message)):
         run(cfg, tmp_path / "run")
-    assert not (tmp_path / "run" / "done").exists()
+    assert not (tmp_path / "run" / DONE).exists()
+
+
+@pytest.mark.parametrize("override, key", [
+    ("dataset.gap_max_fill_frames=abc", "dataset.gap_max_fill_frames"),
+    ("save_inputs=maybe", "save_inputs"),
+])
+def test_settings_of_the_wrong_type_fail_at_composition(override, key):
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException, match=re.escape(override)):
+        compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
+
+
+def test_save_inputs_must_be_a_boolean(tmp_path):
+    with pytest.raises(WorkbenchError, match=re.escape("save_inputs must be true or false, got 1")):
+        run({**compose("paper", ["dataset.n_frames=200", "solver=lstsq"]), "save_inputs": 1}, tmp_path / "run")
 
 
 def test_other_take_with_the_training_seed_is_refused(tmp_path):

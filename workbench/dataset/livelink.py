@@ -255,7 +255,8 @@ def map_arkit_channels(channels: Sequence[str], basis_names: Sequence[str],
     basis_names : sequence of str
         The basis's shape names.
     overrides : mapping, optional
-        Channel -> list of shape names, replacing the rule for that channel (an empty list leaves it unmapped).
+        Channel -> list of shape names, replacing the rule for that channel (an empty list leaves it unmapped);
+        a channel's first letter may be of either case.
 
     Returns
     -------
@@ -266,7 +267,9 @@ def map_arkit_channels(channels: Sequence[str], basis_names: Sequence[str],
     WorkbenchError
         If an override names an unknown channel or a shape the basis does not have.
     """
-    overrides = dict(overrides or {})
+    # the same override table serves Live Link (TongueOut) and MediaPipe (tongueOut) channel names
+    same_channel = {channel[:1].lower() + channel[1:]: channel for channel in channels}
+    overrides = {same_channel.get(key[:1].lower() + key[1:], key): value for key, value in (overrides or {}).items()}
     unknown = [channel for channel in overrides if channel not in channels]
     if unknown:
         raise WorkbenchError(f"arkit_overrides names channel(s) {unknown} that are not ARKit channels {list(channels)}")
