@@ -27,6 +27,7 @@ from dataclasses import replace
 import resource
 import time
 
+import workbench  # noqa: F401  (first: it sets OpenBLAS's thread timeout before NumPy loads OpenBLAS, as the CLI does)
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
@@ -61,7 +62,8 @@ def blas_report() -> str:
     libraries = [f"{info.get('internal_api')} {info.get('version')} kernel {info.get('architecture')} "
                  f"threads {info.get('num_threads')} ({os.path.basename(info.get('filepath', ''))})"
                  for info in threadpool_info() if info.get("user_api") == "blas"]
-    forced = {name: os.environ.get(name) for name in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE")}
+    forced = {name: os.environ.get(name) for name in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE",
+                                                         "OPENBLAS_THREAD_TIMEOUT")}
     return f"BLAS: {'; '.join(libraries) or 'none found'}; environment {forced}"
 
 
@@ -147,7 +149,9 @@ def bench_markers(args) -> None:
         for kind, baseline, upper, n_timed in (("box", "lsq_linear", 1.0, args.baseline_frames // 4),
                                                ("box", "lsq_linear/bvls", 1.0, args.baseline_frames),
                                                ("nnls", "nnls", None, len(capture.eval))):
-            solution, fast = timed(solve_weights, shapes, capture.eval, kind=kind, lower=0.0, upper=upper)
+            runs = [timed(solve_weights, shapes, capture.eval, kind=kind, lower=0.0, upper=upper)
+                    for _ in range(args.repeats)]
+            solution, fast = runs[0][0], float(np.median([seconds for _, seconds in runs]))
             subset = np.sort(rng.choice(len(capture.eval), size=min(n_timed, len(capture.eval)), replace=False))
             frames = capture.eval[subset]
             reference, slow = timed(per_frame, baseline, shapes, frames)
@@ -156,7 +160,7 @@ def bench_markers(args) -> None:
             gap = np.max(np.abs(objective(shapes, frames, mine) - objective(shapes, frames, reference))
                          / np.maximum(objective(shapes, frames, reference), 1e-12))
             note = "" if scale == 1 else f" (timed on {len(frames)} frames, x{scale:.0f} extrapolated)"
-            print(f"{label} {kind}: batched {fast:.3f} s (x{fast / one_pass:.1f} one pass) vs per-frame {baseline} "
+            print(f"{label} {kind}: batched {fast:.3f} s (median of {args.repeats}, x{fast / one_pass:.1f} one pass) vs per-frame {baseline} "
                   f"{slow * scale:.2f} s{note}  x{slow * scale / fast:.0f}; max relative objective gap {gap:.1e}; "
                   f"fallback frames {solution.n_fallback_frames}")
     print(f"peak memory {peak_mb():.0f} MB")
@@ -196,7 +200,7 @@ def bench_mesh(args) -> None:
         frames = np.asarray(capture.eval[subset], dtype=np.float64)
         bases = [(row.basis, row.projection, shapes) for row, shapes in zip(
             result.rows, [capture.hand] + [qe.shapes for qe in result.quasi_eigen.values()])]
-        small = replace(capture, train=frames, eval=frames)
+        small = replace(capture, train=frames, eval=frames, eval_timeline=None)
         solvers = {name: spec for name, spec in cfg["solver"].items()}
         (_, _, _), fast = timed(projected_rows, small, bases, solvers, Timings(),
                                 subspaces={"PCA": pca_subspace(result.eigenfaces)})
