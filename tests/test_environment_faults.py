@@ -102,3 +102,14 @@ def test_a_cache_path_that_is_a_file_is_one_line(tmp_path):
                               f"hydra.run.dir={tmp_path / 'run'}"))
     assert line == f"workbench: error: paths.cache_dir {tmp_path / 'cache'} is not a folder (a file is in the way); " \
                    "give a folder or null"
+
+
+@pytest.mark.parametrize("preset, expected", [(None, "16"), ("28", "28")])
+def test_openblas_workers_stop_spinning_unless_the_user_set_it(preset, expected):
+    # OpenBLAS reads the variable once, when NumPy loads it: the workbench must set it on import, before NumPy
+    env = {key: value for key, value in os.environ.items() if key != "OPENBLAS_THREAD_TIMEOUT"}
+    if preset is not None:
+        env["OPENBLAS_THREAD_TIMEOUT"] = preset
+    script = "import workbench, numpy, os; print(os.environ['OPENBLAS_THREAD_TIMEOUT'])"
+    shown = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    assert shown.stdout.strip() == expected
