@@ -28,7 +28,8 @@ def built(overrides, storage, cache_dir):
 
 def check_storages(overrides, names, tmp_path):
     """Each capture in float32 on disk is the float64 in-memory one to float32 rounding, in float64 on disk
-    exactly; training and evaluated frames stay one object with ``split: same``."""
+    exactly, in the file its builder wrote (``names``: capture name -> file name prefix; frames converted after
+    building would be in a ``train`` file); training and evaluated frames stay one object with ``split: same``."""
     reference = built(overrides, "memory", tmp_path / "memory")
     float32 = built(overrides, "float32", tmp_path / "float32")
     disk = built(overrides, "disk", tmp_path / "disk")
@@ -38,7 +39,7 @@ def check_storages(overrides, names, tmp_path):
         for capture, dtype in ((float32[name], np.float32), (disk[name], np.float64)):
             assert isinstance(capture.train, FramesOnDisk) and capture.train.dtype == dtype
             assert capture.train.path.parent == tmp_path / ("float32" if dtype == np.float32 else "disk") / "frames"
-            assert capture.eval is capture.train
+            assert capture.eval is capture.train and capture.train.path.name.startswith(names[name] + "_")
         np.testing.assert_array_equal(np.asarray(float32[name].train), expected.train.astype(np.float32))
         np.testing.assert_array_equal(np.asarray(disk[name].train), expected.train)
     return reference, float32, disk
@@ -71,7 +72,7 @@ def sequence_overrides(tmp_path, *more):
 def test_mesh_sequence_in_float32_and_on_disk_matches_float64_in_memory(sequence, monkeypatch):
     tmp_path, frames = sequence
     monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 7 * 42 * 3)  # 7 frames a chunk: 8 chunks of 50 frames
-    reference, _, disk = check_storages(sequence_overrides(tmp_path, "dataset.frame_step=3"), ["mesh"],
+    reference, _, disk = check_storages(sequence_overrides(tmp_path, "dataset.frame_step=3"), {"mesh": "mesh_sequence"},
                                         tmp_path / "out")
     expected = (frames[::3] / 1000.0 * 1000.0 - frames[0] / 1000.0 * 1000.0).reshape(17, -1)
     np.testing.assert_array_equal(reference["mesh"].train, expected)
@@ -87,7 +88,7 @@ def test_mesh_sequence_in_float32_and_on_disk_matches_float64_in_memory(sequence
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".h5"])
-def test_mesh_sequence_tail_split_on_disk_from_npz_and_hdf5(sequence, suffix):
+def test_mesh_sequence_tail_split_every_other_frame_from_npz_and_hdf5(sequence, suffix):
     import h5py
 
     tmp_path, frames = sequence
@@ -97,10 +98,12 @@ def test_mesh_sequence_tail_split_on_disk_from_npz_and_hdf5(sequence, suffix):
         with h5py.File(tmp_path / "seq.h5", "w") as handle:
             handle["vertices"] = frames / 1000.0
     overrides = sequence_overrides(tmp_path, f"dataset.sequence=seq{suffix}", "dataset.split=tail",
-                                   "dataset.eval_fraction=0.2")
+                                   "dataset.eval_fraction=0.2", "dataset.frame_step=2")
     reference = built(overrides, "memory", tmp_path / "memory")["mesh"]
     on_disk = built(overrides, "float32", tmp_path / "float32")["mesh"]
-    assert len(reference.train) == 40 and len(reference.eval) == 10
+    assert len(reference.train) == 20 and len(reference.eval) == 5
+    metres = frames / 1000.0
+    np.testing.assert_array_equal(reference.eval[-1], (metres[48] * 1000.0 - metres[0] * 1000.0).ravel())
     assert isinstance(on_disk.eval, FramesOnDisk) and on_disk.eval.path == on_disk.train.path
     for field in ("train", "eval"):
         np.testing.assert_array_equal(np.asarray(getattr(on_disk, field)),
@@ -140,9 +143,11 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     np.testing.assert_array_equal(capture.train[n_frames - 3:], reference[n_frames - 3:])
 
 
-def test_ict_livelink_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path):
+def test_ict_livelink_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
+    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     check_storages(["dataset=ict_livelink", "dataset.max_frames=300", "dataset.train_on=[mesh,markers]",
-                    f"paths.data_root={shared_data}"], ["mesh", "markers"], tmp_path)
+                    f"paths.data_root={shared_data}"],
+                   {"mesh": "ict_livelink_mesh", "markers": "ict_livelink_markers"}, tmp_path)
 
 
 def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, tmp_path):
@@ -155,10 +160,11 @@ def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, t
     np.testing.assert_array_equal(np.asarray(on_disk.eval), reference.eval)
 
 
-def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path):
+def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
+    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     overrides = ["dataset=animface", "dataset.max_frames_per_take=150", "dataset.train_on=[mesh,markers]",
                  f"paths.data_root={shared_data}"]
-    reference, float32, disk = check_storages(overrides, ["mesh"], tmp_path)
+    reference, float32, disk = check_storages(overrides, {"mesh": "interpolated"}, tmp_path)
     # the note's largest displacement is computed a chunk at a time from the frames stored
     largest = np.linalg.norm(reference["mesh"].train.reshape(len(reference["mesh"].train), -1, 3), axis=2).max()
     assert any(f"largest displacement {largest:.1f} mm on the mesh" in note for note in disk["mesh"].notes)
