@@ -293,8 +293,7 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
                          "spacing are extrapolated (figures grey them out)")
         if name == "markers":
             frames = frames.reshape(len(frames), -1)
-        train, evaluate = split_frames(frames, cfg.get("split", "same"),
-                                       cfg.get("eval_fraction", 0.2))
+        train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
         eval_visible = None
         if stable.visible is not None and name == "markers":

@@ -57,16 +57,14 @@ class FrameStorage:
         return FrameSink(writer=FrameWriter(self.path(name, key), n_frames, n_dims, self.dtype))
 
     def keep(self, name: str, key, frames):
-        """Frames built whole (shape (n_frames, n_dims)) kept as this storage says; float64 in memory unchanged."""
+        """Frames built whole (shape (n_frames, n_dims)) kept as this storage says; frames already kept so (an array
+        of its dtype in memory, or frames on disk, as builders write them) unchanged."""
         if isinstance(frames, FramesOnDisk) or (self.folder is None and frames.dtype == DTYPES[self.dtype]):
             return frames
         if self.folder is None:
             kept = frames.astype(DTYPES[self.dtype])
             kept.setflags(write=False)
             return kept
-        found = self.existing(name, key)
-        if found is not None and found.shape == frames.shape:
-            return found
         return self.build(name, key, *frames.shape, lambda rows: frames[rows])
 
     def build(self, name: str, key, n_frames: int, n_dims: int, chunk_of: Callable[[slice], np.ndarray]):
