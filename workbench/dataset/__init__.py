@@ -23,7 +23,7 @@ from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk
+from workbench.frames import FramesOnDisk, frame_chunks
 from workbench.progress import progress
 from workbench.resources import require_memory
 
@@ -347,16 +347,34 @@ def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: Frame
     -------
     ndarray of shape (n_frames, 3 * n_target), read-only, or FramesOnDisk
     """
-    key = (hashlib.sha256(np.ascontiguousarray(points).tobytes()).hexdigest(),
-           hashlib.sha256(np.ascontiguousarray(operator).tobytes()).hexdigest())
-    found = storage.existing("interpolated", key)
-    if found is not None:
-        return found
-    sink = storage.sink("interpolated", key, len(points), 3 * len(operator))
-    for start in range(0, len(points), sink.chunk_size):
-        rows = slice(start, min(start + sink.chunk_size, len(points)))
-        sink.write(rows, apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
-    return sink.finish()
+    key = (array_digest(points), array_digest(operator), code_fingerprint())
+    return storage.build("interpolated", key, len(points), 3 * len(operator),
+                         lambda rows: apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
+
+
+def array_digest(array: np.ndarray) -> str:
+    """Content hash of an array: its values, type and shape (for the keys of frames stored on disk)."""
+    array = np.ascontiguousarray(array)
+    digest = hashlib.sha256(f"{array.dtype.str} {array.shape}".encode())
+    digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+def largest_point_norm(frames) -> float:
+    """The largest displacement of any point in any frame, read a chunk of frames at a time.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points) or FramesOnDisk
+
+    Returns
+    -------
+    float
+    """
+    largest = 0.0
+    for _, chunk in frame_chunks(frames):
+        largest = max(largest, float(np.linalg.norm(chunk.reshape(len(chunk), -1, 3), axis=2).max(initial=0.0)))
+    return largest
 
 
 def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
@@ -410,7 +428,8 @@ def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
 
 BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface,
             "mesh_sequence": build_mesh_sequence}
-"""``dataset.kind`` -> builder taking the ``dataset`` config group and returning ``{train_on name: Capture}``."""
+"""``dataset.kind`` -> builder taking the ``dataset`` config group and the :class:`FrameStorage` its dense frames are
+written into, returning ``{train_on name: Capture}``."""
 VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
 """``dataset.kind`` -> the data variants it builds (the names ``dataset.train_on`` and ``dataset.eval_on`` take)."""
 
@@ -455,7 +474,7 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     storage = frame_storage(cfg, cache_dir)
 
     def build(cfg):
-        captures = build_synthetic(cfg, storage) if kind == "synthetic" else BUILDERS[kind](cfg)
+        captures = BUILDERS[kind](cfg, storage)
         return {name: stored_frames(capture, storage, (dataset_key(cfg), name))
                 for name, capture in captures.items()}
 
@@ -466,7 +485,7 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:
     """The capture with its training and evaluated frames kept as ``storage`` says (the same frames once when
-    they are the same, ``split: same``)."""
+    they are the same, ``split: same``); frames a builder wrote into ``storage`` are kept as they are."""
     train = storage.keep("train", key, capture.train)
     evaluate = train if capture.eval is capture.train else storage.keep("eval", key, capture.eval)
     return replace(capture, train=train, eval=evaluate)

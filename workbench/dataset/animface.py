@@ -22,11 +22,12 @@ from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
 from workbench.dataset.plausibility import (check_rigid_set, face_spread, outlier_problems, parked_marker_problems,
                                             plausibility_policy, settle, take_units_problems, with_warnings)
-from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
+from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
                                     number_setting, origin_text, seed_setting)
 from workbench.dataset.rigid import stabilise
+from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
 
 TRAIN_ON = ("markers", "mesh")
@@ -190,21 +191,24 @@ def within_marker_reach(vertices: np.ndarray, marker_vertices: np.ndarray, point
     return tree.query(vertices[points])[0] <= spacing
 
 
-def build_animface(cfg: Mapping) -> dict[str, Capture]:
+def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """Real optical takes with ICT hand shapes, on the markers and/or interpolated onto the ICT face.
 
     Parameters
     ----------
     cfg : mapping
         The ``dataset`` config group (see ``conf/dataset/animface.yaml``).
+    storage : FrameStorage
+        Where the interpolated mesh frames are written, a chunk of frames at a time (``dataset.storage``,
+        ``dataset.dtype``); the markers' frames are kept as it says once built.
 
     Returns
     -------
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
-    from workbench.dataset import (masked_frames, masked_training_frames, point_operator_matrix, split_frames,
-                                   train_on_list)
+    from workbench.dataset import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
+                                   point_operator_matrix, split_frames, train_on_list)
 
     names = train_on_list(cfg, TRAIN_ON)
     take_files = list(cfg.get("takes") or [])
@@ -275,7 +279,7 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
         else:
             mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
             operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
-            frames = interpolate_frames(operator, displacements)
+            frames = interpolated_frames(operator, displacements, storage)
             points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
             labels = tuple(f"v{i}" for i in mesh_points)
             faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
@@ -283,12 +287,13 @@ def build_animface(cfg: Mapping) -> dict[str, Capture]:
             notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
                          f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
                          "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
-                         f"the performer; largest displacement {np.linalg.norm(frames, axis=2).max():.1f} mm on the "
+                         f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
                          f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
                          f"{int((~support).sum())} vertices farther from every marker than the markers' median "
                          "spacing are extrapolated (figures grey them out)")
-        train, evaluate = split_frames(frames.reshape(len(frames), -1), cfg.get("split", "same"),
-                                       cfg.get("eval_fraction", 0.2))
+        if name == "markers":
+            frames = frames.reshape(len(frames), -1)
+        train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
         eval_visible = None
         if stable.visible is not None and name == "markers":

@@ -11,6 +11,7 @@ from typing import Mapping
 
 import numpy as np
 
+from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
@@ -19,25 +20,29 @@ from workbench.dataset.plausibility import plausibility_policy, settle, unused_c
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
                                     positive_setting)
+from workbench.dataset.storage import FrameStorage
 from workbench.dataset.weight_curves import read_weight_curves
 
 TRAIN_ON = ("mesh", "markers")
 
 
-def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
+def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """The ICT face driven by a Live Link Face take, on the mesh and/or at virtual markers.
 
     Parameters
     ----------
     cfg : mapping
         The ``dataset`` config group (see ``conf/dataset/ict_livelink.yaml``).
+    storage : FrameStorage
+        Where the frames are written, a chunk of frames at a time (``dataset.storage``, ``dataset.dtype``), so the
+        dense mesh never exists whole in float64.
 
     Returns
     -------
     dict
         ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
     """
-    from workbench.dataset import split_frames, train_on_list
+    from workbench.dataset import array_digest, split_frames, train_on_list
 
     names = train_on_list(cfg, TRAIN_ON)
     timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
@@ -100,7 +105,9 @@ def build_ict_livelink(cfg: Mapping) -> dict[str, Capture]:
         index = points[name]
         neutral = basis.neutral[index]
         deltas = basis.deltas[:, index].reshape(len(basis.names), -1)
-        displacements = drive_blendshapes(weights, mapping, deltas)
+        key = (array_digest(weights), array_digest(mapping.matrix), array_digest(deltas), code_fingerprint())
+        displacements = storage.build(f"ict_livelink_{name}", key, len(weights), deltas.shape[1],
+                                      lambda rows, deltas=deltas: drive_blendshapes(weights[rows], mapping, deltas))
         train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
         notes = list(notes_common)
         if name == "markers":

@@ -5,27 +5,40 @@ The sequence is one array of vertex positions ``(frames, vertices, 3)`` with the
 basis) or an HDF5 file (``.h5``/``.hdf5``, datasets at those paths). The neutral face is one frame of the sequence
 or a separate OBJ of the same topology. The hand basis (``dataset.blendshapes``) is a blendshape folder or a
 ``.glb`` with morph targets on the same vertices (a rig registered to the scans).
+
+A ``.npy`` is memory-mapped and an HDF5 dataset read by slices, a chunk of frames at a time, and the displacements
+are written chunk by chunk into the configured frame storage; a ``.npz`` (possibly compressed, so not mappable) is
+read whole.
 """
 
 from __future__ import annotations
 
+import hashlib
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 
+from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
 from workbench.dataset.real import (data_path, frame_selection, integer_setting, origin_text, positive_setting)
+from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
+from workbench.frames import chunk_frames
 
 TRAIN_ON = ("mesh",)
 SEQUENCE_SUFFIXES = (".npz", ".npy", ".h5", ".hdf5")
 
 
-def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Vertex positions ``(n_frames, n_vertices, 3)`` (file units) and triangles ``(n, 3)`` or None of a sequence file.
+@contextmanager
+def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> Iterator[MeshSequence]:
+    """A sequence file opened for reading its frames on demand, checked (a pass over every frame, a chunk at a
+    time). A ``.npy`` is memory-mapped and HDF5 read by slices; a ``.npz`` is read whole (a compressed archive
+    cannot be mapped).
 
     Raises
     ------
@@ -37,39 +50,97 @@ def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
         raise WorkbenchError(f"{path}: mesh sequence file not found")
     if suffix not in SEQUENCE_SUFFIXES:
         raise WorkbenchError(f"{path}: a mesh sequence must be one of {', '.join(SEQUENCE_SUFFIXES)}")
-    arrays = _hdf5_arrays(path, vertices_key, faces_key) if suffix in (".h5", ".hdf5") else \
+    opened = _hdf5_arrays(path, vertices_key, faces_key) if suffix in (".h5", ".hdf5") else \
         _numpy_arrays(path, vertices_key, faces_key)
-    vertices, faces = arrays
-    if vertices.ndim != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 2 or vertices.shape[1] < 3:
-        raise WorkbenchError(f"{path}: '{vertices_key}' must have shape (n_frames >= 2, n_vertices >= 3, 3), got "
-                             f"{vertices.shape}")
-    bad = np.flatnonzero(~np.all(np.isfinite(vertices), axis=(1, 2)))
-    if bad.size:
-        raise WorkbenchError(f"{path}: '{vertices_key}' frame {int(bad[0])} holds NaN or Inf ({bad.size} such frames)")
-    if faces is not None:
-        if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
-            raise WorkbenchError(f"{path}: '{faces_key}' must be integer triangles of shape (n, 3), got "
-                                 f"{faces.dtype} {faces.shape}")
-        if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
-            raise WorkbenchError(f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
-                                 f"{vertices.shape[1]} vertices (0-based)")
-    return vertices.astype(np.float64, copy=False), faces
+    with opened as (vertices, faces):
+        if len(vertices.shape) != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 2 or vertices.shape[1] < 3:
+            raise WorkbenchError(f"{path}: '{vertices_key}' must have shape (n_frames >= 2, n_vertices >= 3, 3), "
+                                 f"got {vertices.shape}")
+        digest = _check_finite(path, vertices_key, vertices)
+        if faces is not None:
+            if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+                raise WorkbenchError(f"{path}: '{faces_key}' must be integer triangles of shape (n, 3), got "
+                                     f"{faces.dtype} {faces.shape}")
+            if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
+                raise WorkbenchError(f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
+                                     f"{vertices.shape[1]} vertices (0-based)")
+        yield MeshSequence(vertices, faces, digest)
 
 
+@dataclass(frozen=True)
+class MeshSequence:
+    """An open sequence file.
+
+    Attributes
+    ----------
+    vertices : array-like of shape (n_frames, n_vertices, 3)
+        Positions in file units, read on demand by slicing (a memory map, an HDF5 dataset or an array).
+    faces : ndarray of shape (n, 3) of int, or None
+    digest : str
+        Content hash of the positions.
+    """
+
+    vertices: object
+    faces: np.ndarray | None
+    digest: str
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[1])
+
+    def frames(self, start: int, stop: int, step: int = 1) -> np.ndarray:
+        """Positions of frames ``start:stop:step``, float64, shape (n, n_vertices, 3)."""
+        return np.asarray(self.vertices[start:stop:step], dtype=np.float64)
+
+
+def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Vertex positions ``(n_frames, n_vertices, 3)`` (file units, float64) and triangles ``(n, 3)`` or None of a
+    sequence file, read whole (:func:`open_mesh_sequence` reads frames on demand)."""
+    with open_mesh_sequence(path, vertices_key, faces_key) as sequence:
+        return sequence.frames(0, sequence.n_frames), sequence.faces
+
+
+def _check_finite(path: Path, vertices_key: str, vertices) -> str:
+    """Content hash of the positions, read a chunk of frames at a time; an error names the first frame holding
+    NaN or Inf."""
+    n_frames, per_frame = vertices.shape[0], vertices.shape[1] * 3
+    size = chunk_frames(per_frame)
+    digest = hashlib.sha256(f"{np.dtype(vertices.dtype).str} {tuple(vertices.shape)}".encode())
+    first, count = None, 0
+    for start in range(0, n_frames, size):
+        chunk = np.ascontiguousarray(vertices[start:start + size])
+        digest.update(chunk)
+        bad = np.flatnonzero(~np.all(np.isfinite(chunk), axis=(1, 2)))
+        if bad.size and first is None:
+            first = start + int(bad[0])
+        count += bad.size
+    if count:
+        raise WorkbenchError(f"{path}: '{vertices_key}' frame {first} holds NaN or Inf ({count} such frames)")
+    return digest.hexdigest()
+
+
+@contextmanager
 def _numpy_arrays(path: Path, vertices_key: str, faces_key: str | None):
     try:
-        loaded = np.load(path, allow_pickle=False)
+        loaded = np.load(path, mmap_mode="r", allow_pickle=False)  # memory-maps a .npy; a .npz ignores it
     except (OSError, ValueError, EOFError) as error:
         raise WorkbenchError(f"{path}: not a readable NumPy file ({error})") from None
     if isinstance(loaded, np.ndarray):  # .npy: positions only
-        return loaded, None
+        yield loaded, None
+        return
     with loaded:
         if vertices_key not in loaded.files:
             raise WorkbenchError(f"{path}: no array '{vertices_key}' (dataset.vertices_key); it has {loaded.files}")
         faces = loaded[faces_key] if faces_key and faces_key in loaded.files else None
-        return loaded[vertices_key], faces
+        vertices = loaded[vertices_key]
+    yield vertices, faces
 
 
+@contextmanager
 def _hdf5_arrays(path: Path, vertices_key: str, faces_key: str | None):
     import h5py
 
@@ -82,39 +153,54 @@ def _hdf5_arrays(path: Path, vertices_key: str, faces_key: str | None):
             raise WorkbenchError(f"{path}: no dataset '{vertices_key}' (dataset.vertices_key); it has "
                                  f"{sorted(handle.keys())}")
         faces = handle[faces_key][()] if faces_key and faces_key in handle else None
-        return handle[vertices_key][()], faces
+        yield handle[vertices_key], faces
 
 
-def build_mesh_sequence(cfg: Mapping) -> dict[str, Capture]:
+def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """A dense mesh sequence with a hand basis on the same vertices (see ``conf/dataset/mesh_sequence.yaml``).
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group.
+    storage : FrameStorage
+        Where the displacements are written, a chunk of frames at a time (``dataset.storage``, ``dataset.dtype``):
+        the sequence is read on demand (but a ``.npz`` whole), so the whole float64 array is never held.
 
     Returns
     -------
     dict
         ``{"mesh": Capture}``.
     """
-    from workbench.dataset import split_frames, train_on_list
+    from workbench.dataset import train_on_list
 
     train_on_list(cfg, TRAIN_ON)
     path = data_path(cfg, cfg.get("sequence"), "sequence")
     unit_mm = positive_setting(cfg.get("unit_mm", 1.0), "dataset.unit_mm")
     frame_rate = positive_setting(cfg.get("frame_rate"), "dataset.frame_rate")
-    vertices, faces = read_mesh_sequence(path, str(cfg.get("vertices_key") or "vertices"), cfg.get("faces_key"))
-    vertices = vertices * unit_mm
+    with open_mesh_sequence(path, str(cfg.get("vertices_key") or "vertices"), cfg.get("faces_key")) as sequence:
+        return _mesh_sequence_capture(cfg, storage, path, sequence, unit_mm, frame_rate)
+
+
+def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float,
+                           frame_rate: float) -> dict[str, Capture]:
+    from workbench.dataset import array_digest, split_frames
+
+    n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     if cfg.get("neutral"):
         neutral_path = data_path(cfg, cfg["neutral"], "neutral")
         neutral_mesh = read_obj(neutral_path)
-        if neutral_mesh.n_vertices != vertices.shape[1]:
+        if neutral_mesh.n_vertices != n_vertices:
             raise WorkbenchError(f"dataset.neutral {neutral_path}: {neutral_mesh.n_vertices} vertices, but the "
-                                 f"sequence has {vertices.shape[1]}")
+                                 f"sequence has {n_vertices}")
         neutral = neutral_mesh.vertices * unit_mm
         faces = faces if faces is not None else triangulate(neutral_mesh.polygon_sizes, neutral_mesh.polygon_vertices)
         neutral_text = f"neutral: {neutral_path.name}"
     else:
         frame = integer_setting(cfg.get("neutral_frame", 0), "dataset.neutral_frame", minimum=0)
-        if frame >= len(vertices):
-            raise WorkbenchError(f"dataset.neutral_frame {frame} is outside the sequence's {len(vertices)} frames")
-        neutral = vertices[frame].copy()
+        if frame >= n_frames:
+            raise WorkbenchError(f"dataset.neutral_frame {frame} is outside the sequence's {n_frames} frames")
+        neutral = sequence.frames(frame, frame + 1)[0] * unit_mm
         neutral_text = f"neutral: frame {frame} of the sequence"
 
     spec = dict(cfg.get("blendshapes") or {})
@@ -129,22 +215,29 @@ def build_mesh_sequence(cfg: Mapping) -> dict[str, Capture]:
     hand_names, hand = shape_subset(basis, cfg.get("hand_shapes"), "dataset.hand_shapes")
     faces = faces if faces is not None else basis.triangles
 
-    index = frame_selection(len(vertices), cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
-    displacements = (vertices[index] - neutral).reshape(len(index), -1)
-    train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+    index = frame_selection(n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
     step = int(cfg.get("frame_step", 1))
-    notes = (f"mesh sequence {path.name}: {len(index)} of {len(vertices)} frames (every {step}), "
-             f"{vertices.shape[1]} vertices, file units x {unit_mm:g} -> mm; {neutral_text}",
+
+    def chunk_of(rows: slice) -> np.ndarray:
+        # frame_selection takes every step-th frame from the start: a chunk of them is one strided slice
+        positions = sequence.frames(int(index[rows.start]), int(index[rows.stop - 1]) + 1, step)
+        return (positions * unit_mm - neutral).reshape(len(positions), -1)
+
+    key = (sequence.digest, array_digest(neutral), float(unit_mm), array_digest(index), code_fingerprint())
+    displacements = storage.build("mesh_sequence", key, len(index), 3 * n_vertices, chunk_of)
+    train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+    notes = (f"mesh sequence {path.name}: {len(index)} of {n_frames} frames (every {step}), "
+             f"{n_vertices} vertices, file units x {unit_mm:g} -> mm; {neutral_text}",
              f"hand basis: {len(hand_names)} shapes of {basis_path.name} (its neutral {rms:.3g} mm RMS from the "
              "sequence's)",
              f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
     return {"mesh": Capture(
         name=f"mesh sequence {path.name}", neutral=neutral.reshape(-1), train=train, eval=evaluate,
         hand=hand.reshape(len(hand_names), -1), hand_names=hand_names,
-        point_labels=tuple(f"v{i}" for i in range(vertices.shape[1])), units="mm",
+        point_labels=tuple(f"v{i}" for i in range(n_vertices)), units="mm",
         origin=origin_text("origin of the sequence file", neutral), frame_rate=frame_rate / step,
         provenance={"kind": "mesh_sequence", "data_root": str(cfg.get("data_root")),
                     "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
-                    "unit_mm": unit_mm, "n_frames_in_file": len(vertices), "frames_used": len(index),
+                    "unit_mm": unit_mm, "n_frames_in_file": n_frames, "frames_used": len(index),
                     "frame_step": step, "train_on": "mesh"},
         notes=notes, faces=np.asarray(faces, dtype=np.int64))}

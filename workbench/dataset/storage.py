@@ -1,10 +1,11 @@
 """Where and how a built capture's frames are kept: ``dataset.storage`` (memory or disk) and ``dataset.dtype``
 (float64 or float32).
 
-Builders of large captures write their frames chunk by chunk into a :class:`FrameSink`, so the whole float64
-array is never held: in memory the sink is an array of the chosen dtype, on disk a ``.npy`` file in
-``paths.cache_dir`` named by a content hash of what the frames are made from (the same generation parameters and
-dataset code find the file again). Other builders' frames are converted (or written out) when built.
+Builders of dense captures (the synthetic mesh, interpolated meshes, mesh sequences, the ICT face driven by weight
+curves) write their frames chunk by chunk into a :class:`FrameSink` (:meth:`FrameStorage.build`), so the whole
+float64 array is never held: in memory the sink is an array of the chosen dtype, on disk a ``.npy`` file in
+``paths.cache_dir`` named by a content hash of what the frames are made from (the same inputs and dataset code
+find the file again). Frames built whole (markers) are converted (or written out) when built.
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, frame_chunks
+from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames
 
 STORAGES = ("memory", "disk")
 FRAMES_FOLDER = "frames"
@@ -56,19 +57,43 @@ class FrameStorage:
         return FrameSink(writer=FrameWriter(self.path(name, key), n_frames, n_dims, self.dtype))
 
     def keep(self, name: str, key, frames):
-        """Frames built whole (shape (n_frames, n_dims)) kept as this storage says; float64 in memory unchanged."""
+        """Frames built whole (shape (n_frames, n_dims)) kept as this storage says; frames already kept so (an array
+        of its dtype in memory, or frames on disk, as builders write them) unchanged."""
         if isinstance(frames, FramesOnDisk) or (self.folder is None and frames.dtype == DTYPES[self.dtype]):
             return frames
         if self.folder is None:
             kept = frames.astype(DTYPES[self.dtype])
             kept.setflags(write=False)
             return kept
+        return self.build(name, key, *frames.shape, lambda rows: frames[rows])
+
+    def build(self, name: str, key, n_frames: int, n_dims: int, chunk_of: Callable[[slice], np.ndarray]):
+        """Frames made a chunk at a time, or the file made before from ``key`` (on disk).
+
+        Parameters
+        ----------
+        name : str
+        key
+            Everything the frames are made of (anything with a stable ``repr``).
+        n_frames, n_dims : int
+        chunk_of : callable
+            ``chunk_of(rows)`` gives frames ``rows`` (a slice of step 1), shape (rows.stop - rows.start, n_dims).
+
+        Returns
+        -------
+        ndarray of shape (n_frames, n_dims) of this storage's dtype, read-only, or FramesOnDisk
+        """
         found = self.existing(name, key)
-        if found is not None and found.shape == frames.shape:
+        if found is not None and found.shape == (n_frames, n_dims):
             return found
-        sink = self.sink(name, key, *frames.shape)
-        for rows, chunk in frame_chunks(frames):
-            sink.write(rows, chunk)
+        sink = self.sink(name, key, n_frames, n_dims)
+        try:
+            for start in range(0, n_frames, sink.chunk_size):
+                rows = slice(start, min(start + sink.chunk_size, n_frames))
+                sink.write(rows, chunk_of(rows))
+        except BaseException:
+            sink.abort()
+            raise
         return sink.finish()
 
 
@@ -90,6 +115,11 @@ class FrameSink:
             self.array[rows] = chunk
         else:
             self.writer.write(chunk)
+
+    def abort(self) -> None:
+        """Give up: drop the file being written (nothing to do in memory)."""
+        if self.writer is not None:
+            self.writer.abort()
 
     def finish(self):
         """The frames: a read-only array in memory, or :class:`FramesOnDisk`."""
