@@ -4,10 +4,12 @@ import numpy as np
 import pytest
 
 from muscles_reference import deform_reference
+from workbench.dataset.storage import FrameStorage
 from workbench.dataset.synthetic import (LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements,
                                          make_activations, make_face_mesh, make_synthetic_take)
 from workbench.dataset.synthetic.face_mesh import eye_opening_mask
 from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
 
@@ -171,6 +173,21 @@ def test_displacements_arguments_are_checked(mesh):
         deform_displacements(mesh.vertices, activations, frozen)
     with pytest.raises(WorkbenchError, match="activations"):
         deform_displacements(mesh.vertices, np.full((2, 18), -0.1), np.empty((2, 3 * mesh.n_vertices)))
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
+    from workbench.dataset import _mesh_frames, _take_key
+
+    cfg = {"n_frames": 61, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7, "head_rotation_deg": 3.0,
+           "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "mesh_rows": 30, "mesh_cols": 25}
+    key = _take_key(cfg, 3)
+    take = make_synthetic_take(**dict(key))
+    expected = (take.mesh_sequence() - take.mesh.vertices).reshape(61, -1).astype(dtype)
+    in_memory = _mesh_frames(key, 1.0, FrameStorage(dtype=dtype))
+    on_disk = _mesh_frames(key, 1.0, FrameStorage(dtype=dtype, folder=str(tmp_path)))
+    assert isinstance(on_disk, FramesOnDisk) and in_memory.dtype == np.dtype(dtype)
+    assert np.array_equal(in_memory, expected) and np.array_equal(on_disk.read(0, 61, np.dtype(dtype)), expected)
 
 
 @pytest.mark.parametrize("left", [name for name in MUSCLE_NAMES if name.endswith("_L")])
