@@ -204,6 +204,9 @@ DEFAULT_CHUNK_POINTS = 1 << 18
 _ZONE_MARGIN = 1.0
 """mm of extra slack when choosing which points a step looks at (guards the choice against rounding)."""
 
+_BLOCKS = 64
+"""Blocks of frames the parallel loop hands out (each allocates its work space once)."""
+
 _STEP_NAMES: tuple[str, ...] = (JAW.name,) + tuple(muscle.spec.name for muscle in LINEAR_MUSCLES) + (
     ORBICULARIS_ORIS.name,)
 """The steps in the order they act: the jaw, the linear muscles, the sphincter."""
@@ -285,14 +288,13 @@ def _run_kernel(points: np.ndarray, activations: np.ndarray, out: np.ndarray, *,
     jaw_angle = np.deg2rad(JAW.max_angle_deg) * saturate(activations[:, _JAW_COLUMN])
     attachments, axes = _muscle_frames(jaw_angle)
     reachable = _reachable_points(points)
-    step_reaches = np.zeros((points.shape[0], len(_STEP_NAMES)), dtype=np.bool_)
-    for step, name in enumerate(_STEP_NAMES):
-        step_reaches[reachable[name], step] = True
+    step_points = np.concatenate([np.asarray(reachable[name], dtype=np.int64) for name in _STEP_NAMES])
+    step_start = np.cumsum([0] + [len(reachable[name]) for name in _STEP_NAMES], dtype=np.int64)
     # Writeable C-contiguous inputs whatever the caller passes (read-only take arrays, slices): one compiled
     # version per dtype of ``out`` only.
     points, activations = (np.require(array, np.float64, ("C", "W")) for array in (points, activations))
     _deform_frames(points, activations, jaw_angle, attachments, axes, _LINEAR_CONSTANTS, _LINEAR_COLUMNS,
-                   step_reaches, out, subtract_rest)
+                   step_points, step_start, out, subtract_rest)
 
 
 def _muscle_frames(jaw_angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -503,33 +505,48 @@ def _contract_sphincter(x, y, z, activation):
 
 @njit(cache=True, parallel=True)
 def _deform_frames(points, activations, jaw_angle, attachments, axes, linear_constants, linear_columns,
-                   step_reaches, out, subtract_rest):
+                   step_points, step_start, out, subtract_rest):
     """Every point of every frame through the jaw, the linear muscles and the sphincter, into ``out``.
 
     points (n_points, 3); activations (n_frames, 18); jaw_angle (n_frames,); attachments, axes
-    (n_frames, n_linear, 3); step_reaches (n_points, n_linear + 2) of bool, False where a step cannot reach the
-    point; out (n_frames, n_points, 3), float32 or float64: the positions, or their displacements from
+    (n_frames, n_linear, 3); step_points, step_start: the points step ``s`` can reach are
+    ``step_points[step_start[s]:step_start[s + 1]]`` (step 0 the jaw, then the linear muscles, last the
+    sphincter); out (n_frames, n_points, 3), float32 or float64: the positions, or their displacements from
     ``points`` if ``subtract_rest``, rounded once to the dtype of ``out``.
+
+    Within a frame each step runs over its points before the next step starts: a point's steps still come in
+    order, and the points of one step, independent of each other, keep the processor busy while one of them
+    waits on sqrt, arccos or tanh (a point's own steps form one long chain of dependent operations).
     """
     n_frames, n_points, n_linear = activations.shape[0], points.shape[0], linear_constants.shape[0]
-    for frame in prange(n_frames):
-        jaw_angle_of_frame = jaw_angle[frame]
-        sphincter_activation = activations[frame, _SPHINCTER_COLUMN]
-        for point in range(n_points):
-            x, y, z = points[point, 0], points[point, 1], points[point, 2]
-            if step_reaches[point, 0]:
-                x, y, z = _turn_with_jaw(x, y, z, jaw_angle_of_frame)
+    n_blocks = min(n_frames, _BLOCKS)
+    for block in prange(n_blocks):
+        positions = np.empty((n_points, 3))  # float64 work space, once per block of frames
+        for frame in range(block * n_frames // n_blocks, (block + 1) * n_frames // n_blocks):
+            positions[:] = points
+            angle = jaw_angle[frame]
+            if angle > 0.0:
+                for k in range(step_start[0], step_start[1]):
+                    p = step_points[k]
+                    positions[p, 0], positions[p, 1], positions[p, 2] = _turn_with_jaw(
+                        positions[p, 0], positions[p, 1], positions[p, 2], angle)
             for muscle in range(n_linear):
-                if step_reaches[point, 1 + muscle]:
-                    x, y, z = _pull_linear_muscle(x, y, z, activations[frame, linear_columns[muscle]],
-                                                  attachments, axes, linear_constants, frame, muscle)
-            if step_reaches[point, n_linear + 1]:
-                x, y, z = _contract_sphincter(x, y, z, sphincter_activation)
-            if subtract_rest:
-                x, y, z = x - points[point, 0], y - points[point, 1], z - points[point, 2]
-            out[frame, point, 0] = x
-            out[frame, point, 1] = y
-            out[frame, point, 2] = z
+                activation = activations[frame, linear_columns[muscle]]
+                if activation > 0.0:
+                    for k in range(step_start[1 + muscle], step_start[2 + muscle]):
+                        p = step_points[k]
+                        positions[p, 0], positions[p, 1], positions[p, 2] = _pull_linear_muscle(
+                            positions[p, 0], positions[p, 1], positions[p, 2], activation, attachments, axes,
+                            linear_constants, frame, muscle)
+            activation = activations[frame, _SPHINCTER_COLUMN]
+            if activation > 0.0:
+                for k in range(step_start[n_linear + 1], step_start[n_linear + 2]):
+                    p = step_points[k]
+                    positions[p, 0], positions[p, 1], positions[p, 2] = _contract_sphincter(
+                        positions[p, 0], positions[p, 1], positions[p, 2], activation)
+            for p in range(n_points):
+                for c in range(3):
+                    out[frame, p, c] = positions[p, c] - points[p, c] if subtract_rest else positions[p, c]
 
 
 # --- validation ---------------------------------------------------------------------------------------------
