@@ -3,10 +3,13 @@
 import numpy as np
 import pytest
 
-from workbench.dataset.synthetic import (LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, make_activations,
-                                         make_face_mesh, make_synthetic_take)
+from muscles_reference import deform_reference
+from workbench.dataset.storage import FrameStorage
+from workbench.dataset.synthetic import (LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements,
+                                         make_activations, make_face_mesh, make_synthetic_take)
 from workbench.dataset.synthetic.face_mesh import eye_opening_mask
 from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
 
@@ -112,6 +115,79 @@ def test_skipping_unreachable_points_changes_nothing(mesh, monkeypatch):
     everything = {name: np.arange(mesh.n_vertices) for name in muscles._reachable_points(mesh.vertices)}
     monkeypatch.setattr(muscles, "_reachable_points", lambda points: everything)
     assert np.array_equal(deform(mesh.vertices, activations), pruned)
+
+
+REFERENCE_TOLERANCE_MM = 1e-12
+"""The compiled model against the NumPy steps: the same arithmetic, except that sin, cos, arccos and tanh may
+differ from NumPy's vectorised ones in the last bit (about 1e-14 mm at these sizes)."""
+
+
+def reference_cases():
+    rng = np.random.default_rng(21)
+    return {
+        "random": rng.uniform(0.0, 1.0, (40, 18)),
+        "sparse": rng.uniform(0.0, 1.0, (40, 18)) * (rng.uniform(size=(40, 18)) < 0.3),
+        "one_hot": np.eye(18),
+        "half_one_hot": 0.5 * np.eye(18),
+        "all_ones": np.ones((2, 18)),
+        "performance": make_activations(600, 120.0, np.random.default_rng(4))[::10],
+    }
+
+
+@pytest.mark.parametrize("case", list(reference_cases()))
+def test_compiled_model_equals_the_numpy_reference(mesh, case):
+    activations = reference_cases()[case]
+    compiled = deform(mesh.vertices, activations)
+    reference = deform_reference(mesh.vertices, activations)
+    moved = np.abs(reference - mesh.vertices).max()
+    assert moved > 1.0  # the case does move the face
+    np.testing.assert_allclose(compiled, reference, rtol=0, atol=REFERENCE_TOLERANCE_MM)
+
+
+def test_compiled_model_at_rest_equals_the_reference_exactly(mesh):
+    activations = np.zeros((3, 18))
+    assert np.array_equal(deform(mesh.vertices, activations), deform_reference(mesh.vertices, activations))
+    out = np.full((3, 3 * mesh.n_vertices), np.nan, dtype=np.float32)
+    assert np.array_equal(deform_displacements(mesh.vertices, activations, out), np.zeros_like(out))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_displacements_are_the_deformed_points_less_rest_rounded_once(mesh, dtype):
+    activations = np.random.default_rng(8).uniform(0.0, 1.0, (7, 18))
+    expected = (deform(mesh.vertices, activations) - mesh.vertices).reshape(7, -1).astype(dtype)
+    out = np.empty((7, 3 * mesh.n_vertices), dtype=dtype)
+    assert deform_displacements(mesh.vertices, activations, out) is out
+    assert np.array_equal(out, expected)
+
+
+def test_displacements_arguments_are_checked(mesh):
+    activations = np.zeros((2, 18))
+    for bad in (np.empty((2, 3 * mesh.n_vertices - 1)), np.empty((3, 3 * mesh.n_vertices)),
+                np.empty((2, 3 * mesh.n_vertices), dtype=np.float16), np.empty((3 * mesh.n_vertices, 2)).T,
+                [[0.0] * 3 * mesh.n_vertices] * 2):
+        with pytest.raises(WorkbenchError, match="out must be"):
+            deform_displacements(mesh.vertices, activations, bad)
+    frozen = np.empty((2, 3 * mesh.n_vertices))
+    frozen.setflags(write=False)
+    with pytest.raises(WorkbenchError, match="writeable"):
+        deform_displacements(mesh.vertices, activations, frozen)
+    with pytest.raises(WorkbenchError, match="activations"):
+        deform_displacements(mesh.vertices, np.full((2, 18), -0.1), np.empty((2, 3 * mesh.n_vertices)))
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
+    from workbench.dataset import _mesh_frames, _take_key
+
+    cfg = {"n_frames": 61, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7, "head_rotation_deg": 3.0,
+           "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "mesh_rows": 30, "mesh_cols": 25}
+    key = _take_key(cfg, 3)
+    take = make_synthetic_take(**dict(key))
+    expected = (take.mesh_sequence() - take.mesh.vertices).reshape(61, -1).astype(dtype)
+    in_memory = _mesh_frames(key, 1.0, FrameStorage(dtype=dtype))
+    on_disk = _mesh_frames(key, 1.0, FrameStorage(dtype=dtype, folder=str(tmp_path)))
+    assert isinstance(on_disk, FramesOnDisk) and in_memory.dtype == np.dtype(dtype)
+    assert np.array_equal(in_memory, expected) and np.array_equal(on_disk.read(0, 61, np.dtype(dtype)), expected)
 
 
 @pytest.mark.parametrize("left", [name for name in MUSCLE_NAMES if name.endswith("_L")])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -154,7 +154,7 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
     The muscles act on each point alone, so deforming only the kept vertices gives exactly their rows of the
     full mesh sequence, at a cost that falls with the mesh density.
     """
-    from workbench.dataset.synthetic import deform
+    from workbench.dataset.synthetic import deform_displacements
 
     file_key = (key, mesh_fraction, code_fingerprint())
     found = storage.existing("synthetic_mesh", file_key)
@@ -165,9 +165,13 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
     rest = take.mesh.vertices[kept]
     sink = storage.sink("synthetic_mesh", file_key, take.n_frames, 3 * len(rest))
     chunk = max(1, min(-(-take.n_frames // 20), sink.chunk_size))
-    for start in progress(range(0, take.n_frames, chunk), desc="mesh frames"):
-        rows = slice(start, min(start + chunk, take.n_frames))
-        sink.write(rows, (deform(rest, take.activations[rows]) - rest).reshape(rows.stop - rows.start, -1))
+    try:
+        for start in progress(range(0, take.n_frames, chunk), desc="mesh frames"):
+            rows = slice(start, min(start + chunk, take.n_frames))
+            sink.fill(rows, partial(deform_displacements, rest, take.activations[rows]))
+    except BaseException:  # an interrupted build leaves no partial file behind
+        sink.abort()
+        raise
     return sink.finish()
 
 

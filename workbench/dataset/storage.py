@@ -121,6 +121,17 @@ class FrameSink:
         if self.writer is not None:
             self.writer.abort()
 
+    def fill(self, rows: slice, compute) -> None:
+        """Frames ``rows`` (the next ones) computed straight into the sink's dtype: ``compute(out)`` fills ``out``,
+        a C-contiguous array of shape (rows.stop - rows.start, n_dims) and the sink's dtype (the sink's own rows
+        in memory, a buffer of one chunk written out after it for a file)."""
+        if self.array is not None:
+            compute(self.array[rows])
+        else:
+            out = np.empty((rows.stop - rows.start, self.shape[1]), dtype=self.writer.dtype)
+            compute(out)
+            self.writer.write(out)
+
     def finish(self):
         """The frames: a read-only array in memory, or :class:`FramesOnDisk`."""
         if self.array is not None:

@@ -7,10 +7,10 @@ in the lab with rigid head motion and noise (:mod:`.actor`).
 
 from workbench.dataset.synthetic.actor import HeadMotion, SyntheticTake, make_synthetic_take
 from workbench.dataset.synthetic.face_mesh import FaceMesh, make_face_mesh
-from workbench.dataset.synthetic.muscles import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform
+from workbench.dataset.synthetic.muscles import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements
 from workbench.dataset.synthetic.performance import make_activations
 
 __all__ = [
     "FaceMesh", "HeadMotion", "LOWER_FACE", "MUSCLE_NAMES", "SyntheticTake", "UPPER_FACE", "deform",
-    "make_activations", "make_face_mesh", "make_synthetic_take",
+    "deform_displacements", "make_activations", "make_face_mesh", "make_synthetic_take",
 ]

@@ -13,7 +13,9 @@ The sequence, the zones evaluated at the current positions, the soft saturation 
 rotation of the jaw make the face non-linear in its activations, so a performance does not lie in the span of
 the single-muscle shapes, as with a real face.
 
-Every step is per point: a point's new position depends only on its own rest position and the activations.
+Every step is per point: a point's new position depends only on its own rest position and the activations. The
+model runs compiled (numba), a point of a frame at a time, frames in parallel threads; what is the same for every
+point of a frame (the jaw angle, the muscles on the mandible turned with it) is computed beforehand, vectorised.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit, prange
 
 from workbench.dataset.synthetic.face_mesh import skin_point
 from workbench.errors import WorkbenchError
@@ -196,10 +199,17 @@ _JAW_COLUMN = MUSCLE_NAMES.index(JAW.name)
 _JAW_PIVOT = np.array([0.0, JAW.joint_yz[0], JAW.joint_yz[1]])
 
 DEFAULT_CHUNK_POINTS = 1 << 18
-"""Frames are processed in chunks of at most this many frame-points (a (chunk, P, 3) float64 array is 6 MB)."""
+"""Default of :func:`deform`'s ``chunk_points`` (kept for callers; the compiled model needs no chunking)."""
 
 _ZONE_MARGIN = 1.0
 """mm of extra slack when choosing which points a step looks at (guards the choice against rounding)."""
+
+_BLOCKS = 64
+"""Blocks of frames the parallel loop hands out (each allocates its work space once)."""
+
+_STEP_NAMES: tuple[str, ...] = (JAW.name,) + tuple(muscle.spec.name for muscle in LINEAR_MUSCLES) + (
+    ORBICULARIS_ORIS.name,)
+"""The steps in the order they act: the jaw, the linear muscles, the sphincter."""
 
 
 def deform(points: np.ndarray, activations: np.ndarray, *,
@@ -213,7 +223,8 @@ def deform(points: np.ndarray, activations: np.ndarray, *,
     activations : ndarray of shape (n_frames, 18)
         Activation of each muscle of :data:`MUSCLE_NAMES` in [0, 1].
     chunk_points : int, optional
-        Bound on frames x points evaluated at once (memory), at least 1.
+        A positive integer, checked and otherwise unused: the compiled model moves one point of one frame at a
+        time and needs no work space beyond the result, whatever the chunk.
 
     Returns
     -------
@@ -224,14 +235,41 @@ def deform(points: np.ndarray, activations: np.ndarray, *,
     activations = _checked_activations(activations)
     if isinstance(chunk_points, bool) or not isinstance(chunk_points, (int, np.integer)) or chunk_points < 1:
         raise WorkbenchError(f"chunk_points must be a positive integer, got {chunk_points!r}")
-    n_frames, n_points = activations.shape[0], points.shape[0]
-    positions = np.empty((n_frames, n_points, 3))
-    frames_per_chunk = max(1, int(chunk_points) // max(n_points, 1))
-    reachable = _reachable_points(points)
-    for start in range(0, n_frames, frames_per_chunk):
-        stop = min(start + frames_per_chunk, n_frames)
-        _deform_chunk(points, activations[start:stop], positions[start:stop], reachable)
+    positions = np.empty((activations.shape[0], points.shape[0], 3))
+    _run_kernel(points, activations, positions, subtract_rest=False)
     return positions
+
+
+def deform_displacements(points: np.ndarray, activations: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Displacements of skin points from rest under muscle activations, written into ``out``.
+
+    The same model as :func:`deform`: each displacement is ``deform(points, activations) - points`` computed in
+    float64 and rounded once to the dtype of ``out``, with no full-size float64 temporary.
+
+    Parameters
+    ----------
+    points : ndarray of shape (n_points, 3)
+        Rest positions in the head frame, mm.
+    activations : ndarray of shape (n_frames, 18)
+        Activation of each muscle of :data:`MUSCLE_NAMES` in [0, 1].
+    out : ndarray of shape (n_frames, 3 * n_points), float32 or float64
+        C-contiguous and writeable; row ``f`` receives ``[dx0, dy0, dz0, dx1, ...]`` of frame ``f``, mm.
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_points)
+        ``out``.
+    """
+    points = _checked_points(points)
+    activations = _checked_activations(activations)
+    shape = (activations.shape[0], 3 * points.shape[0])
+    if not isinstance(out, np.ndarray) or out.dtype not in (np.float32, np.float64):
+        raise WorkbenchError(f"out must be a float32 or float64 array, got {type(out).__name__} "
+                             f"{getattr(out, 'dtype', '')}".rstrip())
+    if out.shape != shape or not out.flags.c_contiguous or not out.flags.writeable:
+        raise WorkbenchError(f"out must be a writeable C-contiguous array of shape {shape}, got shape {out.shape}")
+    _run_kernel(points, activations, out.reshape(shape[0], points.shape[0], 3), subtract_rest=True)
+    return out
 
 
 def saturate(drive: np.ndarray) -> np.ndarray:
@@ -239,35 +277,51 @@ def saturate(drive: np.ndarray) -> np.ndarray:
     return np.tanh(SATURATION * drive) / np.tanh(SATURATION)
 
 
-# --- the steps ----------------------------------------------------------------------------------------------
+def _run_kernel(points: np.ndarray, activations: np.ndarray, out: np.ndarray, *, subtract_rest: bool) -> None:
+    """Fill ``out`` (n_frames, n_points, 3) with the deformed ``points``, less the rest points if
+    ``subtract_rest``.
 
-
-def _deform_chunk(points: np.ndarray, activations: np.ndarray, positions: np.ndarray,
-                  reachable: dict[str, np.ndarray]) -> None:
-    """Fill ``positions`` (n_frames, n_points, 3) with the deformed ``points`` for a chunk of frames.
-
-    Each step only looks at the points in ``reachable[step name]`` (see :func:`_reachable_points`).
+    What does not depend on the point (each frame's jaw angle, where the muscles on the mandible are turned with
+    it) is computed here, vectorised; the compiled kernel then moves every point of every frame through the
+    steps, skipping those a step cannot reach (:func:`_reachable_points`).
     """
-    positions[...] = points
     jaw_angle = np.deg2rad(JAW.max_angle_deg) * saturate(activations[:, _JAW_COLUMN])
-    if jaw_angle.max() > 0.0:
-        _apply_to(positions, reachable[JAW.name], _turn_with_jaw, jaw_angle)
-    for muscle in LINEAR_MUSCLES:
-        activation = activations[:, muscle.column]
-        if activation.max() > 0.0:
-            _apply_to(positions, reachable[muscle.spec.name], _pull_linear_muscle, muscle, activation, jaw_angle)
-    activation = activations[:, _SPHINCTER_COLUMN]
-    if activation.max() > 0.0:
-        _apply_to(positions, reachable[ORBICULARIS_ORIS.name], _contract_sphincter, activation)
+    attachments, axes = _muscle_frames(jaw_angle)
+    reachable = _reachable_points(points)
+    step_points = np.concatenate([np.asarray(reachable[name], dtype=np.int64) for name in _STEP_NAMES])
+    step_start = np.cumsum([0] + [len(reachable[name]) for name in _STEP_NAMES], dtype=np.int64)
+    # Writeable C-contiguous inputs whatever the caller passes (read-only take arrays, slices): one compiled
+    # version per dtype of ``out`` only.
+    points, activations = (np.require(array, np.float64, ("C", "W")) for array in (points, activations))
+    _deform_frames(points, activations, jaw_angle, attachments, axes, _LINEAR_CONSTANTS, _LINEAR_COLUMNS,
+                   step_points, step_start, out, subtract_rest)
 
 
-def _apply_to(positions: np.ndarray, columns: np.ndarray, step, *arguments) -> None:
-    """Run an in-place ``step`` on the points ``columns`` of ``positions`` (n_frames, n_points, 3)."""
-    if columns.size == 0:
-        return
-    moving = positions[:, columns]
-    step(moving, *arguments)
-    positions[:, columns] = moving
+def _muscle_frames(jaw_angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Attachment and unit axis (attachment to insertion, over the rest length) of every linear muscle per frame.
+
+    Parameters
+    ----------
+    jaw_angle : ndarray of shape (n_frames,)
+        Radians.
+
+    Returns
+    -------
+    attachments, axes : ndarray of shape (n_frames, n_linear_muscles, 3)
+        Muscles on the mandible turn with the jaw; the others are the same in every frame.
+    """
+    n_frames = jaw_angle.shape[0]
+    attachments = np.empty((n_frames, len(LINEAR_MUSCLES), 3))
+    axes = np.empty_like(attachments)
+    for index, muscle in enumerate(LINEAR_MUSCLES):
+        if muscle.spec.on_jaw:
+            attachment, insertion = _on_jaw(muscle.attachment, jaw_angle), _on_jaw(muscle.insertion, jaw_angle)
+        else:
+            attachment = np.broadcast_to(muscle.attachment, (n_frames, 3))
+            insertion = np.broadcast_to(muscle.insertion, (n_frames, 3))
+        attachments[:, index] = attachment
+        axes[:, index] = (insertion - attachment) / muscle.rest_length
+    return attachments, axes
 
 
 def _reachable_points(points: np.ndarray) -> dict[str, np.ndarray]:
@@ -315,18 +369,6 @@ def _reachable_points(points: np.ndarray) -> dict[str, np.ndarray]:
     return reachable
 
 
-# Each step below moves ``positions`` (n_frames, n_points, 3) in place and evaluates its weights only on the
-# frame-points inside its zone with a non-zero activation; every other point is left bit-for-bit unchanged.
-
-
-def _jaw_weight(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """1 on the chin and lower lip, 0 above the mouth line; the band widens toward the jaw angles."""
-    beyond_mouth = np.maximum(np.abs(x) - JAW.mouth_half_width, 0.0)
-    band = JAW.lip_band + JAW.band_widening * beyond_mouth
-    t = np.clip((JAW.mouth_line_y - y) / band, 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)
-
-
 def _rotation_about_x_displacement(offsets: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """``R(angle) r - r`` for rotations about +x (Rodrigues), exactly zero where the angle is zero.
 
@@ -338,87 +380,173 @@ def _rotation_about_x_displacement(offsets: np.ndarray, angle: np.ndarray) -> np
                     axis=-1)
 
 
-def _turn_with_jaw(positions: np.ndarray, jaw_angle: np.ndarray) -> None:
-    """Each point below the mouth line turns about the joint axis by ``weight * jaw_angle``.
-
-    A rotation, not a linear blend of positions, so the lower face swings on an arc.
-    """
-    inside = (positions[..., 1] < JAW.mouth_line_y) & (jaw_angle[:, None] > 0.0)
-    frame_index = np.nonzero(inside)[0]
-    moving = positions[inside]
-    angle = _jaw_weight(moving[:, 0], moving[:, 1]) * jaw_angle[frame_index]
-    positions[inside] = moving + _rotation_about_x_displacement(moving - _JAW_PIVOT, angle)
-
-
 def _on_jaw(point: np.ndarray, jaw_angle: np.ndarray) -> np.ndarray:
     """Where a mandible point is for each frame's jaw angle: shape (n_frames, 3)."""
     offset = np.broadcast_to(point - _JAW_PIVOT, (jaw_angle.shape[0], 3))
     return point + _rotation_about_x_displacement(offset, jaw_angle)
 
 
-def _pull_linear_muscle(positions: np.ndarray, muscle: _ResolvedLinearMuscle, activation: np.ndarray,
-                        jaw_angle: np.ndarray) -> None:
+# --- the compiled steps -------------------------------------------------------------------------------------
+# Each step takes a point's current position (x, y, z) and returns its new one, with the arithmetic of the
+# vectorised model this replaces, operation for operation (the tests keep that model as their reference):
+# outside its zone, or at zero activation, a step returns the point bit-for-bit unchanged. The steps are inlined
+# into the kernel: run once per point and step, a call would cost as much as the step.
+
+_HALF_PI = 0.5 * np.pi
+_TANH_SATURATION = float(np.tanh(SATURATION))
+
+# Columns of _LINEAR_CONSTANTS, one row per linear muscle in LINEAR_MUSCLES order.
+_REST_LENGTH, _ZONE_END, _COS_CONE_SQUARED, _CONE, _MAX_DISPLACEMENT, _BULGE = range(6)
+
+
+def _linear_constants(muscle: _ResolvedLinearMuscle) -> list[float]:
+    cone = float(np.deg2rad(muscle.spec.cone_half_angle_deg))
+    cos_cone = float(np.cos(cone))
+    return [muscle.rest_length, muscle.spec.falloff_ratio * muscle.rest_length, cos_cone * cos_cone, cone,
+            muscle.spec.max_displacement, muscle.spec.bulge]
+
+
+_LINEAR_CONSTANTS = np.array([_linear_constants(muscle) for muscle in LINEAR_MUSCLES])
+_LINEAR_COLUMNS = np.array([muscle.column for muscle in LINEAR_MUSCLES], dtype=np.int64)
+
+# The geometry as plain floats, which compiled code takes as constants.
+_MOUTH_LINE_Y, _MOUTH_HALF_WIDTH = JAW.mouth_line_y, JAW.mouth_half_width
+_LIP_BAND, _BAND_WIDENING = JAW.lip_band, JAW.band_widening
+_JAW_PIVOT_Y, _JAW_PIVOT_Z = float(_JAW_PIVOT[1]), float(_JAW_PIVOT[2])
+_SPHINCTER_X, _SPHINCTER_Y = float(_SPHINCTER_CENTRE[0]), float(_SPHINCTER_CENTRE[1])
+_SEMI_AXIS_X, _SEMI_AXIS_Y = ORBICULARIS_ORIS.semi_axes
+_FLAT_FRACTION = ORBICULARIS_ORIS.flat_fraction
+_CONTRACTION_X, _CONTRACTION_Y = ORBICULARIS_ORIS.contraction
+_PUCKER = ORBICULARIS_ORIS.pucker
+
+
+@njit(inline="always")
+def _saturate(drive):
+    """:func:`saturate` of one value."""
+    return np.tanh(SATURATION * drive) / _TANH_SATURATION
+
+
+@njit(inline="always")
+def _turn_with_jaw(x, y, z, jaw_angle):
+    """A point below the mouth line turns about the joint axis by its weight times the frame's jaw angle.
+
+    The weight is 1 on the chin and lower lip and rises from 0 at the mouth line over a band that widens toward
+    the jaw angles. A rotation, not a linear blend of positions, so the lower face swings on an arc.
+    """
+    if not (y < _MOUTH_LINE_Y and jaw_angle > 0.0):
+        return x, y, z
+    beyond_mouth = max(abs(x) - _MOUTH_HALF_WIDTH, 0.0)
+    band = _LIP_BAND + _BAND_WIDENING * beyond_mouth
+    t = min(max((_MOUTH_LINE_Y - y) / band, 0.0), 1.0)
+    angle = t * t * (3.0 - 2.0 * t) * jaw_angle
+    sin_a, one_minus_cos = np.sin(angle), 1.0 - np.cos(angle)
+    offset_y, offset_z = y - _JAW_PIVOT_Y, z - _JAW_PIVOT_Z
+    return x, y + (-sin_a * offset_z - one_minus_cos * offset_y), z + (sin_a * offset_y - one_minus_cos * offset_z)
+
+
+@njit(inline="always")
+def _pull_linear_muscle(x, y, z, activation, attachments, axes, constants, frame, muscle):
     """Waters linear muscle: pull toward the attachment with angular and radial fall-off.
 
-    positions : (n_frames, n_points, 3), moved in place; activation, jaw_angle : (n_frames,).
+    The muscle is placed in this frame by ``attachments[frame, muscle]`` and ``axes[frame, muscle]`` and shaped
+    by ``constants[muscle]`` (:data:`_LINEAR_CONSTANTS`); whole arrays and indices are passed, as views taken
+    per point would cost more than the step.
     """
-    spec = muscle.spec
-    n_frames = positions.shape[0]
-    if spec.on_jaw:
-        attachment, insertion = _on_jaw(muscle.attachment, jaw_angle), _on_jaw(muscle.insertion, jaw_angle)
+    if not activation > 0.0:
+        return x, y, z
+    offset_x = x - attachments[frame, muscle, 0]
+    offset_y = y - attachments[frame, muscle, 1]
+    offset_z = z - attachments[frame, muscle, 2]
+    squared_distance = offset_x * offset_x + offset_y * offset_y + offset_z * offset_z
+    axis_x, axis_y, axis_z = axes[frame, muscle, 0], axes[frame, muscle, 1], axes[frame, muscle, 2]
+    along_axis = offset_x * axis_x + offset_y * axis_y + offset_z * axis_z
+    rest_length, zone_end = constants[muscle, _REST_LENGTH], constants[muscle, _ZONE_END]
+    if not (along_axis > 0.0 and along_axis * along_axis > constants[muscle, _COS_CONE_SQUARED] * squared_distance
+            and squared_distance < zone_end * zone_end):
+        return x, y, z
+    distance = np.sqrt(squared_distance)
+    cos_angle = min(along_axis / distance, 1.0)
+    relative_angle = min(np.arccos(cos_angle) / constants[muscle, _CONE], 1.0)
+    angular = np.cos(_HALF_PI * relative_angle)
+    angular = angular * angular
+    if distance < rest_length:
+        radial = np.sin(_HALF_PI * min(distance / rest_length, 1.0))
     else:
-        attachment = np.broadcast_to(muscle.attachment, (n_frames, 3))
-        insertion = np.broadcast_to(muscle.insertion, (n_frames, 3))
-    rest_length = muscle.rest_length
-    zone_end = spec.falloff_ratio * rest_length
-    axis = (insertion - attachment) / rest_length
-
-    # Written out per coordinate (no BLAS), so every point gets the same arithmetic whatever the array size.
-    offset = [positions[..., k] - attachment[:, None, k] for k in range(3)]
-    squared_distance = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]
-    along_axis = offset[0] * axis[:, None, 0] + offset[1] * axis[:, None, 1] + offset[2] * axis[:, None, 2]
-    cos_cone = np.cos(np.deg2rad(spec.cone_half_angle_deg))
-    inside = ((along_axis > 0.0) & (along_axis * along_axis > cos_cone * cos_cone * squared_distance)
-              & (squared_distance < zone_end * zone_end) & (activation[:, None] > 0.0))
-    frame_index = np.nonzero(inside)[0]
-
-    distance = np.sqrt(squared_distance[inside])
-    cos_angle = np.minimum(along_axis[inside] / distance, 1.0)
-    relative_angle = np.minimum(np.arccos(cos_angle) / np.deg2rad(spec.cone_half_angle_deg), 1.0)
-    angular = np.cos(0.5 * np.pi * relative_angle) ** 2
-    rising = np.sin(0.5 * np.pi * np.minimum(distance / rest_length, 1.0)) ** 2
-    falling = np.cos(0.5 * np.pi * np.clip((distance - rest_length) / (zone_end - rest_length), 0.0, 1.0)) ** 2
-    radial = np.where(distance < rest_length, rising, falling)
-
-    response = saturate(activation[frame_index] * angular * radial)
+        radial = np.cos(_HALF_PI * min(max((distance - rest_length) / (zone_end - rest_length), 0.0), 1.0))
+    radial = radial * radial
+    response = _saturate(activation * angular * radial)
     # Never pull a point past half its distance to the attachment.
-    pull_over_distance = np.minimum(spec.max_displacement * response, 0.5 * distance) / distance
-    moving = positions[inside]
-    moving -= pull_over_distance[:, None] * (moving - attachment[frame_index])
-    if spec.bulge:
-        moving[:, 2] += spec.bulge * response
-    positions[inside] = moving
+    pull_over_distance = min(constants[muscle, _MAX_DISPLACEMENT] * response, 0.5 * distance) / distance
+    x = x - pull_over_distance * offset_x
+    y = y - pull_over_distance * offset_y
+    z = z - pull_over_distance * offset_z
+    if constants[muscle, _BULGE] != 0.0:
+        z = z + constants[muscle, _BULGE] * response
+    return x, y, z
 
 
-def _contract_sphincter(positions: np.ndarray, activation: np.ndarray) -> None:
-    """Orbicularis oris: the lips contract toward the mouth centre and push forward (pucker).
+@njit(inline="always")
+def _contract_sphincter(x, y, z, activation):
+    """Orbicularis oris: the lips contract toward the mouth centre and push forward (pucker)."""
+    if not activation > 0.0:
+        return x, y, z
+    dx, dy = x - _SPHINCTER_X, y - _SPHINCTER_Y
+    scaled_x, scaled_y = dx / _SEMI_AXIS_X, dy / _SEMI_AXIS_Y
+    squared_radius = scaled_x * scaled_x + scaled_y * scaled_y
+    if not squared_radius < 1.0:
+        return x, y, z
+    radius = np.sqrt(squared_radius)
+    fall = min(max((radius - _FLAT_FRACTION) / (1.0 - _FLAT_FRACTION), 0.0), 1.0)
+    weight = np.cos(_HALF_PI * fall)
+    response = _saturate(activation * (weight * weight))
+    return (x - _CONTRACTION_X * dx * response, y - _CONTRACTION_Y * dy * response,
+            z + _PUCKER * response * (1.0 - 0.6 * squared_radius))
 
-    positions : (n_frames, n_points, 3), moved in place; activation : (n_frames,).
+
+@njit(cache=True, parallel=True)
+def _deform_frames(points, activations, jaw_angle, attachments, axes, linear_constants, linear_columns,
+                   step_points, step_start, out, subtract_rest):
+    """Every point of every frame through the jaw, the linear muscles and the sphincter, into ``out``.
+
+    points (n_points, 3); activations (n_frames, 18); jaw_angle (n_frames,); attachments, axes
+    (n_frames, n_linear, 3); step_points, step_start: the points step ``s`` can reach are
+    ``step_points[step_start[s]:step_start[s + 1]]`` (step 0 the jaw, then the linear muscles, last the
+    sphincter); out (n_frames, n_points, 3), float32 or float64: the positions, or their displacements from
+    ``points`` if ``subtract_rest``, rounded once to the dtype of ``out``.
+
+    Within a frame each step runs over its points before the next step starts: a point's steps still come in
+    order, and the points of one step, independent of each other, keep the processor busy while one of them
+    waits on sqrt, arccos or tanh (a point's own steps form one long chain of dependent operations).
     """
-    sphincter = ORBICULARIS_ORIS
-    dx = positions[..., 0] - _SPHINCTER_CENTRE[0]
-    dy = positions[..., 1] - _SPHINCTER_CENTRE[1]
-    squared_radius = (dx / sphincter.semi_axes[0]) ** 2 + (dy / sphincter.semi_axes[1]) ** 2
-    inside = (squared_radius < 1.0) & (activation[:, None] > 0.0)
-    frame_index = np.nonzero(inside)[0]
-    radius = np.sqrt(squared_radius[inside])
-    fall = np.clip((radius - sphincter.flat_fraction) / (1.0 - sphincter.flat_fraction), 0.0, 1.0)
-    response = saturate(activation[frame_index] * np.cos(0.5 * np.pi * fall) ** 2)
-    moving = positions[inside]
-    moving[:, 0] -= sphincter.contraction[0] * dx[inside] * response
-    moving[:, 1] -= sphincter.contraction[1] * dy[inside] * response
-    moving[:, 2] += sphincter.pucker * response * (1.0 - 0.6 * squared_radius[inside])
-    positions[inside] = moving
+    n_frames, n_points, n_linear = activations.shape[0], points.shape[0], linear_constants.shape[0]
+    n_blocks = min(n_frames, _BLOCKS)
+    for block in prange(n_blocks):
+        positions = np.empty((n_points, 3))  # float64 work space, once per block of frames
+        for frame in range(block * n_frames // n_blocks, (block + 1) * n_frames // n_blocks):
+            positions[:] = points
+            angle = jaw_angle[frame]
+            if angle > 0.0:
+                for k in range(step_start[0], step_start[1]):
+                    p = step_points[k]
+                    positions[p, 0], positions[p, 1], positions[p, 2] = _turn_with_jaw(
+                        positions[p, 0], positions[p, 1], positions[p, 2], angle)
+            for muscle in range(n_linear):
+                activation = activations[frame, linear_columns[muscle]]
+                if activation > 0.0:
+                    for k in range(step_start[1 + muscle], step_start[2 + muscle]):
+                        p = step_points[k]
+                        positions[p, 0], positions[p, 1], positions[p, 2] = _pull_linear_muscle(
+                            positions[p, 0], positions[p, 1], positions[p, 2], activation, attachments, axes,
+                            linear_constants, frame, muscle)
+            activation = activations[frame, _SPHINCTER_COLUMN]
+            if activation > 0.0:
+                for k in range(step_start[n_linear + 1], step_start[n_linear + 2]):
+                    p = step_points[k]
+                    positions[p, 0], positions[p, 1], positions[p, 2] = _contract_sphincter(
+                        positions[p, 0], positions[p, 1], positions[p, 2], activation)
+            for p in range(n_points):
+                for c in range(3):
+                    out[frame, p, c] = positions[p, c] - points[p, c] if subtract_rest else positions[p, c]
 
 
 # --- validation ---------------------------------------------------------------------------------------------
