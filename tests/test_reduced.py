@@ -148,3 +148,22 @@ def test_disk_storage_needs_a_cache_dir():
         build_captures({"kind": "synthetic", "storage": "disk"}, cache_dir=None)
     with pytest.raises(WorkbenchError, match="dataset.dtype must be one of"):
         build_captures({"kind": "synthetic", "dtype": "float16"}, cache_dir=None)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_exact_pca_of_stored_frames_streams_the_covariance_and_equals_the_in_memory_one(tmp_path, dtype):
+    from workbench.bases import Eigenfaces, frames_covariance
+
+    rng = np.random.default_rng(4)
+    frames = rng.standard_normal((500, 6)) @ rng.standard_normal((6, 24)) + 5.0  # rank 6, far from the origin
+    writer = FrameWriter(tmp_path / "frames.npy", 500, 24, dtype)
+    writer.write(frames)
+    stored = writer.close()
+    exact = frames.astype(dtype).astype(np.float64)
+    mean = exact.mean(axis=0)
+    np.testing.assert_allclose(frames_covariance(stored, mean, chunk_size=7), np.cov(exact.T, bias=True),
+                               rtol=0, atol=1e-12)
+    from_disk, in_memory = Eigenfaces(svd_solver="exact").fit(stored), Eigenfaces(svd_solver="exact").fit(exact)
+    assert from_disk.method_ == in_memory.method_ == "covariance" and from_disk.n_components_ == 6
+    np.testing.assert_allclose(from_disk.explained_variance_, in_memory.explained_variance_, rtol=1e-12)
+    np.testing.assert_allclose(from_disk.components_, in_memory.components_, rtol=0, atol=1e-10)

@@ -143,21 +143,65 @@ def covariance_eigen(centred: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.
     """
     n_frames, n_dims = centred.shape
     if n_dims <= n_frames:
-        method = "covariance"
-        values, vectors = np.linalg.eigh(centred.T @ centred / n_frames)
-        values, vectors = values[::-1], vectors[:, ::-1].T
-    else:
-        method = "gram"
-        values, frame_vectors = np.linalg.eigh(centred @ centred.T / n_frames)
-        values, frame_vectors = values[::-1], frame_vectors[:, ::-1]
-    keep = values > tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, dtype=bool)
+        return (*eigen_of_covariance(centred.T @ centred / n_frames, tol=tol), "covariance")
+    values, frame_vectors = np.linalg.eigh(centred @ centred.T / n_frames)
+    values, frame_vectors = values[::-1], frame_vectors[:, ::-1]
+    keep = _nonzero(values, tol)
     values = values[keep]
-    if method == "gram":
-        # C e = lambda e with e = D~^T u / sqrt(L lambda), for each Gram eigenpair (lambda, u).
-        vectors = (centred.T @ frame_vectors[:, keep]).T / np.sqrt(n_frames * values)[:, None]
-    else:
-        vectors = vectors[keep]
-    return values, flip_signs(vectors), method
+    # C e = lambda e with e = D~^T u / sqrt(L lambda), for each Gram eigenpair (lambda, u).
+    vectors = (centred.T @ frame_vectors[:, keep]).T / np.sqrt(n_frames * values)[:, None]
+    return values, flip_signs(vectors), "gram"
+
+
+def eigen_of_covariance(covariance: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.ndarray, np.ndarray]:
+    """Non-zero eigenpairs of a covariance matrix, largest first, as :func:`covariance_eigen` returns them.
+
+    Parameters
+    ----------
+    covariance : ndarray of shape (n_dims, n_dims)
+        Symmetric positive semi-definite.
+    tol : Tolerances
+
+    Returns
+    -------
+    eigenvalues : ndarray of shape (rank,)
+    eigenvectors : ndarray of shape (rank, n_dims)
+        Unit eigenfaces as rows, with deterministic signs.
+    """
+    values, vectors = np.linalg.eigh(covariance)
+    values, vectors = values[::-1], vectors[:, ::-1].T
+    keep = _nonzero(values, tol)
+    return values[keep], flip_signs(vectors[keep])
+
+
+def _nonzero(values: np.ndarray, tol: Tolerances) -> np.ndarray:
+    """Which of the descending eigenvalues count as non-zero (above ``tol.eigen_rel`` times the largest)."""
+    return values > tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, dtype=bool)
+
+
+def frames_covariance(capture, mean: np.ndarray, chunk_size: int = 4096) -> np.ndarray:
+    """The covariance ``D~^T D~ / L`` of a capture about ``mean``, shape (n_dims, n_dims), in one pass.
+
+    Each chunk of frames is centred while it is in cache; the centred capture is never formed (on a
+    35,000 x 198 capture the whole centred copy cost a third more than the product itself).
+
+    Parameters
+    ----------
+    capture : ndarray of shape (n_frames, n_dims), or FramesOnDisk
+        Float64 or float32; read a chunk at a time as float64.
+    mean : ndarray of shape (n_dims,)
+    chunk_size : int
+        Frames per chunk.
+
+    Returns
+    -------
+    ndarray of shape (n_dims, n_dims)
+    """
+    covariance = np.zeros((capture.shape[1], capture.shape[1]))
+    for _, chunk in frame_chunks(capture, chunk_size):
+        centred = chunk - mean
+        covariance += centred.T @ centred
+    return covariance / capture.shape[0]
 
 
 def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: int, rng: np.random.Generator, *,
@@ -375,13 +419,14 @@ class Eigenfaces:
         mean, total = frames_statistics("capture", capture) if stored else (capture.mean(axis=0), None)
         randomized = self.svd_solver == "randomized" or (
             self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
-        if not randomized and stored:  # the exact route needs the whole capture: small dims or few frames
-            capture = np.asarray(capture, dtype=np.float64)
         if randomized:
             values, vectors, total = self._randomized(capture, mean, n_components, coverage, total)
             method = "randomized"
-        else:
-            values, vectors, method = covariance_eigen(capture - mean, tol=self.tol)
+        elif capture.shape[1] <= capture.shape[0]:  # the covariance is the smaller matrix: one pass over chunks
+            values, vectors = eigen_of_covariance(frames_covariance(capture, mean), tol=self.tol)
+            method, total = "covariance", values.sum()
+        else:  # few frames: the frame Gram matrix needs the whole centred capture
+            values, vectors, method = covariance_eigen(np.asarray(capture, dtype=np.float64) - mean, tol=self.tol)
             total = values.sum()
         return self._keep(mean, values, vectors, total, method, n_components, coverage)
 
