@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, replace
-from functools import lru_cache, partial
+from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -24,7 +24,6 @@ from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
 from workbench.frames import FramesOnDisk, frame_chunks
-from workbench.progress import progress
 from workbench.resources import require_memory
 
 SPLITS = ("same", "tail")
@@ -156,23 +155,12 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
     """
     from workbench.dataset.synthetic import deform_displacements
 
-    file_key = (key, mesh_fraction, code_fingerprint())
-    found = storage.existing("synthetic_mesh", file_key)
-    if found is not None:
-        return found
     take = _synthetic_take(key)
     kept = _mesh_decimation(take.mesh.grid_shape[0], take.mesh.grid_shape[1], mesh_fraction).kept
     rest = take.mesh.vertices[kept]
-    sink = storage.sink("synthetic_mesh", file_key, take.n_frames, 3 * len(rest))
-    chunk = max(1, min(-(-take.n_frames // 20), sink.chunk_size))
-    try:
-        for start in progress(range(0, take.n_frames, chunk), desc="mesh frames"):
-            rows = slice(start, min(start + chunk, take.n_frames))
-            sink.fill(rows, partial(deform_displacements, rest, take.activations[rows]))
-    except BaseException:  # an interrupted build leaves no partial file behind
-        sink.abort()
-        raise
-    return sink.finish()
+    return storage.generate("synthetic_mesh", (key, mesh_fraction, code_fingerprint()), take.n_frames, 3 * len(rest),
+                            lambda rows, out: deform_displacements(rest, take.activations[rows], out),
+                            desc="mesh frames")
 
 
 def _eval_seed(cfg: Mapping) -> int:

@@ -2,7 +2,7 @@
 (float64 or float32).
 
 Builders of dense captures (the synthetic mesh, interpolated meshes, mesh sequences, the ICT face driven by weight
-curves) write their frames chunk by chunk into a :class:`FrameSink` (:meth:`FrameStorage.build`), so the whole
+curves) write their frames chunk by chunk into a :class:`FrameSink` (:meth:`FrameStorage.generate`), so the whole
 float64 array is never held: in memory the sink is an array of the chosen dtype, on disk a ``.npy`` file in
 ``paths.cache_dir`` named by a content hash of what the frames are made from (the same inputs and dataset code
 find the file again). Frames built whole (markers) are converted (or written out) when built.
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Callable, Mapping
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames
+from workbench.progress import progress
 
 STORAGES = ("memory", "disk")
 FRAMES_FOLDER = "frames"
@@ -68,7 +70,14 @@ class FrameStorage:
         return self.build(name, key, *frames.shape, lambda rows: frames[rows])
 
     def build(self, name: str, key, n_frames: int, n_dims: int, chunk_of: Callable[[slice], np.ndarray]):
-        """Frames made a chunk at a time, or the file made before from ``key`` (on disk).
+        """Frames made a chunk at a time by ``chunk_of(rows)``, which gives frames ``rows`` (a slice of step 1),
+        shape (rows.stop - rows.start, n_dims); see :meth:`generate`."""
+        return self.generate(name, key, n_frames, n_dims, lambda rows, out: np.copyto(out, chunk_of(rows)))
+
+    def generate(self, name: str, key, n_frames: int, n_dims: int, fill: Callable[[slice, np.ndarray], object], *,
+                 desc: str = ""):
+        """Frames computed a chunk at a time straight into this storage's dtype, or the file made before from
+        ``key`` (on disk). A build that fails or is interrupted leaves no partial file behind.
 
         Parameters
         ----------
@@ -76,8 +85,11 @@ class FrameStorage:
         key
             Everything the frames are made of (anything with a stable ``repr``).
         n_frames, n_dims : int
-        chunk_of : callable
-            ``chunk_of(rows)`` gives frames ``rows`` (a slice of step 1), shape (rows.stop - rows.start, n_dims).
+        fill : callable
+            ``fill(rows, out)`` writes frames ``rows`` (a slice of step 1) into ``out``, a writeable C-contiguous
+            array of shape (rows.stop - rows.start, n_dims) and this storage's dtype.
+        desc : str
+            Label of a progress bar over the chunks (shown on a terminal only).
 
         Returns
         -------
@@ -87,10 +99,11 @@ class FrameStorage:
         if found is not None and found.shape == (n_frames, n_dims):
             return found
         sink = self.sink(name, key, n_frames, n_dims)
+        size = max(1, min(-(-n_frames // 20), sink.chunk_size))  # at least 20 chunks: a progress bar that moves
         try:
-            for start in range(0, n_frames, sink.chunk_size):
-                rows = slice(start, min(start + sink.chunk_size, n_frames))
-                sink.write(rows, chunk_of(rows))
+            for start in progress(range(0, n_frames, size), desc=desc):
+                rows = slice(start, min(start + size, n_frames))
+                sink.fill(rows, partial(fill, rows))
         except BaseException:
             sink.abort()
             raise
@@ -108,13 +121,6 @@ class FrameSink:
     def chunk_size(self) -> int:
         """Frames per chunk that keep a float64 chunk within :data:`workbench.frames.CHUNK_ENTRIES`."""
         return chunk_frames(self.shape[1])
-
-    def write(self, rows: slice, chunk: np.ndarray) -> None:
-        """Frames ``rows`` (the next ones), shape (rows.stop - rows.start, n_dims)."""
-        if self.array is not None:
-            self.array[rows] = chunk
-        else:
-            self.writer.write(chunk)
 
     def abort(self) -> None:
         """Give up: drop the file being written (nothing to do in memory)."""
