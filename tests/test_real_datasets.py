@@ -99,6 +99,40 @@ def test_animface_markers_and_mesh(animface, shared_data):
     assert residual["mean"] < 2.5 and residual["max"] < 5.0
 
 
+def test_animface_neutral_is_the_rest_face_of_its_take(animface, shared_data):
+    """The default neutral is the jaw take's frame nearest its median pose (head motion removed), and the notes say
+    how far it lies from that pose; the take's first frame holds the inner brows off rest."""
+    from workbench.dataset.animface import neutral_rest
+    from workbench.dataset.c3d_markers import read_c3d_markers
+    from workbench.dataset.rigid import stabilise
+
+    rest = animface["markers"].provenance["neutral_from_rest_mm"]
+    assert rest["take_frame_nearest_rest"] == 1544 and rest["rms"] < 0.8
+    assert any(note.startswith("the neutral, animface_jaw frame 1544, lies") and "it is the take's frame nearest"
+               in note for note in animface["mesh"].notes)
+    take = read_c3d_markers(shared_data / "animface/animface_jaw.c3d")
+    rigid = take.index_of(["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"],
+                          named_in="the test")
+    markers = stabilise(take.positions, rigid, take.positions[0, rigid]).markers
+    first = neutral_rest(markers, take.labels, 0)
+    assert first.nearest_frame == 1544 and first.rms_mm > 2 * rest["rms"]
+    brows = [list(take.labels).index(name) for name in ("Reyebrow_Inside", "Leyebrow_Inside")]
+    offset = (markers[0] - np.nanmedian(markers, axis=0))[brows, 2]  # forward (z) offset of each inner brow at frame 0
+    assert offset[0] < -2.5 and offset[1] > 1.5  # the right inner brow 3 mm back, the left 2 mm forward
+
+
+def test_neutral_rest_known_answer():
+    from workbench.dataset.animface import neutral_rest
+
+    markers = np.zeros((5, 2, 3))
+    markers[0, 1] = [3.0, 4.0, 0.0]  # frame 0: the second marker 5 mm off; every other frame at rest
+    markers[1:, 0, 0] = [0.1, -0.1, 0.0, 0.2]
+    found = neutral_rest(markers, ["a", "b"], 0)
+    assert found.largest_marker == "b" and found.largest_mm == pytest.approx(5.0)
+    assert found.rms_mm == pytest.approx(np.sqrt(25.0 / 2)) and found.nearest_frame == 3 and found.nearest_rms_mm == 0
+    assert "it is the take's frame nearest" in neutral_rest(markers, ["a", "b"], 3).describe("take")
+
+
 def test_animface_timeline_is_the_files_frames_and_times(animface, shared_data):
     """Every evaluated frame names its take and its frame in that file; its time is that frame over the file's 60 Hz
     (not the sub-sampled index over 60 Hz), so the take lasts as long as the file."""

@@ -61,6 +61,8 @@ class StabilisedTakes:
         Under gap policy ``masked``: the markers each frame saw (``positions`` is filled there for training).
     warnings : list of str
         Plausibility problems kept under ``dataset.plausibility: warn``.
+    neutral_rest : NeutralRest or None
+        How far the neutral frame is from the rest pose of its take.
     """
 
     positions: np.ndarray
@@ -70,6 +72,67 @@ class StabilisedTakes:
     timeline: Timeline
     visible: np.ndarray | None = None
     warnings: list = ()
+    neutral_rest: "NeutralRest | None" = None
+
+
+@dataclass(frozen=True)
+class NeutralRest:
+    """The neutral frame against the rest pose of its take (the median of every frame, head motion removed).
+
+    Every displacement is measured from the neutral frame, so a neutral away from rest puts its offset into
+    every frame, and into the capture mean that the affine quasi-eigen faces carry (eq. 4).
+
+    Attributes
+    ----------
+    frame : int
+        The neutral frame (of its file).
+    rms_mm, largest_mm : float
+        RMS and largest distance of its markers from the median pose.
+    largest_marker : str
+    nearest_frame : int
+        The take's frame nearest the median pose (RMS over the markers), and ``nearest_rms_mm`` its distance.
+    nearest_rms_mm : float
+    """
+
+    frame: int
+    rms_mm: float
+    largest_mm: float
+    largest_marker: str
+    nearest_frame: int
+    nearest_rms_mm: float
+
+    def describe(self, take: str) -> str:
+        nearest = ("the take's frame nearest that pose" if self.nearest_frame == self.frame else
+                   f"the take's frame nearest that pose is {self.nearest_frame} ({self.nearest_rms_mm:.2f} mm)")
+        return (f"the neutral, {take} frame {self.frame}, lies {self.rms_mm:.2f} mm RMS (largest {self.largest_mm:.1f} "
+                f"mm, {self.largest_marker}) from the median pose of its take, head motion removed: "
+                + ("it is " if self.nearest_frame == self.frame else "") + nearest)
+
+
+def neutral_rest(markers: np.ndarray, labels: Sequence[str], frame: int) -> NeutralRest:
+    """How far a take's neutral frame is from the take's rest pose, the median of its frames.
+
+    Parameters
+    ----------
+    markers : ndarray of shape (n_frames, n_markers, 3)
+        Every frame of the take, head motion removed (NaN where a marker is missing).
+    labels : sequence of str
+        One per marker.
+    frame : int
+        The neutral frame.
+
+    Returns
+    -------
+    NeutralRest
+    """
+    rest = np.nanmedian(markers, axis=0)
+    distance = np.linalg.norm(markers - rest, axis=2)
+    rms = np.sqrt(np.nanmean(distance ** 2, axis=1))
+    nearest = int(np.nanargmin(rms))
+    largest = int(np.nanargmax(distance[frame]))
+    return NeutralRest(frame=frame, rms_mm=float(rms[frame]), largest_mm=float(distance[frame, largest]),
+                       largest_marker=str(labels[largest]), nearest_frame=nearest,
+                       nearest_rms_mm=float(rms[nearest]))
 
 
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
@@ -94,6 +157,9 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     check_rigid_set(rigid_labels, reference, f"{first.path} frame {neutral_frame}")
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
+    whole_take = stabilise(first.positions, first.index_of(rigid_labels, named_in="dataset.rigid_markers"), reference)
+    rest = neutral_rest(whole_take.markers[:, first.index_of(table.labels, named_in=str(table.path))], table.labels,
+                        neutral_frame)
 
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
@@ -130,7 +196,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
                            timeline=Timeline.concatenate(timelines),
                            visible=np.concatenate(visible) if policy == "masked" else None,
-                           warnings=settle(problems, plausibility_policy(cfg)))
+                           warnings=settle(problems, plausibility_policy(cfg)), neutral_rest=rest)
 
 
 def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
@@ -253,13 +319,17 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
         "second), concatenated in time: " + "; ".join(stable.notes),
         f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
         f"{neutral_name} (the neutral); residual = their RMS distance from it",
+        stable.neutral_rest.describe(takes[int(cfg.get('neutral_take', 0))].path.stem),
         placement.describe(),
     ]
     provenance = {
         "kind": "animface", "data_root": str(cfg["data_root"]), "takes": take_files, "per_take": stable.record,
         "frame_rate_in_file": takes[0].frame_rate, "frame_step": frame_step,
         "credits": [ANIMFACE_CREDIT, ICT_CREDIT], "performer_and_basis": "different faces",
-        "neutral": neutral_name, "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
+        "neutral": neutral_name,
+        "neutral_from_rest_mm": {"rms": stable.neutral_rest.rms_mm, "largest": stable.neutral_rest.largest_mm,
+                                 "take_frame_nearest_rest": stable.neutral_rest.nearest_frame},
+        "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
         "marker_table": str(table.path), "rbf": rbf,
         "placement": {"scale": scale, "rotation": similarity.rotation.tolist(),
                       "translation_mm": similarity.translation.tolist(),
