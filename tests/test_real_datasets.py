@@ -241,3 +241,25 @@ def test_cli_names_an_unknown_marker_label_in_one_line(shared_data, tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("workbench: error: ")
     assert "animface_jaw.c3d: unknown marker label(s) ['Ear_L'] named in dataset.rigid_markers" in lines[0]
+
+
+def test_data_file_checksums_name_every_file_and_folder_a_config_reads(tmp_path):
+    import hashlib
+
+    from workbench.dataset.real import data_file_checksums
+
+    (tmp_path / "takes").mkdir()
+    (tmp_path / "takes" / "a.c3d").write_bytes(b"first")
+    (tmp_path / "faces").mkdir()
+    for name, data in (("b.obj", b"bee"), ("a.obj", b"ay")):
+        (tmp_path / "faces" / name).write_bytes(data)
+    cfg = {"kind": "takes", "data_root": str(tmp_path), "takes": ["takes/a.c3d"],
+           "blendshapes": {"folder": "faces", "neutral": "a.obj"}, "marker_table": "correspondence/animface_ict.csv"}
+    found = data_file_checksums(cfg)
+    assert list(found) == ["takes/a.c3d", "faces", "conf/correspondence/animface_ict.csv"]  # 'kind' names no file
+    assert found["takes/a.c3d"] == {"sha256": hashlib.sha256(b"first").hexdigest(), "bytes": 5}
+    # a folder: the SHA-256 of `sha256sum *` in it, file names sorted
+    lines = "".join(f"{hashlib.sha256(data).hexdigest()}  {name}\n" for name, data in (("a.obj", b"ay"),
+                                                                                      ("b.obj", b"bee")))
+    assert found["faces"] == {"sha256": hashlib.sha256(lines.encode()).hexdigest(), "bytes": 5, "files": 2}
+    assert data_file_checksums({"kind": "synthetic", "seed": 0}) == {}

@@ -18,7 +18,7 @@ from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS, build_ict_livelink
 from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import bool_setting, number_setting, seed_setting
+from workbench.dataset.real import bool_setting, data_file_checksums, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.transfer import apply_point_operator
@@ -467,7 +467,9 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
 
     def build(cfg):
         captures = BUILDERS[kind](cfg, storage)
-        return {name: stored_frames(capture, storage, (dataset_key(cfg), name))
+        files = data_file_checksums(cfg)  # what the run read, for its provenance
+        return {name: stored_frames(replace(capture, provenance={**capture.provenance, "data_files": files})
+                                    if files else capture, storage, (dataset_key(cfg), name))
                 for name, capture in captures.items()}
 
     # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh

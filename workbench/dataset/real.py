@@ -95,6 +95,65 @@ def conf_path(relative: str, key: str) -> Path:
     return path if path.is_absolute() else CONF_DIR / path
 
 
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes, read a megabyte at a time."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def data_file_checksums(cfg: Mapping) -> dict:
+    """The checksum of every data file or folder a dataset config names, for the run's provenance.
+
+    A setting names a file or folder when its text is a path under the data root or the workbench's ``conf/``
+    folder (``kind`` is a name, not a path). A folder's checksum is the SHA-256 of the lines ``<sha256>  <name>``
+    of its files sorted by name, which is what ``LC_ALL=C sha256sum * | sha256sum`` prints in it.
+
+    Parameters
+    ----------
+    cfg : mapping
+        The ``dataset`` config group.
+
+    Returns
+    -------
+    dict
+        Path relative to its root (``conf/...`` for the workbench's own) -> ``sha256`` and ``bytes`` (a folder: of
+        all its files) and, for a folder, ``files``; empty for generated datasets.
+    """
+    import hashlib
+
+    from workbench.config import CONF_DIR
+
+    roots = [(Path(cfg["data_root"]), "") if cfg.get("data_root") else None, (CONF_DIR, "conf/")]
+    found = {}
+
+    def visit(value, key=""):
+        if isinstance(value, Mapping):
+            for name, item in value.items():
+                if name not in ("kind", "data_root"):
+                    visit(item, name)
+        elif isinstance(value, (list, tuple)):
+            for item in value:
+                visit(item, key)
+        elif isinstance(value, str) and value and not Path(value).is_absolute():
+            for root, prefix in filter(None, roots):
+                path = root / value
+                if path.is_file():
+                    found[prefix + value] = {"sha256": file_sha256(path), "bytes": path.stat().st_size}
+                elif path.is_dir() and path.resolve() != root.resolve():
+                    files = sorted((item for item in path.iterdir() if item.is_file()), key=lambda item: item.name)
+                    lines = "".join(f"{file_sha256(item)}  {item.name}\n" for item in files)
+                    found[prefix + value] = {"sha256": hashlib.sha256(lines.encode()).hexdigest(),
+                                             "bytes": sum(item.stat().st_size for item in files), "files": len(files)}
+
+    visit(cfg)
+    return found
+
+
 def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
     """The blendshape basis a dataset config names (``dataset.blendshapes``), in millimetres.
 
