@@ -96,4 +96,4 @@ def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     assert "matched_abs_cosine" in section and "alpha_abs_mean_ci_low" in section
     for suffix in ("png", "svg"):
         assert (report / "figures" / f"alpha_vs_intuitiveness.{suffix}").stat().st_size > 10_000
-    assert "figures/alpha_vs_intuitiveness.png" in (report / "index.html").read_text()
+    assert 'src="figures/alpha_vs_intuitiveness.svg"' in (report / "index.html").read_text()  # shown as vector

@@ -13,12 +13,14 @@ from matplotlib.collections import PolyCollection
 from PIL import Image
 
 from workbench.errors import WorkbenchError
-from workbench.reporting.figures import png_bytes, save_figure
+from workbench.reporting.figures import fixed_decimals, raster_bytes, save_figure, shorter_numbers
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
-from workbench.reporting.figures.faces import expressive_frames, nice_exaggeration, point_norms, spread_by_rank
-from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
-from workbench.reporting.figures.studies import (ci_columns, plot_alpha_against, plot_alpha_over_time, plot_coverage_curve,
-                                       plot_marker_vs_mesh)
+from workbench.reporting.figures.faces import (colour_range, face_regions, nice_exaggeration, point_norms,
+                                               region_frames, shape_region, spread_by_rank)
+from workbench.reporting.figures.render import (PLAIN_COLOUR, MeshView, crop_background, render_meshes, support_weight,
+                                                vertex_colours)
+from workbench.reporting.figures.studies import (ci_columns, place_labels, plot_alpha_against, plot_alpha_over_time,
+                                                 plot_coverage_curve, plot_marker_vs_mesh, plot_weight_curves)
 
 
 def grid_mesh(n: int = 12) -> tuple[np.ndarray, np.ndarray]:
@@ -47,29 +49,75 @@ def test_analogy_figure_is_labelled_and_saved(tmp_path):
     texts = [t.get_text() for ax in figure.axes for t in ax.texts]
     assert {"$e_1^{PCA}$", "$e_2^{PCA}$", "$e_1^H$", "$e_1^{QE}$"} <= set(texts)
     assert "computed by the workbench core" in figure._suptitle.get_text()
-    png, svg = save_figure(figure, tmp_path, "fig1")
-    assert Image.open(png).size[0] > 600 and png.stat().st_size > 20_000
-    assert svg.read_text().lstrip().startswith("<?xml") and "<svg" in svg.read_text()
+    svg, png = save_figure(figure, tmp_path, "fig1", ["png"])  # a line drawing: SVG first, a PNG copy on request
+    assert svg.name == "fig1.svg" and svg.read_text().lstrip().startswith("<?xml") and "<svg" in svg.read_text()
+    assert Image.open(png).size[0] > 1000 and Image.open(png).info["dpi"][0] == pytest.approx(200, abs=1)
+    assert [path.name for path in save_figure(figure, tmp_path / "only", "fig1")] == ["fig1.svg"]
 
 
 def test_svg_and_png_are_byte_identical_when_rebuilt(tmp_path):
     example = make_analogy_example(np.random.default_rng(1))
-    first = save_figure(figure_analogy(example), tmp_path / "a", "fig")
-    second = save_figure(figure_analogy(example), tmp_path / "b", "fig")
+    first = save_figure(figure_analogy(example), tmp_path / "a", "fig", ["png"])
+    second = save_figure(figure_analogy(example), tmp_path / "b", "fig", ["png"])
     for one, two in zip(first, second):
         assert one.read_bytes() == two.read_bytes(), one.name
 
 
-def test_png_is_full_colour_at_print_resolution():
+def test_renders_are_lossless_webp_at_print_resolution(tmp_path):
     from workbench.reporting.figures import new_figure
 
     figure = new_figure(4, 3)
     figure.add_subplot().imshow(np.random.default_rng(0).random((50, 50, 3)))
-    image = Image.open(io.BytesIO(png_bytes(figure)))
-    assert image.mode in ("RGB", "RGBA") and image.size == (800, 600)  # 200 dpi, no palette
+    written = save_figure(figure, tmp_path, "faces", ["png", "svg", "pdf"])
+    assert [path.name for path in written] == ["faces.webp", "faces.png"]  # no vector copy of a raster
+    webp, png = (np.asarray(Image.open(path).convert("RGB")) for path in written)
+    assert webp.shape == (360, 480, 3)  # 120 dpi, full colour
+    np.testing.assert_array_equal(webp, png)  # lossless: the same pixels as the PNG copy
+    image = Image.open(io.BytesIO(raster_bytes(figure, "png")))
+    assert image.mode in ("RGB", "RGBA") and image.size == (800, 600)  # a PNG copy at 200 dpi, no palette
 
 
-def test_openings_are_closed_by_dark_caps_and_missing_values_are_grey():
+def test_svg_numbers_are_cut_in_attributes_only():
+    svg = b'<path d="M 179.718736 172.6 L 0.123456 1e-05" style="stroke-width: 0.8123"/><text x="12.3456">0.9958</text>'
+    assert shorter_numbers(svg) == (b'<path d="M 179.71 172.6 L 0.12 1e-05" style="stroke-width: 0.81"/>'
+                                    b'<text x="12.34">0.9958</text>')
+
+
+def test_one_number_format_per_figure():
+    assert fixed_decimals([0.17, 0.0955]) == 3 and fixed_decimals([0.17, 0.0955], significant=3) == 4
+    assert fixed_decimals([12.5, 3.2]) == 1 and fixed_decimals([250.0]) == 0 and fixed_decimals([0.0, np.nan]) == 0
+    assert fixed_decimals([1e-9]) == 4  # at most four
+
+
+def test_colour_ranges_show_where_they_clip():
+    values = [np.r_[np.linspace(0, 1, 999), 4.0], np.array([np.nan, 0.5])]
+    clipped = colour_range(values, percentile=99.0)
+    assert clipped.extend == "max" and clipped.largest == 4.0 and clipped.high == pytest.approx(0.99, abs=0.01)
+    whole = colour_range(values)
+    assert (whole.low, whole.high, whole.extend) == (0.0, 4.0, "neither")  # NaN (no data) left out
+    signed = colour_range([np.array([-3.46, 0.2, 0.8])], symmetric=True)
+    assert (signed.low, signed.high, signed.extend) == (-3.46, 3.46, "neither")  # the largest value is on the bar
+    assert colour_range([np.array([-3.0, 0.1, 0.1, 0.1])], symmetric=True, percentile=50).extend == "both"
+    assert colour_range([np.zeros(3)]).high == 1.0 and colour_range([np.array([np.nan])]).largest == 0.0
+
+
+def test_colour_fades_into_the_plain_shade_where_the_capture_has_no_data():
+    points = np.c_[np.linspace(0, 100, 101), np.zeros(101), np.zeros(101)]
+    support = points[:, 0] < 60
+    weight = support_weight(points, support, band=0.1)  # a 10 mm band on a 100 mm face
+    assert np.all(weight[~support] == 0) and np.all(weight[:50] == 1)
+    np.testing.assert_allclose(weight[55], 0.5)  # 5 mm from the nearest point without data
+    assert np.all(np.diff(weight) <= 0)  # no jump: it only fades
+    assert support_weight(points, None) is None and support_weight(points, np.ones(101, bool)) is None
+    view = MeshView(cmap="YlOrRd", clim=(0.0, 1.0))
+    plain = np.array([int(PLAIN_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
+    colours = vertex_colours(np.r_[np.ones(100), np.nan], view, weight).astype(int)
+    np.testing.assert_array_equal(colours[60:], np.tile(plain, (41, 1)))  # no data, and NaN: plain
+    assert np.abs(colours[0] - plain).max() > 100  # full colour far inside
+    np.testing.assert_array_equal(vertex_colours(None, MeshView(), n_points=2), np.tile(plain, (2, 1)))
+
+
+def test_openings_are_closed_by_dark_caps_and_missing_values_are_plain():
     from workbench.reporting.figures.render import CAP_COLOUR, hole_loops
 
     vertices, faces = grid_mesh(13)
@@ -84,8 +132,8 @@ def test_openings_are_closed_by_dark_caps_and_missing_values_are_grey():
     cap = np.array([int(CAP_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
     assert np.all(middle.max(axis=1) < 120), "the opening shows the background"
     assert np.abs(middle.mean(axis=0) - cap).max() < 60
-    right = image[100, 150:175].astype(int)  # x > 30: no value, grey (equal channels), not the map's green
-    assert np.all(np.ptp(right, axis=1) < 12) and np.all(right.mean(axis=1) > 90)
+    right = image[100, 150:175].astype(int)  # x > 30: no value, plain grey (equal channels), not the map's green
+    assert np.all(np.ptp(right, axis=1) <= 6) and np.all(right.mean(axis=1) > 90)
 
 
 def test_render_meshes_gives_one_shaded_coloured_image_per_mesh():
@@ -126,11 +174,33 @@ def test_render_rejects_non_triangles():
 def test_selection_helpers():
     assert spread_by_rank([0.5, 0.1, 0.9, 0.3, 0.7], 3) == [1, 0, 2]
     assert spread_by_rank([0.2, 0.1], 4) == [1, 0]
-    captured = np.zeros((9, 6))
-    captured[[1, 5, 6], 0] = [3.0, 2.0, 4.0]
-    assert expressive_frames(captured, 3) == [1, 5, 6]
     assert nice_exaggeration(0.9, 10.0) == 10 and nice_exaggeration(1.6, 10.0) == 5 and nice_exaggeration(0, 1) == 1
     np.testing.assert_allclose(point_norms(np.array([[3.0, 4.0, 0.0, 0.0, 0.0, 2.0]])), [[5.0, 2.0]])
+
+
+def test_figure_3_frames_cover_the_regions_of_the_face():
+    assert [shape_region(name) for name in ("browInnerUp_L", "corrugator_R", "eyeBlink_L", "jawOpen", "jaw_open",
+                                            "mouthSmile_L", "zygomatic_major_R", "mentalis")] == [
+        "brows", "brows", "eyes", "jaw", "jaw", "mouth", "mouth", "mouth"]
+    # four points: one each for a brow shape, a mouth shape and the jaw; the last point no shape moves
+    hand = np.zeros((3, 12))
+    hand[0, 0:3], hand[1, 3:6], hand[2, 6:9] = [0, 5, 0], [0, 3, 0], [0, -20, 0]
+    hand[2, 3:6] = [0, -4, 0]  # the jaw drags the mouth point a little: it stays the mouth's (relative reach)
+    regions = face_regions(hand, ["browInnerUp_L", "mouthSmile_L", "jawOpen"])
+    assert {name: list(np.flatnonzero(points)) for name, points in regions.items()} == {
+        "brows": [0], "mouth": [1], "jaw": [2]}
+    assert list(face_regions(hand, ["browInnerUp_L", "mouthSmile_L", "jawOpen"], np.array([0, 1, 1, 1], bool))[
+        "brows"]) == [False] * 4
+    captured = np.zeros((6, 12))
+    captured[1, 1], captured[2, 4], captured[3, 7], captured[4, 7], captured[4, 4] = 2.0, 3.0, 9.0, 8.0, 3.5
+    assert region_frames(captured, regions) == [("brows", 1), ("mouth", 4), ("jaw", 3)]
+    # frames closer than a second in one take are one moment: the jaw's two strong frames are both within a second
+    # of the mouth's, and every other frame of the take within a second of a chosen one, so the jaw gets none
+    seconds, takes = np.arange(6) * 0.5, np.array(["a"] * 6)
+    assert region_frames(captured, regions, seconds, takes) == [("brows", 1), ("mouth", 4)]
+    # in another take the same times are far apart
+    assert region_frames(captured, regions, seconds, np.array(list("aaabaa"))) == [("brows", 1), ("mouth", 4),
+                                                                                   ("jaw", 3)]
 
 
 def sweep_table(ci_style: str = "prefixed") -> pd.DataFrame:
@@ -235,3 +305,93 @@ def test_alpha_against_in_a_grid_keeps_settings_apart_and_wraps_panels():
     many = pd.concat([sweep_table().assign(data=f"variant{k}") for k in range(4)], ignore_index=True)
     figure = plot_alpha_against(many, "dataset.marker_noise_mm", title="four variants")
     assert sum(ax.get_visible() for ax in figure.axes) == 4 and len(figure.axes) == 6  # 2 rows of 3 panels
+
+
+def test_coverage_curve_names_the_paper_m_and_the_basis_size_on_one_line_when_they_coincide():
+    ratios = {"mesh": np.r_[0.9, np.full(40, 0.1 / 40)]}
+    figure = plot_coverage_curve(ratios, {"mesh": 10}, threshold=0.995, title="c", paper_m=18, basis_size=18)
+    near = figure.axes[0]
+    labels = [t.get_text() for t in near.get_legend().get_texts()]
+    assert "paper: m = 18; hand shapes n = 18" in labels and not any(label.startswith("hand shapes") for label in labels)
+    figure = plot_coverage_curve(ratios, {"mesh": 10}, threshold=0.995, title="c", paper_m=18, basis_size=12)
+    labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
+    assert "paper: m = 18" in labels and "hand shapes n = 12" in labels
+
+
+def test_point_labels_do_not_overlap():
+    from workbench.reporting.figures import new_figure
+
+    figure = new_figure(4, 3)
+    ax = figure.add_subplot()
+    points = [(0.274, 0.096, "ICA", "C0"), (0.275, 0.097, "H-fit", "C1"), (0.05, 0.3, "H", "C2")]
+    ax.plot([p[0] for p in points], [p[1] for p in points], "o")
+    figure.draw_without_rendering()
+    place_labels(ax, points)
+    figure.draw_without_rendering()
+    boxes = [text.get_window_extent() for text in ax.texts]
+    assert len(boxes) == 3
+    for i in range(3):
+        for j in range(i + 1, 3):
+            assert not boxes[i].overlaps(boxes[j]), (ax.texts[i].get_text(), ax.texts[j].get_text())
+
+
+def test_weight_curves_mark_the_frames_and_tell_left_from_right():
+    seconds = np.linspace(0, 6, 61)
+    weights = {"H": np.random.default_rng(0).random((61, 3)), "QE": np.random.default_rng(1).random((61, 3))}
+    windows = [{"label": f"most displaced {region}: take frame {k}", "take": "take", "seconds": seconds + k,
+                "marked": 3.0 + k, "weights": weights} for k, region in enumerate(("brows", "jaw"))]
+    figure = plot_weight_curves(windows, ["browInnerUp_L", "browInnerUp_R", "jawOpen"], [0, 1, 2], title="w")
+    axes = np.array(figure.axes).reshape(2, 2)
+    left, right, jaw = axes[0, 0].lines[:3]
+    assert left.get_color() == right.get_color() != jaw.get_color()
+    assert left.get_linestyle() == "-" and right.get_linestyle() == "--"
+    marks = [line for line in axes[1, 1].lines if line.get_linestyle() == ":" and len(set(line.get_xdata())) == 1]
+    assert marks and marks[0].get_xdata()[0] == pytest.approx(4.0)  # the second window's frame
+    assert axes[0, 1].get_title().startswith("most displaced jaw")
+
+
+def test_animation_is_wide_full_colour_and_states_its_speed(tmp_path):
+    from workbench.reporting.figures.interactive import ANIMATION_WIDTH, write_animation
+
+    vertices, faces = grid_mesh()
+    frames = [vertices + [0, 0, 3 * k] for k in range(4)]
+    panels = [render_meshes(frames, faces, None, MeshView(window_size=(200, 180))),
+              render_meshes(frames, faces, [vertices[:, 0]] * 4, MeshView(cmap="YlOrRd", clim=(-50, 50),
+                                                                          window_size=(200, 180)))]
+    path = write_animation(tmp_path / "a.webp", panels, ["captured", "H (error)"], [f"frame {k}" for k in range(4)],
+                           fps=15.0, speed="real time: 15 frames per second",
+                           colour=("YlOrRd", (0.0, 1.0), "max", "error (mm)"))
+    image = Image.open(path)
+    assert image.format == "WEBP" and image.n_frames == 4 and image.size[0] >= ANIMATION_WIDTH
+    image.load()
+    assert image.info["duration"] == 67  # ms per frame: 15 frames per second
+    colours = np.asarray(image.convert("RGB")).reshape(-1, 3)
+    assert len(np.unique(colours, axis=0)) > 1000  # full colour, no palette
+
+
+def test_view_data_decode_to_the_frames_and_reconstructions():
+    import base64
+    import zlib
+
+    from workbench.reporting.figures.interactive import STEP_MM, ViewFrame, view_payload
+
+    vertices, faces = grid_mesh(5)
+    rng = np.random.default_rng(0)
+    captured, shown = rng.normal(size=75), rng.normal(size=75)
+    payload = view_payload(vertices.ravel(), faces, [ViewFrame("f", captured, {"H": shown}, {"H": "alpha 1 %"})],
+                           bases={"H": "hand"}, displacement_range=(0.0, 2.0, True), error_range=(0.0, 1.0, False),
+                           cmaps=("YlGnBu", "YlOrRd"), weight=np.linspace(0, 1, 25))
+
+    def unpack(text, dtype):
+        return np.frombuffer(zlib.decompress(base64.b64decode(text)), dtype=dtype)
+
+    def planes(text):
+        raw = unpack(text, np.uint8)
+        return np.ascontiguousarray(raw.reshape(2, -1).T).view("<i2").ravel().astype(float) * STEP_MM
+
+    frame = payload["frames"][0]
+    np.testing.assert_allclose(planes(frame["captured"]), captured, atol=STEP_MM / 2)
+    np.testing.assert_allclose(planes(frame["captured"]) + planes(frame["shown"]["H"]), shown, atol=STEP_MM)
+    np.testing.assert_array_equal(unpack(payload["faces"], "<u2").reshape(-1, 3), faces)
+    assert payload["displacement"]["beyond"] and not payload["error"]["beyond"]
+    assert len(payload["error"]["colours"]) == 6 * 64 and unpack(payload["weight"], np.uint8)[-1] == 255

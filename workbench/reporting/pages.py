@@ -34,7 +34,8 @@ from workbench.reporting.runs import is_replicate_key, runs_table, summarise, t_
 from workbench.tables import html_frame, markdown_frame
 
 ANALOGY_SEED = 1
-FIGURE_FORMATS = ("png", "svg")
+FIGURE_FORMATS: tuple[str, ...] = ()
+"""Copies of each figure a report writes besides the one it shows (WebP renders, SVG line plots)."""
 QE_PROJECTIONS = {"QE": "affine", "QE-linear": "linear"}
 REPORT_PACKAGES = ("matplotlib", "pyvista", "vtk", "pandas", "numpy")
 
@@ -262,11 +263,36 @@ def negative_weight_share(record: RunRecord, cache: dict) -> dict:
     return shares
 
 
-def figure3_frames(inputs: Mapping, n_frames: int = 3) -> list[int]:
-    """The frames of figure 3: the most displaced of each third of the take (figure 4 shows the first)."""
-    from workbench.reporting.figures.faces import expressive_frames
+def figure3_frames(record: RunRecord, inputs: Mapping) -> list[tuple[str, int]]:
+    """The frames of figure 3: the most displaced frame of each region of the face its hand shapes act on (brows,
+    eyes, mouth, jaw), at least a second apart, or the most displaced frame when no region is found.
 
-    return expressive_frames(np.nan_to_num(inputs["eval"]), n_frames)
+    Returns
+    -------
+    list of (str, int)
+        (region, index among the evaluated frames), top of the face first.
+    """
+    from workbench.reporting.figures.faces import face_regions, point_norms, region_frames
+
+    names = [str(name) for name in inputs["hand_names"]]
+    timeline = record_timeline(record, inputs)
+    regions = face_regions(inputs["hand"], names, inputs.get("point_support"))
+    chosen = region_frames(inputs["eval"], regions, timeline.seconds, timeline.take)
+    if not chosen:
+        lengths = np.nan_to_num(point_norms(inputs["eval"]))
+        chosen = [("face", int(np.argmax((lengths ** 2).sum(axis=1))))]
+    return chosen
+
+
+def most_displaced(inputs: Mapping, frames: Sequence[int]) -> int:
+    """The frame of ``frames`` with the largest captured displacement (over every point)."""
+    captured = np.nan_to_num(inputs["eval"][list(frames)])
+    return int(list(frames)[int(np.argmax(np.linalg.norm(captured, axis=1)))])
+
+
+def frame_caption(region: str, timeline: Timeline, frame: int) -> str:
+    """How a frame of figure 3 is named: the region it is the most displaced frame of, take, file frame, time."""
+    return f"most displaced {region}: {timeline.label(frame)}"
 
 
 def draw_analogy():
@@ -308,6 +334,7 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
 
 def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     """Figure 3 from a record, or the reason it cannot be drawn."""
+    from workbench.reporting.figures import fixed_decimals
     from workbench.reporting.figures.faces import figure_reconstructions
 
     cache = {} if cache is None else cache
@@ -316,27 +343,30 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
         return "needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])"
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
-    frames = figure3_frames(inputs)
+    chosen = figure3_frames(record, inputs)
+    frames = [frame for _, frame in chosen]
     captured = inputs["eval"][frames]
     reconstructed = {name: reconstruct_frames(shapes, captured, solver)
                      for name, shapes in figure_bases(record, data, inputs, cache).items()}
-    notes = {}
-    for name, frames_out in reconstructed.items():
-        alpha = frame_alpha(inputs["neutral"], captured, frames_out)
-        notes[name] = [f"alpha abs {a:.3f} %, disp {d:.1f} %" for a, d in zip(alpha["absolute"],
-                                                                            alpha["displacement"])]
+    alphas = {name: frame_alpha(inputs["neutral"], captured, frames_out) for name, frames_out in reconstructed.items()}
+    absolute = fixed_decimals([a for alpha in alphas.values() for a in alpha["absolute"]], significant=3)
+    displacement = fixed_decimals([a for alpha in alphas.values() for a in alpha["displacement"]], significant=3)
+    notes = {name: [f"alpha {a:.{absolute}f} % abs., {d:.{displacement}f} % disp."
+                    for a, d in zip(alpha["absolute"], alpha["displacement"])] for name, alpha in alphas.items()}
     timeline = record_timeline(record, inputs)
-    labels = [timeline.label(f).replace(" (", "\n(") for f in frames]
+    labels = [f"most displaced {region}\n{timeline.label(frame).replace(' (', chr(10) + '(')}"
+              for region, frame in chosen]
     return figure_reconstructions(
         inputs["neutral"], inputs["faces"], captured, reconstructed, labels, notes,
         title=(f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
-               f"{data}, solver {solver_name}; the most displaced frame of each third of the take"),
+               f"{data}, solver {solver_name}; the most displaced frame of each region of the face"),
         support=inputs.get("point_support"))
 
 
 def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
-    """The frame of figure 4 in a marker variant: figure 3's first frame (the same take and file frame), or,
-    without a mesh variant or when that frame misses a marker, the most displaced frame that saw every marker.
+    """The frame of figure 4 in a marker variant: the most displaced of figure 3's frames (the same take and file
+    frame), or, without a mesh variant or when that frame misses a marker, the most displaced frame that saw every
+    marker.
 
     Returns
     -------
@@ -345,23 +375,20 @@ def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int,
     why : str
         How it was chosen, for the title.
     """
-    from workbench.reporting.figures.faces import expressive_frames
-
     timeline = record_timeline(record, inputs)
     seen_all = (inputs["eval_visible"].all(axis=1) if "eval_visible" in inputs
                 else np.ones(len(inputs["eval"]), dtype=bool))
     mesh = _mesh_variant(record, cache)
     if mesh is not None:
-        first = figure3_frames(mesh[1])[0]
+        first = most_displaced(mesh[1], [frame for _, frame in figure3_frames(record, mesh[1])])
         other = record_timeline(record, mesh[1])
         match = np.flatnonzero((timeline.take == other.take[first]) & (timeline.frame == other.frame[first]))
         if match.size and seen_all[match[0]]:
-            return int(match[0]), "figure 3's first frame"
+            return int(match[0]), "the most displaced of figure 3's frames"
     candidates = np.flatnonzero(seen_all)
     if candidates.size == 0:
         return -1, ""
-    return int(candidates[expressive_frames(inputs["eval"][candidates], 3)[0]]), \
-        "the most displaced of the first third that saw every marker"
+    return most_displaced(inputs, candidates), "the most displaced frame that saw every marker"
 
 
 def draw_marker_errors(record: RunRecord, cache: dict | None = None):
@@ -449,9 +476,11 @@ def draw_alpha_per_solver(record: RunRecord, cache: dict):
                f"without them\n{short_label(record)}"))
 
 
-def draw_weight_curves(record: RunRecord, cache: dict, seconds_shown: float = 12.0):
-    """w_i(t) of H and the quasi-eigen basis over a stretch of the take around figure 3's first frame."""
+def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3.0, per_frame: int = 3):
+    """w_i(t) of H and the quasi-eigen basis around each of figure 3's frames (marked), for the hand shapes that
+    contribute most there (and their left/right partners)."""
     from workbench.reporting.figures.studies import plot_weight_curves
+    from workbench.reporting.sides import side_pairs
 
     found = _mesh_variant(record, cache) or _marker_variant(record, cache)
     if found is None:
@@ -459,23 +488,31 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_shown: float = 12
     data, inputs = found
     solver_name, _ = figure_solver(record.config)
     timeline = record_timeline(record, inputs)
-    centre = figure3_frames(inputs)[0]
-    span = next((start, stop) for start, stop in timeline.take_spans() if start <= centre < stop)
-    near = np.flatnonzero(np.abs(timeline.seconds - timeline.seconds[centre]) <= seconds_shown / 2)
-    rows = near[(near >= span[0]) & (near < span[1])]
     labels = ["H", _qe_label(record)]
     weights = {}
     for label in labels:
         values, complete = frame_weights(record, data, label, cache)
-        full = np.full((len(complete), values.shape[1]), np.nan)
-        full[complete] = values
-        weights[label] = full[rows]
+        weights[label] = np.full((len(complete), values.shape[1]), np.nan)
+        weights[label][complete] = values
+    sizes = np.linalg.norm(inputs["hand"], axis=1)
     names = [str(name) for name in inputs["hand_names"]]
+    windows, shown = [], []
+    for region, frame in figure3_frames(record, inputs):
+        contribution = np.nan_to_num(np.abs(weights["H"][frame]) * sizes)
+        shown += [int(k) for k in np.argsort(-contribution)[:per_frame] if contribution[k] > 0]
+        rows = np.flatnonzero((timeline.take == timeline.take[frame])
+                              & (np.abs(timeline.seconds - timeline.seconds[frame]) <= seconds_around))
+        windows.append({"label": frame_caption(region, timeline, frame), "seconds": timeline.seconds[rows],
+                        "marked": float(timeline.seconds[frame]), "take": str(timeline.take[frame]),
+                        "weights": {label: weights[label][rows] for label in labels}})
+    partners = {left: right for _, left, right in side_pairs(names)}
+    partners.update({right: left for left, right in list(partners.items())})
+    shown = list(dict.fromkeys(k for index in shown for k in (index, partners.get(index, index))))
     return plot_weight_curves(
-        timeline.seconds[rows], weights, names,
-        title=(f"Weights w_i(t), solver {solver_name}, {timeline.take[centre]} "
-               f"{timeline.seconds[rows[0]]:.1f}-{timeline.seconds[rows[-1]]:.1f} s (around figure 3's first frame)"
-               f"\n{short_label(record)}; data {data}; the six shapes with the largest hand weights"))
+        windows, names, shown,
+        title=(f"Weights w_i(t) around figure 3's frames (marked), solver {solver_name}\n{short_label(record)}; "
+               f"data {data}; the {per_frame} hand shapes contributing most at each frame, with their left/right "
+               "partners"))
 
 
 def draw_intuitiveness_bars(record: RunRecord, cache: dict):
@@ -546,23 +583,30 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
      "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
      lambda record, options: draw_analogy()),
     ("fig2_hand_vs_quasi_eigen", "Figure 2: hand shapes beside their quasi-eigen faces",
-     "Four hand shapes (top) and their quasi-eigen faces (bottom) on the mesh, coloured by the signed "
-     "displacement along the surface normal (red: out of the face, blue: into it; zero white); under each pair "
-     "its relative distance |e^QE - e^H| / |e^H| and cosine. The four are spread over the ranks of the relative "
-     "distance (least to most changed) unless --shapes names them. Grey: extrapolated, far from every marker.",
+     "Four hand shapes (first row) above their quasi-eigen faces (second row), plain shaded as in the paper, "
+     "with their relative distance |e^QE - e^H| / |e^H| and cosine; below, each one's signed displacement along "
+     "the surface normal (red: out of the face, blue: into it; zero white), one colour bar per pair reaching its "
+     "largest value. The four are spread over the ranks of the relative distance (least to most changed) unless "
+     "--shapes names them. Where the capture has no data (beyond the markers' reach) the quasi-eigen maps fade "
+     "into the plain shade.",
      lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"), options["cache"])),
     ("fig3_reconstructions", "Figure 3: captured frames and their reconstructions",
-     "Left: captured frames (take, frame of the source file, time), coloured by displacement length. Right: "
-     "their reconstructions with the hand basis and the quasi-eigen basis (the run's solver), coloured by "
-     "per-vertex error against the captured frame. Eyes and mouth are closed by dark caps; grey: extrapolated.",
+     "The most displaced frame of each region of the face the hand shapes act on (brows, eyes, mouth, jaw; "
+     "named by take, frame of the source file and time), plain shaded as in the paper: captured, and "
+     "reconstructed with the hand basis and the quasi-eigen basis (the run's solver, alpha under each); then the "
+     "per-vertex error of each reconstruction on the captured face, on one colour bar (an arrow: a few vertices "
+     "go beyond it). Eyes and mouth are closed by dark caps; where the capture has no data the error maps fade "
+     "into the plain shade and stay out of the scale.",
      lambda record, options: draw_reconstructions(record, options["cache"])),
     ("fig4_marker_errors", "Figure 4: one frame's reconstruction error at the markers",
-     "Captured markers (red) and reconstructed markers (blue) of figure 3's first frame, front and side views; "
+     "Captured markers (red) and reconstructed markers (blue) of the most displaced of figure 3's frames, front "
+     "and side views; "
      "the offsets are magnified by the stated factor so that sub-millimetre errors show.",
      lambda record, options: draw_marker_errors(record, options["cache"])),
     ("vertex_rms", "Where each basis errs over the whole take",
      "Per-vertex RMS reconstruction error over every evaluated frame, for the hand basis, the quasi-eigen bases "
-     "and PCA, on one shared colour bar.",
+     "and PCA, on one shared colour bar (an arrow: a few vertices go beyond it), with the RMS over the face and "
+     "the largest vertex.",
      lambda record, options: draw_vertex_rms(record, options["cache"])),
     ("alpha_per_solver", "Alpha per solver, and why constraints hurt the quasi-eigen basis",
      "The headline alpha of each basis under least squares, non-negative and box weights (PCA's projection as a "
@@ -570,8 +614,9 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
      "must change under a constraint.",
      lambda record, options: draw_alpha_per_solver(record, options["cache"])),
     ("weight_curves", "Weight curves w_i(t) of H and QE",
-     "The weights of the six shapes the hand basis uses most over a stretch of the take, in the hand basis and "
-     "in the quasi-eigen basis (same colour, same shape); dotted: w = 1, a shape fully on.",
+     "The weights around each of figure 3's frames (dotted vertical line), in the hand basis and in the "
+     "quasi-eigen basis: the hand shapes that contribute most at those frames, with their left/right partners "
+     "(a pair shares a colour, _L solid, _R dashed); dotted horizontal: w = 1, a shape fully on.",
      lambda record, options: draw_weight_curves(record, options["cache"])),
     ("intuitiveness", "How far each hand shape moves when projected",
      "Cosine (1: same direction) and relative distance |e^QE - e^H| / |e^H| (0: unchanged) between each hand "
@@ -602,14 +647,47 @@ class FacesBlock:
     missing: str = ""
 
 
-VIEW_CAPTION = ("Turn and zoom the face (drag, scroll); pick one of figure 3's frames and what is shown: the captured "
-                "frame coloured by its displacement length, or its reconstruction with a basis coloured by the "
-                "per-vertex error (one error scale for every basis and frame). Works offline from the file.")
+VIEW_CAPTION = ("Figure 3's frames you can turn (drag; scroll to zoom): the captured frame (left) beside its "
+                "reconstruction with the basis you pick (right), both under one camera; coloured by the captured "
+                "displacement and by the per-vertex error (one error scale for every basis and frame), or plain "
+                "shaded. Regions without data are shown as plain geometry. Everything the view needs is in this "
+                "report's folder: it works from the file, with no network, wherever the folder is copied.")
+VIEW_VERTICES = 4000
+"""The interactive view's mesh is decimated to about this many vertices (kept at their places, so every value
+shown is the run's own at that vertex): enough for a face at screen size, and half the data of the ICT face."""
+BASIS_NAMES = {"H": "H, the hand shapes", "QE": "QE, quasi-eigen faces (affine projection)",
+               "QE-linear": "QE-linear, quasi-eigen faces (linear projection)", "PCA": "PCA, the m eigenfaces"}
 
 
-def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 12) -> FacesBlock:
-    """Write the interactive view's data (``figures/view3d.js``), the plotly.js bundle (``../vendor/``) and the
-    animation (``figures/captured_h_qe.gif``) of a run's mesh variant.
+def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.ndarray:
+    """The ``n_frames`` consecutive evaluated frames of one take in which the face moves most (the summed RMS
+    change of the displacement between consecutive frames), or the longest take when every take is shorter.
+
+    Returns
+    -------
+    ndarray of int
+        Consecutive frame indices.
+    """
+    frames = np.nan_to_num(inputs["eval"])
+    change = np.zeros(len(frames))
+    change[1:] = np.sqrt(((frames[1:] - frames[:-1]) ** 2).mean(axis=1))
+    best, best_key = None, None
+    for start, stop in timeline.take_spans():
+        change[start] = 0.0  # no motion across a take boundary
+        length = min(n_frames, stop - start)
+        # motion of the window [first, first + length): the changes into its frames after the first
+        summed = np.concatenate([[0.0], np.cumsum(change[start:stop])])
+        motion = summed[length:] - summed[1:len(summed) - length + 1]
+        first = int(np.argmax(motion))
+        key = (length, float(motion[first]))  # a full-length window first, then the most motion
+        if best_key is None or key > best_key:
+            best, best_key = np.arange(start + first, start + first + length), key
+    return best
+
+
+def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0, most_fps: float = 15.0) -> FacesBlock:
+    """Write the interactive view's data (``figures/view3d.js``) and the animation (``figures/animation.webp``) of a
+    run's mesh variant.
 
     Parameters
     ----------
@@ -618,74 +696,100 @@ def build_faces(record: RunRecord, out: Path, cache: dict, n_steps: int = 12) ->
         The report folder.
     cache : dict
         Arrays shared with the figures.
-    n_steps : int
-        Frames of the animation: consecutive evaluated frames from figure 3's first one, in its take.
+    seconds : float
+        Length of the animation: the stretch of a take where the face moves most, played in real time.
+    most_fps : float
+        Frames of a faster capture are skipped down to about this rate.
     """
-    from workbench.reporting.figures.faces import (DISPLACEMENT_CMAP, ERROR_CMAP, _upper_limit, masked,
+    from workbench.dataset.decimate import decimate
+    from workbench.reporting.figures import fixed_decimals
+    from workbench.reporting.figures.faces import (DISPLACEMENT_CMAP, ERROR_CMAP, colour_range, masked,
                                                    point_norms)
-    from workbench.reporting.figures.interactive import (DATA_FILE, PLOTLY_FILE, ViewState, install_plotly,
-                                                         view_payload, viewer_html, write_animation,
-                                                         write_view_data)
-    from workbench.reporting.figures.render import MeshView, crop_background, render_meshes
+    from workbench.reporting.figures.interactive import DATA_FILE, ViewFrame, view_payload, viewer_html, \
+        write_animation, write_view_data
+    from workbench.reporting.figures.render import (PLAIN_COLOUR, MeshView, crop_background, render_meshes,
+                                                    support_weight)
 
     found = _mesh_variant(record, cache)
     if found is None:
         return FacesBlock(missing="needs a mesh data variant saved with save_inputs=true")
     data, inputs = found
-    _, solver = figure_solver(record.config)
+    solver_name, solver = figure_solver(record.config)
     support = inputs.get("point_support")
+    weight = support_weight(inputs["neutral"], support)
     timeline = record_timeline(record, inputs)
-    frames = figure3_frames(inputs)
+    chosen = figure3_frames(record, inputs)
+    frames = [frame for _, frame in chosen]
     captured = inputs["eval"][frames]
-    bases = figure_bases(record, data, inputs, cache)
-    shown = {name: reconstruct_frames(shapes, captured, solver) for name, shapes in bases.items()}
+    shown = {name: reconstruct_frames(shapes, captured, solver)
+             for name, shapes in figure_bases(record, data, inputs, cache, every=True).items()}
     mean, components = inputs["mean"], inputs["components"]
     shown["PCA"] = mean + ((captured - mean) @ components.T) @ components
-    lengths = [masked(values, support) for values in point_norms(captured)]
-    errors = {name: [masked(values, support) for values in point_norms(frames_out - captured)]
-              for name, frames_out in shown.items()}
-    length_top = _upper_limit(lengths)
-    error_top = _upper_limit([values for per_frame in errors.values() for values in per_frame])
-    states = []
-    for i, frame in enumerate(frames):
-        label = timeline.label(frame)
-        states.append(ViewState(label, "captured", captured[i], lengths[i], DISPLACEMENT_CMAP, (0.0, length_top),
-                                "|d*| (mm)"))
-        states += [ViewState(label, name, shown[name][i], errors[name][i], ERROR_CMAP, (0.0, error_top),
-                             "error (mm)") for name in shown]
+    alphas = {name: frame_alpha(inputs["neutral"], captured, frames_out) for name, frames_out in shown.items()}
+    decimals = fixed_decimals([a for alpha in alphas.values() for a in alpha["absolute"]], significant=3)
+    lengths = colour_range([masked(values, support) for values in point_norms(captured)], percentile=99.5)
+    errors = colour_range([masked(values, support) for frames_out in shown.values()
+                           for values in point_norms(frames_out - captured)], percentile=99.5)
+    # the view's mesh: about VIEW_VERTICES of the vertices, kept where they are (a decimation selects rows)
+    points = inputs["neutral"].reshape(-1, 3)
+    mesh = decimate(points, inputs["faces"], min(1.0, VIEW_VERTICES / len(points)))
+    rows = (3 * mesh.kept[:, None] + np.arange(3)).ravel()
+    view_frames = [ViewFrame(frame_caption(region, timeline, frame), captured[i][rows],
+                             {name: frames_out[i][rows] for name, frames_out in shown.items()},
+                             {name: f"alpha {alpha['absolute'][i]:.{decimals}f} % (abs.), solver "
+                                    f"{'projection' if name == 'PCA' else solver_name}"
+                              for name, alpha in alphas.items()})
+                   for i, (region, frame) in enumerate(chosen)]
     write_view_data(out / "figures" / DATA_FILE, view_payload(
-        inputs["neutral"], inputs["faces"], states, support,
-        title=f"{short_label(record)}; data {data}"))
-    install_plotly(out.parent)
+        inputs["neutral"][rows], mesh.faces, view_frames, bases={name: BASIS_NAMES.get(name, name) for name in shown},
+        displacement_range=(lengths.low, lengths.high, lengths.extend != "neither"),
+        error_range=(errors.low, errors.high, errors.extend != "neither"), cmaps=(DISPLACEMENT_CMAP, ERROR_CMAP),
+        weight=None if weight is None else weight[mesh.kept], title=f"{short_label(record)}; data {data}",
+        plain_colour=PLAIN_COLOUR))
 
-    span = next((start, stop) for start, stop in timeline.take_spans() if start <= frames[0] < stop)
-    steps = np.arange(frames[0], min(frames[0] + n_steps, span[1]))
-    stretch = inputs["eval"][steps]
+    rate = float(record.metrics["dataset"]["frame_rate"])
+    stretch = moving_stretch(inputs, timeline, int(round(seconds * rate)))
+    step = max(1, int(round(rate / most_fps)))
+    steps = stretch[::step]
+    moving = inputs["eval"][steps]
     qe = _qe_label(record)
-    moving = {"H": reconstruct_frames(bases["H"], stretch, solver),
-              qe: reconstruct_frames(bases[qe], stretch, solver)}
-    size = (220, 256)
-    panels = [render_meshes(inputs["neutral"] + stretch, inputs["faces"],
-                            [masked(v, support) for v in point_norms(stretch)],
-                            MeshView(cmap=DISPLACEMENT_CMAP, clim=(0.0, length_top), window_size=size))]
-    for name, frames_out in moving.items():
-        panels.append(render_meshes(inputs["neutral"] + frames_out, inputs["faces"],
-                                    [masked(v, support) for v in point_norms(frames_out - stretch)],
-                                    MeshView(cmap=ERROR_CMAP, clim=(0.0, error_top), window_size=size)))
+    bases = figure_bases(record, data, inputs, cache)
+    moved = {name: reconstruct_frames(bases[name], moving, solver) for name in ("H", qe)}
+    errors_moving = {name: [masked(values, support) for values in point_norms(frames_out - moving)]
+                     for name, frames_out in moved.items()}
+    span = colour_range([values for per_frame in errors_moving.values() for values in per_frame], percentile=99.5)
+    size = (420, 490)
+    panels = [render_meshes(inputs["neutral"] + moving, inputs["faces"], None, MeshView(window_size=size))]
+    for name, frames_out in moved.items():
+        panels.append(render_meshes(inputs["neutral"] + frames_out, inputs["faces"], errors_moving[name],
+                                    MeshView(cmap=ERROR_CMAP, clim=(span.low, span.high), window_size=size), weight))
     cropped = crop_background([image for panel in panels for image in panel])
     panels = [cropped[k * len(steps):(k + 1) * len(steps)] for k in range(len(panels))]
-    write_animation(out / "figures" / "captured_h_qe.gif", panels,
-                    ["captured (|d*|)", "H (error)", f"{qe} (error)"],
-                    [timeline.label(step) for step in steps])
-    caption = (f"{len(steps)} consecutive frames from figure 3's first ({timeline.label(int(steps[0]))} to frame "
-               f"{int(timeline.frame[steps[-1]])}): captured, and reconstructed with H and {qe} (solver "
-               f"{figure_solver(record.config)[0]}), coloured as in figure 3.")
-    return FacesBlock(html=viewer_html(f"../vendor/{PLOTLY_FILE}", f"figures/{DATA_FILE}", VIEW_CAPTION),
-                      animation="captured_h_qe.gif", caption=caption)
+    fps = rate / step
+    speed = f"real time: {fps:.3g} frames per second"
+    write_animation(out / "figures" / "animation.webp", panels, ["captured", f"H (error)", f"{qe} (error)"],
+                    [timeline.label(int(frame)) for frame in steps], fps=fps, speed=speed,
+                    colour=(ERROR_CMAP, (span.low, span.high), span.extend, "reconstruction error per vertex (mm)"))
+    first, last = int(steps[0]), int(steps[-1])
+    caption = (f"The {len(steps) / fps:.1f} s of the take where the face moves most "
+               f"({timeline.take[first]}, t = {timeline.seconds[first]:.2f} to {timeline.seconds[last]:.2f} s), "
+               f"played in {speed}: captured (plain shaded), and reconstructed with H and {qe} (solver "
+               f"{solver_name}), coloured by the per-vertex error.")
+    return FacesBlock(html=viewer_html(f"figures/{DATA_FILE}", VIEW_CAPTION), animation="animation.webp",
+                      caption=caption)
+
+
+SHARED_FIGURES = ("fig1_analogy",)
+"""Figures that do not depend on the run (figure 1 is drawn from a fixed seed): the reference reports share one
+copy (``reports/shared/``); any other report holds its own."""
 
 
 def make_figures(specs, argument, folder: Path, formats: Sequence[str], options: Mapping) -> list[FigureEntry]:
-    """Draw and save each figure of ``specs``; a figure that cannot be drawn is listed with the reason."""
+    """Draw and save each figure of ``specs`` in ``folder`` (the report's ``figures/``), or the figures of
+    :data:`SHARED_FIGURES` in ``options["shared"]`` when given; a figure that cannot be drawn is listed with the
+    reason. Files are named relative to the report folder (``folder``'s parent)."""
+    import os
+
     from workbench.reporting.figures import save_figure
 
     entries = []
@@ -695,7 +799,9 @@ def make_figures(specs, argument, folder: Path, formats: Sequence[str], options:
         if isinstance(result, str):
             entry.missing = result
         else:
-            entry.files = [path.name for path in save_figure(result, folder, stem, formats)]
+            target = options.get("shared") if stem in SHARED_FIGURES and options.get("shared") else folder
+            entry.files = [Path(os.path.relpath(path, folder.parent)).as_posix()
+                           for path in save_figure(result, target, stem, formats)]
         entries.append(entry)
     return entries
 
@@ -829,7 +935,8 @@ def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and 
     dataset = metrics["dataset"]
     # The record keeps the first data variant's train_on here; the variants are listed under the choices.
     provenance = {key: value for key, value in dataset.get("provenance", {}).items()
-                  if key not in ("train_on", "data_root")}
+                  if key not in ("train_on", "data_root", "data_files")}
+    files = dataset.get("provenance", {}).get("data_files") or {}
     return Section(heading, [
         f"**{dataset['name']}**; units {dataset['units']}; coordinate origin: {dataset['origin']}; "
         f"{float(dataset['frame_rate']):.4g} frames per second in the frames used"
@@ -837,18 +944,37 @@ def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and 
            "frame)" if provenance.get("frame_rate_in_file") and provenance.get("frame_step") else "") + ".",
         f"Licence: {licence_text(provenance)}.",
         pd.DataFrame({"key": list(provenance), "value": [provenance_value(v) for v in provenance.values()]}),
+        *(["The data the run read, with their SHA-256 checksums when it read them (a folder: of its files' "
+           "`<sha256>  <name>` lines sorted by name, as `LC_ALL=C sha256sum * | sha256sum` prints them there); "
+           "the files stay in the data folder, never in the repository:",
+           pd.DataFrame({"path": list(files),
+                         "what": [f"folder of {item['files']} files" if "files" in item else "file"
+                                  for item in files.values()],
+                         "bytes": [item["bytes"] for item in files.values()],
+                         "sha256": [item["sha256"] for item in files.values()]})] if files else []),
     ])
 
 
+def _when(iso: str | None) -> str:
+    """An ISO time as ``YYYY-MM-DD HH:MM UTC``, or ``unknown``."""
+    from datetime import datetime, timezone
+
+    if not iso:
+        return "unknown (a record written before runs stated it)"
+    return datetime.fromisoformat(iso).astimezone(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
 def versions_section(metrics: Mapping, builder: Mapping) -> Section:
+    from datetime import datetime, timezone
+
     git = metrics.get("git", {})
     record_versions = metrics.get("versions", {})
     return Section("Versions and commit", [
-        f"Run made at commit `{git.get('commit')}` (uncommitted changes: {git.get('dirty')}), config hash "
-        f"`{metrics.get('config_hash')}`.",
+        f"Run made on {_when(metrics.get('started_at'))} at commit `{git.get('commit')}` (uncommitted changes: "
+        f"{git.get('dirty')}), config hash `{metrics.get('config_hash')}`.",
         pd.DataFrame({"package": list(record_versions), "version": [str(v) for v in record_versions.values()]}),
-        f"Report built at commit `{builder['git'].get('commit')}` (uncommitted changes: "
-        f"{builder['git'].get('dirty')}) with "
+        f"Report built on {_when(datetime.now(timezone.utc).isoformat())} at commit "
+        f"`{builder['git'].get('commit')}` (uncommitted changes: {builder['git'].get('dirty')}) with "
         + ", ".join(f"{name} {version}" for name, version in builder["packages"].items()) + ".",
     ])
 
@@ -868,20 +994,68 @@ def run_facts(record: RunRecord) -> list:
     return [facts_frame(record.metrics), lines]
 
 
+@dataclass
+class LeftRight:
+    """Where the left/right pairs of hand shapes and their quasi-eigen faces act (:mod:`workbench.reporting.sides`):
+    one finding per data variant and the table behind them."""
+
+    findings: list = field(default_factory=list)
+    table: pd.DataFrame | None = None
+
+
+def left_right(record: RunRecord, cache: dict) -> LeftRight:
+    """The left/right pairs of every data variant whose inputs the run saved."""
+    from workbench.reporting.sides import pair_sides, shared_term, sides_finding, sides_frame
+
+    found, frames = LeftRight(), []
+    for data in record.data_variants:
+        inputs = _inputs(record, data, cache)
+        if inputs is None:
+            continue
+        names = [str(name) for name in inputs["hand_names"]]
+        bases = figure_bases(record, data, inputs, cache, every=True)
+        bases = {label: shapes[:len(names)] for label, shapes in bases.items()}  # appended eigenfaces are no pair
+        support = inputs.get("point_support")
+        pairs = pair_sides(inputs["neutral"], inputs["eval"], inputs["components"], names, bases, support)
+        if not pairs:
+            continue
+        term = (shared_term(inputs["neutral"], inputs["components"], inputs["mean"], names, inputs["hand"], support)
+                if "QE" in bases else None)
+        found.findings.append(sides_finding(data, pairs, term, _qe_label(record)))
+        frames.append(sides_frame(pairs).assign(data=data))
+    if frames:
+        table = pd.concat(frames, ignore_index=True)
+        found.table = table[["data", *[column for column in table.columns if column != "data"]]]
+    return found
+
+
+def left_right_section(found: LeftRight) -> Section:
+    return Section("Left and right", [
+        "Each left/right pair of hand shapes: how together the capture moves the two sides of the face (correlation "
+        "over the evaluated frames of the motion at the _L and _R hand shapes' peaks, along their directions), the "
+        "share |P e| / |e| of each shape, of their sum L+R and of their difference L-R that the eigenfaces span, "
+        "and, for each basis, the largest displacement of the _L and the _R face on its own side of the face and on "
+        "the other (mm; `!`: the other side moves over 10 % more). The sides are told apart by the hand shapes' "
+        "peaks.",
+        found.table])
+
+
 def run_sections(record: RunRecord, figures: list[FigureEntry], command: str,
-                 negative_share: Mapping | None = None, faces: "FacesBlock | None" = None
-                 ) -> tuple[str, list[Section]]:
+                 negative_share: Mapping | None = None, faces: "FacesBlock | None" = None,
+                 sides: LeftRight | None = None) -> tuple[str, list[Section]]:
     from workbench.reporting.findings import run_findings
 
     column = headline_column(record.config)
     title = f"Study '{record.config['study']}' on the {dataset_label(record)}"
     intuitiveness = {data: values["intuitiveness"] for data, values in record.metrics["data"].items()}
+    has_sides = sides is not None and sides.table is not None
     sections = [
         Section("Findings", [
             f"Generated from the run's numbers (`{column}`, %). "
             + ("The data are synthetic: generated by the workbench, not a real capture. "
                if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic" else ""),
-            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, negative_share)]),
+            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, negative_share),
+            *([sides.findings] if has_sides else [])]),
         Section("Run facts", run_facts(record)),
         Section("Alpha beside the paper", [
             f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values; only "
@@ -891,6 +1065,7 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str,
         ]),
         *([Section("Faces you can turn", [faces])] if faces is not None else []),
         Section("Figures", figures),
+        *([left_right_section(sides)] if has_sides else []),
         Section("Full alpha table", [record.table]),
         Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
         provenance_section(record.metrics),
@@ -927,26 +1102,27 @@ def render_markdown(title: str, sections: Sequence[Section]) -> str:
 def _markdown_figure(entry: FigureEntry) -> list[str]:
     if entry.missing:
         return [f"**{entry.title}**: not drawn ({entry.missing}).", ""]
-    png = next(name for name in entry.files if name.endswith(".png"))
-    others = ", ".join(f"[{name.rsplit('.', 1)[1].upper()}](figures/{name})" for name in entry.files
-                       if not name.endswith(".png"))
-    return [f"### {entry.title}", "", f"![{entry.title}](figures/{png})", "",
+    shown, *copies = entry.files
+    others = ", ".join(f"[{name.rsplit('.', 1)[1].upper()}]({name})" for name in copies)
+    return [f"### {entry.title}", "", f"![{entry.title}]({shown})", "",
             entry.caption + (f" Also as {others}." if others else ""), ""]
 
 
 def _markdown_faces(block: FacesBlock) -> list[str]:
     if block.missing:
         return [f"Not drawn ({block.missing}).", ""]
-    return ["The interactive 3-D view (turn the face, pick a frame and a basis) is in `index.html`; open it in a "
-            "browser.", "", f"![captured, H and QE over a stretch of the take](figures/{block.animation})", "",
-            block.caption, ""]
+    return ["The interactive 3-D view (turn the captured and reconstructed faces, pick a frame and a basis) is in "
+            "`index.html`; open it in a browser.", "",
+            f"![captured, H and QE over the stretch of the take where the face moves most](figures/{block.animation})",
+            "", block.caption, ""]
 
 
 def _html_faces(block: FacesBlock) -> str:
     if block.missing:
         return f"<p class=\"missing\">Not drawn ({html.escape(block.missing)}).</p>"
-    return (block.html + f"<figure><img src=\"figures/{block.animation}\" alt=\"captured, H and QE over a "
-            f"stretch of the take\"><figcaption>{_inline_markdown(block.caption)}</figcaption></figure>")
+    return (block.html + f"<figure><img src=\"figures/{block.animation}\" alt=\"captured, H and QE over the "
+            f"stretch of the take where the face moves most\"><figcaption>{_inline_markdown(block.caption)}"
+            "</figcaption></figure>")
 
 
 def _inline_markdown(text: str) -> str:
@@ -962,9 +1138,8 @@ def _html_figure(entry: FigureEntry) -> str:
     if entry.missing:
         return (f"<p class=\"missing\"><strong>{html.escape(entry.title)}</strong>: not drawn "
                 f"({html.escape(entry.missing)}).</p>")
-    png = next(name for name in entry.files if name.endswith(".png"))
-    links = " ".join(f"<a href=\"figures/{name}\">{name.rsplit('.', 1)[1].upper()}</a>" for name in entry.files)
-    return (f"<figure id=\"{entry.stem}\"><img src=\"figures/{png}\" alt=\"{html.escape(entry.title)}\">"
+    links = " ".join(f"<a href=\"{name}\">{name.rsplit('.', 1)[1].upper()}</a>" for name in entry.files)
+    return (f"<figure id=\"{entry.stem}\"><img src=\"{entry.files[0]}\" alt=\"{html.escape(entry.title)}\">"
             f"<figcaption><strong>{html.escape(entry.title)}.</strong> {_inline_markdown(entry.caption)} "
             f"<span class=\"links\">{links}</span></figcaption></figure>")
 
@@ -981,8 +1156,6 @@ tbody tr:nth-child(even) { background: #fafafa; }
 figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #e3e3e3; }
 figcaption { font-size: .9em; color: #333; max-width: 1100px; } .links a { margin-left: .4em; }
 code { background: #f4f4f4; padding: 0 .25em; } .missing { color: #8a4b00; }
-.view3d-controls { margin: .4em 0; } .view3d-controls select { margin: 0 .8em 0 .3em; }
-.view3d-controls .hint { color: #666; font-size: .9em; }
 """
 
 
@@ -1208,7 +1381,7 @@ def default_report_name(config: Mapping) -> str:
 def _clear_figures(folder: Path) -> None:
     if folder.is_dir():
         for path in folder.iterdir():
-            if path.suffix in (".png", ".svg", ".pdf", ".gif", ".js"):
+            if path.suffix in (".png", ".svg", ".pdf", ".gif", ".webp", ".js"):
                 path.unlink()
 
 
@@ -1223,9 +1396,10 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     out : pathlib.Path
         The report folder (created; figures it holds are replaced).
     formats : sequence of str
-        Figure formats; PNG is always written.
+        Copies of each figure besides the one the report shows: ``png``, ``svg``, ``pdf``.
     options : mapping
-        ``shapes``: names of the four hand shapes of figure 2.
+        ``shapes``: names of the four hand shapes of figure 2; ``shared``: the folder of the figures reference
+        reports share (:data:`SHARED_FIGURES`).
     command : str
         The command shown as having built the report.
 
@@ -1238,10 +1412,11 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     figures_dir = out / "figures"
     _clear_figures(figures_dir)
     cache: dict = {}
-    entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), {**(options or {}), "cache": cache})
+    entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
-    title, sections = run_sections(record, entries, command, negative_weight_share(record, cache), faces)
-    sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
+    title, sections = run_sections(record, entries, command, negative_weight_share(record, cache), faces,
+                                   left_right(record, cache))
+    sections = with_bases_section(sections, [record], figures_dir, formats)
     _write_documents(out, title, sections)
     write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
     write_atomic(inside(out, "run_config.yaml"), (record.folder / "config.yaml").read_bytes())
@@ -1269,18 +1444,13 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     summary["n_hand"] = hand_basis_size(summary, swept)
     figures_dir = out / "figures"
     _clear_figures(figures_dir)
-    entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, _with_png(formats),
-                           {})
+    entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, formats, {})
     title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
-    sections = with_bases_section(sections, records, figures_dir, _with_png(formats))
+    sections = with_bases_section(sections, records, figures_dir, formats)
     _write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
     write_atomic(inside(out, "runs.csv"), per_run.to_csv(index=False))
     return out / "index.html"
-
-
-def _with_png(formats: Sequence[str]) -> list[str]:
-    return ["png", *[fmt for fmt in formats if fmt != "png"]]
 
 
 def _write_documents(out: Path, title: str, sections: Sequence[Section]) -> None:
@@ -1298,6 +1468,8 @@ def sweep_records(root: Path) -> list[RunRecord]:
 
 REPORT_FOLDER = "report"
 """Default report folder, inside the run or sweep folder it reports on."""
+SHARED_FOLDER = "shared"
+"""Folder of the figures the reference reports share, beside them (``reports/shared``)."""
 
 
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
@@ -1328,13 +1500,14 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--name", help="with --reference: the report's folder name (default: the study, plus the "
                                        "dataset unless synthetic)")
     parser.add_argument("--formats", default=",".join(FIGURE_FORMATS),
-                        help="figure formats besides PNG, comma-separated: svg, pdf (default: png,svg)")
+                        help="copies of each figure besides the one the report shows (faces as WebP, line plots as "
+                             "SVG), comma-separated: png, svg, pdf (default: none)")
     parser.add_argument("--shapes", help="figure 2: four hand-shape names, comma-separated")
     return parser.parse_args(list(argv))
 
 
 def main(argv: Sequence[str]) -> int:
-    """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,svg] [--shapes a,b,c,d]``."""
+    """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,pdf] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
     formats = [fmt.strip() for fmt in args.formats.split(",") if fmt.strip()]
     unknown = sorted(set(formats) - {"png", "svg", "pdf"})
@@ -1347,7 +1520,8 @@ def main(argv: Sequence[str]) -> int:
     if is_complete(folder):
         record = load_record(folder)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
-        options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
+        options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None,
+                   "shared": out.parent / SHARED_FOLDER if args.reference else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]

@@ -1,9 +1,12 @@
 """Off-screen mesh rendering with pyvista, for figures composed in matplotlib.
 
-Each mesh is rendered to an RGB image with a colour map over per-vertex scalars and a fixed colour range; the
-figure then shows the images in matplotlib axes and draws the colour bar there (same map, same range), so labels
-and colour bars stay vector text. Rendering needs no display: pyvista runs off-screen and VTK picks EGL or OSMesa
-when there is no X server (a warning about the X server connection is expected and harmless).
+Each mesh is rendered to an RGB image, either plain shaded (the geometry alone, as the paper shows faces) or
+coloured by per-vertex scalars with a colour map over a fixed range; the figure then shows the images in
+matplotlib axes and draws the colour bar there (same map, same range), so labels and colour bars stay vector text.
+Where a capture has no data (points beyond the markers' reach), the colour fades into the plain shade over a band
+of the surface: such regions are drawn as plain geometry, never as holes or masks. Rendering needs no display:
+pyvista runs off-screen and VTK picks EGL or OSMesa when there is no X server (a warning about the X server
+connection is expected and harmless).
 """
 
 from __future__ import annotations
@@ -21,24 +24,93 @@ FRONT_VIEW = (0.0, 0.15, 1.0)
 VIEW_UP = (0.0, 1.0, 0.0)
 BACKGROUND = "white"
 # Openings of the mesh (eyes, mouth) are closed by dark caps, so they read as the inside of the head, not as holes
-# to the background; points without data (NaN scalars, e.g. extrapolated regions) are drawn grey.
-CAP_COLOUR = "#3b2f2f"
-NAN_COLOUR = "#d4d4d4"
+# to the background. Plain shaded surfaces, and points without data, take one light neutral colour.
+CAP_COLOUR = "#2e2e2e"
+PLAIN_COLOUR = "#d2d2d2"
+# White lights (a key light above left of the camera, a fill light below right) on a grey material: a clay render
+# whose red, green and blue are equal, which a lossless image codec stores in a third of the bytes of a tinted one.
+# Dim enough that no lit surface, not even a map's white, reaches the white of the background.
+LIGHTS = (((-0.4, 0.6, 1.0), 0.6), ((0.7, -0.1, 0.7), 0.25))
+AMBIENT, SPECULAR = 0.12, 0.05
+FADE_BAND = 0.04
+"""Width of the band, as a fraction of the face's size, over which colour fades into the plain shade towards the
+points without data."""
 
 
 @dataclass(frozen=True)
 class MeshView:
-    """How a set of meshes is rendered: image size in pixels, colour map and its range, camera direction."""
+    """How a set of meshes is rendered: image size in pixels, colour map and its range (no map: plain shaded),
+    camera direction."""
 
-    cmap: str
-    clim: tuple[float, float]
+    cmap: str | None = None
+    clim: tuple[float, float] = (0.0, 1.0)
     window_size: tuple[int, int] = (480, 560)
     view: tuple[float, float, float] = FRONT_VIEW
 
 
-def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: Sequence[np.ndarray],
-                  view: MeshView) -> list[np.ndarray]:
-    """Render meshes of one topology off-screen, each coloured by its own per-vertex scalars.
+def support_weight(points: np.ndarray, support: np.ndarray | None, band: float = FADE_BAND) -> np.ndarray | None:
+    """How much colour each point shows: 0 where the capture has no data, rising linearly to 1 over a band of
+    the surface away from those points, so the colour fades out smoothly instead of ending at a jagged edge.
+
+    Parameters
+    ----------
+    points : ndarray of shape (n_points, 3) or (3 * n_points,)
+        The neutral face.
+    support : ndarray of shape (n_points,) of bool, or None
+        False where the capture has no data.
+    band : float
+        Width of the fade as a fraction of the face's size (largest extent).
+
+    Returns
+    -------
+    ndarray of shape (n_points,) in [0, 1], or None when every point has data
+    """
+    if support is None or np.all(support):
+        return None
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    support = np.asarray(support, dtype=bool)
+    width = band * float(np.ptp(points, axis=0).max())
+    distance = cKDTree(points[~support]).query(points)[0]
+    return np.where(support, np.clip(distance / max(width, 1e-12), 0.0, 1.0), 0.0)
+
+
+def vertex_colours(values: np.ndarray | None, view: MeshView, weight: np.ndarray | None = None,
+                   n_points: int | None = None) -> np.ndarray:
+    """RGB colour of every point: the colour map over ``view.clim`` blended into the plain shade by ``weight``
+    (NaN values take the plain shade too); the plain shade everywhere when ``view.cmap`` is None.
+
+    Parameters
+    ----------
+    values : ndarray of shape (n_points,) or None
+    view : MeshView
+    weight : ndarray of shape (n_points,) in [0, 1], optional
+        Share of colour at each point (:func:`support_weight`); 1 everywhere when None.
+    n_points : int, optional
+        Needed when ``values`` is None.
+
+    Returns
+    -------
+    ndarray of shape (n_points, 3) of uint8
+    """
+    from matplotlib import colormaps
+    from matplotlib.colors import to_rgb
+
+    plain = np.array(to_rgb(PLAIN_COLOUR))
+    if view.cmap is None or values is None:
+        return np.tile(np.round(255 * plain).astype(np.uint8), (n_points if values is None else len(values), 1))
+    values = np.asarray(values, dtype=float)
+    low, high = view.clim
+    coloured = colormaps[view.cmap](np.clip((np.nan_to_num(values, nan=low) - low) / max(high - low, 1e-12), 0, 1))
+    share = np.ones(len(values)) if weight is None else np.asarray(weight, dtype=float)
+    share = np.where(np.isfinite(values), share, 0.0)[:, None]
+    return np.round(255 * (share * coloured[:, :3] + (1 - share) * plain)).astype(np.uint8)
+
+
+def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: Sequence[np.ndarray] | None,
+                  view: MeshView, weight: np.ndarray | None = None) -> list[np.ndarray]:
+    """Render meshes of one topology off-screen, plain shaded or each coloured by its own per-vertex scalars.
 
     Parameters
     ----------
@@ -46,9 +118,12 @@ def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: S
         Vertex positions of each mesh.
     faces : ndarray of shape (n_faces, 3) of int
         Triangles, shared by every mesh.
-    scalars : sequence of ndarray of shape (n_vertices,)
-        One per mesh, coloured with ``view.cmap`` over ``view.clim``; NaN is drawn grey.
+    scalars : sequence of ndarray of shape (n_vertices,), or None
+        One per mesh, coloured with ``view.cmap`` over ``view.clim`` (:func:`vertex_colours`); None, or a view
+        without a colour map, renders plain shaded meshes.
     view : MeshView
+    weight : ndarray of shape (n_vertices,) in [0, 1], optional
+        Share of colour at each vertex (:func:`support_weight`): the plain shade where 0.
 
     Returns
     -------
@@ -63,18 +138,21 @@ def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: S
     cells = np.hstack([np.full((len(faces), 1), 3), faces]).ravel()
     loops = hole_loops(faces)
     cap_cells = _fan_cells(loops, int(faces.max()) + 1)
-    plotter = pyvista.Plotter(off_screen=True, window_size=list(view.window_size))
+    plotter = pyvista.Plotter(off_screen=True, window_size=list(view.window_size), lighting="none")
     try:
+        for position, intensity in LIGHTS:
+            plotter.add_light(pyvista.Light(position=position, light_type="camera light", intensity=intensity))
         plotter.set_background(BACKGROUND)
         images, camera, actors = [], None, []
-        for points, values in zip(positions, scalars):
+        for k, points in enumerate(positions):
             points = np.asarray(points, dtype=float).reshape(-1, 3)
             mesh = pyvista.PolyData(points, cells)
-            mesh.point_data["value"] = np.asarray(values, dtype=float)
+            mesh.point_data["colour"] = vertex_colours(None if scalars is None else scalars[k], view, weight,
+                                                       n_points=len(points))
             for actor in actors:
                 plotter.remove_actor(actor)  # not plotter.clear(): that also removes the lights
-            actors = [plotter.add_mesh(mesh, scalars="value", cmap=view.cmap, clim=view.clim, nan_color=NAN_COLOUR,
-                                       show_scalar_bar=False, smooth_shading=True, specular=0.2)]
+            actors = [plotter.add_mesh(mesh, scalars="colour", rgb=True, show_scalar_bar=False, smooth_shading=True,
+                                       specular=SPECULAR, specular_power=20, ambient=AMBIENT)]
             if loops:
                 centres = np.array([points[loop].mean(axis=0) for loop in loops])
                 caps = pyvista.PolyData(np.vstack([points, centres]), cap_cells)

@@ -28,7 +28,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from workbench.errors import WorkbenchError
-from workbench.reporting.figures import basis_colour, basis_label, new_figure, wrap_title
+from workbench.reporting.figures import basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
@@ -122,12 +122,14 @@ def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str,
             near.plot([m], [cumulative[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
             tail.plot([m], [left_out[m - 1]], marker="o", markersize=11, markerfacecolor="none", color=colour)
     marks = [(paper_m, "paper: m = {}", "#b8860b", ":"), (basis_size, "hand shapes n = {}", "0.45", "-.")]
+    if paper_m is not None and paper_m == basis_size:  # one line, one label: two would hide each other
+        marks = [(paper_m, "paper: m = {0}; hand shapes n = {0}", "#b8860b", "-.")]
     for value, text, colour, style in marks:
         if value is None:
             continue
         for ax in (near, tail):
             if ax is tail or value <= zoom:
-                ax.axvline(value, color=colour, linestyle=style, linewidth=1.2,
+                ax.axvline(value, color=colour, linestyle=style, linewidth=1.4,
                            label=text.format(value) if ax is near or value > zoom else None)
     if threshold is not None:
         near.axhline(threshold, color="0.2", linestyle="--", linewidth=1, label=f"threshold {threshold}")
@@ -318,6 +320,8 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
     figure = new_figure(9.0, 3.1 * len(series) + 1.0)
     axes = figure.subplots(len(series), 1, squeeze=False, sharex=True)[:, 0]
     seconds = np.asarray(seconds, dtype=float)
+    decimals = fixed_decimals([np.nanmean(np.asarray(values, dtype=float)) for per_basis in series.values()
+                               for values in per_basis.values()], significant=3)
     for ax, (data, per_basis) in zip(axes, series.items()):
         if len(takes) > 1:
             for name, start in takes:
@@ -329,7 +333,7 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
             # Thousands of points per line: drawn as a raster inside an SVG, which stays small.
             ax.plot(seconds, values, color=basis_colour(basis), linewidth=0.7, rasterized=len(values) > 2000,
                     linestyle="--" if basis == "PCA" else "-",
-                    label=f"{basis_label(basis)}: mean {np.nanmean(values):.3g}")
+                    label=f"{basis_label(basis)}: mean {np.nanmean(values):.{decimals}f}")
         ax.set_ylabel(ylabel, fontsize=9)
         ax.set_title(f"data: {data}", fontsize=10, loc="left")
         ax.grid(alpha=0.3)
@@ -380,6 +384,7 @@ def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_me
     figure = new_figure(width, 3.8 * len(data_variants) + 1.2)
     grid = figure.subplots(len(data_variants), len(INTUITIVENESS_AXES), squeeze=False, sharey="row")
     bases = _ordered_bases(table["basis"])
+    labelled = []
     for row, data in zip(grid, data_variants):
         part = table[table["data"] == data].set_index("basis")
         for ax, (column, label) in zip(row, INTUITIVENESS_AXES):
@@ -396,8 +401,7 @@ def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_me
                 ax.errorbar(values[column], values[y], **errors, color=colour, marker=BASIS_MARKERS.get(basis, "o"),
                             markersize=8, linestyle="none", capsize=3,
                             markerfacecolor="none" if basis in ("QE-linear", "H-fit") else colour, label=basis)
-                ax.annotate(basis, (values[column], values[y]), textcoords="offset points", xytext=(6, 4),
-                            fontsize=8, color=colour)
+                labelled.append((ax, values[column], values[y], basis, colour))
             ax.set_xlabel(label.format(energy_percent=energy * 100, threshold=threshold), fontsize=9)
             ax.grid(alpha=0.3)
             ax.margins(x=0.15, y=0.12)
@@ -415,7 +419,52 @@ def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_me
     handles, labels = grid[0, 0].get_legend_handles_labels()
     figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 9), fontsize=9, frameon=False)
     figure.suptitle(wrap_title(title, width), fontsize=11)
+    figure.draw_without_rendering()  # the final layout, so labels are placed where the points are drawn
+    for ax in grid.ravel():
+        place_labels(ax, [(x, y_value, text, colour) for owner, x, y_value, text, colour in labelled if owner is ax])
     return figure
+
+
+# Where a point's label may go, in points from the point: right above, right below, left above, left below, above,
+# below (text anchor given by the sign).
+LABEL_OFFSETS = ((6, 4), (6, -4), (-6, 4), (-6, -4), (0, 9), (0, -9), (12, 12), (-12, -12))
+
+
+def place_labels(ax, points, fontsize: float = 8) -> None:
+    """Name points of a scatter plot with labels that overlap neither each other nor the points: each label takes
+    the first place of :data:`LABEL_OFFSETS` (beside its point) that is free, else the least crowded one.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Laid out already (its data-to-display transform is final).
+    points : sequence of (x, y, text, colour)
+    fontsize : float
+    """
+    scale = ax.figure.dpi / 72.0  # display pixels per point
+    centres = [ax.transData.transform((x, y)) for x, y, _, _ in points]
+    marker = 5.0 * scale
+    taken = [(cx - marker, cy - marker, cx + marker, cy + marker) for cx, cy in centres]
+
+    def overlap(a, b) -> float:
+        return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+
+    for (x, y, text, colour), (cx, cy) in zip(points, centres):
+        width, height = 0.6 * fontsize * len(text) * scale, fontsize * scale
+        best = None
+        for dx, dy in LABEL_OFFSETS:
+            left = cx + dx * scale - (width if dx < 0 else width / 2 if dx == 0 else 0.0)
+            bottom = cy + dy * scale - (height if dy < 0 else 0.0)
+            box = (left, bottom, left + width, bottom + height)
+            crowding = sum(overlap(box, other) for other in taken)
+            if best is None or crowding < best[0]:
+                best = (crowding, (dx, dy), box)
+            if crowding == 0:
+                break
+        _, (dx, dy), box = best
+        taken.append(box)
+        ax.annotate(text, (x, y), textcoords="offset points", xytext=(dx, dy), fontsize=fontsize, color=colour,
+                    ha="right" if dx < 0 else "center" if dx == 0 else "left", va="top" if dy < 0 else "bottom")
 
 
 def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *,
@@ -443,7 +492,8 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
     width = max(6.0, 4.8 * len(data_variants))
     figure = new_figure(width, 4.6)
     axes = figure.subplots(1, len(data_variants), squeeze=False)[0]
-    hatches = {"lstsq": "", "nnls": "//", "box": ".."}
+    hatches = {"lstsq": "", "nnls": "//", "box": "xx"}  # line hatches: a dotted one is 70 kB of SVG per colour
+    decimals = fixed_decimals(table[y].to_numpy(dtype=float), significant=3)
     for ax, data in zip(axes, data_variants):
         part = table[table["data"] == data]
         bases = [b for b in _ordered_bases(part["basis"]) if b != "PCA"]
@@ -453,7 +503,7 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
             positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
             bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
                           alpha=1.0 - 0.25 * k, hatch=hatches.get(solver, ""), edgecolor="white", label=solver)
-            ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=1)
+            ax.bar_label(bars, fmt=f"%.{decimals}f", fontsize=7, padding=1)
         pca = part.loc[part["basis"] == "PCA", y]
         if len(pca):
             ax.axhline(float(pca.iloc[0]), color=basis_colour("PCA"), linestyle="--", linewidth=1)
@@ -461,8 +511,8 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
         ax.set_xticks(np.arange(len(bases)), [f"{b}\n{100 * shares[b]:.0f} % of frames\nneed w < 0" if b in shares
                                               else b for b in bases], fontsize=8)
         ax.set_ylabel(axis_label(y), fontsize=9)
-        ax.set_title(f"data: {data}" + (f"; PCA (dashed) {float(pca.iloc[0]):.3g}" if len(pca) else ""), fontsize=10,
-                     loc="left")
+        ax.set_title(f"data: {data}" + (f"; PCA (dashed) {float(pca.iloc[0]):.{decimals}f}" if len(pca) else ""),
+                     fontsize=10, loc="left")
         ax.grid(axis="y", alpha=0.3)
         ax.margins(y=0.15)
     handles, labels = axes[-1].get_legend_handles_labels()
@@ -472,43 +522,66 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
     return figure
 
 
-def plot_weight_curves(seconds: np.ndarray, weights: Mapping[str, np.ndarray], names: Sequence[str], *,
-                       title: str, shown: Sequence[int] | None = None) -> Figure:
-    """Weight curves w_i(t) of several bases over a stretch of the take, one panel per basis, one colour per
-    shape (the same shape the same colour in every panel).
+PAIR_STYLES = {"_L": "-", "_R": "--"}
+"""Line style of a left and a right shape; the two shapes of a pair share a colour."""
+
+
+def shape_styles(names: Sequence[str]) -> dict[str, tuple[str, str]]:
+    """Colour and line style of each shape: one colour per left/right pair (or unpaired shape), solid for ``_L``
+    and unpaired shapes, dashed for ``_R``."""
+    stems = list(dict.fromkeys(name[:-2] if name[-2:] in PAIR_STYLES else name for name in names))
+    colours = {stem: f"C{k % 10}" for k, stem in enumerate(stems)}
+    return {name: (colours[name[:-2] if name[-2:] in PAIR_STYLES else name], PAIR_STYLES.get(name[-2:], "-"))
+            for name in names}
+
+
+def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: Sequence[int], *,
+                       title: str) -> Figure:
+    """Weight curves w_i(t) of several bases around marked frames: one column per frame, one row per basis; the
+    two shapes of a left/right pair share a colour (``_L`` solid, ``_R`` dashed).
 
     Parameters
     ----------
-    seconds : ndarray of shape (n_frames,)
-    weights : mapping
-        Basis label -> ndarray of shape (n_frames, n_shapes).
+    windows : sequence of mapping
+        One per marked frame: ``label`` (its name), ``take``, ``seconds`` (ndarray of shape (n_frames,), time in
+        the take), ``marked`` (the frame's time) and ``weights`` (basis label -> ndarray of shape
+        (n_frames, n_shapes)).
     names : sequence of str
         One per shape.
+    shown : sequence of int
+        The shapes drawn.
     title : str
-    shown : sequence of int, optional
-        Shapes drawn (default: the 6 with the largest weights over the stretch in the first basis).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    labels = list(weights)
-    first = np.asarray(weights[labels[0]])
-    if shown is None:
-        shown = list(np.argsort(-np.abs(first).max(axis=0))[:6])
-    figure = new_figure(9.0, 2.5 * len(labels) + 1.4)
-    axes = figure.subplots(len(labels), 1, squeeze=False, sharex=True)[:, 0]
-    for ax, label in zip(axes, labels):
-        values = np.asarray(weights[label])
-        for k, index in enumerate(shown):
-            ax.plot(seconds, values[:, index], color=f"C{k}", linewidth=1.1, label=names[index])
-        ax.axhline(0.0, color="0.3", linewidth=0.8)
-        ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
-        ax.set_ylabel(f"w_i, {label}", fontsize=9, color=basis_colour(label))
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, ncols=min(len(shown), 3), loc="lower right", bbox_to_anchor=(1.0, 1.0), frameon=False)
-    axes[-1].set_xlabel("time in the take (s)")
-    figure.suptitle(wrap_title(title, 9.0), fontsize=11)
+    labels = list(windows[0]["weights"])
+    styles = shape_styles([names[k] for k in shown])
+    width = max(9.0, 3.6 * len(windows) + 0.8)
+    figure = new_figure(width, 2.4 * len(labels) + 2.4)
+    axes = figure.subplots(len(labels), len(windows), squeeze=False, sharey="row")
+    for column, window in enumerate(windows):
+        for row, label in enumerate(labels):
+            ax = axes[row, column]
+            values = np.asarray(window["weights"][label])
+            for index in shown:
+                colour, style = styles[names[index]]
+                ax.plot(window["seconds"], values[:, index], color=colour, linestyle=style, linewidth=1.2,
+                        label=names[index])
+            ax.axvline(window["marked"], color="0.15", linewidth=1.0, linestyle=":")
+            ax.axhline(0.0, color="0.3", linewidth=0.8)
+            ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
+            ax.grid(alpha=0.3)
+            if column == 0:
+                ax.set_ylabel(f"w_i, {label}", fontsize=9, color=basis_colour(label))
+        axes[0, column].set_title(wrap_title(window["label"], width / len(windows), 9), fontsize=9)
+        axes[-1, column].set_xlabel(f"time in {window['take']} (s)", fontsize=9)
+    handles, legend = axes[0, 0].get_legend_handles_labels()
+    figure.legend(handles, legend, loc="outside lower center", ncols=min(len(legend), 6), fontsize=8.5,
+                  frameon=False, title="hand shape (pairs: _L solid, _R dashed); dotted vertical: the frame of figure 3",
+                  title_fontsize=8.5)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
 
 
