@@ -71,7 +71,7 @@ def test_renders_are_lossless_webp_at_print_resolution(tmp_path):
     written = save_figure(figure, tmp_path, "faces", ["png", "svg", "pdf"])
     assert [path.name for path in written] == ["faces.webp", "faces.png"]  # no vector copy of a raster
     webp, png = (np.asarray(Image.open(path).convert("RGB")) for path in written)
-    assert webp.shape == (360, 480, 3)  # 120 dpi, full colour
+    assert webp.shape == (330, 440, 3)  # 110 dpi, full colour
     np.testing.assert_array_equal(webp, png)  # lossless: the same pixels as the PNG copy
     image = Image.open(io.BytesIO(raster_bytes(figure, "png")))
     assert image.mode in ("RGB", "RGBA") and image.size == (800, 600)  # a PNG copy at 200 dpi, no palette

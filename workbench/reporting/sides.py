@@ -231,6 +231,10 @@ def sides_finding(data: str, pairs: Sequence[PairSides], term: SharedTerm | None
             "pairs), so the eigenfaces keep more of a pair's symmetric part L+R than of its one-sided part L-R "
             f"(|P e| / |e|, median {np.median([pair.kept['L+R'] for pair in pairs]):.2f} against "
             f"{np.median([pair.kept['L-R'] for pair in pairs]):.2f})")
+    weakest = min(pairs, key=lambda pair: pair.kept["L-R"])
+    text += (f"; least of {weakest.pair} (correlation {weakest.correlation:.2f}; L+R {weakest.kept['L+R']:.2f}, L-R "
+             f"{weakest.kept['L-R']:.2f}; {weakest.pair}_L {weakest.kept['L']:.2f}, {weakest.pair}_R "
+             f"{weakest.kept['R']:.2f})")
     if term is not None:
         text += (f"; the affine projection adds the capture mean's part outside the eigenfaces, (I - P) mu, to every "
                  f"quasi-eigen face: {term.norm_mm:.1f} mm long ({100 * term.norm_mm / term.mean_norm_mm:.0f} % of the "

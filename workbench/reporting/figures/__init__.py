@@ -30,7 +30,7 @@ FORMATS = ("png", "svg", "pdf")
 # Figures of rendered faces (raster images) as lossless WebP at a resolution that survives zooming, with no vector
 # copy (it would only wrap the same raster); line plots as SVG, and PNG copies of them at print resolution.
 PNG_DPI = 200
-RENDER_DPI = 120
+RENDER_DPI = 110
 
 # Basis colours shared by every plot, so a basis looks the same everywhere.
 BASIS_COLOURS = {"H": "#1f5fbf", "QE": "#8e2bb0", "QE-linear": "#d17a00", "PCA": "#c0392b"}

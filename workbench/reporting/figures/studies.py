@@ -297,6 +297,33 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str = "alpha_abs_mean", *, solve
     return figure
 
 
+def envelope(x: np.ndarray, y: np.ndarray, bins: int = 700) -> tuple[np.ndarray, np.ndarray]:
+    """A long series drawn with fewer points and the same look: in each of ``bins`` runs of consecutive points
+    (narrower than a point of a page-wide plot) only its lowest and highest, in their order. Series with at most
+    ``2 * bins`` points come back whole.
+
+    Parameters
+    ----------
+    x, y : ndarray of shape (n,)
+    bins : int
+
+    Returns
+    -------
+    x, y : ndarray of shape (at most 2 * bins,)
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if len(y) <= 2 * bins:
+        return x, y
+    kept = []
+    for run in np.array_split(np.arange(len(y)), bins):
+        finite = run[np.isfinite(y[run])]
+        if finite.size == 0:
+            kept.append(run[0])  # a gap stays a gap
+            continue
+        kept += sorted({int(finite[np.argmin(y[finite])]), int(finite[np.argmax(y[finite])])})
+    return x[kept], y[kept]
+
+
 def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds: np.ndarray, *, ylabel: str,
                          title: str, takes: Sequence[tuple[str, float]] = ()) -> Figure:
     """Per-frame alpha over the take, one panel per data variant and one line per basis, with the boundaries of
@@ -330,8 +357,7 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
                             textcoords="offset points", fontsize=7, color="0.3", va="top")
         for basis in _ordered_bases(per_basis):
             values = np.asarray(per_basis[basis], dtype=float)
-            # Thousands of points per line: drawn as a raster inside an SVG, which stays small.
-            ax.plot(seconds, values, color=basis_colour(basis), linewidth=0.7, rasterized=len(values) > 2000,
+            ax.plot(*envelope(seconds, values), color=basis_colour(basis), linewidth=0.7,
                     linestyle="--" if basis == "PCA" else "-",
                     label=f"{basis_label(basis)}: mean {np.nanmean(values):.{decimals}f}")
         ax.set_ylabel(ylabel, fontsize=9)
@@ -522,6 +548,8 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
     return figure
 
 
+WEIGHT_POINTS = 150
+"""Most points of a weight curve in one window (a few seconds): more would not show at a panel's width."""
 PAIR_STYLES = {"_L": "-", "_R": "--"}
 """Line style of a left and a right shape; the two shapes of a pair share a colour."""
 
@@ -565,10 +593,11 @@ def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: 
         for row, label in enumerate(labels):
             ax = axes[row, column]
             values = np.asarray(window["weights"][label])
+            step = max(1, -(-len(values) // WEIGHT_POINTS))  # a 120 Hz capture: every 5th frame still draws smooth
             for index in shown:
                 colour, style = styles[names[index]]
-                ax.plot(window["seconds"], values[:, index], color=colour, linestyle=style, linewidth=1.2,
-                        label=names[index])
+                ax.plot(window["seconds"][::step], values[::step, index], color=colour, linestyle=style,
+                        linewidth=1.2, label=names[index])
             ax.axvline(window["marked"], color="0.15", linewidth=1.0, linestyle=":")
             ax.axhline(0.0, color="0.3", linewidth=0.8)
             ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
