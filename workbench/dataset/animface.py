@@ -360,7 +360,7 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
                          f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
                          f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
                          f"{int((~support).sum())} vertices farther from every marker than the markers' median "
-                         "spacing are extrapolated (figures grey them out)")
+                         "spacing are extrapolated (the colour maps of the report fade there into the plain shade)")
         if name == "markers":
             frames = frames.reshape(len(frames), -1)
         train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))

@@ -127,7 +127,8 @@ class Capture:
         space and lifted (:meth:`workbench.bases.Eigenfaces.fit_mapped`).
     point_support : ndarray of shape (n_points,) of bool, or None
         False at points whose motion is extrapolated far from any measured point (a mesh moved by an interpolation
-        of markers: neck, back of the head); figures grey them out. None: every point is measured or interpolated.
+        of markers: neck, back of the head); figures draw them plain, out of the colour scales. None: every point
+        is measured or interpolated.
     eval_timeline : Timeline or None
         Take, frame number in the file and time of every evaluated frame; None: frame ``i`` of one take at
         ``i / frame_rate`` (see :meth:`timeline`).

@@ -505,9 +505,10 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
         windows.append({"label": frame_caption(region, timeline, frame), "seconds": timeline.seconds[rows],
                         "marked": float(timeline.seconds[frame]), "take": str(timeline.take[frame]),
                         "weights": {label: weights[label][rows] for label in labels}})
-    partners = {left: right for _, left, right in side_pairs(names)}
-    partners.update({right: left for left, right in list(partners.items())})
-    shown = list(dict.fromkeys(k for index in shown for k in (index, partners.get(index, index))))
+    # a pair's two shapes one after the other, _L first (they share a column of the legend), pairs first
+    pairs = {index: (left, right) for _, left, right in side_pairs(names) for index in (left, right)}
+    shown = list(dict.fromkeys([k for index in shown if index in pairs for k in pairs[index]]
+                               + [index for index in shown if index not in pairs]))
     return plot_weight_curves(
         windows, names, shown,
         title=(f"Weights w_i(t) around figure 3's frames (marked), solver {solver_name}\n{short_label(record)}; "

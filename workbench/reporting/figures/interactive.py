@@ -167,9 +167,9 @@ VIEWER_SCRIPT = r"""
   const FRAGMENT = `precision mediump float; varying vec3 n, c, eye;
     void main() { vec3 N = normalize(n); if (dot(N, eye) < 0.0) N = -N;
       vec3 L = normalize(vec3(-0.35, 0.55, 1.0)), V = normalize(eye), H = normalize(L + V);
-      float diffuse = max(dot(N, L), 0.0), fill = 0.25 * max(dot(N, normalize(vec3(0.6, -0.2, 0.8))), 0.0);
-      float specular = 0.18 * pow(max(dot(N, H), 0.0), 40.0);
-      gl_FragColor = vec4(c * (0.28 + 0.62 * diffuse + fill) + vec3(specular), 1.0); }`;
+      float diffuse = max(dot(N, L), 0.0), fill = 0.22 * max(dot(N, normalize(vec3(0.6, -0.2, 0.8))), 0.0);
+      float specular = 0.06 * pow(max(dot(N, H), 0.0), 30.0);
+      gl_FragColor = vec4(c * (0.16 + 0.66 * diffuse + fill) + vec3(specular), 1.0); }`;
   function shader(type, text) {
     const s = gl.createShader(type); gl.shaderSource(s, text); gl.compileShader(s);
     if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(s));
@@ -406,7 +406,7 @@ def colour_bar_strip(width: int, cmap: str, clim: tuple[float, float], extend: s
 
 def write_animation(path: Path, panels: Sequence[Sequence[np.ndarray]], titles: Sequence[str], captions: Sequence[str],
                     *, fps: float, speed: str, colour: tuple[str, tuple[float, float], str, str] | None = None,
-                    quality: int = 50) -> Path:
+                    quality: int = 45) -> Path:
     """A looping animated WebP of several panels side by side, one image per time step, with each panel's title, the
     frame shown, the playback speed and a colour bar under the coloured panels, at least
     :data:`ANIMATION_WIDTH` pixels wide in type a reader can read.
@@ -460,7 +460,8 @@ def write_animation(path: Path, panels: Sequence[Sequence[np.ndarray]], titles: 
         draw.text((gap, title_band + height + 44), speed, fill="#333333", font=text_font)
         frames.append(frame)
     buffer = io.BytesIO()
+    # every frame a key frame: a lossy frame that updates only part of the last one leaves block seams on the face
     frames[0].save(buffer, format="webp", save_all=True, append_images=frames[1:], duration=round(1000 / fps), loop=0,
-                   quality=quality, method=4)
+                   quality=quality, method=4, kmin=1, kmax=1)
     write_atomic(path, buffer.getvalue())
     return path

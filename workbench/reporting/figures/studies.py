@@ -607,7 +607,7 @@ def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: 
         axes[0, column].set_title(wrap_title(window["label"], width / len(windows), 9), fontsize=9)
         axes[-1, column].set_xlabel(f"time in {window['take']} (s)", fontsize=9)
     handles, legend = axes[0, 0].get_legend_handles_labels()
-    figure.legend(handles, legend, loc="outside lower center", ncols=min(len(legend), 6), fontsize=8.5,
+    figure.legend(handles, legend, loc="outside lower center", ncols=max(1, -(-len(legend) // 2)), fontsize=8.5,
                   frameon=False, title="hand shape (pairs: _L solid, _R dashed); dotted vertical: the frame of figure 3",
                   title_fontsize=8.5)
     figure.suptitle(wrap_title(title, width), fontsize=11)
