@@ -166,10 +166,10 @@ def test_animation_and_report_text(tiny_report):
     _, report = tiny_report
     animation = Image.open(report / "figures" / "animation.webp")
     animation.load()
-    # 2 s of the take at 15 frames per second (the 120 Hz actor, every 8th frame), played in real time
-    assert animation.n_frames == 30 and animation.info["duration"] == 67 and animation.size[0] >= 960
+    # 2 s of the take at 10 frames per second (the 120 Hz actor, every 12th frame), played in real time
+    assert animation.n_frames == 20 and animation.info["duration"] == 100 and animation.size[0] >= 960
     readme = (report / "README.md").read_text()
-    assert "played in real time: 15 frames per second" in readme
+    assert "played in real time: 10 frames per second" in readme
     assert readme.index("## Findings") < readme.index("## Run facts") < readme.index("## Alpha beside the paper")
     assert "(paper 7.22)" in readme and "(paper: m = 18)" in readme
     assert "uncommitted changes" in readme and "frames per second in the frames used" in readme

@@ -686,7 +686,7 @@ def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.nda
     return best
 
 
-def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0, most_fps: float = 15.0) -> FacesBlock:
+def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0, most_fps: float = 10.0) -> FacesBlock:
     """Write the interactive view's data (``figures/view3d.js``) and the animation (``figures/animation.webp``) of a
     run's mesh variant.
 
@@ -700,7 +700,7 @@ def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0,
     seconds : float
         Length of the animation: the stretch of a take where the face moves most, played in real time.
     most_fps : float
-        Frames of a faster capture are skipped down to about this rate.
+        Frames of a faster capture are skipped down to about this rate (fewer frames: a smaller file).
     """
     from workbench.dataset.decimate import decimate
     from workbench.reporting.figures import fixed_decimals
