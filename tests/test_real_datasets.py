@@ -108,6 +108,7 @@ def test_animface_neutral_is_the_rest_face_of_its_take(animface, shared_data):
 
     rest = animface["markers"].provenance["neutral_from_rest_mm"]
     assert rest["take_frame_nearest_rest"] == 1544 and rest["rms"] < 0.8
+    assert animface["markers"].provenance["neutral"] == "animface_jaw frame 1544"  # dataset.neutral_frame: null
     assert any(note.startswith("the neutral, animface_jaw frame 1544, lies") and "it is the take's frame nearest"
                in note for note in animface["mesh"].notes)
     take = read_c3d_markers(shared_data / "animface/animface_jaw.c3d")
@@ -162,6 +163,8 @@ def test_animface_takes_are_configurable(shared_data):
     captures = build_captures(cfg)
     assert list(captures) == ["markers"] and captures["markers"].train.shape == (50, 123)
     assert "animface_eyebrows 50 frames" in captures["markers"].notes[1]
+    # the neutral is this take's own rest face
+    assert captures["markers"].provenance["neutral"].startswith("animface_eyebrows frame ")
 
 
 @pytest.mark.parametrize("override,message", [

@@ -182,7 +182,7 @@ class AnimfaceSchema:
     data_root: str = MISSING
     takes: List[str] = MISSING
     neutral_take: int = 0
-    neutral_frame: int = 0
+    neutral_frame: Optional[int] = None  # null: the neutral take's rest face (its frame nearest its median pose)
     rigid_markers: List[str] = MISSING
     frame_step: int = 1
     max_frames_per_take: Optional[int] = None

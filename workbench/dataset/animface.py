@@ -135,30 +135,63 @@ def neutral_rest(markers: np.ndarray, labels: Sequence[str], frame: int) -> Neut
                        nearest_rms_mm=float(rms[nearest]))
 
 
+def rest_frame(take: MarkerTake, rigid_index, table_index, labels: Sequence[str]) -> int:
+    """The take's rest face: its frame nearest the median pose of its frames, head motion removed (on the first
+    frame that saw every rigid marker; another reference moves every frame alike and changes no distance).
+
+    Parameters
+    ----------
+    take : MarkerTake
+    rigid_index, table_index : sequence of int
+        The rigid markers and the table's markers among the take's.
+    labels : sequence of str
+        The table's marker names.
+
+    Returns
+    -------
+    int
+        A frame of the take's file.
+    """
+    seen = np.flatnonzero(np.isfinite(take.positions[:, rigid_index]).all(axis=(1, 2)))
+    if seen.size == 0:
+        raise WorkbenchError(f"{take.path}: no frame sees every rigid marker (dataset.rigid_markers); set "
+                             "dataset.neutral_frame")
+    reference = take.positions[seen[0], rigid_index]
+    markers = stabilise(take.positions, rigid_index, reference).markers[:, table_index]
+    return neutral_rest(markers, labels, int(seen[0])).nearest_frame
+
+
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
     """Select frames, remove head motion on ``dataset.rigid_markers`` and concatenate the takes.
 
     The rigid markers' reference is their position in the neutral frame (``dataset.neutral_take``,
-    ``dataset.neutral_frame``). Gaps (samples the file lacks, plus ``dataset.gap_rate`` of simulated dropout) are
-    handled after stabilisation by ``dataset.gap_policy`` (:func:`workbench.dataset.gaps.apply_gap_policy`; the
-    default ``drop`` keeps the frames that saw every marker of the table), per take.
+    ``dataset.neutral_frame``; a null frame is the take's rest face, :func:`rest_frame`). Gaps (samples the file
+    lacks, plus ``dataset.gap_rate`` of simulated dropout) are handled after stabilisation by ``dataset.gap_policy``
+    (:func:`workbench.dataset.gaps.apply_gap_policy`; the default ``drop`` keeps the frames that saw every marker
+    of the table), per take.
     """
     rigid_labels = list(cfg.get("rigid_markers") or [])
     neutral_take = integer_setting(cfg.get("neutral_take", 0), "dataset.neutral_take", minimum=0)
-    neutral_frame = integer_setting(cfg.get("neutral_frame", 0), "dataset.neutral_frame", minimum=0)
-    if not 0 <= neutral_take < len(takes) or not 0 <= neutral_frame < takes[neutral_take].n_frames:
+    if not 0 <= neutral_take < len(takes):
+        raise WorkbenchError(f"dataset.neutral_take {neutral_take} is not one of the {len(takes)} takes")
+    first = takes[neutral_take]
+    rigid_index = first.index_of(rigid_labels, named_in="dataset.rigid_markers")
+    table_index = first.index_of(table.labels, named_in=str(table.path))
+    if cfg.get("neutral_frame") is None:
+        neutral_frame = rest_frame(first, rigid_index, table_index, table.labels)
+    else:
+        neutral_frame = integer_setting(cfg.get("neutral_frame"), "dataset.neutral_frame", minimum=0)
+    if not 0 <= neutral_frame < first.n_frames:
         raise WorkbenchError(f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
                              f"the {len(takes)} takes")
-    first = takes[neutral_take]
-    reference = first.positions[neutral_frame, first.index_of(rigid_labels, named_in="dataset.rigid_markers")]
+    reference = first.positions[neutral_frame, rigid_index]
     if not np.all(np.isfinite(reference)):
         raise WorkbenchError(f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
                              "another dataset.neutral_frame")
     check_rigid_set(rigid_labels, reference, f"{first.path} frame {neutral_frame}")
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
-    neutral = first.positions[neutral_frame, first.index_of(table.labels, named_in=str(table.path))]
-    whole_take = stabilise(first.positions, first.index_of(rigid_labels, named_in="dataset.rigid_markers"), reference)
-    rest = neutral_rest(whole_take.markers[:, first.index_of(table.labels, named_in=str(table.path))], table.labels,
+    neutral = first.positions[neutral_frame, table_index]
+    rest = neutral_rest(stabilise(first.positions, rigid_index, reference).markers[:, table_index], table.labels,
                         neutral_frame)
 
     policy = cfg.get("gap_policy", "drop")
@@ -310,7 +343,7 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
 
     rbf = {**RBF_DEFAULTS, **(cfg.get("rbf") or {})}
     rigid_labels = list(cfg.get("rigid_markers") or [])
-    neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {int(cfg.get('neutral_frame', 0))}"
+    neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {stable.neutral_rest.frame}"
     frame_step = integer_setting(cfg.get("frame_step", 1), "dataset.frame_step", minimum=1)
     frame_rate = takes[0].frame_rate / frame_step
     notes_common = [
