@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import write_atomic, write_json, write_npz
+from workbench.record import inside, write_atomic, write_json, write_npz
 
 TABLE_CHECK_RTOL = 1e-6
 """Recomputed alpha must match the recorded table to this relative tolerance before anything is exported."""
@@ -349,7 +349,7 @@ def main(argv: Sequence[str]) -> int:
     parser.add_argument("--bases", help="comma-separated basis labels, e.g. H,QE,PCA (default: all)")
     parser.add_argument("--solver", help="solver whose weights are exported (default: the run's first)")
     args = parser.parse_args(list(argv))
-    out = args.out or args.run / "export"
+    out = args.out or inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
     manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver)
     for entry in manifest["bases"]:

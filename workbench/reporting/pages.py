@@ -1235,7 +1235,7 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
         ``out / "index.html"``.
     """
     out = Path(out)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     cache: dict = {}
     entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), {**(options or {}), "cache": cache})
@@ -1267,7 +1267,7 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     paper = per_run.groupby("basis", sort=False)["paper_alpha"].first()
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, _with_png(formats),
                            {})
@@ -1293,7 +1293,7 @@ def sweep_records(root: Path) -> list[RunRecord]:
     folders = [folder for folder in find_records([root])[0] if folder != Path(root)]
     if not folders:
         raise WorkbenchError(f"{root} holds no complete run record (folders with a '{DONE}' file)")
-    return [load_record(folder) for folder in folders]
+    return [load_record(folder, check_archives=True) for folder in folders]
 
 
 REPORT_FOLDER = "report"
@@ -1314,7 +1314,7 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         if not plain_name(name):
             raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
         return inside(REPO_ROOT / "reports", name)
-    return Path(out) if out is not None else Path(folder) / REPORT_FOLDER
+    return Path(out) if out is not None else inside(folder, REPORT_FOLDER)
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
@@ -1345,7 +1345,7 @@ def main(argv: Sequence[str]) -> int:
         raise WorkbenchError(f"{folder} is not a folder")
     command = "workbench report " + " ".join(argv)
     if is_complete(folder):
-        record = load_record(folder)
+        record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
         options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
