@@ -17,14 +17,14 @@ def run_cli(*args, cwd):
 def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
     quiet = run_cli("basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path)
     assert quiet.returncode == 2
-    assert quiet.stderr.strip().splitlines() == ["workbench: error: coverage must be in (0, 1], got 1.5"]
+    assert quiet.stderr.strip().splitlines() == ["workbench: error: basis.coverage must be in (0, 1], got 1.5"]
     assert "Traceback" not in quiet.stdout + quiet.stderr
 
     verbose = run_cli("--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}",
                       cwd=tmp_path)
     assert verbose.returncode == 2
-    assert "Traceback (most recent call last)" in verbose.stderr and "bases.py" in verbose.stderr
-    assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: coverage must be in (0, 1], got 1.5"
+    assert "Traceback (most recent call last)" in verbose.stderr and "schema.py" in verbose.stderr
+    assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
 
 
 def test_bad_solver_bounds_name_the_setting(tmp_path):
