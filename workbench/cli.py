@@ -23,6 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs
 from workbench.dataset.real import bool_setting
 from workbench.errors import WorkbenchError, single_line
+from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
 from workbench.pipeline import run_study
 from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
 from workbench.run_text import alpha_table, headline, study_header
@@ -241,10 +242,6 @@ VERBOSE_FLAG = "--verbose"
 _verbose = False
 
 
-INTERRUPTED = 130
-"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
-
-
 def exit_on_error(program: str, error: BaseException) -> None:
     """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
 
@@ -257,8 +254,8 @@ def exit_on_error(program: str, error: BaseException) -> None:
         raise error
     if _verbose:
         traceback.print_exception(error, file=sys.stderr)
-    if isinstance(error, KeyboardInterrupt):
-        print(f"{program}: interrupted; rerun the same command to resume", file=sys.stderr)
+    if caused_by_interrupt(error):
+        print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
         sys.exit(INTERRUPTED)
     fault = environment_fault(error)
     if fault is not None:
@@ -323,6 +320,7 @@ def main() -> None:
         import importlib
 
         module, function = COMMANDS[sys.argv[1]].split(":")
+        raise_from_now_on()  # a command writing files removes its partial file when interrupted
         try:
             with one_line_usage_errors():
                 code = getattr(importlib.import_module(module), function)(sys.argv[2:])
@@ -337,11 +335,14 @@ def main() -> None:
     # one line (unless the user asked for Hydra's full error or --verbose).
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
+    raise_from_now_on()  # an interrupted run removes what it wrote
     try:
         _hydra_main()
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
+        if caused_by_interrupt(error):
+            exit_on_error("workbench", error)
         if full_error or _verbose:
             raise
         print(f"workbench: error: {one_line(error)}", file=sys.stderr)
