@@ -1333,6 +1333,23 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
+FIGURE_2_SHAPES = 4
+"""Hand shapes figure 2 shows (the paper's figure 2)."""
+
+
+def figure_2_shapes(text: str, record: RunRecord) -> list[str]:
+    """``--shapes``: four distinct hand shapes of the run, checked before the report is written."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if len(names) != FIGURE_2_SHAPES or len(set(names)) != len(names):
+        raise WorkbenchError(f"--shapes takes {FIGURE_2_SHAPES} distinct hand-shape names (figure 2 shows "
+                             f"{FIGURE_2_SHAPES}), got {names}")
+    known = list(record.metrics["dataset"].get("hand_names") or [])
+    unknown = [name for name in names if known and name not in known]
+    if unknown:
+        raise WorkbenchError(f"--shapes names unknown hand shapes {unknown}; the run has {known}")
+    return names
+
+
 def main(argv: Sequence[str]) -> int:
     """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,svg] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
@@ -1347,7 +1364,7 @@ def main(argv: Sequence[str]) -> int:
     if is_complete(folder):
         record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
-        options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
+        options = {"shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]
