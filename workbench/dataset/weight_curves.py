@@ -28,7 +28,7 @@ import numpy as np
 
 from workbench.dataset.livelink import (LiveLinkTake, _numeric_block, check_weight_range, frame_rate_of,
                                         read_livelink_csv)
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, single_line
 
 MEDIAPIPE_NEUTRAL = "_neutral"
 TIME_COLUMNS = {"time": 1.0, "timestamp_ms": 1e-3}
@@ -118,7 +118,7 @@ def _read_csv_curves(path: Path, frame_rate: float | None) -> LiveLinkTake:
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        raise WorkbenchError(f"{path}: not a readable CSV ({error})") from None
+        raise WorkbenchError(f"{path}: not a readable CSV ({single_line(error)})") from None
     header = _header(path)
     table.columns = header if len(header) == len(table.columns) else [str(c).strip() for c in table.columns]
     timing = [column for column in (*TIME_COLUMNS, "frame") if column in table.columns]
