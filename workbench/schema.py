@@ -96,7 +96,7 @@ thousand; more is a unit error (a rate in mHz, a time base)."""
 GAP_POLICIES = ("drop", "linear", "masked")
 HAND_SUBSET = rule(lambda value: (isinstance(value, str) and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
                    or (isinstance(value, (list, tuple)) and len(value) > 0
-                       and all(isinstance(name, str) and name for name in value) and len(set(value)) == len(value)),
+                       and all(map(plain_name_rule, value)) and len(set(value)) == len(value)),
                    "all, upper, lower, random<k> or a list of distinct hand-shape names")
 ALTERNATIVE_NAMES = ("SPCA", "ICA", "NMF", "SPLOCS", "H-fit")
 SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
