@@ -19,8 +19,8 @@ import pytest
 from workbench.cli import run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
-from workbench.export import (export_path, export_run, livelink_channels, livelink_csv, main, playback_targets,
-                              timecode)
+from workbench.export import (ExportedBasis, check_plan, export_path, export_run, file_plan, livelink_channels,
+                              livelink_csv, main, playback_targets, timecode)
 from workbench.metrics import summarise_alpha
 
 sys.path.insert(0, str(REPO_ROOT / "tests" / "tools"))
@@ -458,6 +458,25 @@ def test_names_that_would_leave_the_export_folder_are_refused(tmp_path, name):
         export_path(tmp_path, "H_obj", f"{name}.obj" if name not in ("", ".", "..") else name)
 
 
+@pytest.mark.parametrize("names, message", [
+    (["jaw", ""], r"'' cannot name a file inside"), (["jaw", "."], r"'\.' cannot name a file inside"),
+    (["neutral", "jaw"], r"\['neutral\.obj'\] would be written twice into .*H_obj"),
+    (["Jaw", "jaw"], r"\['Jaw\.obj', 'jaw\.obj'\] would be written twice")])
+def test_every_file_name_is_checked_before_anything_is_written(tmp_path, names, message):
+    from workbench.export import export_takes
+    from workbench.dataset.capture import Capture
+
+    capture = Capture(name="x", neutral=np.zeros(9), train=np.zeros((2, 9)), eval=np.zeros((2, 9)),
+                      hand=np.zeros((2, 9)), hand_names=tuple(names), point_labels=("a", "b", "c"), units="mm",
+                      origin="o", frame_rate=30.0)
+    basis = ExportedBasis(label="H", names=tuple(names), shapes=np.zeros((2, 9)), weights=np.zeros((2, 2)),
+                          solver="lstsq", alpha={}, sculpted=(True, True))
+    plan = file_plan(basis, export_takes(capture, None, 60.0), mesh=True, arkit=False)
+    with pytest.raises(WorkbenchError, match=message):
+        check_plan(tmp_path / "out", [plan])
+    assert not (tmp_path / "out").exists()
+
+
 def with_target_names(glb: Path, names: list, path: Path) -> None:
     """A copy of a .glb with other morph-target names (the JSON chunk rewritten, padded to 4 bytes)."""
     data = glb.read_bytes()
@@ -485,7 +504,7 @@ def test_export_of_shapes_named_like_paths_stops_before_writing(mesh_export, tmp
     result = subprocess.run([str(Path(sys.executable).parent / "workbench"), "export", str(folder), "--out",
                              str(tmp_path / "deep" / "out")], capture_output=True, text=True)
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
-    assert "'../../x.obj' cannot name a file inside" in result.stderr
+    assert "'../../x' cannot name a file inside" in result.stderr
     assert sorted(path for path in tmp_path.rglob("*")) == before and not (tmp_path / "x.obj").exists()
 
 

@@ -271,9 +271,10 @@ def playback_targets(names: Sequence[str], weights: np.ndarray, sculpted: Sequen
             add(name, i, 1.0, w)
             if high > 1.0 + WEIGHT_TOLERANCE:
                 add(name + OVER, i, high - 1.0, (w - 1.0) / (high - 1.0))
-        elif high > WEIGHT_TOLERANCE or low >= -WEIGHT_TOLERANCE:  # an unused eigenface keeps one target
-            add(name + POSITIVE, i, high if high > WEIGHT_TOLERANCE else 1.0,
-                w / high if high > WEIGHT_TOLERANCE else np.zeros_like(w))
+        elif high > WEIGHT_TOLERANCE:
+            add(name + POSITIVE, i, high, w / high)
+        elif low >= -WEIGHT_TOLERANCE:  # an eigenface no frame uses still gets a target
+            add(name + POSITIVE, i, 1.0, np.zeros_like(w))
         if low < -WEIGHT_TOLERANCE:
             add(name + NEGATIVE, i, low, w / low)
     repeated = sorted({name for name in target_names if target_names.count(name) > 1})
@@ -538,6 +539,14 @@ def marker_basis_csv(labels: Sequence[str], neutral: np.ndarray, names: Sequence
 
 # --- where files go ---
 
+def plain_part(name: str, out: Path) -> str:
+    """``name`` if it can name a file inside ``out`` without leaving it, else a :class:`WorkbenchError`."""
+    if not plain_name(name):
+        raise WorkbenchError(f"export: {name!r} cannot name a file inside {out}: a shape, take or basis name must be "
+                             "a plain name (not empty, '.' or '..', no '/' or '\\')")
+    return name
+
+
 def export_path(out: Path, *parts: str) -> Path:
     """``out / parts`` for a file the export writes, each part a plain name and none a symbolic link.
 
@@ -548,13 +557,9 @@ def export_path(out: Path, *parts: str) -> Path:
         or ``sub/dir/name``), or a file or folder on the way already is a symbolic link (which could lead out of
         the folder).
     """
-    for part in parts:
-        if not plain_name(part):
-            raise WorkbenchError(f"export: {part!r} cannot name a file inside {out}: a shape, take or basis name must "
-                                 "be a plain name (not empty, '.' or '..', no '/' or '\\')")
     path = Path(out)
     for part in parts:
-        path = path / part
+        path = path / plain_part(part, out)
         if path.is_symlink():
             raise WorkbenchError(f"export: refusing to write {Path(out).joinpath(*parts)}: {path} is a symbolic link "
                                  f"(the export writes only plain files and folders inside {out})")
@@ -562,41 +567,43 @@ def export_path(out: Path, *parts: str) -> Path:
 
 
 def file_plan(basis: ExportedBasis, takes: Sequence[ExportTake], *, mesh: bool, arkit: bool) -> dict:
-    """Every file name one basis's export writes, by kind (``weights``, ``livelink``: one per take; ``glb``,
-    ``obj``, ``npz``, ``csv``)."""
+    """Every file one basis's export writes: ``weights`` and ``livelink`` (take name -> file name), ``glb``,
+    ``obj`` (a folder) and ``obj_files`` in it, or ``npz`` and ``csv``; and ``names``, the basis, take and shape
+    names that file names are made of."""
     several = len(takes) > 1
-    per_take = {take.name: f"{basis.label}_{take.name}_" if several else f"{basis.label}_" for take in takes}
-    plan = {"weights": {name: prefix + "weights.csv" for name, prefix in per_take.items()},
-            "livelink": {name: prefix + "livelink.csv" for name, prefix in per_take.items()} if arkit else {}}
+    prefix = {take.name: f"{basis.label}_{take.name}_" if several else f"{basis.label}_" for take in takes}
+    plan = {"weights": {take: start + "weights.csv" for take, start in prefix.items()},
+            "livelink": {take: start + "livelink.csv" for take, start in prefix.items()} if arkit else {},
+            "names": [basis.label, *(prefix if several else [])]}
     if mesh:
         plan.update(glb=f"{basis.label}.glb", obj=f"{basis.label}_obj",
                     obj_files=["neutral.obj", "manifest.json", *[f"{name}.obj" for name in basis.names]])
+        plan["names"] += list(basis.names)
     else:
         plan.update(npz=f"{basis.label}_basis.npz", csv=f"{basis.label}_basis.csv")
     return plan
 
 
 def check_plan(out: Path, plans: Sequence[dict]) -> None:
-    """Refuse an export before anything is written when any file name is not plain, leads through a symbolic link
-    or names another file of the export (a shape called ``neutral``; names equal but for case)."""
-    names = []
+    """Refuse an export before anything is written when a name is not plain, a file or folder on the way is a
+    symbolic link or two files would be one (a shape called ``neutral``; names equal but for case)."""
     for plan in plans:
-        for kind in ("weights", "livelink"):
-            names += [str(export_path(out, name).name) for name in plan[kind].values()]
-        for kind in ("glb", "npz", "csv"):
-            if kind in plan:
-                names.append(export_path(out, plan[kind]).name)
-        if "obj" in plan:
-            export_path(out, plan["obj"])
-            inner = [export_path(out, plan["obj"], name).name for name in plan["obj_files"]]
-            clashing = sorted({name for name in inner if [n.casefold() for n in inner].count(name.casefold()) > 1})
-            if clashing:
-                raise WorkbenchError(f"export: {clashing} would be written twice into {Path(out) / plan['obj']} (a "
-                                     "shape named 'neutral', or names equal but for case); rename the shape")
-            names.append(plan["obj"])
-    clashing = sorted({name for name in names if [n.casefold() for n in names].count(name.casefold()) > 1})
-    if clashing:
-        raise WorkbenchError(f"export: {clashing} would be written twice into {out} (take names equal but for case)")
+        for name in plan["names"]:
+            plain_part(name, out)
+    top = [name for plan in plans for name in [*plan["weights"].values(), *plan["livelink"].values(),
+                                               *[plan[kind] for kind in ("glb", "obj", "npz", "csv") if kind in plan]]]
+    folders = [(plan["obj"], plan["obj_files"]) for plan in plans if "obj" in plan]
+    for name in top:
+        export_path(out, name)
+    for folder, names in folders:
+        for name in names:
+            export_path(out, folder, name)
+    for where, names in [(Path(out), top)] + [(Path(out) / folder, names) for folder, names in folders]:
+        folded = [name.casefold() for name in names]
+        twice = sorted({name for name, key in zip(names, folded) if folded.count(key) > 1})
+        if twice:
+            raise WorkbenchError(f"export: {twice} would be written twice into {where} (a shape named 'neutral', or "
+                                 "names equal but for case); rename the shape or take")
 
 
 # --- writing ---

@@ -3,7 +3,7 @@
 Usage: blender --background --factory-startup --python blender_playback.py -- REQUEST.json
 
 REQUEST is ``{"files": [{"glb": PATH, "out": NPZ, "keys": {ANIMATION: [KEY INDEX, ...]}}]}``; an animation named
-``""`` means a file's only one. A workbench .glb is imported with the recipe of docs/export.md (run from there, so
+``""`` means the only one of a file without the workbench's takes. A workbench .glb is imported with the recipe of docs/export.md (run from there, so
 the documented recipe is the tested one); a .glb without the workbench's takes is imported plainly at its
 ``asset.extras.frame_rate`` rounded. For each file the mesh is evaluated through the depsgraph (shape keys, slider
 ranges and all) at the frame of each chosen key, and ``NPZ`` gets ``positions`` (n_keys, n_vertices, 3) in
@@ -48,10 +48,10 @@ def play(item):
     tracks = {track.name: track.strips[0].action for track in animation_data.nla_tracks}
     positions, frames = [], []
     for name, indices in item["keys"].items():
-        if "takes" in extras and name:
+        if "takes" in extras:
             recipe["show_take"](face, extras, [take["animation"] for take in extras["takes"]].index(name))
         else:
-            (animation_data.action,) = tracks.values() if not name else (tracks[name],)
+            animation_data.action = tracks[name] if name else next(iter(tracks.values()))
         keys = animation_data.action.fcurves[0].keyframe_points
         for index in indices:
             frame = keys[index].co.x  # a float32 frame, evaluated exactly there
