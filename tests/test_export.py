@@ -248,6 +248,18 @@ def test_hand_basis_bad_input(record, mesh_export, tmp_path):
     with pytest.raises(WorkbenchError, match=r"dataset.hand_basis: needs distinct shape names of the file's .*"
                                              r"missing \['smile'\]"):
         build(path=str(out / "H_obj"), shapes=["jaw_open", "smile"])
+    stated = tmp_path / "stated"
+    shutil.copytree(out / "H_obj", stated)
+    (stated / "manifest.json").write_text(json.dumps({"unit": "m", "unit_mm": "a lot"}))
+    with pytest.raises(WorkbenchError, match=r"stated/manifest.json: field 'unit_mm' must be a positive, finite number"):
+        build(path=str(stated))
+    (stated / "manifest.json").write_text("{")
+    with pytest.raises(WorkbenchError, match=r"stated/manifest.json: not a readable JSON file"):
+        build(path=str(stated))
+    (stated / "manifest.json").unlink()  # no manifest: mm, so a metre folder is 1,000 times too small
+    with pytest.raises(WorkbenchError, match=r"its neutral lies up to .* mm from the data's"):
+        build(path=str(stated))
+    assert build(path=str(stated), unit_mm=1000.0)
     (tmp_path / "basis.obj").write_text("v 0 0 0\n")
     with pytest.raises(WorkbenchError, match=r"must be a blendshape folder .* or a \.glb file"):
         build(path=str(tmp_path / "basis.obj"))
