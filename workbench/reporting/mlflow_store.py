@@ -150,6 +150,7 @@ def open_store(target: Store) -> Iterator:
     mlflow = import_mlflow()
     from mlflow.exceptions import MlflowException
 
+    check_reachable(target)
     handle = None
     if target.lock_file is not None:
         target.lock_file.parent.mkdir(parents=True, exist_ok=True)
@@ -167,6 +168,27 @@ def open_store(target: Store) -> Iterator:
         if handle is not None:
             fcntl.flock(handle, fcntl.LOCK_UN)
             os.close(handle)
+
+
+def check_reachable(target: Store, timeout: float = 10.0) -> None:
+    """Refuse a server that does not answer at all, at once (MLflow's client would retry each request for minutes).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    import urllib.error
+    import urllib.request
+
+    if not target.tracking_uri.startswith(("http://", "https://")):
+        return
+    try:
+        urllib.request.urlopen(f"{target.tracking_uri.rstrip('/')}/health", timeout=timeout).close()
+    except urllib.error.HTTPError:
+        return  # it answers (a proxy asking for credentials, say): the client's requests will tell
+    except (OSError, ValueError) as error:
+        reason = getattr(error, "reason", error)
+        raise WorkbenchError(f"MLflow server {target.tracking_uri} cannot be reached ({reason})") from None
 
 
 def store_error(target: Store, error: Exception) -> str:
@@ -522,6 +544,7 @@ class MlflowSweep(Callback):
     def __init__(self, enabled: bool = False, store: str | None = None, tracking_uri: str | None = None):
         self.enabled, self.store, self.tracking_uri = bool(enabled), store, tracking_uri
         self.sweep_run_id = None
+        self.jobs_log = True  # off when the store failed as the sweep started: the end of the sweep tries again
 
     def target(self, config) -> Store:
         return resolve_store(store=None if self.store is None else Path(self.store), tracking_uri=self.tracking_uri,
@@ -541,14 +564,15 @@ class MlflowSweep(Callback):
                 if resumed:  # running again until this sweep ends
                     client.update_run(self.sweep_run_id, status="RUNNING")
         except (WorkbenchError, OSError) as error:
-            log.error(f"workbench mlflow: error: {error} (the sweep goes on; log it later with 'workbench mlflow "
-                      f"{sweep_dir}')")
+            self.jobs_log = False
+            log.error(f"workbench mlflow: error: {error} (the sweep goes on; its end tries again, or log it later "
+                      f"with 'workbench mlflow {sweep_dir}')")
             return
         log.info(f"mlflow: sweep run {sweep_name(sweep_dir)} ({'resumed' if resumed else 'new'}) in experiment "
                  f"{study} of {target.tracking_uri}; each run is logged as its job ends")
 
     def on_job_end(self, config, job_return=None, **kwargs) -> None:
-        if not self.enabled:
+        if not self.enabled or not self.jobs_log:
             return
         folder = Path(str(config.hydra.runtime.output_dir))
         if not is_complete(folder):
