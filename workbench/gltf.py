@@ -353,7 +353,7 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
         offset += count
     names = _get(mesh.extras or {}, "targetNames") or [f"target_{i + 1:02d}" for i in range(n_targets)]
     if (not isinstance(names, list) or len(names) != n_targets or len(set(map(str, names))) != len(names)
-            or not all(isinstance(name, str) and name for name in names)):
+            or not all(isinstance(name, str) for name in names)):
         raise WorkbenchError(f"{path}: mesh {mesh.name!r}: extras.targetNames must name its {n_targets} morph "
                              f"targets once each, got {names!r:.100}")
     result = MorphMesh(neutral=np.concatenate(neutral) * MM_PER_METRE, triangles=np.concatenate(triangles),
