@@ -166,7 +166,9 @@ def test_a_damaged_cache_entry_is_reported_and_rebuilt(tmp_path, capsys, damage)
     clear_memory()
     again = cached_captures(CONFIG, build, tmp_path)
     assert build.calls == 2
-    assert_one_note(capsys, f"workbench: cache entry {tmp_path / key}: ", "rebuilding it")
+    assert_one_note(capsys, f"workbench: cache entry {tmp_path / key}: " + {
+        "truncated npz": f"{key}.npz does not match its checksum", "bad json": f"{key}.json cannot be read",
+        "json of another shape": f"{key}.json does not match its checksum"}[damage], "; rebuilding it")
     np.testing.assert_array_equal(again["markers"].train, first["markers"].train)
     clear_memory()
     cached_captures(CONFIG, build, tmp_path)  # the rebuilt entry is whole again

@@ -301,7 +301,10 @@ def _load(folder: Path, key: str, inputs: dict) -> dict[str, Capture] | None:
     meta_path = folder / f"{key}.json"
     if not meta_path.is_file():
         return None
-    document = json.loads(meta_path.read_text())
+    try:
+        document = json.loads(meta_path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise EntryMismatch(f"{meta_path.name} cannot be read ({type(error).__name__}: {error})") from None
     if not isinstance(document, dict):
         raise EntryMismatch(f"{meta_path.name} is not a cache entry")
     recorded = document.pop("sha256", None)
