@@ -312,8 +312,8 @@ def _load(folder: Path, key: str, inputs: dict) -> dict[str, Capture] | None:
         raise EntryMismatch(f"{meta_path.name} does not match its checksum (edited after it was written)")
     if _canonical(document["inputs"]) != _canonical(inputs):
         raise EntryMismatch(f"{meta_path.name} was made from other inputs ({_differences(document['inputs'], inputs)})")
-    payload = _verified_files(folder, key, document["files"])
-    with np.load(io.BytesIO(payload), allow_pickle=False) as stored:
+    payload = io.BytesIO(_verified_files(folder, key, document["files"]))
+    with np.load(payload, allow_pickle=False) as stored:
         arrays = {name: stored[name] for name in stored.files}
     captures = {}
     for name, info in document["captures"].items():
