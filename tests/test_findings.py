@@ -1,5 +1,6 @@
 """The findings text is produced from the numbers: checked on a constructed alpha table with known answers."""
 
+import numpy as np
 import pandas as pd
 
 from workbench.reporting.findings import facts_frame, run_findings, shared_notes
@@ -194,3 +195,26 @@ def test_bases_findings():
         "**mesh**: `alpha_abs_mean` from best to worst: SPCA 0.1 < QE 0.2 < H 1.",
         "**mesh**: closest to the hand shapes: QE (mean matched |cosine| 0.66); most local: SPCA (10 % of the face "
         "holds its elements' displacement, the hand shapes' 7 %)."]
+
+
+def test_the_offset_is_not_singled_out_when_qe_linear_loses_almost_as_much():
+    table = known_table().assign(alpha_abs_mean=lambda t: np.where(
+        (t["basis"] == "QE-linear") & (t["solver"] == "nnls"), 2.75, t["alpha_abs_mean"]))  # x5.5 against x6
+    why = next(line for line in run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
+               if "why:" in line)
+    assert why.endswith("against QE's x6.00. Here QE-linear, with as many frames needing negative weights, loses "
+                        "almost as much: these numbers do not single out the offset.")
+
+
+def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
+    from workbench.reporting.findings import bases_findings
+
+    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["ICA", "H-fit", "PCA"],
+                            "alpha_abs_mean": [0.09612, 0.09621, 0.2], "matched_abs_cosine": [0.5, 0.74, 0.3],
+                            "locality": [0.2, 0.1, 0.5]})
+    comparisons = {"mesh": [
+        {"a": ["ICA", "lstsq"], "b": ["H-fit", "lstsq"], "estimate": -9e-05, "low": -0.0004, "high": 0.0002},
+        {"a": ["H-fit", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.104, "low": -0.11, "high": -0.09}]}
+    assert bases_findings(summary, "alpha_abs_mean", comparisons)[0] == (
+        "**mesh**: `alpha_abs_mean` from best to worst: ICA 0.09612 ~ H-fit 0.09621 (ICA - H-fit -9e-05 [-0.0004, "
+        "+0.0002]: not distinguishable) < PCA 0.2.")

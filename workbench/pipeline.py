@@ -215,8 +215,13 @@ HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take"}
 def held_out_protocols(dataset_cfg: Mapping) -> list[str]:
     """``dataset.held_out`` as a list of distinct protocols of :data:`HELD_OUT` (empty when null)."""
     value = dataset_cfg.get("held_out")
-    names = [] if value is None else [value] if isinstance(value, str) else list(value)
-    if any(name not in HELD_OUT for name in names) or len(set(names)) != len(names):
+    if value is None:
+        names = []
+    elif isinstance(value, (str, Mapping)) or not hasattr(value, "__iter__"):
+        names = [value]
+    else:
+        names = list(value)
+    if any(not isinstance(name, str) or name not in HELD_OUT for name in names) or len(set(names)) != len(names):
         raise WorkbenchError(f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, "
                              f"got {value!r}")
     if names and dataset_cfg.get("split", "same") != "same":

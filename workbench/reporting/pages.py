@@ -1317,8 +1317,10 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     from workbench.reporting.findings import bases_findings
 
     findings = next((item for item in sections if item.heading == "Findings"), None)
-    if findings is not None:
-        findings.blocks.append(bases_findings(summary, column))
+    if findings is not None:  # one run: its orderings from its paired comparisons
+        comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
+                       if len(found) == 1 else None)
+        findings.blocks.append(bases_findings(summary, column, comparisons, solver))
     section = Section("Other bases: alpha against intuitiveness", [
         f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
         f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
