@@ -80,7 +80,8 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
                                    coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
                        for result in results], ignore_index=True)
-    comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
+    with results[0].timings.stage("comparisons"):
+        comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
     text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
             + headline(table, plain["metric"], paper_alpha, comparisons))
 

@@ -636,6 +636,7 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
     list of Row
     """
     region, timeline = face_region(capture), capture.timeline()
+    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once, as integers
     points = np.ones(capture.n_points, dtype=bool) if region.points is None else region.points
     visible = capture.eval_visible
     counts = (visible[:, points].sum(axis=1) if visible is not None else int(points.sum()))
@@ -652,7 +653,7 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
         key = (row.basis, row.solver)
         error_sq = explicit.get(key, row.alpha.error_sq if region.points is None else None)
         per_frame = frame_rms_error(error_sq, counts) if error_sq is not None else None
-        statistics = (weight_statistics(weights[key], timeline.seconds, timeline.take) if key in weights else None)
+        statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
         measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
                                 error_mm=error_distribution(per_frame) if per_frame is not None else None))
     return measured

@@ -222,15 +222,16 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
     options = {"n_resamples": int(metric.get("bootstrap_resamples", 2000)),
                "seed": int(metric.get("bootstrap_seed", 0))}
     timeline = result.capture.timeline()
+    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
     found = []
     for a, b in comparison_pairs(result.rows):
         first, second = result.rows[a].alpha, result.rows[b].alpha
         if aggregate == "mean":
             values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
-            interval = paired_mean_difference(*values, takes=timeline.take, seconds=timeline.seconds, **options)
+            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, **options)
         else:
             reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
-            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=timeline.take,
+            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
                                                 seconds=timeline.seconds, **options)
         found.append({"a": [result.rows[a].basis, result.rows[a].solver],
                       "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})

@@ -927,9 +927,9 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, fa
                          record.config)]),
         Section("Run facts", run_facts(record)),
         Section("Alpha beside the paper", [
-            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values; only "
-            "ratios between rows compare across datasets, since the absolute alpha depends on the coordinate "
-            "origin.",
+            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
+            "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
+            "alpha variant (the findings give them under each), so they compare across datasets only within one.",
             headline_table(record.table, column),
         ]),
         *protocol_sections(record, column),
@@ -1186,10 +1186,11 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
                           summary, x, column, solver=solver, by=others,
                           points=per_run if per_run is not None and x in per_run.columns else None,
                           title=f"Alpha against {axis_label(x)}\n{label}")))
-    if summary["data"].nunique() > 1 and not targets:
+    trained = summary[summary["data"].isin(training_variants(first))]  # held-out frames are no data variant
+    if trained["data"].nunique() > 1 and not targets:
         specs.append(("marker_vs_mesh", "Marker versus mesh",
                       f"`{column}` (mean over seeds, 95 % CI) of each basis on each data variant.",
-                      lambda _, options: plot_marker_vs_mesh(summary, column, solver=solver,
+                      lambda _, options: plot_marker_vs_mesh(trained, column, solver=solver,
                                                              title=f"Marker versus mesh data\n{label}")))
     return specs
 

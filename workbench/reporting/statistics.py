@@ -112,8 +112,10 @@ def autocovariances(series: np.ndarray, spans: Sequence[tuple[int, int]], max_la
     values = np.zeros(max_lag + 1)
     for start, stop in spans:
         part = centred[start:stop]
-        for lag in range(min(max_lag, len(part) - 1) + 1):
-            values[lag] += part[:len(part) - lag] @ part[lag:]
+        size = 1 << int(2 * len(part) - 1).bit_length()  # zero padding: the circular products become linear ones
+        spectrum = np.fft.rfft(part, size)
+        lags = min(max_lag, len(part) - 1) + 1
+        values[:lags] += np.fft.irfft(spectrum * spectrum.conj(), size)[:lags]
     return values / len(series)
 
 
