@@ -86,6 +86,8 @@ def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str
     """H/QE, H/QE-linear and QE/PCA of one data variant under every alpha variant in its rows, beside the paper's
     ratios (from its reported, absolute alpha), and how far the variants move them."""
     columns = [column for column in ALPHA_VARIANTS if column in part.columns]
+    if not columns:
+        return ""
     pairs = [(a, b) for a, b in (("H", "QE"), ("H", "QE-linear"), ("QE", "PCA"))
              if not math.isnan(_alpha(part, a, solver, columns[0])) and not math.isnan(_alpha(part, b, solver,
                                                                                               columns[0]))]
