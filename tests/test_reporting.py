@@ -60,6 +60,9 @@ def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
                                        part["alpha_disp_mean"], rtol=1e-12)
             np.testing.assert_allclose(np.median(arrays[f"{data}.error_mm"], axis=1), part["err_mm_median"],
                                        rtol=1e-12)
+    # read back, PCA's empty weight cells are NaN in numeric columns
+    read = load_record(record).table
+    assert read["w_max_abs"].dtype == float and read.loc[read["basis"] == "PCA", "w_max_abs"].isna().all()
 
 
 def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_report):

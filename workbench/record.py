@@ -136,6 +136,12 @@ TIMINGS_FILE = "timings.json"
 ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 """The alpha-table columns every row of a record must have (numbers)."""
+FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
+                 "w_roughness")
+"""The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
+frames, mm) and of the weights' statistics (:class:`workbench.metrics.WeightStatistics`: largest ``|w|``, share of
+frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
+for PCA's weights, and absent from records made before they were measured."""
 
 
 def record_state(folder: Path) -> str:
@@ -559,7 +565,8 @@ def load_record(folder: Path) -> RunRecord:
         _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
     try:
         table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
-                            na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)})
+                            na_values={c: ["", "NaN", "nan"]
+                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS)})
     except (ValueError, pd.errors.ParserError) as error:
         raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
     missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)

@@ -8,15 +8,11 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.errors import WorkbenchError
+from workbench.record import FRAME_COLUMNS
 
 ROW_NAME_COLUMNS = ("data", "basis", "projection", "solver")
 ALPHA_TABLE_COLUMNS = ("n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean",
                        "alpha_disp_pooled", "rms_mm", "paper_alpha")
-FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
-                 "w_roughness")
-"""The per-frame error in millimetres over the face region (median, 95th percentile and maximum over frames) and
-the weights' statistics (:class:`workbench.metrics.WeightStatistics`): largest ``|w|``, share of frames with a
-weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4; NaN for PCA."""
 TABLE_COLUMNS = (*ROW_NAME_COLUMNS, *ALPHA_TABLE_COLUMNS, *FRAME_COLUMNS)
 
 
