@@ -81,6 +81,8 @@ class SolverSchema:
 class MetricSchema:
     headline_normalisation: str = MISSING
     headline_aggregate: str = MISSING
+    bootstrap_resamples: int = 2000
+    bootstrap_seed: int = 0
 
 
 @dataclass
@@ -128,6 +130,7 @@ class SyntheticSchema:
     stabilise: bool = True
     split: str = "same"
     eval_fraction: float = 0.2
+    held_out: Any = None
     eval_seed: Optional[int] = None
     gap_rate: float = 0.0
     gap_mean_frames: float = 12
@@ -162,6 +165,7 @@ class IctLivelinkSchema:
     train_on: Any = MISSING
     split: str = "same"
     eval_fraction: float = 0.2
+    held_out: Any = None
     plausibility: str = "error"
     storage: str = "memory"
     dtype: str = "float64"
@@ -201,6 +205,7 @@ class AnimfaceSchema:
     train_on: Any = MISSING
     split: str = "same"
     eval_fraction: float = 0.2
+    held_out: Any = None
     plausibility: str = "error"
     storage: str = "memory"
     dtype: str = "float64"
