@@ -79,8 +79,8 @@ COMPOSITION_CASES = {
                               "no such setting",
     "+dataset.weight_curves=take.csv": "dataset.weight_curves has no effect with dataset=synthetic: only dataset "
                                        "kind(s) ['ict_livelink'] read it",
-    "dataset.eval_fraction=0.3": "dataset.eval_fraction has no effect in this run: only dataset.split=tail uses it "
-                                 "(this run: split=same)",
+    "dataset.eval_fraction=0.3": "dataset.eval_fraction has no effect in this run: only dataset.split=tail or "
+                                 "dataset.held_out=tail uses it (this run: split=same)",
     "basis.subset_seed=4": "basis.subset_seed has no effect in this run: only basis.hand_subset=random<k> draws",
     "basis.splocs.d_min=0.9": "basis.splocs.d_min (0.9) must be below basis.splocs.d_max (0.7)",
 }
@@ -100,7 +100,8 @@ def test_settings_with_no_effect_in_a_sweep_are_named_not_refused():
 
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.eval_fraction=0.3"])
     assert check_study_config(cfg, ["dataset.eval_fraction=0.3"]) == [
-        "dataset.eval_fraction has no effect in this run: only dataset.split=tail uses it (this run: split=same)"]
+        "dataset.eval_fraction has no effect in this run: only dataset.split=tail or dataset.held_out=tail uses it "
+        "(this run: split=same)"]
     cfg = compose("paper", ["dataset.n_frames=200", "dataset.split=tail", "dataset.eval_fraction=0.3"])
     assert check_study_config(cfg, ["dataset.split=tail", "dataset.eval_fraction=0.3"], refuse_ineffective=True) == []
 

@@ -25,9 +25,8 @@ from workbench.dataset.real import bool_setting
 from workbench.errors import WorkbenchError, single_line
 from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
 from workbench.pipeline import run_study
-from workbench.record import DONE, config_hash, record_state, run_metrics, write_record
-from workbench.run_text import alpha_table, headline, study_header
-from workbench.tables import markdown_frame
+from workbench.record import DONE, config_hash, frame_comparisons, record_state, run_metrics, write_record
+from workbench.run_text import alpha_table, headline, printed_tables, study_header
 from workbench.tracking import (FolderBusy, as_typed, check_run_dir, created_by_this_run, discard_failed_run,
                                 lock_run_dir, prepare_run_dir, register_resolvers, unlock_run_dir)
 
@@ -86,11 +85,13 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
                                    coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
                        for result in results], ignore_index=True)
-    text = (study_header(results, plain) + "\n" + markdown_frame(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha))
+    with results[0].timings.stage("comparisons"):
+        comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
+    text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
+            + headline(table, plain["metric"], paper_alpha, comparisons))
 
     metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
-                          job_num=job_num, started_at=started_at, repository=REPO_ROOT)
+                          job_num=job_num, started_at=started_at, repository=REPO_ROOT, comparisons=comparisons)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
                  timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
                  save_inputs=save_inputs)

@@ -155,6 +155,12 @@ _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_S
 _VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 """The alpha-table columns every row of a record must have (numbers)."""
+FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
+                 "w_roughness")
+"""The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
+frames, mm) and of the weights' statistics (:class:`workbench.metrics.WeightStatistics`: largest ``|w|``, share of
+frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
+for PCA's weights, and absent from records made before they were measured."""
 
 
 def record_state(folder: Path) -> str:
@@ -193,16 +199,84 @@ def file_checksum(path: Path) -> str:
 
 def alpha_per_frame_arrays(results) -> dict:
     """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
-    of shape (n_rows, n_eval_frames), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the
-    evaluated frames' take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
+    of shape (n_rows, n_eval_frames), ``<data>.error_mm`` (RMS point error over the face region, NaN where a row
+    has none), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the evaluated frames'
+    take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
     arrays = {}
     for result in results:
+        n_frames = len(result.capture.eval)
         arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
         arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
         arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
         arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
+        arrays[f"{result.data}.error_mm"] = np.array([np.full(n_frames, np.nan) if row.frame_error_mm is None
+                                                      else row.frame_error_mm for row in result.rows])
         arrays.update(result.capture.timeline().as_arrays(f"{result.data}."))
     return arrays
+
+
+def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
+    """The pairs of table rows a run compares frame by frame: every two bases under the same solver (PCA, whose
+    row has no solver, under each), and every basis under two solvers.
+
+    Parameters
+    ----------
+    rows : sequence of workbench.pipeline.Row
+
+    Returns
+    -------
+    list of (int, int)
+        Indices into ``rows``.
+    """
+    solvers = list(dict.fromkeys(row.solver for row in rows if row.solver != "projection"))
+    pairs = []
+    for solver in solvers:
+        members = [i for i, row in enumerate(rows) if row.solver in (solver, "projection")]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+    for basis in dict.fromkeys(row.basis for row in rows if row.solver != "projection"):
+        members = [i for i, row in enumerate(rows) if row.basis == basis and row.solver != "projection"]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+    return list(dict.fromkeys(pairs))
+
+
+def frame_comparisons(result, metric: Mapping) -> list[dict]:
+    """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
+    of :func:`comparison_pairs`, the difference ``a - b`` with its block-bootstrap interval over time
+    (:mod:`workbench.reporting.statistics`).
+
+    Parameters
+    ----------
+    result : workbench.pipeline.StudyResult
+    metric : mapping
+        The ``metric`` config group: the headline's normalisation and aggregate, the bootstrap's resamples and
+        seed.
+
+    Returns
+    -------
+    list of dict
+        ``a`` and ``b`` as ``[basis, solver]``, ``column``, and the :class:`Interval`'s fields.
+    """
+    from workbench.reporting.statistics import paired_mean_difference, paired_pooled_difference
+
+    normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
+    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
+    options = {"n_resamples": int(metric.get("bootstrap_resamples", 2000)),
+               "seed": int(metric.get("bootstrap_seed", 0))}
+    timeline = result.capture.timeline()
+    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
+    found = []
+    for a, b in comparison_pairs(result.rows):
+        first, second = result.rows[a].alpha, result.rows[b].alpha
+        if aggregate == "mean":
+            values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
+            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, **options)
+        else:
+            reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
+            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
+                                                seconds=timeline.seconds, **options)
+        found.append({"a": [result.rows[a].basis, result.rows[a].solver],
+                      "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
+    return found
 
 
 def data_metrics(result) -> dict:
@@ -212,7 +286,8 @@ def data_metrics(result) -> dict:
     capture, eigenfaces = result.capture, result.eigenfaces
     return {
         "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
-        "notes": list(capture.notes),
+        "notes": list(capture.notes), "face_region": result.face_region, "offset": dict(result.offset),
+        "protocol": result.protocol,
         "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
                 "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
                 "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
@@ -226,7 +301,8 @@ def data_metrics(result) -> dict:
 
 
 def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Sequence[str],
-                job_num: int | None, started_at: str, repository: Path) -> dict:
+                job_num: int | None, started_at: str, repository: Path,
+                comparisons: Mapping[str, list] | None = None) -> dict:
     """The content of ``metrics.json`` for a finished run.
 
     Parameters
@@ -246,6 +322,8 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
         ISO time the run started.
     repository : pathlib.Path
         The workbench's checkout, for the git commit.
+    comparisons : mapping, optional
+        Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
 
     Returns
     -------
@@ -263,14 +341,18 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
         "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
                     "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
                     "provenance": capture.provenance},
-        "data": {result.data: data_metrics(result) for result in results},
+        "data": {result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
+                 for result in results},
         "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
                       eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
                       solver_fallback_frames=row.n_fallback_frames,
                       solver_max_kkt_violation=row.max_kkt_violation,
                       max_abs_weight=row.max_abs_weight,
                       basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
+                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames,
+                      weights=row.weight_statistics.as_dict() if row.weight_statistics else None,
+                      error_mm_quantiles=row.error_mm.quantiles.tolist() if row.error_mm else None,
+                      offset_error_share=row.offset_error_share)
                  for i, (result, row) in enumerate(rows)],
         "versions": versions(),
         "git": git_state(repository),
@@ -325,8 +407,10 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
     write(METRICS_FILE, json_text(dict(metrics)))
     write(TIMINGS_FILE, json_text(dict(timings)))
     if save_inputs:
-        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file
-        for result in [result for result in results if result.transfer == "identity"]:
+        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file; the
+        # figures show the paper's protocol, so held-out frames (dataset.held_out) are not saved either
+        for result in [result for result in results
+                       if result.transfer == "identity" and result.protocol == "training frames"]:
             name = INPUTS_FILE if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
             write(name, npz_bytes(input_arrays(result)))
         write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame_arrays(results)))
@@ -608,7 +692,8 @@ def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
         _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
     try:
         table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
-                            na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)})
+                            na_values={c: ["", "NaN", "nan"]
+                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS)})
     except (ValueError, pd.errors.ParserError) as error:
         raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
     missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)

@@ -94,7 +94,8 @@ FRAME_RATE = interval(0, 10_000, low_open=True)
 """Frames per second of a face capture: optical systems record at up to a few hundred, high-speed cameras at a few
 thousand; more is a unit error (a rate in mHz, a time base)."""
 GAP_POLICIES = ("drop", "linear", "masked")
-HAND_SUBSET = rule(lambda value: (isinstance(value, str) and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
+HAND_SUBSET = rule(lambda value: (isinstance(value, str)
+                                  and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
                    or (isinstance(value, (list, tuple)) and len(value) > 0
                        and all(map(plain_name_rule, value)) and len(set(value)) == len(value)),
                    "all, upper, lower, random<k> or a list of distinct hand-shape names")
@@ -102,6 +103,8 @@ ALTERNATIVE_NAMES = ("SPCA", "ICA", "NMF", "SPLOCS", "H-fit")
 SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
                    "a non-empty list of distinct shape names (plain names: each names a file in an export)")
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
+HELD_OUT = names("tail", "take", optional=True)
+"""``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.pipeline.HELD_OUT``)."""
 PLAUSIBILITY = one_of("error", "warn")
 STORAGE = one_of("memory", "disk")
 DTYPE = one_of("float64", "float32")
@@ -184,6 +187,8 @@ class SolverSchema:
 class MetricSchema:
     headline_normalisation: str = meta(MISSING, one_of("absolute", "displacement"))
     headline_aggregate: str = meta(MISSING, one_of("mean", "pooled"))
+    bootstrap_resamples: int = meta(2000, integer(1))
+    bootstrap_seed: int = meta(0, SEED)
 
 
 @dataclass
@@ -244,6 +249,7 @@ class SyntheticSchema:
     stabilise: Any = meta(True, BOOLEAN)
     split: str = meta("same", one_of("same", "tail", "other_take"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
+    held_out: Any = meta(None, HELD_OUT)
     eval_seed: Optional[int] = meta(None, integer(0, optional=True))
     gap_rate: float = meta(0.0, interval(0, 1, high_open=True))
     gap_mean_frames: float = meta(12, interval(1))
@@ -278,6 +284,7 @@ class IctLivelinkSchema:
     train_on: Any = meta(MISSING, names("mesh", "markers"))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
+    held_out: Any = meta(None, HELD_OUT)
     plausibility: str = meta("error", PLAUSIBILITY)
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
@@ -317,6 +324,7 @@ class AnimfaceSchema:
     train_on: Any = meta(MISSING, names("markers", "mesh"))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
+    held_out: Any = meta(None, HELD_OUT)
     plausibility: str = meta("error", PLAUSIBILITY)
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
@@ -349,6 +357,7 @@ class MeshSequenceSchema:
     train_on: Any = meta("mesh", names("mesh"))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
+    held_out: Any = meta(None, HELD_OUT)
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
 
@@ -517,14 +526,19 @@ def _variants(dataset: Mapping) -> set:
     return chosen
 
 
+def _held_out(plain: Mapping) -> list:
+    value = plain["dataset"].get("held_out") or []
+    return [value] if isinstance(value, str) else list(value)
+
+
 def _alternatives(plain: Mapping) -> list:
     value = plain["basis"].get("alternatives") or []
     return [value] if isinstance(value, str) else list(value)
 
 
 INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
-    "dataset.eval_fraction": lambda c: None if c["dataset"].get("split") == "tail" else
-    f"only dataset.split=tail uses it (this run: split={c['dataset'].get('split')})",
+    "dataset.eval_fraction": lambda c: None if c["dataset"].get("split") == "tail" or "tail" in _held_out(c) else
+    f"only dataset.split=tail or dataset.held_out=tail uses it (this run: split={c['dataset'].get('split')})",
     "dataset.eval_seed": lambda c: None if c["dataset"].get("split") == "other_take" else
     f"only dataset.split=other_take uses it (this run: split={c['dataset'].get('split')})",
     "dataset.gap_mean_frames": lambda c: None if (c["dataset"].get("gap_rate") or 0) > 0 else
