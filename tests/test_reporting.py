@@ -129,11 +129,17 @@ def test_report_documents_hold_tables_figures_provenance_choices_and_versions(ti
     assert yaml.safe_load((report / "run_config.yaml").read_text()) == load_record(record).config
 
 
+# Headless Chromium with software WebGL and no network: every host resolves to nothing and every request goes to a
+# closed proxy, so a page that needed anything from outside its folder would show it.
+OFFLINE_CHROMIUM = ("--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+                    "--disable-background-networking", "--proxy-server=127.0.0.1:9",
+                    "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=30000")
+
+
 def browser_page(chromium: str, page, *args: str) -> str:
     """Load a page in headless Chromium (software WebGL), let its scripts run, and return the DOM (or what the
     extra arguments ask for)."""
-    done = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-                           "--virtual-time-budget=30000", *args, page.as_uri()], capture_output=True, text=True,
+    done = subprocess.run([chromium, *OFFLINE_CHROMIUM, *args, page.as_uri()], capture_output=True, text=True,
                           timeout=180)
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout
@@ -169,21 +175,43 @@ def test_interactive_view_draws_the_face_in_a_browser_from_file(tiny_report, chr
 
 
 def test_a_report_folder_copied_anywhere_still_draws_its_3d_view(tiny_report, chromium, tmp_path):
-    """Everything the 3-D view needs is inside the report folder: a copy elsewhere, away from every other report,
-    draws it, and a link to another frame and basis opens them."""
+    """Everything the page needs is inside the report folder: a copy elsewhere, away from every other report, opened
+    from file:// with no network, loads every figure and the animation and draws its 3-D view, and a link to
+    another frame and basis opens them."""
     _, report = tiny_report
     copy = tmp_path / "elsewhere" / "deeper" / "my report"
     shutil.copytree(report, copy)
     status, dom = view_status(chromium, copy / "index.html")
     assert_both_halves_drawn(status)
+    assert_every_figure_loaded(dom, copy / "index.html")
     uri = (copy / "index.html").as_uri() + "#frame=2&shown=QE-linear&colour=plain"
-    done = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-                           "--disable-background-networking", "--virtual-time-budget=30000", "--dump-dom", uri],
-                          capture_output=True, text=True, timeout=180)
+    done = subprocess.run([chromium, *OFFLINE_CHROMIUM, "--dump-dom", uri], capture_output=True, text=True,
+                          timeout=180)
     linked = done.stdout
     assert_both_halves_drawn(re.search(r'data-status="([^"]*)"', linked).group(1))
     assert 'id="view3d-right">reconstructed with QE-linear, quasi-eigen faces (linear projection)' in linked
     assert "plain shaded: the geometry alone" in linked
+
+
+def assert_every_figure_loaded(dom: str, page) -> None:
+    """Every image of the page (each figure and the animation) loaded in the browser: the page marks each one."""
+    images = re.findall(r"<img [^>]*>", dom)
+    assert len(images) == page.read_text().count("<img "), "the page's figure check did not run"
+    broken = [image for image in images if 'data-loaded="yes"' not in image]
+    assert not broken, broken
+
+
+def test_a_copied_report_missing_a_figure_says_so(tiny_report, chromium, tmp_path):
+    """The browser check can fail: a copy without one of its figures marks that image as not loaded and names the
+    file under it."""
+    _, report = tiny_report
+    copy = tmp_path / "partial"
+    shutil.copytree(report, copy)
+    (copy / "figures" / "coverage_curve.svg").unlink()
+    dom = browser_page(chromium, copy / "index.html", "--dump-dom")
+    with pytest.raises(AssertionError, match="coverage_curve"):
+        assert_every_figure_loaded(dom, copy / "index.html")
+    assert "Figure file not found beside this page: figures/coverage_curve.svg" in dom
 
 
 def test_animation_and_report_text(tiny_report):
@@ -396,6 +424,30 @@ def assert_reference_is_small_and_clean(reference, readme: str) -> None:
     assert "/work/" not in readme and "/home/" not in readme
 
 
+# bytes: half of the 13 MB that reports/ held before its figures were made smaller (PNG renders, plotly.js beside
+# them, figure 1 in every report)
+REPORTS_BUDGET = 6_500_000
+
+
+def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_show():
+    root = REPO_ROOT / "reports"
+    files = [path for path in root.rglob("*") if path.is_file()]
+    if not any(path.name == "alpha_table.csv" for path in files):
+        pytest.skip("no committed reference reports")
+    total = sum(path.stat().st_size for path in files)
+    assert total <= REPORTS_BUDGET, f"reports/ holds {total / 1e6:.2f} MB, over {REPORTS_BUDGET / 1e6} MB"
+    assert not (root / "vendor").exists()
+    assert [path.relative_to(root).as_posix() for path in files if path.stem == "fig1_analogy"] == [
+        "shared/fig1_analogy.svg"]  # figure 1 once
+    for page in root.glob("*/index.html"):
+        for target in re.findall(r'(?:src|href)="([^"#]+)"', page.read_text()):
+            assert "://" not in target, (page, target)
+            where = (page.parent / target).resolve()
+            assert where.is_file(), (page, target)
+            # inside the report folder; figure 1 from the one shared copy
+            assert where.is_relative_to(page.parent) or where == root / "shared" / "fig1_analogy.svg", (page, target)
+
+
 # The committed report of the bases study and the runs it was built from (the alternatives' seeds 0 and 1).
 BASES_REFERENCE = ["dataset.n_frames=4000", "dataset.held_out=tail"]
 
@@ -497,6 +549,39 @@ def holes(image: np.ndarray, smallest_face: int = 20_000, smallest_hole: int = 6
     enclosed, count = ndimage.label(ndimage.binary_fill_holes(faces) & ~drawn)
     sizes = ndimage.sum(enclosed > 0, enclosed, index=np.arange(1, count + 1))
     return int(sizes[sizes >= smallest_hole].sum())
+
+
+def test_the_hole_count_sees_a_missing_patch_and_not_a_capped_opening():
+    rows, cols = np.mgrid[:300, :300]
+    disc = lambda y, x, r: (rows - y) ** 2 + (cols - x) ** 2 < r ** 2  # noqa: E731
+    image = np.full((300, 300, 3), 255, np.uint8)
+    image[disc(150, 150, 120)] = 180  # a shaded face
+    image[140:150, 20:60] = 0  # a label beside it: too small to count as a face
+    assert holes(image) == 0
+    image[disc(120, 110, 10)] = 30  # an eye opening, capped dark
+    assert holes(image) == 0
+    image[disc(190, 180, 6)] = 255  # a patch of the face not drawn: the background shows through
+    assert holes(image) == disc(190, 180, 6).sum()
+    image[200, 100] = 255  # one light pixel at an edge (a lossy codec's speck) is no hole
+    assert holes(image) == disc(190, 180, 6).sum()
+
+
+# The reference reports' renders of faces: every figure of rendered faces and the animation.
+FACE_RENDERS = ("fig2_hand_vs_quasi_eigen.webp", "fig3_reconstructions.webp", "vertex_rms.webp", "animation.webp")
+
+
+@pytest.mark.parametrize("name", FACE_RENDERS)
+def test_committed_animface_renders_have_no_holes(name):
+    """The committed AnimFace report as a reader sees it: no face in its images lets the background through (the
+    eye and mouth openings are capped dark; regions without data are plain shaded, not cut out). Every frame of
+    the animation is checked."""
+    path = REPO_ROOT / "reports" / "paper-animface" / "figures" / name
+    if not path.is_file():
+        pytest.skip(f"no committed reference report {path.parent.parent}")
+    image = Image.open(path)
+    for k in range(getattr(image, "n_frames", 1)):
+        image.seek(k)
+        assert holes(np.asarray(image.convert("RGB"))) == 0, (name, k)
 
 
 def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):

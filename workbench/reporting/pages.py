@@ -1301,6 +1301,25 @@ code { background: #f4f4f4; padding: 0 .25em; } .missing { color: #8a4b00; }
 """
 
 
+# Marks every figure whether it loaded (``data-loaded``), and says so under one that did not: a report folder
+# copied without its figures (or a reference report without ``../shared``) shows what is missing instead of a
+# broken image; the browser test reads the marks.
+FIGURE_CHECK = """
+window.addEventListener("load", () => {
+  for (const img of document.querySelectorAll("img")) {
+    const loaded = img.complete && img.naturalWidth > 0;
+    img.setAttribute("data-loaded", loaded ? "yes" : "no");
+    if (!loaded) {
+      const note = document.createElement("p");
+      note.className = "missing";
+      note.textContent = "Figure file not found beside this page: " + img.getAttribute("src");
+      img.after(note);
+    }
+  }
+});
+"""
+
+
 def render_html(title: str, sections: Sequence[Section]) -> str:
     """index.html of a report: one self-contained page, figures beside it in ``figures/``."""
     body = [f"<h1>{html.escape(title)}</h1>"]
@@ -1319,7 +1338,7 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
                 body.append(f"<p>{_inline_markdown(block)}</p>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>\n<body>\n"
-            + "\n".join(body) + "\n</body></html>\n")
+            + "\n".join(body) + f"\n<script>{FIGURE_CHECK}</script>\n</body></html>\n")
 
 
 # ---------------------------------------------------------------------------------------------------------------
