@@ -13,7 +13,7 @@ from matplotlib.collections import PolyCollection
 from PIL import Image
 
 from workbench.errors import WorkbenchError
-from workbench.reporting.figures import fixed_decimals, raster_bytes, save_figure, shorter_numbers
+from workbench.reporting.figures import compact_svg, fixed_decimals, raster_bytes, save_figure, shorter_numbers
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
 from workbench.reporting.figures.faces import (colour_range, face_regions, nice_exaggeration, point_norms,
                                                region_frames, shape_region, spread_by_rank)
@@ -81,6 +81,13 @@ def test_svg_numbers_are_cut_in_attributes_only():
     svg = b'<path d="M 179.718736 172.6 L 0.123456 1e-05" style="stroke-width: 0.8123"/><text x="12.3456">0.9958</text>'
     assert shorter_numbers(svg) == (b'<path d="M 179.71 172.6 L 0.12 1e-05" style="stroke-width: 0.81"/>'
                                     b'<text x="12.34">0.9958</text>')
+
+
+def test_svg_is_compacted_without_changing_what_it_draws():
+    svg = (b'<svg>\n <!-- a comment -->\n <defs>\n  <path id="m1" d="M 0 0 \nL 1.23456 2 \nz\n"/>\n </defs>\n'
+           b' <g id="figure_1">\n  <use xlink:href="#m1" x="3"/>\n  <text x="1">a  b</text>\n </g>\n</svg>')
+    assert compact_svg(svg) == (b'<svg><defs><path id="m1" d="M 0 0 L 1.23 2 z "/></defs><g><use xlink:href="#m1" '
+                                b'x="3"/><text x="1">a  b</text></g></svg>')
 
 
 def test_one_number_format_per_figure():
