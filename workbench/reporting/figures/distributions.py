@@ -92,7 +92,7 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
     width = 15.0
     figure = new_figure(width, 2.9 * len(variants) + 0.9)
     axes = figure.subplots(len(variants), len(WEIGHT_PANELS), squeeze=False)
-    hatches = {"lstsq": "", "nnls": "//", "box": ".."}
+    hatches = {"lstsq": "", "nnls": "//", "box": "xx"}  # line hatches: a dotted one is ~50 kB of SVG per colour
     for row, data in zip(axes, variants):
         keys = list(statistics[data])
         bases = list(dict.fromkeys(basis for basis, _ in keys))
