@@ -537,18 +537,23 @@ def face_panels(figure) -> list[np.ndarray]:
     return [np.asarray(ax.images[0].get_array()) for ax in figure.axes if ax.images]
 
 
-def holes(image: np.ndarray, smallest_face: int = 20_000, smallest_hole: int = 6) -> int:
+def holes(image: np.ndarray, smallest_face: int = 20_000, smallest_hole: int = 6, lossy: bool = False) -> int:
     """Background pixels enclosed by a rendered face (a connected drawn region of at least ``smallest_face``
     pixels, so the letters of labels do not count): a hole through it (openings are capped dark). Enclosed specks
     under ``smallest_hole`` pixels are left out: a lossy codec (the animation) leaves one or two light pixels at an
-    edge, while a missing triangle of the face is several pixels across."""
+    edge, while a missing triangle of the face is several pixels across. ``lossy``: also leave out enclosed
+    background narrower than 3 pixels, where the codec's smear closed a notch of the silhouette (between ear and
+    cheek) into a ring."""
     from scipy import ndimage
 
     drawn = np.any(image < 250, axis=2)
     regions, count = ndimage.label(drawn)
     sizes = ndimage.sum(drawn, regions, index=np.arange(1, count + 1))
     faces = np.isin(regions, 1 + np.flatnonzero(sizes >= smallest_face))
-    enclosed, count = ndimage.label(ndimage.binary_fill_holes(faces) & ~drawn)
+    background = ndimage.binary_fill_holes(faces) & ~drawn
+    if lossy:
+        background = ndimage.binary_opening(background, structure=np.ones((3, 3), bool))
+    enclosed, count = ndimage.label(background)
     sizes = ndimage.sum(enclosed > 0, enclosed, index=np.arange(1, count + 1))
     return int(sizes[sizes >= smallest_hole].sum())
 
@@ -566,6 +571,9 @@ def test_the_hole_count_sees_a_missing_patch_and_not_a_capped_opening():
     assert holes(image) == disc(190, 180, 6).sum()
     image[200, 100] = 255  # one light pixel at an edge (a lossy codec's speck) is no hole
     assert holes(image) == disc(190, 180, 6).sum()
+    image[100:110, 60:62] = 255  # a sliver two pixels wide: a hole, unless a lossy codec may have made it
+    assert holes(image) == disc(190, 180, 6).sum() + 20
+    assert holes(image, lossy=True) == disc(190, 180, 6).sum()
 
 
 # The reference reports' renders of faces: every figure of rendered faces and the animation.
@@ -583,7 +591,7 @@ def test_committed_animface_renders_have_no_holes(name):
     image = Image.open(path)
     for k in range(getattr(image, "n_frames", 1)):
         image.seek(k)
-        assert holes(np.asarray(image.convert("RGB"))) == 0, (name, k)
+        assert holes(np.asarray(image.convert("RGB")), lossy=name == "animation.webp") == 0, (name, k)
 
 
 def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
