@@ -14,8 +14,13 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.statistics import Interval, interval_text, reciprocal_interval
+from workbench.tables import cell_text
+
 PAPER_BASES = ("H", "QE", "PCA")
 CONSTRAINED = ("nnls", "box")
+RATIO_FORMAT = "{:.4g}"
+"""Ratios in findings as in the comparisons table's cells (:func:`workbench.tables.cell_text`)."""
 SOLVER_NAMES = {"lstsq": "least squares", "nnls": "non-negative weights", "box": "box [0, 1] weights"}
 
 
@@ -175,55 +180,155 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}
 
 
-def bases_findings(summary: pd.DataFrame, column: str) -> list[str]:
-    """Findings of a run or sweep that scored other bases: per data variant, the bases from most to least
-    accurate, and which is closest to the hand shapes and most local.
+def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
+    """The paired ratio ``first / second`` from a comparisons table (either orientation), as an interval."""
+    for a, b, flip in ((first, second, False), (second, first, True)):
+        found = comparisons[(comparisons["first"] == a) & (comparisons["second"] == b)]
+        if len(found):
+            row = found.iloc[0]
+            interval = Interval(float(row["ratio"]), float(row["ratio_low"]), float(row["ratio_high"]),
+                                int(row["n"]), str(row["method"]), null=1.0)
+            return reciprocal_interval(interval) if flip else interval
+    return Interval(math.nan, math.nan, math.nan, 0, "no paired values", null=1.0)
+
+
+def pair_text(comparisons: pd.DataFrame, first: str, second: str) -> str:
+    """``QE < H (QE/H 0.5212, 95 % interval [0.4601, 0.5804] (paired t on log ratios, n = 5))``, or ``QE and H
+    not distinguishable (...)`` when the interval of the paired ratio includes 1: the row of the comparisons
+    table, in its orientation (the smaller first)."""
+    interval = _comparison(comparisons, first, second)
+    if interval.estimate > 1.0:
+        first, second, interval = second, first, reciprocal_interval(interval)
+    detail = interval_text(interval, f"{first}/{second}", RATIO_FORMAT)
+    if interval.sign == 0:
+        return f"{first} and {second} not distinguishable ({detail})"
+    return f"{first} {'<' if interval.sign < 0 else '>'} {second} ({detail})"
+
+
+def _has(table: pd.DataFrame, column: str) -> bool:
+    """Whether a summary has a column's value or its range over the runs."""
+    return column in table.columns or f"{column}_min" in table.columns
+
+
+def _range_text(row, column: str) -> str:
+    low, high = row.get(f"{column}_min", row.get(column)), row.get(f"{column}_max", row.get(column))
+    return f"{low:g}" if low == high else f"{low:g}-{high:g}"
+
+
+def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str) -> str:
+    """The bases of one condition from best to worst by their geometric mean, then each neighbouring pair's paired
+    verdict: ``QE 0.162, PCA 0.169, H 0.312; QE and PCA not distinguishable (...); PCA < H (...)``.
+
+    Parameters
+    ----------
+    part : pandas.DataFrame
+        A wide summary's rows of one condition, data variant and solver: ``basis``, ``column`` (geometric mean
+        over the replicates) and optionally ``n_min``/``n_max`` (basis sizes; a basis whose size differs from
+        the hand basis's is marked with it).
+    comparisons : pandas.DataFrame
+        The paired comparisons of the same condition (:func:`workbench.reporting.runs.paired_comparisons`).
+    column : str
+    """
+    ranked = part.dropna(subset=[column]).sort_values(column, kind="stable")
+    hand = ranked[ranked["basis"] == "H"]
+    sized = _has(ranked, "n")
+    usual = _range_text(hand.iloc[0], "n") if len(hand) and sized else None
+    names = []
+    for row in ranked.to_dict("records"):
+        size = _range_text(row, "n") if sized else None
+        names.append(f"{row['basis']}{f' (n = {size})' if usual is not None and size != usual else ''} "
+                     f"{cell_text(column, row[column])}")
+    bases = list(ranked["basis"])
+    pairs = [pair_text(comparisons, first, second) for first, second in zip(bases, bases[1:])]
+    return "; ".join([", ".join(names), *pairs])
+
+
+def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str,
+                   solver: str) -> list[str]:
+    """Findings of a sweep, one per swept condition and data variant: m over the runs, the bases from best to
+    worst by their geometric mean over the replicates, and for each neighbouring pair "A < B" only where the 95 %
+    interval of the per-replicate ratio excludes 1, else "not distinguishable", with the interval, its method and
+    n. Every number is a cell of the summary or of the comparisons table.
 
     Parameters
     ----------
     summary : pandas.DataFrame
-        One row per data variant and basis: ``data``, ``basis``, ``column``, ``matched_abs_cosine``, ``locality``
-        (means over the runs).
+        Wide summary (:func:`workbench.reporting.runs.wide`): the swept keys, ``data``, ``basis``, ``solver``,
+        ``n_seeds``, ``column``, and ``m_min``/``m_max``, ``n_min``/``n_max`` where present.
+    comparisons : pandas.DataFrame
+        :func:`workbench.reporting.runs.paired_comparisons` of ``column`` (PCA beside every solver).
+    swept : sequence of str
+        The condition keys (none: one finding per data variant).
     column : str
+    solver : str
+        The solver of the findings (PCA is compared beside it).
+
+    Returns
+    -------
+    list of str
     """
+    rows = summary[(summary["solver"] == solver) | (summary["solver"] == "projection")]
+    comparisons = comparisons[(comparisons["solver"] == solver) & (comparisons["metric"] == column)] \
+        if len(comparisons) else comparisons
+    keys = [*swept, "data"]
     lines = []
-    for data, part in summary.groupby("data", sort=False):
-        ranked = part.sort_values(column)
-        lines.append(f"**{data}**: `{column}` from best to worst: "
-                     + " < ".join(f"{row.basis} {_fmt(getattr(row, column))}" for row in ranked.itertuples()) + ".")
-        others = part[part["basis"] != "H"]
-        closest = others.sort_values("matched_abs_cosine", ascending=False).iloc[0]
-        local = others.sort_values("locality").iloc[0]
-        hand = part[part["basis"] == "H"]
-        lines.append(f"**{data}**: closest to the hand shapes: {closest['basis']} (mean matched |cosine| "
-                     f"{closest['matched_abs_cosine']:.2f}); most local: {local['basis']} ({100 * local['locality']:.0f} % "
-                     "of the face holds its elements' displacement"
-                     + (f", the hand shapes' {100 * float(hand['locality'].iloc[0]):.0f} %" if len(hand) else "")
-                     + ").")
+    for values, part in rows.groupby(keys, sort=False, dropna=False):
+        values = values if isinstance(values, tuple) else (values,)
+        mine = comparisons
+        for key, value in zip(keys, values):
+            mine = mine[mine[key].astype(str) == str(value)]
+        setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-1]))
+        first = part.iloc[0]
+        m = f"m = {_range_text(first, 'm')}; " if _has(part, "m") else ""
+        lines.append(f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} seeds, "
+                     f"{solver}): `{column}` geometric means, best first: "
+                     + ordering_with_intervals(part, mine, column) + ".")
     return lines
 
 
-def sweep_findings(summary: pd.DataFrame, swept: Sequence[str], column: str, solver: str,
-                   paper: Mapping) -> list[str]:
-    """Findings of a sweep from its means over the runs: the run findings when nothing but the seed was swept,
-    else the ordering of H, QE and PCA at every swept value.
+def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str, ordering: bool = True) -> list[str]:
+    """Findings of a run or sweep that scored other bases, per data variant: the bases from most to least
+    accurate with the paired verdict of each neighbouring pair and the sizes that differ, and which bases are
+    closest to the hand shapes and most local, each stated only where the paired interval allows it.
 
     Parameters
     ----------
     summary : pandas.DataFrame
-        Means over the runs: the swept keys, ``data``, ``basis``, ``solver``, ``n``, ``m`` and ``column``.
-    swept : sequence of str
+        One row per data variant and basis: ``data``, ``basis``, ``n_min``, ``n_max``, ``n_seeds``, ``column``,
+        ``matched_abs_cosine`` and ``locality`` (geometric means over the runs).
+    comparisons : pandas.DataFrame
+        Paired comparisons over the runs with ``data``, ``metric`` (``column``, ``matched_abs_cosine``,
+        ``locality``) and :data:`workbench.reporting.runs.COMPARISON_COLUMNS`.
     column : str
-    solver : str
-        The solver of the orderings.
-    paper : mapping
+    ordering : bool
+        Whether to state the ordering by ``column`` (a sweep's findings state it already).
     """
-    if not swept:
-        return run_findings(summary, column, paper, {})
     lines = []
-    for values, group in summary.groupby(list(swept), sort=False):
-        values = values if isinstance(values, tuple) else (values,)
-        setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values))
-        lines.append(f"{setting}: " + "; ".join(f"{data} {ordering_text(part, solver, column)}"
-                                                for data, part in group.groupby("data", sort=False)))
+    for data, part in summary.groupby("data", sort=False):
+        mine = comparisons[comparisons["data"] == data]
+        n_runs = int(part["n_seeds"].max())
+        if ordering:
+            lines.append(f"**{data}** ({n_runs} runs): `{column}` geometric means, best first: "
+                         + ordering_with_intervals(part, mine[mine["metric"] == column], column) + ".")
+        hand = part[part["basis"] == "H"]
+        sizes = {row["basis"]: _range_text(row, "n") for row in part.to_dict("records")}
+        other = {basis: size for basis, size in sizes.items() if len(hand) and size != sizes["H"]}
+        if other:
+            lines.append(f"**{data}**: bases of other sizes than the hand basis's n = {sizes['H']}: "
+                         + ", ".join(f"{basis} n = {size}" for basis, size in other.items())
+                         + "; their alpha is not that of a basis of the same size.")
+        others = part[part["basis"] != "H"]
+        for measure, ascending, what in (("matched_abs_cosine", False, "closest to the hand shapes "
+                                                                      "(mean matched |cosine|)"),
+                                         ("locality", True, "most local (share of the face holding an element's "
+                                                            "displacement)")):
+            ranked = others.dropna(subset=[measure]).sort_values(measure, ascending=ascending, kind="stable")
+            if len(ranked) < 2:
+                continue
+            best, runner = ranked.iloc[0], ranked.iloc[1]
+            verdict = pair_text(mine[mine["metric"] == measure], best["basis"], runner["basis"])
+            lead = (f"{best['basis']} {cell_text(measure, best[measure])}, then {runner['basis']} "
+                    f"{cell_text(measure, runner[measure])}"
+                    + (f" (the hand shapes' {cell_text(measure, hand[measure].iloc[0])})" if len(hand) else ""))
+            lines.append(f"**{data}**: {what}: {lead}; {verdict}.")
     return lines
