@@ -11,6 +11,17 @@ from workbench.errors import WorkbenchError
 
 TABLE_COLUMNS = ("data", "basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
                  "alpha_disp_mean", "alpha_disp_pooled", "rms_mm", "paper_alpha")
+CLEAN_COLUMNS = ("clean_alpha_abs_mean", "clean_alpha_abs_pooled", "clean_alpha_disp_mean", "clean_alpha_disp_pooled",
+                 "clean_rms_mm")
+"""Columns added after :data:`TABLE_COLUMNS` when the run scored against the clean frames (``metric.score_clean``):
+the same measures of the same reconstructions, the clean frames as the reference."""
+
+
+def alpha_columns(summary, prefix: str = "") -> dict:
+    """The alpha-table columns of an :class:`workbench.metrics.AlphaSummary` (with ``prefix`` before each name)."""
+    return {f"{prefix}alpha_abs_mean": summary.absolute_mean, f"{prefix}alpha_abs_pooled": summary.absolute_pooled,
+            f"{prefix}alpha_disp_mean": summary.displacement_mean,
+            f"{prefix}alpha_disp_pooled": summary.displacement_pooled, f"{prefix}rms_mm": summary.rms_mm}
 
 
 def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
@@ -32,16 +43,15 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
     Returns
     -------
     pandas.DataFrame
-        Columns ``TABLE_COLUMNS``.
+        Columns ``TABLE_COLUMNS``, then :data:`CLEAN_COLUMNS` when a row was scored against the clean frames.
     """
+    clean = any(getattr(row, "clean_alpha", None) is not None for row in rows)
     records = [{
         "data": data, "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
-        "m": m, "coverage": coverage,
-        "alpha_abs_mean": row.alpha.absolute_mean, "alpha_abs_pooled": row.alpha.absolute_pooled,
-        "alpha_disp_mean": row.alpha.displacement_mean, "alpha_disp_pooled": row.alpha.displacement_pooled,
-        "rms_mm": row.alpha.rms_mm, "paper_alpha": paper_alpha.get(row.basis, math.nan),
+        "m": m, "coverage": coverage, **alpha_columns(row.alpha), "paper_alpha": paper_alpha.get(row.basis, math.nan),
+        **(alpha_columns(row.clean_alpha, "clean_") if clean and row.clean_alpha is not None else {}),
     } for row in rows]
-    return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS))
+    return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS) + (list(CLEAN_COLUMNS) if clean else []))
 
 
 def study_header(results: Sequence, cfg: Mapping) -> str:
@@ -60,8 +70,9 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
     """
     paper, basis = cfg["paper"], cfg["basis"]
     first = results[0].capture
-    rule = (f"coverage threshold {basis['coverage']}" if basis["n_components"] is None
-            else f"fixed m = {basis['n_components']}")
+    rule = (f"fixed m = {basis['n_components']}" if basis["n_components"] is not None
+            else f"m of the clean capture at coverage threshold {basis['coverage']}"
+            if basis.get("coverage_on", "training") == "clean" else f"coverage threshold {basis['coverage']}")
     lines = [
         f"Study '{cfg['study']}' on {first.name}",
         f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "

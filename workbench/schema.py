@@ -53,6 +53,7 @@ class IntuitivenessSchema:
 class BasisSchema:
     coverage: float = MISSING
     n_components: Optional[int] = None
+    coverage_on: str = "training"
     projections: List[str] = MISSING
     empty_axis_eps: float = MISSING
     empty_axis_scale: str = MISSING
@@ -81,6 +82,7 @@ class SolverSchema:
 class MetricSchema:
     headline_normalisation: str = MISSING
     headline_aggregate: str = MISSING
+    score_clean: bool = False
 
 
 @dataclass
