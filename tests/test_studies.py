@@ -324,6 +324,12 @@ def test_marker_mesh_preset(tmp_path):
     assert (lstsq_alpha(runs, "QE", data="mesh->face").to_numpy()
             < lstsq_alpha(runs, "H", data="mesh->face").to_numpy()).all()
     assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
+    # the findings compare the data each basis was fitted on, within one evaluation set
+    assert "scored on **face**, QE (5 seeds, lstsq): `alpha_disp_pooled` geometric means by the data fitted on" \
+        in stdout
+    comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
+    fitted = comparisons[comparisons["eval_on"].notna() & comparisons["basis"].notna()]
+    assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
 
 
 def test_noise_preset(tmp_path):

@@ -29,8 +29,8 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 from workbench.record import DONE, inside, write_atomic
-from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, paired_comparisons,
-                                      summarise, wide)
+from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
+                                      sweep_comparisons, wide)
 from workbench.reporting.statistics import GEOMETRIC
 from workbench.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
 
@@ -191,7 +191,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.findings import sweep_findings
+    from workbench.reporting.findings import sweep_statements
 
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)
@@ -202,11 +202,10 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
-    comparisons = filtered(pd.concat([paired_comparisons(runs, name, over) for name in compared], ignore_index=True),
-                           where)
+    comparisons = filtered(sweep_comparisons(runs, compared, over), where)
     solver = (where or {}).get("solver") or next((s for s in runs["solver"] if s != PCA_SOLVER), PCA_SOLVER)
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = [line for name in compared for line in sweep_findings(wide(summary), comparisons, swept, name, solver)]
+    findings = sweep_statements(wide(summary), comparisons, swept, compared, solver)
     out = Path(out)
     files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
              "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),

@@ -215,7 +215,7 @@ def _range_text(row, column: str) -> str:
     return f"{low:g}" if low == high else f"{low:g}-{high:g}"
 
 
-def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str) -> str:
+def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis") -> str:
     """The bases of one condition from best to worst by their geometric mean, then each neighbouring pair's paired
     verdict: ``QE 0.162, PCA 0.169, H 0.312; QE and PCA not distinguishable (...); PCA < H (...)``.
 
@@ -228,17 +228,19 @@ def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, colum
     comparisons : pandas.DataFrame
         The paired comparisons of the same condition (:func:`workbench.reporting.runs.paired_comparisons`).
     column : str
+    key : str
+        What is ordered: ``basis``, or ``train_on`` (one basis fitted on each data variant).
     """
     ranked = part.dropna(subset=[column]).sort_values(column, kind="stable")
-    hand = ranked[ranked["basis"] == "H"]
+    hand = ranked[ranked["basis"] == "H"] if key == "basis" else ranked.iloc[:0]
     sized = _has(ranked, "n")
     usual = _range_text(hand.iloc[0], "n") if len(hand) and sized else None
     names = []
     for row in ranked.to_dict("records"):
         size = _range_text(row, "n") if sized else None
-        names.append(f"{row['basis']}{f' (n = {size})' if usual is not None and size != usual else ''} "
+        names.append(f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''} "
                      f"{cell_text(column, row[column])}")
-    bases = list(ranked["basis"])
+    bases = list(ranked[key])
     pairs = [pair_text(comparisons, first, second) for first, second in zip(bases, bases[1:])]
     return "; ".join([", ".join(names), *pairs])
 
@@ -283,6 +285,45 @@ def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequ
         lines.append(f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} seeds, "
                      f"{solver}): `{column}` geometric means, best first: "
                      + ordering_with_intervals(part, mine, column) + ".")
+    return lines
+
+
+def training_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str,
+                      solver: str) -> list[str]:
+    """Findings of a sweep that fitted the bases on several data variants and scored each on common evaluation sets
+    (``dataset.eval_on``): per condition, evaluation set and basis, the variants fitted on from best to worst, and
+    for each neighbouring pair "A < B" only where the paired interval excludes 1.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Wide summary with ``train_on``, ``eval_on``, ``basis``, ``solver``, ``n_seeds`` and ``column``.
+    comparisons : pandas.DataFrame
+        :func:`workbench.reporting.runs.paired_comparisons` with ``between="train_on"``.
+    swept : sequence of str
+        The condition keys other than the data variant fitted on.
+    column : str
+    solver : str
+
+    Returns
+    -------
+    list of str
+    """
+    rows = summary[(summary["solver"] == solver) | (summary["solver"] == "projection")]
+    comparisons = comparisons[(comparisons["solver"] == solver) & (comparisons["metric"] == column)] \
+        if len(comparisons) else comparisons
+    keys = [*swept, "eval_on", "basis"]
+    lines = []
+    for values, part in rows.groupby(keys, sort=False, dropna=False):
+        if part["train_on"].nunique() < 2 or values[-1] == "H":  # the hand shapes are not fitted
+            continue
+        mine = comparisons
+        for key, value in zip(keys, values):
+            mine = mine[mine[key].astype(str) == str(value)]
+        setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-2]))
+        lines.append(f"{setting + ', ' if setting else ''}scored on **{values[-2]}**, {values[-1]} "
+                     f"({int(part['n_seeds'].max())} seeds, {solver}): `{column}` geometric means by the data "
+                     "fitted on, best first: " + ordering_with_intervals(part, mine, column, key="train_on") + ".")
     return lines
 
 
@@ -331,4 +372,27 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
                     f"{cell_text(measure, runner[measure])}"
                     + (f" (the hand shapes' {cell_text(measure, hand[measure].iloc[0])})" if len(hand) else ""))
             lines.append(f"**{data}**: {what}: {lead}; {verdict}.")
+    return lines
+
+
+def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str],
+                     columns: Sequence[str], solver: str) -> list[str]:
+    """Every finding of a sweep for each of ``columns``: the bases compared (:func:`sweep_findings`), then the
+    data variants fitted on where the comparisons hold those (:func:`training_findings`).
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+    comparisons : pandas.DataFrame
+        :func:`workbench.reporting.runs.sweep_comparisons`.
+    swept : sequence of str
+    columns : sequence of str
+    solver : str
+    """
+    by_basis = comparisons[comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
+    by_variant = comparisons[~comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
+    lines = [line for column in columns for line in sweep_findings(summary, by_basis, swept, column, solver)]
+    if len(by_variant):
+        lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column,
+                                                                           solver)]
     return lines

@@ -30,8 +30,8 @@ from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
                               write_atomic)
-from workbench.reporting.runs import (COMPARISON_COLUMNS, is_replicate_key, level_statistics, paired_comparisons,
-                                      runs_table, summarise, varying_keys, wide)
+from workbench.reporting.runs import (is_replicate_key, level_statistics, paired_comparisons, runs_table, summarise,
+                                      sweep_comparisons, varying_keys, wide)
 from workbench.reporting.statistics import GEOMETRIC
 from workbench.tables import html_frame, markdown_frame
 
@@ -1124,7 +1124,7 @@ def range_column(table: pd.DataFrame, column: str) -> pd.Series:
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
                    comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
                    command: str) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import sweep_findings
+    from workbench.reporting.findings import sweep_statements
 
     first = records[0]
     column = headline_column(first.config)
@@ -1141,10 +1141,10 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
                                 f"{name}_ci_high": summary[f"{name}_ci_high"]})
     shown = shown.assign(paper_alpha=summary["paper_alpha"])
     compared = comparisons[comparisons["solver"] == solver]
-    compared = compared.drop(columns=[key for key in ("study", "method", "train_on", "eval_on", "solver")
+    compared = compared.drop(columns=[key for key in ("study", "method", "train_on", "solver", "dataset.train_on")
                                       if key in compared.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = [line for name in columns for line in sweep_findings(summary, comparisons, swept, name, solver)]
+    findings = sweep_statements(summary, comparisons, swept, columns, solver)
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
         Section("Findings", [f"Generated from the tables below (solver {solver}; PCA by projection): levels are "
@@ -1357,14 +1357,13 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     per_run = runs_table(records, root)
     keys = varying_keys([record.config for record in records])
     swept = [key for key in keys if not is_replicate_key(key) and key != "dataset.train_on"]
-    over = [key for key in keys if key not in swept]
+    over = [key for key in keys if is_replicate_key(key)]
     summary = wide(summarise(per_run, over=over))
     paper = per_run.groupby("basis", sort=False)["paper_alpha"].first()
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
     column = headline_column(records[0].config)
-    compared = [name for name in (column, f"clean_{column}") if name in per_run.columns]
-    comparisons = pd.concat([paired_comparisons(per_run, name, over) for name in compared], ignore_index=True)
+    comparisons = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
     figures_dir = out / "figures"
     _clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir,

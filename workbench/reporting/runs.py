@@ -269,10 +269,15 @@ def with_pca_beside_every_solver(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
+IMPLIED_KEYS = {"basis": ("projection",), "train_on": ("data", "dataset.train_on")}
+"""Columns a compared key determines (the projection goes with the basis label; the data variant and the
+setting with the variant the bases were fitted on)."""
+
+
 def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | None = None,
-                       row_keys: Sequence[str] = ROW_KEYS) -> pd.DataFrame:
-    """Every pair of bases compared on the same replicates, per condition, data variant and solver: the
-    geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
+                       row_keys: Sequence[str] = ROW_KEYS, between: str = "basis") -> pd.DataFrame:
+    """Every pair of bases (or of the variants they were fitted on) compared on the same replicates, per condition:
+    the geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
     (:func:`workbench.reporting.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
     written with the smaller geometric mean first (ratio at most 1), as the findings state it.
 
@@ -285,27 +290,32 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
     over : sequence of str, optional
         Replicate columns (default: the config columns naming a seed); values are paired by them.
     row_keys : sequence of str
-        Columns naming a row within a condition; every one but ``basis`` and ``projection`` is held fixed.
+        Columns naming a row within a condition; every one but ``between`` and what it implies is held fixed.
+    between : {"basis", "train_on"}
+        What is compared: the bases of one data variant, or one basis fitted on each data variant and scored on
+        the same evaluated one (``eval_on``, held fixed).
 
     Returns
     -------
     pandas.DataFrame
         ``study``, the condition columns, the row keys held fixed, then :data:`COMPARISON_COLUMNS`: ``first`` and
-        ``second`` the smaller and the larger by their geometric mean ratio, ``n`` the replicates both have,
-        ``verdict`` ``<`` (first
-        smaller: the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`.
+        ``second`` the smaller and the larger by their geometric mean ratio (values of ``between``), ``n`` the
+        replicates both have, ``verdict`` ``<`` (the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`.
     """
     if metric not in runs.columns:
         raise WorkbenchError(f"no column {metric!r} to compare")
+    if between not in IMPLIED_KEYS:
+        raise WorkbenchError(f"comparisons are between one of {list(IMPLIED_KEYS)}, got {between!r}")
     conditions, over = condition_keys(runs, over)
-    fixed = [key for key in row_keys if key not in ("basis", "projection") and key in runs.columns]
-    keys = ["study", *conditions, *fixed]
+    implied = (between, *IMPLIED_KEYS[between])
+    fixed = [key for key in row_keys if key not in implied and key in runs.columns]
+    keys = ["study", *[key for key in conditions if key not in implied], *fixed]
     records = []
     for group_values, group in with_pca_beside_every_solver(runs).groupby(keys, sort=False, dropna=False):
         replicate = group[over].astype(str).agg(" ".join, axis=1) if over else ""
-        table = group.assign(_replicate=replicate).pivot_table(index="_replicate", columns="basis", values=metric,
+        table = group.assign(_replicate=replicate).pivot_table(index="_replicate", columns=between, values=metric,
                                                                aggfunc="first", sort=False, dropna=False)
-        bases = list(dict.fromkeys(group["basis"]))
+        bases = list(dict.fromkeys(group[between]))
         for i, first in enumerate(bases):
             for second in bases[i + 1:]:
                 interval = paired_ratio_interval(table[first].to_numpy(float), table[second].to_numpy(float))
@@ -317,3 +327,19 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                                     n=interval.n, ratio=interval.estimate, ratio_low=interval.low,
                                     ratio_high=interval.high, method=interval.method, verdict=verdict))
     return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
+
+
+def fitted_on_several(runs: pd.DataFrame) -> bool:
+    """Whether the runs scored bases fitted on several data variants on the same evaluated one (eval_on)."""
+    return bool({"train_on", "eval_on"} <= set(runs.columns)
+                and (runs.groupby("eval_on")["train_on"].nunique() > 1).any())
+
+
+def sweep_comparisons(runs: pd.DataFrame, metrics: Sequence[str], over: Sequence[str] | None = None) -> pd.DataFrame:
+    """The paired comparisons of a sweep for each metric (those present): between the bases, and where the bases
+    were fitted on several data variants and scored on common ones, between those variants
+    (:func:`paired_comparisons`); the rows of one kind leave the other's key columns empty."""
+    present = [metric for metric in metrics if metric in runs.columns]
+    kinds = ["basis", "train_on"] if fitted_on_several(runs) else ["basis"]
+    parts = [paired_comparisons(runs, metric, over, between=kind) for kind in kinds for metric in present]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=list(COMPARISON_COLUMNS))

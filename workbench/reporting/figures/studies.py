@@ -345,10 +345,10 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
                 bars = ax.bar(positions, part[measure], width=width * 0.95, yerr=errors, capsize=3,
                               color=DATA_COLOURS.get(train, f"C{k}"), label=f"fitted on {train}")
                 ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=2)
-            ax.set_xticks(np.arange(len(bases)), [basis_label(b) for b in bases], fontsize=8)
+            ax.set_xticks(np.arange(len(bases)), [basis_label(b).replace(" (", "\n(") for b in bases], fontsize=8)
             ax.set_ylabel(axis_label(measure), fontsize=9)
             points = rows.loc[rows["eval_on"] == evaluation, "n_points"] if "n_points" in rows.columns else []
-            where = f"scored on {evaluation}" + (f" ({int(points.iloc[0])} points)" if len(points) else "")
+            where = f"scored on {evaluation}" + (f" ({round(float(points.iloc[0]))} points)" if len(points) else "")
             ax.set_title(where, fontsize=9, loc="left")
             ax.grid(axis="y", alpha=0.3)
             ax.margins(y=0.15)
