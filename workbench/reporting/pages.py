@@ -30,8 +30,8 @@ from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
                               write_atomic)
-from workbench.reporting.runs import (is_replicate_key, level_statistics, paired_comparisons, runs_table, summarise,
-                                      sweep_comparisons, varying_keys, wide)
+from workbench.reporting.runs import (interval_label, is_replicate_key, level_statistics, paired_comparisons,
+                                      runs_table, summarise, sweep_comparisons, varying_keys, wide)
 from workbench.reporting.statistics import GEOMETRIC
 from workbench.tables import html_frame, markdown_frame
 
@@ -1042,16 +1042,6 @@ def by_m(per_run: pd.DataFrame, swept: Sequence[str], over: Sequence[str]) -> pd
     return summary.drop(columns=["m"]).rename(columns={"pca.m": "m"})
 
 
-def interval_note(table: pd.DataFrame, what: str = "over seeds") -> str:
-    """``95 % intervals: geometric mean, t-interval on log values, n = 5 seeds``: the method and replicate count
-    of a summary's intervals, for captions and figure titles."""
-    counts = table["n_seeds"].dropna().astype(int) if "n_seeds" in table.columns else pd.Series([], dtype=int)
-    n_text = "-" if counts.empty else (f"{counts.min()}" if counts.min() == counts.max()
-                                       else f"{counts.min()}-{counts.max()}")
-    method = table["ci_method"].iloc[0] if "ci_method" in table.columns and len(table) else GEOMETRIC
-    return f"95 % intervals {what}: {method}, n = {n_text}"
-
-
 def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str],
                   per_run: pd.DataFrame | None = None, over: Sequence[str] = ()) -> list:
     """Figure specs of a sweep report: the first run's coverage curve, alpha against each swept setting (and
@@ -1084,8 +1074,8 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
             against = " against the clean frames" if y != column else ""
             grouped = "; runs grouped by the m they kept (never averaged over different m)" if x == "m" else ""
             specs.append((stem, f"Alpha{against} against {axis_label(x)}",
-                          f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}, with its "
-                          f"{interval_note(table)}{grouped}"
+                          f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}; "
+                          f"{interval_label(table)}{grouped}"
                           + (f"; one line per value of {', '.join(others)}." if others else "."),
                           lambda _, options, x=x, y=y, others=others, table=table: plot_alpha_against(
                               table, x, y, solver=solver, by=others, panels=[p for p in panels if p != x],
@@ -1100,7 +1090,7 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
             stem = "marker_vs_mesh" + "".join(f"_{value}" for value in values).replace(".", "_")
             specs.append((stem, f"Marker versus mesh{': ' + setting if setting else ''}",
                           "Each basis fitted on each data variant and scored on the common evaluation sets, in "
-                          f"millimetres and `alpha_disp_pooled`; {interval_note(part)}.",
+                          f"millimetres and `alpha_disp_pooled`; error bars: {interval_label(part)}.",
                           lambda _, options, part=part, setting=setting: plot_marker_vs_mesh(
                               part, ("rms_mm", "alpha_disp_pooled"), solver=solver,
                               title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}")))
@@ -1153,10 +1143,10 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
         Section("About this report", [
             f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
             f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
-            f"{replicates or 'nothing (one run each)'}. {interval_note(summary)}, which stay positive as alpha "
-            "does; m and n are ranges over the runs, never averaged.",
+            f"{replicates or 'nothing (one run each)'}. Levels: geometric means; {interval_label(summary)} (it stays "
+            "positive, as alpha does); m and n are ranges over the runs, never averaged.",
         ]),
-        Section(f"{column} over seeds", [f"Geometric means and {interval_note(summary)}.", shown]),
+        Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
         Section("Paired comparisons", [
             f"Per condition and pair of bases (solver {solver}; PCA by projection): the geometric mean of the "
             f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
@@ -1250,9 +1240,9 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     comparisons = pd.concat([paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
                              for name in (column, "matched_abs_cosine", "locality")], ignore_index=True)
     several = int(summary["n_seeds"].max()) > 1
-    note = interval_note(summary, "over the runs")
+    note = interval_label(summary, "runs")
     caption = (f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
-               f"shapes, its locality and its usage" + (f", geometric means over runs with {note} as error bars."
+               f"shapes, its locality and its usage" + (f", geometric means over runs; error bars: {note}."
                                                          if several else "."))
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
     entry = make_figures([("alpha_vs_intuitiveness", "Alpha against intuitiveness", caption,
@@ -1270,7 +1260,7 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     section = Section("Other bases: alpha against intuitiveness", [
         f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
         f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
-        "projection), " + (f"geometric means over {int(summary['n_seeds'].max())} runs and {note}." if several
+        "projection), " + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several
                            else "one run."),
         ["`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
          "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",

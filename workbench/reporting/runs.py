@@ -171,6 +171,17 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     return runs_table(records, root), incomplete
 
 
+def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
+    """``95 % interval: geometric mean, t-interval on log values; n = 5 seeds``: the method and replicate count
+    of a summary's intervals (its ``ci_method`` and ``n_seeds``), named beside every interval shown or drawn."""
+    method = str(table["ci_method"].dropna().iloc[0]) if "ci_method" in table.columns and \
+        table["ci_method"].notna().any() else GEOMETRIC
+    counts = table["n_seeds"].dropna().astype(int) if "n_seeds" in table.columns else pd.Series([], dtype=int)
+    n_text = "" if counts.empty else "; n = " + (f"{counts.min()}" if counts.min() == counts.max()
+                                                 else f"{counts.min()}-{counts.max()}") + f" {replicates}"
+    return f"95 % interval: {method}{n_text}"
+
+
 def level_statistics(values) -> dict:
     """The summary of one metric over replicates: ``n``, ``mean``, ``std`` (ddof 1), ``min``, ``max``, and the
     geometric mean with its 95 % interval (``geomean``, ``ci95_low``, ``ci95_high``, ``ci_method``; see

@@ -32,6 +32,7 @@ from matplotlib.figure import Figure
 
 from workbench.errors import WorkbenchError
 from workbench.reporting.figures import basis_colour, basis_label, new_figure, wrap_title
+from workbench.reporting.runs import interval_label
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
@@ -64,19 +65,6 @@ def ci_columns(table: pd.DataFrame, y: str) -> tuple[str, str] | None:
         if low in table.columns and high in table.columns:
             return low, high
     return None
-
-
-def interval_label(table: pd.DataFrame) -> str:
-    """``95 % interval: geometric mean, t-interval on log values; n = 5 seeds``: the method and replicate count
-    of a table's intervals, named beside every band or error bar drawn from it."""
-    from workbench.reporting.statistics import GEOMETRIC
-
-    method = str(table["ci_method"].dropna().iloc[0]) if "ci_method" in table.columns and \
-        table["ci_method"].notna().any() else GEOMETRIC
-    counts = table["n_seeds"].dropna().astype(int) if "n_seeds" in table.columns else pd.Series([], dtype=int)
-    n_text = "" if counts.empty else "; n = " + (f"{counts.min()}" if counts.min() == counts.max()
-                                                 else f"{counts.min()}-{counts.max()}") + " seeds"
-    return f"95 % interval: {method}{n_text}"
 
 
 def check_positive_intervals(table: pd.DataFrame, y: str, ci: tuple[str, str] | None) -> None:
