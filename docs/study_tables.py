@@ -1,8 +1,9 @@
 """Write the studies' collected tables and findings into docs/studies.md, from the run records of their sweeps.
 
-Each block of the page between ``<!-- collected: STUDY -->`` and ``<!-- end collected: STUDY -->`` is replaced
-by what ``workbench collect`` makes of ``OUTPUT_ROOT/STUDY/default`` with the study's own layout (its
-``hydra.callbacks.collect``): the command, the alpha table and the findings. Nothing in a block is typed by hand.
+Each block of the page between ``<!-- collected: STUDY [metric=M] -->`` and ``<!-- end collected: STUDY -->`` is
+replaced by what ``workbench collect`` makes of ``OUTPUT_ROOT/STUDY/default`` with the study's own layout (its
+``hydra.callbacks.collect``; ``metric=M`` replaces its metric): the command, the alpha table and the findings.
+Nothing in a block is typed by hand.
 
     .venv/bin/workbench --config-name coverage          # ... each study whose block is to be refreshed
     .venv/bin/python docs/study_tables.py [OUTPUT_ROOT]  # default: outputs
@@ -23,7 +24,7 @@ from workbench.errors import WorkbenchError
 from workbench.reporting.collect import collect_and_write
 
 PAGE = Path(__file__).with_name("studies.md")
-BLOCK = re.compile(r"(<!-- collected: (\S+) -->\n).*?(<!-- end collected: \2 -->)", re.DOTALL)
+BLOCK = re.compile(r"(<!-- collected: (\S+)((?: \w+=\S+)*) -->\n).*?(<!-- end collected: \2 -->)", re.DOTALL)
 
 
 def collect_options(layout: dict) -> str:
@@ -35,10 +36,13 @@ def collect_options(layout: dict) -> str:
     return " ".join(options)
 
 
-def block(study: str, root: Path) -> str:
-    """The text of one study's block: the commands, the alpha table and the findings of its sweep."""
+def block(study: str, root: Path, metric: str | None = None) -> str:
+    """The text of one study's block: the commands, the alpha table and the findings of its sweep (of ``metric``
+    instead of the study's own when given)."""
     layout = OmegaConf.to_container(compose(study).hydra.callbacks.collect)
     layout.pop("_target_")
+    if metric is not None:
+        layout["metric"] = metric
     sweep = root / study / "default"
     with tempfile.TemporaryDirectory() as scratch:
         written = collect_and_write([sweep], Path(scratch), **layout)
@@ -57,13 +61,14 @@ def main(argv: list[str]) -> int:
     page = PAGE.read_text()
 
     def refresh(match: re.Match) -> str:
+        options = dict(item.split("=", 1) for item in match.group(3).split())
         try:
-            text = block(match.group(2), root)
+            text = block(match.group(2), root, options.get("metric"))
         except WorkbenchError as error:  # a study not run: its block stays as it was
             print(f"{match.group(2)}: kept ({error})")
             return match.group(0)
-        print(f"{match.group(2)}: written")
-        return f"{match.group(1)}{text}{match.group(3)}"
+        print(f"{match.group(2)}{match.group(3)}: written")
+        return f"{match.group(1)}{text}{match.group(4)}"
 
     PAGE.write_text(BLOCK.sub(refresh, page))
     return 0

@@ -203,9 +203,11 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
     comparisons = filtered(sweep_comparisons(runs, compared, over), where)
-    solver = (where or {}).get("solver") or next((s for s in runs["solver"] if s != PCA_SOLVER), PCA_SOLVER)
+    solvers = [(where or {}).get("solver")] if (where or {}).get("solver") else \
+        [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = sweep_statements(wide(summary), comparisons, swept, compared, solver)
+    findings = [line for solver in solvers
+                for line in sweep_statements(wide(summary), comparisons, swept, compared, solver)]
     out = Path(out)
     files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
              "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),

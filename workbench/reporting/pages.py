@@ -1130,14 +1130,15 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
         shown = shown.assign(**{name: summary[name], f"{name}_ci_low": summary[f"{name}_ci_low"],
                                 f"{name}_ci_high": summary[f"{name}_ci_high"]})
     shown = shown.assign(paper_alpha=summary["paper_alpha"])
-    compared = comparisons[comparisons["solver"] == solver]
-    compared = compared.drop(columns=[key for key in ("study", "method", "train_on", "solver", "dataset.train_on")
-                                      if key in compared.columns])
+    solvers = [name for name in dict.fromkeys(per_run["solver"]) if name != "projection"]
+    hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
+    compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = sweep_statements(summary, comparisons, swept, columns, solver)
+    findings = [line for name in [solver, *(other for other in solvers if other != solver)]
+                for line in sweep_statements(summary, comparisons, swept, columns, name)]
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
-        Section("Findings", [f"Generated from the tables below (solver {solver}; PCA by projection): levels are "
+        Section("Findings", [f"Generated from the tables below (each solver; PCA by projection): levels are "
                              "geometric means over the seeds; \"A < B\" only where the 95 % interval of the "
                              f"per-seed ratio A/B ({method}) excludes 1.", findings]),
         Section("About this report", [
@@ -1148,7 +1149,7 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
         ]),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
         Section("Paired comparisons", [
-            f"Per condition and pair of bases (solver {solver}; PCA by projection): the geometric mean of the "
+            f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
             f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
             "the smaller first; '<' only where the interval excludes 1.", compared]),
         Section("Figures", figures),
