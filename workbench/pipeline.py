@@ -235,11 +235,7 @@ def with_clean_m(capture: Capture, basis_cfg: Mapping, clean: Capture | None) ->
     """
     if clean is None:
         return capture, dict(basis_cfg)
-    clean_pca = Eigenfaces(coverage=basis_cfg["coverage"])
-    if clean.train_source is not None:
-        clean_pca.fit_mapped(clean.train_source, clean.train_operator)
-    else:
-        clean_pca.fit(clean.train)
+    clean_pca = fit_eigenfaces(clean, basis_cfg["coverage"])
     m = int(clean_pca.n_components_)
     note = (f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
             "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
@@ -404,11 +400,7 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
         Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
     """
     with timings.stage("pca"):
-        eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
-        if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
-            eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
-        else:
-            eigenfaces.fit(capture.train)
+        eigenfaces = fit_eigenfaces(capture, basis_cfg["coverage"], basis_cfg["n_components"])
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
@@ -417,6 +409,14 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
                 append_empty_axes=basis_cfg["append_empty_axes"])
             for projection in basis_cfg["projections"]}
     return eigenfaces, quasi_eigen
+
+
+def fit_eigenfaces(capture: Capture, coverage: float, n_components: int | None = None) -> Eigenfaces:
+    """Eigenfaces (eq. 2) of a capture's training frames, m by the coverage rule or fixed."""
+    eigenfaces = Eigenfaces(coverage=coverage, n_components=n_components)
+    if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
+        return eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
+    return eigenfaces.fit(capture.train)
 
 
 def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) -> Subspace:
