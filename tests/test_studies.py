@@ -222,6 +222,25 @@ def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
         assert held.clean_alpha.rms_mm < kept.clean_alpha.rms_mm
 
 
+def test_clean_frames_are_matched_by_take_and_frame_number():
+    from workbench.pipeline import clean_dataset_config, clean_frames
+
+    # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
+    cfg = plain_config(overrides=["dataset.n_frames=600", "dataset.marker_noise_mm=0", "dataset.gap_rate=0.02",
+                                  "dataset.gap_policy=drop"])
+    dropped = build_captures(cfg["dataset"])["markers"]
+    clean = build_captures(clean_dataset_config(cfg["dataset"]))["markers"]
+    assert len(dropped.eval) < len(clean.eval) == 600
+    truth = clean_frames(dropped, clean)
+    np.testing.assert_allclose(truth, dropped.eval, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(truth, clean.eval[dropped.timeline().frame])
+    tail = plain_config(overrides=["dataset.n_frames=600", "dataset.gap_rate=0.05", "dataset.gap_policy=drop",
+                                   "dataset.split=tail"])
+    with pytest.raises(WorkbenchError, match="not among the clean capture's evaluated frames"):
+        clean_frames(build_captures(tail["dataset"])["markers"],
+                     build_captures(clean_dataset_config(tail["dataset"]))["markers"])
+
+
 def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rule():
     with pytest.raises(WorkbenchError, match="coverage_on must be one of"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=noisy"]))
