@@ -1071,7 +1071,7 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
             others = [key for key in swept if key not in (x, setting, *panels)]
             table = by_m(per_run, swept, over) if x == "m" else summary
             stem = "alpha_vs_" + x.replace(".", "_") + ("_clean" if y != column else "")
-            against = " against the clean frames" if y != column else ""
+            against = " scored on the clean frames," if y != column else ""
             grouped = "; runs grouped by the m they kept (never averaged over different m)" if x == "m" else ""
             specs.append((stem, f"Alpha{against} against {axis_label(x)}",
                           f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}; "
@@ -1080,7 +1080,7 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
                           lambda _, options, x=x, y=y, others=others, table=table: plot_alpha_against(
                               table, x, y, solver=solver, by=others, panels=[p for p in panels if p != x],
                               points=per_run if per_run is not None and x in per_run.columns else None,
-                              title=f"Alpha{' against the clean frames' if y != column else ''} against "
+                              title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
                                     f"{axis_label(x)}\n{label}")))
     if "eval_on" in summary.columns and summary["train_on"].nunique() > 1:
         fixed = [key for key in swept if key != "dataset.train_on"]
