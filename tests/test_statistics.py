@@ -43,8 +43,8 @@ def test_geometric_interval_needs_two_positive_values():
     assert not single.defined
     zero = geometric_interval([0.0, 1.0])
     assert math.isnan(zero.estimate) and "needs positive values" in zero.method
-    same = geometric_interval([1.5, 1.5, 1.5])
-    assert same.low == same.high == pytest.approx(1.5)
+    same = geometric_interval([1.5, 1.5, 1.5])  # replicates that do not vary: no spread to show, no interval
+    assert same.estimate == pytest.approx(1.5) and same.n == 3 and not same.defined
 
 
 def test_paired_ratio_interval_by_hand():
@@ -91,6 +91,9 @@ def test_interval_text_names_the_method_and_n():
         "QE/H 0.012, 95 % interval [0.004, 0.020] (paired t, n = 5)"
     lone = paired_ratio_interval([0.2], [0.3])
     assert interval_text(lone, "QE/H") == "QE/H 0.667 (no interval: paired t on log ratios, n = 1)"
+    constant = paired_ratio_interval([0.98, 0.98], [1.0, 1.0])  # a fixed ratio on replicates that did not vary
+    assert not constant.distinguishes and interval_text(constant, "A/B") == \
+        "A/B 0.98 (no interval: the same on every replicate)"
     with pytest.raises(ValueError, match="no null"):
         geometric_interval([1.0, 2.0]).distinguishes
     with pytest.raises(ValueError, match="one of each"):

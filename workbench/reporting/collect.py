@@ -191,7 +191,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.findings import sweep_statements
+    from workbench.reporting.findings import replicate_caveat, sweep_statements
 
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)
@@ -206,8 +206,9 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     solvers = [(where or {}).get("solver")] if (where or {}).get("solver") else \
         [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = [line for solver in solvers
-                for line in sweep_statements(wide(summary), comparisons, swept, compared, solver)]
+    findings = replicate_caveat(over) + [line for solver in solvers
+                                         for line in sweep_statements(wide(summary), comparisons, swept, compared,
+                                                                      solver)]
     out = Path(out)
     files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
              "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),

@@ -375,6 +375,22 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
     return lines
 
 
+def replicate_caveat(replicates: Sequence[str]) -> list[str]:
+    """A finding saying what the intervals cannot cover when no replicate key varies the data (only, say, the
+    random starts of a fit): then no statement generalises beyond the one take. Empty otherwise.
+
+    Parameters
+    ----------
+    replicates : sequence of str
+        The replicate (seed) settings of the sweep.
+    """
+    if any(key.startswith("dataset.") for key in replicates):
+        return []
+    varied = ", ".join(replicates) or "nothing"
+    return [f"The replicates vary {varied} only, not the data: the intervals below cover that, not other takes, "
+            "and no finding here generalises beyond this one capture."]
+
+
 def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str],
                      columns: Sequence[str], solver: str) -> list[str]:
     """Every finding of a sweep for each of ``columns``: the bases compared (:func:`sweep_findings`), then the

@@ -1114,7 +1114,7 @@ def range_column(table: pd.DataFrame, column: str) -> pd.Series:
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
                    comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
                    command: str) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import sweep_statements
+    from workbench.reporting.findings import replicate_caveat, sweep_statements
 
     first = records[0]
     column = headline_column(first.config)
@@ -1134,8 +1134,9 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
     hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
     compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = [line for name in [solver, *(other for other in solvers if other != solver)]
-                for line in sweep_statements(summary, comparisons, swept, columns, name)]
+    findings = replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]) + [
+        line for name in [solver, *(other for other in solvers if other != solver)]
+        for line in sweep_statements(summary, comparisons, swept, columns, name)]
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
         Section("Findings", [f"Generated from the tables below (each solver; PCA by projection): levels are "

@@ -99,12 +99,13 @@ def t_interval(values, confidence: float = CONFIDENCE, *, method: str = "Student
     Returns
     -------
     Interval
-        Bounds NaN with fewer than two values.
+        Bounds NaN with fewer than two values, or when every value is the same: replicates that do not vary
+        say nothing about the spread (a zero-width interval would claim a precision no replicate showed).
     """
     values = _finite(values)
     n = int(values.size)
     mean = float(values.mean()) if n else math.nan
-    if n < 2:
+    if n < 2 or np.ptp(values) == 0.0:
         return Interval(mean, math.nan, math.nan, n, method, confidence, null)
     half = _t_quantile(confidence, n - 1) * float(values.std(ddof=1)) / math.sqrt(n)
     return Interval(mean, mean - half, mean + half, n, method, confidence, null)
@@ -124,7 +125,8 @@ def geometric_interval(values, confidence: float = CONFIDENCE) -> Interval:
     -------
     Interval
         ``estimate = exp(mean(log v))``, ``low``/``high`` = ``exp(mean +- t s / sqrt(n))``; bounds NaN with fewer
-        than two values, and every field NaN when a value is zero or negative (no geometric mean exists).
+        than two values or identical ones (:func:`t_interval`), and every field NaN when a value is zero or
+        negative (no geometric mean exists).
     """
     values = _finite(values)
     if np.any(values <= 0.0):
@@ -211,6 +213,7 @@ def interval_text(interval: Interval, name: str = "difference", number_format: s
     """
     estimate = "-" if math.isnan(interval.estimate) else number_format.format(interval.estimate)
     if not interval.defined:
-        return f"{name} {estimate} (no interval: {interval.method}, n = {interval.n})"
+        why = "the same on every replicate" if interval.n >= 2 else f"{interval.method}, n = {interval.n}"
+        return f"{name} {estimate} (no interval: {why})"
     return (f"{name} {estimate}, {100 * interval.confidence:g} % interval [{number_format.format(interval.low)}, "
             f"{number_format.format(interval.high)}] ({interval.method}, n = {interval.n})")
