@@ -143,7 +143,7 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert "QE < H" not in finding and "H < QE" not in finding
     # every interval printed, in the table and in the findings, lies above zero, and names its method and n
     bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
-    assert len(bounds) >= 2 * (8 + 6) and min(bounds) > 0
+    assert len(bounds) >= 2 * (7 + 6) and min(bounds) > 0  # QE at 0.995 is 0.16 on both seeds: no interval
     assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
     pair = comparisons[(comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE")
