@@ -36,6 +36,13 @@ def collect_options(layout: dict) -> str:
     return " ".join(options)
 
 
+def sweep_overrides(sweep: Path) -> str:
+    """The overrides the sweep was started with (Hydra's ``multirun.yaml`` in the sweep folder), as typed."""
+    multirun = sweep / "multirun.yaml"
+    task = OmegaConf.load(multirun).hydra.overrides.task if multirun.is_file() else []
+    return "".join(f" {override}" for override in task)
+
+
 def block(study: str, root: Path, metric: str | None = None) -> str:
     """The text of one study's block: the commands, the alpha table and the findings of its sweep (of ``metric``
     instead of the study's own when given)."""
@@ -49,7 +56,7 @@ def block(study: str, root: Path, metric: str | None = None) -> str:
         runs = pd.read_parquet(Path(scratch) / "runs.parquet").drop_duplicates("run")
     seconds = runs["time_total"].sum() if "time_total" in runs.columns else float("nan")
     findings = "".join(f"- {line}\n" for line in written["findings"])
-    return (f"`.venv/bin/workbench --config-name {study}`, then `.venv/bin/workbench collect "
+    return (f"`.venv/bin/workbench --config-name {study}{sweep_overrides(sweep)}`, then `.venv/bin/workbench collect "
             f"outputs/{study}/default {collect_options(layout)}`: {written['n_runs']} runs "
             f"({seconds:,.0f} s of run time, the sum of the runs' own).\n\n{written['markdown']}\n"
             f"<details><summary>Findings ({len(written['findings'])}, generated from the alpha table and the paired "
