@@ -32,11 +32,14 @@ class MorphAnimation:
         Key times, increasing.
     weights : ndarray of shape (n_frames, n_targets)
         Weight of every morph target at every key.
+    extras : dict
+        The animation's ``extras`` (facts about it: its take, frame rate).
     """
 
     name: str
     seconds: np.ndarray
     weights: np.ndarray
+    extras: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,8 @@ class MorphMesh:
         The file read (None for a mesh being written).
     extras : dict
         ``asset.extras``: facts about the file (units, axes, where it came from).
+    mesh_extras : dict
+        More of the mesh's ``extras`` beside ``targetNames`` (written, not read back).
     """
 
     neutral: np.ndarray
@@ -65,6 +70,7 @@ class MorphMesh:
     animations: tuple[MorphAnimation, ...] = ()
     path: Path | None = None
     extras: dict = field(default_factory=dict)
+    mesh_extras: dict = field(default_factory=dict)
 
 
 class _BinaryChunk:
@@ -123,7 +129,7 @@ def glb_bytes(mesh: MorphMesh, *, mesh_name: str = "face", generator: str = "qua
                                                        target=pygltflib.ARRAY_BUFFER, bounds=True))
                for delta in mesh.deltas]
     gltf.meshes.append(pygltflib.Mesh(
-        name=mesh_name, weights=[0.0] * len(targets), extras={"targetNames": list(mesh.names)},
+        name=mesh_name, weights=[0.0] * len(targets), extras={"targetNames": list(mesh.names), **mesh.mesh_extras},
         primitives=[pygltflib.Primitive(attributes=pygltflib.Attributes(POSITION=position), indices=indices,
                                         targets=targets, mode=pygltflib.TRIANGLES)]))
     gltf.nodes.append(pygltflib.Node(name=mesh_name, mesh=0))
@@ -133,8 +139,8 @@ def glb_bytes(mesh: MorphMesh, *, mesh_name: str = "face", generator: str = "qua
         times = chunk.add(np.asarray(animation.seconds, dtype=np.float32), "SCALAR", bounds=True)
         values = chunk.add(np.asarray(animation.weights, dtype=np.float32).reshape(-1), "SCALAR")
         gltf.animations.append(pygltflib.Animation(
-            name=animation.name, samplers=[pygltflib.AnimationSampler(input=times, output=values,
-                                                                      interpolation=pygltflib.ANIM_LINEAR)],
+            name=animation.name, extras=dict(animation.extras) or None,
+            samplers=[pygltflib.AnimationSampler(input=times, output=values, interpolation=pygltflib.ANIM_LINEAR)],
             channels=[pygltflib.AnimationChannel(sampler=0, target=pygltflib.AnimationChannelTarget(
                 node=0, path="weights"))]))
     blob = chunk.blob()
@@ -156,10 +162,12 @@ def check_morph_mesh(mesh: MorphMesh) -> None:
     if mesh.triangles.min() < 0 or mesh.triangles.max() >= n_vertices:
         raise WorkbenchError(f"mesh triangles refer to vertices outside [0, {n_vertices})")
     for animation in mesh.animations:
-        steps = np.diff(animation.seconds)
-        if animation.weights.shape != (len(animation.seconds), len(mesh.names)) or np.any(steps <= 0):
-            raise WorkbenchError(f"animation {animation.name!r}: needs increasing times and weights of shape "
-                                 f"({len(animation.seconds)}, {len(mesh.names)}), got {animation.weights.shape}")
+        seconds = np.asarray(animation.seconds, dtype=np.float32)  # as the file holds them
+        increasing = len(seconds) > 0 and seconds[0] >= 0 and np.all(np.diff(seconds) > 0)
+        if animation.weights.shape != (len(seconds), len(mesh.names)) or not increasing:
+            raise WorkbenchError(f"animation {animation.name!r}: needs increasing times from 0 on (as float32) and "
+                                 f"weights of shape ({len(seconds)}, {len(mesh.names)}), got "
+                                 f"{animation.weights.shape}")
     arrays = [mesh.neutral, mesh.deltas] + [a.weights for a in mesh.animations]
     if not all(np.all(np.isfinite(array)) for array in arrays):
         raise WorkbenchError("mesh positions, morph targets and animation weights must be finite (no NaN/Inf)")

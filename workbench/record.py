@@ -112,8 +112,10 @@ def git_state(repository: Path) -> dict:
 
 
 def versions() -> dict:
-    """Python, platform and the versions of the packages that decide the numbers."""
-    found = {"python": sys.version.split()[0], "platform": platform.platform()}
+    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
+    from workbench import __version__
+
+    found = {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform()}
     for package in RECORD_PACKAGES:
         try:
             found[package] = metadata.version(package)
