@@ -13,10 +13,10 @@ from workbench.record import DONE
 @pytest.mark.parametrize("override, message", [
     ("dataset.gap_policy=spline", "dataset.gap_policy must be one of ('drop', 'linear', 'masked'), got 'spline'"),
     ("dataset.gap_fit_on=all", "dataset.gap_fit_on must be one of ('complete', 'filled'), got 'all'"),
-    ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list of distinct "
-                               "ones, got ['scan']"),
-    ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list "
-                                           "of distinct ones, got ['markers', 'markers']"),
+    ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf', 'face') or a list "
+                               "of distinct ones, got ['scan']"),
+    ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf', 'face') "
+                                           "or a list of distinct ones, got ['markers', 'markers']"),
 ])
 def test_unused_settings_are_checked(tmp_path, override, message):
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])

@@ -53,6 +53,7 @@ class IntuitivenessSchema:
 class BasisSchema:
     coverage: float = MISSING
     n_components: Optional[int] = None
+    coverage_on: str = "training"
     projections: List[str] = MISSING
     empty_axis_eps: float = MISSING
     empty_axis_scale: str = MISSING
@@ -83,6 +84,7 @@ class MetricSchema:
     headline_aggregate: str = MISSING
     bootstrap_resamples: int = 2000
     bootstrap_seed: int = 0
+    score_clean: bool = False
 
 
 @dataclass
