@@ -170,3 +170,33 @@ def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_d
     assert any(f"largest displacement {largest:.1f} mm on the mesh" in note for note in disk["mesh"].notes)
     assert isinstance(float32["markers"].train, FramesOnDisk)
     np.testing.assert_array_equal(np.asarray(disk["markers"].train), reference["markers"].train)
+
+
+def test_frames_on_disk_are_used_again_only_while_they_hold_what_was_written(tmp_path, capsys):
+    """A frames file found again is used as it is only with the SHA-256 its writer recorded: an edit that keeps its
+    size (one value changed) or a missing checksum gets it built anew, in one line on stderr."""
+    from workbench.dataset.storage import FrameStorage
+    from workbench.frames import checksum_path
+
+    storage, calls = FrameStorage(folder=str(tmp_path / "frames")), []
+    expected = np.arange(60.0).reshape(10, 6)
+
+    def fill(rows, out):
+        calls.append(rows)
+        out[:] = expected[rows]
+
+    first = storage.generate("test", ("key",), 10, 6, fill)
+    assert calls and checksum_path(first.path).is_file()
+    calls.clear()
+    assert storage.generate("test", ("key",), 10, 6, fill).path == first.path and not calls  # intact: used again
+    raw = bytearray(first.path.read_bytes())
+    raw[-8:] = np.float64(1e6).tobytes()  # the last value edited, same size
+    first.path.write_bytes(bytes(raw))
+    again = storage.generate("test", ("key",), 10, 6, fill)
+    assert calls, "an edited frames file was used as it is"
+    np.testing.assert_array_equal(np.asarray(again), expected)
+    assert "its SHA-256 no longer matches" in capsys.readouterr().err
+    calls.clear()
+    checksum_path(first.path).unlink()
+    np.testing.assert_array_equal(np.asarray(storage.generate("test", ("key",), 10, 6, fill)), expected)
+    assert calls and "no checksum beside it" in capsys.readouterr().err

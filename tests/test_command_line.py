@@ -89,9 +89,11 @@ def test_wrong_type_or_unknown_key_fails_at_composition_in_one_line(tmp_path, ov
     assert not (tmp_path / "out").exists(), "nothing may run before the config is valid"
 
 
-def test_range_checks_stay(tmp_path):
+def test_range_checks_fail_at_composition_in_one_line(tmp_path):
     result = workbench("basis.coverage=1.5", "paths.output_root=out", cwd=tmp_path)
-    assert (result.returncode, result.stderr.strip()) == (2, "workbench: error: coverage must be in (0, 1], got 1.5")
+    assert (result.returncode, result.stderr.strip()) == (
+        2, "workbench: error: basis.coverage must be in (0, 1], got 1.5")
+    assert not (tmp_path / "out").exists(), "nothing may run before the config is valid"
 
 
 def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
@@ -120,4 +122,4 @@ def test_single_run_job_name_and_log(tmp_path):
     assert (run_dir / "workbench.log").read_text() == result.stdout
     assert result.stdout.startswith("Study 'paper' on synthetic actor") and "| QE " in result.stdout
     assert result.stdout.endswith(f"\nrecord: {run_dir}\n")
-    assert "name: workbench" in (run_dir / ".hydra" / "hydra.yaml").read_text()
+    assert not (run_dir / ".hydra").exists(), "the record keeps the config; Hydra writes nothing into a run folder"

@@ -225,6 +225,16 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
     table = pd.read_csv(tampered / "alpha_table.csv")
     table.loc[1, "alpha_abs_mean"] *= 1.01
     table.to_csv(tampered / "alpha_table.csv", index=False)
+    with pytest.raises(WorkbenchError, match=r"alpha_table\.csv was changed after the run"):
+        export_run(tampered, tmp_path / "out")
+    # a table whose checksum matches (a record written by other code) is still recomputed and compared
+    import json
+
+    from workbench.record import DONE, file_checksum
+
+    done = json.loads((tampered / DONE).read_text())
+    done["sha256"]["alpha_table.csv"] = file_checksum(tampered / "alpha_table.csv")
+    (tampered / DONE).write_text(json.dumps(done))
     with pytest.raises(WorkbenchError, match=r"recomputing the run gives alpha .* away from the recorded table"):
         export_run(tampered, tmp_path / "out")
     assert not (tmp_path / "out").exists()

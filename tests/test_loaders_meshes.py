@@ -136,3 +136,17 @@ def test_ict_quirks_sides_and_pupils(ict):
     # PupilDilate moves the eyes (beyond vertex 9409), not the face region: a nearly singular basis shape.
     assert np.abs(shapes.shapes(["PupilDilate_L", "PupilDilate_R"])).max() < 0.1  # mm, file rounding
     assert np.linalg.norm(shapes.shapes(["jawOpen"])[0], axis=1).max() > 30
+
+
+def test_an_obj_edited_in_place_with_its_size_and_time_kept_is_read_afresh(tmp_path):
+    """The parsed file is remembered in the process by its change time too, which no program can set back."""
+    import os
+
+    path = tmp_path / "face.obj"
+    path.write_text("v 1 2 3\nv 4 5 6\nv 7 8 9\nf 1 2 3\n")
+    first = read_obj(path).vertices.copy()
+    status = path.stat()
+    path.write_text("v 1 2 3\nv 4 5 6\nv 7 8 8\nf 1 2 3\n")  # same size
+    os.utime(path, ns=(status.st_atime_ns, status.st_mtime_ns))
+    assert path.stat().st_size == status.st_size and path.stat().st_mtime_ns == status.st_mtime_ns
+    assert read_obj(path).vertices[2, 2] == 8.0 and first[2, 2] == 9.0

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import plain_name, write_atomic, write_json, write_npz
+from workbench.record import inside, plain_name, write_atomic, write_json, write_npz
 
 TABLE_CHECK_RTOL = 1e-6
 """Recomputed alpha must match the recorded table to this relative tolerance before anything is exported."""
@@ -761,7 +761,7 @@ def main(argv: Sequence[str]) -> int:
     parser.add_argument("--obj-unit", choices=sorted(OBJ_UNITS), default="m",
                         help="unit of the OBJ files (default: m, as animation tools expect)")
     args = parser.parse_args(list(argv))
-    out = args.out or args.run / "export"
+    out = args.out or inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
     manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit)
     for entry in manifest["bases"]:

@@ -8,6 +8,8 @@ cache, not a memory map), so the process's resident memory stays bounded by the 
 
 from __future__ import annotations
 
+import hashlib
+import io
 import os
 import tempfile
 from pathlib import Path
@@ -16,7 +18,7 @@ from typing import Iterator
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.record import FILE_MODE, TEMPORARY_SUFFIX
+from workbench.record import FILE_MODE, TEMPORARY_SUFFIX, write_atomic
 
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
@@ -146,6 +148,23 @@ def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[
         yield rows, np.asarray(chunk, dtype=dtype)
 
 
+def checksum_path(path: Path) -> Path:
+    """The file beside a frames file written by :class:`FrameWriter` that holds its SHA-256 (hex)."""
+    return path.with_name(path.name + ".sha256")
+
+
+def written_intact(path: Path) -> str | None:
+    """None when the frames file ``path`` has the SHA-256 its writer recorded beside it, else why not (no
+    checksum beside it, or another content)."""
+    try:
+        recorded = checksum_path(path).read_text().strip()
+    except OSError:
+        return "no checksum beside it"
+    with open(path, "rb") as stream:
+        actual = hashlib.file_digest(stream, "sha256").hexdigest()
+    return None if actual == recorded else "its SHA-256 no longer matches the one recorded when it was written"
+
+
 class FrameWriter:
     """Write frames of shape (n_frames, n_dims) to a ``.npy`` file chunk by chunk, atomically.
 
@@ -168,8 +187,11 @@ class FrameWriter:
                                                    suffix=TEMPORARY_SUFFIX)
         os.fchmod(handle, FILE_MODE)
         self._stream = os.fdopen(handle, "wb")
-        np.lib.format.write_array_header_1_0(self._stream, {"descr": np.lib.format.dtype_to_descr(self.dtype),
-                                                            "fortran_order": False, "shape": self.shape})
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(header, {"descr": np.lib.format.dtype_to_descr(self.dtype),
+                                                      "fortran_order": False, "shape": self.shape})
+        self._digest = hashlib.sha256(header.getvalue())
+        self._stream.write(header.getvalue())
         self._written = 0
 
     def write(self, chunk: np.ndarray) -> None:
@@ -178,7 +200,9 @@ class FrameWriter:
         if self._written + len(chunk) > self.shape[0]:
             self.abort()
             raise WorkbenchError(f"{self.path}: more frames written than the {self.shape[0]} announced")
-        self._stream.write(np.ascontiguousarray(chunk, dtype=self.dtype).data)  # no copy of the chunk
+        data = np.ascontiguousarray(chunk, dtype=self.dtype).data  # no copy of the chunk
+        self._stream.write(data)
+        self._digest.update(data)
         self._written += len(chunk)
 
     def close(self) -> FramesOnDisk:
@@ -189,7 +213,9 @@ class FrameWriter:
             self._stream.flush()
             os.fsync(self._stream.fileno())
             self._stream.close()
+            checksum_path(self.path).unlink(missing_ok=True)  # the file that is replaced loses its checksum first
             os.replace(self._temporary, self.path)
+            write_atomic(checksum_path(self.path), self._digest.hexdigest() + "\n")
         except BaseException:
             self.abort()
             raise

@@ -8,7 +8,9 @@ A run record is a folder holding
   its solver diagnostics, versions, git state and times;
 - ``timings.json``: seconds per stage;
 - optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
-- ``done``: written last; a folder without it is not a record (a run still going, or one that was killed).
+- ``done``: written last, holding the SHA-256 of every other file of the record; a folder without it is not a
+  record (a run still going, or one that was killed), and a file that no longer matches its checksum makes the
+  record untrusted: :func:`load_record` refuses it, so every reader (report, collect, mlflow, export) does.
 
 This module is the only place that knows these names; everything that reads records (``workbench collect``,
 ``workbench report``, the tracking export) reads them through :class:`RunRecord`.
@@ -21,6 +23,7 @@ import io
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -81,14 +84,22 @@ def _naming(error: OSError, path: Path) -> OSError:
     return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
 
 
+def json_text(value) -> str:
+    return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
+
+
+def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return buffer.getvalue()
+
+
 def write_json(path: Path, value) -> None:
-    write_atomic(path, json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n")
+    write_atomic(path, json_text(value))
 
 
 def write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
-    write_atomic(path, buffer.getvalue())
+    write_atomic(path, npz_bytes(arrays))
 
 
 def config_hash(resolved_yaml: str) -> str:
@@ -129,13 +140,19 @@ def versions() -> dict:
 # ---------------------------------------------------------------------------------------------------------------
 
 DONE = "done"
-"""The completion marker, written last into a run folder."""
+"""The completion marker, written last into a run folder: the checksums of the record's other files (JSON)."""
 CONFIG_FILE = "config.yaml"
 TABLE_FILE = "alpha_table.csv"
 TEXT_FILE = "alpha_table.md"
 METRICS_FILE = "metrics.json"
 TIMINGS_FILE = "timings.json"
 ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
+INPUTS_FILE = "inputs.npz"
+RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE,
+                DONE)
+"""The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
+_VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 """The alpha-table columns every row of a record must have (numbers)."""
 FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
@@ -160,6 +177,22 @@ def record_state(folder: Path) -> str:
 def is_complete(folder: Path) -> bool:
     """Whether ``folder`` holds a complete record (its ``done`` marker exists)."""
     return record_state(folder) == "complete"
+
+
+def is_record_file(name: str) -> bool:
+    """Whether a file name is one a run writes into its record (or a temporary file of one being written)."""
+    match = _TEMPORARY.fullmatch(name)
+    name = match.group("name") if match else name
+    return name in RECORD_FILES or bool(_VARIANT_INPUTS.fullmatch(name))
+
+
+def file_checksum(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -364,20 +397,27 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
     save_inputs : bool
     """
     folder = Path(folder)
-    write_atomic(folder / CONFIG_FILE, resolved_yaml)
-    write_atomic(folder / TABLE_FILE, table.to_csv(index=False))
-    write_atomic(folder / TEXT_FILE, text)
-    write_json(folder / METRICS_FILE, dict(metrics))
-    write_json(folder / TIMINGS_FILE, dict(timings))
+    checksums = {}
+
+    def write(name: str, data: bytes | str) -> None:
+        payload = data.encode() if isinstance(data, str) else data
+        write_atomic(folder / name, payload)
+        checksums[name] = hashlib.sha256(payload).hexdigest()
+
+    write(CONFIG_FILE, resolved_yaml)
+    write(TABLE_FILE, table.to_csv(index=False))
+    write(TEXT_FILE, text)
+    write(METRICS_FILE, json_text(dict(metrics)))
+    write(TIMINGS_FILE, json_text(dict(timings)))
     if save_inputs:
         # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file; the
         # figures show the paper's protocol, so held-out frames (dataset.held_out) are not saved either
         for result in [result for result in results
                        if result.transfer == "identity" and result.protocol == "training frames"]:
-            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
-            write_npz(folder / name, input_arrays(result))
-        write_npz(folder / ALPHA_PER_FRAME_FILE, alpha_per_frame_arrays(results))
-    write_atomic(folder / DONE, "")
+            name = INPUTS_FILE if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
+            write(name, npz_bytes(input_arrays(result)))
+        write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame_arrays(results)))
+    write_atomic(folder / DONE, json_text({"sha256": checksums}))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -400,6 +440,9 @@ class RunRecord:
         ``metrics.json``.
     timings : dict
         ``timings.json``: seconds per stage (empty when the record has none).
+    checksums : dict or None
+        File name -> SHA-256 the run wrote into ``done``; None for a record written before records carried them
+        (its files cannot be checked).
     """
 
     folder: Path
@@ -407,6 +450,7 @@ class RunRecord:
     table: "pd.DataFrame"
     metrics: dict
     timings: dict = field(default_factory=dict)
+    checksums: dict | None = None
 
     @property
     def study(self) -> str:
@@ -437,16 +481,23 @@ class RunRecord:
         return [dict(row) for row in self.metrics["rows"]]
 
     def inputs_path(self, data: str) -> Path:
-        single = self.folder / "inputs.npz"
+        single = self.folder / INPUTS_FILE
         return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
 
     def load_inputs(self, data: str) -> dict | None:
         """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
-        return _load_arrays(self.inputs_path(data))
+        return self._load_arrays(self.inputs_path(data))
 
     def load_alpha_per_frame(self) -> dict | None:
         """The arrays of ``alpha_per_frame.npz``, or None when the run did not save them."""
-        return _load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+        return self._load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+
+    def _load_arrays(self, path: Path) -> dict | None:
+        """The arrays of one of the record's archives, checked against its checksum first (archives can be large,
+        so they are checked when read, not when the record is loaded)."""
+        if self.checksums is not None and (path.name in self.checksums or path.is_file()):
+            check_file(self.folder, path.name, self.checksums)
+        return _load_arrays(path)
 
 
 def _load_arrays(path: Path) -> dict | None:
@@ -476,6 +527,70 @@ def _read_json(path: Path) -> dict:
     if not isinstance(value, dict):
         raise WorkbenchError(f"{path}: must hold a JSON object, got {type(value).__name__}")
     return value
+
+
+def read_checksums(folder: Path) -> dict | None:
+    """The checksums a run wrote into its ``done`` marker (file name -> SHA-256), or None when the marker is empty
+    (a record written before records carried checksums).
+
+    Raises
+    ------
+    WorkbenchError
+        When ``done`` holds anything but the checksums a run writes.
+    """
+    text = _read_text(Path(folder) / DONE)
+    if not text.strip():
+        return None
+    try:
+        checksums = json.loads(text)["sha256"]
+    except (ValueError, KeyError, TypeError):
+        checksums = None
+    if not isinstance(checksums, dict) or not all(isinstance(name, str) and is_record_file(name)
+                                                  and isinstance(value, str) for name, value in checksums.items()):
+        raise WorkbenchError(f"run record {folder}: '{DONE}' is damaged (it must hold the checksums of the record's "
+                             "files, as a run writes them); the record cannot be trusted")
+    return checksums
+
+
+def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
+    """Refuse a record file that the run did not write (not among ``checksums``) or that changed since.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    path = Path(folder) / name
+    if name not in checksums:
+        raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
+                             f"{sorted(checksums)}); the record cannot be trusted: move the file away")
+    try:
+        found = file_checksum(path)
+    except FileNotFoundError:
+        raise WorkbenchError(f"run record {folder}: {name} is missing") from None
+    except OSError as error:
+        raise WorkbenchError(f"run record {folder}: {name} cannot be read ({error.strerror})") from None
+    if found != checksums[name]:
+        raise WorkbenchError(f"run record {folder}: {name} was changed after the run (its SHA-256 no longer matches "
+                             f"the one in '{DONE}'); the record cannot be trusted: restore the file or run again")
+
+
+def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: bool = False) -> None:
+    """Every file the run wrote is there and unchanged, and no record file was added; archives (``.npz``, which
+    can be large) only with ``archives``, else when read (:meth:`RunRecord.load_inputs`).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    folder = Path(folder)
+    for name in checksums:
+        if archives or not name.endswith(".npz"):
+            check_file(folder, name, checksums)
+    added = sorted(path.name for path in folder.iterdir()
+                   if path.name != DONE and (archives or not path.name.endswith(".npz")) and is_record_file(path.name)
+                   and not _TEMPORARY.fullmatch(path.name) and path.name not in checksums)
+    if added:
+        check_file(folder, added[0], checksums)
 
 
 def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None:
@@ -518,8 +633,8 @@ def plain_name(name: str) -> bool:
 
 
 def inside(root: Path, *parts: str) -> Path:
-    """``root / parts``, refused when it would leave ``root`` (a report or collect writes only into its output
-    folder, whatever names a record holds).
+    """``root / parts``, refused when it would leave ``root``, by its name or through a symbolic link (a report or
+    collect writes only into its output folder, whatever names a record holds and whatever links it contains).
 
     Raises
     ------
@@ -527,17 +642,24 @@ def inside(root: Path, *parts: str) -> Path:
     """
     root = Path(root)
     path = root.joinpath(*parts)
-    if os.path.commonpath([os.path.abspath(root), os.path.abspath(path)]) != os.path.abspath(root):
-        raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}")
+    for resolved, base, target in ((False, os.path.abspath(root), os.path.abspath(path)),
+                                   (True, os.path.realpath(root), os.path.realpath(path))):
+        if os.path.commonpath([base, target]) != base:
+            link = f" (a symbolic link leads to {target})" if resolved else ""
+            raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")
     return path
 
 
-def load_record(folder: Path) -> RunRecord:
-    """Read and check a complete run record.
+def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
+    """Read and check a complete run record: every file against the checksum the run wrote into ``done``, then
+    the fields readers rely on.
 
     Parameters
     ----------
     folder : pathlib.Path
+    check_archives : bool
+        Check the record's ``.npz`` archives now too (a reader that will use them, before it writes anything);
+        otherwise each is checked when read.
 
     Returns
     -------
@@ -554,6 +676,9 @@ def load_record(folder: Path) -> RunRecord:
     folder = Path(folder)
     if not is_complete(folder):
         raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
+    checksums = read_checksums(folder)
+    if checksums is not None:
+        check_record_files(folder, checksums, archives=check_archives)
     try:
         config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
     except yaml.YAMLError as error:
@@ -584,7 +709,7 @@ def load_record(folder: Path) -> RunRecord:
     if len(table) != len(metrics["rows"]):
         raise WorkbenchError(f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists "
                              f"{len(metrics['rows'])}")
-    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings)
+    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
 
 
 def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:

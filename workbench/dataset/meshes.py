@@ -106,7 +106,7 @@ class _ObjLines:
 
 
 @functools.lru_cache(maxsize=8)
-def _split_obj(path_text: str, mtime_ns: int, size: int) -> _ObjLines:
+def _split_obj(path_text: str, stamp: tuple[int, ...], size: int) -> _ObjLines:
     path = Path(path_text)
     data = path.read_bytes()
     vertex_lines, face_lines = VERTEX_LINE.findall(data), FACE_LINE.findall(data)
@@ -125,24 +125,27 @@ def _vertices_before_faces(path: Path) -> np.ndarray:
     return np.searchsorted(vertex_starts, face_starts)
 
 
-def _file_key(path: Path) -> tuple[str, int, int]:
+def _file_key(path: Path) -> tuple[str, tuple[int, ...], int]:
+    """What the parsed file is remembered by in the process: its path, its stamp and its size. The stamp holds the
+    change time, which any write sets to now and no program can set back, so a file edited in place with its size
+    and modification time restored is read afresh."""
     if not path.is_file():
         raise WorkbenchError(f"{path}: OBJ file not found")
     stat = path.stat()
-    return str(path.resolve()), stat.st_mtime_ns, stat.st_size
+    return str(path.resolve()), (stat.st_dev, stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns), stat.st_size
 
 
 @functools.lru_cache(maxsize=128)
-def _vertices_cached(path_text: str, mtime_ns: int, size: int) -> tuple[np.ndarray, bytes, int]:
-    split = _split_obj(path_text, mtime_ns, size)
+def _vertices_cached(path_text: str, stamp: tuple[int, ...], size: int) -> tuple[np.ndarray, bytes, int]:
+    split = _split_obj(path_text, stamp, size)
     vertices = _parse_vertices(split.vertex_lines, Path(path_text))
     vertices.flags.writeable = False
     return vertices, split.face_digest, len(split.face_lines)
 
 
 @functools.lru_cache(maxsize=16)
-def _polygons_cached(path_text: str, mtime_ns: int, size: int) -> tuple[np.ndarray, np.ndarray]:
-    split = _split_obj(path_text, mtime_ns, size)
+def _polygons_cached(path_text: str, stamp: tuple[int, ...], size: int) -> tuple[np.ndarray, np.ndarray]:
+    split = _split_obj(path_text, stamp, size)
     sizes, corners = _parse_polygons(split.face_lines, lambda: _vertices_before_faces(Path(path_text)),
                                      len(split.vertex_lines), Path(path_text))
     sizes.flags.writeable = corners.flags.writeable = False

@@ -11,6 +11,7 @@ find the file again). Frames built whole (markers) are converted (or written out
 from __future__ import annotations
 
 import hashlib
+import sys
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -19,7 +20,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames
+from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
 from workbench.progress import progress
 
 STORAGES = ("memory", "disk")
@@ -47,10 +48,18 @@ class FrameStorage:
         return Path(self.folder) / f"{name}_{digest}_{self.dtype}.npy"
 
     def existing(self, name: str, key) -> FramesOnDisk | None:
-        """The frames stored before under ``name`` and ``key``, or None (always None in memory)."""
+        """The frames stored before under ``name`` and ``key``, or None (always None in memory).
+
+        A file is used again only when it still has the SHA-256 its writer recorded beside it; any other is
+        reported in one line on stderr and None returned, so that it is built (and replaced) anew."""
         if self.folder is None or not self.path(name, key).is_file():
             return None
-        return FramesOnDisk(self.path(name, key))
+        path = self.path(name, key)
+        fault = written_intact(path)
+        if fault is not None:
+            print(f"workbench: frames file {path}: {fault}; building it again", file=sys.stderr)
+            return None
+        return FramesOnDisk(path)
 
     def sink(self, name: str, key, n_frames: int, n_dims: int) -> "FrameSink":
         """A sink for ``n_frames`` frames of ``n_dims`` values, written in order."""

@@ -1470,7 +1470,7 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
         ``out / "index.html"``.
     """
     out = Path(out)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     cache: dict = {}
     entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), {**(options or {}), "cache": cache})
@@ -1505,7 +1505,7 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     summary["n_hand"] = hand_basis_size(summary, swept)
     column = headline_column(records[0].config)
     comparisons = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir,
                            _with_png(formats), {})
@@ -1532,7 +1532,7 @@ def sweep_records(root: Path) -> list[RunRecord]:
     folders = [folder for folder in find_records([root])[0] if folder != Path(root)]
     if not folders:
         raise WorkbenchError(f"{root} holds no complete run record (folders with a '{DONE}' file)")
-    return [load_record(folder) for folder in folders]
+    return [load_record(folder, check_archives=True) for folder in folders]
 
 
 REPORT_FOLDER = "report"
@@ -1553,7 +1553,7 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         if not plain_name(name):
             raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
         return inside(REPO_ROOT / "reports", name)
-    return Path(out) if out is not None else Path(folder) / REPORT_FOLDER
+    return Path(out) if out is not None else inside(folder, REPORT_FOLDER)
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
@@ -1572,6 +1572,23 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
+FIGURE_2_SHAPES = 4
+"""Hand shapes figure 2 shows (the paper's figure 2)."""
+
+
+def figure_2_shapes(text: str, record: RunRecord) -> list[str]:
+    """``--shapes``: four distinct hand shapes of the run, checked before the report is written."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if len(names) != FIGURE_2_SHAPES or len(set(names)) != len(names):
+        raise WorkbenchError(f"--shapes takes {FIGURE_2_SHAPES} distinct hand-shape names (figure 2 shows "
+                             f"{FIGURE_2_SHAPES}), got {names}")
+    known = list(record.metrics["dataset"].get("hand_names") or [])
+    unknown = [name for name in names if known and name not in known]
+    if unknown:
+        raise WorkbenchError(f"--shapes names unknown hand shapes {unknown}; the run has {known}")
+    return names
+
+
 def main(argv: Sequence[str]) -> int:
     """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,svg] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
@@ -1584,9 +1601,9 @@ def main(argv: Sequence[str]) -> int:
         raise WorkbenchError(f"{folder} is not a folder")
     command = "workbench report " + " ".join(argv)
     if is_complete(folder):
-        record = load_record(folder)
+        record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
-        options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
+        options = {"shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]
