@@ -81,8 +81,8 @@ def test_findings_of_a_known_table():
         "**mesh**: with least squares, ratios by alpha variant (abs mean | abs pooled | disp mean | disp pooled): "
         "H/QE 4.00 | 4.00 | 4.00 | 8.00 (paper 7.22); H/QE-linear 2.00 | 2.00 | 2.00 | 4.00; "
         "QE/PCA 1.25 | 1.25 | 1.25 | 1.25 (paper 1.16). The paper's ratios come from its absolute alpha; here H/QE "
-        "ranges from 4.00 to 8.00 with the variant (absolute alpha also moves with the coordinate origin), so a "
-        "ratio compares across datasets only in the same variant, and not by itself.",
+        "ranges from 4.00 to 8.00 with the variant (absolute alpha also moves with the coordinate origin), so no "
+        "one ratio compares across datasets.",
         "**mesh**: m = 10 eigenfaces reach coverage 0.9951 (paper: m = 18); the 18 hand shapes can span them, so "
         "QE can match PCA.",
         "**mesh**: with non-negative weights QE's alpha goes from 0.25 to 1.5 (x6.00), QE-linear's alpha goes from "

@@ -93,8 +93,8 @@ def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str
     a, b, low, high = spans[0]
     return (f"with {SOLVER_NAMES.get(solver, solver)}, ratios by alpha variant ({names}): " + "; ".join(texts)
             + f". The paper's ratios come from its absolute alpha; here {a}/{b} ranges from {low:.2f} to {high:.2f} "
-            "with the variant (absolute alpha also moves with the coordinate origin), so a ratio compares across "
-            "datasets only in the same variant, and not by itself")
+            "with the variant (absolute alpha also moves with the coordinate origin), so no one ratio compares across "
+            "datasets")
 
 
 def m_text(part: pd.DataFrame, paper: Mapping) -> str:

@@ -932,7 +932,8 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, fa
         Section("Alpha beside the paper", [
             f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
             "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
-            "alpha variant (the findings give them under each), so they compare across datasets only within one.",
+            "alpha variant on the same data (the findings give them under each), so no one ratio compares across "
+            "datasets.",
             headline_table(record.table, column),
         ]),
         *protocol_sections(record, column),
