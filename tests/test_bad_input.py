@@ -655,7 +655,7 @@ SYNTHETIC = {"kind": "synthetic", "n_frames": 200, "frame_rate": 120.0, "n_face_
     ({"marker_noise_mm": np.nan}, r"marker_noise_mm must be a finite number, got nan"),
     ({"n_head_markers": 2}, r"n_head_markers must be an integer between 3 and 32, got 2"),
     ({"mesh_fraction": 0.0}, r"dataset\.mesh_fraction must be in \(0, 1\], got 0"),
-    ({"train_on": "scan"}, r"dataset\.train_on must be one of \('markers', 'mesh', 'mesh_rbf'\)"),
+    ({"train_on": "scan"}, r"dataset\.train_on must be one of \('markers', 'mesh', 'mesh_rbf', 'face'\)"),
     ({"split": "tail", "eval_fraction": 1.5}, r"dataset\.eval_fraction must be in \(0, 1\) for split 'tail', got 1\.5"),
     ({"gap_rate": 1.0}, r"dataset\.gap_rate must be in \[0, 1\), got 1\.0"),
     ({"seed": "abc"}, r"dataset\.seed must be a non-negative integer, got 'abc'"),

@@ -26,8 +26,13 @@ def test_study_and_preset_compose_and_the_paper_study_has_no_alternatives():
     assert set(small.hydra.sweeper.params) <= set(full.hydra.sweeper.params)
     assert (STUDIES_DIR / "bases.yaml").read_text().startswith("# ")
     assert list(compose("paper").basis.alternatives) == []
-    # the study composes on the real dataset too (the sweep's key exists there)
-    assert compose("bases", ["dataset=ict_livelink"]).dataset.kind == "ict_livelink"
+    # the data vary: five takes, each with its own start of ICA and NMF
+    assert str(full.hydra.sweeper.params["dataset.seed"]) == "0,1,2,3,4"
+    assert resolved_without_hydra(compose("bases", ["dataset.seed=3"]))["basis"]["alternatives_seed"] == 3
+    # on data with one take only the starts can vary (the sweep's key exists there)
+    one_take = compose("bases_one_take", ["dataset=ict_livelink"])
+    assert one_take.dataset.kind == "ict_livelink"
+    assert list(one_take.hydra.sweeper.params) == ["basis.alternatives_seed"]
 
 
 def test_alternatives_are_checked():
@@ -52,21 +57,23 @@ def bases_sweep(tmp_path_factory):
 
 def test_bases_preset_scores_every_basis_with_every_solver(bases_sweep):
     sweep, runs, stdout = bases_sweep
-    assert runs.groupby("run").ngroups == 2
+    assert runs.groupby("run").ngroups == 5
     for basis in ALTERNATIVES:
         part = runs[runs["basis"] == basis]
-        assert sorted(part["solver"]) == sorted(["lstsq", "nnls", "box"] * 2) and set(part["n"]) == {18}
-        assert f" {basis} " in stdout.splitlines()[-3]  # a column of the collected alpha table
+        assert sorted(part["solver"]) == sorted(["lstsq", "nnls", "box"] * 5) and set(part["n"]) == {18}
+        header = next(line for line in stdout.splitlines() if line.startswith("| ") and " H " in line)
+        assert f" {basis} " in header  # a column of the collected alpha table
     lstsq = runs[(runs["solver"] == "lstsq") & (runs["run"] == runs["run"].iloc[0])].set_index("basis")
     # ICA spans the best 18-dimensional subspace about the neutral face: no basis of 18 shapes reconstructs the
     # (training) frames better (Eckart-Young), and refitting the hand shapes can only improve on them
     pooled = lstsq["alpha_disp_pooled"]
     assert all(pooled["ICA"] <= pooled[basis] * (1 + 1e-9) for basis in ["H", "QE", "QE-linear", *ALTERNATIVES])
     assert pooled["H-fit"] < pooled["H"]
-    # only ICA and NMF have random starts: the other bases give the same numbers for both seeds
-    by_seed = runs[runs["solver"] == "lstsq"].pivot_table(index="basis", columns="basis.alternatives_seed",
+    # the takes differ, so every basis's alpha does (not only those of ICA's and NMF's starts)
+    by_seed = runs[runs["solver"] == "lstsq"].pivot_table(index="basis", columns="dataset.seed",
                                                            values="alpha_abs_mean")
-    assert (by_seed[0] == by_seed[1])[["H", "QE", "SPCA", "SPLOCS", "H-fit"]].all()
+    assert (by_seed.nunique(axis=1) == 5).all()
+    assert (runs["basis.alternatives_seed"] == runs["dataset.seed"]).all()
 
 
 def test_intuitiveness_is_in_the_run_record(bases_sweep):
@@ -91,9 +98,15 @@ def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     report = tmp_path / "bases_small"
     readme = (report / "README.md").read_text()
     section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
-    rows = [line for line in section.splitlines() if line.startswith("| markers")]
+    table, comparisons = section.split("Paired comparisons over the runs", 1)
+    rows = [line for line in table.splitlines() if line.startswith("| markers")]
     assert [line.split("|")[2].strip() for line in rows] == ["H", "QE", "QE-linear", "PCA", *ALTERNATIVES]
     assert "matched_abs_cosine" in section and "alpha_abs_mean_ci_low" in section
+    sizes = {line.split("|")[2].strip(): line.split("|")[3].strip() for line in rows}
+    assert sizes["H"] == "18" and sizes["PCA"] != "18"  # PCA's size is the m of each take, marked
+    findings = readme.split("## Findings", 1)[1].split("\n## ", 1)[0]
+    assert "bases of other sizes than the hand basis's n = 18: PCA n = " in findings
+    assert "| markers | alpha_abs_mean     |" in comparisons and "| markers | locality " in comparisons
     for suffix in ("png", "svg"):
         assert (report / "figures" / f"alpha_vs_intuitiveness.{suffix}").stat().st_size > 10_000
     assert 'src="figures/alpha_vs_intuitiveness.svg"' in (report / "index.html").read_text()  # shown as vector

@@ -1,4 +1,4 @@
-"""workbench collect: records into tidy tables, confidence intervals by hand, exact table text."""
+"""workbench collect: records into tidy tables, intervals and paired comparisons by hand, exact table text."""
 
 import math
 
@@ -8,8 +8,8 @@ import yaml
 
 from workbench import record
 
-from workbench.reporting.collect import collect_and_write, format_estimate, main
-from workbench.reporting.runs import collect_runs, natural_key, summarise, t_interval
+from workbench.reporting.collect import collect_and_write, format_estimate, format_range, main
+from workbench.reporting.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
 from workbench.tables import latex_table, markdown_table
 from workbench.errors import WorkbenchError
 
@@ -58,22 +58,26 @@ def sweep(tmp_path):
     return folder
 
 
-def test_t_interval_matches_a_hand_computation():
-    # values 1, 2, 4: mean 7/3, sample variance ((4/3)^2 + (1/3)^2 + (5/3)^2) / 2 = 7/3, t_{0.975, 2} = 4.3027
-    result = t_interval([1.0, 2.0, 4.0])
-    std = math.sqrt(7 / 3)
-    assert result["n"] == 3
-    assert result["mean"] == pytest.approx(7 / 3, rel=1e-12)
-    assert result["std"] == pytest.approx(std, rel=1e-12)
-    assert result["ci95_half"] == pytest.approx(4.3027 * std / math.sqrt(3), rel=1e-4)
-    assert result["ci95_half"] == pytest.approx(3.7946, abs=1e-4)
-    assert result["ci95_low"] == pytest.approx(7 / 3 - result["ci95_half"])
+T_975_2 = 4.302652729749462  # Student t, 97.5 % quantile, 2 degrees of freedom
 
 
-def test_t_interval_of_identical_and_single_values():
-    assert t_interval([1.5, 1.5, 1.5])["ci95_half"] == 0.0
-    single = t_interval([2.0, float("nan")])
-    assert single["n"] == 1 and single["mean"] == 2.0 and math.isnan(single["ci95_half"])
+def test_level_statistics_match_a_hand_computation():
+    # values 1, 2, 4: mean 7/3, sample sd sqrt(7/3); logs 0, ln 2, 2 ln 2: geometric mean 2, log sd ln 2
+    result = level_statistics([1.0, 2.0, 4.0, float("nan")])
+    half = T_975_2 * math.log(2.0) / math.sqrt(3)
+    assert (result["n"], result["min"], result["max"]) == (3, 1.0, 4.0)
+    assert result["mean"] == pytest.approx(7 / 3, rel=1e-12) and result["std"] == pytest.approx(math.sqrt(7 / 3))
+    assert result["geomean"] == pytest.approx(2.0, rel=1e-12)
+    assert (result["ci95_low"], result["ci95_high"]) == pytest.approx((2 * math.exp(-half), 2 * math.exp(half)))
+    assert result["ci95_low"] == pytest.approx(0.3575, abs=1e-4)  # where the Student-t interval gave -1.46
+    assert result["ci_method"] == "geometric mean, t-interval on log values"
+
+
+def test_level_statistics_of_identical_and_single_values():
+    same = level_statistics([1.5, 1.5, 1.5])
+    assert same["geomean"] == pytest.approx(1.5) and math.isnan(same["ci95_low"]) and math.isnan(same["ci95_high"])
+    single = level_statistics([2.0, float("nan")])
+    assert single["n"] == 1 and single["geomean"] == 2.0 and math.isnan(single["ci95_low"])
 
 
 def test_runs_table_is_tidy_and_in_sweep_order(sweep):
@@ -93,36 +97,62 @@ def test_summary_averages_over_seeds(sweep):
     assert "dataset.seed" not in summary.columns
     h = summary[(summary["basis"] == "H") & (summary["metric"] == "alpha_abs_mean")].set_index("basis.coverage")
     assert h.loc[0.9, "n"] == 3
-    assert h.loc[0.9, "mean"] == pytest.approx(7 / 3)
-    assert h.loc[0.9, "ci95_half"] == pytest.approx(4.3027 * math.sqrt(7 / 3) / math.sqrt(3), rel=1e-4)
-    assert h.loc[0.99, "ci95_half"] == 0.0
+    assert h.loc[0.9, "mean"] == pytest.approx(7 / 3) and h.loc[0.9, "geomean"] == pytest.approx(2.0)
+    assert h.loc[0.9, "ci95_high"] == pytest.approx(2 * math.exp(T_975_2 * math.log(2) / math.sqrt(3)))
+    assert h.loc[0.99, "geomean"] == pytest.approx(1.5) and math.isnan(h.loc[0.99, "ci95_low"])  # same every seed
+    m = summary[(summary["basis"] == "PCA") & (summary["metric"] == "m")].set_index("basis.coverage")
+    assert (m.loc[0.9, "min"], m.loc[0.9, "max"]) == (4, 6)
+
+
+def test_paired_comparisons_by_hand(sweep):
+    runs, _ = collect_runs([sweep])
+    comparisons = paired_comparisons(runs, "alpha_abs_mean").set_index(["basis.coverage", "first", "second"])
+    # coverage 0.99: PCA/QE per seed 0.1/0.2, 0.2/0.3, 0.3/0.4; the smaller first
+    logs = [math.log(0.5), math.log(2 / 3), math.log(0.75)]
+    mean = sum(logs) / 3
+    half = T_975_2 * math.sqrt(sum((value - mean) ** 2 for value in logs) / 2) / math.sqrt(3)
+    row = comparisons.loc[(0.99, "PCA", "QE")]
+    assert (row["ratio"], row["ratio_low"], row["ratio_high"]) == pytest.approx(
+        (math.exp(mean), math.exp(mean - half), math.exp(mean + half)))
+    assert row["n"] == 3 and row["verdict"] == "not distinguishable" and row["ratio_high"] > 1
+    assert comparisons.loc[(0.99, "QE", "H"), "verdict"] == "<"
+    assert (comparisons["ratio"] <= 1).all() and (comparisons["ratio_low"] > 0).all()
 
 
 def test_alpha_table_exact_text(sweep, tmp_path):
     written = collect_and_write([sweep], tmp_path / "out", where={"solver": "lstsq"})
+    caption = ("alpha_abs_mean (%), solver = lstsq; cells: geometric mean over dataset.seed [95 % interval] "
+               "(geometric mean, t-interval on log values, n = 3 per cell); m: range over the runs")
     expected_markdown = (
-        "alpha_abs_mean (%), solver = lstsq; mean ± half-width of the 95 % t-interval over dataset.seed "
-        "(n = 3 per cell)\n"
+        f"{caption}\n"
         "\n"
-        "| basis.coverage |         m |             H |            QE |           PCA |\n"
-        "|----------------|----------:|--------------:|--------------:|--------------:|\n"
-        "| 0.9            | 5.0 ± 2.5 | 2.333 ± 3.795 | 0.700 ± 0.497 | 0.500 ± 0.248 |\n"
-        "| 0.99           |      12.0 | 1.500 ± 0.000 | 0.300 ± 0.248 | 0.200 ± 0.248 |\n")
+        "| basis.coverage |   m |                     H |                   QE |                  PCA |\n"
+        "|----------------|----:|----------------------:|---------------------:|---------------------:|\n"
+        "| 0.9            | 4-6 | 2.000 [0.357, 11.190] | 0.680 [0.327, 1.416] | 0.493 [0.298, 0.817] |\n"
+        "| 0.99           |  12 |                 1.500 | 0.288 [0.121, 0.685] | 0.182 [0.046, 0.722] |\n")
     assert written["markdown"] == expected_markdown
     assert (tmp_path / "out" / "alpha_table.md").read_text() == expected_markdown
     expected_latex = (
-        "% alpha_abs_mean (%), solver = lstsq; mean ± half-width of the 95 % t-interval over dataset.seed "
-        "(n = 3 per cell)\n"
+        f"% {caption}\n"
         "\\begin{tabular}{lrrrr}\n"
         "\\toprule\n"
         "basis.coverage & m & H & QE & PCA \\\\\n"
         "\\midrule\n"
-        "0.9 & 5.0 $\\pm$ 2.5 & 2.333 $\\pm$ 3.795 & 0.700 $\\pm$ 0.497 & 0.500 $\\pm$ 0.248 \\\\\n"
-        "0.99 & 12.0 & 1.500 $\\pm$ 0.000 & 0.300 $\\pm$ 0.248 & 0.200 $\\pm$ 0.248 \\\\\n"
+        "0.9 & 4-6 & 2.000 [0.357, 11.190] & 0.680 [0.327, 1.416] & 0.493 [0.298, 0.817] \\\\\n"
+        "0.99 & 12 & 1.500 & 0.288 [0.121, 0.685] & 0.182 [0.046, 0.722] \\\\\n"
         "\\bottomrule\n"
         "\\end{tabular}\n")
     assert (tmp_path / "out" / "alpha_table.tex").read_text() == expected_latex
     assert written["n_runs"] == 6 and written["n_incomplete"] == 1
+    findings = (tmp_path / "out" / "findings.md").read_text().splitlines()
+    assert findings[1] == (
+        "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq): `alpha_abs_mean` geometric means, best "
+        "first: PCA (n = 12) 0.182, QE 0.288, H 1.500; PCA and QE not distinguishable (PCA/QE 0.63, 95 % interval "
+        "[0.3752, 1.058] (paired t on log ratios, n = 3)); QE < H (QE/H 0.1923, 95 % interval [0.08096, 0.4567] "
+        "(paired t on log ratios, n = 3)).")
+    # each number of the finding is a cell of the tables written beside it
+    assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in \
+        (tmp_path / "out" / "comparisons.md").read_text()
 
 
 def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):
@@ -139,11 +169,11 @@ def test_metrics_as_columns_table(sweep, tmp_path):
                              extra=())["markdown"]
     assert text.splitlines()[0].startswith("alpha (%) by metric, basis.coverage = 0.99; ")
     assert text.splitlines()[2:] == [
-        "| basis | alpha_abs_mean | alpha_abs_pooled | alpha_disp_mean | alpha_disp_pooled |",
-        "|-------|---------------:|-----------------:|----------------:|------------------:|",
-        "| H     |  1.500 ± 0.000 |    1.650 ± 0.000 |    75.00 ± 0.00 |      30.00 ± 0.00 |",
-        "| QE    |  0.300 ± 0.248 |    0.330 ± 0.273 |   15.00 ± 12.42 |       6.00 ± 4.97 |",
-        "| PCA   |  0.200 ± 0.248 |    0.220 ± 0.273 |   10.00 ± 12.42 |       4.00 ± 4.97 |"]
+        "| basis |       alpha_abs_mean |     alpha_abs_pooled |     alpha_disp_mean |  alpha_disp_pooled |",
+        "|-------|---------------------:|---------------------:|--------------------:|-------------------:|",
+        "| H     |                1.500 |                1.650 |               75.00 |              30.00 |",
+        "| QE    | 0.288 [0.121, 0.685] | 0.317 [0.134, 0.754] | 14.42 [6.07, 34.26] | 5.77 [2.43, 13.70] |",
+        "| PCA   | 0.182 [0.046, 0.722] | 0.200 [0.050, 0.795] |  9.09 [2.29, 36.12] | 3.63 [0.91, 14.45] |"]
 
 
 def test_cli_collect_writes_next_to_the_sweep(sweep, capsys):
@@ -163,8 +193,9 @@ def test_collect_errors_name_the_problem(sweep, tmp_path):
 
 
 def test_formatting_helpers():
-    assert format_estimate(0.31949, 0.01234, "{:.3f}") == "0.319 ± 0.012"
-    assert format_estimate(0.31949, float("nan"), "{:.3f}") == "0.319"
+    assert format_estimate(0.31949, 0.30712, 0.33201, "{:.3f}") == "0.319 [0.307, 0.332]"
+    assert format_estimate(0.31949, float("nan"), float("nan"), "{:.3f}") == "0.319"
+    assert format_range(4.0, 6.0, "{:.0f}") == "4-6" and format_range(12.0, 12.0, "{:.0f}") == "12"
     assert sorted(["random12", "random3", "all"], key=natural_key) == ["all", "random3", "random12"]
     assert markdown_table(["k", "v"], [["a", "1.0"]], [False, True]) == "| k |   v |\n|---|----:|\n| a | 1.0 |\n"
     assert latex_table(["a_b", "v"], [["x%", "1 ± 2"]], [False, True]) == (

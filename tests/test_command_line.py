@@ -35,7 +35,7 @@ def test_tab_completion_completes_groups_keys_and_studies(tmp_path):
     assert completions("workbench --config-name=cov", tmp_path) == [
         "--config-name=coverage", "--config-name=coverage_small"]
     studies = completions("workbench --config-name=", tmp_path)
-    assert "--config-name=paper" in studies and "--config-name=noise_small" in studies and len(studies) == 15
+    assert "--config-name=paper" in studies and "--config-name=noise_small" in studies and len(studies) == 16
 
 
 def test_flags_after_the_overrides(tmp_path):

@@ -238,7 +238,7 @@ def test_alpha_against_a_setting_draws_a_line_and_a_band_per_basis(ci_style):
         assert sum(isinstance(c, PolyCollection) for c in ax.collections) == 4
         np.testing.assert_allclose(ax.lines[0].get_xdata(), [0.0, 0.1, 0.2])
         assert ax.get_xlabel() == "marker noise (mm per coordinate)"
-    assert "95 % CI" in figure._suptitle.get_text()
+    assert "(95 % interval: geometric mean, t-interval on log values; n = 3 seeds)" in figure._suptitle.get_text()
     labels = [t.get_text() for t in figure.legends[0].get_texts()]
     assert labels[0] == "hand $E^H$" and len(labels) == 4
 
@@ -256,14 +256,28 @@ def test_alpha_against_without_ci_and_with_categories():
         plot_alpha_against(table[table["basis"] != "PCA"], "basis.hand_subset", solver="box", title="x")
 
 
-def test_marker_vs_mesh_bars_with_error_bars():
+def test_marker_vs_mesh_draws_one_panel_per_evaluation_set_and_measure():
     table = sweep_table()
     table = table[table["dataset.marker_noise_mm"] == 0.0]
-    figure = plot_marker_vs_mesh(table, title="marker versus mesh")
-    ax = figure.axes[0]
-    assert len(ax.patches) == 8  # 4 bases x 2 data variants
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["trained on markers", "trained on mesh"]
-    assert len(ax.containers) >= 2 and "95 % CI" in ax.get_title()
+    # fitted on markers and on the mesh, each scored on the markers and on the mesh's face region
+    table = pd.concat([table.assign(data=f"{data}->{scored}") for data in ("markers", "mesh")
+                       for scored in ("markers", "face")], ignore_index=True).drop_duplicates(["data", "basis"])
+    table["rms_mm"] = table["alpha_abs_mean"] / 2
+    figure = plot_marker_vs_mesh(table, ("alpha_abs_mean", "rms_mm"), title="marker versus mesh")
+    assert len(figure.axes) == 4  # 2 measures x 2 evaluation sets
+    first = figure.axes[0]
+    assert first.get_title(loc="left") == "scored on markers" and figure.axes[1].get_title(loc="left") == \
+        "scored on face"
+    assert len(first.patches) == 8  # 4 bases x fitted on 2 variants
+    assert [t.get_text() for t in figure.legends[0].get_texts()] == ["fitted on markers", "fitted on mesh"]
+    assert len(first.containers) >= 2 and "error bars: 95 % interval" in figure._suptitle.get_text()
+    assert figure.axes[2].get_ylabel() == "RMS point error (mm)"
+    # a run's own table, each variant scored on its own points: one panel each, never side by side
+    own = sweep_table().query("`dataset.marker_noise_mm` == 0.0").drop(
+        columns=["alpha_abs_mean_ci_low", "alpha_abs_mean_ci_high"])
+    figure = plot_marker_vs_mesh(own, "alpha_abs_mean", title="own points")
+    assert [ax.get_title(loc="left") for ax in figure.axes] == ["scored on markers", "scored on mesh"]
+    assert all(len(ax.patches) == 4 for ax in figure.axes)
 
 
 def test_coverage_curve_marks_threshold_and_chosen_m():

@@ -2,6 +2,9 @@
 
 import numpy as np
 import pandas as pd
+import pytest
+
+from workbench.errors import WorkbenchError
 
 from workbench.reporting.findings import facts_frame, run_findings, shared_notes
 
@@ -23,7 +26,8 @@ def known_table(data: str = "mesh") -> pd.DataFrame:
 
 
 def compared(a, b, low, high):
-    return {"a": list(a), "b": list(b), "estimate": ALPHA[a] - ALPHA[b], "low": low, "high": high}
+    return {"a": list(a), "b": list(b), "estimate": ALPHA[a] - ALPHA[b], "low": low, "high": high, "n": 100,
+            "method": "circular block bootstrap over time"}
 
 
 PCA = ("PCA", "projection")
@@ -72,17 +76,19 @@ def test_findings_of_a_known_table():
     assert lines == [
         "**mesh**: `alpha_abs_mean` from best to worst, lstsq: PCA 0.2 < QE 0.25 < QE-linear 0.5 < H 1; "
         "nnls: PCA 0.2 < QE-linear 0.55 < H 1.1 < QE 1.5; "
-        "box: PCA 0.2 < QE 1 ~ QE-linear 1.15 (QE - QE-linear -0.15 [-0.3, +0.01]: not distinguishable) < H 1.2.",
+        "box: PCA 0.2 < QE 1 ~ QE-linear 1.15 (QE - QE-linear -0.15, 95 % interval [-0.3, +0.01] (circular block "
+        "bootstrap over time, n = 100): not distinguishable) < H 1.2.",
         "**mesh**: with least squares, ratios by alpha variant (abs mean | abs pooled | disp mean | disp pooled): "
         "H/QE 4.00 | 4.00 | 4.00 | 8.00 (paper 7.22); H/QE-linear 2.00 | 2.00 | 2.00 | 4.00; "
         "QE/PCA 1.25 | 1.25 | 1.25 | 1.25 (paper 1.16). The paper's ratios come from its absolute alpha; here H/QE "
-        "ranges from 4.00 to 8.00 with the variant (absolute alpha also moves with the coordinate origin), so a "
-        "ratio compares across datasets only in the same variant, and not by itself.",
+        "ranges from 4.00 to 8.00 with the variant (absolute alpha also moves with the coordinate origin), so no "
+        "one ratio compares across datasets.",
         "**mesh**: m = 10 eigenfaces reach coverage 0.9951 (paper: m = 18); the 18 hand shapes can span them, so "
         "QE can match PCA.",
         "**mesh**: with non-negative weights QE's alpha goes from 0.25 to 1.5 (x6.00), QE-linear's alpha goes from "
-        "0.5 to 0.55 (x1.10) and H's from 1 to 1.1 (x1.10); under them QE is worse than H (+0.4 [+0.2, +0.6]) and "
-        "QE-linear is better than H (-0.55 [-0.7, -0.4]).",
+        "0.5 to 0.55 (x1.10) and H's from 1 to 1.1 (x1.10); under them QE is worse than H (QE - H +0.4, 95 % "
+        "interval [+0.2, +0.6] (circular block bootstrap over time, n = 100)) and QE-linear is better than H "
+        "(QE-linear - H -0.55, 95 % interval [-0.7, -0.4] (circular block bootstrap over time, n = 100)).",
         "**mesh**: why: every affine QE shape is P e_i^H + (I-P) mu: it carries the capture mean's part outside the "
         "eigenfaces' span, 56.4 mm long (22 % of the median frame's displacement norm); with least squares QE's "
         "weights sum to 0.96 (median over frames), so each frame gets that many copies of it, and 100 % of the "
@@ -92,8 +98,9 @@ def test_findings_of_a_known_table():
         "x6.00. So the share of frames needing negative weights does not explain the loss; the offset does in "
         "part: the constraint can no longer hold the weights' sum where the offset needs it.",
         "**mesh**: with box [0, 1] weights QE's alpha goes from 0.25 to 1 (x4.00), QE-linear's alpha goes from 0.5 "
-        "to 1.15 (x2.30) and H's from 1 to 1.2 (x1.20); under them QE is better than H (-0.2 [-0.3, -0.1]) and "
-        "QE-linear is better than H (-0.05 [-0.09, -0.01]).",
+        "to 1.15 (x2.30) and H's from 1 to 1.2 (x1.20); under them QE is better than H (QE - H -0.2, 95 % interval "
+        "[-0.3, -0.1] (circular block bootstrap over time, n = 100)) and QE-linear is better than H (QE-linear - H "
+        "-0.05, 95 % interval [-0.09, -0.01] (circular block bootstrap over time, n = 100)).",
         "**mesh**: the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer "
         "sparsity with 1 for one shape per frame, roughness as the mean squared second time derivative in 1/s^4), "
         "lstsq: H 1.6, 90 %, 0.30, 50; QE 33.6, 100 %, 0.35, 2.5e+04; QE-linear 31.8, 100 %, 0.31, 2.3e+04; "
@@ -114,6 +121,15 @@ def test_the_offset_is_not_offered_as_the_reason_when_the_numbers_do_not_show_it
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics(offset_share=0.02))
     why = next(line for line in lines if "why:" in line)
     assert "2 % of QE's squared error lies along (I-P) mu" in why and "So the share" not in why
+
+
+def test_the_offset_is_not_singled_out_when_qe_linear_loses_almost_as_much():
+    table = known_table().assign(alpha_abs_mean=lambda t: np.where(
+        (t["basis"] == "QE-linear") & (t["solver"] == "nnls"), 2.75, t["alpha_abs_mean"]))  # x5.5 against x6
+    why = next(line for line in run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
+               if "why:" in line)
+    assert why.endswith("against QE's x6.00. Here QE-linear, with as many frames needing negative weights, loses "
+                        "almost as much: these numbers do not single out the offset.")
 
 
 def test_without_paired_intervals_no_order_is_claimed():
@@ -175,46 +191,170 @@ def test_facts_and_notes_are_stated_once():
     assert shared_notes(metrics) == (["shared"], {"markers": ["markers only"], "mesh": []})
 
 
-def test_sweep_findings_order_the_bases_at_each_swept_value():
+# --- findings of sweeps: only from the paired comparisons ----------------------------------------------------
+
+SEEDS = {  # coverage -> basis -> alpha_abs_mean of seeds 0 and 1 (the coverage preset's, as its records say)
+    0.95: {"H": (0.31, 0.33), "QE": (0.42, 0.17), "QE-linear": (0.63, 0.39), "PCA": (0.49, 0.27)},
+    0.995: {"H": (0.31, 0.33), "QE": (0.16, 0.16), "QE-linear": (0.23, 0.18), "PCA": (0.19, 0.17)}}
+
+
+def write_disagreeing_sweep(folder):
+    """Two seeds at two coverages; at 0.95 their orderings of QE and H disagree. Written as the workbench writes
+    records."""
+    import yaml
+
+    from workbench import record
+
+    for coverage, alpha in SEEDS.items():
+        for seed in (0, 1):
+            m = (4 - seed) if coverage == 0.95 else (6 - seed)
+            rows = [{"data": "markers", "basis": basis, "projection": "affine" if basis.startswith("QE") else "-",
+                     "solver": "projection" if basis == "PCA" else "lstsq", "n": m if basis == "PCA" else 18, "m": m,
+                     "coverage": coverage, "alpha_abs_mean": values[seed], "alpha_abs_pooled": values[seed] * 1.1,
+                     "alpha_disp_mean": values[seed] * 50, "alpha_disp_pooled": values[seed] * 20,
+                     "rms_mm": values[seed] / 2, "paper_alpha": PAPER["alpha"].get(basis, float("nan"))}
+                    for basis, values in alpha.items()]
+            config = {"study": "coverage", "dataset": {"kind": "synthetic", "seed": seed},
+                      "basis": {"coverage": coverage}}
+            metrics = {"study": "coverage", "config_hash": f"h{coverage}{seed}", "job_num": seed,
+                       "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}"],
+                       "dataset": {"name": "test", "frame_rate": 120.0},
+                       "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
+                       "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
+                       "git": {"commit": "abc", "dirty": False}}
+            record.write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}",
+                                resolved_yaml=yaml.safe_dump(config), table=pd.DataFrame(rows), text="",
+                                metrics=metrics, timings={"total": 1.0})
+    return folder
+
+
+def drawn_intervals(figure):
+    """Every interval a figure draws (bands and error bars) as arrays of y values."""
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    values = []
+    for ax in figure.axes:
+        for collection in ax.collections:
+            if isinstance(collection, PolyCollection):
+                values += [path.vertices[:, 1] for path in collection.get_paths()]
+            elif isinstance(collection, LineCollection):
+                values += [segment[:, 1] for segment in collection.get_segments()]
+    return values
+
+
+def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goes_below_zero(tmp_path, capsys):
+    import re
+
+    from scipy import stats
+
+    from workbench.reporting.collect import main
+    from workbench.reporting.figures.studies import plot_alpha_against, plot_marker_vs_mesh
+    from workbench.reporting.runs import collect_runs, summarise, wide
+
+    sweep = write_disagreeing_sweep(tmp_path / "sweep")
+    qe = SEEDS[0.95]["QE"]
+    # what the Student-t interval over the two seeds said: a mean of 0.295 and a lower bound of -1.29 %
+    assert qe[0] > SEEDS[0.95]["H"][0] and qe[1] < SEEDS[0.95]["H"][1]
+    assert (sum(qe) / 2 - stats.t.ppf(0.975, 1) * stats.tstd(qe) / 2 ** 0.5) < -1.2
+    assert main([str(sweep), "--where", "solver=lstsq"]) == 0
+    printed = capsys.readouterr().out
+    finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
+    assert "QE and H not distinguishable (QE/H " in finding and "(paired t on log ratios, n = 2)" in finding
+    assert "QE < H" not in finding and "H < QE" not in finding
+    # every interval printed, in the table and in the findings, lies above zero, and names its method and n
+    bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
+    assert len(bounds) >= 2 * (7 + 6) and min(bounds) > 0  # QE at 0.995 is 0.16 on both seeds: no interval
+    assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
+    comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
+    pair = comparisons[(comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE")
+                       & (comparisons["second"] == "H")]
+    assert pair["verdict"].tolist() == ["not distinguishable"] and (comparisons["ratio_low"] > 0).all()
+    # every interval drawn lies above zero, and the figure names the method and n beside them
+    runs, _ = collect_runs([sweep])
+    summary = wide(summarise(runs))
+    for figure in (plot_alpha_against(summary, "basis.coverage", points=runs, title="disagreeing seeds"),
+                   plot_marker_vs_mesh(summary[summary["basis.coverage"] == 0.95], title="one variant")):
+        drawn = drawn_intervals(figure)
+        assert drawn and min(float(values.min()) for values in drawn) > 0
+        assert "geometric mean, t-interval on log values; n = 2 seeds" in figure._suptitle.get_text().replace("\n", " ")
+    # a table whose interval reaches below zero is refused, not drawn
+    negative = summary.assign(alpha_abs_mean_ci_low=summary["alpha_abs_mean"] - 1.3)
+    with pytest.raises(WorkbenchError, match="reaches below zero"):
+        plot_alpha_against(negative, "basis.coverage", title="t-interval")
+
+
+def known_comparisons(rows):
+    columns = ["basis.coverage", "data", "solver", "metric", "first", "second", "n", "ratio", "ratio_low",
+               "ratio_high", "method", "verdict"]
+    return pd.DataFrame([dict(zip(columns, row)) for row in rows])
+
+
+def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     from workbench.reporting.findings import sweep_findings
 
-    table = pd.concat([known_table().assign(**{"basis.coverage": 0.99}),
-                       known_table().assign(**{"basis.coverage": 0.995, "alpha_abs_mean": lambda t: t["alpha_abs_mean"] * 2})])
-    lines = sweep_findings(table, ["basis.coverage"], "alpha_abs_mean", "lstsq", PAPER)
-    assert lines == ["basis.coverage = 0.99: mesh PCA 0.2 < QE 0.25 < H 1",
-                     "basis.coverage = 0.995: mesh PCA 0.4 < QE 0.5 < H 2"]
-    assert sweep_findings(known_table(), [], "alpha_abs_mean", "lstsq", PAPER)[0].startswith("**mesh**")
+    summary = pd.DataFrame({
+        "basis.coverage": [0.99] * 3, "data": ["mesh"] * 3, "basis": ["H", "QE", "PCA"],
+        "solver": ["lstsq", "lstsq", "projection"], "n_seeds": [5] * 3, "m_min": [9] * 3, "m_max": [11] * 3,
+        "n_min": [18, 18, 9], "n_max": [18, 18, 11], "alpha_abs_mean": [0.312, 0.162, 0.169]})
+    method = "paired t on log ratios"
+    comparisons = known_comparisons([
+        (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "H", 5, 0.52, 0.46, 0.58, method, "<"),
+        (0.99, "mesh", "lstsq", "alpha_abs_mean", "PCA", "H", 5, 0.54, 0.5, 0.6, method, "<"),
+        (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "PCA", 5, 0.9586, 0.9, 1.02, method, "not distinguishable")])
+    assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq") == [
+        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq): `alpha_abs_mean` geometric means, best first: "
+        "QE 0.162, PCA (n = 9-11) 0.169, H 0.312; QE and PCA not distinguishable (QE/PCA 0.9586, 95 % interval "
+        "[0.9, 1.02] (paired t on log ratios, n = 5)); PCA < H (PCA/H 0.54, 95 % interval [0.5, 0.6] (paired t on "
+        "log ratios, n = 5))."]
+    # with nothing swept but the seed: one finding per data variant
+    assert sweep_findings(summary, comparisons, [], "alpha_abs_mean", "lstsq")[0].startswith(
+        "**mesh** (m = 9-11; 5 seeds, lstsq): ")
 
 
-def test_bases_findings():
+def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
     from workbench.reporting.findings import bases_findings
 
-    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["H", "QE", "SPCA"], "alpha_abs_mean": [1.0, 0.2, 0.1],
-                            "matched_abs_cosine": [1.0, 0.66, 0.45], "locality": [0.07, 0.27, 0.095]})
-    assert bases_findings(summary, "alpha_abs_mean") == [
-        "**mesh**: `alpha_abs_mean` from best to worst: SPCA 0.1 < QE 0.2 < H 1.",
-        "**mesh**: closest to the hand shapes: QE (mean matched |cosine| 0.66); most local: SPCA (10 % of the face "
-        "holds its elements' displacement, the hand shapes' 7 %)."]
-
-
-def test_the_offset_is_not_singled_out_when_qe_linear_loses_almost_as_much():
-    table = known_table().assign(alpha_abs_mean=lambda t: np.where(
-        (t["basis"] == "QE-linear") & (t["solver"] == "nnls"), 2.75, t["alpha_abs_mean"]))  # x5.5 against x6
-    why = next(line for line in run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
-               if "why:" in line)
-    assert why.endswith("against QE's x6.00. Here QE-linear, with as many frames needing negative weights, loses "
-                        "almost as much: these numbers do not single out the offset.")
+    summary = pd.DataFrame({"data": ["mesh"] * 4, "basis": ["H", "QE", "PCA", "SPCA"], "n_seeds": [5] * 4,
+                            "n_min": [18, 18, 10, 18], "n_max": [18, 18, 10, 18],
+                            "alpha_abs_mean": [1.0, 0.2, 0.15, 0.1], "matched_abs_cosine": [1.0, 0.66, 0.43, 0.45],
+                            "locality": [0.07, 0.27, 0.25, 0.095]})
+    method = "paired t on log ratios"
+    rows = [("mesh", "alpha_abs_mean", "SPCA", "PCA", 5, 0.667, 0.6, 0.74, method, "<"),
+            ("mesh", "alpha_abs_mean", "PCA", "QE", 5, 0.75, 0.7, 0.8, method, "<"),
+            ("mesh", "alpha_abs_mean", "QE", "H", 5, 0.2, 0.18, 0.22, method, "<"),
+            ("mesh", "matched_abs_cosine", "SPCA", "QE", 5, 0.68, 0.6, 0.77, method, "<"),
+            ("mesh", "locality", "SPCA", "PCA", 5, 0.38, 0.3, 0.48, method, "<"),
+            ("mesh", "locality", "PCA", "QE", 5, 0.93, 0.8, 1.08, method, "not distinguishable")]
+    columns = ["data", "metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict"]
+    comparisons = pd.DataFrame([dict(zip(columns, row)) for row in rows])
+    assert bases_findings(summary, comparisons, "alpha_abs_mean") == [
+        "**mesh** (5 runs): `alpha_abs_mean` geometric means, best first: SPCA 0.100, PCA (n = 10) 0.150, QE 0.200, "
+        "H 1.000; SPCA < PCA (SPCA/PCA 0.667, 95 % interval [0.6, 0.74] (paired t on log ratios, n = 5)); PCA < QE "
+        "(PCA/QE 0.75, 95 % interval [0.7, 0.8] (paired t on log ratios, n = 5)); QE < H (QE/H 0.2, 95 % interval "
+        "[0.18, 0.22] (paired t on log ratios, n = 5)).",
+        "**mesh**: bases of other sizes than the hand basis's n = 18: PCA n = 10; their alpha is not that of a basis "
+        "of the same size.",
+        "**mesh**: closest to the hand shapes (mean matched |cosine|): QE 0.660, then SPCA 0.450 (the hand shapes' "
+        "1.000); SPCA < QE (SPCA/QE 0.68, 95 % interval [0.6, 0.77] (paired t on log ratios, n = 5)).",
+        "**mesh**: most local (share of the face holding an element's displacement): SPCA 0.095, then PCA 0.250 "
+        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38, 95 % interval [0.3, 0.48] (paired t on log ratios, "
+        "n = 5))."]
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
     from workbench.reporting.findings import bases_findings
+    from workbench.reporting.runs import COMPARISON_COLUMNS
 
-    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["ICA", "H-fit", "PCA"],
+    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["ICA", "H-fit", "PCA"], "n_seeds": [1] * 3,
+                            "n_min": [18, 18, 9], "n_max": [18, 18, 9],
                             "alpha_abs_mean": [0.09612, 0.09621, 0.2], "matched_abs_cosine": [0.5, 0.74, 0.3],
                             "locality": [0.2, 0.1, 0.5]})
     comparisons = {"mesh": [
-        {"a": ["ICA", "lstsq"], "b": ["H-fit", "lstsq"], "estimate": -9e-05, "low": -0.0004, "high": 0.0002},
+        {"a": ["ICA", "lstsq"], "b": ["H-fit", "lstsq"], "estimate": -9e-05, "low": -0.0004, "high": 0.0002,
+         "n": 4000, "method": "circular block bootstrap over time", "block_frames": 53, "block_seconds": 0.44},
         {"a": ["H-fit", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.104, "low": -0.11, "high": -0.09}]}
-    assert bases_findings(summary, "alpha_abs_mean", comparisons)[0] == (
-        "**mesh**: `alpha_abs_mean` from best to worst: ICA 0.09612 ~ H-fit 0.09621 (ICA - H-fit -9e-05 [-0.0004, "
-        "+0.0002]: not distinguishable) < PCA 0.2.")
+    over_runs = pd.DataFrame(columns=["data", *COMPARISON_COLUMNS])  # one run: nothing to pair over runs
+    assert bases_findings(summary, over_runs, "alpha_abs_mean", run_comparisons=comparisons)[0] == (
+        "**mesh** (one run): `alpha_abs_mean` from best to worst: ICA 0.09612 ~ H-fit 0.09621 (ICA - H-fit -9e-05, "
+        "95 % interval [-0.0004, +0.0002] (circular block bootstrap over time, blocks of 53 frames = 0.44 s, "
+        "n = 4000): not distinguishable) < PCA 0.2.")

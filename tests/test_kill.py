@@ -50,7 +50,8 @@ SAME_BYTES = ("config.yaml", "alpha_table.csv", "alpha_table.md")
 """Files whose content is the same in every run of the same config."""
 LOG_FILES = ("workbench.log",)
 """What the run printed, in every run folder (a plain run's also holds Hydra's ``.hydra`` folder): not the record."""
-COLLECTED_FILES = ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "alpha_table.md", "alpha_table.tex")
+COLLECTED_FILES = ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "comparisons.csv", "comparisons.md",
+                   "alpha_table.md", "alpha_table.tex", "findings.md")
 TEMPORARY = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX) + "$")
 
 

@@ -20,7 +20,7 @@ from mlflow_rest import rest
 
 from workbench.config import REPO_ROOT
 from workbench.errors import WorkbenchError
-from workbench.record import ALPHA_COLUMNS, find_records, load_record
+from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_records, load_record
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
@@ -28,6 +28,7 @@ from workbench.reporting.mlflow_store import (Store, log_records, metric_key, op
                                               param_text, record_metrics, resolve_store, store_uris)
 
 SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
+         "metric.score_clean=true",
          "paths.output_root=out", "hydra.sweep.dir=out/coverage_small/default", "hydra.callbacks.mlflow.enabled=true"]
 ENV = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
 ENV.pop("MLFLOW_TRACKING_URI", None)
@@ -88,6 +89,14 @@ def test_one_nested_run_per_record_with_params_metrics_tags_and_artifacts(swept)
         for row in record.table.to_dict("records"):
             for column in ALPHA_COLUMNS:
                 assert run[f"metrics.{column}.markers.{row['basis']}.{row['solver']}"] == row[column]
+            # error in mm, weights (PCA has none) and scores against the clean frames, where the row has them
+            for column in (*FRAME_COLUMNS, *CLEAN_COLUMNS):
+                logged = run.get(f"metrics.{column}.markers.{row['basis']}.{row['solver']}")
+                assert logged == row[column] if pd.notna(row[column]) else pd.isna(logged)
+        assert pd.notna(run["metrics.w_max_abs.markers.QE.lstsq"])
+        assert pd.notna(run["metrics.err_mm_p95.markers.PCA.projection"])
+        assert run["metrics.clean_alpha_abs_mean.markers.QE.lstsq"] == record.table.loc[
+            (record.table["basis"] == "QE") & (record.table["solver"] == "lstsq"), "clean_alpha_abs_mean"].item()
         assert run["metrics.m.markers"] == record.table["m"].iloc[0]
         artifacts = {item.path for item in mlflow.MlflowClient().list_artifacts(run["run_id"])}
         assert {"alpha_table.csv", "alpha_table.md", "config.yaml", "metrics.json", "workbench.log"} <= artifacts
@@ -150,6 +159,16 @@ def test_the_store_named_wins_then_the_environment_then_the_default(tmp_path, mo
     assert resolve_store(store=tmp_path / "s").tracking_uri == f"sqlite:///{tmp_path.resolve()}/s/mlflow.db"
     assert resolve_store(tracking_uri="http://other:5000", output_root=tmp_path).tracking_uri == "http://other:5000"
     assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").lock_file == tmp_path / "x.db.lock"
+
+
+def test_scores_against_the_clean_frames_are_logged_where_a_row_has_them(swept):
+    folders, _ = find_records([swept / "out" / "coverage_small" / "default"])
+    record = load_record(folders[0])
+    clean = record.table["alpha_abs_mean"].where(record.table["basis"] != "PCA") * 2
+    metrics = record_metrics(dataclasses.replace(record, table=record.table.assign(clean_alpha_abs_mean=clean)))
+    assert metrics["clean_alpha_abs_mean.markers.QE.lstsq"] == 2 * metrics["alpha_abs_mean.markers.QE.lstsq"]
+    assert "clean_alpha_abs_mean.markers.PCA.projection" not in metrics  # an empty cell is no measurement
+    assert "w_max_abs.markers.PCA.projection" not in metrics and "w_max_abs.markers.H.lstsq" in metrics
 
 
 def test_two_rows_of_one_name_are_refused(swept):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk, FrameWriter, frame_chunks, is_stored_frames
+from workbench.frames import FramesOnDisk, FrameWriter, checksum_path, frame_chunks, is_stored_frames, written_intact
 from workbench.metrics import reference_squares, summarise_alpha, summarise_squares
 from workbench.reduced import Subspace, project_frames
 from workbench.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
@@ -70,7 +70,9 @@ def test_frames_written_chunk_by_chunk_read_back(tmp_path, dtype):
     chunks = list(frame_chunks(stored, 8))
     assert [rows.start for rows, _ in chunks] == [0, 8, 16, 24, 32]
     np.testing.assert_array_equal(np.vstack([chunk for _, chunk in chunks]), expected)
-    assert not [path for path in tmp_path.iterdir() if path.name != "frames.npy"]  # no temporary file left
+    # no temporary file left: the frames and the SHA-256 their writer recorded beside them
+    assert sorted(tmp_path.iterdir()) == [tmp_path / "frames.npy", checksum_path(tmp_path / "frames.npy")]
+    assert written_intact(tmp_path / "frames.npy") is None
 
 
 def test_frame_writer_refuses_a_short_file(tmp_path):

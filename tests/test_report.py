@@ -68,10 +68,12 @@ def test_headline_states_an_order_only_where_the_paired_interval_excludes_zero()
     table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
     comparisons = {"markers": [
         {"a": ["H", "box"], "b": ["QE", "box"], "estimate": 4.42, "low": 3.9, "high": 4.9},
-        {"a": ["QE", "box"], "b": ["PCA", "projection"], "estimate": 0.09, "low": -0.01, "high": 0.2}]}
+        {"a": ["QE", "box"], "b": ["PCA", "projection"], "estimate": 0.09, "low": -0.01, "high": 0.2, "n": 800,
+         "method": "circular block bootstrap over time", "block_frames": 12, "block_seconds": 0.1}]}
     text = headline(table, {"headline_normalisation": "absolute", "headline_aggregate": "mean"}, PAPER, comparisons)
-    assert text.splitlines()[0] == ("alpha_abs_mean with box: PCA 0.61 ~ QE 0.7 (PCA - QE -0.09 [-0.2, +0.01]: not "
-                                    "distinguishable) < H 5.12")
+    assert text.splitlines()[0] == ("alpha_abs_mean with box: PCA 0.61 ~ QE 0.7 (PCA - QE -0.09, 95 % interval "
+                                    "[-0.2, +0.01] (circular block bootstrap over time, blocks of 12 frames = 0.1 s, "
+                                    "n = 800): not distinguishable) < H 5.12")
 
 
 def test_missing_paper_value_is_nan_in_the_frame():

@@ -13,10 +13,10 @@ from workbench.record import DONE
 @pytest.mark.parametrize("override, message", [
     ("dataset.gap_policy=spline", "dataset.gap_policy must be one of ('drop', 'linear', 'masked'), got 'spline'"),
     ("dataset.gap_fit_on=all", "dataset.gap_fit_on must be one of ('complete', 'filled'), got 'all'"),
-    ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list of distinct "
-                               "ones or null, got ['scan']"),
-    ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list "
-                                           "of distinct ones, got ['markers', 'markers']"),
+    ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf', 'face') or a list "
+                               "of distinct ones or null, got ['scan']"),
+    ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf', 'face') "
+                                           "or a list of distinct ones, got ['markers', 'markers']"),
 ])
 def test_unused_settings_are_checked(tmp_path, override, message):
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
@@ -83,6 +83,11 @@ COMPOSITION_CASES = {
                                  "dataset.held_out=tail uses it (this run: split=same)",
     "basis.subset_seed=4": "basis.subset_seed has no effect in this run: only basis.hand_subset=random<k> draws",
     "basis.splocs.d_min=0.9": "basis.splocs.d_min (0.9) must be below basis.splocs.d_max (0.7)",
+    "basis.coverage_on=noisy": "basis.coverage_on must be one of ('training', 'clean'), got 'noisy'",
+    "metric.score_clean=yes": "metric.score_clean must be true or false, got 'yes'",
+    "metric.bootstrap_resamples=0": "metric.bootstrap_resamples must be an integer >= 1, got 0",
+    "dataset.held_out=[tail,tail]": "dataset.held_out must be one of ('tail', 'take') or a list of distinct ones or "
+                                    "null, got ['tail', 'tail']",
 }
 
 
@@ -93,6 +98,22 @@ def test_settings_are_checked_when_composed(override):
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
     with pytest.raises(WorkbenchError, match="^" + re.escape(COMPOSITION_CASES[override])):
         check_study_config(cfg, [override], refuse_ineffective=True)
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["basis.coverage_on=clean", "basis.n_components=5"],
+     "basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must be null, got 5"),
+    (["dataset=animface", "basis.coverage_on=clean"],
+     "basis.coverage_on needs the clean capture, which only dataset.kind synthetic has, got 'animface'"),
+    (["dataset=ict_livelink", "metric.score_clean=true"],
+     "metric.score_clean needs the clean capture, which only dataset.kind synthetic has, got 'ict_livelink'"),
+])
+def test_scoring_against_the_clean_capture_is_checked_with_the_settings_it_needs(overrides, message):
+    from workbench.schema import check_study_config
+
+    cfg = compose("paper", ["solver=lstsq", *overrides])
+    with pytest.raises(WorkbenchError, match="^" + re.escape(message) + "$"):
+        check_study_config(cfg, overrides, refuse_ineffective=True)
 
 
 def test_settings_with_no_effect_in_a_sweep_are_named_not_refused():

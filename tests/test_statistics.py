@@ -1,4 +1,6 @@
-"""Paired comparisons within a run: the block length, the circular block bootstrap within takes, the intervals and
+"""The statistics of the reports, one interval type for both: across the replicates of a sweep, intervals that
+stay positive and paired comparisons (known answers computed by hand, and the coverage of the geometric interval on
+log-normal samples); within a run, the block length, the circular block bootstrap within takes, the intervals and
 the orderings stated from them, on series whose answer is known."""
 
 import math
@@ -8,10 +10,108 @@ import pytest
 
 from workbench.errors import WorkbenchError
 from workbench.reporting import statistics
-from workbench.reporting.statistics import (Interval, block_bootstrap_totals, comparison_lookup, format_interval,
-                                            optimal_block_length, ordering_text, paired_mean_difference,
-                                            paired_pooled_difference)
+from workbench.reporting.statistics import (BLOCK_BOOTSTRAP, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
+                                            block_bootstrap_totals, comparison_lookup, geometric_interval,
+                                            interval_text, optimal_block_length, ordering_text,
+                                            paired_difference_interval, paired_mean_difference,
+                                            paired_pooled_difference, paired_ratio_interval, reversed_interval,
+                                            t_interval)
 
+T_975_2 = 4.302652729749462  # Student t, 97.5 % quantile, 2 degrees of freedom (tables: 4.3027)
+T_975_4 = 2.7764451051977934  # 4 degrees of freedom (tables: 2.7764)
+
+
+# --- across replicates -------------------------------------------------------------------------------------------
+
+def test_geometric_interval_of_1_2_4_by_hand():
+    # logs 0, ln 2, 2 ln 2: mean ln 2, sample sd ln 2; bounds 2 exp(-+ t ln 2 / sqrt 3)
+    interval = geometric_interval([1.0, 2.0, 4.0])
+    half = T_975_2 * math.log(2.0) / math.sqrt(3.0)
+    assert interval.estimate == pytest.approx(2.0, rel=1e-12)
+    assert interval.low == pytest.approx(2.0 * math.exp(-half), rel=1e-9)
+    assert interval.high == pytest.approx(2.0 * math.exp(half), rel=1e-9)
+    assert (interval.n, interval.method, interval.null) == (3, GEOMETRIC, None)
+    assert interval.low > 0  # the Student-t interval of the mean, 7/3 -+ 3.79, reaches -1.46
+    assert t_interval([1.0, 2.0, 4.0]).low == pytest.approx(7 / 3 - T_975_2 * math.sqrt(7 / 3) / math.sqrt(3))
+
+
+def test_geometric_interval_covers_the_geometric_mean_of_log_normal_samples_95_percent_of_the_time():
+    rng = np.random.default_rng(20261124)
+    mu, sigma, n, repeats = -1.2, 0.6, 5, 4000
+    samples = rng.lognormal(mu, sigma, size=(repeats, n))
+    intervals = [geometric_interval(sample) for sample in samples]
+    covered = np.mean([interval.low <= math.exp(mu) <= interval.high for interval in intervals])
+    # binomial standard error sqrt(0.95 * 0.05 / 4000) = 0.0034: 0.95 within four of them
+    assert abs(covered - 0.95) < 0.014, covered
+    assert min(interval.low for interval in intervals) > 0
+
+
+def test_geometric_interval_needs_two_positive_values():
+    single = geometric_interval([0.3, float("nan")])
+    assert single.n == 1 and single.estimate == pytest.approx(0.3) and math.isnan(single.low)
+    assert not single.defined
+    zero = geometric_interval([0.0, 1.0])
+    assert math.isnan(zero.estimate) and "needs positive values" in zero.method
+    same = geometric_interval([1.5, 1.5, 1.5])  # replicates that do not vary: no spread to show, no interval
+    assert same.estimate == pytest.approx(1.5) and same.n == 3 and not same.defined
+
+
+def test_paired_ratio_interval_by_hand():
+    # ratios 1/2, 1/2.2, 1/1.8: logs l_k = -ln 2, -ln 2.2, -ln 1.8
+    first, second = [1.0, 1.0, 1.0], [2.0, 2.2, 1.8]
+    logs = [-math.log(2.0), -math.log(2.2), -math.log(1.8)]
+    mean = sum(logs) / 3
+    sd = math.sqrt(sum((value - mean) ** 2 for value in logs) / 2)
+    half = T_975_2 * sd / math.sqrt(3)
+    interval = paired_ratio_interval(first, second)
+    assert interval.estimate == pytest.approx(math.exp(mean), rel=1e-12)
+    assert (interval.low, interval.high) == pytest.approx((math.exp(mean - half), math.exp(mean + half)), rel=1e-9)
+    assert (interval.n, interval.method, interval.null) == (3, PAIRED_LOG_RATIO, 1.0)
+    assert interval.excludes_null and interval.sign == -1  # the first is smaller on every seed, by 10 % or more
+    back = reversed_interval(interval)
+    assert (back.estimate, back.low, back.high) == pytest.approx(
+        (1 / interval.estimate, 1 / interval.high, 1 / interval.low))
+    assert back.sign == 1
+
+
+def test_two_seeds_that_disagree_do_not_distinguish():
+    # the coverage preset's seeds at threshold 0.95: QE 0.42 > H 0.31 on seed 0, QE 0.17 < H 0.33 on seed 1
+    interval = paired_ratio_interval([0.42, 0.17], [0.31, 0.33])
+    assert interval.n == 2 and not interval.excludes_null and interval.sign == 0
+    assert interval.low < 1 < interval.high and interval.low > 0
+
+
+def test_paired_difference_interval_by_hand():
+    # differences 1, 2, 3: mean 2, sd 1, half t / sqrt 3
+    interval = paired_difference_interval([1.0, 2.0, 3.0])
+    half = T_975_2 / math.sqrt(3)
+    assert (interval.estimate, interval.low, interval.high) == pytest.approx((2.0, 2.0 - half, 2.0 + half))
+    assert interval.method == PAIRED_T and interval.null == 0.0 and not interval.excludes_null
+    apart = paired_difference_interval([1.0, 1.1, 0.9, 1.2, 0.8])
+    half = T_975_4 * math.sqrt(0.025) / math.sqrt(5)
+    assert (apart.low, apart.high) == pytest.approx((1.0 - half, 1.0 + half))
+    assert apart.excludes_null and apart.sign == 1
+
+
+def test_interval_text_names_the_method_and_n():
+    interval = Interval(0.012, 0.004, 0.02, 5, PAIRED_T, null=0.0)
+    assert interval_text(interval) == "difference 0.012, 95 % interval [0.004, 0.02] (paired t, n = 5)"
+    assert interval_text(interval, "QE/H", "{:.3f}") == \
+        "QE/H 0.012, 95 % interval [0.004, 0.020] (paired t, n = 5)"
+    lone = paired_ratio_interval([0.2], [0.3])
+    assert interval_text(lone, "QE/H") == "QE/H 0.667 (no interval: paired t on log ratios, n = 1)"
+    constant = paired_ratio_interval([0.98, 0.98], [1.0, 1.0])  # a fixed ratio on replicates that did not vary
+    assert not constant.excludes_null and interval_text(constant, "A/B") == \
+        "A/B 0.98 (no interval: the same on every replicate)"
+    with pytest.raises(ValueError, match="no null"):
+        geometric_interval([1.0, 2.0]).excludes_null
+    with pytest.raises(ValueError, match="can be reversed"):
+        reversed_interval(geometric_interval([1.0, 2.0]))
+    with pytest.raises(ValueError, match="one of each"):
+        paired_ratio_interval([1.0, 2.0], [1.0])
+
+
+# --- within a run ------------------------------------------------------------------------------------------------
 
 def ar1(n: int, phi: float, rng: np.random.Generator) -> np.ndarray:
     """A stationary AR(1) series with unit innovations."""
@@ -75,20 +175,20 @@ def test_a_constant_difference_is_stated_and_a_sign_change_is_not():
     a = 1.0 + 0.1 * np.sin(frames / 50.0)
     interval = paired_mean_difference(a, a - 0.25)
     assert (interval.estimate, interval.low, interval.high) == pytest.approx((0.25, 0.25, 0.25))
-    assert interval.excludes_zero
+    assert interval.excludes_null
     # the second half reverses the first: the mean difference is small against its block-bootstrap spread
     b = a + np.where(frames < 500, 0.3, -0.28) + 0.05 * np.random.default_rng(0).standard_normal(1000)
     interval = paired_mean_difference(a, b, seconds=frames / 120.0)
     assert interval.estimate == pytest.approx(np.mean(a - b))
-    assert interval.low < 0 < interval.high and not interval.excludes_zero
+    assert interval.low < 0 < interval.high and not interval.excludes_null
     assert interval.block_frames > 1 and interval.block_seconds == pytest.approx(interval.block_frames / 120.0)
-    assert "circular block bootstrap over 1000 frames" in interval.method and "seed 0" in interval.method
+    assert (interval.method, interval.n, interval.null) == (BLOCK_BOOTSTRAP, 1000, 0.0)
 
 
 def test_identical_rows_are_not_distinguishable_and_undefined_frames_are_left_out():
     a = np.array([1.0, 2.0, np.nan, 3.0])
     interval = paired_mean_difference(a, a.copy())
-    assert (interval.estimate, interval.low, interval.high, interval.excludes_zero) == (0.0, 0.0, 0.0, False)
+    assert (interval.estimate, interval.low, interval.high, interval.excludes_null) == (0.0, 0.0, 0.0, False)
     found = paired_mean_difference(a, np.array([0.5, 1.5, 7.0, 2.5]))
     assert found.estimate == pytest.approx(0.5) and found.n == 4
     with pytest.raises(WorkbenchError, match="one length"):
@@ -123,24 +223,36 @@ def test_pooled_difference_is_the_difference_of_the_pooled_alphas():
     interval = paired_pooled_difference(error_a, error_b, reference)
     expected = 100 * (np.sqrt(error_a.sum() / reference.sum()) - np.sqrt(error_b.sum() / reference.sum()))
     assert interval.estimate == pytest.approx(expected, rel=1e-12)
-    assert interval.low <= expected <= interval.high and interval.excludes_zero
+    assert interval.low <= expected <= interval.high and interval.excludes_null
 
 
 def test_ordering_states_less_than_only_with_an_interval_that_excludes_zero():
     values = {"H": 1.08, "QE": 1.21, "QE-linear": 1.04, "PCA": 0.19}
     stored = [{"a": ["PCA"], "b": ["QE-linear"], "estimate": -0.85, "low": -0.9, "high": -0.8},
-              {"a": ["H"], "b": ["QE-linear"], "estimate": 0.04, "low": -0.01, "high": 0.09},
+              {"a": ["H"], "b": ["QE-linear"], "estimate": 0.04, "low": -0.01, "high": 0.09, "n": 5,
+               "method": PAIRED_T},
               {"a": ["H"], "b": ["QE"], "estimate": -0.13, "low": -0.2, "high": -0.06}]
     lookup = comparison_lookup(stored)
     compare = lambda a, b: lookup((a,), (b,))  # noqa: E731
-    assert ordering_text(values, compare) == ("PCA 0.19 < QE-linear 1.04 ~ H 1.08 (QE-linear - H -0.04 [-0.09, "
-                                              "+0.01]: not distinguishable) < QE 1.21")
+    assert ordering_text(values, compare) == (
+        "PCA 0.19 < QE-linear 1.04 ~ H 1.08 (QE-linear - H -0.04, 95 % interval [-0.09, +0.01] (paired t, n = 5): "
+        "not distinguishable) < QE 1.21")
     # without comparisons nothing is claimed
     assert ordering_text(values, lambda a, b: None) == "PCA 0.19, QE-linear 1.04, H 1.08, QE 1.21"
+    # the same ordering from ratios over replicates: a tie is named by its ratio
+    ratio = paired_ratio_interval([0.9, 1.1, 1.0], [1.0, 1.0, 1.0])
+    assert ordering_text({"QE": 1.0, "H": 1.01}, lambda a, b: ratio) == (
+        f"QE 1 ~ H 1.01 ({interval_text(ratio, 'QE/H', '{:.4g}')}: not distinguishable)")
 
 
 def test_interval_text_and_round_trip():
-    interval = Interval(estimate=0.0231, low=0.0104, high=0.0358, method="m", n=10, block_frames=3,
+    interval = Interval(estimate=0.0231, low=0.0104, high=0.0358, method="m", n=10, null=0.0, block_frames=3,
                         block_seconds=0.025)
-    assert format_interval(interval) == "+0.0231 [+0.0104, +0.0358]"
+    assert interval_text(interval, "QE - H", SIGNED) == ("QE - H +0.0231, 95 % interval [+0.0104, +0.0358] (m, blocks "
+                                                         "of 3 frames = 0.025 s, n = 10)")
     assert Interval.from_dict(interval.as_dict()) == interval
+    # a comparison stored before the two interval types were one: its level is the confidence, its null 0
+    stored = {"estimate": 0.0231, "low": 0.0104, "high": 0.0358, "level": 0.9, "method": "m", "n": 10}
+    assert Interval.from_dict(stored) == Interval(0.0231, 0.0104, 0.0358, 10, "m", 0.9, 0.0)
+    back = reversed_interval(interval)
+    assert (back.estimate, back.low, back.high, back.sign) == (-0.0231, -0.0358, -0.0104, -1)

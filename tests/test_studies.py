@@ -150,6 +150,108 @@ def test_cross_evaluation_of_data_variants():
     assert mesh_to_markers.quasi_eigen["affine"].shapes.shape == (18, 3 * 66)
 
 
+def test_face_region_is_the_dense_mesh_inside_the_markers_at_full_resolution():
+    from scipy.spatial import Delaunay
+
+    from workbench.dataset import face_region
+
+    cfg = plain_config(overrides=["dataset.n_frames=60", "dataset.train_on=[markers,face]"])
+    captures = build_captures(cfg["dataset"])
+    take = make_synthetic_take(n_frames=60)
+    vertices, faces = face_region(70, 60, 66)
+    inside = Delaunay(take.mesh.face_plane[take.face_marker_vertices]).find_simplex(take.mesh.face_plane) >= 0
+    np.testing.assert_array_equal(vertices, np.flatnonzero(inside))
+    assert set(take.face_marker_vertices) <= set(vertices) and 0.5 < vertices.size / 4200 < 0.9
+    face = captures["face"]
+    full = take.mesh_sequence() - take.mesh.vertices
+    np.testing.assert_allclose(face.train, full[:, vertices].reshape(60, -1), rtol=0, atol=1e-12)
+    assert face.faces.max() == vertices.size - 1 and face.point_labels[0] == f"v{vertices[0]}"
+
+
+def test_marker_mesh_scores_every_basis_on_the_same_evaluation_points():
+    """Fitted on markers, RBF mesh or (decimated) mesh: each evaluation set, the markers and the face region, is
+    scored on the same points and frames, so the study compares bases and never point sets."""
+    study = compose("marker_mesh")
+    assert list(study.dataset.eval_on) == ["markers", "face"]
+    scored = {}
+    for fraction in (1.0, 0.25):
+        cfg = plain_config("marker_mesh", ["dataset.n_frames=200", "dataset.train_on=[markers,mesh_rbf,mesh]",
+                                           f"dataset.mesh_fraction={fraction}"])
+        for result in run_study(cfg):
+            scored.setdefault(result.eval_on, []).append(result)
+    assert sorted(scored) == ["face", "markers"]
+    for eval_on, results in scored.items():
+        assert len(results) == 6  # 3 data variants fitted on x 2 mesh densities
+        first = results[0].capture
+        for result in results[1:]:
+            np.testing.assert_array_equal(result.capture.neutral, first.neutral)
+            np.testing.assert_array_equal(result.capture.eval, first.eval)
+            np.testing.assert_array_equal(result.capture.hand, first.hand)
+            assert result.capture.point_labels == first.point_labels
+        hand = {next(row.alpha.displacement_pooled for row in result.rows if row.basis == "H") for result in results}
+        assert len(hand) == 1  # the hand shapes need no fit: one score per evaluation set
+    assert scored["markers"][0].capture.n_points == 66 and scored["face"][0].capture.n_points > 2000
+
+
+def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
+    study = compose("noise")
+    params = {key: str(value).split(",") for key, value in study.hydra.sweeper.params.items()}
+    assert params["basis.coverage_on"][0] == "clean"  # the primary axis
+    largest_noise, largest_gaps = max(map(float, params["dataset.marker_noise_mm"])), \
+        max(map(float, params["dataset.gap_rate"]))
+    assert largest_noise == 2.0 and study.metric.score_clean
+    for seed in (0, 1):
+        base = ["dataset.n_frames=1000", f"dataset.seed={seed}"]
+        clean = run_study(plain_config("noise", base + ["dataset.marker_noise_mm=0", "dataset.gap_rate=0",
+                                                        "basis.coverage_on=training"]))[0]
+        noisy = run_study(plain_config("noise", base + [f"dataset.marker_noise_mm={largest_noise}",
+                                                        f"dataset.gap_rate={largest_gaps}",
+                                                        "basis.coverage_on=clean"]))[0]
+        free = run_study(plain_config("noise", base + [f"dataset.marker_noise_mm={largest_noise}",
+                                                       "basis.coverage_on=training"]))[0]
+        assert noisy.eigenfaces.n_components_ == clean.eigenfaces.n_components_ < 20
+        assert free.eigenfaces.n_components_ > 150  # the coverage rule on the noisy frames keeps the noise
+        assert any(note.startswith("m chosen on the clean capture: m = "
+                                   f"{clean.eigenfaces.n_components_} ") for note in noisy.capture.notes)
+        # scored against the clean frames: the clean run scores the same there as against its own frames
+        for row in clean.rows:
+            assert row.clean_alpha.absolute_mean == pytest.approx(row.alpha.absolute_mean, rel=1e-9)
+        held, kept = (next(row for row in result.rows if row.basis == "PCA") for result in (noisy, free))
+        # PCA with 150+ eigenfaces reproduces the noise: close to the noisy frames, far from the clean ones
+        assert kept.alpha.rms_mm < kept.clean_alpha.rms_mm
+        assert held.clean_alpha.rms_mm < kept.clean_alpha.rms_mm
+
+
+def test_clean_frames_are_matched_by_take_and_frame_number():
+    from workbench.pipeline import clean_dataset_config, clean_frames
+
+    # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
+    cfg = plain_config(overrides=["dataset.n_frames=600", "dataset.marker_noise_mm=0", "dataset.gap_rate=0.02",
+                                  "dataset.gap_policy=drop"])
+    dropped = build_captures(cfg["dataset"])["markers"]
+    clean = build_captures(clean_dataset_config(cfg["dataset"]))["markers"]
+    assert len(dropped.eval) < len(clean.eval) == 600
+    truth = clean_frames(dropped, clean)
+    np.testing.assert_allclose(truth, dropped.eval, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(truth, clean.eval[dropped.timeline().frame])
+    tail = plain_config(overrides=["dataset.n_frames=600", "dataset.gap_rate=0.05", "dataset.gap_policy=drop",
+                                   "dataset.split=tail"])
+    with pytest.raises(WorkbenchError, match="not among the clean capture's evaluated frames"):
+        clean_frames(build_captures(tail["dataset"])["markers"],
+                     build_captures(clean_dataset_config(tail["dataset"]))["markers"])
+
+
+def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rule():
+    with pytest.raises(WorkbenchError, match="coverage_on must be one of"):
+        run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=noisy"]))
+    with pytest.raises(WorkbenchError, match="leave n_components null"):
+        run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
+    with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
+        from workbench.pipeline import clean_dataset_config
+
+        clean_dataset_config({"kind": "animface"})
+
+
 def test_eval_on_needs_train_on():
     with pytest.raises(WorkbenchError, match="eval_on must be"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "dataset.eval_on=[]"]))
@@ -195,11 +297,18 @@ def lstsq_alpha(runs, basis, **conditions):
     return runs.loc[keep, "alpha_abs_mean"]
 
 
+def test_every_preset_runs_five_seeds():
+    for study in (*STUDIES, "bases"):
+        for name in (study, f"{study}_small"):
+            seeds = compose(name).hydra.sweeper.params["dataset.seed"]
+            assert str(seeds).split(",") == ["0", "1", "2", "3", "4"], name
+
+
 def test_coverage_preset(tmp_path):
     sweep, runs, stdout = run_preset("coverage", tmp_path)
-    assert runs.groupby("run").ngroups == 4 and "| basis.coverage |" in stdout
+    assert runs.groupby("run").ngroups == 10 and "| basis.coverage |" in stdout
     m = runs[runs["basis"] == "PCA"].set_index(["dataset.seed", "basis.coverage"])["m"]
-    for seed in (0, 1):
+    for seed in range(5):
         assert m[(seed, 0.95)] < m[(seed, 0.995)]
     assert (lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.995}).to_numpy()
             < lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.95}).to_numpy()).all()
@@ -207,7 +316,7 @@ def test_coverage_preset(tmp_path):
 
 def test_basis_count_preset(tmp_path):
     sweep, runs, _ = run_preset("basis_count", tmp_path)
-    assert runs.groupby("run").ngroups == 12
+    assert runs.groupby("run").ngroups == 30
     h = runs[runs["basis"] == "H"].set_index(["basis.hand_subset", "dataset.seed", "basis.append_empty_axes"])["n"]
     assert h[("upper", 0, False)] == 6 and h[("random6", 1, True)] == 6 and h[("all", 0, False)] == 18
     drawn = {}
@@ -215,7 +324,7 @@ def test_basis_count_preset(tmp_path):
         metrics = json.loads(path.read_text())
         if {"basis.hand_subset=random6", "basis.append_empty_axes=False"} <= set(metrics["overrides"]):
             drawn[metrics["dataset"]["provenance"]["seed"]] = tuple(metrics["dataset"]["hand_names"])
-    assert sorted(drawn) == [0, 1] and drawn[0] != drawn[1]  # a new draw per seed
+    assert sorted(drawn) == [0, 1, 2, 3, 4] and drawn[0] != drawn[1]  # a new draw per seed
     upper = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "upper", "basis.append_empty_axes": False})
     full = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "all", "basis.append_empty_axes": False})
     assert upper.mean() > full.mean()
@@ -223,23 +332,36 @@ def test_basis_count_preset(tmp_path):
 
 def test_marker_mesh_preset(tmp_path):
     sweep, runs, stdout = run_preset("marker_mesh", tmp_path)
-    assert runs.groupby("run").ngroups == 8
-    assert set(runs["data"]) == {"markers->markers", "markers->mesh", "mesh->markers", "mesh->mesh"}
+    assert runs.groupby("run").ngroups == 20
+    assert set(runs["data"]) == {"markers->markers", "markers->face", "mesh->markers", "mesh->face"}
     points = runs.drop_duplicates(["dataset.mesh_fraction", "eval_on"]).set_index(
         ["dataset.mesh_fraction", "eval_on"])["n_points"]
-    assert points[(1.0, "mesh")] == 4200 and points[(1.0, "markers")] == 66
-    assert 900 < points[(0.25, "mesh")] < 1200
-    # fitted on the dense mesh and scored there, the quasi-eigen faces beat the hand shapes
-    assert (lstsq_alpha(runs, "QE", data="mesh->mesh").to_numpy()
-            < lstsq_alpha(runs, "H", data="mesh->mesh").to_numpy()).all()
-    assert "n_points" in stdout and "time_total" in stdout
+    # one evaluation set each, whatever the mesh density the bases were fitted on
+    assert points[(1.0, "markers")] == points[(0.25, "markers")] == 66
+    assert points[(1.0, "face")] == points[(0.25, "face")] > 2000
+    # fitted on the full dense mesh and scored on its face region, the quasi-eigen faces beat the hand shapes
+    full = {"dataset.mesh_fraction": 1.0}
+    assert (lstsq_alpha(runs, "QE", data="mesh->face", **full).to_numpy()
+            < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()).all()
+    assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
+    # the findings compare the data each basis was fitted on, within one evaluation set
+    assert "scored on **face**, QE (5 seeds, lstsq): `alpha_disp_pooled` geometric means by the data fitted on" \
+        in stdout
+    comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
+    fitted = comparisons[comparisons["eval_on"].notna() & comparisons["basis"].notna()]
+    assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
 
 
 def test_noise_preset(tmp_path):
-    sweep, runs, _ = run_preset("noise", tmp_path)
-    assert runs.groupby("run").ngroups == 8
-    m = runs[runs["basis"] == "PCA"].groupby("dataset.marker_noise_mm")["m"].mean()
-    assert m[0.5] > 3 * m[0.0]  # the coverage rule keeps axes until the noise is covered
+    sweep, runs, stdout = run_preset("noise", tmp_path)
+    assert runs.groupby("run").ngroups == 40
+    m = runs[runs["basis"] == "PCA"].set_index(
+        ["dataset.seed", "basis.coverage_on", "dataset.marker_noise_mm", "dataset.gap_rate"])["m"]
+    for seed in range(5):
+        assert m[(seed, "clean", 0.5, 0.05)] == m[(seed, "training", 0.0, 0.0)]  # m held at the clean capture's
+        assert m[(seed, "training", 0.5, 0.0)] > 10 * m[(seed, "training", 0.0, 0.0)]  # the rule keeps the noise
+    assert {"clean_alpha_abs_mean", "clean_rms_mm"} <= set(runs.columns)
+    assert "`clean_alpha_abs_mean` geometric means" in stdout  # findings against the clean frames too
     gapped = next(sweep.glob("*gap_rate=0.05*/metrics.json"))
     gaps = json.loads(gapped.read_text())["dataset"]["provenance"]["gaps"]
     assert gaps["policy"] == "linear" and gaps["n_missing_samples"] > 0
@@ -247,7 +369,7 @@ def test_noise_preset(tmp_path):
 
 def test_choices_preset(tmp_path):
     sweep, runs, stdout = run_preset("choices", tmp_path)
-    assert runs.groupby("run").ngroups == 2
+    assert runs.groupby("run").ngroups == 5
     assert set(runs["solver"]) == {"lstsq", "nnls", "box", "projection"}
     assert set(runs["projection"]) == {"-", "affine", "linear"}
     header = next(line for line in stdout.splitlines() if line.startswith("| basis"))
@@ -257,10 +379,10 @@ def test_choices_preset(tmp_path):
 
 def test_generalisation_preset(tmp_path):
     sweep, runs, stdout = run_preset("generalisation", tmp_path)
-    assert runs.groupby("run").ngroups == 6
+    assert runs.groupby("run").ngroups == 15
     frames = runs.drop_duplicates("dataset.split").set_index("dataset.split")[["n_train_frames", "n_eval_frames"]]
-    assert frames.loc["same"].tolist() == [1500, 1500] and frames.loc["tail"].tolist() == [750, 750]
-    assert frames.loc["other_take"].tolist() == [1500, 1500]
+    assert frames.loc["same"].tolist() == [1000, 1000] and frames.loc["tail"].tolist() == [500, 500]
+    assert frames.loc["other_take"].tolist() == [1000, 1000]
     rows = [line.split("|")[1].strip() for line in stdout.splitlines() if line.startswith("| ")][1:]
     assert rows == ["same", "tail", "other_take"]  # the study's order, not the alphabet's
     held_out = lstsq_alpha(runs, "QE", **{"dataset.split": "other_take"}).mean()

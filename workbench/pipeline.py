@@ -50,7 +50,8 @@ class Row:
     ``weight_statistics`` (None for PCA, whose coefficients are no animator's weights), ``frame_error_mm`` (RMS
     point error of each evaluated frame over the face region, :func:`face_region`) and its ``error_mm``
     distribution are set by :func:`frame_measures`; ``offset_error_share`` is the share of the squared error
-    along the capture mean's part outside the eigenfaces' span (:func:`outside_offset`), NaN where not taken.
+    along the capture mean's part outside the eigenfaces' span (:func:`outside_offset`), NaN where not taken;
+    ``clean_alpha`` is the same reconstruction scored against the clean frames (``metric.score_clean``).
     """
 
     basis: str
@@ -67,6 +68,7 @@ class Row:
     frame_error_mm: np.ndarray | None = None
     error_mm: ErrorDistribution | None = None
     offset_error_share: float = float("nan")
+    clean_alpha: AlphaSummary | None = None
 
 
 @dataclass(frozen=True)
@@ -162,22 +164,29 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
         raise WorkbenchError("dataset.held_out scores each data variant on its own held-out frames; with "
                              "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset")
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
+    coverage_on = coverage_on_setting(basis_cfg)
+    score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
     build_cfg = {key: value for key, value in dataset_cfg.items() if key != "held_out"}  # the same built data
+    built_cfg = dict(build_cfg, train_on=build_names) if eval_names else build_cfg
     with timings.stage("dataset"):
-        captures = build_captures(dict(build_cfg, train_on=build_names) if eval_names else build_cfg,
-                                  cache_dir=cfg.get("paths", {}).get("cache_dir"))
+        captures = build_captures(built_cfg, cache_dir=cfg.get("paths", {}).get("cache_dir"))
+        clean = (build_captures(clean_dataset_config(built_cfg), cache_dir=cfg.get("paths", {}).get("cache_dir"))
+                 if coverage_on == "clean" or score_clean else None)
     if eval_names and basis_cfg.get("alternatives"):
         raise WorkbenchError("basis.alternatives are fitted and scored on each data variant's own points; "
                              "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset")
     if not eval_names:
         results = []
         for data, capture in captures.items():
-            capture = subset_hand_shapes(capture, basis_cfg)
-            results.append(run_on_capture(data, capture, basis_cfg, solvers, timings))
+            capture, fitted_cfg = with_clean_m(subset_hand_shapes(capture, basis_cfg), basis_cfg,
+                                               clean[data] if coverage_on == "clean" else None)
+            truth = clean_frames(capture, clean[data]) if score_clean else None
+            results.append(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth))
             for protocol in held_out:
                 part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
-                results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, basis_cfg, solvers,
-                                                      timings), train_on=data, eval_on=data,
+                truth = clean_frames(part, clean[data]) if score_clean else None
+                results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers,
+                                                      timings, truth=truth), train_on=data, eval_on=data,
                                        protocol=HELD_OUT[protocol]))
         return results
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
@@ -187,19 +196,22 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
                              "or drop, or leave dataset.eval_on unset")
     results = []
     for train_on in train_names:
-        source = subset_hand_shapes(captures[train_on], basis_cfg)
-        eigenfaces, quasi_eigen = fit_bases(source, basis_cfg, timings)
+        source, fitted_cfg = with_clean_m(subset_hand_shapes(captures[train_on], basis_cfg), basis_cfg,
+                                          clean[train_on] if coverage_on == "clean" else None)
+        eigenfaces, quasi_eigen = fit_bases(source, fitted_cfg, timings)
         for eval_on in eval_names:
             target = select_shapes(captures[eval_on], source.hand_names)
             with timings.stage("transfer"):
                 transfer = point_transfer(source.neutral.reshape(-1, 3), target.neutral.reshape(-1, 3))
             note = (f"bases fitted on '{train_on}' ({source.n_points} points) and carried onto '{eval_on}' "
                     f"({target.n_points} points): {transfer.describe()}")
-            target = replace(target, notes=target.notes + (note,))
+            m_notes = tuple(note for note in source.notes if note.startswith(CLEAN_M_NOTE))
+            target = replace(target, notes=target.notes + m_notes + (note,))
             carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
                        for projection, qe in quasi_eigen.items()}
             carried_pca = pca_subspace(eigenfaces, transfer)
-            rows, weights = score_bases(target, eigenfaces, carried, carried_pca, solvers, timings)
+            rows, weights = score_bases(target, eigenfaces, carried, carried_pca, solvers, timings,
+                                        truth=clean_frames(target, clean[eval_on]) if score_clean else None)
             results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
                                        quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
                                        train_on=train_on, eval_on=eval_on, transfer=transfer.method,
@@ -296,6 +308,136 @@ def select_frames(frames, index: np.ndarray):
     return frames[index]
 
 
+COVERAGE_ON = ("training", "clean")
+CLEAN_M_NOTE = "m chosen on the clean capture"
+
+
+def coverage_on_setting(basis_cfg: Mapping) -> str:
+    """``basis.coverage_on``, checked: ``training`` (the coverage rule on the training frames) or ``clean`` (on
+    the clean capture of the same take, then held fixed); ``clean`` chooses m itself, so ``n_components`` must be
+    unset."""
+    value = basis_cfg.get("coverage_on", "training")
+    if value not in COVERAGE_ON:
+        raise WorkbenchError(f"basis.coverage_on must be one of {COVERAGE_ON}, got {value!r}")
+    if value == "clean" and basis_cfg.get("n_components") is not None:
+        raise WorkbenchError(f"basis.coverage_on 'clean' chooses m from the clean capture; basis.n_components "
+                             f"({basis_cfg['n_components']}) would fix it too: leave n_components null")
+    return value
+
+
+def clean_dataset_config(dataset_cfg: Mapping) -> dict:
+    """The dataset config of the clean capture of the same take: the synthetic actor without marker noise and
+    without marker dropout (same seed, so the same performance and head motion).
+
+    Raises
+    ------
+    WorkbenchError
+        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
+    """
+    kind = dataset_cfg.get("kind")
+    if kind != "synthetic":
+        raise WorkbenchError(f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
+                             f"capture, which only the synthetic actor has (dataset.kind synthetic), got {kind!r}")
+    return dict(dataset_cfg, marker_noise_mm=0.0, gap_rate=0.0)
+
+
+def with_clean_m(capture: Capture, basis_cfg: Mapping, clean: Capture | None) -> tuple[Capture, dict]:
+    """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
+    fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
+
+    Parameters
+    ----------
+    capture : Capture
+    basis_cfg : mapping
+    clean : Capture or None
+        The same data variant of the clean capture (:func:`clean_dataset_config`).
+
+    Returns
+    -------
+    capture : Capture
+    basis_cfg : dict
+    """
+    if clean is None:
+        return capture, dict(basis_cfg)
+    clean_pca = fit_eigenfaces(clean, basis_cfg["coverage"])
+    m = int(clean_pca.n_components_)
+    note = (f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
+            "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
+            "capture with that m (basis.coverage_on clean)")
+    return replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=m)
+
+
+def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
+    """The clean capture's frames at the evaluated frames of ``capture``, matched by take and frame number.
+
+    Parameters
+    ----------
+    capture : Capture
+        The evaluated capture (noise, dropout; its frames may be a subset of the take's).
+    clean : Capture
+        The same data variant of the clean capture (:func:`clean_dataset_config`), same points.
+
+    Returns
+    -------
+    ndarray of shape (n_eval_frames, 3 * n_points)
+    """
+    ours, theirs = capture.timeline(), clean.timeline()
+    if clean.neutral.shape != capture.neutral.shape:
+        raise WorkbenchError("metric.score_clean: the clean capture has other points than the evaluated one")
+    index = np.full(len(ours), -1)
+    for take in np.unique(ours.take):
+        mine, pool = np.flatnonzero(ours.take == take), np.flatnonzero(theirs.take == take)
+        if pool.size == 0:
+            continue
+        order = np.argsort(theirs.frame[pool], kind="stable")
+        frames = theirs.frame[pool][order]
+        at = np.minimum(np.searchsorted(frames, ours.frame[mine]), len(frames) - 1)
+        found = frames[at] == ours.frame[mine]
+        index[mine[found]] = pool[order[at[found]]]
+    if np.any(index < 0):
+        raise WorkbenchError(f"metric.score_clean: {int((index < 0).sum())} evaluated frames are not among the clean "
+                             "capture's evaluated frames (frames a gap policy dropped before a tail split); use "
+                             "dataset.split same or gap_policy linear")
+    return np.asarray(clean.eval)[index]
+
+
+def clean_scores(capture: Capture, truth: np.ndarray, rows: Sequence[Row], shapes: Mapping[str, np.ndarray],
+                 weights: Mapping, pca_reconstruction=None) -> list[Row]:
+    """The rows with ``clean_alpha`` set: each basis's reconstruction of the evaluated (noisy) frames scored
+    against the clean frames, so that a basis that reproduces the noise (over-fitting) is told from one that
+    removes it (denoising).
+
+    Parameters
+    ----------
+    capture : Capture
+        The evaluated capture (its neutral positions).
+    truth : ndarray of shape (n_eval_frames, 3 * n_points)
+        The clean frames (:func:`clean_frames`).
+    rows : sequence of Row
+    shapes : mapping
+        Basis label -> shapes of shape (n, 3 * n_points) at the evaluated points.
+    weights : mapping
+        ``(basis, solver)`` -> weights of shape (n_eval_frames, n).
+    pca_reconstruction : callable, optional
+        A ``slice`` of frames -> PCA's reconstruction of them, for the ``PCA`` row.
+
+    Returns
+    -------
+    list of Row
+    """
+    squares = reference_squares(capture.neutral, truth)
+    scored = []
+    for row in rows:
+        if row.basis == "PCA":
+            estimate = pca_reconstruction
+        else:
+            estimate = (lambda frames, b=shapes[row.basis], w=weights[(row.basis, row.solver)]:
+                        reconstruct(b, w[frames]))
+        summary = None if estimate is None else summarise_alpha(capture.neutral, truth, estimate, squares=squares)
+        scored.append(replace(row, clean_alpha=summary))
+    return scored
+
+
 def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
     """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
     train_names, eval_names = variant_names(dataset_cfg, "train_on"), variant_names(dataset_cfg, "eval_on")
@@ -382,11 +524,7 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
         Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
     """
     with timings.stage("pca"):
-        eigenfaces = Eigenfaces(coverage=basis_cfg["coverage"], n_components=basis_cfg["n_components"])
-        if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
-            eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
-        else:
-            eigenfaces.fit(capture.train)
+        eigenfaces = fit_eigenfaces(capture, basis_cfg["coverage"], basis_cfg["n_components"])
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
@@ -395,6 +533,14 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
                 append_empty_axes=basis_cfg["append_empty_axes"])
             for projection in basis_cfg["projections"]}
     return eigenfaces, quasi_eigen
+
+
+def fit_eigenfaces(capture: Capture, coverage: float, n_components: int | None = None) -> Eigenfaces:
+    """Eigenfaces (eq. 2) of a capture's training frames, m by the coverage rule or fixed."""
+    eigenfaces = Eigenfaces(coverage=coverage, n_components=n_components)
+    if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
+        return eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
+    return eigenfaces.fit(capture.train)
 
 
 def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) -> Subspace:
@@ -414,7 +560,7 @@ def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) 
 
 
 def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
-                   timings: Timings) -> StudyResult:
+                   timings: Timings, truth: np.ndarray | None = None) -> StudyResult:
     """The paper's method on one capture: eigenfaces, quasi-eigen faces, weights of every basis and solver, alpha.
 
     Parameters
@@ -428,17 +574,20 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
         Solver name -> keyword arguments of :func:`workbench.solve.solve_weights` (see :func:`check_solver_config`).
     timings : Timings
         Stage times are added to it.
+    truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
+        The clean frames; every row is also scored against them (``metric.score_clean``).
 
     Returns
     -------
     StudyResult
     """
     eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
-    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings)
+    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings,
+                                truth=truth)
     alternatives = fit_alternative_bases(capture, basis_cfg, timings)
     measured = {}
     if alternatives:
-        more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings)
+        more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings, truth=truth)
         rows, weights = rows + more_rows, {**weights, **more_weights}
         with timings.stage("intuitiveness"):
             measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights,
@@ -450,7 +599,8 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
 
 
 def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, pca: Subspace,
-                solvers: Mapping[str, Mapping], timings: Timings) -> tuple[list, dict]:
+                solvers: Mapping[str, Mapping], timings: Timings,
+                truth: np.ndarray | None = None) -> tuple[list, dict]:
     """Weights (eq. 5) and alpha (eq. 6) of H and every quasi-eigen basis with every solver, then PCA.
 
     Parameters
@@ -465,6 +615,8 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
         PCA's reconstruction at the capture's points (:func:`pca_subspace`).
     solvers : mapping
     timings : Timings
+    truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
+        The clean frames: every row is also scored against them (:func:`clean_scores`).
 
     Returns
     -------
@@ -500,8 +652,14 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
         pca_fit = (eigenfaces.components_, offsets, eigenfaces.mean_)
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
+    basis_shapes = {label: shapes for label, _, shapes in bases}
     with timings.stage("frame_measures"):
-        rows = frame_measures(capture, rows, weights, {label: shapes for label, _, shapes in bases}, pca_fit)
+        rows = frame_measures(capture, rows, weights, basis_shapes, pca_fit)
+    if truth is not None:
+        directions, coefficients, mean = pca_fit
+        with timings.stage("metrics"):
+            rows = clean_scores(capture, truth, rows, basis_shapes, weights,
+                                lambda frames: mean + reconstruct(directions, coefficients[frames]))
     return rows, weights
 
 
@@ -535,12 +693,14 @@ def outside_offset(pca: Subspace) -> tuple[np.ndarray | None, float]:
 
 
 def offset_facts(pca: Subspace, rows: Sequence[Row]) -> dict:
-    """``norm`` of :func:`outside_offset` and its ``ratio`` to the median evaluated frame's displacement norm."""
+    """``norm`` of :func:`outside_offset` and its ``ratio`` to the median evaluated frame's displacement norm (NaN
+    when that median is 0: most evaluated frames at rest, as the face region's ground truth of a short take)."""
     _, norm = outside_offset(pca)
     squares = rows[0].alpha.displacement_sq if rows else None
     if squares is None or not len(squares):
         return {}
-    return {"norm": norm, "ratio": float(norm / np.median(np.sqrt(squares)))}
+    median = float(np.median(np.sqrt(squares)))
+    return {"norm": norm, "ratio": norm / median if median > 0 else float("nan")}
 
 
 def offset_error_shares(rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray], unit: np.ndarray,
@@ -863,8 +1023,9 @@ def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings
 
 
 def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], solvers: Mapping[str, Mapping],
-                            timings: Timings) -> tuple[list, dict]:
-    """Weights (eq. 5) and alpha (eq. 6) of each alternative basis with every solver, exactly as H and QE.
+                            timings: Timings, truth: np.ndarray | None = None) -> tuple[list, dict]:
+    """Weights (eq. 5) and alpha (eq. 6) of each alternative basis with every solver, exactly as H and QE (and
+    against the clean frames ``truth`` when given).
 
     Returns
     -------
@@ -879,7 +1040,10 @@ def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], s
     else:
         rows, weights, _ = projected_rows(capture, listed, solvers, timings)
     with timings.stage("frame_measures"):
-        return frame_measures(capture, rows, weights, bases), weights
+        rows = frame_measures(capture, rows, weights, bases)
+    if truth is not None:
+        rows = clean_scores(capture, truth, rows, dict(bases), weights)
+    return rows, weights
 
 
 def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping,

@@ -161,6 +161,9 @@ FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_ou
 frames, mm) and of the weights' statistics (:class:`workbench.metrics.WeightStatistics`: largest ``|w|``, share of
 frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
 for PCA's weights, and absent from records made before they were measured."""
+CLEAN_COLUMNS = tuple(f"clean_{column}" for column in ALPHA_COLUMNS)
+"""The alpha-table columns of the same reconstructions scored against the clean frames (``metric.score_clean``):
+present only in runs that did so, empty (NaN) in rows that have no clean frames."""
 
 
 def record_state(folder: Path) -> str:
@@ -693,7 +696,7 @@ def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
     try:
         table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
                             na_values={c: ["", "NaN", "nan"]
-                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS)})
+                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS, *CLEAN_COLUMNS)})
     except (ValueError, pd.errors.ParserError) as error:
         raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
     missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)

@@ -8,12 +8,19 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import FRAME_COLUMNS
+from workbench.record import CLEAN_COLUMNS, FRAME_COLUMNS
 
 ROW_NAME_COLUMNS = ("data", "basis", "projection", "solver")
 ALPHA_TABLE_COLUMNS = ("n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean",
                        "alpha_disp_pooled", "rms_mm", "paper_alpha")
 TABLE_COLUMNS = (*ROW_NAME_COLUMNS, *ALPHA_TABLE_COLUMNS, *FRAME_COLUMNS)
+
+
+def alpha_columns(summary, prefix: str = "") -> dict:
+    """The alpha-table columns of an :class:`workbench.metrics.AlphaSummary` (with ``prefix`` before each name)."""
+    return {f"{prefix}alpha_abs_mean": summary.absolute_mean, f"{prefix}alpha_abs_pooled": summary.absolute_pooled,
+            f"{prefix}alpha_disp_mean": summary.displacement_mean,
+            f"{prefix}alpha_disp_pooled": summary.displacement_pooled, f"{prefix}rms_mm": summary.rms_mm}
 
 
 def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
@@ -35,17 +42,16 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
     Returns
     -------
     pandas.DataFrame
-        Columns ``TABLE_COLUMNS``.
+        Columns ``TABLE_COLUMNS``, then :data:`CLEAN_COLUMNS` when a row was scored against the clean frames.
     """
+    clean = any(getattr(row, "clean_alpha", None) is not None for row in rows)
     records = [{
         "data": data, "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
-        "m": m, "coverage": coverage,
-        "alpha_abs_mean": row.alpha.absolute_mean, "alpha_abs_pooled": row.alpha.absolute_pooled,
-        "alpha_disp_mean": row.alpha.displacement_mean, "alpha_disp_pooled": row.alpha.displacement_pooled,
-        "rms_mm": row.alpha.rms_mm, "paper_alpha": paper_alpha.get(row.basis, math.nan),
+        "m": m, "coverage": coverage, **alpha_columns(row.alpha), "paper_alpha": paper_alpha.get(row.basis, math.nan),
         **frame_values(row),
+        **(alpha_columns(row.clean_alpha, "clean_") if clean and row.clean_alpha is not None else {}),
     } for row in rows]
-    return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS))
+    return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS) + (list(CLEAN_COLUMNS) if clean else []))
 
 
 def frame_values(row) -> dict:
@@ -59,7 +65,8 @@ def frame_values(row) -> dict:
 
 
 def printed_tables(table: pd.DataFrame) -> str:
-    """The alpha table as a run prints it: alpha beside the paper's, then the per-frame error and the weights.
+    """The alpha table as a run prints it: alpha beside the paper's, then the per-frame error and the weights, then
+    (``metric.score_clean``) alpha against the clean frames.
 
     Parameters
     ----------
@@ -69,7 +76,7 @@ def printed_tables(table: pd.DataFrame) -> str:
     Returns
     -------
     str
-        Two Markdown tables, the second under a line naming its columns.
+        Markdown tables, each after the first under a line naming its columns.
     """
     from workbench.tables import markdown_frame
 
@@ -81,6 +88,10 @@ def printed_tables(table: pd.DataFrame) -> str:
                  "weights (largest |w|; share of frames with a weight outside [0, 1]; Hoyer sparsity, 1 = one shape "
                  "per frame; roughness = mean squared second time derivative, 1/s^4):\n\n"
                  + markdown_frame(table[[*names, *frame]]))
+    clean = [column for column in CLEAN_COLUMNS if column in table.columns]
+    if clean:
+        text += ("\nthe same reconstructions scored against the clean frames (no marker noise, no dropout; "
+                 "metric.score_clean):\n\n" + markdown_frame(table[[*names, *clean]]))
     return text
 
 
@@ -100,8 +111,9 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
     """
     paper, basis = cfg["paper"], cfg["basis"]
     first = results[0].capture
-    rule = (f"coverage threshold {basis['coverage']}" if basis["n_components"] is None
-            else f"fixed m = {basis['n_components']}")
+    rule = (f"fixed m = {basis['n_components']}" if basis["n_components"] is not None
+            else f"m of the clean capture at coverage threshold {basis['coverage']}"
+            if basis.get("coverage_on", "training") == "clean" else f"coverage threshold {basis['coverage']}")
     lines = [
         f"Study '{cfg['study']}' on {first.name}",
         f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "

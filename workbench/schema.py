@@ -105,6 +105,8 @@ SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
 HELD_OUT = names("tail", "take", optional=True)
 """``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.pipeline.HELD_OUT``)."""
+SYNTHETIC_VARIANTS = ("markers", "mesh", "mesh_rbf", "face")
+"""The synthetic actor's data variants (``workbench.dataset.TRAIN_ON``)."""
 PLAUSIBILITY = one_of("error", "warn")
 STORAGE = one_of("memory", "disk")
 DTYPE = one_of("float64", "float32")
@@ -159,6 +161,7 @@ class IntuitivenessSchema:
 class BasisSchema:
     coverage: float = meta(MISSING, interval(0, 1, low_open=True))
     n_components: Optional[int] = meta(None, integer(1, optional=True))
+    coverage_on: str = meta("training", one_of("training", "clean"))
     projections: List[str] = meta(MISSING, names("affine", "linear"))
     empty_axis_eps: float = meta(MISSING, interval(0))
     empty_axis_scale: str = meta(MISSING, one_of("axis_std", "absolute"))
@@ -189,6 +192,7 @@ class MetricSchema:
     headline_aggregate: str = meta(MISSING, one_of("mean", "pooled"))
     bootstrap_resamples: int = meta(2000, integer(1))
     bootstrap_seed: int = meta(0, SEED)
+    score_clean: Any = meta(False, BOOLEAN)
 
 
 @dataclass
@@ -244,8 +248,8 @@ class SyntheticSchema:
     mesh_rows: int = meta(MISSING, integer(20))
     mesh_cols: int = meta(MISSING, integer(20))
     mesh_fraction: float = meta(1.0, interval(0, 1, low_open=True))
-    train_on: Any = meta("markers", names("markers", "mesh", "mesh_rbf"))
-    eval_on: Any = meta(None, names("markers", "mesh", "mesh_rbf", optional=True))
+    train_on: Any = meta("markers", names(*SYNTHETIC_VARIANTS))
+    eval_on: Any = meta(None, names(*SYNTHETIC_VARIANTS, optional=True))
     stabilise: Any = meta(True, BOOLEAN)
     split: str = meta("same", one_of("same", "tail", "other_take"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
@@ -511,6 +515,14 @@ def _check_relations(plain: Mapping) -> None:
     if _number(splocs.get("d_min")) and _number(splocs.get("d_max")) and not splocs["d_min"] < splocs["d_max"]:
         raise WorkbenchError(f"basis.splocs.d_min ({splocs['d_min']}) must be below basis.splocs.d_max "
                              f"({splocs['d_max']})")
+    basis, kind = plain["basis"], plain["dataset"].get("kind")
+    if basis.get("coverage_on") == "clean" and basis.get("n_components") is not None:
+        raise WorkbenchError(f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
+                             f"be null, got {basis['n_components']}")
+    for key, wants_clean in (("basis.coverage_on", basis.get("coverage_on") == "clean"),
+                             ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True)):
+        if wants_clean and kind != "synthetic":
+            raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -37,7 +37,7 @@ def cell_text(column: str, value) -> str:
     if is_missing(value):
         return "-"
     if isinstance(value, (float, np.floating)):
-        base = column.split(" ")[0].removesuffix("_ci_low").removesuffix("_ci_high")
+        base = column.split(" ")[0].removesuffix("_ci_low").removesuffix("_ci_high").removeprefix("clean_")
         if base in FLOAT_FORMATS:
             return FLOAT_FORMATS[base].format(value)
         if base in THREE_DECIMALS:

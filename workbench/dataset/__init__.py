@@ -27,7 +27,7 @@ from workbench.frames import FramesOnDisk, frame_chunks
 from workbench.resources import require_memory
 
 SPLITS = ("same", "tail")
-TRAIN_ON = ("markers", "mesh", "mesh_rbf")
+TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 
 
 def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +113,7 @@ def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
     names the bad setting)."""
     try:
         n_frames, n_markers = int(cfg["n_frames"]), int(cfg["n_face_markers"]) + int(cfg["n_head_markers"])
-        n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf"} & set(names) else 0
+        n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf", "face"} & set(names) else 0
     except (TypeError, ValueError):
         return 0
     return max(n_frames, 0) * max(n_markers + n_mesh, 0) * 3
@@ -163,10 +163,55 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
                             desc="mesh frames")
 
 
+@lru_cache(maxsize=4)
+def face_region(mesh_rows: int, mesh_cols: int, n_face_markers: int) -> tuple[np.ndarray, np.ndarray]:
+    """The face region of the synthetic mesh: the vertices the face markers cover, inside the markers' convex hull
+    in the face plane, at full resolution; one evaluation set for bases fitted on any data variant.
+
+    Returns
+    -------
+    vertices : ndarray of shape (n_region,) of int
+        Mesh vertex indices, ascending.
+    faces : ndarray of shape (n_region_faces, 3) of int
+        The mesh's triangles with every corner in the region, as indices into ``vertices``.
+    """
+    from scipy.spatial import Delaunay
+
+    from workbench.dataset.synthetic import make_face_mesh
+    from workbench.dataset.synthetic.actor import place_face_markers
+
+    mesh = make_face_mesh(mesh_rows, mesh_cols)
+    markers = mesh.face_plane[place_face_markers(mesh, n_face_markers)]
+    inside = Delaunay(markers).find_simplex(mesh.face_plane) >= 0
+    vertices = np.flatnonzero(inside)
+    renumber = np.full(mesh.n_vertices, -1)
+    renumber[vertices] = np.arange(vertices.size)
+    faces = renumber[mesh.faces[inside[mesh.faces].all(axis=1)]]
+    for array in (vertices, faces):
+        array.setflags(write=False)
+    return vertices, faces
+
+
+@lru_cache(maxsize=2)
+def _face_region_frames(key: tuple, storage: FrameStorage = FrameStorage()):
+    """Dense ground-truth displacements at the face region's vertices (:func:`face_region`), shape
+    (n_frames, 3 * n_region), deformed at those vertices only (the muscles act on each point alone)."""
+    from workbench.dataset.synthetic import deform_displacements
+
+    take = _synthetic_take(key)
+    vertices, _ = face_region(*take.mesh.grid_shape, len(take.face_marker_vertices))
+    rest = take.mesh.vertices[vertices]
+    return storage.generate("synthetic_face", (key, code_fingerprint()), take.n_frames, 3 * len(rest),
+                            lambda rows, out: deform_displacements(rest, take.activations[rows], out),
+                            desc="face frames")
+
+
 def forget_kept_frames() -> None:
-    """Forget the dense frames kept in the process for the next run of a sweep (:func:`_mesh_frames`), so the next
-    build finds its files on disk again or writes them anew (the cache calls it when it removes a damaged one)."""
+    """Forget the dense frames kept in the process for the next run of a sweep (:func:`_mesh_frames`,
+    :func:`_face_region_frames`), so the next build finds its files on disk again or writes them anew (the cache
+    calls it when it removes a damaged one)."""
     _mesh_frames.cache_clear()
+    _face_region_frames.cache_clear()
 
 
 def _eval_seed(cfg: Mapping) -> int:
@@ -254,7 +299,7 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     decimation : Decimation
         The kept mesh vertices (all of them at ``mesh_fraction`` 1).
     markers : list of the results of :func:`_face_marker_frames`, one per take, or None
-    train_on : {"markers", "mesh", "mesh_rbf"}
+    train_on : {"markers", "mesh", "mesh_rbf", "face"}
     cfg : mapping
     storage : FrameStorage
     """
@@ -268,6 +313,16 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         notes += markers[0].notes
         labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
         visible = [part.visible for part in markers] if markers[0].visible is not None else None
+    elif train_on == "face":
+        points, faces = face_region(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), len(take.face_marker_vertices))
+        labels = tuple(f"v{i}" for i in points)
+        per_take = [_face_region_frames(_take_key(cfg, t.provenance["seed"]), storage) for t in takes]
+        if markers is not None:  # the frames the markers' gap policy kept
+            per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
+        provenance.update(n_face_region_points=int(points.size))
+        notes.append(f"the dense ground-truth mesh's face region: the {points.size} of {len(vertices)} vertices inside "
+                     "the face markers' convex hull (face plane), at full resolution whatever dataset.mesh_fraction "
+                     "(no head motion, no marker noise)")
     else:
         points = decimation.kept
         faces = decimation.faces

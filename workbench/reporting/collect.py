@@ -1,15 +1,19 @@
-"""``workbench collect``: gather run records into tidy tables, summaries over seeds and alpha tables.
+"""``workbench collect``: gather run records into tidy tables, summaries over seeds, paired comparisons, alpha
+tables and findings.
 
 Reads only complete records of one or many sweeps (through :mod:`workbench.record`), never recomputes; the tables
-come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do. Writes into the
-output folder:
+come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, and the intervals from
+:mod:`workbench.reporting.statistics`. Writes into the output folder:
 
 - ``runs.csv`` / ``runs.parquet``: one row per run and alpha-table row (data, basis, projection, solver), with
   the config keys that differ between runs as columns, its metrics, sizes and stage timings;
 - ``summary.csv`` / ``summary.parquet``: long form, one row per condition, table row and metric, with the mean,
-  standard deviation and 95 % t-interval over the replicate (seed) settings;
-- ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``mean ± half-width`` with conditions as rows and
-  bases as columns.
+  standard deviation, range, and the geometric mean with its 95 % interval over the replicate (seed) settings;
+- ``comparisons.csv`` / ``comparisons.md``: every pair of bases per condition, the geometric mean of their
+  per-seed ratio with its 95 % interval and the verdict it allows (``<``, ``>`` or not distinguishable);
+- ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``geometric mean [95 % interval]`` with conditions as
+  rows and bases as columns;
+- ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.findings.sweep_findings`).
 """
 
 from __future__ import annotations
@@ -25,11 +29,12 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 from workbench.record import DONE, inside, write_atomic
-from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, config_columns, replicate_columns,
-                                      summarise)
-from workbench.tables import FLOAT_FORMATS, is_missing, latex_table, markdown_table
+from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
+                                      sweep_comparisons, wide)
+from workbench.reporting.statistics import GEOMETRIC
+from workbench.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
 
-EXTRA_FORMATS = {"m": "{:.1f}", "n": "{:.1f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
+EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
 ALPHA_METRICS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
 
 
@@ -44,18 +49,27 @@ def format_value(value) -> str:
     return str(value)
 
 
-def format_estimate(mean: float, half: float, number_format: str) -> str:
-    """``mean ± half`` in a column's number format; just the mean when there is no interval."""
-    if math.isnan(mean):
+def format_estimate(estimate: float, low: float, high: float, number_format: str) -> str:
+    """``estimate [low, high]`` in a column's number format; just the estimate when there is no interval."""
+    if math.isnan(estimate):
         return "-"
-    if math.isnan(half):
-        return number_format.format(mean)
-    return f"{number_format.format(mean)} ± {number_format.format(half)}"
+    if math.isnan(low) or math.isnan(high):
+        return number_format.format(estimate)
+    return f"{number_format.format(estimate)} [{number_format.format(low)}, {number_format.format(high)}]"
+
+
+def format_range(low: float, high: float, number_format: str) -> str:
+    """``low-high`` of a value over the runs, or the one value when every run had it (never an average)."""
+    if math.isnan(low):
+        return "-"
+    low_text, high_text = number_format.format(low), number_format.format(high)
+    return low_text if low_text == high_text else f"{low_text}-{high_text}"
 
 
 def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns: str = "basis",
                where: Mapping[str, str] | None = None, extra: Sequence[str] = ("m",)) -> tuple[list, list, int]:
-    """Lay a summary out as a grid: conditions down, ``columns`` across, ``mean ± half-width`` in the cells.
+    """Lay a summary out as a grid: conditions down, ``columns`` across, ``geometric mean [95 % interval]`` in the
+    cells.
 
     Rows are the condition columns and table-row keys that vary (``projection`` is implied by the basis label;
     ``train_on``/``eval_on`` by ``data``). PCA has no solver, so a ``solver`` filter or a ``solver`` row keeps
@@ -72,7 +86,8 @@ def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns
     where : mapping, optional
         Keep rows whose column has this value (text comparison), e.g. ``{"solver": "lstsq"}``.
     extra : sequence of str
-        Metrics shown as columns after the row keys (their value in the row's first cell), e.g. ``m``.
+        Metrics shown as columns after the row keys, as their range over the runs of the row's first cell, e.g.
+        ``m`` (never averaged: runs with different m are different bases).
 
     Returns
     -------
@@ -111,13 +126,12 @@ def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns
         line = [format_value(value) for value in values]
         for name in extras:
             found = group[group["metric"] == name]
-            half = found["ci95_half"].iloc[0] if len(found) else math.nan
-            line.append(format_estimate(found["mean"].iloc[0], math.nan if half == 0 else half,
-                                        EXTRA_FORMATS.get(name, "{:.3f}")) if len(found) else "-")
+            line.append(format_range(found["min"].iloc[0], found["max"].iloc[0], EXTRA_FORMATS.get(name, "{:.3f}"))
+                        if len(found) else "-")
         for value in column_values:
             name = value if columns == "metric" else metric
             found = group[(group["metric"] == name) & ((columns == "metric") | (group[columns] == value))]
-            line.append(format_estimate(found["mean"].iloc[0], found["ci95_half"].iloc[0],
+            line.append(format_estimate(*found[["geomean", "ci95_low", "ci95_high"]].iloc[0],
                                         FLOAT_FORMATS.get(name, "{:.3f}")) if len(found) else "-")
         rows.append(line)
     return header, rows, len(row_keys)
@@ -137,8 +151,8 @@ def _pca_beside_every_solver(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def caption(summary: pd.DataFrame, metric: str, columns: str, where: Mapping[str, str] | None,
-            over: Sequence[str]) -> str:
-    """One line naming the metric, the filters and how many replicates each cell averages."""
+            over: Sequence[str], extra: Sequence[str] = ()) -> str:
+    """One line naming the metric, the filters, the interval's method and how many replicates each cell has."""
     counted = ALPHA_METRICS[0] if columns == "metric" else metric
     counts = summary.loc[summary["metric"] == counted, "n"]
     n_text = f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
@@ -146,7 +160,9 @@ def caption(summary: pd.DataFrame, metric: str, columns: str, where: Mapping[str
         else metric
     filters = "".join(f", {key} = {value}" for key, value in (where or {}).items())
     replicates = ", ".join(over) if over else "no replicate key"
-    return f"{what}{filters}; mean ± half-width of the 95 % t-interval over {replicates} (n = {n_text} per cell)"
+    ranges = f"; {', '.join(extra)}: range over the runs" if extra else ""
+    return (f"{what}{filters}; cells: geometric mean over {replicates} [95 % interval] ({GEOMETRIC}, "
+            f"n = {n_text} per cell){ranges}")
 
 
 def parquet_bytes(table: pd.DataFrame) -> bytes:
@@ -158,7 +174,8 @@ def parquet_bytes(table: pd.DataFrame) -> bytes:
 def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_abs_mean",
                       where: Mapping[str, str] | None = None, columns: str = "basis",
                       extra: Sequence[str] = ("m",), over: Sequence[str] | None = None) -> dict:
-    """Collect the records under ``paths`` and write the runs table, the summary and the alpha table to ``out``.
+    """Collect the records under ``paths`` and write the runs table, the summary, the paired comparisons, the
+    alpha table and the findings to ``out``.
 
     Parameters
     ----------
@@ -166,32 +183,73 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
         Sweep folders (or run folders, or folders holding several sweeps).
     out : pathlib.Path
     metric, where, columns, extra
-        Layout of the alpha table (see :func:`alpha_grid`).
+        Layout of the alpha table (see :func:`alpha_grid`); ``metric`` and ``where`` also choose what the
+        comparisons and findings are about.
     over : sequence of str, optional
         Replicate columns (default: config columns naming a seed).
 
     Returns
     -------
     dict
-        ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text) and ``files`` (paths written).
+        ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
+        (paths written).
     """
+    from workbench.reporting.findings import replicate_caveat, sweep_statements
+
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)
-    over = replicate_columns(config_columns(runs)) if over is None else list(over)
+    conditions, over = condition_keys(runs, over)
     summary = summarise(runs, over)
     header, rows, n_text = alpha_grid(summary, metric=metric, columns=columns, where=where, extra=extra)
-    title = caption(summary, metric, columns, where, over)
+    title = caption(summary, metric, columns, where, over, [name for name in extra if name in set(summary["metric"])])
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
+    compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
+    comparisons = filtered(sweep_comparisons(runs, compared, over), where)
+    solvers = [(where or {}).get("solver")] if (where or {}).get("solver") else \
+        [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
+    swept = [key for key in conditions if key != "dataset.train_on"]
+    findings = replicate_caveat(over) + [line for solver in solvers
+                                         for line in sweep_statements(wide(summary), comparisons, swept, compared,
+                                                                      solver)]
     out = Path(out)
     files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
              "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),
-             "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title)}
+             "comparisons.csv": comparisons.to_csv(index=False),
+             "comparisons.md": comparisons_markdown(comparisons, over),
+             "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title),
+             "findings.md": "".join(f"- {line}\n" for line in findings)}
     for name, content in files.items():
         write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
-    return {"n_runs": n_runs, "n_incomplete": len(incomplete), "markdown": markdown,
+    return {"n_runs": n_runs, "n_incomplete": len(incomplete), "markdown": markdown, "findings": findings,
             "files": [out / name for name in files]}
+
+
+def filtered(table: pd.DataFrame, where: Mapping[str, str] | None) -> pd.DataFrame:
+    """The rows whose columns have the ``where`` values (text comparison; keys the table lacks are ignored)."""
+    for key, value in (where or {}).items():
+        if key in table.columns:
+            table = table[table[key].map(format_value) == str(value)]
+    return table
+
+
+def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
+    """The paired comparisons as a Markdown table under a caption naming the method and replicates."""
+    shown = comparisons.drop(columns=["study", "method"])
+    shown = shown.loc[:, [column for column in shown.columns if shown[column].map(format_value).nunique() > 1
+                          or column in ("first", "second", "ratio", "ratio_low", "ratio_high", "n", "verdict")]]
+    header, rows, numeric = frame_cells(shown)
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"]))
+    return (f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
+            f"95 % interval ({method} over {', '.join(over) or 'no replicate key'}), the smaller first; '<' only "
+            "where the interval excludes 1\n\n" + markdown_table(header, rows, numeric))
+
+
+def findings_text(findings: Sequence[str]) -> str:
+    """The findings as printed after the alpha table."""
+    return "\nFindings (comparisons.md has every pair):\n" + "".join(f"- {line}\n" for line in findings)
 
 
 def parse_where(items: Sequence[str]) -> dict:
@@ -209,7 +267,8 @@ def main(argv: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog="workbench collect",
         description=f"Gather run records (folders with a '{DONE}' marker) of one or many sweeps into runs.csv/"
-                    ".parquet, summary.csv/.parquet (mean and 95%% t-interval over seeds) and alpha_table.md/.tex.")
+                    ".parquet, summary.csv/.parquet (geometric mean and 95%% interval over seeds), comparisons.csv/.md "
+                    "(paired comparisons of the bases), alpha_table.md/.tex and findings.md.")
     parser.add_argument("paths", nargs="+", type=Path, help="sweep folders, run folders or folders above them")
     parser.add_argument("--out", type=Path, help="output folder (default: <the one path>/collected)")
     parser.add_argument("--metric", default="alpha_abs_mean", help="metric of the alpha table")
@@ -226,7 +285,7 @@ def main(argv: Sequence[str]) -> int:
         args.paths, out, metric=args.metric, where=parse_where(args.where), columns=args.columns,
         extra=[name for name in args.extra.split(",") if name],
         over=None if args.over is None else [name for name in args.over.split(",") if name])
-    print(written["markdown"], end="")
+    print(written["markdown"] + findings_text(written["findings"]), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""
     print(f"collected {written['n_runs']} runs into {out}{note}")
     return 0
@@ -259,4 +318,4 @@ class CollectSweep(Callback):
                   file=sys.stderr)
             return
         print(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}")
-        print(written["markdown"], end="")
+        print(written["markdown"] + findings_text(written["findings"]), end="")

@@ -8,7 +8,9 @@ MLflow experiment; each sweep one parent run with a nested run per complete reco
 - params: the resolved config flattened to dotted keys, each value as the config writes it (``null``, ``true``,
   ``0.995``, ``[markers, mesh]``);
 - metrics (:func:`metric_key`): every alpha column of every table row as ``<column>.<data>.<basis>.<solver>``
-  (``alpha_abs_mean.markers.QE.lstsq``; a data variant ``markers->mesh`` reads ``markers_to_mesh``), the number
+  (``alpha_abs_mean.markers.QE.lstsq``; a data variant ``markers->mesh`` reads ``markers_to_mesh``), and so the
+  per-frame error and weight columns (``err_mm_*``, ``w_*``) and the scores against the clean frames
+  (``clean_*``) where the row has them (PCA has no weights: no ``w_*`` of PCA), the number
   of eigenfaces and their coverage per data variant (``m.<data>``, ``coverage.<data>``) and the stage timings
   (``time.<stage>``, seconds);
 - tags: ``kind`` (``run`` or ``sweep``), ``study``, ``sweep``, ``record``, ``config_hash``, ``data``,
@@ -39,8 +41,9 @@ from typing import Iterable, Iterator, Mapping, Sequence
 
 from workbench.config import REPO_ROOT
 from workbench.errors import WorkbenchError
-from workbench.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CONFIG_FILE, METRICS_FILE, TABLE_FILE,
-                              TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete, load_record)
+from workbench.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CLEAN_COLUMNS, CONFIG_FILE, FRAME_COLUMNS,
+                              METRICS_FILE, TABLE_FILE, TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete,
+                              load_record)
 
 log = logging.getLogger(__name__)
 
@@ -237,7 +240,8 @@ def config_params(config: Mapping, prefix: tuple = ()) -> dict[str, str]:
 
 
 def record_metrics(record: RunRecord) -> dict[str, float]:
-    """Every alpha of every table row, ``m`` and coverage per data variant and the stage timings, by name.
+    """Every alpha of every table row, its error and weight measures and scores against the clean frames where it
+    has them, ``m`` and coverage per data variant and the stage timings, by name.
 
     Raises
     ------
@@ -245,12 +249,16 @@ def record_metrics(record: RunRecord) -> dict[str, float]:
         When two rows of the table would share a name.
     """
     metrics = {}
+    measured = [column for column in (*FRAME_COLUMNS, *CLEAN_COLUMNS) if column in record.table.columns]
     for row in record.table.to_dict("records"):
         for column in ALPHA_COLUMNS:
             key = metric_key(column, row["data"], row["basis"], row["solver"])
             if key in metrics:
                 raise WorkbenchError(f"{record.folder / TABLE_FILE}: two rows are named {key}")
             metrics[key] = float(row[column])
+        for column in measured:  # empty cells (PCA's weights, rows without clean frames) are no measurement
+            if math.isfinite(float(row[column])):
+                metrics[metric_key(column, row["data"], row["basis"], row["solver"])] = float(row[column])
         metrics[metric_key("m", row["data"])] = float(row["m"])
         metrics[metric_key("coverage", row["data"])] = float(row["coverage"])
     metrics.update({metric_key("time", stage): float(seconds) for stage, seconds in record.timings.items()})

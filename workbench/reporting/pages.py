@@ -30,7 +30,9 @@ from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
                               write_atomic)
-from workbench.reporting.runs import is_replicate_key, runs_table, summarise, t_interval, varying_keys, wide
+from workbench.reporting.runs import (interval_label, is_replicate_key, level_statistics, paired_comparisons,
+                                      runs_table, summarise, sweep_comparisons, varying_keys, wide)
+from workbench.reporting.statistics import GEOMETRIC
 from workbench.tables import html_frame, markdown_frame
 
 ANALOGY_SEED = 1
@@ -602,7 +604,7 @@ def draw_marker_vs_mesh(record: RunRecord):
     if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
-    return plot_marker_vs_mesh(table, headline_column(record.config), solver=solver_name,
+    return plot_marker_vs_mesh(table, ("rms_mm", "alpha_disp_pooled"), solver=solver_name,
                                title=f"Marker versus mesh data: the method on each\n{short_label(record)}")
 
 
@@ -672,7 +674,8 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
      "drawn one after another with their boundaries named.",
      lambda record, options: draw_alpha_over_time(record)),
     ("marker_vs_mesh", "Marker versus mesh",
-     "The headline alpha of each basis when the method runs on the markers and on the dense mesh.",
+     "RMS error (mm) and pooled displacement alpha of each basis when the method runs on the markers and on the "
+     "dense mesh, one panel per evaluated point set (values compare within a panel only).",
      lambda record, options: draw_marker_vs_mesh(record)),
 )
 
@@ -1104,7 +1107,8 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, fa
         Section("Alpha beside the paper", [
             f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
             "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
-            "alpha variant (the findings give them under each), so they compare across datasets only within one.",
+            "alpha variant on the same data (the findings give them under each), so no one ratio compares across "
+            "datasets.",
             headline_table(record.table, column),
         ]),
         *protocol_sections(record, column),
@@ -1152,36 +1156,41 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
 
 def comparison_frame(record: RunRecord) -> pd.DataFrame:
     """Every paired comparison the run made: per data variant, rows ``a`` and ``b``, the difference ``a - b`` of
-    the headline alpha with its 95 % interval, the block length and the verdict."""
+    the headline alpha with its 95 % interval, the frames and block length it rests on, and the verdict."""
     from workbench.reporting.statistics import Interval
 
     records = []
     for data, values in record.metrics["data"].items():
         for entry in values.get("comparisons") or []:
             interval = Interval.from_dict(entry)
-            verdict = ("a < b" if interval.high < 0 else "a > b" if interval.low > 0
-                       else "not distinguishable")
+            verdict = {-1: "a < b", 1: "a > b", 0: "not distinguishable"}[interval.sign]
             records.append({"data": data, "a": " ".join(entry["a"]), "b": " ".join(entry["b"]),
                             "a - b": interval.estimate, "ci95_low": interval.low, "ci95_high": interval.high,
-                            "block (frames)": interval.block_frames, "block (s)": interval.block_seconds,
-                            "verdict": verdict})
+                            "frames": interval.n, "block (frames)": interval.block_frames,
+                            "block (s)": interval.block_seconds, "verdict": verdict})
     return pd.DataFrame.from_records(records)
 
 
 def comparison_sections(record: RunRecord) -> list[Section]:
     """The table every ``<`` of the findings comes from, with how its intervals were made."""
+    from workbench.reporting.statistics import RESAMPLES, SEED, SIGNED, Interval, interval_text
+
     frame = comparison_frame(record)
     if frame.empty:
         return []
-    first = next(entry for values in record.metrics["data"].values() for entry in values.get("comparisons") or []
-                 if entry.get("block_frames"))
+    entries = [entry for values in record.metrics["data"].values() for entry in values.get("comparisons") or []]
+    example = next((entry for entry in entries if entry.get("block_frames")), entries[0])
+    metric = record.config.get("metric") or {}
+    interval = Interval.from_dict(example)
     return [Section("Paired comparisons within the run", [
         f"Every '<' of the findings and of the printed headline is a row here whose interval excludes 0. The "
-        f"difference is that of `{first['column']}` between two rows of the alpha table on the same evaluated "
+        f"difference is that of `{example['column']}` between two rows of the alpha table on the same evaluated "
         "frames; its 95 % interval comes from a circular block bootstrap over time: blocks of consecutive frames "
         "that never cross from one take into another, their length chosen from the data (Politis & White 2004, "
-        "with the correction of Patton, Politis & White 2009, on each difference's own autocorrelation). For "
-        f"example: {first['method']}.",
+        "with the correction of Patton, Politis & White 2009, on each difference's own autocorrelation), "
+        f"{metric.get('bootstrap_resamples', RESAMPLES)} resamples drawn with seed "
+        f"{metric.get('bootstrap_seed', SEED)}. For example, {' '.join(example['a'])} against "
+        f"{' '.join(example['b'])}: {interval_text(interval, 'a - b', SIGNED)}.",
         frame])]
 
 
@@ -1346,11 +1355,38 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
 # ---------------------------------------------------------------------------------------------------------------
 
 
+def by_m(per_run: pd.DataFrame, swept: Sequence[str], over: Sequence[str]) -> pd.DataFrame:
+    """The wide summary with runs grouped by the m they kept instead of by the coverage that chose it: runs with
+    different m are different bases and are never averaged. A seed's runs that kept the same m at several
+    thresholds are the same run and count once.
+
+    Parameters
+    ----------
+    per_run : pandas.DataFrame
+        The runs table (its ``m`` column: eigenfaces of each run and data variant).
+    swept : sequence of str
+        The swept keys; ``basis.coverage`` is replaced by m, the others stay conditions.
+    over : sequence of str
+        The replicate columns.
+
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`workbench.reporting.runs.wide`, with the condition column ``m`` (an integer).
+    """
+    others = [key for key in swept if key != "basis.coverage"]
+    rows = per_run.drop(columns=["basis.coverage"]).assign(**{"pca.m": per_run["m"].astype(int)})
+    rows = rows.drop_duplicates([*others, *over, "pca.m", "data", "basis", "solver"])
+    summary = wide(summarise(rows.drop(columns=[c for c in rows.columns if "." in c and c not in
+                                               (*others, *over, "pca.m")]), over=list(over)))
+    return summary.drop(columns=["m"]).rename(columns={"pca.m": "m"})
+
+
 def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str],
-                  per_run: pd.DataFrame | None = None) -> list:
+                  per_run: pd.DataFrame | None = None, over: Sequence[str] = ()) -> list:
     """Figure specs of a sweep report: the first run's coverage curve, alpha against each swept setting (and
-    against m for a coverage sweep) with every run's own value as a point, and marker versus mesh when the sweep
-    ran on two data variants."""
+    against m for a coverage sweep, runs grouped by m) with every run's own value as a point, alpha scored against
+    the clean frames where the runs did, and marker versus mesh when the runs scored several data variants."""
     from workbench.reporting.figures.studies import axis_label, plot_alpha_against, plot_marker_vs_mesh
 
     first = records[0]
@@ -1364,27 +1400,41 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
     targets = []
     for key in swept:
         targets.append((key, key))
-        if key == "basis.coverage":
+        if key == "basis.coverage" and per_run is not None:
             targets.append(("m", key))
     if swept and summary["n_hand"].nunique() > 1:
         targets.append(("n_hand", "basis.hand_subset" if "basis.hand_subset" in swept else None))
-    for x, setting in targets:
-        others = [key for key in swept if key not in (x, setting)]
-        stem = "alpha_vs_" + x.replace(".", "_")
-        specs.append((stem, f"Alpha against {axis_label(x)}",
-                      f"`{column}` (mean over seeds) of each basis against {axis_label(x)}, with the 95 % "
-                      "confidence band over seeds where there are several"
-                      + (f"; one line per value of {', '.join(others)}." if others else "."),
-                      lambda _, options, x=x, others=others: plot_alpha_against(
-                          summary, x, column, solver=solver, by=others,
-                          points=per_run if per_run is not None and x in per_run.columns else None,
-                          title=f"Alpha against {axis_label(x)}\n{label}")))
+    columns = [column] + ([f"clean_{column}"] if f"clean_{column}" in summary.columns else [])
+    panels = ["data"] + [key for key in swept if key == "basis.coverage_on"]
+    for y in columns:
+        for x, setting in targets:
+            others = [key for key in swept if key not in (x, setting, *panels)]
+            table = by_m(per_run, swept, over) if x == "m" else summary
+            stem = "alpha_vs_" + x.replace(".", "_") + ("_clean" if y != column else "")
+            against = " scored on the clean frames," if y != column else ""
+            grouped = "; runs grouped by the m they kept (never averaged over different m)" if x == "m" else ""
+            specs.append((stem, f"Alpha{against} against {axis_label(x)}",
+                          f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}; "
+                          f"{interval_label(table)}{grouped}"
+                          + (f"; one line per value of {', '.join(others)}." if others else "."),
+                          lambda _, options, x=x, y=y, others=others, table=table: plot_alpha_against(
+                              table, x, y, solver=solver, by=others, panels=[p for p in panels if p != x],
+                              points=per_run if per_run is not None and x in per_run.columns else None,
+                              title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
+                                    f"{axis_label(x)}\n{label}")))
     trained = summary[summary["data"].isin(training_variants(first))]  # held-out frames are no data variant
-    if trained["data"].nunique() > 1 and not targets:
-        specs.append(("marker_vs_mesh", "Marker versus mesh",
-                      f"`{column}` (mean over seeds, 95 % CI) of each basis on each data variant.",
-                      lambda _, options: plot_marker_vs_mesh(trained, column, solver=solver,
-                                                             title=f"Marker versus mesh data\n{label}")))
+    if "eval_on" in trained.columns and trained["train_on"].nunique() > 1:
+        fixed = [key for key in swept if key != "dataset.train_on"]
+        for values, part in (trained.groupby(fixed, sort=False) if fixed else [((), trained)]):
+            values = values if isinstance(values, tuple) else (values,)
+            setting = ", ".join(f"{key} = {value}" for key, value in zip(fixed, values))
+            stem = "marker_vs_mesh" + "".join(f"_{value}" for value in values).replace(".", "_")
+            specs.append((stem, f"Marker versus mesh{': ' + setting if setting else ''}",
+                          "Each basis fitted on each data variant and scored on the common evaluation sets, in "
+                          f"millimetres and `alpha_disp_pooled`; error bars: {interval_label(part)}.",
+                          lambda _, options, part=part, setting=setting: plot_marker_vs_mesh(
+                              part, ("rms_mm", "alpha_disp_pooled"), solver=solver,
+                              title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}")))
     return specs
 
 
@@ -1392,30 +1442,58 @@ def _natural(text: str):
     return (0, float(text)) if text.replace(".", "", 1).lstrip("-").isdigit() else (1, text)
 
 
+def range_column(table: pd.DataFrame, column: str) -> pd.Series:
+    """``8-12`` (or ``10``) per row: a column's range over the runs behind each row of a wide summary."""
+    def text(low, high):
+        if pd.isna(low):
+            return "-"
+        return f"{low:g}" if low == high else f"{low:g}-{high:g}"
+    return pd.Series([text(low, high) for low, high in zip(table[f"{column}_min"], table[f"{column}_max"])],
+                     index=table.index, name=column)
+
+
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
-                   swept: Sequence[str], figures: list[FigureEntry], command: str) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import sweep_findings
+                   comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
+                   command: str) -> tuple[str, list[Section]]:
+    from workbench.reporting.findings import replicate_caveat, sweep_statements
 
     first = records[0]
     column = headline_column(first.config)
+    solver = figure_solver(first.config)[0]
     title = f"Study '{first.config['study']}': sweep over {', '.join(swept) or 'seeds'} on the {dataset_label(first)}"
     replicates = "; ".join(
         f"{key} " + ", ".join(sorted({str(value) for value in per_run[key].dropna()}, key=_natural))
         for key in per_run.columns if is_replicate_key(key))
-    shown = summary[[*swept, "data", "basis", "solver", "n_seeds", "m", column, f"{column}_ci_low",
-                     f"{column}_ci_high", "paper_alpha"]]
+    columns = [column] + ([f"clean_{column}"] if f"clean_{column}" in summary.columns else [])
+    shown = summary[[*swept, "data", "basis", "solver", "n_seeds"]].assign(
+        m=range_column(summary, "m"), n=range_column(summary, "n"))
+    for name in columns:
+        shown = shown.assign(**{name: summary[name], f"{name}_ci_low": summary[f"{name}_ci_low"],
+                                f"{name}_ci_high": summary[f"{name}_ci_high"]})
+    shown = shown.assign(paper_alpha=summary["paper_alpha"])
+    solvers = [name for name in dict.fromkeys(per_run["solver"]) if name != "projection"]
+    hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
+    compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = sweep_findings(summary, swept, column, figure_solver(first.config)[0], first.config.get("paper", {}))
+    findings = replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]) + [
+        line for name in [solver, *(other for other in solvers if other != solver)]
+        for line in sweep_statements(summary, comparisons, swept, columns, name)]
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
-        Section("Findings", ["Generated from the means over the runs (solver "
-                             f"{figure_solver(first.config)[0]} unless named; PCA by projection).", findings]),
+        Section("Findings", [f"Generated from the tables below (each solver; PCA by projection): levels are "
+                             "geometric means over the seeds; \"A < B\" only where the 95 % interval of the "
+                             f"per-seed ratio A/B ({method}) excludes 1.", findings]),
         Section("About this report", [
             f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
             f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
-            f"{replicates or 'nothing (one run each)'}. Means and Student-t 95 % confidence intervals over the "
-            "replicates (\"seeds\").",
+            f"{replicates or 'nothing (one run each)'}. Levels: geometric means; {interval_label(summary)} (it stays "
+            "positive, as alpha does); m and n are ranges over the runs, never averaged.",
         ]),
-        Section(f"Mean {column} over seeds", [shown]),
+        Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
+        Section("Paired comparisons", [
+            f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
+            f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
+            "the smaller first; '<' only where the interval excludes 1.", compared]),
         Section("Figures", figures),
         Section("Runs", [runs.astype(str)]),
         Section("Choices the runs made (first run)",
@@ -1459,30 +1537,34 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
 
 
 def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
-    """Mean and Student-t 95 % confidence interval over runs (seeds) per data variant and basis.
+    """Geometric mean and its 95 % interval over runs (seeds) per data variant and basis
+    (:func:`workbench.reporting.runs.level_statistics`).
 
     Returns
     -------
     pandas.DataFrame
-        ``data``, ``basis``, ``n`` (mean: PCA's m can differ between takes), ``n_seeds``, then per column its
-        mean, ``<column>_ci_low`` and ``<column>_ci_high`` (NaN with a single run).
+        ``data``, ``basis``, ``n_min``, ``n_max`` (PCA's m can differ between takes), ``n_seeds``, ``ci_method``,
+        then per column its geometric mean, ``<column>_ci_low`` and ``<column>_ci_high`` (NaN with a single run).
     """
     records = []
     for (data, basis), group in per_run.groupby(["data", "basis"], sort=False):
-        row = {"data": data, "basis": basis, "n": float(group["n"].mean()), "n_seeds": len(group)}
+        row = {"data": data, "basis": basis, "n_min": int(group["n"].min()), "n_max": int(group["n"].max()),
+               "n_seeds": len(group), "ci_method": GEOMETRIC}
         for column in columns:
-            interval = t_interval(group[column].to_numpy(float))
-            row.update({column: interval["mean"], f"{column}_ci_low": interval["ci95_low"],
-                        f"{column}_ci_high": interval["ci95_high"]})
+            statistics = level_statistics(group[column].to_numpy(float))
+            row.update({column: statistics["geomean"], f"{column}_ci_low": statistics["ci95_low"],
+                        f"{column}_ci_high": statistics["ci95_high"]})
         records.append(row)
     return pd.DataFrame.from_records(records)
 
 
 def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir: Path,
-                       formats: Sequence[str]) -> list:
+                       formats: Sequence[str], ordering: bool = True) -> list:
     """The report's sections with one on the other bases inserted before its figures: the table of alpha,
-    closeness, locality and usage of every basis (means over the runs) and the figure of alpha against each.
-    Unchanged when no run scored other bases."""
+    closeness, locality and usage of every basis (geometric means over the runs), their paired comparisons and the
+    figure of alpha against each; the findings gain the sizes, closeness and locality (and, with ``ordering``,
+    the bases' ordering by alpha, which a sweep's own findings state already). Unchanged when no run scored other
+    bases."""
     from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
 
     found = [(record, basis_intuitiveness_rows(record)) for record in records]
@@ -1495,37 +1577,47 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     settings = next(values["basis_intuitiveness"] for values in first.metrics["data"].values()
                     if values.get("basis_intuitiveness"))
     energy, threshold = settings["locality_energy"], settings["usage_threshold"]
-    summary = summarise_intuitiveness(pd.concat([frame for _, frame in found], ignore_index=True),
-                                      [column, *INTUITIVENESS_COLUMNS])
+    per_run = pd.concat([frame.assign(study=record.study, run=str(record.folder)) for record, frame in found],
+                        ignore_index=True)
+    summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
+    comparisons = pd.concat([paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
+                             for name in (column, "matched_abs_cosine", "locality")], ignore_index=True)
     several = int(summary["n_seeds"].max()) > 1
+    note = interval_label(summary, "runs")
     caption = (f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
-               f"shapes, its locality and its usage" + (", means over runs with 95 % confidence intervals as error "
-                                                         "bars." if several else "."))
+               f"shapes, its locality and its usage" + (f", geometric means over runs; error bars: {note}."
+                                                         if several else "."))
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
     entry = make_figures([("alpha_vs_intuitiveness", "Alpha against intuitiveness", caption,
                            lambda _, options: plot_alpha_against_intuitiveness(
                                summary, column, energy=energy, threshold=threshold, title=title))],
                          None, figures_dir, formats, {})[0]
-    shown = summary[["data", "basis", "n", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
-                                                                if several else []), *INTUITIVENESS_COLUMNS]]
+    shown = summary[["data", "basis", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
+                                                           if several else []), *INTUITIVENESS_COLUMNS]]
+    shown.insert(2, "n", range_column(summary, "n"))
     from workbench.reporting.findings import bases_findings
 
     findings = next((item for item in sections if item.heading == "Findings"), None)
-    if findings is not None:  # one run: its orderings from its paired comparisons
-        comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
-                       if len(found) == 1 else None)
-        findings.blocks.append(bases_findings(summary, column, comparisons, solver))
+    if findings is not None:  # one run: its ordering from its paired per-frame comparisons
+        run_comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
+                           if len(found) == 1 else None)
+        findings.blocks.append(bases_findings(summary, comparisons, column, ordering, run_comparisons, solver))
     section = Section("Other bases: alpha against intuitiveness", [
-        f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
-        f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
-                                                  else "one run."),
+        f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
+        f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
+        "projection), " + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several
+                           else "one run."),
         ["`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
          "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
          f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
          "element's squared displacement, mean over elements (small: local).",
          f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
          f"largest, mean over the evaluated frames (weights of solver {solver})."],
-        shown, entry])
+        shown,
+        f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
+        f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; '<' only where "
+        "it excludes 1.",
+        comparisons.drop(columns=["study", "method"]), entry])
     headings = [item.heading for item in sections]
     at = headings.index("Figures") if "Figures" in headings else len(sections)
     return [*sections[:at], section, *sections[at:]]
@@ -1589,7 +1681,7 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
 def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE_FORMATS,
                        command: str = "workbench report") -> Path:
     """Write the report of every complete run under ``root`` into ``out``: index.html, README.md, figures/,
-    summary.csv (the tidy table) and runs.csv (every row of every run).
+    summary.csv (the tidy table), comparisons.csv (the paired comparisons) and runs.csv (every row of every run).
 
     Returns
     -------
@@ -1601,17 +1693,22 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     per_run = runs_table(records, root)
     keys = varying_keys([record.config for record in records])
     swept = [key for key in keys if not is_replicate_key(key) and key != "dataset.train_on"]
-    summary = wide(summarise(per_run, over=[key for key in keys if key not in swept]))
+    over = [key for key in keys if is_replicate_key(key)]
+    summary = wide(summarise(per_run, over=over))
     paper = per_run.groupby("basis", sort=False)["paper_alpha"].first()
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
+    column = headline_column(records[0].config)
+    comparisons = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
     figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
-    entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, formats, {})
-    title, sections = sweep_sections(root, records, per_run, summary, swept, entries, command)
-    sections = with_bases_section(sections, records, figures_dir, formats)
+    entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir,
+                           formats, {})
+    title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
+    sections = with_bases_section(sections, records, figures_dir, formats, ordering=False)
     _write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
+    write_atomic(inside(out, "comparisons.csv"), comparisons.to_csv(index=False))
     write_atomic(inside(out, "runs.csv"), per_run.to_csv(index=False))
     return out / "index.html"
 

@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -15,19 +14,22 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import ALPHA_COLUMNS, DONE, RunRecord, find_records, load_record
+from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
+from workbench.reporting.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.tables import is_missing
 
 ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
 """Columns that name one row of a run's alpha table."""
-SUMMARY_METRICS = (*ALPHA_COLUMNS, "m", "coverage", "n", "n_points", "time_total")
+SUMMARY_METRICS = (*ALPHA_COLUMNS, *CLEAN_COLUMNS, "m", "coverage", "n", "n_points", "time_total")
 """Columns of the runs table summarised over replicates (those present)."""
 IGNORED_KEYS = ("paths.", "save_inputs", "hydra", "study")
 """Config keys that differ between runs without being a studied setting."""
 REPLICATE_SUFFIX = "seed"
 """Settings whose runs are replicates of one another: every seed (of the data, of a random draw of shapes)."""
-CONFIDENCE = 0.95
-STATISTICS = ("n", "mean", "std", "ci95_half", "ci95_low", "ci95_high")
+STATISTICS = ("n", "mean", "std", "min", "max", "geomean", "ci95_low", "ci95_high", "ci_method")
+"""Columns of a long summary: replicates, arithmetic mean, sample standard deviation, range, and the geometric
+mean with its 95 % interval (:func:`workbench.reporting.statistics.geometric_interval`) and the interval's
+method."""
 PCA_SOLVER = "projection"
 
 
@@ -167,37 +169,53 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     return runs_table(records, root), incomplete
 
 
-def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> dict:
-    """Mean and two-sided Student-t confidence interval of the mean of replicate values (NaNs left out).
+def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
+    """``95 % interval: geometric mean, t-interval on log values; n = 5 seeds``: the method and replicate count
+    of a summary's intervals (its ``ci_method`` and ``n_seeds``), named beside every interval shown or drawn."""
+    method = str(table["ci_method"].dropna().iloc[0]) if "ci_method" in table.columns and \
+        table["ci_method"].notna().any() else GEOMETRIC
+    counts = table["n_seeds"].dropna().astype(int) if "n_seeds" in table.columns else pd.Series([], dtype=int)
+    n_text = "" if counts.empty else "; n = " + (f"{counts.min()}" if counts.min() == counts.max()
+                                                 else f"{counts.min()}-{counts.max()}") + f" {replicates}"
+    return f"95 % interval: {method}{n_text}"
+
+
+def level_statistics(values) -> dict:
+    """The summary of one metric over replicates: ``n``, ``mean``, ``std`` (ddof 1), ``min``, ``max``, and the
+    geometric mean with its 95 % interval (``geomean``, ``ci95_low``, ``ci95_high``, ``ci_method``; see
+    :func:`workbench.reporting.statistics.geometric_interval`).
 
     Parameters
     ----------
-    values : sequence of float
-    confidence : float
-
-    Returns
-    -------
-    dict
-        ``n``, ``mean``, ``std`` (sample, ddof 1), ``ci95_half`` (``t_{(1+c)/2, n-1} std / sqrt(n)``),
-        ``ci95_low``, ``ci95_high``; the spread is NaN with fewer than two values.
+    values : array_like of shape (n,)
+        One value per replicate; NaNs left out.
     """
-    from scipy import stats
-
     values = np.asarray(values, dtype=np.float64)
-    values = values[~np.isnan(values)]
-    n = int(values.size)
-    mean = float(values.mean()) if n else math.nan
-    if n < 2:
-        std = half = math.nan
-    else:
-        std = float(values.std(ddof=1))
-        half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1) * std / math.sqrt(n))
-    return {"n": n, "mean": mean, "std": std, "ci95_half": half, "ci95_low": mean - half, "ci95_high": mean + half}
+    values = values[np.isfinite(values)]
+    interval = geometric_interval(values)
+    return {"n": int(values.size), "mean": float(values.mean()) if values.size else np.nan,
+            "std": float(values.std(ddof=1)) if values.size > 1 else np.nan,
+            "min": float(values.min()) if values.size else np.nan,
+            "max": float(values.max()) if values.size else np.nan,
+            "geomean": interval.estimate, "ci95_low": interval.low, "ci95_high": interval.high,
+            "ci_method": interval.method}
+
+
+def condition_keys(runs: pd.DataFrame, over: Sequence[str] | None) -> tuple[list[str], list[str]]:
+    """The config columns that make a condition, and the replicate columns (``over``, default those naming a
+    seed), checked against the runs table."""
+    conditions = config_columns(runs)
+    over = replicate_columns(conditions) if over is None else list(over)
+    unknown = [column for column in over if column not in runs.columns]
+    if unknown:
+        raise WorkbenchError(f"--over: {unknown} are not config columns of these runs ({conditions})")
+    return [column for column in conditions if column not in over], over
 
 
 def summarise(runs: pd.DataFrame, over: Sequence[str] | None = None,
               metrics: Sequence[str] = SUMMARY_METRICS, row_keys: Sequence[str] = ROW_KEYS) -> pd.DataFrame:
-    """Mean and 95 % t-interval of every metric over the replicate settings, per condition and table row.
+    """Every metric over the replicate settings, per condition and table row: mean, range, and the geometric mean
+    with its 95 % interval, which stays positive (:func:`level_statistics`).
 
     Parameters
     ----------
@@ -213,33 +231,124 @@ def summarise(runs: pd.DataFrame, over: Sequence[str] | None = None,
     Returns
     -------
     pandas.DataFrame
-        Long form: ``study``, the condition columns, ``row_keys``, ``metric``, ``n``, ``mean``, ``std``,
-        ``ci95_half``, ``ci95_low``, ``ci95_high``.
+        Long form: ``study``, the condition columns, ``row_keys``, ``metric``, then :data:`STATISTICS`.
     """
-    conditions = config_columns(runs)
-    over = replicate_columns(conditions) if over is None else list(over)
-    unknown = [column for column in over if column not in runs.columns]
-    if unknown:
-        raise WorkbenchError(f"--over: {unknown} are not config columns of these runs ({conditions})")
-    keys = ["study"] + [column for column in conditions if column not in over] + list(row_keys)
+    conditions, over = condition_keys(runs, over)
+    keys = ["study", *conditions, *row_keys]
     present = [column for column in metrics if column in runs.columns]
     records = []
     for group_values, group in runs.groupby(keys, sort=False, dropna=False):
         for metric in present:
             records.append(dict(zip(keys, group_values), metric=metric,
-                                **t_interval(pd.to_numeric(group[metric], errors="coerce").to_numpy(float))))
+                                **level_statistics(pd.to_numeric(group[metric], errors="coerce").to_numpy(float))))
     return pd.DataFrame.from_records(records)
 
 
 def wide(summary: pd.DataFrame) -> pd.DataFrame:
-    """A long summary as one row per condition and table row: per metric its mean, ``<metric>_ci_low`` and
-    ``<metric>_ci_high``, and ``n_seeds`` (the replicate count of the first metric)."""
+    """A long summary as one row per condition and table row: per metric its geometric mean, ``<metric>_ci_low``,
+    ``<metric>_ci_high``, ``<metric>_min`` and ``<metric>_max``; ``n_seeds`` (the replicate count of the first
+    metric) and ``ci_method``."""
     keys = [column for column in summary.columns if column not in (*STATISTICS, "metric")]
     records = []
     for values, group in summary.groupby(keys, sort=False, dropna=False):
-        row = dict(zip(keys, values), n_seeds=int(group["n"].iloc[0]))
+        row = dict(zip(keys, values), n_seeds=int(group["n"].iloc[0]), ci_method=GEOMETRIC)
         for entry in group.itertuples(index=False):
-            row.update({entry.metric: entry.mean, f"{entry.metric}_ci_low": entry.ci95_low,
-                        f"{entry.metric}_ci_high": entry.ci95_high})
+            row.update({entry.metric: entry.geomean, f"{entry.metric}_ci_low": entry.ci95_low,
+                        f"{entry.metric}_ci_high": entry.ci95_high, f"{entry.metric}_min": entry.min,
+                        f"{entry.metric}_max": entry.max})
         records.append(row)
     return pd.DataFrame.from_records(records)
+
+
+COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict")
+"""Columns of :func:`paired_comparisons` after the condition and row keys."""
+NOT_DISTINGUISHABLE = "not distinguishable"
+
+
+def with_pca_beside_every_solver(runs: pd.DataFrame) -> pd.DataFrame:
+    """The rows with PCA's (solver ``projection``: it has no solver) repeated under every solver present, so that
+    PCA is compared and shown beside each solver's bases."""
+    if "solver" not in runs.columns:
+        return runs
+    solvers = [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER]
+    pca = runs[runs["solver"] == PCA_SOLVER]
+    if not solvers or pca.empty:
+        return runs
+    parts = [runs[runs["solver"] != PCA_SOLVER]] + [pca.assign(solver=solver) for solver in solvers]
+    return pd.concat(parts, ignore_index=True)
+
+
+IMPLIED_KEYS = {"basis": ("projection",), "train_on": ("data", "dataset.train_on")}
+"""Columns a compared key determines (the projection goes with the basis label; the data variant and the
+setting with the variant the bases were fitted on)."""
+
+
+def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | None = None,
+                       row_keys: Sequence[str] = ROW_KEYS, between: str = "basis") -> pd.DataFrame:
+    """Every pair of bases (or of the variants they were fitted on) compared on the same replicates, per condition:
+    the geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
+    (:func:`workbench.reporting.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
+    written with the smaller geometric mean first (ratio at most 1), as the findings state it.
+
+    Parameters
+    ----------
+    runs : pandas.DataFrame
+        From :func:`runs_table`.
+    metric : str
+        The (positive) metric compared, e.g. ``alpha_abs_mean``.
+    over : sequence of str, optional
+        Replicate columns (default: the config columns naming a seed); values are paired by them.
+    row_keys : sequence of str
+        Columns naming a row within a condition; every one but ``between`` and what it implies is held fixed.
+    between : {"basis", "train_on"}
+        What is compared: the bases of one data variant, or one basis fitted on each data variant and scored on
+        the same evaluated one (``eval_on``, held fixed).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``study``, the condition columns, the row keys held fixed, then :data:`COMPARISON_COLUMNS`: ``first`` and
+        ``second`` the smaller and the larger by their geometric mean ratio (values of ``between``), ``n`` the
+        replicates both have, ``verdict`` ``<`` (the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`.
+    """
+    if metric not in runs.columns:
+        raise WorkbenchError(f"no column {metric!r} to compare")
+    if between not in IMPLIED_KEYS:
+        raise WorkbenchError(f"comparisons are between one of {list(IMPLIED_KEYS)}, got {between!r}")
+    conditions, over = condition_keys(runs, over)
+    implied = (between, *IMPLIED_KEYS[between])
+    fixed = [key for key in row_keys if key not in implied and key in runs.columns]
+    keys = ["study", *[key for key in conditions if key not in implied], *fixed]
+    records = []
+    for group_values, group in with_pca_beside_every_solver(runs).groupby(keys, sort=False, dropna=False):
+        replicate = group[over].astype(str).agg(" ".join, axis=1) if over else ""
+        table = group.assign(_replicate=replicate).pivot_table(index="_replicate", columns=between, values=metric,
+                                                               aggfunc="first", sort=False, dropna=False)
+        bases = list(dict.fromkeys(group[between]))
+        for i, first in enumerate(bases):
+            for second in bases[i + 1:]:
+                interval = paired_ratio_interval(table[first].to_numpy(float), table[second].to_numpy(float))
+                lower, higher = (first, second) if not interval.estimate > 1.0 else (second, first)
+                if lower != first:
+                    interval = reversed_interval(interval)
+                verdict = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+                records.append(dict(zip(keys, group_values), metric=metric, first=lower, second=higher,
+                                    n=interval.n, ratio=interval.estimate, ratio_low=interval.low,
+                                    ratio_high=interval.high, method=interval.method, verdict=verdict))
+    return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
+
+
+def fitted_on_several(runs: pd.DataFrame) -> bool:
+    """Whether the runs scored bases fitted on several data variants on the same evaluated one (eval_on)."""
+    return bool({"train_on", "eval_on"} <= set(runs.columns)
+                and (runs.groupby("eval_on")["train_on"].nunique() > 1).any())
+
+
+def sweep_comparisons(runs: pd.DataFrame, metrics: Sequence[str], over: Sequence[str] | None = None) -> pd.DataFrame:
+    """The paired comparisons of a sweep for each metric (those present): between the bases, and where the bases
+    were fitted on several data variants and scored on common ones, between those variants
+    (:func:`paired_comparisons`); the rows of one kind leave the other's key columns empty."""
+    present = [metric for metric in metrics if metric in runs.columns]
+    kinds = ["basis", "train_on"] if fitted_on_several(runs) else ["basis"]
+    parts = [paired_comparisons(runs, metric, over, between=kind) for kind in kinds for metric in present]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=list(COMPARISON_COLUMNS))

@@ -1,10 +1,23 @@
 """Intervals a reviewer accepts, and the paired comparisons that decide whether one basis beats another.
 
-Arrays in, an :class:`Interval` out; no pandas. Within one run the frames are the units: the per-frame paired
-difference of two rows of the alpha table is resampled by a circular block bootstrap over time (frames are
-autocorrelated), blocks never crossing from one take into another, with the block length chosen from the data
-(Politis & White 2004, corrected by Patton, Politis & White 2009). Randomness comes only from a seeded
-``numpy.random.Generator``.
+One :class:`Interval` for every number a run, a sweep, a report, a finding or a plot states with its uncertainty:
+the estimate, its bounds, the confidence, how it was made and on how many units (``n``), and for a comparison the
+value meaning "no difference" (``null``: 0 for a difference, 1 for a ratio). A comparison says "A < B" only where
+its interval excludes that value (:attr:`Interval.excludes_null`), and :func:`interval_text` writes every interval
+the same way, with its method and n beside it.
+
+Across the replicates of a sweep (seeds, takes) the units are the runs. Alpha and point errors are positive and a
+sweep has few replicates: a Student-t interval of the mean over 2 to 5 values reaches below zero whenever the values
+spread, so levels get the geometric mean and a t-interval on the log values, taken back (:func:`geometric_interval`,
+positive by construction). Two bases measured on the same replicates are compared by the per-replicate difference
+(:func:`paired_difference_interval`) or log ratio (:func:`paired_ratio_interval`).
+
+Within one run the units are the frames: the per-frame paired difference of two rows of the alpha table is
+resampled by a circular block bootstrap over time (frames are autocorrelated), blocks never crossing from one take
+into another, with the block length chosen from the data (Politis & White 2004, corrected by Patton, Politis &
+White 2009) (:func:`paired_mean_difference`, :func:`paired_pooled_difference`).
+
+Arrays in, an :class:`Interval` out; no pandas. Randomness comes only from a seeded ``numpy.random.Generator``.
 """
 
 from __future__ import annotations
@@ -17,68 +30,259 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 
-LEVEL = 0.95
+CONFIDENCE = 0.95
 RESAMPLES = 2000
 SEED = 0
+GEOMETRIC = "geometric mean, t-interval on log values"
+PAIRED_T = "paired t"
+PAIRED_LOG_RATIO = "paired t on log ratios"
+BLOCK_BOOTSTRAP = "circular block bootstrap over time"
+IDENTICAL = "identical on every frame"
+SIGNED = "{:+.3g}"
+"""The number format of a difference (its sign always shown)."""
+RATIO_FORMAT = "{:.4g}"
+"""The number format of a ratio (as the comparisons table's cells, :func:`workbench.tables.cell_text`)."""
 
 
 @dataclass(frozen=True)
 class Interval:
-    """A point estimate and its confidence interval, with how it was made.
+    """A point estimate and its two-sided confidence interval, with how it was made.
 
     Attributes
     ----------
-    estimate, low, high : float
-    level : float
-        Coverage of ``[low, high]`` (0.95).
-    method : str
-        How the interval was made, in words (named beside it wherever it is shown).
+    estimate : float
+        A mean, a geometric mean, a mean difference or a geometric mean ratio.
+    low, high : float
+        The bounds; NaN when they cannot be computed (fewer than two replicates, or replicates that do not vary).
     n : int
-        The independent-ish units it rests on (frames within a run).
+        The units it rests on: replicates (runs) across a sweep, frames within a run.
+    method : str
+        How it was made (:data:`GEOMETRIC`, :data:`PAIRED_T`, :data:`PAIRED_LOG_RATIO`, :data:`BLOCK_BOOTSTRAP`,
+        ...), named beside it wherever it is shown.
+    confidence : float
+        Coverage of ``[low, high]`` (0.95).
+    null : float or None
+        The value meaning "no difference": 0 for a difference, 1 for a ratio; None for a level.
     block_frames : int
         Block length of a block bootstrap (0: not one).
     block_seconds : float
-        The block length in seconds of capture (NaN: not known).
+        The block length in seconds of capture (NaN: not known or not a block bootstrap).
     """
 
     estimate: float
     low: float
     high: float
-    level: float = LEVEL
-    method: str = ""
     n: int = 0
+    method: str = ""
+    confidence: float = CONFIDENCE
+    null: float | None = None
     block_frames: int = 0
     block_seconds: float = math.nan
 
     @property
-    def excludes_zero(self) -> bool:
-        """Whether the interval lies wholly on one side of zero (a difference is then stated)."""
-        return bool(self.low > 0.0 or self.high < 0.0)
+    def defined(self) -> bool:
+        """Whether the interval has finite bounds."""
+        return math.isfinite(self.low) and math.isfinite(self.high)
+
+    @property
+    def excludes_null(self) -> bool:
+        """Whether the interval lies wholly on one side of its null value (a difference that is not zero, a ratio
+        that is not 1): only then is "A < B" stated."""
+        if self.null is None:
+            raise ValueError("a level has no null value; only a difference or a ratio excludes one")
+        return self.defined and not self.low <= self.null <= self.high
+
+    @property
+    def sign(self) -> int:
+        """-1 when the interval lies below its null value, +1 above, 0 when it does not exclude it."""
+        if not self.excludes_null:
+            return 0
+        return -1 if self.high < self.null else 1
 
     def as_dict(self) -> dict:
-        return {"estimate": self.estimate, "low": self.low, "high": self.high, "level": self.level,
-                "method": self.method, "n": self.n, "block_frames": self.block_frames,
+        """The fields by name (JSON-ready: a record's ``metrics.json`` stores its comparisons so)."""
+        return {"estimate": self.estimate, "low": self.low, "high": self.high, "n": self.n, "method": self.method,
+                "confidence": self.confidence, "null": self.null, "block_frames": self.block_frames,
                 "block_seconds": self.block_seconds}
 
     @classmethod
-    def from_dict(cls, values) -> "Interval":
-        return cls(**{key: values[key] for key in ("estimate", "low", "high", "level", "method", "n",
-                                                   "block_frames", "block_seconds") if key in values})
+    def from_dict(cls, values: Mapping) -> "Interval":
+        """The interval of :meth:`as_dict`'s fields. A stored comparison without ``null`` is a difference (null 0),
+        and ``level`` is read as ``confidence`` (records written before the two were one type)."""
+        fields = {key: values[key] for key in ("estimate", "low", "high", "n", "method", "confidence",
+                                               "block_frames", "block_seconds") if key in values}
+        if "confidence" not in fields and "level" in values:
+            fields["confidence"] = values["level"]
+        return cls(**fields, null=values.get("null", 0.0))
 
 
-def format_number(value: float, digits: int = 3) -> str:
-    """``value`` to ``digits`` significant digits, with its sign (``+0.0231``, ``-1.2``)."""
-    return "nan" if not math.isfinite(value) else f"{value:+.{digits}g}"
+def interval_text(interval: Interval, name: str = "difference", number_format: str = "{:.3g}") -> str:
+    """``difference 0.012, 95 % interval [0.004, 0.020] (paired t, n = 5)``: an estimate with its interval, its
+    method and n (and a block bootstrap's block length).
+
+    Parameters
+    ----------
+    interval : Interval
+    name : str
+        What the estimate is (``difference``, ``QE/H``, ``QE - H``, ...).
+    number_format : str
+        Of the estimate and the bounds (:data:`SIGNED` for a difference).
+
+    Returns
+    -------
+    str
+    """
+    estimate = "-" if math.isnan(interval.estimate) else number_format.format(interval.estimate)
+    if not interval.defined:
+        why = "the same on every replicate" if interval.n >= 2 else f"{interval.method}, n = {interval.n}"
+        return f"{name} {estimate} (no interval: {why})"
+    how = [interval.method] if interval.method else []
+    if interval.block_frames:
+        how.append(f"blocks of {interval.block_frames} frame{'s' if interval.block_frames > 1 else ''}" + (
+            f" = {interval.block_seconds:.2g} s" if math.isfinite(interval.block_seconds) else ""))
+    return (f"{name} {estimate}, {100 * interval.confidence:g} % interval [{number_format.format(interval.low)}, "
+            f"{number_format.format(interval.high)}] ({', '.join([*how, f'n = {interval.n}'])})")
 
 
-def format_interval(interval: Interval, digits: int = 3) -> str:
-    """``+0.0231 [+0.0104, +0.0358]``: the estimate and its interval (the method is said once, beside them)."""
-    return (f"{format_number(interval.estimate, digits)} [{format_number(interval.low, digits)}, "
-            f"{format_number(interval.high, digits)}]")
+def comparison_name(first: str, second: str, interval: Interval) -> str:
+    """``A - B`` for a difference, ``A/B`` for a ratio."""
+    return f"{first}/{second}" if interval.null == 1.0 else f"{first} - {second}"
+
+
+def reversed_interval(interval: Interval) -> Interval:
+    """The comparison the other way round: ``b - a`` from ``a - b`` (negated), ``b / a`` from ``a / b`` (inverted),
+    the bounds swapped.
+
+    Parameters
+    ----------
+    interval : Interval
+        Of a difference (null 0) or a positive ratio (null 1).
+
+    Returns
+    -------
+    Interval
+    """
+    if interval.null == 0.0:
+        return replace(interval, estimate=-interval.estimate, low=-interval.high, high=-interval.low)
+    if interval.null == 1.0:
+        return replace(interval, estimate=1.0 / interval.estimate, low=1.0 / interval.high, high=1.0 / interval.low)
+    raise ValueError(f"only a difference (null 0) or a ratio (null 1) can be reversed, got null {interval.null}")
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Block length
+# Across replicates (the runs of a sweep)
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _finite(values) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64).ravel()
+    return values[np.isfinite(values)]
+
+
+def _t_quantile(confidence: float, degrees: int) -> float:
+    from scipy import stats
+
+    return float(stats.t.ppf(0.5 + confidence / 2.0, degrees))
+
+
+def t_interval(values, confidence: float = CONFIDENCE, *, method: str = "Student t",
+               null: float | None = None) -> Interval:
+    """Mean and two-sided Student-t interval of the mean, ``mean +- t_{(1+c)/2, n-1} s / sqrt(n)``.
+
+    For values that may take either sign (differences). Non-finite values are left out.
+
+    Parameters
+    ----------
+    values : array_like of shape (n,)
+    confidence : float
+    method : str
+        Named in the result.
+    null : float, optional
+
+    Returns
+    -------
+    Interval
+        Bounds NaN with fewer than two values, or when every value is the same: replicates that do not vary
+        say nothing about the spread (a zero-width interval would claim a precision no replicate showed).
+    """
+    values = _finite(values)
+    n = int(values.size)
+    mean = float(values.mean()) if n else math.nan
+    if n < 2 or np.ptp(values) == 0.0:
+        return Interval(mean, math.nan, math.nan, n, method, confidence, null)
+    half = _t_quantile(confidence, n - 1) * float(values.std(ddof=1)) / math.sqrt(n)
+    return Interval(mean, mean - half, mean + half, n, method, confidence, null)
+
+
+def geometric_interval(values, confidence: float = CONFIDENCE) -> Interval:
+    """Geometric mean of positive values and its interval: the t-interval of the mean of ``log(values)``, taken
+    back with ``exp`` (exact when the values are log-normal; the bounds are positive by construction).
+
+    Parameters
+    ----------
+    values : array_like of shape (n,)
+        Positive values (alpha, errors in mm, m, seconds); non-finite ones are left out.
+    confidence : float
+
+    Returns
+    -------
+    Interval
+        ``estimate = exp(mean(log v))``, ``low``/``high`` = ``exp(mean +- t s / sqrt(n))``; bounds NaN with fewer
+        than two values or identical ones (:func:`t_interval`), and every field NaN when a value is zero or
+        negative (no geometric mean exists).
+    """
+    values = _finite(values)
+    if np.any(values <= 0.0):
+        return Interval(math.nan, math.nan, math.nan, int(values.size), f"{GEOMETRIC} (needs positive values)",
+                        confidence)
+    logs = t_interval(np.log(values), confidence)
+    return Interval(math.exp(logs.estimate) if logs.n else math.nan, math.exp(logs.low), math.exp(logs.high),
+                    logs.n, GEOMETRIC, confidence)
+
+
+def paired_difference_interval(differences, confidence: float = CONFIDENCE) -> Interval:
+    """Mean of paired differences ``a_k - b_k`` (one per replicate) and its Student-t interval; null 0.
+
+    Parameters
+    ----------
+    differences : array_like of shape (n,)
+        One difference per replicate (seed), both values measured on that replicate.
+    confidence : float
+
+    Returns
+    -------
+    Interval
+    """
+    return t_interval(differences, confidence, method=PAIRED_T, null=0.0)
+
+
+def paired_ratio_interval(first, second, confidence: float = CONFIDENCE) -> Interval:
+    """Geometric mean of the paired ratios ``a_k / b_k`` and its interval: the t-interval of the mean log ratio,
+    taken back with ``exp``; null 1.
+
+    Parameters
+    ----------
+    first, second : array_like of shape (n,)
+        Positive values of the two alternatives on the same replicates, in the same order; pairs with a
+        non-finite or non-positive value are left out.
+    confidence : float
+
+    Returns
+    -------
+    Interval
+        Of ``first / second``: below 1 where the first is smaller.
+    """
+    first, second = np.asarray(first, dtype=np.float64).ravel(), np.asarray(second, dtype=np.float64).ravel()
+    if first.shape != second.shape:
+        raise ValueError(f"paired values need one of each per replicate, got {first.size} and {second.size}")
+    usable = np.isfinite(first) & np.isfinite(second) & (first > 0) & (second > 0)
+    logs = t_interval(np.log(first[usable] / second[usable]), confidence)
+    estimate = math.exp(logs.estimate) if logs.n else math.nan
+    return Interval(estimate, math.exp(logs.low), math.exp(logs.high), logs.n, PAIRED_LOG_RATIO, confidence, 1.0)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Within a run (the frames)
 # ---------------------------------------------------------------------------------------------------------------
 
 
@@ -168,11 +372,6 @@ def optimal_block_length(series: np.ndarray, takes: Sequence | None = None) -> f
     return float(min(max(block, 1.0), 3.0 * math.sqrt(n), n / 3.0))
 
 
-# ---------------------------------------------------------------------------------------------------------------
-# The bootstrap
-# ---------------------------------------------------------------------------------------------------------------
-
-
 NORMAL_FROM_BLOCKS = 2000
 """From this many blocks per resample on, a resample's totals are drawn from the normal distribution with the
 bootstrap's exact mean and covariance (a sum of that many independent blocks is normal to plotting accuracy)
@@ -246,9 +445,9 @@ def _block_moments(takes_blocks) -> tuple[np.ndarray, np.ndarray]:
 
 def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.ndarray], *,
                        block_series: np.ndarray, takes: Sequence | None = None, seconds: Sequence | None = None,
-                       level: float = LEVEL, n_resamples: int = RESAMPLES, seed: int = SEED,
-                       what: str = "") -> Interval:
-    """The percentile interval of a statistic of per-frame totals under the circular block bootstrap.
+                       confidence: float = CONFIDENCE, n_resamples: int = RESAMPLES, seed: int = SEED) -> Interval:
+    """The percentile interval of a statistic of per-frame totals under the circular block bootstrap; null 0 (the
+    statistic is a difference).
 
     Parameters
     ----------
@@ -260,19 +459,18 @@ def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.
         The series whose autocorrelation sets the block length (:func:`optimal_block_length`).
     takes, seconds : sequence of shape (n,), optional
         Take and time of each frame (blocks stay within takes; the block length is also given in seconds).
-    level : float
+    confidence : float
     n_resamples : int
     seed : int
         Seed of the ``numpy.random.Generator`` (the same seed gives the same interval).
-    what : str
-        What is estimated, for the interval's ``method`` text.
 
     Returns
     -------
     Interval
+        Method :data:`BLOCK_BOOTSTRAP`, ``n`` the frames, with the block length in frames and seconds.
     """
-    if not 0.0 < level < 1.0:
-        raise WorkbenchError(f"the confidence level must be in (0, 1), got {level!r}")
+    if not 0.0 < confidence < 1.0:
+        raise WorkbenchError(f"the confidence level must be in (0, 1), got {confidence!r}")
     series = np.atleast_2d(np.asarray(series, dtype=float))
     n = series.shape[1]
     block = max(1, int(round(optimal_block_length(block_series, takes))))
@@ -280,19 +478,16 @@ def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.
     with np.errstate(divide="ignore", invalid="ignore"):  # a resample of undefined frames only has no value
         resampled = statistic(block_bootstrap_totals(series, block, np.random.default_rng(seed), takes=takes,
                                                      n_resamples=n_resamples))
-    low, high = np.nanquantile(resampled, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    low, high = np.nanquantile(resampled, [(1.0 - confidence) / 2.0, (1.0 + confidence) / 2.0])
     step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
-    spans = len(take_spans(takes, n))
-    method = (f"{what}{' ' if what else ''}{100 * level:g} % circular block bootstrap over {n} frames"
-              + (f" in {spans} takes (blocks within takes)" if spans > 1 else "")
-              + f", blocks of {block} frames" + (f" ({block * step:.2g} s)" if math.isfinite(step) else "")
-              + f" chosen by Politis-White, {n_resamples} resamples, seed {seed}")
-    return Interval(estimate=estimate, low=float(min(low, estimate)), high=float(max(high, estimate)), level=level,
-                    method=method, n=n, block_frames=block, block_seconds=block * step)
+    return Interval(estimate=estimate, low=float(min(low, estimate)), high=float(max(high, estimate)), n=n,
+                    method=BLOCK_BOOTSTRAP, confidence=confidence, null=0.0, block_frames=block,
+                    block_seconds=block * step)
 
 
 def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | None = None,
-                           seconds: Sequence | None = None, level: float = LEVEL, n_resamples: int = RESAMPLES,
+                           seconds: Sequence | None = None, confidence: float = CONFIDENCE,
+                           n_resamples: int = RESAMPLES,
                            seed: int = SEED) -> Interval:
     """Mean over frames of ``a - b`` (two rows' per-frame alpha on the same frames), with its block-bootstrap
     interval. Frames where either value is NaN (alpha undefined) are left out of both means.
@@ -300,7 +495,7 @@ def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | No
     Parameters
     ----------
     a, b : ndarray of shape (n_frames,)
-    takes, seconds, level, n_resamples, seed
+    takes, seconds, confidence, n_resamples, seed
         As :func:`bootstrap_interval`.
 
     Returns
@@ -314,14 +509,15 @@ def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | No
         raise WorkbenchError("a paired difference needs at least one frame where both values are defined")
     difference = np.where(valid, a - b, 0.0)
     if not np.any(difference):
-        return _identical(int(valid.sum()), level)
+        return _identical(int(valid.sum()), confidence)
     return bootstrap_interval(np.vstack([difference, valid.astype(float)]), lambda t: t[..., 0] / t[..., 1],
-                              block_series=difference, takes=takes, seconds=seconds, level=level,
-                              n_resamples=n_resamples, seed=seed, what="mean paired difference,")
+                              block_series=difference, takes=takes, seconds=seconds, confidence=confidence,
+                              n_resamples=n_resamples, seed=seed)
 
 
 def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference: np.ndarray, *,
-                             takes: Sequence | None = None, seconds: Sequence | None = None, level: float = LEVEL,
+                             takes: Sequence | None = None, seconds: Sequence | None = None,
+                             confidence: float = CONFIDENCE,
                              n_resamples: int = RESAMPLES, seed: int = SEED) -> Interval:
     """Difference of two pooled alphas (eq. 6 over all frames, ``100 sqrt(sum |err|^2 / sum |ref|^2)``) of the same
     frames, with its block-bootstrap interval.
@@ -332,7 +528,7 @@ def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference
         Per-frame squared errors of the two reconstructions.
     reference : ndarray of shape (n_frames,)
         Per-frame squared reference norms (the denominator of eq. 6).
-    takes, seconds, level, n_resamples, seed
+    takes, seconds, confidence, n_resamples, seed
         As :func:`bootstrap_interval`.
 
     Returns
@@ -344,12 +540,12 @@ def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference
     if reference.shape != error_a.shape:
         raise WorkbenchError(f"reference must have one value per frame ({error_a.shape}), got {reference.shape}")
     if not np.any(error_a - error_b):
-        return _identical(error_a.size, level)
+        return _identical(error_a.size, confidence)
     return bootstrap_interval(
         np.vstack([error_a, error_b, reference]),
         lambda t: 100.0 * (np.sqrt(t[..., 0] / t[..., 2]) - np.sqrt(t[..., 1] / t[..., 2])),
-        block_series=error_a - error_b, takes=takes, seconds=seconds, level=level, n_resamples=n_resamples,
-        seed=seed, what="pooled difference,")
+        block_series=error_a - error_b, takes=takes, seconds=seconds, confidence=confidence,
+        n_resamples=n_resamples, seed=seed)
 
 
 def _paired(a, b) -> tuple[np.ndarray, np.ndarray]:
@@ -360,8 +556,9 @@ def _paired(a, b) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def _identical(n: int, level: float) -> Interval:
-    return Interval(estimate=0.0, low=0.0, high=0.0, level=level, method="identical on every frame", n=n)
+def _identical(n: int, confidence: float) -> Interval:
+    """Two rows equal on every frame: the difference is exactly 0, not an estimate (no resampling can move it)."""
+    return Interval(estimate=0.0, low=0.0, high=0.0, n=n, method=IDENTICAL, confidence=confidence, null=0.0)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -376,15 +573,16 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
                   name: Callable[[object], str] = str, digits: int = 4) -> str:
     """Items from smallest to largest value, each neighbouring pair joined by what its paired comparison allows.
 
-    ``A 0.17 < B 0.19`` when the interval of ``A - B`` excludes zero; ``A 1.04 ~ B 1.08 (A - B -0.04 [-0.09,
-    +0.01]: not distinguishable)`` when it does not; ``A 0.17, B 0.19`` when there is no comparison (no claim).
+    ``A 0.17 < B 0.19`` when the interval of ``A - B`` (or ``A/B``) excludes its null value; ``A 1.04 ~ B 1.08 (A -
+    B -0.04, 95 % interval [-0.09, +0.01] (method, n = k): not distinguishable)`` when it does not; ``A 0.17, B
+    0.19`` when there is no comparison (no claim).
 
     Parameters
     ----------
     values : mapping
         Item -> its value (NaN items left out).
     compare : callable
-        ``compare(a, b)`` -> the :class:`Interval` of ``a - b``, or None.
+        ``compare(a, b)`` -> the :class:`Interval` of ``a - b`` or ``a / b``, or None.
     name : callable
         Item -> its name in the text.
     digits : int
@@ -404,17 +602,18 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
         shown = f"{name(item)} {value:.{digits}g}"
         if interval is None:
             text += ", " + shown
-        elif interval.excludes_zero:
+        elif interval.excludes_null:
             text += BETTER + shown
         else:
-            text += (f"{TIED}{shown} ({name(before)} - {name(item)} {format_interval(interval)}: not "
-                     "distinguishable)")
+            label = comparison_name(name(before), name(item), interval)
+            number = SIGNED if interval.null == 0.0 else RATIO_FORMAT
+            text += f"{TIED}{shown} ({interval_text(interval, label, number)}: not distinguishable)"
     return text
 
 
 def comparison_lookup(comparisons: Sequence[Mapping]) -> Callable[[tuple, tuple], Interval | None]:
     """``compare(a, b)`` over stored comparisons (``a``, ``b`` and :class:`Interval` fields each): the interval of
-    ``a - b``, the stored one of ``b - a`` negated, or None."""
+    ``a`` against ``b``, the stored one of ``b`` against ``a`` reversed (:func:`reversed_interval`), or None."""
     stored = {(tuple(entry["a"]), tuple(entry["b"])): Interval.from_dict(entry) for entry in comparisons}
 
     def compare(a, b) -> Interval | None:
@@ -422,8 +621,7 @@ def comparison_lookup(comparisons: Sequence[Mapping]) -> Callable[[tuple, tuple]
         if (a, b) in stored:
             return stored[a, b]
         if (b, a) in stored:
-            found = stored[b, a]
-            return replace(found, estimate=-found.estimate, low=-found.high, high=-found.low)
+            return reversed_interval(stored[b, a])
         return None
 
     return compare

@@ -13,9 +13,12 @@ column                    meaning
                           ``dataset.marker_noise_mm``, ...) or a table column (``m``, ``n_hand``); numeric,
                           or text (categories, drawn in order of appearance)
 ``<y>``                   an alpha column of the alpha table (``alpha_abs_mean``, ...), the mean over seeds
-``<y>_ci_low/_ci_high``   95 % confidence interval of that mean over seeds (or plain ``ci_low``/``ci_high``,
-                          which then belong to ``<y>``); optional, no band when absent or NaN
-``n_seeds``               runs behind the mean; optional
+``<y>_ci_low/_ci_high``   95 % interval of that estimate over seeds (or plain ``ci_low``/``ci_high``,
+                          which then belong to ``<y>``); optional, no band when absent or NaN; never below
+                          zero (alpha and errors are positive: a table whose interval reaches below zero is
+                          refused, see :mod:`workbench.reporting.statistics`)
+``n_seeds``               runs behind the estimate; optional, named beside the intervals
+``ci_method``             how the intervals were computed; optional, named beside them
 ========================  ====================================================================================
 """
 
@@ -29,6 +32,7 @@ from matplotlib.figure import Figure
 
 from workbench.errors import WorkbenchError
 from workbench.reporting.figures import basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
+from workbench.reporting.runs import interval_label
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
@@ -50,6 +54,8 @@ AXIS_LABELS = {
 
 
 def axis_label(column: str) -> str:
+    if column.startswith("clean_") and column.removeprefix("clean_") in AXIS_LABELS:
+        return f"{AXIS_LABELS[column.removeprefix('clean_')]}\nagainst the clean frames"
     return AXIS_LABELS.get(column, column)
 
 
@@ -59,6 +65,16 @@ def ci_columns(table: pd.DataFrame, y: str) -> tuple[str, str] | None:
         if low in table.columns and high in table.columns:
             return low, high
     return None
+
+
+def check_positive_intervals(table: pd.DataFrame, y: str, ci: tuple[str, str] | None) -> None:
+    """Refuse intervals of a positive quantity that reach below zero (a Student-t interval over a few seeds)."""
+    if ci is None:
+        return
+    low = pd.to_numeric(table[ci[0]], errors="coerce")
+    if (low < 0).any():
+        raise WorkbenchError(f"the interval of {y} reaches below zero ({low.min():.3g}); {y} cannot be negative: "
+                             "use a geometric interval (workbench.reporting.statistics.geometric_interval)")
 
 
 def _check_columns(table: pd.DataFrame, columns) -> None:
@@ -155,9 +171,10 @@ MARKERS = ("o", "s", "^", "D", "v", "P")
 
 def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
                        title: str, by: Sequence[str] = (), log_x: bool = False,
-                       points: pd.DataFrame | None = None) -> Figure:
-    """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 %
-    confidence band over seeds where the table has one and every seed's own value as a small point.
+                       points: pd.DataFrame | None = None, panels: Sequence[str] = ("data",)) -> Figure:
+    """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 % interval
+    over seeds as a band where the table has one (its method and n in the title) and every seed's own value as a
+    small point.
 
     Parameters
     ----------
@@ -177,24 +194,28 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
         Logarithmic x axis.
     points : pandas.DataFrame, optional
         One row per run and table row (columns as ``table``): every seed's value, drawn as small points.
+    panels : sequence of str
+        Columns whose combinations get a panel each (default: the data variant).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    _check_columns(table, ["data", "basis", "solver", x, y, *by])
+    panels = list(panels)
+    _check_columns(table, ["data", "basis", "solver", x, y, *by, *panels])
     rows = _solver_rows(table, solver)
     if rows.empty:
         raise WorkbenchError(f"the table has no rows for solver {solver!r}")
     ci = ci_columns(rows, y)
-    data_variants = list(dict.fromkeys(rows["data"]))
-    n_cols = min(len(data_variants), MAX_PANEL_COLUMNS)
-    n_rows = -(-len(data_variants) // n_cols)
+    check_positive_intervals(rows, y, ci)
+    panel_values = list(dict.fromkeys(rows[panels].astype(str).itertuples(index=False, name=None)))
+    n_cols = min(len(panel_values), MAX_PANEL_COLUMNS)
+    n_rows = -(-len(panel_values) // n_cols)
     width = max(4.6 * n_cols + 0.8, 8.0 if by else 0.0)
     figure = new_figure(width, 3.9 * n_rows + 0.7 + 0.25 * len(by))
     grid = figure.subplots(n_rows, n_cols, squeeze=False, sharey=True)
-    axes = grid.ravel()[:len(data_variants)]
-    for unused in grid.ravel()[len(data_variants):]:
+    axes = grid.ravel()[:len(panel_values)]
+    for unused in grid.ravel()[len(panel_values):]:
         unused.set_visible(False)
     categories = None
     if not pd.api.types.is_numeric_dtype(rows[x]) or pd.api.types.is_bool_dtype(rows[x]):
@@ -207,12 +228,15 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
         if categories is not None:
             seeds = seeds.assign(**{x: seeds[x].astype(str).map({c: i for i, c in enumerate(categories)})})
     groups = list(rows.groupby(list(by), sort=False, dropna=False)) if by else [((), rows)]
-    for ax, data in zip(axes, data_variants):
+    def in_panel(frame: pd.DataFrame, panel: tuple) -> pd.Series:
+        return (frame[panels].astype(str) == pd.Series(panel, index=panels)).all(axis=1)
+
+    for ax, panel in zip(axes, panel_values):
         span = float(np.ptp(rows[x].to_numpy(dtype=float))) or 1.0
         for k, (values, group) in enumerate(groups):
             values = values if isinstance(values, tuple) else (values,)
             setting = ", ".join(f"{key.split('.')[-1]}={value}" for key, value in zip(by, values))
-            part = group[group["data"] == data]
+            part = group[in_panel(group, panel)]
             for b, basis in enumerate(_ordered_bases(part["basis"])):
                 line = part[part["basis"] == basis].sort_values(x, kind="stable")
                 colour = basis_colour(basis)
@@ -229,23 +253,28 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
                 ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
                         linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
                 if seeds is not None:
-                    mine = seeds[(seeds["data"] == data) & (seeds["basis"] == basis)]
+                    mine = seeds[in_panel(seeds, panel) & (seeds["basis"] == basis)]
                     for key, value in zip(by, values):
                         mine = mine[mine[key].astype(str) == str(value)]
                     ax.scatter(mine[x], mine[y], s=9, color=colour, alpha=0.45, linewidths=0, zorder=3)
                 if has_ci:
                     ax.fill_between(line[x], line[ci[0]], line[ci[1]], color=colour, alpha=0.15, linewidth=0)
+                elif ci is not None and line[list(ci)].notna().any(axis=None):
+                    # some points lack an interval (one run kept that m): error bars where there is one
+                    known = line.dropna(subset=list(ci))
+                    ax.errorbar(known[x], known[y], yerr=np.vstack([known[y] - known[ci[0]], known[ci[1]] - known[y]]),
+                                color=colour, linestyle="none", capsize=3, alpha=0.6)
         if categories is not None:
             ax.set_xticks(range(len(categories)), categories)
         ax.set_xlabel(axis_label(x))
-        ax.set_title(f"data: {data}", fontsize=10)
+        ax.set_title(", ".join(f"{key.split('.')[-1]}: {value}" for key, value in zip(panels, panel)), fontsize=10)
         ax.grid(alpha=0.3)
         if log_x:
             ax.set_xscale("log")
     for row in grid:
         row[0].set_ylabel(axis_label(y))
     drawn = ci is not None and rows[list(ci)].notna().any(axis=None)
-    band = " (bands: 95 % CI over seeds" + ("; points: each seed)" if points is not None else ")") if drawn else ""
+    band = (f" ({interval_label(rows)}" + ("; points: each seed)" if points is not None else ")") if drawn else "")
     handles, labels = axes[-1].get_legend_handles_labels()
     # As many legend columns as the longest label leaves room for (about 5 points per character at size 8).
     columns = max(1, min(4, int(width * 72 / (5.0 * max(len(label) for label in labels) + 40))))
@@ -254,46 +283,71 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     return figure
 
 
-def plot_marker_vs_mesh(table: pd.DataFrame, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
-                        title: str) -> Figure:
-    """Alpha of each basis trained on each data variant, side by side (bars, with 95 % CI when present).
+def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"), *,
+                        solver: str = "lstsq", title: str) -> Figure:
+    """Each basis fitted on each data variant, scored on one evaluation set per panel (bars, with the 95 %
+    interval where the table has one): values compare within a panel, never across panels, whose points differ.
 
     Parameters
     ----------
     table : pandas.DataFrame
-        Alpha table or tidy table with at least two ``data`` variants.
-    y : str
+        Alpha table or tidy table: ``data`` (``train->eval`` when fitted on one variant and scored on another, or
+        a variant scored on its own points), ``basis``, ``solver`` and the ``y`` columns; ``train_on`` and
+        ``eval_on`` are read from ``data`` when absent.
+    y : str or sequence of str
+        The measures, one row of panels each (default: RMS error in mm and pooled displacement alpha, which do not
+        depend on where the coordinate origin is).
     solver : str
     title : str
 
     Returns
     -------
     matplotlib.figure.Figure
+        One panel per measure and evaluation set.
     """
-    _check_columns(table, ["data", "basis", "solver", y])
+    measures = [y] if isinstance(y, str) else list(y)
+    _check_columns(table, ["data", "basis", "solver", *measures])
     rows = _solver_rows(table, solver)
-    data_variants = list(dict.fromkeys(rows["data"]))
+    if "eval_on" not in rows.columns:
+        parts = rows["data"].astype(str).str.split("->")
+        rows = rows.assign(train_on=parts.str[0], eval_on=parts.str[-1])
+    evaluated = list(dict.fromkeys(rows["eval_on"]))
+    trained = list(dict.fromkeys(rows["train_on"]))
     bases = _ordered_bases(rows["basis"])
-    ci = ci_columns(rows, y)
-    width = 0.8 / len(data_variants)
-    figure = new_figure(6.8, 4.4)
-    ax = figure.add_subplot()
-    for k, data in enumerate(data_variants):
-        part = rows[rows["data"] == data].set_index("basis").reindex(bases)
-        positions = np.arange(len(bases)) + (k - (len(data_variants) - 1) / 2) * width
-        errors = None
-        if ci is not None and part[list(ci)].notna().all(axis=None):
-            errors = np.vstack([part[y] - part[ci[0]], part[ci[1]] - part[y]])
-        bars = ax.bar(positions, part[y], width=width * 0.95, yerr=errors, capsize=3,
-                      color=DATA_COLOURS.get(data, f"C{k}"), label=f"trained on {data}")
-        ax.bar_label(bars, fmt="%.3g", fontsize=8, padding=2)
-    ax.set_xticks(np.arange(len(bases)), [basis_label(b) for b in bases], fontsize=9)
-    ax.set_ylabel(axis_label(y))
-    ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=9)
-    ax.margins(y=0.12)
-    band = ", error bars: 95 % CI over seeds" if ci is not None else ""
-    ax.set_title(wrap_title(f"{title}\nsolver {solver}{band}", 6.8, 10), fontsize=10)
+    width = 0.8 / len(trained)
+    figure_width = max(6.8, 5.0 * len(evaluated))
+    figure = new_figure(figure_width, 3.9 * len(measures) + 1.2)
+    grid = figure.subplots(len(measures), len(evaluated), squeeze=False)
+    notes = []
+    for measure, axes in zip(measures, grid):
+        ci = ci_columns(rows, measure)
+        check_positive_intervals(rows, measure, ci)
+        for ax, evaluation in zip(axes, evaluated):
+            for k, train in enumerate(trained):
+                part = rows[(rows["eval_on"] == evaluation) & (rows["train_on"] == train)]
+                part = part.drop_duplicates("basis").set_index("basis").reindex(bases)
+                if part[measure].isna().all():
+                    continue
+                errors = None
+                if ci is not None and part[list(ci)].notna().all(axis=None):
+                    errors = np.vstack([part[measure] - part[ci[0]], part[ci[1]] - part[measure]])
+                positions = np.arange(len(bases)) + (k - (len(trained) - 1) / 2) * width
+                bars = ax.bar(positions, part[measure], width=width * 0.95, yerr=errors, capsize=3,
+                              color=DATA_COLOURS.get(train, f"C{k}"), label=f"fitted on {train}")
+                ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=2)
+            ax.set_xticks(np.arange(len(bases)), [basis_label(b).replace(" (", "\n(") for b in bases], fontsize=8)
+            ax.set_ylabel(axis_label(measure), fontsize=9)
+            points = rows.loc[rows["eval_on"] == evaluation, "n_points"] if "n_points" in rows.columns else []
+            where = f"scored on {evaluation}" + (f" ({round(float(points.iloc[0]))} points)" if len(points) else "")
+            ax.set_title(where, fontsize=9, loc="left")
+            ax.grid(axis="y", alpha=0.3)
+            ax.margins(y=0.15)
+        if ci is not None and rows[list(ci)].notna().any(axis=None):
+            notes.append(interval_label(rows))
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside lower center", ncols=max(1, len(labels)), fontsize=8, frameon=False)
+    band = f", error bars: {notes[0]}" if notes else ""
+    figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", figure_width), fontsize=10)
     return figure
 
 
