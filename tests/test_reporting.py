@@ -457,9 +457,10 @@ def assert_reference_is_small_and_clean(reference, readme: str) -> None:
 
 # bytes, every file under reports/. The aim is half of the 13 MB that reports/ held before its figures were made
 # smaller (PNG renders, plotly.js beside them, figure 1 in every report): 6.5 MB. The reports have since gained the
-# held-out protocols' tables and two figures of the weights and errors (about 1.1 MB in all), and hold 7.35 MB with
-# lossless renders; the budget keeps them from growing further until it is decided how to reach the aim.
-REPORTS_BUDGET = 7_500_000
+# held-out protocols, paired comparisons and two figures of the weights and errors (over 1 MB in all), and the
+# bases study five takes; with lossless renders they hold 7.9 MB. The budget keeps them from growing further until
+# it is decided how to reach the aim.
+REPORTS_BUDGET = 8_000_000
 
 
 def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_show():
