@@ -10,12 +10,15 @@ output folder:
   standard deviation and 95 % t-interval over the replicate (seed) settings;
 - ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``mean ± half-width`` with conditions as rows and
   bases as columns.
+
+The parquet copies need pyarrow (the parquet extra); without it they are left out, with one line saying so.
 """
 
 from __future__ import annotations
 
 import argparse
 import io
+import logging
 import math
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -24,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
+from workbench.extras import has_module, install_hint
 from workbench.record import DONE, inside, write_atomic
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, config_columns, replicate_columns,
                                       summarise)
@@ -181,9 +185,12 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     out = Path(out)
-    files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
-             "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),
+    files = {"runs.csv": runs.to_csv(index=False), "summary.csv": summary.to_csv(index=False),
              "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title)}
+    if has_module("pyarrow"):
+        files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
+    else:  # the CSV files hold the same tables
+        logging.getLogger("workbench").warning(f"parquet copies of the tables left out: {install_hint('parquet')}")
     for name, content in files.items():
         write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
