@@ -210,6 +210,7 @@ def commands(doc: str, root: Path = REPO_ROOT) -> list[Command]:
 
 
 def all_commands(root: Path = REPO_ROOT) -> dict[str, list[Command]]:
+    """The commands of every document, by document."""
     return {doc: commands(doc, root) for doc in documents(root)}
 
 
@@ -264,7 +265,8 @@ def reads(command: Command) -> set[str]:
 
 
 def covers(made: str, path: str) -> bool:
-    return path == made or path.startswith(made + "/") or (made == "outputs/paper" and path.startswith("outputs/paper/"))
+    """Whether a command that makes ``made`` makes ``path`` (the same, or inside it)."""
+    return path == made or path.startswith(made + "/")
 
 
 def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Command]:
@@ -303,6 +305,7 @@ class Outcome:
     seconds: float = 0.0
     cpu_seconds: float = 0.0
     peak_mb: float = 0.0
+    load: float = 0.0          # the machine's load average over the last minute, when the command ended
     note: str = ""
     prerequisite: bool = False
     output: str = field(default="", repr=False)
@@ -402,7 +405,7 @@ class Scratch:
         note = "" if code == 0 else "a tool is not installed" if code == 77 else f"exit {code}"
         if code == -signal.SIGKILL:
             note = f"killed after {timeout:.0f} s"
-        return Outcome(command, status, seconds, cpu, peak, note, output=output)
+        return Outcome(command, status, seconds, cpu, peak, os.getloadavg()[0], note, output=output)
 
 
 def table_rows(root: Path = REPO_ROOT) -> dict[str, list[str]]:
@@ -460,7 +463,7 @@ def run_document(doc: str, scratch: Scratch, *, measure: bool = False, timeout: 
             lines.append(runnable(command, scratch.tmp))
         outcomes.append(outcome)
         report(f"{outcome.status:8s} {outcome.seconds:7.1f} s {outcome.cpu_seconds:7.1f} s CPU {outcome.peak_mb:7.0f} MB"
-               f"  {command.doc}:{command.line}"
+               f" load {outcome.load:4.1f}  {command.doc}:{command.line}"
                f"{' (prerequisite)' if prerequisite else ''}  {command.summary}  {outcome.note}")
         if outcome.status == "failed" and not measure:
             break
@@ -480,7 +483,6 @@ def write_times(outcomes: list[Outcome], root: Path = REPO_ROOT) -> None:
     head, rest = path.read_text().split(TABLE_START)
     tail = rest.split(TABLE_END)[1]
     rows = {key: "| " + " | ".join(cells) + " |" for key, cells in table_rows(root).items()}
-    load = os.getloadavg()[0]
     date = time.strftime("%Y-%m-%d")
     for outcome in outcomes:
         if outcome.status != "ok" or outcome.prerequisite:
@@ -490,7 +492,7 @@ def write_times(outcomes: list[Outcome], root: Path = REPO_ROOT) -> None:
         shown = command.summary.replace("|", "\\|")
         rows[command.key] = (f"| {command.doc}:{command.line} | `{shown}` | {outcome.seconds:.0f} s | "
                              f"{outcome.cpu_seconds:.0f} s | {outcome.peak_mb / 1024:.1f} GB | {long} | {date}, "
-                             f"load {load:.1f} | `{command.key}` |")
+                             f"load {outcome.load:.1f} | `{command.key}` |")
     ordered = [command.key for listed in all_commands(root).values() for command in listed]
     kept = [rows[key] for key in dict.fromkeys(ordered) if key in rows]
     path.write_text(head + TABLE_START + "\n" + "".join(row + "\n" for row in kept) + TABLE_END + tail)
