@@ -37,7 +37,7 @@ def test_pyproject_lists_every_package_and_maps_the_configs_into_it():
     setuptools = PYPROJECT["tool"]["setuptools"]
     on_disk = {".".join(path.parent.relative_to(REPO_ROOT).parts)
                for top in ("workbench", "hydra_plugins") for path in (REPO_ROOT / top).rglob("__init__.py")}
-    assert set(setuptools["packages"]) == on_disk | {"workbench.conf", "workbench.studies"}
+    assert set(setuptools["packages"]) == on_disk | {"hydra_plugins", "workbench.conf", "workbench.studies"}
     assert setuptools["package-dir"] == {"workbench.conf": "conf", "workbench.studies": "studies"}
     data = setuptools.get("package-data", {})
     kinds = {path.suffix for path in CONF_DIR.rglob("*") if path.is_file()}
