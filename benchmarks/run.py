@@ -10,6 +10,8 @@ Run from the repository root (not part of the test suite):
         --cache-dir /tmp/wb-cache                                       # full-head size (26,732), out of core
     python benchmarks/run.py gaps         # masked solve (capture gaps) against per-frame solves on the seen markers
     python benchmarks/run.py mapped       # PCA of RBF-interpolated mesh frames in marker space, lifted, vs direct
+    python benchmarks/run.py cache        # the dataset cache (paths.cache_dir) against no cache: ict_livelink,
+                                          #   animface and the synthetic actor (write, hit, sizes on disk)
     python benchmarks/run.py all
 
 The run starts by printing the BLAS library, its kernel and threads (threadpoolctl) and the OpenBLAS variables of
@@ -23,7 +25,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
+import tempfile
 from dataclasses import replace
+from pathlib import Path
 import resource
 import time
 
@@ -332,9 +337,122 @@ def bench_sweep(args) -> None:
           f"peak {peak_mb():.0f} MB")
 
 
+CACHE_DATASETS = {"ict_livelink": ["dataset=ict_livelink"], "animface": ["dataset=animface"], "synthetic": []}
+"""Datasets of the cache scenario: the paper study's overrides of each (its default variants)."""
+
+
+def folder_bytes(paths) -> int:
+    """Bytes of the files ``paths``."""
+    return sum(path.stat().st_size for path in paths)
+
+
+def captures_digest(captures: dict) -> str:
+    """SHA-256 of every array of ``{variant: Capture}`` (frames read a chunk at a time), to compare two builds."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for name, capture in captures.items():
+        digest.update(name.encode())
+        for field in ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator",
+                      "point_support"):
+            value = getattr(capture, field)
+            if value is None:
+                digest.update(b"none")
+                continue
+            chunks = frame_chunks(value, dtype=value.dtype) if value.ndim == 2 else [(None, value)]
+            for _, chunk in chunks:
+                digest.update(np.ascontiguousarray(chunk).tobytes())
+    return digest.hexdigest()
+
+
+def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[float, str]:
+    """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
+    paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
+    excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.pipeline import run_study
+    from workbench.run_text import alpha_table
+
+    cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))
+    if not study:
+        captures, seconds = timed(build_captures, cfg["dataset"], cache_dir)
+        return seconds, captures_digest(captures)
+    results, seconds = timed(run_study, cfg)
+    tables = [alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
+                          coverage=result.eigenfaces.coverage_, paper_alpha={}).to_csv(float_format="%.17g")
+              for result in results]
+    return seconds, "\n".join(tables)
+
+
+def in_new_process(function, *args):
+    """``function(*args)`` in a new Python process (the cache scenario times what a new run pays: nothing that an
+    earlier step of the benchmark read or parsed is still in the process's memory)."""
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        return pool.apply(function, args)
+
+
+def bench_cache(args) -> None:
+    """The dataset cache against building without one, per dataset, each step in a new process: the build with no
+    cache, a miss (the build and the writing of the entry into an empty cache folder), a hit (the entry read back),
+    the size of the entry on disk, and the whole paper study without a cache and from a hit; then what hashing
+    costs: the source files (once per process) and the entry's files (every hit checks their SHA-256)."""
+    import hashlib
+
+    from workbench.cli import resolved_without_hydra
+    from workbench.config import compose
+    from workbench.dataset.cache import clear_memory, file_digest, source_files
+
+    def hash_files(paths):
+        for path in paths:
+            with open(path, "rb") as stream:
+                hashlib.file_digest(stream, "sha256")
+
+    root = Path(args.cache_dir) if args.cache_dir else Path(tempfile.mkdtemp(prefix="wb-cache-bench-"))
+    print(f"== dataset cache: {', '.join(args.cache_datasets)}; each step in a new process (imports not timed); "
+          f"medians of {args.repeats}; cache folders under {root}")
+    try:
+        for name in args.cache_datasets:
+            overrides, folder = CACHE_DATASETS[name], root / name
+            steps = {"build": [], "miss": [], "hit": [], "study": [], "study hit": []}
+            digests = {key: set() for key in steps}
+            for _ in range(args.repeats):  # interleaved, so that a change in the machine's load hits each alike
+                shutil.rmtree(folder, ignore_errors=True)
+                for step, cache_dir, study in (("build", None, False), ("miss", folder, False),
+                                               ("hit", folder, False), ("study", None, True),
+                                               ("study hit", folder, True)):
+                    seconds, digest = in_new_process(cache_step, overrides, cache_dir and str(folder), study)
+                    steps[step].append(seconds)
+                    digests[step].add(digest)
+            build, miss, hit, study, study_hit = (float(np.median(steps[step])) for step in steps)
+            entry = [path for path in folder.rglob("*") if path.is_file()]
+            same = len(digests["build"] | digests["miss"] | digests["hit"]) == 1
+            same_tables = len(digests["study"] | digests["study hit"]) == 1
+            print(f"{name}: build without cache {build:.2f} s; miss (build + write) {miss:.2f} s, so write "
+                  f"{miss - build:.2f} s (x{miss / build:.2f} the build); hit {hit:.2f} s (x{hit / build:.2f} the "
+                  f"build); on disk {folder_bytes(entry) / 2**20:.1f} MiB in {len(entry)} files; hit equals build: "
+                  f"{same}")
+            print(f"{name} whole paper study: without cache {study:.2f} s, from a cache hit {study_hit:.2f} s "
+                  f"(x{study_hit / study:.2f}); alpha tables identical to every digit: {same_tables}")
+            cfg = resolved_without_hydra(compose("paper", overrides))
+            sources = source_files(cfg["dataset"])
+            clear_memory()
+            source_seconds = timed(lambda: [file_digest(path) for path in sources])[1]
+            remembered = timed(lambda: [file_digest(path) for path in sources])[1]
+            entry_seconds = float(np.median([timed(hash_files, entry)[1] for _ in range(args.repeats)]))
+            print(f"{name} hashing (SHA-256): its {len(sources)} source files ({folder_bytes(sources) / 2**20:.1f} "
+                  f"MiB) {source_seconds:.3f} s once per process, then {remembered * 1e3:.2f} ms (remembered); the "
+                  f"entry's files {entry_seconds:.3f} s, part of every hit")
+    finally:
+        if not args.cache_dir:
+            shutil.rmtree(root, ignore_errors=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "all"])
+    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "all"])
     parser.add_argument("--mapped-dataset", choices=["animface", "synthetic"], default="animface",
                         help="data of the mapped scenario (animface reads ../shared/data or WORKBENCH_DATA_ROOT)")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats of the marker fast path (median)")
@@ -351,7 +469,11 @@ def main() -> None:
                         help="storage of the mesh frames (dataset.dtype)")
     parser.add_argument("--storage", choices=["memory", "disk"], default="memory",
                         help="where the mesh frames live (dataset.storage; disk needs --cache-dir)")
-    parser.add_argument("--cache-dir", default=None, help="paths.cache_dir of the mesh scenario")
+    parser.add_argument("--cache-dir", default=None,
+                        help="paths.cache_dir of the mesh scenario; folder of the cache scenario's entries (a "
+                             "temporary folder, removed afterwards, when not given)")
+    parser.add_argument("--cache-datasets", nargs="+", choices=sorted(CACHE_DATASETS),
+                        default=["ict_livelink", "animface", "synthetic"], help="datasets of the cache scenario")
     parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
     args = parser.parse_args()
     print(blas_report())
@@ -365,6 +487,8 @@ def main() -> None:
         bench_mapped(args)
     if args.scenario in ("mesh", "all"):
         bench_mesh(args)
+    if args.scenario in ("cache", "all"):
+        bench_cache(args)
 
 
 if __name__ == "__main__":

@@ -44,3 +44,88 @@ def chromium() -> str:
             pytest.fail(reason + " -- required because WORKBENCH_REQUIRE_BROWSER=1", pytrace=False)
         pytest.skip(reason)
     return found
+
+
+def require_or_skip(variable: str, reason: str) -> None:
+    """Skip with ``reason``, or fail when the environment variable ``variable`` is 1 (CI sets it where the thing
+    must be there)."""
+    if os.environ.get(variable) == "1":
+        pytest.fail(f"{reason} -- required because {variable}=1", pytrace=False)
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="session")
+def mlflow_server(tmp_path_factory):
+    """URL of an MLflow tracking server: ``WORKBENCH_MLFLOW_SERVER`` (CI starts one beside the test run), else
+    one started here for the session (SQLite backend, local artifact folder, loopback only); needs the mlflow
+    extra."""
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
+
+    def healthy(url: str) -> bool:
+        try:
+            with urllib.request.urlopen(f"{url}/health", timeout=5) as answer:
+                return answer.status == 200
+        except OSError:
+            return False
+
+    configured = os.environ.get("WORKBENCH_MLFLOW_SERVER")
+    if configured:
+        if not healthy(configured):
+            pytest.fail(f"WORKBENCH_MLFLOW_SERVER={configured} does not answer on /health", pytrace=False)
+        yield configured.rstrip("/")
+        return
+    folder = tmp_path_factory.mktemp("mlflow-server")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    url = f"http://127.0.0.1:{port}"
+    with open(folder / "server.log", "wb") as server_log:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{folder / 'mlflow.db'}",
+             "--artifacts-destination", str(folder / "artifacts"), "--host", "127.0.0.1", "--port", str(port),
+             "--workers", "1"],
+            env=dict(os.environ, MLFLOW_SERVER_ENABLE_JOB_EXECUTION="false"), stdout=server_log,
+            stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not healthy(url):
+            if server.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"mlflow server did not start: {(folder / 'server.log').read_text()[-2000:]}",
+                            pytrace=False)
+            time.sleep(0.5)
+        yield url
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)  # the server and the workers it started, in their own session
+        try:
+            server.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait()
+
+
+@pytest.fixture(scope="session")
+def slurm_cluster() -> Path:
+    """The folder of the single-node SLURM cluster ``.ci/slurm-cluster start`` brought up (``SLURM_CONF`` names
+    its slurm.conf); skipped without it, failed when ``WORKBENCH_REQUIRE_CLUSTER=1`` (as CI sets)."""
+    import subprocess
+
+    conf = Path(os.environ.get("SLURM_CONF", "/nonexistent"))
+    how = "start one with 'sudo .ci/slurm-cluster start' and export the SLURM_CONF it prints"
+    if not conf.is_file() or not conf.read_text().startswith("# Written by .ci/slurm-cluster"):
+        require_or_skip("WORKBENCH_REQUIRE_CLUSTER", f"no test SLURM cluster (SLURM_CONF={conf}): {how}")
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher", reason="the cluster extra is not installed")
+    try:
+        state = subprocess.run(["sinfo", "--noheader", "--partition", "debug", "--format", "%T"],
+                               capture_output=True, text=True, timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError) as error:
+        state = f"sinfo failed: {error}"
+    if state not in ("idle", "mixed", "allocated"):
+        require_or_skip("WORKBENCH_REQUIRE_CLUSTER", f"the test SLURM cluster's node is not up ({state!r}): {how}")
+    return conf.parent

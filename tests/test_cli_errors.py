@@ -17,14 +17,14 @@ def run_cli(*args, cwd):
 def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
     quiet = run_cli("basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path)
     assert quiet.returncode == 2
-    assert quiet.stderr.strip().splitlines() == ["workbench: error: coverage must be in (0, 1], got 1.5"]
+    assert quiet.stderr.strip().splitlines() == ["workbench: error: basis.coverage must be in (0, 1], got 1.5"]
     assert "Traceback" not in quiet.stdout + quiet.stderr
 
     verbose = run_cli("--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}",
                       cwd=tmp_path)
     assert verbose.returncode == 2
-    assert "Traceback (most recent call last)" in verbose.stderr and "bases.py" in verbose.stderr
-    assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: coverage must be in (0, 1], got 1.5"
+    assert "Traceback (most recent call last)" in verbose.stderr and "schema.py" in verbose.stderr
+    assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
 
 
 def test_bad_solver_bounds_name_the_setting(tmp_path):
@@ -38,3 +38,30 @@ def test_subcommand_errors_are_one_line(tmp_path):
     result = run_cli("report", str(tmp_path / "nowhere"), cwd=tmp_path)
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
     assert result.stderr.startswith("workbench report: error: ") and "nowhere" in result.stderr
+
+
+def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
+    """argparse's usage block, a figure that needs four shapes, an unknown table layout: one line each, exit 2."""
+    from workbench.cli import run
+    from workbench.config import compose
+
+    record = tmp_path / "sweep" / "run"
+    run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
+    cases = {
+        ("collect",): "workbench collect: error: the following arguments are required: paths (see workbench "
+                      "collect --help)",
+        ("report", str(record), "--bogus", "1"): "workbench report: error: unrecognized arguments: --bogus 1 (see "
+                                                 "workbench report --help)",
+        ("export",): "workbench export: error: the following arguments are required: run (see workbench export "
+                     "--help)",
+        ("report", str(record), "--shapes", "jaw_open,smile"): "workbench report: error: --shapes takes 4 distinct "
+                                                               "hand-shape names (figure 2 shows 4), got ['jaw_open', "
+                                                               "'smile']",
+        ("collect", str(tmp_path / "sweep"), "--columns", "nope"): "workbench collect: error: collect --columns must "
+                                                                   "be 'metric' or a key of the runs",
+    }
+    for arguments, expected in cases.items():
+        result = run_cli(*arguments, cwd=tmp_path)
+        assert result.returncode == 2, (arguments, result.stderr)
+        assert len(result.stderr.splitlines()) == 1 and result.stderr.startswith(expected), (arguments, result.stderr)
+    assert not (record / "report").exists() and not (tmp_path / "sweep" / "collected").exists()

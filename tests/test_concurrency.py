@@ -22,9 +22,14 @@ def cli_env() -> dict:
     return dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
 
 
+def default_sigint():
+    """The child's Ctrl-C as a user's, even when this test runner was started with SIGINT ignored (nohup)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start(arguments, cwd: Path) -> subprocess.Popen:
     return subprocess.Popen(command(*arguments), cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=cli_env())
+                            env=cli_env(), preexec_fn=default_sigint)
 
 
 def test_identical_sweeps_into_one_folder_do_every_run_exactly_once(tmp_path):

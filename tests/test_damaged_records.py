@@ -1,24 +1,38 @@
-"""`workbench report` and `workbench collect` on damaged records: one line naming the file and field (exit 2),
-and nothing written outside the output folder."""
+"""Damaged records: one line naming the file and field (exit 2), and nothing written outside the output folder.
+
+A record's ``done`` holds the checksums of its files, so a file changed after the run is refused by every reader
+(report, collect, mlflow, export) before its content is used. The field checks below apply to a record whose
+checksums were written anew after the damage (a record made by another tool, or by hand): they are what stands
+between a malformed file and the tables.
+"""
 
 import json
+import os
 import shutil
+import subprocess
 import sys
 
 import pytest
 
 from workbench import cli
 from workbench.cli import run
-from workbench.config import compose
-from workbench.record import inside
+from workbench.config import REPO_ROOT, compose
+from workbench.record import DONE, file_checksum, inside, is_record_file
 
 
 @pytest.fixture(scope="module")
 def record(tmp_path_factory):
     folder = tmp_path_factory.mktemp("records") / "sweep" / "run"
-    cfg = compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"])
+    cfg = compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq",
+                            "save_inputs=true"])
     run(cfg, folder)
     return folder
+
+
+def reseal(folder):
+    """Write ``done`` anew with the checksums of the record files now in ``folder``."""
+    names = sorted(path.name for path in folder.iterdir() if path.name != DONE and is_record_file(path.name))
+    (folder / DONE).write_text(json.dumps({"sha256": {name: file_checksum(folder / name) for name in names}}))
 
 
 def edit_json(name, change):
@@ -90,6 +104,7 @@ def test_damaged_record_is_refused_in_one_line_naming_file_and_field(record, tmp
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     damage(folder)
+    reseal(folder)
     out = tmp_path / "out"
     code, captured = cli_main(monkeypatch, capsys, command, str(tmp_path / "sweep"), "--out", str(out))
     lines = captured.err.strip().splitlines()
@@ -108,3 +123,61 @@ def test_inside_refuses_paths_leaving_the_folder(tmp_path):
     for escaping in (["..", "x"], ["figures/../../x"], ["/etc/passwd"]):
         with pytest.raises(ValueError, match="is not inside the output folder"):
             inside(tmp_path, *escaping)
+
+
+def edit_bytes(name, change):
+    return lambda folder: (folder / name).write_bytes(change((folder / name).read_bytes()))
+
+
+TAMPERED = {
+    "metrics.json edited": (edit_json("metrics.json", lambda m: m["rows"][0].__setitem__("alpha_abs_mean", 0.01)),
+                            "metrics.json was changed after the run"),
+    "config.yaml edited": (replace_in("config.yaml", "n_frames: 300", "n_frames: 301"),
+                           "config.yaml was changed after the run"),
+    "alpha_table.csv edited": (edit_bytes("alpha_table.csv", lambda data: data.replace(b"0.", b"1.", 1)),
+                               "alpha_table.csv was changed after the run"),
+    "inputs.npz edited": (edit_bytes("inputs.npz", lambda data: data[:-40] + bytes(40)),
+                          "inputs.npz was changed after the run"),
+    "timings.json removed": (lambda folder: (folder / "timings.json").unlink(), "timings.json is missing"),
+    "done damaged": (write(DONE, "{\"sha256\": 3}"), "'done' is damaged"),
+}
+
+
+def workbench_process(*arguments, cwd):
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
+    return subprocess.run([sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=300)
+
+
+@pytest.mark.parametrize("case", list(TAMPERED))
+def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_path, case):
+    damage, expected = TAMPERED[case]
+    folder = tmp_path / "sweep" / "run"
+    shutil.copytree(record, folder)
+    damage(folder)
+    commands = {"report": ["report", str(folder), "--out", str(tmp_path / "report")],
+                "collect": ["collect", str(tmp_path / "sweep"), "--out", str(tmp_path / "collected")],
+                "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
+                "export": ["export", str(folder), "--out", str(tmp_path / "export")]}
+    # inputs.npz is read (and checked) when a report draws the figures that need it
+    for command, arguments in commands.items() if case != "inputs.npz edited" else [("report", commands["report"])]:
+        result = workbench_process(*arguments, cwd=tmp_path)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2, (command, result.stderr)
+        assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: run record {folder}"), lines
+        assert expected in lines[0], (command, lines)
+    for name in ("report", "collected", "export"):
+        assert not (tmp_path / name).exists() or not any((tmp_path / name).iterdir()), name
+
+
+def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp_path):
+    folder = tmp_path / "run"
+    shutil.copytree(record, folder)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (folder / "report").symlink_to(elsewhere)
+    result = workbench_process("report", str(folder), cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip() == (f"workbench report: error: refusing to write {folder / 'report'}: it is not "
+                                     f"inside the output folder {folder} (a symbolic link leads to {elsewhere})")
+    assert list(elsewhere.iterdir()) == []

@@ -31,10 +31,10 @@ def one_line(result: subprocess.CompletedProcess) -> str:
 
 @pytest.fixture
 def small_tmpfs(tmp_path):
-    """A 40 KiB tmpfs (too small for a run record), where the test may mount one."""
+    """A 24 KiB tmpfs (too small for a run record), where the test may mount one."""
     folder = tmp_path / "small-disk"
     folder.mkdir()
-    if shutil.which("mount") is None or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=40k", "tmpfs",
+    if shutil.which("mount") is None or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=24k", "tmpfs",
                                                         str(folder)], capture_output=True).returncode != 0:
         pytest.skip("cannot mount a tmpfs here (the simulated ENOSPC test covers the message)")
     yield folder
@@ -47,6 +47,23 @@ def test_a_full_disk_names_the_file_and_leaves_no_partial_record(small_tmpfs, tm
     assert line.startswith(f"workbench: error: {folder}/") and line.endswith(": cannot write (No space left on "
                                                                              "device)"), line
     assert not folder.exists()
+
+
+def test_a_full_disk_for_the_job_log_is_one_warning_line(tmp_path):
+    """The log is written after the record: the record stays complete, and the full disk is named once."""
+    import logging
+
+    from workbench.tracking import RunLog
+
+    handler = RunLog(tmp_path / "full" / "workbench.log", delay=True)  # its folder missing: the open fails
+    result = subprocess.run([sys.executable, "-c", "import logging, sys; from workbench.tracking import RunLog; "
+                             f"h = RunLog({str(tmp_path / 'full' / 'workbench.log')!r}, delay=True); "
+                             "log = logging.getLogger('x'); log.addHandler(h); log.warning('a'); log.warning('b')"],
+                            capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    assert result.returncode == 0 and result.stderr == (
+        f"workbench: warning: cannot write {tmp_path / 'full' / 'workbench.log'} (No such file or directory); the "
+        "record is complete, only the copy of what the run printed is missing\n")
+    assert isinstance(handler, logging.FileHandler)
 
 
 def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):

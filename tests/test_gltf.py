@@ -1,6 +1,8 @@
 """glTF morph meshes: write and read back, files from other tools (sparse morph targets, several primitives,
 interleaved positions), and damaged or unsupported files."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -104,3 +106,117 @@ def test_bad_files_are_one_line_errors(tmp_path):
     with pytest.raises(WorkbenchError, match=r"must be finite"):
         glb_bytes(MorphMesh(neutral=mesh.neutral * np.nan, triangles=mesh.triangles, names=mesh.names,
                             deltas=mesh.deltas))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Damaged files: every one a one-line error naming the file and the part at fault (none an unexpected error)
+# ----------------------------------------------------------------------------------------------------------
+
+def split_glb(data):
+    import json
+    import struct
+
+    n = struct.unpack("<I", data[12:16])[0]
+    return json.loads(data[20:20 + n]), bytearray(data[20 + n + 8:])
+
+
+def join_glb(document, blob):
+    import json
+    import struct
+
+    text = json.dumps(document).encode()
+    text += b" " * (-len(text) % 4)
+    body = (struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(blob), 0x004E4942)
+            + bytes(blob))
+    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
+def first_value(document, accessor):
+    """Byte offset of an accessor's first value in the binary chunk."""
+    entry = document["accessors"][accessor]
+    return document["bufferViews"][entry["bufferView"]].get("byteOffset", 0) + entry.get("byteOffset", 0)
+
+
+def set_float(document, blob, accessor, value, item=0):
+    import struct
+
+    start = first_value(document, accessor) + 4 * item
+    blob[start:start + 4] = struct.pack("<f", value)
+
+
+def add_sparse(document, blob, index, component=5125):
+    """Make accessor 2 (the first morph target) sparse with one index, ``index``."""
+    import struct
+
+    document["bufferViews"] += [{"buffer": 0, "byteOffset": len(blob), "byteLength": 4},
+                                {"buffer": 0, "byteOffset": len(blob) + 4, "byteLength": 12}]
+    blob += struct.pack("<I", index) + bytes(12)
+    document["accessors"][2]["sparse"] = {"count": 1, "values": {"bufferView": len(document["bufferViews"]) - 1},
+                                          "indices": {"bufferView": len(document["bufferViews"]) - 2,
+                                                      "componentType": component}}
+
+
+def primitive(document):
+    return document["meshes"][0]["primitives"][0]
+
+
+DAMAGED = {
+    "no POSITION": (lambda d, b: primitive(d)["attributes"].pop("POSITION"),
+                    r"mesh 'face' primitive 0 has no POSITION attribute"),
+    "accessor index": (lambda d, b: primitive(d)["attributes"].__setitem__("POSITION", 99),
+                       r"accessor 99 does not exist \(the file has 6\)"),
+    "indices accessor": (lambda d, b: primitive(d).__setitem__("indices", -1), r"accessor -1 does not exist"),
+    "target accessor": (lambda d, b: primitive(d)["targets"][0].__setitem__("POSITION", "2"),
+                        r"accessor '2' does not exist"),
+    "buffer view index": (lambda d, b: d["accessors"][0].__setitem__("bufferView", 99),
+                          r"buffer view 99 does not exist"),
+    "component type": (lambda d, b: d["accessors"][0].__setitem__("componentType", 9999),
+                       r"accessor 0 is VEC3 of component type 9999, but holds positions"),
+    "float indices": (lambda d, b: d["accessors"][1].__setitem__("componentType", 5126),
+                      r"accessor 1 is SCALAR of component type 5126, but holds indices"),
+    "accessor type": (lambda d, b: d["accessors"][0].__setitem__("type", "MAT4"), r"accessor 0 is MAT4"),
+    "negative count": (lambda d, b: d["accessors"][0].__setitem__("count", -3),
+                       r"accessor 0 count must be an integer in \[0, 100000000\], got -3"),
+    "huge count": (lambda d, b: d["accessors"][0].__setitem__("count", 10 ** 12), r"accessor 0 count must be"),
+    "negative offset": (lambda d, b: d["accessors"][0].__setitem__("byteOffset", -8),
+                        r"accessor 0 byteOffset must be an integer >= 0"),
+    "short stride": (lambda d, b: d["bufferViews"][0].__setitem__("byteStride", 1),
+                     r"buffer view 0 byteStride must be an integer >= 12, got 1"),
+    "sampler index": (lambda d, b: d["animations"][0]["channels"][0].__setitem__("sampler", 7),
+                      r"animation 'take' sampler 7 does not exist"),
+    "sparse index out of range": (lambda d, b: add_sparse(d, b, 100000),
+                                  r"accessor 2 sparse indices must increase and stay below its 5 elements"),
+    "sparse component type": (lambda d, b: add_sparse(d, b, 1, component=5126),
+                              r"accessor 2 sparse indices have component type 5126"),
+    "index out of range": (lambda d, b: b.__setitem__(slice(first_value(d, 1), first_value(d, 1) + 4),
+                                                      (10 ** 6).to_bytes(4, "little")),
+                           r"indices are not triangles over its 5 vertices"),
+    "NaN in the neutral": (lambda d, b: set_float(d, b, 0, float("nan")),
+                           r"accessor 0 element 0 holds NaN or Inf \(positions\)"),
+    "Inf weight": (lambda d, b: set_float(d, b, 5, float("inf")), r"accessor 5 element 0 holds NaN or Inf"),
+    "vertex at 1e30": (lambda d, b: set_float(d, b, 3, 1e30, item=4),
+                       r"\(morph target blink\): vertex 1 lies 1e\+33 mm from the face's centre"),
+    "time going back": (lambda d, b: set_float(d, b, 4, -5.0, item=1),
+                        r"animation 'take': key times must increase \(key 1 at -5 s follows 0 s\)"),
+    "target names not text": (lambda d, b: d["meshes"][0]["extras"].__setitem__("targetNames", [1, 2]),
+                              r"extras\.targetNames must name its 2 morph targets once each, got \[1, 2\]"),
+    "target names a string": (lambda d, b: d["meshes"][0]["extras"].__setitem__("targetNames", "ab"),
+                              r"extras\.targetNames must name its 2 morph targets once each, got 'ab'"),
+    "unknown chunk and version": (lambda d, b: d["asset"].__setitem__("version", "3.0"), r"glTF version 3\.0"),
+}
+
+
+@pytest.mark.parametrize("case", list(DAMAGED))
+def test_damaged_files_are_one_line_errors_naming_the_part(tmp_path, case, recwarn):
+    change, message = DAMAGED[case]
+    document, blob = split_glb(glb_bytes(small_mesh(np.random.default_rng(5))))
+    change(document, blob)
+    path = tmp_path / "damaged.glb"
+    data = join_glb(document, blob)
+    if case == "unknown chunk and version":
+        data = data[:4] + (3).to_bytes(4, "little") + data[8:] + (8).to_bytes(4, "little") + b"XTRA" + bytes(8)
+        data = data[:8] + len(data).to_bytes(4, "little") + data[12:]
+    path.write_bytes(data)
+    with pytest.raises(WorkbenchError, match=r"^" + re.escape(str(path)) + r".*" + message):
+        read_morph_mesh(path)
+    assert not [warning for warning in recwarn if "pygltflib" in str(warning.filename)], "pygltflib's warnings leak"

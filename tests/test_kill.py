@@ -29,7 +29,7 @@ import pytest
 import yaml
 
 from workbench.config import REPO_ROOT
-from workbench.record import TEMPORARY_SUFFIX
+from workbench.record import TEMPORARY_SUFFIX, file_checksum
 from workbench.tracking import DONE, LOCK_FILE, record_state
 
 RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true"]
@@ -46,7 +46,7 @@ SEED = 20261123
 
 RECORD_FILES = ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.json", "timings.json", "inputs.npz",
                 "alpha_per_frame.npz", DONE)
-SAME_BYTES = ("config.yaml", "alpha_table.csv", "alpha_table.md", DONE)
+SAME_BYTES = ("config.yaml", "alpha_table.csv", "alpha_table.md")
 """Files whose content is the same in every run of the same config."""
 LOG_FILES = ("workbench.log",)
 """What the run printed, in every run folder (a plain run's also holds Hydra's ``.hydra`` folder): not the record."""
@@ -164,9 +164,11 @@ def npz_arrays(path: Path) -> dict:
 def parse(path: Path):
     """Read a record or collected file completely; any half-written file fails here."""
     name = path.name
-    if name == DONE:
-        assert path.read_bytes() == b"", f"{path}: the done marker is empty"
-        return b""
+    if name == DONE:  # the checksums of the record's other files, each matching
+        checksums = json.loads(path.read_text())["sha256"]
+        for other, digest in checksums.items():
+            assert file_checksum(path.parent / other) == digest, f"{path.parent / other}: checksum differs"
+        return checksums
     if name.endswith(".npz"):
         return npz_arrays(path)
     if name.endswith(".json"):

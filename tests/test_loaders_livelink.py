@@ -125,3 +125,12 @@ def test_shared_take_frames_rate_names_and_mapping_onto_ict(shared_data):
     assert mapping.targets["JawLeft"] == ("jawLeft",) and mapping.targets["MouthLeft"] == ("mouthLeft",)
     assert mapping.unmapped == ("TongueOut",)
     assert set(mapping.undriven) == {"PupilDilate_L", "PupilDilate_R", "cheekRaiser_L", "cheekRaiser_R"}
+
+
+def test_a_csv_pandas_cannot_parse_is_one_line_naming_the_row(tmp_path, shared_data):
+    lines = (shared_data / "livelinkface" / "alex_rom_3.csv").read_text().splitlines()
+    (tmp_path / "ragged.csv").write_text("\n".join(lines[:5] + [lines[5] + ",1,2"] + lines[6:20]) + "\n")
+    with pytest.raises(WorkbenchError) as error:
+        read_livelink_csv(tmp_path / "ragged.csv")
+    assert str(error.value) == (f"{tmp_path / 'ragged.csv'}: not a readable CSV (Error tokenizing data. C error: "
+                                "Expected 63 fields in line 6, saw 65)")

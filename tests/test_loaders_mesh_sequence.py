@@ -132,3 +132,42 @@ def test_ict_performance_as_a_sequence_gives_the_ict_livelink_mesh_table(tmp_pat
     measured = pd.read_csv(tmp_path / "sequence" / "alpha_table.csv")
     columns = ["alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "m", "n"]
     np.testing.assert_allclose(measured[columns].to_numpy(float), expected[columns].to_numpy(float), rtol=1e-6)
+
+
+def test_sequence_plausibility_and_damaged_files_are_one_line_errors(scan):
+    """Vertices far outside the face, jumps between frames and a static take are named (dataset.plausibility);
+    positions that are not real numbers and truncated files are refused (never an unexpected error)."""
+    tmp_path, frames, triangles, basis, _ = scan
+
+    def fails(pattern, vertices, *more, name="bad.npz"):
+        path = tmp_path / name
+        if isinstance(vertices, bytes):
+            path.write_bytes(vertices)
+        else:
+            np.savez(path, vertices=vertices, faces=triangles)
+        with pytest.raises(WorkbenchError, match=pattern) as error:
+            build_captures(config(tmp_path, path, basis, *more))
+        assert "\n" not in str(error.value)
+
+    far = frames.copy()
+    far[17, 5] += 1000.0  # a vertex a million millimetres away (file units: metres)
+    fails(r"bad\.npz: frame 17, vertex 5 lies 1e\+03 file units from the face's centre along an axis \(1 such "
+          r"frame\(s\)\), more than 20 x the face's extent", far)
+    jump = frames.copy()
+    jump[20:] += [0.5, 0.0, 0.0]  # the whole face half a metre away from frame 20 on
+    fails(r"bad\.npz: vertex \d+ jumps 0\.5\d* file units from frame 19 to frame 20 \(1 such frame\(s\)\), more than "
+          r"1 x the face's extent", jump)
+    fails(r"bad\.npz: the sequence is static: no vertex moves more than 0 file units from the first frame",
+          np.repeat(frames[:1], 40, axis=0))
+    fails(r"bad\.npz: 'vertices' must hold real numbers \(vertex positions\), got <U3", np.full((40, 42, 3), "abc"))
+    fails(r"bad\.npz: 'vertices' must hold real numbers \(vertex positions\), got complex128", frames + 0j)
+    whole = (tmp_path / "bad.npz").read_bytes()
+    fails(r"truncated\.npz: not a readable NumPy file", whole[:len(whole) // 2], name="truncated.npz")
+    np.save(tmp_path / "whole.npy", frames)
+    fails(r"truncated\.npy: not a readable NumPy file", (tmp_path / "whole.npy").read_bytes()[:3000],
+          name="truncated.npy")
+    # kept, with a warning, when the researcher wants the data as it is
+    np.savez(tmp_path / "jump.npz", vertices=jump, faces=triangles)
+    capture = build_captures(config(tmp_path, tmp_path / "jump.npz", basis, "dataset.plausibility=warn"))["mesh"]
+    assert any(note.startswith("WARNING: ") and "jumps" in note for note in capture.notes)
+    assert len(capture.provenance["plausibility_warnings"]) == 1

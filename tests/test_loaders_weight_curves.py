@@ -132,3 +132,19 @@ def test_ict_face_driven_by_mediapipe_json_equals_the_livelink_take(tmp_path, sh
     np.testing.assert_allclose(mediapipe.eval, livelink.eval, rtol=1e-12, atol=1e-12)
     assert mediapipe.frame_rate == pytest.approx(livelink.frame_rate, rel=1e-9)
     assert "take.json" in mediapipe.name and mediapipe.provenance["files"]["weight_curves"].endswith("take.json")
+
+
+def test_timestamps_must_be_numbers_for_every_frame(tmp_path, weights):
+    path = tmp_path / "face.json"
+    for times, message in (([0, 33, "66", 99, 132, 165], r"frame 2: timestamp_ms '66' is not a number"),
+                           ([0, 33, True, 99, 132, 165], r"frame 2: timestamp_ms True is not a number"),
+                           ([0, 33, None, 99, 132, 165], r"frame 2 has no timestamp_ms but frame 0 has one")):
+        results = mediapipe_results(weights, timestamps_ms=times)
+        results[2].pop("timestamp_ms") if times[2] is None else None
+        path.write_text(json.dumps(results))
+        with pytest.raises(WorkbenchError, match=message):
+            read_weight_curves(path)
+    path.write_text(json.dumps({"names": MEDIAPIPE_NAMES, "weights": weights.tolist(),
+                                "time": [0, 0.1, "x", 0.3, 0.4, 0.5]}))
+    with pytest.raises(WorkbenchError, match=r"'time' must hold 6 finite numbers \(seconds\), one per frame"):
+        read_weight_curves(path)

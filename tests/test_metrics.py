@@ -1,8 +1,10 @@
-"""Known-answer tests of eq. 6 in both normalisations, the RMS error and the intuitiveness measure."""
+"""Known-answer tests of eq. 6 in both normalisations, the RMS error, the intuitiveness measure, the error as a
+distribution over frames and the statistics of the weights."""
 
 import numpy as np
 import pytest
 
+from workbench.errors import WorkbenchError
 from workbench.metrics import alpha_per_frame, alpha_pooled, intuitiveness, rms_point_error, summarise_alpha
 
 
@@ -86,3 +88,62 @@ def test_summary_from_a_chunked_reconstruction_equals_the_whole_one():
     np.testing.assert_array_equal(whole.absolute_per_frame, chunked.absolute_per_frame)
     assert (whole.absolute_pooled, whole.displacement_mean, whole.rms_mm) == \
            (chunked.absolute_pooled, chunked.displacement_mean, chunked.rms_mm)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The weights an animator would get, and the error as a distribution
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def test_weight_statistics_of_a_known_weight_matrix():
+    from workbench.metrics import weight_statistics
+
+    # one second apart; shape 0 is w = t^2 (second derivative 2 everywhere), shape 1 jumps about
+    seconds = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    weights = np.array([[0.0, 0.0], [1.0, 0.5], [4.0, 1.0], [9.0, -1.5], [16.0, 2.0]])
+    stats = weight_statistics(weights, seconds)
+    assert stats.max_abs == 16.0
+    assert stats.outside_unit_share == 3 / 5  # frames 2 (4 > 1), 3 (9 and -1.5) and 4 (16 and 2)
+    assert stats.negative_share == 1 / 5  # frame 3
+    # second differences: shape 0: 2, 2, 2; shape 1: 1 - 1 + 0 = 0, -1.5 - 2 + 0.5 = -3, 2 + 3 + 1 = 6
+    assert stats.roughness == (4.0 + 4.0 + 4.0 + 0.0 + 9.0 + 36.0) / 6
+    # Hoyer (n = 2): (sqrt(2) - |w|_1 / |w|_2) / (sqrt(2) - 1) of frames 1-4; frame 0 (all zero) left out
+    hoyer = [(np.sqrt(2) - np.abs(w).sum() / np.linalg.norm(w)) / (np.sqrt(2) - 1) for w in weights[1:]]
+    np.testing.assert_allclose(stats.sparsity, np.mean(hoyer), rtol=1e-15)
+    np.testing.assert_allclose(hoyer[1], (np.sqrt(2) - 5 / np.sqrt(17)) / (np.sqrt(2) - 1), rtol=1e-15)
+    assert stats.sum_median == 5.0  # sums 0, 1.5, 5, 7.5, 18
+    # the same weights with frame 3 in another take: no second difference spans the two takes
+    split = weight_statistics(weights, np.array([0.0, 1.0, 2.0, 0.0, 1.0]), np.array(list("aaabb")))
+    assert split.roughness == (4.0 + 0.0) / 2
+
+
+def test_hoyer_sparsity_ends():
+    from workbench.metrics import hoyer_sparsity
+
+    values = hoyer_sparsity(np.array([[0.0, 3.0, 0.0], [1.0, -1.0, 1.0], [0.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(values[:2], [1.0, 0.0], atol=1e-15)
+    assert np.isnan(values[2])
+
+
+def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
+    from workbench.metrics import second_derivative
+
+    # w = t^2 on uneven times: the three-point formula is exact for a parabola
+    seconds = np.array([0.0, 0.5, 2.0, 2.25, 0.0, 1.0, 3.0])
+    takes = np.array(["a", "a", "a", "a", "b", "b", "b"])
+    values = (seconds ** 2)[:, None]
+    result = second_derivative(values, seconds, takes)
+    np.testing.assert_allclose(result, [[2.0], [2.0], [2.0]], rtol=1e-13)  # a: frames 1, 2; b: frame 5
+    with pytest.raises(WorkbenchError, match="increase within each take"):
+        second_derivative(values, seconds)  # one take: the time goes back
+
+
+def test_error_distribution_and_rms_per_frame():
+    from workbench.metrics import error_distribution, frame_rms_error
+
+    per_frame = frame_rms_error(np.array([4.0, 16.0, 0.0, 1.0]), np.array([1, 4, 0, 1]))
+    np.testing.assert_allclose(per_frame[[0, 1, 3]], [2.0, 2.0, 1.0])
+    assert np.isnan(per_frame[2])
+    found = error_distribution(np.arange(101.0))
+    assert (found.median, found.p95, found.max) == (50.0, 95.0, 100.0)
+    np.testing.assert_allclose(found.quantiles, np.arange(101.0))

@@ -1,55 +1,79 @@
-"""Finished run records in an MLflow store: one MLflow run per record, the right params, metrics, tags and
-artifacts, and no duplicates when a sweep is resumed or imported again (needs the mlflow extra; CI installs it)."""
+"""Finished run records in an MLflow store: one parent run per sweep with one nested run per record, params as
+the config writes them, readable metric names, tags, artifacts; no duplicates when a sweep is resumed, imported
+again, imported twice at once or interrupted by Ctrl-C; a full disk and a damaged name end in one line. Real
+processes throughout (needs the mlflow extra; CI installs it)."""
 
 import dataclasses
+import json
 import os
+import shutil
+import signal
+import socket
+import sqlite3
 import subprocess
 import sys
+import time
 
 import pandas as pd
 import pytest
+from mlflow_rest import rest
 
 from workbench.config import REPO_ROOT
 from workbench.errors import WorkbenchError
-from workbench.record import find_records, load_record
+from workbench.record import ALPHA_COLUMNS, find_records, load_record
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.reporting.mlflow_store import (log_records, metric_key, record_metrics,  # noqa: E402
-                                              store_uris)
+from workbench.reporting.mlflow_store import (Store, log_records, metric_key, open_store,  # noqa: E402
+                                              param_text, record_metrics, resolve_store, store_uris)
 
-SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "paths.output_root=out",
-         "hydra.sweep.dir=out/coverage_small/default", "hydra.callbacks.mlflow.enabled=true"]
-
-
-def sweep(cwd):
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-m", "workbench", *SWEEP], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=600)
+SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
+         "paths.output_root=out", "hydra.sweep.dir=out/coverage_small/default", "hydra.callbacks.mlflow.enabled=true"]
+ENV = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
+ENV.pop("MLFLOW_TRACKING_URI", None)
 
 
-def search(tmp_path):
-    mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'out' / '.mlflow' / 'mlflow.db'}")
-    return mlflow.search_runs(experiment_names=["coverage_small"])
+def workbench(*args, cwd, env=None, timeout=600):
+    return subprocess.run([sys.executable, "-m", "workbench", *map(str, args)], cwd=cwd, env=env or ENV,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def search(store_folder, experiment="coverage_small"):
+    mlflow.set_tracking_uri(f"sqlite:///{store_folder / 'mlflow.db'}")
+    return mlflow.search_runs(experiment_names=[experiment])
+
+
+def children(runs):
+    return runs[runs["tags.kind"] == "run"]
 
 
 @pytest.fixture(scope="module")
 def swept(tmp_path_factory):
     """A small study swept with the MLflow callback on: its store under the output root."""
     tmp_path = tmp_path_factory.mktemp("mlflow")
-    result = sweep(tmp_path)
+    result = workbench(*SWEEP, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert "mlflow: 4 runs added, 0 already in the store" in result.stdout
+    assert result.stdout.count("mlflow: logged ") == 4  # each job logged its run as it ended
+    assert "mlflow: sweep coverage_small/default: 4 runs in the store (0 added at the end of the sweep)" in result.stdout
+    assert f"browse with: mlflow ui --backend-store-uri sqlite:///{tmp_path / 'out' / '.mlflow' / 'mlflow.db'}" \
+        in result.stdout
     return tmp_path
 
 
-def test_one_mlflow_run_per_record_with_params_metrics_and_tags(swept):
-    runs = search(swept)
+def test_one_nested_run_per_record_with_params_metrics_tags_and_artifacts(swept):
+    runs = search(swept / "out" / ".mlflow")
     complete, _ = find_records([swept / "out" / "coverage_small" / "default"])
+    [parent] = runs[runs["tags.kind"] == "sweep"].to_dict("records")
+    assert parent["tags.mlflow.runName"] == "coverage_small/default" and parent["status"] == "FINISHED"
+    assert parent["tags.sweep"] == str((swept / "out" / "coverage_small" / "default").resolve())
+    runs = children(runs)
     assert len(runs) == len(complete) == 4
-    assert set(runs["status"]) == {"FINISHED"}
+    assert set(runs["status"]) == {"FINISHED"} and set(runs["tags.mlflow.parentRunId"]) == {parent["run_id"]}
     assert sorted(zip(runs["params.basis.coverage"], runs["params.dataset.seed"])) == [
         ("0.95", "0"), ("0.95", "1"), ("0.995", "0"), ("0.995", "1")]
+    # params as the config writes them: null and true, not Python's None and True
+    assert set(runs["params.dataset.eval_on"]) == {"null"} and set(runs["params.dataset.stabilise"]) == {"true"}
+    assert set(runs["params.basis.projections"]) == {"[affine, linear]"}
     assert set(runs["params.dataset.n_frames"]) == {"500"} and set(runs["params.solver.lstsq.kind"]) == {"lstsq"}
     filtered = mlflow.search_runs(experiment_names=["coverage_small"],
                                   filter_string="params.`basis.coverage` = '0.95' and tags.study = 'coverage_small'")
@@ -58,12 +82,12 @@ def test_one_mlflow_run_per_record_with_params_metrics_and_tags(swept):
         record = load_record(folder)
         [run] = runs[runs["tags.record"] == str(folder.resolve())].to_dict("records")
         assert run["tags.config_hash"] == record.config_hash and run["tags.data"] == "markers"
-        assert run["tags.git_commit"] == str(record.git.get("commit")) and run["tags.study"] == "coverage_small"
-        assert run["tags.sweep"] == str(folder.resolve().parent) and run["tags.mlflow.runName"] == folder.name
+        assert run["tags.git_commit"] == run["tags.mlflow.source.git.commit"] == record.git["commit"]
+        assert run["tags.workbench.version"] == record.metrics["versions"]["workbench"] == "0.1.0"
+        assert run["tags.study"] == "coverage_small" and run["tags.mlflow.runName"] == folder.name
         for row in record.table.to_dict("records"):
-            for column in ("alpha_abs_mean", "alpha_disp_pooled", "rms_mm"):
-                key = f"metrics.{column}.markers.{row['basis']}.{row['solver']}"
-                assert run[key] == pytest.approx(row[column], rel=1e-15, abs=0)
+            for column in ALPHA_COLUMNS:
+                assert run[f"metrics.{column}.markers.{row['basis']}.{row['solver']}"] == row[column]
         assert run["metrics.m.markers"] == record.table["m"].iloc[0]
         artifacts = {item.path for item in mlflow.MlflowClient().list_artifacts(run["run_id"])}
         assert {"alpha_table.csv", "alpha_table.md", "config.yaml", "metrics.json", "workbench.log"} <= artifacts
@@ -72,40 +96,60 @@ def test_one_mlflow_run_per_record_with_params_metrics_and_tags(swept):
     metric_names = [name for name in runs.columns if name.startswith("metrics.alpha_abs_mean.")]
     assert sorted(metric_names) == ["metrics.alpha_abs_mean.markers.H.lstsq", "metrics.alpha_abs_mean.markers.PCA.projection",
                                     "metrics.alpha_abs_mean.markers.QE-linear.lstsq", "metrics.alpha_abs_mean.markers.QE.lstsq"]
+    collected = {item.path for item in mlflow.MlflowClient().list_artifacts(parent["run_id"], "collected")}
+    assert {"collected/runs.csv", "collected/alpha_table.md", "collected/summary.csv"} <= collected
 
 
 def test_resumed_sweep_and_second_import_add_nothing(swept):
-    before = search(swept)
-    again = sweep(swept)
+    before = search(swept / "out" / ".mlflow")
+    again = workbench(*SWEEP, cwd=swept)
     assert again.returncode == 0, again.stderr
-    assert again.stdout.count("skip ") == 4 and "mlflow: 0 runs added, 4 already in the store" in again.stdout
+    assert again.stdout.count("skip ") == 4 and "mlflow: sweep run coverage_small/default (resumed)" in again.stdout
+    assert "4 runs in the store (0 added at the end of the sweep)" in again.stdout
     result = log_records([swept / "out"], store=swept / "out" / ".mlflow")
-    assert (result["added"], result["skipped"], result["incomplete"]) == (0, 4, [])
-    after = search(swept)
+    assert (result["added"], result["resumed"], result["skipped"], result["incomplete"]) == (0, 0, 4, [])
+    after = search(swept / "out" / ".mlflow")
     assert sorted(after["run_id"]) == sorted(before["run_id"])
 
 
-def test_an_interrupted_import_is_redone(swept, tmp_path):
+def test_an_interrupted_import_is_completed_not_duplicated(swept, tmp_path):
     folders, _ = find_records([swept / "out" / "coverage_small" / "default"])
     store = tmp_path / "store"
     log_records(folders[:1], store=store)
     uri, _ = store_uris(store)
     client = mlflow.MlflowClient(tracking_uri=uri)
-    [run] = client.search_runs([client.get_experiment_by_name("coverage_small").experiment_id])
+    experiment = client.get_experiment_by_name("coverage_small").experiment_id
+    [run] = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "run"]
     client.set_terminated(run.info.run_id, status="RUNNING")  # as an import killed before it finished leaves it
     result = log_records(folders[:2], store=store)
-    assert (result["added"], result["skipped"]) == (2, 0)
-    runs = client.search_runs([client.get_experiment_by_name("coverage_small").experiment_id])
+    assert (result["added"], result["resumed"], result["skipped"]) == (1, 1, 0)
+    runs = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "run"]
     assert len(runs) == 2 and {run.info.status for run in runs} == {"FINISHED"}
+    assert run.info.run_id in {run.info.run_id for run in runs}
 
 
-def test_store_never_in_the_source_tree_and_metric_names():
+def test_names_params_and_where_to_browse():
     with pytest.raises(WorkbenchError, match="inside the source tree"):
         store_uris(REPO_ROOT / "reports" / ".mlflow")
     uri, artifacts = store_uris(REPO_ROOT.parent / "elsewhere")
     assert uri == f"sqlite:///{REPO_ROOT.parent / 'elsewhere' / 'mlflow.db'}"
     assert artifacts == (REPO_ROOT.parent / "elsewhere" / "artifacts").as_uri()
-    assert metric_key("alpha_abs_mean", "markers->mesh", "QE", "lstsq") == "alpha_abs_mean.markers-_mesh.QE.lstsq"
+    assert metric_key("alpha_abs_mean", "markers->mesh", "QE", "lstsq") == "alpha_abs_mean.markers_to_mesh.QE.lstsq"
+    assert metric_key("alpha_abs_mean", "../../x", "QE", "lstsq") == "alpha_abs_mean.______x.QE.lstsq"
+    assert [param_text(value) for value in (None, True, False, 0.995, 1e-6, 12, "a b", ["markers", None], {})] == [
+        "null", "true", "false", "0.995", "1.0e-06", "12", "a b", "[markers, null]", "{}"]
+    assert Store("http://lab:5000/").browse_hint(["7"]) == "browse: http://lab:5000/#/experiments/7"
+    assert Store("sqlite:////a b/mlflow.db").browse_hint() == "browse with: mlflow ui --backend-store-uri 'sqlite:////a b/mlflow.db'"
+
+
+def test_the_store_named_wins_then_the_environment_then_the_default(tmp_path, monkeypatch):
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    assert resolve_store(output_root=tmp_path).tracking_uri == f"sqlite:///{tmp_path.resolve()}/.mlflow/mlflow.db"
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", "http://lab:5000")
+    assert resolve_store(output_root=tmp_path) == Store("http://lab:5000")
+    assert resolve_store(store=tmp_path / "s").tracking_uri == f"sqlite:///{tmp_path.resolve()}/s/mlflow.db"
+    assert resolve_store(tracking_uri="http://other:5000", output_root=tmp_path).tracking_uri == "http://other:5000"
+    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").lock_file == tmp_path / "x.db.lock"
 
 
 def test_two_rows_of_one_name_are_refused(swept):
@@ -114,3 +158,200 @@ def test_two_rows_of_one_name_are_refused(swept):
     record = dataclasses.replace(record, table=pd.concat([record.table, record.table.iloc[:1]], ignore_index=True))
     with pytest.raises(WorkbenchError, match="two rows are named alpha_abs_mean.markers.H.lstsq"):
         record_metrics(record)
+
+
+# --- real processes: concurrent imports, Ctrl-C, a full disk, names from a record, report figures -------------
+
+def records_copy(swept, tmp_path):
+    """The sweep's records copied (without the store), so that each test logs them into a store of its own."""
+    target = tmp_path / "out" / "coverage_small" / "default"
+    shutil.copytree(swept / "out" / "coverage_small" / "default", target,
+                    ignore=shutil.ignore_patterns("collected", ".submitit"))
+    return target
+
+
+def stored_runs(database):
+    """Every run row of a SQLite store, deleted ones too: (record tag, '' for a sweep run; status; stage)."""
+    with sqlite3.connect(database) as connection:
+        return connection.execute(
+            "select coalesce((select value from tags where tags.run_uuid = runs.run_uuid and key = 'record'), ''), "
+            "status, lifecycle_stage from runs").fetchall()
+
+
+def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_path):
+    sweep = records_copy(swept, tmp_path)
+    for trial in range(2):
+        store = tmp_path / f"store{trial}"
+        command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
+        processes = [subprocess.Popen(command, cwd=tmp_path, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True) for _ in range(2)]
+        outputs = [process.communicate(timeout=600) for process in processes]
+        assert [process.returncode for process in processes] == [0, 0], [err for _, err in outputs]
+        lines = sorted(out.strip().split(";")[0] for out, _ in outputs)
+        assert lines == ["mlflow: 0 runs added, 4 already in the store", "mlflow: 4 runs added, 0 already in the store"]
+        rows = stored_runs(store / "mlflow.db")
+        assert sorted(rows) == sorted([("", "FINISHED", "active")]
+                                      + [(str(folder.resolve()), "FINISHED", "active") for folder in find_records([sweep])[0]])
+
+
+def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record(swept, tmp_path):
+    """SIGINT (as Ctrl-C sends) while the runs are being written, at several moments; the same command again
+    finishes the job: every record once, in the store's own rows too (deleted runs counted)."""
+    sweep = records_copy(swept, tmp_path)
+    records = sorted(str(folder.resolve()) for folder in find_records([sweep])[0])
+    with open_store(resolve_store(store=tmp_path / "empty")) as client:  # a store with its tables, no runs yet
+        client.search_experiments()
+    outcomes = []
+    for trial, extra_delay in enumerate((0.0, 0.3)):
+        store = tmp_path / f"store{trial}"
+        store.mkdir()
+        shutil.copy(tmp_path / "empty" / "mlflow.db", store / "mlflow.db")
+        command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
+        process = subprocess.Popen(command, cwd=tmp_path, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        deadline = time.monotonic() + 300
+        while process.poll() is None and time.monotonic() < deadline:  # until the first run row exists
+            if (store / "mlflow.db").is_file():
+                try:
+                    if stored_runs(store / "mlflow.db"):
+                        break
+                except sqlite3.Error:
+                    pass
+            time.sleep(0.01)
+        time.sleep(extra_delay)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=120)
+        outcomes.append(process.returncode)
+        if process.returncode == 130:
+            assert err.strip().splitlines()[-1] == "workbench mlflow: interrupted; rerun the same command to resume"
+        elif process.returncode == -signal.SIGINT:
+            # the signal came as the finished import's process exited (Python no longer handles it then): the
+            # import had printed its summary
+            assert out.strip() and not err.strip(), (out, err)
+        else:
+            assert process.returncode == 0, err
+        again = subprocess.run(command, cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=600)
+        assert again.returncode == 0, again.stderr
+        rows = stored_runs(store / "mlflow.db")
+        assert sorted(record for record, _, _ in rows if record) == records
+        assert {(status, stage) for _, status, stage in rows} == {("FINISHED", "active")}
+    assert 130 in outcomes, outcomes
+
+
+def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
+    """The store on a 3 MB file system: full before the store exists, and full while artifacts are written."""
+    if shutil.which("unshare") is None:
+        pytest.skip("unshare (util-linux) is needed to mount a small file system for this test")
+    probe = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "true"], capture_output=True)
+    if probe.returncode != 0:
+        pytest.skip(f"user namespaces are not available here: {probe.stderr.decode().strip()}")
+    sweep = records_copy(swept, tmp_path)
+    report = find_records([sweep])[0][0] / "report"  # a report larger than the space left
+    report.mkdir()
+    (report / "figure.png").write_bytes(os.urandom(4_000_000))
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    for fill in ("full", "space for the database"):
+        leave = "0" if fill == "full" else "1500"  # kilobytes left free
+        script = (f"mount -t tmpfs -o size=3m tmpfs {disk} && "
+                  f"(head -c $((3072 - {leave}))k /dev/zero > {disk}/filler 2>/dev/null; true) && "
+                  f"exec {sys.executable} -m workbench mlflow {sweep} --store {disk}/store")
+        result = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", script],
+                                cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=600)
+        errors = [line for line in result.stderr.splitlines() if line.startswith("workbench")]
+        assert result.returncode == 2, (fill, result.stderr[-3000:])
+        assert len(errors) == 1 and "Traceback" not in result.stderr, (fill, result.stderr[-3000:])
+        assert "No space left on device" in errors[0] or "disk is full" in errors[0], errors[0]
+
+
+def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
+    """A record whose data variant reads '../../x' (edited by hand): its metrics are logged under a plain name."""
+    sweep = records_copy(swept, tmp_path)
+    folder = find_records([sweep])[0][0]
+    table = pd.read_csv(folder / "alpha_table.csv")
+    table["data"] = "../../x"
+    table.to_csv(folder / "alpha_table.csv", index=False)
+    metrics = json.loads((folder / "metrics.json").read_text())
+    metrics["data"] = {"../../x": metrics["data"]["markers"]}
+    for row in metrics["rows"]:
+        row["data"] = "../../x"
+    (folder / "metrics.json").write_text(json.dumps(metrics))
+    # as a record written so by another tool: checksums matching its files (a hand edit alone is refused)
+    from workbench.record import DONE, file_checksum
+
+    done = json.loads((folder / DONE).read_text())
+    done["sha256"].update({name: file_checksum(folder / name) for name in ("alpha_table.csv", "metrics.json")})
+    (folder / DONE).write_text(json.dumps(done))
+    result = workbench("mlflow", folder, "--store", tmp_path / "store", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    [run] = children(search(tmp_path / "store")).to_dict("records")
+    assert run["metrics.alpha_abs_mean.______x.QE.lstsq"] == table.loc[table["basis"] == "QE", "alpha_abs_mean"].iloc[0]
+    assert not any(".." in name for name in run if name.startswith("metrics."))
+
+
+def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
+    """A run with its per-frame alpha (save_inputs=true) logged at once; its report's figures once it has one."""
+    run_dir = tmp_path / "out" / "run"
+    result = workbench("dataset.n_frames=500", "solver=lstsq", "save_inputs=true", f"hydra.run.dir={run_dir}",
+                       "paths.output_root=out", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    first = workbench("mlflow", run_dir, cwd=tmp_path)
+    assert first.returncode == 0 and "mlflow: 1 runs added" in first.stdout, first.stderr
+    report = workbench("report", run_dir, "--formats", "png", cwd=tmp_path)
+    assert report.returncode == 0, report.stderr
+    again = workbench("mlflow", run_dir, cwd=tmp_path)
+    assert again.returncode == 0 and "mlflow: 0 runs added, 1 already in the store" in again.stdout, again.stderr
+    client = mlflow.MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'out' / '.mlflow' / 'mlflow.db'}")
+    [run] = client.search_runs([client.get_experiment_by_name("paper").experiment_id])
+    assert "mlflow.parentRunId" not in run.data.tags  # a single run belongs to no sweep
+    artifacts = {item.path for item in client.list_artifacts(run.info.run_id)}
+    assert "alpha_per_frame.npz" in artifacts and "report" in artifacts
+    figures = {item.path for item in client.list_artifacts(run.info.run_id, "report/figures")}
+    expected = {f"report/figures/{path.name}" for path in (run_dir / "report" / "figures").glob("*.png")}
+    assert expected and expected <= figures
+
+
+# --- a tracking server ----------------------------------------------------------------------------------------
+
+def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_path):
+    """MLFLOW_TRACKING_URI alone sends the sweep to the server; the runs are found there through the REST API."""
+    args = [arg.replace("coverage_small/default", "coverage_small/server") for arg in SWEEP]
+    result = workbench(*args, cwd=tmp_path, env=dict(ENV, MLFLOW_TRACKING_URI=mlflow_server))
+    assert result.returncode == 0, result.stderr
+    experiment = rest(mlflow_server, "GET", "experiments/get-by-name?experiment_name=coverage_small")
+    experiment_id = experiment["experiment"]["experiment_id"]
+    assert f"browse: {mlflow_server}/#/experiments/{experiment_id}" in result.stdout
+    sweep = (tmp_path / "out" / "coverage_small" / "server").resolve()
+    found = rest(mlflow_server, "POST", "runs/search",
+                 {"experiment_ids": [experiment_id], "filter": f"tags.sweep = '{sweep}'", "max_results": 100})["runs"]
+    tags = [{tag["key"]: tag["value"] for tag in run["data"]["tags"]} for run in found]
+    assert sorted(tag["kind"] for tag in tags) == ["run"] * 4 + ["sweep"]
+    for run, tag in zip(found, tags):
+        if tag["kind"] == "sweep":
+            continue
+        record = load_record(tag["record"])
+        metrics = {metric["key"]: metric["value"] for metric in run["data"]["metrics"]}
+        for row in record.table.to_dict("records"):
+            for column in ALPHA_COLUMNS:
+                assert metrics[f"{column}.markers.{row['basis']}.{row['solver']}"] == pytest.approx(row[column],
+                                                                                                   rel=1e-15)
+        params = {param["key"]: param["value"] for param in run["data"]["params"]}
+        assert params["dataset.eval_on"] == "null" and params["dataset.stabilise"] == "true"
+    # the same records logged again by the command, with the server named on the command line: nothing added
+    again = workbench("mlflow", sweep, "--tracking-uri", mlflow_server, cwd=tmp_path)
+    assert again.returncode == 0 and "mlflow: 0 runs added, 4 already in the store" in again.stdout, again.stderr
+
+
+def test_a_server_out_of_reach_stops_no_run_and_the_command_says_so_in_one_line(tmp_path):
+    with socket.socket() as probe:  # a port nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        nowhere = f"http://127.0.0.1:{probe.getsockname()[1]}"
+    result = workbench("--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0", "basis.coverage=0.95",
+                       "paths.output_root=out", "hydra.callbacks.mlflow.enabled=true",
+                       f"hydra.callbacks.mlflow.tracking_uri={nowhere}", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert len(find_records([tmp_path / "out" / "coverage_small" / "default"])[0]) == 1
+    assert result.stdout.count(f"MLflow server {nowhere} cannot be reached") == 2  # at the start and at the end
+    late = workbench("mlflow", tmp_path / "out", "--tracking-uri", nowhere, cwd=tmp_path)
+    assert late.returncode == 2 and late.stderr.strip() == (
+        f"workbench mlflow: error: MLflow server {nowhere} cannot be reached ([Errno 111] Connection refused)")

@@ -107,7 +107,7 @@ def test_cli_bad_parameter_is_one_line(tmp_path):
     result = run_cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}",
                      cwd=tmp_path)
     assert result.returncode == 2
-    assert result.stderr.strip() == "workbench: error: coverage must be in (0, 1], got 1.5"
+    assert result.stderr.strip() == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
     assert not (tmp_path / "run" / DONE).exists()
 
 

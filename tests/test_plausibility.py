@@ -65,10 +65,38 @@ def test_a_take_in_metres_labelled_mm_is_refused(shared_data, data_root):
 def test_takes_of_different_units_are_refused(shared_data, data_root):
     inches = changed_take(shared_data, data_root, "inches.c3d", lambda p, _: p.__imul__(4.0))
     good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
-    third = changed_take(shared_data, data_root, "third.c3d", lambda p, _: None)
+    third = changed_take(shared_data, data_root, "third.c3d", lambda p, _: p.__iadd__(0.5))
     with pytest.raises(WorkbenchError, match=re.escape(f"{data_root / inches}: markers spread 255 mm from their "
-                                                       "centroid against 63.7 mm in the capture's other takes")):
+                                                       f"centroid against 63.7 mm in {data_root / good} (more than "
+                                                       "3 x apart")):
         build_captures(animface(data_root, [good, inches, third]))
+
+
+def test_a_take_scaled_x4_beside_its_original_is_refused(shared_data, data_root):
+    # with two takes, each against the median (their mean) was within 3x; smallest and largest are not
+    scaled = changed_take(shared_data, data_root, "scaled.c3d", lambda p, _: p.__imul__(4.0))
+    good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
+    with pytest.raises(WorkbenchError, match=re.escape(f"{data_root / scaled}: markers spread 255 mm from their "
+                                                       f"centroid against 63.7 mm in {data_root / good}")):
+        build_captures(animface(data_root, [good, scaled]))
+
+
+def test_a_take_listed_twice_or_copied_is_refused(shared_data, data_root):
+    good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
+    copy = changed_take(shared_data, data_root, "copy.c3d", lambda p, _: None)
+    with pytest.raises(WorkbenchError, match=re.escape(f"dataset.takes: {good} is listed twice")):
+        build_captures(animface(data_root, [good, good]))
+    with pytest.raises(WorkbenchError, match=re.escape(f"dataset.takes: {copy} holds the same frames as {good}")):
+        build_captures(animface(data_root, [good, copy]))
+
+
+def test_a_c3d_rate_no_camera_records_at_is_refused(shared_data, data_root):
+    take = read_c3d_markers(shared_data / TAKE)
+    write_c3d(data_root / "animface" / "fast.c3d", take.positions, take.labels, rate=1e9)
+    with pytest.raises(WorkbenchError, match=re.escape(
+            f"{data_root / 'animface' / 'fast.c3d'}: POINT:RATE 1e+09 frames per second is not a face capture's "
+            "(1-10000); the rate or the time stamps are in other units")):
+        build_captures(animface(data_root, ["animface/fast.c3d"]))
 
 
 def move_sample(positions, labels):

@@ -6,7 +6,7 @@ import numpy as np
 
 from workbench.metrics import AlphaSummary
 from workbench.pipeline import Row
-from workbench.run_text import alpha_table, headline
+from workbench.run_text import FRAME_COLUMNS, alpha_table, headline, printed_tables
 from workbench.tables import markdown_frame as markdown_table
 
 
@@ -35,7 +35,43 @@ def test_markdown_table_exact_text():
         "|            6.25 |              5.62 |  0.410 |           - |\n"
         "| markers | PCA   | -          | projection | 12 | 12 |   0.9951 |          0.610 |            0.671 "
         "|            5.00 |              4.50 |  0.300 |        0.62 |\n")
-    assert markdown_table(table) == expected
+    assert markdown_table(table[[c for c in table.columns if c not in FRAME_COLUMNS]]) == expected
+    # the run prints the alpha columns, then the per-frame error and the weights (NaN here: "-")
+    printed = printed_tables(table)
+    assert printed.startswith(expected)
+    assert printed.endswith(
+        "| data    | basis | projection | solver     | err_mm_median | err_mm_p95 | err_mm_max | w_max_abs "
+        "| w_outside_01 | w_sparsity | w_roughness |\n"
+        "|---------|-------|------------|------------|--------------:|-----------:|-----------:|----------:"
+        "|-------------:|-----------:|------------:|\n"
+        "| markers | H     | -          | box        |             - |          - |          - |         - "
+        "|            - |          - |           - |\n"
+        "| markers | QE    | affine     | box        |             - |          - |          - |         - "
+        "|            - |          - |           - |\n"
+        "| markers | PCA   | -          | projection |             - |          - |          - |         - "
+        "|            - |          - |           - |\n")
+
+
+def test_frame_columns_of_a_row_with_errors_and_weights():
+    from workbench.metrics import error_distribution, weight_statistics
+
+    row = Row("QE", "affine", "lstsq", 2, summary(0.7, 6.25, 0.41),
+              weight_statistics=weight_statistics(np.array([[0.0, 0.0], [1.0, 0.5], [4.0, 1.0], [9.0, 1.5]]),
+                                                  np.arange(4.0)),
+              error_mm=error_distribution(np.array([1.0, 2.0, 3.0, 4.0])))
+    table = alpha_table([row], data="markers", m=2, coverage=0.99, paper_alpha={})
+    assert table.loc[0, ["err_mm_median", "err_mm_max", "w_max_abs", "w_outside_01", "w_roughness"]].tolist() == \
+        [2.5, 4.0, 9.0, 0.5, 2.0]
+
+
+def test_headline_states_an_order_only_where_the_paired_interval_excludes_zero():
+    table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
+    comparisons = {"markers": [
+        {"a": ["H", "box"], "b": ["QE", "box"], "estimate": 4.42, "low": 3.9, "high": 4.9},
+        {"a": ["QE", "box"], "b": ["PCA", "projection"], "estimate": 0.09, "low": -0.01, "high": 0.2}]}
+    text = headline(table, {"headline_normalisation": "absolute", "headline_aggregate": "mean"}, PAPER, comparisons)
+    assert text.splitlines()[0] == ("alpha_abs_mean with box: PCA 0.61 ~ QE 0.7 (PCA - QE -0.09 [-0.2, +0.01]: not "
+                                    "distinguishable) < H 5.12")
 
 
 def test_missing_paper_value_is_nan_in_the_frame():

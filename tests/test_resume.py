@@ -15,7 +15,7 @@ from workbench.cli import run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.record import DONE, config_hash
-from workbench.tracking import clear_partial, prepare_run_dir, record_state, run_dir_name
+from workbench.tracking import LOCK_FILE, clear_partial, prepare_run_dir, record_state, run_dir_name
 
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
 N_RUNS = 6
@@ -67,6 +67,7 @@ def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
     unfinished = run_dir_name("basis.coverage=0.99,dataset.n_frames=500,dataset.seed=1")
     assert unfinished not in finished
     (sweep / unfinished).mkdir(exist_ok=True)
+    (sweep / unfinished / LOCK_FILE).touch()  # the first file a run writes into its folder
     (sweep / unfinished / "alpha_table.csv").write_text("stale")
 
     resumed = run_sweep(sweep, tmp_path)

@@ -14,7 +14,7 @@ from workbench.record import DONE
     ("dataset.gap_policy=spline", "dataset.gap_policy must be one of ('drop', 'linear', 'masked'), got 'spline'"),
     ("dataset.gap_fit_on=all", "dataset.gap_fit_on must be one of ('complete', 'filled'), got 'all'"),
     ("dataset.eval_on=[scan]", "dataset.eval_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list of distinct "
-                               "ones, got ['scan']"),
+                               "ones or null, got ['scan']"),
     ("dataset.train_on=[markers,markers]", "dataset.train_on must be one of ('markers', 'mesh', 'mesh_rbf') or a list "
                                            "of distinct ones, got ['markers', 'markers']"),
 ])
@@ -25,20 +25,19 @@ def test_unused_settings_are_checked(tmp_path, override, message):
     assert not (tmp_path / "run" / DONE).exists()
 
 
-@pytest.mark.parametrize("override, key", [
-    ("dataset.gap_max_fill_frames=abc", "dataset.gap_max_fill_frames"),
-    ("save_inputs=maybe", "save_inputs"),
-])
-def test_settings_of_the_wrong_type_fail_at_composition(override, key):
+def test_settings_of_the_wrong_type_fail_at_composition():
     from hydra.errors import ConfigCompositionException
 
-    with pytest.raises(ConfigCompositionException, match=re.escape(override)):
-        compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
+    with pytest.raises(ConfigCompositionException, match=re.escape("dataset.gap_max_fill_frames=abc")):
+        compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.gap_max_fill_frames=abc"])
 
 
-def test_save_inputs_must_be_a_boolean(tmp_path):
-    with pytest.raises(WorkbenchError, match=re.escape("save_inputs must be true or false, got 1")):
-        run({**compose("paper", ["dataset.n_frames=200", "solver=lstsq"]), "save_inputs": 1}, tmp_path / "run")
+@pytest.mark.parametrize("override, shown", [("save_inputs=maybe", "'maybe'"), ("save_inputs=2", "2"),
+                                             ("dataset.stabilise=1", "1")])
+def test_true_false_settings_take_only_true_or_false(tmp_path, override, shown):
+    key = override.split("=")[0]
+    with pytest.raises(WorkbenchError, match=re.escape(f"{key} must be true or false, got {shown}")):
+        run(compose("paper", ["dataset.n_frames=200", "solver=lstsq", override]), tmp_path / "run")
 
 
 def test_other_take_with_the_training_seed_is_refused(tmp_path):
@@ -53,3 +52,89 @@ def test_eval_on_of_the_real_datasets_names_their_variants(tmp_path):
     cfg = compose("paper", ["dataset=animface", "+dataset.eval_on=[scan]"])
     with pytest.raises(WorkbenchError, match=re.escape("dataset.eval_on must be one of ('markers', 'mesh')")):
         run(cfg, tmp_path / "run")
+
+
+# Every setting is checked when the config is composed: ranges, names, keys no schema knows, interpolations, and
+# settings that would have no effect. Each case was an unexpected error (exit 3) or silently accepted before.
+COMPOSITION_CASES = {
+    "basis.hand_subset=5": "basis.hand_subset must be all, upper, lower, random<k> or a list of distinct hand-shape "
+                           "names, got 5",
+    "basis.ica.max_iter=0": "basis.ica.max_iter must be an integer >= 1, got 0",
+    "basis.nmf.tol=-1": "basis.nmf.tol must be a finite number >= 0, got -1.0",
+    "basis.spca.max_iter=-2": "basis.spca.max_iter must be an integer >= 1, got -2",
+    "basis.splocs.n_iterations=0": "basis.splocs.n_iterations must be an integer >= 1, got 0",
+    "basis.hand_fit.n_iterations=0": "basis.hand_fit.n_iterations must be an integer >= 1, got 0",
+    "basis.coverage=${nope}": "setting basis.coverage cannot be resolved: Interpolation key 'nope' not found",
+    "basis.coverage=${basis.coverage}": "setting basis.coverage cannot be resolved: Recursive interpolation detected",
+    "+loop=1": "setting loop does not exist",
+    "save_inputs=2": "save_inputs must be true or false, got 2",
+    "study=": "study must be a plain name",
+    "paper.m=-3": "paper.m must be an integer >= 1, got -3",
+    "paper.coverage=5": "paper.coverage must be in (0, 1], got 5.0",
+    "paper.alpha.H=nan": "paper.alpha.H must be in (0, 100], got nan",
+    "dataset.marker_noise_mm=1e9": "dataset.marker_noise_mm must be in [0, 10] (mm; optical marker noise is below a "
+                                   "millimetre, and 10 mm is a tenth of the face), got 1000000000.0",
+    "dataset.frame_rate=1e9": "dataset.frame_rate must be in (0, 10000], got 1000000000.0",
+    "+dataset.nonexistent=1": "dataset.nonexistent has no effect with dataset=synthetic: dataset kind 'synthetic' has "
+                              "no such setting",
+    "+dataset.weight_curves=take.csv": "dataset.weight_curves has no effect with dataset=synthetic: only dataset "
+                                       "kind(s) ['ict_livelink'] read it",
+    "dataset.eval_fraction=0.3": "dataset.eval_fraction has no effect in this run: only dataset.split=tail or "
+                                 "dataset.held_out=tail uses it (this run: split=same)",
+    "basis.subset_seed=4": "basis.subset_seed has no effect in this run: only basis.hand_subset=random<k> draws",
+    "basis.splocs.d_min=0.9": "basis.splocs.d_min (0.9) must be below basis.splocs.d_max (0.7)",
+}
+
+
+@pytest.mark.parametrize("override", list(COMPOSITION_CASES))
+def test_settings_are_checked_when_composed(override):
+    from workbench.schema import check_study_config
+
+    cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
+    with pytest.raises(WorkbenchError, match="^" + re.escape(COMPOSITION_CASES[override])):
+        check_study_config(cfg, [override], refuse_ineffective=True)
+
+
+def test_settings_with_no_effect_in_a_sweep_are_named_not_refused():
+    from workbench.schema import check_study_config
+
+    cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.eval_fraction=0.3"])
+    assert check_study_config(cfg, ["dataset.eval_fraction=0.3"]) == [
+        "dataset.eval_fraction has no effect in this run: only dataset.split=tail or dataset.held_out=tail uses it "
+        "(this run: split=same)"]
+    cfg = compose("paper", ["dataset.n_frames=200", "dataset.split=tail", "dataset.eval_fraction=0.3"])
+    assert check_study_config(cfg, ["dataset.split=tail", "dataset.eval_fraction=0.3"], refuse_ineffective=True) == []
+
+
+def test_every_study_and_dataset_passes_its_own_checks():
+    from workbench.config import STUDIES_DIR
+    from workbench.schema import check_study_config
+
+    for study in sorted(path.stem for path in STUDIES_DIR.glob("*.yaml")):
+        assert check_study_config(compose(study), refuse_ineffective=True) == [], study
+    for dataset in ("ict_livelink", "animface", "mesh_sequence"):
+        assert check_study_config(compose("paper", [f"dataset={dataset}"]), refuse_ineffective=True) == []
+
+
+def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path):
+    """Real processes, two at a time: exit 2, one line, no output folder (the former exit-3 cases among them)."""
+    import os
+    import subprocess
+    import sys
+
+    from workbench.config import REPO_ROOT
+
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
+    cases = ["basis.hand_subset=5", "basis.ica.max_iter=0", "basis.coverage=${nope}", "save_inputs=2",
+             "paper.alpha.H=nan", "+dataset.nonexistent=1", "dataset.eval_fraction=0.3", "basis.nmf.tol=-1"]
+    for pair in range(0, len(cases), 2):
+        processes = {case: subprocess.Popen([sys.executable, "-m", "workbench", "dataset.n_frames=200",
+                                             "solver=lstsq", case, "paths.output_root=out"], cwd=tmp_path, env=env,
+                                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                     for case in cases[pair:pair + 2]}
+        for case, process in processes.items():
+            out, err = process.communicate(timeout=300)
+            assert process.returncode == 2, (case, err)
+            assert err.splitlines() == [f"workbench: error: {COMPOSITION_CASES[case]}" + (
+                "; leave it out" if "no effect" in COMPOSITION_CASES[case] else "")], (case, err)
+    assert not (tmp_path / "out").exists()

@@ -11,6 +11,7 @@ import re
 import sys
 import time
 import traceback
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
@@ -18,8 +19,9 @@ from typing import TYPE_CHECKING, Sequence
 # Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
 # Hydra, pandas and the numerical code are imported by the functions that use them.
 from workbench.config import CHECKOUT, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, single_line
 from workbench.extras import missing_extra
+from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -72,15 +74,17 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
 
     from workbench.dataset.real import bool_setting
     from workbench.pipeline import run_study
-    from workbench.record import DONE, record_state, run_metrics, write_record
-    from workbench.run_text import alpha_table, headline, study_header
-    from workbench.tables import markdown_frame
+    from workbench.record import DONE, frame_comparisons, record_state, run_metrics, write_record
+    from workbench.run_text import alpha_table, headline, printed_tables, study_header
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     if record_state(output_dir) == "complete":
         raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
                              "overwritten: write the run elsewhere")
+    from workbench.schema import check_study_config
+
+    check_study_config(cfg)
     plain = resolved_without_hydra(cfg)
     save_inputs = bool_setting(plain.get("save_inputs", False), "save_inputs")  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
@@ -89,11 +93,13 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
                                    coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
                        for result in results], ignore_index=True)
-    text = (study_header(results, plain) + "\n" + markdown_frame(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha))
+    with results[0].timings.stage("comparisons"):
+        comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
+    text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
+            + headline(table, plain["metric"], paper_alpha, comparisons))
 
     metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
-                          job_num=job_num, started_at=started_at, repository=CHECKOUT)
+                          job_num=job_num, started_at=started_at, repository=CHECKOUT, comparisons=comparisons)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
                  timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
                  save_inputs=save_inputs)
@@ -152,13 +158,18 @@ def _hydra_main(cfg: DictConfig) -> None:
     from hydra.types import RunMode
 
     from workbench.record import config_hash
-    from workbench.tracking import FolderBusy
+    from workbench.tracking import FolderBusy, as_typed
 
     hydra_cfg = HydraConfig.get()
     output_dir = Path(hydra_cfg.runtime.output_dir)
     multirun = hydra_cfg.mode == RunMode.MULTIRUN
     try:
-        text = run_owned(cfg, output_dir, overrides=list(hydra_cfg.overrides.task),
+        if multirun:  # a plain run's config was checked before Hydra made its folder (tracking.RunFolders)
+            from workbench.schema import check_study_config
+
+            for warning in check_study_config(cfg, as_typed(hydra_cfg.overrides.task), refuse_ineffective=False):
+                print(f"workbench: warning: {warning}", file=sys.stderr)
+        text = run_owned(cfg, output_dir, overrides=as_typed(hydra_cfg.overrides.task),
                          job_num=int(hydra_cfg.job.num) if multirun else None, plain=not multirun)
     except FolderBusy as error:
         if not multirun:
@@ -181,11 +192,15 @@ def _hydra_main(cfg: DictConfig) -> None:
 def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
               plain: bool) -> str | None:
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
-    holds a complete record of the same config. A plain run (``plain``) that fails or is interrupted leaves no
-    partial record and no stub folder behind (a sweep's run keeps them: its rerun clears and redoes the run)."""
+    holds a complete record of the same config. A folder that is not the workbench's is refused before anything
+    is written into it (:func:`workbench.tracking.check_run_dir`). A plain run (``plain``) that fails or is
+    interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
+    rerun clears and redoes the run)."""
     from workbench.record import config_hash
-    from workbench.tracking import discard_failed_run, lock_run_dir, prepare_run_dir, unlock_run_dir
+    from workbench.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
+                                    prepare_run_dir, unlock_run_dir)
 
+    found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
     lock = lock_run_dir(output_dir)
     try:
         if not prepare_run_dir(output_dir, config_hash(resolved_yaml_text(cfg))):
@@ -193,7 +208,7 @@ def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], jo
         return run(cfg, output_dir, overrides=overrides, job_num=job_num)
     except BaseException:
         if plain:
-            discard_failed_run(output_dir)
+            discard_failed_run(output_dir, found, created_by_this_run(output_dir))
         raise
     finally:
         unlock_run_dir(lock)
@@ -301,10 +316,6 @@ HELP_FLAGS = {"--help", "-h"}
 _verbose = False
 
 
-INTERRUPTED = 130
-"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
-
-
 def exit_on_error(program: str, error: BaseException) -> None:
     """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
 
@@ -317,16 +328,33 @@ def exit_on_error(program: str, error: BaseException) -> None:
         raise error
     if _verbose:
         traceback.print_exception(error, file=sys.stderr)
-    if isinstance(error, KeyboardInterrupt):
-        print(f"{program}: interrupted; rerun the same command to resume", file=sys.stderr)
+    if caused_by_interrupt(error):
+        print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
         sys.exit(INTERRUPTED)
     fault = environment_fault(error)
     if fault is not None:
-        print(f"{program}: error: {fault}", file=sys.stderr)
+        print(f"{program}: error: {single_line(fault)}", file=sys.stderr)
         sys.exit(2)
     hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
-    print(f"{program}: error: unexpected {type(error).__name__}: {error}{hint}", file=sys.stderr)
+    print(f"{program}: error: unexpected {type(error).__name__}: {single_line(error)}{hint}", file=sys.stderr)
     sys.exit(3)
+
+
+@contextmanager
+def one_line_usage_errors():
+    """A command's wrong arguments are one line (argparse prints its usage block first): within this block an
+    argument parser's error raises a :class:`WorkbenchError` naming the problem and ``--help``."""
+    import argparse
+
+    def error(parser, message):
+        raise WorkbenchError(f"{message} (see {parser.prog} --help)")
+
+    original = argparse.ArgumentParser.error
+    argparse.ArgumentParser.error = error
+    try:
+        yield
+    finally:
+        argparse.ArgumentParser.error = original
 
 
 def environment_fault(error: BaseException) -> str | None:
@@ -369,8 +397,10 @@ def main() -> None:
         import importlib
 
         module, function = COMMANDS[sys.argv[1]].split(":")
+        raise_from_now_on()  # a command writing files removes its partial file when interrupted
         try:
-            code = getattr(importlib.import_module(module), function)(sys.argv[2:])
+            with one_line_usage_errors():
+                code = getattr(importlib.import_module(module), function)(sys.argv[2:])
         except BaseException as error:  # noqa: BLE001 - SystemExit passes through, Ctrl-C is one line
             exit_on_error(f"workbench {sys.argv[1]}", error)
         sys.exit(code)
@@ -382,12 +412,15 @@ def main() -> None:
     # one line (unless the user asked for Hydra's full error or --verbose).
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
+    raise_from_now_on()  # an interrupted run removes what it wrote
     try:
         if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
             hydra_app()
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
+        if caused_by_interrupt(error):
+            exit_on_error("workbench", error)
         if full_error or _verbose:
             raise
         print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)

@@ -178,7 +178,7 @@ class FrameWriter:
         if self._written + len(chunk) > self.shape[0]:
             self.abort()
             raise WorkbenchError(f"{self.path}: more frames written than the {self.shape[0]} announced")
-        self._stream.write(np.ascontiguousarray(chunk, dtype=self.dtype).tobytes())
+        self._stream.write(np.ascontiguousarray(chunk, dtype=self.dtype).data)  # no copy of the chunk
         self._written += len(chunk)
 
     def close(self) -> FramesOnDisk:

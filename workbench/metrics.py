@@ -5,6 +5,7 @@ Pure numerical code. Frames are rows of arrays of shape ``(n_frames, 3 * n_point
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,6 +128,9 @@ class AlphaSummary:
         RMS 3-D point error.
     n_undefined_displacement_frames : int
         Frames left out of ``displacement_mean`` because their captured displacement is zero.
+    error_sq, displacement_sq, position_sq : ndarray of shape (n_frames,), or None
+        Per frame ``|v* - v|^2``, ``|d*|^2`` and ``|v0 + d*|^2`` over the compared points (what the pooled alpha
+        sums; paired comparisons of pooled alphas resample them).
     """
 
     absolute_per_frame: np.ndarray
@@ -137,6 +141,9 @@ class AlphaSummary:
     displacement_pooled: float
     rms_mm: float
     n_undefined_displacement_frames: int
+    error_sq: np.ndarray | None = None
+    displacement_sq: np.ndarray | None = None
+    position_sq: np.ndarray | None = None
 
 
 def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
@@ -248,6 +255,7 @@ def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, positio
         displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
         rms_mm=float(np.sqrt(error_sq.sum() / n_compared_points)),
         n_undefined_displacement_frames=n_undefined,
+        error_sq=error_sq, displacement_sq=displacement_sq, position_sq=position_sq,
     )
 
 
@@ -370,3 +378,193 @@ def basis_conditioning(shapes: np.ndarray, *, duplicate_cosine: float = 0.995) -
     pairs = tuple((int(a), int(b), float(cosine[a, b])) for a, b in zip(i[close], j[close]))
     return Conditioning(condition_number=condition, rank=rank, n_shapes=shapes.shape[0], zero_shapes=zero,
                         near_duplicates=pairs)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Error as a distribution over frames, and the animator's side: what the weights look like
+# ---------------------------------------------------------------------------------------------------------------
+
+ERROR_QUANTILES = np.linspace(0.0, 1.0, 101)
+"""Probabilities at which the per-frame error distribution is kept (its cumulative curve)."""
+
+
+@dataclass(frozen=True)
+class ErrorDistribution:
+    """The distribution over frames of one reconstruction's per-frame error.
+
+    Attributes
+    ----------
+    median, p95, max : float
+        Of the per-frame values (frames without a value left out).
+    quantiles : ndarray of shape (101,)
+        The values at probabilities 0, 0.01, ..., 1 (:data:`ERROR_QUANTILES`): the cumulative error curve.
+    """
+
+    median: float
+    p95: float
+    max: float
+    quantiles: np.ndarray
+
+
+def error_distribution(per_frame: np.ndarray) -> ErrorDistribution:
+    """Median, 95th percentile, maximum and the quantile curve of per-frame errors.
+
+    Parameters
+    ----------
+    per_frame : ndarray of shape (n_frames,)
+        NaN for frames without a value.
+
+    Returns
+    -------
+    ErrorDistribution
+        All NaN when no frame has a value.
+    """
+    values = np.asarray(per_frame, dtype=float)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return ErrorDistribution(math.nan, math.nan, math.nan, np.full(ERROR_QUANTILES.size, math.nan))
+    quantiles = np.quantile(values, ERROR_QUANTILES)
+    return ErrorDistribution(median=float(np.median(values)), p95=float(np.quantile(values, 0.95)),
+                             max=float(values.max()), quantiles=quantiles)
+
+
+def frame_rms_error(error_sq: np.ndarray, n_points) -> np.ndarray:
+    """Per-frame RMS 3-D point error, ``sqrt(|v* - v|^2 / n_points)``, in data units (millimetres).
+
+    Parameters
+    ----------
+    error_sq : ndarray of shape (n_frames,)
+        Squared error of each frame summed over its compared points.
+    n_points : int or ndarray of shape (n_frames,)
+        Points compared in each frame (fewer under capture gaps); a frame with none gets NaN.
+
+    Returns
+    -------
+    ndarray of shape (n_frames,)
+    """
+    n_points = np.broadcast_to(np.asarray(n_points, dtype=float), np.shape(error_sq))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(n_points > 0, np.sqrt(np.asarray(error_sq, dtype=float) / n_points), np.nan)
+
+
+@dataclass(frozen=True)
+class WeightStatistics:
+    """What an animator would face in one basis's weights over a take.
+
+    Attributes
+    ----------
+    max_abs : float
+        Largest ``|w|`` over frames and shapes.
+    outside_unit_share : float
+        Share of frames with at least one weight below 0 or above 1 (by more than ``TOL.weight_bound``).
+    negative_share : float
+        Share of frames with at least one weight below 0 (same tolerance).
+    sparsity : float
+        Hoyer's sparsity, ``(sqrt(n) - |w|_1 / |w|_2) / (sqrt(n) - 1)``, mean over frames: 1 when one shape
+        alone moves the face, 0 when every shape has the same ``|w|``; frames with all weights zero left out.
+    roughness : float
+        Mean over shapes and frames of the squared second time derivative of the weights, in 1/s^4: second
+        differences over the frames' times, within each take (frames at a take's ends have none).
+    sum_median : float
+        Median over frames of ``sum_i w_i``.
+    """
+
+    max_abs: float
+    outside_unit_share: float
+    negative_share: float
+    sparsity: float
+    roughness: float
+    sum_median: float
+
+    def as_dict(self) -> dict:
+        return {"max_abs": self.max_abs, "outside_unit_share": self.outside_unit_share,
+                "negative_share": self.negative_share, "sparsity": self.sparsity, "roughness": self.roughness,
+                "sum_median": self.sum_median}
+
+
+def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:
+    """Hoyer's sparsity of each frame's weights (Hoyer 2004, *Non-negative matrix factorization with sparseness
+    constraints*), ``(sqrt(n) - |w|_1 / |w|_2) / (sqrt(n) - 1)``.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (n_frames, n_shapes)
+        ``n_shapes >= 2``.
+
+    Returns
+    -------
+    ndarray of shape (n_frames,)
+        In [0, 1]; NaN for a frame whose weights are all zero.
+    """
+    weights = np.asarray(weights, dtype=float)
+    root = math.sqrt(weights.shape[1])
+    l1, l2 = np.abs(weights).sum(axis=1), np.linalg.norm(weights, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(l2 > 0, (root - l1 / l2) / (root - 1.0), np.nan)
+
+
+def second_derivative(values: np.ndarray, seconds: np.ndarray, takes=None) -> np.ndarray:
+    """Second time derivative of per-frame values by finite differences on (possibly uneven) frame times.
+
+    For frames ``i - 1, i, i + 1`` of one take with steps ``h1 = t_i - t_{i-1}``, ``h2 = t_{i+1} - t_i``:
+    ``2 (h1 x_{i+1} - (h1 + h2) x_i + h2 x_{i-1}) / (h1 h2 (h1 + h2))`` (``(x_{i+1} - 2 x_i + x_{i-1}) / h^2`` for
+    even steps).
+
+    Parameters
+    ----------
+    values : ndarray of shape (n_frames, k)
+    seconds : ndarray of shape (n_frames,)
+        Time of each frame, increasing within each take.
+    takes : ndarray of shape (n_frames,), optional
+        Take of each frame; no difference spans two takes.
+
+    Returns
+    -------
+    ndarray of shape (n_inner, k)
+        At every frame with a neighbour on each side in its take.
+    """
+    values, seconds = np.asarray(values, dtype=float), np.asarray(seconds, dtype=float)
+    inner = np.ones(max(len(seconds) - 2, 0), dtype=bool)
+    if takes is not None:
+        takes = np.asarray(takes)
+        inner &= (takes[:-2] == takes[1:-1]) & (takes[1:-1] == takes[2:])
+    h1, h2 = (seconds[1:-1] - seconds[:-2])[inner], (seconds[2:] - seconds[1:-1])[inner]
+    if np.any(h1 <= 0) or np.any(h2 <= 0):
+        raise WorkbenchError("frame times must increase within each take to take time derivatives of the weights")
+    before, here, after = values[:-2][inner], values[1:-1][inner], values[2:][inner]
+    scale = (2.0 / (h1 * h2 * (h1 + h2)))[:, None]
+    return scale * (h1[:, None] * after - (h1 + h2)[:, None] * here + h2[:, None] * before)
+
+
+def weight_statistics(weights: np.ndarray, seconds: np.ndarray, takes=None, *,
+                      tol: Tolerances = TOL) -> WeightStatistics:
+    """Range, bounds, sparsity and temporal roughness of a basis's weights over the evaluated frames.
+
+    Parameters
+    ----------
+    weights : ndarray of shape (n_frames, n_shapes)
+    seconds : ndarray of shape (n_frames,)
+        Time of each frame within its take.
+    takes : ndarray of shape (n_frames,), optional
+        Take of each frame.
+    tol : Tolerances
+        ``weight_bound``: how far past 0 or 1 a weight must be to count as outside.
+
+    Returns
+    -------
+    WeightStatistics
+    """
+    weights = _check_frames("weights", weights)
+    if np.shape(seconds) != (len(weights),):
+        raise WorkbenchError(f"seconds must give the time of each of the {len(weights)} frames, got shape "
+                             f"{np.shape(seconds)}")
+    below, above = weights < -tol.weight_bound, weights > 1.0 + tol.weight_bound
+    sparsity = hoyer_sparsity(weights) if weights.shape[1] > 1 else np.full(len(weights), np.nan)
+    curvature = second_derivative(weights, seconds, takes)
+    return WeightStatistics(
+        max_abs=float(np.abs(weights).max()),
+        outside_unit_share=float((below | above).any(axis=1).mean()),
+        negative_share=float(below.any(axis=1).mean()),
+        sparsity=float(np.nanmean(sparsity)) if np.isfinite(sparsity).any() else math.nan,
+        roughness=float(np.mean(curvature ** 2)) if curvature.size else math.nan,
+        sum_median=float(np.median(weights.sum(axis=1))))

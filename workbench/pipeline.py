@@ -20,8 +20,10 @@ from workbench.dataset import build_captures, variant_names
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
-from workbench.metrics import (AlphaSummary, Conditioning, basis_conditioning, intuitiveness, reference_squares,
-                               summarise_alpha, summarise_squares)
+from workbench.frames import frame_chunks
+from workbench.metrics import (AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics, basis_conditioning,
+                               error_distribution, frame_rms_error, intuitiveness, reference_squares, summarise_alpha,
+                               summarise_squares, weight_statistics)
 from workbench.reduced import FrameProjections, Subspace, project_frames
 from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 
@@ -43,7 +45,13 @@ class Timings:
 
 @dataclass(frozen=True)
 class Row:
-    """One line of the alpha table: a basis reconstructed with one solver."""
+    """One line of the alpha table: a basis reconstructed with one solver.
+
+    ``weight_statistics`` (None for PCA, whose coefficients are no animator's weights), ``frame_error_mm`` (RMS
+    point error of each evaluated frame over the face region, :func:`face_region`) and its ``error_mm``
+    distribution are set by :func:`frame_measures`; ``offset_error_share`` is the share of the squared error
+    along the capture mean's part outside the eigenfaces' span (:func:`outside_offset`), NaN where not taken.
+    """
 
     basis: str
     projection: str
@@ -55,6 +63,10 @@ class Row:
     max_kkt_violation: float = 0.0
     max_abs_weight: float = float("nan")
     conditioning: Conditioning | None = None
+    weight_statistics: WeightStatistics | None = None
+    frame_error_mm: np.ndarray | None = None
+    error_mm: ErrorDistribution | None = None
+    offset_error_share: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -83,6 +95,14 @@ class StudyResult:
     basis_intuitiveness : dict
         Closeness, locality and usage of every basis (:func:`basis_intuitiveness`) when ``basis.alternatives``
         is set; empty otherwise.
+    face_region : str
+        Which points the per-frame error in millimetres is taken over (:func:`face_region`).
+    offset : dict
+        The capture mean's part outside the eigenfaces' span, ``(I - P) mu`` (:func:`outside_offset`): its
+        ``norm`` and its ``ratio`` to the median evaluated frame's displacement norm; empty when not taken.
+    protocol : str
+        Which frames were scored: ``training frames`` (those the bases were fitted on, or as ``dataset.split``
+        says) or a held-out protocol of ``dataset.held_out`` (:data:`HELD_OUT`).
     """
 
     data: str
@@ -96,6 +116,9 @@ class StudyResult:
     eval_on: str = ""
     transfer: str = "identity"
     basis_intuitiveness: dict = field(default_factory=dict)
+    face_region: str = ""
+    offset: dict = field(default_factory=dict)
+    protocol: str = "training frames"
 
 
 def check_solver_config(name: str, solver: Mapping) -> dict:
@@ -134,16 +157,29 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
         raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
     dataset_cfg, basis_cfg = cfg["dataset"], cfg["basis"]
     train_names, eval_names = data_variants(dataset_cfg)
+    held_out = held_out_protocols(dataset_cfg)
+    if held_out and eval_names:
+        raise WorkbenchError("dataset.held_out scores each data variant on its own held-out frames; with "
+                             "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset")
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
+    build_cfg = {key: value for key, value in dataset_cfg.items() if key != "held_out"}  # the same built data
     with timings.stage("dataset"):
-        captures = build_captures(dict(dataset_cfg, train_on=build_names) if eval_names else dataset_cfg,
+        captures = build_captures(dict(build_cfg, train_on=build_names) if eval_names else build_cfg,
                                   cache_dir=cfg.get("paths", {}).get("cache_dir"))
     if eval_names and basis_cfg.get("alternatives"):
         raise WorkbenchError("basis.alternatives are fitted and scored on each data variant's own points; "
                              "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset")
     if not eval_names:
-        return [run_on_capture(data, subset_hand_shapes(capture, basis_cfg), basis_cfg, solvers, timings)
-                for data, capture in captures.items()]
+        results = []
+        for data, capture in captures.items():
+            capture = subset_hand_shapes(capture, basis_cfg)
+            results.append(run_on_capture(data, capture, basis_cfg, solvers, timings))
+            for protocol in held_out:
+                part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
+                results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, basis_cfg, solvers,
+                                                      timings), train_on=data, eval_on=data,
+                                       protocol=HELD_OUT[protocol]))
+        return results
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
     if masked:
         raise WorkbenchError(f"dataset.gap_policy 'masked' leaves gaps in the evaluated frames of {masked}; "
@@ -162,12 +198,102 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
             target = replace(target, notes=target.notes + (note,))
             carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
                        for projection, qe in quasi_eigen.items()}
-            rows, weights = score_bases(target, eigenfaces, carried, pca_subspace(eigenfaces, transfer),
-                                        solvers, timings)
+            carried_pca = pca_subspace(eigenfaces, transfer)
+            rows, weights = score_bases(target, eigenfaces, carried, carried_pca, solvers, timings)
             results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
                                        quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
-                                       train_on=train_on, eval_on=eval_on, transfer=transfer.method))
+                                       train_on=train_on, eval_on=eval_on, transfer=transfer.method,
+                                       face_region=face_region(target).description,
+                                       offset=offset_facts(carried_pca, rows)))
     return results
+
+
+HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take"}
+"""``dataset.held_out`` protocol -> how its frames are described."""
+
+
+def held_out_protocols(dataset_cfg: Mapping) -> list[str]:
+    """``dataset.held_out`` as a list of distinct protocols of :data:`HELD_OUT` (empty when null)."""
+    value = dataset_cfg.get("held_out")
+    if value is None:
+        names = []
+    elif isinstance(value, (str, Mapping)) or not hasattr(value, "__iter__"):
+        names = [value]
+    else:
+        names = list(value)
+    if any(not isinstance(name, str) or name not in HELD_OUT for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, "
+                             f"got {value!r}")
+    if names and dataset_cfg.get("split", "same") != "same":
+        raise WorkbenchError(f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
+                             f"with dataset.split {dataset_cfg.get('split')!r} the run is already held out: leave "
+                             "one of them unset")
+    return names
+
+
+def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> Capture:
+    """The capture cut into training frames and held-out evaluated frames, from its frames of split 'same'.
+
+    Parameters
+    ----------
+    capture : Capture
+        Trained and evaluated on the same frames.
+    protocol : {"tail", "take"}
+        ``tail``: the last ``eval_fraction`` of every take is held out (of the one take, as ``split: tail``);
+        ``take``: the last take is held out whole, the bases fitted on the others.
+    eval_fraction : float
+
+    Returns
+    -------
+    Capture
+    """
+    from workbench.dataset.real import number_setting
+
+    if len(capture.train) != len(capture.eval) or (capture.train_source is not None
+                                                   and len(capture.train_source) != len(capture.train)):
+        raise WorkbenchError("dataset.held_out needs the training and evaluated frames to be the same frames "
+                             "(split 'same'; with gap_policy masked, gap_fit_on filled)")
+    timeline = capture.timeline()
+    spans = timeline.take_spans()
+    if protocol == "take":
+        if len(spans) < 2:
+            raise WorkbenchError("dataset.held_out 'take' holds out the last take, and this capture has one take; "
+                                 "use 'tail'")
+        held = np.arange(spans[-1][0], spans[-1][1])
+        described = (f"held out: the last take, {timeline.take[held[0]]}, scored with bases fitted on the other "
+                     f"{len(spans) - 1} takes")
+    else:
+        fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for dataset.held_out 'tail'",
+                                  lambda value: 0.0 < value < 1.0)
+        counts = [int(round(fraction * (stop - start))) for start, stop in spans]
+        if any(count < 1 or count > stop - start - 2 for count, (start, stop) in zip(counts, spans)):
+            raise WorkbenchError(f"dataset.eval_fraction {fraction} holds out {counts} frames of takes of "
+                                 f"{[stop - start for start, stop in spans]}; each take needs at least 1 held out "
+                                 "and 2 for training")
+        held = np.concatenate([np.arange(stop - count, stop) for count, (_, stop) in zip(counts, spans)])
+        described = (f"held out: the last {100 * fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
+                     "scored with bases fitted on the rest")
+    kept = np.setdiff1d(np.arange(len(capture.eval)), held)
+    notes = tuple(note for note in capture.notes if not note.startswith("split '")) + (
+        f"{described}: {len(kept)} training frames, {len(held)} evaluated",)
+    return replace(capture, train=select_frames(capture.train, kept), eval=select_frames(capture.eval, held),
+                   eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
+                   train_source=None if capture.train_source is None else capture.train_source[kept],
+                   eval_timeline=timeline[held], notes=notes)
+
+
+def select_frames(frames, index: np.ndarray):
+    """Some frames of a capture: a slice when ``index`` is a run of consecutive frames (frames on disk stay on
+    disk), else a copy in memory."""
+    from workbench.frames import FramesOnDisk
+
+    if index.size and np.all(np.diff(index) == 1):
+        start, stop = int(index[0]), int(index[-1]) + 1
+        return frames.rows(start, stop) if isinstance(frames, FramesOnDisk) else frames[start:stop]
+    if isinstance(frames, FramesOnDisk):
+        raise WorkbenchError("dataset.held_out 'tail' of several takes picks frames from each, which frames on disk "
+                             "(dataset.storage disk) cannot give; use dataset.storage memory or held_out 'take'")
+    return frames[index]
 
 
 def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
@@ -318,7 +444,9 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
             measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights,
                                            basis_cfg.get("intuitiveness") or {})
     return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
-                       weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured)
+                       weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured,
+                       face_region=face_region(capture).description,
+                       offset=offset_facts(pca_subspace(eigenfaces), rows))
 
 
 def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, pca: Subspace,
@@ -349,10 +477,16 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     with timings.stage("metrics"):
         conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
     if capture.eval_visible is None:
-        rows, weights, projections = projected_rows(capture, bases, solvers, timings, conditioning, {"PCA": pca})
+        offset, _ = outside_offset(pca)
+        extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
+        rows, weights, projections = projected_rows(capture, bases, solvers, timings, conditioning, extra)
         with timings.stage("pca_reconstruction"):
             summary = summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
                                         projections.position_sq, len(capture.eval) * capture.n_points)
+        pca_fit = (pca.columns.T, projections.coordinates["PCA"], pca.offset)
+        if offset is not None:
+            rows = offset_error_shares(rows, weights, {label: shapes for label, _, shapes in bases}, offset,
+                                       projections.coordinates[OFFSET][:, 0])
     else:
         rows, weights = masked_rows(capture, bases, solvers, timings, conditioning)
         with timings.stage("pca_reconstruction"):
@@ -363,9 +497,229 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
                 capture.neutral, capture.eval,
                 lambda rows: eigenfaces.mean_ + reconstruct(eigenfaces.components_, offsets[rows]),
                 squares=reference_squares(capture.neutral, capture.eval, visible=visible), visible=visible)
+        pca_fit = (eigenfaces.components_, offsets, eigenfaces.mean_)
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
                     alpha=summary))
+    with timings.stage("frame_measures"):
+        rows = frame_measures(capture, rows, weights, {label: shapes for label, _, shapes in bases}, pca_fit)
     return rows, weights
+
+
+OFFSET = "(I-P) mu"
+"""Label of the capture mean's part outside the eigenfaces' span among the subspaces of the projection pass."""
+
+
+def outside_offset(pca: Subspace) -> tuple[np.ndarray | None, float]:
+    """The capture mean's part outside the eigenfaces' span, ``(I - P) mu``: every affine quasi-eigen face is
+    ``P e_i^H + (I - P) mu`` (eq. 3-4), so each carries this same offset, while PCA adds it once as its mean.
+
+    Parameters
+    ----------
+    pca : Subspace
+        The eigenfaces (orthonormal columns) and the mean ``mu`` as offset, at the evaluated points.
+
+    Returns
+    -------
+    unit : ndarray of shape (n_dims,) or None
+        Its direction; None when it is zero (to rounding).
+    norm : float
+    """
+    if pca.offset is None:
+        return None, 0.0
+    mean = np.asarray(pca.offset, dtype=float)
+    outside = mean - pca.columns @ (pca.columns.T @ mean)
+    norm = float(np.linalg.norm(outside))
+    if not norm > 1e-9 * max(float(np.linalg.norm(mean)), 1e-300):
+        return None, norm
+    return outside / norm, norm
+
+
+def offset_facts(pca: Subspace, rows: Sequence[Row]) -> dict:
+    """``norm`` of :func:`outside_offset` and its ``ratio`` to the median evaluated frame's displacement norm."""
+    _, norm = outside_offset(pca)
+    squares = rows[0].alpha.displacement_sq if rows else None
+    if squares is None or not len(squares):
+        return {}
+    return {"norm": norm, "ratio": float(norm / np.median(np.sqrt(squares)))}
+
+
+def offset_error_shares(rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray], unit: np.ndarray,
+                        frames_along: np.ndarray) -> list[Row]:
+    """The rows with the share of their squared error that lies along ``unit`` (``offset_error_share``).
+
+    Parameters
+    ----------
+    rows : sequence of Row
+    weights : mapping
+        ``(basis, solver)`` -> weights of shape (n_frames, n).
+    shapes : mapping
+        Basis label -> shapes of shape (n, n_dims).
+    unit : ndarray of shape (n_dims,)
+    frames_along : ndarray of shape (n_frames,)
+        Each evaluated frame's coordinate along ``unit``.
+    """
+    along = {label: basis @ unit for label, basis in shapes.items()}
+    shared = []
+    for row in rows:
+        key = (row.basis, row.solver)
+        if key in weights and row.basis in along and row.alpha.error_sq is not None:
+            residual = frames_along - weights[key] @ along[row.basis]
+            total = float(row.alpha.error_sq.sum())
+            row = replace(row, offset_error_share=float(residual @ residual) / total if total > 0 else float("nan"))
+        shared.append(row)
+    return shared
+
+
+@dataclass(frozen=True)
+class FaceRegion:
+    """The points the per-frame error in millimetres is taken over.
+
+    Attributes
+    ----------
+    points : ndarray of shape (n_points,) of bool, or None
+        None: every point of the capture.
+    description : str
+    """
+
+    points: np.ndarray | None
+    description: str
+
+
+def face_region(capture: Capture) -> FaceRegion:
+    """The face region of a capture's points, per dataset.
+
+    - markers (no triangles): every marker of the capture (head markers used only to remove head motion are not
+      among its points);
+    - the synthetic mesh: the vertices some hand shape moves (the muscles' reach); the rest is the static head
+      around the face;
+    - the AnimFace mesh: the vertices within reach of the markers (``point_support``); the rest is extrapolated;
+    - the ICT FaceKit mesh: its face region, vertices [0, 9409) of the model (the capture holds no others);
+    - another mesh: every vertex.
+    """
+    kind, n = capture.provenance.get("kind"), capture.n_points
+    if capture.provenance.get("train_on", "markers" if capture.faces is None else "mesh") == "markers":
+        return FaceRegion(None, f"the face region: every one of the {n} markers")
+    if kind == "synthetic":
+        moved = np.linalg.norm(capture.hand.reshape(len(capture.hand), n, 3), axis=2).max(axis=0) > 0.0
+        return FaceRegion(None if moved.all() else moved,
+                          f"the face region: the {int(moved.sum())} of {n} mesh vertices some hand shape moves (the "
+                          "muscles' reach; the rest of the head patch never moves)")
+    if capture.point_support is not None and not capture.point_support.all():
+        return FaceRegion(np.asarray(capture.point_support, dtype=bool),
+                          f"the face region: the {int(capture.point_support.sum())} of {n} vertices within reach of "
+                          "the markers (the others' motion is extrapolated)")
+    if kind == "ict_livelink":
+        region = capture.provenance.get("region_vertices")
+        return FaceRegion(None, f"the ICT face region (the {n} vertices of [0, {region}) of the model)")
+    return FaceRegion(None, f"the face region: every one of the {n} vertices")
+
+
+def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray],
+                   pca_fit: tuple | None = None) -> list[Row]:
+    """The rows with their per-frame error in millimetres over the face region (and its distribution) and the
+    statistics of their weights.
+
+    Parameters
+    ----------
+    capture : Capture
+    rows : sequence of Row
+    weights : mapping
+        ``(basis, solver)`` -> weights of shape (n_eval_frames, n).
+    shapes : mapping
+        Basis label -> shapes of shape (n, n_dims) (for the error over a part of the points).
+    pca_fit : tuple, optional
+        PCA's reconstruction ``offset + coefficients @ directions`` as ``(directions (k, n_dims), coefficients
+        (n_eval_frames, k), offset (n_dims,))``, for its row.
+
+    Returns
+    -------
+    list of Row
+    """
+    region, timeline = face_region(capture), capture.timeline()
+    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once, as integers
+    points = np.ones(capture.n_points, dtype=bool) if region.points is None else region.points
+    visible = capture.eval_visible
+    counts = (visible[:, points].sum(axis=1) if visible is not None else int(points.sum()))
+    fits = {}
+    for row in rows:
+        key = (row.basis, row.solver)
+        if key in weights:
+            fits[key] = (shapes[row.basis], weights[key], None)
+        elif row.basis == "PCA" and pca_fit is not None:
+            fits[key] = pca_fit
+    explicit = region_error_sq(capture.eval, points, fits, visible) if region.points is not None else {}
+    measured = []
+    for row in rows:
+        key = (row.basis, row.solver)
+        error_sq = explicit.get(key, row.alpha.error_sq if region.points is None else None)
+        per_frame = frame_rms_error(error_sq, counts) if error_sq is not None else None
+        statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
+        measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
+                                error_mm=error_distribution(per_frame) if per_frame is not None else None))
+    return measured
+
+
+def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarray | None = None) -> dict:
+    """Squared reconstruction error of each frame over some points only, one pass over the frames for every fit.
+
+    Each fit's error is ``|x - o|^2 - 2 w.(S (x - o)) + w^T S S^T w`` over the points' coordinates, from one
+    product of the frames with every fit's shapes and offset (no reconstruction is formed); frames where those
+    terms cancel to below ``EXPLICIT_BELOW`` of their size get the explicit residual, as
+    :func:`workbench.reduced.project_frames` does.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points) or FramesOnDisk
+    points : ndarray of shape (n_points,) of bool
+    fits : mapping
+        Key -> ``(shapes (k, n_dims), weights (n_frames, k), offset (n_dims,) or None)``: the reconstruction
+        ``offset + weights @ shapes``.
+    visible : ndarray of shape (n_frames, n_points) of bool, optional
+        Points each frame saw; only those count (then every residual is formed explicitly).
+
+    Returns
+    -------
+    dict
+        Key -> ndarray of shape (n_frames,).
+    """
+    from workbench.reduced import EXPLICIT_BELOW
+
+    dims = np.repeat(points, 3)
+    # one block of columns per distinct basis and offset (a basis solved by several solvers is taken once)
+    blocks, parts, where, quadratic = {}, {}, {}, {}
+    for key, (shapes, weights, offset) in fits.items():
+        basis = (id(shapes), id(offset))
+        if basis not in blocks:
+            restricted = np.zeros(int(dims.sum())) if offset is None else np.asarray(offset, dtype=float)[dims]
+            blocks[basis] = (shapes[:, dims], restricted)
+            where[basis] = sum(len(block) + 1 for block, _ in list(blocks.values())[:-1])
+            quadratic[basis] = (blocks[basis][0] @ blocks[basis][0].T, blocks[basis][0] @ restricted,
+                                float(restricted @ restricted))
+        parts[key] = (*blocks[basis], weights, basis)
+    together = np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T
+    errors = {key: np.empty(frames.shape[0]) for key in fits}
+    for rows, chunk in frame_chunks(frames):
+        chunk = chunk[:, dims]
+        if visible is not None:
+            seen = np.repeat(visible[rows][:, points], 3, axis=1)
+            for key, (shapes, offset, weights, _) in parts.items():
+                difference = np.where(seen, chunk - weights[rows] @ shapes - offset, 0.0)
+                errors[key][rows] = np.einsum("ij,ij->i", difference, difference)
+            continue
+        products, squares = chunk @ together, np.einsum("ij,ij->i", chunk, chunk)
+        for key, (shapes, offset, weights, basis) in parts.items():
+            gram, shapes_offset, offset_sq = quadratic[basis]
+            k, w, first = shapes.shape[0], weights[rows], where[basis]
+            along = products[:, first:first + k] - shapes_offset  # S (x - o)
+            frame_offset = products[:, first + k]
+            error = (squares - 2.0 * frame_offset + offset_sq - 2.0 * np.einsum("ij,ij->i", w, along)
+                     + np.einsum("ij,ij->i", w @ gram, w))
+            close = np.flatnonzero(error <= EXPLICIT_BELOW * (squares + offset_sq))
+            if close.size:
+                residual = chunk[close] - w[close] @ shapes - offset
+                error[close] = np.einsum("ij,ij->i", residual, residual)
+            errors[key][rows] = np.maximum(error, 0.0)
+    return errors
 
 
 def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, Mapping], timings: Timings,
@@ -521,9 +875,11 @@ def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], s
     """
     listed = [(label, "-", shapes) for label, shapes in bases.items()]
     if getattr(capture, "eval_visible", None) is not None:  # frames with capture gaps: visible points only
-        return masked_rows(capture, listed, solvers, timings)
-    rows, weights, _ = projected_rows(capture, listed, solvers, timings)
-    return rows, weights
+        rows, weights = masked_rows(capture, listed, solvers, timings)
+    else:
+        rows, weights, _ = projected_rows(capture, listed, solvers, timings)
+    with timings.stage("frame_measures"):
+        return frame_measures(capture, rows, weights, bases), weights
 
 
 def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping,

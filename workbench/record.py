@@ -8,7 +8,9 @@ A run record is a folder holding
   its solver diagnostics, versions, git state and times;
 - ``timings.json``: seconds per stage;
 - optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
-- ``done``: written last; a folder without it is not a record (a run still going, or one that was killed).
+- ``done``: written last, holding the SHA-256 of every other file of the record; a folder without it is not a
+  record (a run still going, or one that was killed), and a file that no longer matches its checksum makes the
+  record untrusted: :func:`load_record` refuses it, so every reader (report, collect, mlflow, export) does.
 
 This module is the only place that knows these names; everything that reads records (``workbench collect``,
 ``workbench report``, the tracking export) reads them through :class:`RunRecord`.
@@ -21,6 +23,7 @@ import io
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -81,14 +84,22 @@ def _naming(error: OSError, path: Path) -> OSError:
     return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
 
 
+def json_text(value) -> str:
+    return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
+
+
+def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return buffer.getvalue()
+
+
 def write_json(path: Path, value) -> None:
-    write_atomic(path, json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n")
+    write_atomic(path, json_text(value))
 
 
 def write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
-    write_atomic(path, buffer.getvalue())
+    write_atomic(path, npz_bytes(arrays))
 
 
 def config_hash(resolved_yaml: str) -> str:
@@ -133,15 +144,27 @@ def versions() -> dict:
 # ---------------------------------------------------------------------------------------------------------------
 
 DONE = "done"
-"""The completion marker, written last into a run folder."""
+"""The completion marker, written last into a run folder: the checksums of the record's other files (JSON)."""
 CONFIG_FILE = "config.yaml"
 TABLE_FILE = "alpha_table.csv"
 TEXT_FILE = "alpha_table.md"
 METRICS_FILE = "metrics.json"
 TIMINGS_FILE = "timings.json"
 ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
+INPUTS_FILE = "inputs.npz"
+RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE,
+                DONE)
+"""The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
+_VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 """The alpha-table columns every row of a record must have (numbers)."""
+FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
+                 "w_roughness")
+"""The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
+frames, mm) and of the weights' statistics (:class:`workbench.metrics.WeightStatistics`: largest ``|w|``, share of
+frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
+for PCA's weights, and absent from records made before they were measured."""
 
 
 def record_state(folder: Path) -> str:
@@ -157,6 +180,22 @@ def is_complete(folder: Path) -> bool:
     return record_state(folder) == "complete"
 
 
+def is_record_file(name: str) -> bool:
+    """Whether a file name is one a run writes into its record (or a temporary file of one being written)."""
+    match = _TEMPORARY.fullmatch(name)
+    name = match.group("name") if match else name
+    return name in RECORD_FILES or bool(_VARIANT_INPUTS.fullmatch(name))
+
+
+def file_checksum(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex), read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Writing
 # ---------------------------------------------------------------------------------------------------------------
@@ -164,16 +203,84 @@ def is_complete(folder: Path) -> bool:
 
 def alpha_per_frame_arrays(results) -> dict:
     """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
-    of shape (n_rows, n_eval_frames), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the
-    evaluated frames' take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
+    of shape (n_rows, n_eval_frames), ``<data>.error_mm`` (RMS point error over the face region, NaN where a row
+    has none), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the evaluated frames'
+    take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
     arrays = {}
     for result in results:
+        n_frames = len(result.capture.eval)
         arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
         arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
         arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
         arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
+        arrays[f"{result.data}.error_mm"] = np.array([np.full(n_frames, np.nan) if row.frame_error_mm is None
+                                                      else row.frame_error_mm for row in result.rows])
         arrays.update(result.capture.timeline().as_arrays(f"{result.data}."))
     return arrays
+
+
+def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
+    """The pairs of table rows a run compares frame by frame: every two bases under the same solver (PCA, whose
+    row has no solver, under each), and every basis under two solvers.
+
+    Parameters
+    ----------
+    rows : sequence of workbench.pipeline.Row
+
+    Returns
+    -------
+    list of (int, int)
+        Indices into ``rows``.
+    """
+    solvers = list(dict.fromkeys(row.solver for row in rows if row.solver != "projection"))
+    pairs = []
+    for solver in solvers:
+        members = [i for i, row in enumerate(rows) if row.solver in (solver, "projection")]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+    for basis in dict.fromkeys(row.basis for row in rows if row.solver != "projection"):
+        members = [i for i, row in enumerate(rows) if row.basis == basis and row.solver != "projection"]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+    return list(dict.fromkeys(pairs))
+
+
+def frame_comparisons(result, metric: Mapping) -> list[dict]:
+    """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
+    of :func:`comparison_pairs`, the difference ``a - b`` with its block-bootstrap interval over time
+    (:mod:`workbench.reporting.statistics`).
+
+    Parameters
+    ----------
+    result : workbench.pipeline.StudyResult
+    metric : mapping
+        The ``metric`` config group: the headline's normalisation and aggregate, the bootstrap's resamples and
+        seed.
+
+    Returns
+    -------
+    list of dict
+        ``a`` and ``b`` as ``[basis, solver]``, ``column``, and the :class:`Interval`'s fields.
+    """
+    from workbench.reporting.statistics import paired_mean_difference, paired_pooled_difference
+
+    normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
+    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
+    options = {"n_resamples": int(metric.get("bootstrap_resamples", 2000)),
+               "seed": int(metric.get("bootstrap_seed", 0))}
+    timeline = result.capture.timeline()
+    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
+    found = []
+    for a, b in comparison_pairs(result.rows):
+        first, second = result.rows[a].alpha, result.rows[b].alpha
+        if aggregate == "mean":
+            values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
+            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, **options)
+        else:
+            reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
+            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
+                                                seconds=timeline.seconds, **options)
+        found.append({"a": [result.rows[a].basis, result.rows[a].solver],
+                      "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
+    return found
 
 
 def data_metrics(result) -> dict:
@@ -183,7 +290,8 @@ def data_metrics(result) -> dict:
     capture, eigenfaces = result.capture, result.eigenfaces
     return {
         "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
-        "notes": list(capture.notes),
+        "notes": list(capture.notes), "face_region": result.face_region, "offset": dict(result.offset),
+        "protocol": result.protocol,
         "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
                 "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
                 "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
@@ -197,7 +305,8 @@ def data_metrics(result) -> dict:
 
 
 def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Sequence[str],
-                job_num: int | None, started_at: str, repository: Path) -> dict:
+                job_num: int | None, started_at: str, repository: Path,
+                comparisons: Mapping[str, list] | None = None) -> dict:
     """The content of ``metrics.json`` for a finished run.
 
     Parameters
@@ -217,6 +326,8 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
         ISO time the run started.
     repository : pathlib.Path
         The workbench's checkout, for the git commit.
+    comparisons : mapping, optional
+        Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
 
     Returns
     -------
@@ -234,14 +345,18 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
         "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
                     "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
                     "provenance": capture.provenance},
-        "data": {result.data: data_metrics(result) for result in results},
+        "data": {result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
+                 for result in results},
         "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
                       eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
                       solver_fallback_frames=row.n_fallback_frames,
                       solver_max_kkt_violation=row.max_kkt_violation,
                       max_abs_weight=row.max_abs_weight,
                       basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames)
+                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames,
+                      weights=row.weight_statistics.as_dict() if row.weight_statistics else None,
+                      error_mm_quantiles=row.error_mm.quantiles.tolist() if row.error_mm else None,
+                      offset_error_share=row.offset_error_share)
                  for i, (result, row) in enumerate(rows)],
         "versions": versions(),
         "git": git_state(repository),
@@ -283,18 +398,27 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
     save_inputs : bool
     """
     folder = Path(folder)
-    write_atomic(folder / CONFIG_FILE, resolved_yaml)
-    write_atomic(folder / TABLE_FILE, table.to_csv(index=False))
-    write_atomic(folder / TEXT_FILE, text)
-    write_json(folder / METRICS_FILE, dict(metrics))
-    write_json(folder / TIMINGS_FILE, dict(timings))
+    checksums = {}
+
+    def write(name: str, data: bytes | str) -> None:
+        payload = data.encode() if isinstance(data, str) else data
+        write_atomic(folder / name, payload)
+        checksums[name] = hashlib.sha256(payload).hexdigest()
+
+    write(CONFIG_FILE, resolved_yaml)
+    write(TABLE_FILE, table.to_csv(index=False))
+    write(TEXT_FILE, text)
+    write(METRICS_FILE, json_text(dict(metrics)))
+    write(TIMINGS_FILE, json_text(dict(timings)))
     if save_inputs:
-        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file
-        for result in [result for result in results if result.transfer == "identity"]:
-            name = "inputs.npz" if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
-            write_npz(folder / name, input_arrays(result))
-        write_npz(folder / ALPHA_PER_FRAME_FILE, alpha_per_frame_arrays(results))
-    write_atomic(folder / DONE, "")
+        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file; the
+        # figures show the paper's protocol, so held-out frames (dataset.held_out) are not saved either
+        for result in [result for result in results
+                       if result.transfer == "identity" and result.protocol == "training frames"]:
+            name = INPUTS_FILE if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
+            write(name, npz_bytes(input_arrays(result)))
+        write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame_arrays(results)))
+    write_atomic(folder / DONE, json_text({"sha256": checksums}))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -317,6 +441,9 @@ class RunRecord:
         ``metrics.json``.
     timings : dict
         ``timings.json``: seconds per stage (empty when the record has none).
+    checksums : dict or None
+        File name -> SHA-256 the run wrote into ``done``; None for a record written before records carried them
+        (its files cannot be checked).
     """
 
     folder: Path
@@ -324,6 +451,7 @@ class RunRecord:
     table: "pd.DataFrame"
     metrics: dict
     timings: dict = field(default_factory=dict)
+    checksums: dict | None = None
 
     @property
     def study(self) -> str:
@@ -354,16 +482,23 @@ class RunRecord:
         return [dict(row) for row in self.metrics["rows"]]
 
     def inputs_path(self, data: str) -> Path:
-        single = self.folder / "inputs.npz"
+        single = self.folder / INPUTS_FILE
         return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
 
     def load_inputs(self, data: str) -> dict | None:
         """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
-        return _load_arrays(self.inputs_path(data))
+        return self._load_arrays(self.inputs_path(data))
 
     def load_alpha_per_frame(self) -> dict | None:
         """The arrays of ``alpha_per_frame.npz``, or None when the run did not save them."""
-        return _load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+        return self._load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+
+    def _load_arrays(self, path: Path) -> dict | None:
+        """The arrays of one of the record's archives, checked against its checksum first (archives can be large,
+        so they are checked when read, not when the record is loaded)."""
+        if self.checksums is not None and (path.name in self.checksums or path.is_file()):
+            check_file(self.folder, path.name, self.checksums)
+        return _load_arrays(path)
 
 
 def _load_arrays(path: Path) -> dict | None:
@@ -393,6 +528,70 @@ def _read_json(path: Path) -> dict:
     if not isinstance(value, dict):
         raise WorkbenchError(f"{path}: must hold a JSON object, got {type(value).__name__}")
     return value
+
+
+def read_checksums(folder: Path) -> dict | None:
+    """The checksums a run wrote into its ``done`` marker (file name -> SHA-256), or None when the marker is empty
+    (a record written before records carried checksums).
+
+    Raises
+    ------
+    WorkbenchError
+        When ``done`` holds anything but the checksums a run writes.
+    """
+    text = _read_text(Path(folder) / DONE)
+    if not text.strip():
+        return None
+    try:
+        checksums = json.loads(text)["sha256"]
+    except (ValueError, KeyError, TypeError):
+        checksums = None
+    if not isinstance(checksums, dict) or not all(isinstance(name, str) and is_record_file(name)
+                                                  and isinstance(value, str) for name, value in checksums.items()):
+        raise WorkbenchError(f"run record {folder}: '{DONE}' is damaged (it must hold the checksums of the record's "
+                             "files, as a run writes them); the record cannot be trusted")
+    return checksums
+
+
+def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
+    """Refuse a record file that the run did not write (not among ``checksums``) or that changed since.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    path = Path(folder) / name
+    if name not in checksums:
+        raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
+                             f"{sorted(checksums)}); the record cannot be trusted: move the file away")
+    try:
+        found = file_checksum(path)
+    except FileNotFoundError:
+        raise WorkbenchError(f"run record {folder}: {name} is missing") from None
+    except OSError as error:
+        raise WorkbenchError(f"run record {folder}: {name} cannot be read ({error.strerror})") from None
+    if found != checksums[name]:
+        raise WorkbenchError(f"run record {folder}: {name} was changed after the run (its SHA-256 no longer matches "
+                             f"the one in '{DONE}'); the record cannot be trusted: restore the file or run again")
+
+
+def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: bool = False) -> None:
+    """Every file the run wrote is there and unchanged, and no record file was added; archives (``.npz``, which
+    can be large) only with ``archives``, else when read (:meth:`RunRecord.load_inputs`).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    folder = Path(folder)
+    for name in checksums:
+        if archives or not name.endswith(".npz"):
+            check_file(folder, name, checksums)
+    added = sorted(path.name for path in folder.iterdir()
+                   if path.name != DONE and (archives or not path.name.endswith(".npz")) and is_record_file(path.name)
+                   and not _TEMPORARY.fullmatch(path.name) and path.name not in checksums)
+    if added:
+        check_file(folder, added[0], checksums)
 
 
 def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None:
@@ -435,8 +634,8 @@ def plain_name(name: str) -> bool:
 
 
 def inside(root: Path, *parts: str) -> Path:
-    """``root / parts``, refused when it would leave ``root`` (a report or collect writes only into its output
-    folder, whatever names a record holds).
+    """``root / parts``, refused when it would leave ``root``, by its name or through a symbolic link (a report or
+    collect writes only into its output folder, whatever names a record holds and whatever links it contains).
 
     Raises
     ------
@@ -444,17 +643,24 @@ def inside(root: Path, *parts: str) -> Path:
     """
     root = Path(root)
     path = root.joinpath(*parts)
-    if os.path.commonpath([os.path.abspath(root), os.path.abspath(path)]) != os.path.abspath(root):
-        raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}")
+    for resolved, base, target in ((False, os.path.abspath(root), os.path.abspath(path)),
+                                   (True, os.path.realpath(root), os.path.realpath(path))):
+        if os.path.commonpath([base, target]) != base:
+            link = f" (a symbolic link leads to {target})" if resolved else ""
+            raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")
     return path
 
 
-def load_record(folder: Path) -> RunRecord:
-    """Read and check a complete run record.
+def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
+    """Read and check a complete run record: every file against the checksum the run wrote into ``done``, then
+    the fields readers rely on.
 
     Parameters
     ----------
     folder : pathlib.Path
+    check_archives : bool
+        Check the record's ``.npz`` archives now too (a reader that will use them, before it writes anything);
+        otherwise each is checked when read.
 
     Returns
     -------
@@ -471,6 +677,9 @@ def load_record(folder: Path) -> RunRecord:
     folder = Path(folder)
     if not is_complete(folder):
         raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
+    checksums = read_checksums(folder)
+    if checksums is not None:
+        check_record_files(folder, checksums, archives=check_archives)
     try:
         config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
     except yaml.YAMLError as error:
@@ -487,7 +696,8 @@ def load_record(folder: Path) -> RunRecord:
         _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
     try:
         table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
-                            na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS)})
+                            na_values={c: ["", "NaN", "nan"]
+                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS)})
     except (ValueError, pd.errors.ParserError) as error:
         raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
     missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)
@@ -500,7 +710,7 @@ def load_record(folder: Path) -> RunRecord:
     if len(table) != len(metrics["rows"]):
         raise WorkbenchError(f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists "
                              f"{len(metrics['rows'])}")
-    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings)
+    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
 
 
 def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:

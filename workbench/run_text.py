@@ -8,9 +8,12 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.errors import WorkbenchError
+from workbench.record import FRAME_COLUMNS
 
-TABLE_COLUMNS = ("data", "basis", "projection", "solver", "n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled",
-                 "alpha_disp_mean", "alpha_disp_pooled", "rms_mm", "paper_alpha")
+ROW_NAME_COLUMNS = ("data", "basis", "projection", "solver")
+ALPHA_TABLE_COLUMNS = ("n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean",
+                       "alpha_disp_pooled", "rms_mm", "paper_alpha")
+TABLE_COLUMNS = (*ROW_NAME_COLUMNS, *ALPHA_TABLE_COLUMNS, *FRAME_COLUMNS)
 
 
 def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
@@ -40,8 +43,45 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
         "alpha_abs_mean": row.alpha.absolute_mean, "alpha_abs_pooled": row.alpha.absolute_pooled,
         "alpha_disp_mean": row.alpha.displacement_mean, "alpha_disp_pooled": row.alpha.displacement_pooled,
         "rms_mm": row.alpha.rms_mm, "paper_alpha": paper_alpha.get(row.basis, math.nan),
+        **frame_values(row),
     } for row in rows]
     return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS))
+
+
+def frame_values(row) -> dict:
+    """The :data:`FRAME_COLUMNS` of one row (NaN where it has no such measure)."""
+    error, weights = getattr(row, "error_mm", None), getattr(row, "weight_statistics", None)
+    nan = math.nan
+    return {"err_mm_median": error.median if error else nan, "err_mm_p95": error.p95 if error else nan,
+            "err_mm_max": error.max if error else nan, "w_max_abs": weights.max_abs if weights else nan,
+            "w_outside_01": weights.outside_unit_share if weights else nan,
+            "w_sparsity": weights.sparsity if weights else nan, "w_roughness": weights.roughness if weights else nan}
+
+
+def printed_tables(table: pd.DataFrame) -> str:
+    """The alpha table as a run prints it: alpha beside the paper's, then the per-frame error and the weights.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`alpha_table` (several data variants concatenated).
+
+    Returns
+    -------
+    str
+        Two Markdown tables, the second under a line naming its columns.
+    """
+    from workbench.tables import markdown_frame
+
+    names = [column for column in ROW_NAME_COLUMNS if column in table.columns]
+    text = markdown_frame(table[[*names, *[c for c in ALPHA_TABLE_COLUMNS if c in table.columns]]])
+    frame = [column for column in FRAME_COLUMNS if column in table.columns]
+    if frame:
+        text += ("\nper-frame error over the face region (mm: median, 95th percentile, maximum over frames) and the "
+                 "weights (largest |w|; share of frames with a weight outside [0, 1]; Hoyer sparsity, 1 = one shape "
+                 "per frame; roughness = mean squared second time derivative, 1/s^4):\n\n"
+                 + markdown_frame(table[[*names, *frame]]))
+    return text
 
 
 def study_header(results: Sequence, cfg: Mapping) -> str:
@@ -130,8 +170,10 @@ def conditioning_lines(rows: Sequence) -> list[str]:
     return ([f"  bases: {'; '.join(parts)}"] if parts else []) + warnings
 
 
-def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float]) -> str:
-    """One line per solver: the configured alpha of H, QE and PCA beside the paper's values.
+def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float],
+             comparisons: Mapping[str, Sequence[Mapping]] | None = None) -> str:
+    """One line per solver: the configured alpha of every basis beside the paper's values; with ``comparisons``
+    the bases from best to worst, ``<`` only where the paired per-frame difference's interval excludes zero.
 
     Parameters
     ----------
@@ -142,6 +184,8 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
         ``headline_aggregate`` (mean | pooled).
     paper_alpha : mapping
         The paper's alpha per basis label.
+    comparisons : mapping, optional
+        Data variant -> its paired comparisons (:func:`workbench.record.frame_comparisons`).
 
     Returns
     -------
@@ -159,9 +203,20 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
         pca = part.loc[part["basis"] == "PCA", column].iloc[0]
         for solver in part.loc[part["basis"] != "PCA", "solver"].unique():
             rows = part[part["solver"] == solver].set_index("basis")[column]
-            parts = [f"{basis} {rows[basis]:.2f}" for basis in rows.index]
-            lines.append((f"{data}: " if several else "") + f"{column} with {solver}: " + ", ".join(parts)
-                         + f", PCA {pca:.2f}")
+            prefix = (f"{data}: " if several else "") + f"{column} with {solver}: "
+            if comparisons is None:
+                lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
+                             + f", PCA {pca:.2f}")
+                continue
+            from workbench.reporting.statistics import comparison_lookup, ordering_text
+
+            values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},
+                      ("PCA", "projection"): float(pca)}
+            lines.append(prefix + ordering_text(values, comparison_lookup(comparisons.get(data, [])),
+                                                name=lambda key: key[0], digits=3))
+    if comparisons is not None:
+        lines.append("'<': the paired per-frame difference's 95 % block-bootstrap interval excludes 0; '~': it does "
+                     "not (the two are not distinguishable on these frames)")
     paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
     lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
     return "\n".join(lines) + "\n"

@@ -15,7 +15,8 @@ import pandas as pd
 
 FLOAT_FORMATS = {"coverage": "{:.4f}", "alpha_abs_mean": "{:.3f}", "alpha_abs_pooled": "{:.3f}",
                  "alpha_disp_mean": "{:.2f}", "alpha_disp_pooled": "{:.2f}", "rms_mm": "{:.3f}",
-                 "paper_alpha": "{:.2f}"}
+                 "paper_alpha": "{:.2f}", "err_mm_median": "{:.3f}", "err_mm_p95": "{:.3f}", "err_mm_max": "{:.3f}",
+                 "w_max_abs": "{:.3g}", "w_outside_01": "{:.2f}", "w_sparsity": "{:.2f}", "w_roughness": "{:.3g}"}
 """Decimals of the alpha table's columns, wherever they are shown."""
 THREE_DECIMALS = ("relative", "cosine", "relative_distance", "matched_abs_cosine", "locality", "usage")
 """Other columns shown with three decimals (intuitiveness measures)."""

@@ -20,6 +20,8 @@ class Tolerances:
     gram_ridge : float
         The constrained weight solvers add ``gram_ridge * largest eigenvalue`` to the diagonal of the gram
         matrix when its smallest eigenvalue is at or below that (duplicate or nearly collinear shapes).
+    weight_bound : float
+        A weight counts as outside [0, 1] when it passes a bound by more than this (solvers stop at rounding).
     """
 
     eigen_rel: float = 1e-12
@@ -27,6 +29,7 @@ class Tolerances:
     active_set_max_iter: int = 60
     zero_displacement: float = 1e-9
     gram_ridge: float = 1e-12
+    weight_bound: float = 1e-6
 
 
 TOL = Tolerances()

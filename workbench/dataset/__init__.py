@@ -164,6 +164,12 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
                             desc="mesh frames")
 
 
+def forget_kept_frames() -> None:
+    """Forget the dense frames kept in the process for the next run of a sweep (:func:`_mesh_frames`), so the next
+    build finds its files on disk again or writes them anew (the cache calls it when it removes a damaged one)."""
+    _mesh_frames.cache_clear()
+
+
 def _eval_seed(cfg: Mapping) -> int:
     seed = cfg.get("eval_seed")
     return seed_setting(cfg["seed"], "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")

@@ -20,8 +20,9 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.dataset.plausibility import (check_rigid_set, face_spread, outlier_problems, parked_marker_problems,
-                                            plausibility_policy, settle, take_units_problems, with_warnings)
+from workbench.dataset.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
+                                            parked_marker_problems, plausibility_policy, settle, take_units_problems,
+                                            with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
@@ -134,12 +135,26 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
 
 
 def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
-    """Plausibility of the raw takes: per-take units (face size) and markers parked at the origin."""
+    """Plausibility of the raw takes: per-take units (face size), frame rates and markers parked at the origin."""
     problems = take_units_problems({str(take.path): face_spread(take.positions) for take in takes},
                                    {str(take.path): take.units for take in takes})
     for take in takes:
+        problems += frame_rate_problems(take.frame_rate, str(take.path), "POINT:RATE")
         problems += parked_marker_problems(take.positions, take.labels, str(take.path))
     return problems
+
+
+def check_distinct_takes(take_files: Sequence[str], takes: Sequence[MarkerTake]) -> None:
+    """Refuse a take listed twice, or two files holding the same frames: concatenating them would count the same
+    motion twice (always an error: no one means it)."""
+    seen = {}
+    for name, take in zip(take_files, takes):
+        key = (take.positions.shape, np.nan_to_num(take.positions).tobytes())
+        if key in seen:
+            same = "is listed twice" if seen[key] == name else f"holds the same frames as {seen[key]}"
+            raise WorkbenchError(f"dataset.takes: {name} {same}; each take must be a different recording (its frames "
+                                 "would be counted twice)")
+        seen[key] = name
 
 
 def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
@@ -215,6 +230,7 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
     takes = [read_c3d_markers(data_path(cfg, name, "takes")) for name in take_files]
+    check_distinct_takes(take_files, takes)
     warnings = settle(take_problems(takes), plausibility_policy(cfg))
     if len({take.frame_rate for take in takes}) != 1:
         raise WorkbenchError(f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "

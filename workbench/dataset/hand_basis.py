@@ -7,6 +7,7 @@ an export of that variant writes them): its shapes then replace the capture's ha
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 from typing import Mapping
@@ -30,7 +31,8 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     ----------
     spec : mapping
         ``neutral`` (folder: the neutral OBJ's name, default ``neutral.obj``), ``unit_mm`` (folder: mm per OBJ
-        unit, default 1), ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
+        unit; default the folder's ``manifest.json`` ``unit_mm`` where it has one, as an export writes, else 1),
+        ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
         first vertices only).
     key : str
         Config key of ``spec`` for messages, e.g. ``"dataset.hand_basis"``.
@@ -52,9 +54,10 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     region = None if region is None else integer_setting(region, f"{key}.region_vertices", minimum=3)
     if path.is_dir():
         neutral = spec.get("neutral") or "neutral.obj"
+        unit_mm = (positive_setting(spec["unit_mm"], f"{key}.unit_mm") if spec.get("unit_mm") is not None
+                   else folder_unit_mm(path))
         return load_blendshapes(path, neutral_file=neutral, names=expression_names(path, neutral),
-                                region_vertices=region,
-                                unit_mm=positive_setting(spec.get("unit_mm", 1.0), f"{key}.unit_mm"))
+                                region_vertices=region, unit_mm=unit_mm)
     if path.suffix.lower() != ".glb":
         raise WorkbenchError(f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) "
                              "or a .glb file")
@@ -66,6 +69,25 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     return Blendshapes(neutral=mesh.neutral[:n_kept], names=mesh.names, deltas=mesh.deltas[:, :n_kept],
                        triangles=kept_triangles, n_polygons=len(kept_triangles),
                        n_vertices_in_file=len(mesh.neutral), unit_mm=1000.0, files={"glb": str(path)})
+
+
+def folder_unit_mm(folder: Path) -> float:
+    """Millimetres per OBJ unit that a blendshape folder's ``manifest.json`` states (``workbench export`` writes
+    one beside its OBJ files); 1 for a folder without one."""
+    from workbench.dataset.real import positive_setting
+
+    manifest = folder / "manifest.json"
+    if not manifest.is_file():
+        return 1.0
+    try:
+        stated = json.loads(manifest.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise WorkbenchError(f"{manifest}: not a readable JSON file ({error}); set dataset.hand_basis.unit_mm to "
+                             "read the folder without it") from None
+    if not isinstance(stated, dict) or "unit_mm" not in stated:
+        raise WorkbenchError(f"{manifest}: needs a field 'unit_mm' (millimetres per OBJ unit); set "
+                             "dataset.hand_basis.unit_mm to read the folder without it")
+    return positive_setting(stated["unit_mm"], f"{manifest}: field 'unit_mm'")
 
 
 def shape_subset(basis: Blendshapes, names, key: str) -> tuple[tuple[str, ...], np.ndarray]:

@@ -16,7 +16,8 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
-from workbench.dataset.plausibility import plausibility_policy, settle, unused_channel_problems, with_warnings
+from workbench.dataset.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
+                                            unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
                                     positive_setting)
@@ -59,9 +60,11 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
     frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
     dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
-    warnings = settle(unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
-                                              list(take.names), take.weights[frames], f"{take.path} with {folder}"),
-                      plausibility_policy(cfg))
+    problems = (static_weights_problems(take.weights[frames], str(take.path))
+                + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
+                + unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
+                                          list(take.names), take.weights[frames], f"{take.path} with {folder}"))
+    warnings = settle(problems, plausibility_policy(cfg))
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
     mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas

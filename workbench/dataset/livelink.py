@@ -14,7 +14,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, single_line
 
 ARKIT_NAMES = (
     "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
@@ -122,7 +122,7 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        raise WorkbenchError(f"{path}: not a readable CSV ({error})") from None
+        raise WorkbenchError(f"{path}: not a readable CSV ({single_line(error)})") from None
     table.columns = [str(column).strip() for column in table.columns]
     header = _header(path)
     repeated = sorted({name for name in header if header.count(name) > 1 and name in ARKIT_NAMES + ("Timecode",)})

@@ -25,6 +25,7 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
+from workbench.dataset.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import (data_path, frame_selection, integer_setting, origin_text, positive_setting)
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
@@ -56,7 +57,7 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
         if len(vertices.shape) != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 2 or vertices.shape[1] < 3:
             raise WorkbenchError(f"{path}: '{vertices_key}' must have shape (n_frames >= 2, n_vertices >= 3, 3), "
                                  f"got {vertices.shape}")
-        digest = _check_finite(path, vertices_key, vertices)
+        digest, problems = _check_values(path, vertices_key, vertices)
         if faces is not None:
             if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
                 raise WorkbenchError(f"{path}: '{faces_key}' must be integer triangles of shape (n, 3), got "
@@ -64,7 +65,7 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
             if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
                 raise WorkbenchError(f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
                                      f"{vertices.shape[1]} vertices (0-based)")
-        yield MeshSequence(vertices, faces, digest)
+        yield MeshSequence(vertices, faces, digest, tuple(problems))
 
 
 @dataclass(frozen=True)
@@ -78,11 +79,15 @@ class MeshSequence:
     faces : ndarray of shape (n, 3) of int, or None
     digest : str
         Content hash of the positions.
+    problems : tuple of str
+        What the plausibility checks found (vertices far outside the face, jumps between frames, a static
+        sequence), for ``dataset.plausibility`` to settle.
     """
 
     vertices: object
     faces: np.ndarray | None
     digest: str
+    problems: tuple = ()
 
     @property
     def n_frames(self) -> int:
@@ -104,30 +109,50 @@ def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
         return sequence.frames(0, sequence.n_frames), sequence.faces
 
 
-def _check_finite(path: Path, vertices_key: str, vertices) -> str:
-    """Content hash of the positions, read a chunk of frames at a time; an error names the first frame holding
-    NaN or Inf."""
+def _check_values(path: Path, vertices_key: str, vertices) -> tuple[str, list[str]]:
+    """Content hash of the positions and the plausibility problems of the sequence, read a chunk of frames at a
+    time; an error names a type that is not real numbers, and the first frame holding NaN or Inf."""
+    dtype = np.dtype(vertices.dtype)
+    if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)) or dtype == np.bool_:
+        raise WorkbenchError(f"{path}: '{vertices_key}' must hold real numbers (vertex positions), got {dtype}")
     n_frames, per_frame = vertices.shape[0], vertices.shape[1] * 3
     size = chunk_frames(per_frame)
-    digest = hashlib.sha256(f"{np.dtype(vertices.dtype).str} {tuple(vertices.shape)}".encode())
+    digest = hashlib.sha256(f"{dtype.str} {tuple(vertices.shape)}".encode())
+    motion = SequenceMotion(str(path))
     first, count = None, 0
     for start in range(0, n_frames, size):
-        chunk = np.ascontiguousarray(vertices[start:start + size])
+        chunk = np.ascontiguousarray(_read_chunk(path, vertices, start, start + size))
         digest.update(chunk)
-        bad = np.flatnonzero(~np.all(np.isfinite(chunk), axis=(1, 2)))
+        finite = np.all(np.isfinite(chunk), axis=(1, 2))
+        bad = np.flatnonzero(~finite)
         if bad.size and first is None:
             first = start + int(bad[0])
         count += bad.size
+        if count == 0:
+            motion.add(start, chunk)
     if count:
         raise WorkbenchError(f"{path}: '{vertices_key}' frame {first} holds NaN or Inf ({count} such frames)")
-    return digest.hexdigest()
+    return digest.hexdigest(), motion.problems()
+
+
+def _read_chunk(path: Path, vertices, start: int, stop: int) -> np.ndarray:
+    """Frames ``start:stop`` of the file, or a one-line error when its data end early (a truncated file)."""
+    try:
+        return vertices[start:stop]
+    except (OSError, ValueError, EOFError) as error:
+        raise WorkbenchError(f"{path}: frames {start}-{stop - 1} cannot be read ({error}); the file is damaged or "
+                             "truncated") from None
 
 
 @contextmanager
 def _numpy_arrays(path: Path, vertices_key: str, faces_key: str | None):
+    import zipfile
+    import zlib
+
+    damaged = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
     try:
         loaded = np.load(path, mmap_mode="r", allow_pickle=False)  # memory-maps a .npy; a .npz ignores it
-    except (OSError, ValueError, EOFError) as error:
+    except damaged as error:
         raise WorkbenchError(f"{path}: not a readable NumPy file ({error})") from None
     if isinstance(loaded, np.ndarray):  # .npy: positions only
         yield loaded, None
@@ -135,8 +160,12 @@ def _numpy_arrays(path: Path, vertices_key: str, faces_key: str | None):
     with loaded:
         if vertices_key not in loaded.files:
             raise WorkbenchError(f"{path}: no array '{vertices_key}' (dataset.vertices_key); it has {loaded.files}")
-        faces = loaded[faces_key] if faces_key and faces_key in loaded.files else None
-        vertices = loaded[vertices_key]
+        try:  # a .npz's arrays are read here: a truncated or damaged archive fails now
+            faces = loaded[faces_key] if faces_key and faces_key in loaded.files else None
+            vertices = loaded[vertices_key]
+        except damaged as error:
+            raise WorkbenchError(f"{path}: an array of the archive cannot be read ({type(error).__name__}: "
+                                 f"{error}); the file is damaged or truncated") from None
     yield vertices, faces
 
 
@@ -178,6 +207,7 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
     path = data_path(cfg, cfg.get("sequence"), "sequence")
     unit_mm = positive_setting(cfg.get("unit_mm", 1.0), "dataset.unit_mm")
     frame_rate = positive_setting(cfg.get("frame_rate"), "dataset.frame_rate")
+    plausibility_policy(cfg)  # checked before the file is read
     with open_mesh_sequence(path, str(cfg.get("vertices_key") or "vertices"), cfg.get("faces_key")) as sequence:
         return _mesh_sequence_capture(cfg, storage, path, sequence, unit_mm, frame_rate)
 
@@ -187,6 +217,7 @@ def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequ
     from workbench.dataset import array_digest, split_frames
 
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
+    warnings = settle(sequence.problems, plausibility_policy(cfg))
     if cfg.get("neutral"):
         neutral_path = data_path(cfg, cfg["neutral"], "neutral")
         neutral_mesh = read_obj(neutral_path)
@@ -231,13 +262,13 @@ def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequ
              f"hand basis: {len(hand_names)} shapes of {basis_path.name} (its neutral {rms:.3g} mm RMS from the "
              "sequence's)",
              f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+    provenance = {"kind": "mesh_sequence", "data_root": str(cfg.get("data_root")),
+                  "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
+                  "unit_mm": unit_mm, "n_frames_in_file": n_frames, "frames_used": len(index),
+                  "frame_step": step, "train_on": "mesh"}
     return {"mesh": Capture(
         name=f"mesh sequence {path.name}", neutral=neutral.reshape(-1), train=train, eval=evaluate,
         hand=hand.reshape(len(hand_names), -1), hand_names=hand_names,
         point_labels=tuple(f"v{i}" for i in range(n_vertices)), units="mm",
         origin=origin_text("origin of the sequence file", neutral), frame_rate=frame_rate / step,
-        provenance={"kind": "mesh_sequence", "data_root": str(cfg.get("data_root")),
-                    "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
-                    "unit_mm": unit_mm, "n_frames_in_file": n_frames, "frames_used": len(index),
-                    "frame_step": step, "train_on": "mesh"},
-        notes=notes, faces=np.asarray(faces, dtype=np.int64))}
+        **with_warnings(notes, provenance, warnings), faces=np.asarray(faces, dtype=np.int64))}

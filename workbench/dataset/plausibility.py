@@ -43,6 +43,17 @@ class Limits:
     rigid_flatness : float
         A rigid-marker set is degenerate (collinear) when its second singular value is below this fraction of its
         first.
+    jump_factor : float
+        A vertex of a mesh sequence jumps when it moves farther than this many times the face's extent (as in
+        ``mesh_outlier_factor``) from one frame to the next: a face moves a few millimetres a frame.
+    static_fraction : float
+        A mesh sequence is static when no vertex ever moves farther than this fraction of the face's extent from
+        the first frame.
+    static_weight : float
+        A take of blendshape weights is static when no channel's weight ever changes by more than this.
+    frame_rate_hz : tuple of float
+        Range of frame rates of a face capture: optical systems and phones record at 24-1000 Hz, high-speed
+        cameras at a few thousand; outside it the rate (or the time stamps) are in other units.
     """
 
     face_spread_mm: tuple = (20.0, 500.0)
@@ -51,6 +62,10 @@ class Limits:
     mesh_outlier_factor: float = 20.0
     used_weight: float = 0.05
     rigid_flatness: float = 0.02
+    jump_factor: float = 1.0
+    static_fraction: float = 1e-4
+    static_weight: float = 1e-3
+    frame_rate_hz: tuple = (1.0, 10_000.0)
 
 
 LIMITS = Limits()
@@ -116,11 +131,13 @@ def take_units_problems(spreads: Mapping[str, float], units: Mapping[str, str]) 
     problems = [f"{take}: markers spread {spread:.3g} mm from their centroid (file units {units[take]!r}); a face "
                 f"spans {low:g}-{high:g} mm, so the take's units are not what the file says"
                 for take, spread in spreads.items() if not low <= spread <= high]
-    reference = float(np.median(list(spreads.values())))
-    problems += [f"{take}: markers spread {spread:.3g} mm from their centroid against {reference:.3g} mm in the "
-                 f"capture's other takes (more than {LIMITS.take_spread_ratio:g} x apart); the takes' units differ"
-                 for take, spread in spreads.items()
-                 if low <= spread <= high and max(spread, reference) > LIMITS.take_spread_ratio * min(spread, reference)]
+    plausible = {take: spread for take, spread in spreads.items() if low <= spread <= high}
+    if len(plausible) > 1:  # the smallest and largest face, not each against the median (two takes: their mean)
+        smallest, largest = min(plausible, key=plausible.get), max(plausible, key=plausible.get)
+        if plausible[largest] > LIMITS.take_spread_ratio * plausible[smallest]:
+            problems.append(f"{largest}: markers spread {plausible[largest]:.3g} mm from their centroid against "
+                            f"{plausible[smallest]:.3g} mm in {smallest} (more than {LIMITS.take_spread_ratio:g} x "
+                            "apart, one performer and one marker set); the takes' units or scales differ")
     return problems
 
 
@@ -194,6 +211,101 @@ def mesh_outlier_problems(vertices: np.ndarray, neutral: np.ndarray, source: str
     return [f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre along an axis "
             f"({int(far.sum())} such vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent "
             f"({scale:.3g} {unit})"]
+
+
+def frame_rate_problems(rate: float, source: str, what: str = "frame rate") -> list[str]:
+    """A capture's frame rate outside :attr:`Limits.frame_rate_hz`."""
+    low, high = LIMITS.frame_rate_hz
+    if low <= rate <= high:
+        return []
+    return [f"{source}: {what} {rate:.6g} frames per second is not a face capture's ({low:g}-{high:g}); the rate or "
+            "the time stamps are in other units"]
+
+
+def static_weights_problems(weights: np.ndarray, source: str) -> list[str]:
+    """A take of blendshape weights in which no channel moves (a frozen export, one frame repeated).
+
+    Parameters
+    ----------
+    weights : ndarray of shape (n_frames, n_channels)
+    source : str
+    """
+    change = float(np.max(np.ptp(weights, axis=0), initial=0.0))
+    if change > LIMITS.static_weight:
+        return []
+    return [f"{source}: the take is static: no weight changes by more than {change:.3g} over its {len(weights)} "
+            "frames (a face that does not move has no motion to fit)"]
+
+
+def _first_beyond(values: np.ndarray, limit: float, start: int) -> tuple[tuple | None, int]:
+    """The first frame with a value above ``limit`` as (frame + ``start``, vertex, value) at its largest value, or
+    None, and how many frames have one.
+
+    Parameters
+    ----------
+    values : ndarray of shape (n_frames, n_vertices)
+    """
+    beyond = (values > limit).any(axis=1)
+    if not beyond.any():
+        return None, 0
+    frame = int(np.argmax(beyond))
+    vertex = int(np.argmax(values[frame]))
+    return (start + frame, vertex, float(values[frame, vertex])), int(beyond.sum())
+
+
+class SequenceMotion:
+    """Plausibility of a mesh sequence, gathered a chunk of frames at a time: vertices far outside the face,
+    vertices jumping between consecutive frames, and a sequence that never moves.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the messages.
+    unit : str
+        The coordinates' unit, for the messages.
+    """
+
+    def __init__(self, source: str, unit: str = "file units"):
+        self.source, self.unit = source, unit
+        self.reference = self.centre = self.last = None
+        self.scale = 0.0
+        self.outlier = self.jump = None  # (frame, vertex, distance) of the first one
+        self.n_outlier_frames = self.n_jumps = 0
+        self.largest_motion = 0.0
+
+    def add(self, start: int, chunk: np.ndarray) -> None:
+        """Frames ``start:start + len(chunk)``, shape (n, n_vertices, 3), finite."""
+        if self.reference is None:
+            self.reference = chunk[0].astype(np.float64)
+            self.centre = np.median(self.reference, axis=0)
+            self.scale = float(np.percentile(np.abs(self.reference - self.centre).max(axis=1), 90))
+        distance = np.abs(chunk - self.centre).max(axis=2)
+        first, count = _first_beyond(distance, LIMITS.mesh_outlier_factor * self.scale, start)
+        self.outlier, self.n_outlier_frames = self.outlier or first, self.n_outlier_frames + count
+        previous = chunk[:1] if self.last is None else self.last[None]
+        step = np.linalg.norm(np.diff(np.concatenate([previous, chunk]), axis=0), axis=2)
+        first, count = _first_beyond(step, LIMITS.jump_factor * self.scale, start)
+        self.jump, self.n_jumps = self.jump or first, self.n_jumps + count
+        self.last = chunk[-1].astype(np.float64)
+        self.largest_motion = max(self.largest_motion,
+                                  float(np.linalg.norm(chunk - self.reference, axis=2).max(initial=0.0)))
+
+    def problems(self) -> list[str]:
+        found = []
+        if self.outlier is not None:
+            frame, vertex, distance = self.outlier
+            found.append(f"{self.source}: frame {frame}, vertex {vertex} lies {distance:.3g} {self.unit} from the "
+                         f"face's centre along an axis ({self.n_outlier_frames} such frame(s)), more than "
+                         f"{LIMITS.mesh_outlier_factor:g} x the face's extent ({self.scale:.3g} {self.unit})")
+        if self.jump is not None:
+            frame, vertex, distance = self.jump
+            found.append(f"{self.source}: vertex {vertex} jumps {distance:.3g} {self.unit} from frame {frame - 1} to "
+                         f"frame {frame} ({self.n_jumps} such frame(s)), more than {LIMITS.jump_factor:g} x the face's "
+                         f"extent ({self.scale:.3g} {self.unit}); a face moves a few millimetres a frame")
+        if self.reference is not None and self.largest_motion <= LIMITS.static_fraction * self.scale:
+            found.append(f"{self.source}: the sequence is static: no vertex moves more than {self.largest_motion:.3g} "
+                         f"{self.unit} from the first frame (a face that does not move has no motion to fit)")
+        return found
 
 
 def unused_channel_problems(unmapped: Sequence[str], channels: Sequence[str], weights: np.ndarray,

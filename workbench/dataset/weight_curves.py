@@ -28,7 +28,7 @@ import numpy as np
 
 from workbench.dataset.livelink import (LiveLinkTake, _numeric_block, check_weight_range, frame_rate_of,
                                         read_livelink_csv)
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, single_line
 
 MEDIAPIPE_NEUTRAL = "_neutral"
 TIME_COLUMNS = {"time": 1.0, "timestamp_ms": 1e-3}
@@ -118,7 +118,7 @@ def _read_csv_curves(path: Path, frame_rate: float | None) -> LiveLinkTake:
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        raise WorkbenchError(f"{path}: not a readable CSV ({error})") from None
+        raise WorkbenchError(f"{path}: not a readable CSV ({single_line(error)})") from None
     header = _header(path)
     table.columns = header if len(header) == len(table.columns) else [str(c).strip() for c in table.columns]
     timing = [column for column in (*TIME_COLUMNS, "frame") if column in table.columns]
@@ -151,9 +151,11 @@ def _json_curves(document: Mapping, path: Path, frame_rate: float | None) -> Liv
     _check_finite(matrix, names, path, first_row=0)
     rate = document.get("frame_rate", frame_rate)
     if "time" in document:
-        seconds = np.array(document["time"], dtype=np.float64)
-        if seconds.shape != (len(matrix),) or not np.all(np.isfinite(seconds)):
+        times = document["time"]
+        if (not isinstance(times, list) or len(times) != len(matrix)
+                or not all(_is_number(time) and np.isfinite(time) for time in times)):
             raise WorkbenchError(f"{path}: 'time' must hold {len(matrix)} finite numbers (seconds), one per frame")
+        seconds = np.array(times, dtype=np.float64)
     else:
         seconds = _frame_seconds(np.arange(len(matrix), dtype=np.float64), rate, path)
     return _take(names, matrix, seconds, path, first_row=0)
@@ -165,6 +167,10 @@ def _check_finite(matrix: np.ndarray, names: Sequence[str], path: Path, first_ro
         row, column = np.argwhere(bad)[0]
         raise WorkbenchError(f"{path}: frame {row + first_row}, weight {names[column]}: not a finite number "
                              f"({int(bad.sum())} such values)")
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _first(item: Mapping, *keys):
@@ -197,7 +203,14 @@ def _mediapipe_curves(results: list, path: Path, frame_rate: float | None) -> Li
         raise WorkbenchError(f"{path}: no frames")
     matrix = np.array(rows, dtype=np.float64)
     _check_finite(matrix, names, path, first_row=0)
-    if all(time is not None for time in times):
+    timed = [time is not None for time in times]
+    if any(timed) and not all(timed):
+        raise WorkbenchError(f"{path}: frame {timed.index(False)} has no timestamp_ms but frame {timed.index(True)} "
+                             "has one; every frame needs one, or none (then the frame rate numbers them)")
+    bad = next((number for number, time in enumerate(times) if time is not None and not _is_number(time)), None)
+    if bad is not None:
+        raise WorkbenchError(f"{path}: frame {bad}: timestamp_ms {times[bad]!r} is not a number (milliseconds)")
+    if all(timed):
         seconds = np.array(times, dtype=np.float64) * 1e-3
     else:
         seconds = _frame_seconds(np.arange(len(matrix), dtype=np.float64), frame_rate, path)

@@ -85,6 +85,9 @@ def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns
     n_row_keys : int
         How many leading columns are row keys (text, left-aligned).
     """
+    if columns != "metric" and columns not in summary.columns:
+        keys = [key for key in summary.columns if key not in STATISTICS + ("metric",)]
+        raise WorkbenchError(f"collect --columns must be 'metric' or a key of the runs {keys}, got {columns!r}")
     available = list(dict.fromkeys(summary["metric"]))
     shown = [name for name in ALPHA_METRICS if name in available] if columns == "metric" else [metric]
     if not shown or any(name not in available for name in shown):
@@ -225,7 +228,7 @@ def main(argv: Sequence[str]) -> int:
     args = parser.parse_args(list(argv))
     if args.out is None and len(args.paths) != 1:
         raise WorkbenchError("collect: give --out when collecting more than one path")
-    out = args.out or args.paths[0] / "collected"
+    out = args.out or inside(args.paths[0], "collected")
     written = collect_and_write(
         args.paths, out, metric=args.metric, where=parse_where(args.where), columns=args.columns,
         extra=[name for name in args.extra.split(",") if name],
@@ -257,7 +260,7 @@ class CollectSweep(Callback):
 
         sweep_dir = Path(str(config.hydra.sweep.dir))
         try:
-            written = collect_and_write([sweep_dir], sweep_dir / "collected", **self.layout)
+            written = collect_and_write([sweep_dir], inside(sweep_dir, "collected"), **self.layout)
         except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
             print(f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
                   file=sys.stderr)

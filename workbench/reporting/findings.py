@@ -1,10 +1,13 @@
 """The findings of a run, stated in sentences generated from its numbers (never written by hand).
 
-:func:`run_findings` reads an alpha table (the columns of :data:`workbench.report.TABLE_COLUMNS`) and the per-shape
-intuitiveness of the run, and says per data variant: the ordering of H, QE and PCA under each solver, the ratios
-H/QE and QE/PCA beside the paper's, m beside the paper's, what the constrained solvers do to QE against H, and
-which hand shapes the projection changes most. Absolute alpha depends on the coordinate origin, so the
-comparison with the paper is by ratios.
+:func:`run_findings` reads an alpha table (the columns of :data:`workbench.run_text.TABLE_COLUMNS`), the per-shape
+intuitiveness and the facts the run recorded (``metrics.json``: paired comparisons, the offset of the affine
+projection, the face region, the dataset's provenance), and says per data variant: the ordering of H, QE,
+QE-linear and PCA under each solver, where every ``<`` is a paired per-frame difference whose 95 % interval
+excludes zero (:mod:`workbench.reporting.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
+the paper's; m beside the paper's; what the constrained solvers do to QE and QE-linear against H, and why, from
+the offset numbers; the weights an animator would face; the error in millimetres as a distribution; which hand
+shapes the projection changes most; and the caveats that apply to the data.
 """
 
 from __future__ import annotations
@@ -14,23 +17,36 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.statistics import comparison_lookup, format_interval
+from workbench.reporting.statistics import ordering_text as stated_ordering
+
 PAPER_BASES = ("H", "QE", "PCA")
+RUN_BASES = ("H", "QE", "QE-linear", "PCA")
+QE_BASES = ("QE", "QE-linear")
 CONSTRAINED = ("nnls", "box")
 SOLVER_NAMES = {"lstsq": "least squares", "nnls": "non-negative weights", "box": "box [0, 1] weights"}
+ALPHA_VARIANTS = {"alpha_abs_mean": "abs mean", "alpha_abs_pooled": "abs pooled", "alpha_disp_mean": "disp mean",
+                  "alpha_disp_pooled": "disp pooled"}
+PCA_KEY = ("PCA", "projection")
 
 
 def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
     """The alpha of a basis under a solver in one data variant's rows (PCA: its projection row), NaN if absent."""
     rows = part[(part["basis"] == basis) & ((part["solver"] == solver) | (part["solver"] == "projection"))]
-    return float(rows[column].iloc[0]) if len(rows) else math.nan
+    return float(rows[column].iloc[0]) if len(rows) and column in rows else math.nan
 
 
 def _fmt(value: float) -> str:
     return f"{value:.4g}"
 
 
+def _percent(share: float) -> str:
+    return f"{100 * share:.0f} %"
+
+
 def ordering_text(part: pd.DataFrame, solver: str, column: str, bases: Sequence[str] = PAPER_BASES) -> str:
-    """``QE 0.147 < PCA 0.156 < H 0.303``: the bases of one data variant from best to worst under a solver.
+    """``QE 0.147 < PCA 0.156 < H 0.303``: the bases of one data variant from best to worst under a solver, by
+    value alone (the sweep findings' ordering of means over runs).
 
     Parameters
     ----------
@@ -46,31 +62,178 @@ def ordering_text(part: pd.DataFrame, solver: str, column: str, bases: Sequence[
     return " < ".join(f"{basis} {_fmt(value)}" for value, basis in ranked)
 
 
-def ratio_text(part: pd.DataFrame, column: str, paper_alpha: Mapping[str, float], solver: str = "lstsq") -> str:
-    """H/QE and QE/PCA of one data variant beside the paper's (from its reported alpha)."""
-    h, qe, pca = (_alpha(part, basis, solver, column) for basis in PAPER_BASES)
-    paper = [paper_alpha.get(basis, math.nan) for basis in PAPER_BASES]
-    return (f"H/QE = {h / qe:.2f} (paper {paper[0] / paper[1]:.2f}), QE/PCA = {qe / pca:.2f} "
-            f"(paper {paper[1] / paper[2]:.2f})")
+def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
+                         bases: Sequence[str] = RUN_BASES) -> str:
+    """The bases of one data variant from best to worst under a solver, ``<`` only where the paired per-frame
+    difference's interval excludes zero, ``~`` with the interval where it does not, ``,`` without a comparison.
+
+    Parameters
+    ----------
+    part : pandas.DataFrame
+        The alpha-table rows of one data variant.
+    solver : str
+    column : str
+    compare : callable or None
+        ``compare((basis, solver), (basis, solver))`` -> the :class:`Interval` of the difference, or None.
+    bases : sequence of str
+    """
+    values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
+              for basis in bases}
+    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0])
 
 
-def constraint_text(part: pd.DataFrame, column: str, solver: str,
-                    negative_share: Mapping[str, float] | None = None) -> str:
-    """What a constrained solver does to QE against H, relative to least squares."""
+def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq") -> str:
+    """H/QE, H/QE-linear and QE/PCA of one data variant under every alpha variant in its rows, beside the paper's
+    ratios (from its reported, absolute alpha), and how far the variants move them."""
+    columns = [column for column in ALPHA_VARIANTS if column in part.columns]
+    if not columns:
+        return ""
+    pairs = [(a, b) for a, b in (("H", "QE"), ("H", "QE-linear"), ("QE", "PCA"))
+             if not math.isnan(_alpha(part, a, solver, columns[0])) and not math.isnan(_alpha(part, b, solver,
+                                                                                              columns[0]))]
+    names = " | ".join(ALPHA_VARIANTS[column] for column in columns)
+    texts, spans = [], []
+    for a, b in pairs:
+        ratios = [_alpha(part, a, solver, column) / _alpha(part, b, solver, column) for column in columns]
+        paper = paper_alpha.get(a, math.nan) / paper_alpha.get(b, math.nan)
+        texts.append(f"{a}/{b} " + " | ".join(f"{ratio:.2f}" for ratio in ratios)
+                     + (f" (paper {paper:.2f})" if math.isfinite(paper) else ""))
+        spans.append((a, b, min(ratios), max(ratios)))
+    if not texts:
+        return ""
+    a, b, low, high = spans[0]
+    return (f"with {SOLVER_NAMES.get(solver, solver)}, ratios by alpha variant ({names}): " + "; ".join(texts)
+            + f". The paper's ratios come from its absolute alpha; here {a}/{b} ranges from {low:.2f} to {high:.2f} "
+            "with the variant (absolute alpha also moves with the coordinate origin), so a ratio compares across "
+            "datasets only in the same variant, and not by itself")
+
+
+def m_text(part: pd.DataFrame, paper: Mapping) -> str:
+    """m beside the paper's, and whether the hand shapes can span the eigenfaces."""
+    m = round(float(part["m"].iloc[0]), 1)
+    n = float(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
+    spans = "can span" if m <= n else "cannot span"
+    reach = (f" reach coverage {float(part['coverage'].iloc[0]):.4f}" if "coverage" in part.columns
+             else " (mean over the runs)")
+    return (f"m = {m:g} eigenfaces{reach} (paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them"
+            + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA"))
+
+
+def _verdict(compare, a: tuple, b: tuple, worse: str, better: str) -> str:
+    """``worse than H (+0.135 [+0.09, +0.18])`` / ``not distinguishable from H (...)`` from a paired interval of
+    ``a - b``, or nothing without one."""
+    interval = compare(a, b) if compare else None
+    if interval is None:
+        return ""
+    if not interval.excludes_zero:
+        return f"not distinguishable from {b[0]} ({format_interval(interval)})"
+    return f"{worse if interval.estimate > 0 else better} {b[0]} ({format_interval(interval)})"
+
+
+def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None) -> str:
+    """What a constrained solver does to QE and QE-linear against H, relative to least squares, with the paired
+    comparison of each against H under that solver."""
     h0, h1 = _alpha(part, "H", "lstsq", column), _alpha(part, "H", solver, column)
-    q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
-    verdict = ("QE becomes worse than H" if q1 > h1 else "QE stays better than H")
-    text = (f"with {SOLVER_NAMES.get(solver, solver)} QE's alpha goes from {_fmt(q0)} to {_fmt(q1)} "
-            f"(x{q1 / q0:.2f}) and H's from {_fmt(h0)} to {_fmt(h1)} (x{h1 / h0:.2f}): {verdict} "
-            f"({_fmt(q1)} against {_fmt(h1)})")
-    if negative_share and "QE" in negative_share:
-        text += (f"; under least squares {100 * negative_share['QE']:.0f} % of the frames give QE a negative weight "
-                 f"(H: {100 * negative_share.get('H', math.nan):.0f} %), which the constraint must undo")
+    moves, verdicts = [], []
+    for basis in QE_BASES:
+        q0, q1 = _alpha(part, basis, "lstsq", column), _alpha(part, basis, solver, column)
+        if math.isnan(q0) or math.isnan(q1):
+            continue
+        moves.append(f"{basis}'s alpha goes from {_fmt(q0)} to {_fmt(q1)} (x{q1 / q0:.2f})")
+        verdict = _verdict(compare, (basis, solver), ("H", solver), "worse than", "better than")
+        verdicts.append(f"{basis} is {verdict}" if verdict else
+                        f"{basis} {_fmt(q1)} against H {_fmt(h1)} (no paired interval)")
+    return (f"with {SOLVER_NAMES.get(solver, solver)} " + ", ".join(moves)
+            + f" and H's from {_fmt(h0)} to {_fmt(h1)} (x{h1 / h0:.2f}); under them " + " and ".join(verdicts))
+
+
+def _row(rows: Sequence[Mapping], data: str, basis: str, solver: str) -> Mapping:
+    """A row of ``metrics.json`` (empty when absent)."""
+    return next((row for row in rows if row.get("data") == data and row.get("basis") == basis
+                 and row.get("solver") == solver), {})
+
+
+OFFSET_SHARE_STATED = 0.1
+"""Below this share of the constrained QE's squared error along ``(I - P) mu`` the offset is not offered as the
+reason constraints hurt QE."""
+LINEAR_LOSS_STATED = 0.5
+"""The offset is offered as a reason only when QE-linear's relative loss under the constraint is below this
+fraction of QE's (``x1.8`` against ``x7.1``: yes; ``x1.54`` against ``x1.62``: no)."""
+
+
+def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: Mapping,
+                rows: Sequence[Mapping]) -> str:
+    """Why a constraint on the weights costs affine QE more than QE-linear, from the numbers the run kept: the
+    offset ``(I - P) mu`` that every affine QE shape carries, what the weights' sum does to it under least squares
+    and under the constraint, and how QE-linear (shapes in the eigenfaces' span, no offset) fares with as many
+    frames needing negative weights. Empty when the run kept no offset."""
+    offset = facts.get("offset") or {}
+    qe0, qe1 = _row(rows, data, "QE", "lstsq"), _row(rows, data, "QE", solver)
+    lin0, lin1 = _row(rows, data, "QE-linear", "lstsq"), _row(rows, data, "QE-linear", solver)
+    if not offset or not qe0.get("weights") or not qe1.get("weights"):
+        return ""
+    share0, share1 = qe0.get("offset_error_share", math.nan), qe1.get("offset_error_share", math.nan)
+    text = (f"every affine QE shape is P e_i^H + (I-P) mu: it carries the capture mean's part outside the "
+            f"eigenfaces' span, {offset['norm']:.3g} mm long ({_percent(offset['ratio'])} of the median frame's "
+            f"displacement norm); with least squares QE's weights sum to {qe0['weights']['sum_median']:.2f} (median "
+            f"over frames), so each frame gets that many copies of it, and "
+            f"{_percent(qe0['weights']['negative_share'])} of the frames have a negative weight; with "
+            f"{SOLVER_NAMES.get(solver, solver)} they sum to "
+            f"{qe1['weights']['sum_median']:.2f} and {_percent(share1)} of QE's squared error lies along (I-P) mu "
+            f"(least squares: {_percent(share0)})")
+    if lin0.get("weights") and lin1.get("weights"):
+        l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
+        q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
+        text += (f". QE-linear's shapes lie in the span (no offset): {_percent(lin0['weights']['negative_share'])} "
+                 f"of its frames have a negative least-squares weight, and its alpha goes from {_fmt(l0)} to "
+                 f"{_fmt(l1)} (x{l1 / l0:.2f}) against QE's x{q1 / q0:.2f}")
+        needs_negative = lin0["weights"]["negative_share"] >= 0.8 * qe0["weights"]["negative_share"]
+        loses_less = l1 / l0 - 1.0 < LINEAR_LOSS_STATED * (q1 / q0 - 1.0)
+        if needs_negative and loses_less and share1 >= OFFSET_SHARE_STATED:
+            text += (". So the share of frames needing negative weights does not explain the loss; the offset does "
+                     "in part: the constraint can no longer hold the weights' sum where the offset needs it")
+        elif needs_negative and not loses_less:
+            text += (". Here QE-linear, with as many frames needing negative weights, loses almost as much: these "
+                     "numbers do not single out the offset")
     return text
 
 
+def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
+    """The animator's side: under least squares and the first constrained solver, each basis's largest |w|, share
+    of frames with a weight outside [0, 1], Hoyer sparsity and roughness."""
+    parts = []
+    for solver in [solver for solver in solvers if solver == "lstsq"] + [s for s in solvers if s != "lstsq"][:1]:
+        found = [(basis, _row(rows, data, basis, solver).get("weights")) for basis in RUN_BASES]
+        found = [(basis, weights) for basis, weights in found if weights]
+        if found:
+            parts.append(f"{solver}: " + "; ".join(
+                f"{basis} {weights['max_abs']:.3g}, {_percent(weights['outside_unit_share'])}, "
+                f"{weights['sparsity']:.2f}, {weights['roughness']:.2g}" for basis, weights in found))
+    if not parts:
+        return ""
+    return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity "
+            "with 1 for one shape per frame, roughness as the mean squared second time derivative in 1/s^4), "
+            + "; ".join(parts))
+
+
+def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
+    """The per-frame error in millimetres over the face region as a distribution, each basis under a solver."""
+    if "err_mm_median" not in part.columns:
+        return ""
+    entries = []
+    for basis in RUN_BASES:
+        values = [_alpha(part, basis, solver, f"err_mm_{what}") for what in ("median", "p95", "max")]
+        if not any(math.isnan(value) for value in values):
+            entries.append(f"{basis} {values[0]:.3g} / {values[1]:.3g} / {values[2]:.3g}")
+    if not entries:
+        return ""
+    region = facts.get("face_region")
+    return (f"per-frame RMS error in mm over {region}" if region else "per-frame RMS error in mm") \
+        + f", median / 95th percentile / maximum over frames, {solver}: " + ", ".join(entries)
+
+
 def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine", count: int = 3) -> str:
-    """Where QE loses a hand shape's look: the shapes the projection changes most, and the median closeness.
+    """Where a projection loses a hand shape's look: the shapes it changes most, and the median closeness.
 
     Parameters
     ----------
@@ -89,12 +252,72 @@ def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine",
                                                                     + cosines[len(cosines) // 2]) / 2
     named = ", ".join(f"{row['shape']} (cosine {row['cosine']:.2f}, relative distance {row['relative_distance']:.2f})"
                       for row in rows[:count])
-    return (f"the projection changes most {named}; median cosine of the {len(rows)} shapes to their quasi-eigen "
-            f"faces {median:.2f}")
+    return f"{named}; median cosine of the {len(rows)} shapes {median:.2f}"
+
+
+def closeness_line(intuitiveness: Sequence[Mapping]) -> str:
+    """The shapes each projection (QE, QE-linear) changes most, in one sentence."""
+    parts = [f"{label}: {text}" for label, projection in (("QE", "affine"), ("QE-linear", "linear"))
+             if (text := closeness_text(intuitiveness, projection))]
+    return ("the projection changes most, " + "; ".join(parts)) if parts else ""
+
+
+def caveat_texts(metrics: Mapping) -> list[str]:
+    """The caveats that apply to a run, from its facts: what the data are made of, and which data variants were
+    scored on the frames their bases were fitted on."""
+    dataset = metrics.get("dataset") or {}
+    provenance = dataset.get("provenance") or {}
+    kind = provenance.get("kind")
+    caveats = []
+    if kind == "ict_livelink":
+        driven = sorted({shape for shapes in (provenance.get("arkit_mapping") or {}).values() for shape in shapes})
+        hand = dataset.get("hand_names") or []
+        among = sum(name in driven for name in hand)
+        caveats.append(f"the capture is a noise-free linear blend of {len(driven) or 'the'} ICT FaceKit shapes, "
+                       f"{'all ' if among == len(hand) else ''}{among} of the {len(hand)} hand shapes among them: H "
+                       "is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which "
+                       "flatters both against a real capture")
+    if provenance.get("performer_and_basis") == "different faces":
+        scale = (provenance.get("placement") or {}).get("scale")
+        caveats.append("the hand shapes come from another face (ICT FaceKit"
+                       + (f", scaled by {scale:.3f} into the performer's frame" if scale else "")
+                       + "): H's error includes the mismatch between the two faces, not only the motion its shapes "
+                       "cannot span")
+    if kind == "synthetic":
+        caveats.append("the data are generated by the workbench, and the hand shapes are the generator's own "
+                       "muscles, each fully contracted")
+    trained = [data for data, facts in (metrics.get("data") or {}).items()
+               if facts.get("protocol", "training frames") == "training frames"
+               and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", []))]
+    if trained:
+        held = any(facts.get("protocol", "training frames") != "training frames"
+                   for facts in (metrics.get("data") or {}).values())
+        caveats.append(f"{', '.join(trained)} {'is' if len(trained) == 1 else 'are'} scored on the training frames "
+                       "(split 'same', the paper's protocol): PCA and QE are fitted to the frames they reconstruct"
+                       + ("; the held-out variants are not" if held else "; no frames were held out"))
+    return caveats
+
+
+def held_out_text(held: pd.DataFrame, trained: pd.DataFrame, column: str, facts: Mapping,
+                  trained_facts: Mapping, solver: str = "lstsq") -> str:
+    """A held-out variant against its training frames: each basis's alpha under a solver, held out against
+    trained (the ratio), and m of each fit."""
+    parts = []
+    for basis in RUN_BASES:
+        a, b = _alpha(held, basis, solver, column), _alpha(trained, basis, solver, column)
+        if not (math.isnan(a) or math.isnan(b)):
+            parts.append(f"{basis} {_fmt(a)} against {_fmt(b)} (x{a / b:.2f})")
+    if not parts:
+        return ""
+    described = next((note.split(":")[1].strip() for note in facts.get("notes", []) if note.startswith("held out")),
+                     facts.get("protocol", "held out"))
+    m_held, m_trained = (float(frame["m"].iloc[0]) for frame in (held, trained))
+    return (f"on held-out frames ({described}), `{column}` with {solver} against the training frames: "
+            + ", ".join(parts) + f"; m = {m_held:g} (training frames: {m_trained:g})")
 
 
 def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness: Mapping[str, Sequence[Mapping]],
-                 negative_share: Mapping[str, Mapping[str, float]] | None = None) -> list[str]:
+                 metrics: Mapping | None = None, config: Mapping | None = None) -> list[str]:
     """The findings of a run, one Markdown line per data variant and topic.
 
     Parameters
@@ -107,37 +330,59 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         ``m`` and ``alpha`` (basis -> the paper's value), as in the study config's ``paper`` node.
     intuitiveness : mapping
         Data variant -> its per-shape intuitiveness rows (``metrics.json``).
-    negative_share : mapping, optional
-        Data variant -> (basis -> share of frames with a negative least-squares weight).
+    metrics : mapping, optional
+        The run's ``metrics.json``: its paired comparisons, offsets, weights and face regions, and the dataset's
+        provenance. Without it no ordering is claimed (values are listed from smallest to largest).
+    config : mapping, optional
+        The run's resolved config (the split).
 
     Returns
     -------
     list of str
     """
+    metrics, config = metrics or {}, config or {}
+    data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
     lines = []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
-    for data, part in table.groupby("data", sort=False):
-        m = round(float(part["m"].iloc[0]), 1)
-        n = float(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
-        ordering = "; ".join(f"{solver}: {ordering_text(part, solver, column)}" for solver in solvers)
-        lines.append(f"**{data}**: `{column}` from best to worst, {ordering}.")
+    parts = dict(list(table.groupby("data", sort=False)))
+    for data, part in parts.items():
+        facts = data_facts.get(data) or {}
+        compare = comparison_lookup(facts["comparisons"]) if facts.get("comparisons") else None
+        bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
+        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases)}"
+                             for solver in solvers)
+        claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
+        lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
+        error = error_text(part, solvers[0], facts) if solvers else ""
+        if facts.get("protocol", "training frames") != "training frames":
+            base = next((row["train_on"] for row in rows if row.get("data") == data), None)
+            if base in parts:
+                text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {})
+                if text:
+                    lines.append(f"**{data}**: {text}.")
+            if error:
+                lines.append(f"**{data}**: {error}.")
+            continue
         if "lstsq" in solvers:
-            lines.append(f"**{data}**: {ratio_text(part, column, paper.get('alpha', {}))} with least squares; "
-                         "absolute alpha depends on the coordinate origin, the ratios compare across datasets.")
-        spans = "can span" if m <= n else "cannot span"
-        reach = (f" reach coverage {float(part['coverage'].iloc[0]):.4f}" if "coverage" in part.columns
-                 else " (mean over the runs)")
-        lines.append(f"**{data}**: m = {m:g} eigenfaces{reach} "
-                     f"(paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them"
-                     + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA") + ".")
+            ratios = ratio_text(part, paper.get("alpha", {}))
+            if ratios:
+                lines.append(f"**{data}**: {ratios}.")
+        lines.append(f"**{data}**: {m_text(part, paper)}.")
         constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
-        for k, solver in enumerate(constrained):  # the share of negative weights is said once
-            lines.append(f"**{data}**: " + constraint_text(part, column, solver,
-                                                          (negative_share or {}).get(data) if k == 0 else None)
-                         + ".")
-        closeness = closeness_text(intuitiveness.get(data, []))
+        for k, solver in enumerate(constrained):
+            lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
+            why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
+            if why:
+                lines.append(f"**{data}**: why: {why}.")
+        weights = weights_text(data, solvers, rows)
+        if weights:
+            lines.append(f"**{data}**: {weights}.")
+        if error:
+            lines.append(f"**{data}**: {error}.")
+        closeness = closeness_line(intuitiveness.get(data, []))
         if closeness:
             lines.append(f"**{data}**: {closeness}.")
+    lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
 
 
@@ -175,7 +420,8 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}
 
 
-def bases_findings(summary: pd.DataFrame, column: str) -> list[str]:
+def bases_findings(summary: pd.DataFrame, column: str, comparisons: Mapping[str, Sequence[Mapping]] | None = None,
+                   solver: str = "lstsq") -> list[str]:
     """Findings of a run or sweep that scored other bases: per data variant, the bases from most to least
     accurate, and which is closest to the hand shapes and most local.
 
@@ -185,12 +431,23 @@ def bases_findings(summary: pd.DataFrame, column: str) -> list[str]:
         One row per data variant and basis: ``data``, ``basis``, ``column``, ``matched_abs_cosine``, ``locality``
         (means over the runs).
     column : str
+    comparisons : mapping, optional
+        Data variant -> the paired comparisons of one run (``metrics.json``): the ordering then says ``<`` only
+        where the paired interval excludes zero (the report of one run); without them, by value (a sweep's means).
+    solver : str
+        The solver of ``column``'s values (PCA: its projection).
     """
     lines = []
     for data, part in summary.groupby("data", sort=False):
-        ranked = part.sort_values(column)
-        lines.append(f"**{data}**: `{column}` from best to worst: "
-                     + " < ".join(f"{row.basis} {_fmt(getattr(row, column))}" for row in ranked.itertuples()) + ".")
+        if comparisons is not None:
+            values = {(row.basis, "projection" if row.basis == "PCA" else solver): float(getattr(row, column))
+                      for row in part.itertuples()}
+            ordering = stated_ordering(values, comparison_lookup(comparisons.get(data, [])),
+                                       name=lambda key: key[0])
+        else:
+            ranked = part.sort_values(column)
+            ordering = " < ".join(f"{row.basis} {_fmt(getattr(row, column))}" for row in ranked.itertuples())
+        lines.append(f"**{data}**: `{column}` from best to worst: {ordering}.")
         others = part[part["basis"] != "H"]
         closest = others.sort_values("matched_abs_cosine", ascending=False).iloc[0]
         local = others.sort_values("locality").iloc[0]

@@ -1,39 +1,46 @@
 """``workbench mlflow <folder>...``: log finished run records into an MLflow tracking store (extra: mlflow).
 
-Runs are logged from their records after the fact (at the end of a sweep, or by ``workbench mlflow <folder>``),
-so the machines that compute need no access to the store. The default store needs no server: a SQLite file and
-an artifact folder in ``<paths.output_root>/.mlflow/``. Each study is an MLflow experiment and each complete record
-one MLflow run:
+The store is a team's MLflow server (``--tracking-uri http://...`` or ``MLFLOW_TRACKING_URI``) or, by default, an
+embedded one that needs no server: a SQLite file and an artifact folder in ``<paths.output_root>/.mlflow/``.
+Records are logged after the fact by this command, or by a sweep's callback as each job ends. Each study is an
+MLflow experiment; each sweep one parent run with a nested run per complete record:
 
-- params: the flattened resolved config (``dataset.n_frames``, ``basis.coverage``, ...);
-- metrics: every alpha of every row of the alpha table as ``<alpha column>.<data>.<basis>.<solver>`` (for example
-  ``alpha_abs_mean.markers.QE.lstsq``), the number of eigenfaces and their coverage per data variant
-  (``m.<data>``, ``coverage.<data>``) and the stage timings (``time.<stage>``, seconds);
-- tags: ``study``, ``sweep``, ``config_hash``, ``git_commit``, ``data`` (the data variants), ``record`` (the run
-  folder), and MLflow's run name (the run folder's name);
-- artifacts: the record's files (config, alpha table as CSV and Markdown, metrics, timings, log) and the run's
-  report (``report/``, its figures) when one was built.
+- params: the resolved config flattened to dotted keys, each value as the config writes it (``null``, ``true``,
+  ``0.995``, ``[markers, mesh]``);
+- metrics (:func:`metric_key`): every alpha column of every table row as ``<column>.<data>.<basis>.<solver>``
+  (``alpha_abs_mean.markers.QE.lstsq``; a data variant ``markers->mesh`` reads ``markers_to_mesh``), the number
+  of eigenfaces and their coverage per data variant (``m.<data>``, ``coverage.<data>``) and the stage timings
+  (``time.<stage>``, seconds);
+- tags: ``kind`` (``run`` or ``sweep``), ``study``, ``sweep``, ``record``, ``config_hash``, ``data``,
+  ``workbench.version``, ``git_commit`` (also as MLflow's ``mlflow.source.git.commit``), ``git_dirty``;
+- artifacts: the record's files (config, alpha table as CSV and Markdown, per-frame alpha, metrics, timings, log)
+  and its report's files (``report/``) when one was built; the sweep's run holds its collected tables.
 
-A record already in the store (same ``record`` and ``config_hash`` tags, finished) is not logged again; a run an
-interrupted import left unfinished is deleted and logged anew.
+Each record goes in once (found again by its ``record`` and ``config_hash`` tags); a run an interrupted import
+left unfinished is completed, not duplicated. Writers of a SQLite store take turns (a lock file beside the
+database), so concurrent imports and concurrent jobs are safe.
 """
 
 from __future__ import annotations
 
 import argparse
+import fcntl
 import logging
+import math
 import os
 import re
+import shlex
 import time
+from contextlib import contextmanager
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Iterator, Mapping, Sequence
 
 from workbench.config import REPO_ROOT
 from workbench.errors import WorkbenchError
-from workbench.record import (ALPHA_COLUMNS, CONFIG_FILE, METRICS_FILE, TABLE_FILE, TEXT_FILE, TIMINGS_FILE,
-                              RunRecord, find_records, load_record)
-from workbench.reporting.runs import flatten
+from workbench.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CONFIG_FILE, METRICS_FILE, TABLE_FILE,
+                              TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete, load_record)
 
 log = logging.getLogger(__name__)
 
@@ -41,9 +48,14 @@ STORE_FOLDER = ".mlflow"
 """Hidden, so that the copies of records among its artifacts are never taken for runs by collect, report or this."""
 DATABASE_FILE = "mlflow.db"
 ARTIFACTS_FOLDER = "artifacts"
-ARTIFACT_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, "workbench.log")
+ARTIFACT_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, ALPHA_PER_FRAME_FILE, METRICS_FILE, TIMINGS_FILE,
+                  "workbench.log")
 REPORT_FOLDER = "report"
-RECORD_TAG = "record"
+COLLECTED_FOLDER = "collected"
+KIND_TAG, RUN_KIND, SWEEP_KIND = "kind", "run", "sweep"
+RECORD_TAG, SWEEP_TAG, LOGGED_BY_TAG = "record", "sweep", "logged_by"
+BATCH_LIMITS = {"metrics": 1000, "params": 100}
+"""The most metrics and params one MLflow ``log-batch`` request takes."""
 KEEP_OUT = ("workbench", "conf", "studies", "tests", "reports", "benchmarks")
 """Folders of the source tree a store must never be written into."""
 
@@ -57,6 +69,38 @@ def import_mlflow():
 
         raise WorkbenchError(f"the MLflow store needs the mlflow extra: {install_hint('mlflow')} ({error})") from None
     return mlflow
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Which store
+# ---------------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Store:
+    """Where runs are logged.
+
+    Attributes
+    ----------
+    tracking_uri : str
+    artifact_root : str or None
+        The embedded store's artifact folder (a file URI); None: the store decides (a server's own root).
+    lock_file : pathlib.Path or None
+        For a SQLite store: the file its writers lock in turn (the first of them also creates the tables).
+    """
+
+    tracking_uri: str
+    artifact_root: str | None = None
+    lock_file: Path | None = None
+
+    def browse_hint(self, experiment_ids: Sequence[str] = ()) -> str:
+        """How to look at the runs: the server's page, or the ``mlflow ui`` command of a database."""
+        uri = self.tracking_uri
+        if uri.startswith(("http://", "https://")):
+            page = f"/#/experiments/{experiment_ids[0]}" if len(experiment_ids) == 1 else ""
+            return f"browse: {uri.rstrip('/')}{page}"
+        if uri.startswith("databricks"):
+            return "browse in your Databricks workspace"
+        return f"browse with: mlflow ui --backend-store-uri {shlex.quote(uri)}"
 
 
 def default_store(output_root: Path) -> Path:
@@ -80,18 +124,126 @@ def store_uris(store: Path) -> tuple[str, str]:
     return f"sqlite:///{store / DATABASE_FILE}", (store / ARTIFACTS_FOLDER).as_uri()
 
 
-def metric_key(*parts) -> str:
-    """An MLflow metric or param name from its parts joined by dots; characters MLflow refuses become ``_``."""
-    return ".".join(re.sub(r"[^A-Za-z0-9_\-. /]", "_", str(part)) for part in parts)
+def resolve_store(*, store: Path | None = None, tracking_uri: str | None = None,
+                  output_root: Path | str = "outputs") -> Store:
+    """The store to log into: ``tracking_uri`` if given, else the embedded store in ``store`` if given, else
+    ``$MLFLOW_TRACKING_URI`` if set, else the embedded store of ``output_root``."""
+    tracking_uri = tracking_uri or (None if store is not None else os.environ.get("MLFLOW_TRACKING_URI") or None)
+    if tracking_uri is None:
+        folder = default_store(output_root) if store is None else Path(store)
+        uri, artifacts = store_uris(folder)
+        return Store(uri, artifacts, folder.expanduser().resolve() / f"{DATABASE_FILE}.lock")
+    database = re.match(r"sqlite:///(.+)$", tracking_uri)
+    database_file = Path(database.group(1).split("?")[0]) if database else None
+    lock = database_file.with_name(database_file.name + ".lock") if database_file else None
+    return Store(tracking_uri, None, lock)
 
 
-def record_metrics(record: RunRecord) -> dict[str, float]:
-    """Every alpha of every table row, ``m`` and coverage per data variant and the stage timings, by stable name.
+@contextmanager
+def open_store(target: Store) -> Iterator:
+    """An ``MlflowClient`` of the store, with the store's lock held (SQLite); errors of the store as one line.
 
     Raises
     ------
     WorkbenchError
-        When two rows of the table would share a name (the table has no such rows).
+        When the store refuses a request or cannot be reached, naming the store.
+    """
+    mlflow = import_mlflow()
+    from mlflow.exceptions import MlflowException
+
+    check_reachable(target)
+    handle = None
+    if target.lock_file is not None:
+        target.lock_file.parent.mkdir(parents=True, exist_ok=True)
+        handle = os.open(target.lock_file, os.O_RDWR | os.O_CREAT, 0o666)
+        fcntl.flock(handle, fcntl.LOCK_EX)
+    try:
+        yield mlflow.MlflowClient(tracking_uri=target.tracking_uri)
+    except MlflowException as error:
+        raise WorkbenchError(store_error(target, error)) from None
+    except Exception as error:  # noqa: BLE001 - the database driver's own errors (a full disk, a locked file)
+        if type(error).__module__.split(".")[0] not in ("sqlalchemy", "sqlite3", "alembic"):
+            raise
+        raise WorkbenchError(store_error(target, error)) from None
+    finally:
+        if handle is not None:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+            os.close(handle)
+
+
+def check_reachable(target: Store, timeout: float = 10.0) -> None:
+    """Refuse a server that does not answer at all, at once (MLflow's client would retry each request for minutes).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    import urllib.error
+    import urllib.request
+
+    if not target.tracking_uri.startswith(("http://", "https://")):
+        return
+    try:
+        urllib.request.urlopen(f"{target.tracking_uri.rstrip('/')}/health", timeout=timeout).close()
+    except urllib.error.HTTPError:
+        return  # it answers (a proxy asking for credentials, say): the client's requests will tell
+    except (OSError, ValueError) as error:
+        reason = getattr(error, "reason", error)
+        raise WorkbenchError(f"MLflow server {target.tracking_uri} cannot be reached ({reason})") from None
+
+
+def store_error(target: Store, error: Exception) -> str:
+    """One line for an error of the store: its first line, a full disk named as such."""
+    text = " ".join(str(error).split("\n")[0].split()) or type(error).__name__
+    if "disk is full" in text or "No space left" in text:
+        text = f"the disk is full ({text})"
+    return (f"MLflow store {target.tracking_uri}: {text[:300]}; records already logged are kept: rerun the same "
+            "command to log the rest")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# What a record becomes
+# ---------------------------------------------------------------------------------------------------------------
+
+def name_part(text) -> str:
+    """One part of a metric or param name: ``->`` reads ``_to_`` and anything but letters, digits, ``_`` and
+    ``-`` becomes ``_``, so parts never hold the dots that join them nor a path (``../x`` becomes ``___x``)."""
+    return re.sub(r"[^A-Za-z0-9_\-]", "_", str(text).replace("->", "_to_")) or "_"
+
+
+def metric_key(*parts) -> str:
+    """An MLflow metric or param name: its parts (:func:`name_part`) joined by dots."""
+    return ".".join(name_part(part) for part in parts)
+
+
+def param_text(value) -> str:
+    """A config value as the config writes it: ``null``, ``true``, ``0.995``, ``[markers, mesh]``, text as is."""
+    import yaml
+
+    if isinstance(value, str):
+        return value
+    text = yaml.safe_dump(value, default_flow_style=True, width=math.inf).strip()
+    return text[:-3].strip() if text.endswith("\n...") or text.endswith("...") else text
+
+
+def config_params(config: Mapping, prefix: tuple = ()) -> dict[str, str]:
+    """The config flattened to ``{dotted.key: text}`` (lists kept whole, as the config writes them)."""
+    params = {}
+    for key, value in config.items():
+        if isinstance(value, Mapping) and value:
+            params.update(config_params(value, (*prefix, key)))
+        else:
+            params[metric_key(*prefix, key)] = param_text(value)
+    return params
+
+
+def record_metrics(record: RunRecord) -> dict[str, float]:
+    """Every alpha of every table row, ``m`` and coverage per data variant and the stage timings, by name.
+
+    Raises
+    ------
+    WorkbenchError
+        When two rows of the table would share a name.
     """
     metrics = {}
     for row in record.table.to_dict("records"):
@@ -107,142 +259,258 @@ def record_metrics(record: RunRecord) -> dict[str, float]:
 
 
 def record_params(record: RunRecord) -> dict[str, str]:
-    """The flattened resolved config as MLflow params (text, as MLflow keeps them)."""
-    return {metric_key(key): str(value) for key, value in flatten(record.config).items()}
+    """The resolved config as MLflow params (text, at most MLflow's 6,000 characters a value)."""
+    return {key: value[:6000] for key, value in config_params(record.config).items()}
 
 
-def record_tags(record: RunRecord) -> dict[str, str]:
-    """The tags that find a run: study, sweep, config hash, git commit, data variants and the record's folder."""
+def sweep_folder(record: RunRecord) -> Path | None:
+    """The sweep a record belongs to (its parent folder), or None for a single run."""
+    return None if record.job_num is None else record.folder.resolve().parent
+
+
+def version_tags(record: RunRecord) -> dict[str, str]:
+    """The workbench version and git commit that made the record, as far as it says."""
+    tags = {}
+    version = (record.metrics.get("versions") or {}).get("workbench")
+    if version:
+        tags["workbench.version"] = str(version)
+    if record.git.get("commit"):
+        tags.update({"git_commit": str(record.git["commit"]), "mlflow.source.git.commit": str(record.git["commit"]),
+                     "git_dirty": str(record.git.get("dirty")).lower()})
+    return tags
+
+
+def record_tags(record: RunRecord, parent_id: str | None) -> dict[str, str]:
+    """The tags that find a run: kind, study, sweep, record folder, config hash, data variants, version, commit."""
     folder = record.folder.resolve()
-    return {"study": record.study, "sweep": str(folder.parent), "config_hash": str(record.config_hash),
-            "git_commit": str(record.git.get("commit")), "data": ",".join(record.data_variants),
-            RECORD_TAG: str(folder), "mlflow.runName": folder.name}
+    tags = {KIND_TAG: RUN_KIND, "study": record.study, SWEEP_TAG: str(folder.parent), RECORD_TAG: str(folder),
+            "config_hash": str(record.config_hash), "data": ",".join(record.data_variants),
+            "mlflow.runName": folder.name, **version_tags(record)}
+    if parent_id is not None:
+        tags["mlflow.parentRunId"] = parent_id
+    return tags
 
+
+def sweep_name(folder: Path) -> str:
+    """A sweep run's name: its folder and the folder above (``coverage/default``)."""
+    return "/".join(Path(folder).resolve().parts[-2:])
+
+
+def started_ms(record: RunRecord) -> int:
+    """The run's start (``metrics.json``'s ``started_at``) in milliseconds since the epoch; now if unknown."""
+    try:
+        return int(datetime.fromisoformat(str(record.metrics.get("started_at"))).timestamp() * 1000)
+    except ValueError:
+        return int(time.time() * 1000)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Logging
+# ---------------------------------------------------------------------------------------------------------------
 
 def experiment_id(client, study: str, artifact_root: str | None) -> str:
     """The id of the study's experiment, created if new (its artifacts in ``<artifact_root>/<study>``, or where
     the store puts them when ``artifact_root`` is None)."""
+    from mlflow.exceptions import MlflowException
+
     experiment = client.get_experiment_by_name(study)
     if experiment is not None:
         return experiment.experiment_id
-    return client.create_experiment(study, artifact_location=None if artifact_root is None
-                                    else f"{artifact_root}/{study}")
+    try:
+        return client.create_experiment(study, artifact_location=None if artifact_root is None
+                                        else f"{artifact_root}/{study}")
+    except MlflowException:  # another process created it meanwhile
+        experiment = client.get_experiment_by_name(study)
+        if experiment is None:
+            raise
+        return experiment.experiment_id
 
 
-def logged_records(client, experiment: str) -> dict[tuple[str, str], list]:
-    """The runs of an experiment by (record folder, config hash)."""
+def quoted(value: str) -> str | None:
+    """``value`` quoted for an MLflow search filter, or None when it holds both kinds of quote."""
+    for quote in ("'", '"'):
+        if quote not in value:
+            return f"{quote}{value}{quote}"
+    return None
+
+
+def find_runs(client, experiment: str, **tags: str) -> list:
+    """The active runs of an experiment whose tags have these values."""
     from mlflow.entities import ViewType
 
-    runs, token = {}, None
+    terms = [f"tags.`{key}` = {quoted(value)}" for key, value in tags.items() if quoted(value)]
+    runs, token = [], None
     while True:
-        page = client.search_runs([experiment], run_view_type=ViewType.ACTIVE_ONLY, max_results=1000,
-                                  page_token=token)
-        for run in page:
-            key = (run.data.tags.get(RECORD_TAG), run.data.tags.get("config_hash"))
-            runs.setdefault(key, []).append(run)
+        page = client.search_runs([experiment], filter_string=" and ".join(terms), run_view_type=ViewType.ACTIVE_ONLY,
+                                  max_results=1000, page_token=token)
+        runs.extend(run for run in page if all(run.data.tags.get(key) == value for key, value in tags.items()))
         token = page.token
         if not token:
             return runs
 
 
-def started_ms(record: RunRecord) -> int:
-    """The run's start (``metrics.json``'s ``started_at``) in milliseconds since the epoch; now if unknown."""
-    started = record.metrics.get("started_at")
-    try:
-        return int(datetime.fromisoformat(str(started)).timestamp() * 1000)
-    except ValueError:
-        return int(time.time() * 1000)
+def sweep_run(client, experiment: str, folder: Path, study: str, runs: Sequence, *, logged_by: str,
+              start_ms: int | None = None, version: Mapping[str, str] | None = None) -> tuple[str, bool]:
+    """A sweep's parent run: its id, created (running) if the store has none, and whether this caller is to finish
+    it (it made it, or an interrupted import made it and left it running).
+
+    Parameters
+    ----------
+    logged_by : str
+        ``sweep`` (the sweep's callback, which finishes the run when the sweep ends) or ``import``.
+    """
+    found = sorted((run for run in runs if run.data.tags.get(KIND_TAG) == SWEEP_KIND),
+                   key=lambda run: run.info.start_time)
+    if found:
+        run = found[0]
+        return run.info.run_id, run.info.status != "FINISHED" and run.data.tags.get(LOGGED_BY_TAG) == "import"
+    folder = Path(folder).resolve()
+    tags = {KIND_TAG: SWEEP_KIND, "study": study, SWEEP_TAG: str(folder), "mlflow.runName": sweep_name(folder),
+            LOGGED_BY_TAG: logged_by, **(version or {})}
+    run = client.create_run(experiment, start_time=start_ms or int(time.time() * 1000), tags=tags)
+    return run.info.run_id, True
 
 
-def log_record(client, experiment: str, record: RunRecord) -> str:
-    """Log one record as a finished MLflow run and return the run's id."""
-    from mlflow.entities import Metric, Param, RunTag
+def chunks(items: list, size: int) -> Iterator[list]:
+    for start in range(0, len(items), size):
+        yield items[start:start + size]
 
+
+def log_folders(client, run_id: str, folder: Path, names: Sequence[str], again: bool = False) -> None:
+    """Log the sub-folders of ``folder`` named ``names`` that exist as the run's artifacts of the same names: only
+    those the run does not hold yet, or all of them again (``again``)."""
+    present = [name for name in names if (Path(folder) / name).is_dir()]
+    held = set() if again or not present else {item.path for item in client.list_artifacts(run_id)}
+    for name in present:
+        if name not in held:
+            client.log_artifacts(run_id, str(Path(folder) / name), artifact_path=name)
+
+
+def log_record(client, experiment: str, record: RunRecord, previous: Sequence, parent_id: str | None) -> str:
+    """Log one record as a finished MLflow run, or finish the run an interrupted import left.
+
+    Parameters
+    ----------
+    previous : sequence of mlflow.entities.Run
+        The store's runs of this record (same folder and config hash).
+    parent_id : str or None
+        The sweep's run.
+
+    Returns
+    -------
+    str
+        ``added``, ``resumed`` (an unfinished run of the record completed) or ``skipped`` (already logged).
+    """
+    from mlflow.entities import Metric, Param
+
+    finished = [run for run in previous if run.info.status == "FINISHED"]
+    if finished:  # a report built since it was logged: its figures go in too
+        log_folders(client, finished[0].info.run_id, record.folder, [REPORT_FOLDER])
+        return "skipped"
     start = started_ms(record)
-    run = client.create_run(experiment, start_time=start,
-                            tags={key: value for key, value in record_tags(record).items()})
-    run_id = run.info.run_id
-    client.log_batch(run_id, metrics=[Metric(key, value, start, 0) for key, value in record_metrics(record).items()],
-                     params=[Param(key, value[:6000]) for key, value in record_params(record).items()],
-                     tags=[RunTag("workbench.version", str(record.metrics.get("versions", {}).get("workbench")))])
+    if previous:
+        run, outcome = previous[0], "resumed"
+        for extra in previous[1:]:
+            client.delete_run(extra.info.run_id)
+    else:
+        run, outcome = client.create_run(experiment, start_time=start, tags=record_tags(record, parent_id)), "added"
+    run_id, logged = run.info.run_id, set(run.data.metrics)
+    metrics = [Metric(key, value, start, 0) for key, value in record_metrics(record).items() if key not in logged]
+    for batch in chunks(metrics, BATCH_LIMITS["metrics"]):
+        client.log_batch(run_id, metrics=batch)
+    # a param logged again with the same value is accepted, so an interrupted run is completed the same way
+    for batch in chunks([Param(key, value) for key, value in record_params(record).items()], BATCH_LIMITS["params"]):
+        client.log_batch(run_id, params=batch)
     for name in ARTIFACT_FILES:
         if (record.folder / name).is_file():
             client.log_artifact(run_id, str(record.folder / name))
-    if (record.folder / REPORT_FOLDER).is_dir():
-        client.log_artifacts(run_id, str(record.folder / REPORT_FOLDER), artifact_path=REPORT_FOLDER)
-    end = start + int(1000 * float(record.timings.get("total", 0.0)))
-    client.set_terminated(run_id, status="FINISHED", end_time=end)
-    return run_id
+    log_folders(client, run_id, record.folder, [REPORT_FOLDER], again=outcome == "added")
+    client.set_terminated(run_id, status="FINISHED", end_time=start + int(1000 * float(record.timings.get("total", 0))))
+    return outcome
 
 
-def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_uri: str | None = None) -> dict:
-    """Log every complete record under ``paths`` that the store does not hold yet.
+def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_uri: str | None = None,
+                sweep_run_id: str | None = None, finish_sweeps: bool = False) -> dict:
+    """Log every complete record under ``paths`` that the store does not hold yet, nested in its sweep's run.
 
     Parameters
     ----------
     paths : iterable of pathlib.Path
         Run folders, sweep folders or folders above them.
     store : pathlib.Path, optional
-        Folder of the embedded SQLite store; default ``<paths.output_root of the records>/.mlflow``.
+        Folder of the embedded SQLite store.
     tracking_uri : str, optional
-        Any MLflow tracking URI instead of the embedded store (a server, another database); artifacts then go
-        where that store puts them.
+        Any MLflow tracking URI (a server, another database). Without it or ``store``: ``$MLFLOW_TRACKING_URI``,
+        else the embedded store ``<paths.output_root of the records>/.mlflow``.
+    sweep_run_id : str, optional
+        The parent run of the records' sweep, when the caller knows it (a sweep's callback).
+    finish_sweeps : bool
+        Mark the sweeps' runs finished (the end of a sweep); otherwise only sweep runs made here are.
 
     Returns
     -------
     dict
-        ``tracking_uri``, ``added`` and ``skipped`` (numbers of records) and ``incomplete`` (run folders without
-        a completion marker, left out).
+        ``store`` (:class:`Store`), ``experiments`` (ids), ``sweeps`` (their run ids), numbers of records
+        ``added``, ``resumed`` and ``skipped``, and ``incomplete`` (run folders without a completion marker).
     """
-    mlflow = import_mlflow()
     complete, incomplete = find_records([Path(path) for path in paths])
     if not complete:
         raise WorkbenchError(f"no complete run record under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in complete]
-    if tracking_uri is None:
-        store = default_store(records[0].config.get("paths", {}).get("output_root", "outputs")) \
-            if store is None else Path(store)
-        tracking_uri, artifact_root = store_uris(store)
-        Path(store).mkdir(parents=True, exist_ok=True)
-    else:
-        artifact_root = None
-    client = mlflow.MlflowClient(tracking_uri=tracking_uri)
-    added = skipped = 0
-    experiments = {}
+    target = resolve_store(store=store, tracking_uri=tracking_uri,
+                           output_root=records[0].config.get("paths", {}).get("output_root", "outputs"))
+    groups: dict[tuple, list[RunRecord]] = {}
     for record in records:
-        if record.study not in experiments:
-            experiment = experiment_id(client, record.study, artifact_root)
-            experiments[record.study] = (experiment, logged_records(client, experiment))
-        experiment, logged = experiments[record.study]
-        previous = logged.get((str(record.folder.resolve()), str(record.config_hash)), [])
-        if any(run.info.status == "FINISHED" for run in previous):
-            skipped += 1
-            continue
-        for run in previous:  # an import that was interrupted: start that record again
-            client.delete_run(run.info.run_id)
-        log_record(client, experiment, record)
-        added += 1
-    return {"tracking_uri": tracking_uri, "added": added, "skipped": skipped, "incomplete": incomplete}
+        groups.setdefault((record.study, sweep_folder(record) or record.folder.resolve().parent), []).append(record)
+    counts = {"added": 0, "resumed": 0, "skipped": 0}
+    experiments, sweeps = {}, {}
+    with open_store(target) as client:
+        for (study, folder), group in groups.items():
+            if study not in experiments:
+                experiments[study] = experiment_id(client, study, target.artifact_root)
+            experiment = experiments[study]
+            runs = find_runs(client, experiment, **{SWEEP_TAG: str(folder)})
+            parent, finish = None, False
+            if sweep_folder(group[0]) is not None:
+                parent, finish = (sweep_run_id, False) if sweep_run_id else sweep_run(
+                    client, experiment, folder, study, runs, logged_by="sweep" if finish_sweeps else "import",
+                    start_ms=min(map(started_ms, group)), version=version_tags(group[0]))
+                sweeps[str(folder)] = parent
+            by_record = {}
+            for run in runs:
+                by_record.setdefault((run.data.tags.get(RECORD_TAG), run.data.tags.get("config_hash")), []).append(run)
+            for record in group:
+                key = (str(record.folder.resolve()), str(record.config_hash))
+                counts[log_record(client, experiment, record, by_record.get(key, []), parent)] += 1
+            if parent is not None:
+                # the collected tables change as a sweep is resumed: the end of a sweep logs them again
+                log_folders(client, parent, folder, [COLLECTED_FOLDER, REPORT_FOLDER], again=finish or finish_sweeps)
+                if finish or finish_sweeps:
+                    client.set_terminated(parent, status="FINISHED")
+    return {"store": target, "tracking_uri": target.tracking_uri, "experiments": list(experiments.values()),
+            "sweeps": sweeps, **counts, "incomplete": incomplete}
 
 
 def summary_line(result: Mapping) -> str:
+    resumed = f", {result['resumed']} left unfinished by an interrupted import completed" if result["resumed"] else ""
     note = f", {len(result['incomplete'])} incomplete run folders left out" if result["incomplete"] else ""
-    return (f"mlflow: {result['added']} runs added, {result['skipped']} already in the store{note}; "
-            f"browse with: mlflow ui --backend-store-uri {result['tracking_uri']}")
+    return (f"mlflow: {result['added']} runs added, {result['skipped']} already in the store{resumed}{note}; "
+            f"{result['store'].browse_hint(result['experiments'])}")
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="workbench mlflow",
-        description="Log finished run records into an MLflow tracking store (each record once).")
+        description="Log finished run records into an MLflow tracking store (each record once, nested in its "
+                    "sweep's run).")
     parser.add_argument("paths", nargs="+", type=Path, help="run folders, sweep folders or folders above them")
     target = parser.add_mutually_exclusive_group()
     target.add_argument("--store", type=Path, default=None,
                         help="folder of the embedded SQLite store (default: <paths.output_root>/.mlflow of the "
                              "records)")
-    target.add_argument("--tracking-uri", default=os.environ.get("MLFLOW_TRACKING_URI"),
-                        help="an MLflow tracking URI instead (default: $MLFLOW_TRACKING_URI, else the embedded "
-                             "store)")
+    target.add_argument("--tracking-uri", default=None,
+                        help="an MLflow tracking URI instead, e.g. a server http://host:5000 (default: "
+                             "$MLFLOW_TRACKING_URI, else the embedded store)")
     return parser.parse_args(list(argv))
 
 
@@ -253,6 +521,10 @@ def main(argv: Sequence[str]) -> int:
     return 0
 
 
+# ---------------------------------------------------------------------------------------------------------------
+# The sweep's callback
+# ---------------------------------------------------------------------------------------------------------------
+
 try:
     from hydra.experimental.callback import Callback
 except ImportError:  # pragma: no cover - Hydra is a dependency; this keeps the module importable without it
@@ -260,15 +532,61 @@ except ImportError:  # pragma: no cover - Hydra is a dependency; this keeps the 
 
 
 class MlflowSweep(Callback):
-    """Hydra callback: when a sweep ends, log its finished records into the MLflow store.
+    """Hydra callback: log a sweep's runs into an MLflow store while it runs.
 
     Every study carries it off (``hydra.callbacks.mlflow.enabled: false``); a study config or the command line
-    turns it on (``hydra.callbacks.mlflow.enabled=true``). ``store`` or ``tracking_uri`` choose the store as the
-    ``workbench mlflow`` options do.
+    turns it on (``hydra.callbacks.mlflow.enabled=true``). ``tracking_uri`` (default ``$MLFLOW_TRACKING_URI``) or
+    ``store`` choose the store as the ``workbench mlflow`` options do. When the sweep starts, its parent run is
+    made (or found, when a sweep is resumed); each job logs its record as it ends, wherever it runs (a cluster
+    node too); when the sweep ends, whatever a job could not log is logged and the parent run is finished. A store
+    that cannot be reached stops no run: one line says so, and ``workbench mlflow <sweep folder>`` logs later.
     """
 
     def __init__(self, enabled: bool = False, store: str | None = None, tracking_uri: str | None = None):
         self.enabled, self.store, self.tracking_uri = bool(enabled), store, tracking_uri
+        self.sweep_run_id = None
+        self.jobs_log = True  # off when the store failed as the sweep started: the end of the sweep tries again
+
+    def target(self, config) -> Store:
+        return resolve_store(store=None if self.store is None else Path(self.store), tracking_uri=self.tracking_uri,
+                             output_root=config.paths.output_root)
+
+    def on_multirun_start(self, config, **kwargs) -> None:
+        if not self.enabled:
+            return
+        sweep_dir, study = Path(str(config.hydra.sweep.dir)), str(config.study)
+        try:
+            target = self.target(config)
+            with open_store(target) as client:
+                experiment = experiment_id(client, study, target.artifact_root)
+                runs = find_runs(client, experiment, **{SWEEP_TAG: str(sweep_dir.resolve())})
+                resumed = any(run.data.tags.get(KIND_TAG) == SWEEP_KIND for run in runs)
+                self.sweep_run_id, _ = sweep_run(client, experiment, sweep_dir, study, runs, logged_by="sweep")
+                if resumed:  # running again until this sweep ends
+                    client.update_run(self.sweep_run_id, status="RUNNING")
+        except (WorkbenchError, OSError) as error:
+            self.jobs_log = False
+            log.error(f"workbench mlflow: error: {error} (the sweep goes on; its end tries again, or log it later "
+                      f"with 'workbench mlflow {sweep_dir}')")
+            return
+        log.info(f"mlflow: sweep run {sweep_name(sweep_dir)} ({'resumed' if resumed else 'new'}) in experiment "
+                 f"{study} of {target.tracking_uri}; each run is logged as its job ends")
+
+    def on_job_end(self, config, job_return=None, **kwargs) -> None:
+        if not self.enabled or not self.jobs_log:
+            return
+        folder = Path(str(config.hydra.runtime.output_dir))
+        if not is_complete(folder):
+            return
+        try:
+            result = log_records([folder], store=None if self.store is None else Path(self.store),
+                                 tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id)
+        except (WorkbenchError, OSError) as error:
+            log.error(f"workbench mlflow: error: {error} (record kept; the end of the sweep or 'workbench mlflow "
+                      f"{folder}' logs it)")
+            return
+        if result["added"] or result["resumed"]:
+            log.info(f"mlflow: logged {folder.name}")
 
     def on_multirun_end(self, config, **kwargs) -> None:
         if not self.enabled:
@@ -276,8 +594,10 @@ class MlflowSweep(Callback):
         sweep_dir = Path(str(config.hydra.sweep.dir))
         try:
             result = log_records([sweep_dir], store=None if self.store is None else Path(self.store),
-                                 tracking_uri=self.tracking_uri)
-        except WorkbenchError as error:  # the records are complete; say why the store is not, and how to retry
+                                 tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id, finish_sweeps=True)
+        except (WorkbenchError, OSError) as error:  # the records are complete; say why the store is not
             log.error(f"workbench mlflow: error: {error} (records kept; rerun 'workbench mlflow {sweep_dir}')")
             return
-        log.info(summary_line(result))
+        total = result["added"] + result["resumed"] + result["skipped"]
+        log.info(f"mlflow: sweep {sweep_name(sweep_dir)}: {total} runs in the store ({result['added']} added at "
+                 f"the end of the sweep); {result['store'].browse_hint(result['experiments'])}")

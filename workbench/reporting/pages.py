@@ -210,6 +210,12 @@ def record_timeline(record: RunRecord, inputs: Mapping) -> Timeline:
         "take", np.arange(len(inputs["eval"])), record.metrics["dataset"]["frame_rate"])
 
 
+def training_variants(record: RunRecord) -> list[str]:
+    """The data variants scored on their training frames (the paper's protocol), not on held-out frames."""
+    return [data for data, values in record.metrics["data"].items()
+            if values.get("protocol", "training frames") == "training frames"]
+
+
 def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, every: bool = False) -> dict:
     """Basis label -> shapes: H and the run's quasi-eigen basis (with ``every``: both projections the run had)."""
     key = ("bases", data, every)
@@ -243,22 +249,13 @@ def frame_weights(record: RunRecord, data: str, label: str, cache: dict) -> tupl
     return cache[key]
 
 
-def negative_weight_share(record: RunRecord, cache: dict) -> dict:
-    """Data variant -> (basis -> share of evaluated frames whose least-squares weights include a negative one),
-    for the variants whose inputs the run saved."""
-    from workbench.solve import solve_weights
-
+def negative_weight_share(record: RunRecord) -> dict:
+    """Data variant -> (basis -> share of evaluated frames whose least-squares weights include a negative one), as
+    the run recorded it (rows' ``weights``); empty for records without weight statistics."""
     shares = {}
-    for data in record.data_variants:
-        inputs = _inputs(record, data, cache)
-        if inputs is None:
-            continue
-        complete = np.isfinite(inputs["eval"]).all(axis=1)
-        shares[data] = {}
-        for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
-            weights = solve_weights(shapes, inputs["eval"][complete], kind="lstsq").weights
-            scale = float(np.max(np.abs(weights))) if weights.size else 1.0
-            shares[data][label] = float((weights < -1e-9 * scale).any(axis=1).mean())
+    for row in record.rows():
+        if row.get("solver") == "lstsq" and row.get("weights"):
+            shares.setdefault(row["data"], {})[row["basis"]] = float(row["weights"]["negative_share"])
     return shares
 
 
@@ -442,11 +439,41 @@ def draw_alpha_per_solver(record: RunRecord, cache: dict):
     from workbench.reporting.figures.studies import plot_alpha_per_solver
 
     column = headline_column(record.config)
-    shares = negative_weight_share(record, cache)
     return plot_alpha_per_solver(
-        record.table, column, shares,
-        title=("Alpha per solver: constraints on the weights, and how many frames need negative weights "
+        record.table[record.table["data"].isin(training_variants(record))], column, negative_weight_share(record),
+        title=("Alpha per solver: constraints on the weights, and how many frames have a negative weight "
                f"without them\n{short_label(record)}"))
+
+
+def draw_error_cdf(record: RunRecord, cache: dict | None = None):
+    """The cumulative per-frame error curve of every basis and solver, from the record's error quantiles."""
+    from workbench.metrics import ERROR_QUANTILES
+    from workbench.reporting.figures.distributions import plot_error_cdf
+
+    curves = {}
+    for row in record.rows():
+        if row.get("error_mm_quantiles"):
+            curves.setdefault(row["data"], {})[(row["basis"], row["solver"])] = np.asarray(row["error_mm_quantiles"])
+    if not curves:
+        return "needs per-frame errors in the record (runs made before they were recorded have none)"
+    regions = {data: values.get("face_region", "") for data, values in record.metrics["data"].items()}
+    return plot_error_cdf(curves, ERROR_QUANTILES, regions=regions,
+                          title=f"Per-frame error in millimetres, cumulative, every basis and solver\n"
+                                f"{short_label(record)}")
+
+
+def draw_weight_statistics(record: RunRecord, cache: dict | None = None):
+    """Range, bounds, sparsity and roughness of every basis's weights under every solver, from the record."""
+    from workbench.reporting.figures.distributions import plot_weight_statistics
+
+    statistics = {}
+    for row in record.rows():
+        if row.get("weights"):
+            statistics.setdefault(row["data"], {})[(row["basis"], row["solver"])] = row["weights"]
+    if not statistics:
+        return "needs weight statistics in the record (runs made before they were recorded have none)"
+    return plot_weight_statistics(statistics, title=f"The weights an animator would get, per basis and solver\n"
+                                                    f"{short_label(record)}")
 
 
 def draw_weight_curves(record: RunRecord, cache: dict, seconds_shown: float = 12.0):
@@ -515,12 +542,12 @@ def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
     solver_name, _ = figure_solver(record.config)
     normalisation = record.config.get("metric", {}).get("headline_normalisation", "absolute")
     series = {}
-    for data in record.data_variants:
+    for data in training_variants(record):  # held-out frames are another timeline
         bases, solvers = arrays[f"{data}.basis"], arrays[f"{data}.solver"]
         values = arrays[f"{data}.{normalisation}"]
         series[data] = {str(b): values[i] for i, (b, s) in enumerate(zip(bases, solvers))
                         if s == solver_name or b == "PCA"}
-    first = record.data_variants[0]
+    first = training_variants(record)[0]
     timeline = Timeline.from_arrays(arrays, f"{first}.") or Timeline.uniform(
         "take", np.arange(len(arrays[f"{first}.absolute"][0])), record.metrics["dataset"]["frame_rate"])
     elapsed = timeline.elapsed()
@@ -533,10 +560,11 @@ def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
 def draw_marker_vs_mesh(record: RunRecord):
     from workbench.reporting.figures.studies import plot_marker_vs_mesh
 
-    if record.table["data"].nunique() < 2:
+    table = record.table[record.table["data"].isin(training_variants(record))]
+    if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
-    return plot_marker_vs_mesh(record.table, headline_column(record.config), solver=solver_name,
+    return plot_marker_vs_mesh(table, headline_column(record.config), solver=solver_name,
                                title=f"Marker versus mesh data: the method on each\n{short_label(record)}")
 
 
@@ -564,11 +592,22 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
      "Per-vertex RMS reconstruction error over every evaluated frame, for the hand basis, the quasi-eigen bases "
      "and PCA, on one shared colour bar.",
      lambda record, options: draw_vertex_rms(record, options["cache"])),
-    ("alpha_per_solver", "Alpha per solver, and why constraints hurt the quasi-eigen basis",
+    ("alpha_per_solver", "Alpha per solver",
      "The headline alpha of each basis under least squares, non-negative and box weights (PCA's projection as a "
-     "dashed line), with the share of frames whose least-squares weights include a negative one: those frames "
-     "must change under a constraint.",
+     "dashed line), with the share of frames whose least-squares weights include a negative one (from the "
+     "record). That share alone does not say what a constraint costs: the findings give the numbers that do.",
      lambda record, options: draw_alpha_per_solver(record, options["cache"])),
+    ("error_cdf", "Per-frame error in millimetres, as a distribution",
+     "For each error in millimetres, the share of evaluated frames whose RMS point error over the face region is "
+     "at most that (the cumulative distribution over frames), for every basis and solver; the median and the "
+     "95th percentile are the grey lines. From the error quantiles the run recorded.",
+     lambda record, options: draw_error_cdf(record, options["cache"])),
+    ("weight_statistics", "The weights an animator would get",
+     "Per basis and solver: the largest |w|, the share of frames with a weight outside [0, 1], Hoyer's sparsity "
+     "(sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), mean over frames (1: one shape per frame), and the roughness, the "
+     "mean squared second time derivative of the weights (1/s^4, second differences over the frames' times within "
+     "each take). PCA's coefficients are no animator's weights and are left out.",
+     lambda record, options: draw_weight_statistics(record, options["cache"])),
     ("weight_curves", "Weight curves w_i(t) of H and QE",
      "The weights of the six shapes the hand basis uses most over a stretch of the take, in the hand basis and "
      "in the quasi-eigen basis (same colour, same shape); dotted: w = 1, a shape fully on.",
@@ -868,8 +907,7 @@ def run_facts(record: RunRecord) -> list:
     return [facts_frame(record.metrics), lines]
 
 
-def run_sections(record: RunRecord, figures: list[FigureEntry], command: str,
-                 negative_share: Mapping | None = None, faces: "FacesBlock | None" = None
+def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, faces: "FacesBlock | None" = None
                  ) -> tuple[str, list[Section]]:
     from workbench.reporting.findings import run_findings
 
@@ -880,24 +918,127 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str,
         Section("Findings", [
             f"Generated from the run's numbers (`{column}`, %). "
             + ("The data are synthetic: generated by the workbench, not a real capture. "
-               if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic" else ""),
-            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, negative_share)]),
+               if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic" else "")
+            + ("In an ordering, '<' means that the paired per-frame difference of the two bases has a 95 % interval "
+               "(block bootstrap over time) that excludes 0, '~' that it does not: they are not distinguishable on "
+               "these frames; every interval is in the table 'Paired comparisons within the run'. "
+               if any(values.get("comparisons") for values in record.metrics["data"].values()) else ""),
+            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, record.metrics,
+                         record.config)]),
         Section("Run facts", run_facts(record)),
         Section("Alpha beside the paper", [
-            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values; only "
-            "ratios between rows compare across datasets, since the absolute alpha depends on the coordinate "
-            "origin.",
+            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
+            "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
+            "alpha variant (the findings give them under each), so they compare across datasets only within one.",
             headline_table(record.table, column),
         ]),
+        *protocol_sections(record, column),
         *([Section("Faces you can turn", [faces])] if faces is not None else []),
         Section("Figures", figures),
-        Section("Full alpha table", [record.table]),
+        Section("Full alpha table", [alpha_columns(record.table)]),
+        *error_and_weight_sections(record),
+        *comparison_sections(record),
         Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
         provenance_section(record.metrics),
         versions_section(record.metrics, report_versions()),
         Section("About this report", [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`."]),
     ]
     return title, sections
+
+
+def alpha_columns(table: pd.DataFrame) -> pd.DataFrame:
+    """The alpha table's naming and alpha columns (the per-frame error and weight columns go in their section)."""
+    from workbench.run_text import FRAME_COLUMNS
+
+    return table[[column for column in table.columns if column not in FRAME_COLUMNS]]
+
+
+def error_and_weight_sections(record: RunRecord) -> list[Section]:
+    """The per-frame error in millimetres and the weights' statistics of every row, with what each column means
+    and the face region of each data variant; nothing for records without them."""
+    from workbench.run_text import FRAME_COLUMNS, ROW_NAME_COLUMNS
+
+    columns = [column for column in FRAME_COLUMNS if column in record.table.columns]
+    if not columns:
+        return []
+    regions = [f"{data}: {values['face_region']}" for data, values in record.metrics["data"].items()
+               if values.get("face_region")]
+    return [Section("Error in millimetres and the weights", [
+        "`err_mm_*`: each evaluated frame's RMS 3-D point error over the face region, in mm; its median, 95th "
+        "percentile and maximum over the frames. `w_max_abs`: the largest |w|; `w_outside_01`: the share of frames "
+        "with a weight below 0 or above 1; `w_sparsity`: Hoyer's sparsity (sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), "
+        "mean over frames (1: one shape per frame, 0: all equal); `w_roughness`: the mean squared second time "
+        "derivative of the weights, 1/s^4, from second differences over the frames' times within each take. PCA's "
+        "coefficients are no animator's weights (`-`). The face region of each data variant:",
+        regions,
+        record.table[[*ROW_NAME_COLUMNS, *columns]]])]
+
+
+def comparison_frame(record: RunRecord) -> pd.DataFrame:
+    """Every paired comparison the run made: per data variant, rows ``a`` and ``b``, the difference ``a - b`` of
+    the headline alpha with its 95 % interval, the block length and the verdict."""
+    from workbench.reporting.statistics import Interval
+
+    records = []
+    for data, values in record.metrics["data"].items():
+        for entry in values.get("comparisons") or []:
+            interval = Interval.from_dict(entry)
+            verdict = ("a < b" if interval.high < 0 else "a > b" if interval.low > 0
+                       else "not distinguishable")
+            records.append({"data": data, "a": " ".join(entry["a"]), "b": " ".join(entry["b"]),
+                            "a - b": interval.estimate, "ci95_low": interval.low, "ci95_high": interval.high,
+                            "block (frames)": interval.block_frames, "block (s)": interval.block_seconds,
+                            "verdict": verdict})
+    return pd.DataFrame.from_records(records)
+
+
+def comparison_sections(record: RunRecord) -> list[Section]:
+    """The table every ``<`` of the findings comes from, with how its intervals were made."""
+    frame = comparison_frame(record)
+    if frame.empty:
+        return []
+    first = next(entry for values in record.metrics["data"].values() for entry in values.get("comparisons") or []
+                 if entry.get("block_frames"))
+    return [Section("Paired comparisons within the run", [
+        f"Every '<' of the findings and of the printed headline is a row here whose interval excludes 0. The "
+        f"difference is that of `{first['column']}` between two rows of the alpha table on the same evaluated "
+        "frames; its 95 % interval comes from a circular block bootstrap over time: blocks of consecutive frames "
+        "that never cross from one take into another, their length chosen from the data (Politis & White 2004, "
+        "with the correction of Patton, Politis & White 2009, on each difference's own autocorrelation). For "
+        f"example: {first['method']}.",
+        frame])]
+
+
+def protocol_sections(record: RunRecord, column: str) -> list[Section]:
+    """Training frames (the paper's protocol) beside held-out frames (``dataset.held_out``): per data variant,
+    basis and solver, the headline alpha and median error of each protocol; nothing without held-out frames."""
+    protocols = {data: values.get("protocol", "training frames") for data, values in record.metrics["data"].items()}
+    held = [data for data, protocol in protocols.items() if protocol != "training frames"]
+    if not held:
+        return []
+    table = record.table
+    rows = []
+    for data in held:
+        base = next(row["train_on"] for row in record.rows() if row["data"] == data)
+        for (basis, solver), part in table[table["data"] == data].groupby(["basis", "solver"], sort=False):
+            own = table[(table["data"] == base) & (table["basis"] == basis) & (table["solver"] == solver)]
+            if own.empty:
+                continue
+            entry = {"data": base, "held out": protocols[data].removeprefix("held-out "), "basis": basis,
+                     "solver": solver, f"{column} training": float(own[column].iloc[0]),
+                     f"{column} held out": float(part[column].iloc[0])}
+            entry["held out / training"] = entry[f"{column} held out"] / entry[f"{column} training"]
+            if "err_mm_median" in table.columns:
+                entry["err_mm_median training"] = float(own["err_mm_median"].iloc[0])
+                entry["err_mm_median held out"] = float(part["err_mm_median"].iloc[0])
+            rows.append(entry)
+    notes = [f"{data}: {next(note for note in record.metrics['data'][data]['notes'] if note.startswith('held out'))}"
+             for data in held if any(note.startswith("held out") for note in record.metrics["data"][data]["notes"])]
+    return [Section("Training frames and held-out frames", [
+        "The paper scores the frames its bases were fitted on (the training frames, split 'same'). Beside it, the "
+        "same method with the bases fitted without some frames and scored on those (`dataset.held_out`); the "
+        "held-out rows are data variants of their own in every table, with their own m and paired comparisons.",
+        notes, pd.DataFrame.from_records(rows)])]
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -1045,10 +1186,11 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
                           summary, x, column, solver=solver, by=others,
                           points=per_run if per_run is not None and x in per_run.columns else None,
                           title=f"Alpha against {axis_label(x)}\n{label}")))
-    if summary["data"].nunique() > 1 and not targets:
+    trained = summary[summary["data"].isin(training_variants(first))]  # held-out frames are no data variant
+    if trained["data"].nunique() > 1 and not targets:
         specs.append(("marker_vs_mesh", "Marker versus mesh",
                       f"`{column}` (mean over seeds, 95 % CI) of each basis on each data variant.",
-                      lambda _, options: plot_marker_vs_mesh(summary, column, solver=solver,
+                      lambda _, options: plot_marker_vs_mesh(trained, column, solver=solver,
                                                              title=f"Marker versus mesh data\n{label}")))
     return specs
 
@@ -1176,8 +1318,10 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     from workbench.reporting.findings import bases_findings
 
     findings = next((item for item in sections if item.heading == "Findings"), None)
-    if findings is not None:
-        findings.blocks.append(bases_findings(summary, column))
+    if findings is not None:  # one run: its orderings from its paired comparisons
+        comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
+                       if len(found) == 1 else None)
+        findings.blocks.append(bases_findings(summary, column, comparisons, solver))
     section = Section("Other bases: alpha against intuitiveness", [
         f"Every basis of the table at its size n, fitted on the training frames and scored alike; `{column}` with "
         f"solver {solver} (PCA: projection), " + (f"mean over {int(summary['n_seeds'].max())} runs." if several
@@ -1235,12 +1379,12 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
         ``out / "index.html"``.
     """
     out = Path(out)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     cache: dict = {}
     entries = make_figures(RUN_FIGURES, record, figures_dir, _with_png(formats), {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
-    title, sections = run_sections(record, entries, command, negative_weight_share(record, cache), faces)
+    title, sections = run_sections(record, entries, command, faces)
     sections = with_bases_section(sections, [record], figures_dir, _with_png(formats))
     _write_documents(out, title, sections)
     write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
@@ -1267,7 +1411,7 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     paper = per_run.groupby("basis", sort=False)["paper_alpha"].first()
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
-    figures_dir = out / "figures"
+    figures_dir = inside(out, "figures")
     _clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run), None, figures_dir, _with_png(formats),
                            {})
@@ -1293,7 +1437,7 @@ def sweep_records(root: Path) -> list[RunRecord]:
     folders = [folder for folder in find_records([root])[0] if folder != Path(root)]
     if not folders:
         raise WorkbenchError(f"{root} holds no complete run record (folders with a '{DONE}' file)")
-    return [load_record(folder) for folder in folders]
+    return [load_record(folder, check_archives=True) for folder in folders]
 
 
 REPORT_FOLDER = "report"
@@ -1317,7 +1461,7 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
             raise WorkbenchError("--reference rewrites the committed reports of the workbench's checkout, and this "
                                  "workbench is an installed package: use --out DIR, or run from a checkout")
         return inside(CHECKOUT / "reports", name)
-    return Path(out) if out is not None else Path(folder) / REPORT_FOLDER
+    return Path(out) if out is not None else inside(folder, REPORT_FOLDER)
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
@@ -1336,6 +1480,23 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
+FIGURE_2_SHAPES = 4
+"""Hand shapes figure 2 shows (the paper's figure 2)."""
+
+
+def figure_2_shapes(text: str, record: RunRecord) -> list[str]:
+    """``--shapes``: four distinct hand shapes of the run, checked before the report is written."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if len(names) != FIGURE_2_SHAPES or len(set(names)) != len(names):
+        raise WorkbenchError(f"--shapes takes {FIGURE_2_SHAPES} distinct hand-shape names (figure 2 shows "
+                             f"{FIGURE_2_SHAPES}), got {names}")
+    known = list(record.metrics["dataset"].get("hand_names") or [])
+    unknown = [name for name in names if known and name not in known]
+    if unknown:
+        raise WorkbenchError(f"--shapes names unknown hand shapes {unknown}; the run has {known}")
+    return names
+
+
 def main(argv: Sequence[str]) -> int:
     """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,svg] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
@@ -1348,9 +1509,9 @@ def main(argv: Sequence[str]) -> int:
         raise WorkbenchError(f"{folder} is not a folder")
     command = "workbench report " + " ".join(argv)
     if is_complete(folder):
-        record = load_record(folder)
+        record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
-        options = {"shapes": [s.strip() for s in args.shapes.split(",")] if args.shapes else None}
+        options = {"shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None}
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]

@@ -1,0 +1,56 @@
+"""Ctrl-C on the command line: one line and exit status 130, whenever it comes.
+
+Starting the command takes seconds of imports (Hydra, pandas, SciPy, numba) before the command's own error handling
+is in place; a Ctrl-C then would print Python's traceback of whatever was being imported. So the package installs
+:func:`exit_at_once` first thing when it is started as the ``workbench`` command (nothing has been written yet, so
+there is nothing to clean up), and the command switches back to Python's ``KeyboardInterrupt`` (:func:`raise_from_now_on`)
+where its handlers take over: from then on an interrupted run removes what it wrote before it exits. A SIGINT the
+parent process ignores (``nohup``, a background job) stays ignored. This module imports nothing beyond the
+standard library, so that it is in place within milliseconds.
+"""
+
+import os
+import signal
+import sys
+
+INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
+MESSAGE = "workbench: interrupted; rerun the same command to resume"
+
+
+def started_as_command() -> bool:
+    """Whether this process is the ``workbench`` command (``workbench ...`` or ``python -m workbench ...``), not a
+    program importing the package (a test, a notebook), whose own Ctrl-C must keep working."""
+    main_file = getattr(sys.modules.get("__main__"), "__file__", None) or ""
+    return sys.argv[:1] == ["-m"] or os.path.basename(main_file) == "workbench"
+
+
+def exit_at_once(signum, frame) -> None:
+    """SIGINT handler while the command starts: the one line, exit 130, no traceback."""
+    os.write(2, (MESSAGE + "\n").encode())
+    os._exit(INTERRUPTED)
+
+
+def exit_at_once_while_starting() -> None:
+    """Install :func:`exit_at_once` unless SIGINT is ignored or handled by someone else."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, exit_at_once)
+
+
+def raise_from_now_on() -> None:
+    """Ctrl-C raises ``KeyboardInterrupt`` again (the command's handlers are in place)."""
+    if signal.getsignal(signal.SIGINT) is exit_at_once:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def caused_by_interrupt(error: BaseException) -> bool:
+    """Whether ``error`` is a ``KeyboardInterrupt`` or was raised because of one: a compiled function (numba)
+    interrupted by Ctrl-C returns with the interrupt pending, which Python reports as a ``SystemError`` whose
+    cause is the ``KeyboardInterrupt``."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False

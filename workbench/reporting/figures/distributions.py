@@ -1,0 +1,123 @@
+"""Within one run: the per-frame error in millimetres as a distribution, and what the weights look like.
+
+Both read what the run record keeps (``metrics.json``: each row's error quantiles and weight statistics); nothing
+is recomputed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from workbench.reporting.figures import basis_colour, new_figure, wrap_title
+
+SOLVER_STYLES = {"lstsq": "-", "nnls": "--", "box": ":", "projection": "-"}
+WEIGHT_PANELS = (("max_abs", "largest |w|", True), ("outside_unit_share", "frames with a weight outside [0, 1]", False),
+                 ("sparsity", "Hoyer sparsity (1: one shape per frame)", False),
+                 ("roughness", "roughness: mean (d^2 w / dt^2)^2, 1/s^4", True))
+
+
+def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabilities: np.ndarray, *,
+                   title: str, regions: Mapping[str, str] | None = None) -> Figure:
+    """Cumulative per-frame error curves: for each error in millimetres, the share of frames reconstructed at least
+    that well; one panel per data variant, one line per basis (colour) and solver (line style).
+
+    Parameters
+    ----------
+    curves : mapping
+        Data variant -> ((basis, solver) -> error quantiles in mm, ndarray of shape (n_probabilities,)).
+    probabilities : ndarray of shape (n_probabilities,)
+        The probabilities of the quantiles (0 to 1).
+    title : str
+    regions : mapping, optional
+        Data variant -> the face region the errors are taken over (shown under each panel's title).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    variants = [data for data, lines in curves.items() if lines]
+    if not variants:
+        raise ValueError("plot_error_cdf needs at least one data variant with error quantiles")
+    columns = min(len(variants), 2)
+    rows = math.ceil(len(variants) / columns)
+    width = 6.2 * columns
+    figure = new_figure(width, 3.9 * rows + 0.6)
+    axes = figure.subplots(rows, columns, squeeze=False).ravel()
+    for ax, data in zip(axes, variants):
+        for (basis, solver), quantiles in curves[data].items():
+            ax.plot(quantiles, probabilities, color=basis_colour(basis), linestyle=SOLVER_STYLES.get(solver, "-."),
+                    linewidth=1.4, label=f"{basis} {solver}" if solver != "projection" else basis)
+        ax.set_xscale("log")
+        ax.set_xlabel("per-frame RMS error over the face region (mm, log scale)", fontsize=9)
+        ax.set_ylabel("share of frames with at most this error", fontsize=9)
+        ax.set_ylim(0.0, 1.0)
+        ax.axhline(0.5, color="#999999", linewidth=0.6)
+        ax.axhline(0.95, color="#999999", linewidth=0.6, linestyle="--")
+        region = (regions or {}).get(data)
+        ax.set_title(f"data: {data}" + (f"\n{wrap_title(region, 5.8, 8)}" if region else ""), fontsize=9, loc="left")
+        ax.grid(alpha=0.3, which="both")
+    for ax in axes[len(variants):]:
+        ax.set_visible(False)
+    handles, labels = axes[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 5), fontsize=8, frameon=False,
+                  title="basis (colour) and solver (solid: least squares, PCA by projection; dashed: non-negative; "
+                        "dotted: box [0, 1]); grey lines: median and 95th percentile", title_fontsize=8)
+    figure.suptitle(wrap_title(title, width), fontsize=10)
+    return figure
+
+
+def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, float]]], *, title: str) -> Figure:
+    """The weights an animator would get: largest |w|, share of frames outside [0, 1], sparsity and roughness of
+    each basis under each solver; one row of four panels per data variant, bars grouped by basis, one bar per
+    solver.
+
+    Parameters
+    ----------
+    statistics : mapping
+        Data variant -> ((basis, solver) -> the weight statistics, ``max_abs``, ``outside_unit_share``,
+        ``sparsity``, ``roughness``).
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    variants = [data for data, values in statistics.items() if values]
+    if not variants:
+        raise ValueError("plot_weight_statistics needs at least one data variant with weight statistics")
+    width = 15.0
+    figure = new_figure(width, 2.9 * len(variants) + 0.9)
+    axes = figure.subplots(len(variants), len(WEIGHT_PANELS), squeeze=False)
+    hatches = {"lstsq": "", "nnls": "//", "box": ".."}
+    for row, data in zip(axes, variants):
+        keys = list(statistics[data])
+        bases = list(dict.fromkeys(basis for basis, _ in keys))
+        solvers = list(dict.fromkeys(solver for _, solver in keys))
+        step = 0.8 / len(solvers)
+        for ax, (field, label, log) in zip(row, WEIGHT_PANELS):
+            for k, solver in enumerate(solvers):
+                values = [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
+                positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
+                bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
+                              alpha=1.0 - 0.25 * k, hatch=hatches.get(solver, ""), edgecolor="white", label=solver)
+                ax.bar_label(bars, fmt="%.2g", fontsize=6, padding=1)
+            if log:
+                ax.set_yscale("log")
+            if field == "max_abs":
+                ax.axhline(1.0, color="#444444", linewidth=0.8, linestyle=":")
+            ax.set_xticks(np.arange(len(bases)), bases, fontsize=8)
+            if data == variants[0]:
+                ax.set_title(label, fontsize=8.5, loc="left")
+            if field == WEIGHT_PANELS[0][0]:
+                ax.set_ylabel(f"data: {data}", fontsize=9)
+            ax.grid(axis="y", alpha=0.3, which="both")
+            ax.margins(y=0.18)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
+                  title="solver (hatching); dotted line: |w| = 1", title_fontsize=8)
+    figure.suptitle(wrap_title(title, width), fontsize=11)
+    return figure

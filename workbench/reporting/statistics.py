@@ -1,0 +1,429 @@
+"""Intervals a reviewer accepts, and the paired comparisons that decide whether one basis beats another.
+
+Arrays in, an :class:`Interval` out; no pandas. Within one run the frames are the units: the per-frame paired
+difference of two rows of the alpha table is resampled by a circular block bootstrap over time (frames are
+autocorrelated), blocks never crossing from one take into another, with the block length chosen from the data
+(Politis & White 2004, corrected by Patton, Politis & White 2009). Randomness comes only from a seeded
+``numpy.random.Generator``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from workbench.errors import WorkbenchError
+
+LEVEL = 0.95
+RESAMPLES = 2000
+SEED = 0
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate and its confidence interval, with how it was made.
+
+    Attributes
+    ----------
+    estimate, low, high : float
+    level : float
+        Coverage of ``[low, high]`` (0.95).
+    method : str
+        How the interval was made, in words (named beside it wherever it is shown).
+    n : int
+        The independent-ish units it rests on (frames within a run).
+    block_frames : int
+        Block length of a block bootstrap (0: not one).
+    block_seconds : float
+        The block length in seconds of capture (NaN: not known).
+    """
+
+    estimate: float
+    low: float
+    high: float
+    level: float = LEVEL
+    method: str = ""
+    n: int = 0
+    block_frames: int = 0
+    block_seconds: float = math.nan
+
+    @property
+    def excludes_zero(self) -> bool:
+        """Whether the interval lies wholly on one side of zero (a difference is then stated)."""
+        return bool(self.low > 0.0 or self.high < 0.0)
+
+    def as_dict(self) -> dict:
+        return {"estimate": self.estimate, "low": self.low, "high": self.high, "level": self.level,
+                "method": self.method, "n": self.n, "block_frames": self.block_frames,
+                "block_seconds": self.block_seconds}
+
+    @classmethod
+    def from_dict(cls, values) -> "Interval":
+        return cls(**{key: values[key] for key in ("estimate", "low", "high", "level", "method", "n",
+                                                   "block_frames", "block_seconds") if key in values})
+
+
+def format_number(value: float, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant digits, with its sign (``+0.0231``, ``-1.2``)."""
+    return "nan" if not math.isfinite(value) else f"{value:+.{digits}g}"
+
+
+def format_interval(interval: Interval, digits: int = 3) -> str:
+    """``+0.0231 [+0.0104, +0.0358]``: the estimate and its interval (the method is said once, beside them)."""
+    return (f"{format_number(interval.estimate, digits)} [{format_number(interval.low, digits)}, "
+            f"{format_number(interval.high, digits)}]")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Block length
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def take_spans(takes: Sequence | None, n: int) -> list[tuple[int, int]]:
+    """(start, stop) of each run of consecutive frames of one take; one span when ``takes`` is None."""
+    if takes is None:
+        return [(0, n)]
+    takes = np.asarray(takes)
+    if takes.shape != (n,):
+        raise WorkbenchError(f"takes must name the take of each of the {n} frames, got shape {takes.shape}")
+    edges = [0, *(np.flatnonzero(takes[1:] != takes[:-1]) + 1).tolist(), n]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def autocovariances(series: np.ndarray, spans: Sequence[tuple[int, int]], max_lag: int) -> np.ndarray:
+    """Autocovariances at lags ``0..max_lag`` of a series made of several takes, never pairing frames of two takes.
+
+    Parameters
+    ----------
+    series : ndarray of shape (n,)
+    spans : sequence of (start, stop)
+        The takes (:func:`take_spans`).
+    max_lag : int
+
+    Returns
+    -------
+    ndarray of shape (max_lag + 1,)
+        ``sum over takes and t of (x_t - mean)(x_{t+k} - mean) / n`` (the usual biased estimate).
+    """
+    centred = series - series.mean()
+    values = np.zeros(max_lag + 1)
+    for start, stop in spans:
+        part = centred[start:stop]
+        size = 1 << int(2 * len(part) - 1).bit_length()  # zero padding: the circular products become linear ones
+        spectrum = np.fft.rfft(part, size)
+        lags = min(max_lag, len(part) - 1) + 1
+        values[:lags] += np.fft.irfft(spectrum * spectrum.conj(), size)[:lags]
+    return values / len(series)
+
+
+def optimal_block_length(series: np.ndarray, takes: Sequence | None = None) -> float:
+    """Block length of the circular block bootstrap for the mean of ``series`` (Politis & White 2004, with the
+    correction of Patton, Politis & White 2009).
+
+    The flat-top lag window's bandwidth is twice the smallest lag after which ``K_n`` autocorrelations in a row
+    are insignificant (``|rho| < 2 sqrt(log10(n) / n)``, ``K_n = max(5, sqrt(log10(n)))``); then
+    ``b = (2 G^2 / D)^(1/3) n^(1/3)`` with ``G = sum lambda(k/M) |k| R(k)`` and ``D = 4/3 (sum lambda(k/M)
+    R(k))^2``, at most ``min(3 sqrt(n), n / 3)``.
+
+    Parameters
+    ----------
+    series : ndarray of shape (n,)
+        Finite values (a per-frame difference).
+    takes : sequence of shape (n,), optional
+        The take of each frame; lagged products never pair frames of two takes.
+
+    Returns
+    -------
+    float
+        In frames, at least 1.
+    """
+    series = np.asarray(series, dtype=float)
+    n = series.size
+    if n < 4:
+        return 1.0
+    spans = take_spans(takes, n)
+    k_n = max(5, int(math.ceil(math.sqrt(math.log10(n)))))
+    max_lag = min(int(math.ceil(math.sqrt(n))) + k_n, n - 1)
+    acv = autocovariances(series, spans, max_lag)
+    if acv[0] <= 0.0:
+        return 1.0
+    rho = np.abs(acv / acv[0])
+    threshold = 2.0 * math.sqrt(math.log10(n) / n)
+    bandwidth = max_lag
+    for lag in range(1, max_lag - k_n + 2):
+        if np.all(rho[lag:lag + k_n] < threshold):
+            bandwidth = lag - 1
+            break
+    window = min(2 * max(bandwidth, 1), max_lag)
+    lags = np.arange(1, window + 1)
+    flat_top = np.where(lags / window <= 0.5, 1.0, 2.0 * (1.0 - lags / window))
+    g = 2.0 * np.sum(flat_top * lags * acv[1:window + 1])
+    long_run = acv[0] + 2.0 * np.sum(flat_top * acv[1:window + 1])
+    if long_run <= 0.0:
+        return 1.0
+    block = (2.0 * g ** 2 / (4.0 / 3.0 * long_run ** 2)) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
+    return float(min(max(block, 1.0), 3.0 * math.sqrt(n), n / 3.0))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The bootstrap
+# ---------------------------------------------------------------------------------------------------------------
+
+
+NORMAL_FROM_BLOCKS = 2000
+"""From this many blocks per resample on, a resample's totals are drawn from the normal distribution with the
+bootstrap's exact mean and covariance (a sum of that many independent blocks is normal to plotting accuracy)
+instead of by drawing every block: the cost stays independent of the number of frames."""
+
+
+def block_bootstrap_totals(series: np.ndarray, block: int, rng: np.random.Generator, *,
+                           takes: Sequence | None = None, n_resamples: int = RESAMPLES) -> np.ndarray:
+    """Totals of several paired per-frame series over circular-block-bootstrap resamples of the frames.
+
+    Each take is resampled on its own (stratified by take): it is cut into ``ceil(n_take / b)`` blocks of ``b =
+    min(block, n_take)`` consecutive frames starting anywhere in the take and wrapping round its end, the last
+    block shortened so the resample has the take's length. Every series is resampled with the same blocks (the
+    pairing is kept); a block never joins the end of one take to another. With :data:`NORMAL_FROM_BLOCKS` blocks
+    or more per resample, the totals are drawn from the normal distribution with the scheme's exact mean and
+    covariance.
+
+    Parameters
+    ----------
+    series : ndarray of shape (k, n)
+        ``k`` per-frame series of the same ``n`` frames.
+    block : int
+        Block length in frames.
+    rng : numpy.random.Generator
+    takes : sequence of shape (n,), optional
+    n_resamples : int
+
+    Returns
+    -------
+    ndarray of shape (n_resamples, k)
+        Each resample's sum of each series.
+    """
+    series = np.atleast_2d(np.asarray(series, dtype=float))
+    n = series.shape[1]
+    if isinstance(block, bool) or int(block) != block or block < 1:
+        raise WorkbenchError(f"the bootstrap's block length must be a positive whole number of frames, got {block!r}")
+    if isinstance(n_resamples, bool) or int(n_resamples) != n_resamples or n_resamples < 1:
+        raise WorkbenchError(f"the number of bootstrap resamples must be a positive integer, got {n_resamples!r}")
+    takes_blocks = []
+    for start, stop in take_spans(takes, n):
+        length = stop - start
+        size = min(int(block), length)
+        wrapped = np.concatenate([series[:, start:stop], series[:, start:start + size - 1]], axis=1)
+        cumulative = np.concatenate([np.zeros((series.shape[0], 1)), np.cumsum(wrapped, axis=1)], axis=1)
+        n_blocks = -(-length // size)
+        lengths = np.full(n_blocks, size)
+        lengths[-1] = length - (n_blocks - 1) * size
+        takes_blocks.append((length, cumulative, lengths))
+    if sum(len(lengths) for _, _, lengths in takes_blocks) >= NORMAL_FROM_BLOCKS:
+        mean, covariance = _block_moments(takes_blocks)
+        return rng.multivariate_normal(mean, covariance, size=int(n_resamples), method="eigh")
+    totals = np.zeros((int(n_resamples), series.shape[0]))
+    for length, cumulative, lengths in takes_blocks:
+        starts = rng.integers(0, length, size=(int(n_resamples), len(lengths)))
+        totals += (cumulative[:, starts + lengths] - cumulative[:, starts]).sum(axis=2).T
+    return totals
+
+
+def _block_moments(takes_blocks) -> tuple[np.ndarray, np.ndarray]:
+    """Exact mean and covariance of the circular block bootstrap's totals (blocks start anywhere in their take,
+    independently; the takes independently)."""
+    mean, covariance = 0.0, 0.0
+    for length, cumulative, lengths in takes_blocks:
+        starts = np.arange(length)
+        for size, count in zip(*np.unique(lengths, return_counts=True)):
+            sums = cumulative[:, starts + size] - cumulative[:, starts]  # (k, length): every block of this size
+            mean = mean + count * sums.mean(axis=1)
+            covariance = covariance + count * np.atleast_2d(np.cov(sums, bias=True))
+    return np.asarray(mean), np.asarray(covariance)
+
+
+def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.ndarray], *,
+                       block_series: np.ndarray, takes: Sequence | None = None, seconds: Sequence | None = None,
+                       level: float = LEVEL, n_resamples: int = RESAMPLES, seed: int = SEED,
+                       what: str = "") -> Interval:
+    """The percentile interval of a statistic of per-frame totals under the circular block bootstrap.
+
+    Parameters
+    ----------
+    series : ndarray of shape (k, n)
+        The paired per-frame series whose totals the statistic needs.
+    statistic : callable
+        Totals of shape (..., k) -> the statistic, shape (...).
+    block_series : ndarray of shape (n,)
+        The series whose autocorrelation sets the block length (:func:`optimal_block_length`).
+    takes, seconds : sequence of shape (n,), optional
+        Take and time of each frame (blocks stay within takes; the block length is also given in seconds).
+    level : float
+    n_resamples : int
+    seed : int
+        Seed of the ``numpy.random.Generator`` (the same seed gives the same interval).
+    what : str
+        What is estimated, for the interval's ``method`` text.
+
+    Returns
+    -------
+    Interval
+    """
+    if not 0.0 < level < 1.0:
+        raise WorkbenchError(f"the confidence level must be in (0, 1), got {level!r}")
+    series = np.atleast_2d(np.asarray(series, dtype=float))
+    n = series.shape[1]
+    block = max(1, int(round(optimal_block_length(block_series, takes))))
+    estimate = float(statistic(series.sum(axis=1)))
+    with np.errstate(divide="ignore", invalid="ignore"):  # a resample of undefined frames only has no value
+        resampled = statistic(block_bootstrap_totals(series, block, np.random.default_rng(seed), takes=takes,
+                                                     n_resamples=n_resamples))
+    low, high = np.nanquantile(resampled, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
+    step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
+    spans = len(take_spans(takes, n))
+    method = (f"{what}{' ' if what else ''}{100 * level:g} % circular block bootstrap over {n} frames"
+              + (f" in {spans} takes (blocks within takes)" if spans > 1 else "")
+              + f", blocks of {block} frames" + (f" ({block * step:.2g} s)" if math.isfinite(step) else "")
+              + f" chosen by Politis-White, {n_resamples} resamples, seed {seed}")
+    return Interval(estimate=estimate, low=float(min(low, estimate)), high=float(max(high, estimate)), level=level,
+                    method=method, n=n, block_frames=block, block_seconds=block * step)
+
+
+def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | None = None,
+                           seconds: Sequence | None = None, level: float = LEVEL, n_resamples: int = RESAMPLES,
+                           seed: int = SEED) -> Interval:
+    """Mean over frames of ``a - b`` (two rows' per-frame alpha on the same frames), with its block-bootstrap
+    interval. Frames where either value is NaN (alpha undefined) are left out of both means.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (n_frames,)
+    takes, seconds, level, n_resamples, seed
+        As :func:`bootstrap_interval`.
+
+    Returns
+    -------
+    Interval
+        ``estimate`` = mean(a) - mean(b) over the frames both define.
+    """
+    a, b = _paired(a, b)
+    valid = np.isfinite(a) & np.isfinite(b)
+    if not valid.any():
+        raise WorkbenchError("a paired difference needs at least one frame where both values are defined")
+    difference = np.where(valid, a - b, 0.0)
+    if not np.any(difference):
+        return _identical(int(valid.sum()), level)
+    return bootstrap_interval(np.vstack([difference, valid.astype(float)]), lambda t: t[..., 0] / t[..., 1],
+                              block_series=difference, takes=takes, seconds=seconds, level=level,
+                              n_resamples=n_resamples, seed=seed, what="mean paired difference,")
+
+
+def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference: np.ndarray, *,
+                             takes: Sequence | None = None, seconds: Sequence | None = None, level: float = LEVEL,
+                             n_resamples: int = RESAMPLES, seed: int = SEED) -> Interval:
+    """Difference of two pooled alphas (eq. 6 over all frames, ``100 sqrt(sum |err|^2 / sum |ref|^2)``) of the same
+    frames, with its block-bootstrap interval.
+
+    Parameters
+    ----------
+    error_a, error_b : ndarray of shape (n_frames,)
+        Per-frame squared errors of the two reconstructions.
+    reference : ndarray of shape (n_frames,)
+        Per-frame squared reference norms (the denominator of eq. 6).
+    takes, seconds, level, n_resamples, seed
+        As :func:`bootstrap_interval`.
+
+    Returns
+    -------
+    Interval
+    """
+    error_a, error_b = _paired(error_a, error_b)
+    reference = np.asarray(reference, dtype=float)
+    if reference.shape != error_a.shape:
+        raise WorkbenchError(f"reference must have one value per frame ({error_a.shape}), got {reference.shape}")
+    if not np.any(error_a - error_b):
+        return _identical(error_a.size, level)
+    return bootstrap_interval(
+        np.vstack([error_a, error_b, reference]),
+        lambda t: 100.0 * (np.sqrt(t[..., 0] / t[..., 2]) - np.sqrt(t[..., 1] / t[..., 2])),
+        block_series=error_a - error_b, takes=takes, seconds=seconds, level=level, n_resamples=n_resamples,
+        seed=seed, what="pooled difference,")
+
+
+def _paired(a, b) -> tuple[np.ndarray, np.ndarray]:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.ndim != 1 or a.shape != b.shape or a.size == 0:
+        raise WorkbenchError(f"paired per-frame values must be two non-empty 1-D arrays of one length, got shapes "
+                             f"{a.shape} and {b.shape}")
+    return a, b
+
+
+def _identical(n: int, level: float) -> Interval:
+    return Interval(estimate=0.0, low=0.0, high=0.0, level=level, method="identical on every frame", n=n)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Stating an ordering
+# ---------------------------------------------------------------------------------------------------------------
+
+BETTER = " < "
+TIED = " ~ "
+
+
+def ordering_text(values: Mapping, compare: Callable[[object, object], Interval | None],
+                  name: Callable[[object], str] = str, digits: int = 4) -> str:
+    """Items from smallest to largest value, each neighbouring pair joined by what its paired comparison allows.
+
+    ``A 0.17 < B 0.19`` when the interval of ``A - B`` excludes zero; ``A 1.04 ~ B 1.08 (A - B -0.04 [-0.09,
+    +0.01]: not distinguishable)`` when it does not; ``A 0.17, B 0.19`` when there is no comparison (no claim).
+
+    Parameters
+    ----------
+    values : mapping
+        Item -> its value (NaN items left out).
+    compare : callable
+        ``compare(a, b)`` -> the :class:`Interval` of ``a - b``, or None.
+    name : callable
+        Item -> its name in the text.
+    digits : int
+        Significant digits of the values.
+
+    Returns
+    -------
+    str
+    """
+    ranked = sorted((value, index, item) for index, (item, value) in enumerate(values.items())
+                    if value is not None and math.isfinite(value))
+    if not ranked:
+        return ""
+    text = f"{name(ranked[0][2])} {ranked[0][0]:.{digits}g}"
+    for (_, _, before), (value, _, item) in zip(ranked, ranked[1:]):
+        interval = compare(before, item)
+        shown = f"{name(item)} {value:.{digits}g}"
+        if interval is None:
+            text += ", " + shown
+        elif interval.excludes_zero:
+            text += BETTER + shown
+        else:
+            text += (f"{TIED}{shown} ({name(before)} - {name(item)} {format_interval(interval)}: not "
+                     "distinguishable)")
+    return text
+
+
+def comparison_lookup(comparisons: Sequence[Mapping]) -> Callable[[tuple, tuple], Interval | None]:
+    """``compare(a, b)`` over stored comparisons (``a``, ``b`` and :class:`Interval` fields each): the interval of
+    ``a - b``, the stored one of ``b - a`` negated, or None."""
+    stored = {(tuple(entry["a"]), tuple(entry["b"])): Interval.from_dict(entry) for entry in comparisons}
+
+    def compare(a, b) -> Interval | None:
+        a, b = tuple(a), tuple(b)
+        if (a, b) in stored:
+            return stored[a, b]
+        if (b, a) in stored:
+            found = stored[b, a]
+            return replace(found, estimate=-found.estimate, low=-found.high, high=-found.low)
+        return None
+
+    return compare
