@@ -40,8 +40,11 @@ OUTPUT_PATH = re.compile(r"(?:\$PWD/)?(outputs/[^\s'\"`;|&)]*[^\s'\"`;|&).,])")
 
 NOT_RUN = {
     r"\.venv/bin/pytest": "the test suite itself: CI runs the README's test command verbatim (.ci/run)",
-    r"\bmlflow ui\b": "a server that runs until it is stopped",
+    r"\bmlflow (?:ui|server)\b": "a server that runs until it is stopped",
     r"<partition>": "needs a SLURM cluster's partition",
+    r"slurm-cluster|hydra/launcher=slurm": "needs the one-machine SLURM cluster (started as root): "
+                                           "tests/test_cluster.py runs these steps in CI (.ci/run)",
+    r"mylab|~/quasi-eigen-workbench": "a lab's own cluster, configs and MLflow server",
     r"(?<!-)\bpip install (?!-e)": "installs into an environment: CI builds, installs and runs the wheel and the "
                                    "sdist (.ci/run)",
 }
@@ -477,8 +480,8 @@ TABLE_END = "<!-- end of measured rows -->"
 
 
 def write_times(outcomes: list[Outcome], root: Path = REPO_ROOT) -> None:
-    """Replace the rows of the measured commands in docs/commands.md (rows of other commands are kept while they
-    are still documented), in the order of the documents."""
+    """Replace the rows of the measured commands in docs/commands.md (rows of other commands are kept, at their
+    current page and line, while they are still documented), in the order of the documents."""
     path = root / TIMES_DOC
     head, rest = path.read_text().split(TABLE_START)
     tail = rest.split(TABLE_END)[1]
@@ -493,8 +496,9 @@ def write_times(outcomes: list[Outcome], root: Path = REPO_ROOT) -> None:
         rows[command.key] = (f"| {command.doc}:{command.line} | `{shown}` | {outcome.seconds:.0f} s | "
                              f"{outcome.cpu_seconds:.0f} s | {outcome.peak_mb / 1024:.1f} GB | {long} | {date}, "
                              f"load {outcome.load:.1f} | `{command.key}` |")
-    ordered = [command.key for listed in all_commands(root).values() for command in listed]
-    kept = [rows[key] for key in dict.fromkeys(ordered) if key in rows]
+    places = {command.key: f"{command.doc}:{command.line}" for listed in all_commands(root).values()
+              for command in listed}
+    kept = [re.sub(r"^\| [^|]+ \|", f"| {place} |", rows[key], count=1) for key, place in places.items() if key in rows]
     path.write_text(head + TABLE_START + "\n" + "".join(row + "\n" for row in kept) + TABLE_END + tail)
 
 
