@@ -64,7 +64,8 @@ REWRITES = [
     (re.compile(r"npm install [^#\n]*gltf-validator"), lambda match: "doc_has_tool gltf-validator"),
     (re.compile(r"apt-get install ([^#\n]*)"), apt_get),
     # tools outside Python: run where installed (required where WORKBENCH_REQUIRE_TOOLS=1), else the block is skipped
-    (re.compile(r"^(chromium|blender) ", re.MULTILINE), lambda match: f"doc_has_tool {match.group(1)} && {match.group(0)}"),
+    (re.compile(r"^(chromium|blender) ", re.MULTILINE), lambda match: f"doc_has_tool {match.group(1)} && "
+     + ("doc_short_tmp " if match.group(1) == "chromium" else "") + match.group(0)),
     # a placeholder: the newest run of the paper study
     (re.compile(r"outputs/paper/<date-time>"), lambda match: 'outputs/paper/"$(ls outputs/paper | tail -n 1)"'),
 ]
@@ -104,6 +105,14 @@ doc_has_tool() {  # a tool a documented install command installs is there; exit 
     echo "$1 is not installed" >&2
     if [ "${WORKBENCH_REQUIRE_TOOLS:-}" = 1 ] || [ "${WORKBENCH_REQUIRE_BROWSER:-}" = 1 ]; then exit 1; fi
     exit 77
+}
+doc_short_tmp() {  # run a command with TMPDIR in a short folder of its own: Chromium's socket path (in TMPDIR) must
+    # fit in 108 bytes, and the scratch's tmp under pytest's tmp_path can be longer
+    local folder code=0
+    folder=$(mktemp -d /tmp/wb-doc-XXXXXX)
+    TMPDIR=$folder "$@" || code=$?
+    rm -rf "$folder"
+    return $code
 }
 doc_complete() {  # doc_complete LINE EXPECTED: bash completes LINE (after <TAB>) to the words EXPECTED
     local COMP_LINE="$1" COMP_POINT=${#1} COMP_WORDS COMP_CWORD function got expected
