@@ -38,6 +38,30 @@ def test_tab_completion_completes_groups_keys_and_studies(tmp_path):
     assert "--config-name=paper" in studies and "--config-name=noise_small" in studies and len(studies) == 16
 
 
+def test_tab_completion_offers_commands_and_only_config_groups(tmp_path):
+    assert completions("workbench rep", tmp_path) == ["report"]
+    assert completions("workbench co", tmp_path) == ["collect"]
+    first = completions("workbench ", tmp_path)
+    assert {"report", "collect", "mlflow", "export", "dataset=", "solver=", "basis."} <= set(first)
+    # conf/correspondence holds CSV tables, not configs: not a group
+    assert not any(word.startswith("correspondence") for word in first)
+    # a command's arguments are folders: nothing from the workbench, so the shell offers file names
+    assert completions("workbench report ", tmp_path) == []
+    refused = workbench("correspondence=animface_ict", cwd=tmp_path)
+    assert refused.returncode == 2 and "Key 'correspondence' not in" in refused.stderr
+
+
+def test_help_is_hydras_help(tmp_path):
+    """--help is rendered by the workbench for speed; Hydra's own rendering (used when --config-dir adds a folder,
+    here an empty one) gives the same text."""
+    (tmp_path / "empty").mkdir()
+    for args in (["--help"], ["dataset=animface", "--help"], ["--config-name", "coverage_small", "-h", "--resolve"]):
+        ours = workbench(*args, cwd=tmp_path)
+        hydras = workbench(*args, "--config-dir", str(tmp_path / "empty"), cwd=tmp_path)
+        assert ours.returncode == hydras.returncode == 0, ours.stderr + hydras.stderr
+        assert ours.stdout == hydras.stdout
+
+
 def test_flags_after_the_overrides(tmp_path):
     shown = workbench("dataset.n_frames=2000", "--cfg", "job", cwd=tmp_path)
     assert shown.returncode == 0, shown.stderr
@@ -50,7 +74,7 @@ def test_flags_after_the_overrides(tmp_path):
 def test_bare_info_lists_the_search_path(tmp_path):
     result = workbench("--info", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert f"file://{REPO_ROOT / 'conf'}" in result.stdout and f"file://{REPO_ROOT / 'studies'}" in result.stdout
+    assert f"workbench://{REPO_ROOT / 'conf'}" in result.stdout and f"file://{REPO_ROOT / 'studies'}" in result.stdout
 
 
 def test_help_lists_studies_groups_and_commands(tmp_path):

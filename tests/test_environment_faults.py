@@ -113,6 +113,19 @@ def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
+    """Float32 mesh frames take half the memory and frames on disk none (the full-head run of docs/performance.md
+    on a machine with less free memory than its float64 size)."""
+    from workbench.dataset import synthetic_values
+
+    size = dict(n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=10, mesh_cols=20)
+    markers, mesh = 1000 * 73 * 3, 1000 * 200 * 3
+    assert synthetic_values(size, ["markers"]) == markers
+    assert synthetic_values(size, ["mesh"]) == markers + mesh
+    assert synthetic_values(dict(size, dtype="float32"), ["mesh"]) == markers + mesh // 2
+    assert synthetic_values(dict(size, dtype="float32", storage="disk"), ["mesh_rbf"]) == markers
+
+
 def test_a_cache_path_that_is_a_file_is_one_line(tmp_path):
     (tmp_path / "cache").write_text("")
     line = one_line(workbench(tmp_path, *SMALL, f"paths.cache_dir={tmp_path / 'cache'}",

@@ -1,3 +1,14 @@
-from workbench.cli import main
+import os
+import sys
+from pathlib import Path
+
+# `python -m workbench` puts the current folder first on sys.path (the `workbench` command does not). The folders a
+# run makes there would then shadow modules imported later: a sweep folder named `coverage` hides the coverage
+# package that numba imports when it loads. The workbench itself is imported by now; the current folder stays only
+# when it is the checkout holding the package (where hydra_plugins is found through it).
+if sys.path and sys.path[0] in ("", os.getcwd()) and Path.cwd().resolve() != Path(__file__).resolve().parents[1]:
+    del sys.path[0]
+
+from workbench.cli import main  # noqa: E402
 
 main()

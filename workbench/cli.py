@@ -14,21 +14,17 @@ import traceback
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
-import hydra
-import pandas as pd
-from omegaconf import DictConfig, OmegaConf
-
-from workbench.config import DEFAULT_STUDY, REPO_ROOT, STUDIES_DIR, check_config_dirs
-from workbench.dataset.real import bool_setting
+# Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
+# Hydra, pandas and the numerical code are imported by the functions that use them.
+from workbench.config import CHECKOUT, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs
 from workbench.errors import WorkbenchError, single_line
+from workbench.extras import missing_extra
 from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
-from workbench.pipeline import run_study
-from workbench.record import DONE, config_hash, frame_comparisons, record_state, run_metrics, write_record
-from workbench.run_text import alpha_table, headline, printed_tables, study_header
-from workbench.tracking import (FolderBusy, as_typed, check_run_dir, created_by_this_run, discard_failed_run,
-                                lock_run_dir, prepare_run_dir, register_resolvers, unlock_run_dir)
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 log = logging.getLogger("workbench")
 
@@ -36,6 +32,8 @@ log = logging.getLogger("workbench")
 def resolved_without_hydra(cfg: DictConfig) -> dict:
     """The config as plain, resolved containers, leaving out Hydra's own node (its sweep keys exist only
     inside a running multirun, so resolving them outside one would fail)."""
+    from omegaconf import OmegaConf
+
     plain = {}
     for key in cfg:
         if key == "hydra":
@@ -47,6 +45,8 @@ def resolved_without_hydra(cfg: DictConfig) -> dict:
 
 def resolved_yaml_text(cfg: DictConfig) -> str:
     """The resolved config (without Hydra's node) as YAML: what ``config.yaml`` holds and the config hash hashes."""
+    from omegaconf import OmegaConf
+
     return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(cfg)))
 
 
@@ -69,6 +69,14 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     str
         The header and the Markdown alpha table.
     """
+    import pandas as pd
+    from omegaconf import OmegaConf
+
+    from workbench.dataset.real import bool_setting
+    from workbench.pipeline import run_study
+    from workbench.record import DONE, frame_comparisons, record_state, run_metrics, write_record
+    from workbench.run_text import alpha_table, headline, printed_tables, study_header
+
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     if record_state(output_dir) == "complete":
@@ -91,18 +99,68 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
             + headline(table, plain["metric"], paper_alpha, comparisons))
 
     metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
-                          job_num=job_num, started_at=started_at, repository=REPO_ROOT, comparisons=comparisons)
+                          job_num=job_num, started_at=started_at, repository=CHECKOUT, comparisons=comparisons)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
                  timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
                  save_inputs=save_inputs)
     return text
 
 
-@hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)
+def hydra_app() -> None:
+    """The Hydra application: compose the study from the command line and run :func:`_hydra_main` on it (or print
+    the help, the config or completions). Hydra is imported here, not with the module, to keep start-up fast."""
+    import hydra
+
+    register_cli_resolvers()
+    hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)(_hydra_main)()
+
+
+def print_help(argv: Sequence[str]) -> bool:
+    """``workbench [--config-name STUDY] [overrides] --help``: Hydra's application help, rendered from the study's
+    ``hydra.help`` template as Hydra renders it, but with the config groups read from ``conf/`` in one pass (Hydra
+    copies its whole config store for each of the 70-odd lookups it makes, most of the help's time). Returns False,
+    leaving the help to Hydra, when the command line adds config folders of its own."""
+    import string
+
+    from hydra import compose, initialize_config_dir
+    from hydra._internal.utils import get_args_parser
+    from omegaconf import OmegaConf, open_dict
+
+    args = get_args_parser().parse_args(argv)
+    if args.config_dir or args.config_path:
+        return False
+    register_cli_resolvers()
+    with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
+        cfg = compose(config_name=args.config_name or DEFAULT_STUDY, overrides=args.overrides,
+                      return_hydra_config=True)
+    template = cfg.hydra.help.template
+    with open_dict(cfg):
+        del cfg["hydra"]
+    print(string.Template(template).safe_substitute(APP_CONFIG_GROUPS=config_groups_text(),
+                                                    CONFIG=OmegaConf.to_yaml(cfg, resolve=args.resolve)))
+    return True
+
+
+def config_groups_text() -> str:
+    """The config groups of ``conf/`` (Hydra's own, under ``hydra/``, left out) with their options, one group a line
+    as Hydra's help lists them: ``solver: all, box, lstsq, nnls``. A folder without configs is not a group."""
+    lines = []
+    for folder in sorted(path for path in CONF_DIR.rglob("*") if path.is_dir()):
+        group = folder.relative_to(CONF_DIR).as_posix()
+        options = sorted(path.stem for path in folder.glob("*.yaml"))
+        if options and group.split("/")[0] != "hydra":
+            lines.append(f"{group}: {', '.join(options)}\n")
+    return "".join(lines)
+
+
 def _hydra_main(cfg: DictConfig) -> None:
+    from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    hydra_cfg = hydra.core.hydra_config.HydraConfig.get()
+    from workbench.record import config_hash
+    from workbench.tracking import FolderBusy, as_typed
+
+    hydra_cfg = HydraConfig.get()
     output_dir = Path(hydra_cfg.runtime.output_dir)
     multirun = hydra_cfg.mode == RunMode.MULTIRUN
     try:
@@ -138,6 +196,10 @@ def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], jo
     is written into it (:func:`workbench.tracking.check_run_dir`). A plain run (``plain``) that fails or is
     interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
     rerun clears and redoes the run)."""
+    from workbench.record import config_hash
+    from workbench.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
+                                    prepare_run_dir, unlock_run_dir)
+
     found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
     lock = lock_run_dir(output_dir)
     try:
@@ -218,17 +280,23 @@ def register_cli_resolvers() -> None:
     from workbench.schema import register_schemas
 
     register_schemas()
-    register_resolvers()
+    if not OmegaConf.has_resolver("run_id"):  # workbench.tracking's, imported when a run folder is named
+        OmegaConf.register_new_resolver("run_id", run_dir_name)
     if not OmegaConf.has_resolver("workbench_help"):
         OmegaConf.register_new_resolver("workbench_help", help_section)
 
 
-register_cli_resolvers()
+def run_dir_name(overrides: str) -> str:
+    """``${run_id:...}``: :func:`workbench.tracking.run_dir_name`, imported on first use."""
+    from workbench.tracking import run_dir_name as tracking_run_dir_name
+
+    return tracking_run_dir_name(overrides)
 
 
-def complete_study_name() -> bool:
-    """Tab completion of ``--config-name=`` (Hydra completes groups and keys, not the primary config): print the
-    studies starting with the word being completed and return True; False when the line completes something else.
+def complete_without_hydra() -> bool:
+    """Tab completion beside Hydra's (which completes groups and keys): the studies after ``--config-name=``, the
+    commands as the first word, and nothing after a command (the shell then offers file names, which the commands
+    take). Prints its candidates; returns True when the line is complete, False when Hydra adds its own.
     """
     words = os.environ.get("COMP_LINE", "").split(" ")
     for flag in ("--config-name=", "-cn="):
@@ -236,10 +304,15 @@ def complete_study_name() -> bool:
             prefix = words[-1][len(flag):]
             print(" ".join(flag + study for study in study_names() if study.startswith(prefix)))
             return True
+    if len(words) > 2 and words[1] in COMMANDS:
+        return True
+    if len(words) == 2:
+        print(" ".join(command for command in COMMANDS if command.startswith(words[1])))
     return False
 
 
 VERBOSE_FLAG = "--verbose"
+HELP_FLAGS = {"--help", "-h"}
 _verbose = False
 
 
@@ -286,10 +359,13 @@ def one_line_usage_errors():
 
 def environment_fault(error: BaseException) -> str | None:
     """The one-line message of bad input (:class:`WorkbenchError`) or of a fault of the environment (an
-    ``OSError`` such as a denied permission or a full disk, naming its path; running out of memory), or None
-    for anything else."""
+    optional dependency not installed, naming its extra; an ``OSError`` such as a denied permission or a full
+    disk, naming its path; running out of memory), or None for anything else."""
     if isinstance(error, WorkbenchError):
         return str(error)
+    missing = missing_extra(error)
+    if missing is not None:
+        return missing
     if isinstance(error, MemoryError):
         return ("out of memory (MemoryError); use a smaller dataset (dataset.n_frames, dataset.max_frames, "
                 "dataset.frame_step, dataset.mesh_vertex_step)")
@@ -312,7 +388,7 @@ def main() -> None:
 
         print(f"workbench {__version__}")
         sys.exit(0)
-    if "query=bash" in sys.argv[1:] and complete_study_name():
+    if "query=bash" in sys.argv[1:] and complete_without_hydra():
         sys.exit(0)
     if VERBOSE_FLAG in sys.argv[1:]:
         _verbose = True
@@ -338,7 +414,8 @@ def main() -> None:
     os.environ["HYDRA_FULL_ERROR"] = "1"
     raise_from_now_on()  # an interrupted run removes what it wrote
     try:
-        _hydra_main()
+        if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
+            hydra_app()
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
@@ -346,7 +423,7 @@ def main() -> None:
             exit_on_error("workbench", error)
         if full_error or _verbose:
             raise
-        print(f"workbench: error: {one_line(error)}", file=sys.stderr)
+        print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)
         sys.exit(2)
 
 

@@ -107,9 +107,13 @@ def config_hash(resolved_yaml: str) -> str:
     return hashlib.sha256(resolved_yaml.encode()).hexdigest()[:16]
 
 
-def git_state(repository: Path) -> dict:
+def git_state(repository: Path | None) -> dict:
     """Commit of the workbench's checkout and whether its code had uncommitted changes (changes under
-    ``reports/``, the rendered reports that ``workbench report --reference`` rewrites, do not count)."""
+    ``reports/``, the rendered reports that ``workbench report --reference`` rewrites, do not count). None for
+    an installed package (``repository`` None): its version, in :func:`versions`, says what ran."""
+    if repository is None:
+        return {"commit": None, "dirty": None}
+
     def git(*args):
         return subprocess.run(["git", "-C", str(repository), *args], capture_output=True, text=True, timeout=10)
     try:

@@ -4,6 +4,9 @@ Hydra finds plugins in the ``hydra_plugins`` namespace package, so the groups ar
 by tab completion, by ``--help`` and by :func:`workbench.config.compose`, with nothing added to the command line.
 """
 
+import os
+
+from hydra._internal.core_plugins.file_config_source import FileConfigSource
 from hydra.core.config_search_path import ConfigSearchPath
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
@@ -16,4 +19,19 @@ class WorkbenchSearchPathPlugin(SearchPathPlugin):
         # same environment are left alone.
         if any(element.path == f"file://{STUDIES_DIR}" or element.path == str(STUDIES_DIR)
                for element in search_path.get_path()):
-            search_path.append(provider="workbench", path=f"file://{CONF_DIR}")
+            search_path.append(provider="workbench", path=f"{WorkbenchConfigSource.scheme()}://{CONF_DIR}")
+
+
+class WorkbenchConfigSource(FileConfigSource):
+    """``conf/`` read as Hydra reads any config folder, except that only a folder holding configs (``.yaml``
+    files, at any depth) is a config group: ``conf/correspondence`` holds CSV tables the datasets read, and is
+    neither listed by ``--help`` and tab completion nor accepted as ``correspondence=...``."""
+
+    @staticmethod
+    def scheme() -> str:
+        return "workbench"
+
+    def is_group(self, config_path: str) -> bool:
+        full_path = os.path.realpath(os.path.join(self.path, config_path))
+        return os.path.isdir(full_path) and any(name.endswith(".yaml") for _, _, names in os.walk(full_path)
+                                                for name in names)

@@ -108,15 +108,16 @@ def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dic
 
 
 def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
-    """Values one synthetic take holds: every marker's track, and the mesh's when a data variant lives on the
-    mesh (x, y and z per point and frame). An estimate only: 0 when a size is not a number (the generator
-    names the bad setting)."""
+    """Float64 values one synthetic take holds in memory: every marker's track, and the mesh's when a data variant
+    lives on the mesh (x, y and z per point and frame; in the storage's dtype, none with ``dataset.storage=disk``).
+    An estimate only: 0 when a size is not a number (the generator names the bad setting)."""
     try:
         n_frames, n_markers = int(cfg["n_frames"]), int(cfg["n_face_markers"]) + int(cfg["n_head_markers"])
         n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf", "face"} & set(names) else 0
     except (TypeError, ValueError):
         return 0
-    return max(n_frames, 0) * max(n_markers + n_mesh, 0) * 3
+    stored = 0.0 if cfg.get("storage", "memory") == "disk" else 0.5 if cfg.get("dtype") == "float32" else 1.0
+    return int(max(n_frames, 0) * (max(n_markers, 0) + stored * max(n_mesh, 0)) * 3)
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:

@@ -14,12 +14,15 @@ come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, 
 - ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``geometric mean [95 % interval]`` with conditions as
   rows and bases as columns;
 - ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.findings.sweep_findings`).
+
+The parquet copies need pyarrow (the parquet extra); without it they are left out, with one line saying so.
 """
 
 from __future__ import annotations
 
 import argparse
 import io
+import logging
 import math
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -28,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
+from workbench.extras import has_module, install_hint
 from workbench.record import DONE, inside, write_atomic
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
                                       sweep_comparisons, wide)
@@ -213,12 +217,15 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
                                          for line in sweep_statements(wide(summary), comparisons, swept, compared,
                                                                       solver)]
     out = Path(out)
-    files = {"runs.csv": runs.to_csv(index=False), "runs.parquet": parquet_bytes(runs),
-             "summary.csv": summary.to_csv(index=False), "summary.parquet": parquet_bytes(summary),
+    files = {"runs.csv": runs.to_csv(index=False), "summary.csv": summary.to_csv(index=False),
              "comparisons.csv": comparisons.to_csv(index=False),
              "comparisons.md": comparisons_markdown(comparisons, over),
              "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title),
              "findings.md": "".join(f"- {line}\n" for line in findings)}
+    if has_module("pyarrow"):
+        files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
+    else:  # the CSV files hold the same tables
+        logging.getLogger("workbench").warning(f"parquet copies of the tables left out: {install_hint('parquet')}")
     for name, content in files.items():
         write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)

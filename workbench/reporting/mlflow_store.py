@@ -68,8 +68,9 @@ def import_mlflow():
     try:
         import mlflow
     except ImportError as error:
-        raise WorkbenchError("the MLflow store needs the mlflow extra: pip install -e '.[mlflow]' "
-                             f"({error})") from None
+        from workbench.extras import install_hint
+
+        raise WorkbenchError(f"the MLflow store needs the mlflow extra: {install_hint('mlflow')} ({error})") from None
     return mlflow
 
 

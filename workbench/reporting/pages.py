@@ -962,7 +962,7 @@ def _display_path(text: str) -> str:
 
 
 def report_versions() -> dict:
-    from workbench.config import REPO_ROOT
+    from workbench.config import CHECKOUT
     from workbench.record import git_state
 
     found = {}
@@ -971,7 +971,7 @@ def report_versions() -> dict:
             found[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             found[package] = None
-    return {"packages": found, "git": git_state(REPO_ROOT)}
+    return {"packages": found, "git": git_state(CHECKOUT)}
 
 
 def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and licence") -> Section:
@@ -1735,7 +1735,7 @@ SHARED_FOLDER = "shared"
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
     """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference``, else
     ``<folder>/report`` beside the runs."""
-    from workbench.config import REPO_ROOT
+    from workbench.config import CHECKOUT
 
     if out is not None and reference:
         raise WorkbenchError("give either --out or --reference, not both")
@@ -1745,7 +1745,10 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         name = name or default_report_name(config)
         if not plain_name(name):
             raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
-        return inside(REPO_ROOT / "reports", name)
+        if CHECKOUT is None:
+            raise WorkbenchError("--reference rewrites the committed reports of the workbench's checkout, and this "
+                                 "workbench is an installed package: use --out DIR, or run from a checkout")
+        return inside(CHECKOUT / "reports", name)
     return Path(out) if out is not None else inside(folder, REPORT_FOLDER)
 
 

@@ -242,7 +242,9 @@ def crop_background(images: Sequence[np.ndarray], margin: int = 4) -> list[np.nd
 def _pyvista():
     try:
         import pyvista
-    except ImportError as error:  # a dependency of the workbench, but say what to do if it is missing
-        raise WorkbenchError(f"rendering meshes needs pyvista ({error}); install it with 'pip install pyvista'")
+    except ImportError as error:  # the report extra
+        from workbench.extras import install_hint
+
+        raise WorkbenchError(f"rendering meshes needs pyvista ({error}): {install_hint('report')}") from None
     pyvista.OFF_SCREEN = True
     return pyvista
