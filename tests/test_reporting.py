@@ -83,7 +83,8 @@ def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_rep
                 assert (again.estimate, again.low, again.high) == (entry["estimate"], entry["low"], entry["high"])
 
 
-RENDERED = ("fig2", "fig3", "vertex_rms")  # figures of rendered faces: lossless WebP; the rest are line plots: SVG
+RENDERED = ("fig2", "fig3", "vertex_rms", "weight_statistics")  # rendered faces and the bar chart: lossless WebP;
+# the rest are line plots: SVG
 
 
 def test_every_figure_exists_and_is_non_trivial(tiny_report):
@@ -282,7 +283,8 @@ def test_figures_that_need_inputs_are_listed_not_drawn_without_them(tmp_path):
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
     # what the record holds is drawn without inputs: the error distribution and the weights come from metrics.json
     assert figures == [f"{stem}.{kind}" for stem in ("alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy",
-                                                     "intuitiveness", "weight_statistics") for kind in ("png", "svg")]
+                                                     "intuitiveness") for kind in ("png", "svg")] + \
+        ["weight_statistics.png", "weight_statistics.webp"]  # a bar chart of hundreds of labels: pixels
 
 
 def make_sweep(root, coverages=(0.99, 0.999), seeds=(0, 1)):

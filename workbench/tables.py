@@ -97,13 +97,14 @@ def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: S
 
 
 def html_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: Sequence[bool]) -> str:
-    """An HTML table in a horizontally scrolling box; cells classed ``num`` (right-aligned), ``short`` (kept on
-    one line) or ``txt`` (wraps)."""
-    def cell_class(text: str, is_number: bool) -> str:
-        return "num" if is_number else ("short" if len(text) <= 24 else "txt")
+    """An HTML table in a horizontally scrolling box; cells kept on one line unless classed ``txt`` (longer text,
+    wraps), numbers classed ``num`` (right-aligned). Short cells carry no class: a report's tables have
+    thousands of them."""
+    def cell_start(text: str, is_number: bool) -> str:
+        return "<td class=\"num\">" if is_number else ("<td>" if len(text) <= 24 else "<td class=\"txt\">")
 
     head = "".join(f"<th>{html.escape(name)}</th>" for name in header)
-    body = "".join("<tr>" + "".join(f"<td class=\"{cell_class(text, is_number)}\">{html.escape(text)}</td>"
+    body = "".join("<tr>" + "".join(f"{cell_start(text, is_number)}{html.escape(text)}</td>"
                                     for text, is_number in zip(row, numeric)) + "</tr>" for row in rows)
     return f"<div class=\"scroll\"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>"
 

@@ -1301,7 +1301,7 @@ body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width:
 h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #ccc; padding-bottom: .2em; margin-top: 1.8em; }
 table { border-collapse: collapse; margin: .8em 0; font-size: .88em; }
 th, td { border: 1px solid #d0d0d0; padding: .25em .6em; } th { background: #f2f2f2; }
-td.num, td.short { white-space: nowrap; } .scroll { overflow-x: auto; }
+td { white-space: nowrap; } td.txt { white-space: normal; } .scroll { overflow-x: auto; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
 tbody tr:nth-child(even) { background: #fafafa; }
 figure { margin: 1.5em 0; } figure img { max-width: 100%; border: 1px solid #e3e3e3; }

@@ -156,8 +156,16 @@ def compact_svg(svg: bytes) -> bytes:
 
 
 def is_raster(figure: Figure) -> bool:
-    """Whether a figure shows rendered images (faces), rather than lines and points only."""
-    return any(ax.images for ax in figure.axes)
+    """Whether a figure is shown as pixels: it shows rendered images (faces), or it was marked so
+    (:func:`shown_as_pixels`), rather than lines and points only."""
+    return getattr(figure, "shown_as_pixels", False) or any(ax.images for ax in figure.axes)
+
+
+def shown_as_pixels(figure: Figure) -> Figure:
+    """Mark a chart that is no line plot (bars with a label each, hundreds of them) to be shown as a lossless
+    WebP: as SVG, every label and bar is an element of its own and the file is several times larger."""
+    figure.shown_as_pixels = True
+    return figure
 
 
 def raster_bytes(figure: Figure, fmt: str = "png", *, dpi: int = PNG_DPI) -> bytes:

@@ -12,7 +12,7 @@ from typing import Mapping
 import numpy as np
 from matplotlib.figure import Figure
 
-from workbench.reporting.figures import basis_colour, new_figure, wrap_title
+from workbench.reporting.figures import basis_colour, new_figure, shown_as_pixels, wrap_title
 
 SOLVER_STYLES = {"lstsq": "-", "nnls": "--", "box": ":", "projection": "-"}
 WEIGHT_PANELS = (("max_abs", "largest |w|", True), ("outside_unit_share", "frames with a weight outside [0, 1]", False),
@@ -92,7 +92,6 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
     width = 15.0
     figure = new_figure(width, 2.9 * len(variants) + 0.9)
     axes = figure.subplots(len(variants), len(WEIGHT_PANELS), squeeze=False)
-    hatches = {"lstsq": "", "nnls": "//", "box": "xx"}  # line hatches: a dotted one is ~50 kB of SVG per colour
     for row, data in zip(axes, variants):
         keys = list(statistics[data])
         bases = list(dict.fromkeys(basis for basis, _ in keys))
@@ -103,7 +102,7 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
                 values = [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
                 positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
                 bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
-                              alpha=1.0 - 0.25 * k, hatch=hatches.get(solver, ""), edgecolor="white", label=solver)
+                              alpha=1.0 - 0.3 * k, edgecolor="#333333", linewidth=0.4, label=solver)
                 ax.bar_label(bars, fmt="%.2g", fontsize=6, padding=1)
             if log:
                 ax.set_yscale("log")
@@ -118,6 +117,6 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
             ax.margins(y=0.18)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
-                  title="solver (hatching); dotted line: |w| = 1", title_fontsize=8)
+                  title="solver (left to right in each group, lighter each); dotted line: |w| = 1", title_fontsize=8)
     figure.suptitle(wrap_title(title, width), fontsize=11)
-    return figure
+    return shown_as_pixels(figure)
