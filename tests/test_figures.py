@@ -90,6 +90,36 @@ def test_svg_is_compacted_without_changing_what_it_draws():
                                 b'x="3"/><text x="1">a  b</text></g></svg>')
 
 
+def test_recurring_svg_styles_become_classes_of_one_sheet_with_the_same_rules():
+    import re
+
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    from workbench.reporting.figures import shared_styles
+
+    svg = (b'<svg width="9"><style type="text/css">*{stroke-linecap: butt}</style>'
+           b'<use x="1" style="stroke: #000000; stroke-width: 0.8"/><use x="2" style="stroke: #000000; stroke-width: 0.8"/>'
+           b'<path d="M 0 0" style="fill: none"/><text style="font: 8px sans">a</text><text style="font: 8px sans">b</text>'
+           b'</svg>')
+    shared = shared_styles(svg)
+    assert shared == (b'<svg width="9"><style>.s0{font: 8px sans}.s1{stroke: #000000; stroke-width: 0.8}</style>'
+                      b'<style type="text/css">*{stroke-linecap: butt}</style><use x="1" class="s1"/><use x="2" '
+                      b'class="s1"/><path d="M 0 0" style="fill: none"/><text class="s0">a</text><text class="s0">b'
+                      b'</text></svg>')
+    figure = Figure(figsize=(3, 2))
+    figure.subplots().plot(np.arange(30) % 7, "o-")
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "t"}):
+        buffer = io.BytesIO()
+        figure.savefig(buffer, format="svg", metadata={"Date": None})
+    plain = buffer.getvalue()
+    shared = shared_styles(plain)
+    assert len(shared) < 0.8 * len(plain)
+    rules = dict(re.findall(rb"\.(s\d+)\{([^}]*)\}", shared))  # every class back to its inline style: the input
+    restored = re.sub(rb' class="(s\d+)"', lambda match: b' style="%s"' % rules[match.group(1)], shared)
+    assert restored.replace(re.search(rb"<style>\.s0.*?</style>", shared).group(0), b"") == plain
+
+
 def test_one_number_format_per_figure():
     assert fixed_decimals([0.17, 0.0955]) == 3 and fixed_decimals([0.17, 0.0955], significant=3) == 4
     assert fixed_decimals([12.5, 3.2]) == 1 and fixed_decimals([250.0]) == 0 and fixed_decimals([0.0, np.nan]) == 0
