@@ -351,9 +351,9 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
     return figure
 
 
-def envelope(x: np.ndarray, y: np.ndarray, bins: int = 700) -> tuple[np.ndarray, np.ndarray]:
+def envelope(x: np.ndarray, y: np.ndarray, bins: int = 500) -> tuple[np.ndarray, np.ndarray]:
     """A long series drawn with fewer points and the same look: in each of ``bins`` runs of consecutive points
-    (narrower than a point of a page-wide plot) only its lowest and highest, in their order. Series with at most
+    (about a point wide in a page-wide plot) only its lowest and highest, in their order. Series with at most
     ``2 * bins`` points come back whole.
 
     Parameters
