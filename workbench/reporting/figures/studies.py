@@ -351,10 +351,10 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
     return figure
 
 
-def envelope(x: np.ndarray, y: np.ndarray, bins: int = 500) -> tuple[np.ndarray, np.ndarray]:
-    """A long series drawn with fewer points and the same look: in each of ``bins`` runs of consecutive points
-    (about a point wide in a page-wide plot) only its lowest and highest, in their order. Series with at most
-    ``2 * bins`` points come back whole.
+def envelope(x: np.ndarray, y: np.ndarray, bins: int = 360) -> tuple[np.ndarray, np.ndarray]:
+    """A long series drawn with fewer points and the same look: in each of ``bins`` runs of consecutive points (a
+    point and a half wide in a page-wide plot: two pixels on a screen) only its lowest and highest, in their order.
+    Series with at most ``2 * bins`` points come back whole.
 
     Parameters
     ----------
