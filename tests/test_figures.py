@@ -79,14 +79,14 @@ def test_renders_are_lossless_webp_at_print_resolution(tmp_path):
 
 def test_svg_numbers_are_cut_in_attributes_only():
     svg = b'<path d="M 179.718736 172.6 L 0.123456 1e-05" style="stroke-width: 0.8123"/><text x="12.3456">0.9958</text>'
-    assert shorter_numbers(svg) == (b'<path d="M 179.71 172.6 L 0.12 1e-05" style="stroke-width: 0.81"/>'
+    assert shorter_numbers(svg) == (b'<path d="M 179.7 172.6 L 0.1 1e-05" style="stroke-width: 0.81"/>'
                                     b'<text x="12.34">0.9958</text>')
 
 
 def test_svg_is_compacted_without_changing_what_it_draws():
     svg = (b'<svg>\n <!-- a comment -->\n <defs>\n  <path id="m1" d="M 0 0 \nL 1.23456 2 \nz\n"/>\n </defs>\n'
            b' <g id="figure_1">\n  <use xlink:href="#m1" x="3"/>\n  <text x="1">a  b</text>\n </g>\n</svg>')
-    assert compact_svg(svg) == (b'<svg><defs><path id="m1" d="M 0 0 L 1.23 2 z "/></defs><g><use xlink:href="#m1" '
+    assert compact_svg(svg) == (b'<svg><defs><path id="m1" d="M 0 0 L 1.2 2 z "/></defs><g><use xlink:href="#m1" '
                                 b'x="3"/><text x="1">a  b</text></g></svg>')
 
 

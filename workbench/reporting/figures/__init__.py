@@ -132,13 +132,17 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
     return written
 
 
-def shorter_numbers(svg: bytes, decimals: int = 2) -> bytes:
-    """An SVG with the numbers of its attributes (coordinates, transforms) cut to ``decimals`` decimals, its text
-    left as it is: matplotlib writes six, a millionth of a point; a hundredth (3.5 micrometres on paper) is as sharp
-    at any zoom and the file a third smaller."""
+def shorter_numbers(svg: bytes, decimals: int = 2, path_decimals: int = 1) -> bytes:
+    """An SVG with the numbers of its attributes (coordinates, transforms) cut to ``decimals`` decimals, those of
+    path data (``d``, the lines' points) to ``path_decimals``, its text left as it is: matplotlib writes six, a
+    millionth of a point; a hundredth (3.5 micrometres on paper) is as sharp at any zoom and the file a third
+    smaller, and a tenth of a point moves a line's corner by an eighth of a screen pixel. Widths and opacities keep
+    two decimals."""
     import re
 
     number = re.compile(rb"(\d\.\d{%d})\d+" % decimals)
+    path_number = re.compile(rb"(\d\.\d{%d})\d+" % path_decimals)
+    svg = re.sub(rb' d="[^"]*"', lambda value: path_number.sub(rb"\1", value.group(0)), svg)
     return re.sub(rb'="[^"]*"', lambda value: number.sub(rb"\1", value.group(0)), svg)
 
 
