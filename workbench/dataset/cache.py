@@ -38,7 +38,7 @@ import numpy as np
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk
+from workbench.frames import DTYPES, FramesOnDisk, sha256_of_file
 from workbench.record import write_atomic
 
 MEMORY_SLOTS = 2
@@ -120,15 +120,12 @@ def file_digest(path: str | Path) -> str:
     if known is not None and known[0] == stamp:
         return known[1]
     started = time.time_ns()
-    digest = _hash_file(path)
+    digest = sha256_of_file(path)
     if started - max(status.st_mtime_ns, status.st_ctime_ns) > SETTLED_SECONDS * 1e9:
         _digests[str(path)] = (stamp, digest)
     return digest
 
 
-def _hash_file(path: Path) -> str:
-    with open(path, "rb") as stream:
-        return hashlib.file_digest(stream, "sha256").hexdigest()
 
 
 def _sha256(data: bytes) -> str:
@@ -273,7 +270,7 @@ def _save(folder: Path, key: str, inputs: dict, captures: dict[str, Capture]) ->
     np.savez(buffer, **arrays)  # uncompressed: compressing float frames saves little and costs most of a build
     payload = buffer.getvalue()
     write_atomic(folder / f"{key}.npz", payload)
-    files = {f"{key}.npz": _sha256(payload), **{path: _hash_file(folder / path) for path in frame_paths}}
+    files = {f"{key}.npz": _sha256(payload), **{path: sha256_of_file(folder / path) for path in frame_paths}}
     document = {"key": key, "inputs": inputs, "captures": meta, "files": files}
     write_atomic(folder / f"{key}.json", json.dumps(dict(document, sha256=_sha256(_canonical(document).encode())),
                                                     indent=1))
@@ -361,7 +358,7 @@ def _verified_files(folder: Path, key: str, files: Mapping[str, str]) -> bytes:
             continue
         if not path.is_file():
             raise EntryMismatch(f"frames file {path} is missing")
-        if _hash_file(path) != digest:
+        if sha256_of_file(path) != digest:
             if path.resolve().is_relative_to((folder / FRAMES_FOLDER).resolve()):
                 from workbench.dataset import forget_kept_frames
 
