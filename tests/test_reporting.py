@@ -14,7 +14,8 @@ import yaml
 from PIL import Image
 from scipy import stats
 
-from workbench.cli import COMMANDS, run
+from workbench.cli import run
+from workbench.config import COMMANDS
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.record import find_records, load_record
@@ -532,7 +533,7 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     4 the most displaced of them; the report names the data files with their checksums."""
     from workbench.dataset.c3d_markers import read_c3d_markers
     from workbench.dataset.capture import Timeline
-    from workbench.dataset.real import file_sha256
+    from workbench.files import sha256_of_file as file_sha256
     from workbench.reporting.pages import (_marker_variant, _mesh_variant, figure3_frames, figure4_frame,
                                            most_displaced, record_timeline)
 

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import inside, plain_name, write_atomic, write_json, write_npz
+from workbench.files import inside, plain_name, write_atomic, write_json, write_npz
 
 TABLE_CHECK_RTOL = 1e-6
 """Recomputed alpha must match the recorded table to this relative tolerance before anything is exported."""

@@ -26,7 +26,6 @@ import platform
 import re
 import subprocess
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -35,71 +34,14 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.files import (TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file,
+                             write_atomic)
 
 if TYPE_CHECKING:
     import pandas as pd
 
 RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
                    "scikit-learn")
-TEMPORARY_SUFFIX = ".tmp"
-"""A file being written is ``.<name>.<random>.tmp`` beside its final name; a kill can leave one behind, never a
-part of a final file. Readers look only at final names; a rerun clears a killed run's folder."""
-
-
-def _file_mode() -> int:
-    """Permissions of a new file under the process's umask (the temporary file is created private)."""
-    umask = os.umask(0o022)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-FILE_MODE = _file_mode()
-
-
-def write_atomic(path: Path, data: bytes | str) -> None:
-    """Write a file so that a reader sees either the old content or the whole new content, never a part."""
-    path = Path(path)
-    payload = data.encode() if isinstance(data, str) else data
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
-    except OSError as error:
-        raise _naming(error, path) from None
-    try:
-        os.fchmod(handle, FILE_MODE)
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(payload)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException as error:
-        Path(temporary).unlink(missing_ok=True)
-        if isinstance(error, OSError):
-            raise _naming(error, path) from None
-        raise
-
-
-def _naming(error: OSError, path: Path) -> OSError:
-    """``error`` naming the file being written (a full disk fails a write on an open file, which names none)."""
-    return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
-
-
-def json_text(value) -> str:
-    return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
-
-
-def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
-    buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
-    return buffer.getvalue()
-
-
-def write_json(path: Path, value) -> None:
-    write_atomic(path, json_text(value))
-
-
-def write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    write_atomic(path, npz_bytes(arrays))
 
 
 def config_hash(resolved_yaml: str) -> str:
@@ -126,17 +68,23 @@ def git_state(repository: Path | None) -> dict:
     return {"commit": commit.stdout.strip(), "dirty": bool(status.stdout.strip())}
 
 
-def versions() -> dict:
-    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
-    from workbench import __version__
-
-    found = {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform()}
-    for package in RECORD_PACKAGES:
+def package_versions(packages: Sequence[str]) -> dict:
+    """The installed version of each package (None for one not installed), in the order given."""
+    found = {}
+    for package in packages:
         try:
             found[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             found[package] = None
     return found
+
+
+def versions() -> dict:
+    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
+    from workbench import __version__
+
+    return {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform(),
+            **package_versions(RECORD_PACKAGES)}
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -188,15 +136,6 @@ def is_record_file(name: str) -> bool:
     match = _TEMPORARY.fullmatch(name)
     name = match.group("name") if match else name
     return name in RECORD_FILES or bool(_VARIANT_INPUTS.fullmatch(name))
-
-
-def file_checksum(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex), read in blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -568,7 +507,7 @@ def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
         raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
                              f"{sorted(checksums)}); the record cannot be trusted: move the file away")
     try:
-        found = file_checksum(path)
+        found = sha256_of_file(path)
     except FileNotFoundError:
         raise WorkbenchError(f"run record {folder}: {name} is missing") from None
     except OSError as error:
@@ -629,29 +568,6 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
         if row["data"] not in metrics["data"]:
             raise WorkbenchError(f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' "
                                  f"({sorted(metrics['data'])})")
-
-
-def plain_name(name: str) -> bool:
-    """Whether ``name`` can name a file or folder without leaving its parent (no separator, not '.' or '..')."""
-    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
-
-
-def inside(root: Path, *parts: str) -> Path:
-    """``root / parts``, refused when it would leave ``root``, by its name or through a symbolic link (a report or
-    collect writes only into its output folder, whatever names a record holds and whatever links it contains).
-
-    Raises
-    ------
-    WorkbenchError
-    """
-    root = Path(root)
-    path = root.joinpath(*parts)
-    for resolved, base, target in ((False, os.path.abspath(root), os.path.abspath(path)),
-                                   (True, os.path.realpath(root), os.path.realpath(path))):
-        if os.path.commonpath([base, target]) != base:
-            link = f" (a symbolic link leads to {target})" if resolved else ""
-            raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")
-    return path
 
 
 def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:

@@ -38,8 +38,8 @@ import numpy as np
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk, sha256_of_file
-from workbench.record import write_atomic
+from workbench.files import sha256_of_file, write_atomic
+from workbench.frames import DTYPES, FramesOnDisk
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0

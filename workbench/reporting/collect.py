@@ -32,7 +32,8 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 from workbench.extras import has_module, install_hint
-from workbench.record import DONE, inside, write_atomic
+from workbench.files import inside, write_atomic
+from workbench.record import DONE
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
                                       sweep_comparisons, wide)
 from workbench.reporting.statistics import GEOMETRIC

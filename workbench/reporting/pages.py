@@ -19,7 +19,6 @@ import html
 import json
 import math
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -28,8 +27,8 @@ import pandas as pd
 
 from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
-from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
-                              write_atomic)
+from workbench.files import inside, plain_name, write_atomic
+from workbench.record import DONE, RunRecord, find_records, is_complete, load_record
 from workbench.reporting.runs import (interval_label, is_replicate_key, level_statistics, paired_comparisons,
                                       runs_table, summarise, sweep_comparisons, varying_keys, wide)
 from workbench.reporting.statistics import GEOMETRIC
@@ -963,15 +962,9 @@ def _display_path(text: str) -> str:
 
 def report_versions() -> dict:
     from workbench.config import CHECKOUT
-    from workbench.record import git_state
+    from workbench.record import git_state, package_versions
 
-    found = {}
-    for package in REPORT_PACKAGES:
-        try:
-            found[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            found[package] = None
-    return {"packages": found, "git": git_state(CHECKOUT)}
+    return {"packages": package_versions(REPORT_PACKAGES), "git": git_state(CHECKOUT)}
 
 
 def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and licence") -> Section:
