@@ -69,7 +69,7 @@ def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
 
 def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_report):
     """Every paired comparison in metrics.json is the block bootstrap of the per-frame alpha the record keeps."""
-    from workbench.reporting.statistics import paired_mean_difference
+    from workbench.statistics import paired_mean_difference
 
     record, _ = tiny_report
     metrics = json.loads((record / "metrics.json").read_text())

@@ -188,7 +188,7 @@ def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
 def frame_comparisons(result, metric: Mapping) -> list[dict]:
     """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
     of :func:`comparison_pairs`, the difference ``a - b`` with its block-bootstrap interval over time
-    (:mod:`workbench.reporting.statistics`).
+    (:mod:`workbench.statistics`).
 
     Parameters
     ----------
@@ -202,7 +202,7 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
     list of dict
         ``a`` and ``b`` as ``[basis, solver]``, ``column``, and the :class:`Interval`'s fields.
     """
-    from workbench.reporting.statistics import paired_mean_difference, paired_pooled_difference
+    from workbench.statistics import paired_mean_difference, paired_pooled_difference
 
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
     column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"

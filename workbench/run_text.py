@@ -220,7 +220,7 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
                 lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
                              + f", PCA {pca:.2f}")
                 continue
-            from workbench.reporting.statistics import comparison_lookup, ordering_text
+            from workbench.statistics import comparison_lookup, ordering_text
 
             values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},
                       ("PCA", "projection"): float(pca)}

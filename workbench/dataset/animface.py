@@ -20,7 +20,7 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.dataset.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
+from workbench.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
                                             parked_marker_problems, plausibility_policy, settle, take_units_problems,
                                             with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator

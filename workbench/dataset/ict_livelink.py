@@ -16,7 +16,7 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
-from workbench.dataset.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
+from workbench.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
                                             unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,

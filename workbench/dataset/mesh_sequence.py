@@ -25,7 +25,7 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
-from workbench.dataset.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
+from workbench.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import (data_path, frame_selection, integer_setting, origin_text, positive_setting)
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError

@@ -31,7 +31,7 @@ from workbench.files import inside, plain_name, write_atomic
 from workbench.record import DONE, RunRecord, find_records, is_complete, load_record
 from workbench.reporting.runs import (interval_label, is_replicate_key, level_statistics, paired_comparisons,
                                       runs_table, summarise, sweep_comparisons, varying_keys, wide)
-from workbench.reporting.statistics import GEOMETRIC
+from workbench.statistics import GEOMETRIC
 from workbench.tables import html_frame, markdown_frame
 
 ANALOGY_SEED = 1
@@ -1150,7 +1150,7 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
 def comparison_frame(record: RunRecord) -> pd.DataFrame:
     """Every paired comparison the run made: per data variant, rows ``a`` and ``b``, the difference ``a - b`` of
     the headline alpha with its 95 % interval, the frames and block length it rests on, and the verdict."""
-    from workbench.reporting.statistics import Interval
+    from workbench.statistics import Interval
 
     records = []
     for data, values in record.metrics["data"].items():
@@ -1166,7 +1166,7 @@ def comparison_frame(record: RunRecord) -> pd.DataFrame:
 
 def comparison_sections(record: RunRecord) -> list[Section]:
     """The table every ``<`` of the findings comes from, with how its intervals were made."""
-    from workbench.reporting.statistics import RESAMPLES, SEED, SIGNED, Interval, interval_text
+    from workbench.statistics import RESAMPLES, SEED, SIGNED, Interval, interval_text
 
     frame = comparison_frame(record)
     if frame.empty:
