@@ -17,7 +17,8 @@ from omegaconf import OmegaConf
 import workbench.config
 import workbench.dataset.cache as cache
 from workbench.config import CONF_DIR, REPO_ROOT, compose
-from workbench.dataset import build_captures, build_synthetic
+from workbench.dataset import build_captures
+from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
 from workbench.errors import WorkbenchError
 from workbench.frames import FramesOnDisk

@@ -153,7 +153,7 @@ def test_cross_evaluation_of_data_variants():
 def test_face_region_is_the_dense_mesh_inside_the_markers_at_full_resolution():
     from scipy.spatial import Delaunay
 
-    from workbench.dataset import face_region
+    from workbench.dataset.synthetic_builder import face_region
 
     cfg = plain_config(overrides=["dataset.n_frames=60", "dataset.train_on=[markers,face]"])
     captures = build_captures(cfg["dataset"])

@@ -16,6 +16,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
+from workbench.dataset.common import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
+                                      point_operator_matrix, split_frames, train_on_list)
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
@@ -321,9 +323,6 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
-    from workbench.dataset import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
-                                   point_operator_matrix, split_frames, train_on_list)
-
     names = train_on_list(cfg, TRAIN_ON)
     take_files = list(cfg.get("takes") or [])
     if not take_files:

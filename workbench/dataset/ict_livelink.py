@@ -13,6 +13,7 @@ import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
+from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
@@ -43,8 +44,6 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     dict
         ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
     """
-    from workbench.dataset import array_digest, split_frames, train_on_list
-
     names = train_on_list(cfg, TRAIN_ON)
     timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
     curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"

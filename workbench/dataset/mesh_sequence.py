@@ -23,6 +23,7 @@ import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
+from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
 from workbench.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
@@ -201,8 +202,6 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
     dict
         ``{"mesh": Capture}``.
     """
-    from workbench.dataset import train_on_list
-
     train_on_list(cfg, TRAIN_ON)
     path = data_path(cfg, cfg.get("sequence"), "sequence")
     unit_mm = positive_setting(cfg.get("unit_mm", 1.0), "dataset.unit_mm")
@@ -214,8 +213,6 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
 
 def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float,
                            frame_rate: float) -> dict[str, Capture]:
-    from workbench.dataset import array_digest, split_frames
-
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     warnings = settle(sequence.problems, plausibility_policy(cfg))
     if cfg.get("neutral"):
