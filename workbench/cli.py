@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import logging
 import os
-import re
 import sys
 import time
 from contextlib import contextmanager
@@ -72,9 +71,10 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     import pandas as pd
     from omegaconf import OmegaConf
 
-    from workbench.dataset.real import bool_setting
-    from workbench.pipeline import run_study
-    from workbench.record import DONE, frame_comparisons, record_state, run_metrics, write_record
+    from workbench.record import DONE, record_state, run_metrics, write_record
+    from workbench.study.run import run_study
+    from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
+                                         saves_inputs)
     from workbench.run_text import alpha_table, headline, printed_tables, study_header
 
     started = time.time()
@@ -86,7 +86,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
 
     check_study_config(cfg)
     plain = resolved_without_hydra(cfg)
-    save_inputs = bool_setting(plain.get("save_inputs", False), "save_inputs")  # checked before the run, not after
+    save_inputs = saves_inputs(plain)  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
     paper_alpha = plain["paper"]["alpha"]
@@ -98,11 +98,13 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
             + headline(table, plain["metric"], paper_alpha, comparisons))
 
-    metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
-                          job_num=job_num, started_at=started_at, repository=CHECKOUT, comparisons=comparisons)
+    metrics = run_metrics(results_metrics(results, table, comparisons), study=plain["study"],
+                          resolved_yaml=resolved_yaml, overrides=overrides, job_num=job_num, started_at=started_at,
+                          repository=CHECKOUT)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
-                 timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
-                 save_inputs=save_inputs)
+                 timings=dict(results[0].timings.seconds, total=time.time() - started),
+                 inputs=saved_inputs(results) if save_inputs else None,
+                 alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None)
     return text
 
 

@@ -82,7 +82,7 @@ def quasi_eigen_shapes(inputs: Mapping[str, np.ndarray], projection: str,
 
 def figure_solver(config: Mapping) -> tuple[str, dict]:
     """The solver figures 2-4 use: ``lstsq`` when the run had it, else the first configured one."""
-    from workbench.pipeline import check_solver_config
+    from workbench.study.run import check_solver_config
 
     solvers = config["solver"]
     name = "lstsq" if "lstsq" in solvers else next(iter(solvers))
