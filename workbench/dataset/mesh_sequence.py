@@ -103,13 +103,6 @@ class MeshSequence:
         return np.asarray(self.vertices[start:stop:step], dtype=np.float64)
 
 
-def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Vertex positions ``(n_frames, n_vertices, 3)`` (file units, float64) and triangles ``(n, 3)`` or None of a
-    sequence file, read whole (:func:`open_mesh_sequence` reads frames on demand)."""
-    with open_mesh_sequence(path, vertices_key, faces_key) as sequence:
-        return sequence.frames(0, sequence.n_frames), sequence.faces
-
-
 def _check_values(path: Path, vertices_key: str, vertices) -> tuple[str, list[str]]:
     """Content hash of the positions and the plausibility problems of the sequence, read a chunk of frames at a
     time; an error names a type that is not real numbers, and the first frame holding NaN or Inf."""
