@@ -116,7 +116,7 @@ def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path):
 def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
     """Float32 mesh frames take half the memory and frames on disk none (the full-head run of docs/performance.md
     on a machine with less free memory than its float64 size)."""
-    from workbench.dataset import synthetic_values
+    from workbench.dataset.synthetic_builder import synthetic_values
 
     size = dict(n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=10, mesh_cols=20)
     markers, mesh = 1000 * 73 * 3, 1000 * 200 * 3
