@@ -262,48 +262,11 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     cfg : mapping
     storage : FrameStorage
     """
-    take, notes, faces, source = takes[0], [], None, None
+    take, notes = takes[0], []
     vertices = take.mesh.vertices
     provenance = dict(take.provenance, train_on=train_on)
-    visible = None
-    if train_on == "markers":
-        points = take.face_marker_vertices
-        per_take = [part.frames.reshape(len(part.frames), -1) for part in markers]
-        notes += markers[0].notes
-        labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
-        visible = [part.visible for part in markers] if markers[0].visible is not None else None
-    elif train_on == "face":
-        points, faces = face_region(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), len(take.face_marker_vertices))
-        labels = tuple(f"v{i}" for i in points)
-        per_take = [_face_region_frames(_take_key(cfg, t.provenance["seed"]), storage) for t in takes]
-        if markers is not None:  # the frames the markers' gap policy kept
-            per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
-        provenance.update(n_face_region_points=int(points.size))
-        notes.append(f"the dense ground-truth mesh's face region: the {points.size} of {len(vertices)} vertices inside "
-                     "the face markers' convex hull (face plane), at full resolution whatever dataset.mesh_fraction "
-                     "(no head motion, no marker noise)")
-    else:
-        points = decimation.kept
-        faces = decimation.faces
-        labels = tuple(f"v{i}" for i in points)
-        if decimation.fraction < 1.0:
-            notes.append(f"mesh decimated to {points.size} of {len(vertices)} vertices (mesh_fraction "
-                         f"{decimation.fraction}, quadric edge collapse); data and shapes taken at the kept vertices")
-        provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
-        if train_on == "mesh":
-            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
-                        for t in takes]
-            if markers is not None:  # the frames the markers' gap policy kept
-                per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
-            notes.append("the dense ground-truth mesh (no head motion, no marker noise)")
-        else:
-            operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
-                                         metric="euclidean")
-            per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
-            source = [part.frames.reshape(len(part.frames), -1) for part in markers]
-            notes += markers[0].notes
-            notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
-                         "RBF (Euclidean, linear polynomial)")
+    points, faces, labels, per_take, visible, source, operator = _variant_frames(
+        takes, decimation, markers, train_on, cfg, storage, notes, provenance)
     if markers is not None and markers[0].gaps and train_on != "mesh":
         provenance["gaps"] = markers[0].gaps
     split = cfg.get("split", "same")
@@ -343,6 +306,61 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
         units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
         frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
         eval_visible=eval_visible, eval_timeline=timeline, **mapped)
+
+def _variant_frames(takes: Sequence, decimation: Decimation, markers, train_on: str, cfg: Mapping,
+                    storage: FrameStorage, notes: list, provenance: dict) -> tuple:
+    """The points, frames per take and marker visibility of one data variant; adds its notes and provenance.
+
+    Returns
+    -------
+    tuple
+        ``points`` (the mesh vertices or marker vertices used), ``faces`` (or None), ``labels``, ``per_take`` (frames
+        of each take), ``visible`` (per take, or None), ``source`` (the marker frames a ``mesh_rbf`` variant is
+        interpolated from, or None) and ``operator`` (that interpolation, or None).
+    """
+    take = takes[0]
+    vertices = take.mesh.vertices
+    faces, source, operator, visible = None, None, None, None
+    if train_on == "markers":
+        points = take.face_marker_vertices
+        per_take = [part.frames.reshape(len(part.frames), -1) for part in markers]
+        notes += markers[0].notes
+        labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
+        visible = [part.visible for part in markers] if markers[0].visible is not None else None
+    elif train_on == "face":
+        points, faces = face_region(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), len(take.face_marker_vertices))
+        labels = tuple(f"v{i}" for i in points)
+        per_take = [_face_region_frames(_take_key(cfg, t.provenance["seed"]), storage) for t in takes]
+        if markers is not None:  # the frames the markers' gap policy kept
+            per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
+        provenance.update(n_face_region_points=int(points.size))
+        notes.append(f"the dense ground-truth mesh's face region: the {points.size} of {len(vertices)} vertices inside "
+                     "the face markers' convex hull (face plane), at full resolution whatever dataset.mesh_fraction "
+                     "(no head motion, no marker noise)")
+    else:
+        points = decimation.kept
+        faces = decimation.faces
+        labels = tuple(f"v{i}" for i in points)
+        if decimation.fraction < 1.0:
+            notes.append(f"mesh decimated to {points.size} of {len(vertices)} vertices (mesh_fraction "
+                         f"{decimation.fraction}, quadric edge collapse); data and shapes taken at the kept vertices")
+        provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
+        if train_on == "mesh":
+            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
+                        for t in takes]
+            if markers is not None:  # the frames the markers' gap policy kept
+                per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
+            notes.append("the dense ground-truth mesh (no head motion, no marker noise)")
+        else:
+            operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
+                                         metric="euclidean")
+            per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
+            source = [part.frames.reshape(len(part.frames), -1) for part in markers]
+            notes += markers[0].notes
+            notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
+                         "RBF (Euclidean, linear polynomial)")
+    return points, faces, labels, per_take, visible, source, operator
+
 
 
 on_forget(forget_kept_frames)
