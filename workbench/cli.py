@@ -269,7 +269,7 @@ def main() -> None:
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
     if "--version" in sys.argv[1:]:
-        from workbench import __version__
+        from workbench.version import __version__
 
         print(f"workbench {__version__}")
         sys.exit(0)

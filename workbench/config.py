@@ -105,7 +105,7 @@ def study_names() -> list[str]:
 def help_section(name: str) -> str:
     """Text for the ``${workbench_help:...}`` resolver of ``conf/hydra/help/workbench.yaml``: ``version``, or the
     ``studies`` or ``commands`` listed one a line with their first line of documentation."""
-    from workbench import __version__
+    from workbench.version import __version__
 
     if name == "version":
         return __version__

@@ -80,7 +80,7 @@ def package_versions(packages: Sequence[str]) -> dict:
 
 def versions() -> dict:
     """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
-    from workbench import __version__
+    from workbench.version import __version__
 
     return {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform(),
             **package_versions(RECORD_PACKAGES)}
