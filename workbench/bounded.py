@@ -117,7 +117,6 @@ def primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float)
     w = np.clip(np.where(np.isfinite(start), start, 0.0), lo, hi)
     at_lo = w <= lo
     at_hi = (w >= hi) & ~at_lo
-    movable = lo < hi
     upper = bool(np.isfinite(hi).any())
     weights = w.copy()
     done = np.zeros(len(rhs), dtype=bool)
@@ -138,39 +137,11 @@ def primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float)
         finished = np.zeros(len(z), dtype=bool)
         k = np.flatnonzero(blocked)
         if k.size:
-            wk, zk, bk, ak = w[k], z[k], below[k], above[k]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(bk, (wk - lo) / (wk - zk), np.inf)
-                if upper:
-                    ratio = np.where(ak, (hi - wk) / (zk - wk), ratio)
-            step = ratio.min(axis=1)
-            hit = ratio <= step[:, None]
-            pin_lo, pin_hi = hit & bk, hit & ak
-            wk = np.clip(wk + step[:, None] * (zk - wk), lo, hi)
-            np.copyto(wk, np.broadcast_to(lo, wk.shape), where=pin_lo)
-            np.copyto(wk, np.broadcast_to(hi, wk.shape), where=pin_hi)
-            w[k] = wk
-            at_lo[k] |= pin_lo
-            at_hi[k] |= pin_hi
-            last = freed[k]
-            finished[k] = (step <= 0.0) & (last >= 0) & hit[np.arange(k.size), np.maximum(last, 0)]
-            freed[k] = -1
+            _step_to_bounds(k, w, z, below, above, lo, hi, upper, at_lo, at_hi, freed, finished)
         u = np.flatnonzero(~blocked)
         if u.size:
-            wu = z[u]
-            grad = times(wu, frames_of(gram, u)) - c[u]
-            small = (threshold * (c_size[u] + (g_max if shared else g_max[u]) * np.abs(wu).max(axis=1)))[:, None]
-            wanted = at_lo[u] & (grad < -small)
-            if upper:
-                wanted |= at_hi[u] & (grad > small)
-            pull = grad * grad * (wanted & movable) / (curvature if shared else curvature[u])
-            best = pull.argmax(axis=1)
-            grows = pull[np.arange(u.size), best] > 0.0
-            at_lo[u[grows], best[grows]] = False
-            at_hi[u[grows], best[grows]] = False
-            freed[u] = np.where(grows, best, -1)
-            w[u] = wu
-            finished[u] = ~grows
+            _free_or_finish(u, w, z, gram, c, c_size, g_max, curvature, threshold, lo < hi, upper, at_lo, at_hi,
+                            freed, finished)
         weights[pending] = w
         if finished.any():
             done[pending[finished]] = True
@@ -180,6 +151,51 @@ def primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float)
             if not shared:
                 gram, g_max, curvature = gram[keep], g_max[keep], curvature[keep]
     return weights, done, n_iter
+
+
+def _step_to_bounds(k, w, z, below, above, lo, hi, upper: bool, at_lo, at_hi, freed, finished) -> None:
+    """The frames ``k`` whose solve ``z`` left the box: step from ``w`` toward ``z`` up to the first bound and pin
+    the variables that reach it; a frame that cannot move and pins again the variable it last freed is finished.
+    Updates ``w``, ``at_lo``, ``at_hi``, ``freed`` and ``finished`` in place (a step of :func:`primal_active_set`)."""
+    wk, zk, bk, ak = w[k], z[k], below[k], above[k]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(bk, (wk - lo) / (wk - zk), np.inf)
+        if upper:
+            ratio = np.where(ak, (hi - wk) / (zk - wk), ratio)
+    step = ratio.min(axis=1)
+    hit = ratio <= step[:, None]
+    pin_lo, pin_hi = hit & bk, hit & ak
+    wk = np.clip(wk + step[:, None] * (zk - wk), lo, hi)
+    np.copyto(wk, np.broadcast_to(lo, wk.shape), where=pin_lo)
+    np.copyto(wk, np.broadcast_to(hi, wk.shape), where=pin_hi)
+    w[k] = wk
+    at_lo[k] |= pin_lo
+    at_hi[k] |= pin_hi
+    last = freed[k]
+    finished[k] = (step <= 0.0) & (last >= 0) & hit[np.arange(k.size), np.maximum(last, 0)]
+    freed[k] = -1
+
+
+def _free_or_finish(u, w, z, gram, c, c_size, g_max, curvature, threshold: float, movable, upper: bool, at_lo, at_hi,
+                    freed, finished) -> None:
+    """The frames ``u`` whose solve ``z`` stayed in the box: take ``z``, and free the pinned variable whose gradient
+    pulls hardest out of its bound, or finish the frame when none does. Updates ``w``, ``at_lo``, ``at_hi``,
+    ``freed`` and ``finished`` in place (a step of :func:`primal_active_set`)."""
+    shared = gram.ndim == 2
+    wu = z[u]
+    grad = times(wu, frames_of(gram, u)) - c[u]
+    small = (threshold * (c_size[u] + (g_max if shared else g_max[u]) * np.abs(wu).max(axis=1)))[:, None]
+    wanted = at_lo[u] & (grad < -small)
+    if upper:
+        wanted |= at_hi[u] & (grad > small)
+    pull = grad * grad * (wanted & movable) / (curvature if shared else curvature[u])
+    best = pull.argmax(axis=1)
+    grows = pull[np.arange(u.size), best] > 0.0
+    at_lo[u[grows], best[grows]] = False
+    at_hi[u[grows], best[grows]] = False
+    freed[u] = np.where(grows, best, -1)
+    w[u] = wu
+    finished[u] = ~grows
 
 
 def _pinned_solve(gram, c, w, free):
