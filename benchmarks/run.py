@@ -40,7 +40,9 @@ from workbench.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.dataset import build_captures
 from workbench.frames import frame_chunks
 from workbench.metrics import summarise_alpha, summarise_squares
-from workbench.pipeline import Timings, pca_subspace, projected_rows
+from workbench.study.fitting import pca_subspace
+from workbench.study.results import Timings
+from workbench.study.scoring import projected_rows
 from workbench.solve import reconstruct, solve_weights
 
 SYNTHETIC = {"kind": "synthetic", "n_frames": 35000, "frame_rate": 120.0, "n_face_markers": 66,
@@ -180,7 +182,7 @@ def bench_markers(args) -> None:
 def bench_mesh(args) -> None:
     from workbench.cli import resolved_without_hydra
     from workbench.config import compose
-    from workbench.pipeline import run_study
+    from workbench.study.run import run_study
 
     overrides = [f"dataset.n_frames={args.mesh_frames}", "dataset.train_on=mesh", "solver=all",
                  f"dataset.mesh_rows={args.mesh_rows}", f"dataset.mesh_cols={args.mesh_cols}",
@@ -319,7 +321,7 @@ def bench_sweep(args) -> None:
     both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
     from workbench.cli import resolved_without_hydra
     from workbench.config import compose
-    from workbench.pipeline import run_study
+    from workbench.study.run import run_study
 
     coverages = np.linspace(0.95, 0.999, args.sweep_runs)
     print(f"== sweep: {args.sweep_runs} runs of the paper study (solver={args.solver}) on {args.frames} frames x 66 markers, "
@@ -371,7 +373,7 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
     from workbench.cli import resolved_without_hydra
     from workbench.config import compose
-    from workbench.pipeline import run_study
+    from workbench.study.run import run_study
     from workbench.run_text import alpha_table
 
     cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))

@@ -12,7 +12,7 @@ import pytest
 from workbench.cli import resolved_without_hydra
 from workbench.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.errors import WorkbenchError
-from workbench.pipeline import run_study
+from workbench.study.run import run_study
 from workbench.reporting.pages import main as report_main
 
 ALTERNATIVES = ["SPCA", "ICA", "NMF", "SPLOCS", "H-fit"]

@@ -7,7 +7,7 @@ import pytest
 from workbench.cli import resolved_without_hydra
 from workbench.config import compose
 from workbench.metrics import basis_conditioning
-from workbench.pipeline import run_study
+from workbench.study.run import run_study
 from workbench.run_text import conditioning_lines, study_header
 
 
@@ -41,7 +41,8 @@ def test_hand_basis_with_a_duplicate_shape_gets_a_warning_above_the_table():
     # the same run with one hand shape duplicated
     from dataclasses import replace
 
-    from workbench.pipeline import Timings, run_on_capture
+    from workbench.study.results import Timings
+    from workbench.study.run import run_on_capture
 
     capture = results[0].capture
     # an exact copy is refused as input (see test_bad_input); a near copy is legal, and reported

@@ -17,7 +17,8 @@ import pytest
 from workbench import cli
 from workbench.cli import run
 from workbench.config import REPO_ROOT, compose
-from workbench.record import DONE, file_checksum, inside, is_record_file
+from workbench.files import inside, sha256_of_file as file_checksum
+from workbench.record import DONE, is_record_file
 
 
 @pytest.fixture(scope="module")

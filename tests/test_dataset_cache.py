@@ -17,7 +17,8 @@ from omegaconf import OmegaConf
 import workbench.config
 import workbench.dataset.cache as cache
 from workbench.config import CONF_DIR, REPO_ROOT, compose
-from workbench.dataset import build_captures, build_synthetic
+from workbench.dataset import build_captures
+from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
 from workbench.errors import WorkbenchError
 from workbench.frames import FramesOnDisk
@@ -113,7 +114,7 @@ def test_key_follows_the_source_files_a_config_names(tmp_path):
 
 
 def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
-    from workbench import pipeline
+    from workbench.study import run as pipeline
     from workbench.cli import resolved_without_hydra
     from workbench.config import compose
 
@@ -313,7 +314,7 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
-    from workbench import pipeline
+    from workbench.study import run as pipeline
     from workbench.cli import resolved_without_hydra
     from workbench.run_text import alpha_table
 

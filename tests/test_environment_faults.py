@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from workbench import cli
+from workbench import errors
 from workbench.config import REPO_ROOT
-from workbench.record import write_atomic
+from workbench.files import write_atomic
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
@@ -70,12 +70,12 @@ def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
     def full(_):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr("workbench.record.os.fsync", full)
+    monkeypatch.setattr("workbench.files.os.fsync", full)
     with pytest.raises(OSError) as raised:
         write_atomic(tmp_path / "metrics.json", "{}")
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(SystemExit) as stopped:
-        cli.exit_on_error("workbench", raised.value)
+        errors.exit_on_error("workbench", raised.value)
     assert stopped.value.code == 2
     assert capsys.readouterr().err == (f"workbench: error: {tmp_path / 'metrics.json'}: cannot write "
                                        "(No space left on device)\n")
@@ -89,7 +89,7 @@ def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
 ])
 def test_environment_faults_are_one_line_exit_2(error, expected, capsys):
     with pytest.raises(SystemExit) as stopped:
-        cli.exit_on_error("workbench", error)
+        errors.exit_on_error("workbench", error)
     assert stopped.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith(f"workbench: error: {expected}") and err.count("\n") == 1
@@ -116,7 +116,7 @@ def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path):
 def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
     """Float32 mesh frames take half the memory and frames on disk none (the full-head run of docs/performance.md
     on a machine with less free memory than its float64 size)."""
-    from workbench.dataset import synthetic_values
+    from workbench.dataset.synthetic_builder import synthetic_values
 
     size = dict(n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=10, mesh_cols=20)
     markers, mesh = 1000 * 73 * 3, 1000 * 200 * 3

@@ -230,7 +230,8 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
     # a table whose checksum matches (a record written by other code) is still recomputed and compared
     import json
 
-    from workbench.record import DONE, file_checksum
+    from workbench.files import sha256_of_file as file_checksum
+    from workbench.record import DONE
 
     done = json.loads((tampered / DONE).read_text())
     done["sha256"]["alpha_table.csv"] = file_checksum(tampered / "alpha_table.csv")

@@ -11,7 +11,7 @@ from workbench.dataset import build_captures
 from workbench.dataset.gaps import apply_gap_policy
 from workbench.errors import WorkbenchError
 from workbench.metrics import summarise_alpha
-from workbench.pipeline import run_study
+from workbench.study.run import run_study
 from workbench.solve import solve_weights
 
 

@@ -96,7 +96,7 @@ SOLVER_CHILD = textwrap.dedent("""
     import sys
     import numpy as np
     from workbench.active_set import primal_active_set_frames
-    from workbench.cli import exit_on_error
+    from workbench.errors import exit_on_error
 
     def solve(n_frames, steps):
         rng = np.random.default_rng(0)

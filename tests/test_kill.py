@@ -29,7 +29,7 @@ import pytest
 import yaml
 
 from workbench.config import REPO_ROOT
-from workbench.record import TEMPORARY_SUFFIX, file_checksum
+from workbench.files import TEMPORARY_SUFFIX, sha256_of_file as file_checksum
 from workbench.tracking import DONE, LOCK_FILE, record_state
 
 RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true"]
@@ -361,7 +361,7 @@ def writer_cases():
 
 @pytest.mark.parametrize("path", list(writer_cases()))
 def test_files_are_written_through_the_atomic_writer(path):
-    """Records, tables and reports are written by :func:`workbench.record.write_atomic` only."""
+    """Records, tables and reports are written by :func:`workbench.files.write_atomic` only."""
     assert non_atomic_writes(path) == []
 
 

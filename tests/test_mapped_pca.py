@@ -9,7 +9,7 @@ from workbench.cli import resolved_without_hydra
 from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.errors import WorkbenchError
-from workbench.pipeline import run_study
+from workbench.study.run import run_study
 
 
 @pytest.mark.parametrize("n_frames,k,n_dims", [(500, 30, 900), (40, 60, 300)])

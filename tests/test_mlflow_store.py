@@ -296,7 +296,8 @@ def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
         row["data"] = "../../x"
     (folder / "metrics.json").write_text(json.dumps(metrics))
     # as a record written so by another tool: checksums matching its files (a hand edit alone is refused)
-    from workbench.record import DONE, file_checksum
+    from workbench.files import sha256_of_file as file_checksum
+    from workbench.record import DONE
 
     done = json.loads((folder / DONE).read_text())
     done["sha256"].update({name: file_checksum(folder / name) for name in ("alpha_table.csv", "metrics.json")})

@@ -13,7 +13,7 @@ from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.c3d_markers import read_c3d_markers
 from workbench.dataset.cache import clear_memory
-from workbench.dataset.plausibility import check_rigid_set
+from workbench.plausibility import check_rigid_set
 from workbench.errors import WorkbenchError
 
 from tests.test_bad_input import write_c3d

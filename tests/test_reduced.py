@@ -119,7 +119,7 @@ def study_alphas(tmp_path, *overrides):
     from workbench.cli import resolved_without_hydra
     from workbench.config import compose
     from workbench.dataset.cache import clear_memory
-    from workbench.pipeline import run_study
+    from workbench.study.run import run_study
 
     clear_memory()
     cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.mesh_rows=24",

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 from workbench.metrics import AlphaSummary
-from workbench.pipeline import Row
+from workbench.study.results import Row
 from workbench.run_text import FRAME_COLUMNS, alpha_table, headline, printed_tables
 from workbench.tables import markdown_frame as markdown_table
 

@@ -14,7 +14,8 @@ import yaml
 from PIL import Image
 from scipy import stats
 
-from workbench.cli import COMMANDS, run
+from workbench.cli import run
+from workbench.config import COMMANDS
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.record import find_records, load_record
@@ -68,7 +69,7 @@ def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
 
 def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_report):
     """Every paired comparison in metrics.json is the block bootstrap of the per-frame alpha the record keeps."""
-    from workbench.reporting.statistics import paired_mean_difference
+    from workbench.statistics import paired_mean_difference
 
     record, _ = tiny_report
     metrics = json.loads((record / "metrics.json").read_text())
@@ -532,7 +533,7 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     4 the most displaced of them; the report names the data files with their checksums."""
     from workbench.dataset.c3d_markers import read_c3d_markers
     from workbench.dataset.capture import Timeline
-    from workbench.dataset.real import file_sha256
+    from workbench.files import sha256_of_file as file_sha256
     from workbench.reporting.pages import (_marker_variant, _mesh_variant, figure3_frames, figure4_frame,
                                            most_displaced, record_timeline)
 

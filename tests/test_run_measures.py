@@ -11,7 +11,9 @@ from workbench.config import compose
 from workbench.dataset.capture import Capture, Timeline
 from workbench.errors import WorkbenchError
 from workbench.metrics import weight_statistics
-from workbench.pipeline import face_region, held_out_capture, run_study
+from workbench.study.protocols import held_out_capture
+from workbench.study.run import run_study
+from workbench.study.scoring import face_region
 
 SMALL = ["dataset.n_frames=600", "dataset.mesh_rows=35", "dataset.mesh_cols=30"]
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from workbench.errors import WorkbenchError
-from workbench.reporting import statistics
-from workbench.reporting.statistics import (BLOCK_BOOTSTRAP, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
+from workbench import statistics
+from workbench.statistics import (BLOCK_BOOTSTRAP, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
                                             block_bootstrap_totals, comparison_lookup, geometric_interval,
                                             interval_text, optimal_block_length, ordering_text,
                                             paired_difference_interval, paired_mean_difference,

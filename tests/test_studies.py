@@ -17,7 +17,8 @@ from workbench.dataset.gaps import apply_gap_policy, longest_run, make_gap_mask
 from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, make_face_mesh, make_synthetic_take
 from workbench.dataset.transfer import point_transfer
 from workbench.errors import WorkbenchError
-from workbench.pipeline import hand_subset_indices, run_study
+from workbench.study.protocols import hand_subset_indices
+from workbench.study.run import run_study
 from workbench.cli import resolved_without_hydra
 
 STUDIES = ("coverage", "basis_count", "marker_mesh", "noise", "choices", "generalisation")
@@ -153,7 +154,7 @@ def test_cross_evaluation_of_data_variants():
 def test_face_region_is_the_dense_mesh_inside_the_markers_at_full_resolution():
     from scipy.spatial import Delaunay
 
-    from workbench.dataset import face_region
+    from workbench.dataset.synthetic_builder import face_region
 
     cfg = plain_config(overrides=["dataset.n_frames=60", "dataset.train_on=[markers,face]"])
     captures = build_captures(cfg["dataset"])
@@ -223,7 +224,7 @@ def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
 
 
 def test_clean_frames_are_matched_by_take_and_frame_number():
-    from workbench.pipeline import clean_dataset_config, clean_frames
+    from workbench.study.protocols import clean_dataset_config, clean_frames
 
     # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
     cfg = plain_config(overrides=["dataset.n_frames=600", "dataset.marker_noise_mm=0", "dataset.gap_rate=0.02",
@@ -247,7 +248,7 @@ def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rul
     with pytest.raises(WorkbenchError, match="leave n_components null"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
     with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
-        from workbench.pipeline import clean_dataset_config
+        from workbench.study.protocols import clean_dataset_config
 
         clean_dataset_config({"kind": "animface"})
 

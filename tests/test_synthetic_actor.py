@@ -177,7 +177,7 @@ def test_displacements_arguments_are_checked(mesh):
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
-    from workbench.dataset import _mesh_frames, _take_key
+    from workbench.dataset.synthetic_builder import _mesh_frames, _take_key
 
     cfg = {"n_frames": 61, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7, "head_rotation_deg": 3.0,
            "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "mesh_rows": 30, "mesh_cols": 25}

@@ -17,4 +17,4 @@ if started_as_command():  # first, before the seconds of imports: Ctrl-C then is
 # back-to-back BLAS calls. It only takes effect when set before NumPy loads OpenBLAS; a value the user set wins.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "16")
 
-__version__ = "0.1.0"
+from workbench.version import __version__  # noqa: E402 - after the environment is set

@@ -4,7 +4,7 @@ The reduced problems of eq. 5 are tiny (``n`` about 18) and there is one per fra
 for array passes over all pending frames on every iteration, while a compiled loop keeps one frame's ``n x n``
 system in cache and stops each frame as soon as it is done. Frames run in parallel threads. The method and its
 rules (which variable is pinned or freed, when a frame is finished) are those of
-:func:`workbench.solve._primal_active_set`; each pinned system is solved by a Cholesky factorisation of its free
+:func:`workbench.bounded.primal_active_set`; each pinned system is solved by a Cholesky factorisation of its free
 block, which the caller's ridge keeps positive definite.
 """
 
@@ -140,7 +140,7 @@ def _one_frame(gram, c, lo, hi, w, max_iter, threshold, g_max, curvature, movabl
 
 @njit(cache=True)
 def _admm_one(c, lo, hi, s, inverse, gain, steps, relax, offset, z, x):
-    """The ADMM warm start of :func:`workbench.solve._admm` on one frame; ``s`` (the start) is overwritten by
+    """The ADMM warm start of :func:`workbench.bounded.admm` on one frame; ``s`` (the start) is overwritten by
     the feasible result ``z`` (``offset``, ``z`` and ``x`` are work space). Products run along rows."""
     n = c.shape[0]
     offset[:] = 0.0
@@ -166,7 +166,7 @@ def _admm_one(c, lo, hi, s, inverse, gain, steps, relax, offset, z, x):
 
 @njit(cache=True, parallel=True)
 def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold, inverse, gain, admm_steps, relax):
-    """:func:`workbench.solve._admm` and :func:`workbench.solve._primal_active_set` for a gram shared by every
+    """:func:`workbench.bounded.admm` and :func:`workbench.bounded.primal_active_set` for a gram shared by every
     frame, one frame per loop pass.
 
     Parameters

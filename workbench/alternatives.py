@@ -319,7 +319,7 @@ class SurfaceDistance:
         self.size = float(np.ptp(self.points, axis=0).max()) or 1.0
         self._graph = None
         if self.faces is not None:
-            from workbench.dataset.rbf import mesh_edge_graph
+            from workbench.mesh_graph import mesh_edge_graph
 
             self._graph = mesh_edge_graph(self.points, self.faces)
 

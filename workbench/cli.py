@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import logging
 import os
-import re
 import sys
 import time
-import traceback
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -18,10 +16,11 @@ from typing import TYPE_CHECKING, Sequence
 
 # Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
 # Hydra, pandas and the numerical code are imported by the functions that use them.
-from workbench.config import CHECKOUT, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs
-from workbench.errors import WorkbenchError, single_line
+from workbench.config import (CHECKOUT, COMMANDS, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs,
+                              register_resolvers, study_names)
+from workbench.errors import VERBOSE_FLAG, WorkbenchError, exit_on_error, show_tracebacks, tracebacks_shown
 from workbench.extras import missing_extra
-from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
+from workbench.interrupt import caused_by_interrupt, raise_from_now_on
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -72,9 +71,10 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     import pandas as pd
     from omegaconf import OmegaConf
 
-    from workbench.dataset.real import bool_setting
-    from workbench.pipeline import run_study
-    from workbench.record import DONE, frame_comparisons, record_state, run_metrics, write_record
+    from workbench.record import DONE, record_state, run_metrics, write_record
+    from workbench.study.run import run_study
+    from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
+                                         saves_inputs)
     from workbench.run_text import alpha_table, headline, printed_tables, study_header
 
     started = time.time()
@@ -86,7 +86,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
 
     check_study_config(cfg)
     plain = resolved_without_hydra(cfg)
-    save_inputs = bool_setting(plain.get("save_inputs", False), "save_inputs")  # checked before the run, not after
+    save_inputs = saves_inputs(plain)  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
     paper_alpha = plain["paper"]["alpha"]
@@ -98,11 +98,13 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
             + headline(table, plain["metric"], paper_alpha, comparisons))
 
-    metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
-                          job_num=job_num, started_at=started_at, repository=CHECKOUT, comparisons=comparisons)
+    metrics = run_metrics(results_metrics(results, table, comparisons), study=plain["study"],
+                          resolved_yaml=resolved_yaml, overrides=overrides, job_num=job_num, started_at=started_at,
+                          repository=CHECKOUT)
     write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
-                 timings=dict(results[0].timings.seconds, total=time.time() - started), results=results,
-                 save_inputs=save_inputs)
+                 timings=dict(results[0].timings.seconds, total=time.time() - started),
+                 inputs=saved_inputs(results) if save_inputs else None,
+                 alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None)
     return text
 
 
@@ -111,7 +113,7 @@ def hydra_app() -> None:
     the help, the config or completions). Hydra is imported here, not with the module, to keep start-up fast."""
     import hydra
 
-    register_cli_resolvers()
+    register_resolvers()
     hydra.main(version_base="1.3", config_path=str(STUDIES_DIR), config_name=DEFAULT_STUDY)(_hydra_main)()
 
 
@@ -129,7 +131,7 @@ def print_help(argv: Sequence[str]) -> bool:
     args = get_args_parser().parse_args(argv)
     if args.config_dir or args.config_path:
         return False
-    register_cli_resolvers()
+    register_resolvers()
     with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
         cfg = compose(config_name=args.config_name or DEFAULT_STUDY, overrides=args.overrides,
                       return_hydra_config=True)
@@ -221,78 +223,6 @@ def first_headline(text: str) -> str:
     return next((line for line in lines[last_table_line + 1:] if line.strip()), "")
 
 
-# Subcommands other than running a study: name -> "module:function", the function taking the remaining
-# arguments (a list of str) and returning an exit code. Imported only when used.
-COMMANDS: dict[str, str] = {
-    "report": "workbench.reporting.pages:main",
-    "collect": "workbench.reporting.collect:main",
-    "mlflow": "workbench.reporting.mlflow_store:main",
-    "export": "workbench.export:main",
-}
-
-
-def study_names() -> list[str]:
-    """The studies: the configs in ``studies/`` (``--config-name`` takes one)."""
-    return sorted(path.stem for path in STUDIES_DIR.glob("*.yaml"))
-
-
-def help_section(name: str) -> str:
-    """Text for the ``${workbench_help:...}`` resolver of ``conf/hydra/help/workbench.yaml``: ``version``, or the
-    ``studies`` or ``commands`` listed one a line with their first line of documentation."""
-    from workbench import __version__
-
-    if name == "version":
-        return __version__
-    if name == "studies":
-        entries = {study: first_comment(STUDIES_DIR / f"{study}.yaml") for study in study_names()}
-    elif name == "commands":
-        entries = {command: command_summary(target) for command, target in COMMANDS.items()}
-    else:
-        raise ValueError(f"workbench_help: unknown section {name!r}")
-    width = max(map(len, entries))
-    return "\n".join(f"{key.ljust(width)}  {text}".rstrip() for key, text in entries.items())
-
-
-def command_summary(target: str) -> str:
-    """The first sentence of the docstring of a command's module (read, not imported), without a leading
-    ```workbench <command> ...``:`` so that ``--help`` stays fast."""
-    import ast
-    import importlib.util
-
-    origin = importlib.util.find_spec(target.split(":")[0]).origin
-    text = " ".join((ast.get_docstring(ast.parse(Path(origin).read_text())) or "").split())
-    text = re.sub(r"^``workbench [^`]*``:\s*", "", text)
-    return text.split(". ")[0].rstrip(".")
-
-
-def first_comment(path: Path) -> str:
-    """The first comment line of a YAML file up to its first colon or full stop: what the file is."""
-    for line in path.read_text().splitlines():
-        if line.startswith("#"):
-            return line.lstrip("# ").split(": ")[0].split(". ")[0].strip()
-    return ""
-
-
-def register_cli_resolvers() -> None:
-    """What the studies' configs use: their schemas, the resolvers of run folder names and of the help text."""
-    from omegaconf import OmegaConf
-
-    from workbench.schema import register_schemas
-
-    register_schemas()
-    if not OmegaConf.has_resolver("run_id"):  # workbench.tracking's, imported when a run folder is named
-        OmegaConf.register_new_resolver("run_id", run_dir_name)
-    if not OmegaConf.has_resolver("workbench_help"):
-        OmegaConf.register_new_resolver("workbench_help", help_section)
-
-
-def run_dir_name(overrides: str) -> str:
-    """``${run_id:...}``: :func:`workbench.tracking.run_dir_name`, imported on first use."""
-    from workbench.tracking import run_dir_name as tracking_run_dir_name
-
-    return tracking_run_dir_name(overrides)
-
-
 def complete_without_hydra() -> bool:
     """Tab completion beside Hydra's (which completes groups and keys): the studies after ``--config-name=``, the
     commands as the first word, and nothing after a command (the shell then offers file names, which the commands
@@ -311,33 +241,7 @@ def complete_without_hydra() -> bool:
     return False
 
 
-VERBOSE_FLAG = "--verbose"
 HELP_FLAGS = {"--help", "-h"}
-_verbose = False
-
-
-def exit_on_error(program: str, error: BaseException) -> None:
-    """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
-
-    A :class:`WorkbenchError` is bad input or configuration, and a fault of the environment (a file that cannot
-    be read or written, a full disk, too little memory) is named with its path: both exit 2. Ctrl-C exits 130.
-    Anything else is unexpected (exit 3) and names its type, since its message alone may not say where it came
-    from.
-    """
-    if isinstance(error, SystemExit):
-        raise error
-    if _verbose:
-        traceback.print_exception(error, file=sys.stderr)
-    if caused_by_interrupt(error):
-        print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
-        sys.exit(INTERRUPTED)
-    fault = environment_fault(error)
-    if fault is not None:
-        print(f"{program}: error: {single_line(fault)}", file=sys.stderr)
-        sys.exit(2)
-    hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
-    print(f"{program}: error: unexpected {type(error).__name__}: {single_line(error)}{hint}", file=sys.stderr)
-    sys.exit(3)
 
 
 @contextmanager
@@ -357,41 +261,22 @@ def one_line_usage_errors():
         argparse.ArgumentParser.error = original
 
 
-def environment_fault(error: BaseException) -> str | None:
-    """The one-line message of bad input (:class:`WorkbenchError`) or of a fault of the environment (an
-    optional dependency not installed, naming its extra; an ``OSError`` such as a denied permission or a full
-    disk, naming its path; running out of memory), or None for anything else."""
-    if isinstance(error, WorkbenchError):
-        return str(error)
-    missing = missing_extra(error)
-    if missing is not None:
-        return missing
-    if isinstance(error, MemoryError):
-        return ("out of memory (MemoryError); use a smaller dataset (dataset.n_frames, dataset.max_frames, "
-                "dataset.frame_step, dataset.mesh_vertex_step)")
-    if isinstance(error, OSError) and error.strerror:
-        paths = " -> ".join(str(path) for path in (error.filename, error.filename2) if path is not None)
-        return f"{paths or 'a file of the run'}: {error.strerror}"
-    return None
-
-
 def main() -> None:
     """Entry point of the ``workbench`` command.
 
     ``workbench [--config-name STUDY] [overrides...]`` runs a study through Hydra; ``workbench <command> ...``
-    runs one of :data:`COMMANDS`. ``--verbose`` anywhere adds the traceback to an error's one line (Hydra's own
+    runs one of :data:`workbench.config.COMMANDS`. ``--verbose`` anywhere adds the traceback to an error's one line (Hydra's own
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
-    global _verbose
     if "--version" in sys.argv[1:]:
-        from workbench import __version__
+        from workbench.version import __version__
 
         print(f"workbench {__version__}")
         sys.exit(0)
     if "query=bash" in sys.argv[1:] and complete_without_hydra():
         sys.exit(0)
     if VERBOSE_FLAG in sys.argv[1:]:
-        _verbose = True
+        show_tracebacks()
         sys.argv = [arg for arg in sys.argv if arg != VERBOSE_FLAG]
     if len(sys.argv) > 1 and sys.argv[1] in COMMANDS:
         import importlib
@@ -421,7 +306,7 @@ def main() -> None:
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
         if caused_by_interrupt(error):
             exit_on_error("workbench", error)
-        if full_error or _verbose:
+        if full_error or tracebacks_shown():
             raise
         print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)
         sys.exit(2)

@@ -1,4 +1,5 @@
-"""Where the workbench's configs live, and composing a study without running it (for tests and notebooks).
+"""Where the workbench's configs live, what they resolve (run folder names, the help text's studies and commands)
+and composing a study without running it (for tests and notebooks).
 
 In the checkout (``pip install -e .``) the config groups and the studies are the top-level folders ``conf/`` and
 ``studies/`` beside the package. A built package (``pip install .``, a wheel, an sdist, ``pip install git+URL``)
@@ -8,6 +9,8 @@ mapping in ``pyproject.toml``); those are used when they exist.
 
 from __future__ import annotations
 
+import hashlib
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -49,10 +52,101 @@ def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     """
     from hydra import compose as hydra_compose, initialize_config_dir
 
-    from workbench.cli import register_cli_resolvers
-
-    register_cli_resolvers()
+    register_resolvers()
     check_config_dirs()
     with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
         return hydra_compose(config_name=study, overrides=list(overrides),
                              return_hydra_config=True)
+
+
+RUN_ID_MAX = 120
+"""Longest run folder name made from the overrides alone; longer ones are cut and get a hash."""
+
+
+def run_dir_name(override_dirname: str) -> str:
+    """The folder name of a run, from Hydra's ``hydra.job.override_dirname`` (its sorted overrides).
+
+    Readable when it can be (``basis.coverage=0.99,dataset.seed=1``); characters unsafe in a file name are
+    replaced, and a name that had to be changed or cut gets a hash of the full text so that two runs never
+    share a folder.
+
+    Parameters
+    ----------
+    override_dirname : str
+
+    Returns
+    -------
+    str
+    """
+    text = str(override_dirname)
+    if not text:
+        return "default"
+    safe = re.sub(r"[^A-Za-z0-9._=,+\-]", "_", text)
+    if safe == text and len(text) <= RUN_ID_MAX:
+        return text
+    return f"{safe[:RUN_ID_MAX - 9]}-{hashlib.sha256(text.encode()).hexdigest()[:8]}"
+
+
+# Subcommands other than running a study: name -> "module:function", the function taking the remaining
+# arguments (a list of str) and returning an exit code. Imported only when used.
+COMMANDS: dict[str, str] = {
+    "report": "workbench.reporting.pages:main",
+    "collect": "workbench.reporting.collect:main",
+    "mlflow": "workbench.reporting.mlflow_store:main",
+    "export": "workbench.export:main",
+}
+
+
+def study_names() -> list[str]:
+    """The studies: the configs in ``studies/`` (``--config-name`` takes one)."""
+    return sorted(path.stem for path in STUDIES_DIR.glob("*.yaml"))
+
+
+def help_section(name: str) -> str:
+    """Text for the ``${workbench_help:...}`` resolver of ``conf/hydra/help/workbench.yaml``: ``version``, or the
+    ``studies`` or ``commands`` listed one a line with their first line of documentation."""
+    from workbench.version import __version__
+
+    if name == "version":
+        return __version__
+    if name == "studies":
+        entries = {study: first_comment(STUDIES_DIR / f"{study}.yaml") for study in study_names()}
+    elif name == "commands":
+        entries = {command: command_summary(target) for command, target in COMMANDS.items()}
+    else:
+        raise ValueError(f"workbench_help: unknown section {name!r}")
+    width = max(map(len, entries))
+    return "\n".join(f"{key.ljust(width)}  {text}".rstrip() for key, text in entries.items())
+
+
+def command_summary(target: str) -> str:
+    """The first sentence of the docstring of a command's module (read, not imported), without a leading
+    ```workbench <command> ...``:`` so that ``--help`` stays fast."""
+    import ast
+    import importlib.util
+
+    origin = importlib.util.find_spec(target.split(":")[0]).origin
+    text = " ".join((ast.get_docstring(ast.parse(Path(origin).read_text())) or "").split())
+    text = re.sub(r"^``workbench [^`]*``:\s*", "", text)
+    return text.split(". ")[0].rstrip(".")
+
+
+def first_comment(path: Path) -> str:
+    """The first comment line of a YAML file up to its first colon or full stop: what the file is."""
+    for line in path.read_text().splitlines():
+        if line.startswith("#"):
+            return line.lstrip("# ").split(": ")[0].split(". ")[0].strip()
+    return ""
+
+
+def register_resolvers() -> None:
+    """What the studies' configs use: their schemas, the resolvers of run folder names and of the help text."""
+    from omegaconf import OmegaConf
+
+    from workbench.schema import register_schemas
+
+    register_schemas()
+    if not OmegaConf.has_resolver("run_id"):
+        OmegaConf.register_new_resolver("run_id", run_dir_name)
+    if not OmegaConf.has_resolver("workbench_help"):
+        OmegaConf.register_new_resolver("workbench_help", help_section)

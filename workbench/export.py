@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
-from workbench.record import inside, plain_name, write_atomic, write_json, write_npz
+from workbench.files import inside, plain_name, write_atomic, write_json, write_npz
 
 TABLE_CHECK_RTOL = 1e-6
 """Recomputed alpha must match the recorded table to this relative tolerance before anything is exported."""
@@ -125,7 +125,7 @@ def exported_bases(result, labels: Sequence[str] | None, solver: str, table: pd.
 
     Parameters
     ----------
-    result : workbench.pipeline.StudyResult
+    result : workbench.study.results.StudyResult
     labels : sequence of str or None
         Basis labels; None: H, every quasi-eigen basis and PCA (PCA only where the bases were not carried onto
         other points; the alternative bases of ``basis.alternatives`` are not kept by the pipeline).
@@ -133,7 +133,7 @@ def exported_bases(result, labels: Sequence[str] | None, solver: str, table: pd.
     table : pandas.DataFrame
         The recorded alpha table (for each basis's alpha).
     """
-    from workbench.pipeline import QE_LABELS
+    from workbench.study.results import QE_LABELS
 
     n_hand = len(result.capture.hand_names)
     shapes = {"H": (result.capture.hand_names, result.capture.hand)}
@@ -188,7 +188,7 @@ def check_recomputed(results, table: pd.DataFrame, folder: Path) -> None:
 
 def rebuild_results(record):
     """Run the recorded config again and check it against the record; returns the study results."""
-    from workbench.pipeline import run_study
+    from workbench.study.run import run_study
 
     results = run_study(record.config)
     check_recomputed(results, record.table, record.folder)

@@ -18,7 +18,7 @@ from typing import Iterator
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.record import FILE_MODE, TEMPORARY_SUFFIX, write_atomic
+from workbench.files import FILE_MODE, TEMPORARY_SUFFIX, sha256_of_file, write_atomic
 
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
@@ -163,17 +163,6 @@ def written_intact(path: Path) -> str | None:
     if sha256_of_file(path) != recorded:
         return "its SHA-256 no longer matches the one recorded when it was written"
     return None
-
-
-def sha256_of_file(path: Path) -> str:
-    """SHA-256 (hex) of a file's content, read into one buffer of 1 MB (``hashlib.file_digest`` needs Python
-    3.11)."""
-    digest, buffer = hashlib.sha256(), bytearray(1 << 20)
-    view = memoryview(buffer)
-    with open(path, "rb", buffering=0) as stream:
-        while size := stream.readinto(buffer):
-            digest.update(view[:size])
-    return digest.hexdigest()
 
 
 class FrameWriter:

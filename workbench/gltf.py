@@ -303,7 +303,7 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
         Naming the file and the part at fault: the file is missing or not binary glTF 2.0; it has no (or several,
         without ``mesh_name``) meshes with morph targets; an index names no accessor, buffer view or sampler; data
         reach past the binary chunk; positions are not float32 triangles or indices not unsigned integers;
-        a value is NaN or Inf, a vertex lies far outside the face (:func:`~workbench.dataset.plausibility.
+        a value is NaN or Inf, a vertex lies far outside the face (:func:`~workbench.plausibility.
         mesh_outlier_problems`), or key times do not increase.
     """
     import pygltflib
@@ -367,7 +367,7 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
 def _check_plausible_shapes(mesh: MorphMesh, path: Path) -> None:
     """Refuse a neutral or morph target with a vertex far outside the face (a coordinate of 1e6 or 1e30), as the
     OBJ reader does."""
-    from workbench.dataset.plausibility import mesh_outlier_problems
+    from workbench.plausibility import mesh_outlier_problems
 
     problems = mesh_outlier_problems(mesh.neutral, mesh.neutral, f"{path} (neutral)", unit="mm")
     for name, delta in zip(mesh.names, mesh.deltas):

@@ -13,8 +13,6 @@ import numpy as np
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
 
-NORMALISATIONS = ("absolute", "displacement")
-
 
 def _check_frames(name: str, array, *, n_dims: int | None = None, points: bool = False) -> np.ndarray:
     """``array`` as a non-empty 2-D float array (frames x dims), or a :class:`WorkbenchError` naming ``name``."""

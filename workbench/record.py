@@ -21,12 +21,10 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import os
 import platform
 import re
 import subprocess
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -35,71 +33,14 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.files import (TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file,
+                             write_atomic)
 
 if TYPE_CHECKING:
     import pandas as pd
 
 RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
                    "scikit-learn")
-TEMPORARY_SUFFIX = ".tmp"
-"""A file being written is ``.<name>.<random>.tmp`` beside its final name; a kill can leave one behind, never a
-part of a final file. Readers look only at final names; a rerun clears a killed run's folder."""
-
-
-def _file_mode() -> int:
-    """Permissions of a new file under the process's umask (the temporary file is created private)."""
-    umask = os.umask(0o022)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-FILE_MODE = _file_mode()
-
-
-def write_atomic(path: Path, data: bytes | str) -> None:
-    """Write a file so that a reader sees either the old content or the whole new content, never a part."""
-    path = Path(path)
-    payload = data.encode() if isinstance(data, str) else data
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
-    except OSError as error:
-        raise _naming(error, path) from None
-    try:
-        os.fchmod(handle, FILE_MODE)
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(payload)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException as error:
-        Path(temporary).unlink(missing_ok=True)
-        if isinstance(error, OSError):
-            raise _naming(error, path) from None
-        raise
-
-
-def _naming(error: OSError, path: Path) -> OSError:
-    """``error`` naming the file being written (a full disk fails a write on an open file, which names none)."""
-    return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
-
-
-def json_text(value) -> str:
-    return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
-
-
-def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
-    buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
-    return buffer.getvalue()
-
-
-def write_json(path: Path, value) -> None:
-    write_atomic(path, json_text(value))
-
-
-def write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
-    write_atomic(path, npz_bytes(arrays))
 
 
 def config_hash(resolved_yaml: str) -> str:
@@ -126,17 +67,23 @@ def git_state(repository: Path | None) -> dict:
     return {"commit": commit.stdout.strip(), "dirty": bool(status.stdout.strip())}
 
 
-def versions() -> dict:
-    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
-    from workbench import __version__
-
-    found = {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform()}
-    for package in RECORD_PACKAGES:
+def package_versions(packages: Sequence[str]) -> dict:
+    """The installed version of each package (None for one not installed), in the order given."""
+    found = {}
+    for package in packages:
         try:
             found[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             found[package] = None
     return found
+
+
+def versions() -> dict:
+    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
+    from workbench.version import __version__
+
+    return {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform(),
+            **package_versions(RECORD_PACKAGES)}
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -190,134 +137,20 @@ def is_record_file(name: str) -> bool:
     return name in RECORD_FILES or bool(_VARIANT_INPUTS.fullmatch(name))
 
 
-def file_checksum(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex), read in blocks."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 # ---------------------------------------------------------------------------------------------------------------
 # Writing
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def alpha_per_frame_arrays(results) -> dict:
-    """Per-frame alpha of every table row, for plots over time: ``<data>.absolute`` and ``<data>.displacement``
-    of shape (n_rows, n_eval_frames), ``<data>.error_mm`` (RMS point error over the face region, NaN where a row
-    has none), ``<data>.basis`` / ``<data>.solver`` naming the rows in table order, and the evaluated frames'
-    take, frame number in the file and time (``<data>.take``, ``.frame``, ``.seconds``)."""
-    arrays = {}
-    for result in results:
-        n_frames = len(result.capture.eval)
-        arrays[f"{result.data}.basis"] = np.array([row.basis for row in result.rows])
-        arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
-        arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
-        arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
-        arrays[f"{result.data}.error_mm"] = np.array([np.full(n_frames, np.nan) if row.frame_error_mm is None
-                                                      else row.frame_error_mm for row in result.rows])
-        arrays.update(result.capture.timeline().as_arrays(f"{result.data}."))
-    return arrays
-
-
-def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
-    """The pairs of table rows a run compares frame by frame: every two bases under the same solver (PCA, whose
-    row has no solver, under each), and every basis under two solvers.
-
-    Parameters
-    ----------
-    rows : sequence of workbench.pipeline.Row
-
-    Returns
-    -------
-    list of (int, int)
-        Indices into ``rows``.
-    """
-    solvers = list(dict.fromkeys(row.solver for row in rows if row.solver != "projection"))
-    pairs = []
-    for solver in solvers:
-        members = [i for i, row in enumerate(rows) if row.solver in (solver, "projection")]
-        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
-    for basis in dict.fromkeys(row.basis for row in rows if row.solver != "projection"):
-        members = [i for i, row in enumerate(rows) if row.basis == basis and row.solver != "projection"]
-        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
-    return list(dict.fromkeys(pairs))
-
-
-def frame_comparisons(result, metric: Mapping) -> list[dict]:
-    """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
-    of :func:`comparison_pairs`, the difference ``a - b`` with its block-bootstrap interval over time
-    (:mod:`workbench.reporting.statistics`).
-
-    Parameters
-    ----------
-    result : workbench.pipeline.StudyResult
-    metric : mapping
-        The ``metric`` config group: the headline's normalisation and aggregate, the bootstrap's resamples and
-        seed.
-
-    Returns
-    -------
-    list of dict
-        ``a`` and ``b`` as ``[basis, solver]``, ``column``, and the :class:`Interval`'s fields.
-    """
-    from workbench.reporting.statistics import paired_mean_difference, paired_pooled_difference
-
-    normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
-    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
-    options = {"n_resamples": int(metric.get("bootstrap_resamples", 2000)),
-               "seed": int(metric.get("bootstrap_seed", 0))}
-    timeline = result.capture.timeline()
-    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
-    found = []
-    for a, b in comparison_pairs(result.rows):
-        first, second = result.rows[a].alpha, result.rows[b].alpha
-        if aggregate == "mean":
-            values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
-            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, **options)
-        else:
-            reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
-            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
-                                                seconds=timeline.seconds, **options)
-        found.append({"a": [result.rows[a].basis, result.rows[a].solver],
-                      "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
-    return found
-
-
-def data_metrics(result) -> dict:
-    """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
-    from workbench.pipeline import intuitiveness_table
-
-    capture, eigenfaces = result.capture, result.eigenfaces
-    return {
-        "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
-        "notes": list(capture.notes), "face_region": result.face_region, "offset": dict(result.offset),
-        "protocol": result.protocol,
-        "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
-                "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
-                "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
-        "quasi_eigen": {projection: {"empty_axes": [j + 1 for j in qe.empty_axes],
-                                     "appended_axes": [j + 1 for j in qe.appended_axes],
-                                     "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
-                        for projection, qe in result.quasi_eigen.items()},
-        "intuitiveness": intuitiveness_table(result),
-        **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
-    }
-
-
-def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Sequence[str],
-                job_num: int | None, started_at: str, repository: Path,
-                comparisons: Mapping[str, list] | None = None) -> dict:
+def run_metrics(results_metrics: Mapping, *, study: str, resolved_yaml: str, overrides: Sequence[str],
+                job_num: int | None, started_at: str, repository: Path) -> dict:
     """The content of ``metrics.json`` for a finished run.
 
     Parameters
     ----------
-    results : sequence of workbench.pipeline.StudyResult
-        One per data variant.
-    table : pandas.DataFrame
-        The run's alpha table (``workbench.run_text.alpha_table`` of every result, concatenated).
+    results_metrics : mapping
+        What the run found: ``dataset``, ``data`` and ``rows``
+        (:func:`workbench.study.summary.results_metrics`).
     study : str
     resolved_yaml : str
         The resolved config as written to ``config.yaml`` (its hash identifies the run).
@@ -329,8 +162,6 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
         ISO time the run started.
     repository : pathlib.Path
         The workbench's checkout, for the git commit.
-    comparisons : mapping, optional
-        Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
 
     Returns
     -------
@@ -338,29 +169,14 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
     """
     from datetime import datetime, timezone
 
-    capture = results[0].capture
-    rows = [(result, result_row) for result in results for result_row in result.rows]
     return {
         "study": study,
         "config_hash": config_hash(resolved_yaml),
         "overrides": list(overrides),
         "job_num": job_num,
-        "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
-                    "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
-                    "provenance": capture.provenance},
-        "data": {result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
-                 for result in results},
-        "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
-                      eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
-                      solver_fallback_frames=row.n_fallback_frames,
-                      solver_max_kkt_violation=row.max_kkt_violation,
-                      max_abs_weight=row.max_abs_weight,
-                      basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames,
-                      weights=row.weight_statistics.as_dict() if row.weight_statistics else None,
-                      error_mm_quantiles=row.error_mm.quantiles.tolist() if row.error_mm else None,
-                      offset_error_share=row.offset_error_share)
-                 for i, (result, row) in enumerate(rows)],
+        "dataset": results_metrics["dataset"],
+        "data": results_metrics["data"],
+        "rows": results_metrics["rows"],
         "versions": versions(),
         "git": git_state(repository),
         "started_at": started_at,
@@ -368,21 +184,9 @@ def run_metrics(results, table, *, study: str, resolved_yaml: str, overrides: Se
     }
 
 
-def input_arrays(result) -> dict:
-    """The arrays of ``inputs.npz``: what figures 2-4 need to recompute a few frames with the core."""
-    capture = result.capture
-    return {"train": capture.train, "eval": capture.eval, "neutral": capture.neutral, "hand": capture.hand,
-            "hand_names": np.array(capture.hand_names), "mean": result.eigenfaces.mean_,
-            "components": result.eigenfaces.components_,
-            **({"faces": capture.faces} if capture.faces is not None else {}),
-            **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {}),
-            **({"point_support": capture.point_support} if capture.point_support is not None
-               else {}),
-            **capture.timeline().as_arrays("eval_")}
-
-
 def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics: Mapping, timings: Mapping,
-                 results=(), save_inputs: bool = False) -> None:
+                 inputs: Mapping[str, Mapping[str, np.ndarray]] | None = None,
+                 alpha_per_frame: Mapping[str, np.ndarray] | None = None) -> None:
     """Write a run record into ``folder``, every file atomically and ``done`` last.
 
     Parameters
@@ -396,9 +200,11 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
         ``alpha_table.md``: what the run printed.
     metrics, timings : mapping
         ``metrics.json`` (:func:`run_metrics`) and ``timings.json``.
-    results : sequence of workbench.pipeline.StudyResult
-        Needed with ``save_inputs``: the arrays of ``inputs.npz`` and ``alpha_per_frame.npz``.
-    save_inputs : bool
+    inputs : mapping, optional
+        Data variant -> the arrays of its inputs file (``save_inputs``): ``inputs.npz`` when the run has one data
+        variant, ``inputs_<variant>.npz`` otherwise (:func:`workbench.study.summary.saved_inputs`).
+    alpha_per_frame : mapping, optional
+        The arrays of ``alpha_per_frame.npz`` (:func:`workbench.study.summary.alpha_per_frame_arrays`).
     """
     folder = Path(folder)
     checksums = {}
@@ -413,14 +219,11 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
     write(TEXT_FILE, text)
     write(METRICS_FILE, json_text(dict(metrics)))
     write(TIMINGS_FILE, json_text(dict(timings)))
-    if save_inputs:
-        # bases carried onto other points (dataset.eval_on) live in two point sets: no single inputs file; the
-        # figures show the paper's protocol, so held-out frames (dataset.held_out) are not saved either
-        for result in [result for result in results
-                       if result.transfer == "identity" and result.protocol == "training frames"]:
-            name = INPUTS_FILE if len(results) == 1 else f"inputs_{result.data.replace('->', '_to_')}.npz"
-            write(name, npz_bytes(input_arrays(result)))
-        write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame_arrays(results)))
+    for data, arrays in (inputs or {}).items():
+        write(INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz",
+              npz_bytes(arrays))
+    if alpha_per_frame is not None:
+        write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame))
     write_atomic(folder / DONE, json_text({"sha256": checksums}))
 
 
@@ -568,7 +371,7 @@ def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
         raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
                              f"{sorted(checksums)}); the record cannot be trusted: move the file away")
     try:
-        found = file_checksum(path)
+        found = sha256_of_file(path)
     except FileNotFoundError:
         raise WorkbenchError(f"run record {folder}: {name} is missing") from None
     except OSError as error:
@@ -629,29 +432,6 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
         if row["data"] not in metrics["data"]:
             raise WorkbenchError(f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' "
                                  f"({sorted(metrics['data'])})")
-
-
-def plain_name(name: str) -> bool:
-    """Whether ``name`` can name a file or folder without leaving its parent (no separator, not '.' or '..')."""
-    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name and "\0" not in name
-
-
-def inside(root: Path, *parts: str) -> Path:
-    """``root / parts``, refused when it would leave ``root``, by its name or through a symbolic link (a report or
-    collect writes only into its output folder, whatever names a record holds and whatever links it contains).
-
-    Raises
-    ------
-    WorkbenchError
-    """
-    root = Path(root)
-    path = root.joinpath(*parts)
-    for resolved, base, target in ((False, os.path.abspath(root), os.path.abspath(path)),
-                                   (True, os.path.realpath(root), os.path.realpath(path))):
-        if os.path.commonpath([base, target]) != base:
-            link = f" (a symbolic link leads to {target})" if resolved else ""
-            raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")
-    return path
 
 
 def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:

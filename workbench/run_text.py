@@ -29,7 +29,7 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
 
     Parameters
     ----------
-    rows : sequence of workbench.pipeline.Row
+    rows : sequence of workbench.study.results.Row
     data : str
         The data variant the rows were computed on (``markers``, ``mesh``, ...).
     m : int
@@ -100,7 +100,7 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
 
     Parameters
     ----------
-    results : sequence of workbench.pipeline.StudyResult
+    results : sequence of workbench.study.results.StudyResult
         One per data variant, all from the same dataset.
     cfg : mapping
         The resolved study config.
@@ -149,7 +149,7 @@ def conditioning_lines(rows: Sequence) -> list[str]:
 
     Parameters
     ----------
-    rows : sequence of workbench.pipeline.Row
+    rows : sequence of workbench.study.results.Row
         Rows with ``conditioning`` set (the first row of each basis is used).
 
     Returns
@@ -197,7 +197,7 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
     paper_alpha : mapping
         The paper's alpha per basis label.
     comparisons : mapping, optional
-        Data variant -> its paired comparisons (:func:`workbench.record.frame_comparisons`).
+        Data variant -> its paired comparisons (:func:`workbench.study.summary.frame_comparisons`).
 
     Returns
     -------
@@ -220,7 +220,7 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
                 lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
                              + f", PCA {pca:.2f}")
                 continue
-            from workbench.reporting.statistics import comparison_lookup, ordering_text
+            from workbench.statistics import comparison_lookup, ordering_text
 
             values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},
                       ("PCA", "projection"): float(pca)}

@@ -104,7 +104,7 @@ SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value
                    "a non-empty list of distinct shape names (plain names: each names a file in an export)")
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
 HELD_OUT = names("tail", "take", optional=True)
-"""``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.pipeline.HELD_OUT``)."""
+"""``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
 SYNTHETIC_VARIANTS = ("markers", "mesh", "mesh_rbf", "face")
 """The synthetic actor's data variants (``workbench.dataset.TRAIN_ON``)."""
 PLAUSIBILITY = one_of("error", "warn")

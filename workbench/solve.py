@@ -22,12 +22,12 @@ The constrained kinds are reduced once to the ``n_shapes x n_shapes`` problem
 and solved for all frames together; only SciPy's last-resort solver below loops over frames.
 
 1. Frames whose unconstrained (minimum-norm) weights satisfy the bounds are done: they minimise eq. 5.
-2. The others get a warm start from a few over-relaxed ADMM iterations (:func:`_admm`).  One ``n x n``
+2. The others get a warm start from a few over-relaxed ADMM iterations (:func:`admm`).  One ``n x n``
    inverse serves every frame and an iteration is one matrix product, so ten of them cost about as much as
    one or two batches of pinned solves over all frames, yet they leave most frames with nearly their final
    active sets (without them the next step needs two to three times as many solves on quasi-eigen bases).
 3. A batched primal active-set method -- Lawson & Hanson's NNLS, with two-sided bounds as in Stark & Parker's
-   BVLS -- makes every frame exact (:func:`_primal_active_set`).  Each iteration solves one batch of pinned
+   BVLS -- makes every frame exact (:func:`primal_active_set`).  Each iteration solves one batch of pinned
    systems ``G_FF w_F = c_F - G_FA w_A`` (frames sharing a free set share one factorisation) and then, per
    frame, either steps towards that solution until the first free variable reaches its bound and pins it,
    or, when the solution is feasible, frees the pinned variable whose gradient pulls it off its bound the
@@ -71,24 +71,19 @@ import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
 from workbench.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
+from workbench.bounded import (ADMM_RELAX, ADMM_RHO, admm, frames_of, largest_entry, positive, primal_active_set,
+                               times)
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
 
 KINDS = ("lstsq", "nnls", "box")
 
-# ADMM warm start: iterations, penalty ``rho_i = _ADMM_RHO * G_ii`` and over-relaxation (see ``_admm``).
+# ADMM warm start: iterations (its penalty and over-relaxation: ``workbench.bounded``).
 _ADMM_STEPS = 10
-_ADMM_RHO = 0.1
-_ADMM_RELAX = 1.6
 
 # The primal active-set method frees a pinned variable only if its scaled gradient exceeds this fraction of
 # ``Tolerances.kkt``.
 _FREE_FRACTION = 0.1
-
-# Right-hand sides per factorisation when frames share a free set, and matrix entries per batched solve call
-# (memory bound), see ``_pinned_solve``.
-_MAX_SHARED = 32
-_SYSTEM_ENTRIES = 2**22
 
 # Termination tolerance of SciPy's BVLS on the fallback problem (scaled to O(1), see ``_per_frame``).
 _BVLS_TOL = 1e-14
@@ -445,12 +440,12 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
     hi = _bound_vector("upper", upper, n, np.inf)[0]
     if gram.ndim == 2:  # one gram for every frame: compiled, frame by frame
         return kkt_violation_frames(np.ascontiguousarray(gram.T), np.ascontiguousarray(rhs),
-                                    np.ascontiguousarray(weights), lo, hi, float(_largest_entry(gram)),
+                                    np.ascontiguousarray(weights), lo, hi, float(largest_entry(gram)),
                                     _largest_finite(lo, hi))
-    grad = _times(weights, np.swapaxes(gram, -1, -2)) - rhs
+    grad = times(weights, np.swapaxes(gram, -1, -2)) - rhs
     w_size = np.abs(weights).max(axis=1)
-    g_scale = _positive(np.abs(rhs).max(axis=1) + _largest_entry(gram) * w_size)[:, None]
-    w_scale = _positive(np.maximum(w_size, _largest_finite(lo, hi)))[:, None]
+    g_scale = positive(np.abs(rhs).max(axis=1) + largest_entry(gram) * w_size)[:, None]
+    w_scale = positive(np.maximum(w_size, _largest_finite(lo, hi)))[:, None]
     with np.errstate(invalid="ignore"):
         as_free = np.abs(grad) / g_scale
         as_lower = np.maximum(-grad, 0.0) / g_scale + np.maximum(weights - lo, 0.0) / w_scale
@@ -590,276 +585,28 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
     n_iter = 0
     if pending.size:
         c = rhs[pending]
-        work = _frames_of(gram, pending) + np.multiply.outer(_frames_of(ridge, pending), np.eye(n))
+        work = frames_of(gram, pending) + np.multiply.outer(frames_of(ridge, pending), np.eye(n))
         if work.ndim == 2:  # one gram for every frame: compiled, frame by frame
-            penalty = _ADMM_RHO * _positive(np.diagonal(work).copy())
+            penalty = ADMM_RHO * positive(np.diagonal(work).copy())
             inverse = np.linalg.inv(work + np.diag(penalty))
             found, status, iterations = primal_active_set_frames(
                 np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, start[pending],
                 tol.active_set_max_iter, _FREE_FRACTION * tol.kkt, inverse, penalty[:, None] * inverse,
-                _ADMM_STEPS, _ADMM_RELAX)
+                _ADMM_STEPS, ADMM_RELAX)
             weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
         else:
-            guess = _admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
-            weights[pending], done[pending], n_iter = _primal_active_set(
+            guess = admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
+            weights[pending], done[pending], n_iter = primal_active_set(
                 work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
     violation = kkt_violation(gram, rhs, weights, lo, hi)
     redo = np.flatnonzero(~done | (violation > tol.kkt))
     if redo.size:
         candidate = fallback(redo)
-        candidate_violation = kkt_violation(_frames_of(gram, redo), rhs[redo], candidate, lo, hi)
+        candidate_violation = kkt_violation(frames_of(gram, redo), rhs[redo], candidate, lo, hi)
         better = ~done[redo] | (candidate_violation < violation[redo])
         weights[redo[better]] = candidate[better]
         violation[redo[better]] = candidate_violation[better]
     return weights, n_iter, int(redo.size), float(violation.max())
-
-
-def _frames_of(per_frame, frames):
-    """The values of ``frames``: a shared value (an ``(n, n)`` gram, a float ridge) itself, or those rows of
-    per-frame ones (``(n_frames, n, n)`` grams, ``(n_frames,)`` ridges)."""
-    return per_frame if np.ndim(per_frame) in (0, 2) else per_frame[frames]
-
-
-def _times(rows, gram):
-    """``rows[f] @ gram`` (shared gram) or ``rows[f] @ gram[f]`` (per-frame grams), shape (n_frames, n)."""
-    return rows @ gram if gram.ndim == 2 else np.einsum("fi,fij->fj", rows, gram)
-
-
-def _largest_entry(gram):
-    """``max|G|``: a float for a shared gram, shape (n_frames,) for per-frame grams."""
-    return np.abs(gram).max() if gram.ndim == 2 else np.abs(gram).max(axis=(1, 2))
-
-
-def _admm(gram, c, lo, hi, start, steps: int):
-    """Feasible weights after a few over-relaxed ADMM iterations from ``start``, for all frames at once.
-
-    ADMM on ``min 0.5 w^T G w - c^T w + [z in box]`` subject to ``w = z``, with scaled multipliers ``u``,
-    penalty ``R = diag(_ADMM_RHO * G_ii)`` and relaxation ``a = _ADMM_RELAX``:
-    ``x = (G + R)^-1 (c + R (z - u))``, ``x <- a x + (1 - a) z``, ``z = clip(x + u)``, ``u <- u + x - z``.
-    It is run on ``s = z + u`` alone (``z = clip(s)``, ``u = s - z``), which gives the update
-    ``s <- s + a (x - z)`` with ``x = (G + R)^-1 (c + R (2 z - s))``.  ``G + R`` is positive definite even
-    when ``G`` is singular.  The result only guides :func:`_primal_active_set`; it need not be converged.
-
-    Parameters
-    ----------
-    gram : ndarray of shape (n, n) or (n_frames, n, n)
-        Symmetric positive semi-definite; one for every frame, or one per frame.
-    c : ndarray of shape (n_frames, n)
-    lo, hi : ndarray of shape (n,)
-    start : ndarray of shape (n_frames, n)
-        Finite weights, e.g. the unconstrained ones.
-    steps : int
-
-    Returns
-    -------
-    ndarray of shape (n_frames, n)
-        ``z``, within the bounds.
-    """
-    penalty = _ADMM_RHO * _positive(np.diagonal(gram, axis1=-2, axis2=-1).copy())
-    inverse = np.linalg.inv(gram + penalty[..., None] * np.eye(gram.shape[-1]))
-    offset = _times(c, inverse)
-    gain = penalty[..., :, None] * inverse
-    s = np.clip(start, lo, hi)
-    for _ in range(steps):
-        z = np.clip(s, lo, hi)
-        x = _times(2.0 * z - s, gain)
-        x += offset
-        x -= z
-        x *= _ADMM_RELAX
-        s += x
-    return np.clip(s, lo, hi)
-
-
-def _primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float):
-    """Batched primal active-set iterations (Lawson-Hanson NNLS, Stark-Parker BVLS) for all frames at once.
-
-    Every frame keeps feasible weights ``w`` and a set of variables pinned at a bound (initially those of
-    ``start`` that lie on a bound).  An iteration solves the pinned systems of all unfinished frames at once
-    (:func:`_pinned_solve`, solution ``z``) and then, per frame:
-
-    * if ``z`` violates a bound, ``w`` moves towards ``z`` until the first free variable reaches its bound,
-      and that variable is pinned.  ``z`` minimises the (convex) objective on the subspace through ``w``
-      where the pinned variables are fixed, so the objective does not increase;
-    * otherwise ``w = z``, and the pinned variable whose gradient pulls it off its bound (by more than
-      ``threshold``, scaled as in :func:`kkt_violation`) with the largest predicted decrease
-      ``g_i^2 / G_ii`` is freed.  The minimiser of the enlarged subspace is strictly lower and the freed
-      variable moves into the box towards it, so the objective at successive subspace minimisers strictly
-      decreases and no free set comes back: the method cannot cycle.  Without such a variable the frame
-      is finished.
-
-    A freed variable that the next solve would move out of the box (possible only through rounding, when its
-    gradient was noise) finishes the frame as it is; the KKT check of the caller judges it.
-
-    Parameters
-    ----------
-    gram : ndarray of shape (n, n) or (n_frames, n, n)
-        Symmetric positive definite (regularised if needed); one for every frame, or one per frame.
-    rhs : ndarray of shape (n_frames, n)
-    lo, hi : ndarray of shape (n,)
-    start : ndarray of shape (n_frames, n)
-        Weights to start from; non-finite entries become 0 and all are clipped to the bounds.
-    max_iter : int
-        Batched solves at most.
-    threshold : float
-
-    Returns
-    -------
-    weights : ndarray of shape (n_frames, n)
-        Within the bounds for every frame, finished or not.
-    done : ndarray of bool, shape (n_frames,)
-        Frames that finished within ``max_iter`` iterations.
-    n_iterations : int
-    """
-    w = np.clip(np.where(np.isfinite(start), start, 0.0), lo, hi)
-    at_lo = w <= lo
-    at_hi = (w >= hi) & ~at_lo
-    movable = lo < hi
-    upper = bool(np.isfinite(hi).any())
-    weights = w.copy()
-    done = np.zeros(len(rhs), dtype=bool)
-    pending = np.arange(len(rhs))
-    c = rhs
-    c_size = np.abs(rhs).max(axis=1)
-    shared = gram.ndim == 2
-    g_max = _largest_entry(gram)
-    curvature = _positive(np.diagonal(gram, axis1=-2, axis2=-1).copy())
-    freed = np.full(len(rhs), -1)
-    n_iter = 0
-    while pending.size and n_iter < max_iter:
-        n_iter += 1
-        z = _pinned_solve(gram, c, w, ~(at_lo | at_hi))
-        below = z < lo  # pinned variables sit exactly on their bound: only free ones can be outside
-        above = (z > hi) if upper else np.zeros_like(below)
-        blocked = (below | above).any(axis=1)
-        finished = np.zeros(len(z), dtype=bool)
-        k = np.flatnonzero(blocked)
-        if k.size:
-            wk, zk, bk, ak = w[k], z[k], below[k], above[k]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(bk, (wk - lo) / (wk - zk), np.inf)
-                if upper:
-                    ratio = np.where(ak, (hi - wk) / (zk - wk), ratio)
-            step = ratio.min(axis=1)
-            hit = ratio <= step[:, None]
-            pin_lo, pin_hi = hit & bk, hit & ak
-            wk = np.clip(wk + step[:, None] * (zk - wk), lo, hi)
-            np.copyto(wk, np.broadcast_to(lo, wk.shape), where=pin_lo)
-            np.copyto(wk, np.broadcast_to(hi, wk.shape), where=pin_hi)
-            w[k] = wk
-            at_lo[k] |= pin_lo
-            at_hi[k] |= pin_hi
-            last = freed[k]
-            finished[k] = (step <= 0.0) & (last >= 0) & hit[np.arange(k.size), np.maximum(last, 0)]
-            freed[k] = -1
-        u = np.flatnonzero(~blocked)
-        if u.size:
-            wu = z[u]
-            grad = _times(wu, _frames_of(gram, u)) - c[u]
-            small = (threshold * (c_size[u] + (g_max if shared else g_max[u]) * np.abs(wu).max(axis=1)))[:, None]
-            wanted = at_lo[u] & (grad < -small)
-            if upper:
-                wanted |= at_hi[u] & (grad > small)
-            pull = grad * grad * (wanted & movable) / (curvature if shared else curvature[u])
-            best = pull.argmax(axis=1)
-            grows = pull[np.arange(u.size), best] > 0.0
-            at_lo[u[grows], best[grows]] = False
-            at_hi[u[grows], best[grows]] = False
-            freed[u] = np.where(grows, best, -1)
-            w[u] = wu
-            finished[u] = ~grows
-        weights[pending] = w
-        if finished.any():
-            done[pending[finished]] = True
-            keep = ~finished
-            pending, w, c, c_size, at_lo, at_hi, freed = (
-                pending[keep], w[keep], c[keep], c_size[keep], at_lo[keep], at_hi[keep], freed[keep])
-            if not shared:
-                gram, g_max, curvature = gram[keep], g_max[keep], curvature[keep]
-    return weights, done, n_iter
-
-
-def _pinned_solve(gram, c, w, free):
-    """Weights equal to ``w`` on pinned variables and solving ``G_FF x_F = c_F - G_FA w_A`` on free ones.
-
-    Each frame's system is ``G`` with the rows and columns of its pinned variables replaced by those of the
-    identity, right-hand side ``w_i`` on them.  Frames with the same free set -- usually many: a take has far
-    fewer distinct active sets than frames -- share one such matrix and are packed as the columns of one
-    multi-right-hand-side system, at most ``width`` per system, so the batched solve factorises one matrix per
-    distinct set (or per ``width`` frames) instead of one per frame.
-
-    Parameters
-    ----------
-    gram : ndarray of shape (n, n) or (n_frames, n, n)
-        Symmetric; one for every frame, or one per frame.
-    c : ndarray of shape (n_frames, n)
-    w : ndarray of shape (n_frames, n)
-        Finite; its pinned entries are kept (exactly).
-    free : ndarray of bool, shape (n_frames, n)
-
-    Returns
-    -------
-    ndarray of shape (n_frames, n)
-    """
-    n_frames, n = c.shape
-    pinned = w * ~free
-    b = (c - _times(pinned, gram) if pinned.any() else c) * free + pinned  # pinned all zero: the nnls case
-    if gram.ndim == 3:  # one gram per frame: nothing to share, one batched solve per block of frames
-        out = np.empty_like(b)
-        block = max(1, _SYSTEM_ENTRIES // (n * n))
-        for part in range(0, n_frames, block):
-            rows = slice(part, part + block)
-            out[rows] = _identity_pinned_solve(gram[rows], free[rows], b[rows, :, None])[:, :, 0]
-        return out
-    _, first, group, count = np.unique(_set_key(free), return_index=True, return_inverse=True,
-                                       return_counts=True, axis=0)
-    group = group.ravel()
-    width = int(min(_MAX_SHARED, -(-n_frames // first.size)))
-    order = np.argsort(group, kind="stable")
-    group = group[order]
-    rank = np.arange(n_frames) - (np.cumsum(count) - count)[group]
-    n_systems = -(-count // width)
-    system = (np.cumsum(n_systems) - n_systems)[group] + rank // width
-    slot = rank % width
-    owner = np.repeat(free[first], n_systems, axis=0)
-    x = np.zeros((owner.shape[0], n, width))
-    x[system, :, slot] = b[order]
-    block = max(1, _SYSTEM_ENTRIES // (n * n))
-    for part in range(0, len(owner), block):
-        x[part:part + block] = _identity_pinned_solve(gram, owner[part:part + block], x[part:part + block])
-    out = np.empty_like(b)
-    out[order] = x[system, :, slot]
-    return out
-
-
-def _identity_pinned_solve(gram, free, rhs):
-    """Solve ``M_k X_k = rhs_k`` for every k, ``M_k`` being ``gram`` with identity rows and columns where
-    ``free[k]`` is False.
-
-    Parameters
-    ----------
-    gram : ndarray of shape (n, n) or (n_systems, n, n)
-    free : ndarray of bool, shape (n_systems, n)
-    rhs : ndarray of shape (n_systems, n, width)
-
-    Returns
-    -------
-    ndarray of shape (n_systems, n, width)
-    """
-    n = gram.shape[-1]
-    matrices = np.where(free[:, :, None] & free[:, None, :], gram, 0.0)
-    matrices[:, np.arange(n), np.arange(n)] += ~free
-    try:
-        return np.linalg.solve(matrices, rhs)
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(matrices) @ rhs
-
-
-def _set_key(free):
-    """One key per row of a boolean mask, equal for equal rows: a bit mask when ``n <= 62``, else the row."""
-    n = free.shape[1]
-    if n <= 62:
-        return free @ (np.int64(1) << np.arange(n, dtype=np.int64))
-    return free
 
 
 def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, kind: str, ridge: float) -> np.ndarray:
@@ -909,10 +656,6 @@ def _nnls_one(design, b, lo, hi) -> np.ndarray:
 def _bvls_one(design, b, lo, hi) -> np.ndarray:
     n = design.shape[1]
     return lsq_linear(design, b, bounds=(lo, hi), method="bvls", tol=_BVLS_TOL, max_iter=50 * n + 100).x
-
-
-def _positive(x: np.ndarray) -> np.ndarray:
-    return np.where(x > 0, x, 1.0)
 
 
 def _largest_finite(lo: np.ndarray, hi: np.ndarray) -> float:

@@ -19,54 +19,16 @@ live run.
 
 from __future__ import annotations
 
-import errno
-import fcntl
-import hashlib
 import json
 import logging
 import os
-import re
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, exit_on_error
+from workbench.files import lock_file, unlock_file
 from workbench.record import DONE, METRICS_FILE, is_record_file, record_state
-
-RUN_ID_MAX = 120
-"""Longest run folder name made from the overrides alone; longer ones are cut and get a hash."""
-
-
-def run_dir_name(override_dirname: str) -> str:
-    """The folder name of a run, from Hydra's ``hydra.job.override_dirname`` (its sorted overrides).
-
-    Readable when it can be (``basis.coverage=0.99,dataset.seed=1``); characters unsafe in a file name are
-    replaced, and a name that had to be changed or cut gets a hash of the full text so that two runs never
-    share a folder.
-
-    Parameters
-    ----------
-    override_dirname : str
-
-    Returns
-    -------
-    str
-    """
-    text = str(override_dirname)
-    if not text:
-        return "default"
-    safe = re.sub(r"[^A-Za-z0-9._=,+\-]", "_", text)
-    if safe == text and len(text) <= RUN_ID_MAX:
-        return text
-    return f"{safe[:RUN_ID_MAX - 9]}-{hashlib.sha256(text.encode()).hexdigest()[:8]}"
-
-
-def register_resolvers() -> None:
-    """Register ``${run_id:...}`` with OmegaConf (studies name their run folders with it)."""
-    from omegaconf import OmegaConf
-
-    if not OmegaConf.has_resolver("run_id"):
-        OmegaConf.register_new_resolver("run_id", run_dir_name)
 
 
 def recorded_config_hash(folder: Path) -> str | None:
@@ -263,22 +225,16 @@ def lock_run_dir(folder: Path) -> int:
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    handle = os.open(folder / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as error:
-        os.close(handle)
-        if error.errno in (errno.EWOULDBLOCK, errno.EACCES):
-            raise FolderBusy(f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
-                             "held); wait for it to end or write this run elsewhere") from None
-        raise
+    handle = lock_file(folder / LOCK_FILE, wait=False)
+    if handle is None:
+        raise FolderBusy(f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
+                         "held); wait for it to end or write this run elsewhere")
     return handle
 
 
 def unlock_run_dir(handle: int) -> None:
     """Release a lock taken by :func:`lock_run_dir`."""
-    fcntl.flock(handle, fcntl.LOCK_UN)
-    os.close(handle)
+    unlock_file(handle)
 
 
 def discard_failed_run(folder: Path, found: frozenset = frozenset(), created: bool = False) -> bool:
@@ -367,6 +323,4 @@ def _refusal_ends_the_process():
     try:
         yield
     except Exception as error:  # noqa: BLE001 - Hydra would only warn about it
-        from workbench.cli import exit_on_error
-
         exit_on_error("workbench", error if isinstance(error, WorkbenchError) else WorkbenchError(str(error)))

@@ -16,18 +16,20 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
+from workbench.dataset.common import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
+                                      point_operator_matrix, split_frames, train_on_list)
 from workbench.dataset.capture import Capture, Timeline
-from workbench.dataset.correspondence import MarkerTable, place_markers, read_marker_table
+from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.dataset.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
+from workbench.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
                                             parked_marker_problems, plausibility_policy, settle, take_units_problems,
                                             with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
                                     number_setting, origin_text, seed_setting)
-from workbench.dataset.rigid import stabilise
+from workbench.dataset.rigid import Similarity, stabilise
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
 
@@ -321,10 +323,35 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
-    from workbench.dataset import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
-                                   point_operator_matrix, split_frames, train_on_list)
-
     names = train_on_list(cfg, TRAIN_ON)
+    placed = _placed_takes(cfg)
+    shared = _shared_facts(cfg, placed)
+    return {name: _variant_capture(name, cfg, placed, shared, storage) for name in names}
+
+
+@dataclass(frozen=True)
+class _Placed:
+    """AnimFace takes read, stabilised and placed on the ICT face (:func:`_placed_takes`); coordinates in mm in the
+    ICT head frame at the performer's size."""
+
+    take_files: list
+    takes: list
+    warnings: list
+    hand_names: list
+    basis: Blendshapes
+    table: MarkerTable
+    stable: StabilisedTakes
+    placement: MarkerPlacement
+    similarity: Similarity
+    scale: float
+    neutral: np.ndarray
+    displacements: np.ndarray
+    hand: np.ndarray
+
+
+def _placed_takes(cfg: Mapping) -> _Placed:
+    """Read and check the takes, stabilise them, place the basis face on the performer's markers and express the
+    capture in the ICT head frame."""
     take_files = list(cfg.get("takes") or [])
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
@@ -356,7 +383,15 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
     neutral = (stable.neutral - similarity.translation) @ similarity.rotation
     displacements = (stable.positions - similarity.translation) @ similarity.rotation - neutral
     hand = scale * basis.shapes(hand_names)
+    return _Placed(take_files=take_files, takes=takes, warnings=warnings, hand_names=hand_names, basis=basis,
+                   table=table, stable=stable, placement=placement, similarity=similarity, scale=scale,
+                   neutral=neutral, displacements=displacements, hand=hand)
 
+
+def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float, dict]:
+    """What every data variant of the capture says about itself: notes, provenance, frame rate, RBF settings."""
+    takes, stable, placement, similarity = placed.takes, placed.stable, placed.placement, placed.similarity
+    scale, table, take_files = placed.scale, placed.table, placed.take_files
     rbf = {**RBF_DEFAULTS, **(cfg.get("rbf") or {})}
     rigid_labels = list(cfg.get("rigid_markers") or [])
     neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {stable.neutral_rest.frame}"
@@ -386,55 +421,61 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
                       "vertices": dict(zip(table.labels, placement.vertices.tolist())),
                       "distance_mm": dict(zip(table.labels, np.round(placement.distances, 2).tolist()))},
     }
-    captures = {}
-    for name in names:
-        notes = list(notes_common)
-        support = None
-        if name == "markers":
-            points_neutral, frames = neutral, displacements
-            points_hand, labels, faces = hand[:, placement.vertices], table.labels, None
-            notes.append(f"markers: the {len(table.labels)} markers of {table.path.name}; the rigid ones stay "
-                         "training points (they move only by the stabilisation residual)")
-        else:
-            mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
-            operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
-            frames = interpolated_frames(operator, displacements, storage)
-            points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
-            labels = tuple(f"v{i}" for i in mesh_points)
-            faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
-            support = within_marker_reach(scale * basis.neutral, placement.vertices, mesh_points)
-            notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
-                         f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
-                         "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
-                         f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
-                         f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
-                         f"{int((~support).sum())} vertices farther from every marker than the markers' median "
-                         "spacing are extrapolated (the colour maps of the report fade there into the plain shade)")
-        if name == "markers":
-            frames = frames.reshape(len(frames), -1)
-        train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
-        notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
-        eval_visible = None
-        if stable.visible is not None and name == "markers":
-            eval_visible = stable.visible[len(stable.visible) - len(evaluate):]
-            evaluate = masked_frames(evaluate, eval_visible)
-            train, note = masked_training_frames(train, stable.visible[:len(train)], cfg.get("gap_fit_on", "filled"))
-            notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
-                         f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
-                         + note)
-        elif stable.visible is not None:
-            notes.append("mesh: interpolated from the markers with their gaps filled linearly (the RBF needs every "
-                         "marker)")
-        mapped = {}
-        if name == "mesh":  # the PCA of the mesh frames is computed on the markers and lifted
-            mapped = {"train_source": displacements.reshape(len(displacements), -1)[:len(train)],
-                      "train_operator": point_operator_matrix(operator)}
-        captures[name] = Capture(
-            name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
-            neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
-            hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
-            units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
-            **with_warnings(notes, dict(provenance, train_on=name), warnings), faces=faces,
-            eval_visible=eval_visible, point_support=support,
-            eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):], **mapped)
-    return captures
+    return notes_common, provenance, frame_rate, rbf
+
+
+def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, storage: FrameStorage) -> Capture:
+    """One data variant (``markers`` or ``mesh``) of the placed takes (:func:`_shared_facts` in ``shared``)."""
+    notes_common, provenance, frame_rate, rbf = shared
+    basis, table, stable, placement, scale = placed.basis, placed.table, placed.stable, placed.placement, placed.scale
+    neutral, displacements, hand, hand_names = placed.neutral, placed.displacements, placed.hand, placed.hand_names
+    warnings = placed.warnings
+    notes = list(notes_common)
+    support = None
+    if name == "markers":
+        points_neutral, frames = neutral, displacements
+        points_hand, labels, faces = hand[:, placement.vertices], table.labels, None
+        notes.append(f"markers: the {len(table.labels)} markers of {table.path.name}; the rigid ones stay "
+                     "training points (they move only by the stabilisation residual)")
+    else:
+        mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
+        operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
+        frames = interpolated_frames(operator, displacements, storage)
+        points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
+        labels = tuple(f"v{i}" for i in mesh_points)
+        faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
+        support = within_marker_reach(scale * basis.neutral, placement.vertices, mesh_points)
+        notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
+                     f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
+                     "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
+                     f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
+                     f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
+                     f"{int((~support).sum())} vertices farther from every marker than the markers' median "
+                     "spacing are extrapolated (the colour maps of the report fade there into the plain shade)")
+    if name == "markers":
+        frames = frames.reshape(len(frames), -1)
+    train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+    notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+    eval_visible = None
+    if stable.visible is not None and name == "markers":
+        eval_visible = stable.visible[len(stable.visible) - len(evaluate):]
+        evaluate = masked_frames(evaluate, eval_visible)
+        train, note = masked_training_frames(train, stable.visible[:len(train)], cfg.get("gap_fit_on", "filled"))
+        notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
+                     f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
+                     + note)
+    elif stable.visible is not None:
+        notes.append("mesh: interpolated from the markers with their gaps filled linearly (the RBF needs every "
+                     "marker)")
+    mapped = {}
+    if name == "mesh":  # the PCA of the mesh frames is computed on the markers and lifted
+        mapped = {"train_source": displacements.reshape(len(displacements), -1)[:len(train)],
+                  "train_operator": point_operator_matrix(operator)}
+    return Capture(
+        name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
+        neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
+        hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
+        units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
+        **with_warnings(notes, dict(provenance, train_on=name), warnings), faces=faces,
+        eval_visible=eval_visible, point_support=support,
+        eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):], **mapped)

@@ -38,8 +38,8 @@ import numpy as np
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk, sha256_of_file
-from workbench.record import write_atomic
+from workbench.files import sha256_of_file, write_atomic
+from workbench.frames import DTYPES, FramesOnDisk
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0
@@ -214,11 +214,24 @@ def _load_or_report(folder: Path, key: str, inputs: dict) -> dict[str, Capture] 
     return None
 
 
+_FORGET: list[Callable[[], None]] = []
+
+
+def on_forget(forget: Callable[[], None]) -> None:
+    """Have :func:`forget_kept_frames` call ``forget``: a builder that keeps frames in memory between runs (the
+    synthetic actor's) registers how to drop them."""
+    _FORGET.append(forget)
+
+
+def forget_kept_frames() -> None:
+    """Drop the frames the builders keep in memory (a stored file they may map has changed or is gone)."""
+    for forget in _FORGET:
+        forget()
+
+
 def clear_memory() -> None:
     """Forget the captures, the source files' hashes and the frames the builders keep in memory, as a new process
     would (the disk cache stays)."""
-    from workbench.dataset import forget_kept_frames
-
     _memory.clear()
     _digests.clear()
     forget_kept_frames()
@@ -360,8 +373,6 @@ def _verified_files(folder: Path, key: str, files: Mapping[str, str]) -> bytes:
             raise EntryMismatch(f"frames file {path} is missing")
         if sha256_of_file(path) != digest:
             if path.resolve().is_relative_to((folder / FRAMES_FOLDER).resolve()):
-                from workbench.dataset import forget_kept_frames
-
                 path.unlink()
                 forget_kept_frames()  # a builder's frames kept in memory may be this file
             raise EntryMismatch(f"frames file {path} does not match its checksum (changed after it was written)")

@@ -7,16 +7,19 @@ face-region vertices, ``markers`` on virtual markers at the vertices of a marker
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
+from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
-from workbench.dataset.meshes import expression_names
-from workbench.dataset.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
+from workbench.dataset.meshes import Blendshapes, expression_names
+from workbench.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
                                             unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
@@ -43,32 +46,12 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     dict
         ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
     """
-    from workbench.dataset import array_digest, split_frames, train_on_list
-
     names = train_on_list(cfg, TRAIN_ON)
-    timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
-    curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"
-    curves_path = data_path(cfg, cfg.get(curves_key), curves_key)
-    take_name = curves_path.stem
-    if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.dataset.weight_curves)
-        take = read_weight_curves(curves_path, frame_rate=cfg.get("weight_frame_rate"), timecode_rate=timecode_rate)
-    else:
-        take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
-    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
-    available = expression_names(folder, cfg["blendshapes"]["neutral"])
-    hand_names = hand_shape_names(cfg, available)
-    folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
-    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
-    dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
-    problems = (static_weights_problems(take.weights[frames], str(take.path))
-                + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
-                + unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
-                                          list(take.names), take.weights[frames], f"{take.path} with {folder}"))
-    warnings = settle(problems, plausibility_policy(cfg))
-    driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
-    basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
-    mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
-
+    driven_take = _driven_take(cfg)
+    curves_key, curves_path, take_name, take = (driven_take.curves_key, driven_take.curves_path,
+                                                driven_take.take_name, driven_take.take)
+    frames, warnings, basis, mapping = driven_take.frames, driven_take.warnings, driven_take.basis, driven_take.mapping
+    hand_names = driven_take.hand_names
     frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
     weights = take.weights[frames]
     timeline = Timeline(take=np.full(len(frames), take_name), frame=frames,
@@ -81,27 +64,7 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     points = {"mesh": mesh_points, "markers": marker_vertices}
     labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
 
-    notes_common = [
-        ("ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take"
-         if curves_key == "livelink_csv" else f"ICT FaceKit generic face driven by the weight curves of "
-         f"{curves_path.name}") + ": the motion "
-        f"is a linear blend of the {len(driven)} driven ICT shapes (eq. 1), with no capture noise",
-        f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
-        f"{basis.n_vertices_in_file} vertices",
-        *folder_mapping.describe(),
-        f"frames: {len(frames)} of {take.n_frames} (every {int(cfg.get('frame_step', 1))}), "
-        f"{frame_rate:.2f} Hz from the timecodes",
-    ]
-    provenance = {
-        "kind": "ict_livelink", "data_root": str(cfg["data_root"]),
-        "files": {"blendshapes": cfg["blendshapes"]["folder"], curves_key: cfg[curves_key],
-                  "marker_table": str(marker_table.path)},
-        "credits": [ICT_CREDIT] + ([LIVELINK_CREDIT] if curves_key == "livelink_csv" else []),
-        "unit_mm": basis.unit_mm, "region_vertices": len(basis.neutral),
-        "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
-        "n_frames_in_file": take.n_frames, "frames_used": len(frames), "frame_step": int(cfg.get("frame_step", 1)),
-        "virtual_marker_vertices": dict(zip(marker_table.labels, marker_vertices.tolist())),
-    }
+    notes_common, provenance = _shared_facts(cfg, driven_take, marker_table, marker_vertices, frame_rate)
     hand_index = [basis.names.index(name) for name in hand_names]
     captures = {}
     for name in names:
@@ -130,3 +93,81 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
             frame_rate=float(frame_rate), **with_warnings(notes, dict(provenance, train_on=name), warnings),
             faces=faces, eval_timeline=timeline[len(timeline) - len(evaluate):])
     return captures
+
+
+@dataclass(frozen=True)
+class _DrivenTake:
+    """The weight curves of a take read and checked, and the ICT shapes they drive (:func:`_driven_take`)."""
+
+    curves_key: str
+    curves_path: Path
+    take_name: str
+    take: object
+    frames: np.ndarray
+    warnings: list
+    driven: list
+    basis: Blendshapes
+    mapping: object
+    hand_names: list
+    folder_mapping: object
+
+
+def _driven_take(cfg: Mapping) -> _DrivenTake:
+    """Read the take's weight curves (Live Link CSV or ``dataset.weight_curves``), check them, and load the ICT
+    shapes they drive and the hand shapes."""
+    timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
+    curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"
+    curves_path = data_path(cfg, cfg.get(curves_key), curves_key)
+    take_name = curves_path.stem
+    if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.dataset.weight_curves)
+        take = read_weight_curves(curves_path, frame_rate=cfg.get("weight_frame_rate"), timecode_rate=timecode_rate)
+    else:
+        take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
+    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
+    available = expression_names(folder, cfg["blendshapes"]["neutral"])
+    hand_names = hand_shape_names(cfg, available)
+    folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
+    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
+    dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
+    problems = (static_weights_problems(take.weights[frames], str(take.path))
+                + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
+                + unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
+                                          list(take.names), take.weights[frames], f"{take.path} with {folder}"))
+    warnings = settle(problems, plausibility_policy(cfg))
+    driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
+    basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
+    mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
+    return _DrivenTake(curves_key=curves_key, curves_path=curves_path, take_name=take_name, take=take, frames=frames,
+                       warnings=warnings, driven=driven, basis=basis, mapping=mapping, hand_names=hand_names,
+                       folder_mapping=folder_mapping)
+
+
+def _shared_facts(cfg: Mapping, driven_take: _DrivenTake, marker_table, marker_vertices: np.ndarray,
+                  frame_rate: float) -> tuple[list[str], dict]:
+    """The notes and provenance every data variant of the capture carries."""
+    curves_key, curves_path, take, frames = (driven_take.curves_key, driven_take.curves_path, driven_take.take,
+                                             driven_take.frames)
+    driven, basis, mapping = driven_take.driven, driven_take.basis, driven_take.mapping
+    folder_mapping = driven_take.folder_mapping
+    notes_common = [
+        ("ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take"
+         if curves_key == "livelink_csv" else f"ICT FaceKit generic face driven by the weight curves of "
+         f"{curves_path.name}") + ": the motion "
+        f"is a linear blend of the {len(driven)} driven ICT shapes (eq. 1), with no capture noise",
+        f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
+        f"{basis.n_vertices_in_file} vertices",
+        *folder_mapping.describe(),
+        f"frames: {len(frames)} of {take.n_frames} (every {int(cfg.get('frame_step', 1))}), "
+        f"{frame_rate:.2f} Hz from the timecodes",
+    ]
+    provenance = {
+        "kind": "ict_livelink", "data_root": str(cfg["data_root"]),
+        "files": {"blendshapes": cfg["blendshapes"]["folder"], curves_key: cfg[curves_key],
+                  "marker_table": str(marker_table.path)},
+        "credits": [ICT_CREDIT] + ([LIVELINK_CREDIT] if curves_key == "livelink_csv" else []),
+        "unit_mm": basis.unit_mm, "region_vertices": len(basis.neutral),
+        "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
+        "n_frames_in_file": take.n_frames, "frames_used": len(frames), "frame_step": int(cfg.get("frame_step", 1)),
+        "virtual_marker_vertices": dict(zip(marker_table.labels, marker_vertices.tolist())),
+    }
+    return notes_common, provenance

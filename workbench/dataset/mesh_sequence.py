@@ -23,9 +23,10 @@ import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
+from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
-from workbench.dataset.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
+from workbench.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import (data_path, frame_selection, integer_setting, origin_text, positive_setting)
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
@@ -100,13 +101,6 @@ class MeshSequence:
     def frames(self, start: int, stop: int, step: int = 1) -> np.ndarray:
         """Positions of frames ``start:stop:step``, float64, shape (n, n_vertices, 3)."""
         return np.asarray(self.vertices[start:stop:step], dtype=np.float64)
-
-
-def read_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Vertex positions ``(n_frames, n_vertices, 3)`` (file units, float64) and triangles ``(n, 3)`` or None of a
-    sequence file, read whole (:func:`open_mesh_sequence` reads frames on demand)."""
-    with open_mesh_sequence(path, vertices_key, faces_key) as sequence:
-        return sequence.frames(0, sequence.n_frames), sequence.faces
 
 
 def _check_values(path: Path, vertices_key: str, vertices) -> tuple[str, list[str]]:
@@ -201,8 +195,6 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
     dict
         ``{"mesh": Capture}``.
     """
-    from workbench.dataset import train_on_list
-
     train_on_list(cfg, TRAIN_ON)
     path = data_path(cfg, cfg.get("sequence"), "sequence")
     unit_mm = positive_setting(cfg.get("unit_mm", 1.0), "dataset.unit_mm")
@@ -214,8 +206,6 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
 
 def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float,
                            frame_rate: float) -> dict[str, Capture]:
-    from workbench.dataset import array_digest, split_frames
-
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     warnings = settle(sequence.problems, plausibility_policy(cfg))
     if cfg.get("neutral"):

@@ -332,7 +332,7 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
 
 def check_vertices(vertices: np.ndarray, neutral: np.ndarray, path: Path) -> None:
     """Refuse a mesh with a vertex far outside the neutral face (a coordinate at 1e6 or 1e300): no researcher
-    wants that shape (:func:`workbench.dataset.plausibility.mesh_outlier_problems`).
+    wants that shape (:func:`workbench.plausibility.mesh_outlier_problems`).
 
     Parameters
     ----------
@@ -340,7 +340,7 @@ def check_vertices(vertices: np.ndarray, neutral: np.ndarray, path: Path) -> Non
         In the file's units.
     path : pathlib.Path
     """
-    from workbench.dataset.plausibility import mesh_outlier_problems
+    from workbench.plausibility import mesh_outlier_problems
 
     problems = mesh_outlier_problems(vertices, neutral, str(path), unit="file units")
     if problems:

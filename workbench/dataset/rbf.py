@@ -15,6 +15,7 @@ from itertools import combinations_with_replacement
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.mesh_graph import mesh_edge_graph
 
 KERNELS = {
     "linear": lambda r: -r,
@@ -125,25 +126,6 @@ def rbf_operator(centres: np.ndarray, targets: np.ndarray, *, kernel: str = "thi
                              f"degree-{degree} polynomial") from None
     evaluation = np.concatenate([phi(epsilon * target_distances), monomials(targets, degree, shift, scale)], axis=1)
     return evaluation @ coefficients
-
-
-def mesh_edge_graph(vertices: np.ndarray, triangles: np.ndarray):
-    """Sparse symmetric graph of the mesh's edges, weighted by their lengths.
-
-    Returns
-    -------
-    scipy.sparse.csr_matrix of shape (n_vertices, n_vertices)
-    """
-    from scipy.sparse import coo_matrix
-
-    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    edges = np.unique(np.sort(edges, axis=1), axis=0)
-    lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
-    n = len(vertices)
-    graph = coo_matrix((np.concatenate([lengths, lengths]),
-                        (np.concatenate([edges[:, 0], edges[:, 1]]), np.concatenate([edges[:, 1], edges[:, 0]]))),
-                       shape=(n, n))
-    return graph.tocsr()
 
 
 def geodesic_distances(vertices: np.ndarray, triangles: np.ndarray, sources: np.ndarray) -> np.ndarray:

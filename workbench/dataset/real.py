@@ -9,6 +9,7 @@ import numpy as np
 
 from workbench.dataset.meshes import Blendshapes, load_blendshapes
 from workbench.errors import WorkbenchError
+from workbench.files import sha256_of_file
 
 ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
 LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
@@ -95,17 +96,6 @@ def conf_path(relative: str, key: str) -> Path:
     return path if path.is_absolute() else CONF_DIR / path
 
 
-def file_sha256(path: Path) -> str:
-    """SHA-256 of a file's bytes, read a megabyte at a time."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    with open(path, "rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def data_file_checksums(cfg: Mapping) -> dict:
     """The checksum of every data file or folder a dataset config names, for the run's provenance.
 
@@ -143,10 +133,10 @@ def data_file_checksums(cfg: Mapping) -> dict:
             for root, prefix in filter(None, roots):
                 path = root / value
                 if path.is_file():
-                    found[prefix + value] = {"sha256": file_sha256(path), "bytes": path.stat().st_size}
+                    found[prefix + value] = {"sha256": sha256_of_file(path), "bytes": path.stat().st_size}
                 elif path.is_dir() and path.resolve() != root.resolve():
                     files = sorted((item for item in path.iterdir() if item.is_file()), key=lambda item: item.name)
-                    lines = "".join(f"{file_sha256(item)}  {item.name}\n" for item in files)
+                    lines = "".join(f"{sha256_of_file(item)}  {item.name}\n" for item in files)
                     found[prefix + value] = {"sha256": hashlib.sha256(lines.encode()).hexdigest(),
                                              "bytes": sum(item.stat().st_size for item in files), "files": len(files)}
 

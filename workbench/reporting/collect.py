@@ -3,7 +3,7 @@ tables and findings.
 
 Reads only complete records of one or many sweeps (through :mod:`workbench.record`), never recomputes; the tables
 come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, and the intervals from
-:mod:`workbench.reporting.statistics`. Writes into the output folder:
+:mod:`workbench.statistics`. Writes into the output folder:
 
 - ``runs.csv`` / ``runs.parquet``: one row per run and alpha-table row (data, basis, projection, solver), with
   the config keys that differ between runs as columns, its metrics, sizes and stage timings;
@@ -32,10 +32,11 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 from workbench.extras import has_module, install_hint
-from workbench.record import DONE, inside, write_atomic
+from workbench.files import inside, write_atomic
+from workbench.record import DONE
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
                                       sweep_comparisons, wide)
-from workbench.reporting.statistics import GEOMETRIC
+from workbench.statistics import GEOMETRIC
 from workbench.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}

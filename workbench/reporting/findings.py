@@ -4,7 +4,7 @@
 intuitiveness and the facts the run recorded (``metrics.json``: paired comparisons, the offset of the affine
 projection, the face region, the dataset's provenance), and says per data variant: the ordering of H, QE,
 QE-linear and PCA under each solver, where every ``<`` is a paired per-frame difference whose 95 % interval
-excludes zero (:mod:`workbench.reporting.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
+excludes zero (:mod:`workbench.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
 the paper's; m beside the paper's; what the constrained solvers do to QE and QE-linear against H, and why, from
 the offset numbers; the weights an animator would face; the error in millimetres as a distribution; which hand
 shapes the projection changes most; and the caveats that apply to the data.
@@ -22,9 +22,9 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.reporting.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
+from workbench.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
                                             interval_text, reversed_interval)
-from workbench.reporting.statistics import ordering_text as stated_ordering
+from workbench.statistics import ordering_text as stated_ordering
 from workbench.tables import cell_text
 
 PAPER_BASES = ("H", "QE", "PCA")

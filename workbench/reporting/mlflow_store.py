@@ -26,7 +26,6 @@ database), so concurrent imports and concurrent jobs are safe.
 from __future__ import annotations
 
 import argparse
-import fcntl
 import logging
 import math
 import os
@@ -41,6 +40,7 @@ from typing import Iterable, Iterator, Mapping, Sequence
 
 from workbench.config import REPO_ROOT
 from workbench.errors import WorkbenchError
+from workbench.files import lock_file, unlock_file
 from workbench.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CLEAN_COLUMNS, CONFIG_FILE, FRAME_COLUMNS,
                               METRICS_FILE, TABLE_FILE, TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete,
                               load_record)
@@ -158,8 +158,7 @@ def open_store(target: Store) -> Iterator:
     handle = None
     if target.lock_file is not None:
         target.lock_file.parent.mkdir(parents=True, exist_ok=True)
-        handle = os.open(target.lock_file, os.O_RDWR | os.O_CREAT, 0o666)
-        fcntl.flock(handle, fcntl.LOCK_EX)
+        handle = lock_file(target.lock_file)
     try:
         yield mlflow.MlflowClient(tracking_uri=target.tracking_uri)
     except MlflowException as error:
@@ -170,8 +169,7 @@ def open_store(target: Store) -> Iterator:
         raise WorkbenchError(store_error(target, error)) from None
     finally:
         if handle is not None:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-            os.close(handle)
+            unlock_file(handle)
 
 
 def check_reachable(target: Store, timeout: float = 10.0) -> None:

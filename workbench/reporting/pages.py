@@ -19,7 +19,6 @@ import html
 import json
 import math
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -28,11 +27,11 @@ import pandas as pd
 
 from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
-from workbench.record import (DONE, RunRecord, find_records, inside, is_complete, load_record, plain_name,
-                              write_atomic)
+from workbench.files import inside, plain_name, write_atomic
+from workbench.record import DONE, RunRecord, find_records, is_complete, load_record
 from workbench.reporting.runs import (interval_label, is_replicate_key, level_statistics, paired_comparisons,
                                       runs_table, summarise, sweep_comparisons, varying_keys, wide)
-from workbench.reporting.statistics import GEOMETRIC
+from workbench.statistics import GEOMETRIC
 from workbench.tables import html_frame, markdown_frame
 
 ANALOGY_SEED = 1
@@ -83,7 +82,7 @@ def quasi_eigen_shapes(inputs: Mapping[str, np.ndarray], projection: str,
 
 def figure_solver(config: Mapping) -> tuple[str, dict]:
     """The solver figures 2-4 use: ``lstsq`` when the run had it, else the first configured one."""
-    from workbench.pipeline import check_solver_config
+    from workbench.study.run import check_solver_config
 
     solvers = config["solver"]
     name = "lstsq" if "lstsq" in solvers else next(iter(solvers))
@@ -963,15 +962,9 @@ def _display_path(text: str) -> str:
 
 def report_versions() -> dict:
     from workbench.config import CHECKOUT
-    from workbench.record import git_state
+    from workbench.record import git_state, package_versions
 
-    found = {}
-    for package in REPORT_PACKAGES:
-        try:
-            found[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            found[package] = None
-    return {"packages": found, "git": git_state(CHECKOUT)}
+    return {"packages": package_versions(REPORT_PACKAGES), "git": git_state(CHECKOUT)}
 
 
 def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and licence") -> Section:
@@ -1157,7 +1150,7 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
 def comparison_frame(record: RunRecord) -> pd.DataFrame:
     """Every paired comparison the run made: per data variant, rows ``a`` and ``b``, the difference ``a - b`` of
     the headline alpha with its 95 % interval, the frames and block length it rests on, and the verdict."""
-    from workbench.reporting.statistics import Interval
+    from workbench.statistics import Interval
 
     records = []
     for data, values in record.metrics["data"].items():
@@ -1173,7 +1166,7 @@ def comparison_frame(record: RunRecord) -> pd.DataFrame:
 
 def comparison_sections(record: RunRecord) -> list[Section]:
     """The table every ``<`` of the findings comes from, with how its intervals were made."""
-    from workbench.reporting.statistics import RESAMPLES, SEED, SIGNED, Interval, interval_text
+    from workbench.statistics import RESAMPLES, SEED, SIGNED, Interval, interval_text
 
     frame = comparison_frame(record)
     if frame.empty:

@@ -15,7 +15,7 @@ import pandas as pd
 
 from workbench.errors import WorkbenchError
 from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
-from workbench.reporting.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
+from workbench.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.tables import is_missing
 
 ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
@@ -28,7 +28,7 @@ REPLICATE_SUFFIX = "seed"
 """Settings whose runs are replicates of one another: every seed (of the data, of a random draw of shapes)."""
 STATISTICS = ("n", "mean", "std", "min", "max", "geomean", "ci95_low", "ci95_high", "ci_method")
 """Columns of a long summary: replicates, arithmetic mean, sample standard deviation, range, and the geometric
-mean with its 95 % interval (:func:`workbench.reporting.statistics.geometric_interval`) and the interval's
+mean with its 95 % interval (:func:`workbench.statistics.geometric_interval`) and the interval's
 method."""
 PCA_SOLVER = "projection"
 
@@ -183,7 +183,7 @@ def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
 def level_statistics(values) -> dict:
     """The summary of one metric over replicates: ``n``, ``mean``, ``std`` (ddof 1), ``min``, ``max``, and the
     geometric mean with its 95 % interval (``geomean``, ``ci95_low``, ``ci95_high``, ``ci_method``; see
-    :func:`workbench.reporting.statistics.geometric_interval`).
+    :func:`workbench.statistics.geometric_interval`).
 
     Parameters
     ----------
@@ -287,7 +287,7 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                        row_keys: Sequence[str] = ROW_KEYS, between: str = "basis") -> pd.DataFrame:
     """Every pair of bases (or of the variants they were fitted on) compared on the same replicates, per condition:
     the geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
-    (:func:`workbench.reporting.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
+    (:func:`workbench.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
     written with the smaller geometric mean first (ratio at most 1), as the findings state it.
 
     Parameters

@@ -23,7 +23,7 @@ from typing import Sequence
 import matplotlib
 from matplotlib.figure import Figure
 
-from workbench.record import inside, write_atomic
+from workbench.files import inside, write_atomic
 
 FORMATS = ("png", "svg", "pdf")
 """Copies a report can ask for besides each figure's own file (:func:`shown_format`)."""

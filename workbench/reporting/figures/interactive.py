@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.record import write_atomic
+from workbench.files import write_atomic
 
 DATA_FILE = "view3d.js"
 STEP_MM = 0.05  # quantisation of the displacements in the page

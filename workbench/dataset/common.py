@@ -1,0 +1,152 @@
+"""Helpers every dataset builder shares: the train/eval split, the ``train_on`` list, interpolated and masked
+frames, content hashes of arrays."""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset.cache import code_fingerprint
+from workbench.dataset.real import number_setting
+from workbench.dataset.storage import FrameStorage
+from workbench.dataset.transfer import apply_point_operator
+from workbench.errors import WorkbenchError
+from workbench.frames import FramesOnDisk, frame_chunks
+
+
+SPLITS = ("same", "tail")
+
+
+def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:
+    """Choose training and evaluation frames.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, n_dims) or FramesOnDisk
+    split : {"same", "tail"}
+        ``same`` trains and evaluates on every frame, as the paper does; ``tail`` holds out the last
+        ``eval_fraction`` of the take for evaluation.
+    eval_fraction : float
+        In (0, 1), used by ``tail``.
+
+    Returns
+    -------
+    train, eval : ndarray
+    """
+    if split not in SPLITS:
+        raise WorkbenchError(f"dataset.split must be one of {SPLITS}, got {split!r}")
+    if split == "same":
+        return frames, frames
+    take = frames.rows if isinstance(frames, FramesOnDisk) else lambda start, stop: frames[start:stop]
+    eval_fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'",
+                                   lambda value: 0.0 < value < 1.0)
+    n_eval = int(round(eval_fraction * len(frames)))
+    if n_eval < 1 or n_eval > len(frames) - 2:
+        raise WorkbenchError(f"dataset.eval_fraction {eval_fraction} leaves {n_eval} of {len(frames)} frames "
+                             "for evaluation; need at least 1 and at least 2 for training")
+    return take(0, len(frames) - n_eval), take(len(frames) - n_eval, len(frames))
+
+
+def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
+    """``dataset.train_on`` as a list of distinct names (one name or a list of them), each in ``allowed``."""
+    value = cfg.get("train_on", allowed[0])
+    names = [value] if isinstance(value, str) else list(value)
+    if not names or any(name not in allowed for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"dataset.train_on must be one of {tuple(allowed)} or a list of distinct ones, "
+                             f"got {value!r}")
+    return names
+
+
+def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: FrameStorage):
+    """Values at target points interpolated from source points, ``operator @ points[f]`` for every frame, written
+    chunk by chunk into ``storage`` (so a dense interpolated mesh never exists whole in float64).
+
+    Parameters
+    ----------
+    operator : ndarray of shape (n_target, n_source)
+    points : ndarray of shape (n_frames, n_source, 3)
+    storage : FrameStorage
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_target), read-only, or FramesOnDisk
+    """
+    key = (array_digest(points), array_digest(operator), code_fingerprint())
+    return storage.build("interpolated", key, len(points), 3 * len(operator),
+                         lambda rows: apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
+
+
+def array_digest(array: np.ndarray) -> str:
+    """Content hash of an array: its values, type and shape (for the keys of frames stored on disk)."""
+    array = np.ascontiguousarray(array)
+    digest = hashlib.sha256(f"{array.dtype.str} {array.shape}".encode())
+    digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+def largest_point_norm(frames) -> float:
+    """The largest displacement of any point in any frame, read a chunk of frames at a time.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points) or FramesOnDisk
+
+    Returns
+    -------
+    float
+    """
+    largest = 0.0
+    for _, chunk in frame_chunks(frames):
+        largest = max(largest, float(np.linalg.norm(chunk.reshape(len(chunk), -1, 3), axis=2).max(initial=0.0)))
+    return largest
+
+
+def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
+    """A map of per-point values, shape (n_target, n_source), as the matrix acting on flattened frames
+    ``[x0, y0, z0, x1, ...]``: ``kron(operator, I_3)``, shape (3 * n_target, 3 * n_source)."""
+    return np.kron(operator, np.eye(3))
+
+
+GAP_FIT_ON = ("complete", "filled")
+
+
+def gap_fit_on_setting(fit_on: str) -> str:
+    """``dataset.gap_fit_on``, checked."""
+    if fit_on not in GAP_FIT_ON:
+        raise WorkbenchError(f"dataset.gap_fit_on must be one of {GAP_FIT_ON}, got {fit_on!r}")
+    return fit_on
+
+
+def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) -> tuple[np.ndarray, str]:
+    """The frames the bases are fitted on under the ``masked`` gap policy, and a note saying which.
+
+    Parameters
+    ----------
+    train : ndarray of shape (n_train, 3 * n_points)
+        Training frames with their gaps filled linearly.
+    visible : ndarray of shape (n_train, n_points) of bool
+        Which markers each training frame saw.
+    fit_on : {"complete", "filled"}
+        ``complete``: only the frames that saw every marker (the fill's errors stay out of the PCA, whose coverage
+        rule would otherwise keep axes for them); ``filled``: every frame, gaps filled.
+
+    Returns
+    -------
+    train : ndarray of shape (n_fit, 3 * n_points)
+    note : str
+    """
+    if gap_fit_on_setting(fit_on) == "filled":
+        return train, f"the bases are fitted on all {len(train)} training frames, their gaps filled linearly"
+    complete = visible.all(axis=1)
+    if complete.sum() < 2:
+        raise WorkbenchError(f"dataset.gap_fit_on 'complete': only {int(complete.sum())} of {len(train)} training "
+                             "frames saw every marker; need at least 2 (use gap_fit_on filled)")
+    return train[complete], (f"the bases are fitted on the {int(complete.sum())} of {len(train)} training frames "
+                             "that saw every marker")
+
+
+def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """``frames`` (n_frames, 3 * n_points) with NaN at the points ``visible`` (n_frames, n_points) marks unseen."""
+    return np.where(np.repeat(visible, 3, axis=1), frames, np.nan)

@@ -1,0 +1,101 @@
+"""Fitting the bases of a run: eigenfaces (eq. 2) with their coverage rule, quasi-eigen faces (eq. 3-4) and the
+alternative bases (``basis.alternatives``)."""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from workbench.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.dataset.capture import Capture
+from workbench.dataset.transfer import PointTransfer
+from workbench.errors import WorkbenchError
+from workbench.reduced import Subspace
+from workbench.study.results import Timings
+
+
+def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[Eigenfaces, dict]:
+    """Eigenfaces (eq. 2) of the training frames and the quasi-eigen faces (eq. 3-4) of each projection.
+
+    Returns
+    -------
+    eigenfaces : Eigenfaces
+    quasi_eigen : dict
+        Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
+    """
+    with timings.stage("pca"):
+        eigenfaces = fit_eigenfaces(capture, basis_cfg["coverage"], basis_cfg["n_components"])
+    with timings.stage("quasi_eigen"):
+        quasi_eigen = {
+            projection: build_quasi_eigen_basis(
+                capture.hand, capture.hand_names, eigenfaces, projection=projection,
+                empty_axis_eps=basis_cfg["empty_axis_eps"], empty_axis_scale=basis_cfg["empty_axis_scale"],
+                append_empty_axes=basis_cfg["append_empty_axes"])
+            for projection in basis_cfg["projections"]}
+    return eigenfaces, quasi_eigen
+
+
+def fit_eigenfaces(capture: Capture, coverage: float, n_components: int | None = None) -> Eigenfaces:
+    """Eigenfaces (eq. 2) of a capture's training frames, m by the coverage rule or fixed."""
+    eigenfaces = Eigenfaces(coverage=coverage, n_components=n_components)
+    if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
+        return eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
+    return eigenfaces.fit(capture.train)
+
+
+def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) -> Subspace:
+    """PCA's reconstruction at the evaluated points as an affine subspace: the (carried) mean plus the span of the
+    (carried) eigenfaces, whose orthogonal projection is the reconstruction.
+
+    Returns
+    -------
+    Subspace
+        Orthonormal columns of shape (n_dims, m) and the mean as offset.
+    """
+    if transfer is None or transfer.operator is None:
+        return Subspace(eigenfaces.components_.T, eigenfaces.mean_)
+    # carried eigenfaces are no longer orthonormal: an orthonormal basis of their span
+    orthonormal, _ = np.linalg.qr(transfer.apply(eigenfaces.components_).T)
+    return Subspace(orthonormal, transfer.apply_one(eigenfaces.mean_))
+
+
+ALTERNATIVE_OPTIONS = {"SPCA": "spca", "ICA": "ica", "NMF": "nmf", "SPLOCS": "splocs", "H-fit": "hand_fit"}
+"""Basis label -> the ``basis`` config key holding its options."""
+
+
+def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> dict:
+    """Fit the bases ``basis.alternatives`` names on the training frames (:mod:`workbench.alternatives`).
+
+    Returns
+    -------
+    dict
+        Label (``SPCA``, ``ICA``, ``NMF``, ``SPLOCS``, ``H-fit``) -> ndarray of shape (n, n_dims), in the
+        configured order; ``n`` is ``basis.alternatives_n`` or the hand basis size (H-fit: always the latter).
+    """
+    from workbench import alternatives as alt
+
+    names = basis_cfg.get("alternatives") or []
+    names = [names] if isinstance(names, str) else list(names)
+    if any(name not in ALTERNATIVE_OPTIONS for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_OPTIONS)}, "
+                             f"got {names}")
+    n = basis_cfg.get("alternatives_n") or capture.hand.shape[0]
+    seed = int(basis_cfg.get("alternatives_seed") or 0)
+    bases = {}
+    for name in names:
+        key = ALTERNATIVE_OPTIONS[name]
+        options = dict(basis_cfg.get(key) or {})
+        with timings.stage(f"fit_{key}"):
+            if name == "SPCA":
+                bases[name] = alt.sparse_pca_basis(capture.train, n_components=n, **options)
+            elif name == "ICA":
+                bases[name] = alt.ica_basis(capture.train, n_components=n, seed=seed, **options)
+            elif name == "NMF":
+                bases[name] = alt.nmf_basis(capture.train, n_components=n, seed=seed, **options)
+            elif name == "SPLOCS":
+                distance = alt.SurfaceDistance(capture.neutral, capture.faces)
+                bases[name] = alt.splocs_basis(capture.train, distance, n_components=n, **options)
+            else:
+                bases[name] = alt.fitted_hand_basis(capture.train, capture.hand, **options)
+    return bases

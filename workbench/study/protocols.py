@@ -1,0 +1,274 @@
+"""Which frames and hand shapes a run fits and scores on: data variants, held-out frames, the clean capture (its m
+and its frames), subsets of the hand shapes."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset import variant_names
+from workbench.dataset.capture import Capture
+from workbench.errors import WorkbenchError
+from workbench.study.fitting import fit_eigenfaces
+
+
+HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take"}
+"""``dataset.held_out`` protocol -> how its frames are described."""
+
+
+def held_out_protocols(dataset_cfg: Mapping) -> list[str]:
+    """``dataset.held_out`` as a list of distinct protocols of :data:`HELD_OUT` (empty when null)."""
+    value = dataset_cfg.get("held_out")
+    if value is None:
+        names = []
+    elif isinstance(value, (str, Mapping)) or not hasattr(value, "__iter__"):
+        names = [value]
+    else:
+        names = list(value)
+    if any(not isinstance(name, str) or name not in HELD_OUT for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, "
+                             f"got {value!r}")
+    if names and dataset_cfg.get("split", "same") != "same":
+        raise WorkbenchError(f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
+                             f"with dataset.split {dataset_cfg.get('split')!r} the run is already held out: leave "
+                             "one of them unset")
+    return names
+
+
+def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> Capture:
+    """The capture cut into training frames and held-out evaluated frames, from its frames of split 'same'.
+
+    Parameters
+    ----------
+    capture : Capture
+        Trained and evaluated on the same frames.
+    protocol : {"tail", "take"}
+        ``tail``: the last ``eval_fraction`` of every take is held out (of the one take, as ``split: tail``);
+        ``take``: the last take is held out whole, the bases fitted on the others.
+    eval_fraction : float
+
+    Returns
+    -------
+    Capture
+    """
+    from workbench.dataset.real import number_setting
+
+    if len(capture.train) != len(capture.eval) or (capture.train_source is not None
+                                                   and len(capture.train_source) != len(capture.train)):
+        raise WorkbenchError("dataset.held_out needs the training and evaluated frames to be the same frames "
+                             "(split 'same'; with gap_policy masked, gap_fit_on filled)")
+    timeline = capture.timeline()
+    spans = timeline.take_spans()
+    if protocol == "take":
+        if len(spans) < 2:
+            raise WorkbenchError("dataset.held_out 'take' holds out the last take, and this capture has one take; "
+                                 "use 'tail'")
+        held = np.arange(spans[-1][0], spans[-1][1])
+        described = (f"held out: the last take, {timeline.take[held[0]]}, scored with bases fitted on the other "
+                     f"{len(spans) - 1} takes")
+    else:
+        fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for dataset.held_out 'tail'",
+                                  lambda value: 0.0 < value < 1.0)
+        counts = [int(round(fraction * (stop - start))) for start, stop in spans]
+        if any(count < 1 or count > stop - start - 2 for count, (start, stop) in zip(counts, spans)):
+            raise WorkbenchError(f"dataset.eval_fraction {fraction} holds out {counts} frames of takes of "
+                                 f"{[stop - start for start, stop in spans]}; each take needs at least 1 held out "
+                                 "and 2 for training")
+        held = np.concatenate([np.arange(stop - count, stop) for count, (_, stop) in zip(counts, spans)])
+        described = (f"held out: the last {100 * fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
+                     "scored with bases fitted on the rest")
+    kept = np.setdiff1d(np.arange(len(capture.eval)), held)
+    notes = tuple(note for note in capture.notes if not note.startswith("split '")) + (
+        f"{described}: {len(kept)} training frames, {len(held)} evaluated",)
+    return replace(capture, train=select_frames(capture.train, kept), eval=select_frames(capture.eval, held),
+                   eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
+                   train_source=None if capture.train_source is None else capture.train_source[kept],
+                   eval_timeline=timeline[held], notes=notes)
+
+
+def select_frames(frames, index: np.ndarray):
+    """Some frames of a capture: a slice when ``index`` is a run of consecutive frames (frames on disk stay on
+    disk), else a copy in memory."""
+    from workbench.frames import FramesOnDisk
+
+    if index.size and np.all(np.diff(index) == 1):
+        start, stop = int(index[0]), int(index[-1]) + 1
+        return frames.rows(start, stop) if isinstance(frames, FramesOnDisk) else frames[start:stop]
+    if isinstance(frames, FramesOnDisk):
+        raise WorkbenchError("dataset.held_out 'tail' of several takes picks frames from each, which frames on disk "
+                             "(dataset.storage disk) cannot give; use dataset.storage memory or held_out 'take'")
+    return frames[index]
+
+
+COVERAGE_ON = ("training", "clean")
+
+
+CLEAN_M_NOTE = "m chosen on the clean capture"
+
+
+def coverage_on_setting(basis_cfg: Mapping) -> str:
+    """``basis.coverage_on``, checked: ``training`` (the coverage rule on the training frames) or ``clean`` (on
+    the clean capture of the same take, then held fixed); ``clean`` chooses m itself, so ``n_components`` must be
+    unset."""
+    value = basis_cfg.get("coverage_on", "training")
+    if value not in COVERAGE_ON:
+        raise WorkbenchError(f"basis.coverage_on must be one of {COVERAGE_ON}, got {value!r}")
+    if value == "clean" and basis_cfg.get("n_components") is not None:
+        raise WorkbenchError(f"basis.coverage_on 'clean' chooses m from the clean capture; basis.n_components "
+                             f"({basis_cfg['n_components']}) would fix it too: leave n_components null")
+    return value
+
+
+def clean_dataset_config(dataset_cfg: Mapping) -> dict:
+    """The dataset config of the clean capture of the same take: the synthetic actor without marker noise and
+    without marker dropout (same seed, so the same performance and head motion).
+
+    Raises
+    ------
+    WorkbenchError
+        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
+    """
+    kind = dataset_cfg.get("kind")
+    if kind != "synthetic":
+        raise WorkbenchError(f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
+                             f"capture, which only the synthetic actor has (dataset.kind synthetic), got {kind!r}")
+    return dict(dataset_cfg, marker_noise_mm=0.0, gap_rate=0.0)
+
+
+def with_clean_m(capture: Capture, basis_cfg: Mapping, clean: Capture | None) -> tuple[Capture, dict]:
+    """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
+    fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
+
+    Parameters
+    ----------
+    capture : Capture
+    basis_cfg : mapping
+    clean : Capture or None
+        The same data variant of the clean capture (:func:`clean_dataset_config`).
+
+    Returns
+    -------
+    capture : Capture
+    basis_cfg : dict
+    """
+    if clean is None:
+        return capture, dict(basis_cfg)
+    clean_pca = fit_eigenfaces(clean, basis_cfg["coverage"])
+    m = int(clean_pca.n_components_)
+    note = (f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
+            "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
+            "capture with that m (basis.coverage_on clean)")
+    return replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=m)
+
+
+def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
+    """The clean capture's frames at the evaluated frames of ``capture``, matched by take and frame number.
+
+    Parameters
+    ----------
+    capture : Capture
+        The evaluated capture (noise, dropout; its frames may be a subset of the take's).
+    clean : Capture
+        The same data variant of the clean capture (:func:`clean_dataset_config`), same points.
+
+    Returns
+    -------
+    ndarray of shape (n_eval_frames, 3 * n_points)
+    """
+    ours, theirs = capture.timeline(), clean.timeline()
+    if clean.neutral.shape != capture.neutral.shape:
+        raise WorkbenchError("metric.score_clean: the clean capture has other points than the evaluated one")
+    index = np.full(len(ours), -1)
+    for take in np.unique(ours.take):
+        mine, pool = np.flatnonzero(ours.take == take), np.flatnonzero(theirs.take == take)
+        if pool.size == 0:
+            continue
+        order = np.argsort(theirs.frame[pool], kind="stable")
+        frames = theirs.frame[pool][order]
+        at = np.minimum(np.searchsorted(frames, ours.frame[mine]), len(frames) - 1)
+        found = frames[at] == ours.frame[mine]
+        index[mine[found]] = pool[order[at[found]]]
+    if np.any(index < 0):
+        raise WorkbenchError(f"metric.score_clean: {int((index < 0).sum())} evaluated frames are not among the clean "
+                             "capture's evaluated frames (frames a gap policy dropped before a tail split); use "
+                             "dataset.split same or gap_policy linear")
+    return np.asarray(clean.eval)[index]
+
+
+def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
+    """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
+    train_names, eval_names = variant_names(dataset_cfg, "train_on"), variant_names(dataset_cfg, "eval_on")
+    if eval_names is not None and train_names is None:
+        raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
+    return train_names or [], eval_names
+
+
+def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
+    """Which hand shapes a ``basis.hand_subset`` setting keeps.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The capture's hand-shape names.
+    spec : str or sequence of str
+        ``all``; ``upper`` or ``lower`` (the synthetic actor's 6 upper-face and 12 lower-face muscles, as in
+        the paper's section 5.3); ``random<k>`` (``k`` shapes drawn without replacement); or a list of names.
+    seed : int
+        Seed of the draw for ``random<k>`` (``basis.subset_seed``).
+
+    Returns
+    -------
+    ndarray of int
+        Indices into ``names``, ascending.
+    """
+    from workbench.dataset.synthetic.muscles import LOWER_FACE, UPPER_FACE
+
+    names = list(names)
+    if isinstance(spec, str) and spec == "all":
+        return np.arange(len(names))
+    if isinstance(spec, str) and spec in ("upper", "lower"):
+        region = UPPER_FACE if spec == "upper" else LOWER_FACE
+        index = np.array([i for i, name in enumerate(names) if name in region], dtype=int)
+        if index.size == 0:
+            raise WorkbenchError(f"basis.hand_subset={spec} names the synthetic actor's {spec}-face muscles, and "
+                                 "this dataset's hand shapes include none of them; list the shapes by name instead")
+        return index
+    if isinstance(spec, str):
+        match = re.fullmatch(r"random(\d+)", spec)
+        if match is None:
+            raise WorkbenchError(f"basis.hand_subset must be all, upper, lower, random<k> or a list of hand-shape "
+                                 f"names, got {spec!r}")
+        k = int(match.group(1))
+        if not 1 <= k <= len(names):
+            raise WorkbenchError(f"basis.hand_subset=random{k} needs 1 <= k <= {len(names)} (the hand shapes)")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise WorkbenchError(f"basis.subset_seed must be a non-negative integer, got {seed!r}")
+        return np.sort(np.random.default_rng(int(seed)).choice(len(names), size=k, replace=False))
+    unknown = [name for name in spec if name not in names]
+    if unknown or not spec or len(set(spec)) != len(spec):
+        raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; "
+                             f"got {list(spec)}")
+    return np.array(sorted(names.index(name) for name in spec), dtype=int)
+
+
+def subset_hand_shapes(capture: Capture, basis_cfg: Mapping) -> Capture:
+    """The capture with only the hand shapes ``basis.hand_subset`` keeps."""
+    spec = basis_cfg.get("hand_subset", "all")
+    index = hand_subset_indices(capture.hand_names, spec, basis_cfg.get("subset_seed", 0))
+    if index.size == len(capture.hand_names):
+        return capture
+    return select_shapes(capture, [capture.hand_names[i] for i in index])
+
+
+def select_shapes(capture: Capture, names: Sequence[str]) -> Capture:
+    """The capture with the hand shapes of these names, in this order."""
+    if tuple(names) == tuple(capture.hand_names):
+        return capture
+    missing = [name for name in names if name not in capture.hand_names]
+    if missing:
+        raise WorkbenchError(f"hand shapes {missing} are missing from the evaluated data's hand basis")
+    index = [capture.hand_names.index(name) for name in names]
+    return replace(capture, hand=capture.hand[index], hand_names=tuple(names))

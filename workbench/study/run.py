@@ -1,0 +1,169 @@
+"""One run of a study: dataset -> bases -> solve -> metrics, returned as plain results.
+
+``run_study`` takes a plain mapping (a resolved config) and returns one :class:`~workbench.study.results.StudyResult`
+per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record``'s job and printing is
+``workbench.run_text``'s."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset import build_captures
+from workbench.dataset.capture import Capture
+from workbench.dataset.transfer import point_transfer
+from workbench.errors import WorkbenchError
+from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
+from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, coverage_on_setting,
+                                       data_variants, held_out_capture, held_out_protocols, select_shapes,
+                                       subset_hand_shapes, with_clean_m)
+from workbench.study.results import StudyResult, Timings
+from workbench.study.scoring import basis_intuitiveness, face_region, offset_facts, score_alternative_bases, score_bases
+
+
+def check_solver_config(name: str, solver: Mapping) -> dict:
+    """Validate one entry of the ``solver`` config group and return it as keyword arguments."""
+    kind = solver.get("kind")
+    if kind not in ("lstsq", "nnls", "box"):
+        raise WorkbenchError(f"solver.{name}.kind must be one of lstsq, nnls, box; got {kind!r}")
+    lower, upper = solver.get("lower"), solver.get("upper")
+    if kind == "box" and lower is None and upper is None:
+        raise WorkbenchError(f"solver.{name} is a box solver without bounds: set lower and/or upper")
+    if kind == "lstsq":
+        lower = upper = None
+    if kind == "box" and lower is not None and upper is not None and np.any(np.asarray(lower) > np.asarray(upper)):
+        raise WorkbenchError(f"solver.{name}.lower ({lower}) must not exceed solver.{name}.upper ({upper})")
+    return {"kind": kind, "lower": lower, "upper": upper}
+
+
+def run_study(cfg: Mapping) -> list[StudyResult]:
+    """Build the data, then for each data variant fit eigenfaces and quasi-eigen faces on the training frames
+    and score every basis on the evaluated ones (of the same variant, or of each ``dataset.eval_on`` variant).
+
+    Parameters
+    ----------
+    cfg : mapping
+        A resolved study config with ``dataset``, ``basis`` and ``solver`` groups.
+
+    Returns
+    -------
+    list of StudyResult
+        One per ``dataset.train_on`` variant, in the configured order (times each ``dataset.eval_on`` variant
+        when that is set); they share one :class:`Timings`.
+    """
+    timings = Timings()
+    solvers = {name: check_solver_config(name, spec) for name, spec in cfg["solver"].items()}
+    if not solvers:
+        raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
+    dataset_cfg, basis_cfg = cfg["dataset"], cfg["basis"]
+    train_names, eval_names = data_variants(dataset_cfg)
+    held_out = held_out_protocols(dataset_cfg)
+    if held_out and eval_names:
+        raise WorkbenchError("dataset.held_out scores each data variant on its own held-out frames; with "
+                             "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset")
+    build_names = train_names + [name for name in eval_names or () if name not in train_names]
+    coverage_on = coverage_on_setting(basis_cfg)
+    score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
+    build_cfg = {key: value for key, value in dataset_cfg.items() if key != "held_out"}  # the same built data
+    built_cfg = dict(build_cfg, train_on=build_names) if eval_names else build_cfg
+    with timings.stage("dataset"):
+        captures = build_captures(built_cfg, cache_dir=cfg.get("paths", {}).get("cache_dir"))
+        clean = (build_captures(clean_dataset_config(built_cfg), cache_dir=cfg.get("paths", {}).get("cache_dir"))
+                 if coverage_on == "clean" or score_clean else None)
+    if eval_names and basis_cfg.get("alternatives"):
+        raise WorkbenchError("basis.alternatives are fitted and scored on each data variant's own points; "
+                             "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset")
+    if not eval_names:
+        results = []
+        for data, capture in captures.items():
+            capture, fitted_cfg = with_clean_m(subset_hand_shapes(capture, basis_cfg), basis_cfg,
+                                               clean[data] if coverage_on == "clean" else None)
+            truth = clean_frames(capture, clean[data]) if score_clean else None
+            results.append(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth))
+            for protocol in held_out:
+                part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
+                truth = clean_frames(part, clean[data]) if score_clean else None
+                results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers,
+                                                      timings, truth=truth), train_on=data, eval_on=data,
+                                       protocol=HELD_OUT[protocol]))
+        return results
+    return carried_results(captures, clean, train_names, eval_names, cfg, solvers, timings)
+
+def carried_results(captures: Mapping[str, Capture], clean: Mapping[str, Capture] | None, train_names: Sequence[str],
+                    eval_names: Sequence[str], cfg: Mapping, solvers: Mapping[str, Mapping],
+                    timings: Timings) -> list[StudyResult]:
+    """``dataset.eval_on``: the bases fitted on each training variant, carried onto the points of each evaluated
+    variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair."""
+    basis_cfg = cfg["basis"]
+    coverage_on = coverage_on_setting(basis_cfg)
+    score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
+    masked = [name for name in eval_names if captures[name].eval_visible is not None]
+    if masked:
+        raise WorkbenchError(f"dataset.gap_policy 'masked' leaves gaps in the evaluated frames of {masked}; "
+                             "carrying bases onto them (dataset.eval_on) is not supported: use gap_policy linear "
+                             "or drop, or leave dataset.eval_on unset")
+    results = []
+    for train_on in train_names:
+        source, fitted_cfg = with_clean_m(subset_hand_shapes(captures[train_on], basis_cfg), basis_cfg,
+                                          clean[train_on] if coverage_on == "clean" else None)
+        eigenfaces, quasi_eigen = fit_bases(source, fitted_cfg, timings)
+        for eval_on in eval_names:
+            target = select_shapes(captures[eval_on], source.hand_names)
+            with timings.stage("transfer"):
+                transfer = point_transfer(source.neutral.reshape(-1, 3), target.neutral.reshape(-1, 3))
+            note = (f"bases fitted on '{train_on}' ({source.n_points} points) and carried onto '{eval_on}' "
+                    f"({target.n_points} points): {transfer.describe()}")
+            m_notes = tuple(note for note in source.notes if note.startswith(CLEAN_M_NOTE))
+            target = replace(target, notes=target.notes + m_notes + (note,))
+            carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
+                       for projection, qe in quasi_eigen.items()}
+            carried_pca = pca_subspace(eigenfaces, transfer)
+            rows, weights = score_bases(target, eigenfaces, carried, carried_pca, solvers, timings,
+                                        truth=clean_frames(target, clean[eval_on]) if score_clean else None)
+            results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
+                                       quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
+                                       train_on=train_on, eval_on=eval_on, transfer=transfer.method,
+                                       face_region=face_region(target).description,
+                                       offset=offset_facts(carried_pca, rows)))
+    return results
+
+
+def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
+                   timings: Timings, truth: np.ndarray | None = None) -> StudyResult:
+    """The paper's method on one capture: eigenfaces, quasi-eigen faces, weights of every basis and solver, alpha.
+
+    Parameters
+    ----------
+    data : str
+        Name of the data variant, kept in the result.
+    capture : Capture
+    basis_cfg : mapping
+        The ``basis`` config group.
+    solvers : mapping
+        Solver name -> keyword arguments of :func:`workbench.solve.solve_weights` (see :func:`check_solver_config`).
+    timings : Timings
+        Stage times are added to it.
+    truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
+        The clean frames; every row is also scored against them (``metric.score_clean``).
+
+    Returns
+    -------
+    StudyResult
+    """
+    eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
+    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings,
+                                truth=truth)
+    alternatives = fit_alternative_bases(capture, basis_cfg, timings)
+    measured = {}
+    if alternatives:
+        more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings, truth=truth)
+        rows, weights = rows + more_rows, {**weights, **more_weights}
+        with timings.stage("intuitiveness"):
+            measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights,
+                                           basis_cfg.get("intuitiveness") or {})
+    return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
+                       weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured,
+                       face_region=face_region(capture).description,
+                       offset=offset_facts(pca_subspace(eigenfaces), rows))
