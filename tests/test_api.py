@@ -184,8 +184,9 @@ def test_the_public_names_are_listed_and_load_lazily():
     assert all(callable(getattr(workbench, name)) for name in workbench.__all__)
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         workbench.nothing  # noqa: B018
-    code = ("import sys, workbench, workbench.cli; heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); "
-            "assert not heavy, heavy; workbench.QuasiEigenFaces; assert 'numpy' in sys.modules")
+    code = ("import sys, workbench, workbench.cli; dir(workbench); "
+            "heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); assert not heavy, heavy; "
+            "workbench.QuasiEigenFaces; assert 'numpy' in sys.modules")
     result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True,
                             env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)), timeout=120)
     assert result.returncode == 0, result.stderr
@@ -226,6 +227,9 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
     captures = workbench.build_captures(config)
     assert check_estimator_against_record(record, captures) == 4 * 2 * (3 + 3 + 1)
+    # a folder holding the complete record of the same config is not run again; the dataset group alone builds too
+    assert workbench.record_study(config, tmp_path / "run", overrides=overrides).metrics == record.metrics
+    assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
     estimator = QuasiEigenFaces(solver="nnls").fit(capture.train, capture.hand, neutral=capture.neutral)
