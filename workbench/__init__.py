@@ -2,6 +2,8 @@
 
 Data flows one way: ``dataset`` -> ``bases`` -> ``solve`` -> ``metrics`` -> ``record`` -> ``report``.
 The numerical core (``bases``, ``solve``, ``metrics``) is pure: arrays in, arrays and frozen dataclasses out.
+The public API (``__all__``, docs/api.md): the method as an estimator on plain arrays (:class:`QuasiEigenFaces`), the
+readers, ``build_captures``, ``run_study`` and ``read_record``.
 """
 
 import os
@@ -18,3 +20,40 @@ if started_as_command():  # first, before the seconds of imports: Ctrl-C then is
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "16")
 
 from workbench.version import __version__  # noqa: E402 - after the environment is set
+
+# The public API, imported on first use (module ``__getattr__``, PEP 562): ``import workbench`` and the command's
+# start-up stay free of NumPy, pandas and Hydra until a name below is used.
+_PUBLIC = {
+    "QuasiEigenFaces": "workbench.estimator",
+    "NotFittedError": "workbench.estimator",
+    "WorkbenchError": "workbench.errors",
+    "read_c3d": "workbench.api",
+    "read_livelink": "workbench.api",
+    "read_weight_curves": "workbench.api",
+    "read_obj": "workbench.api",
+    "read_blendshapes": "workbench.api",
+    "read_gltf": "workbench.api",
+    "read_mesh_sequence": "workbench.api",
+    "compose_config": "workbench.api",
+    "build_captures": "workbench.api",
+    "run_study": "workbench.api",
+    "record_study": "workbench.api",
+    "read_record": "workbench.api",
+}
+
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name: str):
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module 'workbench' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(module), name)
+    globals()[name] = value  # later uses skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

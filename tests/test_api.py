@@ -1,0 +1,263 @@
+"""The public Python API: the estimator's manners, known answers, and the same alpha as the command line's run."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import workbench
+from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
+from workbench.config import REPO_ROOT
+from workbench.metrics import alpha_per_frame
+
+PARAMETERS = {"coverage": 0.995, "n_components": None, "through": "mean", "solver": "lstsq", "bounds": (0.0, 1.0),
+              "empty_axis_eps": 0.05, "empty_axis_scale": "axis_std", "append_empty_axes": False}
+
+
+def low_rank(variances=(9.0, 4.0, 1.0), n_frames=40, n_dims=12, seed=0):
+    """Frames ``mean + scores @ directions`` whose PCA is known: orthonormal ``directions`` (rows), zero-mean
+    scores with orthogonal columns of population variances ``variances``."""
+    rng = np.random.default_rng(seed)
+    directions = np.linalg.qr(rng.standard_normal((n_dims, len(variances))))[0].T
+    centred = rng.standard_normal((n_frames, len(variances)))
+    centred -= centred.mean(axis=0)
+    unit = np.linalg.qr(centred)[0]  # orthonormal columns in the span of zero-mean columns: zero mean
+    scores = unit * np.sqrt(n_frames * np.asarray(variances))
+    mean = rng.standard_normal(n_dims)
+    return mean + scores @ directions, mean, directions
+
+
+@pytest.fixture
+def fitted():
+    frames, _, directions = low_rank()
+    hand = np.random.default_rng(1).standard_normal((4, frames.shape[1]))
+    return QuasiEigenFaces(n_components=3).fit(frames, hand, neutral=np.full(frames.shape[1], 50.0)), frames
+
+
+# --- manners ------------------------------------------------------------------------------------------------------
+
+def test_parameters_are_keyword_only_and_stored_untouched():
+    assert QuasiEigenFaces().get_params() == PARAMETERS
+    odd = {"coverage": 7, "n_components": "many", "through": "sideways", "solver": "qp", "bounds": [1, 0],
+           "empty_axis_eps": -1.0, "empty_axis_scale": None, "append_empty_axes": "yes"}
+    estimator = QuasiEigenFaces(**odd)  # checked by fit, not by __init__
+    assert vars(estimator) == odd and estimator.get_params() == odd
+    with pytest.raises(TypeError):
+        QuasiEigenFaces(0.9)
+    assert repr(QuasiEigenFaces(n_components=18, through="neutral")) == \
+        "QuasiEigenFaces(n_components=18, through='neutral')"
+    assert QuasiEigenFaces().set_params(solver="nnls").solver == "nnls"
+    with pytest.raises(WorkbenchError, match="no parameter 'alpha'"):
+        QuasiEigenFaces().set_params(alpha=1)
+
+
+def test_fit_returns_self_and_fitted_attributes_end_with_an_underscore(fitted):
+    estimator, frames = fitted
+    assert estimator.fit(frames, estimator.hand_shapes_) is estimator
+    fitted_names = set(vars(estimator)) - set(PARAMETERS)
+    assert fitted_names and all(name.endswith("_") and not name.startswith("_") for name in fitted_names)
+    assert {"mean_", "eigenfaces_", "explained_variance_ratio_", "m_", "shapes_", "pca_to_qe_weights_",
+            "empty_axes_", "n_features_in_", "hand_shapes_", "neutral_"} <= fitted_names
+    assert estimator.get_params() == dict(PARAMETERS, n_components=3)
+
+
+@pytest.mark.parametrize("use", [
+    lambda e, x: e.transform(x), lambda e, x: e.inverse_transform(np.ones((1, 4))), lambda e, x: e.alpha(x),
+    lambda e, x: e.alpha_summary(x, basis="PCA"),
+])
+def test_a_clear_error_before_fit(use):
+    frames, _, _ = low_rank()
+    with pytest.raises(NotFittedError, match=r"QuasiEigenFaces instance is not fitted yet: call fit\(frames, "):
+        use(QuasiEigenFaces(), frames)
+    assert issubclass(NotFittedError, ValueError) and issubclass(NotFittedError, AttributeError)
+
+
+def test_eigenface_signs_are_deterministic():
+    frames, _, _ = low_rank(seed=3)
+    hand = np.random.default_rng(2).standard_normal((3, frames.shape[1]))
+    first = QuasiEigenFaces(n_components=3).fit(frames, hand)
+    flipped = QuasiEigenFaces(n_components=3).fit(-frames, hand)  # same covariance, eigenvectors of either sign
+    rows = np.arange(3)
+    pivots = np.argmax(np.abs(first.eigenfaces_), axis=1)
+    assert np.all(first.eigenfaces_[rows, pivots] > 0)
+    np.testing.assert_allclose(flipped.eigenfaces_, first.eigenfaces_, rtol=0, atol=1e-12)
+
+
+# --- known answers ------------------------------------------------------------------------------------------------
+
+def test_low_rank_frames_give_their_known_principal_components():
+    frames, mean, directions = low_rank(variances=(9.0, 4.0, 1.0))
+    hand = np.random.default_rng(4).standard_normal((3, frames.shape[1]))
+    estimator = QuasiEigenFaces(coverage=0.9).fit(frames, hand)
+    # 9/14 = 0.643 < 0.9 <= 13/14 = 0.929: two eigenfaces
+    assert estimator.m_ == 2 and estimator.coverage_ == pytest.approx(13 / 14, abs=1e-12)
+    np.testing.assert_allclose(estimator.mean_, mean, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14, 1 / 14], rtol=1e-12)
+    np.testing.assert_allclose(np.abs(estimator.eigenfaces_ @ directions[:2].T), np.eye(2), rtol=0, atol=1e-12)
+    every = QuasiEigenFaces(n_components=3).fit(frames, hand)
+    np.testing.assert_allclose(every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames,
+                               rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("through", ["mean", "neutral"])
+def test_a_hand_shape_on_the_hyperplane_comes_back_unchanged(through):
+    frames, mean, directions = low_rank()
+    estimator = QuasiEigenFaces(n_components=3, through=through)
+    offset = mean if through == "mean" else 0.0
+    on_plane = offset + np.array([2.0, -1.0, 0.5]) @ directions
+    off_plane = np.random.default_rng(5).standard_normal(frames.shape[1]) * 3.0
+    estimator.fit(frames, np.vstack([on_plane, off_plane]), names=["on", "off"])
+    np.testing.assert_allclose(estimator.shapes_[0], on_plane, rtol=0, atol=1e-12)
+    signs = np.diag(estimator.eigenfaces_ @ directions.T)  # each eigenface is +-1 times its direction
+    np.testing.assert_allclose(np.abs(signs), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(estimator.pca_to_qe_weights_[0], signs * [2.0, -1.0, 0.5], rtol=0, atol=1e-12)
+    # the other moves by the least distance: straight onto the hyperplane, its move orthogonal to the eigenfaces
+    np.testing.assert_allclose(directions @ (off_plane - estimator.shapes_[1]), 0.0, rtol=0, atol=1e-12)
+    assert estimator.shape_names_ == ("on", "off")
+
+
+def test_alpha_of_a_frame_with_a_known_residual():
+    """A frame ``2 h_1 + r`` with ``r`` orthogonal to the hand shapes: alpha in H is ``100 |r| / |d|``, and
+    ``100 |r| / |v0 + d|`` over positions."""
+    rng = np.random.default_rng(6)
+    frames, _, _ = low_rank(n_dims=12)
+    hand = rng.standard_normal((2, 12))
+    residual = rng.standard_normal(12)
+    residual -= hand.T @ np.linalg.lstsq(hand.T, residual, rcond=None)[0]
+    frame = 2.0 * hand[0] + residual
+    neutral = np.full(12, 10.0)
+    estimator = QuasiEigenFaces(n_components=2).fit(frames, hand, neutral=neutral)
+    expected_disp = 100 * np.linalg.norm(residual) / np.linalg.norm(frame)
+    expected_abs = 100 * np.linalg.norm(residual) / np.linalg.norm(neutral + frame)
+    assert estimator.alpha(frame[None], basis="H", normalisation="displacement") == pytest.approx(expected_disp,
+                                                                                                  rel=1e-12)
+    assert estimator.alpha(frame[None], basis="H") == pytest.approx(expected_abs, rel=1e-12)
+    np.testing.assert_allclose(estimator.transform(frame[None], basis="H"), [[2.0, 0.0]], rtol=0, atol=1e-12)
+
+
+def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
+    estimator, frames = fitted
+    nnls = estimator.transform(frames, solver="nnls")
+    box = estimator.transform(frames, solver="box")
+    assert nnls.min() >= 0 and box.min() >= 0 and box.max() <= 1
+    alphas = [estimator.alpha(frames, solver=solver, aggregate="per_frame") for solver in ("lstsq", "nnls", "box")]
+    assert np.all(alphas[0] <= alphas[1] + 1e-9) and np.all(alphas[1] <= alphas[2] + 1e-9)  # per frame, always
+    reconstruction = estimator.inverse_transform(nnls)
+    np.testing.assert_allclose(
+        estimator.alpha(frames, solver="nnls", aggregate="per_frame"),
+        alpha_per_frame(estimator.neutral_ + frames, estimator.neutral_ + reconstruction), rtol=1e-9)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda e, x, h: e.fit(x[0], h), "frames must be a 2-D array"),
+    (lambda e, x, h: e.fit(x[:, :-1], h[:, :-1]), "frames must have 3 \\* n_points columns"),
+    (lambda e, x, h: e.fit(x, h[:, :-3]), "hand_shapes must have 12 columns"),
+    (lambda e, x, h: e.fit(x, h, neutral=np.zeros(5)), r"neutral must have shape \(12,\)"),
+    (lambda e, x, h: e.fit(x, h, names=["a"]), "names must be a sequence of one name per hand shape"),
+    (lambda e, x, h: e.set_params(through="origin").fit(x, h), "through must be one of 'mean', 'neutral'"),
+    (lambda e, x, h: e.set_params(solver="qp").fit(x, h), "solver must be one of 'lstsq', 'nnls', 'box'"),
+    (lambda e, x, h: e.set_params(coverage=1.5).fit(x, h), r"coverage must be in \(0, 1\], got 1.5"),
+    (lambda e, x, h: e.set_params(n_components=0).fit(x, h), "n_components must be a positive integer"),
+    (lambda e, x, h: e.fit(x, h).transform(x[:, :6]), "frames must have 12 columns"),
+    (lambda e, x, h: e.fit(x, h).transform(x, basis="ICA"), "basis must be one of 'QE', 'H', 'PCA'"),
+    (lambda e, x, h: e.fit(x, h).alpha(x), "normalisation='absolute' needs the neutral positions"),
+    (lambda e, x, h: e.fit(x, h).alpha(x, normalisation="disp"), "normalisation must be one of"),
+    (lambda e, x, h: e.fit(x, h).alpha(x, basis="PCA", solver="nnls", normalisation="displacement"),
+     "solver must be None for basis 'PCA'"),
+])
+def test_bad_input_is_refused_naming_the_argument_and_the_rule(call, message):
+    frames, _, _ = low_rank()
+    hand = np.random.default_rng(7).standard_normal((3, 12))
+    with pytest.raises(WorkbenchError, match=message):
+        call(QuasiEigenFaces(), frames, hand)
+
+
+# --- the package's namespace --------------------------------------------------------------------------------------
+
+def test_the_public_names_are_listed_and_load_lazily():
+    expected = {"QuasiEigenFaces", "read_c3d", "read_livelink", "read_obj", "read_gltf", "read_mesh_sequence",
+                "read_blendshapes", "build_captures", "compose_config", "run_study", "record_study", "read_record"}
+    assert expected <= set(workbench.__all__) <= set(dir(workbench))
+    assert all(callable(getattr(workbench, name)) for name in workbench.__all__)
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        workbench.nothing  # noqa: B018
+    code = ("import sys, workbench, workbench.cli; dir(workbench); "
+            "heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); assert not heavy, heavy; "
+            "workbench.QuasiEigenFaces; assert 'numpy' in sys.modules")
+    result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)), timeout=120)
+    assert result.returncode == 0, result.stderr
+
+
+# --- the same alpha as the command line's run ---------------------------------------------------------------------
+
+COLUMNS = {"alpha_abs_mean": ("absolute", "mean"), "alpha_abs_pooled": ("absolute", "pooled"),
+           "alpha_disp_mean": ("displacement", "mean"), "alpha_disp_pooled": ("displacement", "pooled")}
+
+
+def check_estimator_against_record(record, captures):
+    """Every alpha of every row of the record (H, QE, QE-linear and PCA; every solver; every variant) from
+    estimators fitted on the capture's arrays, to 1e-12."""
+    checked = 0
+    for data, capture in captures.items():
+        rows = [row for row in record.metrics["rows"] if row["data"] == data]
+        for through, label in (("mean", "QE"), ("neutral", "QE-linear")):
+            estimator = QuasiEigenFaces(through=through).fit(capture.train, capture.hand, neutral=capture.neutral,
+                                                             names=capture.hand_names)
+            for row in (row for row in rows if row["basis"] in (label, "H", "PCA")):
+                basis = "QE" if row["basis"] == label else row["basis"]
+                solver = None if basis == "PCA" else row["solver"]
+                assert estimator.m_ == row["m"] and (basis != "QE" or len(estimator.shapes_) == row["n"])
+                for column, (normalisation, aggregate) in COLUMNS.items():
+                    alpha = estimator.alpha(capture.eval, solver=solver, basis=basis, normalisation=normalisation,
+                                            aggregate=aggregate)
+                    assert alpha == pytest.approx(row[column], rel=0, abs=1e-12), (data, row["basis"], row["solver"],
+                                                                                   column)
+                    checked += 1
+    return checked
+
+
+def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path):
+    overrides = ["dataset.n_frames=300"]
+    config = workbench.compose_config("paper", overrides)
+    record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
+    assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
+    captures = workbench.build_captures(config)
+    assert check_estimator_against_record(record, captures) == 4 * 2 * (3 + 3 + 1)
+    # a folder holding the complete record of the same config is not run again; the dataset group alone builds too
+    assert workbench.record_study(config, tmp_path / "run", overrides=overrides).metrics == record.metrics
+    assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
+    # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
+    capture = captures["markers"]
+    estimator = QuasiEigenFaces(solver="nnls").fit(capture.train, capture.hand, neutral=capture.neutral)
+    row = next(row for row in record.metrics["rows"] if row["basis"] == "QE" and row["solver"] == "nnls")
+    assert estimator.alpha(capture.eval) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-12)
+    # and from the weights, reconstructed explicitly
+    reconstruction = estimator.inverse_transform(estimator.transform(capture.eval))
+    explicit = alpha_per_frame(capture.neutral + capture.eval, capture.neutral + reconstruction)
+    assert np.mean(explicit) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-10)
+    # the same study in memory, from the record's resolved config
+    results = workbench.run_study(record.config)
+    qe = next(r for r in results[0].rows if r.basis == "QE" and r.solver == "nnls")
+    assert qe.alpha.absolute_mean == row["alpha_abs_mean"]
+
+
+def test_the_estimator_gives_the_alpha_of_a_run_on_a_real_take(shared_data, tmp_path):
+    overrides = ["dataset=animface", "dataset.train_on=markers", "dataset.frame_step=20",
+                 f"paths.data_root={shared_data}"]
+    config = workbench.compose_config("paper", overrides)
+    record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
+    assert record.metrics["dataset"]["provenance"]["kind"] == "animface"
+    assert check_estimator_against_record(record, workbench.build_captures(config)) == 4 * 2 * (3 + 3 + 1)
+
+
+def test_the_readers_read_the_shared_takes(shared_data):
+    take = workbench.read_c3d(shared_data / "animface" / "animface_jaw.c3d")
+    assert take.positions.shape == (take.positions.shape[0], len(take.labels), 3) and take.frame_rate > 0
+    curves = workbench.read_livelink(shared_data / "livelinkface" / "alex_rom_3.csv")
+    assert curves.weights.shape == (len(curves.seconds), len(curves.names)) and len(curves.names) >= 52
+    neutral = workbench.read_obj(shared_data / "ict-facekit" / "FaceXModel" / "generic_neutral_mesh.obj")
+    assert neutral.vertices.shape[1] == 3 and neutral.n_vertices > 9409

@@ -1,0 +1,314 @@
+"""The public Python API beside the estimator: the file readers, the captures of a dataset config, a study run from
+Python and the run records it writes. ``import workbench`` re-exports these names (lazily: nothing here is
+imported until a name is used).
+
+Every function hands over to the module that does the work, imported when it is called, so that the names keep
+working wherever that module lives; each says where in its docstring.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Mapping, Sequence
+
+from workbench.errors import WorkbenchError
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
+
+    from workbench.dataset.c3d_markers import MarkerTake
+    from workbench.dataset.capture import Capture
+    from workbench.dataset.livelink import LiveLinkTake
+    from workbench.dataset.meshes import Blendshapes, ObjMesh
+    from workbench.gltf import MorphMesh
+    from workbench.study.results import StudyResult
+    from workbench.record import RunRecord
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Readers
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def read_c3d(path: str | os.PathLike) -> "MarkerTake":
+    """Labelled 3-D marker trajectories of a C3D file, in millimetres (:mod:`workbench.dataset.c3d_markers`).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    MarkerTake
+        ``labels`` (one per marker), ``positions`` of shape (n_frames, n_markers, 3) in mm with NaN at gaps,
+        ``frame_rate`` in Hz.
+
+    Raises
+    ------
+    WorkbenchError
+        A missing, truncated or unreadable file, a label count other than the marker count, duplicate labels,
+        unknown units.
+    """
+    from workbench.dataset.c3d_markers import read_c3d_markers
+
+    return read_c3d_markers(path)
+
+
+def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "LiveLinkTake":
+    """The 52 ARKit weight curves of a Live Link Face CSV export (:mod:`workbench.dataset.livelink`).
+
+    Parameters
+    ----------
+    path : path-like
+    timecode_rate : float, default 60.0
+        Frames per second the timecode's frame field counts (Live Link Face: 60, whatever the capture rate).
+
+    Returns
+    -------
+    LiveLinkTake
+        ``names`` (ARKit channels), ``weights`` of shape (n_frames, n_channels) in [0, 1], ``seconds`` of shape
+        (n_frames,), ``frame_rate``, ``rotations`` (head and eyes) or None.
+    """
+    from workbench.dataset.livelink import read_livelink_csv
+
+    return read_livelink_csv(path, timecode_rate=timecode_rate)
+
+
+def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = None,
+                       timecode_rate: float = 60.0) -> "LiveLinkTake":
+    """Named weight curves of a CSV or JSON file: Live Link Face, MediaPipe face blendshapes, or a generic table
+    (:mod:`workbench.dataset.weight_curves`).
+
+    Parameters
+    ----------
+    path : path-like
+    frame_rate : float, optional
+        Frames per second, for files that number frames instead of timing them.
+    timecode_rate : float, default 60.0
+        For Live Link Face CSV files (:func:`read_livelink`).
+
+    Returns
+    -------
+    LiveLinkTake
+    """
+    from workbench.dataset.weight_curves import read_weight_curves as read
+
+    return read(path, frame_rate=frame_rate, timecode_rate=timecode_rate)
+
+
+def read_obj(path: str | os.PathLike) -> "ObjMesh":
+    """The geometry of one OBJ file: ``vertices`` of shape (n_vertices, 3) in the file's units and its polygons
+    (:mod:`workbench.dataset.meshes`)."""
+    from workbench.dataset.meshes import read_obj as read
+
+    return read(path)
+
+
+def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence[str] | None = None,
+                     region_vertices: int | None = None, unit_mm: float = 1.0) -> "Blendshapes":
+    """A blendshape folder: a neutral OBJ and one OBJ per named expression (ICT FaceKit's ``FaceXModel`` layout), as
+    displacements in millimetres (:func:`workbench.dataset.meshes.load_blendshapes`).
+
+    Parameters
+    ----------
+    folder : path-like
+    neutral : str
+        File name of the neutral OBJ inside ``folder``.
+    names : sequence of str, optional
+        Expressions to read (every other ``*.obj`` when None).
+    region_vertices : int, optional
+        Keep vertices ``[0, region_vertices)`` only (ICT's face region: 9,409).
+    unit_mm : float, default 1.0
+        Millimetres per OBJ unit (ICT FaceKit: 10).
+
+    Returns
+    -------
+    Blendshapes
+        ``neutral`` of shape (n_vertices, 3), ``names``, ``deltas`` of shape (n_shapes, n_vertices, 3),
+        ``triangles``. ``deltas.reshape(len(deltas), -1)`` are hand shapes for :class:`QuasiEigenFaces`.
+    """
+    from workbench.dataset.meshes import load_blendshapes
+
+    return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices,
+                            unit_mm=unit_mm)
+
+
+def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "MorphMesh":
+    """A glTF 2.0 binary (``.glb``) mesh with named morph targets and any morph-weight animations, in millimetres
+    (:func:`workbench.gltf.read_morph_mesh`).
+
+    Returns
+    -------
+    MorphMesh
+        ``neutral`` of shape (n_vertices, 3), ``triangles``, ``names``, ``deltas`` of shape
+        (n_targets, n_vertices, 3), ``animations``.
+    """
+    from workbench.gltf import read_morph_mesh
+
+    return read_morph_mesh(path, mesh_name=mesh_name)
+
+
+def read_mesh_sequence(path: str | os.PathLike, *, vertices_key: str = "vertices",
+                       faces_key: str | None = "faces"):
+    """A registered mesh sequence (``.npz``, ``.npy`` or HDF5), read whole and checked
+    (:func:`workbench.dataset.mesh_sequence.open_mesh_sequence`).
+
+    Parameters
+    ----------
+    path : path-like
+    vertices_key, faces_key : str
+        The arrays' names in an ``.npz`` or their paths in an HDF5 file (``faces_key`` None: no triangles).
+
+    Returns
+    -------
+    vertices : ndarray of shape (n_frames, n_vertices, 3)
+        Positions in the file's units, float64.
+    faces : ndarray of shape (n_faces, 3) of int, or None
+    """
+    from workbench.dataset.mesh_sequence import open_mesh_sequence
+
+    with open_mesh_sequence(Path(path), vertices_key, faces_key) as sequence:
+        return sequence.frames(0, sequence.n_frames), sequence.faces
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Configs, captures, runs and records
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def compose_config(study: str = "paper", overrides: Sequence[str] = ()) -> "DictConfig":
+    """A study's config composed as the command line composes it, without running it (:func:`workbench.config.compose`).
+
+    Parameters
+    ----------
+    study : str, default "paper"
+        A study of ``studies/`` (``workbench --config-name STUDY``).
+    overrides : sequence of str
+        The command line's overrides, e.g. ``["dataset=ict_livelink", "dataset.frame_step=20"]``.
+
+    Returns
+    -------
+    omegaconf.DictConfig
+    """
+    from workbench.config import compose
+
+    if isinstance(overrides, str):
+        raise WorkbenchError(f"overrides must be a list of 'key=value' strings, got the string {overrides!r}")
+    return compose(study, list(overrides))
+
+
+def _study_config(config) -> "DictConfig":
+    """``config`` as a DictConfig: a composed one as it is, a mapping (a record's resolved ``config``) wrapped."""
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(config, DictConfig):
+        return config
+    if isinstance(config, Mapping):
+        return OmegaConf.create(dict(config))
+    raise WorkbenchError(f"config must be a composed study config (compose_config) or a mapping of one, got "
+                         f"{type(config).__name__}")
+
+
+def build_captures(config, *, cache_dir: str | None = None) -> dict[str, "Capture"]:
+    """The captures a dataset config describes, one per ``dataset.train_on`` variant
+    (:func:`workbench.dataset.build_captures`).
+
+    Parameters
+    ----------
+    config : DictConfig or mapping
+        A composed study config (its ``dataset`` group is used, and its ``paths.cache_dir`` unless ``cache_dir``
+        is given) or the ``dataset`` group itself.
+    cache_dir : str, optional
+        Folder of the disk cache of built datasets; memory only when None.
+
+    Returns
+    -------
+    dict
+        Variant name (``markers``, ``mesh``, ...) -> ``Capture``: ``neutral`` of shape (3 * n_points,), ``train``
+        and ``eval`` frames of shape (n_frames, 3 * n_points) as displacements from neutral, ``hand`` of shape
+        (n_shapes, 3 * n_points) and ``hand_names``: the arrays :class:`QuasiEigenFaces` fits on.
+    """
+    from omegaconf import OmegaConf
+
+    from workbench.dataset import build_captures as build
+
+    if not isinstance(config, Mapping) and not OmegaConf.is_config(config):
+        raise WorkbenchError(f"config must be a study config or its dataset group, got {type(config).__name__}")
+    if "dataset" in config:
+        paths = config.get("paths") or {}
+        cache_dir = paths.get("cache_dir") if cache_dir is None else cache_dir
+        config = config["dataset"]
+    plain = OmegaConf.to_container(config, resolve=True) if OmegaConf.is_config(config) else dict(config)
+    return build(plain, cache_dir=cache_dir)
+
+
+def run_study(config) -> list["StudyResult"]:
+    """Run a study in memory, as the command line runs it, and return its results (nothing is written).
+
+    Parameters
+    ----------
+    config : DictConfig or mapping
+        A composed study config (:func:`compose_config`), or the resolved config of a record
+        (``read_record(folder).config``). Checked as the command line checks it.
+
+    Returns
+    -------
+    list of workbench.study.results.StudyResult
+        One per data variant: its ``capture``, ``eigenfaces``, ``quasi_eigen`` bases, ``rows`` (the alpha table's
+        rows: basis, solver and every alpha variant in ``row.alpha``) and ``weights``.
+    """
+    from workbench.study.run import run_study as run
+    from workbench.schema import check_study_config, resolved_settings
+
+    config = _study_config(config)
+    check_study_config(config)
+    return run(resolved_settings(config))
+
+
+def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[str] = ()) -> "RunRecord":
+    """Run a study as the command line runs it and write its run record into ``output_dir`` (the command's
+    ``hydra.run.dir``); returns the record read back.
+
+    A folder holding a complete record of the same config is not run again (its record is returned), one holding
+    anything else that is not a record of the workbench's is refused, and a run that fails removes what it wrote.
+
+    Parameters
+    ----------
+    config : DictConfig or mapping
+        As :func:`run_study`.
+    output_dir : path-like
+    overrides : sequence of str
+        The overrides that made ``config``, kept in the record (``metrics.json``'s ``overrides``).
+
+    Returns
+    -------
+    workbench.record.RunRecord
+    """
+    from workbench.cli import run_owned
+
+    config = _study_config(config)
+    run_owned(config, Path(output_dir), overrides=list(overrides), job_num=None, plain=True)
+    return read_record(output_dir)
+
+
+def read_record(folder: str | os.PathLike, *, check_archives: bool = False) -> "RunRecord":
+    """A complete run record, every file checked against the checksums the run wrote
+    (:func:`workbench.record.load_record`).
+
+    Parameters
+    ----------
+    folder : path-like
+        A run folder (holding ``done``).
+    check_archives : bool, default False
+        Check the ``.npz`` archives now too (otherwise each is checked when read).
+
+    Returns
+    -------
+    workbench.record.RunRecord
+        ``config`` (the resolved config), ``table`` (the alpha table, a DataFrame), ``metrics``
+        (``metrics.json``: its ``rows`` hold every alpha variant of every basis and solver) and ``timings``.
+    """
+    from workbench.record import load_record
+
+    return load_record(Path(folder), check_archives=check_archives)
