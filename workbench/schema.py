@@ -375,6 +375,10 @@ DATASET_EXTRAS = {
 }
 """Dataset settings added with ``+`` (not in the kind's schema, so that configs without them hash as before) ->
 the kinds that read them (docs/formats.md, docs/studies.md)."""
+DATASET_EXTRA_RULES = {"weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
+                       "weight_curves": OPTIONAL_TEXT}
+"""The rules of the dataset settings added with ``+`` (the rate numbers the frames of weight curves, as
+:data:`FRAME_RATE` does a capture's)."""
 
 
 def register_schemas() -> None:
@@ -423,7 +427,8 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
     kind = plain["dataset"].get("kind") if isinstance(plain.get("dataset"), Mapping) else None
     if kind not in DATASET_SCHEMAS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SCHEMAS)}, got {kind!r}")
-    _check_node(plain["dataset"], DATASET_SCHEMAS[kind], "dataset.")
+    _check_node(plain["dataset"], DATASET_SCHEMAS[kind], "dataset.",
+                extras={key for key, kinds in DATASET_EXTRAS.items() if kind in kinds})
     _check_relations(plain)
     ineffective = ineffective_settings(plain, overrides)
     if ineffective and refuse_ineffective:
@@ -471,10 +476,16 @@ def _check_keys(plain: Mapping) -> None:
             raise WorkbenchError(f"dataset.{key} has no effect with dataset={kind}: {why}; leave it out")
 
 
-def _check_node(values: Mapping, schema, prefix: str) -> None:
-    """Apply the rules of ``schema``'s fields to ``values`` (recursing into nested schemas)."""
+def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset()) -> None:
+    """Apply the rules of ``schema``'s fields to ``values`` (recursing into nested schemas); a key the schema does
+    not have (added with ``+`` or ``++``) is refused unless it is one of ``extras``."""
     if not isinstance(values, Mapping):
         raise WorkbenchError(f"{prefix.rstrip('.') or 'the config'} must be a mapping, got {values!r:.60}")
+    _check_known(values, schema, prefix, extras)
+    for key in extras & set(values):
+        spec = DATASET_EXTRA_RULES.get(key)
+        if spec is not None and not spec["check"](values[key]):
+            raise WorkbenchError(f"{prefix}{key} must be {spec['rule']}, got {values[key]!r}")
     for spec in fields(schema):
         key = prefix + spec.name
         if spec.name not in values:
@@ -487,6 +498,16 @@ def _check_node(values: Mapping, schema, prefix: str) -> None:
             _check_solvers(value)
         elif "check" in spec.metadata and not spec.metadata["check"](value):
             raise WorkbenchError(f"{key} must be {spec.metadata['rule']}, got {value!r}")
+
+
+def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:
+    """Refuse a key of ``values`` that ``schema`` has no field for (whatever the prefix that added it)."""
+    known = [spec.name for spec in fields(schema)]
+    for key in values:
+        if key not in known and key not in extras:
+            elsewhere = f" (did you mean dataset.{key}?)" if key in DATASET_EXTRAS and prefix != "dataset." else ""
+            raise WorkbenchError(f"setting {prefix}{key} does not exist{elsewhere}; {prefix.rstrip('.') or 'a study'} "
+                                 f"has {sorted(known)}: check its spelling or leave it out")
 
 
 def _nested_schema(spec):

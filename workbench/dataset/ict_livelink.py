@@ -16,6 +16,7 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import expression_names
+from workbench.dataset.plausibility import face_size_problems
 from workbench.dataset.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
                                             unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
@@ -67,6 +68,8 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     warnings = settle(problems, plausibility_policy(cfg))
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
+    warnings += settle(face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
+                       plausibility_policy(cfg))
     mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
 
     frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))

@@ -257,6 +257,8 @@ class Blendshapes:
 
 def expression_names(folder: Path, neutral_file: str) -> list[str]:
     """Names of the expression OBJs in a blendshape folder: every ``*.obj`` but the neutral, sorted."""
+    if not Path(folder).is_dir():
+        raise WorkbenchError(f"blendshape folder {folder} not found")
     return sorted(path.stem for path in folder.glob("*.obj") if path.name != neutral_file)
 
 
