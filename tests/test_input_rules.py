@@ -111,3 +111,98 @@ def test_weight_curves_nested_deep_are_refused(tmp_path):
     path.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(WorkbenchError, match=re.escape(f"{path}: JSON nested too deeply to be weight curves")):
         read_weight_curves(path)
+
+
+def test_a_marker_never_seen_is_named_without_warnings(tmp_path, recwarn):
+    from workbench.dataset.c3d_markers import MarkerTake
+
+    positions = np.random.default_rng(1).uniform(-50, 50, (20, 3, 3))
+    positions[:, 1] = np.nan
+    take = MarkerTake(labels=("A", "B", "C"), positions=positions, frame_rate=60.0, units="mm", first_frame=1,
+                      path=tmp_path / "take.c3d")
+    with pytest.raises(WorkbenchError, match=re.escape(f"{tmp_path / 'take.c3d'}: marker(s) ['B'] named in table.csv "
+                                                       "have no sample in any of the take's 20 frames")):
+        take.index_of(["A", "B"], named_in="table.csv")
+    assert take.index_of(["C", "A"], named_in="table.csv").tolist() == [2, 0]
+    assert not [warning for warning in recwarn if issubclass(warning.category, RuntimeWarning)]
+
+
+def test_a_linked_obj_is_named_by_the_link(tmp_path):
+    from workbench.dataset.meshes import load_blendshapes
+
+    (tmp_path / "face").mkdir()
+    (tmp_path / "face" / "neutral.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "elsewhere.obj").write_text("v 1 2\nv 0 1 0\nv 0 0 1\n")
+    (tmp_path / "face" / "smile.obj").symlink_to(tmp_path / "elsewhere.obj")
+    with pytest.raises(WorkbenchError, match=re.escape(f"{tmp_path / 'face' / 'smile.obj'}: vertex 1 has fewer")):
+        load_blendshapes(tmp_path / "face", neutral_file="neutral.obj")
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Messages naming the setting: sizes beyond the data, units beyond any face mesh
+# ----------------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("override, message", [
+    ("dataset.n_face_markers=1000000000000000", "dataset.n_face_markers must not exceed the synthetic mesh's "
+                                                "dataset.mesh_rows x dataset.mesh_cols = 4200 vertices (the markers "
+                                                "sit on them), got 1000000000000000"),
+    ("dataset=ict_livelink dataset.blendshapes.unit_mm=1e300", "dataset.blendshapes.unit_mm must be in (0, 10000], "
+                                                               "got 1e+300"),
+    ("dataset=mesh_sequence dataset.unit_mm=1e300", "dataset.unit_mm must be in (0, 10000], got 1e+300"),
+])
+def test_sizes_and_units_name_their_setting(override, message):
+    with pytest.raises(WorkbenchError, match="^" + re.escape(message) + "$"):
+        check_study_config(compose("paper", override.split()))
+
+
+def test_basis_sizes_name_their_setting():
+    from workbench.alternatives import sparse_pca_basis
+    from workbench.bases import Eigenfaces
+
+    capture = np.random.default_rng(0).normal(size=(20, 12))
+    with pytest.raises(WorkbenchError, match=re.escape("basis.n_components must be between 1 and the capture's "
+                                                       "rank 12, got 500")):
+        Eigenfaces(n_components=500).fit(capture)
+    with pytest.raises(WorkbenchError, match=re.escape("basis.alternatives_n: n_components must be between 1 and "
+                                                       "min(n_frames, n_dims) = 12, got 1000000")):
+        sparse_pca_basis(capture, n_components=1_000_000)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# The command line: names that are not UTF-8 refused before anything runs; Hydra's own arguments in one line
+# ----------------------------------------------------------------------------------------------------------
+
+def run_cli(*args, cwd):
+    import os
+    import subprocess
+    import sys
+
+    from workbench.config import REPO_ROOT
+
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True,
+                          timeout=120)
+
+
+@pytest.mark.parametrize("arguments, line", [
+    ((b"study='p\xff'", b"dataset.n_frames=200"),
+     b"workbench: error: argument 'study='p\\xff'' is not valid UTF-8 (byte 0xff at position 8); name files, "
+     b"folders and settings in UTF-8"),
+    ((b"report", b"run\xfe"),
+     b"workbench: error: argument 'run\\xfe' is not valid UTF-8 (byte 0xfe at position 3); name files, folders and "
+     b"settings in UTF-8"),
+    ((b"--nope",), b"workbench: error: unrecognized arguments: --nope (see workbench --help)"),
+    ((b"--cfg", b"bogus"), b"workbench: error: argument --cfg/-c: invalid choice: 'bogus' (choose from 'job', "
+                           b"'hydra', 'all') (see workbench --help)"),
+])
+def test_command_line_refusals_are_one_line(tmp_path, arguments, line):
+    result = run_cli(*arguments, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.splitlines() == [line]
+    assert list(tmp_path.iterdir()) == []  # nothing ran, nothing written
+
+
+def test_names_that_are_not_utf8_are_refused_in_the_config():
+    cfg = compose("paper", SMALL + ["study='p\udcff'"])
+    with pytest.raises(WorkbenchError, match=re.escape("setting study 'p\\xff' is not valid UTF-8 (byte 0xff")):
+        check_study_config(cfg)

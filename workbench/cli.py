@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Sequence
 # Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
 # Hydra, pandas and the numerical code are imported by the functions that use them.
 from workbench.config import CHECKOUT, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs
-from workbench.errors import WorkbenchError, single_line
+from workbench.errors import WorkbenchError, check_utf8, single_line
 from workbench.extras import missing_extra
 from workbench.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt, raise_from_now_on
 
@@ -341,13 +341,14 @@ def exit_on_error(program: str, error: BaseException) -> None:
 
 
 @contextmanager
-def one_line_usage_errors():
+def one_line_usage_errors(program: str | None = None):
     """A command's wrong arguments are one line (argparse prints its usage block first): within this block an
-    argument parser's error raises a :class:`WorkbenchError` naming the problem and ``--help``."""
+    argument parser's error raises a :class:`WorkbenchError` naming the problem and ``--help`` (of ``program``,
+    else of the parser's own program name)."""
     import argparse
 
     def error(parser, message):
-        raise WorkbenchError(f"{message} (see {parser.prog} --help)")
+        raise WorkbenchError(f"{message} (see {program or parser.prog} --help)")
 
     original = argparse.ArgumentParser.error
     argparse.ArgumentParser.error = error
@@ -383,6 +384,11 @@ def main() -> None:
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
     global _verbose
+    for argument in sys.argv[1:]:  # before anything runs: a record cannot hold a name that is not UTF-8
+        try:
+            check_utf8(argument, "argument")
+        except WorkbenchError as error:
+            exit_on_error("workbench", error)
     if "--version" in sys.argv[1:]:
         from workbench import __version__
 
@@ -414,8 +420,9 @@ def main() -> None:
     os.environ["HYDRA_FULL_ERROR"] = "1"
     raise_from_now_on()  # an interrupted run removes what it wrote
     try:
-        if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
-            hydra_app()
+        with one_line_usage_errors("workbench"):  # Hydra's argument parser: one line, not its usage block
+            if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
+                hydra_app()
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)

@@ -73,7 +73,14 @@ class MarkerTake:
         if unknown:
             raise WorkbenchError(f"{self.path}: unknown marker label(s) {unknown} named in {named_in}; the file's "
                                  f"{len(self.labels)} labels are {', '.join(self.labels)}")
-        return np.array([position[label] for label in labels], dtype=np.int64)
+        index = np.array([position[label] for label in labels], dtype=np.int64)
+        never = [label for label, seen in zip(labels, np.isfinite(self.positions[:, index, 0]).any(axis=0))
+                 if not seen]
+        if never:
+            raise WorkbenchError(f"{self.path}: marker(s) {never} named in {named_in} have no sample in any of the "
+                                 f"take's {self.n_frames} frames; a marker never seen cannot be used: leave it out of "
+                                 f"{named_in}")
+        return index
 
 
 def units_to_mm(units: str, path: Path) -> float:
