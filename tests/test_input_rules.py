@@ -206,3 +206,23 @@ def test_names_that_are_not_utf8_are_refused_in_the_config():
     cfg = compose("paper", SMALL + ["study='p\udcff'"])
     with pytest.raises(WorkbenchError, match=re.escape("setting study 'p\\xff' is not valid UTF-8 (byte 0xff")):
         check_study_config(cfg)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# A sweep with bad values runs every valid one, then names the bad ones
+# ----------------------------------------------------------------------------------------------------------
+
+def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
+    from workbench.record import DONE
+
+    sweep = tmp_path / "sweep"
+    result = run_cli("-m", "dataset.n_frames=200", "solver=lstsq", "basis.coverage=1.5,0.9,2,0.95",
+                     f"hydra.sweep.dir={sweep}", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    ran = sorted(path.parent.name for path in sweep.glob(f"*/{DONE}"))
+    assert ran == [f"basis.coverage={value},dataset.n_frames=200,solver=lstsq" for value in ("0.9", "0.95")]
+    assert result.stderr.decode().splitlines() == [
+        "workbench: error: 2 run(s) of the sweep failed, every other run ran: "
+        "run basis.coverage=1.5,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 1.5 | "
+        "run basis.coverage=2,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 2.0; "
+        "fix their values and run the sweep again (complete runs are skipped)"]

@@ -178,6 +178,8 @@ def _hydra_main(cfg: DictConfig) -> None:
         logging.getLogger("workbench.skip").info(f"skip {output_dir}: in use by another workbench process")
         return
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
+        if multirun and isinstance(error, Exception) and not caused_by_interrupt(error):
+            return sweep_run_error(error, output_dir)  # the sweep goes on with its other values
         exit_on_error("workbench", error)
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
@@ -187,6 +189,17 @@ def _hydra_main(cfg: DictConfig) -> None:
         log.info(f"done {output_dir}: {first_headline(text)}")
     else:
         log.info(text + f"\nrecord: {output_dir}")
+
+
+def sweep_run_error(error: Exception, output_dir: Path) -> None:
+    """A sweep's failed run, kept for the sweep's closing line (:mod:`workbench.sweep_failures`)."""
+    from workbench.sweep_failures import sweep_run_failed
+
+    if _verbose:
+        traceback.print_exception(error, file=sys.stderr)
+    fault = environment_fault(error)
+    message = single_line(fault) if fault is not None else f"unexpected {type(error).__name__}: {single_line(error)}"
+    sweep_run_failed(output_dir.name, message, 2 if fault is not None else 3)
 
 
 def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
@@ -419,15 +432,23 @@ def main() -> None:
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
     raise_from_now_on()  # an interrupted run removes what it wrote
+    from workbench import sweep_failures
+
+    sweep_failures.MAIN_PROCESS = os.getpid()
     try:
         with one_line_usage_errors("workbench"):  # Hydra's argument parser: one line, not its usage block
             if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
                 hydra_app()
+        sweep_failures.exit_if_runs_failed()  # a sweep's runs have all ended: name the ones that failed
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
         if caused_by_interrupt(error):
             exit_on_error("workbench", error)
+        if type(error).__name__ == "SweepRunFailed":  # a sweep ran every run; name the ones that failed
+            from workbench.sweep_failures import exit_if_runs_failed
+
+            exit_if_runs_failed(error)
         if full_error or _verbose:
             raise
         print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)
