@@ -422,6 +422,9 @@ def main() -> None:
                 code = getattr(importlib.import_module(module), function)(sys.argv[2:])
         except BaseException as error:  # noqa: BLE001 - SystemExit passes through, Ctrl-C is one line
             exit_on_error(f"workbench {sys.argv[1]}", error)
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done and reported: Ctrl-C would only cut the libraries' exit
         sys.exit(code)
     try:
         check_config_dirs()
