@@ -226,3 +226,23 @@ def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
         "run basis.coverage=1.5,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 1.5 | "
         "run basis.coverage=2,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 2.0; "
         "fix their values and run the sweep again (complete runs are skipped)"]
+
+
+def test_ctrl_c_after_a_command_has_finished_is_ignored(monkeypatch):
+    """Once a command has printed its summary, only the libraries' exit remains (MLflow's among them): a Ctrl-C
+    then must not kill the process by the signal with no line."""
+    import signal
+    import sys
+
+    from workbench import cli
+
+    monkeypatch.setitem(cli.COMMANDS, "finished", "builtins:len")  # takes the arguments, returns an exit code
+    monkeypatch.setattr(sys, "argv", ["workbench", "finished", "0"])
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        with pytest.raises(SystemExit) as stopped:
+            cli.main()
+        assert stopped.value.code == 1  # len(["0"])
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
