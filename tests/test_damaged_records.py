@@ -141,6 +141,11 @@ TAMPERED = {
                           "inputs.npz was changed after the run"),
     "timings.json removed": (lambda folder: (folder / "timings.json").unlink(), "timings.json is missing"),
     "done damaged": (write(DONE, "{\"sha256\": 3}"), "'done' is damaged"),
+    "done emptied": (write(DONE, ""), "'done' is empty"),
+    "alpha_per_frame.npz damaged": (edit_bytes("alpha_per_frame.npz", lambda data: data[:-40] + bytes(40)),
+                                    "alpha_per_frame.npz was changed after the run"),
+    "an archive added": (lambda folder: shutil.copy(folder / "inputs.npz", folder / "inputs_mesh.npz"),
+                         "inputs_mesh.npz is not one of the files the run wrote"),
 }
 
 
@@ -160,14 +165,14 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
                 "collect": ["collect", str(tmp_path / "sweep"), "--out", str(tmp_path / "collected")],
                 "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
                 "export": ["export", str(folder), "--out", str(tmp_path / "export")]}
-    # inputs.npz is read (and checked) when a report draws the figures that need it
-    for command, arguments in commands.items() if case != "inputs.npz edited" else [("report", commands["report"])]:
+    # every reader checks every file of the record, archives included, before it uses or copies any of them
+    for command, arguments in commands.items():
         result = workbench_process(*arguments, cwd=tmp_path)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2, (command, result.stderr)
         assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: run record {folder}"), lines
         assert expected in lines[0], (command, lines)
-    for name in ("report", "collected", "export"):
+    for name in ("report", "collected", "export", "store"):
         assert not (tmp_path / name).exists() or not any((tmp_path / name).iterdir()), name
 
 

@@ -182,6 +182,12 @@ DAMAGED = {
                         r"accessor 0 byteOffset must be an integer >= 0"),
     "short stride": (lambda d, b: d["bufferViews"][0].__setitem__("byteStride", 1),
                      r"buffer view 0 byteStride must be an integer >= 12, got 1"),
+    # a view claiming more than the file holds, even where no accessor reads past the data
+    "buffer view past the data": (lambda d, b: d["bufferViews"][0].__setitem__("byteLength", 10 ** 9),
+                                  r"buffer view 0 reaches past the binary data: it claims bytes 0 to 1000000000 "
+                                  r"of a \d+-byte binary chunk"),
+    "buffer view offset past the data": (lambda d, b: d["bufferViews"][1].__setitem__("byteOffset", 10 ** 6),
+                                         r"buffer view 1 reaches past the binary data: it claims bytes 1000000 to"),
     "sampler index": (lambda d, b: d["animations"][0]["channels"][0].__setitem__("sampler", 7),
                       r"animation 'take' sampler 7 does not exist"),
     "sparse index out of range": (lambda d, b: add_sparse(d, b, 100000),

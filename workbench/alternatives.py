@@ -43,8 +43,8 @@ def _check_train(train, n_components: int) -> np.ndarray:
     if train.ndim != 2 or train.size == 0 or not np.all(np.isfinite(train)):
         raise WorkbenchError(f"training frames must be a finite, non-empty 2-D array, got shape {train.shape}")
     if isinstance(n_components, bool) or not 1 <= int(n_components) <= min(train.shape):
-        raise WorkbenchError(f"n_components must be between 1 and min(n_frames, n_dims) = {min(train.shape)}, "
-                             f"got {n_components}")
+        raise WorkbenchError(f"basis.alternatives_n: n_components must be between 1 and min(n_frames, n_dims) = "
+                             f"{min(train.shape)}, got {n_components} (null: the hand basis's size)")
     return train
 
 

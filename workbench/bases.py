@@ -476,7 +476,8 @@ class Eigenfaces:
             m = n_components
             if not 1 <= m <= values.size:
                 raise WorkbenchError(
-                    f"n_components must be between 1 and the capture's rank {values.size}, got {self.n_components}")
+                    f"basis.n_components must be between 1 and the capture's rank {values.size}, got "
+                    f"{self.n_components}")
         self.mean_ = mean
         self.components_ = vectors[:m]
         self.explained_variance_ = values

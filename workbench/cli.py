@@ -9,6 +9,7 @@ import logging
 import os
 import sys
 import time
+import traceback
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -18,7 +19,8 @@ from typing import TYPE_CHECKING, Sequence
 # Hydra, pandas and the numerical code are imported by the functions that use them.
 from workbench.config import (CHECKOUT, COMMANDS, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs,
                               register_resolvers, study_names)
-from workbench.errors import VERBOSE_FLAG, WorkbenchError, exit_on_error, show_tracebacks, tracebacks_shown
+from workbench.errors import (VERBOSE_FLAG, WorkbenchError, check_utf8, environment_fault, exit_on_error,
+                              show_tracebacks, single_line, tracebacks_shown)
 from workbench.extras import missing_extra
 from workbench.interrupt import caused_by_interrupt, raise_from_now_on
 
@@ -180,6 +182,8 @@ def _hydra_main(cfg: DictConfig) -> None:
         logging.getLogger("workbench.skip").info(f"skip {output_dir}: in use by another workbench process")
         return
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
+        if multirun and isinstance(error, Exception) and not caused_by_interrupt(error):
+            return sweep_run_error(error, output_dir)  # the sweep goes on with its other values
         exit_on_error("workbench", error)
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
@@ -189,6 +193,17 @@ def _hydra_main(cfg: DictConfig) -> None:
         log.info(f"done {output_dir}: {first_headline(text)}")
     else:
         log.info(text + f"\nrecord: {output_dir}")
+
+
+def sweep_run_error(error: Exception, output_dir: Path) -> None:
+    """A sweep's failed run, kept for the sweep's closing line (:mod:`workbench.sweep_failures`)."""
+    from workbench.sweep_failures import sweep_run_failed
+
+    if tracebacks_shown():
+        traceback.print_exception(error, file=sys.stderr)
+    fault = environment_fault(error)
+    message = single_line(fault) if fault is not None else f"unexpected {type(error).__name__}: {single_line(error)}"
+    sweep_run_failed(output_dir.name, message, 2 if fault is not None else 3)
 
 
 def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
@@ -245,13 +260,14 @@ HELP_FLAGS = {"--help", "-h"}
 
 
 @contextmanager
-def one_line_usage_errors():
+def one_line_usage_errors(program: str | None = None):
     """A command's wrong arguments are one line (argparse prints its usage block first): within this block an
-    argument parser's error raises a :class:`WorkbenchError` naming the problem and ``--help``."""
+    argument parser's error raises a :class:`WorkbenchError` naming the problem and ``--help`` (of ``program``,
+    else of the parser's own program name)."""
     import argparse
 
     def error(parser, message):
-        raise WorkbenchError(f"{message} (see {parser.prog} --help)")
+        raise WorkbenchError(f"{message} (see {program or parser.prog} --help)")
 
     original = argparse.ArgumentParser.error
     argparse.ArgumentParser.error = error
@@ -268,6 +284,11 @@ def main() -> None:
     runs one of :data:`workbench.config.COMMANDS`. ``--verbose`` anywhere adds the traceback to an error's one line (Hydra's own
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
+    for argument in sys.argv[1:]:  # before anything runs: a record cannot hold a name that is not UTF-8
+        try:
+            check_utf8(argument, "argument")
+        except WorkbenchError as error:
+            exit_on_error("workbench", error)
     if "--version" in sys.argv[1:]:
         from workbench.version import __version__
 
@@ -288,6 +309,9 @@ def main() -> None:
                 code = getattr(importlib.import_module(module), function)(sys.argv[2:])
         except BaseException as error:  # noqa: BLE001 - SystemExit passes through, Ctrl-C is one line
             exit_on_error(f"workbench {sys.argv[1]}", error)
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done and reported: Ctrl-C would only cut the libraries' exit
         sys.exit(code)
     try:
         check_config_dirs()
@@ -298,14 +322,23 @@ def main() -> None:
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
     raise_from_now_on()  # an interrupted run removes what it wrote
+    from workbench import sweep_failures
+
+    sweep_failures.MAIN_PROCESS = os.getpid()
     try:
-        if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
-            hydra_app()
+        with one_line_usage_errors("workbench"):  # Hydra's argument parser: one line, not its usage block
+            if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
+                hydra_app()
+        sweep_failures.exit_if_runs_failed()  # a sweep's runs have all ended: name the ones that failed
     except KeyboardInterrupt as error:  # while Hydra composes the config, before the job's own handler
         exit_on_error("workbench", error)
     except Exception as error:  # noqa: BLE001 - errors of the job itself never get here (run_job catches them)
         if caused_by_interrupt(error):
             exit_on_error("workbench", error)
+        if type(error).__name__ == "SweepRunFailed":  # a sweep ran every run; name the ones that failed
+            from workbench.sweep_failures import exit_if_runs_failed
+
+            exit_if_runs_failed(error)
         if full_error or tracebacks_shown():
             raise
         print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)

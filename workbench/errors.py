@@ -76,3 +76,21 @@ def environment_fault(error: BaseException) -> str | None:
         paths = " -> ".join(str(path) for path in (error.filename, error.filename2) if path is not None)
         return f"{paths or 'a file of the run'}: {error.strerror}"
     return None
+
+
+def check_utf8(text: str, what: str) -> None:
+    """Refuse a name or path that is not valid UTF-8 (Python keeps such bytes as lone surrogates, which no file of
+    a record can hold): one line naming ``what`` and the first bad byte, before anything is computed.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as error:
+        character = text[error.start]
+        byte = f"0x{ord(character) - 0xDC00:02x}" if 0xDC80 <= ord(character) <= 0xDCFF else repr(character)
+        shown = text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+        raise WorkbenchError(f"{what} '{shown}' is not valid UTF-8 (byte {byte} at position {error.start}); "
+                             "name files, folders and settings in UTF-8") from None

@@ -265,6 +265,20 @@ def _view_values(gltf, blob: bytes, view_index: int, offset: int, count: int, dt
     return np.frombuffer(raw.tobytes(), dtype=dtype).reshape(count, width).astype(np.float64)
 
 
+def _check_buffer_views(gltf, blob: bytes, path: Path) -> None:
+    """Every buffer view of the binary chunk (buffer 0) lies inside it: a view claiming more bytes than the file
+    holds is a damaged file even where no accessor reads past the data."""
+    for index, view in enumerate(gltf.bufferViews or []):
+        if view.buffer != 0:
+            continue  # an external buffer: refused where it is read (_view_values)
+        start = _whole(view.byteOffset or 0, f"buffer view {index} byteOffset", path)
+        length = _whole(view.byteLength, f"buffer view {index} byteLength", path, minimum=1)
+        if start + length > len(blob):
+            raise WorkbenchError(f"{path}: buffer view {index} reaches past the binary data: it claims bytes "
+                                 f"{start} to {start + length} of a {len(blob)}-byte binary chunk (a truncated or "
+                                 "damaged file)")
+
+
 def _load_gltf(path: Path):
     """The file parsed by pygltflib, its warnings kept out of the output (a problem it only warns about is
     refused below with the file named, or does not matter to what the workbench reads)."""
@@ -319,6 +333,7 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
     if not str(_get(gltf.asset, "version")).startswith("2."):
         raise WorkbenchError(f"{path}: glTF version {_get(gltf.asset, 'version')}; the workbench reads glTF 2.0")
     blob = gltf.binary_blob() or b""
+    _check_buffer_views(gltf, blob, path)
     candidates = [i for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
     if mesh_name is not None:
         candidates = [i for i in candidates if gltf.meshes[i].name == mesh_name]

@@ -54,6 +54,10 @@ class Limits:
     frame_rate_hz : tuple of float
         Range of frame rates of a face capture: optical systems and phones record at 24-1000 Hz, high-speed
         cameras at a few thousand; outside it the rate (or the time stamps) are in other units.
+    face_extent_mm : tuple of float
+        Range of the neutral face's extent in mm (the longest side of its bounding box): a human face, or a head
+        with its face, spans about 100-300 mm; outside the range the mesh's unit (``unit_mm``) is wrong by a factor
+        such as 10 or 1000.
     """
 
     face_spread_mm: tuple = (20.0, 500.0)
@@ -66,6 +70,7 @@ class Limits:
     static_fraction: float = 1e-4
     static_weight: float = 1e-3
     frame_rate_hz: tuple = (1.0, 10_000.0)
+    face_extent_mm: tuple = (40.0, 1000.0)
 
 
 LIMITS = Limits()
@@ -211,6 +216,30 @@ def mesh_outlier_problems(vertices: np.ndarray, neutral: np.ndarray, source: str
     return [f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre along an axis "
             f"({int(far.sum())} such vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent "
             f"({scale:.3g} {unit})"]
+
+
+def face_size_problems(neutral: np.ndarray, source: str, setting: str, unit_mm: float) -> list[str]:
+    """The neutral face's extent (the longest side of its bounding box, in mm) outside
+    :attr:`Limits.face_extent_mm`: its unit setting is off by a factor.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (n_vertices, 3)
+        The neutral face in mm (file units times ``unit_mm``).
+    source : str
+        The file (or folder) the face was read from.
+    setting : str
+        The setting that scales it to mm, named in the message (``dataset.blendshapes.unit_mm``).
+    unit_mm : float
+        Its value: millimetres per file unit.
+    """
+    low, high = LIMITS.face_extent_mm
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = float(np.max(np.ptp(np.asarray(neutral, dtype=np.float64), axis=0))) if len(neutral) else 0.0
+    if low <= extent <= high:
+        return []
+    return [f"{source}: with {setting}={unit_mm:g} the neutral face spans {extent:.3g} mm, not a human face's size "
+            f"({low:g}-{high:g} mm); {setting} (mm per file unit) is off by a factor"]
 
 
 def frame_rate_problems(rate: float, source: str, what: str = "frame rate") -> list[str]:

@@ -248,8 +248,7 @@ class RunRecord:
     timings : dict
         ``timings.json``: seconds per stage (empty when the record has none).
     checksums : dict or None
-        File name -> SHA-256 the run wrote into ``done``; None for a record written before records carried them
-        (its files cannot be checked).
+        File name -> SHA-256 the run wrote into ``done`` (:func:`load_record` refuses a record without them).
     """
 
     folder: Path
@@ -336,18 +335,19 @@ def _read_json(path: Path) -> dict:
     return value
 
 
-def read_checksums(folder: Path) -> dict | None:
-    """The checksums a run wrote into its ``done`` marker (file name -> SHA-256), or None when the marker is empty
-    (a record written before records carried checksums).
+def read_checksums(folder: Path) -> dict:
+    """The checksums a run wrote into its ``done`` marker (file name -> SHA-256).
 
     Raises
     ------
     WorkbenchError
-        When ``done`` holds anything but the checksums a run writes.
+        When ``done`` holds anything but the checksums a run writes (an emptied marker included: without them no
+        file of the record can be checked).
     """
     text = _read_text(Path(folder) / DONE)
     if not text.strip():
-        return None
+        raise WorkbenchError(f"run record {folder}: '{DONE}' is empty (it must hold the checksums of the record's "
+                             "files, as a run writes them); the record cannot be trusted")
     try:
         checksums = json.loads(text)["sha256"]
     except (ValueError, KeyError, TypeError):
@@ -400,6 +400,35 @@ def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: 
         check_file(folder, added[0], checksums)
 
 
+def verify_record(folder: Path, *, archives: bool = True) -> dict:
+    """Check a complete record before anything of it is used: its ``done`` holds the checksums the run wrote,
+    every file the run wrote is there and unchanged, and no record file was added since (every reader, report,
+    collect, export and mlflow, loads records through :func:`load_record`, which calls this).
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    archives : bool
+        Check the ``.npz`` archives too (the default); else each is checked when read.
+
+    Returns
+    -------
+    dict
+        File name -> SHA-256, from ``done``.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the record and the file at fault.
+    """
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
+    checksums = read_checksums(folder)
+    check_record_files(folder, checksums, archives=archives)
+    return checksums
+
+
 def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None:
     """Refuse ``value`` unless it is one of ``kinds`` (a bool is not a number here)."""
     if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
@@ -434,16 +463,16 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
                                  f"({sorted(metrics['data'])})")
 
 
-def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
-    """Read and check a complete run record: every file against the checksum the run wrote into ``done``, then
-    the fields readers rely on.
+def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
+    """Read and check a complete run record: every file against the checksum the run wrote into ``done``
+    (:func:`verify_record`), then the fields readers rely on.
 
     Parameters
     ----------
     folder : pathlib.Path
     check_archives : bool
-        Check the record's ``.npz`` archives now too (a reader that will use them, before it writes anything);
-        otherwise each is checked when read.
+        Check the record's ``.npz`` archives now too (the default: every reader refuses a damaged record before it
+        writes anything); otherwise each is checked when read.
 
     Returns
     -------
@@ -458,11 +487,7 @@ def load_record(folder: Path, *, check_archives: bool = False) -> RunRecord:
     import yaml
 
     folder = Path(folder)
-    if not is_complete(folder):
-        raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
-    checksums = read_checksums(folder)
-    if checksums is not None:
-        check_record_files(folder, checksums, archives=check_archives)
+    checksums = verify_record(folder, archives=check_archives)
     try:
         config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
     except yaml.YAMLError as error:

@@ -22,7 +22,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 from omegaconf import MISSING
 
-from workbench.errors import WorkbenchError
+from workbench.errors import WorkbenchError, check_utf8
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -93,6 +93,9 @@ SEED = integer(0)
 FRAME_RATE = interval(0, 10_000, low_open=True)
 """Frames per second of a face capture: optical systems record at up to a few hundred, high-speed cameras at a few
 thousand; more is a unit error (a rate in mHz, a time base)."""
+UNIT_MM = interval(0, 10_000, low_open=True)
+"""Millimetres per file unit: 1 (mm), 10 (cm), 25.4 (inch), 1000 (m); beyond 10 m a unit no face mesh is stored in
+(and values near the largest float overflow every sum of squares)."""
 GAP_POLICIES = ("drop", "linear", "masked")
 HAND_SUBSET = rule(lambda value: (isinstance(value, str)
                                   and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
@@ -268,7 +271,7 @@ class SyntheticSchema:
 class BlendshapesSchema:
     folder: str = meta(MISSING, TEXT)
     neutral: str = meta(MISSING, TEXT)
-    unit_mm: float = meta(MISSING, interval(0, low_open=True))
+    unit_mm: float = meta(MISSING, UNIT_MM)
     region_vertices: Optional[int] = meta(None, integer(3, optional=True))
 
 
@@ -338,7 +341,7 @@ class AnimfaceSchema:
 class MeshSequenceBasisSchema:
     path: Optional[str] = meta(None, OPTIONAL_TEXT)
     neutral: str = meta("neutral.obj", TEXT)
-    unit_mm: float = meta(1.0, interval(0, low_open=True))
+    unit_mm: float = meta(1.0, UNIT_MM)
     region_vertices: Optional[int] = meta(None, integer(3, optional=True))
 
 
@@ -349,7 +352,7 @@ class MeshSequenceSchema:
     sequence: Optional[str] = meta(None, OPTIONAL_TEXT)
     vertices_key: str = meta("vertices", TEXT)
     faces_key: Optional[str] = meta("faces", OPTIONAL_TEXT)
-    unit_mm: float = meta(1000.0, interval(0, low_open=True))
+    unit_mm: float = meta(1000.0, UNIT_MM)
     frame_rate: float = meta(60.0, FRAME_RATE)
     neutral_frame: int = meta(0, integer(0))
     neutral: Optional[str] = meta(None, OPTIONAL_TEXT)
@@ -375,6 +378,10 @@ DATASET_EXTRAS = {
 }
 """Dataset settings added with ``+`` (not in the kind's schema, so that configs without them hash as before) ->
 the kinds that read them (docs/formats.md, docs/studies.md)."""
+DATASET_EXTRA_RULES = {"weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
+                       "weight_curves": OPTIONAL_TEXT}
+"""The rules of the dataset settings added with ``+`` (the rate numbers the frames of weight curves, as
+:data:`FRAME_RATE` does a capture's)."""
 
 
 def register_schemas() -> None:
@@ -418,12 +425,14 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
         resolved.
     """
     plain = resolved_settings(cfg)
+    _check_text(plain, "")
     _check_keys(plain)
     _check_node(plain, StudySchema, "")
     kind = plain["dataset"].get("kind") if isinstance(plain.get("dataset"), Mapping) else None
     if kind not in DATASET_SCHEMAS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SCHEMAS)}, got {kind!r}")
-    _check_node(plain["dataset"], DATASET_SCHEMAS[kind], "dataset.")
+    _check_node(plain["dataset"], DATASET_SCHEMAS[kind], "dataset.",
+                extras={key for key, kinds in DATASET_EXTRAS.items() if kind in kinds})
     _check_relations(plain)
     ineffective = ineffective_settings(plain, overrides)
     if ineffective and refuse_ineffective:
@@ -452,6 +461,19 @@ def resolved_settings(cfg) -> dict:
     return plain
 
 
+def _check_text(value, key: str) -> None:
+    """Every text of the config (names, paths, keys) is valid UTF-8: the record's files hold them."""
+    if isinstance(value, str):
+        check_utf8(value, f"setting {key}")
+    elif isinstance(value, Mapping):
+        for name, item in value.items():
+            check_utf8(str(name), f"the key of setting {key or 'the config'}")
+            _check_text(item, f"{key}.{name}" if key else str(name))
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            _check_text(item, f"{key}[{i}]")
+
+
 def _check_keys(plain: Mapping) -> None:
     """Refuse keys no schema knows: top-level and dataset keys added with ``+``."""
     known = {f.name for f in fields(StudySchema)}
@@ -471,10 +493,16 @@ def _check_keys(plain: Mapping) -> None:
             raise WorkbenchError(f"dataset.{key} has no effect with dataset={kind}: {why}; leave it out")
 
 
-def _check_node(values: Mapping, schema, prefix: str) -> None:
-    """Apply the rules of ``schema``'s fields to ``values`` (recursing into nested schemas)."""
+def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset()) -> None:
+    """Apply the rules of ``schema``'s fields to ``values`` (recursing into nested schemas); a key the schema does
+    not have (added with ``+`` or ``++``) is refused unless it is one of ``extras``."""
     if not isinstance(values, Mapping):
         raise WorkbenchError(f"{prefix.rstrip('.') or 'the config'} must be a mapping, got {values!r:.60}")
+    _check_known(values, schema, prefix, extras)
+    for key in extras & set(values):
+        spec = DATASET_EXTRA_RULES.get(key)
+        if spec is not None and not spec["check"](values[key]):
+            raise WorkbenchError(f"{prefix}{key} must be {spec['rule']}, got {values[key]!r}")
     for spec in fields(schema):
         key = prefix + spec.name
         if spec.name not in values:
@@ -487,6 +515,16 @@ def _check_node(values: Mapping, schema, prefix: str) -> None:
             _check_solvers(value)
         elif "check" in spec.metadata and not spec.metadata["check"](value):
             raise WorkbenchError(f"{key} must be {spec.metadata['rule']}, got {value!r}")
+
+
+def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:
+    """Refuse a key of ``values`` that ``schema`` has no field for (whatever the prefix that added it)."""
+    known = [spec.name for spec in fields(schema)]
+    for key in values:
+        if key not in known and key not in extras:
+            elsewhere = f" (did you mean dataset.{key}?)" if key in DATASET_EXTRAS and prefix != "dataset." else ""
+            raise WorkbenchError(f"setting {prefix}{key} does not exist{elsewhere}; {prefix.rstrip('.') or 'a study'} "
+                                 f"has {sorted(known)}: check its spelling or leave it out")
 
 
 def _nested_schema(spec):
@@ -516,6 +554,8 @@ def _check_relations(plain: Mapping) -> None:
         raise WorkbenchError(f"basis.splocs.d_min ({splocs['d_min']}) must be below basis.splocs.d_max "
                              f"({splocs['d_max']})")
     basis, kind = plain["basis"], plain["dataset"].get("kind")
+    if kind == "synthetic":
+        _check_marker_count(plain["dataset"])
     if basis.get("coverage_on") == "clean" and basis.get("n_components") is not None:
         raise WorkbenchError(f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
                              f"be null, got {basis['n_components']}")
@@ -523,6 +563,15 @@ def _check_relations(plain: Mapping) -> None:
                              ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True)):
         if wants_clean and kind != "synthetic":
             raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
+
+
+def _check_marker_count(dataset: Mapping) -> None:
+    """The synthetic face's markers sit on vertices of its mesh: no more of them than the mesh has (checked here,
+    before the dataset's memory estimate, so that the message names the setting at fault)."""
+    markers, rows, cols = (dataset.get(key) for key in ("n_face_markers", "mesh_rows", "mesh_cols"))
+    if all(map(_integer, (markers, rows, cols))) and markers > rows * cols:
+        raise WorkbenchError(f"dataset.n_face_markers must not exceed the synthetic mesh's dataset.mesh_rows x "
+                             f"dataset.mesh_cols = {rows * cols} vertices (the markers sit on them), got {markers}")
 
 
 # ---------------------------------------------------------------------------------------------------------------

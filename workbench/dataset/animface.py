@@ -22,9 +22,9 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.plausibility import (check_rigid_set, face_spread, frame_rate_problems, outlier_problems,
-                                            parked_marker_problems, plausibility_policy, settle, take_units_problems,
-                                            with_warnings)
+from workbench.plausibility import (check_rigid_set, face_size_problems, face_spread, frame_rate_problems,
+                                    outlier_problems, parked_marker_problems, plausibility_policy, settle,
+                                    take_units_problems, with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, integer_setting, load_basis, mesh_point_indices,
@@ -364,6 +364,8 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
     hand_names = hand_shape_names(cfg, expression_names(folder, cfg["blendshapes"]["neutral"]))
     basis = load_basis(cfg, hand_names)
+    warnings += settle(face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
+                       plausibility_policy(cfg))
     table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
     stable = stabilised_takes(takes, table, cfg)
     warnings += stable.warnings

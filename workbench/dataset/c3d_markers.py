@@ -73,7 +73,14 @@ class MarkerTake:
         if unknown:
             raise WorkbenchError(f"{self.path}: unknown marker label(s) {unknown} named in {named_in}; the file's "
                                  f"{len(self.labels)} labels are {', '.join(self.labels)}")
-        return np.array([position[label] for label in labels], dtype=np.int64)
+        index = np.array([position[label] for label in labels], dtype=np.int64)
+        never = [label for label, seen in zip(labels, np.isfinite(self.positions[:, index, 0]).any(axis=0))
+                 if not seen]
+        if never:
+            raise WorkbenchError(f"{self.path}: marker(s) {never} named in {named_in} have no sample in any of the "
+                                 f"take's {self.n_frames} frames; a marker never seen cannot be used: leave it out of "
+                                 f"{named_in}")
+        return index
 
 
 def units_to_mm(units: str, path: Path) -> float:
@@ -95,6 +102,22 @@ def point_labels(reader) -> tuple[str, ...]:
         labels += [str(label).strip() for label in parameter.string_array]
         group += 1
     return tuple(labels)
+
+
+HEADER_FRAME_LIMIT = 65535
+"""The header stores its first and last frame numbers in 16 bits; longer takes give theirs in the TRIAL
+parameters, and the header's last frame may then wrap."""
+
+
+def check_frame_range(reader, path: Path) -> None:
+    """The frame numbers of a C3D's header (and of its ``TRIAL`` parameters, which the reader prefers) run
+    forwards: a last frame before the first is a damaged header, not an empty take."""
+    for where, first, last in (("header", reader.header.first_frame, reader.header.last_frame),
+                               ("TRIAL:ACTUAL_START_FIELD/END_FIELD", reader.first_frame, reader.last_frame)):
+        wrapped = where == "header" and reader.last_frame > HEADER_FRAME_LIMIT
+        if int(last) < int(first) and not wrapped:
+            raise WorkbenchError(f"{path}: its {where} says the last frame ({int(last)}) precedes the first "
+                                 f"({int(first)}); a damaged header (frame numbers must run forwards)")
 
 
 def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
@@ -123,6 +146,7 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
         warnings.simplefilter("ignore")  # the reader warns (rather than fails) on a short file: checked below
         try:
             reader = c3d.Reader(handle)
+            check_frame_range(reader, path)
             declared = reader.last_frame - reader.first_frame + 1
             labels = point_labels(reader)
             n_markers = int(reader.point_used)
@@ -142,6 +166,9 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
                              f"{len(frames)}")
     if not labels or not frames:
         raise WorkbenchError(f"{path}: holds no marker trajectories ({len(labels)} labels, {len(frames)} frames)")
+    if len(frames) < 2:
+        raise WorkbenchError(f"{path}: holds {len(frames)} frame; a take needs at least 2 (its motion is what is "
+                             "measured)")
     if len(set(labels)) != len(labels):
         duplicates = sorted({label for label in labels if labels.count(label) > 1})
         raise WorkbenchError(f"{path}: duplicate marker labels {duplicates}")

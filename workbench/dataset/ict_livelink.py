@@ -19,8 +19,8 @@ from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.plausibility import (frame_rate_problems, plausibility_policy, settle, static_weights_problems,
-                                            unused_channel_problems, with_warnings)
+from workbench.plausibility import (face_size_problems, frame_rate_problems, plausibility_policy, settle,
+                                    static_weights_problems, unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text,
                                     positive_setting)
@@ -136,6 +136,8 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
     warnings = settle(problems, plausibility_policy(cfg))
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
+    warnings += settle(face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
+                       plausibility_policy(cfg))
     mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
     return _DrivenTake(curves_key=curves_key, curves_path=curves_path, take_name=take_name, take=take, frames=frames,
                        warnings=warnings, driven=driven, basis=basis, mapping=mapping, hand_names=hand_names,

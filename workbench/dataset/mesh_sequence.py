@@ -26,7 +26,7 @@ from workbench.dataset.capture import Capture
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.meshes import read_obj, triangulate
-from workbench.plausibility import SequenceMotion, plausibility_policy, settle, with_warnings
+from workbench.plausibility import SequenceMotion, face_size_problems, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import (data_path, frame_selection, integer_setting, origin_text, positive_setting)
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
@@ -233,6 +233,7 @@ def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequ
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
     basis = read_shape_file(spec, "dataset.blendshapes", basis_path)
     rms = check_same_points(neutral, basis.neutral, "dataset.blendshapes", basis_path, f"the sequence {path.name}")
+    warnings += settle(face_size_problems(neutral, str(path), "dataset.unit_mm", unit_mm), plausibility_policy(cfg))
     hand_names, hand = shape_subset(basis, cfg.get("hand_shapes"), "dataset.hand_shapes")
     faces = faces if faces is not None else basis.triangles
 

@@ -128,11 +128,12 @@ def _vertices_before_faces(path: Path) -> np.ndarray:
 def _file_key(path: Path) -> tuple[str, tuple[int, ...], int]:
     """What the parsed file is remembered by in the process: its path, its stamp and its size. The stamp holds the
     change time, which any write sets to now and no program can set back, so a file edited in place with its size
-    and modification time restored is read afresh."""
+    and modification time restored is read afresh. The path is kept as named (not resolved), so that a message
+    about a file reached through a symbolic link names the link the user gave."""
     if not path.is_file():
         raise WorkbenchError(f"{path}: OBJ file not found")
     stat = path.stat()
-    return str(path.resolve()), (stat.st_dev, stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns), stat.st_size
+    return os.path.abspath(path), (stat.st_dev, stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns), stat.st_size
 
 
 @functools.lru_cache(maxsize=128)
@@ -257,6 +258,8 @@ class Blendshapes:
 
 def expression_names(folder: Path, neutral_file: str) -> list[str]:
     """Names of the expression OBJs in a blendshape folder: every ``*.obj`` but the neutral, sorted."""
+    if not Path(folder).is_dir():
+        raise WorkbenchError(f"blendshape folder {folder} not found")
     return sorted(path.stem for path in folder.glob("*.obj") if path.name != neutral_file)
 
 

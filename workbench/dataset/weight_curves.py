@@ -74,6 +74,9 @@ def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = No
             document = json.loads(path.read_text())
         except (ValueError, UnicodeDecodeError) as error:
             raise WorkbenchError(f"{path}: not valid JSON ({error})") from None
+        except RecursionError:
+            raise WorkbenchError(f"{path}: JSON nested too deeply to be weight curves (an object of names, weights "
+                                 "and times, or a list of MediaPipe results, is nested a few levels)") from None
         if isinstance(document, list):
             return _mediapipe_curves(document, path, frame_rate)
         if isinstance(document, dict):
