@@ -392,6 +392,7 @@ def main() -> None:
         sys.exit(0)
     if VERBOSE_FLAG in sys.argv[1:]:
         _verbose = True
+        os.environ.setdefault("MLFLOW_LOGGING_LEVEL", "INFO")  # MLflow's own lines too (quiet otherwise)
         sys.argv = [arg for arg in sys.argv if arg != VERBOSE_FLAG]
     if len(sys.argv) > 1 and sys.argv[1] in COMMANDS:
         import importlib
