@@ -24,8 +24,8 @@ from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_r
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.reporting.mlflow_store import (Store, log_records, metric_key, open_store,  # noqa: E402
-                                              param_text, record_metrics, resolve_store, store_uris)
+from workbench.reporting.mlflow_store import (Store, finished_ms, log_records, metric_key, open_store,  # noqa: E402
+                                              param_text, record_metrics, resolve_store, started_ms, store_uris)
 
 SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
          "metric.score_clean=true",
@@ -129,6 +129,12 @@ def test_an_interrupted_import_is_completed_not_duplicated(swept, tmp_path):
     client = mlflow.MlflowClient(tracking_uri=uri)
     experiment = client.get_experiment_by_name("coverage_small").experiment_id
     [run] = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "run"]
+    # the sweep's run an import made: its settings, summary and the span of its records (not the import's time)
+    [sweep] = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "sweep"]
+    record = load_record(folders[0])
+    assert sweep.data.params["study"] == "coverage_small" and sweep.data.metrics["runs"] == 1
+    assert sweep.data.metrics["alpha_abs_mean.markers.QE.lstsq"] == run.data.metrics["alpha_abs_mean.markers.QE.lstsq"]
+    assert (sweep.info.start_time, sweep.info.end_time) == (started_ms(record), finished_ms(record))
     client.set_terminated(run.info.run_id, status="RUNNING")  # as an import killed before it finished leaves it
     result = log_records(folders[:2], store=store)
     assert (result["added"], result["resumed"], result["skipped"]) == (1, 1, 0)
