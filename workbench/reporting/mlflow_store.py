@@ -16,7 +16,14 @@ MLflow experiment; each sweep one parent run with a nested run per complete reco
 - tags: ``kind`` (``run`` or ``sweep``), ``study``, ``sweep``, ``record``, ``config_hash``, ``data``,
   ``workbench.version``, ``git_commit`` (also as MLflow's ``mlflow.source.git.commit``), ``git_dirty``;
 - artifacts: the record's files (config, alpha table as CSV and Markdown, per-frame alpha, metrics, timings, log)
-  and its report's files (``report/``) when one was built; the sweep's run holds its collected tables.
+  and its report's files (``report/``) when one was built; the sweep's run holds its collected tables;
+- the sweep's run: its settings and summary metrics (:func:`sweep_params`, :func:`sweep_metrics`) and the sweep's
+  span, from the command's start to the end of its logging (an import's: from its first record's start to its last
+  record's end).
+
+A new experiment keeps its files with the store named (:func:`resolve_store`: a SQLite database's beside it, never
+MLflow's ``./mlruns`` of the current folder); MLflow's telemetry is off and its INFO lines stay off the console
+unless ``--verbose``.
 
 Each record goes in once (found again by its ``record`` and ``config_hash`` tags); a run an interrupted import
 left unfinished is completed, not duplicated. Writers of a SQLite store take turns (a lock file beside the
