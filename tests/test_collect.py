@@ -164,6 +164,22 @@ def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):
         pd.testing.assert_frame_equal(from_csv, from_parquet, check_dtype=False)
 
 
+def test_without_pyarrow_the_csv_files_are_written_and_the_notice_waits_for_verbose(sweep, tmp_path, monkeypatch,
+                                                                                   caplog):
+    """No parquet copies without pyarrow; the line saying so is a debug note (``--verbose``), not on every call."""
+    import logging
+
+    monkeypatch.setattr("workbench.reporting.collect.has_module", lambda name: False)
+    with caplog.at_level(logging.INFO, logger="workbench"):
+        collect_and_write([sweep], tmp_path / "quiet")
+    assert not caplog.records and not list((tmp_path / "quiet").glob("*.parquet"))
+    assert (tmp_path / "quiet" / "runs.csv").is_file()
+    with caplog.at_level(logging.DEBUG, logger="workbench"):
+        collect_and_write([sweep], tmp_path / "verbose")
+    assert [record.getMessage().split(": pip")[0] for record in caplog.records] == [
+        "parquet copies of the tables left out"]
+
+
 def test_metrics_as_columns_table(sweep, tmp_path):
     text = collect_and_write([sweep], tmp_path / "out", columns="metric", where={"basis.coverage": "0.99"},
                              extra=())["markdown"]

@@ -308,6 +308,15 @@ def test_marker_vs_mesh_draws_one_panel_per_evaluation_set_and_measure():
     figure = plot_marker_vs_mesh(own, "alpha_abs_mean", title="own points")
     assert [ax.get_title(loc="left") for ax in figure.axes] == ["scored on markers", "scored on mesh"]
     assert all(len(ax.patches) == 4 for ax in figure.axes)
+    # each bar centred on its tick (no empty slot for the variant the panel lacks); every colour in the legend
+    figure.draw_without_rendering()
+    for ax in figure.axes:
+        centres = sorted(patch.get_x() + patch.get_width() / 2 for patch in ax.patches)
+        assert centres == pytest.approx(list(ax.get_xticks()), abs=1e-9)
+    colours = {tuple(patch.get_facecolor()) for ax in figure.axes for patch in ax.patches}
+    entries = {tuple(handle.get_facecolor()) for handle in figure.legends[0].legend_handles}
+    assert len(colours) == 2 and colours == entries
+    assert [t.get_text() for t in figure.legends[0].get_texts()] == ["fitted on markers", "fitted on mesh"]
 
 
 def test_coverage_curve_marks_threshold_and_chosen_m():
@@ -367,6 +376,77 @@ def test_coverage_curve_names_the_paper_m_and_the_basis_size_on_one_line_when_th
     figure = plot_coverage_curve(ratios, {"mesh": 10}, threshold=0.995, title="c", paper_m=18, basis_size=12)
     labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
     assert "paper: m = 18" in labels and "hand shapes n = 12" in labels
+
+
+def weight_statistics_example():
+    """Statistics as a run records them, with two solvers giving the same roughness (two labels 9.1e4 side by
+    side) and a tiny share of frames outside [0, 1]."""
+    statistics = {}
+    for data in ("markers", "mesh"):
+        statistics[data] = {}
+        for basis, scale in (("H", 1.0), ("QE", 3.0), ("QE-linear", 2.0)):
+            for k, solver in enumerate(("lstsq", "nnls", "box")):
+                statistics[data][(basis, solver)] = {
+                    "max_abs": 1.1 * scale / (k + 1), "outside_unit_share": 0.002 * (2 - k),
+                    "sparsity": 0.4 + 0.1 * k, "roughness": 91234.0 if k else 4.5e3 * scale}
+    return statistics
+
+
+def test_weight_statistics_labels_never_print_over_each_other():
+    from workbench.reporting.figures.distributions import WEIGHT_PANELS, bar_text, plot_weight_statistics
+
+    figure = plot_weight_statistics(weight_statistics_example(), title="weights")
+    figure.canvas.draw()
+    axes = figure.axes
+    assert len(axes) == 2 * len(WEIGHT_PANELS)
+    for ax in axes:
+        texts = [text for text in ax.texts if text.get_text()]
+        boxes = [text.get_window_extent() for text in texts]
+        assert boxes
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                assert not boxes[i].overlaps(boxes[j]), (ax.get_title(loc="left"), texts[i].get_text(),
+                                                         texts[j].get_text())
+        # every label below the panel's top, clear of its title
+        top = ax.get_window_extent().y1
+        assert all(box.y1 <= top + 1 for box in boxes), ax.get_title(loc="left")
+    roughness = axes[len(WEIGHT_PANELS) - 1]
+    assert sum(text.get_text() == "9.1e4" for text in roughness.texts) == 6
+    assert [bar_text(v) for v in (91234.0, 0.002, 1.0, float("nan"), 2.3e-5)] == ["9.1e4", "0.002", "1", "", "2.3e-5"]
+
+
+def test_error_cdf_subtitles_and_legend_title_fit_within_the_figure():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from workbench.reporting.figures import BASIS_COLOURS, OKABE_ITO
+    from workbench.reporting.figures.distributions import plot_error_cdf
+
+    probabilities = np.linspace(0, 1, 51)
+    curves = {data: {(basis, solver): np.linspace(0.05, 0.6, 51) * (1 + i)
+                     for i, (basis, solver) in enumerate([("H", "lstsq"), ("QE", "lstsq"), ("QE", "nnls"),
+                                                          ("QE-linear", "lstsq"), ("PCA", "projection")])}
+              for data in ("markers", "mesh")}
+    regions = {"markers": "the face region: every one of the 66 markers",
+               "mesh": "the face region: the 2218 of 4200 mesh vertices some hand shape moves (the muscles' reach; "
+                       "the rest of the head patch never moves)"}
+    figure = plot_error_cdf(curves, probabilities, title="Per-frame error", regions=regions)
+    FigureCanvasAgg(figure).draw()
+    renderer = figure.canvas.get_renderer()
+    width = figure.bbox.width
+    titles = [ax.title if ax.get_title() else ax._left_title for ax in figure.axes]
+    boxes = [title.get_window_extent(renderer) for title in titles]
+    assert all(0 <= box.x0 and box.x1 <= width for box in boxes)
+    assert boxes[0].x1 < boxes[1].x0  # the two panels' subtitles never run into each other
+    assert "muscles' reach;" in titles[1].get_text() and "\n" in titles[1].get_text()
+    legend = figure.legends[0]
+    title_box = legend.get_title().get_window_extent(renderer)
+    assert title_box.width <= width / 2 and title_box.x0 >= 0 and title_box.x1 <= width
+    # the bases' colours: four different colours of the colour-blind-safe palette (QE and PCA were two purples or
+    # reds), the same in every figure
+    assert len(set(BASIS_COLOURS.values())) == len(BASIS_COLOURS) and set(BASIS_COLOURS.values()) <= set(
+        OKABE_ITO.values())
+    drawn = {line.get_label().split()[0]: line.get_color() for line in figure.axes[0].lines if line.get_label()[0] != "_"}
+    assert drawn == BASIS_COLOURS
 
 
 def test_point_labels_do_not_overlap():

@@ -24,8 +24,8 @@ from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_r
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.reporting.mlflow_store import (Store, log_records, metric_key, open_store,  # noqa: E402
-                                              param_text, record_metrics, resolve_store, store_uris)
+from workbench.reporting.mlflow_store import (Store, finished_ms, log_records, metric_key, open_store,  # noqa: E402
+                                              param_text, record_metrics, resolve_store, started_ms, store_uris)
 
 SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
          "metric.score_clean=true",
@@ -129,6 +129,12 @@ def test_an_interrupted_import_is_completed_not_duplicated(swept, tmp_path):
     client = mlflow.MlflowClient(tracking_uri=uri)
     experiment = client.get_experiment_by_name("coverage_small").experiment_id
     [run] = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "run"]
+    # the sweep's run an import made: its settings, summary and the span of its records (not the import's time)
+    [sweep] = [run for run in client.search_runs([experiment]) if run.data.tags["kind"] == "sweep"]
+    record = load_record(folders[0])
+    assert sweep.data.params["study"] == "coverage_small" and sweep.data.metrics["runs"] == 1
+    assert sweep.data.metrics["alpha_abs_mean.markers.QE.lstsq"] == run.data.metrics["alpha_abs_mean.markers.QE.lstsq"]
+    assert (sweep.info.start_time, sweep.info.end_time) == (started_ms(record), finished_ms(record))
     client.set_terminated(run.info.run_id, status="RUNNING")  # as an import killed before it finished leaves it
     result = log_records(folders[:2], store=store)
     assert (result["added"], result["resumed"], result["skipped"]) == (1, 1, 0)
@@ -159,6 +165,14 @@ def test_the_store_named_wins_then_the_environment_then_the_default(tmp_path, mo
     assert resolve_store(store=tmp_path / "s").tracking_uri == f"sqlite:///{tmp_path.resolve()}/s/mlflow.db"
     assert resolve_store(tracking_uri="http://other:5000", output_root=tmp_path).tracking_uri == "http://other:5000"
     assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").lock_file == tmp_path / "x.db.lock"
+    # artifacts beside the database named (never MLflow's ./mlruns of the current folder), unless named elsewhere
+    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").artifact_root == (tmp_path / "x.artifacts").as_uri()
+    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/s/mlflow.db").artifact_root == \
+        (tmp_path / "s" / "artifacts").as_uri() == resolve_store(store=tmp_path / "s").artifact_root
+    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db",
+                         artifact_location=str(tmp_path / "a")).artifact_root == (tmp_path / "a").as_uri()
+    assert resolve_store(tracking_uri="http://lab:5000", artifact_location="s3://b/x/").artifact_root == "s3://b/x"
+    assert resolve_store(tracking_uri="http://lab:5000").artifact_root is None  # the server decides
 
 
 def test_scores_against_the_clean_frames_are_logged_where_a_row_has_them(swept):
@@ -180,6 +194,52 @@ def test_two_rows_of_one_name_are_refused(swept):
 
 
 # --- real processes: concurrent imports, Ctrl-C, a full disk, names from a record, report figures -------------
+
+def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what_the_sweep_was(tmp_path):
+    """MLFLOW_TRACKING_URI=sqlite:///<folder>/t.db, run from another folder: the artifacts go beside the database
+    (not into ./mlruns), nothing is written anywhere else (the home folder included: no telemetry id), MLflow's own
+    INFO lines stay off the console, and the sweep's run holds its settings, summary metrics and true duration."""
+    store, out, cwd, home = (tmp_path / name for name in ("store", "out", "cwd", "home"))
+    for folder in (store, cwd, home):
+        folder.mkdir()
+    env = dict(ENV, MLFLOW_TRACKING_URI=f"sqlite:///{store / 't.db'}", HOME=str(home))
+    for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "XDG_DATA_HOME", "MLFLOW_DISABLE_TELEMETRY"):
+        env.pop(name, None)
+    command = [sys.executable, "-m", "workbench", "--config-name", "coverage_small", "dataset.n_frames=500",
+               "dataset.seed=0", "basis.coverage=0.95,0.995", f"paths.output_root={out}",
+               "hydra.callbacks.mlflow.enabled=true"]
+    started, ended, lines = time.time(), None, []
+    process = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in process.stdout:  # the sweep ends with its last line (the interpreter's own teardown is not the sweep's)
+        lines.append(line)
+        if line.startswith("mlflow: sweep coverage_small/default: 2 runs in the store"):
+            ended = time.time()
+    error = process.stderr.read()
+    assert process.wait(timeout=600) == 0, error
+    assert ended is not None, "".join(lines)
+    assert sorted(os.listdir(tmp_path)) == ["cwd", "home", "out", "store"]
+    assert not list(cwd.iterdir()) and not list(home.iterdir())
+    assert sorted(os.listdir(store)) == ["t.artifacts", "t.db", "t.db.lock"]
+    # one format: no Hydra date prefix, no MLflow INFO line
+    assert not [line for line in lines if line.startswith("[") or " INFO " in line], lines
+    assert "INFO" not in error and "alembic" not in error, error
+    client = mlflow.MlflowClient(tracking_uri=f"sqlite:///{store / 't.db'}")
+    runs = client.search_runs([client.get_experiment_by_name("coverage_small").experiment_id])
+    [parent] = [run for run in runs if run.data.tags["kind"] == "sweep"]
+    children_ = [run for run in runs if run.data.tags["kind"] == "run"]
+    assert len(children_) == 2
+    assert all(run.info.artifact_uri.startswith((store / "t.artifacts").as_uri()) for run in runs)
+    assert parent.data.params["study"] == "coverage_small" and parent.data.params["swept"] == "basis.coverage"
+    assert parent.data.params["basis.coverage"] == "0.95,0.995" and parent.data.params["dataset.seed"] == "0"
+    assert parent.data.params["dataset.n_frames"] == "500"
+    values = [run.data.metrics["alpha_abs_mean.markers.QE.lstsq"] for run in children_]
+    assert parent.data.metrics["alpha_abs_mean.markers.QE.lstsq"] == pytest.approx((values[0] * values[1]) ** 0.5,
+                                                                                   rel=1e-12)
+    assert parent.data.metrics["runs"] == 2
+    duration = (parent.info.end_time - parent.info.start_time) / 1000
+    assert duration == pytest.approx(ended - started, abs=1.0), (duration, ended - started)
+    assert parent.data.metrics["time.sweep"] == pytest.approx(duration, abs=1.0)
+
 
 def records_copy(swept, tmp_path):
     """The sweep's records copied (without the store), so that each test logs them into a store of its own."""

@@ -298,6 +298,9 @@ def main() -> None:
         sys.exit(0)
     if VERBOSE_FLAG in sys.argv[1:]:
         show_tracebacks()
+        os.environ.setdefault("MLFLOW_LOGGING_LEVEL", "INFO")  # MLflow's own lines too (quiet otherwise)
+        logging.basicConfig(format="%(message)s")  # and the workbench's notes (a Hydra run sets its own logging)
+        logging.getLogger("workbench").setLevel(logging.DEBUG)
         sys.argv = [arg for arg in sys.argv if arg != VERBOSE_FLAG]
     if len(sys.argv) > 1 and sys.argv[1] in COMMANDS:
         import importlib

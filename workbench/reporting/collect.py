@@ -15,7 +15,8 @@ come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, 
   rows and bases as columns;
 - ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.findings.sweep_findings`).
 
-The parquet copies need pyarrow (the parquet extra); without it they are left out, with one line saying so.
+The parquet copies need pyarrow (the parquet extra); without it they are left out, said in one line with
+``--verbose`` only (the CSV files hold the same tables).
 """
 
 from __future__ import annotations
@@ -226,7 +227,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     if has_module("pyarrow"):
         files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
     else:  # the CSV files hold the same tables
-        logging.getLogger("workbench").warning(f"parquet copies of the tables left out: {install_hint('parquet')}")
+        logging.getLogger("workbench").debug(f"parquet copies of the tables left out: {install_hint('parquet')}")
     for name, content in files.items():
         write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)

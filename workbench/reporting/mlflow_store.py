@@ -16,7 +16,14 @@ MLflow experiment; each sweep one parent run with a nested run per complete reco
 - tags: ``kind`` (``run`` or ``sweep``), ``study``, ``sweep``, ``record``, ``config_hash``, ``data``,
   ``workbench.version``, ``git_commit`` (also as MLflow's ``mlflow.source.git.commit``), ``git_dirty``;
 - artifacts: the record's files (config, alpha table as CSV and Markdown, per-frame alpha, metrics, timings, log)
-  and its report's files (``report/``) when one was built; the sweep's run holds its collected tables.
+  and its report's files (``report/``) when one was built; the sweep's run holds its collected tables;
+- the sweep's run: its settings and summary metrics (:func:`sweep_params`, :func:`sweep_metrics`) and the sweep's
+  span, from the command's start to the end of its logging (an import's: from its first record's start to its last
+  record's end).
+
+A new experiment keeps its files with the store named (:func:`resolve_store`: a SQLite database's beside it, never
+MLflow's ``./mlruns`` of the current folder); MLflow's telemetry is off and its INFO lines stay off the console
+unless ``--verbose``.
 
 Each record goes in once (found again by its ``record`` and ``config_hash`` tags); a run an interrupted import
 left unfinished is completed, not duplicated. Writers of a SQLite store take turns (a lock file beside the
@@ -45,7 +52,9 @@ from workbench.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CLEAN_COLUMNS
                               METRICS_FILE, TABLE_FILE, TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete,
                               load_record)
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("workbench.sweep")
+"""The callback's lines: to the console only (``conf/hydra/job_logging/workbench.yaml``), never into a record's
+``workbench.log`` (the job that wrote it has ended)."""
 
 STORE_FOLDER = ".mlflow"
 """Hidden, so that the copies of records among its artifacts are never taken for runs by collect, report or this."""
@@ -64,14 +73,35 @@ KEEP_OUT = ("workbench", "conf", "studies", "tests", "reports", "benchmarks")
 
 
 def import_mlflow():
-    """The ``mlflow`` module, or a one-line error saying how to install it."""
+    """The ``mlflow`` module (its usage telemetry off, its own INFO lines quiet: :func:`quiet_mlflow`), or a
+    one-line error saying how to install it."""
+    # MLflow's usage telemetry writes an id into the user's configuration folder and sends events out: a run writes
+    # only into the folders its user named (MLFLOW_DISABLE_TELEMETRY=false in the environment turns it back on)
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
     try:
         import mlflow
     except ImportError as error:
         from workbench.extras import install_hint
 
         raise WorkbenchError(f"the MLflow store needs the mlflow extra: {install_hint('mlflow')} ({error})") from None
+    quiet_mlflow()
     return mlflow
+
+
+QUIET_LOGGERS = ("mlflow", "alembic")
+"""MLflow's loggers (its own and its database migrations'), whose INFO lines (``Creating initial MLflow database
+tables...``) stay off the console."""
+
+
+def quiet_mlflow() -> None:
+    """Keep MLflow's own INFO lines off the console: its loggers at WARNING, unless ``MLFLOW_LOGGING_LEVEL`` is set
+    (``--verbose`` sets it to INFO; a level the user set is kept)."""
+    if os.environ.get("MLFLOW_LOGGING_LEVEL"):
+        return
+    for name in QUIET_LOGGERS:
+        logger = logging.getLogger(name)
+        if logger.getEffectiveLevel() < logging.WARNING:
+            logger.setLevel(logging.WARNING)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -128,18 +158,42 @@ def store_uris(store: Path) -> tuple[str, str]:
 
 
 def resolve_store(*, store: Path | None = None, tracking_uri: str | None = None,
-                  output_root: Path | str = "outputs") -> Store:
+                  output_root: Path | str = "outputs", artifact_location: str | None = None) -> Store:
     """The store to log into: ``tracking_uri`` if given, else the embedded store in ``store`` if given, else
-    ``$MLFLOW_TRACKING_URI`` if set, else the embedded store of ``output_root``."""
+    ``$MLFLOW_TRACKING_URI`` if set, else the embedded store of ``output_root``.
+
+    A new experiment keeps its artifacts under the store named: the embedded store's ``artifacts/``; beside the
+    database of a SQLite URI (``sqlite:///<folder>/t.db``: ``<folder>/t.artifacts``), never in MLflow's default
+    ``./mlruns`` of the current folder; where a server puts them. ``artifact_location`` (a folder or URI) names
+    another place.
+    """
     tracking_uri = tracking_uri or (None if store is not None else os.environ.get("MLFLOW_TRACKING_URI") or None)
+    chosen = None if not artifact_location else artifact_uri(artifact_location)
     if tracking_uri is None:
         folder = default_store(output_root) if store is None else Path(store)
         uri, artifacts = store_uris(folder)
-        return Store(uri, artifacts, folder.expanduser().resolve() / f"{DATABASE_FILE}.lock")
+        return Store(uri, chosen or artifacts, folder.expanduser().resolve() / f"{DATABASE_FILE}.lock")
     database = re.match(r"sqlite:///(.+)$", tracking_uri)
     database_file = Path(database.group(1).split("?")[0]) if database else None
-    lock = database_file.with_name(database_file.name + ".lock") if database_file else None
-    return Store(tracking_uri, None, lock)
+    if database_file is None:
+        return Store(tracking_uri, chosen, None)
+    lock = database_file.with_name(database_file.name + ".lock")
+    database_file = database_file.expanduser().resolve()
+    beside = (database_file.parent / ARTIFACTS_FOLDER if database_file.name == DATABASE_FILE  # the embedded layout
+              else database_file.with_suffix(ARTIFACTS_SUFFIX))
+    return Store(tracking_uri, chosen or beside.as_uri(), lock)
+
+
+ARTIFACTS_SUFFIX = ".artifacts"
+"""The artifact folder of a SQLite store named by a URI sits beside its database: ``t.db`` -> ``t.artifacts``
+(``mlflow.db`` -> ``artifacts``, as in the embedded store)."""
+
+
+def artifact_uri(location: str) -> str:
+    """An artifact location as MLflow takes it: a URI as is, a folder as its absolute ``file://`` URI."""
+    if re.match(r"^[A-Za-z][A-Za-z0-9+.\-]*://", str(location)):
+        return str(location).rstrip("/")
+    return Path(location).expanduser().resolve().as_uri()
 
 
 @contextmanager
@@ -310,6 +364,94 @@ def started_ms(record: RunRecord) -> int:
         return int(time.time() * 1000)
 
 
+def finished_ms(record: RunRecord) -> int:
+    """The run's end (``metrics.json``'s ``finished_at``, else its start and total time) in milliseconds."""
+    try:
+        return int(datetime.fromisoformat(str(record.metrics.get("finished_at"))).timestamp() * 1000)
+    except ValueError:
+        return started_ms(record) + int(1000 * float(record.timings.get("total", 0)))
+
+
+def process_start_ms() -> int:
+    """When this process started, in milliseconds since the epoch (Linux's ``/proc``); now where it cannot say."""
+    now = time.time()
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        started = now - (uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError, AttributeError):
+        return int(now * 1000)
+    return int(min(started, now) * 1000)
+
+
+SWEPT_PARAM = "swept"
+"""The sweep run's param naming the settings that take several values (comma-separated)."""
+HEADLINE = "alpha_abs_mean"
+"""The metric a sweep run summarises (:func:`sweep_metrics`)."""
+
+
+def sweep_params(study: str, records: Sequence[RunRecord]) -> dict[str, str]:
+    """A sweep run's params: ``study``; each setting its runs were given on the command line or by the study, with
+    its values in Hydra's sweep syntax (``basis.coverage`` -> ``0.95,0.995``; one value as is); and ``swept``, the
+    settings with several values (comma-separated, empty when none)."""
+    values: dict[str, list[str]] = {}
+    for record in sorted(records, key=lambda record: (record.job_num is None, record.job_num or 0)):
+        for override in record.metrics.get("overrides") or []:
+            key, _, value = str(override).partition("=")
+            key = key.lstrip("+~")
+            if key.startswith("hydra.") or not key:
+                continue
+            if value not in values.setdefault(key, []):
+                values[key].append(value)
+    params = {metric_key(*key.split(".")): ",".join(found)[:6000] for key, found in values.items()}
+    params["study"] = study
+    params[SWEPT_PARAM] = ",".join(key for key, found in values.items() if len(found) > 1)
+    return params
+
+
+def sweep_metrics(records: Sequence[RunRecord]) -> dict[str, float]:
+    """A sweep run's metrics: the headline ``alpha_abs_mean.<data>.<basis>.<solver>`` as the geometric mean over
+    the sweep's runs (as ``workbench collect`` summarises a cell; the arithmetic mean where a value is not
+    positive), and ``runs``, the number of complete runs."""
+    gathered: dict[str, list[float]] = {}
+    for record in records:
+        for row in record.table.to_dict("records"):
+            value = float(row[HEADLINE])
+            if math.isfinite(value):
+                gathered.setdefault(metric_key(HEADLINE, row["data"], row["basis"], row["solver"]), []).append(value)
+    metrics = {}
+    for key, found in gathered.items():
+        metrics[key] = (math.exp(sum(map(math.log, found)) / len(found)) if min(found) > 0
+                        else sum(found) / len(found))
+    metrics["runs"] = float(len(records))
+    return metrics
+
+
+def finish_sweep_run(client, run_id: str, study: str, records: Sequence[RunRecord], end_ms: int | None,
+                     wall_seconds: float | None = None) -> None:
+    """Log a sweep run's params (those it does not hold yet: MLflow keeps a param's first value) and metrics, and
+    finish it at ``end_ms`` (now when None).
+
+    Parameters
+    ----------
+    wall_seconds : float, optional
+        The time the command running the sweep took, logged as ``time.sweep``.
+    """
+    from mlflow.entities import Metric, Param
+
+    held = client.get_run(run_id).data.params
+    params = [Param(key, value) for key, value in sweep_params(study, records).items() if key not in held]
+    for batch in chunks(params, BATCH_LIMITS["params"]):
+        client.log_batch(run_id, params=batch)
+    now = int(time.time() * 1000)
+    metrics = dict(sweep_metrics(records))
+    if wall_seconds is not None:
+        metrics[metric_key("time", "sweep")] = float(wall_seconds)
+    for batch in chunks([Metric(key, value, now, 0) for key, value in metrics.items()], BATCH_LIMITS["metrics"]):
+        client.log_batch(run_id, metrics=batch)
+    client.set_terminated(run_id, status="FINISHED", end_time=end_ms)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # Logging
 # ---------------------------------------------------------------------------------------------------------------
@@ -436,7 +578,8 @@ def log_record(client, experiment: str, record: RunRecord, previous: Sequence, p
 
 
 def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_uri: str | None = None,
-                sweep_run_id: str | None = None, finish_sweeps: bool = False) -> dict:
+                sweep_run_id: str | None = None, finish_sweeps: bool = False, artifact_location: str | None = None,
+                wall_seconds: float | None = None) -> dict:
     """Log every complete record under ``paths`` that the store does not hold yet, nested in its sweep's run.
 
     Parameters
@@ -451,7 +594,14 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
     sweep_run_id : str, optional
         The parent run of the records' sweep, when the caller knows it (a sweep's callback).
     finish_sweeps : bool
-        Mark the sweeps' runs finished (the end of a sweep); otherwise only sweep runs made here are.
+        Mark the sweeps' runs finished now (the end of a sweep); otherwise only sweep runs made here are, at the
+        end of their last record. A sweep run is given its params and summary metrics as it is finished
+        (:func:`finish_sweep_run`).
+    artifact_location : str, optional
+        Where a new experiment keeps its artifacts (:func:`resolve_store`).
+    wall_seconds : float, optional
+        The time the command running the sweep took (the sweep's callback), logged as the sweep run's
+        ``time.sweep``.
 
     Returns
     -------
@@ -463,7 +613,7 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
     if not complete:
         raise WorkbenchError(f"no complete run record under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in complete]
-    target = resolve_store(store=store, tracking_uri=tracking_uri,
+    target = resolve_store(store=store, tracking_uri=tracking_uri, artifact_location=artifact_location,
                            output_root=records[0].config.get("paths", {}).get("output_root", "outputs"))
     groups: dict[tuple, list[RunRecord]] = {}
     for record in records:
@@ -491,8 +641,9 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
             if parent is not None:
                 # the collected tables change as a sweep is resumed: the end of a sweep logs them again
                 log_folders(client, parent, folder, [COLLECTED_FOLDER, REPORT_FOLDER], again=finish or finish_sweeps)
-                if finish or finish_sweeps:
-                    client.set_terminated(parent, status="FINISHED")
+                if finish or finish_sweeps:  # the sweep's end (now), or the end of its last record imported
+                    finish_sweep_run(client, parent, study, group,
+                                     None if finish_sweeps else max(map(finished_ms, group)), wall_seconds)
     return {"store": target, "tracking_uri": target.tracking_uri, "experiments": list(experiments.values()),
             "sweeps": sweeps, **counts, "incomplete": incomplete}
 
@@ -517,13 +668,17 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     target.add_argument("--tracking-uri", default=None,
                         help="an MLflow tracking URI instead, e.g. a server http://host:5000 (default: "
                              "$MLFLOW_TRACKING_URI, else the embedded store)")
+    parser.add_argument("--artifact-location", default=None,
+                        help="where a new experiment keeps the runs' files (a folder or URI; default: beside the "
+                             "store's database, or where the server puts them)")
     return parser.parse_args(list(argv))
 
 
 def main(argv: Sequence[str]) -> int:
-    """``workbench mlflow <folder>... [--store DIR | --tracking-uri URI]``."""
+    """``workbench mlflow <folder>... [--store DIR | --tracking-uri URI] [--artifact-location DIR]``."""
     args = parse_args(argv)
-    print(summary_line(log_records(args.paths, store=args.store, tracking_uri=args.tracking_uri)))
+    print(summary_line(log_records(args.paths, store=args.store, tracking_uri=args.tracking_uri,
+                                   artifact_location=args.artifact_location)))
     return 0
 
 
@@ -548,14 +703,23 @@ class MlflowSweep(Callback):
     that cannot be reached stops no run: one line says so, and ``workbench mlflow <sweep folder>`` logs later.
     """
 
-    def __init__(self, enabled: bool = False, store: str | None = None, tracking_uri: str | None = None):
+    def __init__(self, enabled: bool = False, store: str | None = None, tracking_uri: str | None = None,
+                 artifact_location: str | None = None):
         self.enabled, self.store, self.tracking_uri = bool(enabled), store, tracking_uri
+        self.artifact_location = artifact_location
+        self.started_ms = process_start_ms()  # the sweep's run starts with the command
         self.sweep_run_id = None
         self.jobs_log = True  # off when the store failed as the sweep started: the end of the sweep tries again
 
     def target(self, config) -> Store:
         return resolve_store(store=None if self.store is None else Path(self.store), tracking_uri=self.tracking_uri,
-                             output_root=config.paths.output_root)
+                             output_root=config.paths.output_root, artifact_location=self.artifact_location)
+
+    def log(self, folder: Path, **options) -> dict:
+        """:func:`log_records` into this callback's store."""
+        return log_records([folder], store=None if self.store is None else Path(self.store),
+                           tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id,
+                           artifact_location=self.artifact_location, **options)
 
     def on_multirun_start(self, config, **kwargs) -> None:
         if not self.enabled:
@@ -567,7 +731,8 @@ class MlflowSweep(Callback):
                 experiment = experiment_id(client, study, target.artifact_root)
                 runs = find_runs(client, experiment, **{SWEEP_TAG: str(sweep_dir.resolve())})
                 resumed = any(run.data.tags.get(KIND_TAG) == SWEEP_KIND for run in runs)
-                self.sweep_run_id, _ = sweep_run(client, experiment, sweep_dir, study, runs, logged_by="sweep")
+                self.sweep_run_id, _ = sweep_run(client, experiment, sweep_dir, study, runs, logged_by="sweep",
+                                                 start_ms=self.started_ms)
                 if resumed:  # running again until this sweep ends
                     client.update_run(self.sweep_run_id, status="RUNNING")
         except (WorkbenchError, OSError) as error:
@@ -585,8 +750,7 @@ class MlflowSweep(Callback):
         if not is_complete(folder):
             return
         try:
-            result = log_records([folder], store=None if self.store is None else Path(self.store),
-                                 tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id)
+            result = self.log(folder)
         except (WorkbenchError, OSError) as error:
             log.error(f"workbench mlflow: error: {error} (record kept; the end of the sweep or 'workbench mlflow "
                       f"{folder}' logs it)")
@@ -599,8 +763,8 @@ class MlflowSweep(Callback):
             return
         sweep_dir = Path(str(config.hydra.sweep.dir))
         try:
-            result = log_records([sweep_dir], store=None if self.store is None else Path(self.store),
-                                 tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id, finish_sweeps=True)
+            result = self.log(sweep_dir, finish_sweeps=True,
+                              wall_seconds=round(time.time() - self.started_ms / 1000, 3))
         except (WorkbenchError, OSError) as error:  # the records are complete; say why the store is not
             log.error(f"workbench mlflow: error: {error} (records kept; rerun 'workbench mlflow {sweep_dir}')")
             return

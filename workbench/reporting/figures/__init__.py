@@ -32,8 +32,13 @@ FORMATS = ("png", "svg", "pdf")
 PNG_DPI = 200
 RENDER_DPI = 110
 
-# Basis colours shared by every plot, so a basis looks the same everywhere.
-BASIS_COLOURS = {"H": "#1f5fbf", "QE": "#8e2bb0", "QE-linear": "#d17a00", "PCA": "#c0392b"}
+# One colour-blind-safe palette for every plot (Okabe & Ito's eight colours, distinct in the common forms of colour
+# blindness and in grey): a basis, and a data variant, look the same everywhere.
+OKABE_ITO = {"blue": "#0072B2", "vermillion": "#D55E00", "bluish green": "#009E73", "reddish purple": "#CC79A7",
+             "orange": "#E69F00", "sky blue": "#56B4E9", "yellow": "#F0E442", "black": "#000000"}
+BASIS_COLOURS = {"H": OKABE_ITO["blue"], "QE": OKABE_ITO["vermillion"], "QE-linear": OKABE_ITO["bluish green"],
+                 "PCA": OKABE_ITO["reddish purple"]}
+DATA_COLOURS = {"markers": OKABE_ITO["sky blue"], "mesh": OKABE_ITO["orange"]}
 BASIS_LABELS = {"H": "hand $E^H$", "QE": "quasi-eigen $E^{QE}$ (affine)",
                 "QE-linear": "quasi-eigen (linear)", "PCA": "PCA $E^{PCA}$"}
 
@@ -55,6 +60,33 @@ def wrap_title(text: str, width_inches: float, fontsize: float = 11) -> str:
 
     chars = max(int(width_inches * 72 / (0.55 * fontsize)), 20)
     return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
+
+
+def text_width(text: str, fontsize: float) -> float:
+    """The width in inches of one line of text drawn in the figures' font (DejaVu Sans) at ``fontsize`` points."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    if not text.strip():
+        return 0.0
+    return TextPath((0, 0), text, size=fontsize, prop=FontProperties(family="DejaVu Sans")).get_extents().x1 / 72
+
+
+def wrap_to_width(text: str, width_inches: float, fontsize: float) -> str:
+    """Wrap each line of ``text`` at word boundaries so that no line is wider than ``width_inches`` when drawn at
+    ``fontsize`` (measured in the figures' font, not estimated); a single word wider than that stays whole."""
+    lines = []
+    for paragraph in text.split("\n"):
+        line = ""
+        for word in paragraph.split(" "):
+            candidate = f"{line} {word}" if line else word
+            if line and text_width(candidate, fontsize) > width_inches:
+                lines.append(line)
+                line = word
+            else:
+                line = candidate
+        lines.append(line)
+    return "\n".join(lines)
 
 
 def fixed_decimals(values: Sequence[float], significant: int = 2, most: int = 4) -> int:

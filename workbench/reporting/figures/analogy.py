@@ -15,10 +15,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from workbench.bases import Eigenfaces, pca_to_qe_weights, quasi_eigen_faces
-from workbench.reporting.figures import new_figure
+from workbench.reporting.figures import BASIS_COLOURS, new_figure
 
 COVERAGE = 0.95
-PCA_RED, HAND_BLUE, QE_PURPLE = "#d62728", "#1f5fbf", "#8e2bb0"
+PCA_RED, HAND_BLUE, QE_PURPLE = BASIS_COLOURS["PCA"], BASIS_COLOURS["H"], BASIS_COLOURS["QE"]  # the plots' palette
 
 
 @dataclass(frozen=True)

@@ -11,13 +11,29 @@ from typing import Mapping
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
-from workbench.reporting.figures import basis_colour, new_figure, shown_as_pixels, wrap_title
+from workbench.reporting.figures import basis_colour, new_figure, shown_as_pixels, wrap_title, wrap_to_width
 
 SOLVER_STYLES = {"lstsq": "-", "nnls": "--", "box": ":", "projection": "-"}
 WEIGHT_PANELS = (("max_abs", "largest |w|", True), ("outside_unit_share", "frames with a weight outside [0, 1]", False),
                  ("sparsity", "Hoyer sparsity (1: one shape per frame)", False),
                  ("roughness", "roughness: mean (d^2 w / dt^2)^2, 1/s^4", True))
+PANEL_WIDTH = 6.2
+"""Inches of figure width per panel of the error curves."""
+PANEL_TEXT_WIDTH = 5.0
+"""Inches a panel's subtitle may take: its axes' width (the panel less its axis labels), so that two panels'
+subtitles never run into each other nor past the figure's edge."""
+CDF_LEGEND_TITLE = ("basis (colour) and solver (solid: least squares, PCA by projection; dashed: non-negative; "
+                    "dotted: box [0, 1])\ngrey lines: median and 95th percentile")
+
+
+def minor_tick_text(value: float, _position=None) -> str:
+    """A log axis's minor tick label: only at 2 and 5 times a power of ten (``0.2``, ``0.05``), the others bare."""
+    if value <= 0:
+        return ""
+    mantissa = value / 10 ** math.floor(math.log10(value) + 1e-9)
+    return f"{value:g}" if min(abs(mantissa - 2), abs(mantissa - 5)) < 1e-6 else ""
 
 
 def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabilities: np.ndarray, *,
@@ -44,7 +60,7 @@ def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabiliti
         raise ValueError("plot_error_cdf needs at least one data variant with error quantiles")
     columns = min(len(variants), 2)
     rows = math.ceil(len(variants) / columns)
-    width = 6.2 * columns
+    width = PANEL_WIDTH * columns
     figure = new_figure(width, 3.9 * rows + 0.6)
     axes = figure.subplots(rows, columns, squeeze=False).ravel()
     for ax, data in zip(axes, variants):
@@ -56,22 +72,36 @@ def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabiliti
                     linestyle=SOLVER_STYLES.get(solver, "-."),
                     linewidth=1.4, label=f"{basis} {solver}" if solver != "projection" else basis)
         ax.set_xscale("log")
+        # plain millimetres (0.1, 0.2, 0.5), not 2 x 10^-1 labels on every minor tick that run into each other
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+        ax.xaxis.set_minor_formatter(FuncFormatter(minor_tick_text))
         ax.set_xlabel("per-frame RMS error over the face region (mm, log scale)", fontsize=9)
         ax.set_ylabel("share of frames with at most this error", fontsize=9)
         ax.set_ylim(0.0, 1.0)
         ax.axhline(0.5, color="#999999", linewidth=0.6)
         ax.axhline(0.95, color="#999999", linewidth=0.6, linestyle="--")
         region = (regions or {}).get(data)
-        ax.set_title(f"data: {data}" + (f"\n{wrap_title(region, 5.8, 8)}" if region else ""), fontsize=9, loc="left")
+        subtitle = f"data: {data}" + (f"\n{region}" if region else "")
+        ax.set_title(wrap_to_width(subtitle, PANEL_TEXT_WIDTH, 9), fontsize=9, loc="left")
         ax.grid(alpha=0.3, which="both")
     for ax in axes[len(variants):]:
         ax.set_visible(False)
     handles, labels = axes[0].get_legend_handles_labels()
+    # the title on lines no wider than one panel, so that it is whole however narrow the figure is shown
     figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 5), fontsize=8, frameon=False,
-                  title="basis (colour) and solver (solid: least squares, PCA by projection; dashed: non-negative; "
-                        "dotted: box [0, 1]); grey lines: median and 95th percentile", title_fontsize=8)
+                  title=wrap_to_width(CDF_LEGEND_TITLE, PANEL_TEXT_WIDTH, 8), title_fontsize=8)
     figure.suptitle(wrap_title(title, width), fontsize=10)
     return figure
+
+
+def bar_text(value: float) -> str:
+    """A bar's label: two significant digits, an exponent without its plus sign and leading zero (``9.1e4``), no
+    label for a missing value."""
+    if not math.isfinite(value):
+        return ""
+    text = f"{value:.2g}"
+    mantissa, _, exponent = text.partition("e")
+    return f"{mantissa}e{int(exponent)}" if exponent else text
 
 
 def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, float]]], *, title: str) -> Figure:
@@ -102,12 +132,16 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
         solvers = list(dict.fromkeys(solver for _, solver in keys))
         step = 0.8 / len(solvers)
         for ax, (field, label, log) in zip(row, WEIGHT_PANELS):
+            values = {solver: [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
+                      for solver in solvers}
+            # a panel's labels upright where one is wider than a bar (9.1e4 beside 9.1e4 would print over each other)
+            upright = max(len(bar_text(value)) for shown in values.values() for value in shown) > 4
             for k, solver in enumerate(solvers):
-                values = [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
                 positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
-                bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
+                bars = ax.bar(positions, values[solver], width=step * 0.92, color=[basis_colour(b) for b in bases],
                               alpha=1.0 - 0.3 * k, edgecolor="#333333", linewidth=0.4, label=solver)
-                ax.bar_label(bars, fmt="%.2g", fontsize=6, padding=1)
+                ax.bar_label(bars, labels=[bar_text(value) for value in values[solver]], fontsize=6, padding=1,
+                             rotation=90 if upright else 0)
             if log:
                 ax.set_yscale("log")
             if field == "max_abs":
@@ -119,6 +153,10 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
                 ax.set_ylabel(f"data: {data}", fontsize=9)
             ax.grid(axis="y", alpha=0.3, which="both")
             ax.margins(y=0.18)
+            # room above the highest bar for its label, more for upright ones (on a log axis, a share of its decades)
+            room = 0.25 if upright else 0.12
+            low, high = ax.get_ylim()
+            ax.set_ylim(low, high * (high / low) ** room if log else high + room * (high - low))
     handles, labels = axes[0, 0].get_legend_handles_labels()
     figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
                   title="solver (left to right in each group, lighter each); dotted line: |w| = 1", title_fontsize=8)

@@ -19,13 +19,13 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from workbench.reporting.figures import basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
+from workbench.reporting.figures import OKABE_ITO, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.figures.render import MeshView, crop_background, render_meshes, support_weight
 
 DISPLACEMENT_CMAP = "YlGnBu"
 NORMAL_CMAP = "RdBu_r"  # diverging, white at zero: red out of the face, blue into it
 ERROR_CMAP = "YlOrRd"
-CAPTURED_RED, RECONSTRUCTED_BLUE = "#d62728", "#1f5fbf"
+CAPTURED_RED, RECONSTRUCTED_BLUE = OKABE_ITO["vermillion"], OKABE_ITO["blue"]  # the plots' one palette
 
 
 def point_norms(flat: np.ndarray) -> np.ndarray:

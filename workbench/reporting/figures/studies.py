@@ -31,11 +31,11 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from workbench.errors import WorkbenchError
-from workbench.reporting.figures import basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
+from workbench.reporting.figures import (DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure,
+                                        wrap_title)
 from workbench.reporting.runs import interval_label
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
-DATA_COLOURS = {"markers": "#4c72b0", "mesh": "#55a868"}
 AXIS_LABELS = {
     "alpha_abs_mean": "alpha, absolute, mean of frames (%)",
     "alpha_abs_pooled": "alpha, absolute, pooled (%)",
@@ -314,26 +314,32 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
     evaluated = list(dict.fromkeys(rows["eval_on"]))
     trained = list(dict.fromkeys(rows["train_on"]))
     bases = _ordered_bases(rows["basis"])
-    width = 0.8 / len(trained)
     figure_width = max(6.8, 5.0 * len(evaluated))
     figure = new_figure(figure_width, 3.9 * len(measures) + 1.2)
     grid = figure.subplots(len(measures), len(evaluated), squeeze=False)
-    notes = []
+    notes, legend = [], {}
     for measure, axes in zip(measures, grid):
         ci = ci_columns(rows, measure)
         check_positive_intervals(rows, measure, ci)
         for ax, evaluation in zip(axes, evaluated):
-            for k, train in enumerate(trained):
+            # the variants fitted and scored on this set, side by side and centred on each basis's tick (a panel
+            # holding one variant has one bar per tick, centred, and no empty slot)
+            parts = []
+            for train in trained:
                 part = rows[(rows["eval_on"] == evaluation) & (rows["train_on"] == train)]
                 part = part.drop_duplicates("basis").set_index("basis").reindex(bases)
-                if part[measure].isna().all():
-                    continue
+                if not part[measure].isna().all():
+                    parts.append((train, part))
+            width = 0.8 / max(len(parts), 1)
+            for k, (train, part) in enumerate(parts):
                 errors = None
                 if ci is not None and part[list(ci)].notna().all(axis=None):
                     errors = np.vstack([part[measure] - part[ci[0]], part[ci[1]] - part[measure]])
-                positions = np.arange(len(bases)) + (k - (len(trained) - 1) / 2) * width
-                bars = ax.bar(positions, part[measure], width=width * 0.95, yerr=errors, capsize=3,
-                              color=DATA_COLOURS.get(train, f"C{k}"), label=f"fitted on {train}")
+                positions = np.arange(len(bases)) + (k - (len(parts) - 1) / 2) * width
+                colour = DATA_COLOURS.get(train, f"C{trained.index(train)}")
+                bars = ax.bar(positions, part[measure], width=width * 0.95, yerr=errors, capsize=3, color=colour,
+                              label=f"fitted on {train}")
+                legend.setdefault(f"fitted on {train}", bars)
                 ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=2)
             ax.set_xticks(np.arange(len(bases)), [basis_label(b).replace(" (", "\n(") for b in bases], fontsize=8)
             ax.set_ylabel(axis_label(measure), fontsize=9)
@@ -344,8 +350,9 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
             ax.margins(y=0.15)
         if ci is not None and rows[list(ci)].notna().any(axis=None):
             notes.append(interval_label(rows))
-    handles, labels = grid[0, 0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside lower center", ncols=max(1, len(labels)), fontsize=8, frameon=False)
+    # every colour drawn in any panel has its entry (a panel alone may hold only some of the variants)
+    figure.legend(list(legend.values()), list(legend), loc="outside lower center", ncols=max(1, len(legend)),
+                  fontsize=8, frameon=False)
     band = f", error bars: {notes[0]}" if notes else ""
     figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", figure_width), fontsize=10)
     return figure
@@ -425,7 +432,7 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
 
 
 # Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.reporting.figures).
-OTHER_BASIS_COLOURS = {"SPCA": "#2ca02c", "ICA": "#17becf", "NMF": "#8c564b", "SPLOCS": "#e377c2",
+OTHER_BASIS_COLOURS = {"SPCA": "#56B4E9", "ICA": "#882255", "NMF": "#8c564b", "SPLOCS": "#999933",
                        "H-fit": "#4a4a4a"}
 BASIS_MARKERS = {"H": "s", "QE": "o", "QE-linear": "o", "PCA": "D", "SPCA": "^", "ICA": "v", "NMF": "P",
                  "SPLOCS": "X", "H-fit": "s"}
