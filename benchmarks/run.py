@@ -180,7 +180,7 @@ def bench_markers(args) -> None:
 
 
 def bench_mesh(args) -> None:
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
     from workbench.study.run import run_study
 
@@ -261,7 +261,7 @@ def masked_objective(shapes, frames, weights, visible):
 def bench_gaps(args) -> None:
     """The masked solve of eq. 5 (capture gaps) on the synthetic actor's markers with 5 % of the samples in
     occlusion gaps, against the same solve frame by frame (NumPy lstsq, SciPy nnls and bounded lsq_linear)."""
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
 
     cfg = resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", "dataset.gap_rate=0.05",
@@ -295,7 +295,7 @@ def bench_gaps(args) -> None:
 def bench_mapped(args) -> None:
     """PCA of mesh frames that are an RBF map of marker frames: computed on the markers and lifted
     (``Eigenfaces.fit_mapped``) against the PCA of the materialised mesh frames, on the same capture."""
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
 
     overrides = (["dataset=animface", "dataset.train_on=mesh"] if args.mapped_dataset == "animface" else
@@ -319,7 +319,7 @@ def bench_sweep(args) -> None:
     """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
     the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
     both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
     from workbench.study.run import run_study
 
@@ -371,7 +371,7 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
     paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
     from workbench.study.run import run_study
     from workbench.run_text import alpha_table
@@ -403,7 +403,7 @@ def bench_cache(args) -> None:
     costs: the source files (once per process) and the entry's files (every hit checks their SHA-256)."""
     import hashlib
 
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
     from workbench.dataset.cache import clear_memory, file_digest, source_files
 

@@ -9,7 +9,7 @@ import sys
 import pandas as pd
 import pytest
 
-from workbench.cli import resolved_without_hydra
+from workbench.config import resolved_without_hydra
 from workbench.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.errors import WorkbenchError
 from workbench.study.run import run_study

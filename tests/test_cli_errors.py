@@ -42,7 +42,7 @@ def test_subcommand_errors_are_one_line(tmp_path):
 
 def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
     """argparse's usage block, a figure that needs four shapes, an unknown table layout: one line each, exit 2."""
-    from workbench.cli import run
+    from workbench.api import run
     from workbench.config import compose
 
     record = tmp_path / "sweep" / "run"

@@ -4,7 +4,7 @@ the alpha table when the hand basis is affected."""
 import numpy as np
 import pytest
 
-from workbench.cli import resolved_without_hydra
+from workbench.config import resolved_without_hydra
 from workbench.config import compose
 from workbench.metrics import basis_conditioning
 from workbench.study.run import run_study

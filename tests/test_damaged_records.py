@@ -15,7 +15,7 @@ import sys
 import pytest
 
 from workbench import cli
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import REPO_ROOT, compose
 from workbench.files import inside, sha256_of_file as file_checksum
 from workbench.record import DONE, is_record_file

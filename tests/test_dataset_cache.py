@@ -115,7 +115,7 @@ def test_key_follows_the_source_files_a_config_names(tmp_path):
 
 def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
     from workbench.study import run as pipeline
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
 
     cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=30",
@@ -315,7 +315,7 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     from workbench.study import run as pipeline
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.run_text import alpha_table
 
     def tables(cache_dir):

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.export import (ExportedBasis, check_plan, export_path, export_run, file_plan, livelink_channels,

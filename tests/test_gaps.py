@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.cli import resolved_without_hydra
+from workbench.config import resolved_without_hydra
 from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.gaps import apply_gap_policy
@@ -210,7 +210,7 @@ def test_masked_policy_can_fit_on_the_complete_frames_only():
 
 
 def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_path):
-    from workbench.cli import run
+    from workbench.api import run
     from workbench.reporting.pages import main
 
     record = tmp_path / "run"

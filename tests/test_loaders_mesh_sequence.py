@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.errors import WorkbenchError

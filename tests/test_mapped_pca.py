@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from workbench.bases import Eigenfaces
-from workbench.cli import resolved_without_hydra
+from workbench.config import resolved_without_hydra
 from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.errors import WorkbenchError

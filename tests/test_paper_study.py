@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from scipy.optimize import lsq_linear
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.record import DONE
 from workbench.config import REPO_ROOT, compose
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.c3d_markers import read_c3d_markers

@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.cli import resolved_without_hydra, run
+from workbench.api import run
+from workbench.config import resolved_without_hydra
 from workbench.config import REPO_ROOT, compose
 from workbench.dataset import build_captures
 from workbench.errors import WorkbenchError

@@ -116,7 +116,7 @@ def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
 
 
 def study_alphas(tmp_path, *overrides):
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
     from workbench.config import compose
     from workbench.dataset.cache import clear_memory
     from workbench.study.run import run_study

@@ -14,7 +14,7 @@ import yaml
 from PIL import Image
 from scipy import stats
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import COMMANDS
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
@@ -511,7 +511,7 @@ def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
 def _resolved(config) -> str:
     from omegaconf import OmegaConf
 
-    from workbench.cli import resolved_without_hydra
+    from workbench.config import resolved_without_hydra
 
     return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(config)))
 

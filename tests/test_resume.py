@@ -11,7 +11,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.record import DONE, config_hash

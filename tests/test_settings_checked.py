@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from workbench.cli import run
+from workbench.api import run
 from workbench.config import compose
 from workbench.errors import WorkbenchError
 from workbench.record import DONE

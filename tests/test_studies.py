@@ -19,7 +19,7 @@ from workbench.dataset.transfer import point_transfer
 from workbench.errors import WorkbenchError
 from workbench.study.protocols import hand_subset_indices
 from workbench.study.run import run_study
-from workbench.cli import resolved_without_hydra
+from workbench.config import resolved_without_hydra
 
 STUDIES = ("coverage", "basis_count", "marker_mesh", "noise", "choices", "generalisation")
 

@@ -8,17 +8,15 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import time
 import traceback
 from contextlib import contextmanager
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 # Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
 # Hydra, pandas and the numerical code are imported by the functions that use them.
-from workbench.config import (CHECKOUT, COMMANDS, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs,
-                              register_resolvers, study_names)
+from workbench.config import (COMMANDS, CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs, register_resolvers,
+                              resolved_yaml_text, study_names)
 from workbench.errors import (VERBOSE_FLAG, WorkbenchError, check_utf8, environment_fault, exit_on_error,
                               show_tracebacks, single_line, tracebacks_shown)
 from workbench.extras import missing_extra
@@ -28,86 +26,6 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
 log = logging.getLogger("workbench")
-
-
-def resolved_without_hydra(cfg: DictConfig) -> dict:
-    """The config as plain, resolved containers, leaving out Hydra's own node (its sweep keys exist only
-    inside a running multirun, so resolving them outside one would fail)."""
-    from omegaconf import OmegaConf
-
-    plain = {}
-    for key in cfg:
-        if key == "hydra":
-            continue
-        node = cfg[key]
-        plain[key] = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
-    return plain
-
-
-def resolved_yaml_text(cfg: DictConfig) -> str:
-    """The resolved config (without Hydra's node) as YAML: what ``config.yaml`` holds and the config hash hashes."""
-    from omegaconf import OmegaConf
-
-    return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(cfg)))
-
-
-def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_num: int | None = None) -> str:
-    """Run the study a config describes, write its record into ``output_dir`` and return the printed text.
-
-    Parameters
-    ----------
-    cfg : omegaconf.DictConfig
-        A composed study config (without or with its ``hydra`` node).
-    output_dir : pathlib.Path
-        Must not hold a complete record (one with ``done``): records are never overwritten.
-    overrides : sequence of str
-        The command-line and sweep overrides that made ``cfg``, kept in the record.
-    job_num : int, optional
-        The run's position in its sweep (Hydra's job number), kept so that tables list runs in sweep order.
-
-    Returns
-    -------
-    str
-        The header and the Markdown alpha table.
-    """
-    import pandas as pd
-    from omegaconf import OmegaConf
-
-    from workbench.record import DONE, record_state, run_metrics, write_record
-    from workbench.study.run import run_study
-    from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
-                                         saves_inputs)
-    from workbench.run_text import alpha_table, headline, printed_tables, study_header
-
-    started = time.time()
-    started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    if record_state(output_dir) == "complete":
-        raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
-                             "overwritten: write the run elsewhere")
-    from workbench.schema import check_study_config
-
-    check_study_config(cfg)
-    plain = resolved_without_hydra(cfg)
-    save_inputs = saves_inputs(plain)  # checked before the run, not after
-    resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
-    results = run_study(plain)
-    paper_alpha = plain["paper"]["alpha"]
-    table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                                   coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
-                       for result in results], ignore_index=True)
-    with results[0].timings.stage("comparisons"):
-        comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
-    text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha, comparisons))
-
-    metrics = run_metrics(results_metrics(results, table, comparisons), study=plain["study"],
-                          resolved_yaml=resolved_yaml, overrides=overrides, job_num=job_num, started_at=started_at,
-                          repository=CHECKOUT)
-    write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
-                 timings=dict(results[0].timings.seconds, total=time.time() - started),
-                 inputs=saved_inputs(results) if save_inputs else None,
-                 alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None)
-    return text
 
 
 def hydra_app() -> None:
@@ -162,6 +80,7 @@ def _hydra_main(cfg: DictConfig) -> None:
     from hydra.types import RunMode
 
     from workbench.record import config_hash
+    from workbench.api import run_owned
     from workbench.tracking import FolderBusy, as_typed
 
     hydra_cfg = HydraConfig.get()
@@ -204,31 +123,6 @@ def sweep_run_error(error: Exception, output_dir: Path) -> None:
     fault = environment_fault(error)
     message = single_line(fault) if fault is not None else f"unexpected {type(error).__name__}: {single_line(error)}"
     sweep_run_failed(output_dir.name, message, 2 if fault is not None else 3)
-
-
-def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
-              plain: bool) -> str | None:
-    """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
-    holds a complete record of the same config. A folder that is not the workbench's is refused before anything
-    is written into it (:func:`workbench.tracking.check_run_dir`). A plain run (``plain``) that fails or is
-    interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
-    rerun clears and redoes the run)."""
-    from workbench.record import config_hash
-    from workbench.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
-                                    prepare_run_dir, unlock_run_dir)
-
-    found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
-    lock = lock_run_dir(output_dir)
-    try:
-        if not prepare_run_dir(output_dir, config_hash(resolved_yaml_text(cfg))):
-            return None
-        return run(cfg, output_dir, overrides=overrides, job_num=job_num)
-    except BaseException:
-        if plain:
-            discard_failed_run(output_dir, found, created_by_this_run(output_dir))
-        raise
-    finally:
-        unlock_run_dir(lock)
 
 
 def first_headline(text: str) -> str:

@@ -129,7 +129,7 @@ def complete_runs(launcher, job_overrides: Sequence[Sequence[str]]) -> dict[int,
     """
     from hydra.core.hydra_config import HydraConfig
 
-    from workbench.cli import resolved_yaml_text
+    from workbench.config import resolved_yaml_text
     from workbench.record import config_hash, record_state
     from workbench.tracking import recorded_config_hash
 

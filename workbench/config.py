@@ -12,9 +12,12 @@ from __future__ import annotations
 import hashlib
 import re
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from workbench.errors import WorkbenchError
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 INSTALLED = (PACKAGE_DIR / "conf").is_dir() and (PACKAGE_DIR / "studies").is_dir()
@@ -150,3 +153,24 @@ def register_resolvers() -> None:
         OmegaConf.register_new_resolver("run_id", run_dir_name)
     if not OmegaConf.has_resolver("workbench_help"):
         OmegaConf.register_new_resolver("workbench_help", help_section)
+
+
+def resolved_without_hydra(cfg: DictConfig) -> dict:
+    """The config as plain, resolved containers, leaving out Hydra's own node (its sweep keys exist only
+    inside a running multirun, so resolving them outside one would fail)."""
+    from omegaconf import OmegaConf
+
+    plain = {}
+    for key in cfg:
+        if key == "hydra":
+            continue
+        node = cfg[key]
+        plain[key] = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
+    return plain
+
+
+def resolved_yaml_text(cfg: DictConfig) -> str:
+    """The resolved config (without Hydra's node) as YAML: what ``config.yaml`` holds and the config hash hashes."""
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(cfg)))

@@ -7,7 +7,7 @@ runs, with one line naming the key and the type it takes. Each field's ``metadat
 meet (a range, a set of names); :func:`check_study_config` applies them, refuses keys no schema knows (added with
 ``+``), names an interpolation that cannot be resolved, and finds settings given on the command line that have no
 effect in the run. The command line runs it before Hydra makes the run folder (``workbench.tracking.RunFolders``)
-and :func:`workbench.cli.run` again, so every value is checked before anything is built or written. Fields are in
+and :func:`workbench.api.run` again, so every value is checked before anything is built or written. Fields are in
 the order of the YAML files, so that the resolved config reads as before. ``Any`` marks settings that take a name
 or a list (``train_on``, ``hand_subset``) and the true/false settings (so that ``save_inputs=2`` reaches the rule
 instead of being read as true).
