@@ -227,8 +227,8 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
             lines.append(prefix + ordering_text(values, comparison_lookup(comparisons.get(data, [])),
                                                 name=lambda key: key[0], digits=3))
     if comparisons is not None:
-        lines.append("'<': the paired per-frame difference's 95 % block-bootstrap interval excludes 0; '~': it does "
-                     "not (the two are not distinguishable on these frames)")
+        lines.append("'<': the paired per-frame difference's 95 % batch-means interval excludes 0; '~': it does "
+                     "not (the two are not distinguishable on these frames); '=': equal within the tie tolerance")
     paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
     lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
     return "\n".join(lines) + "\n"
