@@ -358,3 +358,51 @@ def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
         "**mesh** (one run): `alpha_abs_mean` from best to worst: ICA 0.09612 ~ H-fit 0.09621 (ICA - H-fit -9e-05, "
         "95 % interval [-0.0004, +0.0002] (circular block bootstrap over time, blocks of 53 frames = 0.44 s, "
         "n = 4000): not distinguishable) < PCA 0.2.")
+
+
+def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
+    # m = 10 eigenfaces, 18 hand shapes: the affine QE basis has rank m + 1 = 11, so it spans mu + span(E^PCA)
+    table = known_table()
+    table.loc[(table["basis"] == "QE") & (table["solver"] == "lstsq"), "alpha_abs_mean"] = 0.19
+    metrics = known_metrics()
+    for row in metrics["rows"]:
+        row["n"] = 10 if row["basis"] == "PCA" else 18
+        row["basis_conditioning"] = {"rank": 11 if row["basis"] == "QE" else 18, "n_shapes": row["n"]}
+    metrics["data"]["mesh"]["pca"] = {"m": 10, "method": "covariance"}
+    # a comparison whose interval would say "not distinguishable": it must not be used
+    metrics["data"]["mesh"]["comparisons"] = [
+        {"a": ["QE", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.01, "low": -0.05, "high": 0.03,
+         "n": 100, "method": "batch means over time, t-quantiles"}, *COMPARISONS[1:]]
+    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[0]
+    assert first.startswith("**mesh**: `alpha_abs_mean` from best to worst, lstsq: QE 0.19 <= PCA 0.2 by "
+                            "construction (the 18 affine QE shapes have rank 11 = m + 1: they span mu + "
+                            "span(eigenfaces), where PCA's reconstruction lies), QE-linear 0.5 < H 1;")
+    assert "QE - PCA" not in first
+    # at rank m (QE does not reach mu + span(E^PCA)) the same pair is left to its interval
+    for row in metrics["rows"]:
+        row["basis_conditioning"]["rank"] = 10 if row["basis"] == "QE" else 18
+    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[0]
+    assert "by construction" not in first and "QE 0.19 ~ PCA 0.2 (QE - PCA" in first
+
+
+def test_identities_of_the_solvers_and_of_eckart_young():
+    from workbench.reporting.identities import identity_lookup, run_identities
+
+    rows = [{"basis": basis, "solver": solver, "n": 18 if basis != "PCA" else 20}
+            for basis in ("H", "QE") for solver in ("lstsq", "nnls", "box")] + [
+        {"basis": "PCA", "solver": "projection", "n": 20}]
+    facts = {"pca": {"m": 20, "method": "covariance"}, "protocol": "training frames", "notes": []}
+    found = run_identities(rows, facts)
+    mean, pooled = identity_lookup(found, "alpha_abs_mean"), identity_lookup(found, "alpha_abs_pooled")
+    assert mean(("H", "lstsq"), ("H", "box")) is not None and mean(("H", "box"), ("H", "lstsq")) is None
+    assert mean(("QE", "nnls"), ("QE", "box")).reason == "nnls minimises the error over a superset of box's weights"
+    # m = 20 >= n = 18 on the training frames: PCA's pooled error is the smallest, its per-frame mean need not be
+    assert pooled(("PCA", "projection"), ("H", "nnls")) is not None
+    assert mean(("PCA", "projection"), ("H", "nnls")) is None
+    # held-out frames, or a randomised PCA: no Eckart-Young
+    held = dict(facts, protocol="held out: tail")
+    assert identity_lookup(run_identities(rows, held), "alpha_abs_pooled")(("PCA", "projection"), ("H", "nnls")) \
+        is None
+    randomised = dict(facts, pca={"m": 20, "method": "randomized"})
+    assert identity_lookup(run_identities(rows, randomised), "alpha_abs_pooled")(
+        ("PCA", "projection"), ("H", "nnls")) is None

@@ -75,7 +75,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     from workbench.dataset.real import bool_setting
     from workbench.pipeline import run_study
     from workbench.record import DONE, frame_comparisons, record_state, run_metrics, write_record
-    from workbench.run_text import alpha_table, headline, printed_tables, study_header
+    from workbench.run_text import alpha_table, headline, printed_tables, result_identities, study_header
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -96,7 +96,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
     text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha, comparisons))
+            + headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results)))
 
     metrics = run_metrics(results, table, study=plain["study"], resolved_yaml=resolved_yaml, overrides=overrides,
                           job_num=job_num, started_at=started_at, repository=CHECKOUT, comparisons=comparisons)

@@ -22,6 +22,7 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.identities import identity_lookup, run_identities
 from workbench.reporting.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
                                             interval_text, reversed_interval)
 from workbench.reporting.statistics import ordering_text as stated_ordering
@@ -52,7 +53,7 @@ def _percent(share: float) -> str:
 
 
 def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
-                         bases: Sequence[str] = RUN_BASES) -> str:
+                         bases: Sequence[str] = RUN_BASES, identity=None) -> str:
     """The bases of one data variant from best to worst under a solver, ``<`` only where the paired per-frame
     difference's interval excludes zero, ``~`` with the interval where it does not, ``,`` without a comparison.
 
@@ -65,10 +66,15 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
     compare : callable or None
         ``compare((basis, solver), (basis, solver))`` -> the :class:`Interval` of the difference, or None.
     bases : sequence of str
+    identity : callable, optional
+        ``identity(a, b)`` -> the :class:`workbench.reporting.identities.Identity` saying ``a <= b`` by
+        construction, or None (:func:`workbench.reporting.identities.identity_lookup`).
     """
     values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
               for basis in bases}
-    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0])
+    reason = None if identity is None else (lambda a, b: getattr(identity(a, b), "reason", None))
+    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0], digits=3,
+                           identity=reason)
 
 
 def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq") -> str:
@@ -341,7 +347,8 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(facts["comparisons"]) if facts.get("comparisons") else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
-        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases)}"
+        identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
+        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
                              for solver in solvers)
         claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
         lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")

@@ -806,7 +806,8 @@ def holm(p_values) -> np.ndarray:
 
 
 def ordering_text(values: Mapping, compare: Callable[[object, object], Interval | None],
-                  name: Callable[[object], str] = str, digits: int = 4) -> str:
+                  name: Callable[[object], str] = str, digits: int = 4,
+                  identity: Callable[[object, object], str | None] | None = None) -> str:
     """Items from smallest to largest value, each neighbouring pair joined by what its paired comparison allows.
 
     ``A 0.17 = B 0.17`` when the two values tie (:func:`values_tie`, or the interval is :attr:`Interval.tied`);
@@ -824,6 +825,9 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
         Item -> its name in the text.
     digits : int
         Significant digits of the values.
+    identity : callable, optional
+        ``identity(a, b)`` -> why ``a <= b`` holds by construction, or None: such a pair is written ``A 0.15 <= B
+        0.16 by construction (why)`` and its interval is not used.
 
     Returns
     -------
@@ -837,8 +841,11 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
     for (previous, _, before), (value, _, item) in zip(ranked, ranked[1:]):
         interval = compare(before, item)
         shown = f"{name(item)} {value:.{digits}g}"
+        reason = identity(before, item) if identity is not None else None
         if values_tie(previous, value) or (interval is not None and interval.tied):
             text += EQUAL + shown
+        elif reason:
+            text += f" <= {shown} by construction ({reason})"
         elif interval is None:
             text += ", " + shown
         elif interval.excludes_null:
