@@ -9,7 +9,7 @@ share of intervals holding the true value is printed with the intervals' mean wi
   and ``exp(y_t / 2) / 4`` of two independent series over a constant reference of 100 (true value
   ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 = 5 exp(1/16)`` with ``E exp(x / 2) = exp(1/8)``);
 - ``bootstrap`` (``--with-bootstrap``): the circular block bootstrap with the Politis-White block length that the
-  batch means replaced (:func:`workbench.reporting.statistics.bootstrap_interval`), for the mean.
+  batch means replaced (:func:`workbench.reporting.block_bootstrap.bootstrap_interval`), for the mean.
 
 A binomial standard error of a coverage near 0.95 over R replications is ``sqrt(0.95 * 0.05 / R)`` (0.0069 at
 R = 1,000).
@@ -22,7 +22,7 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from workbench.reporting import statistics
+from workbench.reporting import block_bootstrap, statistics
 
 FRAMES = (800, 4000)
 PERSISTENCES = (0.0, 0.5, 0.9, 0.96, 0.99)
@@ -54,7 +54,7 @@ def coverage_row(kind: str, n: int, phi: float, replications: int, rng: np.rando
                                                            np.full(n, 100.0))
             truth = POOLED_TRUTH
         else:
-            interval = statistics.bootstrap_interval(series[k][None, :], lambda t: t[..., 0] / n,
+            interval = block_bootstrap.bootstrap_interval(series[k][None, :], lambda t: t[..., 0] / n,
                                                      block_series=series[k], n_resamples=500, seed=k)
             truth = 0.0
         hits += interval.low <= truth <= interval.high

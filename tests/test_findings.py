@@ -73,7 +73,9 @@ INTUITIVENESS = {"mesh": [
 
 def test_findings_of_a_known_table():
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
-    assert lines == [
+    assert lines[0].startswith("**how to read**: ") and lines[0].endswith(
+        "(9 comparisons of this record carry no p-value and keep their unadjusted interval).")
+    assert lines[1:] == [
         "**mesh**: `alpha_abs_mean` from best to worst, lstsq: PCA 0.2 < QE 0.25 < QE-linear 0.5 < H 1; "
         "nnls: PCA 0.2 < QE-linear 0.55 < H 1.1 < QE 1.5; "
         "box: PCA 0.2 < QE 1 ~ QE-linear 1.15 (QE - QE-linear -0.15, 95 % interval [-0.3, +0.01] (circular block "
@@ -373,7 +375,7 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
     metrics["data"]["mesh"]["comparisons"] = [
         {"a": ["QE", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.01, "low": -0.05, "high": 0.03,
          "n": 100, "method": "batch means over time, t-quantiles"}, *COMPARISONS[1:]]
-    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[0]
+    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[1]
     assert first.startswith("**mesh**: `alpha_abs_mean` from best to worst, lstsq: QE 0.19 <= PCA 0.2 by "
                             "construction (the 18 affine QE shapes have rank 11 = m + 1: they span mu + "
                             "span(eigenfaces), where PCA's reconstruction lies), QE-linear 0.5 < H 1;")
@@ -381,7 +383,7 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
     # at rank m (QE does not reach mu + span(E^PCA)) the same pair is left to its interval
     for row in metrics["rows"]:
         row["basis_conditioning"]["rank"] = 10 if row["basis"] == "QE" else 18
-    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[0]
+    first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[1]
     assert "by construction" not in first and "QE 0.19 ~ PCA 0.2 (QE - PCA" in first
 
 
@@ -406,3 +408,15 @@ def test_identities_of_the_solvers_and_of_eckart_young():
     randomised = dict(facts, pca={"m": 20, "method": "randomized"})
     assert identity_lookup(run_identities(rows, randomised), "alpha_abs_pooled")(
         ("PCA", "projection"), ("H", "nnls")) is None
+
+
+def test_other_comparisons_are_holm_adjusted_and_the_primary_ones_are_not():
+    metrics = known_metrics()
+    # every comparison excludes 0 at its own 95 % with p = 0.02; Holm over the 9 non-primary ones makes each 0.18
+    metrics["data"]["mesh"]["comparisons"] = [dict(entry, p_value=0.02) for entry in COMPARISONS] + [
+        {**compared(("H", "lstsq"), ("QE", "lstsq"), 0.7, 0.8), "p_value": 0.02}]
+    lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)
+    assert "H vs QE and QE vs PCA with lstsq on mesh; the other 9 comparisons are Holm-adjusted" in lines[0]
+    first = lines[1]
+    assert "lstsq: PCA 0.2 < QE 0.25 ~ QE-linear 0.5" in first  # PCA-QE primary; QE vs QE-linear adjusted away
+    assert "Holm-adjusted p 0.18" in first

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from workbench.errors import WorkbenchError
-from workbench.reporting import statistics
+from workbench.reporting import block_bootstrap, statistics
+from workbench.reporting.block_bootstrap import block_bootstrap_totals, optimal_block_length
 from workbench.reporting.statistics import (BATCH_MEANS, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
-                                            block_bootstrap_totals, comparison_lookup, geometric_interval,
-                                            interval_text, optimal_block_length, ordering_text,
+                                            comparison_lookup, geometric_interval, interval_text, ordering_text,
                                             paired_difference_interval, paired_mean_difference,
                                             paired_pooled_difference, paired_ratio_interval, reversed_interval,
                                             t_interval)
@@ -162,7 +162,7 @@ def test_the_normal_route_has_the_bootstrap_s_exact_mean_and_covariance(monkeypa
     series = rng.standard_normal((2, 400))
     takes = np.repeat(["a", "b"], [150, 250])
     drawn = block_bootstrap_totals(series, 7, np.random.default_rng(4), takes=takes, n_resamples=40000)
-    monkeypatch.setattr(statistics, "NORMAL_FROM_BLOCKS", 1)
+    monkeypatch.setattr(block_bootstrap, "NORMAL_FROM_BLOCKS", 1)
     normal = block_bootstrap_totals(series, 7, np.random.default_rng(4), takes=takes, n_resamples=40000)
     # the circular scheme draws every frame equally often: the mean total is the series' own total
     np.testing.assert_allclose(normal.mean(axis=0), series.sum(axis=1), atol=4 * np.sqrt(np.diag(np.cov(drawn.T))

@@ -24,7 +24,7 @@ import pandas as pd
 
 from workbench.reporting.identities import identity_lookup, run_identities
 from workbench.reporting.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
-                                            interval_text, reversed_interval)
+                                            holm_adjusted, interval_text, reversed_interval)
 from workbench.reporting.statistics import ordering_text as stated_ordering
 from workbench.tables import cell_text
 
@@ -340,12 +340,13 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
     """
     metrics, config = metrics or {}, config or {}
     data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
-    lines = []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     parts = dict(list(table.groupby("data", sort=False)))
+    adjusted = adjusted_comparisons(metrics)
+    lines = [multiplicity_text(metrics)] if adjusted else []
     for data, part in parts.items():
         facts = data_facts.get(data) or {}
-        compare = comparison_lookup(facts["comparisons"]) if facts.get("comparisons") else None
+        compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
@@ -383,6 +384,44 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
             lines.append(f"**{data}**: {closeness}.")
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
+
+
+PRIMARY_CONTRASTS = (frozenset({("H", "lstsq"), ("QE", "lstsq")}), frozenset({("QE", "lstsq"), ("PCA", "projection")}))
+"""The paper's two claims, with least squares: H against QE and QE against PCA (on the record's first data variant)."""
+
+
+def primary_data(metrics: Mapping) -> str | None:
+    """The data variant a record leads with (its first): where the primary contrasts are stated."""
+    return next(iter(metrics.get("data") or {}), None)
+
+
+def adjusted_comparisons(metrics: Mapping) -> dict:
+    """Data variant -> its stored comparisons, every one but the primary contrasts (:data:`PRIMARY_CONTRASTS` on
+    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.reporting.statistics.holm_adjusted`)
+    over the run's family; comparisons of records without p-values keep their unadjusted interval."""
+    lead = primary_data(metrics)
+    stored = {data: list(facts.get("comparisons") or []) for data, facts in (metrics.get("data") or {}).items()}
+
+    def primary(data: str, entry: Mapping) -> bool:
+        return data == lead and frozenset({tuple(entry["a"]), tuple(entry["b"])}) in PRIMARY_CONTRASTS
+
+    return holm_adjusted(stored, primary) if any(stored.values()) else {}
+
+
+def multiplicity_text(metrics: Mapping) -> str:
+    """The sentence that says how the run's orderings are decided, once, above them."""
+    adjusted = adjusted_comparisons(metrics)
+    family = sum(1 for entries in adjusted.values() for entry in entries if "p_adjusted" in entry)
+    without = sum(1 for entries in adjusted.values() for entry in entries
+                  if "p_adjusted" in entry and not math.isfinite(entry.get("p_value", math.nan)))
+    text = (f"**how to read**: each '<' is a paired per-frame difference whose 95 % interval (batch means over "
+            f"time, docs/statistics.md) excludes 0. Primary contrasts, at their own 95 %: H vs QE and QE vs PCA "
+            f"with lstsq on {primary_data(metrics)}; the other {family} comparisons are Holm-adjusted over the run "
+            "('<' only at adjusted p < 0.05). '=': equal within the tie tolerance; '<= by construction': an "
+            "identity of the bases and solvers, not tested")
+    if without:
+        text += f" ({without} comparisons of this record carry no p-value and keep their unadjusted interval)"
+    return text + "."
 
 
 def facts_frame(metrics: Mapping) -> pd.DataFrame:
