@@ -420,3 +420,15 @@ def test_other_comparisons_are_holm_adjusted_and_the_primary_ones_are_not():
     first = lines[1]
     assert "lstsq: PCA 0.2 < QE 0.25 ~ QE-linear 0.5" in first  # PCA-QE primary; QE vs QE-linear adjusted away
     assert "Holm-adjusted p 0.18" in first
+
+
+def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
+    from workbench.reporting.findings import weights_text
+
+    rows = [{"data": "mesh", "basis": "QE", "solver": "lstsq", "basis_conditioning": {"rank": 11, "n_shapes": 18},
+             "weights": dict(weights(1.0, 0.96, 0.3, 2e4, 1.0, 30.0), needs_negative_share=0.0)},
+            {"data": "mesh", "basis": "H", "solver": "lstsq", "basis_conditioning": {"rank": 18, "n_shapes": 18},
+             "weights": dict(weights(0.5, 0.4, 0.3, 50.0, 1.0, 1.5), needs_negative_share=0.25)}]
+    text = weights_text("mesh", ["lstsq"], rows)
+    assert "lstsq: H 1.5, 50 %, 0.30, 50; QE (minimum-norm, rank 11 of 18) 30, 100 %, 0.30, 2e+04" in text
+    assert text.endswith("frames that need a negative weight (nnls error above lstsq's): H 25 %, QE 0 %")

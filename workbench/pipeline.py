@@ -22,8 +22,8 @@ from workbench.dataset.transfer import PointTransfer, point_transfer
 from workbench.errors import WorkbenchError
 from workbench.frames import frame_chunks
 from workbench.metrics import (AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics, basis_conditioning,
-                               error_distribution, frame_rms_error, intuitiveness, reference_squares, summarise_alpha,
-                               summarise_squares, weight_statistics)
+                               error_distribution, frame_rms_error, intuitiveness, needs_negative_share,
+                               reference_squares, summarise_alpha, summarise_squares, weight_statistics)
 from workbench.reduced import FrameProjections, Subspace, project_frames
 from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 
@@ -816,7 +816,10 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
         statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
         measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
                                 error_mm=error_distribution(per_frame) if per_frame is not None else None))
-    return measured
+    nnls = {row.basis: row.alpha.error_sq for row in measured if row.solver == "nnls"}
+    return [replace(row, weight_statistics=replace(row.weight_statistics, needs_negative_share=needs_negative_share(
+                row.alpha.error_sq, nnls[row.basis], row.alpha.displacement_sq))) if row.solver == "lstsq" and row.basis in nnls
+            and row.weight_statistics is not None else row for row in measured]
 
 
 def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarray | None = None) -> dict:

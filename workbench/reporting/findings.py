@@ -175,43 +175,71 @@ def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: 
                if math.isfinite(offset.get("ratio", math.nan)) else "")
             + f"; with least squares QE's weights sum to {qe0['weights']['sum_median']:.2f} (median "
             f"over frames), so each frame gets that many copies of it, and "
-            f"{_percent(qe0['weights']['negative_share'])} of the frames have a negative weight; with "
+            f"{_percent(needs_negative(qe0['weights']))} of the frames "
+            f"{'need' if 'needs_negative_share' in qe0['weights'] else 'have'} a negative weight; with "
             f"{SOLVER_NAMES.get(solver, solver)} they sum to "
             f"{qe1['weights']['sum_median']:.2f} and {_percent(share1)} of QE's squared error lies along (I-P) mu "
             f"(least squares: {_percent(share0)})")
     if lin0.get("weights") and lin1.get("weights"):
         l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
         q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
-        text += (f". QE-linear's shapes lie in the span (no offset): {_percent(lin0['weights']['negative_share'])} "
-                 f"of its frames have a negative least-squares weight, and its alpha goes from {_fmt(l0)} to "
+        verb = "need a negative weight" if "needs_negative_share" in lin0["weights"] else \
+            "have a negative least-squares weight"
+        text += (f". QE-linear's shapes lie in the span (no offset): {_percent(needs_negative(lin0['weights']))} "
+                 f"of its frames {verb}, and its alpha goes from {_fmt(l0)} to "
                  f"{_fmt(l1)} (x{l1 / l0:.2f}) against QE's x{q1 / q0:.2f}")
-        needs_negative = lin0["weights"]["negative_share"] >= 0.8 * qe0["weights"]["negative_share"]
+        needs_negative_too = needs_negative(lin0["weights"]) >= 0.8 * needs_negative(qe0["weights"])
         loses_less = l1 / l0 - 1.0 < LINEAR_LOSS_STATED * (q1 / q0 - 1.0)
-        if needs_negative and loses_less and share1 >= OFFSET_SHARE_STATED:
+        if needs_negative_too and loses_less and share1 >= OFFSET_SHARE_STATED:
             text += (". So the share of frames needing negative weights does not explain the loss; the offset does "
                      "in part: the constraint can no longer hold the weights' sum where the offset needs it")
-        elif needs_negative and not loses_less:
+        elif needs_negative_too and not loses_less:
             text += (". Here QE-linear, with as many frames needing negative weights, loses almost as much: these "
                      "numbers do not single out the offset")
     return text
 
 
+def minimum_norm_label(row: Mapping, solver: str) -> str:
+    """`` (minimum-norm, rank r of n)`` for least-squares weights of a rank-deficient basis (many weight vectors
+    give its error; the solver returned the shortest), else empty."""
+    conditioning = row.get("basis_conditioning") or {}
+    rank, size = conditioning.get("rank"), conditioning.get("n_shapes")
+    if solver != "lstsq" or rank is None or size is None or rank >= size:
+        return ""
+    return f" (minimum-norm, rank {rank} of {size})"
+
+
+def needs_negative(weights: Mapping) -> float:
+    """The share of frames needing a negative weight (nnls error above lstsq's beyond the tie tolerance), or, for
+    records without it, the share with a negative least-squares weight."""
+    value = weights.get("needs_negative_share", math.nan)
+    return weights["negative_share"] if value is None or math.isnan(value) else value
+
+
 def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
     """The animator's side: under least squares and the first constrained solver, each basis's largest |w|, share
-    of frames with a weight outside [0, 1], Hoyer sparsity and roughness."""
-    parts = []
+    of frames with a weight outside [0, 1], Hoyer sparsity and roughness; least-squares weights of a rank-deficient
+    basis labelled minimum-norm with the rank (they describe the pseudo-inverse's choice, not the basis); and the
+    share of frames that need a negative weight (:func:`workbench.metrics.needs_negative_share`)."""
+    parts, needing = [], []
     for solver in [solver for solver in solvers if solver == "lstsq"] + [s for s in solvers if s != "lstsq"][:1]:
-        found = [(basis, _row(rows, data, basis, solver).get("weights")) for basis in RUN_BASES]
-        found = [(basis, weights) for basis, weights in found if weights]
+        found = [(basis, _row(rows, data, basis, solver)) for basis in RUN_BASES]
+        found = [(basis, row) for basis, row in found if row.get("weights")]
         if found:
             parts.append(f"{solver}: " + "; ".join(
-                f"{basis} {weights['max_abs']:.3g}, {_percent(weights['outside_unit_share'])}, "
-                f"{weights['sparsity']:.2f}, {weights['roughness']:.2g}" for basis, weights in found))
+                f"{basis}{minimum_norm_label(row, solver)} {row['weights']['max_abs']:.3g}, "
+                f"{_percent(row['weights']['outside_unit_share'])}, {row['weights']['sparsity']:.2f}, "
+                f"{row['weights']['roughness']:.2g}" for basis, row in found))
+        if solver == "lstsq":
+            needing = [f"{basis} {_percent(row['weights']['needs_negative_share'])}" for basis, row in found
+                       if math.isfinite(row["weights"].get("needs_negative_share") or math.nan)]
     if not parts:
         return ""
     return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity "
             "with 1 for one shape per frame, roughness as the mean squared second time derivative in 1/s^4), "
-            + "; ".join(parts))
+            + "; ".join(parts)
+            + (f"; frames that need a negative weight (nnls error above lstsq's): {', '.join(needing)}"
+               if needing else ""))
 
 
 def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
