@@ -176,14 +176,14 @@ def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: 
             + f"; with least squares QE's weights sum to {qe0['weights']['sum_median']:.2f} (median "
             f"over frames), so each frame gets that many copies of it, and "
             f"{_percent(needs_negative(qe0['weights']))} of the frames "
-            f"{'need' if 'needs_negative_share' in qe0['weights'] else 'have'} a negative weight; with "
+            f"{'need' if _finite_value(qe0['weights'].get('needs_negative_share')) else 'have'} a negative weight; with "
             f"{SOLVER_NAMES.get(solver, solver)} they sum to "
             f"{qe1['weights']['sum_median']:.2f} and {_percent(share1)} of QE's squared error lies along (I-P) mu "
             f"(least squares: {_percent(share0)})")
     if lin0.get("weights") and lin1.get("weights"):
         l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
         q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
-        verb = "need a negative weight" if "needs_negative_share" in lin0["weights"] else \
+        verb = "need a negative weight" if _finite_value(lin0["weights"].get("needs_negative_share")) else \
             "have a negative least-squares weight"
         text += (f". QE-linear's shapes lie in the span (no offset): {_percent(needs_negative(lin0['weights']))} "
                  f"of its frames {verb}, and its alpha goes from {_fmt(l0)} to "
@@ -209,11 +209,15 @@ def minimum_norm_label(row: Mapping, solver: str) -> str:
     return f" (minimum-norm, rank {rank} of {size})"
 
 
+def _finite_value(value) -> bool:
+    return value is not None and math.isfinite(value)
+
+
 def needs_negative(weights: Mapping) -> float:
     """The share of frames needing a negative weight (nnls error above lstsq's beyond the tie tolerance), or, for
     records without it, the share with a negative least-squares weight."""
-    value = weights.get("needs_negative_share", math.nan)
-    return weights["negative_share"] if value is None or math.isnan(value) else value
+    value = weights.get("needs_negative_share")
+    return value if _finite_value(value) else weights["negative_share"]
 
 
 def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
@@ -232,7 +236,7 @@ def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> 
                 f"{row['weights']['roughness']:.2g}" for basis, row in found))
         if solver == "lstsq":
             needing = [f"{basis} {_percent(row['weights']['needs_negative_share'])}" for basis, row in found
-                       if math.isfinite(row["weights"].get("needs_negative_share") or math.nan)]
+                       if _finite_value(row["weights"].get("needs_negative_share"))]
     if not parts:
         return ""
     return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity "
