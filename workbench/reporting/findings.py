@@ -24,7 +24,7 @@ import pandas as pd
 
 from workbench.reporting.identities import identity_lookup, run_identities
 from workbench.reporting.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
-                                            holm_adjusted, interval_text, reversed_interval)
+                                            holm_adjusted, interval_text, reversed_interval, short_interval_text)
 from workbench.reporting.statistics import ordering_text as stated_ordering
 from workbench.tables import cell_text
 
@@ -45,7 +45,7 @@ def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
 
 
 def _fmt(value: float) -> str:
-    return f"{value:.4g}"
+    return f"{value:.3g}"
 
 
 def _percent(share: float) -> str:
@@ -74,7 +74,7 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
               for basis in bases}
     reason = None if identity is None else (lambda a, b: getattr(identity(a, b), "reason", None))
     return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0], digits=3,
-                           identity=reason)
+                           identity=reason, detail=short_interval_text)
 
 
 def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq") -> str:
@@ -120,7 +120,7 @@ def _verdict(compare, a: tuple, b: tuple, worse: str, better: str) -> str:
     interval = compare(a, b) if compare else None
     if interval is None:
         return ""
-    detail = interval_text(interval, comparison_name(a[0], b[0], interval), SIGNED)
+    detail = short_interval_text(interval, comparison_name(a[0], b[0], interval), SIGNED)
     if not interval.excludes_null:
         return f"not distinguishable from {b[0]} ({detail})"
     return f"{worse if interval.sign > 0 else better} {b[0]} ({detail})"

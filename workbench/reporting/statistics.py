@@ -183,6 +183,17 @@ def interval_text(interval: Interval, name: str = "difference", number_format: s
             f"{number_format.format(interval.high)}] ({', '.join([*how, f'n = {interval.n}'])}){adjusted}")
 
 
+def short_interval_text(interval: Interval, name: str = "difference", number_format: str = "{:.3g}") -> str:
+    """``QE - H +0.4 [+0.2, +0.6]``: an estimate and its bounds only, for text that names the interval's
+    confidence and method once (with a Holm-adjusted p-value where there is one)."""
+    estimate = "-" if math.isnan(interval.estimate) else number_format.format(interval.estimate)
+    if not interval.defined:
+        return f"{name} {estimate} (no interval)"
+    adjusted = f", Holm p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
+    return (f"{name} {estimate} [{number_format.format(interval.low)}, {number_format.format(interval.high)}]"
+            f"{adjusted}")
+
+
 def comparison_name(first: str, second: str, interval: Interval) -> str:
     """``A - B`` for a difference, ``A/B`` for a ratio."""
     return f"{first}/{second}" if interval.null == 1.0 else f"{first} - {second}"
@@ -654,7 +665,8 @@ def holm(p_values) -> np.ndarray:
 
 def ordering_text(values: Mapping, compare: Callable[[object, object], Interval | None],
                   name: Callable[[object], str] = str, digits: int = 4,
-                  identity: Callable[[object, object], str | None] | None = None) -> str:
+                  identity: Callable[[object, object], str | None] | None = None,
+                  detail: Callable[..., str] | None = None) -> str:
     """Items from smallest to largest value, each neighbouring pair joined by what its paired comparison allows.
 
     ``A 0.17 = B 0.17`` when the two values tie (:func:`values_tie`, or the interval is :attr:`Interval.tied`);
@@ -675,6 +687,9 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
     identity : callable, optional
         ``identity(a, b)`` -> why ``a <= b`` holds by construction, or None: such a pair is written ``A 0.15 <= B
         0.16 by construction (why)`` and its interval is not used.
+    detail : callable, optional
+        ``detail(interval, name, number_format)`` -> the text of a tie's interval (:func:`interval_text`, or
+        :func:`short_interval_text` where the method is said once elsewhere).
 
     Returns
     -------
@@ -700,7 +715,7 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
         else:
             label = comparison_name(name(before), name(item), interval)
             number = SIGNED if interval.null == 0.0 else RATIO_FORMAT
-            text += f"{TIED}{shown} ({interval_text(interval, label, number)}: not distinguishable)"
+            text += f"{TIED}{shown} ({(detail or interval_text)(interval, label, number)}: not distinguishable)"
     return text
 
 
