@@ -715,7 +715,8 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
         else:
             label = comparison_name(name(before), name(item), interval)
             number = SIGNED if interval.null == 0.0 else RATIO_FORMAT
-            text += f"{TIED}{shown} ({(detail or interval_text)(interval, label, number)}: not distinguishable)"
+            said = (detail or interval_text)(interval, label, number)
+            text += f"{TIED}{shown}" + (f" ({said}: not distinguishable)" if said else "")
     return text
 
 
