@@ -733,13 +733,13 @@ def holm_adjusted(comparisons: Mapping[str, Sequence[Mapping]], primary: Callabl
     Returns
     -------
     dict
-        The same entries (copies), each non-primary one with ``p_adjusted`` (NaN where it had no p-value); the
-        family is every non-primary comparison of every data variant.
+        The same entries (copies), each non-primary one with ``p_adjusted`` (NaN where it had no p-value) and
+        ``holm_family`` (the family's size); the family is every non-primary comparison of every data variant.
     """
     adjusted = {data: [dict(entry) for entry in entries] for data, entries in comparisons.items()}
     family = [entry for data, entries in adjusted.items() for entry in entries if not primary(data, entry)]
     for entry, value in zip(family, holm([entry.get("p_value", math.nan) for entry in family])):
-        entry["p_adjusted"] = float(value)
+        entry["p_adjusted"], entry["holm_family"] = float(value), len(family)
     return adjusted
 
 
