@@ -406,7 +406,8 @@ def test_other_comparisons_are_holm_adjusted_and_the_primary_ones_are_not():
     metrics["data"]["mesh"]["comparisons"] = [dict(entry, p_value=0.02) for entry in COMPARISONS] + [
         {**compared(("H", "lstsq"), ("QE", "lstsq"), 0.7, 0.8), "p_value": 0.02}]
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)
-    assert "H vs QE and QE vs PCA with lstsq on mesh; the other 9 comparisons are Holm-adjusted" in lines[0]
+    assert "primary contrasts (H vs QE, QE vs PCA, lstsq, on mesh) at their own 95 %, the other 9 Holm-adjusted" \
+        in lines[0]
     first = lines[1]
     # PCA-QE primary (stated at its own 95 %); QE vs QE-linear and QE-linear vs H adjusted away
     assert "lstsq: PCA 0.2 < QE 0.25 ~ QE-linear 0.5 ~ H 1;" in first

@@ -455,11 +455,9 @@ def multiplicity_text(metrics: Mapping) -> str:
     family = sum(1 for entries in adjusted.values() for entry in entries if "holm_family" in entry)
     without = sum(1 for entries in adjusted.values() for entry in entries
                   if "holm_family" in entry and not _finite_value(entry.get("p_value")))
-    text = (f"**how to read**: each '<' is a paired per-frame difference whose 95 % interval (batch means over "
-            f"time, docs/statistics.md) excludes 0. Primary contrasts, at their own 95 %: H vs QE and QE vs PCA "
-            f"with lstsq on {primary_data(metrics)}; the other {family} comparisons are Holm-adjusted over the run "
-            "('<' only at adjusted p < 0.05). '=': equal within the tie tolerance; '<= by construction': an "
-            "identity of the bases and solvers, not tested")
+    text = (f"**how to read**: '<': the paired 95 % interval (batch means over time, docs/statistics.md) excludes "
+            f"0; primary contrasts (H vs QE, QE vs PCA, lstsq, on {primary_data(metrics)}) at their own 95 %, the "
+            f"other {family} Holm-adjusted; '=': a tie within tolerance; '<= by construction': an identity, not tested")
     if without:
         text += f" ({without} comparisons of this record carry no p-value and keep their unadjusted interval)"
     return text + "."
