@@ -428,3 +428,18 @@ def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
     text = weights_text("mesh", ["lstsq"], rows)
     assert "lstsq: H 1.5, 50 %, 0.30, 50; QE (minimum-norm, rank 11 of 18) 30, 100 %, 0.30, 2e+04" in text
     assert text.endswith("frames that need a negative weight (nnls error above lstsq's): H 25 %, QE 0 %")
+
+
+def test_the_summary_states_the_claim_the_regime_and_the_verdict_in_under_200_words():
+    from workbench.reporting.findings import run_summary
+
+    metrics = known_metrics()
+    metrics["data"]["mesh"]["comparisons"] = [*COMPARISONS, compared(("QE", "lstsq"), ("H", "lstsq"), -0.8, -0.7)]
+    text = run_summary(known_table(), "alpha_abs_mean", metrics)
+    assert len(text.split()) <= 200
+    assert "On mesh (m = 10 eigenfaces, n = 18 hand shapes: not the paper's regime m = n (run " \
+           "basis.n_components=18 for it))" in text
+    assert "H/QE 4 (QE - H -0.75 [-0.8, -0.7]), QE/PCA 1.25 (QE - PCA +0.05 [+0.02, +0.08])" in text
+    assert "H 1, QE 0.25, PCA 0.2 mm median per-frame error; QE better than H: reproduced." in text
+    assert text.endswith("Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
+                         "and QE are fitted to the frames they reconstruct; no frames were held out.")
