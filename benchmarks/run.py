@@ -12,6 +12,8 @@ Run from the repository root (not part of the test suite):
     python benchmarks/run.py mapped       # PCA of RBF-interpolated mesh frames in marker space, lifted, vs direct
     python benchmarks/run.py cache        # the dataset cache (paths.cache_dir) against no cache: ict_livelink,
                                           #   animface and the synthetic actor (write, hit, sizes on disk)
+    python benchmarks/run.py coverage     # coverage of the within-run intervals on AR(1) series (--replications,
+                                          #   --seed, --with-bootstrap); not part of "all": it times nothing
     python benchmarks/run.py all
 
 The run starts by printing the BLAS library, its kernel and threads (threadpoolctl) and the OpenBLAS variables of
@@ -454,7 +456,7 @@ def bench_cache(args) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "all"])
+    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "coverage", "all"])
     parser.add_argument("--mapped-dataset", choices=["animface", "synthetic"], default="animface",
                         help="data of the mapped scenario (animface reads ../shared/data or WORKBENCH_DATA_ROOT)")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats of the marker fast path (median)")
@@ -477,7 +479,16 @@ def main() -> None:
     parser.add_argument("--cache-datasets", nargs="+", choices=sorted(CACHE_DATASETS),
                         default=["ict_livelink", "animface", "synthetic"], help="datasets of the cache scenario")
     parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
+    parser.add_argument("--replications", type=int, default=1000, help="AR(1) series per cell of the coverage table")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the coverage scenario's series")
+    parser.add_argument("--with-bootstrap", action="store_true",
+                        help="coverage: also the circular block bootstrap the batch means replaced (slow)")
     args = parser.parse_args()
+    if args.scenario == "coverage":
+        from interval_coverage import bench_coverage
+
+        bench_coverage(args)
+        return
     print(blas_report())
     if args.scenario in ("markers", "all"):
         bench_markers(args)

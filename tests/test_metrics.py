@@ -147,3 +147,27 @@ def test_error_distribution_and_rms_per_frame():
     found = error_distribution(np.arange(101.0))
     assert (found.median, found.p95, found.max) == (50.0, 95.0, 100.0)
     np.testing.assert_allclose(found.quantiles, np.arange(101.0))
+
+
+def test_a_rank_deficient_basis_whose_nnls_equals_lstsq_needs_no_negative_weights():
+    from workbench.metrics import needs_negative_share, weight_statistics
+    from workbench.solve import solve_weights
+
+    # e1, e2 and e1 + e2: rank 2 of 3. A frame 2 e1 (+ a part outside the span) has the least-squares minimum-norm
+    # weights (4/3, -2/3, 2/3), negative, yet (2, 0, 0) reaches the same error without a negative weight
+    rng = np.random.default_rng(0)
+    e1, e2, outside = np.eye(6)[0], np.eye(6)[1], np.eye(6)[5]
+    basis = np.vstack([e1, e2, e1 + e2])
+    scale = rng.uniform(0.5, 2.0, 50)
+    frames = scale[:, None] * (2.0 * e1) + rng.uniform(0.0, 0.1, 50)[:, None] * outside
+    frames[::2] = scale[::2, None] * (2.0 * e1)  # half of them exactly in the span (errors of rounding size)
+    lstsq, nnls = (solve_weights(basis, frames, kind=kind) for kind in ("lstsq", "nnls"))
+    np.testing.assert_allclose(lstsq.weights[1], scale[1] * np.array([4, -2, 2]) / 3, rtol=1e-9)
+    errors = [np.sum((frames - solution.weights @ basis) ** 2, axis=1) for solution in (lstsq, nnls)]
+    assert weight_statistics(lstsq.weights, np.arange(50) / 120.0).negative_share == 1.0
+    assert needs_negative_share(*errors, np.sum(frames ** 2, axis=1)) == 0.0
+    # a frame that does need one: -e1 is reached by least squares only
+    target = np.vstack([frames, -e1])
+    lstsq, nnls = (solve_weights(basis, target, kind=kind) for kind in ("lstsq", "nnls"))
+    errors = [np.sum((target - solution.weights @ basis) ** 2, axis=1) for solution in (lstsq, nnls)]
+    assert needs_negative_share(*errors, np.sum(target ** 2, axis=1)) == 1 / 51

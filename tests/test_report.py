@@ -86,4 +86,23 @@ def test_headline_exact_text():
     text = headline(table, {"headline_normalisation": "absolute", "headline_aggregate": "mean"}, PAPER)
     assert text == ("alpha_abs_mean with box: H 5.12, QE 0.70, PCA 0.61\n"
                     "paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): "
-                    "H 5.2, QE 0.72, PCA 0.62\n")
+                    "H 5.2, QE 0.72, PCA 0.62\n"
+                    "paper_alpha is Kim & Ko's own capture (35,000 frames, 66 markers), its own coordinate origin "
+                    "and absolute alpha: absolute alpha divides by |v*| and so moves with where the origin lies, and "
+                    "another face, capture and hand basis give other values; compare the ratios H/QE and QE/PCA "
+                    "(paper 7.2 and 1.16), not alpha itself\n")
+
+
+def test_headline_states_identities_and_never_tests_them():
+    from workbench.reporting.identities import Identity
+
+    table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
+    comparisons = {"markers": [
+        {"a": ["QE", "box"], "b": ["PCA", "projection"], "estimate": 0.09, "low": 0.05, "high": 0.2}]}
+    identity = Identity(("PCA", "projection"), ("QE", "box"), "Eckart-Young", pooled_only=True)
+    metric = {"headline_normalisation": "absolute", "headline_aggregate": "pooled"}
+    text = headline(table, metric, PAPER, comparisons, {"markers": [identity]})
+    assert "PCA 0.671 <= QE 0.77 by construction (Eckart-Young)" in text.splitlines()[0]
+    # a per-frame mean is not what Eckart-Young orders: there the interval decides
+    metric = {"headline_normalisation": "absolute", "headline_aggregate": "mean"}
+    assert "PCA 0.61 < QE 0.7" in headline(table, metric, PAPER, comparisons, {"markers": [identity]})

@@ -341,7 +341,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     from workbench.study.run import run_study
     from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
                                          saves_inputs)
-    from workbench.run_text import alpha_table, headline, printed_tables, study_header
+    from workbench.run_text import alpha_table, headline, printed_tables, result_identities, study_header
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -362,7 +362,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
     text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha, comparisons))
+            + headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results)))
 
     metrics = run_metrics(results_metrics(results, table, comparisons), study=plain["study"],
                           resolved_yaml=resolved_yaml, overrides=overrides, job_num=job_num, started_at=started_at,

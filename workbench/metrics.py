@@ -465,6 +465,10 @@ class WeightStatistics:
         differences over the frames' times, within each take (frames at a take's ends have none).
     sum_median : float
         Median over frames of ``sum_i w_i``.
+    needs_negative_share : float
+        Share of frames whose non-negative solution's error exceeds this (least-squares) solution's by more than
+        ``TOL.tie_rel`` (:func:`needs_negative_share`): the frames that need a negative weight, whichever weights
+        the least-squares solver returned. NaN where not computed (no nnls row beside it, or not least squares).
     """
 
     max_abs: float
@@ -473,11 +477,47 @@ class WeightStatistics:
     sparsity: float
     roughness: float
     sum_median: float
+    needs_negative_share: float = math.nan
 
     def as_dict(self) -> dict:
         return {"max_abs": self.max_abs, "outside_unit_share": self.outside_unit_share,
                 "negative_share": self.negative_share, "sparsity": self.sparsity, "roughness": self.roughness,
-                "sum_median": self.sum_median}
+                "sum_median": self.sum_median, "needs_negative_share": self.needs_negative_share}
+
+
+def needs_negative_share(error_sq_lstsq: np.ndarray, error_sq_nnls: np.ndarray, reference_sq: np.ndarray | None = None,
+                         *, tol: Tolerances = TOL) -> float:
+    """Share of frames that need a negative weight: the non-negative solution's error exceeds the least-squares
+    error by more than ``tol.tie_rel`` of the larger error or of the frame's reference norm (whichever is larger,
+    so that two errors of rounding size on a frame the basis reproduces are a tie).
+
+    A negative weight in the least-squares solution is not enough: for a rank-deficient basis the least-squares
+    weights are the minimum-norm choice among many with the same error, and one of those may be non-negative.
+
+    Parameters
+    ----------
+    error_sq_lstsq, error_sq_nnls : ndarray of shape (n_frames,)
+        Per-frame squared reconstruction errors of one basis under least squares and non-negative weights.
+    reference_sq : ndarray of shape (n_frames,), optional
+        Per-frame squared norm of what is reconstructed (the captured displacement).
+    tol : Tolerances
+
+    Returns
+    -------
+    float
+        In [0, 1]; NaN without frames.
+    """
+    lstsq, nnls = (np.sqrt(np.maximum(np.asarray(values, dtype=float), 0.0)) for values in (error_sq_lstsq,
+                                                                                            error_sq_nnls))
+    if lstsq.shape != nnls.shape or lstsq.ndim != 1:
+        raise WorkbenchError(f"per-frame errors of the two solvers must be 1-D of one length, got shapes "
+                             f"{lstsq.shape} and {nnls.shape}")
+    if lstsq.size == 0:
+        return math.nan
+    scale = np.maximum(lstsq, nnls)
+    if reference_sq is not None:
+        scale = np.maximum(scale, np.sqrt(np.maximum(np.asarray(reference_sq, dtype=float), 0.0)))
+    return float(np.mean(nnls - lstsq > tol.tie_rel * scale))
 
 
 def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:

@@ -119,7 +119,8 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
         f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "
         "disp: 100|d*-d|/|d*|; mean: of per-frame values; pooled: over all frames",
         "  QE: affine projects through the capture mean (eq. 3-4 as written), linear through the neutral face",
-        "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values, for comparison only",
+        "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values on their own capture and "
+        "coordinate origin, not a target for these data (compare ratios; see the note under the table)",
     ]
     for result in results:
         capture, eigenfaces = result.capture, result.eigenfaces
@@ -182,8 +183,37 @@ def conditioning_lines(rows: Sequence) -> list[str]:
     return ([f"  bases: {'; '.join(parts)}"] if parts else []) + warnings
 
 
+def result_identities(results: Sequence) -> dict:
+    """Data variant -> the orderings its rows hold by construction
+    (:func:`workbench.reporting.identities.run_identities`), from the results as ``metrics.json`` would keep them.
+
+    Parameters
+    ----------
+    results : sequence of workbench.pipeline.StudyResult
+    """
+    from workbench.reporting.identities import run_identities
+
+    found = {}
+    for result in results:
+        rows = [{"basis": row.basis, "solver": row.solver, "n": row.n_shapes,
+                 "train_on": result.train_on or result.data, "eval_on": result.eval_on or result.data,
+                 "basis_conditioning": row.conditioning.as_dict() if row.conditioning else None}
+                for row in result.rows]
+        facts = {"pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
+                 "protocol": result.protocol, "notes": list(result.capture.notes)}
+        found[result.data] = run_identities(rows, facts)
+    return found
+
+
+PAPER_ALPHA_NOTE = ("paper_alpha is Kim & Ko's own capture (35,000 frames, 66 markers), its own coordinate origin and "
+                    "absolute alpha: absolute alpha divides by |v*| and so moves with where the origin lies, and "
+                    "another face, capture and hand basis give other values; compare the ratios H/QE and QE/PCA "
+                    "(paper 7.2 and 1.16), not alpha itself")
+
+
 def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float],
-             comparisons: Mapping[str, Sequence[Mapping]] | None = None) -> str:
+             comparisons: Mapping[str, Sequence[Mapping]] | None = None,
+             identities: Mapping[str, Sequence] | None = None) -> str:
     """One line per solver: the configured alpha of every basis beside the paper's values; with ``comparisons``
     the bases from best to worst, ``<`` only where the paired per-frame difference's interval excludes zero.
 
@@ -198,6 +228,9 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
         The paper's alpha per basis label.
     comparisons : mapping, optional
         Data variant -> its paired comparisons (:func:`workbench.study.summary.frame_comparisons`).
+    identities : mapping, optional
+        Data variant -> the orderings that hold by construction (:func:`result_identities`): printed ``<=`` with
+        their reason, never tested.
 
     Returns
     -------
@@ -220,15 +253,20 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
                 lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
                              + f", PCA {pca:.2f}")
                 continue
+            from workbench.reporting.identities import identity_lookup
             from workbench.statistics import comparison_lookup, ordering_text
 
             values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},
                       ("PCA", "projection"): float(pca)}
+            lookup = identity_lookup((identities or {}).get(data, []), column)
             lines.append(prefix + ordering_text(values, comparison_lookup(comparisons.get(data, [])),
-                                                name=lambda key: key[0], digits=3))
+                                                name=lambda key: key[0], digits=3,
+                                                identity=lambda a, b: getattr(lookup(a, b), "reason", None)))
     if comparisons is not None:
-        lines.append("'<': the paired per-frame difference's 95 % block-bootstrap interval excludes 0; '~': it does "
-                     "not (the two are not distinguishable on these frames)")
+        lines.append("'<': the paired per-frame difference's 95 % batch-means interval excludes 0; '~': it does "
+                     "not (the two are not distinguishable on these frames); '=': equal within the tie tolerance; "
+                     "'<= by construction': an identity of the bases and solvers, not a finding (docs/statistics.md)")
     paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
     lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
+    lines.append(PAPER_ALPHA_NOTE)
     return "\n".join(lines) + "\n"

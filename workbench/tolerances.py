@@ -22,6 +22,10 @@ class Tolerances:
         matrix when its smallest eigenvalue is at or below that (duplicate or nearly collinear shapes).
     weight_bound : float
         A weight counts as outside [0, 1] when it passes a bound by more than this (solvers stop at rounding).
+    tie_rel : float
+        Two values (alphas, errors) whose difference is within ``tie_rel`` times the larger of them are equal:
+        never ``<`` in an ordering, and a frame whose non-negative solution is that close to its least-squares one
+        does not need negative weights (the difference is rounding, not a finding).
     """
 
     eigen_rel: float = 1e-12
@@ -30,6 +34,7 @@ class Tolerances:
     zero_displacement: float = 1e-9
     gram_ridge: float = 1e-12
     weight_bound: float = 1e-6
+    tie_rel: float = 1e-9
 
 
 TOL = Tolerances()

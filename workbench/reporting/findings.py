@@ -22,8 +22,9 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.identities import identity_lookup, run_identities, scored_on_training_frames
 from workbench.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
-                                            interval_text, reversed_interval)
+                                            holm_adjusted, interval_text, reversed_interval, short_interval_text)
 from workbench.statistics import ordering_text as stated_ordering
 from workbench.tables import cell_text
 
@@ -44,7 +45,7 @@ def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
 
 
 def _fmt(value: float) -> str:
-    return f"{value:.4g}"
+    return f"{value:.3g}"
 
 
 def _percent(share: float) -> str:
@@ -52,7 +53,7 @@ def _percent(share: float) -> str:
 
 
 def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
-                         bases: Sequence[str] = RUN_BASES) -> str:
+                         bases: Sequence[str] = RUN_BASES, identity=None) -> str:
     """The bases of one data variant from best to worst under a solver, ``<`` only where the paired per-frame
     difference's interval excludes zero, ``~`` with the interval where it does not, ``,`` without a comparison.
 
@@ -65,36 +66,38 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
     compare : callable or None
         ``compare((basis, solver), (basis, solver))`` -> the :class:`Interval` of the difference, or None.
     bases : sequence of str
+    identity : callable, optional
+        ``identity(a, b)`` -> the :class:`workbench.reporting.identities.Identity` saying ``a <= b`` by
+        construction, or None (:func:`workbench.reporting.identities.identity_lookup`).
     """
     values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
               for basis in bases}
-    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0])
+    reason = None if identity is None else (lambda a, b: getattr(identity(a, b), "reason", None))
+    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0], digits=3,
+                           identity=reason, detail=lambda *args: "")
 
 
-def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq") -> str:
-    """H/QE, H/QE-linear and QE/PCA of one data variant under every alpha variant in its rows, beside the paper's
-    ratios (from its reported, absolute alpha), and how far the variants move them."""
-    columns = [column for column in ALPHA_VARIANTS if column in part.columns]
-    if not columns:
+def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq",
+               column: str = "alpha_abs_mean") -> str:
+    """H/QE and QE/PCA of one data variant in the headline column beside the paper's, and how far the four alpha
+    variants move H/QE (every variant's value is in the table 'Alpha beside the paper')."""
+    columns = [name for name in ALPHA_VARIANTS if name in part.columns]
+    if column not in columns:
         return ""
-    pairs = [(a, b) for a, b in (("H", "QE"), ("H", "QE-linear"), ("QE", "PCA"))
-             if not math.isnan(_alpha(part, a, solver, columns[0])) and not math.isnan(_alpha(part, b, solver,
-                                                                                              columns[0]))]
-    names = " | ".join(ALPHA_VARIANTS[column] for column in columns)
-    texts, spans = [], []
-    for a, b in pairs:
-        ratios = [_alpha(part, a, solver, column) / _alpha(part, b, solver, column) for column in columns]
+    texts = []
+    for a, b in (("H", "QE"), ("QE", "PCA")):
+        first, second = _alpha(part, a, solver, column), _alpha(part, b, solver, column)
+        if math.isnan(first) or math.isnan(second):
+            continue
         paper = paper_alpha.get(a, math.nan) / paper_alpha.get(b, math.nan)
-        texts.append(f"{a}/{b} " + " | ".join(f"{ratio:.2f}" for ratio in ratios)
-                     + (f" (paper {paper:.2f})" if math.isfinite(paper) else ""))
-        spans.append((a, b, min(ratios), max(ratios)))
+        texts.append(f"{a}/{b} {first / second:.3g}" + (f" (paper {paper:.3g})" if math.isfinite(paper) else ""))
     if not texts:
         return ""
-    a, b, low, high = spans[0]
-    return (f"with {SOLVER_NAMES.get(solver, solver)}, ratios by alpha variant ({names}): " + "; ".join(texts)
-            + f". The paper's ratios come from its absolute alpha; here {a}/{b} ranges from {low:.2f} to {high:.2f} "
-            "with the variant (absolute alpha also moves with the coordinate origin), so no one ratio compares across "
-            "datasets")
+    ratios = [_alpha(part, "H", solver, name) / _alpha(part, "QE", solver, name) for name in columns]
+    spread = (f"; over the {len(columns)} alpha variants H/QE runs from {min(ratios):.3g} to {max(ratios):.3g}, so "
+              "no one ratio compares across datasets" if len(columns) > 1 and all(map(math.isfinite, ratios))
+              else "")
+    return f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + spread
 
 
 def m_text(part: pd.DataFrame, paper: Mapping) -> str:
@@ -114,9 +117,9 @@ def _verdict(compare, a: tuple, b: tuple, worse: str, better: str) -> str:
     interval = compare(a, b) if compare else None
     if interval is None:
         return ""
-    detail = interval_text(interval, comparison_name(a[0], b[0], interval), SIGNED)
+    detail = short_interval_text(interval, comparison_name(a[0], b[0], interval), SIGNED)
     if not interval.excludes_null:
-        return f"not distinguishable from {b[0]} ({detail})"
+        return f"not distinguishable from {b[0]}"
     return f"{worse if interval.sign > 0 else better} {b[0]} ({detail})"
 
 
@@ -129,12 +132,12 @@ def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None) 
         q0, q1 = _alpha(part, basis, "lstsq", column), _alpha(part, basis, solver, column)
         if math.isnan(q0) or math.isnan(q1):
             continue
-        moves.append(f"{basis}'s alpha goes from {_fmt(q0)} to {_fmt(q1)} (x{q1 / q0:.2f})")
+        moves.append(f"{basis}'s alpha x{q1 / q0:.2f} ({_fmt(q0)} to {_fmt(q1)})")
         verdict = _verdict(compare, (basis, solver), ("H", solver), "worse than", "better than")
         verdicts.append(f"{basis} is {verdict}" if verdict else
                         f"{basis} {_fmt(q1)} against H {_fmt(h1)} (no paired interval)")
     return (f"with {SOLVER_NAMES.get(solver, solver)} " + ", ".join(moves)
-            + f" and H's from {_fmt(h0)} to {_fmt(h1)} (x{h1 / h0:.2f}); under them " + " and ".join(verdicts))
+            + f", H's x{h1 / h0:.2f}; " + ", ".join(verdicts))
 
 
 def _row(rows: Sequence[Mapping], data: str, basis: str, solver: str) -> Mapping:
@@ -163,68 +166,94 @@ def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: 
     if not offset or not qe0.get("weights") or not qe1.get("weights"):
         return ""
     share0, share1 = qe0.get("offset_error_share", math.nan), qe1.get("offset_error_share", math.nan)
-    text = (f"every affine QE shape is P e_i^H + (I-P) mu: it carries the capture mean's part outside the "
-            f"eigenfaces' span, {offset['norm']:.3g} mm long"
-            + (f" ({_percent(offset['ratio'])} of the median frame's displacement norm)"
+    verb = "need" if _finite_value(qe0["weights"].get("needs_negative_share")) else "have"
+    text = (f"every affine QE shape carries (I-P) mu, the capture mean's part outside the eigenfaces' span "
+            f"({offset['norm']:.3g} mm"
+            + (f", {_percent(offset['ratio'])} of the median frame's displacement"
                if math.isfinite(offset.get("ratio", math.nan)) else "")
-            + f"; with least squares QE's weights sum to {qe0['weights']['sum_median']:.2f} (median "
-            f"over frames), so each frame gets that many copies of it, and "
-            f"{_percent(qe0['weights']['negative_share'])} of the frames have a negative weight; with "
-            f"{SOLVER_NAMES.get(solver, solver)} they sum to "
-            f"{qe1['weights']['sum_median']:.2f} and {_percent(share1)} of QE's squared error lies along (I-P) mu "
-            f"(least squares: {_percent(share0)})")
+            + f"); QE's least-squares weights sum to {qe0['weights']['sum_median']:.2f} (median), "
+            f"{_percent(needs_negative(qe0['weights']))} of frames {verb} a negative weight; with "
+            f"{SOLVER_NAMES.get(solver, solver)} the sum is {qe1['weights']['sum_median']:.2f} and "
+            f"{_percent(share1)} of QE's squared error lies along (I-P) mu (least squares: {_percent(share0)})")
     if lin0.get("weights") and lin1.get("weights"):
         l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
         q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
-        text += (f". QE-linear's shapes lie in the span (no offset): {_percent(lin0['weights']['negative_share'])} "
-                 f"of its frames have a negative least-squares weight, and its alpha goes from {_fmt(l0)} to "
-                 f"{_fmt(l1)} (x{l1 / l0:.2f}) against QE's x{q1 / q0:.2f}")
-        needs_negative = lin0["weights"]["negative_share"] >= 0.8 * qe0["weights"]["negative_share"]
+        verb = "need" if _finite_value(lin0["weights"].get("needs_negative_share")) else "have"
+        text += (f". QE-linear (no offset): {_percent(needs_negative(lin0['weights']))} of frames {verb} a negative "
+                 f"weight, alpha x{l1 / l0:.2f} against QE's x{q1 / q0:.2f}")
+        needs_negative_too = needs_negative(lin0["weights"]) >= 0.8 * needs_negative(qe0["weights"])
         loses_less = l1 / l0 - 1.0 < LINEAR_LOSS_STATED * (q1 / q0 - 1.0)
-        if needs_negative and loses_less and share1 >= OFFSET_SHARE_STATED:
-            text += (". So the share of frames needing negative weights does not explain the loss; the offset does "
-                     "in part: the constraint can no longer hold the weights' sum where the offset needs it")
-        elif needs_negative and not loses_less:
-            text += (". Here QE-linear, with as many frames needing negative weights, loses almost as much: these "
-                     "numbers do not single out the offset")
+        if needs_negative_too and loses_less and share1 >= OFFSET_SHARE_STATED:
+            text += (". So negative weights alone do not explain the loss; the offset does in part: the constraint "
+                     "can no longer hold the weights' sum where the offset needs it")
+        elif needs_negative_too and not loses_less:
+            text += (". QE-linear, needing as many negative weights, loses almost as much: these numbers do not "
+                     "single out the offset")
     return text
 
 
+def minimum_norm_label(row: Mapping, solver: str) -> str:
+    """`` (minimum-norm, rank r of n)`` for least-squares weights of a rank-deficient basis (many weight vectors
+    give its error; the solver returned the shortest), else empty."""
+    conditioning = row.get("basis_conditioning") or {}
+    rank, size = conditioning.get("rank"), conditioning.get("n_shapes")
+    if solver != "lstsq" or rank is None or size is None or rank >= size:
+        return ""
+    return f" (minimum-norm, rank {rank} of {size})"
+
+
+def _finite_value(value) -> bool:
+    return value is not None and math.isfinite(value)
+
+
+def needs_negative(weights: Mapping) -> float:
+    """The share of frames needing a negative weight (nnls error above lstsq's beyond the tie tolerance), or, for
+    records without it, the share with a negative least-squares weight."""
+    value = weights.get("needs_negative_share")
+    return value if _finite_value(value) else weights["negative_share"]
+
+
 def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
-    """The animator's side: under least squares and the first constrained solver, each basis's largest |w|, share
-    of frames with a weight outside [0, 1], Hoyer sparsity and roughness."""
-    parts = []
-    for solver in [solver for solver in solvers if solver == "lstsq"] + [s for s in solvers if s != "lstsq"][:1]:
-        found = [(basis, _row(rows, data, basis, solver).get("weights")) for basis in RUN_BASES]
-        found = [(basis, weights) for basis, weights in found if weights]
+    """The animator's side: under least squares (else the first solver), each basis's largest |w|, share
+    of frames with a weight outside [0, 1], Hoyer sparsity and roughness; least-squares weights of a rank-deficient
+    basis labelled minimum-norm with the rank (they describe the pseudo-inverse's choice, not the basis); and the
+    share of frames that need a negative weight (:func:`workbench.metrics.needs_negative_share`)."""
+    parts, needing = [], []
+    for solver in [solver for solver in solvers if solver == "lstsq"] or list(solvers)[:1]:
+        found = [(basis, _row(rows, data, basis, solver)) for basis in RUN_BASES]
+        found = [(basis, row) for basis, row in found if row.get("weights")]
         if found:
             parts.append(f"{solver}: " + "; ".join(
-                f"{basis} {weights['max_abs']:.3g}, {_percent(weights['outside_unit_share'])}, "
-                f"{weights['sparsity']:.2f}, {weights['roughness']:.2g}" for basis, weights in found))
+                f"{basis}{minimum_norm_label(row, solver)} {row['weights']['max_abs']:.3g}, "
+                f"{_percent(row['weights']['outside_unit_share'])}, {row['weights']['sparsity']:.2f}, "
+                f"{row['weights']['roughness']:.2g}" for basis, row in found))
+        if solver == "lstsq":
+            needing = [f"{basis} {_percent(row['weights']['needs_negative_share'])}" for basis, row in found
+                       if _finite_value(row["weights"].get("needs_negative_share"))]
     if not parts:
         return ""
-    return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity "
-            "with 1 for one shape per frame, roughness as the mean squared second time derivative in 1/s^4), "
-            + "; ".join(parts))
+    return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity, "
+            "roughness in 1/s^4; table 'Error in millimetres and the weights'), "
+            + "; ".join(parts)
+            + (f"; frames that need a negative weight (nnls error above lstsq's): {', '.join(needing)}"
+               if needing else ""))
 
 
 def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
-    """The per-frame error in millimetres over the face region as a distribution, each basis under a solver."""
+    """The median per-frame error in millimetres over the face region, each basis under a solver (percentiles in
+    the table 'Error in millimetres and the weights')."""
     if "err_mm_median" not in part.columns:
         return ""
-    entries = []
-    for basis in RUN_BASES:
-        values = [_alpha(part, basis, solver, f"err_mm_{what}") for what in ("median", "p95", "max")]
-        if not any(math.isnan(value) for value in values):
-            entries.append(f"{basis} {values[0]:.3g} / {values[1]:.3g} / {values[2]:.3g}")
+    entries = [f"{basis} {value:.3g}" for basis in RUN_BASES
+               if not math.isnan(value := _alpha(part, basis, solver, "err_mm_median"))]
     if not entries:
         return ""
     region = facts.get("face_region")
-    return (f"per-frame RMS error in mm over {region}" if region else "per-frame RMS error in mm") \
-        + f", median / 95th percentile / maximum over frames, {solver}: " + ", ".join(entries)
+    return (f"median per-frame RMS error in mm ({solver}{'; ' + region if region else ''}): " + ", ".join(entries)
+            + "; 95th percentiles and maxima in the table 'Error in millimetres and the weights'")
 
 
-def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine", count: int = 3) -> str:
+def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine", count: int = 2) -> str:
     """Where a projection loses a hand shape's look: the shapes it changes most, and the median closeness.
 
     Parameters
@@ -242,8 +271,7 @@ def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine",
     cosines = sorted(row["cosine"] for row in rows)
     median = cosines[len(cosines) // 2] if len(cosines) % 2 else (cosines[len(cosines) // 2 - 1]
                                                                     + cosines[len(cosines) // 2]) / 2
-    named = ", ".join(f"{row['shape']} (cosine {row['cosine']:.2f}, relative distance {row['relative_distance']:.2f})"
-                      for row in rows[:count])
+    named = ", ".join(f"{row['shape']} (cosine {row['cosine']:.2f})" for row in rows[:count])
     return f"{named}; median cosine of the {len(rows)} shapes {median:.2f}"
 
 
@@ -277,7 +305,8 @@ def caveat_texts(metrics: Mapping) -> list[str]:
                        "cannot span")
     if kind == "synthetic":
         caveats.append("the data are generated by the workbench, and the hand shapes are the generator's own "
-                       "muscles, each fully contracted")
+                       "muscles, each fully contracted: its expressions are made from these very shapes, so H is "
+                       "scored on motion built from its own shapes, which flatters H against a real capture")
     trained = [data for data, facts in (metrics.get("data") or {}).items()
                if facts.get("protocol", "training frames") == "training frames"
                and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", []))]
@@ -331,17 +360,26 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
     Returns
     -------
     list of str
+        The "how to read" line (interval method, primary contrasts, Holm) once, then per data variant its ordering,
+        ratios, m and median error; the constraints, their cause, the weights and the shapes the projection changes
+        are said for the lead variant scored on its training frames only (the others' are in the report's tables),
+        then the caveats.
     """
     metrics, config = metrics or {}, config or {}
     data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
-    lines = []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     parts = dict(list(table.groupby("data", sort=False)))
+    adjusted = adjusted_comparisons(metrics)
+    lines = [multiplicity_text(metrics)] if adjusted else []
+    trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
+    detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 \
+        else None
     for data, part in parts.items():
         facts = data_facts.get(data) or {}
-        compare = comparison_lookup(facts["comparisons"]) if facts.get("comparisons") else None
+        compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
-        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases)}"
+        identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
+        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
                              for solver in solvers)
         claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
         lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
@@ -356,10 +394,14 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
                 lines.append(f"**{data}**: {error}.")
             continue
         if "lstsq" in solvers:
-            ratios = ratio_text(part, paper.get("alpha", {}))
+            ratios = ratio_text(part, paper.get("alpha", {}), column=column)
             if ratios:
                 lines.append(f"**{data}**: {ratios}.")
         lines.append(f"**{data}**: {m_text(part, paper)}.")
+        if detailed is not None and data != detailed:  # the lead variant's details stand for the others'
+            if error:
+                lines.append(f"**{data}**: {error}.")
+            continue
         constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
         for k, solver in enumerate(constrained):
             lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
@@ -376,6 +418,49 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
             lines.append(f"**{data}**: {closeness}.")
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
+
+
+PRIMARY_CONTRASTS = (frozenset({("H", "lstsq"), ("QE", "lstsq")}), frozenset({("QE", "lstsq"), ("PCA", "projection")}))
+"""The paper's two claims, with least squares: H against QE and QE against PCA (on the record's first data variant)."""
+
+
+def primary_data(metrics: Mapping) -> str | None:
+    """The data variant a record leads with (its first): where the primary contrasts are stated."""
+    return next(iter(metrics.get("data") or {}), None)
+
+
+def adjusted_comparisons(metrics: Mapping) -> dict:
+    """Data variant -> its stored comparisons, every one but the primary contrasts (:data:`PRIMARY_CONTRASTS` on
+    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.statistics.holm_adjusted`)
+    over the run's family; comparisons of records without p-values keep their unadjusted interval."""
+    lead = primary_data(metrics)
+    data_facts = metrics.get("data") or {}
+    stored = {data: list(facts.get("comparisons") or []) for data, facts in data_facts.items()}
+    identities = {data: run_identities([row for row in metrics.get("rows") or [] if row.get("data") == data],
+                                       data_facts.get(data) or {}) for data in stored}
+
+    def untested(data: str, entry: Mapping) -> bool:
+        """A primary contrast (its own 95 %) or an identity (no test at all): outside Holm's family."""
+        a, b = tuple(entry["a"]), tuple(entry["b"])
+        lookup = identity_lookup(identities[data], entry.get("column", ""))
+        return (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS) or lookup(a, b) is not None \
+            or lookup(b, a) is not None
+
+    return holm_adjusted(stored, untested) if any(stored.values()) else {}
+
+
+def multiplicity_text(metrics: Mapping) -> str:
+    """The sentence that says how the run's orderings are decided, once, above them."""
+    adjusted = adjusted_comparisons(metrics)
+    family = sum(1 for entries in adjusted.values() for entry in entries if "holm_family" in entry)
+    without = sum(1 for entries in adjusted.values() for entry in entries
+                  if "holm_family" in entry and not _finite_value(entry.get("p_value")))
+    text = (f"**how to read**: '<': the paired 95 % interval (batch means over time, docs/statistics.md) excludes "
+            f"0; primary contrasts (H vs QE, QE vs PCA, lstsq, on {primary_data(metrics)}) at their own 95 %, the "
+            f"other {family} Holm-adjusted; '=': a tie within tolerance; '<= by construction': an identity, not tested")
+    if without:
+        text += f" ({without} comparisons of this record carry no p-value and keep their unadjusted interval)"
+    return text + "."
 
 
 def facts_frame(metrics: Mapping) -> pd.DataFrame:
@@ -663,3 +748,123 @@ def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Se
         lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column,
                                                                            solver)]
     return lines
+
+
+PAPER_RATIOS = {"H/QE": 5.2 / 0.72, "QE/PCA": 0.72 / 0.62}
+"""The paper's ratios, from its absolute alpha (H 5.2, QE 0.72, PCA 0.62 %)."""
+
+
+def _claim(compare, identity, a: tuple, b: tuple) -> tuple[str, int]:
+    """How the data speak on ``a`` against ``b``: the text and the sign (-1: a smaller, +1: larger, 0: not
+    decided; an identity counts as -1 with its reason)."""
+    found = identity(a, b) if identity else None
+    if found is not None:
+        return f"{a[0]} <= {b[0]} by construction ({found.reason})", -1
+    interval = compare(a, b) if compare else None
+    if interval is None:
+        return f"no paired interval for {a[0]} - {b[0]}", 0
+    return short_interval_text(interval, f"{a[0]} - {b[0]}", SIGNED), interval.sign
+
+
+def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
+    """The summary a report opens with (at most about 200 words): the paper's claim, whether these data reproduce
+    it and in which regime, the effect sizes in mm and as ratios with the paired intervals of the alpha
+    differences, and the caveat that matters most. Pages put it above the findings.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The run's alpha table.
+    column : str
+        The headline alpha column.
+    metrics : mapping
+        The run's ``metrics.json``.
+
+    Returns
+    -------
+    str
+        Empty when the lead data variant lacks H, QE or PCA with least squares.
+    """
+    data = primary_data(metrics) or (table["data"].iloc[0] if len(table) else None)
+    part = table[table["data"] == data]
+    values = {basis: _alpha(part, basis, "lstsq", column) for basis in PAPER_BASES}
+    if not len(part) or any(math.isnan(value) for value in values.values()):
+        return ""
+    facts = (metrics.get("data") or {}).get(data) or {}
+    rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
+    adjusted = adjusted_comparisons(metrics).get(data)
+    compare = comparison_lookup(adjusted) if adjusted else None
+    identity = identity_lookup(run_identities(rows, facts), column)
+    m, n = int(part["m"].iloc[0]), int(part.loc[part["basis"] == "H", "n"].iloc[0])
+    regime = ("the paper's regime (m = n)" if m == n else
+              f"not the paper's regime m = n (run basis.n_components={n} for it)")
+    hq, hq_sign = _claim(compare, None, ("QE", "lstsq"), ("H", "lstsq"))
+    qp, qp_sign = _claim(compare, identity, ("QE", "lstsq"), ("PCA", "projection"))
+    first = {-1: "reproduced", 1: "reversed", 0: "not decided"}[hq_sign]
+    mm = {basis: _alpha(part, basis, "lstsq", "err_mm_median") for basis in PAPER_BASES}
+    sizes = (", ".join(f"{basis} {value:.3g}" for basis, value in mm.items()) + " mm median per-frame error; "
+             if not any(math.isnan(value) for value in mm.values()) else "")
+    caveats = caveat_texts(metrics)
+    lead = caveats[0] if caveats else "one run's frames are the only replicate here"
+    if m + 1 <= n and qp_sign == -1 and identity(("QE", "lstsq"), ("PCA", "projection")) is not None:
+        lead = f"with m + 1 <= n QE cannot lose to PCA, so only the size of QE/PCA is evidence; {lead}"
+    return (f"**Summary.** Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
+            f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
+            f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
+            f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
+            f"{sizes}QE better than H: {first}. Caveat: {lead}.")
+
+
+def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:
+    """The run's paired comparisons as the report's table 'Paired comparisons within the run', with what decides
+    each verdict: an identity (``a <= b by construction``, no test), a tie (``a = b``), or the interval, at its
+    own 95 % for a primary contrast and Holm-adjusted otherwise (``p (Holm)``).
+
+    Parameters
+    ----------
+    metrics : mapping
+        The run's ``metrics.json``.
+    column : str, optional
+        The alpha column compared (the comparisons' own ``column`` when not given).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per comparison: ``data``, ``a``, ``b``, ``a - b``, ``ci95_low``, ``ci95_high``, ``p``,
+        ``p (Holm)`` (NaN for a primary contrast), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
+    """
+    records = []
+    for data, entries in adjusted_comparisons(metrics).items():
+        facts = (metrics.get("data") or {}).get(data) or {}
+        rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
+        identities = run_identities(rows, facts)
+        for entry in entries:
+            interval = Interval.from_dict(entry)
+            a, b = tuple(entry["a"]), tuple(entry["b"])
+            lookup = identity_lookup(identities, column or entry.get("column", ""))
+            if lookup(a, b) is not None or lookup(b, a) is not None:
+                found = lookup(a, b) or lookup(b, a)
+                verdict = f"{'a <= b' if lookup(a, b) else 'b <= a'} by construction ({found.reason})"
+            elif interval.tied:
+                verdict = "a = b (within the tie tolerance)"
+            else:
+                verdict = {-1: "a < b", 1: "a > b", 0: "not distinguishable"}[interval.sign]
+            records.append({"data": data, "a": " ".join(a), "b": " ".join(b), "a - b": interval.estimate,
+                            "ci95_low": interval.low, "ci95_high": interval.high, "p": interval.p_value,
+                            "p (Holm)": interval.p_adjusted, "frames": interval.n,
+                            "batch (frames)": interval.block_frames, "batch (s)": interval.block_seconds,
+                            "verdict": verdict})
+    return pd.DataFrame.from_records(records)
+
+
+def comparison_method_text(metrics: Mapping) -> str:
+    """The paragraph above :func:`comparison_table`: how its intervals, identities, ties and adjustment are made."""
+    lead = primary_data(metrics)
+    return ("Every '<' of the findings and of the printed headline is a row here. The difference is that of the "
+            "headline alpha between two rows of the alpha table on the same evaluated frames; its 95 % interval "
+            "comes from batch means over time: contiguous batches within takes, 3 to 30 of them, each at least six "
+            "autocorrelation times long, the variance corrected for the batches' remaining correlation, Student-t "
+            "quantiles (coverage measured on AR(1) series in docs/statistics.md). H vs QE and QE vs PCA with lstsq "
+            f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
+            "Holm-adjusted p-value over the run (p (Holm) < 0.05). Orderings that hold by construction are "
+            "marked so and not tested; differences within the tie tolerance are equal.")

@@ -260,7 +260,7 @@ def wide(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict")
+COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict", "p")
 """Columns of :func:`paired_comparisons` after the condition and row keys."""
 NOT_DISTINGUISHABLE = "not distinguishable"
 
@@ -309,7 +309,8 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
     pandas.DataFrame
         ``study``, the condition columns, the row keys held fixed, then :data:`COMPARISON_COLUMNS`: ``first`` and
         ``second`` the smaller and the larger by their geometric mean ratio (values of ``between``), ``n`` the
-        replicates both have, ``verdict`` ``<`` (the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`.
+        replicates both have, ``verdict`` ``<`` (the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`, ``p``
+        the two-sided p-value of the same paired t on the log ratios (for :func:`workbench.statistics.holm`).
     """
     if metric not in runs.columns:
         raise WorkbenchError(f"no column {metric!r} to compare")
@@ -334,7 +335,8 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                 verdict = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
                 records.append(dict(zip(keys, group_values), metric=metric, first=lower, second=higher,
                                     n=interval.n, ratio=interval.estimate, ratio_low=interval.low,
-                                    ratio_high=interval.high, method=interval.method, verdict=verdict))
+                                    ratio_high=interval.high, method=interval.method, verdict=verdict,
+                                    p=interval.p_value))
     return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
 
 

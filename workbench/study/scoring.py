@@ -11,8 +11,9 @@ import numpy as np
 from workbench.bases import Eigenfaces
 from workbench.dataset.capture import Capture
 from workbench.frames import frame_chunks
-from workbench.metrics import (AlphaSummary, basis_conditioning, error_distribution, frame_rms_error, reference_squares,
-                               summarise_alpha, summarise_squares, weight_statistics)
+from workbench.metrics import (AlphaSummary, basis_conditioning, error_distribution, frame_rms_error,
+                               needs_negative_share, reference_squares, summarise_alpha, summarise_squares,
+                               weight_statistics)
 from workbench.reduced import FrameProjections, Subspace, project_frames
 from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.study.results import QE_LABELS, Row, Timings
@@ -273,6 +274,20 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
         statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
         measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
                                 error_mm=error_distribution(per_frame) if per_frame is not None else None))
+    return with_needs_negative_share(measured)
+
+
+def with_needs_negative_share(rows: Sequence[Row]) -> list[Row]:
+    """The rows, each lstsq row's weight statistics given the share of frames that need negative weights: those
+    whose nnls error (the same basis) exceeds the lstsq error beyond the tie tolerance
+    (:func:`workbench.metrics.needs_negative_share`)."""
+    nnls = {row.basis: row.alpha.error_sq for row in rows if row.solver == "nnls"}
+    measured = []
+    for row in rows:
+        if row.solver == "lstsq" and row.basis in nnls and row.weight_statistics is not None:
+            share = needs_negative_share(row.alpha.error_sq, nnls[row.basis], row.alpha.displacement_sq)
+            row = replace(row, weight_statistics=replace(row.weight_statistics, needs_negative_share=share))
+        measured.append(row)
     return measured
 
 
