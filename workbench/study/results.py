@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.bases import Eigenfaces
 from workbench.dataset.capture import Capture
-from workbench.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics, weight_statistics
+from workbench.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics
 
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
