@@ -41,6 +41,14 @@ SHARED_FOLDER = "shared"
 """Folder of the figures the reference reports share, beside them (``reports/shared``)."""
 
 
+def check_report_name(name: str) -> None:
+    """``--name``: a plain folder name; an empty one is refused, never taken as the default (it would rewrite the
+    default reference report)."""
+    if not plain_name(name):
+        raise WorkbenchError(f"--name must be a plain folder name (not empty, no path, not '.' or '..'), got "
+                             f"{name!r}")
+
+
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
     """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference``, else
     ``<folder>/report`` beside the runs."""
@@ -50,10 +58,10 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         raise WorkbenchError("give either --out or --reference, not both")
     if name is not None and not reference:
         raise WorkbenchError("--name names a reference report; it goes with --reference")
+    if name is not None:
+        check_report_name(name)
     if reference:
-        name = name or default_report_name(config)
-        if not plain_name(name):
-            raise WorkbenchError(f"--name must be a plain folder name (no path), got {name!r}")
+        name = default_report_name(config) if name is None else name
         if CHECKOUT is None:
             raise WorkbenchError("--reference rewrites the committed reports of the workbench's checkout, and this "
                                  "workbench is an installed package: use --out DIR, or run from a checkout")
@@ -98,6 +106,8 @@ def figure_2_shapes(text: str, record: RunRecord) -> list[str]:
 def main(argv: Sequence[str]) -> int:
     """``workbench report <folder> [--out DIR | --reference [--name NAME]] [--formats png,pdf] [--shapes a,b,c,d]``."""
     args = parse_args(argv)
+    if args.name is not None:
+        check_report_name(args.name)
     formats = [fmt.strip() for fmt in args.formats.split(",") if fmt.strip()]
     unknown = sorted(set(formats) - {"png", "svg", "pdf"})
     if unknown:

@@ -168,17 +168,24 @@ def _when(iso: str | None) -> str:
     return datetime.fromisoformat(iso).astimezone(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
+def commit_text(git: Mapping | None) -> str:
+    """Where code ran: ``at commit `<sha>` (uncommitted changes: <bool>)``, or ``not a git checkout`` when there
+    was no commit to name (an installed package, a copy without ``.git``)."""
+    git = git or {}
+    if git.get("commit") is None:
+        return "not a git checkout"
+    return f"at commit `{git['commit']}` (uncommitted changes: {git.get('dirty')})"
+
+
 def versions_section(metrics: Mapping, builder: Mapping) -> Section:
     from datetime import datetime, timezone
 
-    git = metrics.get("git", {})
     record_versions = metrics.get("versions", {})
     return Section("Versions and commit", [
-        f"Run made on {_when(metrics.get('started_at'))} at commit `{git.get('commit')}` (uncommitted changes: "
-        f"{git.get('dirty')}), config hash `{metrics.get('config_hash')}`.",
+        f"Run made on {_when(metrics.get('started_at'))} {commit_text(metrics.get('git'))}, config hash "
+        f"`{metrics.get('config_hash')}`.",
         pd.DataFrame({"package": list(record_versions), "version": [str(v) for v in record_versions.values()]}),
-        f"Report built on {_when(datetime.now(timezone.utc).isoformat())} at commit "
-        f"`{builder['git'].get('commit')}` (uncommitted changes: {builder['git'].get('dirty')}) with "
+        f"Report built on {_when(datetime.now(timezone.utc).isoformat())} {commit_text(builder['git'])} with "
         + ", ".join(f"{name} {version}" for name, version in builder["packages"].items()) + ".",
     ])
 

@@ -1,0 +1,60 @@
+"""The ``workbench report`` command's own rules: where a report goes, the names it takes, and what it says of
+the code that made a run and the report."""
+
+import subprocess
+import sys
+
+import pytest
+
+from workbench.config import REPO_ROOT
+from workbench.errors import WorkbenchError
+from workbench.reporting.pages import main, report_folder
+from workbench.reporting.report_sections import commit_text, versions_section
+
+CONFIG = {"study": "paper", "dataset": {"kind": "synthetic"}}
+
+
+def texts(section):
+    return [block for block in section.blocks if isinstance(block, str)]
+
+
+def test_a_run_and_a_report_outside_a_git_checkout_say_so():
+    metrics = {"git": {"commit": None, "dirty": None}, "versions": {"numpy": "2.0"}, "config_hash": "abc",
+               "started_at": "2026-01-02T03:04:05+00:00"}
+    builder = {"git": {"commit": None, "dirty": None}, "packages": {"numpy": "2.0"}}
+    run_line, report_line = texts(versions_section(metrics, builder))
+    assert run_line == "Run made on 2026-01-02 03:04 UTC not a git checkout, config hash `abc`."
+    assert report_line.endswith(" not a git checkout with numpy 2.0.")
+    assert "None" not in run_line + report_line
+    # a record written before runs stated it has no git entry at all
+    assert commit_text(None) == "not a git checkout" and commit_text({}) == "not a git checkout"
+
+
+def test_a_checkout_names_its_commit_as_before():
+    assert commit_text({"commit": "0123abc", "dirty": False}) == "at commit `0123abc` (uncommitted changes: False)"
+    metrics = {"git": {"commit": "0123abc", "dirty": True}, "config_hash": "abc"}
+    run_line, _ = texts(versions_section(metrics, {"git": {"commit": "4567def", "dirty": False}, "packages": {}}))
+    assert "at commit `0123abc` (uncommitted changes: True), config hash `abc`." in run_line
+
+
+@pytest.mark.parametrize("name", ["", ".", "..", "a/b"])
+def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, tmp_path):
+    with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name \(not empty"):
+        report_folder(tmp_path, CONFIG, out=None, reference=True, name=name)
+    # refused before the folder is read: an empty folder (no record) gets the same line
+    with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name"):
+        main([str(tmp_path), "--reference", "--name", name])
+
+
+def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(tmp_path):
+    reports = REPO_ROOT / "reports"
+    before = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    result = subprocess.run([sys.executable, "-m", "workbench", "report", str(tmp_path), "--reference", "--name", ""],
+                            capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--name" in lines[0] and "not empty" in lines[0], result.stderr
+    after = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    assert after == before
+    # the default name still works as before when --name is not given
+    assert report_folder(tmp_path, CONFIG, out=None, reference=True, name=None).name == "paper"
