@@ -58,3 +58,53 @@ def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(t
     assert after == before
     # the default name still works as before when --name is not given
     assert report_folder(tmp_path, CONFIG, out=None, reference=True, name=None).name == "paper"
+
+
+# A small run on both data variants (5 s of performance on a coarse mesh), without save_inputs.
+BOTH = ["dataset.train_on=[markers,mesh]", "dataset.n_frames=600", "dataset.mesh_rows=35", "dataset.mesh_cols=30"]
+
+
+@pytest.fixture(scope="module")
+def run_without_inputs(tmp_path_factory):
+    from workbench.cli import run
+    from workbench.config import compose
+
+    record = tmp_path_factory.mktemp("without_inputs") / "run"
+    run(compose("paper", BOTH), record)
+    assert not any(path.name.startswith("inputs") for path in record.iterdir())
+    return record
+
+
+def test_the_report_of_a_run_that_saved_no_inputs_draws_every_figure(run_without_inputs, tmp_path):
+    out = tmp_path / "report"
+    assert main([str(run_without_inputs), "--out", str(out)]) == 0
+    readme, page = (out / "README.md").read_text(), (out / "index.html").read_text()
+    assert "not drawn" not in readme.lower() and "not drawn" not in page.lower()
+    assert 'class="missing"' not in page
+    for name in ("fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "fig4_marker_errors", "vertex_rms",
+                 "weight_curves", "alpha_over_time", "marker_vs_mesh", "animation", "view3d"):
+        assert any(path.stem == name for path in (out / "figures").iterdir()), name
+
+
+def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(run_without_inputs, tmp_path,
+                                                                                 monkeypatch):
+    def unreadable(config):
+        raise WorkbenchError("dataset.blendshapes: no file /data/ICT/face.obj")
+
+    monkeypatch.setattr("workbench.pipeline.run_study", unreadable)
+    out = tmp_path / "report"
+    assert main([str(run_without_inputs), "--out", str(out)]) == 0
+    readme = (out / "README.md").read_text()
+    assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs a mesh data variant saved with "
+            "save_inputs=true (e.g. dataset.train_on=[markers,mesh]); the run saved no inputs and its data could not "
+            "be read again: dataset.blendshapes: no file /data/ICT/face.obj)") in readme
+
+
+def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):
+    from workbench.record import load_record
+    from workbench.reporting.report_data import rebuilt_arrays
+
+    record = load_record(run_without_inputs)
+    record.table.loc[0, "alpha_abs_mean"] *= 1.001  # as if the data read again were not those of the run
+    with pytest.raises(WorkbenchError, match=r"give other numbers than its alpha table \(markers\)"):
+        rebuilt_arrays(record, {})

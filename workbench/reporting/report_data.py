@@ -118,10 +118,91 @@ def headline_column(config: Mapping) -> str:
 
 
 def record_inputs(record: RunRecord, data: str, cache: dict) -> dict | None:
+    """The arrays of a data variant's ``inputs.npz``: saved by the run (``save_inputs=true``), or, when the run
+    saved none, rebuilt from its config (:func:`rebuilt_arrays`); None for a variant that has none (bases carried
+    onto other points, held-out frames) or when the data cannot be had (:func:`missing_reason` says why)."""
     key = ("inputs", data)
     if key not in cache:
-        cache[key] = record.load_inputs(data)
+        saved = record.load_inputs(data)
+        cache[key] = saved if saved is not None or saved_inputs(record) else (
+            rebuilt_arrays(record, cache)["inputs"].get(data))
     return cache[key]
+
+
+def record_alpha_per_frame(record: RunRecord, cache: dict) -> dict | None:
+    """The arrays of ``alpha_per_frame.npz``: saved by the run, or rebuilt with its inputs when it saved none."""
+    saved = record.load_alpha_per_frame()
+    return saved if saved is not None or saved_inputs(record) else rebuilt_arrays(record, cache)["alpha_per_frame"]
+
+
+def saved_inputs(record: RunRecord) -> bool:
+    """Whether the run saved its inputs (``save_inputs=true``): then a variant without them truly has none."""
+    return any(record.folder.glob("inputs*.npz"))
+
+
+def missing_reason(cache: dict) -> str:
+    """Why the inputs of a run that saved none could not be rebuilt (``""`` when they were, or were saved)."""
+    return cache.get(("rebuilt",), {}).get("missing", "")
+
+
+def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
+    """A run's ``inputs.npz`` and ``alpha_per_frame.npz`` arrays, rebuilt by running its study again from the
+    record's resolved config (the dataset cache makes the data cheap), checked against the record: the data files'
+    checksums it names and every number of its alpha table.
+
+    Returns
+    -------
+    dict
+        ``inputs``: data variant -> arrays (those a run with ``save_inputs=true`` writes); ``alpha_per_frame``:
+        arrays or None; ``missing``: why not, when the data cannot be had.
+
+    Raises
+    ------
+    WorkbenchError
+        When the rebuilt data differ from the data the run read.
+    """
+    from workbench.errors import WorkbenchError
+    from workbench.pipeline import run_study
+    from workbench.record import alpha_per_frame_arrays, input_arrays
+
+    key = ("rebuilt",)
+    if key not in cache:
+        try:
+            results = run_study(record.config)
+        except (WorkbenchError, OSError) as error:
+            cache[key] = {"inputs": {}, "alpha_per_frame": None,
+                          "missing": f"the run saved no inputs and its data could not be read again: {error}"}
+            return cache[key]
+        check_rebuilt(record, results)
+        cache[key] = {"inputs": {result.data: input_arrays(result) for result in results
+                                 if result.transfer == "identity" and result.protocol == "training frames"},
+                      "alpha_per_frame": alpha_per_frame_arrays(results), "missing": ""}
+    return cache[key]
+
+
+def check_rebuilt(record: RunRecord, results, rtol: float = 1e-6) -> None:
+    """Refuse data rebuilt from a record's config that differ from the data the run read: a data file whose
+    checksum is not the one the record names, or an alpha that differs from the record's alpha table."""
+    from workbench.errors import WorkbenchError
+    from workbench.run_text import alpha_table
+
+    recorded = (record.metrics["dataset"].get("provenance") or {}).get("data_files") or {}
+    found = results[0].capture.provenance.get("data_files") or {}
+    for path, entry in recorded.items():
+        if (found.get(path) or {}).get("sha256") != entry.get("sha256"):
+            raise WorkbenchError(f"run record {record.folder}: its data file {path} is not the one the run read (its "
+                                 "SHA-256 differs from the record's); the report cannot rebuild the run's inputs")
+    paper = record.config.get("paper", {}).get("alpha", {})
+    for result in results:
+        table = alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
+                            coverage=result.eigenfaces.coverage_, paper_alpha=paper)
+        own = record.table[record.table["data"] == result.data]
+        columns = [c for c in ("alpha_abs_mean", "alpha_disp_mean", "rms_mm") if c in table.columns]
+        if len(own) != len(table) or not np.allclose(own[columns].to_numpy(float), table[columns].to_numpy(float),
+                                                      rtol=rtol, atol=1e-12, equal_nan=True):
+            raise WorkbenchError(f"run record {record.folder}: the data rebuilt from its config.yaml give other "
+                                 f"numbers than its alpha table ({result.data}); the report cannot rebuild the "
+                                 "run's inputs")
 
 
 def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:

@@ -15,13 +15,21 @@ from workbench.errors import WorkbenchError
 from workbench.record import RunRecord
 from workbench.reporting.report_data import (QE_PROJECTIONS, figure3_frames, figure_bases, figure_solver,
                                              frame_alpha, frame_caption, frame_weights, headline_column,
-                                             marker_variant, mesh_variant, most_displaced, negative_weight_share,
-                                             qe_label, quasi_eigen_shapes, reconstruct_frames, record_timeline,
+                                             marker_variant, mesh_variant, missing_reason, most_displaced,
+                                             negative_weight_share, qe_label, quasi_eigen_shapes,
+                                             reconstruct_frames, record_alpha_per_frame, record_timeline,
                                              short_label, training_variants, vertex_rms)
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS: tuple[str, ...] = ()
 """Copies of each figure a report writes besides the one it shows (WebP renders, SVG line plots)."""
+
+
+def needs(text: str, cache: dict | None) -> str:
+    """Why a figure is not drawn: what it needs, and why the run's data could not be read again when it saved no
+    inputs (the file that is missing)."""
+    reason = missing_reason(cache or {})
+    return f"{text}; {reason}" if reason else text
 
 
 @dataclass
@@ -47,7 +55,8 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
 
     found = mesh_variant(record, {} if cache is None else cache)
     if found is None:
-        return "needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])"
+        return needs("needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])",
+                     cache)
     data, inputs = found
     label = qe_label(record)
     projection = QE_PROJECTIONS[label]
@@ -80,7 +89,8 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     cache = {} if cache is None else cache
     found = mesh_variant(record, cache)
     if found is None:
-        return "needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])"
+        return needs("needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])",
+                     cache)
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
     chosen = figure3_frames(record, inputs)
@@ -139,7 +149,7 @@ def draw_marker_errors(record: RunRecord, cache: dict | None = None):
     cache = {} if cache is None else cache
     found = marker_variant(record, cache)
     if found is None:
-        return "needs a marker data variant saved with save_inputs=true"
+        return needs("needs a marker data variant saved with save_inputs=true", cache)
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
     frame, why = figure4_frame(record, inputs, cache)
@@ -166,7 +176,7 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
 
     found = mesh_variant(record, cache)
     if found is None:
-        return "needs a mesh data variant saved with save_inputs=true"
+        return needs("needs a mesh data variant saved with save_inputs=true", cache)
     data, inputs = found
     solver_name, _ = figure_solver(record.config)
     rms = {}
@@ -232,7 +242,7 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
 
     found = mesh_variant(record, cache) or marker_variant(record, cache)
     if found is None:
-        return "needs inputs saved with save_inputs=true"
+        return needs("needs inputs saved with save_inputs=true", cache)
     data, inputs = found
     solver_name, _ = figure_solver(record.config)
     timeline = record_timeline(record, inputs)
@@ -295,9 +305,9 @@ def draw_coverage_curve(record: RunRecord):
 def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
     from workbench.reporting.figures.studies import plot_alpha_over_time
 
-    arrays = record.load_alpha_per_frame()
+    arrays = record_alpha_per_frame(record, {} if cache is None else cache)
     if arrays is None:
-        return "needs alpha_per_frame.npz, written by runs with save_inputs=true"
+        return needs("needs alpha_per_frame.npz, written by runs with save_inputs=true", cache)
     solver_name, _ = figure_solver(record.config)
     normalisation = record.config.get("metric", {}).get("headline_normalisation", "absolute")
     series = {}
@@ -391,7 +401,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
     ("alpha_over_time", "Alpha per frame over time",
      "Per-frame alpha (the headline normalisation) of each basis over the take; takes concatenated in time are "
      "drawn one after another with their boundaries named.",
-     lambda record, options: draw_alpha_over_time(record)),
+     lambda record, options: draw_alpha_over_time(record, options["cache"])),
     ("marker_vs_mesh", "Marker versus mesh",
      "RMS error (mm) and pooled displacement alpha of each basis when the method runs on the markers and on the "
      "dense mesh, one panel per evaluated point set (values compare within a panel only).",
