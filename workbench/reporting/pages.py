@@ -3,8 +3,8 @@ figures and the study plots, rebuilt from run records only.
 
 A *run* folder holds a complete record (``done`` written last, see :mod:`workbench.record`); a *sweep* folder
 holds run folders at any depth. The report of a run has the alpha tables beside the paper's values, figures 1-4
-(figures 2-4 need the inputs a run writes with ``save_inputs=true``), the coverage curve, alpha per frame over
-time and marker versus mesh; the report of a sweep has the tidy table of means and 95 % confidence intervals over
+(from the inputs a run writes with ``save_inputs=true``, or rebuilt from its config when it wrote none), the
+coverage curve, alpha per frame over time and marker versus mesh; the report of a sweep has the tidy table of means and 95 % confidence intervals over
 seeds and alpha against every swept setting. Both state the dataset's provenance and licence, the choices the run
 made, and the versions and commit that made it.
 
