@@ -108,3 +108,24 @@ def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs
     record.table.loc[0, "alpha_abs_mean"] *= 1.001  # as if the data read again were not those of the run
     with pytest.raises(WorkbenchError, match=r"give other numbers than its alpha table \(markers\)"):
         rebuilt_arrays(record, {})
+
+
+def test_the_html_page_escapes_every_text_and_the_markdown_keeps_it_as_written():
+    import pandas as pd
+
+    from workbench.reporting.page import render_html, render_markdown
+    from workbench.reporting.report_figures import FigureEntry
+    from workbench.reporting.report_sections import Section
+
+    sections = [Section("A <b> & c", ["`x<y` and **bold <i>** end", ["item <z>"],
+                                      pd.DataFrame({"key": ["<td>"], "value": [1.5]}),
+                                      FigureEntry("stem", "Fig <1>", "cap `c`", missing="needs <mesh>")])]
+    page = render_html("T <script>", sections)
+    assert "<title>T &lt;script&gt;</title>" in page and "<h2>A &lt;b&gt; &amp; c</h2>" in page
+    assert "<p><code>x&lt;y</code> and <strong>bold &lt;i&gt;</strong> end</p>" in page
+    assert "<li>item &lt;z&gt;</li>" in page and "<td>&lt;td&gt;</td><td class=\"num\">1.5</td>" in page
+    assert "<strong>Fig &lt;1&gt;</strong>: not drawn (needs &lt;mesh&gt;)." in page
+    assert "<script>" not in page.split("</h1>")[0]
+    readme = render_markdown("T <script>", sections)
+    assert readme.startswith("# T <script>\n\n## A <b> & c\n\n`x<y` and **bold <i>** end\n\n- item <z>\n\n")
+    assert "**Fig <1>**: not drawn (needs <mesh>).\n" in readme and readme.endswith(").\n")
