@@ -55,7 +55,8 @@ def test_build_system_reads_the_licence_field():
 def test_every_optional_module_belongs_to_an_extra_that_installs_it():
     extras = PYPROJECT["project"]["optional-dependencies"]
     distributions = {"matplotlib": "matplotlib", "pyvista": "pyvista", "vtk": "pyvista", "vtkmodules": "pyvista",
-                     "PIL": "pillow", "pyarrow": "pyarrow", "sklearn": "scikit-learn", "h5py": "h5py",
+                     "PIL": "pillow", "jinja2": "jinja2", "markupsafe": "jinja2", "pyarrow": "pyarrow",
+                     "sklearn": "scikit-learn", "h5py": "h5py",
                      "submitit": "hydra-submitit-launcher", "mlflow": "mlflow"}
     for module, extra in EXTRA_OF_MODULE.items():
         assert any(requirement.startswith(distributions[module]) for requirement in extras[extra]), module

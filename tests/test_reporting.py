@@ -19,8 +19,10 @@ from workbench.config import COMMANDS
 from workbench.config import REPO_ROOT, compose
 from workbench.errors import WorkbenchError
 from workbench.record import find_records, load_record
-from workbench.reporting.pages import (RUN_FIGURES, figure_solver, frame_alpha, headline_table, main,
-                                       quasi_eigen_shapes, reconstruct_frames)
+from workbench.reporting.pages import main
+from workbench.reporting.report_data import figure_solver, frame_alpha, quasi_eigen_shapes, reconstruct_frames
+from workbench.reporting.report_figures import RUN_FIGURES
+from workbench.reporting.report_sections import headline_table
 from workbench.reporting.runs import flatten, summarise, varying_keys, wide
 from workbench.tables import markdown_frame
 
@@ -274,18 +276,21 @@ def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
                                        rtol=1e-9)
 
 
-def test_figures_that_need_inputs_are_listed_not_drawn_without_them(tmp_path):
+def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_save_those_of_a_missing_variant(
+        tmp_path):
     record = tmp_path / "run"
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
     assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
     readme = (tmp_path / "reports" / "paper" / "README.md").read_text()
+    # a run on markers only has no mesh variant: the mesh figures stay listed, saying what they need
     assert "**Figure 2: hand shapes beside their quasi-eigen faces**: not drawn (needs a mesh data variant" in readme
-    assert "**Alpha per frame over time**: not drawn" in readme
+    assert "**Alpha per frame over time**: not drawn" not in readme and "could not be read again" not in readme
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
-    # what the record holds is drawn without inputs: the error distribution and the weights come from metrics.json
-    assert figures == [f"{stem}.{kind}" for stem in ("alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy",
-                                                     "intuitiveness") for kind in ("png", "svg")] + \
-        ["weight_statistics.png", "weight_statistics.webp"]  # a bar chart of hundreds of labels: pixels
+    # what the record holds is drawn from metrics.json; the rest from the inputs rebuilt from its config
+    stems = {name.rsplit(".", 1)[0] for name in figures}
+    assert stems == {"alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy", "intuitiveness",
+                     "weight_statistics", "alpha_over_time", "fig4_marker_errors", "weight_curves"}, figures
+    assert not any(path.name.startswith("inputs") for path in record.iterdir())  # the record is left as it was
 
 
 def make_sweep(root, coverages=(0.99, 0.999), seeds=(0, 1)):
@@ -338,7 +343,7 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
 
 
 def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():
-    from workbench.reporting.pages import by_m
+    from workbench.reporting.report_sweep import by_m
 
     # seed 0 keeps m = 3 at 0.9 and 4 at 0.99; seed 1 keeps 4 at both thresholds (the same run twice)
     per_run = pd.DataFrame({
@@ -534,8 +539,9 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     from workbench.dataset.c3d_markers import read_c3d_markers
     from workbench.dataset.capture import Timeline
     from workbench.files import sha256_of_file as file_sha256
-    from workbench.reporting.pages import (_marker_variant, _mesh_variant, figure3_frames, figure4_frame,
-                                           most_displaced, record_timeline)
+    from workbench.reporting.report_data import (figure3_frames, marker_variant, mesh_variant, most_displaced,
+                                                 record_timeline)
+    from workbench.reporting.report_figures import figure4_frame
 
     record_dir, out = animface_run
     record, cache = load_record(record_dir), {}
@@ -546,8 +552,8 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     cheeks = timeline.take == "animface_cheeks"
     np.testing.assert_array_equal(timeline.frame[cheeks], np.arange(0, 1499, 20))
     np.testing.assert_allclose(timeline.seconds[cheeks], np.arange(0, 1499, 20) / rate)
-    mesh_data, mesh_inputs = _mesh_variant(record, cache)
-    marker_data, marker_inputs = _marker_variant(record, cache)
+    mesh_data, mesh_inputs = mesh_variant(record, cache)
+    marker_data, marker_inputs = marker_variant(record, cache)
     mesh_timeline, marker_timeline = record_timeline(record, mesh_inputs), record_timeline(record, marker_inputs)
     chosen = figure3_frames(record, mesh_inputs)
     assert [region for region, _ in chosen] == ["brows", "mouth", "jaw"]
@@ -633,7 +639,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     whole, eye and mouth openings closed; where the capture has no data (beyond the markers' reach) a coloured map
     shows the plain shaded geometry, not a mask: the same pixels as a plain render of the same face."""
     from workbench.reporting.figures.render import MeshView, render_meshes, support_weight
-    from workbench.reporting.pages import draw_hand_vs_quasi_eigen, draw_reconstructions, draw_vertex_rms
+    from workbench.reporting.report_figures import draw_hand_vs_quasi_eigen, draw_reconstructions, draw_vertex_rms
 
     record_dir, out = animface_run
     record, cache = load_record(record_dir), {}
@@ -663,7 +669,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     import zlib
 
     from workbench.dataset.decimate import decimate
-    from workbench.reporting.pages import VIEW_VERTICES
+    from workbench.reporting.report_faces import VIEW_VERTICES
 
     text = (out / "figures" / "view3d.js").read_text()
     payload = json.loads(text[text.index("{"):text.rindex("}") + 1])
@@ -696,7 +702,7 @@ def test_rebuilding_reports_does_not_mark_the_code_as_changed(tmp_path):
 
 def test_the_animation_shows_the_stretch_of_one_take_where_the_face_moves_most():
     from workbench.dataset.capture import Timeline
-    from workbench.reporting.pages import moving_stretch
+    from workbench.reporting.report_data import moving_stretch
 
     timeline = Timeline.concatenate([Timeline.uniform("a", np.arange(10), 10.0),
                                      Timeline.uniform("b", np.arange(6), 10.0)])

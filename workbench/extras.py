@@ -18,6 +18,8 @@ EXTRA_OF_MODULE = {
     "vtk": "report",
     "vtkmodules": "report",
     "PIL": "report",
+    "jinja2": "report",
+    "markupsafe": "report",
     "pyarrow": "parquet",
     "sklearn": "bases",
     "h5py": "hdf5",

@@ -189,7 +189,7 @@ def result_identities(results: Sequence) -> dict:
 
     Parameters
     ----------
-    results : sequence of workbench.pipeline.StudyResult
+    results : sequence of workbench.study.results.StudyResult
     """
     from workbench.reporting.identities import run_identities
 

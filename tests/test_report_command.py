@@ -1,0 +1,131 @@
+"""The ``workbench report`` command's own rules: where a report goes, the names it takes, and what it says of
+the code that made a run and the report."""
+
+import subprocess
+import sys
+
+import pytest
+
+from workbench.config import REPO_ROOT
+from workbench.errors import WorkbenchError
+from workbench.reporting.pages import main, report_folder
+from workbench.reporting.report_sections import commit_text, versions_section
+
+CONFIG = {"study": "paper", "dataset": {"kind": "synthetic"}}
+
+
+def texts(section):
+    return [block for block in section.blocks if isinstance(block, str)]
+
+
+def test_a_run_and_a_report_outside_a_git_checkout_say_so():
+    metrics = {"git": {"commit": None, "dirty": None}, "versions": {"numpy": "2.0"}, "config_hash": "abc",
+               "started_at": "2026-01-02T03:04:05+00:00"}
+    builder = {"git": {"commit": None, "dirty": None}, "packages": {"numpy": "2.0"}}
+    run_line, report_line = texts(versions_section(metrics, builder))
+    assert run_line == "Run made on 2026-01-02 03:04 UTC not a git checkout, config hash `abc`."
+    assert report_line.endswith(" not a git checkout with numpy 2.0.")
+    assert "None" not in run_line + report_line
+    # a record written before runs stated it has no git entry at all
+    assert commit_text(None) == "not a git checkout" and commit_text({}) == "not a git checkout"
+
+
+def test_a_checkout_names_its_commit_as_before():
+    assert commit_text({"commit": "0123abc", "dirty": False}) == "at commit `0123abc` (uncommitted changes: False)"
+    metrics = {"git": {"commit": "0123abc", "dirty": True}, "config_hash": "abc"}
+    run_line, _ = texts(versions_section(metrics, {"git": {"commit": "4567def", "dirty": False}, "packages": {}}))
+    assert "at commit `0123abc` (uncommitted changes: True), config hash `abc`." in run_line
+
+
+@pytest.mark.parametrize("name", ["", ".", "..", "a/b"])
+def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, tmp_path):
+    with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name \(not empty"):
+        report_folder(tmp_path, CONFIG, out=None, reference=True, name=name)
+    # refused before the folder is read: an empty folder (no record) gets the same line
+    with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name"):
+        main([str(tmp_path), "--reference", "--name", name])
+
+
+def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(tmp_path):
+    reports = REPO_ROOT / "reports"
+    before = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    result = subprocess.run([sys.executable, "-m", "workbench", "report", str(tmp_path), "--reference", "--name", ""],
+                            capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--name" in lines[0] and "not empty" in lines[0], result.stderr
+    after = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    assert after == before
+    # the default name still works as before when --name is not given
+    assert report_folder(tmp_path, CONFIG, out=None, reference=True, name=None).name == "paper"
+
+
+# A small run on both data variants (5 s of performance on a coarse mesh), without save_inputs.
+BOTH = ["dataset.train_on=[markers,mesh]", "dataset.n_frames=600", "dataset.mesh_rows=35", "dataset.mesh_cols=30"]
+
+
+@pytest.fixture(scope="module")
+def run_without_inputs(tmp_path_factory):
+    from workbench.api import run
+    from workbench.config import compose
+
+    record = tmp_path_factory.mktemp("without_inputs") / "run"
+    run(compose("paper", BOTH), record)
+    assert not any(path.name.startswith("inputs") for path in record.iterdir())
+    return record
+
+
+def test_the_report_of_a_run_that_saved_no_inputs_draws_every_figure(run_without_inputs, tmp_path):
+    out = tmp_path / "report"
+    assert main([str(run_without_inputs), "--out", str(out)]) == 0
+    readme, page = (out / "README.md").read_text(), (out / "index.html").read_text()
+    assert "not drawn" not in readme.lower() and "not drawn" not in page.lower()
+    assert 'class="missing"' not in page
+    for name in ("fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "fig4_marker_errors", "vertex_rms",
+                 "weight_curves", "alpha_over_time", "marker_vs_mesh", "animation", "view3d"):
+        assert any(path.stem == name for path in (out / "figures").iterdir()), name
+
+
+def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(run_without_inputs, tmp_path,
+                                                                                 monkeypatch):
+    def unreadable(config):
+        raise WorkbenchError("dataset.blendshapes: no file /data/ICT/face.obj")
+
+    monkeypatch.setattr("workbench.study.run.run_study", unreadable)
+    out = tmp_path / "report"
+    assert main([str(run_without_inputs), "--out", str(out)]) == 0
+    readme = (out / "README.md").read_text()
+    assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs a mesh data variant saved with "
+            "save_inputs=true (e.g. dataset.train_on=[markers,mesh]); the run saved no inputs and its data could not "
+            "be read again: dataset.blendshapes: no file /data/ICT/face.obj)") in readme
+
+
+def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):
+    from workbench.record import load_record
+    from workbench.reporting.report_data import rebuilt_arrays
+
+    record = load_record(run_without_inputs)
+    record.table.loc[0, "alpha_abs_mean"] *= 1.001  # as if the data read again were not those of the run
+    with pytest.raises(WorkbenchError, match=r"give other numbers than its alpha table \(markers\)"):
+        rebuilt_arrays(record, {})
+
+
+def test_the_html_page_escapes_every_text_and_the_markdown_keeps_it_as_written():
+    import pandas as pd
+
+    from workbench.reporting.page import render_html, render_markdown
+    from workbench.reporting.report_figures import FigureEntry
+    from workbench.reporting.report_sections import Section
+
+    sections = [Section("A <b> & c", ["`x<y` and **bold <i>** end", ["item <z>"],
+                                      pd.DataFrame({"key": ["<td>"], "value": [1.5]}),
+                                      FigureEntry("stem", "Fig <1>", "cap `c`", missing="needs <mesh>")])]
+    page = render_html("T <script>", sections)
+    assert "<title>T &lt;script&gt;</title>" in page and "<h2>A &lt;b&gt; &amp; c</h2>" in page
+    assert "<p><code>x&lt;y</code> and <strong>bold &lt;i&gt;</strong> end</p>" in page
+    assert "<li>item &lt;z&gt;</li>" in page and "<td>&lt;td&gt;</td><td class=\"num\">1.5</td>" in page
+    assert "<strong>Fig &lt;1&gt;</strong>: not drawn (needs &lt;mesh&gt;)." in page
+    assert "<script>" not in page.split("</h1>")[0]
+    readme = render_markdown("T <script>", sections)
+    assert readme.startswith("# T <script>\n\n## A <b> & c\n\n`x<y` and **bold <i>** end\n\n- item <z>\n\n")
+    assert "**Fig <1>**: not drawn (needs <mesh>).\n" in readme and readme.endswith(").\n")

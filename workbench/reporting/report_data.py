@@ -1,0 +1,369 @@
+"""What a run's report draws from besides its tables: the run's saved inputs, and the few arrays recomputed from
+them with the core's own functions (the quasi-eigen basis of eq. 3-4, reconstructions with the run's solver), with
+the record's labels, timelines and frame choices the figures share.
+
+Figures 2-4 show a few frames and shapes; recomputing them from the saved inputs keeps records small. Nothing else
+is recomputed.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from workbench.dataset.capture import Timeline
+from workbench.record import RunRecord
+
+QE_PROJECTIONS = {"QE": "affine", "QE-linear": "linear"}
+
+
+def quasi_eigen_shapes(inputs: Mapping[str, np.ndarray], projection: str,
+                       appended_axes: Sequence[int] = ()) -> np.ndarray:
+    """The run's quasi-eigen basis from its saved inputs (eq. 3-4), with any appended eigenfaces.
+
+    Parameters
+    ----------
+    inputs : mapping
+        ``hand`` (n_shapes, n_dims), ``mean`` (n_dims,), ``components`` (m, n_dims).
+    projection : {"affine", "linear"}
+    appended_axes : sequence of int
+        1-based eigenface axes the post-treatment appended (``metrics.json``).
+
+    Returns
+    -------
+    ndarray of shape (n_shapes + n_appended, n_dims)
+    """
+    from workbench.bases import pca_to_qe_weights, quasi_eigen_faces
+
+    components, mean = inputs["components"], inputs["mean"]
+    weights = pca_to_qe_weights(inputs["hand"], components, mean, projection)
+    shapes = quasi_eigen_faces(weights, components, mean, projection)
+    appended = [components[j - 1] for j in appended_axes]
+    return np.vstack([shapes, *appended]) if appended else shapes
+
+
+def figure_solver(config: Mapping) -> tuple[str, dict]:
+    """The solver figures 2-4 use: ``lstsq`` when the run had it, else the first configured one."""
+    from workbench.study.run import check_solver_config
+
+    solvers = config["solver"]
+    name = "lstsq" if "lstsq" in solvers else next(iter(solvers))
+    return name, check_solver_config(name, solvers[name])
+
+
+def reconstruct_frames(shapes: np.ndarray, frames: np.ndarray, solver: Mapping) -> np.ndarray:
+    """Reconstructions of some frames in a basis with the run's solver (eq. 5).
+
+    Parameters
+    ----------
+    shapes : ndarray of shape (n_shapes, n_dims)
+    frames : ndarray of shape (n_frames, n_dims)
+        Captured displacements.
+    solver : mapping
+        Keyword arguments of :func:`workbench.solve.solve_weights`.
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_dims)
+    """
+    from workbench.solve import reconstruct, solve_weights
+
+    return reconstruct(shapes, solve_weights(shapes, frames, **solver).weights)
+
+
+def frame_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.ndarray) -> dict:
+    """Per-frame absolute and displacement alpha (eq. 6) and RMS error of some frames.
+
+    Parameters
+    ----------
+    neutral : ndarray of shape (n_dims,)
+    captured, reconstructed : ndarray of shape (n_frames, n_dims)
+
+    Returns
+    -------
+    dict
+        ``absolute``, ``displacement``, ``rms`` : ndarray of shape (n_frames,).
+    """
+    from workbench.metrics import alpha_per_frame
+
+    squared = (captured - reconstructed) ** 2
+    return {"absolute": alpha_per_frame(neutral + captured, neutral + reconstructed),
+            "displacement": alpha_per_frame(captured, reconstructed),
+            "rms": np.sqrt(squared.reshape(len(squared), -1, 3).sum(axis=2).mean(axis=1))}
+
+
+def dataset_label(record: RunRecord) -> str:
+    provenance = record.metrics["dataset"].get("provenance", {})
+    if provenance.get("kind") == "synthetic":
+        return "synthetic actor (generated, not real capture)"
+    return record.metrics["dataset"]["name"]
+
+
+SHORT_DATASET_LABELS = {"synthetic": "synthetic actor (generated)",
+                        "ict_livelink": "ICT FaceKit face, real Live Link Face take",
+                        "animface": "AnimFace capture, ICT FaceKit hand shapes (another face)"}
+
+
+def short_label(record: RunRecord) -> str:
+    """The dataset in a few words, for figure titles."""
+    kind = record.metrics["dataset"].get("provenance", {}).get("kind")
+    return SHORT_DATASET_LABELS.get(kind, record.metrics["dataset"]["name"])
+
+
+def headline_column(config: Mapping) -> str:
+    metric = config.get("metric", {})
+    short = {"absolute": "abs", "displacement": "disp"}[metric.get("headline_normalisation", "absolute")]
+    return f"alpha_{short}_{metric.get('headline_aggregate', 'mean')}"
+
+
+def record_inputs(record: RunRecord, data: str, cache: dict) -> dict | None:
+    """The arrays of a data variant's ``inputs.npz``: saved by the run (``save_inputs=true``), or, when the run
+    saved none, rebuilt from its config (:func:`rebuilt_arrays`); None for a variant that has none (bases carried
+    onto other points, held-out frames) or when the data cannot be had (:func:`missing_reason` says why)."""
+    key = ("inputs", data)
+    if key not in cache:
+        saved = record.load_inputs(data)
+        cache[key] = saved if saved is not None or saved_inputs(record) else (
+            rebuilt_arrays(record, cache)["inputs"].get(data))
+    return cache[key]
+
+
+def record_alpha_per_frame(record: RunRecord, cache: dict) -> dict | None:
+    """The arrays of ``alpha_per_frame.npz``: saved by the run, or rebuilt with its inputs when it saved none."""
+    saved = record.load_alpha_per_frame()
+    return saved if saved is not None or saved_inputs(record) else rebuilt_arrays(record, cache)["alpha_per_frame"]
+
+
+def saved_inputs(record: RunRecord) -> bool:
+    """Whether the run saved its inputs (``save_inputs=true``): then a variant without them truly has none."""
+    return any(record.folder.glob("inputs*.npz"))
+
+
+def missing_reason(cache: dict) -> str:
+    """Why the inputs of a run that saved none could not be rebuilt (``""`` when they were, or were saved)."""
+    return cache.get(("rebuilt",), {}).get("missing", "")
+
+
+def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
+    """A run's ``inputs.npz`` and ``alpha_per_frame.npz`` arrays, rebuilt by running its study again from the
+    record's resolved config (the dataset cache makes the data cheap), checked against the record: the data files'
+    checksums it names and every number of its alpha table.
+
+    Returns
+    -------
+    dict
+        ``inputs``: data variant -> arrays (those a run with ``save_inputs=true`` writes); ``alpha_per_frame``:
+        arrays or None; ``missing``: why not, when the data cannot be had.
+
+    Raises
+    ------
+    WorkbenchError
+        When the rebuilt data differ from the data the run read.
+    """
+    from workbench.errors import WorkbenchError
+    from workbench.study.run import run_study
+    from workbench.study.summary import alpha_per_frame_arrays, input_arrays
+
+    key = ("rebuilt",)
+    if key not in cache:
+        try:
+            results = run_study(record.config)
+        except (WorkbenchError, OSError) as error:
+            cache[key] = {"inputs": {}, "alpha_per_frame": None,
+                          "missing": f"the run saved no inputs and its data could not be read again: {error}"}
+            return cache[key]
+        check_rebuilt(record, results)
+        cache[key] = {"inputs": {result.data: input_arrays(result) for result in results
+                                 if result.transfer == "identity" and result.protocol == "training frames"},
+                      "alpha_per_frame": alpha_per_frame_arrays(results), "missing": ""}
+    return cache[key]
+
+
+def check_rebuilt(record: RunRecord, results, rtol: float = 1e-6) -> None:
+    """Refuse data rebuilt from a record's config that differ from the data the run read: a data file whose
+    checksum is not the one the record names, or an alpha that differs from the record's alpha table."""
+    from workbench.errors import WorkbenchError
+    from workbench.run_text import alpha_table
+
+    recorded = (record.metrics["dataset"].get("provenance") or {}).get("data_files") or {}
+    found = results[0].capture.provenance.get("data_files") or {}
+    for path, entry in recorded.items():
+        if (found.get(path) or {}).get("sha256") != entry.get("sha256"):
+            raise WorkbenchError(f"run record {record.folder}: its data file {path} is not the one the run read (its "
+                                 "SHA-256 differs from the record's); the report cannot rebuild the run's inputs")
+    paper = record.config.get("paper", {}).get("alpha", {})
+    for result in results:
+        table = alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
+                            coverage=result.eigenfaces.coverage_, paper_alpha=paper)
+        own = record.table[record.table["data"] == result.data]
+        columns = [c for c in ("alpha_abs_mean", "alpha_disp_mean", "rms_mm") if c in table.columns]
+        if len(own) != len(table) or not np.allclose(own[columns].to_numpy(float), table[columns].to_numpy(float),
+                                                      rtol=rtol, atol=1e-12, equal_nan=True):
+            raise WorkbenchError(f"run record {record.folder}: the data rebuilt from its config.yaml give other "
+                                 f"numbers than its alpha table ({result.data}); the report cannot rebuild the "
+                                 "run's inputs")
+
+
+def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
+    """The data variant whose points are mesh vertices (saved with triangles), preferring ``mesh``."""
+    for data in sorted(record.data_variants, key=lambda d: d != "mesh"):
+        inputs = record_inputs(record, data, cache)
+        if inputs is not None and "faces" in inputs:
+            return data, inputs
+    return None
+
+
+def marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
+    """The data variant of markers (no triangles), preferring ``markers``."""
+    for data in sorted(record.data_variants, key=lambda d: d != "markers"):
+        inputs = record_inputs(record, data, cache)
+        if inputs is not None and "faces" not in inputs:
+            return data, inputs
+    return None
+
+
+def qe_label(record: RunRecord) -> str:
+    projections = record.config["basis"]["projections"]
+    return "QE" if "affine" in projections else "QE-linear"
+
+
+def appended_axes(record: RunRecord, data: str, label: str) -> list[int]:
+    return record.metrics["data"][data]["quasi_eigen"][QE_PROJECTIONS[label]]["appended_axes"]
+
+
+def record_timeline(record: RunRecord, inputs: Mapping) -> Timeline:
+    """The evaluated frames' take, frame number in the file and time (saved inputs), or frames of one take at the
+    record's frame rate for records written before runs saved them."""
+    found = Timeline.from_arrays(inputs, "eval_")
+    return found if found is not None else Timeline.uniform(
+        "take", np.arange(len(inputs["eval"])), record.metrics["dataset"]["frame_rate"])
+
+
+def training_variants(record: RunRecord) -> list[str]:
+    """The data variants scored on their training frames (the paper's protocol), not on held-out frames."""
+    return [data for data, values in record.metrics["data"].items()
+            if values.get("protocol", "training frames") == "training frames"]
+
+
+def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, every: bool = False) -> dict:
+    """Basis label -> shapes: H and the run's quasi-eigen basis (with ``every``: both projections the run had)."""
+    key = ("bases", data, every)
+    if key not in cache:
+        labels = [label for label, projection in QE_PROJECTIONS.items()
+                  if projection in record.config["basis"]["projections"]]
+        labels = labels if every else [qe_label(record)]
+        cache[key] = {"H": inputs["hand"], **{label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label],
+                                                                         appended_axes(record, data, label))
+                                              for label in labels}}
+    return cache[key]
+
+
+def frame_weights(record: RunRecord, data: str, label: str, cache: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of every evaluated frame that saw every point, in a basis, with the figures' solver.
+
+    Returns
+    -------
+    weights : ndarray of shape (n_complete, n_shapes)
+    complete : ndarray of shape (n_eval_frames,) of bool
+    """
+    from workbench.solve import solve_weights
+
+    key = ("weights", data, label)
+    if key not in cache:
+        inputs = record_inputs(record, data, cache)
+        _, solver = figure_solver(record.config)
+        complete = np.isfinite(inputs["eval"]).all(axis=1)
+        shapes = figure_bases(record, data, inputs, cache, every=True)[label]
+        cache[key] = solve_weights(shapes, inputs["eval"][complete], **solver).weights, complete
+    return cache[key]
+
+
+def negative_weight_share(record: RunRecord) -> dict:
+    """Data variant -> (basis -> share of evaluated frames whose least-squares weights include a negative one), as
+    the run recorded it (rows' ``weights``); empty for records without weight statistics."""
+    shares = {}
+    for row in record.rows():
+        if row.get("solver") == "lstsq" and row.get("weights"):
+            shares.setdefault(row["data"], {})[row["basis"]] = float(row["weights"]["negative_share"])
+    return shares
+
+
+def figure3_frames(record: RunRecord, inputs: Mapping) -> list[tuple[str, int]]:
+    """The frames of figure 3: the most displaced frame of each region of the face its hand shapes act on (brows,
+    eyes, mouth, jaw), at least a second apart, or the most displaced frame when no region is found.
+
+    Returns
+    -------
+    list of (str, int)
+        (region, index among the evaluated frames), top of the face first.
+    """
+    from workbench.reporting.figures.faces import face_regions, point_norms, region_frames
+
+    names = [str(name) for name in inputs["hand_names"]]
+    timeline = record_timeline(record, inputs)
+    regions = face_regions(inputs["hand"], names, inputs.get("point_support"))
+    chosen = region_frames(inputs["eval"], regions, timeline.seconds, timeline.take)
+    if not chosen:
+        lengths = np.nan_to_num(point_norms(inputs["eval"]))
+        chosen = [("face", int(np.argmax((lengths ** 2).sum(axis=1))))]
+    return chosen
+
+
+def most_displaced(inputs: Mapping, frames: Sequence[int]) -> int:
+    """The frame of ``frames`` with the largest captured displacement (over every point)."""
+    captured = np.nan_to_num(inputs["eval"][list(frames)])
+    return int(list(frames)[int(np.argmax(np.linalg.norm(captured, axis=1)))])
+
+
+def frame_caption(region: str, timeline: Timeline, frame: int) -> str:
+    """How a frame of figure 3 is named: the region it is the most displaced frame of, take, file frame, time."""
+    return f"most displaced {region}: {timeline.label(frame)}"
+
+
+def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], chunk: int = 256) -> np.ndarray:
+    """RMS over frames of the 3-D error at every point, in chunks of frames.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points)
+    reconstruct : callable
+        Rows (a slice) -> their reconstructions, ndarray of shape (n_rows, 3 * n_points).
+    chunk : int
+
+    Returns
+    -------
+    ndarray of shape (n_points,)
+    """
+    total = np.zeros(frames.shape[1] // 3)
+    for start in range(0, len(frames), chunk):
+        rows = slice(start, start + chunk)
+        error = (reconstruct(rows) - frames[rows]).reshape(-1, frames.shape[1] // 3, 3)
+        total += (error ** 2).sum(axis=(0, 2))
+    return np.sqrt(total / max(len(frames), 1))
+
+
+def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.ndarray:
+    """The ``n_frames`` consecutive evaluated frames of one take in which the face moves most (the summed RMS
+    change of the displacement between consecutive frames), or the longest take when every take is shorter.
+
+    Returns
+    -------
+    ndarray of int
+        Consecutive frame indices.
+    """
+    frames = np.nan_to_num(inputs["eval"])
+    change = np.zeros(len(frames))
+    change[1:] = np.sqrt(((frames[1:] - frames[:-1]) ** 2).mean(axis=1))
+    best, best_key = None, None
+    for start, stop in timeline.take_spans():
+        change[start] = 0.0  # no motion across a take boundary
+        length = min(n_frames, stop - start)
+        # motion of the window [first, first + length): the changes into its frames after the first
+        summed = np.concatenate([[0.0], np.cumsum(change[start:stop])])
+        motion = summed[length:] - summed[1:len(summed) - length + 1]
+        first = int(np.argmax(motion))
+        key = (length, float(motion[first]))  # a full-length window first, then the most motion
+        if best_key is None or key > best_key:
+            best, best_key = np.arange(start + first, start + first + length), key
+    return best
