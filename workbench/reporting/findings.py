@@ -808,7 +808,7 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
     lead = caveats[0] if caveats else "one run's frames are the only replicate here"
     if m + 1 <= n and qp_sign == -1 and identity(("QE", "lstsq"), ("PCA", "projection")) is not None:
         lead = f"with m + 1 <= n QE cannot lose to PCA, so only the size of QE/PCA is evidence; {lead}"
-    return (f"**Summary.** Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
+    return (f"Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
             f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
             f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
             f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
