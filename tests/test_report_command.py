@@ -95,8 +95,8 @@ def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(r
     out = tmp_path / "report"
     assert main([str(run_without_inputs), "--out", str(out)]) == 0
     readme = (out / "README.md").read_text()
-    assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs a mesh data variant saved with "
-            "save_inputs=true (e.g. dataset.train_on=[markers,mesh]); the run saved no inputs and its data could not "
+    assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs the frames of a mesh data "
+            "variant (a run with dataset.train_on=[markers,mesh]); the run saved no inputs and its data could not "
             "be read again: dataset.blendshapes: no file /data/ICT/face.obj)") in readme
 
 

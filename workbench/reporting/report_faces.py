@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.record import RunRecord
-from workbench.reporting.report_figures import needs
+from workbench.reporting.report_figures import NEEDS_MESH, needs
 from workbench.reporting.report_data import (figure3_frames, figure_bases, figure_solver, frame_alpha, frame_caption,
                                              mesh_variant, moving_stretch, qe_label, reconstruct_frames,
                                              record_timeline, short_label)
@@ -59,7 +59,7 @@ def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0,
 
     found = mesh_variant(record, cache)
     if found is None:
-        return FacesBlock(missing=needs("needs a mesh data variant saved with save_inputs=true", cache))
+        return FacesBlock(missing=needs(NEEDS_MESH, cache))
     data, inputs = found
     write_view(record, data, inputs, out / "figures" / DATA_FILE, cache)
     caption = write_moving_faces(record, data, inputs, out / "figures" / "animation.webp", cache, seconds, most_fps)

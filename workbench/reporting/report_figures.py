@@ -25,6 +25,10 @@ FIGURE_FORMATS: tuple[str, ...] = ()
 """Copies of each figure a report writes besides the one it shows (WebP renders, SVG line plots)."""
 
 
+NEEDS_MESH = "needs the frames of a mesh data variant (a run with dataset.train_on=[markers,mesh])"
+"""Why a face figure is not drawn for a run without a mesh data variant (or whose mesh frames cannot be had)."""
+
+
 def needs(text: str, cache: dict | None) -> str:
     """Why a figure is not drawn: what it needs, and why the run's data could not be read again when it saved no
     inputs (the file that is missing)."""
@@ -55,7 +59,7 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
 
     found = mesh_variant(record, {} if cache is None else cache)
     if found is None:
-        return needs("needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])",
+        return needs(NEEDS_MESH,
                      cache)
     data, inputs = found
     label = qe_label(record)
@@ -89,7 +93,7 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     cache = {} if cache is None else cache
     found = mesh_variant(record, cache)
     if found is None:
-        return needs("needs a mesh data variant saved with save_inputs=true (e.g. dataset.train_on=[markers,mesh])",
+        return needs(NEEDS_MESH,
                      cache)
     data, inputs = found
     solver_name, solver = figure_solver(record.config)
@@ -176,7 +180,7 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
 
     found = mesh_variant(record, cache)
     if found is None:
-        return needs("needs a mesh data variant saved with save_inputs=true", cache)
+        return needs(NEEDS_MESH, cache)
     data, inputs = found
     solver_name, _ = figure_solver(record.config)
     rms = {}
