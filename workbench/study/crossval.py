@@ -71,7 +71,7 @@ def fold_indices(timeline: Timeline, protocol: str, folds: int = 5,
             near = (seconds[take] > seconds[block[0]] - gap_s) & (seconds[take] < seconds[block[-1]] + gap_s)
             gap.append(take[near])
         held_k = np.concatenate(held)
-        train = np.setdiff1d(everything, np.concatenate(gap))
+        train = np.setdiff1d(everything, np.concatenate([held_k, *gap]))
         if train.size < 2:
             raise WorkbenchError(f"dataset.fold_gap_s {gap_s} leaves fold {k + 1} fewer than 2 training frames")
         result.append((train, held_k))
