@@ -86,8 +86,9 @@ COMPOSITION_CASES = {
     "basis.coverage_on=noisy": "basis.coverage_on must be one of ('training', 'clean'), got 'noisy'",
     "metric.score_clean=yes": "metric.score_clean must be true or false, got 'yes'",
     "metric.bootstrap_resamples=0": "metric.bootstrap_resamples must be an integer >= 1, got 0",
-    "dataset.held_out=[tail,tail]": "dataset.held_out must be one of ('tail', 'take') or a list of distinct ones or "
-                                    "null, got ['tail', 'tail']",
+    "dataset.held_out=[tail,tail]": "dataset.held_out must be one of ('tail', 'take', 'kfold', 'take_out') or a list "
+                                    "of distinct ones or null, got ['tail', 'tail']",
+    "dataset.folds=1": "dataset.folds must be an integer >= 2, got 1",
 }
 
 
@@ -159,3 +160,15 @@ def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path)
             assert err.splitlines() == [f"workbench: error: {COMPOSITION_CASES[case]}" + (
                 "; leave it out" if "no effect" in COMPOSITION_CASES[case] else "")], (case, err)
     assert not (tmp_path / "out").exists()
+
+
+def test_fold_settings_have_effect_only_with_kfold():
+    from workbench.schema import check_study_config
+
+    cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.folds=3"])
+    assert check_study_config(cfg, ["dataset.folds=3"]) == [
+        "dataset.folds has no effect in this run: only dataset.held_out=kfold uses it"]
+    cfg = compose("paper", ["dataset.n_frames=200", "dataset.held_out=kfold", "dataset.folds=3",
+                            "dataset.fold_gap_s=0.1"])
+    assert check_study_config(cfg, ["dataset.held_out=kfold", "dataset.folds=3", "dataset.fold_gap_s=0.1"],
+                              refuse_ineffective=True) == []

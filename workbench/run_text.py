@@ -134,10 +134,37 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
             f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} ({rule}); "
             f"paper: m = {paper['m']} at {paper['coverage']}",
             f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
-        ]
+        ] if not result.folds else fold_lines(result)
         lines += conditioning_lines(result.rows)
         lines += [f"  note: {note}" for note in capture.notes]
     return "\n".join(lines) + "\n"
+
+
+def fold_lines(result) -> list[str]:
+    """The header lines of a cross-validated variant (``dataset.held_out`` kfold or take_out): the folds, each
+    fold's m, every row's pooled held-out alpha with its per-fold values, and the paired ratios over folds."""
+    from workbench.statistics import paired_ratio_interval
+
+    folds = result.folds
+    lines = [f"  {folds['n_folds']} folds; m chosen in each fold by the coverage rule on its training frames: "
+             f"m = {folds['m']}, held-out frames per fold {folds['n_eval_frames']}",
+             "  held-out alpha_abs_pooled over all folds' held-out frames [per fold]:"]
+    rows = folds["rows"]
+    for i, (basis, _, solver) in enumerate(rows):
+        per_fold = ", ".join(f"{value:.3g}" for value in folds["alpha_abs_pooled"][i])
+        lines.append(f"    {basis} {solver}: {result.rows[i].alpha.absolute_pooled:.3g} [{per_fold}]")
+    solver = next((row[2] for row in rows if row[2] != "projection"), None)
+    index = {(basis, row_solver): i for i, (basis, _, row_solver) in enumerate(rows)}
+    for first, second in (("H", "QE"), ("QE", "PCA")):
+        a = index.get((first, solver))
+        b = index.get((second, solver), index.get((second, "projection")))
+        if a is None or b is None:
+            continue
+        interval = paired_ratio_interval(folds["alpha_abs_pooled"][a], folds["alpha_abs_pooled"][b])
+        lines.append(f"  {first}/{second} ({solver}), geometric mean of per-fold ratios: {interval.estimate:.3g}, "
+                     f"95 % interval [{interval.low:.3g}, {interval.high:.3g}] (paired t on log ratios over folds, "
+                     f"n = {interval.n})")
+    return lines
 
 
 ILL_CONDITIONED = 1e6

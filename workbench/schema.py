@@ -106,7 +106,7 @@ ALTERNATIVE_NAMES = ("SPCA", "ICA", "NMF", "SPLOCS", "H-fit")
 SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
                    "a non-empty list of distinct shape names (plain names: each names a file in an export)")
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
-HELD_OUT = names("tail", "take", optional=True)
+HELD_OUT = names("tail", "take", "kfold", "take_out", optional=True)
 """``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
 SYNTHETIC_VARIANTS = ("markers", "mesh", "mesh_rbf", "face")
 """The synthetic actor's data variants (``workbench.dataset.TRAIN_ON``)."""
@@ -257,6 +257,8 @@ class SyntheticSchema:
     split: str = meta("same", one_of("same", "tail", "other_take"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
+    folds: int = meta(5, integer(2))
+    fold_gap_s: float = meta(0.5, interval(0))
     eval_seed: Optional[int] = meta(None, integer(0, optional=True))
     gap_rate: float = meta(0.0, interval(0, 1, high_open=True))
     gap_mean_frames: float = meta(12, interval(1))
@@ -292,6 +294,8 @@ class IctLivelinkSchema:
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
+    folds: int = meta(5, integer(2))
+    fold_gap_s: float = meta(0.5, interval(0))
     plausibility: str = meta("error", PLAUSIBILITY)
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
@@ -332,6 +336,8 @@ class AnimfaceSchema:
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
+    folds: int = meta(5, integer(2))
+    fold_gap_s: float = meta(0.5, interval(0))
     plausibility: str = meta("error", PLAUSIBILITY)
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
@@ -365,6 +371,8 @@ class MeshSequenceSchema:
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
+    folds: int = meta(5, integer(2))
+    fold_gap_s: float = meta(0.5, interval(0))
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
 
@@ -600,6 +608,8 @@ def _alternatives(plain: Mapping) -> list:
 INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
     "dataset.eval_fraction": lambda c: None if c["dataset"].get("split") == "tail" or "tail" in _held_out(c) else
     f"only dataset.split=tail or dataset.held_out=tail uses it (this run: split={c['dataset'].get('split')})",
+    "dataset.folds": lambda c: None if "kfold" in _held_out(c) else "only dataset.held_out=kfold uses it",
+    "dataset.fold_gap_s": lambda c: None if "kfold" in _held_out(c) else "only dataset.held_out=kfold uses it",
     "dataset.eval_seed": lambda c: None if c["dataset"].get("split") == "other_take" else
     f"only dataset.split=other_take uses it (this run: split={c['dataset'].get('split')})",
     "dataset.gap_mean_frames": lambda c: None if (c["dataset"].get("gap_rate") or 0) > 0 else

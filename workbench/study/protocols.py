@@ -15,7 +15,8 @@ from workbench.errors import WorkbenchError
 from workbench.study.fitting import fit_eigenfaces
 
 
-HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take"}
+HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take",
+            "kfold": "held-out blocked k-fold", "take_out": "held-out leave-one-take-out"}
 """``dataset.held_out`` protocol -> how its frames are described."""
 
 

@@ -91,6 +91,9 @@ class StudyResult:
     protocol : str
         Which frames were scored: ``training frames`` (those the bases were fitted on, or as ``dataset.split``
         says) or a held-out protocol of ``dataset.held_out`` (:data:`HELD_OUT`).
+    folds : dict
+        Cross-validated held-out frames (``dataset.held_out`` kfold or take_out): each fold's m, frames and alphas
+        (``workbench.study.crossval.fold_values``); empty otherwise.
     """
 
     data: str
@@ -107,3 +110,4 @@ class StudyResult:
     face_region: str = ""
     offset: dict = field(default_factory=dict)
     protocol: str = "training frames"
+    folds: dict = field(default_factory=dict)

@@ -15,6 +15,7 @@ from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.errors import WorkbenchError
+from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, coverage_on_setting,
                                        data_variants, held_out_capture, held_out_protocols, select_shapes,
@@ -66,7 +67,7 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
     coverage_on = coverage_on_setting(basis_cfg)
     score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
-    build_cfg = {key: value for key, value in dataset_cfg.items() if key != "held_out"}  # the same built data
+    build_cfg = {key: value for key, value in dataset_cfg.items() if key not in ("held_out", "folds", "fold_gap_s")}  # the same built data
     built_cfg = dict(build_cfg, train_on=build_names) if eval_names else build_cfg
     with timings.stage("dataset"):
         captures = build_captures(built_cfg, cache_dir=cfg.get("paths", {}).get("cache_dir"))
@@ -83,6 +84,11 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
             truth = clean_frames(capture, clean[data]) if score_clean else None
             results.append(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth))
             for protocol in held_out:
+                if protocol in FOLDED:
+                    results.append(cross_validated(data, capture, protocol, dataset_cfg, lambda name, part: (
+                        run_on_capture(name, part, fitted_cfg, solvers, timings,
+                                       truth=clean_frames(part, clean[data]) if score_clean else None))))
+                    continue
                 part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
                 truth = clean_frames(part, clean[data]) if score_clean else None
                 results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers,

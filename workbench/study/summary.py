@@ -123,7 +123,18 @@ def data_metrics(result) -> dict:
                         for projection, qe in result.quasi_eigen.items()},
         "intuitiveness": intuitiveness_table(result),
         **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
+        **fold_metrics(result),
     }
+
+
+def fold_metrics(result) -> dict:
+    """A cross-validated variant's per-fold values (``folds``) and its paired comparisons over the folds
+    (``fold_comparisons``, n = the number of folds); empty for any other variant."""
+    from workbench.study.crossval import fold_comparisons
+
+    if not result.folds:
+        return {}
+    return {"folds": result.folds, "fold_comparisons": fold_comparisons(result.folds, comparison_pairs(result.rows))}
 
 
 def input_arrays(result) -> dict:
