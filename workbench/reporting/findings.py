@@ -26,6 +26,7 @@ from workbench.reporting.identities import identity_lookup, run_identities, scor
 from workbench.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
                                             holm_adjusted, interval_text, reversed_interval, short_interval_text)
 from workbench.statistics import ordering_text as stated_ordering
+from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime, paper_regime_name
 from workbench.tables import cell_text
 
 PAPER_BASES = ("H", "QE", "PCA")
@@ -378,6 +379,10 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
+        if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
+            lines.append(f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
+                         f"{ratio_text(part, paper.get('alpha', {}), column=column)}; {m_text(part, paper)}.")
+            continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
                              for solver in solvers)
@@ -833,8 +838,6 @@ def beside_regime_text(table: pd.DataFrame, data: str, column: str) -> str:
     """The summary's sentence on the coverage rule's run beside the paper's regime: its m, H/QE and QE/PCA with
     least squares (empty unless ``data`` is an m = n variant of ``basis.paper_regime`` whose coverage-rule variant
     is in the table)."""
-    from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
-
     if not is_paper_regime(data):
         return ""
     base = data[: -len(PAPER_REGIME_SUFFIX) - 1]
