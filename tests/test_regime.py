@@ -71,3 +71,24 @@ def test_the_summary_states_the_coverage_rule_beside_the_m_equal_n_run():
     assert beside_regime_text(table, "markers m=n", "alpha") == \
         " Beside it, the coverage rule on markers (m = 33): H/QE 1.25, QE/PCA 4.8."
     assert beside_regime_text(table, "markers", "alpha") == ""
+
+
+def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
+    import json
+
+    from workbench.api import run
+    from workbench.reporting.findings import run_findings, run_summary
+
+    text = run(compose("paper", [*SMALL, "solver=lstsq"]), tmp_path)
+    assert text.splitlines()[1].startswith("  the paper's regime m = n")
+    table = pd.read_csv(tmp_path / "alpha_table.csv")
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert list(metrics["data"]) == ["markers m=n", "markers"]
+    summary = run_summary(table, "alpha_abs_mean", metrics)
+    assert "On markers m=n (m = 18 eigenfaces, n = 18 hand shapes: the paper's regime (m = n))" in summary
+    assert "QE's basis: condition number " in summary and "Beside it, the coverage rule on markers (m = " in summary
+    lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {},
+                         metrics)
+    assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
+    assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1
+    assert sum(len(line.split()) for line in lines) <= 800
