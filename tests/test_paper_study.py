@@ -14,7 +14,8 @@ from workbench.api import run
 from workbench.record import DONE
 from workbench.config import REPO_ROOT, compose
 
-SMALL = ["dataset.n_frames=4000", "save_inputs=true"]  # 33 s of performance: enough motion above the noise
+SMALL = ["dataset.n_frames=4000", "save_inputs=true", "basis.paper_regime=false"]  # 33 s of performance: enough
+# motion above the noise; the coverage rule's run alone (the m = n variant: tests/test_regime.py)
 
 
 @pytest.fixture(scope="module")
@@ -136,6 +137,7 @@ def test_paper_scale_default_study(tmp_path):
 def test_markers_and_mesh_in_one_run(tmp_path):
     """dataset.train_on as a list runs the method on each data variant of the same take, one table."""
     text = run(compose("paper", ["dataset.n_frames=600", "dataset.train_on=[markers,mesh]", "solver=lstsq",
+                                 "basis.paper_regime=false",
                                  "save_inputs=true"]), tmp_path)
     table = pd.read_csv(tmp_path / "alpha_table.csv")
     assert list(table["data"]) == ["markers"] * 4 + ["mesh"] * 4

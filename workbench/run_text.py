@@ -122,16 +122,20 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
         "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values on their own capture and "
         "coordinate origin, not a target for these data (compare ratios; see the note under the table)",
     ]
+    lines[1:1] = regime_lines(results, cfg)
     for result in results:
         capture, eigenfaces = result.capture, result.eigenfaces
         empty = "; ".join(
             f"{projection}: {[j + 1 for j in qe.empty_axes] or 'none'}"
             + (f" (appended {[j + 1 for j in qe.appended_axes]})" if qe.appended_axes else "")
             for projection, qe in result.quasi_eigen.items())
+        from workbench.study.regime import is_paper_regime
+
         lines += [
             f"data '{result.data}': {len(capture.train)} training frames, {len(capture.eval)} evaluated, "
             f"{capture.n_points} points, {len(capture.hand_names)} hand shapes",
-            f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} ({rule}); "
+            f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} "
+            f"({'m = n, basis.paper_regime' if is_paper_regime(result.data) else rule}); "
             f"paper: m = {paper['m']} at {paper['coverage']}",
             f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
         ] if not result.folds else fold_lines(result)
@@ -165,6 +169,71 @@ def fold_lines(result) -> list[str]:
                      f"95 % interval [{interval.low:.3g}, {interval.high:.3g}] (paired t on log ratios over folds, "
                      f"n = {interval.n})")
     return lines
+
+
+
+HEADLINE_COLUMNS = {("absolute", "mean"): "absolute_mean", ("absolute", "pooled"): "absolute_pooled",
+                    ("displacement", "mean"): "displacement_mean", ("displacement", "pooled"): "displacement_pooled"}
+"""``metric.headline_normalisation`` and ``headline_aggregate`` -> the :class:`workbench.metrics.AlphaSummary` field."""
+
+
+def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
+    """The header's first comparison: H/QE and QE/PCA with least squares at the paper's regime m = n (the variants
+    ``basis.paper_regime`` adds, or a variant whose m already equals n), each with QE's and H's conditioning
+    and largest weight, then the coverage rule's variants beside them.
+
+    Parameters
+    ----------
+    results : sequence of workbench.study.results.StudyResult
+    cfg : mapping
+        The resolved study config (``metric``, ``paper``).
+
+    Returns
+    -------
+    list of str
+        Empty when no variant has H, QE and PCA with lstsq scored on its training frames.
+    """
+    metric, paper = cfg.get("metric") or {}, cfg["paper"]
+    field = HEADLINE_COLUMNS.get((metric.get("headline_normalisation", "absolute"),
+                                  metric.get("headline_aggregate", "mean")), "absolute_mean")
+    regime, rule = [], []
+    for result in results:
+        if result.protocol != "training frames":
+            continue
+        text = regime_text(result, field)
+        if text:
+            m, n = result.eigenfaces.n_components_, len(result.capture.hand_names)
+            (regime if m == n else rule).append(f"    {result.data} (m = {m}, n = {n}): {text}")
+    if not regime and not rule:
+        return []
+    reported = paper["alpha"]
+    head = (f"  the paper's regime m = n (paper: H/QE {reported['H'] / reported['QE']:.2g}, QE/PCA "
+            f"{reported['QE'] / reported['PCA']:.3g} at m = n = "
+            f"{paper['m']}; alpha {field}, lstsq; cond: the basis's condition number, or its rank when deficient):")
+    lines = [head] + (regime or ["    none in this run (basis.n_components fixes m, or paper_regime is off)"])
+    if rule:
+        lines += ["  beside it, the coverage rule's m:"] + rule
+    return lines
+
+
+def regime_text(result, field: str) -> str:
+    """H/QE and QE/PCA of one variant (least squares, alpha ``field``), with H's and QE's conditioning and largest
+    |w|; empty when H, QE or PCA is missing."""
+    rows = {(row.basis, row.solver): row for row in result.rows}
+    found = {basis: rows.get((basis, solver)) for basis, solver in (("H", "lstsq"), ("QE", "lstsq"),
+                                                                    ("PCA", "projection"))}
+    if any(row is None for row in found.values()):
+        return ""
+    alpha = {basis: getattr(row.alpha, field) for basis, row in found.items()}
+
+    def conditioning(basis: str) -> str:
+        report, row = found[basis].conditioning, found[basis]
+        cond = ("?" if report is None else f"rank {report.rank}/{report.n_shapes}" if report.rank < report.n_shapes
+                else f"cond {report.condition_number:.3g}")
+        return f"{basis} {cond}, max |w| {row.max_abs_weight:.3g}"
+
+    return (f"H/QE {alpha['H'] / alpha['QE']:.3g}, QE/PCA {alpha['QE'] / alpha['PCA']:.3g} (H {alpha['H']:.3g}, "
+            f"QE {alpha['QE']:.3g}, PCA {alpha['PCA']:.3g}); {conditioning('QE')}; {conditioning('H')}")
 
 
 ILL_CONDITIONED = 1e6

@@ -164,6 +164,7 @@ class IntuitivenessSchema:
 class BasisSchema:
     coverage: float = meta(MISSING, interval(0, 1, low_open=True))
     n_components: Optional[int] = meta(None, integer(1, optional=True))
+    paper_regime: Any = meta(True, BOOLEAN)
     coverage_on: str = meta("training", one_of("training", "clean"))
     projections: List[str] = meta(MISSING, names("affine", "linear"))
     empty_axis_eps: float = meta(MISSING, interval(0))
@@ -632,6 +633,10 @@ INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
     "only weight curves given with dataset.weight_curves use it",
     "basis.coverage": lambda c: None if c["basis"].get("n_components") is None else
     f"basis.n_components={c['basis']['n_components']} fixes m",
+    "basis.paper_regime": lambda c: None if c["basis"].get("n_components") is None
+    and not c["dataset"].get("eval_on") else
+    "it adds an m = n fit beside the coverage rule's m, and basis.n_components fixes m (or dataset.eval_on carries "
+    "the bases onto other points)",
     "basis.subset_seed": lambda c: None if str(c["basis"].get("hand_subset")).startswith("random") else
     f"only basis.hand_subset=random<k> draws (this run: {c['basis'].get('hand_subset')})",
     "basis.alternatives_n": lambda c: None if set(_alternatives(c)) - {"H-fit"} else

@@ -26,6 +26,7 @@ from workbench.reporting.identities import identity_lookup, run_identities, scor
 from workbench.statistics import (RATIO_FORMAT, SIGNED, Interval, comparison_lookup, comparison_name,
                                             holm_adjusted, interval_text, reversed_interval, short_interval_text)
 from workbench.statistics import ordering_text as stated_ordering
+from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime, paper_regime_name
 from workbench.tables import cell_text
 
 PAPER_BASES = ("H", "QE", "PCA")
@@ -378,6 +379,10 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
+        if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
+            lines.append(f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
+                         f"{ratio_text(part, paper.get('alpha', {}), column=column)}; {m_text(part, paper)}.")
+            continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
                              for solver in solvers)
@@ -812,7 +817,36 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
             f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
             f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
             f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
-            f"{sizes}QE better than H: {first}. Caveat: {lead}.")
+            f"{sizes}QE better than H: {first}.{conditioning_text(part, rows)}{beside_regime_text(table, data, column)}"
+            f" Caveat: {lead}.")
+
+
+def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
+    """The summary's clause on how well QE determines its weights: condition number (or rank) and the largest |w|
+    with least squares (an animator cannot use weights of thousands); empty when not recorded."""
+    found = next((row.get("basis_conditioning") for row in rows if row.get("basis") == "QE"
+                  and row.get("solver") == "lstsq" and row.get("basis_conditioning")), None)
+    largest = _alpha(part, "QE", "lstsq", "w_max_abs")
+    if not found or math.isnan(largest):
+        return ""
+    cond = (f"rank {found['rank']} of {found['n_shapes']}" if found["rank"] < found["n_shapes"]
+            else f"condition number {found['condition_number']:.3g}")
+    return f" QE's basis: {cond}, largest lstsq |w| {largest:.3g}."
+
+
+def beside_regime_text(table: pd.DataFrame, data: str, column: str) -> str:
+    """The summary's sentence on the coverage rule's run beside the paper's regime: its m, H/QE and QE/PCA with
+    least squares (empty unless ``data`` is an m = n variant of ``basis.paper_regime`` whose coverage-rule variant
+    is in the table)."""
+    if not is_paper_regime(data):
+        return ""
+    base = data[: -len(PAPER_REGIME_SUFFIX) - 1]
+    part = table[table["data"] == base]
+    values = {basis: _alpha(part, basis, "lstsq", column) for basis in PAPER_BASES}
+    if not len(part) or any(math.isnan(value) for value in values.values()):
+        return ""
+    return (f" Beside it, the coverage rule on {base} (m = {int(part['m'].iloc[0])}): H/QE "
+            f"{values['H'] / values['QE']:.3g}, QE/PCA {values['QE'] / values['PCA']:.3g}.")
 
 
 def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:

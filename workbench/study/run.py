@@ -20,6 +20,7 @@ from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspa
 from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, coverage_on_setting,
                                        data_variants, held_out_capture, held_out_protocols, select_shapes,
                                        subset_hand_shapes, with_clean_m)
+from workbench.study.regime import paper_regime_fit, paper_regime_name
 from workbench.study.results import StudyResult, Timings
 from workbench.study.scoring import basis_intuitiveness, face_region, offset_facts, score_alternative_bases, score_bases
 
@@ -82,7 +83,8 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
             capture, fitted_cfg = with_clean_m(subset_hand_shapes(capture, basis_cfg), basis_cfg,
                                                clean[data] if coverage_on == "clean" else None)
             truth = clean_frames(capture, clean[data]) if score_clean else None
-            results.append(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth))
+            results += with_paper_regime(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth),
+                                         fitted_cfg, solvers, timings, truth)
             for protocol in held_out:
                 if protocol in FOLDED:
                     results.append(cross_validated(data, capture, protocol, dataset_cfg, lambda name, part: (
@@ -96,6 +98,18 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
                                        protocol=HELD_OUT[protocol]))
         return results
     return carried_results(captures, clean, train_names, eval_names, cfg, solvers, timings)
+
+def with_paper_regime(result: StudyResult, basis_cfg: Mapping, solvers: Mapping[str, Mapping], timings: Timings,
+                      truth: np.ndarray | None) -> list[StudyResult]:
+    """``basis.paper_regime``: the variant fitted at m = n (:func:`workbench.study.regime.paper_regime_fit`), named
+    ``<data> m=n``, first, then the coverage rule's ``result``; only ``result`` (with a note saying why) when there
+    is no separate m = n fit."""
+    capture, regime_cfg, note = paper_regime_fit(result.capture, basis_cfg, result.eigenfaces.n_components_)
+    if regime_cfg is None:
+        return [replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,)))
+                if note else result]
+    return [run_on_capture(paper_regime_name(result.data), capture, regime_cfg, solvers, timings, truth=truth), result]
+
 
 def carried_results(captures: Mapping[str, Capture], clean: Mapping[str, Capture] | None, train_names: Sequence[str],
                     eval_names: Sequence[str], cfg: Mapping, solvers: Mapping[str, Mapping],

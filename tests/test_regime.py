@@ -1,0 +1,94 @@
+"""The paper's regime (basis.paper_regime): eigenfaces also fitted at m = n beside the coverage rule, leading the
+printed header and the summary."""
+
+import pandas as pd
+import pytest
+
+from workbench.config import compose
+from workbench.reporting.findings import beside_regime_text
+from workbench.run_text import study_header
+from workbench.study.regime import paper_regime_fit
+from workbench.study.run import run_study
+
+SMALL = ["dataset.n_frames=600"]  # the synthetic actor's coverage rule keeps m < 18 here
+
+
+@pytest.fixture(scope="module")
+def regime_run():
+    cfg = compose("paper", SMALL)
+    return cfg, run_study(cfg)
+
+
+def test_the_m_equal_n_variant_comes_first_with_every_basis_and_solver(regime_run):
+    cfg, results = regime_run
+    assert [result.data for result in results] == ["markers m=n", "markers"]
+    regime, rule = results
+    n = len(regime.capture.hand_names)
+    assert n == 18 and regime.eigenfaces.n_components_ == n
+    assert rule.eigenfaces.n_components_ != n
+    assert regime.capture.train is rule.capture.train  # the same training frames, another m
+    solvers = list(cfg["solver"])
+    scored = {(row.basis, row.solver) for row in regime.rows}
+    expected = {(basis, solver) for basis in ("H", "QE", "QE-linear") for solver in solvers} | {("PCA", "projection")}
+    assert scored == expected
+    assert any("the paper's regime: m = n = 18" in note for note in regime.capture.notes)
+
+
+def test_the_header_leads_with_the_m_equal_n_comparison(regime_run):
+    cfg, results = regime_run
+    lines = study_header(results, cfg).splitlines()
+    assert lines[1].startswith("  the paper's regime m = n (paper: H/QE 7.2, QE/PCA 1.16")
+    assert lines[2].startswith("    markers m=n (m = 18, n = 18): H/QE ")
+    assert "QE cond " in lines[2] and "max |w| " in lines[2]
+    assert lines[3] == "  beside it, the coverage rule's m:"
+    assert lines[4].startswith(f"    markers (m = {results[1].eigenfaces.n_components_}, n = 18): H/QE ")
+    regime = {(row.basis, row.solver): row.alpha.absolute_mean for row in results[0].rows}
+    ratio = regime[("H", "lstsq")] / regime[("QE", "lstsq")]
+    assert f"H/QE {ratio:.3g}," in lines[2]
+
+
+def test_no_extra_fit_when_m_is_fixed():
+    results = run_study(compose("paper", [*SMALL, "basis.n_components=12", "solver=lstsq"]))
+    assert [result.data for result in results] == ["markers"]
+    assert results[0].eigenfaces.n_components_ == 12
+
+
+def test_no_extra_fit_when_the_coverage_rule_already_gives_m_equal_n(regime_run):
+    cfg, results = regime_run
+    capture, basis = results[1].capture, dict(cfg["basis"])
+    same, fitted, note = paper_regime_fit(capture, basis, len(capture.hand_names))
+    assert fitted is None and same is capture and "already keeps m = n = 18" in note
+    assert paper_regime_fit(capture, dict(basis, paper_regime=False), 9) == (capture, None, None)
+    _, fitted, _ = paper_regime_fit(capture, basis, 9)
+    assert fitted["n_components"] == 18 and fitted["alternatives"] == []
+
+
+def test_the_summary_states_the_coverage_rule_beside_the_m_equal_n_run():
+    rows = [{"data": data, "basis": basis, "solver": solver, "m": m, "alpha": value}
+            for data, m, values in (("markers m=n", 18, (1.8, 0.7, 0.5)), ("markers", 33, (1.8, 1.44, 0.3)))
+            for (basis, solver), value in zip((("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection")), values)]
+    table = pd.DataFrame(rows)
+    assert beside_regime_text(table, "markers m=n", "alpha") == \
+        " Beside it, the coverage rule on markers (m = 33): H/QE 1.25, QE/PCA 4.8."
+    assert beside_regime_text(table, "markers", "alpha") == ""
+
+
+def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
+    import json
+
+    from workbench.api import run
+    from workbench.reporting.findings import run_findings, run_summary
+
+    text = run(compose("paper", [*SMALL, "solver=lstsq"]), tmp_path)
+    assert text.splitlines()[1].startswith("  the paper's regime m = n")
+    table = pd.read_csv(tmp_path / "alpha_table.csv")
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert list(metrics["data"]) == ["markers m=n", "markers"]
+    summary = run_summary(table, "alpha_abs_mean", metrics)
+    assert "On markers m=n (m = 18 eigenfaces, n = 18 hand shapes: the paper's regime (m = n))" in summary
+    assert "QE's basis: condition number " in summary and "Beside it, the coverage rule on markers (m = " in summary
+    lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {},
+                         metrics)
+    assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
+    assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1
+    assert sum(len(line.split()) for line in lines) <= 800
