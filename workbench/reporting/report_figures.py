@@ -333,7 +333,11 @@ def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
 def draw_marker_vs_mesh(record: RunRecord):
     from workbench.reporting.figures.studies import plot_marker_vs_mesh
 
-    table = record.table[record.table["data"].isin(training_variants(record))]
+    from workbench.study.regime import is_paper_regime
+
+    # the variants at the coverage rule's m: a paper-regime variant (m = n) differs in m, not in the points
+    compared = [data for data in training_variants(record) if not is_paper_regime(data)]
+    table = record.table[record.table["data"].isin(compared)]
     if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)

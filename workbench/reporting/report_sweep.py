@@ -14,6 +14,7 @@ from workbench.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
+from workbench.study.regime import is_paper_regime
 from workbench.reporting.report_figures import (FIGURE_FORMATS, FigureEntry, clear_figures, draw_coverage_curve,
                                                 make_figures)
 from workbench.reporting.report_sections import (Section, choices_rows, provenance_section, range_column,
@@ -98,7 +99,9 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
                               points=per_run if per_run is not None and x in per_run.columns else None,
                               title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
                                     f"{axis_label(x)}\n{label}")))
-    trained = summary[summary["data"].isin(training_variants(first))]  # held-out frames are no data variant
+    # held-out frames are no data variant, and a paper-regime variant (m = n) differs in m, not in the points
+    compared = [data for data in training_variants(first) if not is_paper_regime(data)]
+    trained = summary[summary["data"].isin(compared)]
     if "eval_on" in trained.columns and trained["train_on"].nunique() > 1:
         fixed = [key for key in swept if key != "dataset.train_on"]
         for values, part in (trained.groupby(fixed, sort=False) if fixed else [((), trained)]):
