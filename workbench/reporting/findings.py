@@ -403,21 +403,31 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
             if error:
                 lines.append(f"**{data}**: {error}.")
             continue
-        constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
-        for k, solver in enumerate(constrained):
-            lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
-            why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
-            if why:
-                lines.append(f"**{data}**: why: {why}.")
-        weights = weights_text(data, solvers, rows)
-        if weights:
-            lines.append(f"**{data}**: {weights}.")
-        if error:
-            lines.append(f"**{data}**: {error}.")
-        closeness = closeness_line(intuitiveness.get(data, []))
-        if closeness:
-            lines.append(f"**{data}**: {closeness}.")
+        lines += _detail_lines(data, part, column, solvers, compare, facts, rows, error,
+                               intuitiveness.get(data, []))
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
+    return lines
+
+
+def _detail_lines(data: str, part: pd.DataFrame, column: str, solvers: Sequence[str], compare, facts: Mapping,
+                  rows: Sequence[Mapping], error: str, intuitiveness: Sequence[Mapping]) -> list[str]:
+    """The findings said for the lead data variant only: what the constrained solvers do and why, the weights,
+    the error and the shapes the projection changes most (see :func:`run_findings`)."""
+    lines = []
+    constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
+    for k, solver in enumerate(constrained):
+        lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
+        why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
+        if why:
+            lines.append(f"**{data}**: why: {why}.")
+    weights = weights_text(data, solvers, rows)
+    if weights:
+        lines.append(f"**{data}**: {weights}.")
+    if error:
+        lines.append(f"**{data}**: {error}.")
+    closeness = closeness_line(intuitiveness)
+    if closeness:
+        lines.append(f"**{data}**: {closeness}.")
     return lines
 
 
