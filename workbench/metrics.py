@@ -93,7 +93,7 @@ def rms_point_error(reference: np.ndarray, reconstruction: np.ndarray) -> float:
     """
     reference, reconstruction = _check_same_shape(reference, reconstruction, points=True)
     n_points = reference.shape[1] // 3
-    return float(np.sqrt(np.sum((reference - reconstruction) ** 2) / (reference.shape[0] * n_points)))
+    return float(rms_error(np.sum((reference - reconstruction) ** 2), reference.shape[0] * n_points))
 
 
 @dataclass(frozen=True)
@@ -237,7 +237,7 @@ def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, positio
         absolute_pooled=float(100.0 * np.sqrt(error_sq.sum() / position_sq.sum())),
         displacement_mean=float(np.nanmean(displacement)) if n_undefined < len(displacement) else float("nan"),
         displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
-        rms_mm=float(np.sqrt(error_sq.sum() / n_compared_points)),
+        rms_mm=float(rms_error(error_sq.sum(), n_compared_points)),
         n_undefined_displacement_frames=n_undefined,
         error_sq=error_sq, displacement_sq=displacement_sq, position_sq=position_sq,
     )
@@ -413,19 +413,21 @@ def error_distribution(per_frame: np.ndarray) -> ErrorDistribution:
                              max=float(values.max()), quantiles=quantiles)
 
 
-def frame_rms_error(error_sq: np.ndarray, n_points) -> np.ndarray:
-    """Per-frame RMS 3-D point error, ``sqrt(|v* - v|^2 / n_points)``, in data units (millimetres).
+def rms_error(error_sq, n_points) -> np.ndarray:
+    """RMS 3-D point error, ``sqrt(|v* - v|^2 / n_points)``, in data units (millimetres): per frame, or pooled
+    over frames when given the sums. The one home of the RMS error (:func:`rms_point_error`,
+    :attr:`AlphaSummary.rms_mm`, the per-frame errors of a run and of the report's figures).
 
     Parameters
     ----------
-    error_sq : ndarray of shape (n_frames,)
-        Squared error of each frame summed over its compared points.
+    error_sq : float or ndarray of shape (n_frames,)
+        Squared error summed over the compared points (of each frame, or of all frames).
     n_points : int or ndarray of shape (n_frames,)
-        Points compared in each frame (fewer under capture gaps); a frame with none gets NaN.
+        Points compared (in each frame: fewer under capture gaps); none gives NaN.
 
     Returns
     -------
-    ndarray of shape (n_frames,)
+    ndarray of the shape of ``error_sq``
     """
     n_points = np.broadcast_to(np.asarray(n_points, dtype=float), np.shape(error_sq))
     with np.errstate(divide="ignore", invalid="ignore"):
