@@ -282,7 +282,7 @@ def known_comparisons(rows):
 
 
 def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
-    from workbench.reporting.findings import sweep_findings
+    from workbench.reporting.sweep_findings import sweep_findings
 
     summary = pd.DataFrame({
         "basis.coverage": [0.99] * 3, "data": ["mesh"] * 3, "basis": ["H", "QE", "PCA"],
@@ -304,7 +304,7 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
-    from workbench.reporting.findings import bases_findings
+    from workbench.reporting.sweep_findings import bases_findings
 
     summary = pd.DataFrame({"data": ["mesh"] * 4, "basis": ["H", "QE", "PCA", "SPCA"], "n_seeds": [5] * 4,
                             "n_min": [18, 18, 10, 18], "n_max": [18, 18, 10, 18],
@@ -334,7 +334,7 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
-    from workbench.reporting.findings import bases_findings
+    from workbench.reporting.sweep_findings import bases_findings
     from workbench.reporting.runs import COMPARISON_COLUMNS
 
     summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["ICA", "H-fit", "PCA"], "n_seeds": [1] * 3,

@@ -139,9 +139,9 @@ def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
 
 
 def test_error_distribution_and_rms_per_frame():
-    from workbench.metrics import error_distribution, frame_rms_error
+    from workbench.metrics import error_distribution, rms_error
 
-    per_frame = frame_rms_error(np.array([4.0, 16.0, 0.0, 1.0]), np.array([1, 4, 0, 1]))
+    per_frame = rms_error(np.array([4.0, 16.0, 0.0, 1.0]), np.array([1, 4, 0, 1]))
     np.testing.assert_allclose(per_frame[[0, 1, 3]], [2.0, 2.0, 1.0])
     assert np.isnan(per_frame[2])
     found = error_distribution(np.arange(101.0))

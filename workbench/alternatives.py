@@ -370,6 +370,49 @@ def _prox_group_l1(values: np.ndarray, strength: np.ndarray) -> np.ndarray:
     return values * shrink[..., None]
 
 
+def _splocs_greedy_start(residual: np.ndarray, distance: SurfaceDistance, k_count: int, d_min: float,
+                         d_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """SPLOCS's greedy start: each component grown from the point with the largest residual motion, inside its
+    support. ``residual`` (shape (n_frames, n_points, 3), the scaled displacements) is used up in place.
+
+    Returns
+    -------
+    components : ndarray of shape (k_count, n_points, 3)
+    weights : ndarray of shape (n_frames, k_count)
+    """
+    components = np.zeros((k_count, residual.shape[1], 3))
+    weights = np.zeros((residual.shape[0], k_count))
+    for k in range(k_count):
+        centre = int(np.argmax(np.einsum("fpc,fpc->p", residual, residual)))
+        _, singular, vt = np.linalg.svd(residual[:, centre, :].T, full_matrices=False)
+        w = singular[0] * vt[0]
+        positive, negative = _project_weights(w), _project_weights(-w)
+        w = positive if np.linalg.norm(positive) >= np.linalg.norm(negative) else negative
+        if not w.any():
+            continue
+        inside = 1.0 - support_map(distance.from_point(centre), d_min, d_max)
+        components[k] = np.tensordot(w, residual, (0, 0)) * inside[:, None] / (w @ w)
+        weights[:, k] = w
+        residual -= np.multiply.outer(w, components[k])
+    return components, weights
+
+
+def _splocs_update_weights(flat: np.ndarray, weights: np.ndarray, components: np.ndarray) -> None:
+    """SPLOCS's block-coordinate update of ``weights`` (shape (n_frames, K), in place) against the frames
+    ``flat`` (shape (n_frames, n_dims)) and the components (shape (K, n_points, 3))."""
+    k_count = components.shape[0]
+    rest = flat - weights @ components.reshape(k_count, -1)
+    for k in range(k_count):
+        ck = components[k].ravel()
+        norm_sq = ck @ ck
+        if norm_sq <= 1e-16:
+            weights[:, k] = 0.0
+            continue
+        rest += np.outer(weights[:, k], ck)
+        weights[:, k] = _project_weights(rest @ ck / norm_sq)
+        rest -= np.outer(weights[:, k], ck)
+
+
 def splocs_basis(train, distance: SurfaceDistance, *, n_components: int, sparsity_lambda: float = 2.0,
                  d_min: float = 0.1, d_max: float = 0.7, n_iterations: int = 10, n_admm_iterations: int = 10,
                  rho: float = 10.0) -> np.ndarray:
@@ -422,35 +465,13 @@ def splocs_basis(train, distance: SurfaceDistance, *, n_components: int, sparsit
     k_count = int(n_components)
     scale = float(np.std(train)) or 1.0
     data = train / scale
-    residual = data.reshape(n_frames, n_points, 3).copy()
-    components = np.zeros((k_count, n_points, 3))
-    weights = np.zeros((n_frames, k_count))
-    for k in range(k_count):  # greedy start
-        centre = int(np.argmax(np.einsum("fpc,fpc->p", residual, residual)))
-        _, singular, vt = np.linalg.svd(residual[:, centre, :].T, full_matrices=False)
-        w = singular[0] * vt[0]
-        positive, negative = _project_weights(w), _project_weights(-w)
-        w = positive if np.linalg.norm(positive) >= np.linalg.norm(negative) else negative
-        if not w.any():
-            continue
-        inside = 1.0 - support_map(distance.from_point(centre), d_min, d_max)
-        components[k] = np.tensordot(w, residual, (0, 0)) * inside[:, None] / (w @ w)
-        weights[:, k] = w
-        residual -= np.multiply.outer(w, components[k])
+    components, weights = _splocs_greedy_start(data.reshape(n_frames, n_points, 3).copy(), distance, k_count,
+                                               d_min, d_max)
     flat = data
     dual = np.zeros_like(components)
     strength = np.zeros((k_count, n_points))
     for _ in range(int(n_iterations)):
-        rest = flat - weights @ components.reshape(k_count, -1)
-        for k in range(k_count):  # block-coordinate update of the weights
-            ck = components[k].ravel()
-            norm_sq = ck @ ck
-            if norm_sq <= 1e-16:
-                weights[:, k] = 0.0
-                continue
-            rest += np.outer(weights[:, k], ck)
-            weights[:, k] = _project_weights(rest @ ck / norm_sq)
-            rest -= np.outer(weights[:, k], ck)
+        _splocs_update_weights(flat, weights, components)
         for k in range(k_count):  # support maps around each component's largest point
             centre = int(np.argmax(np.einsum("pc,pc->p", components[k], components[k])))
             strength[k] = sparsity_lambda * support_map(distance.from_point(centre), d_min, d_max)

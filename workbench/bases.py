@@ -14,25 +14,10 @@ import scipy.linalg
 from workbench.errors import WorkbenchError
 from workbench.frames import frame_chunks, is_stored_frames
 from workbench.tolerances import TOL, Tolerances
+from workbench.validation import CAPTURE, check_matrix
 
 PROJECTIONS = ("affine", "linear")
 EMPTY_AXIS_SCALES = ("axis_std", "absolute")
-
-
-def _check_matrix(name: str, array, n_dims: int | None = None) -> np.ndarray:
-    try:
-        array = np.asarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise WorkbenchError(f"{name} must be a numeric 2-D array (rows x dims): {error}") from None
-    if array.ndim != 2:
-        raise WorkbenchError(f"{name} must be a 2-D array (rows x dims), got shape {array.shape}")
-    if array.shape[0] == 0 or array.shape[1] == 0:
-        raise WorkbenchError(f"{name} must not be empty, got shape {array.shape}")
-    if n_dims is not None and array.shape[1] != n_dims:
-        raise WorkbenchError(f"{name} must have {n_dims} columns to match the capture, got {array.shape[1]}")
-    if not np.all(np.isfinite(array)):
-        raise WorkbenchError(f"{name} holds NaN or Inf values ({int(np.sum(~np.isfinite(array)))} entries)")
-    return array
 
 
 def _shown(value) -> str:
@@ -409,7 +394,7 @@ class Eigenfaces:
         stored = is_stored_frames(capture)
         if stored and (capture.ndim != 2 or 0 in capture.shape):
             raise WorkbenchError(f"capture must be a non-empty 2-D array (rows x dims), got shape {capture.shape}")
-        capture = capture if stored else _check_matrix("capture", capture)
+        capture = capture if stored else check_matrix("capture", capture, CAPTURE)
         if capture.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
         n_components = check_n_components(self.n_components)
@@ -450,8 +435,8 @@ class Eigenfaces:
         self
             As :meth:`fit` on ``frames @ operator.T``, with ``method_ = "mapped"``.
         """
-        frames = _check_matrix("frames", frames)
-        operator = _check_matrix("operator", operator)
+        frames = check_matrix("frames", frames, CAPTURE)
+        operator = check_matrix("operator", operator, CAPTURE)
         if operator.shape[1] != frames.shape[1]:
             raise WorkbenchError(f"operator must have shape (n_dims, {frames.shape[1]}) to map the frames, got "
                                  f"{operator.shape}")
@@ -524,7 +509,7 @@ class Eigenfaces:
         ndarray of shape (n_frames, n_dims)
         """
         self._check_fitted()
-        frames = _check_matrix("frames", frames, self.mean_.shape[0])
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.mean_.shape[0])
         # (frames - mean) C^T without the centred copy of the frames
         coefficients = frames @ self.components_.T - self.mean_ @ self.components_.T
         reconstruction = coefficients @ self.components_
@@ -667,7 +652,7 @@ def build_quasi_eigen_basis(hand, names, eigenfaces: Eigenfaces, *, projection: 
         ``projection`` or ``empty_axis_scale``, a negative or non-finite ``empty_axis_eps``.
     """
     eigenfaces._check_fitted()
-    hand = _check_matrix("hand basis", hand, eigenfaces.mean_.shape[0])
+    hand = check_matrix("hand basis", hand, CAPTURE, n_columns=eigenfaces.mean_.shape[0])
     names = tuple(str(name) for name in names)
     if len(names) != hand.shape[0]:
         raise WorkbenchError(f"hand basis has {hand.shape[0]} shapes but {len(names)} names")

@@ -12,11 +12,12 @@ import inspect
 
 import numpy as np
 
-from workbench.bases import Eigenfaces, _check_matrix, build_quasi_eigen_basis
+from workbench.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.errors import WorkbenchError
 from workbench.metrics import AlphaSummary, summarise_squares
 from workbench.reduced import Subspace, project_frames
 from workbench.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
+from workbench.validation import CAPTURE, check_matrix
 
 THROUGH = {"mean": "affine", "neutral": "linear"}
 """``through`` -> the projection of :func:`workbench.bases.build_quasi_eigen_basis` (the run's ``QE`` and
@@ -169,10 +170,10 @@ class QuasiEigenFaces:
             Naming the argument or parameter and the rule it broke.
         """
         through, _ = self._checked_parameters()
-        frames = _check_matrix("frames", frames)
+        frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
-        hand = _check_matrix("hand_shapes", hand_shapes, frames.shape[1])
+        hand = check_matrix("hand_shapes", hand_shapes, CAPTURE, n_columns=frames.shape[1])
         if neutral is not None:
             neutral = _check_vector("neutral", neutral, frames.shape[1])
         names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if names is None else names
@@ -225,7 +226,7 @@ class QuasiEigenFaces:
             ``n_shapes`` is ``len(shapes_)``, ``len(hand_shapes_)`` or ``m_``.
         """
         self._check_fitted()
-        frames = _check_matrix("frames", frames, self.n_features_in_)
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
         basis = _check_choice("basis", basis, BASES)
         if basis == "PCA":
             _no_solver_for_pca(solver)
@@ -312,7 +313,7 @@ class QuasiEigenFaces:
             face (equal to the displacement ones).
         """
         self._check_fitted()
-        frames = _check_matrix("frames", frames, self.n_features_in_)
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
         basis = _check_choice("basis", basis, BASES)
         neutral = self.neutral_ if self.neutral_ is not None else np.zeros(self.n_features_in_)
         n_compared = frames.shape[0] * (frames.shape[1] // 3)

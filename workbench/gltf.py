@@ -334,15 +334,8 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
         raise WorkbenchError(f"{path}: glTF version {_get(gltf.asset, 'version')}; the workbench reads glTF 2.0")
     blob = gltf.binary_blob() or b""
     _check_buffer_views(gltf, blob, path)
-    candidates = [i for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
-    if mesh_name is not None:
-        candidates = [i for i in candidates if gltf.meshes[i].name == mesh_name]
-    if len(candidates) != 1:
-        named = [gltf.meshes[i].name for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
-        raise WorkbenchError(f"{path}: {len(candidates)} meshes with morph targets"
-                             f"{f' named {mesh_name!r}' if mesh_name is not None else ''}; the file's are {named} "
-                             "(name one with mesh_name)")
-    mesh = gltf.meshes[candidates[0]]
+    chosen = _morph_mesh_index(gltf, mesh_name, path)
+    mesh = gltf.meshes[chosen]
     n_targets = len(mesh.primitives[0].targets)
     neutral, deltas, triangles, offset = [], [], [], 0
     for number, primitive in enumerate(mesh.primitives):
@@ -373,10 +366,24 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
                              f"targets once each, got {names!r:.100}")
     result = MorphMesh(neutral=np.concatenate(neutral) * MM_PER_METRE, triangles=np.concatenate(triangles),
                        names=tuple(names), deltas=np.concatenate(deltas, axis=1) * MM_PER_METRE,
-                       animations=_morph_animations(gltf, blob, candidates[0], n_targets, path), path=path,
+                       animations=_morph_animations(gltf, blob, chosen, n_targets, path), path=path,
                        extras=dict(gltf.asset.extras or {}) if isinstance(gltf.asset.extras, dict) else {})
     _check_plausible_shapes(result, path)
     return result
+
+
+def _morph_mesh_index(gltf, mesh_name: str | None, path: Path) -> int:
+    """The index of the file's one mesh with morph targets (named ``mesh_name`` if given), or a WorkbenchError
+    naming the file's meshes with morph targets."""
+    candidates = [i for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
+    if mesh_name is not None:
+        candidates = [i for i in candidates if gltf.meshes[i].name == mesh_name]
+    if len(candidates) != 1:
+        named = [gltf.meshes[i].name for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
+        raise WorkbenchError(f"{path}: {len(candidates)} meshes with morph targets"
+                             f"{f' named {mesh_name!r}' if mesh_name is not None else ''}; the file's are {named} "
+                             "(name one with mesh_name)")
+    return candidates[0]
 
 
 def _check_plausible_shapes(mesh: MorphMesh, path: Path) -> None:

@@ -12,26 +12,12 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
-
-
-def _check_frames(name: str, array, *, n_dims: int | None = None, points: bool = False) -> np.ndarray:
-    """``array`` as a non-empty 2-D float array (frames x dims), or a :class:`WorkbenchError` naming ``name``."""
-    try:
-        array = np.asarray(array, dtype=np.float64)
-    except (TypeError, ValueError) as error:
-        raise WorkbenchError(f"{name} must be a numeric array of shape (n_frames, n_dims): {error}") from None
-    if array.ndim != 2 or array.size == 0:
-        raise WorkbenchError(f"{name} must be a non-empty array of shape (n_frames, n_dims), got shape {array.shape}")
-    if n_dims is not None and array.shape[1] != n_dims:
-        raise WorkbenchError(f"{name} has {array.shape[1]} columns, but the captured frames have {n_dims}")
-    if points and array.shape[1] % 3:
-        raise WorkbenchError(f"{name} must have 3 * n_points columns (x, y, z per point), got {array.shape[1]}")
-    return array
+from workbench.validation import FRAMES, check_matrix
 
 
 def _check_same_shape(reference, reconstruction, *, points: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    reference = _check_frames("reference", reference, points=points)
-    reconstruction = _check_frames("reconstruction", reconstruction, points=points)
+    reference = check_matrix("reference", reference, FRAMES, points=points, finite=False)
+    reconstruction = check_matrix("reconstruction", reconstruction, FRAMES, points=points, finite=False)
     if reconstruction.shape != reference.shape:
         raise WorkbenchError(f"reconstruction has shape {reconstruction.shape}, but the reference has "
                              f"{reference.shape}; they must match")
@@ -107,7 +93,7 @@ def rms_point_error(reference: np.ndarray, reconstruction: np.ndarray) -> float:
     """
     reference, reconstruction = _check_same_shape(reference, reconstruction, points=True)
     n_points = reference.shape[1] // 3
-    return float(np.sqrt(np.sum((reference - reconstruction) ** 2) / (reference.shape[0] * n_points)))
+    return float(rms_error(np.sum((reference - reconstruction) ** 2), reference.shape[0] * n_points))
 
 
 @dataclass(frozen=True)
@@ -180,7 +166,7 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
         chunk it returns of the shape of the frames it reconstructs), empty frames, a ``chunk_frames`` below 1,
         or NaN/Inf in ``neutral``, in the captured frames (at visible points) or in the reconstruction.
     """
-    captured = _check_frames("captured", captured, points=True)
+    captured = check_matrix("captured", captured, FRAMES, points=True, finite=False)
     n_frames, n_dims = captured.shape
     neutral = np.asarray(neutral, dtype=np.float64)
     if neutral.shape != (n_dims,):
@@ -188,7 +174,7 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
     if not np.all(np.isfinite(neutral)):
         raise WorkbenchError("neutral holds NaN or Inf values; alpha needs finite neutral positions")
     if not callable(reconstructed):
-        reconstructed = _check_frames("reconstructed", reconstructed, n_dims=n_dims)
+        reconstructed = check_matrix("reconstructed", reconstructed, FRAMES, n_columns=n_dims, finite=False)
         if reconstructed.shape[0] != n_frames:
             raise WorkbenchError(f"reconstructed has {reconstructed.shape[0]} frames, but captured has {n_frames}")
     if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, (int, np.integer)) or chunk_frames < 1:
@@ -251,7 +237,7 @@ def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, positio
         absolute_pooled=float(100.0 * np.sqrt(error_sq.sum() / position_sq.sum())),
         displacement_mean=float(np.nanmean(displacement)) if n_undefined < len(displacement) else float("nan"),
         displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
-        rms_mm=float(np.sqrt(error_sq.sum() / n_compared_points)),
+        rms_mm=float(rms_error(error_sq.sum(), n_compared_points)),
         n_undefined_displacement_frames=n_undefined,
         error_sq=error_sq, displacement_sq=displacement_sq, position_sq=position_sq,
     )
@@ -306,7 +292,8 @@ def intuitiveness(hand: np.ndarray, quasi_eigen: np.ndarray) -> tuple[np.ndarray
     cosine : ndarray of shape (n_shapes,)
         ``e_i^QE . e_i^H / (|e_i^QE| |e_i^H|)`` (1 = same direction).
     """
-    hand, quasi_eigen = _check_frames("hand", hand), _check_frames("quasi_eigen", quasi_eigen)
+    hand = check_matrix("hand", hand, FRAMES, finite=False)
+    quasi_eigen = check_matrix("quasi_eigen", quasi_eigen, FRAMES, finite=False)
     if quasi_eigen.shape != hand.shape:
         raise WorkbenchError(f"quasi_eigen has shape {quasi_eigen.shape}, but hand has {hand.shape}; one quasi-eigen "
                              "face per hand shape")
@@ -426,19 +413,21 @@ def error_distribution(per_frame: np.ndarray) -> ErrorDistribution:
                              max=float(values.max()), quantiles=quantiles)
 
 
-def frame_rms_error(error_sq: np.ndarray, n_points) -> np.ndarray:
-    """Per-frame RMS 3-D point error, ``sqrt(|v* - v|^2 / n_points)``, in data units (millimetres).
+def rms_error(error_sq, n_points) -> np.ndarray:
+    """RMS 3-D point error, ``sqrt(|v* - v|^2 / n_points)``, in data units (millimetres): per frame, or pooled
+    over frames when given the sums. The one home of the RMS error (:func:`rms_point_error`,
+    :attr:`AlphaSummary.rms_mm`, the per-frame errors of a run and of the report's figures).
 
     Parameters
     ----------
-    error_sq : ndarray of shape (n_frames,)
-        Squared error of each frame summed over its compared points.
+    error_sq : float or ndarray of shape (n_frames,)
+        Squared error summed over the compared points (of each frame, or of all frames).
     n_points : int or ndarray of shape (n_frames,)
-        Points compared in each frame (fewer under capture gaps); a frame with none gets NaN.
+        Points compared (in each frame: fewer under capture gaps); none gives NaN.
 
     Returns
     -------
-    ndarray of shape (n_frames,)
+    ndarray of the shape of ``error_sq``
     """
     n_points = np.broadcast_to(np.asarray(n_points, dtype=float), np.shape(error_sq))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -592,7 +581,7 @@ def weight_statistics(weights: np.ndarray, seconds: np.ndarray, takes=None, *,
     -------
     WeightStatistics
     """
-    weights = _check_frames("weights", weights)
+    weights = check_matrix("weights", weights, FRAMES, finite=False)
     if np.shape(seconds) != (len(weights),):
         raise WorkbenchError(f"seconds must give the time of each of the {len(weights)} frames, got shape "
                              f"{np.shape(seconds)}")

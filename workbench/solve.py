@@ -75,6 +75,7 @@ from workbench.bounded import (ADMM_RELAX, ADMM_RHO, admm, frames_of, largest_en
                                times)
 from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL, Tolerances
+from workbench.validation import SOLVER, check_matrix
 
 KINDS = ("lstsq", "nnls", "box")
 
@@ -181,8 +182,8 @@ def solve_weights(
     """
     if visible is not None:
         return _solve_masked(basis, targets, visible, kind=kind, lower=lower, upper=upper, tol=tol)
-    basis = _as_matrix("basis", basis)
-    targets = _as_matrix("targets", targets)
+    basis = check_matrix("basis", basis, SOLVER)
+    targets = check_matrix("targets", targets, SOLVER)
     _check_columns(basis, targets)
     reduction = reduce_basis(basis)
     both = targets @ np.hstack([reduction.u, basis.T])  # one pass over the targets for both products
@@ -226,7 +227,7 @@ def reduce_basis(basis) -> BasisReduction:
     -------
     BasisReduction
     """
-    basis = _as_matrix("basis", basis)
+    basis = check_matrix("basis", basis, SOLVER)
     u, singular, vt = np.linalg.svd(basis.T, full_matrices=False)
     return BasisReduction(basis=basis, u=u, singular=singular, vt=vt)
 
@@ -249,7 +250,7 @@ def solve_projected(reduction: BasisReduction, projected, *, kind: str = "lstsq"
     -------
     WeightSolution
     """
-    projected = _as_matrix("projected", projected)
+    projected = check_matrix("projected", projected, SOLVER)
     if projected.shape[1] != reduction.u.shape[1]:
         raise WorkbenchError(f"projected has {projected.shape[1]} columns but the basis reduction has "
                              f"{reduction.u.shape[1]}")
@@ -299,8 +300,8 @@ def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> Weight
     ``G_f = B M_f B^T``, every frame with the ridge ``tol.gram_ridge * s_max^2`` (a masked frame's gram can be
     singular even when the basis is not).
     """
-    basis = _as_matrix("basis", basis)
-    targets = _as_matrix("targets", targets, allow_nan=True)
+    basis = check_matrix("basis", basis, SOLVER)
+    targets = check_matrix("targets", targets, SOLVER, finite=False)
     _check_columns(basis, targets)
     kind = _check_kind(kind)
     lo, hi, lower_out, upper_out = _bounds(kind, lower, upper, basis.shape[0])
@@ -393,8 +394,8 @@ def reconstruct(basis, weights) -> np.ndarray:
     -------
     ndarray of shape (n_frames, n_dims)
     """
-    basis = _as_matrix("basis", basis)
-    weights = _as_matrix("weights", weights)
+    basis = check_matrix("basis", basis, SOLVER)
+    weights = check_matrix("weights", weights, SOLVER)
     if weights.shape[1] != basis.shape[0]:
         raise WorkbenchError(
             f"weights has {weights.shape[1]} columns but basis has {basis.shape[0]} rows (n_shapes)"
@@ -460,22 +461,6 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------------
 # Input checks
 # ----------------------------------------------------------------------------------------------------------
-
-
-def _as_matrix(name: str, value, allow_nan: bool = False) -> np.ndarray:
-    """``value`` as a finite (NaN allowed with ``allow_nan``), non-empty 2D float array, or a WorkbenchError
-    naming ``name``."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise WorkbenchError(f"{name} must be a numeric array ({exc})") from None
-    if array.ndim != 2:
-        raise WorkbenchError(f"{name} must be 2-dimensional, got shape {array.shape}")
-    if array.size == 0:
-        raise WorkbenchError(f"{name} must not be empty, got shape {array.shape}")
-    if not allow_nan and not np.isfinite(array).all():
-        raise WorkbenchError(f"{name} must be finite, found {np.count_nonzero(~np.isfinite(array))} NaN/Inf")
-    return array
 
 
 def _check_columns(basis: np.ndarray, targets: np.ndarray) -> None:

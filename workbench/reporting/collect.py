@@ -13,7 +13,7 @@ come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, 
   per-seed ratio with its 95 % interval and the verdict it allows (``<``, ``>`` or not distinguishable);
 - ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``geometric mean [95 % interval]`` with conditions as
   rows and bases as columns;
-- ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.findings.sweep_findings`).
+- ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.sweep_findings.sweep_findings`).
 
 The parquet copies need pyarrow (the parquet extra); without it they are left out, said in one line with
 ``--verbose`` only (the CSV files hold the same tables).
@@ -200,7 +200,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.findings import replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_findings import replicate_caveat, sweep_statements
 
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)

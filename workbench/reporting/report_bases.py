@@ -102,7 +102,7 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     shown = summary[["data", "basis", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
                                                            if several else []), *INTUITIVENESS_COLUMNS]]
     shown.insert(2, "n", range_column(summary, "n"))
-    from workbench.reporting.findings import bases_findings
+    from workbench.reporting.sweep_findings import bases_findings
 
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons

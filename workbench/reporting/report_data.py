@@ -85,12 +85,12 @@ def frame_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.nda
     dict
         ``absolute``, ``displacement``, ``rms`` : ndarray of shape (n_frames,).
     """
-    from workbench.metrics import alpha_per_frame
+    from workbench.metrics import alpha_per_frame, rms_error
 
     squared = (captured - reconstructed) ** 2
     return {"absolute": alpha_per_frame(neutral + captured, neutral + reconstructed),
             "displacement": alpha_per_frame(captured, reconstructed),
-            "rms": np.sqrt(squared.reshape(len(squared), -1, 3).sum(axis=2).mean(axis=1))}
+            "rms": rms_error(squared.reshape(len(squared), -1, 3).sum(axis=2).sum(axis=1), squared.shape[1] // 3)}
 
 
 def dataset_label(record: RunRecord) -> str:

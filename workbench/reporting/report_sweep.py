@@ -124,7 +124,7 @@ def _natural(text: str):
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
                    comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
                    command: str) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_findings import replicate_caveat, sweep_statements
 
     first = records[0]
     column = headline_column(first.config)

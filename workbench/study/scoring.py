@@ -11,9 +11,8 @@ import numpy as np
 from workbench.bases import Eigenfaces
 from workbench.dataset.capture import Capture
 from workbench.frames import frame_chunks
-from workbench.metrics import (AlphaSummary, basis_conditioning, error_distribution, frame_rms_error,
-                               needs_negative_share, reference_squares, summarise_alpha, summarise_squares,
-                               weight_statistics)
+from workbench.metrics import (AlphaSummary, basis_conditioning, error_distribution, needs_negative_share,
+                               reference_squares, rms_error, summarise_alpha, summarise_squares, weight_statistics)
 from workbench.reduced import FrameProjections, Subspace, project_frames
 from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.study.results import QE_LABELS, Row, Timings
@@ -270,7 +269,7 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
     for row in rows:
         key = (row.basis, row.solver)
         error_sq = explicit.get(key, row.alpha.error_sq if region.points is None else None)
-        per_frame = frame_rms_error(error_sq, counts) if error_sq is not None else None
+        per_frame = rms_error(error_sq, counts) if error_sq is not None else None
         statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
         measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
                                 error_mm=error_distribution(per_frame) if per_frame is not None else None))

@@ -217,16 +217,7 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     axes = grid.ravel()[:len(panel_values)]
     for unused in grid.ravel()[len(panel_values):]:
         unused.set_visible(False)
-    categories = None
-    if not pd.api.types.is_numeric_dtype(rows[x]) or pd.api.types.is_bool_dtype(rows[x]):
-        # A categorical setting (e.g. basis.hand_subset=all|upper|lower): positions in order of appearance.
-        categories = list(dict.fromkeys(rows[x].astype(str)))
-        rows = rows.assign(**{x: rows[x].astype(str).map({c: i for i, c in enumerate(categories)})})
-    seeds = None
-    if points is not None:
-        seeds = _solver_rows(points, solver)
-        if categories is not None:
-            seeds = seeds.assign(**{x: seeds[x].astype(str).map({c: i for i, c in enumerate(categories)})})
+    rows, seeds, categories = _positions(rows, points, x, solver)
     groups = list(rows.groupby(list(by), sort=False, dropna=False)) if by else [((), rows)]
     def in_panel(frame: pd.DataFrame, panel: tuple) -> pd.Series:
         return (frame[panels].astype(str) == pd.Series(panel, index=panels)).all(axis=1)
@@ -239,38 +230,14 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
             part = group[in_panel(group, panel)]
             for b, basis in enumerate(_ordered_bases(part["basis"])):
                 line = part[part["basis"] == basis].sort_values(x, kind="stable")
-                colour = basis_colour(basis)
                 label = f"{basis} ({setting})" if setting else basis_label(basis)
-                has_ci = ci is not None and line[list(ci)].notna().all(axis=None)
-                if line[x].duplicated().any():
-                    # Several settings share an x (e.g. hand subsets 'lower' and 'random12', both 12 shapes):
-                    # points with error bars, never a line zigzagging between them.
-                    errors = np.vstack([line[y] - line[ci[0]], line[ci[1]] - line[y]]) if has_ci else None
-                    dodge = span * 0.012 * (b - 1.5 + 4 * k)
-                    ax.errorbar(line[x] + dodge, line[y], yerr=errors, color=colour, marker=MARKERS[k % len(MARKERS)],
-                                markersize=5, linestyle="none", capsize=3, label=label)
-                    continue
-                ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
-                        linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
+                mine = None
                 if seeds is not None:
                     mine = seeds[in_panel(seeds, panel) & (seeds["basis"] == basis)]
                     for key, value in zip(by, values):
                         mine = mine[mine[key].astype(str) == str(value)]
-                    ax.scatter(mine[x], mine[y], s=9, color=colour, alpha=0.45, linewidths=0, zorder=3)
-                if has_ci:
-                    ax.fill_between(line[x], line[ci[0]], line[ci[1]], color=colour, alpha=0.15, linewidth=0)
-                elif ci is not None and line[list(ci)].notna().any(axis=None):
-                    # some points lack an interval (one run kept that m): error bars where there is one
-                    known = line.dropna(subset=list(ci))
-                    ax.errorbar(known[x], known[y], yerr=np.vstack([known[y] - known[ci[0]], known[ci[1]] - known[y]]),
-                                color=colour, linestyle="none", capsize=3, alpha=0.6)
-        if categories is not None:
-            ax.set_xticks(range(len(categories)), categories)
-        ax.set_xlabel(axis_label(x))
-        ax.set_title(", ".join(f"{key.split('.')[-1]}: {value}" for key, value in zip(panels, panel)), fontsize=10)
-        ax.grid(alpha=0.3)
-        if log_x:
-            ax.set_xscale("log")
+                _draw_basis(ax, line, x, y, ci, basis_colour(basis), label, k, span * 0.012 * (b - 1.5 + 4 * k), mine)
+        _label_panel(ax, x, categories, panels, panel, log_x)
     for row in grid:
         row[0].set_ylabel(axis_label(y))
     drawn = ci is not None and rows[list(ci)].notna().any(axis=None)
@@ -281,6 +248,61 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     figure.legend(handles, labels, loc="outside lower center", ncols=columns, fontsize=8, frameon=False)
     figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", width), fontsize=11)
     return figure
+
+
+def _positions(rows: pd.DataFrame, points: pd.DataFrame | None, x: str,
+               solver: str) -> tuple[pd.DataFrame, pd.DataFrame | None, list[str] | None]:
+    """The rows and every seed's points (``points`` of ``solver``, or None) with a categorical ``x`` (a text or
+    boolean setting, e.g. basis.hand_subset=all|upper|lower) replaced by its positions in order of appearance,
+    and those categories (None for a numeric ``x``)."""
+    categories = None
+    if not pd.api.types.is_numeric_dtype(rows[x]) or pd.api.types.is_bool_dtype(rows[x]):
+        categories = list(dict.fromkeys(rows[x].astype(str)))
+        rows = rows.assign(**{x: rows[x].astype(str).map({c: i for i, c in enumerate(categories)})})
+    seeds = None
+    if points is not None:
+        seeds = _solver_rows(points, solver)
+        if categories is not None:
+            seeds = seeds.assign(**{x: seeds[x].astype(str).map({c: i for i, c in enumerate(categories)})})
+    return rows, seeds, categories
+
+
+def _label_panel(ax, x: str, categories: list[str] | None, panels: Sequence[str], panel: tuple,
+                 log_x: bool) -> None:
+    """The x axis (categories as ticks, log scale), title and grid of one panel of :func:`plot_alpha_against`."""
+    if categories is not None:
+        ax.set_xticks(range(len(categories)), categories)
+    ax.set_xlabel(axis_label(x))
+    ax.set_title(", ".join(f"{key.split('.')[-1]}: {value}" for key, value in zip(panels, panel)), fontsize=10)
+    ax.grid(alpha=0.3)
+    if log_x:
+        ax.set_xscale("log")
+
+
+def _draw_basis(ax, line: pd.DataFrame, x: str, y: str, ci, colour, label: str, k: int, dodge: float,
+                seeds: pd.DataFrame | None) -> None:
+    """One basis's line of :func:`plot_alpha_against` in one setting ``k`` of the grid: the line, every seed's
+    point (``seeds``), and the interval as a band (error bars where only some points have one); points with
+    error bars, shifted by ``dodge``, where several settings share an x."""
+    has_ci = ci is not None and line[list(ci)].notna().all(axis=None)
+    if line[x].duplicated().any():
+        # Several settings share an x (e.g. hand subsets 'lower' and 'random12', both 12 shapes):
+        # points with error bars, never a line zigzagging between them.
+        errors = np.vstack([line[y] - line[ci[0]], line[ci[1]] - line[y]]) if has_ci else None
+        ax.errorbar(line[x] + dodge, line[y], yerr=errors, color=colour, marker=MARKERS[k % len(MARKERS)],
+                    markersize=5, linestyle="none", capsize=3, label=label)
+        return
+    ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
+            linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
+    if seeds is not None:
+        ax.scatter(seeds[x], seeds[y], s=9, color=colour, alpha=0.45, linewidths=0, zorder=3)
+    if has_ci:
+        ax.fill_between(line[x], line[ci[0]], line[ci[1]], color=colour, alpha=0.15, linewidth=0)
+    elif ci is not None and line[list(ci)].notna().any(axis=None):
+        # some points lack an interval (one run kept that m): error bars where there is one
+        known = line.dropna(subset=list(ci))
+        ax.errorbar(known[x], known[y], yerr=np.vstack([known[y] - known[ci[0]], known[ci[1]] - known[y]]),
+                    color=colour, linestyle="none", capsize=3, alpha=0.6)
 
 
 def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"), *,
