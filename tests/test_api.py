@@ -201,12 +201,17 @@ COLUMNS = {"alpha_abs_mean": ("absolute", "mean"), "alpha_abs_pooled": ("absolut
 def check_estimator_against_record(record, captures):
     """Every alpha of every row of the record (H, QE, QE-linear and PCA; every solver; every variant) from
     estimators fitted on the capture's arrays, to 1e-12."""
+    from workbench.study.regime import paper_regime_name
+
     checked = 0
-    for data, capture in captures.items():
+    variants = [(data, capture, None) for data, capture in captures.items()]
+    variants += [(paper_regime_name(data), capture, len(capture.hand)) for data, capture in captures.items()
+                 if paper_regime_name(data) in record.metrics["data"]]  # the paper's regime: m = n
+    for data, capture, n_components in variants:
         rows = [row for row in record.metrics["rows"] if row["data"] == data]
         for through, label in (("mean", "QE"), ("neutral", "QE-linear")):
-            estimator = QuasiEigenFaces(through=through).fit(capture.train, capture.hand, neutral=capture.neutral,
-                                                             names=capture.hand_names)
+            estimator = QuasiEigenFaces(through=through, n_components=n_components).fit(
+                capture.train, capture.hand, neutral=capture.neutral, names=capture.hand_names)
             for row in (row for row in rows if row["basis"] in (label, "H", "PCA")):
                 basis = "QE" if row["basis"] == label else row["basis"]
                 solver = None if basis == "PCA" else row["solver"]
@@ -226,14 +231,16 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
     captures = workbench.build_captures(config)
-    assert check_estimator_against_record(record, captures) == 4 * 2 * (3 + 3 + 1)
+    # markers at the coverage rule's m and markers m=n (the paper's regime), 4 alpha variants, 2 projections
+    assert check_estimator_against_record(record, captures) == 2 * 4 * 2 * (3 + 3 + 1)
     # a folder holding the complete record of the same config is not run again; the dataset group alone builds too
     assert workbench.record_study(config, tmp_path / "run", overrides=overrides).metrics == record.metrics
     assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
     estimator = QuasiEigenFaces(solver="nnls").fit(capture.train, capture.hand, neutral=capture.neutral)
-    row = next(row for row in record.metrics["rows"] if row["basis"] == "QE" and row["solver"] == "nnls")
+    row = next(row for row in record.metrics["rows"]
+               if row["data"] == "markers" and row["basis"] == "QE" and row["solver"] == "nnls")
     assert estimator.alpha(capture.eval) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-12)
     # and from the weights, reconstructed explicitly
     reconstruction = estimator.inverse_transform(estimator.transform(capture.eval))
@@ -241,7 +248,8 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert np.mean(explicit) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-10)
     # the same study in memory, from the record's resolved config
     results = workbench.run_study(record.config)
-    qe = next(r for r in results[0].rows if r.basis == "QE" and r.solver == "nnls")
+    markers = next(result for result in results if result.data == "markers")
+    qe = next(r for r in markers.rows if r.basis == "QE" and r.solver == "nnls")
     assert qe.alpha.absolute_mean == row["alpha_abs_mean"]
 
 
@@ -251,7 +259,8 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_a_real_take(shared_data, tmp_
     config = workbench.compose_config("paper", overrides)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.metrics["dataset"]["provenance"]["kind"] == "animface"
-    assert check_estimator_against_record(record, workbench.build_captures(config)) == 4 * 2 * (3 + 3 + 1)
+    # markers at the coverage rule's m and at the paper's regime m = n: every alpha of every row, to 1e-12
+    assert check_estimator_against_record(record, workbench.build_captures(config)) == 2 * 4 * 2 * (3 + 3 + 1)
 
 
 def test_the_readers_read_the_shared_takes(shared_data):
