@@ -378,7 +378,7 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
 
 
 def test_identities_of_the_solvers_and_of_eckart_young():
-    from workbench.reporting.identities import identity_lookup, run_identities
+    from workbench.identities import identity_lookup, run_identities
 
     rows = [{"basis": basis, "solver": solver, "n": 18 if basis != "PCA" else 20}
             for basis in ("H", "QE") for solver in ("lstsq", "nnls", "box")] + [

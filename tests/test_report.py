@@ -94,7 +94,7 @@ def test_headline_exact_text():
 
 
 def test_headline_states_identities_and_never_tests_them():
-    from workbench.reporting.identities import Identity
+    from workbench.identities import Identity
 
     table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
     comparisons = {"markers": [

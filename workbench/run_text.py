@@ -281,13 +281,13 @@ def conditioning_lines(rows: Sequence) -> list[str]:
 
 def result_identities(results: Sequence) -> dict:
     """Data variant -> the orderings its rows hold by construction
-    (:func:`workbench.reporting.identities.run_identities`), from the results as ``metrics.json`` would keep them.
+    (:func:`workbench.identities.run_identities`), from the results as ``metrics.json`` would keep them.
 
     Parameters
     ----------
     results : sequence of workbench.study.results.StudyResult
     """
-    from workbench.reporting.identities import run_identities
+    from workbench.identities import run_identities
 
     found = {}
     for result in results:
@@ -349,7 +349,7 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
                 lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
                              + f", PCA {pca:.2f}")
                 continue
-            from workbench.reporting.identities import identity_lookup
+            from workbench.identities import identity_lookup
             from workbench.statistics import comparison_lookup, ordering_text
 
             values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},

@@ -19,7 +19,7 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.reporting.identities import identity_lookup, run_identities, scored_on_training_frames
+from workbench.identities import identity_lookup, run_identities, scored_on_training_frames
 from workbench.statistics import (SIGNED, Interval, comparison_lookup, comparison_name, holm_adjusted,
                                   short_interval_text)
 from workbench.statistics import ordering_text as stated_ordering
@@ -64,8 +64,8 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
         ``compare((basis, solver), (basis, solver))`` -> the :class:`Interval` of the difference, or None.
     bases : sequence of str
     identity : callable, optional
-        ``identity(a, b)`` -> the :class:`workbench.reporting.identities.Identity` saying ``a <= b`` by
-        construction, or None (:func:`workbench.reporting.identities.identity_lookup`).
+        ``identity(a, b)`` -> the :class:`workbench.identities.Identity` saying ``a <= b`` by
+        construction, or None (:func:`workbench.identities.identity_lookup`).
     """
     values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
               for basis in bases}
