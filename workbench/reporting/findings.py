@@ -380,8 +380,10 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
                          f"{ratio_text(part, paper.get('alpha', {}), column=column)}; {m_text(part, paper)}.")
             continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
+        lead = detailed is None or data == detailed
+        shown = solvers if lead or "lstsq" not in solvers else ["lstsq"]  # the others' are in the tables
         ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
-                             for solver in solvers)
+                             for solver in shown)
         claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
         lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
         error = error_text(part, solvers[0], facts) if solvers else ""
@@ -391,18 +393,15 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
                 text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {})
                 if text:
                     lines.append(f"**{data}**: {text}.")
-            if error:
-                lines.append(f"**{data}**: {error}.")
-            continue
+            continue  # its error in mm: the table 'Training frames and held-out frames'
+
         if "lstsq" in solvers:
             ratios = ratio_text(part, paper.get("alpha", {}), column=column)
             if ratios:
                 lines.append(f"**{data}**: {ratios}.")
-        lines.append(f"**{data}**: {m_text(part, paper)}.")
-        if detailed is not None and data != detailed:  # the lead variant's details stand for the others'
-            if error:
-                lines.append(f"**{data}**: {error}.")
+        if not lead:  # the lead variant's details stand for the others' (m: table 'Run facts'; mm: the tables)
             continue
+        lines.append(f"**{data}**: {m_text(part, paper)}.")
         lines += _detail_lines(data, part, column, solvers, compare, facts, rows, error,
                                intuitiveness.get(data, []))
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
