@@ -92,9 +92,6 @@ def test_findings_of_a_known_table():
         " of frames have a negative weight, alpha x1.10 against QE's x6.00. So negative weights alone do not "
         "explain the loss; the offset does in part: the constraint can no longer hold the weights' sum where "
         'the offset needs it.',
-        "**mesh**: with box [0, 1] weights QE's alpha x4.00 (0.25 to 1), QE-linear's alpha x2.30 (0.5 to "
-        "1.15), H's x1.20; QE is better than H (QE - H -0.2 [-0.3, -0.1]), QE-linear is better than H (QE-"
-        'linear - H -0.05 [-0.09, -0.01]).',
         '**mesh**: the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer'
         " sparsity, roughness in 1/s^4; table 'Error in millimetres and the weights'), lstsq: H 1.6, 90 %, "
         '0.30, 50; QE 33.6, 100 %, 0.35, 2.5e+04; QE-linear 31.8, 100 %, 0.31, 2.3e+04.',

@@ -75,9 +75,9 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
 
 
 def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq",
-               column: str = "alpha_abs_mean") -> str:
-    """H/QE and QE/PCA of one data variant in the headline column beside the paper's, and how far the four alpha
-    variants move H/QE (every variant's value is in the table 'Alpha beside the paper')."""
+               column: str = "alpha_abs_mean", spread: bool = True) -> str:
+    """H/QE and QE/PCA of one data variant in the headline column beside the paper's, and (with ``spread``) how far
+    the four alpha variants move H/QE (every variant's value is in the table 'Alpha beside the paper')."""
     columns = [name for name in ALPHA_VARIANTS if name in part.columns]
     if column not in columns:
         return ""
@@ -92,7 +92,7 @@ def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str
         return ""
     ratios = [_alpha(part, "H", solver, name) / _alpha(part, "QE", solver, name) for name in columns]
     spread = (f"; over the {len(columns)} alpha variants H/QE runs from {min(ratios):.3g} to {max(ratios):.3g}, so "
-              "no one ratio compares across datasets" if len(columns) > 1 and all(map(math.isfinite, ratios))
+              "no one ratio compares across datasets" if spread and len(columns) > 1 and all(map(math.isfinite, ratios))
               else "")
     return f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + spread
 
@@ -377,7 +377,7 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
         if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
             lines.append(f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
-                         f"{ratio_text(part, paper.get('alpha', {}), column=column)}; {m_text(part, paper)}.")
+                         f"{ratio_text(part, paper.get('alpha', {}), column=column, spread=False)}; {m_text(part, paper)}.")
             continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         lead = detailed is None or data == detailed
@@ -396,12 +396,13 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
             continue  # its error in mm: the table 'Training frames and held-out frames'
 
         if "lstsq" in solvers:
-            ratios = ratio_text(part, paper.get("alpha", {}), column=column)
+            ratios = ratio_text(part, paper.get("alpha", {}), column=column, spread=lead)
             if ratios:
                 lines.append(f"**{data}**: {ratios}.")
         if not lead:  # the lead variant's details stand for the others' (m: table 'Run facts'; mm: the tables)
             continue
-        lines.append(f"**{data}**: {m_text(part, paper)}.")
+        if not is_paper_regime(data):  # at m = n by construction
+            lines.append(f"**{data}**: {m_text(part, paper)}.")
         lines += _detail_lines(data, part, column, solvers, compare, facts, rows, error,
                                intuitiveness.get(data, []))
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
@@ -413,7 +414,8 @@ def _detail_lines(data: str, part: pd.DataFrame, column: str, solvers: Sequence[
     """The findings said for the lead data variant only: what the constrained solvers do and why, the weights,
     the error and the shapes the projection changes most (see :func:`run_findings`)."""
     lines = []
-    constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers]
+    # the first constrained solver (nnls) said; the others' alpha is in the table 'Alpha beside the paper'
+    constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers][:1]
     for k, solver in enumerate(constrained):
         lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
         why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
