@@ -128,7 +128,7 @@ def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
     runs = sorted(path.name for path in sweep_dir.iterdir() if path.is_dir())
     assert runs == ["dataset.n_frames=400,dataset.seed=0,solver=lstsq", "dataset.n_frames=400,dataset.seed=1,solver=lstsq"]
     log = (sweep_dir / runs[0] / "workbench.log").read_text()
-    assert log.startswith(f"done {sweep_dir / runs[0]}: alpha_abs_mean with lstsq: ")
+    assert log.startswith(f"done {sweep_dir / runs[0]}: markers m=n: alpha_abs_mean with lstsq: ")  # paper regime first
     assert log.splitlines()[0] in first.stdout
 
     done_times = [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs]
