@@ -25,7 +25,7 @@ from workbench.record import DONE, is_record_file
 def record(tmp_path_factory):
     folder = tmp_path_factory.mktemp("records") / "sweep" / "run"
     cfg = compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq",
-                            "save_inputs=true"])
+                            "save_inputs=true", "basis.paper_regime=false"])  # one data variant: inputs.npz
     run(cfg, folder)
     return folder
 
