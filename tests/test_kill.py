@@ -32,7 +32,7 @@ from workbench.config import REPO_ROOT
 from workbench.files import TEMPORARY_SUFFIX, sha256_of_file as file_checksum
 from workbench.tracking import DONE, LOCK_FILE, record_state
 
-RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true"]
+RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true", "basis.paper_regime=false"]  # one inputs.npz
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=300", "dataset.seed=0", "basis.coverage=0.9,0.99",
          "save_inputs=true"]
 PARALLEL = 2
