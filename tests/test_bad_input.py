@@ -29,7 +29,8 @@ from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.livelink import ARKIT_NAMES, read_livelink_csv
 from workbench.dataset.meshes import load_blendshapes, read_obj
 from workbench.errors import WorkbenchError
-from workbench.metrics import alpha_per_frame, intuitiveness, rms_point_error, summarise_alpha
+from workbench.intuitiveness import intuitiveness
+from workbench.metrics import alpha_per_frame, rms_point_error, summarise_alpha
 from workbench.solve import kkt_violation, solve_weights
 
 # ----------------------------------------------------------------------------------------------------------

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from workbench.errors import WorkbenchError
-from workbench.metrics import alpha_per_frame, alpha_pooled, intuitiveness, rms_point_error, summarise_alpha
+from workbench.intuitiveness import intuitiveness
+from workbench.metrics import alpha_per_frame, alpha_pooled, rms_point_error, summarise_alpha
 
 
 def test_perfect_reconstruction_has_zero_alpha():

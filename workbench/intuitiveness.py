@@ -1,5 +1,6 @@
-"""Intuitiveness of any basis, measured rather than asserted: how close its elements stay to the hand shapes, how
-local each element is on the face, and how many elements a typical frame uses.
+"""Intuitiveness, the one home of it: how far each quasi-eigen face moved from its hand shape
+(:func:`intuitiveness`), and for any basis, measured rather than asserted, how close its elements stay to the hand
+shapes, how local each element is on the face, and how many elements a typical frame uses.
 
 Pure numerical code: arrays in, arrays out. Shapes are rows of arrays of shape ``(n_elements, 3 * n_points)``.
 """
@@ -9,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.errors import WorkbenchError
+from workbench.validation import FRAMES, check_matrix
 
 LOCALITY_ENERGY = 0.9
 """Locality is the fraction of the face's area that holds this fraction of an element's squared displacement."""
@@ -131,3 +133,35 @@ def usage(weights: np.ndarray, basis: np.ndarray, threshold: float = USAGE_THRES
     contribution = np.abs(np.asarray(weights, dtype=np.float64)) * np.linalg.norm(basis, axis=1)
     largest = contribution.max(axis=1, keepdims=True)
     return np.where(largest[:, 0] > 0, (contribution > threshold * largest).sum(axis=1), 0)
+
+
+def intuitiveness(hand: np.ndarray, quasi_eigen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each quasi-eigen face moved from its hand shape.
+
+    Parameters
+    ----------
+    hand : ndarray of shape (n_shapes, n_dims)
+        Hand-made shapes ``e_i^H`` (displacements).
+    quasi_eigen : ndarray of shape (n_shapes, n_dims)
+        Their quasi-eigen faces ``e_i^QE``, in the same order.
+
+    Returns
+    -------
+    relative_distance : ndarray of shape (n_shapes,)
+        ``|e_i^QE - e_i^H| / |e_i^H|`` (0 = unchanged).
+    cosine : ndarray of shape (n_shapes,)
+        ``e_i^QE . e_i^H / (|e_i^QE| |e_i^H|)`` (1 = same direction).
+    """
+    hand = check_matrix("hand", hand, FRAMES, finite=False)
+    quasi_eigen = check_matrix("quasi_eigen", quasi_eigen, FRAMES, finite=False)
+    if quasi_eigen.shape != hand.shape:
+        raise WorkbenchError(f"quasi_eigen has shape {quasi_eigen.shape}, but hand has {hand.shape}; one quasi-eigen "
+                             "face per hand shape")
+    hand_norm = np.linalg.norm(hand, axis=1)
+    if not np.all(hand_norm > 0):
+        raise WorkbenchError(f"hand shape(s) {np.flatnonzero(~(hand_norm > 0)).tolist()} are all zero or not finite; "
+                             "their distance to a quasi-eigen face is undefined")
+    qe_norm = np.linalg.norm(quasi_eigen, axis=1)
+    relative_distance = np.linalg.norm(quasi_eigen - hand, axis=1) / hand_norm
+    cosine = np.einsum("ij,ij->i", hand, quasi_eigen) / (hand_norm * qe_norm)
+    return relative_distance, cosine

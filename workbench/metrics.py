@@ -275,38 +275,6 @@ def _alpha_from_squares(error_sq: np.ndarray, reference_sq: np.ndarray, tol: Tol
         return np.where(defined, 100.0 * np.sqrt(error_sq / reference_sq), np.nan)
 
 
-def intuitiveness(hand: np.ndarray, quasi_eigen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far each quasi-eigen face moved from its hand shape.
-
-    Parameters
-    ----------
-    hand : ndarray of shape (n_shapes, n_dims)
-        Hand-made shapes ``e_i^H`` (displacements).
-    quasi_eigen : ndarray of shape (n_shapes, n_dims)
-        Their quasi-eigen faces ``e_i^QE``, in the same order.
-
-    Returns
-    -------
-    relative_distance : ndarray of shape (n_shapes,)
-        ``|e_i^QE - e_i^H| / |e_i^H|`` (0 = unchanged).
-    cosine : ndarray of shape (n_shapes,)
-        ``e_i^QE . e_i^H / (|e_i^QE| |e_i^H|)`` (1 = same direction).
-    """
-    hand = check_matrix("hand", hand, FRAMES, finite=False)
-    quasi_eigen = check_matrix("quasi_eigen", quasi_eigen, FRAMES, finite=False)
-    if quasi_eigen.shape != hand.shape:
-        raise WorkbenchError(f"quasi_eigen has shape {quasi_eigen.shape}, but hand has {hand.shape}; one quasi-eigen "
-                             "face per hand shape")
-    hand_norm = np.linalg.norm(hand, axis=1)
-    if not np.all(hand_norm > 0):
-        raise WorkbenchError(f"hand shape(s) {np.flatnonzero(~(hand_norm > 0)).tolist()} are all zero or not finite; "
-                             "their distance to a quasi-eigen face is undefined")
-    qe_norm = np.linalg.norm(quasi_eigen, axis=1)
-    relative_distance = np.linalg.norm(quasi_eigen - hand, axis=1) / hand_norm
-    cosine = np.einsum("ij,ij->i", hand, quasi_eigen) / (hand_norm * qe_norm)
-    return relative_distance, cosine
-
-
 @dataclass(frozen=True)
 class Conditioning:
     """How well a basis determines its weights (eq. 5): ill-conditioned bases give wild, unstable weights.

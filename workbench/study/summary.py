@@ -9,7 +9,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.real import bool_setting
-from workbench.metrics import intuitiveness
+from workbench.intuitiveness import intuitiveness
 from workbench.statistics import paired_mean_difference, paired_pooled_difference
 from workbench.study.results import StudyResult
 
