@@ -283,8 +283,8 @@ def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_sav
     assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
     readme = (tmp_path / "reports" / "paper" / "README.md").read_text()
     # a run on markers only has no mesh variant: the mesh figures stay listed, saying what they need
-    assert "**Figure 2: hand shapes beside their quasi-eigen faces**: not drawn (needs the frames of a mesh data "
-            "variant" in readme
+    assert ("**Figure 2: hand shapes beside their quasi-eigen faces**: not drawn (needs the frames of a mesh data "
+            "variant") in readme
     assert "**Alpha per frame over time**: not drawn" not in readme and "could not be read again" not in readme
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
     # what the record holds is drawn from metrics.json; the rest from the inputs rebuilt from its config
