@@ -210,11 +210,19 @@ def paper_table(shared_data, tmp_path, *overrides):
     return text, pd.read_csv(tmp_path / "alpha_table.csv"), json.loads((tmp_path / "metrics.json").read_text())
 
 
+def assert_paper_regime_has_m_equal_n(table):
+    """Every row of an 'm=n' variant fits as many eigenfaces as there are hand shapes."""
+    regime = table[table["data"].str.endswith(" m=n")]
+    hand = regime[regime["basis"] == "H"]
+    assert len(regime) and (regime["m"] == hand["n"].iloc[0]).all()
+
+
 def test_paper_study_on_ict_livelink(shared_data, tmp_path):
     text, table, metrics = paper_table(shared_data, tmp_path, "dataset=ict_livelink", "dataset.frame_step=20",
                                        "dataset.mesh_vertex_step=4")
-    assert list(table["data"].unique()) == ["mesh", "markers"]
+    assert list(table["data"].unique()) == ["mesh m=n", "mesh", "markers m=n", "markers"]  # the paper's m = n first
     assert {"H", "QE", "QE-linear", "PCA"} == set(table["basis"])
+    assert_paper_regime_has_m_equal_n(table)
     rows = table.set_index(["data", "basis", "solver"])
     for data in ("mesh", "markers"):
         assert rows.loc[(data, "QE", "lstsq"), "alpha_abs_mean"] < rows.loc[(data, "H", "lstsq"), "alpha_abs_mean"]
@@ -225,8 +233,9 @@ def test_paper_study_on_ict_livelink(shared_data, tmp_path):
 def test_paper_study_on_animface_trains_on_markers_and_mesh(shared_data, tmp_path):
     text, table, metrics = paper_table(shared_data, tmp_path, "dataset=animface", "dataset.frame_step=10",
                                        "dataset.mesh_vertex_step=4")
-    assert list(table["data"].unique()) == ["markers", "mesh"]
-    assert len(table) == 2 * 10
+    assert list(table["data"].unique()) == ["markers m=n", "markers", "mesh m=n", "mesh"]
+    assert len(table) == 4 * 10
+    assert_paper_regime_has_m_equal_n(table)
     assert "performer and basis come from different faces" in text
     assert metrics["dataset"]["provenance"]["performer_and_basis"] == "different faces"
     rows = table.set_index(["data", "basis", "solver"])

@@ -124,6 +124,7 @@ def study_alphas(tmp_path, *overrides):
     clear_memory()
     cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.mesh_rows=24",
                                                    "dataset.mesh_cols=20", "dataset.train_on=mesh", "solver=all",
+                                                   "basis.paper_regime=false",
                                                    f"paths.cache_dir={tmp_path}", *overrides]))
     (result,) = run_study(cfg)
     return result, np.array([[row.alpha.absolute_mean, row.alpha.displacement_mean, row.alpha.rms_mm]

@@ -299,7 +299,7 @@ def make_sweep(root, coverages=(0.99, 0.999), seeds=(0, 1)):
     for coverage in coverages:
         for seed in seeds:
             run(compose("paper", ["dataset.n_frames=300", f"basis.coverage={coverage}", f"dataset.seed={seed}",
-                                  "solver=lstsq"]), root / str(k))
+                                  "solver=lstsq", "basis.paper_regime=false"]), root / str(k))
             k += 1
     (root / "incomplete").mkdir()
     (root / "incomplete" / "config.yaml").write_text("study: paper\n")  # no 'done': a run still going or failed
