@@ -245,7 +245,8 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
 def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rule():
     with pytest.raises(WorkbenchError, match="coverage_on must be one of"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=noisy"]))
-    with pytest.raises(WorkbenchError, match="leave n_components null"):
+    with pytest.raises(WorkbenchError, match="coverage_on=clean chooses m from the clean capture, so "
+                                             "basis.n_components must be null"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
     with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
         from workbench.study.protocols import clean_dataset_config

@@ -15,7 +15,6 @@ instead of being read as true).
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import MISSING as NO_DEFAULT, dataclass, field, fields, is_dataclass
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
@@ -23,51 +22,13 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 from omegaconf import MISSING
 
 from workbench.errors import WorkbenchError, check_utf8
+from workbench.settings_rules import (BOOLEAN, COVERAGE_ON, GAP_FIT_ON, GAP_POLICIES, RBF_METRICS, SEED, _integer,
+                                      _number, checked, coverage_on_setting, integer, interval, one_of, rule)
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Rules: a check and the words that state it ("<key> must be <rule>, got <value>")
+# The rules of the schema's fields (the generic ones live in workbench.settings_rules)
 # ---------------------------------------------------------------------------------------------------------------
-
-def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _integer(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def rule(check: Callable[[Any], bool], text: str, *, optional: bool = False) -> dict:
-    """Field metadata: ``check(value)`` must hold (null is allowed with ``optional``)."""
-    return {"check": (lambda value: value is None or check(value)) if optional else check,
-            "rule": text + (" or null" if optional else "")}
-
-
-def interval(low: float | None = None, high: float | None = None, *, low_open: bool = False, high_open: bool = False,
-             optional: bool = False) -> dict:
-    """A finite number in an interval (either end open or absent)."""
-    def check(value):
-        return (_number(value) and (low is None or (value > low if low_open else value >= low))
-                and (high is None or (value < high if high_open else value <= high)))
-    if low is not None and high is not None:
-        text = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-    elif low is not None:
-        text = f"a finite number {'>' if low_open else '>='} {low:g}"
-    else:
-        text = "a finite number"
-    return rule(check, text, optional=optional)
-
-
-def integer(low: int, high: int | None = None, *, optional: bool = False) -> dict:
-    """A whole number ``>= low`` (and ``<= high``)."""
-    text = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
-    return rule(lambda value: _integer(value) and value >= low and (high is None or value <= high), text,
-                optional=optional)
-
-
-def one_of(*choices: str) -> dict:
-    return rule(lambda value: value in choices, f"one of {choices}")
-
 
 def names(*choices: str, optional: bool = False, allow_empty: bool = False) -> dict:
     """One of ``choices`` or a list of distinct ones."""
@@ -85,18 +46,15 @@ def plain_name_rule(value) -> bool:
             and not any(character in value for character in "/\\\0") and not value.startswith("."))
 
 
-BOOLEAN = rule(lambda value: isinstance(value, bool), "true or false")
 PLAIN_NAME = rule(plain_name_rule, "a plain name (it names a folder: not empty, no '/' or '\\', not starting with '.')")
 TEXT = rule(lambda value: isinstance(value, str) and bool(value.strip()), "a non-empty text")
 OPTIONAL_TEXT = rule(lambda value: isinstance(value, str) and bool(value.strip()), "a non-empty text", optional=True)
-SEED = integer(0)
 FRAME_RATE = interval(0, 10_000, low_open=True)
 """Frames per second of a face capture: optical systems record at up to a few hundred, high-speed cameras at a few
 thousand; more is a unit error (a rate in mHz, a time base)."""
 UNIT_MM = interval(0, 10_000, low_open=True)
 """Millimetres per file unit: 1 (mm), 10 (cm), 25.4 (inch), 1000 (m); beyond 10 m a unit no face mesh is stored in
 (and values near the largest float overflow every sum of squares)."""
-GAP_POLICIES = ("drop", "linear", "masked")
 HAND_SUBSET = rule(lambda value: (isinstance(value, str)
                                   and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
                    or (isinstance(value, (list, tuple)) and len(value) > 0
@@ -165,7 +123,7 @@ class BasisSchema:
     coverage: float = meta(MISSING, interval(0, 1, low_open=True))
     n_components: Optional[int] = meta(None, integer(1, optional=True))
     paper_regime: Any = meta(True, BOOLEAN)
-    coverage_on: str = meta("training", one_of("training", "clean"))
+    coverage_on: str = meta("training", one_of(*COVERAGE_ON))
     projections: List[str] = meta(MISSING, names("affine", "linear"))
     empty_axis_eps: float = meta(MISSING, interval(0))
     empty_axis_scale: str = meta(MISSING, one_of("axis_std", "absolute"))
@@ -265,7 +223,7 @@ class SyntheticSchema:
     gap_mean_frames: float = meta(12, interval(1))
     gap_policy: str = meta("linear", one_of(*GAP_POLICIES))
     gap_max_fill_frames: Optional[int] = meta(None, integer(1, optional=True))
-    gap_fit_on: str = meta("filled", one_of("complete", "filled"))
+    gap_fit_on: str = meta("filled", one_of(*GAP_FIT_ON))
     storage: str = meta("memory", STORAGE)
     dtype: str = meta("float64", DTYPE)
 
@@ -304,7 +262,7 @@ class IctLivelinkSchema:
 
 @dataclass
 class RbfSchema:
-    metric: str = meta(MISSING, one_of("euclidean", "geodesic"))
+    metric: str = meta(MISSING, one_of(*RBF_METRICS))
     kernel: str = meta(MISSING, TEXT)
     epsilon: float = meta(MISSING, interval(0, low_open=True))
     smoothing: float = meta(0.0, interval(0))
@@ -328,7 +286,7 @@ class AnimfaceSchema:
     rbf: RbfSchema = MISSING
     gap_policy: str = meta("drop", one_of(*GAP_POLICIES))
     gap_max_fill_frames: Optional[int] = meta(None, integer(1, optional=True))
-    gap_fit_on: str = meta("filled", one_of("complete", "filled"))
+    gap_fit_on: str = meta("filled", one_of(*GAP_FIT_ON))
     gap_rate: float = meta(0.0, interval(0, 1, high_open=True))
     gap_mean_frames: float = meta(12, interval(1))
     gap_seed: int = meta(0, SEED)
@@ -510,8 +468,8 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
     _check_known(values, schema, prefix, extras)
     for key in extras & set(values):
         spec = DATASET_EXTRA_RULES.get(key)
-        if spec is not None and not spec["check"](values[key]):
-            raise WorkbenchError(f"{prefix}{key} must be {spec['rule']}, got {values[key]!r}")
+        if spec is not None:
+            checked(values[key], prefix + key, spec)
     for spec in fields(schema):
         key = prefix + spec.name
         if spec.name not in values:
@@ -522,8 +480,8 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
             _check_node(value, nested, key + ".")
         elif spec.name == "solver" and schema is StudySchema:
             _check_solvers(value)
-        elif "check" in spec.metadata and not spec.metadata["check"](value):
-            raise WorkbenchError(f"{key} must be {spec.metadata['rule']}, got {value!r}")
+        elif "check" in spec.metadata:
+            checked(value, key, spec.metadata)
 
 
 def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:
@@ -565,9 +523,7 @@ def _check_relations(plain: Mapping) -> None:
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
         _check_marker_count(plain["dataset"])
-    if basis.get("coverage_on") == "clean" and basis.get("n_components") is not None:
-        raise WorkbenchError(f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
-                             f"be null, got {basis['n_components']}")
+    coverage_on_setting(basis)
     for key, wants_clean in (("basis.coverage_on", basis.get("coverage_on") == "clean"),
                              ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True)):
         if wants_clean and kind != "synthetic":

@@ -27,9 +27,9 @@ from workbench.plausibility import (check_rigid_set, face_size_problems, face_sp
                                     take_units_problems, with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, integer_setting, load_basis, mesh_point_indices,
-                                    number_setting, origin_text, seed_setting)
+                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
 from workbench.dataset.rigid import Similarity, stabilise
+from workbench.settings_rules import integer_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
 

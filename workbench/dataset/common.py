@@ -9,7 +9,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
-from workbench.dataset.real import number_setting
+from workbench.settings_rules import GAP_FIT_ON, checked, number_setting, one_of
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
@@ -109,14 +109,9 @@ def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
     return np.kron(operator, np.eye(3))
 
 
-GAP_FIT_ON = ("complete", "filled")
-
-
 def gap_fit_on_setting(fit_on: str) -> str:
-    """``dataset.gap_fit_on``, checked."""
-    if fit_on not in GAP_FIT_ON:
-        raise WorkbenchError(f"dataset.gap_fit_on must be one of {GAP_FIT_ON}, got {fit_on!r}")
-    return fit_on
+    """``dataset.gap_fit_on``, checked (one of :data:`workbench.settings_rules.GAP_FIT_ON`)."""
+    return checked(fit_on, "dataset.gap_fit_on", one_of(*GAP_FIT_ON))
 
 
 def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) -> tuple[np.ndarray, str]:

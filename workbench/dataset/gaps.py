@@ -22,8 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.errors import WorkbenchError
-
-GAP_POLICIES = ("drop", "linear", "masked")
+from workbench.settings_rules import GAP_POLICIES, checked, integer, one_of
 
 
 @dataclass(frozen=True)
@@ -151,13 +150,8 @@ class GapOutcome:
 
 def gap_policy_setting(policy: str, max_fill_frames: int | None = None) -> str:
     """``dataset.gap_policy`` and ``dataset.gap_max_fill_frames``, checked (whether or not the data has gaps)."""
-    if policy not in GAP_POLICIES:
-        raise WorkbenchError(f"dataset.gap_policy must be one of {GAP_POLICIES}, got {policy!r}")
-    if max_fill_frames is not None and (isinstance(max_fill_frames, bool) or not isinstance(max_fill_frames, (int, float))
-                                        or int(max_fill_frames) != max_fill_frames or max_fill_frames < 1):
-        raise WorkbenchError(f"dataset.gap_max_fill_frames must be a whole number >= 1 or null, got "
-                             f"{max_fill_frames!r}")
-    return policy
+    checked(max_fill_frames, "dataset.gap_max_fill_frames", integer(1, optional=True, whole_floats=True))
+    return checked(policy, "dataset.gap_policy", one_of(*GAP_POLICIES))
 
 
 def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | None = None) -> GapOutcome:

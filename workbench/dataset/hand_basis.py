@@ -44,7 +44,7 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     Blendshapes
         Every shape of the file.
     """
-    from workbench.dataset.real import integer_setting, positive_setting
+    from workbench.settings_rules import integer_setting, positive_setting
     from workbench.gltf import read_morph_mesh
 
     unknown = sorted(set(spec) - set(KEYS))
@@ -74,7 +74,7 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
 def folder_unit_mm(folder: Path) -> float:
     """Millimetres per OBJ unit that a blendshape folder's ``manifest.json`` states (``workbench export`` writes
     one beside its OBJ files); 1 for a folder without one."""
-    from workbench.dataset.real import positive_setting
+    from workbench.settings_rules import positive_setting
 
     manifest = folder / "manifest.json"
     if not manifest.is_file():

@@ -22,10 +22,10 @@ from workbench.dataset.meshes import Blendshapes, expression_names
 from workbench.plausibility import (face_size_problems, frame_rate_problems, plausibility_policy, settle,
                                     static_weights_problems, unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, load_basis, mesh_point_indices, origin_text,
-                                    positive_setting)
+                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.weight_curves import read_weight_curves
+from workbench.settings_rules import positive_setting
 
 TRAIN_ON = ("mesh", "markers")
 

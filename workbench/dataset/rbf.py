@@ -16,6 +16,7 @@ import numpy as np
 
 from workbench.errors import WorkbenchError
 from workbench.mesh_graph import mesh_edge_graph
+from workbench.settings_rules import RBF_METRICS, checked, integer, interval, one_of
 
 KERNELS = {
     "linear": lambda r: -r,
@@ -30,25 +31,19 @@ KERNELS = {
 """SciPy ``RBFInterpolator``'s kernels of ``r = epsilon * distance``, with its signs."""
 
 SCALE_INVARIANT = ("linear", "thin_plate_spline", "cubic", "quintic")
-METRICS = ("euclidean", "geodesic")
 
 
 def check_rbf_settings(kernel: str, epsilon: float | None, degree: int, smoothing: float, metric: str) -> float:
     """Validate RBF settings and return the epsilon to use (1 for scale-invariant kernels when not given)."""
-    if kernel not in KERNELS:
-        raise WorkbenchError(f"rbf.kernel must be one of {sorted(KERNELS)}, got {kernel!r}")
-    if metric not in METRICS:
-        raise WorkbenchError(f"rbf.metric must be one of {METRICS}, got {metric!r}")
+    checked(kernel, "rbf.kernel", one_of(*sorted(KERNELS)))
+    checked(metric, "rbf.metric", one_of(*RBF_METRICS))
     if epsilon is None:
         if kernel not in SCALE_INVARIANT:
             raise WorkbenchError(f"rbf.epsilon must be set for the {kernel} kernel (a shape parameter in 1/mm)")
         epsilon = 1.0
-    if not epsilon > 0:
-        raise WorkbenchError(f"rbf.epsilon must be positive, got {epsilon}")
-    if not smoothing >= 0:
-        raise WorkbenchError(f"rbf.smoothing must be >= 0, got {smoothing}")
-    if degree not in (-1, 0, 1, 2):
-        raise WorkbenchError(f"rbf.degree must be -1 (no polynomial), 0, 1 or 2, got {degree}")
+    checked(epsilon, "rbf.epsilon", interval(0, low_open=True))
+    checked(smoothing, "rbf.smoothing", interval(0))
+    checked(degree, "rbf.degree", integer(-1, 2, whole_floats=True))
     return float(epsilon)
 
 

@@ -10,6 +10,7 @@ import numpy as np
 from workbench.dataset.meshes import Blendshapes, load_blendshapes
 from workbench.errors import WorkbenchError
 from workbench.files import sha256_of_file
+from workbench.settings_rules import integer_setting, positive_setting
 
 ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
 LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
@@ -17,53 +18,6 @@ LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/Li
 ANIMFACE_CREDIT = ("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0 (bigoMay/AnimFace; thesis 'Efficient Facial "
                    "Animation Integrating Euclidean and Geodesic Distance-Based Algorithms into Radial Basis Function "
                    "Interpolation', Bournemouth University, 2019)")
-
-
-def integer_setting(value, key: str, *, minimum: int) -> int:
-    """A whole-number setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule.
-
-    Parameters
-    ----------
-    value
-        The configured value (an int, or a float with no fraction).
-    key : str
-        Its config key for the message, e.g. ``"dataset.frame_step"``.
-    minimum : int
-        Smallest allowed value.
-    """
-    whole = (isinstance(value, (int, np.integer)) or (isinstance(value, (float, np.floating))
-                                                       and float(value).is_integer()))
-    if isinstance(value, (bool, np.bool_)) or not whole or value < minimum:
-        raise WorkbenchError(f"{key} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def bool_setting(value, key: str) -> bool:
-    """A true/false setting, or a :class:`WorkbenchError` naming ``key`` (``maybe`` or 1 is not taken as true)."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise WorkbenchError(f"{key} must be true or false, got {value!r}")
-    return bool(value)
-
-
-def positive_setting(value, key: str) -> float:
-    """A positive, finite number setting as a float, or a :class:`WorkbenchError` naming ``key`` and the rule."""
-    return number_setting(value, key, "a positive, finite number", lambda number: 0 < number < np.inf)
-
-
-def seed_setting(value, key: str) -> int:
-    """A seed setting as an int, or a :class:`WorkbenchError` naming ``key`` and the rule."""
-    whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-    if not whole or value < 0:
-        raise WorkbenchError(f"{key} must be a non-negative integer, got {value!r}")
-    return int(value)
-
-
-def number_setting(value, key: str, rule: str, check) -> float:
-    """A numeric setting as a float if ``check(value)`` holds, else a :class:`WorkbenchError` quoting ``rule``."""
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not check(float(value)):
-        raise WorkbenchError(f"{key} must be {rule}, got {value!r}")
-    return float(value)
 
 
 def data_root(cfg: Mapping) -> Path:

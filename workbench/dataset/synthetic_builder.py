@@ -16,8 +16,8 @@ from workbench.dataset.common import (SPLITS, gap_fit_on_setting, interpolated_f
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import bool_setting, number_setting, seed_setting
 from workbench.dataset.rigid import stabilise
+from workbench.settings_rules import bool_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
 from workbench.resources import require_memory

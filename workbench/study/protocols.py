@@ -12,6 +12,7 @@ import numpy as np
 from workbench.dataset import variant_names
 from workbench.dataset.capture import Capture
 from workbench.errors import WorkbenchError
+from workbench.settings_rules import number_setting, seed_setting
 from workbench.study.fitting import fit_eigenfaces
 
 
@@ -55,8 +56,6 @@ def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> C
     -------
     Capture
     """
-    from workbench.dataset.real import number_setting
-
     if len(capture.train) != len(capture.eval) or (capture.train_source is not None
                                                    and len(capture.train_source) != len(capture.train)):
         raise WorkbenchError("dataset.held_out needs the training and evaluated frames to be the same frames "
@@ -104,23 +103,7 @@ def select_frames(frames, index: np.ndarray):
     return frames[index]
 
 
-COVERAGE_ON = ("training", "clean")
-
-
 CLEAN_M_NOTE = "m chosen on the clean capture"
-
-
-def coverage_on_setting(basis_cfg: Mapping) -> str:
-    """``basis.coverage_on``, checked: ``training`` (the coverage rule on the training frames) or ``clean`` (on
-    the clean capture of the same take, then held fixed); ``clean`` chooses m itself, so ``n_components`` must be
-    unset."""
-    value = basis_cfg.get("coverage_on", "training")
-    if value not in COVERAGE_ON:
-        raise WorkbenchError(f"basis.coverage_on must be one of {COVERAGE_ON}, got {value!r}")
-    if value == "clean" and basis_cfg.get("n_components") is not None:
-        raise WorkbenchError(f"basis.coverage_on 'clean' chooses m from the clean capture; basis.n_components "
-                             f"({basis_cfg['n_components']}) would fix it too: leave n_components null")
-    return value
 
 
 def clean_dataset_config(dataset_cfg: Mapping) -> dict:
@@ -245,9 +228,7 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
         k = int(match.group(1))
         if not 1 <= k <= len(names):
             raise WorkbenchError(f"basis.hand_subset=random{k} needs 1 <= k <= {len(names)} (the hand shapes)")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise WorkbenchError(f"basis.subset_seed must be a non-negative integer, got {seed!r}")
-        return np.sort(np.random.default_rng(int(seed)).choice(len(names), size=k, replace=False))
+        return np.sort(np.random.default_rng(seed_setting(seed, "basis.subset_seed")).choice(len(names), size=k, replace=False))
     unknown = [name for name in spec if name not in names]
     if unknown or not spec or len(set(spec)) != len(spec):
         raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; "

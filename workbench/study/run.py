@@ -15,11 +15,12 @@ from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.errors import WorkbenchError
+from workbench.settings_rules import coverage_on_setting
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
-from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, coverage_on_setting,
-                                       data_variants, held_out_capture, held_out_protocols, select_shapes,
-                                       subset_hand_shapes, with_clean_m)
+from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, data_variants,
+                                       held_out_capture, held_out_protocols, select_shapes, subset_hand_shapes,
+                                       with_clean_m)
 from workbench.study.regime import paper_regime_fit, paper_regime_name
 from workbench.study.results import StudyResult, Timings
 from workbench.study.scoring import basis_intuitiveness, face_region, offset_facts, score_alternative_bases, score_bases

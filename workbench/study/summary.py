@@ -8,8 +8,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.real import bool_setting
 from workbench.intuitiveness import intuitiveness
+from workbench.settings_rules import bool_setting
 from workbench.statistics import paired_mean_difference, paired_pooled_difference
 from workbench.study.results import StudyResult
 
