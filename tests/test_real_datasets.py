@@ -79,18 +79,22 @@ def test_animface_markers_and_mesh(animface, shared_data):
     assert list(animface) == ["markers", "mesh"]
     markers, mesh = animface["markers"], animface["mesh"]
     n_frames = sum(len(range(0, n, 20)) for n in (1590, 1499, 902))
-    assert markers.train.shape == (n_frames, 123) and mesh.train.shape == (n_frames, 3 * 9409)
-    assert markers.point_labels[0] == "ForeHead_M" and markers.frame_rate == 3.0 and markers.units == "mm"
+    # The markers variant scores the 35 face markers; the 6 rigid ones only remove head motion.
+    rigid = markers.provenance["rigid_markers"]
+    assert len(rigid) == 6 and not set(rigid) & set(markers.point_labels) and markers.n_points == 41 - 6
+    assert markers.train.shape == (n_frames, 3 * 35) and mesh.train.shape == (n_frames, 3 * 9409)
+    assert markers.point_labels[0] == "Leyebrow_M" and markers.frame_rate == 3.0 and markers.units == "mm"
     for capture in (markers, mesh):
         assert "performer and basis come from different faces" in capture.notes[0]
         assert any("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0" in credit
                    for credit in capture.provenance["credits"])
     # RBF with smoothing 0 reproduces the marker displacements at the markers' vertices.
-    vertices = list(markers.provenance["placement"]["vertices"].values())
+    placed = markers.provenance["placement"]["vertices"]
+    vertices = [placed[label] for label in markers.point_labels]
     at_markers = mesh.train.reshape(n_frames, -1, 3)[:, vertices]
     np.testing.assert_allclose(at_markers, markers.train.reshape(n_frames, -1, 3), atol=1e-8)
     # Vertices far from every marker (neck, back of the head) are marked extrapolated; the markers' own are not.
-    assert markers.point_support is None and mesh.point_support[vertices].all()
+    assert markers.point_support is None and mesh.point_support[list(placed.values())].all()
     assert 0.1 < 1 - mesh.point_support.mean() < 0.6
     # The hand basis at the markers is the mesh's hand basis at their vertices (one scaled ICT face).
     np.testing.assert_allclose(markers.hand.reshape(18, -1, 3), mesh.hand.reshape(18, -1, 3)[:, vertices])
@@ -98,6 +102,11 @@ def test_animface_markers_and_mesh(animface, shared_data):
     assert 0.9 < scale < 1.1
     residual = markers.provenance["per_take"]["animface_eyebrows.c3d"]["stabilisation_residual_rms_mm"]
     assert residual["mean"] < 2.5 and residual["max"] < 5.0
+    # The capture's noise floor, in the provenance (metrics.json) and in the notes the run prints.
+    floor = markers.provenance["noise_floor_mm"]
+    assert 0.3 < floor["stabilisation_residual_rms"] < 2.5 and 0 < floor["marker_jitter_rms"] < 0.5
+    assert sum(note.startswith("noise floor: stabilisation residual ") and "below the capture's noise" in note
+               for note in markers.notes) == 1
 
 
 def test_animface_neutral_is_the_rest_face_of_its_take(animface, shared_data):
@@ -162,7 +171,7 @@ def test_animface_takes_are_configurable(shared_data):
     cfg = dataset_cfg(shared_data, "animface", "dataset.takes=[animface/animface_eyebrows.c3d]",
                       "dataset.max_frames_per_take=50", "dataset.train_on=markers")
     captures = build_captures(cfg)
-    assert list(captures) == ["markers"] and captures["markers"].train.shape == (50, 123)
+    assert list(captures) == ["markers"] and captures["markers"].train.shape == (50, 3 * 35)  # the face markers
     assert "animface_eyebrows 50 frames" in captures["markers"].notes[1]
     # the neutral is this take's own rest face
     assert captures["markers"].provenance["neutral"].startswith("animface_eyebrows frame ")

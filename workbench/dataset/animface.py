@@ -4,8 +4,11 @@ The performer and the hand basis come from different faces, as in the paper (its
 a model apart from the actor). The capture's head motion is removed on rigid markers, the ICT face is placed on
 the performer by a similarity alignment, each marker gets a vertex (the correspondence table), and the hand basis
 is the ICT shapes at those vertices, scaled into the performer's frame. ``markers`` trains on the markers
-directly; ``mesh`` on the ICT face-region vertices, moved by a radial-basis interpolation of the marker
-displacements (the paper's "markers interpolated onto the mesh").
+directly, the face markers only (the rigid markers remove head motion and are not scored: after stabilisation
+they move only by its residual, which would dilute alpha and give PCA noise to fit); ``mesh`` on the ICT face-region
+vertices, moved by a radial-basis interpolation of every marker's displacement (the paper's "markers interpolated
+onto the mesh"; the rigid markers anchor the forehead and nose bridge there). The capture's noise floor
+(:class:`NoiseFloor`) is reported with it.
 """
 
 from __future__ import annotations
@@ -16,8 +19,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
-from workbench.dataset.common import (interpolated_frames, largest_point_norm, masked_frames, masked_training_frames,
-                                      point_operator_matrix, split_frames, train_on_list)
+from workbench.dataset.common import (interpolated_frames, largest_point_norm, marker_jitter_rms, masked_frames,
+                                      masked_training_frames, point_operator_matrix, split_frames, train_on_list)
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
@@ -28,7 +31,7 @@ from workbench.plausibility import (check_rigid_set, face_size_problems, face_sp
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text)
-from workbench.dataset.rigid import Similarity, stabilise
+from workbench.dataset.rigid import Similarity, Stabilised, stabilise
 from workbench.settings_rules import integer_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
 from workbench.errors import WorkbenchError
@@ -41,7 +44,54 @@ ORIGIN = ("ICT FaceKit model origin (midline, near the centre of the head) place
 FACE_SCALE_RANGE = (0.5, 2.0)
 """Scales of the similarity alignment (basis face onto the performer) that two human faces can differ by; outside
 it the takes' ``POINT:UNITS`` and ``dataset.blendshapes.unit_mm`` disagree (a unit mismatch gives 10, 25.4 or 1000)."""
+JITTER_ESTIMATOR = "sqrt(mean |x[t-1] - 2 x[t] + x[t+1]|^2 / 6) over the face markers after stabilisation"
+"""How the noise floor's marker jitter is estimated (:func:`workbench.dataset.common.marker_jitter_rms`)."""
 RBF_DEFAULTS = {"metric": "euclidean", "kernel": "thin_plate_spline", "smoothing": 0.0, "epsilon": None, "degree": 1}
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """How precisely the capture locates the face: differences of error smaller than this are below its noise.
+
+    Attributes
+    ----------
+    stabilisation_residual_mm : float
+        RMS distance of the rigid markers from their reference after the per-frame Kabsch alignment, over every
+        frame used (marker noise plus whatever of the rigid set is not rigid: the forehead moves with the brows).
+    jitter_mm : float
+        RMS length of the face markers' frame-to-frame jitter after stabilisation, by
+        :func:`workbench.dataset.common.marker_jitter_rms` (second differences; an upper bound).
+    """
+
+    stabilisation_residual_mm: float
+    jitter_mm: float
+
+    def describe(self) -> str:
+        return (f"noise floor: stabilisation residual {self.stabilisation_residual_mm:.2f} mm, jitter "
+                f"{self.jitter_mm:.3f} mm; differences below it are below the capture's noise")
+
+    def as_dict(self) -> dict:
+        return {"stabilisation_residual_rms": self.stabilisation_residual_mm, "marker_jitter_rms": self.jitter_mm}
+
+
+def noise_floor(residuals: Sequence[np.ndarray], face_trajectories: Sequence[np.ndarray]) -> NoiseFloor:
+    """The capture's noise floor from its takes.
+
+    Parameters
+    ----------
+    residuals : sequence of ndarray of shape (n_frames,)
+        Per take, each frame's stabilisation residual (:attr:`workbench.dataset.rigid.Stabilised.residual_rms`,
+        NaN where a frame could not be aligned).
+    face_trajectories : sequence of ndarray of shape (n_frames, n_face_markers, 3)
+        Per take, the face markers after stabilisation, consecutive frames.
+
+    Returns
+    -------
+    NoiseFloor
+    """
+    residual = np.concatenate([np.asarray(frames, dtype=np.float64) for frames in residuals])
+    return NoiseFloor(stabilisation_residual_mm=float(np.sqrt(np.nanmean(residual ** 2))),
+                      jitter_mm=marker_jitter_rms(face_trajectories))
 
 
 @dataclass(frozen=True)
@@ -66,6 +116,9 @@ class StabilisedTakes:
         Plausibility problems kept under ``dataset.plausibility: warn``.
     neutral_rest : NeutralRest or None
         How far the neutral frame is from the rest pose of its take.
+    face : ndarray of shape (n_markers,) of bool or None
+        The table's face markers (the scored ones): all but ``dataset.rigid_markers``.
+    noise_floor : NoiseFloor or None
     """
 
     positions: np.ndarray
@@ -76,6 +129,8 @@ class StabilisedTakes:
     visible: np.ndarray | None = None
     warnings: list = ()
     neutral_rest: "NeutralRest | None" = None
+    face: np.ndarray | None = None
+    noise_floor: NoiseFloor | None = None
 
 
 @dataclass(frozen=True)
@@ -164,6 +219,42 @@ def rest_frame(take: MarkerTake, rigid_index, table_index, labels: Sequence[str]
     return neutral_rest(markers, labels, int(seen[0])).nearest_frame
 
 
+def face_markers(table: MarkerTable, rigid_labels: Sequence[str]) -> np.ndarray:
+    """Which markers of the table are scored: all but the rigid ones; shape (n_markers,) of bool."""
+    face = np.array([label not in rigid_labels for label in table.labels])
+    if not face.any():
+        raise WorkbenchError(f"every marker of {table.path.name} is one of dataset.rigid_markers: no face marker is "
+                             "left to score")
+    return face
+
+
+def stabilised_span(take: MarkerTake, selected: np.ndarray, rigid_labels: Sequence[str], table: MarkerTable,
+                    reference: np.ndarray) -> Stabilised:
+    """The table's markers of every frame of ``take`` from the first ``selected`` frame to the last, head motion
+    removed, and the stabilisation residual of each frame: the noise floor is measured on consecutive frames, the
+    capture's own, whatever ``dataset.frame_step``.
+
+    Parameters
+    ----------
+    take : MarkerTake
+    selected : ndarray of shape (n_selected,) of int
+        Frames of the file used, increasing.
+    rigid_labels : sequence of str
+    table : MarkerTable
+    reference : ndarray of shape (n_rigid, 3)
+        The rigid markers' reference positions.
+
+    Returns
+    -------
+    Stabilised
+        ``markers`` of shape (selected[-1] - selected[0] + 1, n_table_markers, 3).
+    """
+    dense = stabilise(take.positions[selected[0]:selected[-1] + 1],
+                      take.index_of(rigid_labels, named_in="dataset.rigid_markers"), reference)
+    return Stabilised(markers=dense.markers[:, take.index_of(table.labels, named_in=str(table.path))],
+                      residual_rms=dense.residual_rms)
+
+
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
     """Select frames, remove head motion on ``dataset.rigid_markers`` and concatenate the takes.
 
@@ -192,6 +283,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         raise WorkbenchError(f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
                              "another dataset.neutral_frame")
     check_rigid_set(rigid_labels, reference, f"{first.path} frame {neutral_frame}")
+    face = face_markers(table, rigid_labels)
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, table_index]
     rest = neutral_rest(stabilise(first.positions, rigid_index, reference).markers[:, table_index], table.labels,
@@ -200,13 +292,14 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
     gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
-    pieces, visible, notes, record, timelines, problems = [], [], [], {}, [], []
+    pieces, visible, notes, record, timelines, problems, residuals, trajectories = [], [], [], {}, [], [], [], []
     for number, take in enumerate(takes):
         selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
                                    "dataset.max_frames_per_take")
-        stable = stabilise(take.positions[selected], take.index_of(rigid_labels, named_in="dataset.rigid_markers"),
-                           reference)
-        markers = stable.markers[:, take.index_of(table.labels, named_in=str(table.path))]
+        dense = stabilised_span(take, selected, rigid_labels, table, reference)
+        residuals.append(dense.residual_rms)
+        trajectories.append(dense.markers[:, face])
+        markers, residual_rms = dense.markers[selected - selected[0]], dense.residual_rms[selected - selected[0]]
         problems += outlier_problems(markers, table.labels, str(take.path), frames=selected)
         if rate > 0:
             rng = np.random.default_rng(np.random.SeedSequence(gap_seed, spawn_key=(number,)))
@@ -216,7 +309,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         pieces.append(outcome.positions)
         timelines.append(Timeline.uniform(take.path.stem, selected[outcome.kept], take.frame_rate))
         visible.append(outcome.visible)
-        residual_mean, residual_max = float(np.nanmean(stable.residual_rms)), float(np.nanmax(stable.residual_rms))
+        residual_mean, residual_max = float(np.nanmean(residual_rms)), float(np.nanmax(residual_rms))
         report = outcome.report
         notes.append(f"{take.path.stem} {len(outcome.positions)} frames (residual mean {residual_mean:.2f}, max "
                      f"{residual_max:.2f} mm" + (f"; {report.describe()}" if report.n_missing_samples else "")
@@ -225,14 +318,16 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
             "frames_in_file": take.n_frames, "frame_rate_in_file": take.frame_rate, "frames_used": len(outcome.positions),
             "frames_dropped_for_gaps": report.n_dropped_frames, "missing_samples_in_file": take.n_missing,
             "simulated_dropout_rate": rate, "gaps": report.as_dict(), "units_in_file": take.units,
-            "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max}}
+            "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max},
+            "noise_floor_mm": noise_floor(residuals[-1:], trajectories[-1:]).as_dict()}
     positions = np.concatenate(pieces)
     if len(positions) < 2:
         raise WorkbenchError(f"{len(positions)} frames in the takes after gap policy {policy!r}; need at least 2")
     return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
                            timeline=Timeline.concatenate(timelines),
                            visible=np.concatenate(visible) if policy == "masked" else None,
-                           warnings=settle(problems, plausibility_policy(cfg)), neutral_rest=rest)
+                           warnings=settle(problems, plausibility_policy(cfg)), neutral_rest=rest, face=face,
+                           noise_floor=noise_floor(residuals, trajectories))
 
 
 def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
@@ -406,6 +501,8 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
         f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
         f"{neutral_name} (the neutral); residual = their RMS distance from it",
         stable.neutral_rest.describe(takes[int(cfg.get('neutral_take', 0))].path.stem),
+        stable.noise_floor.describe() + " (residual: RMS of the rigid markers after alignment; jitter: RMS of the "
+        "face markers' second difference over frames / sqrt(6), an upper bound)",
         placement.describe(),
     ]
     provenance = {
@@ -416,6 +513,7 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
         "neutral_from_rest_mm": {"rms": stable.neutral_rest.rms_mm, "largest": stable.neutral_rest.largest_mm,
                                  "take_frame_nearest_rest": stable.neutral_rest.nearest_frame},
         "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
+        "noise_floor_mm": dict(stable.noise_floor.as_dict(), jitter_estimator=JITTER_ESTIMATOR),
         "marker_table": str(table.path), "rbf": rbf,
         "placement": {"scale": scale, "rotation": similarity.rotation.tolist(),
                       "translation_mm": similarity.translation.tolist(),
@@ -434,11 +532,14 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
     warnings = placed.warnings
     notes = list(notes_common)
     support = None
+    face = stable.face
     if name == "markers":
-        points_neutral, frames = neutral, displacements
-        points_hand, labels, faces = hand[:, placement.vertices], table.labels, None
-        notes.append(f"markers: the {len(table.labels)} markers of {table.path.name}; the rigid ones stay "
-                     "training points (they move only by the stabilisation residual)")
+        points_neutral, frames = neutral[face], displacements[:, face]
+        points_hand, faces = hand[:, placement.vertices[face]], None
+        labels = tuple(label for label, scored in zip(table.labels, face) if scored)
+        notes.append(f"markers: the {len(labels)} face markers of {table.path.name}; the {int((~face).sum())} rigid "
+                     "ones remove head motion only and are not scored (they move only by the stabilisation "
+                     "residual)")
     else:
         mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
         operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
@@ -460,9 +561,10 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
     notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
     eval_visible = None
     if stable.visible is not None and name == "markers":
-        eval_visible = stable.visible[len(stable.visible) - len(evaluate):]
+        visible = stable.visible[:, face]
+        eval_visible = visible[len(visible) - len(evaluate):]
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, stable.visible[:len(train)], cfg.get("gap_fit_on", "filled"))
+        train, note = masked_training_frames(train, visible[:len(train)], cfg.get("gap_fit_on", "filled"))
         notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
                      f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
                      + note)

@@ -1,5 +1,5 @@
 """Helpers every dataset builder shares: the train/eval split, the ``train_on`` list, interpolated and masked
-frames, content hashes of arrays."""
+frames, content hashes of arrays, the markers' jitter."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
-from workbench.settings_rules import GAP_FIT_ON, checked, number_setting, one_of
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.errors import WorkbenchError
 from workbench.frames import FramesOnDisk, frame_chunks
+from workbench.settings_rules import GAP_FIT_ON, checked, number_setting, one_of
 
 
 SPLITS = ("same", "tail")
@@ -145,3 +145,33 @@ def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) 
 def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
     """``frames`` (n_frames, 3 * n_points) with NaN at the points ``visible`` (n_frames, n_points) marks unseen."""
     return np.where(np.repeat(visible, 3, axis=1), frames, np.nan)
+
+
+def marker_jitter_rms(trajectories: Sequence[np.ndarray]) -> float:
+    """RMS length (mm) of the markers' jitter: the high-frequency part of their trajectories.
+
+    The estimator is the second difference over consecutive frames, ``d_t = x_{t-1} - 2 x_t + x_{t+1}`` of every
+    coordinate of every marker. White jitter of variance ``s^2`` per coordinate gives ``d_t`` the variance
+    ``(1 + 4 + 1) s^2 = 6 s^2``, while a smooth trajectory adds only its acceleration times the squared frame
+    interval; so ``J = sqrt(mean |d_t|^2 / 6)`` (``|.|`` the 3-D length, the mean over frames and markers) is the
+    RMS length of the 3-D jitter vector, ``sqrt(3) s``. The motion's own acceleration adds to it, so ``J`` is an
+    upper bound of the jitter, tight when the face moves slowly against the frame rate. Samples next to a missing
+    one (NaN) are left out.
+
+    Parameters
+    ----------
+    trajectories : sequence of ndarray of shape (n_frames, n_markers, 3)
+        One per take, consecutive frames (a second difference never spans two takes).
+
+    Returns
+    -------
+    float
+        NaN when no three consecutive samples of a marker are present.
+    """
+    total, count = 0.0, 0
+    for positions in trajectories:
+        second = positions[:-2] - 2.0 * positions[1:-1] + positions[2:]
+        squared = np.sum(second ** 2, axis=2)
+        seen = np.isfinite(squared)
+        total, count = total + float(squared[seen].sum()), count + int(seen.sum())
+    return float(np.sqrt(total / count / 6.0)) if count else float("nan")
