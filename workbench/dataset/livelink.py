@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.errors import WorkbenchError, single_line
+from workbench.settings_rules import positive_setting
 
 ARKIT_NAMES = (
     "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
@@ -115,10 +116,7 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     path = Path(path)
     if not path.is_file():
         raise WorkbenchError(f"{path}: Live Link Face CSV not found")
-    rate_is_number = isinstance(timecode_rate, (int, float, np.integer, np.floating)) and not isinstance(
-        timecode_rate, (bool, np.bool_))
-    if not rate_is_number or not 0 < timecode_rate < np.inf:
-        raise WorkbenchError(f"timecode_rate must be a positive, finite number, got {timecode_rate!r}")
+    positive_setting(timecode_rate, "timecode_rate")
     try:
         table = pd.read_csv(path, skipinitialspace=True)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:

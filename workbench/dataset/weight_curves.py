@@ -29,6 +29,7 @@ import numpy as np
 from workbench.dataset.livelink import (LiveLinkTake, _numeric_block, check_weight_range, frame_rate_of,
                                         read_livelink_csv)
 from workbench.errors import WorkbenchError, single_line
+from workbench.settings_rules import positive_setting
 
 MEDIAPIPE_NEUTRAL = "_neutral"
 TIME_COLUMNS = {"time": 1.0, "timestamp_ms": 1e-3}
@@ -108,9 +109,7 @@ def _take(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray, path: 
 def _frame_seconds(frames: np.ndarray, frame_rate: float | None, path: Path) -> np.ndarray:
     if frame_rate is None:
         raise WorkbenchError(f"{path}: frames are numbered, not timed: set the frame rate (dataset.weight_frame_rate)")
-    if isinstance(frame_rate, bool) or not isinstance(frame_rate, (int, float)) or not 0 < frame_rate < np.inf:
-        raise WorkbenchError(f"{path}: frame rate must be a positive, finite number, got {frame_rate!r}")
-    return frames / float(frame_rate)
+    return frames / positive_setting(frame_rate, f"{path}: frame rate")
 
 
 def _read_csv_curves(path: Path, frame_rate: float | None) -> LiveLinkTake:

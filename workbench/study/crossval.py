@@ -18,6 +18,7 @@ import numpy as np
 from workbench.dataset.capture import Capture, Timeline
 from workbench.errors import WorkbenchError
 from workbench.metrics import error_distribution, summarise_squares
+from workbench.settings_rules import checked, integer, number_setting
 from workbench.statistics import paired_ratio_interval
 
 
@@ -53,10 +54,8 @@ def fold_indices(timeline: Timeline, protocol: str, folds: int = 5,
         return [(np.setdiff1d(everything, np.arange(start, stop)), np.arange(start, stop)) for start, stop in spans]
     if protocol != "kfold":
         raise WorkbenchError(f"dataset.held_out: {protocol!r} is not cross-validated ({list(FOLDED)})")
-    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or folds < 2:
-        raise WorkbenchError(f"dataset.folds must be an integer >= 2, got {folds!r}")
-    if isinstance(gap_s, bool) or not isinstance(gap_s, (int, float)) or not gap_s >= 0:
-        raise WorkbenchError(f"dataset.fold_gap_s must be a number >= 0 (seconds), got {gap_s!r}")
+    checked(folds, "dataset.folds", integer(2))
+    number_setting(gap_s, "dataset.fold_gap_s", "a number >= 0 (seconds)", lambda seconds: seconds >= 0)
     if any(stop - start < folds for start, stop in spans):
         raise WorkbenchError(f"dataset.folds {folds} needs every take to have at least {folds} frames, got takes of "
                              f"{[stop - start for start, stop in spans]}")

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.settings_rules import checked, integer
 
 
 @dataclass(frozen=True)
@@ -175,8 +175,7 @@ def make_face_mesh(n_rows: int = 70, n_cols: int = 60) -> FaceMesh:
     FaceMesh
     """
     for name, value in (("n_rows", n_rows), ("n_cols", n_cols)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 20:
-            raise WorkbenchError(f"{name} must be an integer >= 20, got {value!r}")
+        checked(value, name, integer(20))
     azimuth, height = _grid_parameters(int(n_rows), int(n_cols))
     vertices, face_plane = _surface(azimuth.ravel(), height.ravel())
     faces = _grid_triangles(int(n_rows), int(n_cols))
