@@ -243,11 +243,13 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert main([str(sweep), "--where", "solver=lstsq"]) == 0
     printed = capsys.readouterr().out
     finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
-    assert "QE and H not distinguishable (QE/H " in finding and "(paired t on log ratios, n = 2)" in finding
+    assert "QE 0.267 ~ H 0.32 ~" in finding and "QE/H 0.835 [0.00179, 389]" in finding
     assert "QE < H" not in finding and "H < QE" not in finding
+    assert "the per-replicate ratio A/B (paired t on log ratios, n = 2)" in printed  # the method, said once
     # every interval printed, in the table and in the findings, lies above zero, and names its method and n
     bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
-    assert len(bounds) >= 2 * (7 + 6) and min(bounds) > 0  # QE at 0.995 is 0.16 on both seeds: no interval
+    # 7 cells of the table (QE at 0.995 is 0.16 on both seeds: no interval), the 2 primary contrasts at each coverage
+    assert len(bounds) >= 2 * (7 + 2 * 2) and min(bounds) > 0
     assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
     pair = comparisons[(comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE")
@@ -286,13 +288,48 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
         (0.99, "mesh", "lstsq", "alpha_abs_mean", "PCA", "H", 5, 0.54, 0.5, 0.6, method, "<"),
         (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "PCA", 5, 0.9586, 0.9, 1.02, method, "not distinguishable")])
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq") == [
-        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq): `alpha_abs_mean` geometric means, best first: "
-        "QE 0.162, PCA (n = 9-11) 0.169, H 0.312; QE and PCA not distinguishable (QE/PCA 0.9586, 95 % interval "
-        "[0.9, 1.02] (paired t on log ratios, n = 5)); PCA < H (PCA/H 0.54, 95 % interval [0.5, 0.6] (paired t on "
-        "log ratios, n = 5))."]
+        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
+        "0.169 < H 0.312; QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]."]
+    # another solver or column: the ordering only (the primary contrasts are those of lstsq and the headline)
+    assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", headline=False) == [
+        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
+        "0.169 < H 0.312."]
     # with nothing swept but the seed: one finding per data variant
     assert sweep_findings(summary, comparisons, [], "alpha_abs_mean", "lstsq")[0].startswith(
-        "**mesh** (m = 9-11; 5 seeds, lstsq): ")
+        "**mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: ")
+
+
+def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
+    """Known p-values through the sweep path: QE/H and QE/PCA (lstsq, headline, first data variant) keep their own
+    95 %; the four others are one Holm family, p (0.01, 0.02, 0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only the
+    first stays '<' although every raw p is below 0.05 and every interval excludes 1."""
+    from workbench.reporting.sweep_findings import HOLM_COLUMN, holm_text, holm_verdicts, sweep_findings
+
+    summary = pd.DataFrame({
+        "data": ["mesh"] * 4 + ["mesh held-out tail"] * 4, "basis": ["H", "QE", "QE-linear", "PCA"] * 2,
+        "solver": ["lstsq", "lstsq", "lstsq", "projection"] * 2, "n_seeds": 5,
+        "alpha_abs_mean": [0.4, 0.1, 0.2, 0.3, 0.8, 0.2, 0.4, 0.6]})
+    method = "paired t on log ratios"
+    rows = [("mesh", "QE", "H", 0.25, 0.2, 0.3, 0.04), ("mesh", "QE", "PCA", 0.33, 0.3, 0.37, 0.03),
+            ("mesh", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.01), ("mesh", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.02),
+            ("mesh held-out tail", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.03),
+            ("mesh held-out tail", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.04)]
+    comparisons = pd.DataFrame([{"data": data, "solver": "lstsq", "metric": "alpha_abs_mean", "first": first,
+                                 "second": second, "n": 5, "ratio": ratio, "ratio_low": low, "ratio_high": high,
+                                 "method": method, "verdict": "<", "p": p}
+                                for data, first, second, ratio, low, high, p in rows])
+    adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
+    assert adjusted[HOLM_COLUMN].iloc[:2].isna().all()  # the primary contrasts: not in the family
+    assert adjusted[HOLM_COLUMN].iloc[2:].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
+    assert adjusted["verdict"].tolist() == ["<", "<", "<", "not distinguishable", "not distinguishable",
+                                            "not distinguishable"]
+    assert comparisons["verdict"].tolist() == ["<"] * 6  # the input is left as it was
+    lines = sweep_findings(summary, adjusted, [], "alpha_abs_mean", "lstsq")
+    assert lines == [
+        "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 < QE-linear 0.2 ~ PCA 0.3, H 0.4; QE/H 0.25 [0.2, 0.3], "
+        "QE/PCA 0.33 [0.3, 0.37].",
+        "**mesh held-out tail** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.2 ~ QE-linear 0.4 ~ PCA 0.6, H 0.8."]
+    assert "the other 4 comparisons Holm-adjusted (p_holm < 0.05)" in holm_text(adjusted, "alpha_abs_mean")
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
@@ -312,17 +349,14 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
     columns = ["data", "metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict"]
     comparisons = pd.DataFrame([dict(zip(columns, row)) for row in rows])
     assert bases_findings(summary, comparisons, "alpha_abs_mean") == [
-        "**mesh** (5 runs): `alpha_abs_mean` geometric means, best first: SPCA 0.100, PCA (n = 10) 0.150, QE 0.200, "
-        "H 1.000; SPCA < PCA (SPCA/PCA 0.667, 95 % interval [0.6, 0.74] (paired t on log ratios, n = 5)); PCA < QE "
-        "(PCA/QE 0.75, 95 % interval [0.7, 0.8] (paired t on log ratios, n = 5)); QE < H (QE/H 0.2, 95 % interval "
-        "[0.18, 0.22] (paired t on log ratios, n = 5)).",
+        "**mesh** (5 runs) `alpha_abs_mean`: SPCA 0.1 < PCA (n = 10) 0.15 < QE 0.2 < H 1; QE/H 0.2 [0.18, 0.22], "
+        "QE/PCA 1.33 [1.25, 1.43].",
         "**mesh**: bases of other sizes than the hand basis's n = 18: PCA n = 10; their alpha is not that of a basis "
         "of the same size.",
         "**mesh**: closest to the hand shapes (mean matched |cosine|): QE 0.660, then SPCA 0.450 (the hand shapes' "
-        "1.000); SPCA < QE (SPCA/QE 0.68, 95 % interval [0.6, 0.77] (paired t on log ratios, n = 5)).",
+        "1.000); SPCA < QE (SPCA/QE 0.68 [0.6, 0.77]).",
         "**mesh**: most local (share of the face holding an element's displacement): SPCA 0.095, then PCA 0.250 "
-        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38, 95 % interval [0.3, 0.48] (paired t on log ratios, "
-        "n = 5))."]
+        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38 [0.3, 0.48])."]
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
