@@ -469,3 +469,97 @@ def test_the_summary_states_the_claim_the_regime_and_the_verdict_in_under_200_wo
     assert "H 1, QE 0.25, PCA 0.2 mm median per-frame error; QE better than H: reproduced." in text
     assert text.endswith("Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
                          "and QE are fitted to the frames they reconstruct; no frames were held out.")
+
+
+def test_findings_over_their_words_leave_out_details_first_and_say_where_they_are():
+    from workbench.reporting.findings import Detail, fit_findings, words
+    from workbench.reporting.report_sections import Section
+
+    kept = ["**how to read**: " + "word " * 100, "**caveat**: " + "word " * 100]
+    details = [Detail("**a**: " + "word " * 300, 1, "the table 'A'"), Detail("**b**: " + "word " * 300, 2, "the table 'B'"),
+               Detail("**c**: " + "word " * 300, 1, "the table 'C'")]
+    sections = fit_findings([Section("Findings", ["Generated.", [kept[0], *details, kept[1]]])])
+    lines = sections[0].blocks[1]
+    # b (rank 2) goes first, then c (the later of rank 1); a and both plain lines stay
+    assert lines[:3] == [kept[0], details[0], kept[1]]
+    assert lines[3] == ("**left out**: 2 more findings, to keep this section within 800 words; their numbers are in "
+                        "the table 'B', the table 'C'.")
+    assert words(sections[0].blocks) <= 800
+    short = [Section("Findings", ["Generated.", [kept[0], details[0]]])]
+    assert fit_findings(short)[0].blocks[1] == [kept[0], details[0]]  # within the words: unchanged
+
+
+def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
+    from workbench.reporting.findings import fit_findings, words
+    from workbench.reporting.report_sections import Section
+    from workbench.reporting.sweep_findings import holm_text, holm_verdicts, sweep_statements
+
+    coverages = [0.9, 0.92, 0.94, 0.95, 0.96, 0.98, 0.99, 0.995, 0.998, 0.999]
+    bases = ["H", "QE", "QE-linear", "PCA"]
+    summary = pd.DataFrame([{"basis.coverage": c, "data": data, "basis": basis, "n_seeds": 5, "m_min": 8,
+                             "m_max": 10, "solver": "projection" if basis == "PCA" else solver,
+                             "alpha_abs_mean": (k + 1) * 0.1 * (1 + c)}
+                            for c in coverages for data in ("markers", "markers held-out tail")
+                            for solver in ("lstsq", "nnls") for k, basis in enumerate(bases)]).drop_duplicates(
+        ["basis.coverage", "data", "basis", "solver"])
+    comparisons = pd.DataFrame([{"basis.coverage": c, "data": data, "solver": solver, "metric": "alpha_abs_mean",
+                                 "first": a, "second": b, "n": 5, "ratio": 0.8, "ratio_low": 0.7,
+                                 "ratio_high": 0.9, "method": "paired t on log ratios", "verdict": "<", "p": 0.001}
+                                for c in coverages for data in ("markers", "markers held-out tail")
+                                for solver in ("lstsq", "nnls") for i, a in enumerate(bases) for b in bases[i + 1:]])
+    comparisons = holm_verdicts(comparisons, "alpha_abs_mean")
+    lines = [holm_text(comparisons, "alpha_abs_mean")] + [
+        line for solver in ("lstsq", "nnls")
+        for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)]
+    section = Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", list(lines)])
+    assert words(section.blocks) > 800  # 40 lines: more than the section holds
+    fitted = fit_findings([section])[0].blocks[1]
+    assert words(section.blocks) <= 800
+    assert fitted[0].startswith("**how to read**") and fitted[-1].startswith("**left out**: ")
+    # another solver's lines go before any of the lead solver's, the latest first
+    assert all(line in fitted for line in lines if ", lstsq) " in line)
+    left_out = [line for line in lines if line not in fitted]
+    assert left_out and all(", nnls) " in line for line in left_out) and left_out == lines[-len(left_out):]
+    assert fitted[1].startswith("basis.coverage = 0.9, **markers** (m = 8-10; 5 seeds, lstsq) `alpha_abs_mean`: ")
+
+
+def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_intervals_and_no_label_overlaps():
+    from workbench.reporting.figures.headline import figure_headline, variant_label
+
+    levels = pd.DataFrame([{"data": data, "m": m, "n": 18, "basis": basis, "alpha": alpha * scale,
+                            "low": alpha * scale * 0.8, "high": alpha * scale * 1.2}
+                           for data, m, scale in (("markers m=n", 18, 1.0), ("markers", 10, 1.1))
+                           for basis, alpha in (("H", 1.8), ("QE", 0.7), ("PCA", 0.52))])
+    contrasts = pd.DataFrame([
+        {"data": "markers m=n", "contrast": "QE - H", "estimate": -1.1, "low": -1.3, "high": -0.9, "identity": ""},
+        {"data": "markers m=n", "contrast": "QE - PCA", "estimate": 0.18, "low": 0.1, "high": 0.26, "identity": ""},
+        {"data": "markers", "contrast": "QE - H", "estimate": -1.2, "low": -1.4, "high": -1.0, "identity": ""},
+        {"data": "markers", "contrast": "QE - PCA", "estimate": float("nan"), "low": float("nan"),
+         "high": float("nan"), "identity": "by construction"}])
+    assert variant_label(levels, "markers m=n") == "m = n = 18 (H/QE 2.57, QE/PCA 1.35)"
+    assert variant_label(levels, "markers") == "coverage rule, m = 10 (H/QE 2.57, QE/PCA 1.35)"
+    figure = figure_headline(levels, contrasts, "alpha_abs_mean", "The paper's comparison, with intervals: test")
+    left, right = figure.axes
+    bars = [segment for collection in left.collections for segment in collection.get_segments()]
+    assert len(bars) == 6 and all(segment[:, 1].min() > 0 for segment in bars)  # every level with its interval
+    assert sorted(round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars) == \
+        pytest.approx([1.5] * 6)
+    assert any(text.get_text() == "<= 0 by construction" for text in right.texts)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    figure.draw(renderer)
+    texts = [*figure.texts, *[legend_text for legend in figure.legends for legend_text in legend.get_texts()]]
+    for ax in figure.axes:
+        texts += [ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts]
+        for axis, (low, high) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+            texts += [tick.label1 for tick in axis.get_major_ticks()
+                      if min(low, high) <= tick.get_loc() <= max(low, high) and tick.label1.get_visible()]
+    boxes = [(text.get_text(), text.get_window_extent(renderer)) for text in texts if text.get_text().strip()]
+    assert len(boxes) > 15
+    width, height = figure.bbox.width, figure.bbox.height
+    for name, box in boxes:  # inside the figure
+        assert box.x0 >= -1 and box.y0 >= -1 and box.x1 <= width + 1 and box.y1 <= height + 1, name
+    for i, (first, a) in enumerate(boxes):
+        for second, b in boxes[i + 1:]:
+            assert not a.overlaps(b), (first, second)

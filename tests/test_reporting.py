@@ -126,6 +126,10 @@ def test_report_documents_hold_tables_figures_provenance_choices_and_versions(ti
         assert re.search(r"Report built on 20\d\d-\d\d-\d\d \d\d:\d\d UTC", document)
         assert "the capture moves the two sides of the face together" in document
     assert "affine, linear" in readme and "lstsq (lstsq), nnls (nnls, bounds [0.0, None])" in readme
+    # the summary, then the headline figure with intervals, then findings within 800 words
+    assert readme.index("## Summary") < readme.index("](figures/headline.svg)") < readme.index("## Findings")
+    assert 'src="figures/headline.svg"' in page
+    assert len(section_text("## Findings", readme).split()) <= 800
     # The README's full table is the very text the run printed.
     printed = (record / "alpha_table.md").read_text()
     assert table_after("## Full alpha table", readme) == table_after("| data", printed)
@@ -331,6 +335,7 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
     assert "sweep over basis.coverage" in page and "replicates over dataset.seed 0, 1" in page
     readme = (report / "README.md").read_text()
     findings = section_text("## Findings", readme)
+    assert len(findings.split()) <= 800
     assert findings.count("(paired t on log ratios, n = 2)") == 1  # the method, said once
     comparisons = pd.read_csv(report / "comparisons.csv")
     assert len(comparisons) == 2 * 6 and set(comparisons["verdict"]) <= {"<", "not distinguishable"}
