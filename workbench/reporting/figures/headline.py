@@ -139,7 +139,7 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     left.set_yscale("log")
     left.set_ylabel(f"{column} (%)")
     left.set_title("alpha (lstsq; PCA: projection), 95 % interval", fontsize=10)
-    left.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    left.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 3.0, 5.0)))
     left.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     left.yaxis.set_minor_formatter(NullFormatter())
     left.grid(axis="y", which="both", alpha=0.3)
