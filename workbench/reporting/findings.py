@@ -7,7 +7,8 @@ QE-linear and PCA under each solver, where every ``<`` is a paired per-frame dif
 excludes zero (:mod:`workbench.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
 the paper's; m beside the paper's; what the constrained solvers do to QE and QE-linear against H, and why, from
 the offset numbers; the weights an animator would face; the error in millimetres as a distribution; which hand
-shapes the projection changes most; and the caveats that apply to the data.
+shapes the projection changes most; and the caveats that apply to the data. :func:`fit_findings` keeps a report's
+findings within :data:`FINDINGS_WORDS` words, leaving out :class:`Detail` lines first.
 
 The findings of a sweep and of the other bases are in :mod:`workbench.reporting.sweep_findings`.
 """
