@@ -145,14 +145,15 @@ def test_alpha_table_exact_text(sweep, tmp_path):
     assert (tmp_path / "out" / "alpha_table.tex").read_text() == expected_latex
     assert written["n_runs"] == 6 and written["n_incomplete"] == 1
     findings = (tmp_path / "out" / "findings.md").read_text().splitlines()
-    assert findings[1] == (
-        "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq): `alpha_abs_mean` geometric means, best "
-        "first: PCA (n = 12) 0.182, QE 0.288, H 1.500; PCA and QE not distinguishable (PCA/QE 0.63, 95 % interval "
-        "[0.3752, 1.058] (paired t on log ratios, n = 3)); QE < H (QE/H 0.1923, 95 % interval [0.08096, 0.4567] "
-        "(paired t on log ratios, n = 3)).")
-    # each number of the finding is a cell of the tables written beside it
-    assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in \
-        (tmp_path / "out" / "comparisons.md").read_text()
+    assert findings[0].startswith("- **how to read**: levels are geometric means over the replicates; 'A < B': the "
+                                  "per-replicate ratio A/B (paired t on log ratios, n = 3) is below 1 at 95 %")
+    assert findings[2] == (
+        "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq) `alpha_abs_mean`: PCA (n = 12) 0.182 ~ QE "
+        "0.288 < H 1.5; QE/H 0.192 [0.081, 0.457], QE/PCA 1.59 [0.945, 2.67].")
+    # each number of the finding is a cell of the tables written beside it (QE/PCA: PCA/QE's row inverted)
+    table = (tmp_path / "out" / "comparisons.md").read_text()
+    assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in table
+    assert "|           0.99 | QE    | H      | 3 | 0.1923 |   0.08096 |     0.4567 | <" in table
 
 
 def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):

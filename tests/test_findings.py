@@ -78,9 +78,10 @@ def test_findings_of_a_known_table():
     assert lines[1:] == [
         '**mesh**: `alpha_abs_mean` from best to worst, lstsq: PCA 0.2 < QE 0.25 < QE-linear 0.5 < H 1; nnls:'
         ' PCA 0.2 < QE-linear 0.55 < H 1.1 < QE 1.5; box: PCA 0.2 < QE 1 ~ QE-linear 1.15 < H 1.2.',
-        '**mesh**: with least squares, H/QE 4 (paper 7.22), QE/PCA 1.25 (paper 1.16); over the 4 alpha '
-        'variants H/QE runs from 4 to 8, so no one ratio compares across datasets.',
-        '**mesh**: m = 10 eigenfaces reach coverage 0.9951 (paper: m = 18); the 18 hand shapes can span them,'
+        '**mesh**: with least squares, H/QE 4 (paper 7.22), QE/PCA 1.25 (paper 1.16); median per-frame error '
+        '(lstsq) H 1, QE 0.25, QE-linear 0.5, PCA 0.2 mm; over the 4 alpha variants H/QE runs from 4 to 8, so no '
+        'one ratio compares across datasets.',
+        '**mesh**: m = 10 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes can span them,'
         ' so QE can match PCA.',
         "**mesh**: with non-negative weights QE's alpha x6.00 (0.25 to 1.5), QE-linear's alpha x1.10 (0.5 to "
         "0.55), H's x1.10; QE is worse than H (QE - H +0.4 [+0.2, +0.6]), QE-linear is better than H (QE-"
@@ -92,12 +93,8 @@ def test_findings_of_a_known_table():
         " of frames have a negative weight, alpha x1.10 against QE's x6.00. So negative weights alone do not "
         "explain the loss; the offset does in part: the constraint can no longer hold the weights' sum where "
         'the offset needs it.',
-        '**mesh**: the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer'
-        " sparsity, roughness in 1/s^4; table 'Error in millimetres and the weights'), lstsq: H 1.6, 90 %, "
-        '0.30, 50; QE 33.6, 100 %, 0.35, 2.5e+04; QE-linear 31.8, 100 %, 0.31, 2.3e+04.',
-        '**mesh**: median per-frame RMS error in mm (lstsq; the face region: every one of the 41 markers): H '
-        "1, QE 0.25, QE-linear 0.5, PCA 0.2; 95th percentiles and maxima in the table 'Error in millimetres "
-        "and the weights'.",
+        '**mesh**: the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table '
+        "'Error in millimetres and the weights'), lstsq: H 1.6, 50; QE 33.6, 2.5e+04; QE-linear 31.8, 2.3e+04.",
         '**mesh**: the projection changes most, QE: browDown_L (cosine 0.45), mouthPucker (cosine 0.80); '
         'median cosine of the 3 shapes 0.80; QE-linear: jawOpen (cosine 0.10); median cosine of the 1 shapes '
         '0.10.',
@@ -132,7 +129,7 @@ def test_without_paired_intervals_no_order_is_claimed():
 def test_more_eigenfaces_than_hand_shapes_is_said():
     table = known_table().assign(m=33)
     lines = run_findings(table, "alpha_abs_mean", PAPER, {})
-    assert "m = 33 eigenfaces reach coverage 0.9951 (paper: m = 18); the 18 hand shapes cannot span them, so QE " \
+    assert "m = 33 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes cannot span them, so QE " \
            "cannot reach PCA." in lines[2]
 
 
@@ -149,11 +146,9 @@ def test_held_out_frames_beside_the_training_frames_and_the_caveats_of_the_data(
                                                                                              "browInnerUp_R"]}}}
     lines = run_findings(pd.concat([known_table(), held]), "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)
     held_lines = [line for line in lines if line.startswith("**mesh held-out tail**")]
-    assert held_lines[1] == (
-        "**mesh held-out tail**: on held-out frames (the last 20 % of the take, scored with bases fitted on the "
-        "rest), `alpha_abs_mean` with lstsq against the training frames: H 1.5 against 1 (x1.50), QE 0.375 against "
-        "0.25 (x1.50), QE-linear 0.75 against 0.5 (x1.50), PCA 0.3 against 0.2 (x1.50); m = 9 (training frames: "
-        "10).")
+    assert len(held_lines) == 1 and held_lines[0].startswith("**mesh held-out tail** (m = 9; training frames: m = "
+                                                              "10): `alpha_abs_mean` from best to worst")
+    assert held_lines[0].endswith("; held out / training frames: H x1.5, QE x1.5, QE-linear x1.5, PCA x1.5.")
     assert lines[-2:] == [
         "**caveat**: the capture is a noise-free linear blend of 3 ICT FaceKit shapes, 2 of the 3 hand shapes among "
         "them: H is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which flatters "
@@ -248,11 +243,13 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert main([str(sweep), "--where", "solver=lstsq"]) == 0
     printed = capsys.readouterr().out
     finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
-    assert "QE and H not distinguishable (QE/H " in finding and "(paired t on log ratios, n = 2)" in finding
+    assert "QE 0.267 ~ H 0.32 ~" in finding and "QE/H 0.835 [0.00179, 389]" in finding
     assert "QE < H" not in finding and "H < QE" not in finding
+    assert "the per-replicate ratio A/B (paired t on log ratios, n = 2)" in printed  # the method, said once
     # every interval printed, in the table and in the findings, lies above zero, and names its method and n
     bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
-    assert len(bounds) >= 2 * (7 + 6) and min(bounds) > 0  # QE at 0.995 is 0.16 on both seeds: no interval
+    # 7 cells of the table (QE at 0.995 is 0.16 on both seeds: no interval), the 2 primary contrasts at each coverage
+    assert len(bounds) >= 2 * (7 + 2 * 2) and min(bounds) > 0
     assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
     pair = comparisons[(comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE")
@@ -291,13 +288,48 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
         (0.99, "mesh", "lstsq", "alpha_abs_mean", "PCA", "H", 5, 0.54, 0.5, 0.6, method, "<"),
         (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "PCA", 5, 0.9586, 0.9, 1.02, method, "not distinguishable")])
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq") == [
-        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq): `alpha_abs_mean` geometric means, best first: "
-        "QE 0.162, PCA (n = 9-11) 0.169, H 0.312; QE and PCA not distinguishable (QE/PCA 0.9586, 95 % interval "
-        "[0.9, 1.02] (paired t on log ratios, n = 5)); PCA < H (PCA/H 0.54, 95 % interval [0.5, 0.6] (paired t on "
-        "log ratios, n = 5))."]
+        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
+        "0.169 < H 0.312; QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]."]
+    # another solver or column: the ordering only (the primary contrasts are those of lstsq and the headline)
+    assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", headline=False) == [
+        "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
+        "0.169 < H 0.312."]
     # with nothing swept but the seed: one finding per data variant
     assert sweep_findings(summary, comparisons, [], "alpha_abs_mean", "lstsq")[0].startswith(
-        "**mesh** (m = 9-11; 5 seeds, lstsq): ")
+        "**mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: ")
+
+
+def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
+    """Known p-values through the sweep path: QE/H and QE/PCA (lstsq, headline, first data variant) keep their own
+    95 %; the four others are one Holm family, p (0.01, 0.02, 0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only the
+    first stays '<' although every raw p is below 0.05 and every interval excludes 1."""
+    from workbench.reporting.sweep_findings import HOLM_COLUMN, holm_text, holm_verdicts, sweep_findings
+
+    summary = pd.DataFrame({
+        "data": ["mesh"] * 4 + ["mesh held-out tail"] * 4, "basis": ["H", "QE", "QE-linear", "PCA"] * 2,
+        "solver": ["lstsq", "lstsq", "lstsq", "projection"] * 2, "n_seeds": 5,
+        "alpha_abs_mean": [0.4, 0.1, 0.2, 0.3, 0.8, 0.2, 0.4, 0.6]})
+    method = "paired t on log ratios"
+    rows = [("mesh", "QE", "H", 0.25, 0.2, 0.3, 0.04), ("mesh", "QE", "PCA", 0.33, 0.3, 0.37, 0.03),
+            ("mesh", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.01), ("mesh", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.02),
+            ("mesh held-out tail", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.03),
+            ("mesh held-out tail", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.04)]
+    comparisons = pd.DataFrame([{"data": data, "solver": "lstsq", "metric": "alpha_abs_mean", "first": first,
+                                 "second": second, "n": 5, "ratio": ratio, "ratio_low": low, "ratio_high": high,
+                                 "method": method, "verdict": "<", "p": p}
+                                for data, first, second, ratio, low, high, p in rows])
+    adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
+    assert adjusted[HOLM_COLUMN].iloc[:2].isna().all()  # the primary contrasts: not in the family
+    assert adjusted[HOLM_COLUMN].iloc[2:].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
+    assert adjusted["verdict"].tolist() == ["<", "<", "<", "not distinguishable", "not distinguishable",
+                                            "not distinguishable"]
+    assert comparisons["verdict"].tolist() == ["<"] * 6  # the input is left as it was
+    lines = sweep_findings(summary, adjusted, [], "alpha_abs_mean", "lstsq")
+    assert lines == [
+        "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 < QE-linear 0.2 ~ PCA 0.3, H 0.4; QE/H 0.25 [0.2, 0.3], "
+        "QE/PCA 0.33 [0.3, 0.37].",
+        "**mesh held-out tail** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.2 ~ QE-linear 0.4 ~ PCA 0.6, H 0.8."]
+    assert "the other 4 comparisons Holm-adjusted (p_holm < 0.05)" in holm_text(adjusted, "alpha_abs_mean")
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
@@ -317,17 +349,14 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
     columns = ["data", "metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict"]
     comparisons = pd.DataFrame([dict(zip(columns, row)) for row in rows])
     assert bases_findings(summary, comparisons, "alpha_abs_mean") == [
-        "**mesh** (5 runs): `alpha_abs_mean` geometric means, best first: SPCA 0.100, PCA (n = 10) 0.150, QE 0.200, "
-        "H 1.000; SPCA < PCA (SPCA/PCA 0.667, 95 % interval [0.6, 0.74] (paired t on log ratios, n = 5)); PCA < QE "
-        "(PCA/QE 0.75, 95 % interval [0.7, 0.8] (paired t on log ratios, n = 5)); QE < H (QE/H 0.2, 95 % interval "
-        "[0.18, 0.22] (paired t on log ratios, n = 5)).",
+        "**mesh** (5 runs) `alpha_abs_mean`: SPCA 0.1 < PCA (n = 10) 0.15 < QE 0.2 < H 1; QE/H 0.2 [0.18, 0.22], "
+        "QE/PCA 1.33 [1.25, 1.43].",
         "**mesh**: bases of other sizes than the hand basis's n = 18: PCA n = 10; their alpha is not that of a basis "
         "of the same size.",
         "**mesh**: closest to the hand shapes (mean matched |cosine|): QE 0.660, then SPCA 0.450 (the hand shapes' "
-        "1.000); SPCA < QE (SPCA/QE 0.68, 95 % interval [0.6, 0.77] (paired t on log ratios, n = 5)).",
+        "1.000); SPCA < QE (SPCA/QE 0.68 [0.6, 0.77]).",
         "**mesh**: most local (share of the face holding an element's displacement): SPCA 0.095, then PCA 0.250 "
-        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38, 95 % interval [0.3, 0.48] (paired t on log ratios, "
-        "n = 5))."]
+        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38 [0.3, 0.48])."]
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
@@ -423,7 +452,7 @@ def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
             {"data": "mesh", "basis": "H", "solver": "lstsq", "basis_conditioning": {"rank": 18, "n_shapes": 18},
              "weights": dict(weights(0.5, 0.4, 0.3, 50.0, 1.0, 1.5), needs_negative_share=0.25)}]
     text = weights_text("mesh", ["lstsq"], rows)
-    assert "lstsq: H 1.5, 50 %, 0.30, 50; QE (minimum-norm, rank 11 of 18) 30, 100 %, 0.30, 2e+04" in text
+    assert "lstsq: H 1.5, 50; QE (minimum-norm, rank 11 of 18) 30, 2e+04" in text
     assert text.endswith("frames that need a negative weight (nnls error above lstsq's): H 25 %, QE 0 %")
 
 
@@ -440,3 +469,97 @@ def test_the_summary_states_the_claim_the_regime_and_the_verdict_in_under_200_wo
     assert "H 1, QE 0.25, PCA 0.2 mm median per-frame error; QE better than H: reproduced." in text
     assert text.endswith("Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
                          "and QE are fitted to the frames they reconstruct; no frames were held out.")
+
+
+def test_findings_over_their_words_leave_out_details_first_and_say_where_they_are():
+    from workbench.reporting.findings import Detail, fit_findings, words
+    from workbench.reporting.report_sections import Section
+
+    kept = ["**how to read**: " + "word " * 100, "**caveat**: " + "word " * 100]
+    details = [Detail("**a**: " + "word " * 300, 1, "the table 'A'"), Detail("**b**: " + "word " * 300, 2, "the table 'B'"),
+               Detail("**c**: " + "word " * 300, 1, "the table 'C'")]
+    sections = fit_findings([Section("Findings", ["Generated.", [kept[0], *details, kept[1]]])])
+    lines = sections[0].blocks[1]
+    # b (rank 2) goes first, then c (the later of rank 1); a and both plain lines stay
+    assert lines[:3] == [kept[0], details[0], kept[1]]
+    assert lines[3] == ("**left out**: 2 more findings, to keep this section within 800 words; their numbers are in "
+                        "the table 'B', the table 'C'.")
+    assert words(sections[0].blocks) <= 800
+    short = [Section("Findings", ["Generated.", [kept[0], details[0]]])]
+    assert fit_findings(short)[0].blocks[1] == [kept[0], details[0]]  # within the words: unchanged
+
+
+def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
+    from workbench.reporting.findings import fit_findings, words
+    from workbench.reporting.report_sections import Section
+    from workbench.reporting.sweep_findings import holm_text, holm_verdicts, sweep_statements
+
+    coverages = [0.9, 0.92, 0.94, 0.95, 0.96, 0.98, 0.99, 0.995, 0.998, 0.999]
+    bases = ["H", "QE", "QE-linear", "PCA"]
+    summary = pd.DataFrame([{"basis.coverage": c, "data": data, "basis": basis, "n_seeds": 5, "m_min": 8,
+                             "m_max": 10, "solver": "projection" if basis == "PCA" else solver,
+                             "alpha_abs_mean": (k + 1) * 0.1 * (1 + c)}
+                            for c in coverages for data in ("markers", "markers held-out tail")
+                            for solver in ("lstsq", "nnls") for k, basis in enumerate(bases)]).drop_duplicates(
+        ["basis.coverage", "data", "basis", "solver"])
+    comparisons = pd.DataFrame([{"basis.coverage": c, "data": data, "solver": solver, "metric": "alpha_abs_mean",
+                                 "first": a, "second": b, "n": 5, "ratio": 0.8, "ratio_low": 0.7,
+                                 "ratio_high": 0.9, "method": "paired t on log ratios", "verdict": "<", "p": 0.001}
+                                for c in coverages for data in ("markers", "markers held-out tail")
+                                for solver in ("lstsq", "nnls") for i, a in enumerate(bases) for b in bases[i + 1:]])
+    comparisons = holm_verdicts(comparisons, "alpha_abs_mean")
+    lines = [holm_text(comparisons, "alpha_abs_mean")] + [
+        line for solver in ("lstsq", "nnls")
+        for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)]
+    section = Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", list(lines)])
+    assert words(section.blocks) > 800  # 40 lines: more than the section holds
+    fitted = fit_findings([section])[0].blocks[1]
+    assert words(section.blocks) <= 800
+    assert fitted[0].startswith("**how to read**") and fitted[-1].startswith("**left out**: ")
+    # another solver's lines go before any of the lead solver's, the latest first
+    assert all(line in fitted for line in lines if ", lstsq) " in line)
+    left_out = [line for line in lines if line not in fitted]
+    assert left_out and all(", nnls) " in line for line in left_out) and left_out == lines[-len(left_out):]
+    assert fitted[1].startswith("basis.coverage = 0.9, **markers** (m = 8-10; 5 seeds, lstsq) `alpha_abs_mean`: ")
+
+
+def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_intervals_and_no_label_overlaps():
+    from workbench.reporting.figures.headline import figure_headline, variant_label
+
+    levels = pd.DataFrame([{"data": data, "m": m, "n": 18, "basis": basis, "alpha": alpha * scale,
+                            "low": alpha * scale * 0.8, "high": alpha * scale * 1.2}
+                           for data, m, scale in (("markers m=n", 18, 1.0), ("markers", 10, 1.1))
+                           for basis, alpha in (("H", 1.8), ("QE", 0.7), ("PCA", 0.52))])
+    contrasts = pd.DataFrame([
+        {"data": "markers m=n", "contrast": "QE - H", "estimate": -1.1, "low": -1.3, "high": -0.9, "identity": ""},
+        {"data": "markers m=n", "contrast": "QE - PCA", "estimate": 0.18, "low": 0.1, "high": 0.26, "identity": ""},
+        {"data": "markers", "contrast": "QE - H", "estimate": -1.2, "low": -1.4, "high": -1.0, "identity": ""},
+        {"data": "markers", "contrast": "QE - PCA", "estimate": float("nan"), "low": float("nan"),
+         "high": float("nan"), "identity": "by construction"}])
+    assert variant_label(levels, "markers m=n") == "m = n = 18 (H/QE 2.57, QE/PCA 1.35)"
+    assert variant_label(levels, "markers") == "coverage rule, m = 10 (H/QE 2.57, QE/PCA 1.35)"
+    figure = figure_headline(levels, contrasts, "alpha_abs_mean", "The paper's comparison, with intervals: test")
+    left, right = figure.axes
+    bars = [segment for collection in left.collections for segment in collection.get_segments()]
+    assert len(bars) == 6 and all(segment[:, 1].min() > 0 for segment in bars)  # every level with its interval
+    assert sorted(round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars) == \
+        pytest.approx([1.5] * 6)
+    assert any(text.get_text() == "<= 0 by construction" for text in right.texts)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(figure).get_renderer()
+    figure.draw(renderer)
+    texts = [*figure.texts, *[legend_text for legend in figure.legends for legend_text in legend.get_texts()]]
+    for ax in figure.axes:
+        texts += [ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts]
+        for axis, (low, high) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+            texts += [tick.label1 for tick in axis.get_major_ticks()
+                      if min(low, high) <= tick.get_loc() <= max(low, high) and tick.label1.get_visible()]
+    boxes = [(text.get_text(), text.get_window_extent(renderer)) for text in texts if text.get_text().strip()]
+    assert len(boxes) > 15
+    width, height = figure.bbox.width, figure.bbox.height
+    for name, box in boxes:  # inside the figure
+        assert box.x0 >= -1 and box.y0 >= -1 and box.x1 <= width + 1 and box.y1 <= height + 1, name
+    for i, (first, a) in enumerate(boxes):
+        for second, b in boxes[i + 1:]:
+            assert not a.overlaps(b), (first, second)

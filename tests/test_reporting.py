@@ -126,6 +126,10 @@ def test_report_documents_hold_tables_figures_provenance_choices_and_versions(ti
         assert re.search(r"Report built on 20\d\d-\d\d-\d\d \d\d:\d\d UTC", document)
         assert "the capture moves the two sides of the face together" in document
     assert "affine, linear" in readme and "lstsq (lstsq), nnls (nnls, bounds [0.0, None])" in readme
+    # the summary, then the headline figure with intervals, then findings within 800 words
+    assert readme.index("## Summary") < readme.index("](figures/headline.svg)") < readme.index("## Findings")
+    assert 'src="figures/headline.svg"' in page
+    assert len(section_text("## Findings", readme).split()) <= 800
     # The README's full table is the very text the run printed.
     printed = (record / "alpha_table.md").read_text()
     assert table_after("## Full alpha table", readme) == table_after("| data", printed)
@@ -331,16 +335,27 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
     assert "sweep over basis.coverage" in page and "replicates over dataset.seed 0, 1" in page
     readme = (report / "README.md").read_text()
     findings = section_text("## Findings", readme)
-    assert findings.count("(paired t on log ratios, n = 2)") == 2 * 3  # 3 neighbouring pairs at each coverage
+    assert len(findings.split()) <= 800
+    assert findings.count("(paired t on log ratios, n = 2)") == 1  # the method, said once
     comparisons = pd.read_csv(report / "comparisons.csv")
     assert len(comparisons) == 2 * 6 and set(comparisons["verdict"]) <= {"<", "not distinguishable"}
-    for row in comparisons.to_dict("records"):  # every pair a finding states is a row of the comparisons table
+    assert comparisons["p_holm"].notna().sum() == 2 * 4  # QE/H and QE/PCA at each coverage are primary
+    joins = 0
+    for row in comparisons.to_dict("records"):  # every pair a finding joins is a row of the comparisons table
         line = next(line for line in findings.splitlines()
                     if line.startswith(f"- basis.coverage = {row['basis.coverage']},"))
         first, second = row["first"], row["second"]
-        stated = f"{first} < {second} (" if row["verdict"] == "<" else f"{first} and {second} not distinguishable ("
-        assert (f"{stated}{first}/{second} {row['ratio']:.4g}, 95 % interval [{row['ratio_low']:.4g}, "
-                f"{row['ratio_high']:.4g}]" in line) or f"{first}/{second} " not in line
+        joined = re.search(rf"{re.escape(first)}(?: \(n = [^)]*\))? [0-9.e+-]+ ([<~=]) {re.escape(second)}[ ,;.]",
+                           line)
+        if joined:
+            joins += 1
+            assert joined.group(1) == ("<" if row["verdict"] == "<" else "~"), (row, line)
+        if {first, second} in ({"QE", "H"}, {"QE", "PCA"}):  # a primary contrast: its ratio and interval, QE first
+            other = second if first == "QE" else first
+            ratio, low, high = ((row["ratio"], row["ratio_low"], row["ratio_high"]) if first == "QE"
+                                else (1 / row["ratio"], 1 / row["ratio_high"], 1 / row["ratio_low"]))
+            assert f"QE/{other} {ratio:.3g} [{low:.3g}, {high:.3g}]" in line, (row, line)
+    assert joins == 2 * 3  # 3 neighbouring pairs at each coverage
 
 
 def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():

@@ -200,7 +200,7 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.sweep_findings import replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_findings import holm_text, holm_verdicts, replicate_caveat, sweep_statements
 
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)
@@ -211,11 +211,11 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
-    comparisons = filtered(sweep_comparisons(runs, compared, over), where)
+    comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where), metric)
     solvers = [(where or {}).get("solver")] if (where or {}).get("solver") else \
         [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = replicate_caveat(over) + [line for solver in solvers
+    findings = [holm_text(comparisons, metric), *replicate_caveat(over)] + [line for solver in solvers
                                          for line in sweep_statements(wide(summary), comparisons, swept, compared,
                                                                       solver)]
     out = Path(out)

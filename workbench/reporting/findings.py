@@ -7,7 +7,8 @@ QE-linear and PCA under each solver, where every ``<`` is a paired per-frame dif
 excludes zero (:mod:`workbench.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
 the paper's; m beside the paper's; what the constrained solvers do to QE and QE-linear against H, and why, from
 the offset numbers; the weights an animator would face; the error in millimetres as a distribution; which hand
-shapes the projection changes most; and the caveats that apply to the data.
+shapes the projection changes most; and the caveats that apply to the data. :func:`fit_findings` keeps a report's
+findings within :data:`FINDINGS_WORDS` words, leaving out :class:`Detail` lines first.
 
 The findings of a sweep and of the other bases are in :mod:`workbench.reporting.sweep_findings`.
 """
@@ -33,6 +34,61 @@ SOLVER_NAMES = {"lstsq": "least squares", "nnls": "non-negative weights", "box":
 ALPHA_VARIANTS = {"alpha_abs_mean": "abs mean", "alpha_abs_pooled": "abs pooled", "alpha_disp_mean": "disp mean",
                   "alpha_disp_pooled": "disp pooled"}
 PCA_KEY = ("PCA", "projection")
+FINDINGS_WORDS = 800
+"""The most words a report's findings section holds (as ``wc -w`` counts its Markdown: a bullet's ``-`` is one);
+:func:`fit_findings` leaves out :class:`Detail` lines beyond it."""
+
+
+class Detail(str):
+    """A finding that may be left out when the findings run over :data:`FINDINGS_WORDS`: its numbers are in the
+    table ``where`` names. Lines of higher ``rank`` go first, the later of equal rank before the earlier."""
+
+    rank: int
+    where: str
+
+    def __new__(cls, text: str, rank: int = 1, where: str = "the tables below") -> "Detail":
+        line = super().__new__(cls, text)
+        line.rank, line.where = rank, where
+        return line
+
+
+def words(blocks: Sequence) -> int:
+    """The words of a section's paragraphs and bullet lists as ``wc -w`` counts their Markdown (``- `` of each
+    bullet one word; tables and figures not counted)."""
+    total = 0
+    for block in blocks:
+        if isinstance(block, str):
+            total += len(block.split())
+        elif isinstance(block, list):
+            total += sum(len(str(item).split()) + 1 for item in block)
+    return total
+
+
+def fit_findings(sections: list, budget: int = FINDINGS_WORDS) -> list:
+    """The report's sections with its findings within ``budget`` words: the :class:`Detail` lines of the bullet
+    lists left out, highest rank (then latest) first, until the section fits, and one line saying what was left
+    out and where its numbers are. Unchanged when the findings fit or there is no section 'Findings'."""
+    found = next((section for section in sections if getattr(section, "heading", None) == "Findings"), None)
+    if found is None or words(found.blocks) <= budget:
+        return sections
+    lists = [block for block in found.blocks if isinstance(block, list)]
+    candidates = sorted(((line.rank, k, j) for k, block in enumerate(lists) for j, line in enumerate(block)
+                         if isinstance(line, Detail)), reverse=True)
+    dropped: list[Detail] = []
+    note_words = 40  # the note that says what was left out
+    for _, k, j in candidates:
+        if words(found.blocks) + note_words <= budget:
+            break
+        dropped.append(lists[k][j])
+        lists[k][j] = None
+    for block in lists:
+        block[:] = [line for line in block if line is not None]
+    if dropped and lists:
+        where = ", ".join(dict.fromkeys(line.where for line in dropped))
+        lists[-1].append(f"**left out**: {len(dropped)} more finding{'s' if len(dropped) > 1 else ''}, to keep "
+                         f"this section within {budget} words; their numbers are in {where}.")
+    return sections
+
 
 
 def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
@@ -75,9 +131,10 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
 
 
 def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq",
-               column: str = "alpha_abs_mean", spread: bool = True) -> str:
-    """H/QE and QE/PCA of one data variant in the headline column beside the paper's, and (with ``spread``) how far
-    the four alpha variants move H/QE (every variant's value is in the table 'Alpha beside the paper')."""
+               column: str = "alpha_abs_mean", spread: bool = True, paper_shown: bool = True, error: str = "") -> str:
+    """H/QE and QE/PCA of one data variant in the headline column (with ``paper_shown``, beside the paper's), then
+    ``error`` (:func:`error_text`), and (with ``spread``) how far the four alpha variants move H/QE (every variant's value is in the table 'Alpha beside
+    the paper')."""
     columns = [name for name in ALPHA_VARIANTS if name in part.columns]
     if column not in columns:
         return ""
@@ -87,14 +144,16 @@ def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str
         if math.isnan(first) or math.isnan(second):
             continue
         paper = paper_alpha.get(a, math.nan) / paper_alpha.get(b, math.nan)
-        texts.append(f"{a}/{b} {first / second:.3g}" + (f" (paper {paper:.3g})" if math.isfinite(paper) else ""))
+        texts.append(f"{a}/{b} {first / second:.3g}"
+                     + (f" (paper {paper:.3g})" if paper_shown and math.isfinite(paper) else ""))
     if not texts:
         return ""
     ratios = [_alpha(part, "H", solver, name) / _alpha(part, "QE", solver, name) for name in columns]
     spread = (f"; over the {len(columns)} alpha variants H/QE runs from {min(ratios):.3g} to {max(ratios):.3g}, so "
               "no one ratio compares across datasets" if spread and len(columns) > 1 and all(map(math.isfinite, ratios))
               else "")
-    return f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + spread
+    return (f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + (f"; {error}" if error else "")
+            + spread)
 
 
 def m_text(part: pd.DataFrame, paper: Mapping) -> str:
@@ -102,7 +161,7 @@ def m_text(part: pd.DataFrame, paper: Mapping) -> str:
     m = round(float(part["m"].iloc[0]), 1)
     n = float(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
     spans = "can span" if m <= n else "cannot span"
-    reach = (f" reach coverage {float(part['coverage'].iloc[0]):.4f}" if "coverage" in part.columns
+    reach = (f" reach coverage {float(part['coverage'].iloc[0]):.3g}" if "coverage" in part.columns
              else " (mean over the runs)")
     return (f"m = {m:g} eigenfaces{reach} (paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them"
             + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA"))
@@ -211,10 +270,11 @@ def needs_negative(weights: Mapping) -> float:
 
 
 def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
-    """The animator's side: under least squares (else the first solver), each basis's largest |w|, share
-    of frames with a weight outside [0, 1], Hoyer sparsity and roughness; least-squares weights of a rank-deficient
-    basis labelled minimum-norm with the rank (they describe the pseudo-inverse's choice, not the basis); and the
-    share of frames that need a negative weight (:func:`workbench.metrics.needs_negative_share`)."""
+    """The animator's side: under least squares (else the first solver), each basis's largest |w| and roughness
+    (the share of frames outside [0, 1] and the sparsity are in the table 'Error in millimetres and the weights');
+    least-squares weights of a rank-deficient basis labelled minimum-norm with the rank (they describe the
+    pseudo-inverse's choice, not the basis); and the share of frames that need a negative weight
+    (:func:`workbench.metrics.needs_negative_share`)."""
     parts, needing = [], []
     for solver in [solver for solver in solvers if solver == "lstsq"] or list(solvers)[:1]:
         found = [(basis, _row(rows, data, basis, solver)) for basis in RUN_BASES]
@@ -222,32 +282,28 @@ def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> 
         if found:
             parts.append(f"{solver}: " + "; ".join(
                 f"{basis}{minimum_norm_label(row, solver)} {row['weights']['max_abs']:.3g}, "
-                f"{_percent(row['weights']['outside_unit_share'])}, {row['weights']['sparsity']:.2f}, "
-                f"{row['weights']['roughness']:.2g}" for basis, row in found))
+                f"{row['weights']['roughness']:.3g}" for basis, row in found))
         if solver == "lstsq":
             needing = [f"{basis} {_percent(row['weights']['needs_negative_share'])}" for basis, row in found
                        if _finite_value(row["weights"].get("needs_negative_share"))]
     if not parts:
         return ""
-    return ("the weights an animator would get (largest |w|, frames with a weight outside [0, 1], Hoyer sparsity, "
-            "roughness in 1/s^4; table 'Error in millimetres and the weights'), "
-            + "; ".join(parts)
+    return ("the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table 'Error in "
+            "millimetres and the weights'), " + "; ".join(parts)
             + (f"; frames that need a negative weight (nnls error above lstsq's): {', '.join(needing)}"
                if needing else ""))
 
 
 def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
-    """The median per-frame error in millimetres over the face region, each basis under a solver (percentiles in
-    the table 'Error in millimetres and the weights')."""
+    """The median per-frame error in millimetres over the face region, each basis under a solver (the region,
+    percentiles and maxima in the table 'Error in millimetres and the weights')."""
     if "err_mm_median" not in part.columns:
         return ""
     entries = [f"{basis} {value:.3g}" for basis in RUN_BASES
                if not math.isnan(value := _alpha(part, basis, solver, "err_mm_median"))]
     if not entries:
         return ""
-    region = facts.get("face_region")
-    return (f"median per-frame RMS error in mm ({solver}{'; ' + region if region else ''}): " + ", ".join(entries)
-            + "; 95th percentiles and maxima in the table 'Error in millimetres and the weights'")
+    return f"median per-frame error ({solver}) " + ", ".join(entries) + " mm"
 
 
 def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine", count: int = 2) -> str:
@@ -318,20 +374,16 @@ def caveat_texts(metrics: Mapping) -> list[str]:
 
 def held_out_text(held: pd.DataFrame, trained: pd.DataFrame, column: str, facts: Mapping,
                   trained_facts: Mapping, solver: str = "lstsq") -> str:
-    """A held-out variant against its training frames: each basis's alpha under a solver, held out against
-    trained (the ratio), and m of each fit."""
+    """A held-out variant against its training frames: each basis's alpha under a solver held out over trained
+    (both values, and what was held out, are in the table 'Training frames and held-out frames')."""
     parts = []
     for basis in RUN_BASES:
         a, b = _alpha(held, basis, solver, column), _alpha(trained, basis, solver, column)
         if not (math.isnan(a) or math.isnan(b)):
-            parts.append(f"{basis} {_fmt(a)} against {_fmt(b)} (x{a / b:.2f})")
+            parts.append(f"{basis} x{a / b:.3g}")
     if not parts:
         return ""
-    described = next((note.split(":")[1].strip() for note in facts.get("notes", []) if note.startswith("held out")),
-                     facts.get("protocol", "held out"))
-    m_held, m_trained = (float(frame["m"].iloc[0]) for frame in (held, trained))
-    return (f"on held-out frames ({described}), `{column}` with {solver} against the training frames: "
-            + ", ".join(parts) + f"; m = {m_held:g} (training frames: {m_trained:g})")
+    return "held out / training frames: " + ", ".join(parts)
 
 
 def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness: Mapping[str, Sequence[Mapping]],
@@ -371,13 +423,14 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
     trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
     detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 \
         else None
+    said = {"paper": False}  # the paper's ratios: said on the first line that gives ratios
     for data, part in parts.items():
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
         if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
             lines.append(f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
-                         f"{ratio_text(part, paper.get('alpha', {}), column=column, spread=False)}; {m_text(part, paper)}.")
+                         f"{_ratios(part, paper, column, False, said)}; {m_text(part, paper)}.")
             continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         lead = detailed is None or data == detailed
@@ -385,50 +438,57 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
         ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
                              for solver in shown)
         claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
-        lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
-        error = error_text(part, solvers[0], facts) if solvers else ""
         if facts.get("protocol", "training frames") != "training frames":
             base = next((row["train_on"] for row in rows if row.get("data") == data), None)
-            if base in parts:
-                text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {})
-                if text:
-                    lines.append(f"**{data}**: {text}.")
+            text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {}) \
+                if base in parts else ""
+            m_base = f"; training frames: m = {float(parts[base]['m'].iloc[0]):g}" if base in parts else ""
+            lines.append(Detail(f"**{data}** (m = {float(part['m'].iloc[0]):g}{m_base}): `{column}` from best to "
+                                f"worst{claim}, {ordering}" + (f"; {text}" if text else "") + ".",
+                                1, "the table 'Training frames and held-out frames'"))
             continue  # its error in mm: the table 'Training frames and held-out frames'
-
+        lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
         if "lstsq" in solvers:
-            ratios = ratio_text(part, paper.get("alpha", {}), column=column, spread=lead)
+            ratios = _ratios(part, paper, column, lead, said, error_text(part, "lstsq", facts) if lead else "")
             if ratios:
                 lines.append(f"**{data}**: {ratios}.")
         if not lead:  # the lead variant's details stand for the others' (m: table 'Run facts'; mm: the tables)
             continue
         if not is_paper_regime(data):  # at m = n by construction
             lines.append(f"**{data}**: {m_text(part, paper)}.")
-        lines += _detail_lines(data, part, column, solvers, compare, facts, rows, error,
-                               intuitiveness.get(data, []))
+        lines += _detail_lines(data, part, column, solvers, compare, facts, rows, intuitiveness.get(data, []))
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
 
 
+def _ratios(part: pd.DataFrame, paper: Mapping, column: str, spread: bool, said: dict, error: str = "") -> str:
+    """:func:`ratio_text` with least squares, the paper's ratios beside the first that is said only."""
+    text = ratio_text(part, paper.get("alpha", {}), column=column, spread=spread, paper_shown=not said["paper"],
+                      error=error)
+    said["paper"] = said["paper"] or bool(text)
+    return text
+
+
 def _detail_lines(data: str, part: pd.DataFrame, column: str, solvers: Sequence[str], compare, facts: Mapping,
-                  rows: Sequence[Mapping], error: str, intuitiveness: Sequence[Mapping]) -> list[str]:
-    """The findings said for the lead data variant only: what the constrained solvers do and why, the weights,
-    the error and the shapes the projection changes most (see :func:`run_findings`)."""
+                  rows: Sequence[Mapping], intuitiveness: Sequence[Mapping]) -> list[str]:
+    """The findings said for the lead data variant only: what the constrained solvers do and why, the weights
+    and the shapes the projection changes most (see :func:`run_findings`); each a :class:`Detail` that
+    :func:`fit_findings` may leave out."""
     lines = []
     # the first constrained solver (nnls) said; the others' alpha is in the table 'Alpha beside the paper'
     constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers][:1]
     for k, solver in enumerate(constrained):
-        lines.append(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".")
+        lines.append(Detail(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".", 2,
+                            "the tables 'Alpha beside the paper' and 'Paired comparisons within the run'"))
         why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
         if why:
-            lines.append(f"**{data}**: why: {why}.")
+            lines.append(Detail(f"**{data}**: why: {why}.", 3, "the run record (metrics.json: offset)"))
     weights = weights_text(data, solvers, rows)
     if weights:
-        lines.append(f"**{data}**: {weights}.")
-    if error:
-        lines.append(f"**{data}**: {error}.")
+        lines.append(Detail(f"**{data}**: {weights}.", 4, "the table 'Error in millimetres and the weights'"))
     closeness = closeness_line(intuitiveness)
     if closeness:
-        lines.append(f"**{data}**: {closeness}.")
+        lines.append(Detail(f"**{data}**: {closeness}.", 5, "the figures of the hand shapes' intuitiveness"))
     return lines
 
 

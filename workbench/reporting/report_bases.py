@@ -73,6 +73,7 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     the bases' ordering by alpha, which a sweep's own findings state already). Unchanged when no run scored other
     bases."""
     from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
+    from workbench.reporting.sweep_findings import bases_findings, holm_verdicts
 
     found = [(record, basis_intuitiveness_rows(record)) for record in records]
     found = [(record, frame) for record, frame in found if not frame.empty]
@@ -87,8 +88,9 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     per_run = pd.concat([frame.assign(study=record.study, run=str(record.folder)) for record, frame in found],
                         ignore_index=True)
     summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
-    comparisons = pd.concat([paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
-                             for name in (column, "matched_abs_cosine", "locality")], ignore_index=True)
+    comparisons = holm_verdicts(pd.concat([paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
+                                           for name in (column, "matched_abs_cosine", "locality")],
+                                          ignore_index=True), column, solver)
     several = int(summary["n_seeds"].max()) > 1
     note = interval_label(summary, "runs")
     caption = (f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
@@ -102,8 +104,6 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     shown = summary[["data", "basis", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
                                                            if several else []), *INTUITIVENESS_COLUMNS]]
     shown.insert(2, "n", range_column(summary, "n"))
-    from workbench.reporting.sweep_findings import bases_findings
-
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons
         run_comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
@@ -122,8 +122,9 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
          f"largest, mean over the evaluated frames (weights of solver {solver})."],
         shown,
         f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
-        f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; '<' only where "
-        "it excludes 1.",
+        f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "
+        "p-value Holm-adjusted over this table's rows but QE/H and QE/PCA on the first data variant; '<' only where "
+        "their interval excludes 1, or p_holm is below 0.05 for the others.",
         comparisons.drop(columns=["study", "method"]), entry])
     headings = [item.heading for item in sections]
     at = headings.index("Figures") if "Figures" in headings else len(sections)

@@ -11,6 +11,8 @@ import pandas as pd
 
 from workbench.files import inside, write_atomic
 from workbench.record import RunRecord
+from workbench.reporting.figures.headline import headline_spec
+from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
 from workbench.reporting.report_data import (dataset_label, figure_bases, headline_column, qe_label,
@@ -227,7 +229,11 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
-    sections = with_bases_section(sections, [record], figures_dir, formats)
+    headline = make_figures([headline_spec(record, headline_column(record.config), dataset_label(record))],
+                            record, figures_dir, formats, {})
+    if sections and sections[0].heading == "Summary":  # the summary, then its figure
+        sections[0].blocks += headline
+    sections = fit_findings(with_bases_section(sections, [record], figures_dir, formats))
     write_documents(out, title, sections)
     write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
     write_atomic(inside(out, "run_config.yaml"), (record.folder / "config.yaml").read_bytes())

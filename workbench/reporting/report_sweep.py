@@ -11,6 +11,7 @@ import pandas as pd
 from workbench.errors import WorkbenchError
 from workbench.files import inside, write_atomic
 from workbench.record import DONE, RunRecord, find_records, load_record
+from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
@@ -19,6 +20,7 @@ from workbench.reporting.report_figures import (FIGURE_FORMATS, FigureEntry, cle
                                                 make_figures)
 from workbench.reporting.report_sections import (Section, choices_rows, provenance_section, range_column,
                                                  report_versions, versions_section)
+from workbench.reporting.sweep_findings import holm_verdicts
 from workbench.reporting.runs import (interval_label, is_replicate_key, runs_table, summarise, sweep_comparisons,
                                       varying_keys, wide)
 
@@ -124,7 +126,7 @@ def _natural(text: str):
 def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
                    comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
                    command: str) -> tuple[str, list[Section]]:
-    from workbench.reporting.sweep_findings import replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_findings import holm_text, replicate_caveat, sweep_statements
 
     first = records[0]
     column = headline_column(first.config)
@@ -144,14 +146,13 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
     hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
     compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]) + [
+    findings = [holm_text(comparisons, column), *replicate_caveat([key for key in per_run.columns
+                                                                  if is_replicate_key(key)])] + [
         line for name in [solver, *(other for other in solvers if other != solver)]
         for line in sweep_statements(summary, comparisons, swept, columns, name)]
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
-        Section("Findings", [f"Generated from the tables below (each solver; PCA by projection): levels are "
-                             "geometric means over the seeds; \"A < B\" only where the 95 % interval of the "
-                             f"per-seed ratio A/B ({method}) excludes 1.", findings]),
+        Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", findings]),
         Section("About this report", [
             f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
             f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
@@ -162,7 +163,10 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
         Section("Paired comparisons", [
             f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
             f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
-            "the smaller first; '<' only where the interval excludes 1.", compared]),
+            "the smaller first; `p`: the p-value of the same test, `p_holm`: Holm's adjustment of it over every row "
+            "but the primary contrasts (QE/H and QE/PCA with lstsq on the first data variant, NaN); 'verdict' '<' "
+            "only where the primary contrast's interval excludes 1, or the other row's p_holm is below 0.05.",
+            compared]),
         Section("Figures", figures),
         Section("Runs", [runs.astype(str)]),
         Section("Choices the runs made (first run)",
@@ -194,13 +198,13 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
     column = headline_column(records[0].config)
-    comparisons = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
+    comparisons = holm_verdicts(sweep_comparisons(per_run, [column, f"clean_{column}"], over), column)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir,
                            formats, {})
     title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
-    sections = with_bases_section(sections, records, figures_dir, formats, ordering=False)
+    sections = fit_findings(with_bases_section(sections, records, figures_dir, formats, ordering=False))
     write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
     write_atomic(inside(out, "comparisons.csv"), comparisons.to_csv(index=False))

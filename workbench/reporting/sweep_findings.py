@@ -1,10 +1,12 @@
 """The findings of a sweep or of the other bases, stated in sentences generated from its numbers.
 
 :func:`sweep_statements` says, per swept condition and data variant, the bases from best to worst by their
-geometric means over the replicates, each neighbouring pair "A < B" only where the interval of the per-replicate
-ratio excludes 1 and "not distinguishable" otherwise, with the interval, its method and n (a cell of the sweep's
-comparisons table); :func:`bases_findings` adds the other bases' sizes, closeness and locality. The findings of
-one run are in :mod:`workbench.reporting.findings`.
+geometric means over the replicates, each neighbouring pair "A < B" only where the paired per-replicate ratio's
+verdict allows it and "A ~ B" otherwise, and the primary contrasts (QE against H and against PCA) with their
+intervals; every other ratio, interval and p-value is a row of the sweep's comparisons table. :func:`holm_verdicts`
+decides the verdicts: the primary contrasts at their own 95 %, every other comparison of the table by its
+Holm-adjusted p-value over the table. :func:`bases_findings` adds the other bases' sizes, closeness and locality.
+The findings of one run are in :mod:`workbench.reporting.findings`.
 """
 
 from __future__ import annotations
@@ -14,9 +16,75 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.statistics import RATIO_FORMAT, Interval, comparison_lookup, interval_text, reversed_interval
+from workbench.reporting.findings import Detail
+from workbench.reporting.runs import NOT_DISTINGUISHABLE
+from workbench.statistics import (CONFIDENCE, Interval, comparison_lookup, holm, reversed_interval,
+                                  short_interval_text)
 from workbench.statistics import ordering_text as stated_ordering
 from workbench.tables import cell_text
+
+PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
+"""The paper's claims, stated with their intervals and tested at their own 95 % in a sweep (least squares, the
+headline alpha, the lead data variant, every swept condition); every other comparison is Holm-adjusted."""
+HOLM_COLUMN = "p_holm"
+"""The comparisons table's column with the Holm-adjusted p-value (NaN for a primary contrast)."""
+
+
+def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq") -> bool:
+    """Whether a row of a sweep's comparisons table is a primary contrast (:data:`PRIMARY_PAIRS`)."""
+    pair = {row.get("first"), row.get("second")}
+    return (row.get("metric") == column and row.get("solver", solver) == solver and row.get("data") == lead
+            and any(pair == set(primary) for primary in PRIMARY_PAIRS))
+
+
+def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> pd.DataFrame:
+    """A sweep's comparisons table with Holm's adjustment over its family: every row but the primary contrasts
+    (:func:`is_primary`, on the table's first data variant) gets its Holm-adjusted p-value in :data:`HOLM_COLUMN`
+    (:func:`workbench.statistics.holm` over all of them), and its ``verdict`` is ``<`` only where that is below
+    0.05; a primary contrast keeps the verdict of its own 95 % interval.
+
+    Parameters
+    ----------
+    comparisons : pandas.DataFrame
+        :func:`workbench.reporting.runs.sweep_comparisons`: ``first``, ``second``, ``metric``, ``ratio``,
+        ``ratio_low``, ``ratio_high``, ``verdict``, ``p`` and, per row, its condition, ``data`` and ``solver``.
+    column : str
+        The headline alpha column (that of the primary contrasts).
+    solver : str
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy with :data:`HOLM_COLUMN` after ``p``.
+    """
+    table = comparisons.copy()
+    if table.empty or "p" not in table.columns:
+        return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float)})
+    lead = next(iter(table["data"].dropna()), None) if "data" in table.columns else None
+    primary = [is_primary(row, column, lead, solver) for row in table.to_dict("records")]
+    family = [k for k, flag in enumerate(primary) if not flag]
+    adjusted = pd.Series(math.nan, index=table.index)
+    adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
+    table[HOLM_COLUMN] = adjusted
+    for k in family:
+        interval = Interval(float(table["ratio"].iloc[k]), float(table["ratio_low"].iloc[k]),
+                            float(table["ratio_high"].iloc[k]), null=1.0, p_adjusted=float(adjusted.iloc[k]))
+        table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+    return table
+
+
+def holm_text(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> str:
+    """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the primary
+    contrasts at their own 95 % and the size of the Holm family (:func:`holm_verdicts`)."""
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    n = int(comparisons["n"].max()) if len(comparisons) else 0
+    family = int(comparisons[HOLM_COLUMN].notna().sum()) if HOLM_COLUMN in comparisons.columns else 0
+    lead = next(iter(comparisons["data"].dropna()), "-") if "data" in comparisons.columns else "-"
+    return (f"**how to read**: levels are geometric means over the replicates; 'A < B': the per-replicate ratio "
+            f"A/B ({method}, n = {n}) is below 1 at 95 %; '~': not distinguishable; '=': a tie; the primary "
+            f"contrasts QE/H and QE/PCA (`{column}`, {solver}, on {lead}; stated with their 95 % interval) at their "
+            f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); every "
+            "ratio, interval and p-value is a row of comparisons.csv.")
 
 def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
     """The paired ratio ``first / second`` from a comparisons table (either orientation), as an interval."""
@@ -24,20 +92,21 @@ def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
         found = comparisons[(comparisons["first"] == a) & (comparisons["second"] == b)]
         if len(found):
             row = found.iloc[0]
+            adjusted = float(row[HOLM_COLUMN]) if HOLM_COLUMN in row.index else math.nan
             interval = Interval(float(row["ratio"]), float(row["ratio_low"]), float(row["ratio_high"]),
-                                int(row["n"]), str(row["method"]), null=1.0)
+                                int(row["n"]), str(row["method"]), null=1.0, p_adjusted=adjusted)
             return reversed_interval(interval) if flip else interval
     return Interval(math.nan, math.nan, math.nan, 0, "no paired values", null=1.0)
 
 
 def pair_text(comparisons: pd.DataFrame, first: str, second: str) -> str:
-    """``QE < H (QE/H 0.5212, 95 % interval [0.4601, 0.5804] (paired t on log ratios, n = 5))``, or ``QE and H
-    not distinguishable (...)`` when the interval of the paired ratio includes 1: the row of the comparisons
-    table, in its orientation (the smaller first)."""
+    """``QE < H (QE/H 0.521 [0.46, 0.58])``, or ``QE and H not distinguishable (...)`` when the comparison's verdict
+    (its interval, or its Holm-adjusted p-value where there is one) does not exclude 1: the row of the comparisons
+    table, in its orientation (the smaller first); its method is said once, above the findings."""
     interval = _comparison(comparisons, first, second)
     if interval.estimate > 1.0:
         first, second, interval = second, first, reversed_interval(interval)
-    detail = interval_text(interval, f"{first}/{second}", RATIO_FORMAT)
+    detail = short_interval_text(interval, f"{first}/{second}", "{:.3g}")
     if not interval.excludes_null:
         return f"{first} and {second} not distinguishable ({detail})"
     return f"{first} {'<' if interval.sign < 0 else '>'} {second} ({detail})"
@@ -53,9 +122,12 @@ def _range_text(row, column: str) -> str:
     return f"{low:g}" if low == high else f"{low:g}-{high:g}"
 
 
-def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis") -> str:
-    """The bases of one condition from best to worst by their geometric mean, then each neighbouring pair's paired
-    verdict: ``QE 0.162, PCA 0.169, H 0.312; QE and PCA not distinguishable (...); PCA < H (...)``.
+def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis",
+                            primary: bool = False) -> str:
+    """The bases of one condition from best to worst by their geometric mean, each neighbouring pair joined by its
+    verdict in the comparisons table (``<``, ``~`` not distinguishable, ``=`` a tie, ``,`` no comparison), then
+    (with ``primary``) the primary contrasts with their intervals: ``QE 0.162 ~ PCA (n = 9-11) 0.169 < H 0.312;
+    QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]``.
 
     Parameters
     ----------
@@ -64,23 +136,34 @@ def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, colum
         over the replicates) and optionally ``n_min``/``n_max`` (basis sizes; a basis whose size differs from
         the hand basis's is marked with it).
     comparisons : pandas.DataFrame
-        The paired comparisons of the same condition (:func:`workbench.reporting.runs.paired_comparisons`).
+        The paired comparisons of the same condition (:func:`workbench.reporting.runs.paired_comparisons`, with
+        :func:`holm_verdicts`' adjusted p-values where it was applied).
     column : str
     key : str
         What is ordered: ``basis``, or ``train_on`` (one basis fitted on each data variant).
+    primary : bool
+        Whether this condition holds the primary contrasts (:data:`PRIMARY_PAIRS`), stated with their intervals.
     """
     ranked = part.dropna(subset=[column]).sort_values(column, kind="stable")
     hand = ranked[ranked["basis"] == "H"] if key == "basis" else ranked.iloc[:0]
     sized = _has(ranked, "n")
     usual = _range_text(hand.iloc[0], "n") if len(hand) and sized else None
-    names = []
+    names = {}
     for row in ranked.to_dict("records"):
         size = _range_text(row, "n") if sized else None
-        names.append(f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''} "
-                     f"{cell_text(column, row[column])}")
-    bases = list(ranked[key])
-    pairs = [pair_text(comparisons, first, second) for first, second in zip(bases, bases[1:])]
-    return "; ".join([", ".join(names), *pairs])
+        names[row[key]] = f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''}"
+
+    def compare(first, second):
+        interval = _comparison(comparisons, first, second)
+        return None if interval.n == 0 and math.isnan(interval.estimate) else interval
+
+    values = {name: float(value) for name, value in zip(ranked[key], ranked[column])}
+    text = stated_ordering(values, compare, name=lambda item: names[item], digits=3, detail=lambda *args: "")
+    if primary:
+        stated = [short_interval_text(found, f"{a}/{b}", "{:.3g}") for a, b in PRIMARY_PAIRS
+                  if a in values and b in values and (found := compare(a, b)) is not None]
+        text += "; " + ", ".join(stated) if stated else ""
+    return text
 
 
 def _of_solver(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str,
@@ -100,11 +183,13 @@ def _matching(comparisons: pd.DataFrame, keys: Sequence[str], values: Sequence) 
 
 
 def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str,
-                   solver: str) -> list[str]:
-    """Findings of a sweep, one per swept condition and data variant: m over the runs, the bases from best to
-    worst by their geometric mean over the replicates, and for each neighbouring pair "A < B" only where the 95 %
-    interval of the per-replicate ratio excludes 1, else "not distinguishable", with the interval, its method and
-    n. Every number is a cell of the summary or of the comparisons table.
+                   solver: str, headline: bool = True) -> list[str]:
+    """Findings of a sweep, one per swept condition and data variant: m over the runs and the bases from best to
+    worst by their geometric mean over the replicates, each neighbouring pair joined by its verdict in the
+    comparisons table (:func:`ordering_with_intervals`), and on the lead (first) data variant, with least squares
+    and the headline column, the primary contrasts with their intervals. Every number is a cell of the summary or
+    of the comparisons table; each line a :class:`workbench.reporting.findings.Detail` (those of another solver or
+    column go first when the findings run over their words).
 
     Parameters
     ----------
@@ -118,6 +203,8 @@ def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequ
     column : str
     solver : str
         The solver of the findings (PCA is compared beside it).
+    headline : bool
+        Whether ``column`` is the headline alpha (that of the primary contrasts).
 
     Returns
     -------
@@ -125,6 +212,8 @@ def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequ
     """
     rows, comparisons = _of_solver(summary, comparisons, column, solver)
     keys = [*swept, "data"]
+    lead = next(iter(summary["data"]), None)
+    primary = headline and solver == "lstsq"
     lines = []
     for values, part in rows.groupby(keys, sort=False, dropna=False):
         values = values if isinstance(values, tuple) else (values,)
@@ -132,9 +221,11 @@ def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequ
         setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-1]))
         first = part.iloc[0]
         m = f"m = {_range_text(first, 'm')}; " if _has(part, "m") else ""
-        lines.append(f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} seeds, "
-                     f"{solver}): `{column}` geometric means, best first: "
-                     + ordering_with_intervals(part, mine, column) + ".")
+        ordering = ordering_with_intervals(part, mine, column, primary=primary and values[-1] == lead)
+        lines.append(Detail(f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} "
+                            f"seeds, {solver}) `{column}`: {ordering}.", 1 if primary else 2,
+                            "the tables 'Paired comparisons' and "
+                            f"'{column} over seeds'"))
     return lines
 
 
@@ -167,9 +258,10 @@ def training_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: S
             continue
         mine = _matching(comparisons, keys, values)
         setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-2]))
-        lines.append(f"{setting + ', ' if setting else ''}scored on **{values[-2]}**, {values[-1]} "
-                     f"({int(part['n_seeds'].max())} seeds, {solver}): `{column}` geometric means by the data "
-                     "fitted on, best first: " + ordering_with_intervals(part, mine, column, key="train_on") + ".")
+        lines.append(Detail(f"{setting + ', ' if setting else ''}scored on **{values[-2]}**, {values[-1]} "
+                            f"({int(part['n_seeds'].max())} seeds, {solver}) `{column}` by the data fitted on: "
+                            + ordering_with_intervals(part, mine, column, key="train_on") + ".", 2,
+                            "the table 'Paired comparisons'"))
     return lines
 
 
@@ -196,7 +288,7 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
     solver : str
         The solver of ``column``'s values (PCA: its projection), to find them in ``run_comparisons``.
     """
-    lines = []
+    lines, lead = [], next(iter(summary["data"]), None)
     for data, part in summary.groupby("data", sort=False):
         mine = comparisons[comparisons["data"] == data]
         if ordering and run_comparisons is not None:
@@ -206,15 +298,17 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
                          + stated_ordering(values, comparison_lookup(run_comparisons.get(data, [])),
                                            name=lambda key: key[0]) + ".")
         elif ordering:
-            lines.append(f"**{data}** ({int(part['n_seeds'].max())} runs): `{column}` geometric means, best first: "
-                         + ordering_with_intervals(part, mine[mine["metric"] == column], column) + ".")
+            lines.append(f"**{data}** ({int(part['n_seeds'].max())} runs) `{column}`: "
+                         + ordering_with_intervals(part, mine[mine["metric"] == column], column,
+                                                   primary=data == lead and solver == "lstsq") + ".")
         hand = part[part["basis"] == "H"]
         sizes = {row["basis"]: _range_text(row, "n") for row in part.to_dict("records")}
         other = {basis: size for basis, size in sizes.items() if len(hand) and size != sizes["H"]}
         if other:
-            lines.append(f"**{data}**: bases of other sizes than the hand basis's n = {sizes['H']}: "
-                         + ", ".join(f"{basis} n = {size}" for basis, size in other.items())
-                         + "; their alpha is not that of a basis of the same size.")
+            lines.append(Detail(f"**{data}**: bases of other sizes than the hand basis's n = {sizes['H']}: "
+                                + ", ".join(f"{basis} n = {size}" for basis, size in other.items())
+                                + "; their alpha is not that of a basis of the same size.", 3,
+                                "the table 'Other bases: alpha against intuitiveness'"))
         others = part[part["basis"] != "H"]
         for measure, ascending, what in (("matched_abs_cosine", False, "closest to the hand shapes "
                                                                       "(mean matched |cosine|)"),
@@ -228,7 +322,8 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
             lead = (f"{best['basis']} {cell_text(measure, best[measure])}, then {runner['basis']} "
                     f"{cell_text(measure, runner[measure])}"
                     + (f" (the hand shapes' {cell_text(measure, hand[measure].iloc[0])})" if len(hand) else ""))
-            lines.append(f"**{data}**: {what}: {lead}; {verdict}.")
+            lines.append(Detail(f"**{data}**: {what}: {lead}; {verdict}.", 2,
+                                "the table 'Other bases: alpha against intuitiveness'"))
     return lines
 
 
@@ -264,7 +359,8 @@ def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Se
     """
     by_basis = comparisons[comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
     by_variant = comparisons[~comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
-    lines = [line for column in columns for line in sweep_findings(summary, by_basis, swept, column, solver)]
+    lines = [line for column in columns for line in sweep_findings(summary, by_basis, swept, column, solver,
+                                                                   headline=column == columns[0])]
     if len(by_variant):
         lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column,
                                                                            solver)]

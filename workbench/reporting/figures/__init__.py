@@ -6,6 +6,8 @@ Modules:
 - :mod:`workbench.reporting.figures.render`: off-screen mesh rendering with pyvista (headless, through EGL or OSMesa).
 - :mod:`workbench.reporting.figures.faces`: figures 2-4 (hand versus quasi-eigen shapes, reconstructed frames, marker
   errors of one frame).
+- :mod:`workbench.reporting.figures.headline`: the figure under a run report's summary, the paper's comparison (H, QE
+  and PCA at m = n and with the coverage rule) with its intervals.
 - :mod:`workbench.reporting.figures.studies`: coverage curve, alpha against a swept setting with confidence bands, marker
   versus mesh, alpha per frame over time.
 
