@@ -130,3 +130,19 @@ def test_figure_2_hand_shapes_carried_onto_the_mesh_keep_their_marker_displaceme
     moved = np.linalg.norm(hand_on_mesh[0].reshape(-1, 3), axis=1) > 1.0
     moved[marker_rows(face)] = False
     assert moved.sum() > 50
+
+
+def test_frames_missing_a_marker_are_not_picked_for_the_faces():
+    from workbench.dataset.capture import Timeline
+    from workbench.reporting.report_data import moving_stretch, seen_frames
+
+    frames = np.zeros((6, 6))
+    frames[2] = 5.0  # the most displaced frame, but it missed a marker (gap_policy=masked)
+    frames[2, 0] = np.nan
+    frames[4] = 1.0
+    picked = seen_frames(frames)
+    assert int(np.argmax(np.abs(picked).sum(axis=1))) == 4 and np.isfinite(picked).all()
+    np.testing.assert_array_equal(seen_frames(frames[[0, 1, 4]]), frames[[0, 1, 4]])  # all seen: unchanged
+    # the stretch where the face moves most, counted without the frame that missed a marker
+    stretch = moving_stretch({"eval": frames}, Timeline.uniform("take", np.arange(6), 1.0), 2)
+    np.testing.assert_array_equal(stretch, [3, 4])

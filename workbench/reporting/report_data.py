@@ -269,13 +269,13 @@ class FaceData:
             "by RBF", f"by the map '{self.transfer.describe()}'")
 
     def caption(self, numbers: str) -> str:
-        """What a figure's caption adds for carried faces (``""`` otherwise), naming the numbers it shows."""
+        """What a figure's caption adds for carried faces (``""`` otherwise); ``numbers`` says whose the numbers
+        it shows are (a clause)."""
         if not self.carried:
             return ""
         return (f"{self.note[0].upper()}{self.note[1:]}: the faces drawn are the displacement fields of the "
                 f"'{self.data}' variant carried onto {self.mesh_text} by one linear map and added to its rest pose; "
-                f"the weights are solved on the markers, as the run solved them, and {numbers} are the markers' "
-                "own.")
+                f"the weights are solved on the markers, as the run solved them; {numbers}.")
 
     def carry(self, fields: np.ndarray) -> np.ndarray:
         """Displacement fields on ``data``'s points, shape (n_fields, 3 * n_points), onto the mesh, shape
@@ -403,11 +403,31 @@ def figure3_frames(record: RunRecord, inputs: Mapping) -> list[tuple[str, int]]:
     names = [str(name) for name in inputs["hand_names"]]
     timeline = record_timeline(record, inputs)
     regions = face_regions(inputs["hand"], names, inputs.get("point_support"))
-    chosen = region_frames(inputs["eval"], regions, timeline.seconds, timeline.take)
+    frames = seen_frames(inputs["eval"])
+    chosen = region_frames(frames, regions, timeline.seconds, timeline.take)
     if not chosen:
-        lengths = np.nan_to_num(point_norms(inputs["eval"]))
+        lengths = np.nan_to_num(point_norms(frames))
         chosen = [("face", int(np.argmax((lengths ** 2).sum(axis=1))))]
     return chosen
+
+
+def seen_frames(frames: np.ndarray) -> np.ndarray:
+    """Evaluated frames with those that miss a point (a marker's gap, ``gap_policy=masked``) set to rest, so that
+    the frames a figure picks by their displacement saw every point (and can be reconstructed and drawn whole);
+    unchanged when every frame, or none, saw every point.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points)
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_points)
+    """
+    incomplete = ~np.isfinite(frames).all(axis=1)
+    if not incomplete.any() or incomplete.all():
+        return frames
+    return np.where(incomplete[:, None], 0.0, frames)
 
 
 def most_displaced(inputs: Mapping, frames: Sequence[int]) -> int:
@@ -463,6 +483,9 @@ def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.nda
     frames = np.nan_to_num(inputs["eval"])
     change = np.zeros(len(frames))
     change[1:] = np.sqrt(((frames[1:] - frames[:-1]) ** 2).mean(axis=1))
+    incomplete = ~np.isfinite(inputs["eval"]).all(axis=1)
+    change[incomplete] = 0.0  # a frame missing a marker neither moves nor is moved to
+    change[1:][incomplete[:-1]] = 0.0
     best, best_key = None, None
     for start, stop in timeline.take_spans():
         change[start] = 0.0  # no motion across a take boundary

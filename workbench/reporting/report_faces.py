@@ -62,7 +62,7 @@ def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0,
         return FacesBlock(missing=needs(face, cache))
     write_view(record, face, out / "figures" / DATA_FILE, cache)
     caption = write_moving_faces(record, face, out / "figures" / "animation.webp", cache, seconds, most_fps)
-    more = face.caption("the alpha of each basis")
+    more = face.caption("the alphas of the bases are the markers' own")
     return FacesBlock(view=f"figures/{DATA_FILE}", animation="animation.webp",
                       caption=f"{caption} {more}" if more else caption,
                       view_caption=f"{VIEW_CAPTION} {more}" if more else VIEW_CAPTION)
@@ -134,6 +134,9 @@ def write_moving_faces(record: RunRecord, face: FaceData, path: Path, cache: dic
     stretch = moving_stretch(inputs, timeline, int(round(seconds * rate)))
     step = max(1, int(round(rate / most_fps)))
     steps = stretch[::step]
+    seen = np.isfinite(inputs["eval"][steps]).all(axis=1)
+    skipped = int((~seen).sum()) if seen.any() else 0  # frames missing a marker (gap_policy=masked) left out
+    steps = steps[seen] if seen.any() else steps
     moving = inputs["eval"][steps]
     qe = qe_label(record)
     bases = figure_bases(record, data, inputs, cache)
@@ -158,4 +161,5 @@ def write_moving_faces(record: RunRecord, face: FaceData, path: Path, cache: dic
     return (f"The {len(steps) / fps:.1f} s of the take where the face moves most "
             f"({timeline.take[first]}, t = {timeline.seconds[first]:.2f} to {timeline.seconds[last]:.2f} s), "
             f"played in {speed}: captured (plain shaded), and reconstructed with H and {qe} (solver "
-            f"{solver_name}), coloured by the per-vertex error.")
+            f"{solver_name}), coloured by the per-vertex error."
+            + (f" {skipped} of its frames missed a marker and are left out." if skipped else ""))

@@ -91,7 +91,7 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
         title=(f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
                f"data {data}, m = {m}, {projection} projection" + carried_title(face, "distance and cosine are")),
         qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})", support=face.support)
-    return with_caption(figure, face, "the relative distance and cosine under each pair")
+    return with_caption(figure, face, "the relative distance and cosine under each pair are the markers' own")
 
 
 def draw_reconstructions(record: RunRecord, cache: dict | None = None):
@@ -125,7 +125,8 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
                f"{data}, solver {solver_name}; the most displaced frame of each region of the face"
                + carried_title(face, "alpha values are")),
         support=face.support)
-    return with_caption(figure, face, "the alpha under each reconstruction (eq. 6 on the markers)")
+    return with_caption(figure, face,
+                        "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)")
 
 
 def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
@@ -208,7 +209,7 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
         title=(f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
                f"{data}, solver {solver_name} (PCA: projection)"
                + ("\n" + face.note if face.carried else "")))
-    return with_caption(figure, face, "the weights behind each error (the RMS is that of the carried errors)")
+    return with_caption(figure, face, "each vertex's RMS is that of the markers' errors carried onto the mesh")
 
 
 def draw_alpha_per_solver(record: RunRecord, cache: dict):
