@@ -146,3 +146,29 @@ def test_frames_missing_a_marker_are_not_picked_for_the_faces():
     # the stretch where the face moves most, counted without the frame that missed a marker
     stretch = moving_stretch({"eval": frames}, Timeline.uniform("take", np.arange(6), 1.0), 2)
     np.testing.assert_array_equal(stretch, [3, 4])
+
+
+@pytest.mark.parametrize("name, step", [("ict_livelink", 40), ("animface", 20)])
+def test_the_real_datasets_give_the_face_mesh_their_markers_are_carried_onto(shared_data, name, step):
+    from scipy.spatial import cKDTree
+
+    from workbench.config import compose, resolved_without_hydra
+    from workbench.dataset import build_captures
+    from workbench.dataset.rest_mesh import rest_mesh
+    from workbench.dataset.transfer import point_transfer
+
+    cfg = resolved_without_hydra(compose("paper", [f"dataset={name}", f"paths.data_root={shared_data}",
+                                                   "dataset.train_on=markers", f"dataset.frame_step={step}"]))
+    markers = build_captures(cfg["dataset"])["markers"]
+    mesh = rest_mesh(cfg["dataset"], markers.provenance)
+    distance, vertex = cKDTree(mesh.vertices).query(markers.neutral.reshape(-1, 3))
+    # ICT's virtual markers are vertices of its face; AnimFace's performer's markers lie near the placed face
+    assert distance.max() < (1e-9 if name == "ict_livelink" else 10.0)
+    assert mesh.support[vertex].all() and 0.3 < mesh.support.mean() < 1.0  # the markers' reach, not the neck
+    assert mesh.triangles.max() < len(mesh.vertices)
+    transfer = point_transfer(markers.neutral.reshape(-1, 3), mesh.vertices)
+    assert transfer.method == "rbf"
+    if name == "ict_livelink":  # the RBF interpolates its centres: a hand shape keeps its marker displacements
+        carried = transfer.apply(markers.hand[:3]).reshape(3, -1, 3)[:, vertex]
+        on_markers = markers.hand[:3].reshape(3, -1, 3)
+        np.testing.assert_allclose(carried, on_markers, rtol=0, atol=1e-8 * np.abs(on_markers).max())

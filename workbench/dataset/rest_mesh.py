@@ -63,20 +63,23 @@ def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
     if kind in ("ict_livelink", "animface"):
         from workbench.dataset.real import load_basis
 
-        basis = load_basis(cfg, [])  # the neutral only
-        if kind == "ict_livelink":
-            return RestMesh(basis.neutral, basis.triangles, None,
-                            f"the ICT FaceKit face region ({len(basis.neutral)} vertices)")
-        placement = (provenance or {}).get("placement") or {}
-        if "scale" not in placement or not placement.get("vertices"):
-            raise WorkbenchError("dataset animface: the record's provenance has no marker placement (scale and "
-                                 "vertices), so the ICT face cannot be put in the performer's frame")
         from workbench.dataset.animface import within_marker_reach
 
-        vertices = float(placement["scale"]) * basis.neutral
-        markers = np.asarray(list(placement["vertices"].values()), dtype=np.int64)
-        return RestMesh(vertices, basis.triangles, within_marker_reach(vertices, markers, np.arange(len(vertices))),
-                        f"the ICT FaceKit face region ({len(vertices)} vertices) scaled into the performer's frame")
+        basis = load_basis(cfg, [])  # the neutral only
+        provenance = provenance or {}
+        if kind == "ict_livelink":
+            vertices, markers = basis.neutral, provenance.get("virtual_marker_vertices") or {}
+            text = f"the ICT FaceKit face region ({len(vertices)} vertices)"
+        else:
+            placement = provenance.get("placement") or {}
+            if "scale" not in placement or not placement.get("vertices"):
+                raise WorkbenchError("dataset animface: the record's provenance has no marker placement (scale and "
+                                     "vertices), so the ICT face cannot be put in the performer's frame")
+            vertices, markers = float(placement["scale"]) * basis.neutral, placement["vertices"]
+            text = f"the ICT FaceKit face region ({len(vertices)} vertices) scaled into the performer's frame"
+        markers = np.asarray(list(markers.values()), dtype=np.int64)
+        support = within_marker_reach(vertices, markers, np.arange(len(vertices))) if markers.size else None
+        return RestMesh(vertices, basis.triangles, support, text)
     raise WorkbenchError(f"dataset.kind {kind!r} has no face mesh to carry the markers onto")
 
 
