@@ -13,17 +13,16 @@ import numpy as np
 from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import RunRecord
-from workbench.reporting.report_data import (NEEDS_FACE, QE_PROJECTIONS, FaceData, face_data, figure3_frames,
-                                             figure_bases, figure_solver, frame_alpha, frame_caption,
-                                             frame_weights, headline_column, marker_variant, mesh_variant,
-                                             missing_reason, most_displaced, negative_weight_share, qe_label,
-                                             quasi_eigen_shapes, reconstruct_frames, record_alpha_per_frame,
-                                             record_timeline, short_label, training_variants, vertex_rms)
+from workbench.reporting.report_data import (QE_PROJECTIONS, FaceData, face_data, figure3_frames, figure_bases,
+                                             figure_solver, frame_alpha, frame_caption, frame_weights,
+                                             headline_column, marker_variant, mesh_variant, missing_reason,
+                                             most_displaced, negative_weight_share, qe_label, quasi_eigen_shapes,
+                                             reconstruct_frames, record_alpha_per_frame, record_timeline,
+                                             short_label, training_variants, vertex_rms)
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS: tuple[str, ...] = ()
 """Copies of each figure a report writes besides the one it shows (WebP renders, SVG line plots)."""
-
 
 
 def needs(text: str, cache: dict | None) -> str:
@@ -131,8 +130,8 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
 
 def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
     """The frame of figure 4 in a marker variant: the most displaced of figure 3's frames (the same take and file
-    frame), or, without a mesh variant or when that frame misses a marker, the most displaced frame that saw every
-    marker.
+    frame; figure 3 shows a mesh variant, or the markers carried onto the mesh), or, when figure 3 has no frames or
+    that frame misses a marker, the most displaced frame that saw every marker.
 
     Returns
     -------
