@@ -96,8 +96,9 @@ def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(r
     assert main([str(run_without_inputs), "--out", str(out)]) == 0
     readme = (out / "README.md").read_text()
     assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs the frames of a mesh data "
-            "variant (a run with dataset.train_on=[markers,mesh]); the run saved no inputs and its data could not "
-            "be read again: dataset.blendshapes: no file /data/ICT/face.obj)") in readme
+            "variant (a run with dataset.train_on=[markers,mesh]), or those of a marker variant and the dataset's "
+            "face mesh to carry them onto; the run saved no inputs and its data could not be read again: "
+            "dataset.blendshapes: no file /data/ICT/face.obj)") in readme
 
 
 def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):

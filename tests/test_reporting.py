@@ -286,15 +286,18 @@ def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_sav
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
     assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
     readme = (tmp_path / "reports" / "paper" / "README.md").read_text()
-    # a run on markers only has no mesh variant: the mesh figures stay listed, saying what they need
-    assert ("**Figure 2: hand shapes beside their quasi-eigen faces**: not drawn (needs the frames of a mesh data "
-            "variant") in readme
-    assert "**Alpha per frame over time**: not drawn" not in readme and "could not be read again" not in readme
+    # a run on markers only has no mesh variant: its faces are the markers carried onto the mesh, and they say so
+    assert "not drawn" not in readme and "could not be read again" not in readme
+    assert ("Markers carried onto the mesh by RBF (as in the paper); the run has no mesh data variant: the faces "
+            "drawn are the displacement fields of the 'markers' variant") in readme
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
-    # what the record holds is drawn from metrics.json; the rest from the inputs rebuilt from its config
+    # what the record holds is drawn from metrics.json; the rest from the inputs rebuilt from its config; marker
+    # versus mesh is no figure of a run on one data variant
     stems = {name.rsplit(".", 1)[0] for name in figures}
     assert stems == {"alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy", "intuitiveness",
-                     "weight_statistics", "alpha_over_time", "fig4_marker_errors", "weight_curves"}, figures
+                     "weight_statistics", "alpha_over_time", "fig4_marker_errors", "weight_curves",
+                     "fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "vertex_rms", "animation", "view3d"}, figures
+    assert "Marker versus mesh" not in readme
     assert not any(path.name.startswith("inputs") for path in record.iterdir())  # the record is left as it was
 
 

@@ -8,6 +8,7 @@ is recomputed.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -214,6 +215,105 @@ def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
     return None
 
 
+NEEDS_FACE = ("needs the frames of a mesh data variant (a run with dataset.train_on=[markers,mesh]), or those of a "
+              "marker variant and the dataset's face mesh to carry them onto")
+"""Why a face figure is not drawn when neither a mesh variant's nor a marker variant's frames can be had."""
+CARRIED_NOTE = "markers carried onto the mesh by RBF (as in the paper); the run has no mesh data variant"
+"""Said by every face figure of a run without a mesh data variant."""
+
+
+@dataclass(frozen=True)
+class FaceData:
+    """What the face figures show: a mesh variant's own frames, or, for a run without one, a marker variant's
+    displacement fields carried onto the dataset's face mesh by the RBF map of
+    :func:`workbench.dataset.transfer.point_transfer` (as the paper showed faces of a run on markers).
+
+    Weights, alpha and every other number are those of ``data``, computed on its own points; only what is drawn
+    is carried (:meth:`carry`), so a reconstruction shown is ``T @`` the reconstruction on the markers.
+
+    Attributes
+    ----------
+    data : str
+        The data variant whose numbers are shown.
+    inputs : mapping
+        Its arrays (``inputs.npz``), on its own points.
+    neutral : ndarray of shape (3 * n_vertices,)
+        The mesh at rest.
+    faces : ndarray of shape (n_triangles, 3) of int
+    support : ndarray of shape (n_vertices,) of bool, or None
+        Vertices with data (the rest fade into the plain shade in colour maps).
+    transfer : PointTransfer or None
+        The map from ``data``'s points to the mesh's vertices; None when ``data`` is the mesh.
+    mesh_text : str
+        What the mesh carried onto is (``""`` for a mesh variant).
+    """
+
+    data: str
+    inputs: Mapping
+    neutral: np.ndarray
+    faces: np.ndarray
+    support: np.ndarray | None
+    transfer: object = None
+    mesh_text: str = ""
+
+    @property
+    def carried(self) -> bool:
+        return self.transfer is not None
+
+    @property
+    def note(self) -> str:
+        """:data:`CARRIED_NOTE` for carried faces, else ``""``."""
+        if not self.carried:
+            return ""
+        return CARRIED_NOTE if self.transfer.method == "rbf" else CARRIED_NOTE.replace(
+            "by RBF", f"by the map '{self.transfer.describe()}'")
+
+    def caption(self, numbers: str) -> str:
+        """What a figure's caption adds for carried faces (``""`` otherwise); ``numbers`` says whose the numbers
+        it shows are (a clause)."""
+        if not self.carried:
+            return ""
+        return (f"{self.note[0].upper()}{self.note[1:]}: the faces drawn are the displacement fields of the "
+                f"'{self.data}' variant carried onto {self.mesh_text} by one linear map and added to its rest pose; "
+                f"the weights are solved on the markers, as the run solved them; {numbers}.")
+
+    def carry(self, fields: np.ndarray) -> np.ndarray:
+        """Displacement fields on ``data``'s points, shape (n_fields, 3 * n_points), onto the mesh, shape
+        (n_fields, 3 * n_vertices) (unchanged for a mesh variant)."""
+        return fields if self.transfer is None else self.transfer.apply(np.asarray(fields, dtype=np.float64))
+
+
+def face_data(record: RunRecord, cache: dict) -> FaceData | str:
+    """The faces a run's report draws (:class:`FaceData`): its mesh variant, or else its marker variant carried
+    onto the dataset's face mesh (rest geometry only: no mesh frame is built); or what is missing."""
+    key = ("face",)
+    if key not in cache:
+        cache[key] = _face_data(record, cache)
+    return cache[key]
+
+
+def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
+    from workbench.dataset.rest_mesh import rest_mesh
+    from workbench.dataset.transfer import point_transfer
+    from workbench.errors import WorkbenchError
+
+    found = mesh_variant(record, cache)
+    if found is not None:
+        data, inputs = found
+        return FaceData(data, inputs, inputs["neutral"], inputs["faces"], inputs.get("point_support"))
+    found = marker_variant(record, cache)
+    if found is None:
+        return NEEDS_FACE
+    data, inputs = found
+    try:
+        mesh = rest_mesh(record.config["dataset"], record.metrics["dataset"].get("provenance"))
+    except (WorkbenchError, OSError) as error:
+        return f"{NEEDS_FACE}: the run has no mesh data variant and the dataset's face mesh cannot be read ({error})"
+    transfer = point_transfer(inputs["neutral"].reshape(-1, 3), mesh.vertices)
+    return FaceData(data, inputs, mesh.vertices.reshape(-1), mesh.triangles, mesh.support, transfer,
+                    mesh.description)
+
+
 def marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
     """The data variant of markers (no triangles), preferring ``markers``."""
     for data in sorted(record.data_variants, key=lambda d: d != "markers"):
@@ -303,11 +403,31 @@ def figure3_frames(record: RunRecord, inputs: Mapping) -> list[tuple[str, int]]:
     names = [str(name) for name in inputs["hand_names"]]
     timeline = record_timeline(record, inputs)
     regions = face_regions(inputs["hand"], names, inputs.get("point_support"))
-    chosen = region_frames(inputs["eval"], regions, timeline.seconds, timeline.take)
+    frames = seen_frames(inputs["eval"])
+    chosen = region_frames(frames, regions, timeline.seconds, timeline.take)
     if not chosen:
-        lengths = np.nan_to_num(point_norms(inputs["eval"]))
+        lengths = np.nan_to_num(point_norms(frames))
         chosen = [("face", int(np.argmax((lengths ** 2).sum(axis=1))))]
     return chosen
+
+
+def seen_frames(frames: np.ndarray) -> np.ndarray:
+    """Evaluated frames with those that miss a point (a marker's gap, ``gap_policy=masked``) set to rest, so that
+    the frames a figure picks by their displacement saw every point (and can be reconstructed and drawn whole);
+    unchanged when every frame, or none, saw every point.
+
+    Parameters
+    ----------
+    frames : ndarray of shape (n_frames, 3 * n_points)
+
+    Returns
+    -------
+    ndarray of shape (n_frames, 3 * n_points)
+    """
+    incomplete = ~np.isfinite(frames).all(axis=1)
+    if not incomplete.any() or incomplete.all():
+        return frames
+    return np.where(incomplete[:, None], 0.0, frames)
 
 
 def most_displaced(inputs: Mapping, frames: Sequence[int]) -> int:
@@ -321,7 +441,8 @@ def frame_caption(region: str, timeline: Timeline, frame: int) -> str:
     return f"most displaced {region}: {timeline.label(frame)}"
 
 
-def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], chunk: int = 256) -> np.ndarray:
+def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], chunk: int = 256,
+               carry: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """RMS over frames of the 3-D error at every point, in chunks of frames.
 
     Parameters
@@ -330,17 +451,24 @@ def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], c
     reconstruct : callable
         Rows (a slice) -> their reconstructions, ndarray of shape (n_rows, 3 * n_points).
     chunk : int
+    carry : callable, optional
+        Errors of shape (n_rows, 3 * n_points) -> the same carried onto other points, (n_rows, 3 * n_targets)
+        (:meth:`FaceData.carry`); the RMS is then at those points.
 
     Returns
     -------
-    ndarray of shape (n_points,)
+    ndarray of shape (n_points,), or (n_targets,) with ``carry``
     """
-    total = np.zeros(frames.shape[1] // 3)
+    total = None
     for start in range(0, len(frames), chunk):
         rows = slice(start, start + chunk)
-        error = (reconstruct(rows) - frames[rows]).reshape(-1, frames.shape[1] // 3, 3)
-        total += (error ** 2).sum(axis=(0, 2))
-    return np.sqrt(total / max(len(frames), 1))
+        error = reconstruct(rows) - frames[rows]
+        error = (error if carry is None else carry(error)).reshape(len(error), -1, 3)
+        total = (0.0 if total is None else total) + (error ** 2).sum(axis=(0, 2))
+    if total is None:
+        n_points = frames.shape[1] // 3 if carry is None else carry(np.zeros((1, frames.shape[1]))).shape[1] // 3
+        return np.zeros(n_points)
+    return np.sqrt(total / len(frames))
 
 
 def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.ndarray:
@@ -355,6 +483,9 @@ def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.nda
     frames = np.nan_to_num(inputs["eval"])
     change = np.zeros(len(frames))
     change[1:] = np.sqrt(((frames[1:] - frames[:-1]) ** 2).mean(axis=1))
+    incomplete = ~np.isfinite(inputs["eval"]).all(axis=1)
+    change[incomplete] = 0.0  # a frame missing a marker neither moves nor is moved to
+    change[1:][incomplete[:-1]] = 0.0
     best, best_key = None, None
     for start, stop in timeline.take_spans():
         change[start] = 0.0  # no motion across a take boundary

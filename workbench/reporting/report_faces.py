@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from workbench.record import RunRecord
-from workbench.reporting.report_figures import NEEDS_MESH, needs
-from workbench.reporting.report_data import (figure3_frames, figure_bases, figure_solver, frame_alpha, frame_caption,
-                                             mesh_variant, moving_stretch, qe_label, reconstruct_frames,
-                                             record_timeline, short_label)
+from workbench.reporting.report_figures import needs
+from workbench.reporting.report_data import (FaceData, face_data, figure3_frames, figure_bases, figure_solver,
+                                             frame_alpha, frame_caption, moving_stretch, qe_label,
+                                             reconstruct_frames, record_timeline, short_label)
 
 
 VIEW_CAPTION = ("Figure 3's frames you can turn (drag; scroll to zoom): the captured frame (left) beside its "
@@ -57,27 +57,30 @@ def build_faces(record: RunRecord, out: Path, cache: dict, seconds: float = 2.0,
     """
     from workbench.reporting.figures.interactive import DATA_FILE
 
-    found = mesh_variant(record, cache)
-    if found is None:
-        return FacesBlock(missing=needs(NEEDS_MESH, cache))
-    data, inputs = found
-    write_view(record, data, inputs, out / "figures" / DATA_FILE, cache)
-    caption = write_moving_faces(record, data, inputs, out / "figures" / "animation.webp", cache, seconds, most_fps)
-    return FacesBlock(view=f"figures/{DATA_FILE}", animation="animation.webp", caption=caption)
+    face = face_data(record, cache)
+    if isinstance(face, str):
+        return FacesBlock(missing=needs(face, cache))
+    write_view(record, face, out / "figures" / DATA_FILE, cache)
+    caption = write_moving_faces(record, face, out / "figures" / "animation.webp", cache, seconds, most_fps)
+    more = face.caption("the alphas of the bases are the markers' own")
+    return FacesBlock(view=f"figures/{DATA_FILE}", animation="animation.webp",
+                      caption=f"{caption} {more}" if more else caption,
+                      view_caption=f"{VIEW_CAPTION} {more}" if more else VIEW_CAPTION)
 
 
-def write_view(record: RunRecord, data: str, inputs: dict, path: Path, cache: dict) -> None:
+def write_view(record: RunRecord, face: FaceData, path: Path, cache: dict) -> None:
     """The interactive view's data: figure 3's frames, captured and reconstructed with every basis, on the mesh
-    decimated to about :data:`VIEW_VERTICES` vertices."""
+    decimated to about :data:`VIEW_VERTICES` vertices (weights and alpha on the variant's own points; what is
+    drawn carried onto the mesh when the variant is markers)."""
     from workbench.dataset.decimate import decimate
     from workbench.reporting.figures import fixed_decimals
     from workbench.reporting.figures.faces import DISPLACEMENT_CMAP, ERROR_CMAP, colour_range, masked, point_norms
     from workbench.reporting.figures.interactive import ViewFrame, view_payload, write_view_data
     from workbench.reporting.figures.render import PLAIN_COLOUR, support_weight
 
+    data, inputs, support = face.data, face.inputs, face.support
     solver_name, solver = figure_solver(record.config)
-    support = inputs.get("point_support")
-    weight = support_weight(inputs["neutral"], support)
+    weight = support_weight(face.neutral, support)
     timeline = record_timeline(record, inputs)
     chosen = figure3_frames(record, inputs)
     captured = inputs["eval"][[frame for _, frame in chosen]]
@@ -86,13 +89,14 @@ def write_view(record: RunRecord, data: str, inputs: dict, path: Path, cache: di
     mean, components = inputs["mean"], inputs["components"]
     shown["PCA"] = mean + ((captured - mean) @ components.T) @ components
     alphas = {name: frame_alpha(inputs["neutral"], captured, frames_out) for name, frames_out in shown.items()}
+    captured, shown = face.carry(captured), {name: face.carry(frames_out) for name, frames_out in shown.items()}
     decimals = fixed_decimals([a for alpha in alphas.values() for a in alpha["absolute"]], significant=3)
     lengths = colour_range([masked(values, support) for values in point_norms(captured)], percentile=99.5)
     errors = colour_range([masked(values, support) for frames_out in shown.values()
                            for values in point_norms(frames_out - captured)], percentile=99.5)
     # the view's mesh: about VIEW_VERTICES of the vertices, kept where they are (a decimation selects rows)
-    points = inputs["neutral"].reshape(-1, 3)
-    mesh = decimate(points, inputs["faces"], min(1.0, VIEW_VERTICES / len(points)))
+    points = face.neutral.reshape(-1, 3)
+    mesh = decimate(points, face.faces, min(1.0, VIEW_VERTICES / len(points)))
     rows = (3 * mesh.kept[:, None] + np.arange(3)).ravel()
     view_frames = [ViewFrame(frame_caption(region, timeline, frame), captured[i][rows],
                              {name: frames_out[i][rows] for name, frames_out in shown.items()},
@@ -101,14 +105,15 @@ def write_view(record: RunRecord, data: str, inputs: dict, path: Path, cache: di
                               for name, alpha in alphas.items()})
                    for i, (region, frame) in enumerate(chosen)]
     write_view_data(path, view_payload(
-        inputs["neutral"][rows], mesh.faces, view_frames, bases={name: BASIS_NAMES.get(name, name) for name in shown},
+        face.neutral[rows], mesh.faces, view_frames, bases={name: BASIS_NAMES.get(name, name) for name in shown},
         displacement_range=(lengths.low, lengths.high, lengths.extend != "neither"),
         error_range=(errors.low, errors.high, errors.extend != "neither"), cmaps=(DISPLACEMENT_CMAP, ERROR_CMAP),
-        weight=None if weight is None else weight[mesh.kept], title=f"{short_label(record)}; data {data}",
+        weight=None if weight is None else weight[mesh.kept],
+        title=f"{short_label(record)}; data {data}" + (f"; {face.note}" if face.carried else ""),
         plain_colour=PLAIN_COLOUR))
 
 
-def write_moving_faces(record: RunRecord, data: str, inputs: dict, path: Path, cache: dict, seconds: float,
+def write_moving_faces(record: RunRecord, face: FaceData, path: Path, cache: dict, seconds: float,
                        most_fps: float) -> str:
     """The animation: captured | H | QE over the stretch of the take where the face moves most, in real time.
 
@@ -121,25 +126,29 @@ def write_moving_faces(record: RunRecord, data: str, inputs: dict, path: Path, c
     from workbench.reporting.figures.interactive import write_animation
     from workbench.reporting.figures.render import MeshView, crop_background, render_meshes, support_weight
 
+    data, inputs, support = face.data, face.inputs, face.support
     solver_name, solver = figure_solver(record.config)
-    support = inputs.get("point_support")
-    weight = support_weight(inputs["neutral"], support)
+    weight = support_weight(face.neutral, support)
     timeline = record_timeline(record, inputs)
     rate = float(record.metrics["dataset"]["frame_rate"])
     stretch = moving_stretch(inputs, timeline, int(round(seconds * rate)))
     step = max(1, int(round(rate / most_fps)))
     steps = stretch[::step]
+    seen = np.isfinite(inputs["eval"][steps]).all(axis=1)
+    skipped = int((~seen).sum()) if seen.any() else 0  # frames missing a marker (gap_policy=masked) left out
+    steps = steps[seen] if seen.any() else steps
     moving = inputs["eval"][steps]
     qe = qe_label(record)
     bases = figure_bases(record, data, inputs, cache)
-    moved = {name: reconstruct_frames(bases[name], moving, solver) for name in ("H", qe)}
+    moved = {name: face.carry(reconstruct_frames(bases[name], moving, solver)) for name in ("H", qe)}
+    moving = face.carry(moving)
     errors_moving = {name: [masked(values, support) for values in point_norms(frames_out - moving)]
                      for name, frames_out in moved.items()}
     span = colour_range([values for per_frame in errors_moving.values() for values in per_frame], percentile=99.5)
     size = (420, 490)
-    panels = [render_meshes(inputs["neutral"] + moving, inputs["faces"], None, MeshView(window_size=size))]
+    panels = [render_meshes(face.neutral + moving, face.faces, None, MeshView(window_size=size))]
     for name, frames_out in moved.items():
-        panels.append(render_meshes(inputs["neutral"] + frames_out, inputs["faces"], errors_moving[name],
+        panels.append(render_meshes(face.neutral + frames_out, face.faces, errors_moving[name],
                                     MeshView(cmap=ERROR_CMAP, clim=(span.low, span.high), window_size=size), weight))
     cropped = crop_background([image for panel in panels for image in panel])
     panels = [cropped[k * len(steps):(k + 1) * len(steps)] for k in range(len(panels))]
@@ -152,4 +161,5 @@ def write_moving_faces(record: RunRecord, data: str, inputs: dict, path: Path, c
     return (f"The {len(steps) / fps:.1f} s of the take where the face moves most "
             f"({timeline.take[first]}, t = {timeline.seconds[first]:.2f} to {timeline.seconds[last]:.2f} s), "
             f"played in {speed}: captured (plain shaded), and reconstructed with H and {qe} (solver "
-            f"{solver_name}), coloured by the per-vertex error.")
+            f"{solver_name}), coloured by the per-vertex error."
+            + (f" {skipped} of its frames missed a marker and are left out." if skipped else ""))

@@ -13,10 +13,10 @@ import numpy as np
 from workbench.dataset.capture import Timeline
 from workbench.errors import WorkbenchError
 from workbench.record import RunRecord
-from workbench.reporting.report_data import (QE_PROJECTIONS, figure3_frames, figure_bases, figure_solver,
-                                             frame_alpha, frame_caption, frame_weights, headline_column,
-                                             marker_variant, mesh_variant, missing_reason, most_displaced,
-                                             negative_weight_share, qe_label, quasi_eigen_shapes,
+from workbench.reporting.report_data import (QE_PROJECTIONS, FaceData, face_data, figure3_frames, figure_bases,
+                                             figure_solver, frame_alpha, frame_caption, frame_weights,
+                                             headline_column, marker_variant, mesh_variant, missing_reason,
+                                             most_displaced, negative_weight_share, qe_label, quasi_eigen_shapes,
                                              reconstruct_frames, record_alpha_per_frame, record_timeline,
                                              short_label, training_variants, vertex_rms)
 
@@ -25,15 +25,22 @@ FIGURE_FORMATS: tuple[str, ...] = ()
 """Copies of each figure a report writes besides the one it shows (WebP renders, SVG line plots)."""
 
 
-NEEDS_MESH = "needs the frames of a mesh data variant (a run with dataset.train_on=[markers,mesh])"
-"""Why a face figure is not drawn for a run without a mesh data variant (or whose mesh frames cannot be had)."""
-
-
 def needs(text: str, cache: dict | None) -> str:
     """Why a figure is not drawn: what it needs, and why the run's data could not be read again when it saved no
     inputs (the file that is missing)."""
     reason = missing_reason(cache or {})
     return f"{text}; {reason}" if reason else text
+
+
+def with_caption(figure, face: FaceData, numbers: str):
+    """A drawn face figure, with what its caption adds when its faces are carried markers (:meth:`FaceData.caption`,
+    a (figure, text) pair that :func:`make_figures` reads)."""
+    return (figure, face.caption(numbers)) if face.carried else figure
+
+
+def carried_title(face: FaceData, numbers: str) -> str:
+    """The line a face figure's title adds when its faces are carried markers (``""`` otherwise)."""
+    return f"\n{face.note}\n({numbers} the markers' own)" if face.carried else ""
 
 
 @dataclass
@@ -57,11 +64,11 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
     """Figure 2 from a record, or the reason it cannot be drawn."""
     from workbench.reporting.figures.faces import figure_hand_vs_quasi_eigen, spread_by_rank
 
-    found = mesh_variant(record, {} if cache is None else cache)
-    if found is None:
-        return needs(NEEDS_MESH,
-                     cache)
-    data, inputs = found
+    cache = {} if cache is None else cache
+    face = face_data(record, cache)
+    if isinstance(face, str):
+        return needs(face, cache)
+    data, inputs = face.data, face.inputs
     label = qe_label(record)
     projection = QE_PROJECTIONS[label]
     names = [str(name) for name in inputs["hand_names"]]
@@ -77,12 +84,13 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
         chosen = spread_by_rank([distance[name] for name in names], 4)
     quasi_eigen = quasi_eigen_shapes(inputs, projection)
     m = record.metrics["data"][data]["pca"]["m"]
-    return figure_hand_vs_quasi_eigen(
-        inputs["neutral"], inputs["faces"], inputs["hand"][chosen], quasi_eigen[chosen],
+    figure = figure_hand_vs_quasi_eigen(
+        face.neutral, face.faces, face.carry(inputs["hand"][chosen]), face.carry(quasi_eigen[chosen]),
         [names[i] for i in chosen], [distance[names[i]] for i in chosen], [cosine[names[i]] for i in chosen],
         title=(f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
-               f"data {data}, m = {m}, {projection} projection"),
-        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})", support=inputs.get("point_support"))
+               f"data {data}, m = {m}, {projection} projection" + carried_title(face, "distance and cosine are")),
+        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})", support=face.support)
+    return with_caption(figure, face, "the relative distance and cosine under each pair are the markers' own")
 
 
 def draw_reconstructions(record: RunRecord, cache: dict | None = None):
@@ -91,11 +99,10 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     from workbench.reporting.figures.faces import figure_reconstructions
 
     cache = {} if cache is None else cache
-    found = mesh_variant(record, cache)
-    if found is None:
-        return needs(NEEDS_MESH,
-                     cache)
-    data, inputs = found
+    face = face_data(record, cache)
+    if isinstance(face, str):
+        return needs(face, cache)
+    data, inputs = face.data, face.inputs
     solver_name, solver = figure_solver(record.config)
     chosen = figure3_frames(record, inputs)
     frames = [frame for _, frame in chosen]
@@ -110,17 +117,21 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     timeline = record_timeline(record, inputs)
     labels = [f"most displaced {region}\n{timeline.label(frame).replace(' (', chr(10) + '(')}"
               for region, frame in chosen]
-    return figure_reconstructions(
-        inputs["neutral"], inputs["faces"], captured, reconstructed, labels, notes,
+    figure = figure_reconstructions(
+        face.neutral, face.faces, face.carry(captured),
+        {name: face.carry(frames_out) for name, frames_out in reconstructed.items()}, labels, notes,
         title=(f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
-               f"{data}, solver {solver_name}; the most displaced frame of each region of the face"),
-        support=inputs.get("point_support"))
+               f"{data}, solver {solver_name}; the most displaced frame of each region of the face"
+               + carried_title(face, "alpha values are")),
+        support=face.support)
+    return with_caption(figure, face,
+                        "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)")
 
 
 def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
     """The frame of figure 4 in a marker variant: the most displaced of figure 3's frames (the same take and file
-    frame), or, without a mesh variant or when that frame misses a marker, the most displaced frame that saw every
-    marker.
+    frame; figure 3 shows a mesh variant, or the markers carried onto the mesh), or, when figure 3 has no frames or
+    that frame misses a marker, the most displaced frame that saw every marker.
 
     Returns
     -------
@@ -132,10 +143,10 @@ def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int,
     timeline = record_timeline(record, inputs)
     seen_all = (inputs["eval_visible"].all(axis=1) if "eval_visible" in inputs
                 else np.ones(len(inputs["eval"]), dtype=bool))
-    mesh = mesh_variant(record, cache)
-    if mesh is not None:
-        first = most_displaced(mesh[1], [frame for _, frame in figure3_frames(record, mesh[1])])
-        other = record_timeline(record, mesh[1])
+    face = face_data(record, cache)
+    if not isinstance(face, str):
+        first = most_displaced(face.inputs, [frame for _, frame in figure3_frames(record, face.inputs)])
+        other = record_timeline(record, face.inputs)
         match = np.flatnonzero((timeline.take == other.take[first]) & (timeline.frame == other.frame[first]))
         if match.size and seen_all[match[0]]:
             return int(match[0]), "the most displaced of figure 3's frames"
@@ -178,23 +189,26 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
     """Per-vertex RMS error over the whole take for H, the quasi-eigen bases and PCA, or why not drawn."""
     from workbench.reporting.figures.faces import figure_vertex_rms
 
-    found = mesh_variant(record, cache)
-    if found is None:
-        return needs(NEEDS_MESH, cache)
-    data, inputs = found
+    face = face_data(record, cache)
+    if isinstance(face, str):
+        return needs(face, cache)
+    data, inputs = face.data, face.inputs
     solver_name, _ = figure_solver(record.config)
+    carry = face.carry if face.carried else None
     rms = {}
     for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
         weights, complete = frame_weights(record, data, label, cache)
-        rms[label] = vertex_rms(inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e)
+        rms[label] = vertex_rms(inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e, carry=carry)
     complete = np.isfinite(inputs["eval"]).all(axis=1)
     mean, components = inputs["mean"], inputs["components"]
     rms["PCA"] = vertex_rms(inputs["eval"][complete], lambda rows: mean + (
-        (inputs["eval"][complete][rows] - mean) @ components.T) @ components)
-    return figure_vertex_rms(
-        inputs["neutral"], inputs["faces"], rms, support=inputs.get("point_support"),
+        (inputs["eval"][complete][rows] - mean) @ components.T) @ components, carry=carry)
+    figure = figure_vertex_rms(
+        face.neutral, face.faces, rms, support=face.support,
         title=(f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
-               f"{data}, solver {solver_name} (PCA: projection)"))
+               f"{data}, solver {solver_name} (PCA: projection)"
+               + ("\n" + face.note if face.carried else "")))
+    return with_caption(figure, face, "each vertex's RMS is that of the markers' errors carried onto the mesh")
 
 
 def draw_alpha_per_solver(record: RunRecord, cache: dict):
@@ -338,6 +352,8 @@ def draw_marker_vs_mesh(record: RunRecord):
     # the variants at the coverage rule's m: a paper-regime variant (m = n) differs in m, not in the points
     compared = [data for data in training_variants(record) if not is_paper_regime(data)]
     table = record.table[record.table["data"].isin(compared)]
+    if len(compared) == 1:
+        return None  # a run on one data variant: no figure of it, not a missing one
     if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
@@ -425,13 +441,20 @@ copy (``reports/shared/``); any other report holds its own."""
 def make_figures(specs, argument, folder: Path, formats: Sequence[str], options: Mapping) -> list[FigureEntry]:
     """Draw and save each figure of ``specs`` in ``folder`` (the report's ``figures/``), or the figures of
     :data:`SHARED_FIGURES` in ``options["shared"]`` when given; a figure that cannot be drawn is listed with the
-    reason. Files are named relative to the report folder (``folder``'s parent)."""
+    reason; a figure that is none of the run's (a draw returning None) is left out. A draw may return a
+    (figure, text) pair: the text is added to the caption (:func:`with_caption`). Files are named relative to the
+    report folder (``folder``'s parent)."""
     from workbench.reporting.figures import save_figure
 
     entries = []
     for stem, title, caption, draw in specs:
         entry = FigureEntry(stem=stem, title=title, caption=caption)
         result = draw(argument, options)
+        if result is None:
+            continue
+        if isinstance(result, tuple):
+            result, more = result
+            entry.caption = f"{caption} {more}"
         if isinstance(result, str):
             entry.missing = result
         else:
