@@ -11,9 +11,8 @@ may be NumPy scalars; NumPy's booleans count as true/false, never as numbers.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Any, Callable, Mapping
-
-import numpy as np
 
 from workbench.errors import WorkbenchError
 
@@ -22,18 +21,22 @@ from workbench.errors import WorkbenchError
 # ---------------------------------------------------------------------------------------------------------------
 
 
+def _boolean(value) -> bool:
+    """True or false, Python's or NumPy's (without importing NumPy: ``workbench --help`` imports these rules)."""
+    return isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool_", "bool"))
+
+
 def _number(value) -> bool:
-    """A finite real number (not a boolean)."""
-    return (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-            and math.isfinite(value))
+    """A finite real number (not a boolean); NumPy's scalars are registered as ``numbers.Real``."""
+    return isinstance(value, numbers.Real) and not _boolean(value) and math.isfinite(value)
 
 
 def _integer(value, *, whole_floats: bool = False) -> bool:
     """A whole number (not a boolean); with ``whole_floats``, a float with no fraction counts too."""
-    if isinstance(value, (bool, np.bool_)):
+    if _boolean(value):
         return False
-    return isinstance(value, (int, np.integer)) or (whole_floats and isinstance(value, (float, np.floating))
-                                                     and float(value).is_integer())
+    return isinstance(value, numbers.Integral) or (whole_floats and isinstance(value, numbers.Real)
+                                                    and math.isfinite(value) and float(value).is_integer())
 
 
 def rule(check: Callable[[Any], bool], text: str, *, optional: bool = False) -> dict:
@@ -70,7 +73,7 @@ def one_of(*choices: str) -> dict:
     return rule(lambda value: isinstance(value, str) and value in choices, f"one of {choices}")
 
 
-BOOLEAN = rule(lambda value: isinstance(value, (bool, np.bool_)), "true or false")
+BOOLEAN = rule(_boolean, "true or false")
 """A true/false setting: ``maybe``, 1 or ``"true"`` is not taken as true."""
 SEED = rule(lambda value: _integer(value) and value >= 0, "a non-negative integer")
 """A seed of a ``numpy.random.Generator``."""
