@@ -347,8 +347,7 @@ def test_marker_mesh_preset(tmp_path):
             < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()).all()
     assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
     # the findings compare the data each basis was fitted on, within one evaluation set
-    assert "scored on **face**, QE (5 seeds, lstsq): `alpha_disp_pooled` geometric means by the data fitted on" \
-        in stdout
+    assert "scored on **face**, QE (5 seeds, lstsq) `alpha_disp_pooled` by the data fitted on: " in stdout
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
     fitted = comparisons[comparisons["eval_on"].notna() & comparisons["basis"].notna()]
     assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
@@ -363,7 +362,7 @@ def test_noise_preset(tmp_path):
         assert m[(seed, "clean", 0.5, 0.05)] == m[(seed, "training", 0.0, 0.0)]  # m held at the clean capture's
         assert m[(seed, "training", 0.5, 0.0)] > 10 * m[(seed, "training", 0.0, 0.0)]  # the rule keeps the noise
     assert {"clean_alpha_abs_mean", "clean_rms_mm"} <= set(runs.columns)
-    assert "`clean_alpha_abs_mean` geometric means" in stdout  # findings against the clean frames too
+    assert "lstsq) `clean_alpha_abs_mean`: H " in stdout  # findings against the clean frames too
     gapped = next(sweep.glob("*gap_rate=0.05*/metrics.json"))
     gaps = json.loads(gapped.read_text())["dataset"]["provenance"]["gaps"]
     assert gaps["policy"] == "linear" and gaps["n_missing_samples"] > 0
