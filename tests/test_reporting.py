@@ -291,10 +291,10 @@ def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_sav
     assert ("Markers carried onto the mesh by RBF (as in the paper); the run has no mesh data variant: the faces "
             "drawn are the displacement fields of the 'markers' variant") in readme
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
-    # what the record holds is drawn from metrics.json; the rest from the inputs rebuilt from its config; marker
-    # versus mesh is no figure of a run on one data variant
+    # what the record holds is drawn from metrics.json (the headline figure too); the rest from the inputs rebuilt
+    # from its config; marker versus mesh is no figure of a run on one data variant
     stems = {name.rsplit(".", 1)[0] for name in figures}
-    assert stems == {"alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy", "intuitiveness",
+    assert stems == {"headline", "alpha_per_solver", "coverage_curve", "error_cdf", "fig1_analogy", "intuitiveness",
                      "weight_statistics", "alpha_over_time", "fig4_marker_errors", "weight_curves",
                      "fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "vertex_rms", "animation", "view3d"}, figures
     assert "Marker versus mesh" not in readme
