@@ -106,6 +106,9 @@ def test_version_is_the_workbenchs(tmp_path):
                                 "Value '2000.5' of type 'float' could not be converted to Integer"),
     ("basis.covrage=0.9", "workbench: error: Could not override 'basis.covrage'; To append to your config use "
                           "+basis.covrage=0.9; Key 'covrage' not in 'BasisSchema'"),
+    ("metric.bootstrap_seed=3", "workbench: error: setting metric.bootstrap_seed was retired: the within-run "
+                                "intervals are batch means over time and draw nothing at random "
+                                "(docs/statistics.md); leave it out"),
 ])
 def test_wrong_type_or_unknown_key_fails_at_composition_in_one_line(tmp_path, override, expected):
     result = workbench(override, "paths.output_root=out", cwd=tmp_path)

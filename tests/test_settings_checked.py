@@ -85,7 +85,8 @@ COMPOSITION_CASES = {
     "basis.splocs.d_min=0.9": "basis.splocs.d_min (0.9) must be below basis.splocs.d_max (0.7)",
     "basis.coverage_on=noisy": "basis.coverage_on must be one of ('training', 'clean'), got 'noisy'",
     "metric.score_clean=yes": "metric.score_clean must be true or false, got 'yes'",
-    "metric.bootstrap_resamples=0": "metric.bootstrap_resamples must be an integer >= 1, got 0",
+    "+metric.bootstrap_resamples=500": "setting metric.bootstrap_resamples was retired: the within-run intervals "
+                                       "are batch means over time and draw nothing at random",
     "dataset.held_out=[tail,tail]": "dataset.held_out must be one of ('tail', 'take', 'kfold', 'take_out') or a list "
                                     "of distinct ones or null, got ['tail', 'tail']",
     "dataset.folds=1": "dataset.folds must be an integer >= 2, got 1",
@@ -172,3 +173,15 @@ def test_fold_settings_have_effect_only_with_kfold():
                             "dataset.fold_gap_s=0.1"])
     assert check_study_config(cfg, ["dataset.held_out=kfold", "dataset.folds=3", "dataset.fold_gap_s=0.1"],
                               refuse_ineffective=True) == []
+
+
+def test_a_record_of_an_earlier_version_holding_retired_settings_is_still_read():
+    from omegaconf import OmegaConf
+
+    from workbench.schema import check_study_config, resolved_settings
+
+    plain = resolved_settings(compose("paper", ["dataset.n_frames=200", "solver=lstsq"]))
+    plain["metric"] |= {"bootstrap_resamples": 2000, "bootstrap_seed": 0}  # what records of earlier versions hold
+    assert check_study_config(OmegaConf.create(plain)) == []
+    with pytest.raises(WorkbenchError, match="^setting metric.bootstrap_seed was retired"):
+        check_study_config(OmegaConf.create(plain), ["+metric.bootstrap_seed=0"])

@@ -15,8 +15,10 @@ from typing import Callable, Sequence
 import numpy as np
 
 from workbench.errors import WorkbenchError
-from workbench.statistics import (BLOCK_BOOTSTRAP, CONFIDENCE, RESAMPLES, SEED, Interval, autocovariances,
-                                            take_spans)
+from workbench.statistics import BLOCK_BOOTSTRAP, CONFIDENCE, Interval, autocovariances, take_spans
+
+RESAMPLES = 2000
+SEED = 0
 
 
 def optimal_block_length(series: np.ndarray, takes: Sequence | None = None) -> float:

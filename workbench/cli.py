@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import sys
 import traceback
 from contextlib import contextmanager
@@ -238,8 +239,19 @@ def main() -> None:
             exit_if_runs_failed(error)
         if full_error or tracebacks_shown():
             raise
-        print(f"workbench: error: {missing_extra(error) or one_line(error)}", file=sys.stderr)
+        print(f"workbench: error: {missing_extra(error) or retired_setting(error) or one_line(error)}",
+              file=sys.stderr)
         sys.exit(2)
+
+
+def retired_setting(error: BaseException) -> str | None:
+    """Hydra's refusal to override a setting earlier versions had, said as why the setting went."""
+    from workbench.schema import RETIRED_SETTINGS
+
+    found = re.match(r"Could not override '([^']+)'", str(error))
+    if found and found.group(1) in RETIRED_SETTINGS:
+        return f"setting {found.group(1)} was retired: {RETIRED_SETTINGS[found.group(1)]}; leave it out"
+    return None
 
 
 def one_line(error: BaseException) -> str:

@@ -152,8 +152,6 @@ class SolverSchema:
 class MetricSchema:
     headline_normalisation: str = meta(MISSING, one_of("absolute", "displacement"))
     headline_aggregate: str = meta(MISSING, one_of("mean", "pooled"))
-    bootstrap_resamples: int = meta(2000, integer(1))
-    bootstrap_seed: int = meta(0, SEED)
     score_clean: Any = meta(False, BOOLEAN)
 
 
@@ -391,7 +389,7 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
         Naming the first setting that breaks its rule, a key no schema knows, or an interpolation that cannot be
         resolved.
     """
-    plain = resolved_settings(cfg)
+    plain = _without_retired(resolved_settings(cfg), overrides)
     _check_text(plain, "")
     _check_keys(plain)
     _check_node(plain, StudySchema, "")
@@ -425,6 +423,25 @@ def resolved_settings(cfg) -> dict:
             where = getattr(error, "full_key", None) or key
             reason = str(error).splitlines()[0] if str(error) else type(error).__name__
             raise WorkbenchError(f"setting {where} cannot be resolved: {reason}") from None
+    return plain
+
+
+RETIRED_SETTINGS = dict.fromkeys(
+    ["metric.bootstrap_resamples", "metric.bootstrap_seed"],
+    "the within-run intervals are batch means over time and draw nothing at random (docs/statistics.md)")
+"""Settings earlier versions had, with why they went: a record written then still holds them."""
+
+
+def _without_retired(plain: dict, overrides: Sequence[str]) -> dict:
+    """``plain`` without the retired settings a record of an earlier version holds; one given as an override is
+    refused, naming why it went."""
+    given = {override.lstrip("+~").split("=", 1)[0].strip() for override in overrides}
+    for key, why in RETIRED_SETTINGS.items():
+        if key in given:
+            raise WorkbenchError(f"setting {key} was retired: {why}; leave it out")
+        group, name = key.split(".")
+        if isinstance(plain.get(group), Mapping) and name in plain[group]:
+            plain[group] = {k: v for k, v in plain[group].items() if k != name}
     return plain
 
 

@@ -39,8 +39,6 @@ from workbench.errors import WorkbenchError
 from workbench.tolerances import TOL
 
 CONFIDENCE = 0.95
-RESAMPLES = 2000
-SEED = 0
 GEOMETRIC = "geometric mean, t-interval on log values"
 PAIRED_T = "paired t"
 PAIRED_LOG_RATIO = "paired t on log ratios"
@@ -542,9 +540,7 @@ def batch_means_interval(series: np.ndarray, statistic: Callable[[np.ndarray], n
 
 
 def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | None = None,
-                           seconds: Sequence | None = None, confidence: float = CONFIDENCE,
-                           n_resamples: int = RESAMPLES,
-                           seed: int = SEED) -> Interval:
+                           seconds: Sequence | None = None, confidence: float = CONFIDENCE) -> Interval:
     """Mean over frames of ``a - b`` (two rows' per-frame alpha on the same frames), with its batch-means
     interval (:func:`batch_means_interval`). Frames where either value is NaN (alpha undefined) are left out of
     both means.
@@ -554,8 +550,6 @@ def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | No
     a, b : ndarray of shape (n_frames,)
     takes, seconds, confidence
         As :func:`batch_means_interval`.
-    n_resamples, seed
-        Accepted for the callers of the bootstrap this replaced; the batch means draw nothing.
 
     Returns
     -------
@@ -576,8 +570,7 @@ def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | No
 
 def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference: np.ndarray, *,
                              takes: Sequence | None = None, seconds: Sequence | None = None,
-                             confidence: float = CONFIDENCE,
-                             n_resamples: int = RESAMPLES, seed: int = SEED) -> Interval:
+                             confidence: float = CONFIDENCE) -> Interval:
     """Difference of two pooled alphas (eq. 6 over all frames, ``100 sqrt(sum |err|^2 / sum |ref|^2)``) of the same
     frames, with its batch-means interval (:func:`batch_means_interval`, delta method).
 
@@ -589,8 +582,6 @@ def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference
         Per-frame squared reference norms (the denominator of eq. 6).
     takes, seconds, confidence
         As :func:`batch_means_interval`.
-    n_resamples, seed
-        Accepted for the callers of the bootstrap this replaced; the batch means draw nothing.
 
     Returns
     -------

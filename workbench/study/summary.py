@@ -71,15 +71,14 @@ def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
 
 def frame_comparisons(result, metric: Mapping) -> list[dict]:
     """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
-    of :func:`comparison_pairs`, the difference ``a - b`` with its block-bootstrap interval over time
+    of :func:`comparison_pairs`, the difference ``a - b`` with its batch-means interval over time
     (:mod:`workbench.statistics`).
 
     Parameters
     ----------
     result : StudyResult
     metric : mapping
-        The ``metric`` config group: the headline's normalisation and aggregate, the bootstrap's resamples and
-        seed.
+        The ``metric`` config group: the headline's normalisation and aggregate.
 
     Returns
     -------
@@ -88,8 +87,6 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
     """
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
     column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
-    options = {"n_resamples": int(metric.get("bootstrap_resamples", 2000)),
-               "seed": int(metric.get("bootstrap_seed", 0))}
     timeline = result.capture.timeline()
     takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
     found = []
@@ -97,11 +94,11 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
         first, second = result.rows[a].alpha, result.rows[b].alpha
         if aggregate == "mean":
             values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
-            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, **options)
+            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, )
         else:
             reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
             interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
-                                                seconds=timeline.seconds, **options)
+                                                seconds=timeline.seconds, )
         found.append({"a": [result.rows[a].basis, result.rows[a].solver],
                       "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
     return found
