@@ -20,10 +20,10 @@ ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
 M = {0.9: (4, 5, 6), 0.99: (12, 12, 12)}
 
 
-def write_record(folder, coverage, seed, job_num, complete=True):
+def write_record(folder, coverage, seed, job_num, complete=True, qe_rank=None, alpha=ALPHA):
     """A run record as the workbench writes it (through workbench.record), with chosen numbers (rows: H and QE
-    with lstsq, then PCA)."""
-    h, qe, pca = ALPHA[(coverage, seed)]
+    with lstsq, then PCA); with ``qe_rank``, the QE basis's rank and PCA's exact method are recorded too."""
+    h, qe, pca = alpha[(coverage, seed)]
     m = M[coverage][seed]
     rows = [{"data": "markers", "basis": basis, "projection": projection, "solver": solver, "n": n, "m": m,
              "coverage": coverage + 0.001, "alpha_abs_mean": value, "alpha_abs_pooled": value * 1.1,
@@ -39,7 +39,11 @@ def write_record(folder, coverage, seed, job_num, complete=True):
                "dataset": {"name": "test", "frame_rate": 120.0},
                "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
                "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
+               **({} if qe_rank is None else {"pca_facts": {"m": m, "method": "covariance"}}),
                "git": {"commit": "abc", "dirty": False}}
+    if qe_rank is not None:
+        metrics["data"]["markers"]["pca"] = metrics.pop("pca_facts")
+        metrics["rows"][1]["basis_conditioning"] = {"rank": qe_rank(m), "n_shapes": 18}
     record.write_record(folder, resolved_yaml=yaml.safe_dump(config), table=pd.DataFrame(rows), text="",
                         metrics=metrics, timings={"pca": 0.5, "total": 1.0 + seed})
     if not complete:
@@ -218,3 +222,30 @@ def test_formatting_helpers():
     assert latex_table(["a_b", "v"], [["x%", "1 ± 2"]], [False, True]) == (
         "\\begin{tabular}{lr}\n\\toprule\na\\_b & v \\\\\n\\midrule\nx\\% & 1 $\\pm$ 2 \\\\\n"
         "\\bottomrule\n\\end{tabular}\n")
+
+
+def test_an_ordering_that_holds_by_construction_in_every_replicate_is_stated_not_tested(tmp_path):
+    # at coverage 0.99 the QE basis has rank m + 1 in every run: QE <= PCA by construction, no test, no Holm share;
+    # at 0.9 one run's QE basis falls short of m + 1, so there QE against PCA is a question for the data
+    alpha = {(0.9, 0): (1.0, 0.5, 0.55), (0.9, 1): (2.0, 0.6, 0.66), (0.9, 2): (4.0, 0.7, 0.8),
+             (0.99, 0): (1.5, 0.1, 0.12), (0.99, 1): (1.5, 0.2, 0.22), (0.99, 2): (1.5, 0.3, 0.35)}
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(alpha):
+        short = coverage == 0.9 and seed == 1
+        write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}", coverage, seed, job, alpha=alpha,
+                     qe_rank=lambda m, short=short: m if short else m + 1)
+    written = collect_and_write([folder], tmp_path / "out", where={"solver": "lstsq"})
+    comparisons = pd.read_csv(tmp_path / "out" / "comparisons.csv")
+    qe_pca = comparisons[(comparisons["first"] == "QE") & (comparisons["second"] == "PCA")].set_index(
+        "basis.coverage")
+    assert qe_pca.loc[0.99, "verdict"] == "<= by construction" and math.isnan(qe_pca.loc[0.99, "p"])
+    assert qe_pca.loc[0.99, "by_construction"] == "QE spans PCA's affine subspace, rank m + 1 in every run"
+    assert qe_pca.loc[0.9, "verdict"] != "<= by construction" and 0.0 < qe_pca.loc[0.9, "p"] < 1.0
+    assert math.isnan(qe_pca.loc[0.99, "p_holm"])  # not in the Holm family
+    line = next(line for line in written["findings"] if line.startswith("basis.coverage = 0.99"))
+    assert "QE 0.182 <= PCA (n = 12) 0.21 by construction (QE spans PCA's affine subspace" in line, line
+    assert "QE/PCA 0.866 [0.776, 0.967]" in line and "(by construction: its size, not its sign)" in line, line
+    tested = next(line for line in written["findings"] if line.startswith("basis.coverage = 0.9,"))
+    assert "by construction" not in tested, tested
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
+    assert set(runs.loc[(runs["basis"] == "QE"), "never_worse_than"]) == {"PCA/projection", "-"}

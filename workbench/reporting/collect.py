@@ -253,7 +253,9 @@ def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
     metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"]))
     return (f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
             f"95 % interval ({method} over {', '.join(over) or 'no replicate key'}), the smaller first; '<' only "
-            "where the interval excludes 1\n\n" + markdown_table(header, rows, numeric))
+            "where the interval excludes 1 (p_holm below 0.05 where it is adjusted); '<= by construction': holds in "
+            "every replicate whatever the data, not tested (the reason in by_construction)\n\n"
+            + markdown_table(header, rows, numeric))
 
 
 def findings_text(findings: Sequence[str]) -> str:

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -14,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.errors import WorkbenchError
+from workbench.identities import run_identities
 from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
 from workbench.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.tables import is_missing
@@ -106,9 +108,11 @@ def record_rows(record: RunRecord, keys: Sequence[str], root: Path | None = None
            "git_commit": record.git.get("commit"), "git_dirty": record.git.get("dirty")}
     run.update({key: flat.get(key) for key in keys})
     rows = []
+    never_worse = never_worse_than(record)
     for row in record.rows():
         data = record.metrics["data"].get(row["data"], {})
         entry = {**run, **{key: value for key, value in row.items() if not isinstance(value, (dict, list))}}
+        entry[NEVER_WORSE_COLUMN] = never_worse.get((row["data"], row["basis"], row["solver"]), "-")
         entry.setdefault("train_on", row["data"])
         entry.setdefault("eval_on", row["data"])
         entry.update(n_points=data.get("n_points"), n_train_frames=data.get("n_train_frames"),
@@ -116,6 +120,55 @@ def record_rows(record: RunRecord, keys: Sequence[str], root: Path | None = None
         entry.update({f"time_{stage}": seconds for stage, seconds in record.timings.items()})
         rows.append(entry)
     return rows
+
+
+NEVER_WORSE_COLUMN = "never_worse_than"
+"""The runs table's column listing, per row, the rows of its data variant it can never be worse than by
+construction (:func:`never_worse_than`)."""
+POOLED_ONLY = " (pooled)"
+
+
+def never_worse_than(record: RunRecord) -> dict:
+    """Per row of a run, the rows of the same data variant it can never be worse than by construction
+    (:func:`workbench.identities.run_identities`), as text: ``basis/solver`` items joined by ``;``, an item
+    followed by :data:`POOLED_ONLY` where the ordering holds for the pooled alphas only.
+
+    Returns
+    -------
+    dict
+        ``(data, basis, solver)`` -> the text (rows with none are left out; the runs table writes ``-``, which a
+        CSV file keeps, where an empty text would come back as a missing value).
+    """
+    rows = record.rows()
+    found: dict = {}
+    for data, facts in (record.metrics.get("data") or {}).items():
+        for identity in run_identities([row for row in rows if row.get("data") == data], facts):
+            key = (data, *identity.smaller)
+            item = "/".join(identity.larger) + (POOLED_ONLY if identity.pooled_only else "")
+            found[key] = f"{found[key]};{item}" if key in found else item
+    return found
+
+
+def holds_by_construction(group: pd.DataFrame, first: str, second: str, metric: str, between: str = "basis") -> bool:
+    """Whether ``first <= second`` holds by construction in every replicate of a comparison's group (the rows of
+    one condition, data variant and solver): the runs table's :data:`NEVER_WORSE_COLUMN` of ``first``'s row lists
+    ``second``'s row in each run. Scores against other frames than those reconstructed (``clean_*``) hold none.
+    """
+    if between != "basis" or metric.startswith("clean_") or NEVER_WORSE_COLUMN not in group.columns:
+        return False
+    pooled = "pooled" in metric
+    replicates = group.groupby(["sweep", "run"], sort=False)
+    for _, runs_rows in replicates:
+        mine, other = runs_rows[runs_rows["basis"] == first], runs_rows[runs_rows["basis"] == second]
+        if len(mine) != 1 or len(other) != 1:
+            return False
+        text = mine[NEVER_WORSE_COLUMN].iloc[0]
+        listed = [item for item in text.split(";") if item] if isinstance(text, str) else []
+        allowed = {item.removesuffix(POOLED_ONLY) for item in listed if pooled or not item.endswith(POOLED_ONLY)}
+        larger = other.iloc[0]
+        if f"{second}/{larger['solver']}" not in allowed and f"{second}/{PCA_SOLVER}" not in allowed:
+            return False
+    return len(replicates) > 0
 
 
 def runs_table(records: Sequence[RunRecord], root: Path | None = None) -> pd.DataFrame:
@@ -260,9 +313,19 @@ def wide(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict", "p")
+COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict", "p",
+                      "by_construction")
 """Columns of :func:`paired_comparisons` after the condition and row keys."""
 NOT_DISTINGUISHABLE = "not distinguishable"
+BY_CONSTRUCTION = "<= by construction"
+
+
+def construction_reason(smaller: str) -> str:
+    """Why a basis comparison holds by construction in every replicate (:func:`holds_by_construction`): QE spans
+    PCA's affine subspace, or PCA is the Eckart-Young optimum."""
+    if smaller == "PCA":
+        return "Eckart-Young on the training frames, n <= m in every run"
+    return "QE spans PCA's affine subspace, rank m + 1 in every run"
 
 
 def with_pca_beside_every_solver(runs: pd.DataFrame) -> pd.DataFrame:
@@ -309,8 +372,10 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
     pandas.DataFrame
         ``study``, the condition columns, the row keys held fixed, then :data:`COMPARISON_COLUMNS`: ``first`` and
         ``second`` the smaller and the larger by their geometric mean ratio (values of ``between``), ``n`` the
-        replicates both have, ``verdict`` ``<`` (the interval lies below 1) or :data:`NOT_DISTINGUISHABLE`, ``p``
-        the two-sided p-value of the same paired t on the log ratios (for :func:`workbench.statistics.holm`).
+        replicates both have, ``verdict`` ``<`` (the interval lies below 1), :data:`NOT_DISTINGUISHABLE` or
+        :data:`BY_CONSTRUCTION` (the ordering holds in every replicate whatever the data,
+        :func:`holds_by_construction`: its reason in ``by_construction``, no test and no p-value), ``p`` the
+        two-sided p-value of the same paired t on the log ratios (for :func:`workbench.statistics.holm`).
     """
     if metric not in runs.columns:
         raise WorkbenchError(f"no column {metric!r} to compare")
@@ -333,10 +398,15 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                 if lower != first:
                     interval = reversed_interval(interval)
                 verdict = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+                reason, p_value = None, interval.p_value
+                if holds_by_construction(group, higher, lower, metric, between):  # equal within rounding
+                    lower, higher, interval = higher, lower, reversed_interval(interval)
+                if holds_by_construction(group, lower, higher, metric, between):
+                    verdict, reason, p_value = BY_CONSTRUCTION, construction_reason(lower), math.nan
                 records.append(dict(zip(keys, group_values), metric=metric, first=lower, second=higher,
                                     n=interval.n, ratio=interval.estimate, ratio_low=interval.low,
                                     ratio_high=interval.high, method=interval.method, verdict=verdict,
-                                    p=interval.p_value))
+                                    p=p_value, by_construction=reason))
     return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
 
 

@@ -39,7 +39,8 @@ def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq
 
 def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> pd.DataFrame:
     """A sweep's comparisons table with Holm's adjustment over its family: every row but the primary contrasts
-    (:func:`is_primary`, on the table's first data variant) gets its Holm-adjusted p-value in :data:`HOLM_COLUMN`
+    (:func:`is_primary`, on the table's first data variant) and the orderings that hold by construction (their
+    ``by_construction`` reason; they are not tested) gets its Holm-adjusted p-value in :data:`HOLM_COLUMN`
     (:func:`workbench.statistics.holm` over all of them), and its ``verdict`` is ``<`` only where that is below
     0.05; a primary contrast keeps the verdict of its own 95 % interval.
 
@@ -61,8 +62,9 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     if table.empty or "p" not in table.columns:
         return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float)})
     lead = next(iter(table["data"].dropna()), None) if "data" in table.columns else None
-    primary = [is_primary(row, column, lead, solver) for row in table.to_dict("records")]
-    family = [k for k, flag in enumerate(primary) if not flag]
+    primary = [is_primary(row, column, lead, solver) or isinstance(row.get("by_construction"), str)
+               for row in table.to_dict("records")]
+    family = [k for k, flag in enumerate(primary) if not flag]  # an identity spends no test
     adjusted = pd.Series(math.nan, index=table.index)
     adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
     table[HOLM_COLUMN] = adjusted
@@ -83,8 +85,9 @@ def holm_text(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> 
     return (f"**how to read**: levels are geometric means over the replicates; 'A < B': the per-replicate ratio "
             f"A/B ({method}, n = {n}) is below 1 at 95 %; '~': not distinguishable; '=': a tie; the primary "
             f"contrasts QE/H and QE/PCA (`{column}`, {solver}, on {lead}; stated with their 95 % interval) at their "
-            f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); every "
-            "ratio, interval and p-value is a row of comparisons.csv.")
+            f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); "
+            "'A <= B by construction': holds in every replicate whatever the data (its reason beside it), so it is "
+            "not tested and only its size is data; every ratio, interval and p-value is a row of comparisons.csv.")
 
 def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
     """The paired ratio ``first / second`` from a comparisons table (either orientation), as an interval."""
@@ -107,6 +110,8 @@ def pair_text(comparisons: pd.DataFrame, first: str, second: str) -> str:
     if interval.estimate > 1.0:
         first, second, interval = second, first, reversed_interval(interval)
     detail = short_interval_text(interval, f"{first}/{second}", "{:.3g}")
+    if construction(comparisons, first, second):
+        return f"{first} <= {second} by construction ({construction(comparisons, first, second)}; {detail})"
     if not interval.excludes_null:
         return f"{first} and {second} not distinguishable ({detail})"
     return f"{first} {'<' if interval.sign < 0 else '>'} {second} ({detail})"
@@ -157,13 +162,29 @@ def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, colum
         interval = _comparison(comparisons, first, second)
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
+    def identity(first, second):
+        return construction(comparisons, first, second)
+
     values = {name: float(value) for name, value in zip(ranked[key], ranked[column])}
-    text = stated_ordering(values, compare, name=lambda item: names[item], digits=3, detail=lambda *args: "")
+    text = stated_ordering(values, compare, name=lambda item: names[item], digits=3, detail=lambda *args: "",
+                           identity=identity)
     if primary:
-        stated = [short_interval_text(found, f"{a}/{b}", "{:.3g}") for a, b in PRIMARY_PAIRS
-                  if a in values and b in values and (found := compare(a, b)) is not None]
+        stated = [short_interval_text(found, f"{a}/{b}", "{:.3g}")
+                  + (" (by construction: its size, not its sign)" if construction(comparisons, a, b)
+                     or construction(comparisons, b, a) else "")
+                  for a, b in PRIMARY_PAIRS if a in values and b in values and (found := compare(a, b)) is not None]
         text += "; " + ", ".join(stated) if stated else ""
     return text
+
+
+def construction(comparisons: pd.DataFrame, first: str, second: str) -> str | None:
+    """Why ``first <= second`` holds by construction in a comparisons table (its ``by_construction`` column), or
+    None."""
+    if "by_construction" not in comparisons.columns:
+        return None
+    found = comparisons[(comparisons["first"] == first) & (comparisons["second"] == second)]
+    reasons = [str(reason) for reason in found["by_construction"] if isinstance(reason, str) and reason]
+    return reasons[0] if reasons else None
 
 
 def _of_solver(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str,
