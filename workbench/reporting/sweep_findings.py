@@ -110,8 +110,9 @@ def pair_text(comparisons: pd.DataFrame, first: str, second: str) -> str:
     if interval.estimate > 1.0:
         first, second, interval = second, first, reversed_interval(interval)
     detail = short_interval_text(interval, f"{first}/{second}", "{:.3g}")
-    if construction(comparisons, first, second):
-        return f"{first} <= {second} by construction ({construction(comparisons, first, second)}; {detail})"
+    reason = construction(comparisons, first, second)
+    if reason:
+        return f"{first} <= {second} by construction ({reason}; {detail})"
     if not interval.excludes_null:
         return f"{first} and {second} not distinguishable ({detail})"
     return f"{first} {'<' if interval.sign < 0 else '>'} {second} ({detail})"
@@ -162,12 +163,9 @@ def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, colum
         interval = _comparison(comparisons, first, second)
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
-    def identity(first, second):
-        return construction(comparisons, first, second)
-
     values = {name: float(value) for name, value in zip(ranked[key], ranked[column])}
     text = stated_ordering(values, compare, name=lambda item: names[item], digits=3, detail=lambda *args: "",
-                           identity=identity)
+                           identity=lambda first, second: construction(comparisons, first, second))
     if primary:
         stated = [short_interval_text(found, f"{a}/{b}", "{:.3g}")
                   + (" (by construction: its size, not its sign)" if construction(comparisons, a, b)
