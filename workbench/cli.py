@@ -246,12 +246,10 @@ def main() -> None:
 
 def retired_setting(error: BaseException) -> str | None:
     """Hydra's refusal to override a setting earlier versions had, said as why the setting went."""
-    from workbench.schema import RETIRED_SETTINGS
+    from workbench.schema import RETIRED_SETTINGS, retired_message
 
     found = re.match(r"Could not override '([^']+)'", str(error))
-    if found and found.group(1) in RETIRED_SETTINGS:
-        return f"setting {found.group(1)} was retired: {RETIRED_SETTINGS[found.group(1)]}; leave it out"
-    return None
+    return retired_message(found.group(1)) if found and found.group(1) in RETIRED_SETTINGS else None
 
 
 def one_line(error: BaseException) -> str:

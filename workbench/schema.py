@@ -432,13 +432,18 @@ RETIRED_SETTINGS = dict.fromkeys(
 """Settings earlier versions had, with why they went: a record written then still holds them."""
 
 
+def retired_message(key: str) -> str:
+    """The one line refusing a retired setting given again (:data:`RETIRED_SETTINGS`)."""
+    return f"setting {key} was retired: {RETIRED_SETTINGS[key]}; leave it out"
+
+
 def _without_retired(plain: dict, overrides: Sequence[str]) -> dict:
     """``plain`` without the retired settings a record of an earlier version holds; one given as an override is
     refused, naming why it went."""
     given = {override.lstrip("+~").split("=", 1)[0].strip() for override in overrides}
-    for key, why in RETIRED_SETTINGS.items():
+    for key in RETIRED_SETTINGS:
         if key in given:
-            raise WorkbenchError(f"setting {key} was retired: {why}; leave it out")
+            raise WorkbenchError(retired_message(key))
         group, name = key.split(".")
         if isinstance(plain.get(group), Mapping) and name in plain[group]:
             plain[group] = {k: v for k, v in plain[group].items() if k != name}

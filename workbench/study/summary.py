@@ -94,11 +94,11 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
         first, second = result.rows[a].alpha, result.rows[b].alpha
         if aggregate == "mean":
             values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
-            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds, )
+            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds)
         else:
             reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
             interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
-                                                seconds=timeline.seconds, )
+                                                seconds=timeline.seconds)
         found.append({"a": [result.rows[a].basis, result.rows[a].solver],
                       "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
     return found
