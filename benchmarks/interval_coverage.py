@@ -4,8 +4,8 @@ For each frame count n and persistence phi, ``--replications`` stationary AR(1) 
 one ``numpy.random.Generator`` seeded by ``--seed``) are given to the interval of one run's comparisons, and the
 share of intervals holding the true value is printed with the intervals' mean width:
 
-- ``mean``: :func:`workbench.statistics.paired_mean_difference` of a series against zeros (true value 0);
-- ``pooled``: :func:`workbench.statistics.paired_pooled_difference` of squared errors ``exp(x_t / 2)``
+- ``mean``: :func:`workbench.stats.statistics.paired_mean_difference` of a series against zeros (true value 0);
+- ``pooled``: :func:`workbench.stats.statistics.paired_pooled_difference` of squared errors ``exp(x_t / 2)``
   and ``exp(y_t / 2) / 4`` of two independent series over a constant reference of 100 (true value
   ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 = 5 exp(1/16)`` with ``E exp(x / 2) = exp(1/8)``);
 - ``bootstrap`` (``--with-bootstrap``): the circular block bootstrap with the Politis-White block length that the
@@ -22,7 +22,8 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from workbench import block_bootstrap, statistics
+import block_bootstrap  # beside this file (benchmarks/ is on the path when run.py runs)
+from workbench.stats import statistics
 
 FRAMES = (800, 4000)
 PERSISTENCES = (0.0, 0.5, 0.9, 0.96, 0.99)

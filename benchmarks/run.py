@@ -38,14 +38,14 @@ import workbench  # noqa: F401  (first: it sets OpenBLAS's thread timeout before
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.dataset import build_captures
-from workbench.frames import frame_chunks
-from workbench.metrics import summarise_alpha, summarise_squares
+from workbench.numerics.frames import frame_chunks
+from workbench.numerics.metrics import summarise_alpha, summarise_squares
 from workbench.study.fitting import pca_subspace
 from workbench.study.results import Timings
 from workbench.study.scoring import projected_rows
-from workbench.solve import reconstruct, solve_weights
+from workbench.numerics.solve import reconstruct, solve_weights
 
 SYNTHETIC = {"kind": "synthetic", "n_frames": 35000, "frame_rate": 120.0, "n_face_markers": 66,
              "n_head_markers": 7, "head_rotation_deg": 3.0, "head_translation_mm": 5.0, "marker_noise_mm": 0.05,
@@ -182,8 +182,8 @@ def bench_markers(args) -> None:
 
 
 def bench_mesh(args) -> None:
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
     from workbench.study.run import run_study
 
     overrides = [f"dataset.n_frames={args.mesh_frames}", "dataset.train_on=mesh", "solver=all",
@@ -263,8 +263,8 @@ def masked_objective(shapes, frames, weights, visible):
 def bench_gaps(args) -> None:
     """The masked solve of eq. 5 (capture gaps) on the synthetic actor's markers with 5 % of the samples in
     occlusion gaps, against the same solve frame by frame (NumPy lstsq, SciPy nnls and bounded lsq_linear)."""
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
 
     cfg = resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", "dataset.gap_rate=0.05",
                                                    "dataset.gap_policy=masked", "dataset.train_on=markers"]))
@@ -297,8 +297,8 @@ def bench_gaps(args) -> None:
 def bench_mapped(args) -> None:
     """PCA of mesh frames that are an RBF map of marker frames: computed on the markers and lifted
     (``Eigenfaces.fit_mapped``) against the PCA of the materialised mesh frames, on the same capture."""
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
 
     overrides = (["dataset=animface", "dataset.train_on=mesh"] if args.mapped_dataset == "animface" else
                  [f"dataset.n_frames={args.frames}", "dataset.train_on=mesh_rbf"])
@@ -321,8 +321,8 @@ def bench_sweep(args) -> None:
     """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
     the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
     both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
     from workbench.study.run import run_study
 
     coverages = np.linspace(0.95, 0.999, args.sweep_runs)
@@ -373,10 +373,10 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
     paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
     from workbench.study.run import run_study
-    from workbench.run_text import alpha_table
+    from workbench.reporting.run_text import alpha_table
 
     cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))
     if not study:
@@ -405,8 +405,8 @@ def bench_cache(args) -> None:
     costs: the source files (once per process) and the entry's files (every hit checks their SHA-256)."""
     import hashlib
 
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
     from workbench.dataset.cache import clear_memory, file_digest, source_files
 
     def hash_files(paths):

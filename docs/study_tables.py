@@ -19,8 +19,8 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
-from workbench.config import compose
-from workbench.errors import WorkbenchError
+from workbench.settings.config import compose
+from workbench.core.errors import WorkbenchError
 from workbench.reporting.collect import collect_and_write
 
 PAGE = Path(__file__).with_name("studies.md")

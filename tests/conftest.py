@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from workbench.config import REPO_ROOT
+from workbench.settings.config import REPO_ROOT
 
 
 def shared_data_root() -> Path:

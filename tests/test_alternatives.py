@@ -4,10 +4,10 @@ hand-computed cases."""
 import numpy as np
 import pytest
 
-from workbench.alternatives import (SurfaceDistance, fitted_hand_basis, ica_basis, leading_svd, nmf_basis,
+from workbench.numerics.alternatives import (SurfaceDistance, fitted_hand_basis, ica_basis, leading_svd, nmf_basis,
                                     sparse_pca_basis, splocs_basis, support_map, unit_activation)
-from workbench.errors import WorkbenchError
-from workbench.intuitiveness import locality, matched_closeness, point_areas, usage
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.intuitiveness import locality, matched_closeness, point_areas, usage
 
 
 def best_abs_cosines(found, planted):

@@ -9,8 +9,8 @@ import pytest
 
 import workbench
 from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
-from workbench.config import REPO_ROOT
-from workbench.metrics import alpha_per_frame
+from workbench.settings.config import REPO_ROOT
+from workbench.numerics.metrics import alpha_per_frame
 
 PARAMETERS = {"coverage": 0.995, "n_components": None, "through": "mean", "solver": "lstsq", "bounds": (0.0, 1.0),
               "empty_axis_eps": 0.05, "empty_axis_scale": "axis_std", "append_empty_axes": False}
@@ -184,7 +184,7 @@ def test_the_public_names_are_listed_and_load_lazily():
     assert all(callable(getattr(workbench, name)) for name in workbench.__all__)
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         workbench.nothing  # noqa: B018
-    code = ("import sys, workbench, workbench.cli; dir(workbench); "
+    code = ("import sys, workbench, workbench.cli.main; dir(workbench); "
             "heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); assert not heavy, heavy; "
             "workbench.QuasiEigenFaces; assert 'numpy' in sys.modules")
     result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True,

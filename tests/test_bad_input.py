@@ -19,19 +19,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.bases import Eigenfaces, build_quasi_eigen_basis, n_components_for_coverage
-from workbench.config import REPO_ROOT
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis, n_components_for_coverage
+from workbench.settings.config import REPO_ROOT
 from workbench.dataset import build_captures
 from workbench.dataset.animface import build_animface
-from workbench.dataset.c3d_markers import read_c3d_markers
+from workbench.formats.c3d import read_c3d_markers
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.ict_livelink import build_ict_livelink
-from workbench.dataset.livelink import ARKIT_NAMES, read_livelink_csv
-from workbench.dataset.meshes import load_blendshapes, read_obj
-from workbench.errors import WorkbenchError
-from workbench.intuitiveness import intuitiveness
-from workbench.metrics import alpha_per_frame, rms_point_error, summarise_alpha
-from workbench.solve import kkt_violation, solve_weights
+from workbench.formats.livelink import ARKIT_NAMES, read_livelink_csv
+from workbench.formats.obj import load_blendshapes, read_obj
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.intuitiveness import intuitiveness
+from workbench.numerics.metrics import alpha_per_frame, rms_point_error, summarise_alpha
+from workbench.numerics.solve import kkt_violation, solve_weights
 
 # ----------------------------------------------------------------------------------------------------------
 # The numerical core
@@ -437,8 +437,8 @@ def test_correspondence_table_garbage_and_unknown_marker_label(tmp_path):
 
 
 def test_complete_record_with_a_corrupt_metrics_file_is_named_not_overwritten(tmp_path):
-    from workbench.record import DONE
-    from workbench.tracking import prepare_run_dir
+    from workbench.record.record import DONE
+    from workbench.record.tracking import prepare_run_dir
 
     (tmp_path / "metrics.json").write_text('{"config_hash": "ab')  # cut short
     (tmp_path / DONE).write_text("")
@@ -686,7 +686,7 @@ def cli_cases(tmp: Path, tiny: Path, real: Path | None) -> dict:
                      "dataset.train_on=markers", "dataset.refine_iterations=0", "solver=lstsq"]
     cases = {
         "coverage": (SMALL + ["basis.coverage=1.5"], r"coverage must be in \(0, 1\], got 1\.5"),
-        # a value of the wrong type fails when the config is composed (workbench/schema.py), naming key and type
+        # a value of the wrong type fails when the config is composed (workbench/settings/schema.py), naming key and type
         "coverage_text": (SMALL + ["basis.coverage=abc"],
                           r"override basis\.coverage=abc; Value 'abc' of type 'str' could not be converted to Float"),
         "m_above_rank": (SMALL + ["basis.n_components=500"],

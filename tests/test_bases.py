@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from workbench.bases import (Eigenfaces, build_quasi_eigen_basis, covariance_eigen, empty_axes, flip_signs,
+from workbench.numerics.bases import (Eigenfaces, build_quasi_eigen_basis, covariance_eigen, empty_axes, flip_signs,
                              n_components_for_coverage, pca_to_qe_weights, quasi_eigen_faces)
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 
 def low_rank_capture(n_frames, n_dims, stds, seed=0):

@@ -9,9 +9,9 @@ import sys
 import pandas as pd
 import pytest
 
-from workbench.config import resolved_without_hydra
-from workbench.config import REPO_ROOT, STUDIES_DIR, compose
-from workbench.errors import WorkbenchError
+from workbench.settings.config import resolved_without_hydra
+from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose
+from workbench.core.errors import WorkbenchError
 from workbench.study.run import run_study
 from workbench.reporting.pages import main as report_main
 

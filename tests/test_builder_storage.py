@@ -7,13 +7,13 @@ import tracemalloc
 import numpy as np
 import pytest
 
-import workbench.frames
-from workbench.config import compose
+import workbench.numerics.frames
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.cache import clear_memory
 from workbench.dataset.mesh_sequence import build_mesh_sequence
-from workbench.export import obj_text
-from workbench.frames import FramesOnDisk
+from workbench.reporting.export import obj_text
+from workbench.numerics.frames import FramesOnDisk
 
 STORAGES = {"memory": [], "float32": ["dataset.dtype=float32", "dataset.storage=disk"],
             "disk": ["dataset.storage=disk"]}
@@ -71,7 +71,7 @@ def sequence_overrides(tmp_path, *more):
 
 def test_mesh_sequence_in_float32_and_on_disk_matches_float64_in_memory(sequence, monkeypatch):
     tmp_path, frames = sequence
-    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 7 * 42 * 3)  # 7 frames a chunk: 8 chunks of 50 frames
+    monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 7 * 42 * 3)  # 7 frames a chunk: 8 chunks of 50 frames
     reference, _, disk = check_storages(sequence_overrides(tmp_path, "dataset.frame_step=3"), {"mesh": "mesh_sequence"},
                                         tmp_path / "out")
     expected = (frames[::3] / 1000.0 * 1000.0 - frames[0] / 1000.0 * 1000.0).reshape(17, -1)
@@ -126,7 +126,7 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     positions[0] = neutral
     positions.flush()
     del positions
-    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 20 * n_vertices * 3)
+    monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 20 * n_vertices * 3)
     cfg = {"kind": "mesh_sequence", "data_root": str(tmp_path), "sequence": "seq.npy", "frame_rate": 60,
            "blendshapes": {"path": "basis", "neutral": "neutral.obj"}, "storage": "disk", "dtype": "float64"}
     whole = n_frames * n_vertices * 3 * 8
@@ -144,7 +144,7 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
 
 
 def test_ict_livelink_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
-    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
+    monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     check_storages(["dataset=ict_livelink", "dataset.max_frames=300", "dataset.train_on=[mesh,markers]",
                     f"paths.data_root={shared_data}"],
                    {"mesh": "ict_livelink_mesh", "markers": "ict_livelink_markers"}, tmp_path)
@@ -161,7 +161,7 @@ def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, t
 
 
 def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
-    monkeypatch.setattr(workbench.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
+    monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     overrides = ["dataset=animface", "dataset.max_frames_per_take=150", "dataset.train_on=[mesh,markers]",
                  f"paths.data_root={shared_data}"]
     reference, float32, disk = check_storages(overrides, {"mesh": "interpolated"}, tmp_path)
@@ -176,7 +176,7 @@ def test_frames_on_disk_are_used_again_only_while_they_hold_what_was_written(tmp
     """A frames file found again is used as it is only with the SHA-256 its writer recorded: an edit that keeps its
     size (one value changed) or a missing checksum gets it built anew, in one line on stderr."""
     from workbench.dataset.storage import FrameStorage
-    from workbench.frames import checksum_path
+    from workbench.numerics.frames import checksum_path
 
     storage, calls = FrameStorage(folder=str(tmp_path / "frames")), []
     expected = np.arange(60.0).reshape(10, 6)

@@ -5,7 +5,7 @@ import os
 import subprocess
 import sys
 
-from workbench.config import REPO_ROOT
+from workbench.settings.config import REPO_ROOT
 
 
 def run_cli(*args, cwd):
@@ -43,7 +43,7 @@ def test_subcommand_errors_are_one_line(tmp_path):
 def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
     """argparse's usage block, a figure that needs four shapes, an unknown table layout: one line each, exit 2."""
     from workbench.api import run
-    from workbench.config import compose
+    from workbench.settings.config import compose
 
     record = tmp_path / "sweep" / "run"
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)

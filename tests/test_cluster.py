@@ -19,8 +19,8 @@ import pandas as pd
 import pytest
 from mlflow_rest import rest
 
-from workbench.config import REPO_ROOT
-from workbench.record import ALPHA_COLUMNS, find_records, load_record
+from workbench.settings.config import REPO_ROOT
+from workbench.record.record import ALPHA_COLUMNS, find_records, load_record
 
 # A small sweep whatever the preset's size: 2 seeds x 2 coverages of 500 frames, named on the command line.
 STUDY = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
@@ -206,7 +206,7 @@ def test_an_interrupted_slurm_sweep_resumes_with_only_the_missing_runs(slurm_clu
 def test_job_states_from_squeue_cover_pending_ranges_and_single_jobs():
     """What the launcher reads on a cluster without accounting (runs without a cluster)."""
     pytest.importorskip("submitit", reason="the cluster extra is not installed")
-    from workbench.cluster import accounting_disabled, squeue_states
+    from workbench.cli.cluster import accounting_disabled, squeue_states
 
     states = squeue_states("17_0|CANCELLED|vm\n17_1|RUNNING|vm\n17_[2-3%4]|PENDING|\n21|COMPLETED|vm\n")
     assert {job: info["State"] for job, info in states.items()} == {

@@ -6,12 +6,12 @@ import pandas as pd
 import pytest
 import yaml
 
-from workbench import record
+from workbench.record import record
 
 from workbench.reporting.collect import collect_and_write, format_estimate, format_range, main
 from workbench.reporting.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
-from workbench.tables import latex_table, markdown_table
-from workbench.errors import WorkbenchError
+from workbench.reporting.tables import latex_table, markdown_table
+from workbench.core.errors import WorkbenchError
 
 ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
     (0.9, 0): (1.0, 0.5, 0.4), (0.9, 1): (2.0, 0.7, 0.5), (0.9, 2): (4.0, 0.9, 0.6),
@@ -21,7 +21,7 @@ M = {0.9: (4, 5, 6), 0.99: (12, 12, 12)}
 
 
 def write_record(folder, coverage, seed, job_num, complete=True, qe_rank=None, alpha=ALPHA):
-    """A run record as the workbench writes it (through workbench.record), with chosen numbers (rows: H and QE
+    """A run record as the workbench writes it (through workbench.record.record), with chosen numbers (rows: H and QE
     with lstsq, then PCA); with ``qe_rank``, the QE basis's rank and PCA's exact method are recorded too."""
     h, qe, pca = alpha[(coverage, seed)]
     m = M[coverage][seed]

@@ -8,8 +8,8 @@ import sys
 import pytest
 
 from workbench import __version__
-from workbench.config import REPO_ROOT
-from workbench.record import DONE
+from workbench.settings.config import REPO_ROOT
+from workbench.record.record import DONE
 
 
 def workbench(*args, cwd, env=None):

@@ -7,9 +7,9 @@ import sys
 import time
 from pathlib import Path
 
-from workbench.config import REPO_ROOT
-from workbench.record import DONE, load_record
-from workbench.tracking import LOCK_FILE, lock_run_dir, unlock_run_dir
+from workbench.settings.config import REPO_ROOT
+from workbench.record.record import DONE, load_record
+from workbench.record.tracking import LOCK_FILE, lock_run_dir, unlock_run_dir
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 

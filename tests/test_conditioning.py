@@ -4,11 +4,11 @@ the alpha table when the hand basis is affected."""
 import numpy as np
 import pytest
 
-from workbench.config import resolved_without_hydra
-from workbench.config import compose
-from workbench.metrics import basis_conditioning
+from workbench.settings.config import resolved_without_hydra
+from workbench.settings.config import compose
+from workbench.numerics.metrics import basis_conditioning
 from workbench.study.run import run_study
-from workbench.run_text import conditioning_lines, study_header
+from workbench.reporting.run_text import conditioning_lines, study_header
 
 
 def test_conditioning_known_values():

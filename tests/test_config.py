@@ -3,7 +3,7 @@
 
 import pytest
 
-from workbench.config import CONF_DIR, STUDIES_DIR, compose
+from workbench.settings.config import CONF_DIR, STUDIES_DIR, compose
 
 STUDIES = sorted(path.stem for path in STUDIES_DIR.glob("*.yaml"))
 GROUP_OPTIONS = sorted((folder.name, path.stem) for folder in CONF_DIR.iterdir() if folder.is_dir()

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.dataset.capture import Timeline
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 from workbench.study.crossval import fold_indices
 from workbench.study.run import run_study
 

@@ -14,11 +14,11 @@ import sys
 
 import pytest
 
-from workbench import cli
+from workbench.cli import main as cli
 from workbench.api import run
-from workbench.config import REPO_ROOT, compose
-from workbench.files import inside, sha256_of_file as file_checksum
-from workbench.record import DONE, is_record_file
+from workbench.settings.config import REPO_ROOT, compose
+from workbench.core.files import inside, sha256_of_file as file_checksum
+from workbench.record.record import DONE, is_record_file
 
 
 @pytest.fixture(scope="module")

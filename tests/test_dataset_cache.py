@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-import workbench.config
+import workbench.settings.config
 import workbench.dataset.cache as cache
-from workbench.config import CONF_DIR, REPO_ROOT, compose
+from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
 from workbench.dataset import build_captures
 from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
-from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import FramesOnDisk
 
 CONFIG = {"kind": "synthetic", "n_frames": 300, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7,
           "head_rotation_deg": 3.0, "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "seed": 0,
@@ -115,8 +115,8 @@ def test_key_follows_the_source_files_a_config_names(tmp_path):
 
 def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
     from workbench.study import run as pipeline
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
 
     cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=30",
                                                    "dataset.mesh_cols=26", "solver=lstsq",
@@ -135,7 +135,7 @@ def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
 def test_editing_the_marker_table_under_conf_rebuilds_the_dataset(shared_data, tmp_path, monkeypatch):
     conf = tmp_path / "conf"
     shutil.copytree(CONF_DIR, conf)
-    monkeypatch.setattr(workbench.config, "CONF_DIR", conf)
+    monkeypatch.setattr(workbench.settings.config, "CONF_DIR", conf)
     cfg = OmegaConf.to_container(compose("paper", ["dataset=ict_livelink", "dataset.max_frames=40",
                                                    "dataset.train_on=markers", f"paths.data_root={shared_data}"]
                                          ).dataset, resolve=True)
@@ -315,8 +315,8 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     from workbench.study import run as pipeline
-    from workbench.config import resolved_without_hydra
-    from workbench.run_text import alpha_table
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.reporting.run_text import alpha_table
 
     def tables(cache_dir):
         cfg = resolved_without_hydra(compose("paper", ["dataset=ict_livelink", "dataset.max_frames=300",

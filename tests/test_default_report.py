@@ -15,7 +15,7 @@ DEFAULT_SMALL = ["dataset.n_frames=1000", "dataset.mesh_rows=35", "dataset.mesh_
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     from workbench.api import run
-    from workbench.config import compose
+    from workbench.settings.config import compose
 
     record = tmp_path_factory.mktemp("default") / "run"
     cfg = compose(overrides=DEFAULT_SMALL)
@@ -55,7 +55,7 @@ def captured_arguments(monkeypatch, name):
 
 @pytest.fixture(scope="module")
 def carried(default_run):
-    from workbench.record import load_record
+    from workbench.record.record import load_record
     from workbench.reporting.report_data import face_data
 
     record, cache = load_record(default_run), {}
@@ -152,7 +152,7 @@ def test_frames_missing_a_marker_are_not_picked_for_the_faces():
 def test_the_real_datasets_give_the_face_mesh_their_markers_are_carried_onto(shared_data, name, step):
     from scipy.spatial import cKDTree
 
-    from workbench.config import compose, resolved_without_hydra
+    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.dataset import build_captures
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer

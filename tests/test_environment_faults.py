@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from workbench import errors
-from workbench.config import REPO_ROOT
-from workbench.files import write_atomic
+from workbench.core import errors
+from workbench.settings.config import REPO_ROOT
+from workbench.core.files import write_atomic
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
@@ -53,10 +53,10 @@ def test_a_full_disk_for_the_job_log_is_one_warning_line(tmp_path):
     """The log is written after the record: the record stays complete, and the full disk is named once."""
     import logging
 
-    from workbench.tracking import RunLog
+    from workbench.record.tracking import RunLog
 
     handler = RunLog(tmp_path / "full" / "workbench.log", delay=True)  # its folder missing: the open fails
-    result = subprocess.run([sys.executable, "-c", "import logging, sys; from workbench.tracking import RunLog; "
+    result = subprocess.run([sys.executable, "-c", "import logging, sys; from workbench.record.tracking import RunLog; "
                              f"h = RunLog({str(tmp_path / 'full' / 'workbench.log')!r}, delay=True); "
                              "log = logging.getLogger('x'); log.addHandler(h); log.warning('a'); log.warning('b')"],
                             capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
@@ -70,7 +70,7 @@ def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
     def full(_):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr("workbench.files.os.fsync", full)
+    monkeypatch.setattr("workbench.core.files.os.fsync", full)
     with pytest.raises(OSError) as raised:
         write_atomic(tmp_path / "metrics.json", "{}")
     assert list(tmp_path.iterdir()) == []

@@ -17,11 +17,11 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.config import REPO_ROOT, compose
-from workbench.errors import WorkbenchError
-from workbench.export import (ExportedBasis, check_plan, export_path, export_run, file_plan, livelink_channels,
+from workbench.settings.config import REPO_ROOT, compose
+from workbench.core.errors import WorkbenchError
+from workbench.reporting.export import (ExportedBasis, check_plan, export_path, export_run, file_plan, livelink_channels,
                               livelink_csv, main, playback_targets, timecode)
-from workbench.metrics import summarise_alpha
+from workbench.numerics.metrics import summarise_alpha
 
 sys.path.insert(0, str(REPO_ROOT / "tests" / "tools"))
 from playback_check import playback_differences  # noqa: E402  (a helper script beside the Blender one)
@@ -163,7 +163,7 @@ def test_marker_data_exports_bases_and_curves(record, tmp_path):
 
 
 def test_livelink_layout_reads_back_with_the_livelink_reader(tmp_path):
-    from workbench.dataset.livelink import read_livelink_csv
+    from workbench.formats.livelink import read_livelink_csv
 
     names = ["jawOpen", "browInnerUp_L", "browInnerUp_R", "mouthSmile_L", "custom"]
     weights = np.column_stack([np.linspace(0, 1, 5), [0.2] * 5, [0.4] * 5, [-0.5, 0, 0.5, 1, 1.5], [9] * 5])
@@ -189,7 +189,7 @@ def test_timecodes_keep_the_frame_field_below_the_rate():
     assert fields.max() < 60.0 and codes[30] == "00:00:01:00.000" and codes[1] == "00:00:00:02.000"
     assert timecode(3600 * 13 + 13 * 60 + 4 + 31.652 / 60) == "13:13:04:31.652"
     assert timecode(59.99999999) == "00:01:00:00.000" and timecode(0.5, 30.0) == "00:00:00:15.000"
-    from workbench.dataset.livelink import parse_timecodes
+    from workbench.formats.livelink import parse_timecodes
     np.testing.assert_allclose(parse_timecodes(codes, 60.0, Path("x")), seconds, atol=0.5e-3 / 60)
 
 
@@ -232,8 +232,8 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
     # a table whose checksum matches (a record written by other code) is still recomputed and compared
     import json
 
-    from workbench.files import sha256_of_file as file_checksum
-    from workbench.record import DONE
+    from workbench.core.files import sha256_of_file as file_checksum
+    from workbench.record.record import DONE
 
     done = json.loads((tampered / DONE).read_text())
     done["sha256"]["alpha_table.csv"] = file_checksum(tampered / "alpha_table.csv")
@@ -317,7 +317,7 @@ def validate(path: Path) -> dict:
 @pytest.fixture(scope="module")
 def every_solver(tmp_path_factory):
     """A synthetic mesh run under every solver, exported under each: (solver, folder, manifest, raw bases)."""
-    from workbench.export import exported_bases, read_run_record, rebuild_results
+    from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
 
     folder = tmp_path_factory.mktemp("solvers") / "run"
     run(compose("paper", ["dataset.n_frames=300", "dataset.train_on=mesh", "solver=all", "basis.paper_regime=false"]),
@@ -367,7 +367,7 @@ def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(e
 
 @pytest.fixture(scope="module")
 def animface_export(shared_data, tmp_path_factory):
-    from workbench.export import exported_bases, read_run_record, rebuild_results
+    from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
 
     folder = tmp_path_factory.mktemp("animface") / "run"
     run(compose("paper", ["dataset=animface", f"paths.data_root={shared_data}", "dataset.frame_step=8",
@@ -381,7 +381,7 @@ def animface_export(shared_data, tmp_path_factory):
 
 
 def test_takes_get_their_own_animation_files_and_times(animface_export):
-    from workbench.dataset.livelink import read_livelink_csv
+    from workbench.formats.livelink import read_livelink_csv
 
     out, manifest, _, _ = animface_export
     takes = ["animface_jaw", "animface_cheeks", "animface_eyebrows"]
@@ -423,7 +423,7 @@ def ict_export(shared_data, tmp_path_factory):
 
 
 def test_livelink_csv_is_the_source_takes_layout_and_timecodes(shared_data, ict_export, tmp_path, capsys):
-    from workbench.dataset.livelink import ROTATION_NAMES, parse_timecodes
+    from workbench.formats.livelink import ROTATION_NAMES, parse_timecodes
 
     source_path = shared_data / "livelinkface" / "alex_rom_3.csv"
     assert main([str(ict_export), "--out", str(tmp_path), "--bases", "H,QE"]) == 0
@@ -490,7 +490,7 @@ def test_names_that_would_leave_the_export_folder_are_refused(tmp_path, name):
     (["neutral", "jaw"], r"\['neutral\.obj'\] would be written twice into .*H_obj"),
     (["Jaw", "jaw"], r"\['Jaw\.obj', 'jaw\.obj'\] would be written twice")])
 def test_every_file_name_is_checked_before_anything_is_written(tmp_path, names, message):
-    from workbench.export import export_takes
+    from workbench.reporting.export import export_takes
     from workbench.dataset.capture import Capture
 
     capture = Capture(name="x", neutral=np.zeros(9), train=np.zeros((2, 9)), eval=np.zeros((2, 9)),

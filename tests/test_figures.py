@@ -12,7 +12,7 @@ import pytest
 from matplotlib.collections import PolyCollection
 from PIL import Image
 
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import compact_svg, fixed_decimals, raster_bytes, save_figure, shorter_numbers
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
 from workbench.reporting.figures.faces import (colour_range, face_regions, nice_exaggeration, point_norms,

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 from workbench.reporting.findings import facts_frame, run_findings, shared_notes
 
@@ -187,7 +187,7 @@ def write_disagreeing_sweep(folder):
     records."""
     import yaml
 
-    from workbench import record
+    from workbench.record import record
 
     for coverage, alpha in SEEDS.items():
         for seed in (0, 1):
@@ -404,7 +404,7 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
 
 
 def test_identities_of_the_solvers_and_of_eckart_young():
-    from workbench.identities import identity_lookup, run_identities
+    from workbench.stats.identities import identity_lookup, run_identities
 
     rows = [{"basis": basis, "solver": solver, "n": 18 if basis != "PCA" else 20}
             for basis in ("H", "QE") for solver in ("lstsq", "nnls", "box")] + [

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.config import resolved_without_hydra
-from workbench.config import compose
+from workbench.settings.config import resolved_without_hydra
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.gaps import apply_gap_policy
-from workbench.errors import WorkbenchError
-from workbench.metrics import summarise_alpha
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.metrics import summarise_alpha
 from workbench.study.run import run_study
-from workbench.solve import solve_weights
+from workbench.numerics.solve import solve_weights
 
 
 def random_masked_problem(seed, n_shapes=5, n_points=12, n_frames=150, missing=0.25):

@@ -6,8 +6,8 @@ import re
 import numpy as np
 import pytest
 
-from workbench.errors import WorkbenchError
-from workbench.gltf import MorphAnimation, MorphMesh, glb_bytes, read_morph_mesh
+from workbench.core.errors import WorkbenchError
+from workbench.formats.gltf import MorphAnimation, MorphMesh, glb_bytes, read_morph_mesh
 
 
 def small_mesh(rng):

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from test_bad_input import tiny_config, tiny_root, write_c3d  # noqa: F401 - tiny_root is a fixture
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
-from workbench.dataset.c3d_markers import read_c3d_markers
-from workbench.dataset.weight_curves import read_weight_curves
-from workbench.errors import WorkbenchError
-from workbench.schema import check_study_config
+from workbench.formats.c3d import read_c3d_markers
+from workbench.formats.weight_curves import read_weight_curves
+from workbench.core.errors import WorkbenchError
+from workbench.settings.schema import check_study_config
 
 SMALL = ["dataset.n_frames=200", "solver=lstsq"]
 
@@ -114,7 +114,7 @@ def test_weight_curves_nested_deep_are_refused(tmp_path):
 
 
 def test_a_marker_never_seen_is_named_without_warnings(tmp_path, recwarn):
-    from workbench.dataset.c3d_markers import MarkerTake
+    from workbench.formats.c3d import MarkerTake
 
     positions = np.random.default_rng(1).uniform(-50, 50, (20, 3, 3))
     positions[:, 1] = np.nan
@@ -128,7 +128,7 @@ def test_a_marker_never_seen_is_named_without_warnings(tmp_path, recwarn):
 
 
 def test_a_linked_obj_is_named_by_the_link(tmp_path):
-    from workbench.dataset.meshes import load_blendshapes
+    from workbench.formats.obj import load_blendshapes
 
     (tmp_path / "face").mkdir()
     (tmp_path / "face" / "neutral.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
@@ -156,8 +156,8 @@ def test_sizes_and_units_name_their_setting(override, message):
 
 
 def test_basis_sizes_name_their_setting():
-    from workbench.alternatives import sparse_pca_basis
-    from workbench.bases import Eigenfaces
+    from workbench.numerics.alternatives import sparse_pca_basis
+    from workbench.numerics.bases import Eigenfaces
 
     capture = np.random.default_rng(0).normal(size=(20, 12))
     with pytest.raises(WorkbenchError, match=re.escape("basis.n_components must be between 1 and the capture's "
@@ -177,7 +177,7 @@ def run_cli(*args, cwd):
     import subprocess
     import sys
 
-    from workbench.config import REPO_ROOT
+    from workbench.settings.config import REPO_ROOT
 
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
     return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True,
@@ -213,7 +213,7 @@ def test_names_that_are_not_utf8_are_refused_in_the_config():
 # ----------------------------------------------------------------------------------------------------------
 
 def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
-    from workbench.record import DONE
+    from workbench.record.record import DONE
 
     sweep = tmp_path / "sweep"
     result = run_cli("-m", "dataset.n_frames=200", "solver=lstsq", "basis.coverage=1.5,0.9,2,0.95",
@@ -234,7 +234,7 @@ def test_ctrl_c_after_a_command_has_finished_is_ignored(monkeypatch):
     import signal
     import sys
 
-    from workbench import cli
+    from workbench.cli import main as cli
 
     monkeypatch.setitem(cli.COMMANDS, "finished", "builtins:len")  # takes the arguments, returns an exit code
     monkeypatch.setattr(sys, "argv", ["workbench", "finished", "0"])

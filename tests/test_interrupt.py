@@ -15,9 +15,9 @@ import time
 
 import pytest
 
-from workbench.config import REPO_ROOT
-from workbench.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt
-from workbench.record import DONE, load_record
+from workbench.settings.config import REPO_ROOT
+from workbench.core.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt
+from workbench.record.record import DONE, load_record
 
 RUN = ["dataset.n_frames=20000", "solver=all"]
 DELAYS = (0.02, 0.15, 0.5, 1.0, 2.0, 3.5, 6.0)
@@ -95,8 +95,8 @@ def test_ctrl_c_while_the_run_writes_into_its_folder_leaves_no_partial_record(tm
 SOLVER_CHILD = textwrap.dedent("""
     import sys
     import numpy as np
-    from workbench.active_set import primal_active_set_frames
-    from workbench.errors import exit_on_error
+    from workbench.numerics.active_set import primal_active_set_frames
+    from workbench.core.errors import exit_on_error
 
     def solve(n_frames, steps):
         rng = np.random.default_rng(0)

@@ -1,9 +1,9 @@
 """Real process kills (SIGKILL) at random points never leave a half-written record.
 
 A run writes each record file atomically (a temporary ``.<name>.<random>.tmp`` beside it, then a rename) and the
-``done`` marker last (:mod:`workbench.record`). So a folder a killed run leaves holds either a complete record
+``done`` marker last (:mod:`workbench.record.record`). So a folder a killed run leaves holds either a complete record
 (``done`` and every file whole) or no ``done``, and then only whole files and perhaps one temporary file; running
-the same command again clears it and completes the record (:mod:`workbench.tracking`).
+the same command again clears it and completes the record (:mod:`workbench.record.tracking`).
 
 The kills are drawn from a seeded generator: most uniformly over the measured duration of a run, some in the
 window in which the record is being written (after the run's first record file appears), where a non-atomic writer
@@ -28,9 +28,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from workbench.config import REPO_ROOT
-from workbench.files import TEMPORARY_SUFFIX, sha256_of_file as file_checksum
-from workbench.tracking import DONE, LOCK_FILE, record_state
+from workbench.settings.config import REPO_ROOT
+from workbench.core.files import TEMPORARY_SUFFIX, sha256_of_file as file_checksum
+from workbench.record.tracking import DONE, LOCK_FILE, record_state
 
 RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true", "basis.paper_regime=false"]  # one inputs.npz
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=300", "dataset.seed=0", "basis.coverage=0.9,0.99",
@@ -361,7 +361,7 @@ def writer_cases():
 
 @pytest.mark.parametrize("path", list(writer_cases()))
 def test_files_are_written_through_the_atomic_writer(path):
-    """Records, tables and reports are written by :func:`workbench.files.write_atomic` only."""
+    """Records, tables and reports are written by :func:`workbench.core.files.write_atomic` only."""
     assert non_atomic_writes(path) == []
 
 

@@ -36,9 +36,13 @@ def test_imports_only_go_down_the_layers():
 
 
 def test_every_module_is_in_a_layer():
+    """The folders are the layers: at the package's top only its entry points, every other module inside a folder
+    that the contract names."""
     listed = {name for layer in contract_layers() for name in layer}
     package = ROOT / "workbench"
-    found = {f"workbench.{path.stem}" for path in package.glob("*.py") if path.stem != "__init__"}
+    top = {path.stem for path in package.glob("*.py")}
+    assert top <= {"__init__", "__main__", "version", "api"}, "modules at the package's top: move them into a layer"
+    found = {f"workbench.{stem}" for stem in top if stem != "__init__"}
     found |= {f"workbench.{path.parent.name}" for path in package.glob("*/__init__.py")}
     assert found - listed == set(), "modules in no layer of the contract"
     assert listed - found == set(), "layers naming no module"

@@ -5,8 +5,8 @@ import warnings
 import numpy as np
 import pytest
 
-from workbench.dataset.c3d_markers import read_c3d_markers
-from workbench.errors import WorkbenchError
+from workbench.formats.c3d import read_c3d_markers
+from workbench.core.errors import WorkbenchError
 
 LABELS = ["Nose", "Chin", "Brow"]
 

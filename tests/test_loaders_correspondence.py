@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.config import CONF_DIR
+from workbench.settings.config import CONF_DIR
 from workbench.dataset.correspondence import placement_table_text, place_markers, read_marker_table
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 TABLE = CONF_DIR / "correspondence" / "animface_ict.csv"
 
@@ -86,8 +86,8 @@ def test_shipped_table_is_the_automatic_placement_on_the_jaw_take(shared_data):
     """Emptying every vertex of conf/correspondence/animface_ict.csv and placing again gives the same vertices."""
     from dataclasses import replace
 
-    from workbench.dataset.c3d_markers import read_c3d_markers
-    from workbench.dataset.meshes import load_blendshapes
+    from workbench.formats.c3d import read_c3d_markers
+    from workbench.formats.obj import load_blendshapes
 
     face = load_blendshapes(shared_data / "ict-facekit" / "FaceXModel", neutral_file="generic_neutral_mesh.obj",
                             names=[], region_vertices=9409, unit_mm=10.0)

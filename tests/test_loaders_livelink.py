@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from workbench.dataset.livelink import (ARKIT_NAMES, ROTATION_NAMES, arkit_target_names, drive_blendshapes,
+from workbench.formats.livelink import (ARKIT_NAMES, ROTATION_NAMES, arkit_target_names, drive_blendshapes,
                                         map_arkit_channels, parse_timecodes, read_livelink_csv)
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 BASIS = ["jawOpen", "jawLeft", "mouthLeft", "mouthSmile_L", "mouthSmile_R", "browInnerUp_L", "browInnerUp_R",
          "eyeBlink_L", "eyeBlink_R", "PupilDilate_L"]
@@ -115,7 +115,7 @@ def test_shared_take_frames_rate_names_and_mapping_onto_ict(shared_data):
     assert take.rotations.shape == (4030, 9)
     assert take.weights.min() >= 0 and take.weights.max() < 1.01  # weights in [0, 1] (one slightly above)
 
-    from workbench.dataset.meshes import expression_names
+    from workbench.formats.obj import expression_names
 
     names = expression_names(shared_data / "ict-facekit" / "FaceXModel", "generic_neutral_mesh.obj")
     mapping = map_arkit_channels(take.names, names)

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
-from workbench.errors import WorkbenchError
-from workbench.export import obj_text
+from workbench.core.errors import WorkbenchError
+from workbench.reporting.export import obj_text
 
 SHAPES = ["side", "up"]  # sorted, as a folder lists them
 

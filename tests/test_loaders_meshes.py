@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from workbench.dataset.meshes import load_blendshapes, polygons_within, read_obj, triangulate
-from workbench.errors import WorkbenchError
+from workbench.formats.obj import load_blendshapes, polygons_within, read_obj, triangulate
+from workbench.core.errors import WorkbenchError
 
 # Two quads and a triangle over 7 vertices; the triangle refers to its vertices relative to the end.
 NEUTRAL = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0], [3, 0, 0]], dtype=float)

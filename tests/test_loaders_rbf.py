@@ -6,7 +6,7 @@ from scipy.interpolate import RBFInterpolator
 from scipy.spatial.distance import cdist
 
 from workbench.dataset.rbf import geodesic_distances, interpolate_frames, mesh_rbf_operator, rbf_operator
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 
 def sheet(n=20, spacing=5.0, gap_rows=()):

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.dataset.c3d_markers import read_c3d_markers
+from workbench.formats.c3d import read_c3d_markers
 from workbench.dataset.rigid import similarity_transform, stabilise
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 RIGID = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"]  # conf/dataset/animface
 

@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.dataset.livelink import ARKIT_NAMES, map_arkit_channels, read_livelink_csv
-from workbench.dataset.weight_curves import read_weight_curves
-from workbench.errors import WorkbenchError
+from workbench.formats.livelink import ARKIT_NAMES, map_arkit_channels, read_livelink_csv
+from workbench.formats.weight_curves import read_weight_curves
+from workbench.core.errors import WorkbenchError
 
 MEDIAPIPE_NAMES = ["_neutral", "browDownLeft", "browInnerUp", "jawOpen", "mouthSmileLeft", "mouthSmileRight"]
 
@@ -113,7 +113,7 @@ def test_bad_weight_curves_are_one_line_errors(tmp_path, weights):
 def test_ict_face_driven_by_mediapipe_json_equals_the_livelink_take(tmp_path, shared_data):
     """The same real weights, as MediaPipe JSON (camelCase names, _neutral, ms timestamps) and as Live Link Face
     CSV, drive the ICT face to the same capture."""
-    from workbench.config import compose
+    from workbench.settings.config import compose
     from workbench.dataset import build_captures
 
     take = read_livelink_csv(shared_data / "livelinkface" / "alex_rom_3.csv")

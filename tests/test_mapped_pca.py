@@ -4,11 +4,11 @@ small space and lifted: it must equal the PCA of the materialised frames."""
 import numpy as np
 import pytest
 
-from workbench.bases import Eigenfaces
-from workbench.config import resolved_without_hydra
-from workbench.config import compose
+from workbench.numerics.bases import Eigenfaces
+from workbench.settings.config import resolved_without_hydra
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 from workbench.study.run import run_study
 
 

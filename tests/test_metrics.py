@@ -4,9 +4,9 @@ distribution over frames and the statistics of the weights."""
 import numpy as np
 import pytest
 
-from workbench.errors import WorkbenchError
-from workbench.intuitiveness import intuitiveness
-from workbench.metrics import alpha_per_frame, alpha_pooled, rms_point_error, summarise_alpha
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.intuitiveness import intuitiveness
+from workbench.numerics.metrics import alpha_per_frame, alpha_pooled, rms_point_error, summarise_alpha
 
 
 def test_perfect_reconstruction_has_zero_alpha():
@@ -97,7 +97,7 @@ def test_summary_from_a_chunked_reconstruction_equals_the_whole_one():
 
 
 def test_weight_statistics_of_a_known_weight_matrix():
-    from workbench.metrics import weight_statistics
+    from workbench.numerics.metrics import weight_statistics
 
     # one second apart; shape 0 is w = t^2 (second derivative 2 everywhere), shape 1 jumps about
     seconds = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
@@ -119,7 +119,7 @@ def test_weight_statistics_of_a_known_weight_matrix():
 
 
 def test_hoyer_sparsity_ends():
-    from workbench.metrics import hoyer_sparsity
+    from workbench.numerics.metrics import hoyer_sparsity
 
     values = hoyer_sparsity(np.array([[0.0, 3.0, 0.0], [1.0, -1.0, 1.0], [0.0, 0.0, 0.0]]))
     np.testing.assert_allclose(values[:2], [1.0, 0.0], atol=1e-15)
@@ -127,7 +127,7 @@ def test_hoyer_sparsity_ends():
 
 
 def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
-    from workbench.metrics import second_derivative
+    from workbench.numerics.metrics import second_derivative
 
     # w = t^2 on uneven times: the three-point formula is exact for a parabola
     seconds = np.array([0.0, 0.5, 2.0, 2.25, 0.0, 1.0, 3.0])
@@ -140,7 +140,7 @@ def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
 
 
 def test_error_distribution_and_rms_per_frame():
-    from workbench.metrics import error_distribution, rms_error
+    from workbench.numerics.metrics import error_distribution, rms_error
 
     per_frame = rms_error(np.array([4.0, 16.0, 0.0, 1.0]), np.array([1, 4, 0, 1]))
     np.testing.assert_allclose(per_frame[[0, 1, 3]], [2.0, 2.0, 1.0])
@@ -151,8 +151,8 @@ def test_error_distribution_and_rms_per_frame():
 
 
 def test_a_rank_deficient_basis_whose_nnls_equals_lstsq_needs_no_negative_weights():
-    from workbench.metrics import needs_negative_share, weight_statistics
-    from workbench.solve import solve_weights
+    from workbench.numerics.metrics import needs_negative_share, weight_statistics
+    from workbench.numerics.solve import solve_weights
 
     # e1, e2 and e1 + e2: rank 2 of 3. A frame 2 e1 (+ a part outside the span) has the least-squares minimum-norm
     # weights (4/3, -2/3, 2/3), negative, yet (2, 0, 0) reaches the same error without a negative weight

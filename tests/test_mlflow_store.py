@@ -18,13 +18,13 @@ import pandas as pd
 import pytest
 from mlflow_rest import rest
 
-from workbench.config import REPO_ROOT
-from workbench.errors import WorkbenchError
-from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_records, load_record
+from workbench.settings.config import REPO_ROOT
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_records, load_record
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.reporting.mlflow_store import (Store, finished_ms, log_records, metric_key, open_store,  # noqa: E402
+from workbench.record.mlflow import (Store, finished_ms, log_records, metric_key, open_store,  # noqa: E402
                                               param_text, record_metrics, resolve_store, started_ms, store_uris)
 
 SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
@@ -356,8 +356,8 @@ def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
         row["data"] = "../../x"
     (folder / "metrics.json").write_text(json.dumps(metrics))
     # as a record written so by another tool: checksums matching its files (a hand edit alone is refused)
-    from workbench.files import sha256_of_file as file_checksum
-    from workbench.record import DONE
+    from workbench.core.files import sha256_of_file as file_checksum
+    from workbench.record.record import DONE
 
     done = json.loads((folder / DONE).read_text())
     done["sha256"].update({name: file_checksum(folder / name) for name in ("alpha_table.csv", "metrics.json")})

@@ -14,8 +14,8 @@ import tomllib
 
 import pytest
 
-from workbench.config import CONF_DIR, REPO_ROOT, STUDIES_DIR
-from workbench.extras import EXTRA_OF_MODULE, install_hint, missing_extra
+from workbench.settings.config import CONF_DIR, REPO_ROOT, STUDIES_DIR
+from workbench.core.extras import EXTRA_OF_MODULE, install_hint, missing_extra
 
 OPTIONAL_MODULES = sorted(EXTRA_OF_MODULE)
 PYPROJECT = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())
@@ -30,7 +30,7 @@ def python(code, *args, cwd, pythonpath=REPO_ROOT, timeout=300):
 def without(modules, argv):
     """Python code running the ``workbench`` command with ``argv`` as if ``modules`` were not installed."""
     return (f"import sys; sys.modules.update(dict.fromkeys({list(modules)!r})); sys.argv = ['workbench', *{argv!r}]; "
-            "from workbench.cli import main; main()")
+            "from workbench.cli.main import main; main()")
 
 
 def test_pyproject_lists_every_package_and_maps_the_configs_into_it():
@@ -75,9 +75,9 @@ def test_a_missing_optional_module_names_its_extra(module):
 
 def test_the_slurm_launcher_without_its_plugin_names_the_cluster_extra(monkeypatch):
     error = ValueError("In 'hydra/launcher/slurm': Could not load 'hydra/launcher/submitit_slurm'")
-    monkeypatch.setattr("workbench.extras.has_module", lambda name: False)
+    monkeypatch.setattr("workbench.core.extras.has_module", lambda name: False)
     assert install_hint("cluster") in missing_extra(error)
-    monkeypatch.setattr("workbench.extras.has_module", lambda name: True)
+    monkeypatch.setattr("workbench.core.extras.has_module", lambda name: True)
     assert missing_extra(error) is None
 
 
@@ -145,7 +145,7 @@ def test_an_installed_package_finds_its_configs_inside_it_and_runs_from_any_fold
     shutil.copytree(STUDIES_DIR, site / "workbench" / "studies")
     work = tmp_path / "elsewhere"
     work.mkdir()
-    where = python("from workbench import config; print(config.INSTALLED, config.CONF_DIR, config.CHECKOUT)",
+    where = python("from workbench.settings import config; print(config.INSTALLED, config.CONF_DIR, config.CHECKOUT)",
                    cwd=work, pythonpath=site)
     assert where.stdout.split() == ["True", str(site / "workbench" / "conf"), "None"], where.stderr
     helped = python(None, "-m", "workbench", "--help", cwd=work, pythonpath=site)

@@ -11,8 +11,8 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from workbench.api import run
-from workbench.record import DONE
-from workbench.config import REPO_ROOT, compose
+from workbench.record.record import DONE
+from workbench.settings.config import REPO_ROOT, compose
 
 SMALL = ["dataset.n_frames=4000", "save_inputs=true", "basis.paper_regime=false"]  # 33 s of performance: enough
 # motion above the noise; the coverage rule's run alone (the m = n variant: tests/test_regime.py)

@@ -9,12 +9,12 @@ import pytest
 from omegaconf import OmegaConf
 
 from workbench.api import run
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.dataset import build_captures
-from workbench.dataset.c3d_markers import read_c3d_markers
+from workbench.formats.c3d import read_c3d_markers
 from workbench.dataset.cache import clear_memory
-from workbench.plausibility import check_rigid_set
-from workbench.errors import WorkbenchError
+from workbench.formats.plausibility import check_rigid_set
+from workbench.core.errors import WorkbenchError
 
 from tests.test_bad_input import write_c3d
 

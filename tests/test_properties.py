@@ -19,13 +19,13 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.bases import Eigenfaces, build_quasi_eigen_basis
-from workbench.dataset.c3d_markers import read_c3d_markers
-from workbench.dataset.livelink import ARKIT_NAMES, read_livelink_csv
-from workbench.dataset.meshes import read_obj
-from workbench.errors import WorkbenchError
-from workbench.metrics import summarise_alpha
-from workbench.solve import kkt_violation, solve_weights
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.formats.c3d import read_c3d_markers
+from workbench.formats.livelink import ARKIT_NAMES, read_livelink_csv
+from workbench.formats.obj import read_obj
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.metrics import summarise_alpha
+from workbench.numerics.solve import kkt_violation, solve_weights
 
 
 def examples(n: int):

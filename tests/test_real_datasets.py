@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.config import resolved_without_hydra
-from workbench.config import REPO_ROOT, compose
+from workbench.settings.config import resolved_without_hydra
+from workbench.settings.config import REPO_ROOT, compose
 from workbench.dataset import build_captures
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 UPPER = {"browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "browDown_L", "browDown_R"}
 
@@ -57,8 +57,8 @@ def test_ict_livelink_mesh_and_virtual_markers(ict_livelink):
 
 def test_ict_livelink_performance_is_the_weighted_blend(shared_data, ict_livelink):
     """One frame of the mesh performance against an independent sum over the ARKit channels."""
-    from workbench.dataset.livelink import read_livelink_csv
-    from workbench.dataset.meshes import load_blendshapes
+    from workbench.formats.livelink import read_livelink_csv
+    from workbench.formats.obj import load_blendshapes
 
     mesh = ict_livelink["mesh"]
     mapping = mesh.provenance["arkit_mapping"]
@@ -113,7 +113,7 @@ def test_animface_neutral_is_the_rest_face_of_its_take(animface, shared_data):
     """The default neutral is the jaw take's frame nearest its median pose (head motion removed), and the notes say
     how far it lies from that pose; the take's first frame holds the inner brows off rest."""
     from workbench.dataset.animface import neutral_rest
-    from workbench.dataset.c3d_markers import read_c3d_markers
+    from workbench.formats.c3d import read_c3d_markers
     from workbench.dataset.rigid import stabilise
 
     rest = animface["markers"].provenance["neutral_from_rest_mm"]
@@ -147,7 +147,7 @@ def test_neutral_rest_known_answer():
 def test_animface_timeline_is_the_files_frames_and_times(animface, shared_data):
     """Every evaluated frame names its take and its frame in that file; its time is that frame over the file's 60 Hz
     (not the sub-sampled index over 60 Hz), so the take lasts as long as the file."""
-    from workbench.dataset.c3d_markers import read_c3d_markers
+    from workbench.formats.c3d import read_c3d_markers
 
     timeline = animface["markers"].timeline()
     assert len(timeline) == len(animface["markers"].eval)

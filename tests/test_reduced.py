@@ -1,14 +1,14 @@
-"""The shared pass over the frames (workbench.reduced) and frame storage (workbench.frames): known answers against
+"""The shared pass over the frames (workbench.numerics.reduced) and frame storage (workbench.numerics.frames): known answers against
 the explicit residuals and reconstructions."""
 
 import numpy as np
 import pytest
 
-from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk, FrameWriter, checksum_path, frame_chunks, is_stored_frames, written_intact
-from workbench.metrics import reference_squares, summarise_alpha, summarise_squares
-from workbench.reduced import Subspace, project_frames
-from workbench.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import FramesOnDisk, FrameWriter, checksum_path, frame_chunks, is_stored_frames, written_intact
+from workbench.numerics.metrics import reference_squares, summarise_alpha, summarise_squares
+from workbench.numerics.reduced import Subspace, project_frames
+from workbench.numerics.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
 
 
 def problem(seed=0, n_frames=300, n_dims=60, n_shapes=7):
@@ -100,7 +100,7 @@ def test_rows_of_frames_on_disk_read_their_part(tmp_path):
 
 
 def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
-    from workbench.bases import Eigenfaces
+    from workbench.numerics.bases import Eigenfaces
 
     rng = np.random.default_rng(3)
     frames = (rng.standard_normal((400, 12)) * np.geomspace(10, 0.1, 12)) @ rng.standard_normal((12, 90))
@@ -116,8 +116,8 @@ def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
 
 
 def study_alphas(tmp_path, *overrides):
-    from workbench.config import resolved_without_hydra
-    from workbench.config import compose
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.config import compose
     from workbench.dataset.cache import clear_memory
     from workbench.study.run import run_study
 
@@ -155,7 +155,7 @@ def test_disk_storage_needs_a_cache_dir():
 
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_exact_pca_of_stored_frames_streams_the_covariance_and_equals_the_in_memory_one(tmp_path, dtype):
-    from workbench.bases import Eigenfaces, frames_covariance
+    from workbench.numerics.bases import Eigenfaces, frames_covariance
 
     rng = np.random.default_rng(4)
     frames = rng.standard_normal((500, 6)) @ rng.standard_normal((6, 24)) + 5.0  # rank 6, far from the origin

@@ -4,9 +4,9 @@ printed header and the summary."""
 import pandas as pd
 import pytest
 
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.reporting.findings import beside_regime_text
-from workbench.run_text import study_header
+from workbench.reporting.run_text import study_header
 from workbench.study.regime import paper_regime_fit
 from workbench.study.run import run_study
 

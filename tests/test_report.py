@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 
-from workbench.metrics import AlphaSummary
+from workbench.numerics.metrics import AlphaSummary
 from workbench.study.results import Row
-from workbench.run_text import FRAME_COLUMNS, alpha_table, headline, printed_tables
-from workbench.tables import markdown_frame as markdown_table
+from workbench.reporting.run_text import FRAME_COLUMNS, alpha_table, headline, printed_tables
+from workbench.reporting.tables import markdown_frame as markdown_table
 
 
 def summary(absolute, displacement, rms):
@@ -53,7 +53,7 @@ def test_markdown_table_exact_text():
 
 
 def test_frame_columns_of_a_row_with_errors_and_weights():
-    from workbench.metrics import error_distribution, weight_statistics
+    from workbench.numerics.metrics import error_distribution, weight_statistics
 
     row = Row("QE", "affine", "lstsq", 2, summary(0.7, 6.25, 0.41),
               weight_statistics=weight_statistics(np.array([[0.0, 0.0], [1.0, 0.5], [4.0, 1.0], [9.0, 1.5]]),
@@ -94,7 +94,7 @@ def test_headline_exact_text():
 
 
 def test_headline_states_identities_and_never_tests_them():
-    from workbench.identities import Identity
+    from workbench.stats.identities import Identity
 
     table = alpha_table(ROWS, data="markers", m=12, coverage=0.995, paper_alpha=PAPER)
     comparisons = {"markers": [

@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from workbench.config import REPO_ROOT
-from workbench.errors import WorkbenchError
+from workbench.settings.config import REPO_ROOT
+from workbench.core.errors import WorkbenchError
 from workbench.reporting.pages import main, report_folder
 from workbench.reporting.report_sections import commit_text, versions_section
 
@@ -67,7 +67,7 @@ BOTH = ["dataset.train_on=[markers,mesh]", "dataset.n_frames=600", "dataset.mesh
 @pytest.fixture(scope="module")
 def run_without_inputs(tmp_path_factory):
     from workbench.api import run
-    from workbench.config import compose
+    from workbench.settings.config import compose
 
     record = tmp_path_factory.mktemp("without_inputs") / "run"
     run(compose("paper", BOTH), record)
@@ -102,7 +102,7 @@ def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(r
 
 
 def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):
-    from workbench.record import load_record
+    from workbench.record.record import load_record
     from workbench.reporting.report_data import rebuilt_arrays
 
     record = load_record(run_without_inputs)

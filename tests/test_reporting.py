@@ -15,17 +15,17 @@ from PIL import Image
 from scipy import stats
 
 from workbench.api import run
-from workbench.config import COMMANDS
-from workbench.config import REPO_ROOT, compose
-from workbench.errors import WorkbenchError
-from workbench.record import find_records, load_record
-from workbench.schema import RETIRED_SETTINGS
+from workbench.cli.main import COMMANDS
+from workbench.settings.config import REPO_ROOT, compose
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import find_records, load_record
+from workbench.settings.schema import RETIRED_SETTINGS
 from workbench.reporting.pages import main
 from workbench.reporting.report_data import figure_solver, frame_alpha, quasi_eigen_shapes, reconstruct_frames
 from workbench.reporting.report_figures import RUN_FIGURES
 from workbench.reporting.report_sections import headline_table
 from workbench.reporting.runs import flatten, summarise, varying_keys, wide
-from workbench.tables import markdown_frame
+from workbench.reporting.tables import markdown_frame
 
 # A small run on both data variants: 5 s of performance on a coarse mesh (1,050 vertices), inputs saved.
 TINY = ["dataset.train_on=[markers,mesh]", "dataset.n_frames=600", "dataset.mesh_rows=35", "dataset.mesh_cols=30",
@@ -72,7 +72,7 @@ def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
 
 def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_report):
     """Every paired comparison in metrics.json is the block bootstrap of the per-frame alpha the record keeps."""
-    from workbench.statistics import paired_mean_difference
+    from workbench.stats.statistics import paired_mean_difference
 
     record, _ = tiny_report
     metrics = json.loads((record / "metrics.json").read_text())
@@ -381,7 +381,7 @@ def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():
 
 
 def test_collect_and_report_give_the_same_numbers_for_one_sweep(tmp_path):
-    from workbench.record import ALPHA_COLUMNS
+    from workbench.record.record import ALPHA_COLUMNS
     from workbench.reporting.collect import collect_and_write
 
     root = make_sweep(tmp_path / "sweep", coverages=(0.99, 0.995))
@@ -429,7 +429,7 @@ def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
         main([str(tmp_path / "missing")])
     with pytest.raises(WorkbenchError, match="no complete run record"):
         main([str(tmp_path)])
-    done = subprocess.run([sys.executable, "-c", "from workbench.cli import main; main()", "report", str(tmp_path)],
+    done = subprocess.run([sys.executable, "-c", "from workbench.cli.main import main; main()", "report", str(tmp_path)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1].startswith("workbench report: error: ")
@@ -543,7 +543,7 @@ def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
 def _resolved(config) -> str:
     from omegaconf import OmegaConf
 
-    from workbench.config import resolved_without_hydra
+    from workbench.settings.config import resolved_without_hydra
 
     return OmegaConf.to_yaml(OmegaConf.create(resolved_without_hydra(config)))
 
@@ -563,9 +563,9 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     """On AnimFace (60 Hz, every 20th frame): the per-frame times are the file's frame numbers over its rate, the
     takes are named, figure 3 shows one frame per region of the face, the brows' from the eyebrows take, and figure
     4 the most displaced of them; the report names the data files with their checksums."""
-    from workbench.dataset.c3d_markers import read_c3d_markers
+    from workbench.formats.c3d import read_c3d_markers
     from workbench.dataset.capture import Timeline
-    from workbench.files import sha256_of_file as file_sha256
+    from workbench.core.files import sha256_of_file as file_sha256
     from workbench.reporting.report_data import (figure3_frames, marker_variant, mesh_variant, most_displaced,
                                                  record_timeline)
     from workbench.reporting.report_figures import figure4_frame
@@ -710,7 +710,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
 
 def test_rebuilding_reports_does_not_mark_the_code_as_changed(tmp_path):
     """A reference report rewritten under reports/ is output, not code: the commit stays clean for the next run."""
-    from workbench.record import git_state
+    from workbench.record.record import git_state
 
     def git(*args):
         subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True)

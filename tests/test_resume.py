@@ -12,11 +12,11 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.config import REPO_ROOT, compose
-from workbench.errors import WorkbenchError
-from workbench.record import DONE, config_hash
-from workbench.config import run_dir_name
-from workbench.tracking import LOCK_FILE, clear_partial, prepare_run_dir, record_state
+from workbench.settings.config import REPO_ROOT, compose
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import DONE, config_hash
+from workbench.settings.config import run_dir_name
+from workbench.record.tracking import LOCK_FILE, clear_partial, prepare_run_dir, record_state
 
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
 N_RUNS = 6

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from workbench.dataset.rigid import kabsch, stabilise
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 
 def moved_markers(n_frames=50, seed=0):

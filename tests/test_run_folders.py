@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from workbench.config import REPO_ROOT
-from workbench.errors import WorkbenchError
-from workbench.record import DONE
-from workbench.tracking import LOCK_FILE, check_run_dir, clear_partial, discard_failed_run
+from workbench.settings.config import REPO_ROOT
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import DONE
+from workbench.record.tracking import LOCK_FILE, check_run_dir, clear_partial, discard_failed_run
 
 SMALL = ["dataset.n_frames=300", "solver=lstsq"]
 
@@ -71,7 +71,7 @@ def test_the_current_directory_is_never_a_run_folder_even_in_a_copy_of_the_check
             (checkout / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(REPO_ROOT / name, checkout / name)
     before = snapshot(checkout)
-    assert {"README.md", "pyproject.toml", ".gitignore", "workbench/cli.py"} <= set(before)
+    assert {"README.md", "pyproject.toml", ".gitignore", "workbench/cli/main.py"} <= set(before)
     for run_dir in ("hydra.run.dir=", "hydra.run.dir=.", f"hydra.run.dir={checkout}", "hydra.run.dir=.."):
         line = one_error_line(workbench(*SMALL, run_dir, cwd=checkout, pythonpath=checkout))
         assert "a run writes into a folder of its own" in line, line

@@ -7,10 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from workbench.config import compose
+from workbench.settings.config import compose
 from workbench.dataset.capture import Capture, Timeline
-from workbench.errors import WorkbenchError
-from workbench.metrics import needs_negative_share, weight_statistics
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.metrics import needs_negative_share, weight_statistics
 from workbench.study.protocols import held_out_capture
 from workbench.study.run import run_study
 from workbench.study.scoring import face_region

@@ -5,9 +5,9 @@ import re
 import pytest
 
 from workbench.api import run
-from workbench.config import compose
-from workbench.errors import WorkbenchError
-from workbench.record import DONE
+from workbench.settings.config import compose
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import DONE
 
 
 @pytest.mark.parametrize("override, message", [
@@ -95,7 +95,7 @@ COMPOSITION_CASES = {
 
 @pytest.mark.parametrize("override", list(COMPOSITION_CASES))
 def test_settings_are_checked_when_composed(override):
-    from workbench.schema import check_study_config
+    from workbench.settings.schema import check_study_config
 
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", override])
     with pytest.raises(WorkbenchError, match="^" + re.escape(COMPOSITION_CASES[override])):
@@ -111,7 +111,7 @@ def test_settings_are_checked_when_composed(override):
      "metric.score_clean needs the clean capture, which only dataset.kind synthetic has, got 'ict_livelink'"),
 ])
 def test_scoring_against_the_clean_capture_is_checked_with_the_settings_it_needs(overrides, message):
-    from workbench.schema import check_study_config
+    from workbench.settings.schema import check_study_config
 
     cfg = compose("paper", ["solver=lstsq", *overrides])
     with pytest.raises(WorkbenchError, match="^" + re.escape(message) + "$"):
@@ -119,7 +119,7 @@ def test_scoring_against_the_clean_capture_is_checked_with_the_settings_it_needs
 
 
 def test_settings_with_no_effect_in_a_sweep_are_named_not_refused():
-    from workbench.schema import check_study_config
+    from workbench.settings.schema import check_study_config
 
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.eval_fraction=0.3"])
     assert check_study_config(cfg, ["dataset.eval_fraction=0.3"]) == [
@@ -130,8 +130,8 @@ def test_settings_with_no_effect_in_a_sweep_are_named_not_refused():
 
 
 def test_every_study_and_dataset_passes_its_own_checks():
-    from workbench.config import STUDIES_DIR
-    from workbench.schema import check_study_config
+    from workbench.settings.config import STUDIES_DIR
+    from workbench.settings.schema import check_study_config
 
     for study in sorted(path.stem for path in STUDIES_DIR.glob("*.yaml")):
         assert check_study_config(compose(study), refuse_ineffective=True) == [], study
@@ -145,7 +145,7 @@ def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path)
     import subprocess
     import sys
 
-    from workbench.config import REPO_ROOT
+    from workbench.settings.config import REPO_ROOT
 
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
     cases = ["basis.hand_subset=5", "basis.ica.max_iter=0", "basis.coverage=${nope}", "save_inputs=2",
@@ -164,7 +164,7 @@ def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path)
 
 
 def test_fold_settings_have_effect_only_with_kfold():
-    from workbench.schema import check_study_config
+    from workbench.settings.schema import check_study_config
 
     cfg = compose("paper", ["dataset.n_frames=200", "solver=lstsq", "dataset.folds=3"])
     assert check_study_config(cfg, ["dataset.folds=3"]) == [
@@ -178,7 +178,7 @@ def test_fold_settings_have_effect_only_with_kfold():
 def test_a_record_of_an_earlier_version_holding_retired_settings_is_still_read():
     from omegaconf import OmegaConf
 
-    from workbench.schema import check_study_config, resolved_settings
+    from workbench.settings.schema import check_study_config, resolved_settings
 
     plain = resolved_settings(compose("paper", ["dataset.n_frames=200", "solver=lstsq"]))
     plain["metric"] |= {"bootstrap_resamples": 2000, "bootstrap_seed": 0}  # what records of earlier versions hold

@@ -1,4 +1,4 @@
-"""Tests of workbench.solve: eq. 5 weights for every frame, checked against NumPy/SciPy per frame."""
+"""Tests of workbench.numerics.solve: eq. 5 weights for every frame, checked against NumPy/SciPy per frame."""
 
 from dataclasses import replace
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
-import workbench.solve
-from workbench.errors import WorkbenchError
-from workbench.solve import WeightSolution, kkt_violation, reconstruct, solve_weights
-from workbench.tolerances import TOL
+import workbench.numerics.solve
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.solve import WeightSolution, kkt_violation, reconstruct, solve_weights
+from workbench.core.tolerances import TOL
 
 N_FRAMES = 200
 
@@ -398,7 +398,7 @@ def test_rank_deficient_basis_without_warm_start(monkeypatch, kind, lower, upper
     # method reaches the same objective, still without SciPy.
     basis, targets = rank_deficient_problem("affine_projected", 5, n_frames=500)
     warm = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
-    monkeypatch.setattr(workbench.solve, "_ADMM_STEPS", 0)
+    monkeypatch.setattr(workbench.numerics.solve, "_ADMM_STEPS", 0)
     cold = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
     assert cold.n_fallback_frames == 0 and cold.max_kkt_violation <= TOL.kkt
     np.testing.assert_allclose(

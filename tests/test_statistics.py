@@ -9,10 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from workbench.errors import WorkbenchError
-from workbench import block_bootstrap, statistics
-from workbench.block_bootstrap import block_bootstrap_totals, optimal_block_length
-from workbench.statistics import (BATCH_MEANS, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
+from workbench.core.errors import WorkbenchError
+from workbench.stats import statistics
+from benchmarks import block_bootstrap
+from benchmarks.block_bootstrap import block_bootstrap_totals, optimal_block_length
+from workbench.stats.statistics import (BATCH_MEANS, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
                                             comparison_lookup, geometric_interval, interval_text, ordering_text,
                                             paired_difference_interval, paired_mean_difference,
                                             paired_pooled_difference, paired_ratio_interval, reversed_interval,

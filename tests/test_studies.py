@@ -10,16 +10,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.config import REPO_ROOT, STUDIES_DIR, compose
+from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.dataset import build_captures
 from workbench.dataset.decimate import decimate
 from workbench.dataset.gaps import apply_gap_policy, longest_run, make_gap_mask
 from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, make_face_mesh, make_synthetic_take
 from workbench.dataset.transfer import point_transfer
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 from workbench.study.protocols import hand_subset_indices
 from workbench.study.run import run_study
-from workbench.config import resolved_without_hydra
+from workbench.settings.config import resolved_without_hydra
 
 STUDIES = ("coverage", "basis_count", "marker_mesh", "noise", "choices", "generalisation")
 

@@ -8,8 +8,8 @@ from workbench.dataset.storage import FrameStorage
 from workbench.dataset.synthetic import (LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements,
                                          make_activations, make_face_mesh, make_synthetic_take)
 from workbench.dataset.synthetic.face_mesh import eye_opening_mask
-from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import FramesOnDisk
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
 

@@ -8,7 +8,7 @@ readers, ``build_captures``, ``run_study`` and ``read_record``.
 
 import os
 
-from workbench.interrupt import exit_at_once_while_starting, started_as_command
+from workbench.core.interrupt import exit_at_once_while_starting, started_as_command
 
 if started_as_command():  # first, before the seconds of imports: Ctrl-C then is one line, not a traceback
     exit_at_once_while_starting()
@@ -24,9 +24,9 @@ from workbench.version import __version__  # noqa: E402 - after the environment 
 # The public API, imported on first use (module ``__getattr__``, PEP 562): ``import workbench`` and the command's
 # start-up stay free of NumPy, pandas and Hydra until a name below is used.
 _PUBLIC = {
-    "QuasiEigenFaces": "workbench.estimator",
-    "NotFittedError": "workbench.estimator",
-    "WorkbenchError": "workbench.errors",
+    "QuasiEigenFaces": "workbench.numerics.estimator",
+    "NotFittedError": "workbench.numerics.estimator",
+    "WorkbenchError": "workbench.core.errors",
     "read_c3d": "workbench.api",
     "read_livelink": "workbench.api",
     "read_weight_curves": "workbench.api",

@@ -9,6 +9,6 @@ from pathlib import Path
 if sys.path and sys.path[0] in ("", os.getcwd()) and Path.cwd().resolve() != Path(__file__).resolve().parents[1]:
     del sys.path[0]
 
-from workbench.cli import main  # noqa: E402
+from workbench.cli.main import main  # noqa: E402
 
 main()

@@ -14,19 +14,19 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping, Sequence
 
-from workbench.config import CHECKOUT, resolved_without_hydra, resolved_yaml_text
-from workbench.errors import WorkbenchError
+from workbench.settings.config import CHECKOUT, resolved_without_hydra, resolved_yaml_text
+from workbench.core.errors import WorkbenchError
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
 
-    from workbench.dataset.c3d_markers import MarkerTake
+    from workbench.formats.c3d import MarkerTake
     from workbench.dataset.capture import Capture
-    from workbench.dataset.livelink import LiveLinkTake
-    from workbench.dataset.meshes import Blendshapes, ObjMesh
-    from workbench.gltf import MorphMesh
+    from workbench.formats.livelink import LiveLinkTake
+    from workbench.formats.obj import Blendshapes, ObjMesh
+    from workbench.formats.gltf import MorphMesh
     from workbench.study.results import StudyResult
-    from workbench.record import RunRecord
+    from workbench.record.record import RunRecord
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 
 def read_c3d(path: str | os.PathLike) -> "MarkerTake":
-    """Labelled 3-D marker trajectories of a C3D file, in millimetres (:mod:`workbench.dataset.c3d_markers`).
+    """Labelled 3-D marker trajectories of a C3D file, in millimetres (:mod:`workbench.formats.c3d`).
 
     Parameters
     ----------
@@ -53,13 +53,13 @@ def read_c3d(path: str | os.PathLike) -> "MarkerTake":
         A missing, truncated or unreadable file, a label count other than the marker count, duplicate labels,
         unknown units.
     """
-    from workbench.dataset.c3d_markers import read_c3d_markers
+    from workbench.formats.c3d import read_c3d_markers
 
     return read_c3d_markers(path)
 
 
 def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "LiveLinkTake":
-    """The 52 ARKit weight curves of a Live Link Face CSV export (:mod:`workbench.dataset.livelink`).
+    """The 52 ARKit weight curves of a Live Link Face CSV export (:mod:`workbench.formats.livelink`).
 
     Parameters
     ----------
@@ -73,7 +73,7 @@ def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "L
         ``names`` (ARKit channels), ``weights`` of shape (n_frames, n_channels) in [0, 1], ``seconds`` of shape
         (n_frames,), ``frame_rate``, ``rotations`` (head and eyes) or None.
     """
-    from workbench.dataset.livelink import read_livelink_csv
+    from workbench.formats.livelink import read_livelink_csv
 
     return read_livelink_csv(path, timecode_rate=timecode_rate)
 
@@ -81,7 +81,7 @@ def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "L
 def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = None,
                        timecode_rate: float = 60.0) -> "LiveLinkTake":
     """Named weight curves of a CSV or JSON file: Live Link Face, MediaPipe face blendshapes, or a generic table
-    (:mod:`workbench.dataset.weight_curves`).
+    (:mod:`workbench.formats.weight_curves`).
 
     Parameters
     ----------
@@ -95,15 +95,15 @@ def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = No
     -------
     LiveLinkTake
     """
-    from workbench.dataset.weight_curves import read_weight_curves as read
+    from workbench.formats.weight_curves import read_weight_curves as read
 
     return read(path, frame_rate=frame_rate, timecode_rate=timecode_rate)
 
 
 def read_obj(path: str | os.PathLike) -> "ObjMesh":
     """The geometry of one OBJ file: ``vertices`` of shape (n_vertices, 3) in the file's units and its polygons
-    (:mod:`workbench.dataset.meshes`)."""
-    from workbench.dataset.meshes import read_obj as read
+    (:mod:`workbench.formats.obj`)."""
+    from workbench.formats.obj import read_obj as read
 
     return read(path)
 
@@ -111,7 +111,7 @@ def read_obj(path: str | os.PathLike) -> "ObjMesh":
 def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence[str] | None = None,
                      region_vertices: int | None = None, unit_mm: float = 1.0) -> "Blendshapes":
     """A blendshape folder: a neutral OBJ and one OBJ per named expression (ICT FaceKit's ``FaceXModel`` layout), as
-    displacements in millimetres (:func:`workbench.dataset.meshes.load_blendshapes`).
+    displacements in millimetres (:func:`workbench.formats.obj.load_blendshapes`).
 
     Parameters
     ----------
@@ -131,7 +131,7 @@ def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence
         ``neutral`` of shape (n_vertices, 3), ``names``, ``deltas`` of shape (n_shapes, n_vertices, 3),
         ``triangles``. ``deltas.reshape(len(deltas), -1)`` are hand shapes for :class:`QuasiEigenFaces`.
     """
-    from workbench.dataset.meshes import load_blendshapes
+    from workbench.formats.obj import load_blendshapes
 
     return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices,
                             unit_mm=unit_mm)
@@ -139,7 +139,7 @@ def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence
 
 def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "MorphMesh":
     """A glTF 2.0 binary (``.glb``) mesh with named morph targets and any morph-weight animations, in millimetres
-    (:func:`workbench.gltf.read_morph_mesh`).
+    (:func:`workbench.formats.gltf.read_morph_mesh`).
 
     Returns
     -------
@@ -147,7 +147,7 @@ def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "Morp
         ``neutral`` of shape (n_vertices, 3), ``triangles``, ``names``, ``deltas`` of shape
         (n_targets, n_vertices, 3), ``animations``.
     """
-    from workbench.gltf import read_morph_mesh
+    from workbench.formats.gltf import read_morph_mesh
 
     return read_morph_mesh(path, mesh_name=mesh_name)
 
@@ -181,7 +181,7 @@ def read_mesh_sequence(path: str | os.PathLike, *, vertices_key: str = "vertices
 
 
 def compose_config(study: str = "paper", overrides: Sequence[str] = ()) -> "DictConfig":
-    """A study's config composed as the command line composes it, without running it (:func:`workbench.config.compose`).
+    """A study's config composed as the command line composes it, without running it (:func:`workbench.settings.config.compose`).
 
     Parameters
     ----------
@@ -194,7 +194,7 @@ def compose_config(study: str = "paper", overrides: Sequence[str] = ()) -> "Dict
     -------
     omegaconf.DictConfig
     """
-    from workbench.config import compose
+    from workbench.settings.config import compose
 
     if isinstance(overrides, str):
         raise WorkbenchError(f"overrides must be a list of 'key=value' strings, got the string {overrides!r}")
@@ -262,7 +262,7 @@ def run_study(config) -> list["StudyResult"]:
         rows: basis, solver and every alpha variant in ``row.alpha``) and ``weights``.
     """
     from workbench.study.run import run_study as run
-    from workbench.schema import check_study_config, resolved_settings
+    from workbench.settings.schema import check_study_config, resolved_settings
 
     config = _study_config(config)
     check_study_config(config)
@@ -286,7 +286,7 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
 
     Returns
     -------
-    workbench.record.RunRecord
+    workbench.record.record.RunRecord
     """
     config = _study_config(config)
     run_owned(config, Path(output_dir), overrides=list(overrides), job_num=None, plain=True)
@@ -295,7 +295,7 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
 
 def read_record(folder: str | os.PathLike, *, check_archives: bool = False) -> "RunRecord":
     """A complete run record, every file checked against the checksums the run wrote
-    (:func:`workbench.record.load_record`).
+    (:func:`workbench.record.record.load_record`).
 
     Parameters
     ----------
@@ -306,11 +306,11 @@ def read_record(folder: str | os.PathLike, *, check_archives: bool = False) -> "
 
     Returns
     -------
-    workbench.record.RunRecord
+    workbench.record.record.RunRecord
         ``config`` (the resolved config), ``table`` (the alpha table, a DataFrame), ``metrics``
         (``metrics.json``: its ``rows`` hold every alpha variant of every basis and solver) and ``timings``.
     """
-    from workbench.record import load_record
+    from workbench.record.record import load_record
 
     return load_record(Path(folder), check_archives=check_archives)
 
@@ -337,18 +337,18 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     import pandas as pd
     from omegaconf import OmegaConf
 
-    from workbench.record import DONE, record_state, run_metrics, write_record
+    from workbench.record.record import DONE, record_state, run_metrics, write_record
     from workbench.study.run import run_study
     from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
                                          saves_inputs)
-    from workbench.run_text import alpha_table, headline, printed_tables, result_identities, study_header
+    from workbench.reporting.run_text import alpha_table, headline, printed_tables, result_identities, study_header
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     if record_state(output_dir) == "complete":
         raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
                              "overwritten: write the run elsewhere")
-    from workbench.schema import check_study_config
+    from workbench.settings.schema import check_study_config
 
     check_study_config(cfg)
     plain = resolved_without_hydra(cfg)
@@ -378,11 +378,11 @@ def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], jo
               plain: bool) -> str | None:
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
     holds a complete record of the same config. A folder that is not the workbench's is refused before anything
-    is written into it (:func:`workbench.tracking.check_run_dir`). A plain run (``plain``) that fails or is
+    is written into it (:func:`workbench.record.tracking.check_run_dir`). A plain run (``plain``) that fails or is
     interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
     rerun clears and redoes the run)."""
-    from workbench.record import config_hash
-    from workbench.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
+    from workbench.record.record import config_hash
+    from workbench.record.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
                                     prepare_run_dir, unlock_run_dir)
 
     found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")

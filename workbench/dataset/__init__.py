@@ -18,7 +18,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import TRAIN_ON, build_synthetic
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 
 BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface,

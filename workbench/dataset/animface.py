@@ -18,23 +18,23 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.c3d_markers import MarkerTake, read_c3d_markers
+from workbench.formats.c3d import MarkerTake, read_c3d_markers
 from workbench.dataset.common import (interpolated_frames, largest_point_norm, marker_jitter_rms, masked_frames,
                                       masked_training_frames, point_operator_matrix, split_frames, train_on_list)
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
-from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.plausibility import (check_rigid_set, face_size_problems, face_spread, frame_rate_problems,
+from workbench.formats.obj import Blendshapes, expression_names
+from workbench.formats.plausibility import (check_rigid_set, face_size_problems, face_spread, frame_rate_problems,
                                     outlier_problems, parked_marker_problems, plausibility_policy, settle,
                                     take_units_problems, with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text)
 from workbench.dataset.rigid import Similarity, Stabilised, stabilise
-from workbench.settings_rules import integer_setting, number_setting, seed_setting
+from workbench.settings.rules import integer_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 TRAIN_ON = ("markers", "mesh")
 DIFFERENT_FACES = ("performer and basis come from different faces: the motion is the AnimFace performer's, the hand "

@@ -37,9 +37,9 @@ import numpy as np
 
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
-from workbench.errors import WorkbenchError
-from workbench.files import sha256_of_file, write_atomic
-from workbench.frames import DTYPES, FramesOnDisk
+from workbench.core.errors import WorkbenchError
+from workbench.core.files import sha256_of_file, write_atomic
+from workbench.numerics.frames import DTYPES, FramesOnDisk
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0
@@ -58,11 +58,11 @@ class EntryMismatch(Exception):
 
 @lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """Hash of every Python source file of the dataset stage."""
+    """Hash of every Python source file of the dataset stage and of the file formats it reads."""
     digest = hashlib.sha256()
-    root = Path(__file__).resolve().parent
-    for path in sorted(root.rglob("*.py")):
-        digest.update(str(path.relative_to(root)).encode())
+    package = Path(__file__).resolve().parents[1]
+    for path in sorted([*(package / "dataset").rglob("*.py"), *(package / "formats").rglob("*.py")]):
+        digest.update(str(path.relative_to(package)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 
@@ -83,7 +83,7 @@ def source_files(cfg: Mapping) -> list[Path]:
     """Each file, or file in a folder, that a string value of ``cfg`` names under ``cfg["data_root"]``, under the
     workbench's ``conf/`` folder (as ``dataset.marker_table`` does) or as an absolute path; empty for generated
     datasets without such files."""
-    from workbench.config import CONF_DIR
+    from workbench.settings.config import CONF_DIR
 
     roots = [Path(root) for root in (cfg.get("data_root"), CONF_DIR) if root]
     files = []

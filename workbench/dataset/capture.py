@@ -124,7 +124,7 @@ class Capture:
     train_source, train_operator : ndarray of shape (n_train_frames, k) and (3 * n_points, k), or None
         Set when the training frames are a fixed linear map of smaller data, ``train = train_source @
         train_operator.T`` (mesh frames interpolated from markers by RBF): the PCA is then computed in the small
-        space and lifted (:meth:`workbench.bases.Eigenfaces.fit_mapped`).
+        space and lifted (:meth:`workbench.numerics.bases.Eigenfaces.fit_mapped`).
     point_support : ndarray of shape (n_points,) of bool, or None
         False at points whose motion is extrapolated far from any measured point (a mesh moved by an interpolation
         of markers: neck, back of the head); figures draw them plain, out of the colour scales. None: every point

@@ -11,9 +11,9 @@ import numpy as np
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
-from workbench.errors import WorkbenchError
-from workbench.frames import FramesOnDisk, frame_chunks
-from workbench.settings_rules import GAP_FIT_ON, checked, number_setting, one_of
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import FramesOnDisk, frame_chunks
+from workbench.settings.rules import GAP_FIT_ON, checked, number_setting, one_of
 
 
 SPLITS = ("same", "tail")
@@ -110,7 +110,7 @@ def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
 
 
 def gap_fit_on_setting(fit_on: str) -> str:
-    """``dataset.gap_fit_on``, checked (one of :data:`workbench.settings_rules.GAP_FIT_ON`)."""
+    """``dataset.gap_fit_on``, checked (one of :data:`workbench.settings.rules.GAP_FIT_ON`)."""
     return checked(fit_on, "dataset.gap_fit_on", one_of(*GAP_FIT_ON))
 
 

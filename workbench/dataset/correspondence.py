@@ -31,7 +31,7 @@ from typing import Sequence
 import numpy as np
 
 from workbench.dataset.rigid import Similarity, similarity_transform
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 TABLE_COLUMNS = ("marker", "landmark", "vertex", "note")
 

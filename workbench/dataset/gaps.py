@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
-from workbench.settings_rules import GAP_POLICIES, checked, integer, one_of
+from workbench.core.errors import WorkbenchError
+from workbench.settings.rules import GAP_POLICIES, checked, integer, one_of
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from typing import Mapping
 import numpy as np
 
 from workbench.dataset.capture import Capture
-from workbench.dataset.meshes import Blendshapes, expression_names, load_blendshapes
-from workbench.errors import WorkbenchError
+from workbench.formats.obj import Blendshapes, expression_names, load_blendshapes
+from workbench.core.errors import WorkbenchError
 
 NEUTRAL_MISMATCH = 0.1
 """A hand basis whose neutral lies further than this fraction of the capture's extent from the capture's neutral is
@@ -44,8 +44,8 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     Blendshapes
         Every shape of the file.
     """
-    from workbench.settings_rules import integer_setting, positive_setting
-    from workbench.gltf import read_morph_mesh
+    from workbench.settings.rules import integer_setting, positive_setting
+    from workbench.formats.gltf import read_morph_mesh
 
     unknown = sorted(set(spec) - set(KEYS))
     if unknown:
@@ -74,7 +74,7 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
 def folder_unit_mm(folder: Path) -> float:
     """Millimetres per OBJ unit that a blendshape folder's ``manifest.json`` states (``workbench export`` writes
     one beside its OBJ files); 1 for a folder without one."""
-    from workbench.settings_rules import positive_setting
+    from workbench.settings.rules import positive_setting
 
     manifest = folder / "manifest.json"
     if not manifest.is_file():

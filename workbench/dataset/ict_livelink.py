@@ -17,15 +17,15 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
-from workbench.dataset.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
-from workbench.dataset.meshes import Blendshapes, expression_names
-from workbench.plausibility import (face_size_problems, frame_rate_problems, plausibility_policy, settle,
+from workbench.formats.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
+from workbench.formats.obj import Blendshapes, expression_names
+from workbench.formats.plausibility import (face_size_problems, frame_rate_problems, plausibility_policy, settle,
                                     static_weights_problems, unused_channel_problems, with_warnings)
 from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
                                     hand_shape_names, load_basis, mesh_point_indices, origin_text)
 from workbench.dataset.storage import FrameStorage
-from workbench.dataset.weight_curves import read_weight_curves
-from workbench.settings_rules import positive_setting
+from workbench.formats.weight_curves import read_weight_curves
+from workbench.settings.rules import positive_setting
 
 TRAIN_ON = ("mesh", "markers")
 
@@ -119,7 +119,7 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
     curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"
     curves_path = data_path(cfg, cfg.get(curves_key), curves_key)
     take_name = curves_path.stem
-    if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.dataset.weight_curves)
+    if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.formats.weight_curves)
         take = read_weight_curves(curves_path, frame_rate=cfg.get("weight_frame_rate"), timecode_rate=timecode_rate)
     else:
         take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)

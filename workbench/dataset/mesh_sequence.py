@@ -25,13 +25,13 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
-from workbench.dataset.meshes import read_obj, triangulate
-from workbench.plausibility import SequenceMotion, face_size_problems, plausibility_policy, settle, with_warnings
+from workbench.formats.obj import read_obj, triangulate
+from workbench.formats.plausibility import SequenceMotion, face_size_problems, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import data_path, frame_selection, origin_text
 from workbench.dataset.storage import FrameStorage
-from workbench.errors import WorkbenchError
-from workbench.frames import chunk_frames
-from workbench.settings_rules import integer_setting, positive_setting
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import chunk_frames
+from workbench.settings.rules import integer_setting, positive_setting
 
 TRAIN_ON = ("mesh",)
 SEQUENCE_SUFFIXES = (".npz", ".npy", ".h5", ".hdf5")

@@ -14,9 +14,9 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
-from workbench.mesh_graph import mesh_edge_graph
-from workbench.settings_rules import RBF_METRICS, checked, integer, interval, one_of
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.mesh_graph import mesh_edge_graph
+from workbench.settings.rules import RBF_METRICS, checked, integer, interval, one_of
 
 KERNELS = {
     "linear": lambda r: -r,

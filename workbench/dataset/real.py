@@ -7,10 +7,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.meshes import Blendshapes, load_blendshapes
-from workbench.errors import WorkbenchError
-from workbench.files import sha256_of_file
-from workbench.settings_rules import integer_setting, positive_setting
+from workbench.formats.obj import Blendshapes, load_blendshapes
+from workbench.core.errors import WorkbenchError
+from workbench.core.files import sha256_of_file
+from workbench.settings.rules import integer_setting, positive_setting
 
 ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
 LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
@@ -42,7 +42,7 @@ def data_path(cfg: Mapping, relative: str, key: str) -> Path:
 
 def conf_path(relative: str, key: str) -> Path:
     """A file named by ``dataset.<key>``, relative to the workbench's ``conf/`` folder unless absolute."""
-    from workbench.config import CONF_DIR
+    from workbench.settings.config import CONF_DIR
 
     if not relative:
         raise WorkbenchError(f"dataset.{key} is not set")
@@ -70,7 +70,7 @@ def data_file_checksums(cfg: Mapping) -> dict:
     """
     import hashlib
 
-    from workbench.config import CONF_DIR
+    from workbench.settings.config import CONF_DIR
 
     roots = [(Path(cfg["data_root"]), "") if cfg.get("data_root") else None, (CONF_DIR, "conf/")]
     found = {}

@@ -19,9 +19,9 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
-from workbench.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
-from workbench.progress import progress
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
+from workbench.core.progress import progress
 
 STORAGES = ("memory", "disk")
 FRAMES_FOLDER = "frames"
@@ -128,7 +128,7 @@ class FrameSink:
 
     @property
     def chunk_size(self) -> int:
-        """Frames per chunk that keep a float64 chunk within :data:`workbench.frames.CHUNK_ENTRIES`."""
+        """Frames per chunk that keep a float64 chunk within :data:`workbench.numerics.frames.CHUNK_ENTRIES`."""
         return chunk_frames(self.shape[1])
 
     def abort(self) -> None:

@@ -17,10 +17,10 @@ from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.rigid import stabilise
-from workbench.settings_rules import bool_setting, number_setting, seed_setting
+from workbench.settings.rules import bool_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
-from workbench.errors import WorkbenchError
-from workbench.resources import require_memory
+from workbench.core.errors import WorkbenchError
+from workbench.core.resources import require_memory
 
 TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 

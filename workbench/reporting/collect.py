@@ -1,9 +1,9 @@
 """``workbench collect``: gather run records into tidy tables, summaries over seeds, paired comparisons, alpha
 tables and findings.
 
-Reads only complete records of one or many sweeps (through :mod:`workbench.record`), never recomputes; the tables
+Reads only complete records of one or many sweeps (through :mod:`workbench.record.record`), never recomputes; the tables
 come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, and the intervals from
-:mod:`workbench.statistics`. Writes into the output folder:
+:mod:`workbench.stats.statistics`. Writes into the output folder:
 
 - ``runs.csv`` / ``runs.parquet``: one row per run and alpha-table row (data, basis, projection, solver), with
   the config keys that differ between runs as columns, its metrics, sizes and stage timings;
@@ -31,14 +31,14 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from workbench.errors import WorkbenchError
-from workbench.extras import has_module, install_hint
-from workbench.files import inside, write_atomic
-from workbench.record import DONE
+from workbench.core.errors import WorkbenchError
+from workbench.core.extras import has_module, install_hint
+from workbench.core.files import inside, write_atomic
+from workbench.record.record import DONE
 from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
                                       sweep_comparisons, wide)
-from workbench.statistics import GEOMETRIC
-from workbench.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
+from workbench.stats.statistics import GEOMETRIC
+from workbench.reporting.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
 ALPHA_METRICS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")

@@ -1,10 +1,10 @@
 """The findings of a run or a sweep, stated in sentences generated from its numbers (never written by hand).
 
-:func:`run_findings` reads an alpha table (the columns of :data:`workbench.run_text.TABLE_COLUMNS`), the per-shape
+:func:`run_findings` reads an alpha table (the columns of :data:`workbench.reporting.run_text.TABLE_COLUMNS`), the per-shape
 intuitiveness and the facts the run recorded (``metrics.json``: paired comparisons, the offset of the affine
 projection, the face region, the dataset's provenance), and says per data variant: the ordering of H, QE,
 QE-linear and PCA under each solver, where every ``<`` is a paired per-frame difference whose 95 % interval
-excludes zero (:mod:`workbench.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
+excludes zero (:mod:`workbench.stats.statistics`); the ratios H/QE and QE/PCA under every alpha variant beside
 the paper's; m beside the paper's; what the constrained solvers do to QE and QE-linear against H, and why, from
 the offset numbers; the weights an animator would face; the error in millimetres as a distribution; which hand
 shapes the projection changes most; and the caveats that apply to the data. :func:`fit_findings` keeps a report's
@@ -20,10 +20,10 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.identities import identity_lookup, run_identities, scored_on_training_frames
-from workbench.statistics import (SIGNED, Interval, comparison_lookup, comparison_name, holm_adjusted,
+from workbench.stats.identities import identity_lookup, run_identities, scored_on_training_frames
+from workbench.stats.statistics import (SIGNED, Interval, comparison_lookup, comparison_name, holm_adjusted,
                                   short_interval_text)
-from workbench.statistics import ordering_text as stated_ordering
+from workbench.stats.statistics import ordering_text as stated_ordering
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime, paper_regime_name
 
 PAPER_BASES = ("H", "QE", "PCA")
@@ -120,8 +120,8 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
         ``compare((basis, solver), (basis, solver))`` -> the :class:`Interval` of the difference, or None.
     bases : sequence of str
     identity : callable, optional
-        ``identity(a, b)`` -> the :class:`workbench.identities.Identity` saying ``a <= b`` by
-        construction, or None (:func:`workbench.identities.identity_lookup`).
+        ``identity(a, b)`` -> the :class:`workbench.stats.identities.Identity` saying ``a <= b`` by
+        construction, or None (:func:`workbench.stats.identities.identity_lookup`).
     """
     values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
               for basis in bases}
@@ -274,7 +274,7 @@ def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> 
     (the share of frames outside [0, 1] and the sparsity are in the table 'Error in millimetres and the weights');
     least-squares weights of a rank-deficient basis labelled minimum-norm with the rank (they describe the
     pseudo-inverse's choice, not the basis); and the share of frames that need a negative weight
-    (:func:`workbench.metrics.needs_negative_share`)."""
+    (:func:`workbench.numerics.metrics.needs_negative_share`)."""
     parts, needing = [], []
     for solver in [solver for solver in solvers if solver == "lstsq"] or list(solvers)[:1]:
         found = [(basis, _row(rows, data, basis, solver)) for basis in RUN_BASES]
@@ -503,7 +503,7 @@ def primary_data(metrics: Mapping) -> str | None:
 
 def adjusted_comparisons(metrics: Mapping) -> dict:
     """Data variant -> its stored comparisons, every one but the primary contrasts (:data:`PRIMARY_CONTRASTS` on
-    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.statistics.holm_adjusted`)
+    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.stats.statistics.holm_adjusted`)
     over the run's family; comparisons of records without p-values keep their unadjusted interval."""
     lead = primary_data(metrics)
     data_facts = metrics.get("data") or {}

@@ -17,11 +17,11 @@ from typing import Sequence
 
 import pandas as pd
 
-from workbench.files import inside, write_atomic
+from workbench.core.files import inside, write_atomic
 from workbench.reporting.report_faces import FacesBlock
 from workbench.reporting.report_figures import FigureEntry
 from workbench.reporting.report_sections import Section
-from workbench.tables import frame_cells, markdown_frame
+from workbench.reporting.tables import frame_cells, markdown_frame
 
 STRONG = re.compile(r"\*\*([^*]+)\*\*")
 CODE = re.compile(r"`([^`]+)`")

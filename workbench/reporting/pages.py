@@ -1,7 +1,7 @@
 """``workbench report <run or sweep folder>``: an HTML page and a README.md with the alpha tables, the paper's
 figures and the study plots, rebuilt from run records only.
 
-A *run* folder holds a complete record (``done`` written last, see :mod:`workbench.record`); a *sweep* folder
+A *run* folder holds a complete record (``done`` written last, see :mod:`workbench.record.record`); a *sweep* folder
 holds run folders at any depth. The report of a run has the alpha tables beside the paper's values, figures 1-4
 (from the inputs a run writes with ``save_inputs=true``, or rebuilt from its config when it wrote none), the
 coverage curve, alpha per frame over time and marker versus mesh; the report of a sweep has the tidy table of means and 95 % confidence intervals over
@@ -21,9 +21,9 @@ import argparse
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from workbench.errors import WorkbenchError
-from workbench.files import inside, plain_name
-from workbench.record import DONE, RunRecord, is_complete, load_record
+from workbench.core.errors import WorkbenchError
+from workbench.core.files import inside, plain_name
+from workbench.record.record import DONE, RunRecord, is_complete, load_record
 from workbench.reporting.report_figures import FIGURE_FORMATS
 from workbench.reporting.report_run import build_run_report
 from workbench.reporting.report_sweep import build_sweep_report, sweep_records
@@ -53,7 +53,7 @@ def check_report_name(name: str) -> None:
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
     """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference``, else
     ``<folder>/report`` beside the runs."""
-    from workbench.config import CHECKOUT
+    from workbench.settings.config import CHECKOUT
 
     if out is not None and reference:
         raise WorkbenchError("give either --out or --reference, not both")

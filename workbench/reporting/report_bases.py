@@ -8,12 +8,12 @@ from typing import Sequence
 
 import pandas as pd
 
-from workbench.record import RunRecord
+from workbench.record.record import RunRecord
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column
 from workbench.reporting.report_figures import make_figures
 from workbench.reporting.report_sections import Section, range_column
 from workbench.reporting.runs import interval_label, level_statistics, paired_comparisons
-from workbench.statistics import GEOMETRIC
+from workbench.stats.statistics import GEOMETRIC
 
 INTUITIVENESS_COLUMNS = ("matched_abs_cosine", "locality", "usage")
 

@@ -14,7 +14,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.capture import Timeline
-from workbench.record import RunRecord
+from workbench.record.record import RunRecord
 
 QE_PROJECTIONS = {"QE": "affine", "QE-linear": "linear"}
 
@@ -35,7 +35,7 @@ def quasi_eigen_shapes(inputs: Mapping[str, np.ndarray], projection: str,
     -------
     ndarray of shape (n_shapes + n_appended, n_dims)
     """
-    from workbench.bases import pca_to_qe_weights, quasi_eigen_faces
+    from workbench.numerics.bases import pca_to_qe_weights, quasi_eigen_faces
 
     components, mean = inputs["components"], inputs["mean"]
     weights = pca_to_qe_weights(inputs["hand"], components, mean, projection)
@@ -62,13 +62,13 @@ def reconstruct_frames(shapes: np.ndarray, frames: np.ndarray, solver: Mapping) 
     frames : ndarray of shape (n_frames, n_dims)
         Captured displacements.
     solver : mapping
-        Keyword arguments of :func:`workbench.solve.solve_weights`.
+        Keyword arguments of :func:`workbench.numerics.solve.solve_weights`.
 
     Returns
     -------
     ndarray of shape (n_frames, n_dims)
     """
-    from workbench.solve import reconstruct, solve_weights
+    from workbench.numerics.solve import reconstruct, solve_weights
 
     return reconstruct(shapes, solve_weights(shapes, frames, **solver).weights)
 
@@ -86,7 +86,7 @@ def frame_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.nda
     dict
         ``absolute``, ``displacement``, ``rms`` : ndarray of shape (n_frames,).
     """
-    from workbench.metrics import alpha_per_frame, rms_error
+    from workbench.numerics.metrics import alpha_per_frame, rms_error
 
     squared = (captured - reconstructed) ** 2
     return {"absolute": alpha_per_frame(neutral + captured, neutral + reconstructed),
@@ -162,7 +162,7 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
     WorkbenchError
         When the rebuilt data differ from the data the run read.
     """
-    from workbench.errors import WorkbenchError
+    from workbench.core.errors import WorkbenchError
     from workbench.study.run import run_study
     from workbench.study.summary import alpha_per_frame_arrays, input_arrays
 
@@ -184,8 +184,8 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
 def check_rebuilt(record: RunRecord, results, rtol: float = 1e-6) -> None:
     """Refuse data rebuilt from a record's config that differ from the data the run read: a data file whose
     checksum is not the one the record names, or an alpha that differs from the record's alpha table."""
-    from workbench.errors import WorkbenchError
-    from workbench.run_text import alpha_table
+    from workbench.core.errors import WorkbenchError
+    from workbench.reporting.run_text import alpha_table
 
     recorded = (record.metrics["dataset"].get("provenance") or {}).get("data_files") or {}
     found = results[0].capture.provenance.get("data_files") or {}
@@ -295,7 +295,7 @@ def face_data(record: RunRecord, cache: dict) -> FaceData | str:
 def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer
-    from workbench.errors import WorkbenchError
+    from workbench.core.errors import WorkbenchError
 
     found = mesh_variant(record, cache)
     if found is not None:
@@ -367,7 +367,7 @@ def frame_weights(record: RunRecord, data: str, label: str, cache: dict) -> tupl
     weights : ndarray of shape (n_complete, n_shapes)
     complete : ndarray of shape (n_eval_frames,) of bool
     """
-    from workbench.solve import solve_weights
+    from workbench.numerics.solve import solve_weights
 
     key = ("weights", data, label)
     if key not in cache:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.record import RunRecord
+from workbench.record.record import RunRecord
 from workbench.reporting.report_figures import needs
 from workbench.reporting.report_data import (FaceData, face_data, figure3_frames, figure_bases, figure_solver,
                                              frame_alpha, frame_caption, moving_stretch, qe_label,

@@ -11,8 +11,8 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.capture import Timeline
-from workbench.errors import WorkbenchError
-from workbench.record import RunRecord
+from workbench.core.errors import WorkbenchError
+from workbench.record.record import RunRecord
 from workbench.reporting.report_data import (QE_PROJECTIONS, FaceData, face_data, figure3_frames, figure_bases,
                                              figure_solver, frame_alpha, frame_caption, frame_weights,
                                              headline_column, marker_variant, mesh_variant, missing_reason,
@@ -223,7 +223,7 @@ def draw_alpha_per_solver(record: RunRecord, cache: dict):
 
 def draw_error_cdf(record: RunRecord, cache: dict | None = None):
     """The cumulative per-frame error curve of every basis and solver, from the record's error quantiles."""
-    from workbench.metrics import ERROR_QUANTILES
+    from workbench.numerics.metrics import ERROR_QUANTILES
     from workbench.reporting.figures.distributions import plot_error_cdf
 
     curves = {}

@@ -28,7 +28,7 @@ def headline_table(table: pd.DataFrame, column: str) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        An alpha table (``workbench.run_text.TABLE_COLUMNS``).
+        An alpha table (``workbench.reporting.run_text.TABLE_COLUMNS``).
     column : str
         The measured alpha column.
 
@@ -122,8 +122,8 @@ def _display_path(text: str) -> str:
 
 
 def report_versions() -> dict:
-    from workbench.config import CHECKOUT
-    from workbench.record import git_state, package_versions
+    from workbench.settings.config import CHECKOUT
+    from workbench.record.record import git_state, package_versions
 
     return {"packages": package_versions(REPORT_PACKAGES), "git": git_state(CHECKOUT)}
 

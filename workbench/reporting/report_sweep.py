@@ -8,9 +8,9 @@ from typing import Sequence
 
 import pandas as pd
 
-from workbench.errors import WorkbenchError
-from workbench.files import inside, write_atomic
-from workbench.record import DONE, RunRecord, find_records, load_record
+from workbench.core.errors import WorkbenchError
+from workbench.core.files import inside, write_atomic
+from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section

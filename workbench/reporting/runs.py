@@ -1,7 +1,7 @@
 """The tidy runs table of many run records, and its summary over replicates (seeds).
 
 ``workbench collect`` and ``workbench report`` both build their tables here, from records read through
-:class:`workbench.record.RunRecord`, so the two never disagree about the same sweep.
+:class:`workbench.record.record.RunRecord`, so the two never disagree about the same sweep.
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from workbench.errors import WorkbenchError
-from workbench.identities import run_identities
-from workbench.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
-from workbench.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
-from workbench.tables import is_missing
+from workbench.core.errors import WorkbenchError
+from workbench.stats.identities import run_identities
+from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
+from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
+from workbench.reporting.tables import is_missing
 
 ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
 """Columns that name one row of a run's alpha table."""
@@ -30,7 +30,7 @@ REPLICATE_SUFFIX = "seed"
 """Settings whose runs are replicates of one another: every seed (of the data, of a random draw of shapes)."""
 STATISTICS = ("n", "mean", "std", "min", "max", "geomean", "ci95_low", "ci95_high", "ci_method")
 """Columns of a long summary: replicates, arithmetic mean, sample standard deviation, range, and the geometric
-mean with its 95 % interval (:func:`workbench.statistics.geometric_interval`) and the interval's
+mean with its 95 % interval (:func:`workbench.stats.statistics.geometric_interval`) and the interval's
 method."""
 PCA_SOLVER = "projection"
 
@@ -130,7 +130,7 @@ POOLED_ONLY = " (pooled)"
 
 def never_worse_than(record: RunRecord) -> dict:
     """Per row of a run, the rows of the same data variant it can never be worse than by construction
-    (:func:`workbench.identities.run_identities`), as text: ``basis/solver`` items joined by ``;``, an item
+    (:func:`workbench.stats.identities.run_identities`), as text: ``basis/solver`` items joined by ``;``, an item
     followed by :data:`POOLED_ONLY` where the ordering holds for the pooled alphas only.
 
     Returns
@@ -210,7 +210,7 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     incomplete : list of pathlib.Path
         Run folders without a completion marker (left out).
     """
-    from workbench.progress import progress
+    from workbench.core.progress import progress
 
     paths = [Path(path) for path in paths]
     complete, incomplete = find_records(paths)
@@ -236,7 +236,7 @@ def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
 def level_statistics(values) -> dict:
     """The summary of one metric over replicates: ``n``, ``mean``, ``std`` (ddof 1), ``min``, ``max``, and the
     geometric mean with its 95 % interval (``geomean``, ``ci95_low``, ``ci95_high``, ``ci_method``; see
-    :func:`workbench.statistics.geometric_interval`).
+    :func:`workbench.stats.statistics.geometric_interval`).
 
     Parameters
     ----------
@@ -350,7 +350,7 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                        row_keys: Sequence[str] = ROW_KEYS, between: str = "basis") -> pd.DataFrame:
     """Every pair of bases (or of the variants they were fitted on) compared on the same replicates, per condition:
     the geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
-    (:func:`workbench.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
+    (:func:`workbench.stats.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
     written with the smaller geometric mean first (ratio at most 1), as the findings state it.
 
     Parameters
@@ -375,7 +375,7 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
         replicates both have, ``verdict`` ``<`` (the interval lies below 1), :data:`NOT_DISTINGUISHABLE` or
         :data:`BY_CONSTRUCTION` (the ordering holds in every replicate whatever the data,
         :func:`holds_by_construction`: its reason in ``by_construction``, no test and no p-value), ``p`` the
-        two-sided p-value of the same paired t on the log ratios (for :func:`workbench.statistics.holm`).
+        two-sided p-value of the same paired t on the log ratios (for :func:`workbench.stats.statistics.holm`).
     """
     if metric not in runs.columns:
         raise WorkbenchError(f"no column {metric!r} to compare")

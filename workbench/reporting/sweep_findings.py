@@ -18,10 +18,10 @@ import pandas as pd
 
 from workbench.reporting.findings import Detail
 from workbench.reporting.runs import NOT_DISTINGUISHABLE
-from workbench.statistics import (CONFIDENCE, Interval, comparison_lookup, holm, reversed_interval,
+from workbench.stats.statistics import (CONFIDENCE, Interval, comparison_lookup, holm, reversed_interval,
                                   short_interval_text)
-from workbench.statistics import ordering_text as stated_ordering
-from workbench.tables import cell_text
+from workbench.stats.statistics import ordering_text as stated_ordering
+from workbench.reporting.tables import cell_text
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
 """The paper's claims, stated with their intervals and tested at their own 95 % in a sweep (least squares, the
@@ -41,7 +41,7 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     """A sweep's comparisons table with Holm's adjustment over its family: every row but the primary contrasts
     (:func:`is_primary`, on the table's first data variant) and the orderings that hold by construction (their
     ``by_construction`` reason; they are not tested) gets its Holm-adjusted p-value in :data:`HOLM_COLUMN`
-    (:func:`workbench.statistics.holm` over all of them), and its ``verdict`` is ``<`` only where that is below
+    (:func:`workbench.stats.statistics.holm` over all of them), and its ``verdict`` is ``<`` only where that is below
     0.05; a primary contrast keeps the verdict of its own 95 % interval.
 
     Parameters

@@ -16,10 +16,10 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.dataset.capture import Capture, Timeline
-from workbench.errors import WorkbenchError
-from workbench.metrics import error_distribution, summarise_squares
-from workbench.settings_rules import checked, integer, number_setting
-from workbench.statistics import paired_ratio_interval
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.metrics import error_distribution, summarise_squares
+from workbench.settings.rules import checked, integer, number_setting
+from workbench.stats.statistics import paired_ratio_interval
 
 
 FOLDED = {"kfold": "held-out blocked k-fold", "take_out": "held-out leave-one-take-out"}

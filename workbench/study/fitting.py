@@ -7,11 +7,11 @@ from typing import Mapping
 
 import numpy as np
 
-from workbench.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer
-from workbench.errors import WorkbenchError
-from workbench.reduced import Subspace
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.reduced import Subspace
 from workbench.study.results import Timings
 
 
@@ -22,7 +22,7 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
     -------
     eigenfaces : Eigenfaces
     quasi_eigen : dict
-        Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
+        Projection name -> :class:`workbench.numerics.bases.QuasiEigenBasis`.
     """
     with timings.stage("pca"):
         eigenfaces = fit_eigenfaces(capture, basis_cfg["coverage"], basis_cfg["n_components"])
@@ -65,7 +65,7 @@ ALTERNATIVE_OPTIONS = {"SPCA": "spca", "ICA": "ica", "NMF": "nmf", "SPLOCS": "sp
 
 
 def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> dict:
-    """Fit the bases ``basis.alternatives`` names on the training frames (:mod:`workbench.alternatives`).
+    """Fit the bases ``basis.alternatives`` names on the training frames (:mod:`workbench.numerics.alternatives`).
 
     Returns
     -------
@@ -73,7 +73,7 @@ def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings
         Label (``SPCA``, ``ICA``, ``NMF``, ``SPLOCS``, ``H-fit``) -> ndarray of shape (n, n_dims), in the
         configured order; ``n`` is ``basis.alternatives_n`` or the hand basis size (H-fit: always the latter).
     """
-    from workbench import alternatives as alt
+    from workbench.numerics import alternatives as alt
 
     names = basis_cfg.get("alternatives") or []
     names = [names] if isinstance(names, str) else list(names)

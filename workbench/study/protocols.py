@@ -11,8 +11,8 @@ import numpy as np
 
 from workbench.dataset import variant_names
 from workbench.dataset.capture import Capture
-from workbench.errors import WorkbenchError
-from workbench.settings_rules import number_setting, seed_setting
+from workbench.core.errors import WorkbenchError
+from workbench.settings.rules import number_setting, seed_setting
 from workbench.study.fitting import fit_eigenfaces
 
 
@@ -92,7 +92,7 @@ def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> C
 def select_frames(frames, index: np.ndarray):
     """Some frames of a capture: a slice when ``index`` is a run of consecutive frames (frames on disk stay on
     disk), else a copy in memory."""
-    from workbench.frames import FramesOnDisk
+    from workbench.numerics.frames import FramesOnDisk
 
     if index.size and np.all(np.diff(index) == 1):
         start, stop = int(index[0]), int(index[-1]) + 1

@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.bases import Eigenfaces
+from workbench.numerics.bases import Eigenfaces
 from workbench.dataset.capture import Capture
-from workbench.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics
+from workbench.numerics.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics
 
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
@@ -68,7 +68,7 @@ class StudyResult:
     capture : Capture
     eigenfaces : Eigenfaces
     quasi_eigen : dict
-        Projection name -> :class:`workbench.bases.QuasiEigenBasis`.
+        Projection name -> :class:`workbench.numerics.bases.QuasiEigenBasis`.
     rows : list of Row
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n_shapes).

@@ -1,8 +1,8 @@
 """One run of a study: dataset -> bases -> solve -> metrics, returned as plain results.
 
 ``run_study`` takes a plain mapping (a resolved config) and returns one :class:`~workbench.study.results.StudyResult`
-per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record``'s job and printing is
-``workbench.run_text``'s."""
+per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record.record``'s job and printing is
+``workbench.reporting.run_text``'s."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ import numpy as np
 from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
-from workbench.errors import WorkbenchError
-from workbench.settings_rules import coverage_on_setting
+from workbench.core.errors import WorkbenchError
+from workbench.settings.rules import coverage_on_setting
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, data_variants,
@@ -163,7 +163,7 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
     basis_cfg : mapping
         The ``basis`` config group.
     solvers : mapping
-        Solver name -> keyword arguments of :func:`workbench.solve.solve_weights` (see :func:`check_solver_config`).
+        Solver name -> keyword arguments of :func:`workbench.numerics.solve.solve_weights` (see :func:`check_solver_config`).
     timings : Timings
         Stage times are added to it.
     truth : ndarray of shape (n_eval_frames, 3 * n_points), optional

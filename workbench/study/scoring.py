@@ -8,13 +8,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.bases import Eigenfaces
+from workbench.numerics.bases import Eigenfaces
 from workbench.dataset.capture import Capture
-from workbench.frames import frame_chunks
-from workbench.metrics import (AlphaSummary, basis_conditioning, error_distribution, needs_negative_share,
+from workbench.numerics.frames import frame_chunks
+from workbench.numerics.metrics import (AlphaSummary, basis_conditioning, error_distribution, needs_negative_share,
                                reference_squares, rms_error, summarise_alpha, summarise_squares, weight_statistics)
-from workbench.reduced import FrameProjections, Subspace, project_frames
-from workbench.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
+from workbench.numerics.reduced import FrameProjections, Subspace, project_frames
+from workbench.numerics.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.study.results import QE_LABELS, Row, Timings
 
 
@@ -67,7 +67,7 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
     eigenfaces : Eigenfaces
         For ``m`` of the PCA row (and its reconstruction under capture gaps).
     quasi_eigen : mapping
-        Projection name -> :class:`workbench.bases.QuasiEigenBasis` at the capture's points.
+        Projection name -> :class:`workbench.numerics.bases.QuasiEigenBasis` at the capture's points.
     pca : Subspace
         PCA's reconstruction at the capture's points (:func:`pca_subspace`).
     solvers : mapping
@@ -279,7 +279,7 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
 def with_needs_negative_share(rows: Sequence[Row]) -> list[Row]:
     """The rows, each lstsq row's weight statistics given the share of frames that need negative weights: those
     whose nnls error (the same basis) exceeds the lstsq error beyond the tie tolerance
-    (:func:`workbench.metrics.needs_negative_share`)."""
+    (:func:`workbench.numerics.metrics.needs_negative_share`)."""
     nnls = {row.basis: row.alpha.error_sq for row in rows if row.solver == "nnls"}
     measured = []
     for row in rows:
@@ -296,7 +296,7 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
     Each fit's error is ``|x - o|^2 - 2 w.(S (x - o)) + w^T S S^T w`` over the points' coordinates, from one
     product of the frames with every fit's shapes and offset (no reconstruction is formed); frames where those
     terms cancel to below ``EXPLICIT_BELOW`` of their size get the explicit residual, as
-    :func:`workbench.reduced.project_frames` does.
+    :func:`workbench.numerics.reduced.project_frames` does.
 
     Parameters
     ----------
@@ -313,7 +313,7 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
     dict
         Key -> ndarray of shape (n_frames,).
     """
-    from workbench.reduced import EXPLICIT_BELOW
+    from workbench.numerics.reduced import EXPLICIT_BELOW
 
     dims = np.repeat(points, 3)
     # one block of columns per distinct basis and offset (a basis solved by several solvers is taken once)
@@ -358,7 +358,7 @@ def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[st
                    ) -> tuple[list, dict, FrameProjections]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
-    The pass (:func:`workbench.reduced.project_frames`) takes the frames' coordinates in every basis's span and
+    The pass (:func:`workbench.numerics.reduced.project_frames`) takes the frames' coordinates in every basis's span and
     in ``subspaces``; each solver then works on the ``n``-dimensional coordinates and alpha comes from them, so
     the frames are read once whatever the number of bases and solvers.
 
@@ -462,14 +462,14 @@ def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], s
 def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping,
                         alternatives: Mapping[str, np.ndarray], weights: Mapping, settings: Mapping) -> dict:
     """Closeness to the hand shapes, locality and usage of H, each quasi-eigen basis, PCA and the alternatives
-    (:mod:`workbench.intuitiveness`), as plain values for the run record.
+    (:mod:`workbench.numerics.intuitiveness`), as plain values for the run record.
 
     Parameters
     ----------
     capture : Capture
     eigenfaces : Eigenfaces
     quasi_eigen : mapping
-        Projection -> :class:`workbench.bases.QuasiEigenBasis`.
+        Projection -> :class:`workbench.numerics.bases.QuasiEigenBasis`.
     alternatives : mapping
         Label -> shapes of shape (n, n_dims).
     weights : mapping
@@ -485,7 +485,7 @@ def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: M
         ``usage`` (solver -> mean elements used per evaluated frame) and ``elements`` (per element: the matched
         hand shape, its ``|cosine|`` and the element's locality).
     """
-    from workbench.intuitiveness import (LOCALITY_ENERGY, USAGE_THRESHOLD, locality, matched_closeness,
+    from workbench.numerics.intuitiveness import (LOCALITY_ENERGY, USAGE_THRESHOLD, locality, matched_closeness,
                                          point_areas, usage)
 
     energy = float(settings.get("locality_energy", LOCALITY_ENERGY))

@@ -1,6 +1,6 @@
 """A run's results as the values its record keeps: the metrics of each data variant, its rows, the paired comparisons
 of its rows over the evaluated frames (a block bootstrap), and the arrays of ``inputs.npz`` and
-``alpha_per_frame.npz``. The record (:mod:`workbench.record`) writes them as they are."""
+``alpha_per_frame.npz``. The record (:mod:`workbench.record.record`) writes them as they are."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.intuitiveness import intuitiveness
-from workbench.settings_rules import bool_setting
-from workbench.statistics import paired_mean_difference, paired_pooled_difference
+from workbench.numerics.intuitiveness import intuitiveness
+from workbench.settings.rules import bool_setting
+from workbench.stats.statistics import paired_mean_difference, paired_pooled_difference
 from workbench.study.results import StudyResult
 
 
@@ -72,7 +72,7 @@ def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
 def frame_comparisons(result, metric: Mapping) -> list[dict]:
     """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
     of :func:`comparison_pairs`, the difference ``a - b`` with its batch-means interval over time
-    (:mod:`workbench.statistics`).
+    (:mod:`workbench.stats.statistics`).
 
     Parameters
     ----------
@@ -157,7 +157,7 @@ def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[
     results : sequence of StudyResult
         One per data variant.
     table : pandas.DataFrame
-        The run's alpha table (``workbench.run_text.alpha_table`` of every result, concatenated).
+        The run's alpha table (``workbench.reporting.run_text.alpha_table`` of every result, concatenated).
     comparisons : mapping, optional
         Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
 

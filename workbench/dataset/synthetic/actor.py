@@ -14,7 +14,7 @@ import numpy as np
 from workbench.dataset.synthetic.face_mesh import FaceMesh, eye_opening_mask, head_shell_point, make_face_mesh
 from workbench.dataset.synthetic.muscles import MUSCLE_NAMES, N_MUSCLES, deform
 from workbench.dataset.synthetic.performance import make_activations
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 
 @dataclass(frozen=True)

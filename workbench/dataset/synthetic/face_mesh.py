@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.settings_rules import checked, integer
+from workbench.settings.rules import checked, integer
 
 
 @dataclass(frozen=True)

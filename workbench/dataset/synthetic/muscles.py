@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from workbench.dataset.synthetic.face_mesh import skin_point
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 UPPER_FACE: tuple[str, ...] = (
     "frontalis_inner_L", "frontalis_inner_R", "frontalis_outer_L", "frontalis_outer_R",

@@ -25,7 +25,7 @@ from typing import Sequence
 import matplotlib
 from matplotlib.figure import Figure
 
-from workbench.files import inside, write_atomic
+from workbench.core.files import inside, write_atomic
 
 FORMATS = ("png", "svg", "pdf")
 """Copies a report can ask for besides each figure's own file (:func:`shown_format`)."""

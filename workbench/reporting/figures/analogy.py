@@ -2,7 +2,7 @@
 
 Kim & Ko draw the capture as points near a hyperplane, the PCA axes (red), hand-made vectors off the plane
 (blue) and their quasi-eigen projections (purple). Here the same picture is computed, not drawn: a seeded cloud
-near a plane, :class:`workbench.bases.Eigenfaces` for the axes and :func:`workbench.bases.quasi_eigen_faces`
+near a plane, :class:`workbench.numerics.bases.Eigenfaces` for the axes and :func:`workbench.numerics.bases.quasi_eigen_faces`
 (eq. 3-4, affine, through the mean) for the projections.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from workbench.bases import Eigenfaces, pca_to_qe_weights, quasi_eigen_faces
+from workbench.numerics.bases import Eigenfaces, pca_to_qe_weights, quasi_eigen_faces
 from workbench.reporting.figures import BASIS_COLOURS, new_figure
 
 COVERAGE = 0.95

@@ -2,7 +2,7 @@
 
 Left, the headline alpha of H, QE and PCA with least squares (PCA by projection) at the paper's regime (m = n, the
 record's lead data variant) and, beside it, with the coverage rule, each level with the 95 % batch-means interval
-of its mean over the frames (:func:`workbench.statistics.batch_means_interval`; mean-of-frames columns only).
+of its mean over the frames (:func:`workbench.stats.statistics.batch_means_interval`; mean-of-frames columns only).
 Right, the paper's two claims as paired differences on the same frames, QE - H and QE - PCA, with the intervals
 the report's comparisons table holds; a difference that holds by construction is marked so, not given an interval.
 """
@@ -17,9 +17,9 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
-from workbench.identities import identity_lookup, run_identities
+from workbench.stats.identities import identity_lookup, run_identities
 from workbench.reporting.figures import OKABE_ITO, basis_colour, new_figure, wrap_title
-from workbench.statistics import Interval, batch_means_interval, comparison_lookup
+from workbench.stats.statistics import Interval, batch_means_interval, comparison_lookup
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
 HEADLINE_BASES = (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
@@ -176,7 +176,7 @@ def headline_spec(record, column: str, label: str) -> tuple:
 
     Parameters
     ----------
-    record : workbench.record.RunRecord
+    record : workbench.record.record.RunRecord
     column : str
         The headline alpha column.
     label : str

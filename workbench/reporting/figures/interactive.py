@@ -23,7 +23,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.files import write_atomic
+from workbench.core.files import write_atomic
 
 DATA_FILE = "view3d.js"
 STEP_MM = 0.05  # quantisation of the displacements in the page

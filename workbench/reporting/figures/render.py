@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 
 # Camera direction of every face render: straight in front of the face (+z), a little above, so both sides of the
 # face (the _L and _R shapes) are seen alike.
@@ -243,7 +243,7 @@ def _pyvista():
     try:
         import pyvista
     except ImportError as error:  # the report extra
-        from workbench.extras import install_hint
+        from workbench.core.extras import install_hint
 
         raise WorkbenchError(f"rendering meshes needs pyvista ({error}): {install_hint('report')}") from None
     pyvista.OFF_SCREEN = True

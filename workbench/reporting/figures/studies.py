@@ -16,7 +16,7 @@ column                    meaning
 ``<y>_ci_low/_ci_high``   95 % interval of that estimate over seeds (or plain ``ci_low``/``ci_high``,
                           which then belong to ``<y>``); optional, no band when absent or NaN; never below
                           zero (alpha and errors are positive: a table whose interval reaches below zero is
-                          refused, see :mod:`workbench.statistics`)
+                          refused, see :mod:`workbench.stats.statistics`)
 ``n_seeds``               runs behind the estimate; optional, named beside the intervals
 ``ci_method``             how the intervals were computed; optional, named beside them
 ========================  ====================================================================================
@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from workbench.errors import WorkbenchError
+from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import (DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure,
                                         wrap_title)
 from workbench.reporting.runs import interval_label
@@ -74,7 +74,7 @@ def check_positive_intervals(table: pd.DataFrame, y: str, ci: tuple[str, str] | 
     low = pd.to_numeric(table[ci[0]], errors="coerce")
     if (low < 0).any():
         raise WorkbenchError(f"the interval of {y} reaches below zero ({low.min():.3g}); {y} cannot be negative: "
-                             "use a geometric interval (workbench.statistics.geometric_interval)")
+                             "use a geometric interval (workbench.stats.statistics.geometric_interval)")
 
 
 def _check_columns(table: pd.DataFrame, columns) -> None:

@@ -1,0 +1,390 @@
+"""The paper's method as a scikit-learn style estimator on plain NumPy arrays: :class:`QuasiEigenFaces`.
+
+No config and no files: frames, hand shapes and (for the paper's absolute alpha) the neutral face in, fitted
+arrays out. Every number comes from the functions the command line runs (:mod:`workbench.numerics.bases`,
+:mod:`workbench.numerics.solve`, :mod:`workbench.numerics.reduced`, :mod:`workbench.numerics.metrics`), composed as a run composes them, so
+that an estimator fitted on a capture's arrays gives the alpha of that run's record.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.metrics import AlphaSummary, summarise_squares
+from workbench.numerics.reduced import Subspace, project_frames
+from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
+from workbench.numerics.validation import CAPTURE, check_matrix
+
+THROUGH = {"mean": "affine", "neutral": "linear"}
+"""``through`` -> the projection of :func:`workbench.numerics.bases.build_quasi_eigen_basis` (the run's ``QE`` and
+``QE-linear`` rows)."""
+BASES = ("QE", "H", "PCA")
+NORMALISATIONS = ("absolute", "displacement")
+AGGREGATES = ("mean", "pooled", "per_frame")
+
+
+class NotFittedError(WorkbenchError, AttributeError):
+    """A fitted attribute or method of an estimator used before ``fit`` (scikit-learn's ``NotFittedError`` is
+    also both a ``ValueError`` and an ``AttributeError``)."""
+
+
+class QuasiEigenFaces:
+    """Quasi-eigen faces (Kim & Ko, eq. 2-6): eigenfaces of a capture, the hand shapes projected onto their
+    hyperplane, weights of frames in that basis and the reconstruction error alpha.
+
+    Frames and shapes are rows of displacements from the neutral face, ``n_dims = 3 * n_points`` columns
+    ``[x0, y0, z0, x1, ...]`` (the paper's ``3N x L`` matrix, transposed), as a run's capture holds them.
+
+    Parameters
+    ----------
+    coverage : float, default 0.995
+        Keep the smallest ``m`` eigenfaces whose cumulative explained variance reaches this (the paper: 99.5 %);
+        ignored when ``n_components`` is given.
+    n_components : int or None, default None
+        A fixed ``m`` instead of the coverage rule (at most the rank of the frames).
+    through : {"mean", "neutral"}, default "mean"
+        Where the hand shapes are projected through: ``"mean"`` is eq. 3-4 as written (affine, through the capture
+        mean ``mu``: the run's ``QE`` rows); ``"neutral"`` projects through the neutral face, the origin of
+        displacement space (linear: the run's ``QE-linear`` rows).
+    solver : {"lstsq", "nnls", "box"}, default "lstsq"
+        The weights of eq. 5: unconstrained least squares, ``w >= 0``, or ``lower <= w <= upper`` with
+        ``bounds``; :meth:`transform` and :meth:`alpha` may override it per call.
+    bounds : tuple of (float or None, float or None), default (0.0, 1.0)
+        ``(lower, upper)`` of the ``"box"`` solver (the run's ``solver=box``: blendshape sliders in [0, 1]).
+    empty_axis_eps : float, default 0.05
+        Post-treatment ``epsilon``: an eigenface axis with ``sum_i |w_ij|`` below it is left empty by the
+        quasi-eigen faces (``empty_axes_``).
+    empty_axis_scale : {"axis_std", "absolute"}, default "axis_std"
+        ``epsilon`` as a fraction of each axis's standard deviation in the frames, or in data units.
+    append_empty_axes : bool, default False
+        Append the eigenface of each empty axis to ``shapes_`` (the paper's simplest remedy).
+
+    The defaults are the run's (``conf/basis/default.yaml``, ``conf/solver``).
+
+    Attributes
+    ----------
+    n_features_in_ : int
+        ``n_dims`` of the frames fitted on.
+    mean_ : ndarray of shape (n_dims,)
+        The mean ``mu`` of the frames (a mean displacement from neutral).
+    eigenfaces_ : ndarray of shape (m, n_dims)
+        ``E^PCA``: orthonormal eigenfaces as rows, largest variance first, each with its largest-magnitude entry
+        positive (deterministic signs, as scikit-learn's ``svd_flip``).
+    explained_variance_ : ndarray of shape (rank,)
+        Every non-zero eigenvalue of the frames' covariance (eq. 2), descending (the leading ones only when the
+        frames are so large that the randomised solver is used, as in a run).
+    explained_variance_ratio_ : ndarray of shape (rank,)
+        Each eigenvalue over the total variance.
+    m_ : int
+        Number of eigenfaces kept.
+    coverage_ : float
+        Explained variance the ``m_`` eigenfaces reach.
+    hand_shapes_ : ndarray of shape (n_shapes, n_dims)
+        ``E^H``, the hand shapes fitted with (a copy).
+    shape_names_ : tuple of str
+        One name per row of ``shapes_``: the hand shapes' names, then ``pca_<j>`` for appended axes.
+    pca_to_qe_weights_ : ndarray of shape (n_shapes, m)
+        ``W^{PCA-to-QE}`` of eq. 3: ``shapes_[:n_shapes] = mu + pca_to_qe_weights_ @ eigenfaces_`` (without ``mu``
+        for ``through="neutral"``).
+    shapes_ : ndarray of shape (n_shapes + n_appended, n_dims)
+        ``E^QE``, the quasi-eigen faces (eq. 4) as displacements from neutral, then any appended eigenfaces.
+    empty_axes_ : tuple of int
+        0-based indices of the eigenface axes the quasi-eigen faces leave empty (post-treatment).
+    neutral_ : ndarray of shape (n_dims,) or None
+        Neutral positions ``v0`` given to :meth:`fit` (the absolute alpha of eq. 6 needs them).
+
+    Examples
+    --------
+    >>> qe = QuasiEigenFaces(n_components=18).fit(frames, hand_shapes, neutral=neutral)  # doctest: +SKIP
+    >>> weights = qe.transform(frames, solver="nnls")  # doctest: +SKIP
+    >>> qe.alpha(frames)  # doctest: +SKIP
+    """
+
+    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, through: str = "mean",
+                 solver: str = "lstsq", bounds: tuple = (0.0, 1.0), empty_axis_eps: float = 0.05,
+                 empty_axis_scale: str = "axis_std", append_empty_axes: bool = False):
+        self.coverage = coverage
+        self.n_components = n_components
+        self.through = through
+        self.solver = solver
+        self.bounds = bounds
+        self.empty_axis_eps = empty_axis_eps
+        self.empty_axis_scale = empty_axis_scale
+        self.append_empty_axes = append_empty_axes
+
+    # -- scikit-learn's parameter protocol -------------------------------------------------------------------
+
+    @classmethod
+    def _parameter_names(cls) -> list[str]:
+        return [name for name in inspect.signature(cls.__init__).parameters if name != "self"]
+
+    def get_params(self, deep: bool = True) -> dict:
+        """The parameters as given to ``__init__`` (``deep`` is accepted for scikit-learn's ``clone``)."""
+        return {name: getattr(self, name) for name in self._parameter_names()}
+
+    def set_params(self, **params) -> "QuasiEigenFaces":
+        """Set parameters by name; returns ``self``. Fitted attributes are left as they are until the next fit."""
+        unknown = sorted(set(params) - set(self._parameter_names()))
+        if unknown:
+            raise WorkbenchError(f"QuasiEigenFaces has no parameter {unknown[0]!r}; its parameters are "
+                                 f"{self._parameter_names()}")
+        for name, value in params.items():
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self) -> str:
+        defaults = {name: parameter.default
+                    for name, parameter in inspect.signature(type(self).__init__).parameters.items()}
+        changed = [f"{name}={value!r}" for name, value in self.get_params().items()
+                   if not _same(value, defaults[name])]
+        return f"{type(self).__name__}({', '.join(changed)})"
+
+    # -- fitting ---------------------------------------------------------------------------------------------
+
+    def fit(self, frames, hand_shapes, *, neutral=None, names=None) -> "QuasiEigenFaces":
+        """Fit the eigenfaces on ``frames`` (eq. 2) and project ``hand_shapes`` onto their hyperplane (eq. 3-4).
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+            Training frames as displacements from the neutral face, ``n_dims = 3 * n_points``; at least 2.
+        hand_shapes : array-like of shape (n_shapes, n_dims)
+            ``E^H``: the hand-made shapes as displacements from neutral; none all zero, none a copy of another,
+            linearly independent.
+        neutral : array-like of shape (n_dims,), optional
+            Neutral positions ``v0``, for the paper's absolute alpha (:meth:`alpha`); not used by the fit.
+        names : sequence of str, optional
+            One distinct name per hand shape (default ``shape_1``, ``shape_2``, ...).
+
+        Returns
+        -------
+        self
+
+        Raises
+        ------
+        WorkbenchError
+            Naming the argument or parameter and the rule it broke.
+        """
+        through, _ = self._checked_parameters()
+        frames = check_matrix("frames", frames, CAPTURE)
+        if frames.shape[1] % 3:
+            raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
+        hand = check_matrix("hand_shapes", hand_shapes, CAPTURE, n_columns=frames.shape[1])
+        if neutral is not None:
+            neutral = _check_vector("neutral", neutral, frames.shape[1])
+        names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if names is None else names
+        if isinstance(names, str) or len(names) != hand.shape[0]:
+            raise WorkbenchError(f"names must be a sequence of one name per hand shape ({hand.shape[0]}), got "
+                                 f"{names!r:.80}")
+        eigenfaces = Eigenfaces(coverage=self.coverage, n_components=self.n_components).fit(frames)
+        basis = build_quasi_eigen_basis(hand, names, eigenfaces, projection=THROUGH[through],
+                                        empty_axis_eps=self.empty_axis_eps, empty_axis_scale=self.empty_axis_scale,
+                                        append_empty_axes=self.append_empty_axes)
+        self.n_features_in_ = frames.shape[1]
+        self.mean_ = eigenfaces.mean_
+        self.eigenfaces_ = eigenfaces.components_
+        self.explained_variance_ = eigenfaces.explained_variance_
+        self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_
+        self.m_ = int(eigenfaces.n_components_)
+        self.coverage_ = float(eigenfaces.coverage_)
+        self.hand_shapes_ = hand.copy()
+        self.shape_names_ = basis.names
+        self.pca_to_qe_weights_ = basis.weights
+        self.shapes_ = basis.shapes
+        self.empty_axes_ = basis.empty_axes
+        self.neutral_ = neutral
+        return self
+
+    def fit_transform(self, frames, hand_shapes, *, neutral=None, names=None) -> np.ndarray:
+        """:meth:`fit`, then :meth:`transform` of the same frames."""
+        return self.fit(frames, hand_shapes, neutral=neutral, names=names).transform(frames)
+
+    # -- using the fit ---------------------------------------------------------------------------------------
+
+    def transform(self, frames, *, solver: str | None = None, basis: str = "QE") -> np.ndarray:
+        """Weights of every frame (eq. 5): ``min_w |d* - sum_i w_i e_i|^2`` under the solver's constraints.
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+            Displacements from neutral.
+        solver : {"lstsq", "nnls", "box"}, optional
+            Overrides the estimator's ``solver`` for this call (``"box"`` uses ``bounds``). With a rank-deficient
+            basis (more quasi-eigen faces than eigenfaces) the weights are not unique: ``lstsq`` gives the
+            minimum-norm ones.
+        basis : {"QE", "H", "PCA"}, default "QE"
+            ``QE``: the quasi-eigen faces ``shapes_``; ``H``: the hand shapes; ``PCA``: the coordinates of
+            ``frames - mean_`` along ``eigenfaces_`` (an orthogonal projection: no solver).
+
+        Returns
+        -------
+        ndarray of shape (n_frames, n_shapes)
+            ``n_shapes`` is ``len(shapes_)``, ``len(hand_shapes_)`` or ``m_``.
+        """
+        self._check_fitted()
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
+        basis = _check_choice("basis", basis, BASES)
+        if basis == "PCA":
+            _no_solver_for_pca(solver)
+            return (frames - self.mean_) @ self.eigenfaces_.T
+        return solve_weights(self._shapes(basis), frames, **self._solver_arguments(solver)).weights
+
+    def inverse_transform(self, weights, *, basis: str = "QE") -> np.ndarray:
+        """Reconstructed displacements from weights: ``weights @ shapes`` (eq. 1 without ``v0``), for PCA
+        ``mean_ + weights @ eigenfaces_``.
+
+        Parameters
+        ----------
+        weights : array-like of shape (n_frames, n_shapes)
+        basis : {"QE", "H", "PCA"}, default "QE"
+            The basis the weights belong to (as :meth:`transform`).
+
+        Returns
+        -------
+        ndarray of shape (n_frames, n_dims)
+        """
+        self._check_fitted()
+        basis = _check_choice("basis", basis, BASES)
+        if basis == "PCA":
+            return self.mean_ + reconstruct(self.eigenfaces_, weights)
+        return reconstruct(self._shapes(basis), weights)
+
+    def alpha(self, frames, *, solver: str | None = None, basis: str = "QE", normalisation: str = "absolute",
+              aggregate: str = "mean"):
+        """Reconstruction error alpha in percent (eq. 6) of ``frames`` reconstructed in a basis.
+
+        Computed as a run computes the alpha table (:mod:`workbench.numerics.reduced`: each frame's coordinates in the
+        basis's span and its distance to it, the weights from the coordinates, the error from both), so the value
+        equals the run's record to rounding; it equals the alpha of ``inverse_transform(transform(frames))`` to
+        rounding as well.
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+            Displacements from neutral ``d*``.
+        solver : {"lstsq", "nnls", "box"}, optional
+            Overrides ``solver``; must be None for ``basis="PCA"``, whose reconstruction is the mean plus the
+            orthogonal projection onto the eigenfaces.
+        basis : {"QE", "H", "PCA"}, default "QE"
+        normalisation : {"absolute", "displacement"}, default "absolute"
+            ``absolute``: the paper's literal ``100 |v* - v| / |v*|`` over positions ``v* = v0 + d*`` (needs
+            ``neutral`` given to :meth:`fit`; its value depends on where the coordinate origin is);
+            ``displacement``: ``100 |d* - d| / |d*|``.
+        aggregate : {"mean", "pooled", "per_frame"}, default "mean"
+            Mean of the per-frame values (frames with a zero reference left out), pooled over all frames
+            (``100 sqrt(sum |error|^2 / sum |reference|^2)``), or the per-frame values (NaN where undefined).
+
+        The defaults are the run's headline (``metric.headline_normalisation: absolute``,
+        ``metric.headline_aggregate: mean``): the record's ``alpha_abs_mean``.
+
+        Returns
+        -------
+        float, or ndarray of shape (n_frames,) for ``aggregate="per_frame"``
+        """
+        normalisation = _check_choice("normalisation", normalisation, NORMALISATIONS)
+        aggregate = _check_choice("aggregate", aggregate, AGGREGATES)
+        self._check_fitted()
+        if normalisation == "absolute" and self.neutral_ is None:
+            raise WorkbenchError("alpha with normalisation='absolute' needs the neutral positions: pass neutral= to "
+                                 "fit, or use normalisation='displacement'")
+        summary = self.alpha_summary(frames, solver=solver, basis=basis)
+        if aggregate == "per_frame":
+            return (summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame)
+        return getattr(summary, f"{normalisation}_{aggregate}")
+
+    def alpha_summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
+        """Every variant of eq. 6 and the RMS point error of one reconstruction, as a run's table row holds them.
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+            Displacements from neutral.
+        solver, basis
+            As :meth:`alpha`.
+
+        Returns
+        -------
+        workbench.numerics.metrics.AlphaSummary
+            Without ``neutral`` given to :meth:`fit`, the absolute variants are those of the origin at the neutral
+            face (equal to the displacement ones).
+        """
+        self._check_fitted()
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
+        basis = _check_choice("basis", basis, BASES)
+        neutral = self.neutral_ if self.neutral_ is not None else np.zeros(self.n_features_in_)
+        n_compared = frames.shape[0] * (frames.shape[1] // 3)
+        if basis == "PCA":
+            _no_solver_for_pca(solver)
+            projections = project_frames(frames, {"PCA": Subspace(self.eigenfaces_.T, self.mean_)}, neutral)
+            return summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
+                                     projections.position_sq, n_compared)
+        reduction = reduce_basis(self._shapes(basis))
+        projections = project_frames(frames, {basis: Subspace(reduction.u)}, neutral)
+        coordinates = projections.coordinates[basis]
+        solution = solve_projected(reduction, coordinates, **self._solver_arguments(solver))
+        error_sq = projections.distance_sq[basis] + in_span_error_sq(reduction, coordinates, solution.weights)
+        return summarise_squares(error_sq, projections.displacement_sq, projections.position_sq, n_compared)
+
+    # -- checks ----------------------------------------------------------------------------------------------
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "shapes_"):
+            raise NotFittedError(f"This {type(self).__name__} instance is not fitted yet: call "
+                                 "fit(frames, hand_shapes) before using it")
+
+    def _checked_parameters(self) -> tuple[str, dict]:
+        """``through`` and the solver's arguments, checked (the other parameters are checked by the functions they
+        go to: coverage and n_components by the eigenfaces, the post-treatment's by the quasi-eigen basis)."""
+        return _check_choice("through", self.through, tuple(THROUGH)), self._solver_arguments(None)
+
+    def _shapes(self, basis: str) -> np.ndarray:
+        return self.shapes_ if basis == "QE" else self.hand_shapes_
+
+    def _solver_arguments(self, solver: str | None) -> dict:
+        """Keyword arguments of :func:`workbench.numerics.solve.solve_weights` for a solver (the estimator's by default), as
+        a run's ``solver`` group gives them."""
+        kind = _check_choice("solver", self.solver if solver is None else solver, KINDS)
+        if kind == "lstsq":
+            return {"kind": kind}
+        if kind == "nnls":
+            return {"kind": kind, "lower": 0.0}
+        bounds = self.bounds
+        if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
+            raise WorkbenchError(f"bounds must be a pair (lower, upper) for solver 'box', got {bounds!r}")
+        return {"kind": kind, "lower": bounds[0], "upper": bounds[1]}
+
+
+def _check_choice(name: str, value, choices: tuple) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise WorkbenchError(f"{name} must be one of {', '.join(map(repr, choices))}; got {value!r}")
+    return value
+
+
+def _check_vector(name: str, value, n_dims: int) -> np.ndarray:
+    """``value`` as a finite float vector of length ``n_dims``, or a :class:`WorkbenchError` naming ``name``."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise WorkbenchError(f"{name} must be a numeric array of shape ({n_dims},): {error}") from None
+    if array.shape != (n_dims,):
+        raise WorkbenchError(f"{name} must have shape ({n_dims},) to match the frames' columns, got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise WorkbenchError(f"{name} holds NaN or Inf values ({int(np.sum(~np.isfinite(array)))} entries)")
+    return array.copy()
+
+
+def _no_solver_for_pca(solver) -> None:
+    if solver is not None:
+        raise WorkbenchError(f"solver must be None for basis 'PCA' (its reconstruction is the orthogonal projection "
+                             f"onto the eigenfaces), got {solver!r}")
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(a == b) and type(a) is type(b)
+    except (TypeError, ValueError):
+        return False

@@ -1,0 +1,84 @@
+"""The one check of an array argument: a non-empty 2-D float array (rows x dims), or a one-line error naming it.
+
+Pure numerical code. Each caller keeps its own wording of the faults (:class:`MatrixWording`): the frames of the
+metrics (:data:`FRAMES`), the captures and bases (:data:`CAPTURE`) and the solvers' inputs (:data:`SOLVER`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.core.errors import WorkbenchError
+
+
+@dataclass(frozen=True)
+class MatrixWording:
+    """How :func:`check_matrix` words each fault: format strings over ``name`` (the argument), ``error`` (why the
+    conversion to floats failed), ``shape`` (the array's), ``n_columns`` and ``got`` (the columns needed and
+    found) and ``bad`` (the count of NaN or Inf entries). ``empty`` None: worded as ``not_2d``."""
+
+    not_numeric: str
+    not_2d: str
+    columns: str
+    empty: str | None = None
+    not_points: str = "{name} must have 3 * n_points columns (x, y, z per point), got {got}"
+    not_finite: str = "{name} holds NaN or Inf values ({bad} entries)"
+
+
+# The metrics' frames (workbench.numerics.metrics): NaN and Inf are found per frame there.
+FRAMES = MatrixWording("{name} must be a numeric array of shape (n_frames, n_dims): {error}",
+                       "{name} must be a non-empty array of shape (n_frames, n_dims), got shape {shape}",
+                       "{name} has {got} columns, but the captured frames have {n_columns}")
+
+# Captures and bases (workbench.numerics.bases, workbench.numerics.estimator).
+CAPTURE = MatrixWording("{name} must be a numeric 2-D array (rows x dims): {error}",
+                        "{name} must be a 2-D array (rows x dims), got shape {shape}",
+                        "{name} must have {n_columns} columns to match the capture, got {got}",
+                        empty="{name} must not be empty, got shape {shape}")
+
+# The solvers' bases, targets and weights (workbench.numerics.solve); they never check columns here.
+SOLVER = MatrixWording("{name} must be a numeric array ({error})", "{name} must be 2-dimensional, got shape {shape}",
+                       "", empty="{name} must not be empty, got shape {shape}",
+                       not_finite="{name} must be finite, found {bad} NaN/Inf")
+
+
+def check_matrix(name: str, value, wording: MatrixWording, *, n_columns: int | None = None, points: bool = False,
+                 finite: bool = True) -> np.ndarray:
+    """``value`` as a non-empty 2-D float64 array, or a :class:`WorkbenchError` naming ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The argument as the error names it.
+    value : array_like of shape (n_rows, n_dims)
+    wording : MatrixWording
+        How the caller words each fault.
+    n_columns : int, optional
+        The columns ``value`` must have.
+    points : bool
+        Whether the columns must be ``3 * n_points`` (x, y, z per point).
+    finite : bool
+        Whether NaN and Inf are refused.
+
+    Returns
+    -------
+    ndarray of shape (n_rows, n_dims)
+        float64.
+    """
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise WorkbenchError(wording.not_numeric.format(name=name, error=error)) from None
+    if array.ndim != 2:
+        raise WorkbenchError(wording.not_2d.format(name=name, shape=array.shape))
+    if array.size == 0:
+        raise WorkbenchError((wording.empty or wording.not_2d).format(name=name, shape=array.shape))
+    if n_columns is not None and array.shape[1] != n_columns:
+        raise WorkbenchError(wording.columns.format(name=name, n_columns=n_columns, got=array.shape[1]))
+    if points and array.shape[1] % 3:
+        raise WorkbenchError(wording.not_points.format(name=name, got=array.shape[1]))
+    if finite and not np.isfinite(array).all():
+        raise WorkbenchError(wording.not_finite.format(name=name, bad=int(np.count_nonzero(~np.isfinite(array)))))
+    return array

@@ -1,0 +1,549 @@
+"""The run record, both ways: writing it (every file atomically, the ``done`` marker last) and reading it back.
+
+A run record is a folder holding
+
+- ``config.yaml``: the resolved config (without Hydra's own node);
+- ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the text the run printed;
+- ``metrics.json``: study, config hash, overrides, dataset facts, per-data-variant metrics, every table row with
+  its solver diagnostics, versions, git state and times;
+- ``timings.json``: seconds per stage;
+- optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
+- ``done``: written last, holding the SHA-256 of every other file of the record; a folder without it is not a
+  record (a run still going, or one that was killed), and a file that no longer matches its checksum makes the
+  record untrusted: :func:`load_record` refuses it, so every reader (report, collect, mlflow, export) does.
+
+This module is the only place that knows these names; everything that reads records (``workbench collect``,
+``workbench report``, the tracking export) reads them through :class:`RunRecord`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import platform
+import re
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from workbench.core.errors import WorkbenchError
+from workbench.core.files import (TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file,
+                             write_atomic)
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
+                   "scikit-learn")
+
+
+def config_hash(resolved_yaml: str) -> str:
+    """Short content hash of a resolved config: the same settings give the same hash."""
+    return hashlib.sha256(resolved_yaml.encode()).hexdigest()[:16]
+
+
+def git_state(repository: Path | None) -> dict:
+    """Commit of the workbench's checkout and whether its code had uncommitted changes (changes under
+    ``reports/``, the rendered reports that ``workbench report --reference`` rewrites, do not count). None for
+    an installed package (``repository`` None): its version, in :func:`versions`, says what ran."""
+    if repository is None:
+        return {"commit": None, "dirty": None}
+
+    def git(*args):
+        return subprocess.run(["git", "-C", str(repository), *args], capture_output=True, text=True, timeout=10)
+    try:
+        commit = git("rev-parse", "HEAD")
+        status = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)reports")
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "dirty": None}
+    if commit.returncode != 0:
+        return {"commit": None, "dirty": None}
+    return {"commit": commit.stdout.strip(), "dirty": bool(status.stdout.strip())}
+
+
+def package_versions(packages: Sequence[str]) -> dict:
+    """The installed version of each package (None for one not installed), in the order given."""
+    found = {}
+    for package in packages:
+        try:
+            found[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            found[package] = None
+    return found
+
+
+def versions() -> dict:
+    """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
+    from workbench.version import __version__
+
+    return {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform(),
+            **package_versions(RECORD_PACKAGES)}
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The record's files
+# ---------------------------------------------------------------------------------------------------------------
+
+DONE = "done"
+"""The completion marker, written last into a run folder: the checksums of the record's other files (JSON)."""
+CONFIG_FILE = "config.yaml"
+TABLE_FILE = "alpha_table.csv"
+TEXT_FILE = "alpha_table.md"
+METRICS_FILE = "metrics.json"
+TIMINGS_FILE = "timings.json"
+ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
+INPUTS_FILE = "inputs.npz"
+RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE,
+                DONE)
+"""The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
+_VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
+ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
+"""The alpha-table columns every row of a record must have (numbers)."""
+FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
+                 "w_roughness")
+"""The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
+frames, mm) and of the weights' statistics (:class:`workbench.numerics.metrics.WeightStatistics`: largest ``|w|``, share of
+frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
+for PCA's weights, and absent from records made before they were measured."""
+CLEAN_COLUMNS = tuple(f"clean_{column}" for column in ALPHA_COLUMNS)
+"""The alpha-table columns of the same reconstructions scored against the clean frames (``metric.score_clean``):
+present only in runs that did so, empty (NaN) in rows that have no clean frames."""
+
+
+def record_state(folder: Path) -> str:
+    """``complete`` (has ``done``), ``partial`` (exists without it) or ``absent``."""
+    folder = Path(folder)
+    if (folder / DONE).is_file():
+        return "complete"
+    return "partial" if folder.exists() else "absent"
+
+
+def is_complete(folder: Path) -> bool:
+    """Whether ``folder`` holds a complete record (its ``done`` marker exists)."""
+    return record_state(folder) == "complete"
+
+
+def is_record_file(name: str) -> bool:
+    """Whether a file name is one a run writes into its record (or a temporary file of one being written)."""
+    match = _TEMPORARY.fullmatch(name)
+    name = match.group("name") if match else name
+    return name in RECORD_FILES or bool(_VARIANT_INPUTS.fullmatch(name))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def run_metrics(results_metrics: Mapping, *, study: str, resolved_yaml: str, overrides: Sequence[str],
+                job_num: int | None, started_at: str, repository: Path) -> dict:
+    """The content of ``metrics.json`` for a finished run.
+
+    Parameters
+    ----------
+    results_metrics : mapping
+        What the run found: ``dataset``, ``data`` and ``rows``
+        (:func:`workbench.study.summary.results_metrics`).
+    study : str
+    resolved_yaml : str
+        The resolved config as written to ``config.yaml`` (its hash identifies the run).
+    overrides : sequence of str
+        The command-line and sweep overrides that made the config.
+    job_num : int or None
+        The run's position in its sweep.
+    started_at : str
+        ISO time the run started.
+    repository : pathlib.Path
+        The workbench's checkout, for the git commit.
+
+    Returns
+    -------
+    dict
+    """
+    from datetime import datetime, timezone
+
+    return {
+        "study": study,
+        "config_hash": config_hash(resolved_yaml),
+        "overrides": list(overrides),
+        "job_num": job_num,
+        "dataset": results_metrics["dataset"],
+        "data": results_metrics["data"],
+        "rows": results_metrics["rows"],
+        "versions": versions(),
+        "git": git_state(repository),
+        "started_at": started_at,
+        "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics: Mapping, timings: Mapping,
+                 inputs: Mapping[str, Mapping[str, np.ndarray]] | None = None,
+                 alpha_per_frame: Mapping[str, np.ndarray] | None = None) -> None:
+    """Write a run record into ``folder``, every file atomically and ``done`` last.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    resolved_yaml : str
+        ``config.yaml``.
+    table : pandas.DataFrame
+        ``alpha_table.csv``.
+    text : str
+        ``alpha_table.md``: what the run printed.
+    metrics, timings : mapping
+        ``metrics.json`` (:func:`run_metrics`) and ``timings.json``.
+    inputs : mapping, optional
+        Data variant -> the arrays of its inputs file (``save_inputs``): ``inputs.npz`` when the run has one data
+        variant, ``inputs_<variant>.npz`` otherwise (:func:`workbench.study.summary.saved_inputs`).
+    alpha_per_frame : mapping, optional
+        The arrays of ``alpha_per_frame.npz`` (:func:`workbench.study.summary.alpha_per_frame_arrays`).
+    """
+    folder = Path(folder)
+    checksums = {}
+
+    def write(name: str, data: bytes | str) -> None:
+        payload = data.encode() if isinstance(data, str) else data
+        write_atomic(folder / name, payload)
+        checksums[name] = hashlib.sha256(payload).hexdigest()
+
+    write(CONFIG_FILE, resolved_yaml)
+    write(TABLE_FILE, table.to_csv(index=False))
+    write(TEXT_FILE, text)
+    write(METRICS_FILE, json_text(dict(metrics)))
+    write(TIMINGS_FILE, json_text(dict(timings)))
+    for data, arrays in (inputs or {}).items():
+        write(INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz",
+              npz_bytes(arrays))
+    if alpha_per_frame is not None:
+        write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame))
+    write_atomic(folder / DONE, json_text({"sha256": checksums}))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A complete run record, read back.
+
+    Attributes
+    ----------
+    folder : pathlib.Path
+    config : dict
+        The resolved config (``config.yaml``).
+    table : pandas.DataFrame
+        The alpha table (``alpha_table.csv``), one row per data variant, basis and solver.
+    metrics : dict
+        ``metrics.json``.
+    timings : dict
+        ``timings.json``: seconds per stage (empty when the record has none).
+    checksums : dict or None
+        File name -> SHA-256 the run wrote into ``done`` (:func:`load_record` refuses a record without them).
+    """
+
+    folder: Path
+    config: dict
+    table: "pd.DataFrame"
+    metrics: dict
+    timings: dict = field(default_factory=dict)
+    checksums: dict | None = None
+
+    @property
+    def study(self) -> str:
+        return str(self.metrics.get("study") or self.config.get("study"))
+
+    @property
+    def config_hash(self) -> str | None:
+        return self.metrics.get("config_hash")
+
+    @property
+    def overrides(self) -> list[str]:
+        return list(self.metrics.get("overrides") or [])
+
+    @property
+    def job_num(self) -> int | None:
+        return self.metrics.get("job_num")
+
+    @property
+    def git(self) -> dict:
+        return dict(self.metrics.get("git") or {})
+
+    @property
+    def data_variants(self) -> list[str]:
+        return list(self.metrics["data"])
+
+    def rows(self) -> list[dict]:
+        """Every row of the alpha table with its solver diagnostics (``metrics.json``'s ``rows``)."""
+        return [dict(row) for row in self.metrics["rows"]]
+
+    def inputs_path(self, data: str) -> Path:
+        single = self.folder / INPUTS_FILE
+        return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
+
+    def load_inputs(self, data: str) -> dict | None:
+        """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
+        return self._load_arrays(self.inputs_path(data))
+
+    def load_alpha_per_frame(self) -> dict | None:
+        """The arrays of ``alpha_per_frame.npz``, or None when the run did not save them."""
+        return self._load_arrays(self.folder / ALPHA_PER_FRAME_FILE)
+
+    def _load_arrays(self, path: Path) -> dict | None:
+        """The arrays of one of the record's archives, checked against its checksum first (archives can be large,
+        so they are checked when read, not when the record is loaded)."""
+        if self.checksums is not None and (path.name in self.checksums or path.is_file()):
+            check_file(self.folder, path.name, self.checksums)
+        return _load_arrays(path)
+
+
+def _load_arrays(path: Path) -> dict | None:
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            return {key: arrays[key] for key in arrays.files}
+    except (OSError, ValueError, EOFError) as error:
+        raise WorkbenchError(f"{path}: not a readable NumPy archive ({error})") from None
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise WorkbenchError(f"run record {path.parent}: {path.name} is missing") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise WorkbenchError(f"run record {path.parent}: {path.name} cannot be read ({error})") from None
+
+
+def _read_json(path: Path) -> dict:
+    try:
+        value = json.loads(_read_text(path))
+    except ValueError as error:
+        raise WorkbenchError(f"{path}: not valid JSON ({error})") from None
+    if not isinstance(value, dict):
+        raise WorkbenchError(f"{path}: must hold a JSON object, got {type(value).__name__}")
+    return value
+
+
+def read_checksums(folder: Path) -> dict:
+    """The checksums a run wrote into its ``done`` marker (file name -> SHA-256).
+
+    Raises
+    ------
+    WorkbenchError
+        When ``done`` holds anything but the checksums a run writes (an emptied marker included: without them no
+        file of the record can be checked).
+    """
+    text = _read_text(Path(folder) / DONE)
+    if not text.strip():
+        raise WorkbenchError(f"run record {folder}: '{DONE}' is empty (it must hold the checksums of the record's "
+                             "files, as a run writes them); the record cannot be trusted")
+    try:
+        checksums = json.loads(text)["sha256"]
+    except (ValueError, KeyError, TypeError):
+        checksums = None
+    if not isinstance(checksums, dict) or not all(isinstance(name, str) and is_record_file(name)
+                                                  and isinstance(value, str) for name, value in checksums.items()):
+        raise WorkbenchError(f"run record {folder}: '{DONE}' is damaged (it must hold the checksums of the record's "
+                             "files, as a run writes them); the record cannot be trusted")
+    return checksums
+
+
+def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
+    """Refuse a record file that the run did not write (not among ``checksums``) or that changed since.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    path = Path(folder) / name
+    if name not in checksums:
+        raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
+                             f"{sorted(checksums)}); the record cannot be trusted: move the file away")
+    try:
+        found = sha256_of_file(path)
+    except FileNotFoundError:
+        raise WorkbenchError(f"run record {folder}: {name} is missing") from None
+    except OSError as error:
+        raise WorkbenchError(f"run record {folder}: {name} cannot be read ({error.strerror})") from None
+    if found != checksums[name]:
+        raise WorkbenchError(f"run record {folder}: {name} was changed after the run (its SHA-256 no longer matches "
+                             f"the one in '{DONE}'); the record cannot be trusted: restore the file or run again")
+
+
+def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: bool = False) -> None:
+    """Every file the run wrote is there and unchanged, and no record file was added; archives (``.npz``, which
+    can be large) only with ``archives``, else when read (:meth:`RunRecord.load_inputs`).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    folder = Path(folder)
+    for name in checksums:
+        if archives or not name.endswith(".npz"):
+            check_file(folder, name, checksums)
+    added = sorted(path.name for path in folder.iterdir()
+                   if path.name != DONE and (archives or not path.name.endswith(".npz")) and is_record_file(path.name)
+                   and not _TEMPORARY.fullmatch(path.name) and path.name not in checksums)
+    if added:
+        check_file(folder, added[0], checksums)
+
+
+def verify_record(folder: Path, *, archives: bool = True) -> dict:
+    """Check a complete record before anything of it is used: its ``done`` holds the checksums the run wrote,
+    every file the run wrote is there and unchanged, and no record file was added since (every reader, report,
+    collect, export and mlflow, loads records through :func:`load_record`, which calls this).
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    archives : bool
+        Check the ``.npz`` archives too (the default); else each is checked when read.
+
+    Returns
+    -------
+    dict
+        File name -> SHA-256, from ``done``.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the record and the file at fault.
+    """
+    folder = Path(folder)
+    if not is_complete(folder):
+        raise WorkbenchError(f"{folder} is not a complete run record (no '{DONE}' file)")
+    checksums = read_checksums(folder)
+    check_record_files(folder, checksums, archives=archives)
+    return checksums
+
+
+def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None:
+    """Refuse ``value`` unless it is one of ``kinds`` (a bool is not a number here)."""
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+        raise WorkbenchError(f"{path}: field '{where}' must be {rule}, got {value!r:.60}")
+
+
+def _check_metrics(path: Path, metrics: Mapping) -> None:
+    """The fields of ``metrics.json`` that readers rely on, with their types."""
+    for key, kind in (("study", str), ("config_hash", str), ("rows", list), ("data", dict), ("dataset", dict)):
+        if not isinstance(metrics.get(key), kind):
+            raise WorkbenchError(f"{path}: field '{key}' must be a {kind.__name__}, got "
+                                 f"{type(metrics.get(key)).__name__ if key in metrics else 'nothing'}")
+    if not plain_name(metrics["study"]):
+        raise WorkbenchError(f"{path}: field 'study' must be a plain name, got {metrics['study']!r:.60}")
+    _check_field(path, "overrides", metrics.get("overrides", []), (list,), "a list of strings")
+    _check_field(path, "job_num", metrics.get("job_num"), (int, type(None)), "an integer or null")
+    _check_field(path, "git", metrics.get("git") or {}, (dict,), "an object")
+    for variant, facts in metrics["data"].items():
+        _check_field(path, f"data.{variant}", facts, (dict,), "an object")
+    for i, row in enumerate(metrics["rows"]):
+        if not isinstance(row, dict):
+            raise WorkbenchError(f"{path}: rows[{i}] must be an object")
+        for key in ("data", "basis", "solver", *ALPHA_COLUMNS):
+            if key not in row:
+                raise WorkbenchError(f"{path}: rows[{i}] has no '{key}'")
+        for key in ("data", "basis", "solver"):
+            _check_field(path, f"rows[{i}].{key}", row[key], (str,), "a string")
+        for key in ALPHA_COLUMNS:
+            _check_field(path, f"rows[{i}].{key}", row[key], (int, float, type(None)), "a number or null")
+        if row["data"] not in metrics["data"]:
+            raise WorkbenchError(f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' "
+                                 f"({sorted(metrics['data'])})")
+
+
+def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
+    """Read and check a complete run record: every file against the checksum the run wrote into ``done``
+    (:func:`verify_record`), then the fields readers rely on.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    check_archives : bool
+        Check the record's ``.npz`` archives now too (the default: every reader refuses a damaged record before it
+        writes anything); otherwise each is checked when read.
+
+    Returns
+    -------
+    RunRecord
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the file and field when the folder is not a complete record or a file of it is damaged.
+    """
+    import pandas as pd
+    import yaml
+
+    folder = Path(folder)
+    checksums = verify_record(folder, archives=check_archives)
+    try:
+        config = yaml.safe_load(_read_text(folder / CONFIG_FILE))
+    except yaml.YAMLError as error:
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: not valid YAML ({str(error).splitlines()[0]})") from None
+    if not isinstance(config, dict) or not isinstance(config.get("study"), str) or not plain_name(config["study"]):
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: must be a mapping whose field 'study' is a plain name "
+                             f"(no path), got {config.get('study') if isinstance(config, dict) else config!r:.60}")
+    if not isinstance(config.get("dataset", {}), dict):
+        raise WorkbenchError(f"{folder / CONFIG_FILE}: field 'dataset' must be a mapping")
+    metrics = _read_json(folder / METRICS_FILE)
+    _check_metrics(folder / METRICS_FILE, metrics)
+    timings = _read_json(folder / TIMINGS_FILE) if (folder / TIMINGS_FILE).exists() else {}
+    for stage, seconds in timings.items():
+        _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
+    try:
+        table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
+                            na_values={c: ["", "NaN", "nan"]
+                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS, *CLEAN_COLUMNS)})
+    except (ValueError, pd.errors.ParserError) as error:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
+    missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)
+               if column not in table.columns]
+    if missing:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: missing column(s) {missing}")
+    bad = [column for column in ALPHA_COLUMNS if not pd.api.types.is_numeric_dtype(table[column])]
+    if bad:
+        raise WorkbenchError(f"{folder / TABLE_FILE}: column(s) {bad} must hold numbers")
+    if len(table) != len(metrics["rows"]):
+        raise WorkbenchError(f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists "
+                             f"{len(metrics['rows'])}")
+    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
+
+
+def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:
+    """Run folders under the given paths (each a run folder, a sweep folder or any folder above them).
+
+    Returns
+    -------
+    complete : list of pathlib.Path
+        Folders with a ``done`` marker, in natural order of their paths.
+    incomplete : list of pathlib.Path
+        Folders that look like runs (they hold a ``config.yaml`` or ``metrics.json``) but have no marker.
+    """
+    complete, candidates = set(), set()
+    for path in map(Path, paths):
+        if not path.exists():
+            raise WorkbenchError(f"{path} does not exist")
+        complete.update(marker.parent for marker in path.rglob(DONE) if marker.is_file())
+        for name in (CONFIG_FILE, METRICS_FILE):
+            # Hydra's own .hydra/config.yaml is not a run; a folder inside a complete record is part of it
+            candidates.update(found.parent for found in path.rglob(name)
+                              if not any(part.startswith(".") for part in found.relative_to(path).parts))
+    incomplete = {folder for folder in candidates
+                  if folder not in complete and not any(parent in complete for parent in folder.parents)}
+    return sorted(complete, key=_natural_path), sorted(incomplete, key=_natural_path)
+
+
+def _natural_path(path: Path) -> list:
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part) for part in path.parts]

@@ -1,0 +1,326 @@
+"""Run folders and resumable sweeps: a stable identity for every run, skip what is complete, never overwrite a
+record, never touch a file the workbench did not write.
+
+A run folder belongs to the workbench. A run writes only into a folder that is new, empty, or holds a record of
+its own; any other folder is refused before anything is written into it (:func:`check_run_dir`), and the current
+directory (``hydra.run.dir=`` or ``.``) is never a run folder. A study's sweep writes each run into
+``<sweep dir>/<run id>``, the run id made from the run's overrides (not a job number or a time), so re-running the
+same sweep finds the same folders. A folder whose ``done`` marker exists holds a complete record: the run is
+skipped if its config hash matches and refused if it does not (the record is never overwritten). A folder without
+``done`` holding only what a killed run wrote (its lock file and record files) is cleared of its record files and
+run again; clearing removes only record files, never anything else.
+
+A run folder belongs to one live process at a time: the run holds an advisory lock (``fcntl.flock``) on
+``<folder>/.lock`` from before it decides anything about the folder until it ends. The operating system releases
+the lock when the process ends, however it ends, so a killed run never leaves a folder locked. A second process
+finding the folder locked skips it (sweeps) or stops with one line (plain runs); it never clears the files of a
+live run.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+from workbench.core.errors import WorkbenchError, exit_on_error
+from workbench.core.files import lock_file, unlock_file
+from workbench.record.record import DONE, METRICS_FILE, is_record_file, record_state
+
+
+def recorded_config_hash(folder: Path) -> str | None:
+    """The config hash a complete record was made with (from its ``metrics.json``), or None if unreadable."""
+    try:
+        return json.loads((Path(folder) / METRICS_FILE).read_text())["config_hash"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def clear_partial(folder: Path) -> list[str]:
+    """Remove the record files a killed run left in its folder (and their temporary files), so none of them mixes
+    into the new record; refuses a complete record. Nothing else is removed: the lock file, the job log and any
+    file that is not a record file stay.
+
+    Returns
+    -------
+    list of str
+        Names of the removed files.
+    """
+    folder = Path(folder)
+    if record_state(folder) == "complete":
+        raise WorkbenchError(f"{folder} holds a complete record ('{DONE}' exists); a record is never cleared")
+    removed = []
+    for path in sorted(folder.iterdir()):
+        if is_record_file(path.name) and (path.is_file() or path.is_symlink()):
+            path.unlink()
+            removed.append(path.name)
+    return removed
+
+
+def prepare_run_dir(folder: Path, config_hash: str) -> bool:
+    """Decide whether a run goes ahead in ``folder``.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The run's record folder.
+    config_hash : str
+        Hash of the run's resolved config (:func:`workbench.record.record.config_hash`).
+
+    Returns
+    -------
+    bool
+        False when a complete record of the same config is there (skip the run); True when the run should go
+        ahead (the folder is absent, or partial and now cleared).
+
+    Raises
+    ------
+    WorkbenchError
+        When a complete record of a different config is there: it is never overwritten.
+    """
+    state = record_state(folder)
+    if state == "complete":
+        recorded = recorded_config_hash(folder)
+        if recorded is None:
+            raise WorkbenchError(
+                f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json is missing, unreadable or "
+                "has no config_hash; records are never overwritten: move that record away or use another sweep "
+                "folder (hydra.sweep.dir=...)")
+        if recorded != config_hash:
+            raise WorkbenchError(
+                f"{folder} holds a complete record of another config (config hash {recorded}, this run "
+                f"{config_hash}); records are never overwritten: use another sweep folder "
+                "(hydra.sweep.dir=...) or move that record away")
+        return False
+    if state == "partial":
+        clear_partial(folder)
+    return True
+
+
+LOCK_FILE = ".lock"
+"""The lock file of a run folder, created before anything else a run writes there; it marks the folder as a run's
+(kept: removing it while another process waits on it would split the lock)."""
+LOG_FILE = "workbench.log"
+"""The job log Hydra writes into a run folder (``hydra.job.name`` is ``workbench``)."""
+HYDRA_FOLDER = ".hydra"
+"""Hydra's copy of the config, which runs of earlier versions kept in their folder."""
+
+
+class RunLog(logging.FileHandler):
+    """The job log of a run folder (``workbench.log``, ``conf/hydra/job_logging/workbench.yaml``). It is written
+    after the record is complete; a write that fails (a full disk) is one warning line naming the file, once,
+    instead of the logging module's traceback of every message."""
+
+    reported = False
+
+    def emit(self, record) -> None:
+        try:
+            super().emit(record)
+        except OSError:  # opening the file (on the first message) is outside the handler's own error handling
+            self.handleError(record)
+
+    def handleError(self, record) -> None:
+        if not self.reported:
+            self.reported = True
+            error = sys.exc_info()[1]
+            reason = getattr(error, "strerror", None) or error
+            print(f"workbench: warning: cannot write {self.baseFilename} ({reason}); the record is complete, only "
+                  "the copy of what the run printed is missing", file=sys.stderr)
+
+
+def run_entry(name: str) -> bool:
+    """Whether a name in a folder is one a workbench run writes there: a record file, the lock, the job log."""
+    return is_record_file(name) or name in (LOCK_FILE, LOG_FILE, HYDRA_FOLDER)
+
+
+def check_folder_setting(folder, setting: str) -> Path:
+    """A run or sweep folder setting (``hydra.run.dir``, ``hydra.sweep.dir``) as a path, refused when it is empty or
+    is the current directory or a folder above it (a run writes into a folder of its own).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    text = "" if folder is None else str(folder).strip()
+    if not text or text == "None":
+        raise WorkbenchError(f"{setting} is empty: a run writes into a folder of its own, never into the current "
+                             f"directory; name one ({setting}=outputs/<name>) or leave the default")
+    path = Path(text).expanduser()
+    here = Path.cwd().resolve()
+    if path.resolve() == here or path.resolve() in here.parents:
+        raise WorkbenchError(f"{setting}={text} is the current directory or a folder above it; a run writes into a "
+                             f"folder of its own: name one ({setting}=outputs/<name>) or leave the default")
+    return path
+
+
+def check_run_dir(folder: Path, setting: str = "hydra.run.dir") -> frozenset:
+    """Refuse a run folder the workbench does not own, before anything is written into it.
+
+    A run writes into a folder that does not exist yet, an empty one, one holding a complete record (skipped or
+    refused by :func:`prepare_run_dir`), or one holding only what a run writes (its lock file, record files, job
+    log: a killed run's, resumed). Any other folder holds someone's files, and nothing in it is touched.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    setting : str
+        The setting that named the folder, for the message.
+
+    Returns
+    -------
+    frozenset of str
+        The names the folder held (empty for a new folder): what a failed run must leave in place.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    folder = check_folder_setting(folder, setting)
+    if not os.path.lexists(folder):
+        return frozenset()
+    if not folder.is_dir():
+        raise WorkbenchError(f"{setting}={folder} is a file, not a folder; name a new or empty folder")
+    names = frozenset(os.listdir(folder))
+    if not names or DONE in names:
+        return names
+    foreign = sorted(name for name in names if not run_entry(name))
+    if LOCK_FILE in names and not foreign:
+        return names
+    listed = foreign or sorted(names)
+    shown = ", ".join(listed[:3]) + (f" and {len(listed) - 3} more" if len(listed) > 3 else "")
+    if LOCK_FILE in names:
+        what = f"holds a killed run's files and others no run writes ({shown})"
+    elif foreign:
+        what = f"is not empty and holds no run record ({shown})"
+    else:
+        what = f"holds files named as a run record's ({shown}) but no run's lock file ({LOCK_FILE}), so no run wrote them"
+    raise WorkbenchError(f"{folder} {what}; a run writes only into a new or empty folder or its own record, and "
+                         f"touches nothing else: name another folder ({setting}=...)")
+
+
+class FolderBusy(WorkbenchError):
+    """Another live process holds the run folder's lock."""
+
+
+def lock_run_dir(folder: Path) -> int:
+    """Take the run folder's lock without waiting, for the rest of the process or until :func:`unlock_run_dir`.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The run folder (created if absent).
+
+    Returns
+    -------
+    int
+        The lock file's descriptor.
+
+    Raises
+    ------
+    FolderBusy
+        When another live process holds the lock.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    handle = lock_file(folder / LOCK_FILE, wait=False)
+    if handle is None:
+        raise FolderBusy(f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
+                         "held); wait for it to end or write this run elsewhere")
+    return handle
+
+
+def unlock_run_dir(handle: int) -> None:
+    """Release a lock taken by :func:`lock_run_dir`."""
+    unlock_file(handle)
+
+
+def discard_failed_run(folder: Path, found: frozenset = frozenset(), created: bool = False) -> bool:
+    """After a plain run failed or was interrupted: remove what it wrote (the run files that were not in the
+    folder when it started), and the folder itself when the run created it and it is left empty. A complete record
+    is never touched, nor any file the run did not write. Call it only while holding the folder's lock.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+    found : frozenset of str
+        The names the folder held before the run (:func:`check_run_dir`).
+    created : bool
+        Whether the run created the folder.
+
+    Returns
+    -------
+    bool
+        Whether the folder was removed.
+    """
+    folder = Path(folder)
+    if not folder.is_dir() or record_state(folder) == "complete":
+        return False
+    for path in folder.iterdir():
+        if path.name not in found and run_entry(path.name) and (path.is_file() or path.is_symlink()):
+            path.unlink()
+    if not created or any(folder.iterdir()):
+        return False
+    folder.rmdir()
+    return True
+
+
+_NEW_RUN_DIRS: set[str] = set()
+"""Run folders that did not exist when this process started its run (:class:`RunFolders` notes them before Hydra
+creates them), so that a failed run removes only a folder it created."""
+
+
+def created_by_this_run(folder: Path) -> bool:
+    """Whether this process's run created ``folder`` (noted by :class:`RunFolders` before Hydra made it)."""
+    return os.path.abspath(folder) in _NEW_RUN_DIRS
+
+
+try:
+    from hydra.experimental.callback import Callback
+except ImportError:  # pragma: no cover - Hydra is a dependency; this keeps the module importable without it
+    Callback = object
+
+
+class RunFolders(Callback):
+    """Hydra callback: check the config and the run or sweep folder before Hydra creates or writes anything.
+
+    Hydra makes the run folder (and its parents) before the run starts; this looks first, so a study name leading
+    out of the output root, a bad setting, the current directory or a folder holding someone's files is refused
+    in one line with nothing written. Each run of a sweep checks its own folder and config when it starts.
+    Hydra turns an exception in a callback into a warning and goes on, so a refusal ends the process here.
+    """
+
+    def on_run_start(self, config, **kwargs) -> None:
+        from workbench.settings.schema import check_study_config
+
+        with _refusal_ends_the_process():
+            check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=True)
+            folder = config.hydra.run.dir
+            check_run_dir(folder)
+            if not os.path.lexists(Path(str(folder)).expanduser()):
+                _NEW_RUN_DIRS.add(os.path.abspath(Path(str(folder)).expanduser()))
+
+    def on_multirun_start(self, config, **kwargs) -> None:
+        from workbench.settings.schema import check_study_config
+
+        with _refusal_ends_the_process():
+            check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=False)
+            check_folder_setting(config.hydra.sweep.dir, "hydra.sweep.dir")
+
+
+def as_typed(overrides) -> list[str]:
+    """Hydra's list of overrides as typed (``key=${...}`` kept as text: iterating the config would resolve it)."""
+    from omegaconf import OmegaConf
+
+    return [str(override) for override in OmegaConf.to_container(overrides, resolve=False)]
+
+
+@contextmanager
+def _refusal_ends_the_process():
+    """A refusal (any error) ends the process with the command line's one line (exit 2), not Hydra's warning."""
+    try:
+        yield
+    except Exception as error:  # noqa: BLE001 - Hydra would only warn about it
+        exit_on_error("workbench", error if isinstance(error, WorkbenchError) else WorkbenchError(str(error)))
