@@ -35,6 +35,7 @@ import resource
 import time
 
 import workbench  # noqa: F401  (first: it sets OpenBLAS's thread timeout before NumPy loads OpenBLAS, as the CLI does)
+# isort: split
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 

@@ -19,7 +19,7 @@ if started_as_command():  # first, before the seconds of imports: Ctrl-C then is
 # back-to-back BLAS calls. It only takes effect when set before NumPy loads OpenBLAS; a value the user set wins.
 os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "16")
 
-from workbench.version import __version__  # noqa: E402 - after the environment is set
+from workbench.version import __version__  # noqa: E402, F401 - after the environment is set
 
 # The public API, imported on first use (module ``__getattr__``, PEP 562): ``import workbench`` and the command's
 # start-up stay free of NumPy, pandas and Hydra until a name below is used.

@@ -48,7 +48,7 @@ def clean_scores(capture: Capture, truth: np.ndarray, rows: Sequence[Row], shape
         if row.basis == "PCA":
             estimate = pca_reconstruction
         else:
-            estimate = (lambda frames, b=shapes[row.basis], w=weights[(row.basis, row.solver)]:
+            estimate = (lambda frames, b=shapes[row.basis], w=weights[(row.basis, row.solver)]:  # noqa: E731
                         reconstruct(b, w[frames]))
         summary = None if estimate is None else summarise_alpha(capture.neutral, truth, estimate, squares=squares)
         scored.append(replace(row, clean_alpha=summary))
