@@ -56,17 +56,17 @@ def optimal_block_length(series: np.ndarray, takes: Sequence | None = None) -> f
     threshold = 2.0 * math.sqrt(math.log10(n) / n)
     bandwidth = max_lag
     for lag in range(1, max_lag - k_n + 2):
-        if np.all(rho[lag:lag + k_n] < threshold):
+        if np.all(rho[lag : lag + k_n] < threshold):
             bandwidth = lag - 1
             break
     window = min(2 * max(bandwidth, 1), max_lag)
     lags = np.arange(1, window + 1)
     flat_top = np.where(lags / window <= 0.5, 1.0, 2.0 * (1.0 - lags / window))
-    g = 2.0 * np.sum(flat_top * lags * acv[1:window + 1])
-    long_run = acv[0] + 2.0 * np.sum(flat_top * acv[1:window + 1])
+    g = 2.0 * np.sum(flat_top * lags * acv[1 : window + 1])
+    long_run = acv[0] + 2.0 * np.sum(flat_top * acv[1 : window + 1])
     if long_run <= 0.0:
         return 1.0
-    block = (2.0 * g ** 2 / (4.0 / 3.0 * long_run ** 2)) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
+    block = (2.0 * g**2 / (4.0 / 3.0 * long_run**2)) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
     return float(min(max(block, 1.0), 3.0 * math.sqrt(n), n / 3.0))
 
 
@@ -76,8 +76,14 @@ bootstrap's exact mean and covariance (a sum of that many independent blocks is 
 instead of by drawing every block: the cost stays independent of the number of frames."""
 
 
-def block_bootstrap_totals(series: np.ndarray, block: int, rng: np.random.Generator, *,
-                           takes: Sequence | None = None, n_resamples: int = RESAMPLES) -> np.ndarray:
+def block_bootstrap_totals(
+    series: np.ndarray,
+    block: int,
+    rng: np.random.Generator,
+    *,
+    takes: Sequence | None = None,
+    n_resamples: int = RESAMPLES,
+) -> np.ndarray:
     """Totals of several paired per-frame series over circular-block-bootstrap resamples of the frames.
 
     Each take is resampled on its own (stratified by take): it is cut into ``ceil(n_take / b)`` blocks of ``b =
@@ -112,7 +118,7 @@ def block_bootstrap_totals(series: np.ndarray, block: int, rng: np.random.Genera
     for start, stop in take_spans(takes, n):
         length = stop - start
         size = min(int(block), length)
-        wrapped = np.concatenate([series[:, start:stop], series[:, start:start + size - 1]], axis=1)
+        wrapped = np.concatenate([series[:, start:stop], series[:, start : start + size - 1]], axis=1)
         cumulative = np.concatenate([np.zeros((series.shape[0], 1)), np.cumsum(wrapped, axis=1)], axis=1)
         n_blocks = -(-length // size)
         lengths = np.full(n_blocks, size)
@@ -141,9 +147,17 @@ def _block_moments(takes_blocks) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mean), np.asarray(covariance)
 
 
-def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.ndarray], *,
-                       block_series: np.ndarray, takes: Sequence | None = None, seconds: Sequence | None = None,
-                       confidence: float = CONFIDENCE, n_resamples: int = RESAMPLES, seed: int = SEED) -> Interval:
+def bootstrap_interval(
+    series: np.ndarray,
+    statistic: Callable[[np.ndarray], np.ndarray],
+    *,
+    block_series: np.ndarray,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+    n_resamples: int = RESAMPLES,
+    seed: int = SEED,
+) -> Interval:
     """The percentile interval of a statistic of per-frame totals under the circular block bootstrap; null 0 (the
     statistic is a difference).
 
@@ -174,10 +188,19 @@ def bootstrap_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.
     block = max(1, int(round(optimal_block_length(block_series, takes))))
     estimate = float(statistic(series.sum(axis=1)))
     with np.errstate(divide="ignore", invalid="ignore"):  # a resample of undefined frames only has no value
-        resampled = statistic(block_bootstrap_totals(series, block, np.random.default_rng(seed), takes=takes,
-                                                     n_resamples=n_resamples))
+        resampled = statistic(
+            block_bootstrap_totals(series, block, np.random.default_rng(seed), takes=takes, n_resamples=n_resamples)
+        )
     low, high = np.nanquantile(resampled, [(1.0 - confidence) / 2.0, (1.0 + confidence) / 2.0])
     step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
-    return Interval(estimate=estimate, low=float(min(low, estimate)), high=float(max(high, estimate)), n=n,
-                    method=BLOCK_BOOTSTRAP, confidence=confidence, null=0.0, block_frames=block,
-                    block_seconds=block * step)
+    return Interval(
+        estimate=estimate,
+        low=float(min(low, estimate)),
+        high=float(max(high, estimate)),
+        n=n,
+        method=BLOCK_BOOTSTRAP,
+        confidence=confidence,
+        null=0.0,
+        block_frames=block,
+        block_seconds=block * step,
+    )

@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import math
 
+import block_bootstrap  # beside this file (benchmarks/ is on the path when run.py runs)
 import numpy as np
 from scipy.signal import lfilter
 
-import block_bootstrap  # beside this file (benchmarks/ is on the path when run.py runs)
 from workbench.stats import statistics
 
 FRAMES = (800, 4000)
@@ -37,8 +37,8 @@ def ar1_series(rng: np.random.Generator, n: int, phi: float, count: int) -> np.n
     -------
     ndarray of shape (count, n)
     """
-    noise = rng.standard_normal((count, n)) * math.sqrt(1.0 - phi ** 2)
-    noise[:, 0] /= math.sqrt(1.0 - phi ** 2)
+    noise = rng.standard_normal((count, n)) * math.sqrt(1.0 - phi**2)
+    noise[:, 0] /= math.sqrt(1.0 - phi**2)
     return lfilter([1.0], [1.0, -phi], noise, axis=1)
 
 
@@ -51,30 +51,44 @@ def coverage_row(kind: str, n: int, phi: float, replications: int, rng: np.rando
         if kind == "mean":
             interval, truth = statistics.paired_mean_difference(series[k], np.zeros(n)), 0.0
         elif kind == "pooled":
-            interval = statistics.paired_pooled_difference(np.exp(series[k] / 2.0), np.exp(others[k] / 2.0) / 4.0,
-                                                           np.full(n, 100.0))
+            interval = statistics.paired_pooled_difference(
+                np.exp(series[k] / 2.0), np.exp(others[k] / 2.0) / 4.0, np.full(n, 100.0)
+            )
             truth = POOLED_TRUTH
         else:
-            interval = block_bootstrap.bootstrap_interval(series[k][None, :], lambda t: t[..., 0] / n,
-                                                     block_series=series[k], n_resamples=500, seed=k)
+            interval = block_bootstrap.bootstrap_interval(
+                series[k][None, :], lambda t: t[..., 0] / n, block_series=series[k], n_resamples=500, seed=k
+            )
             truth = 0.0
         hits += interval.low <= truth <= interval.high
         widths.append(interval.high - interval.low)
-    return {"interval": kind, "n": n, "phi": phi, "nominal": statistics.CONFIDENCE, "coverage": hits / replications,
-            "mean width": float(np.mean(widths)), "replications": replications}
+    return {
+        "interval": kind,
+        "n": n,
+        "phi": phi,
+        "nominal": statistics.CONFIDENCE,
+        "coverage": hits / replications,
+        "mean width": float(np.mean(widths)),
+        "replications": replications,
+    }
 
 
 def bench_coverage(args) -> None:
     """Print the coverage table of the within-run intervals."""
     rng = np.random.default_rng(args.seed)
     kinds = ["mean", "pooled"] + (["bootstrap"] if args.with_bootstrap else [])
-    print(f"coverage of the within-run intervals on AR(1) series, seed {args.seed} "
-          f"(binomial standard error at 0.95: {math.sqrt(0.95 * 0.05 / args.replications):.4f})")
+    print(
+        f"coverage of the within-run intervals on AR(1) series, seed {args.seed} "
+        f"(binomial standard error at 0.95: {math.sqrt(0.95 * 0.05 / args.replications):.4f})"
+    )
     print("| interval | n | phi | nominal | coverage | mean width | replications |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for kind in kinds:
         for n in FRAMES:
             for phi in PERSISTENCES:
                 row = coverage_row(kind, n, phi, args.replications, rng)
-                print(f"| {row['interval']} | {n} | {phi:g} | {row['nominal']:.2f} | {row['coverage']:.3f} | "
-                      f"{row['mean width']:.3g} | {row['replications']} |", flush=True)
+                print(
+                    f"| {row['interval']} | {n} | {phi:g} | {row['nominal']:.2f} | {row['coverage']:.3f} | "
+                    f"{row['mean width']:.3g} | {row['replications']} |",
+                    flush=True,
+                )

@@ -27,30 +27,43 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import tempfile
+import time
 from dataclasses import replace
 from pathlib import Path
-import resource
-import time
 
 import workbench  # noqa: F401  (first: it sets OpenBLAS's thread timeout before NumPy loads OpenBLAS, as the CLI does)
+
 # isort: split
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.dataset import build_captures
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.frames import frame_chunks
 from workbench.numerics.metrics import summarise_alpha, summarise_squares
+from workbench.numerics.solve import reconstruct, solve_weights
 from workbench.study.fitting import pca_subspace
 from workbench.study.results import Timings
 from workbench.study.scoring import projected_rows
-from workbench.numerics.solve import reconstruct, solve_weights
 
-SYNTHETIC = {"kind": "synthetic", "n_frames": 35000, "frame_rate": 120.0, "n_face_markers": 66,
-             "n_head_markers": 7, "head_rotation_deg": 3.0, "head_translation_mm": 5.0, "marker_noise_mm": 0.05,
-             "seed": 0, "mesh_rows": 70, "mesh_cols": 60, "stabilise": True, "split": "same"}
+SYNTHETIC = {
+    "kind": "synthetic",
+    "n_frames": 35000,
+    "frame_rate": 120.0,
+    "n_face_markers": 66,
+    "n_head_markers": 7,
+    "head_rotation_deg": 3.0,
+    "head_translation_mm": 5.0,
+    "marker_noise_mm": 0.05,
+    "seed": 0,
+    "mesh_rows": 70,
+    "mesh_cols": 60,
+    "stabilise": True,
+    "split": "same",
+}
 
 
 def peak_mb() -> float:
@@ -69,11 +82,15 @@ def blas_report() -> str:
     that can force a kernel."""
     from threadpoolctl import threadpool_info
 
-    libraries = [f"{info.get('internal_api')} {info.get('version')} kernel {info.get('architecture')} "
-                 f"threads {info.get('num_threads')} ({os.path.basename(info.get('filepath', ''))})"
-                 for info in threadpool_info() if info.get("user_api") == "blas"]
-    forced = {name: os.environ.get(name) for name in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE",
-                                                         "OPENBLAS_THREAD_TIMEOUT")}
+    libraries = [
+        f"{info.get('internal_api')} {info.get('version')} kernel {info.get('architecture')} "
+        f"threads {info.get('num_threads')} ({os.path.basename(info.get('filepath', ''))})"
+        for info in threadpool_info()
+        if info.get("user_api") == "blas"
+    ]
+    forced = {
+        name: os.environ.get(name) for name in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE", "OPENBLAS_THREAD_TIMEOUT")
+    }
     return f"BLAS: {'; '.join(libraries) or 'none found'}; environment {forced}"
 
 
@@ -90,12 +107,17 @@ def paper_method(capture, *, kind="box", lower=0.0, upper=1.0, svd_solver="auto"
     the weights and alpha of every basis from one shared pass over the frames (the pipeline's path)."""
     eigenfaces = Eigenfaces(coverage=0.995, svd_solver=svd_solver).fit(capture.train)
     qe = build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces, projection="affine")
-    rows, _, projections = projected_rows(capture, [("H", "-", capture.hand), ("QE", "affine", qe.shapes)],
-                                          {kind: {"kind": kind, "lower": lower, "upper": upper}}, Timings(),
-                                          subspaces={"PCA": pca_subspace(eigenfaces)})
+    rows, _, projections = projected_rows(
+        capture,
+        [("H", "-", capture.hand), ("QE", "affine", qe.shapes)],
+        {kind: {"kind": kind, "lower": lower, "upper": upper}},
+        Timings(),
+        subspaces={"PCA": pca_subspace(eigenfaces)},
+    )
     alphas = {row.basis: row.alpha.absolute_mean for row in rows}
-    alphas["PCA"] = summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
-                                      projections.position_sq, capture.eval.size // 3).absolute_mean
+    alphas["PCA"] = summarise_squares(
+        projections.distance_sq["PCA"], projections.displacement_sq, projections.position_sq, capture.eval.size // 3
+    ).absolute_mean
     return eigenfaces, qe, alphas
 
 
@@ -107,10 +129,12 @@ def paper_method_per_basis(capture, *, kind="box", lower=0.0, upper=1.0):
     alphas = {}
     for label, shapes in (("H", capture.hand), ("QE", qe.shapes)):
         weights = solve_weights(shapes, capture.eval, kind=kind, lower=lower, upper=upper).weights
-        alphas[label] = summarise_alpha(capture.neutral, capture.eval,
-                                        lambda rows: reconstruct(shapes, weights[rows])).absolute_mean
-    alphas["PCA"] = summarise_alpha(capture.neutral, capture.eval,
-                                    lambda rows: eigenfaces.reconstruct(capture.eval[rows])).absolute_mean
+        alphas[label] = summarise_alpha(
+            capture.neutral, capture.eval, lambda rows: reconstruct(shapes, weights[rows])
+        ).absolute_mean
+    alphas["PCA"] = summarise_alpha(
+        capture.neutral, capture.eval, lambda rows: eigenfaces.reconstruct(capture.eval[rows])
+    ).absolute_mean
     return eigenfaces, qe, alphas
 
 
@@ -142,84 +166,112 @@ def bench_markers(args) -> None:
     (eigenfaces, qe, alphas), fast_seconds = repeats[0][0], float(np.median([seconds for _, seconds in repeats]))
     base_alphas, base_seconds = baseline[0][0][2], float(np.median([seconds for _, seconds in baseline]))
     agreement = max(abs(alphas[key] - base_alphas[key]) / base_alphas[key] for key in alphas)
-    print(f"paper method: PCA + QE + box [0,1] weights of H and QE + alpha of H, QE, PCA: {fast_seconds:.3f} s, "
-          f"median of {args.repeats} (min {min(seconds for _, seconds in repeats):.3f} s), "
-          f"x{fast_seconds / one_pass:.1f} one pass; per-basis baseline {base_seconds:.3f} s "
-          f"(x{base_seconds / fast_seconds:.2f} the shared pass); max relative alpha difference {agreement:.1e} "
-          f"(m = {eigenfaces.n_components_}; alpha_abs_mean H {alphas['H']:.3f}, QE {alphas['QE']:.3f}, "
-          f"PCA {alphas['PCA']:.3f})")
+    print(
+        f"paper method: PCA + QE + box [0,1] weights of H and QE + alpha of H, QE, PCA: {fast_seconds:.3f} s, "
+        f"median of {args.repeats} (min {min(seconds for _, seconds in repeats):.3f} s), "
+        f"x{fast_seconds / one_pass:.1f} one pass; per-basis baseline {base_seconds:.3f} s "
+        f"(x{base_seconds / fast_seconds:.2f} the shared pass); max relative alpha difference {agreement:.1e} "
+        f"(m = {eigenfaces.n_components_}; alpha_abs_mean H {alphas['H']:.3f}, QE {alphas['QE']:.3f}, "
+        f"PCA {alphas['PCA']:.3f})"
+    )
 
     gram = float(np.median([timed(np.matmul, capture.train.T, capture.train)[1] for _ in range(args.repeats)]))
-    print(f"the PCA's covariance product D^T D alone (a floor of any exact PCA): {gram * 1e3:.1f} ms, "
-          f"x{gram / one_pass:.1f} one pass")
+    print(
+        f"the PCA's covariance product D^T D alone (a floor of any exact PCA): {gram * 1e3:.1f} ms, "
+        f"x{gram / one_pass:.1f} one pass"
+    )
     centred = capture.train - capture.train.mean(axis=0)
-    svd_seconds = float(np.median([timed(np.linalg.svd, centred, full_matrices=False)[1]
-                                   for _ in range(args.repeats)]))
-    pca_seconds = float(np.median([timed(Eigenfaces(coverage=0.995).fit, capture.train)[1]
-                                   for _ in range(args.repeats)]))
-    print(f"PCA: eigenfaces {pca_seconds:.3f} s vs full SVD {svd_seconds:.3f} s, medians of {args.repeats}  "
-          f"(x{svd_seconds / pca_seconds:.1f})")
+    svd_seconds = float(np.median([timed(np.linalg.svd, centred, full_matrices=False)[1] for _ in range(args.repeats)]))
+    pca_seconds = float(
+        np.median([timed(Eigenfaces(coverage=0.995).fit, capture.train)[1] for _ in range(args.repeats)])
+    )
+    print(
+        f"PCA: eigenfaces {pca_seconds:.3f} s vs full SVD {svd_seconds:.3f} s, medians of {args.repeats}  "
+        f"(x{svd_seconds / pca_seconds:.1f})"
+    )
 
     rng = np.random.default_rng(0)
     for label, shapes in (("H", capture.hand), ("QE", qe.shapes)):
-        for kind, baseline, upper, n_timed in (("box", "lsq_linear", 1.0, args.baseline_frames // 4),
-                                               ("box", "lsq_linear/bvls", 1.0, args.baseline_frames),
-                                               ("nnls", "nnls", None, len(capture.eval))):
-            runs = [timed(solve_weights, shapes, capture.eval, kind=kind, lower=0.0, upper=upper)
-                    for _ in range(args.repeats)]
+        for kind, baseline, upper, n_timed in (
+            ("box", "lsq_linear", 1.0, args.baseline_frames // 4),
+            ("box", "lsq_linear/bvls", 1.0, args.baseline_frames),
+            ("nnls", "nnls", None, len(capture.eval)),
+        ):
+            runs = [
+                timed(solve_weights, shapes, capture.eval, kind=kind, lower=0.0, upper=upper)
+                for _ in range(args.repeats)
+            ]
             solution, fast = runs[0][0], float(np.median([seconds for _, seconds in runs]))
             subset = np.sort(rng.choice(len(capture.eval), size=min(n_timed, len(capture.eval)), replace=False))
             frames = capture.eval[subset]
             reference, slow = timed(per_frame, baseline, shapes, frames)
             scale = len(capture.eval) / len(frames)
             mine = solution.weights[subset]
-            gap = np.max(np.abs(objective(shapes, frames, mine) - objective(shapes, frames, reference))
-                         / np.maximum(objective(shapes, frames, reference), 1e-12))
+            gap = np.max(
+                np.abs(objective(shapes, frames, mine) - objective(shapes, frames, reference))
+                / np.maximum(objective(shapes, frames, reference), 1e-12)
+            )
             note = "" if scale == 1 else f" (timed on {len(frames)} frames, x{scale:.0f} extrapolated)"
-            print(f"{label} {kind}: batched {fast:.3f} s (median of {args.repeats}, x{fast / one_pass:.1f} one pass) vs per-frame {baseline} "
-                  f"{slow * scale:.2f} s{note}  x{slow * scale / fast:.0f}; max relative objective gap {gap:.1e}; "
-                  f"fallback frames {solution.n_fallback_frames}")
+            print(
+                f"{label} {kind}: batched {fast:.3f} s (median of {args.repeats}, x{fast / one_pass:.1f} one pass) vs per-frame {baseline} "
+                f"{slow * scale:.2f} s{note}  x{slow * scale / fast:.0f}; max relative objective gap {gap:.1e}; "
+                f"fallback frames {solution.n_fallback_frames}"
+            )
     print(f"peak memory {peak_mb():.0f} MB")
 
 
 def bench_mesh(args) -> None:
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
+    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.study.run import run_study
 
-    overrides = [f"dataset.n_frames={args.mesh_frames}", "dataset.train_on=mesh", "solver=all",
-                 f"dataset.mesh_rows={args.mesh_rows}", f"dataset.mesh_cols={args.mesh_cols}",
-                 f"dataset.dtype={args.dtype}", f"dataset.storage={args.storage}"]
+    overrides = [
+        f"dataset.n_frames={args.mesh_frames}",
+        "dataset.train_on=mesh",
+        "solver=all",
+        f"dataset.mesh_rows={args.mesh_rows}",
+        f"dataset.mesh_cols={args.mesh_cols}",
+        f"dataset.dtype={args.dtype}",
+        f"dataset.storage={args.storage}",
+    ]
     if args.cache_dir:
         overrides.append(f"paths.cache_dir={args.cache_dir}")
     cfg = resolved_without_hydra(compose("paper", overrides))
     n_vertices = args.mesh_rows * args.mesh_cols
-    print(f"== mesh scale: {args.mesh_frames} frames x {n_vertices:,} vertices (synthetic actor's dense mesh), "
-          f"n = 18, frames {args.dtype} in {args.storage}")
+    print(
+        f"== mesh scale: {args.mesh_frames} frames x {n_vertices:,} vertices (synthetic actor's dense mesh), "
+        f"n = 18, frames {args.dtype} in {args.storage}"
+    )
     captures, build_seconds = timed(build_captures, cfg["dataset"], cfg["paths"]["cache_dir"])
     capture = captures["mesh"]
     size = capture.train.shape[0] * capture.train.shape[1] * np.dtype(args.dtype).itemsize
-    print(f"dataset build: {build_seconds:.1f} s; capture {size / 2**30:.2f} GiB ({type(capture.train).__name__}); "
-          f"peak so far {peak_mb():.0f} MB")
+    print(
+        f"dataset build: {build_seconds:.1f} s; capture {size / 2**30:.2f} GiB ({type(capture.train).__name__}); "
+        f"peak so far {peak_mb():.0f} MB"
+    )
     one_pass = streaming_pass(capture.eval)
     print(f"one streaming pass over the capture: {one_pass:.2f} s")
     results, study_seconds = timed(run_study, cfg)  # the dataset comes from the cache
     result = results[0]
     stages = ", ".join(f"{name} {seconds:.1f} s" for name, seconds in result.timings.seconds.items())
-    print(f"whole paper study (solver=all, affine and linear QE, every alpha; dataset cached): {study_seconds:.1f} s "
-          f"= x{study_seconds / one_pass:.1f} one pass ({stages}); m = {result.eigenfaces.n_components_} "
-          f"({result.eigenfaces.method_}); peak {peak_mb():.0f} MB")
+    print(
+        f"whole paper study (solver=all, affine and linear QE, every alpha; dataset cached): {study_seconds:.1f} s "
+        f"= x{study_seconds / one_pass:.1f} one pass ({stages}); m = {result.eigenfaces.n_components_} "
+        f"({result.eigenfaces.method_}); peak {peak_mb():.0f} MB"
+    )
     if args.baseline_frames:
         # the scoring of before the shared pass (each basis and solver solved on the frames and scored on its
         # reconstruction) on a subset of frames, extrapolated, against the shared pass on the same subset
         subset = slice(0, min(args.baseline_frames, len(capture.eval)))
         frames = np.asarray(capture.eval[subset], dtype=np.float64)
-        bases = [(row.basis, row.projection, shapes) for row, shapes in zip(
-            result.rows, [capture.hand] + [qe.shapes for qe in result.quasi_eigen.values()])]
+        bases = [
+            (row.basis, row.projection, shapes)
+            for row, shapes in zip(result.rows, [capture.hand] + [qe.shapes for qe in result.quasi_eigen.values()])
+        ]
         small = replace(capture, train=frames, eval=frames, eval_timeline=None)
         solvers = {name: spec for name, spec in cfg["solver"].items()}
-        (_, _, _), fast = timed(projected_rows, small, bases, solvers, Timings(),
-                                subspaces={"PCA": pca_subspace(result.eigenfaces)})
+        (_, _, _), fast = timed(
+            projected_rows, small, bases, solvers, Timings(), subspaces={"PCA": pca_subspace(result.eigenfaces)}
+        )
 
         def per_basis():
             for spec in solvers.values():
@@ -230,15 +282,19 @@ def bench_mesh(args) -> None:
 
         _, slow = timed(per_basis)
         scale = len(capture.eval) / len(frames)
-        print(f"scoring of every basis and solver (weights + alpha): shared pass {fast * scale:.1f} s vs per basis "
-              f"and solver {slow * scale:.1f} s (timed on {len(frames)} frames, x{scale:.1f} extrapolated)  "
-              f"x{slow / fast:.1f}; peak {peak_mb():.0f} MB")
+        print(
+            f"scoring of every basis and solver (weights + alpha): shared pass {fast * scale:.1f} s vs per basis "
+            f"and solver {slow * scale:.1f} s (timed on {len(frames)} frames, x{scale:.1f} extrapolated)  "
+            f"x{slow / fast:.1f}; peak {peak_mb():.0f} MB"
+        )
     if args.with_exact_pca:
         exact, exact_seconds = timed(Eigenfaces(coverage=0.995, svd_solver="exact").fit, capture.train)
         fast, randomized_seconds = timed(Eigenfaces(coverage=0.995, svd_solver="randomized").fit, capture.train)
-        print(f"PCA: randomised {randomized_seconds:.1f} s vs exact ({exact.method_}) {exact_seconds:.1f} s "
-              f"(x{exact_seconds / randomized_seconds:.1f}); same m: {exact.n_components_ == fast.n_components_}; "
-              f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB")
+        print(
+            f"PCA: randomised {randomized_seconds:.1f} s vs exact ({exact.method_}) {exact_seconds:.1f} s "
+            f"(x{exact_seconds / randomized_seconds:.1f}); same m: {exact.n_components_ == fast.n_components_}; "
+            f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB"
+        )
 
 
 def per_frame_masked(solver, shapes, frames, visible):
@@ -258,21 +314,31 @@ def per_frame_masked(solver, shapes, frames, visible):
 
 def masked_objective(shapes, frames, weights, visible):
     error = np.where(np.repeat(visible, 3, axis=1), frames - weights @ shapes, 0.0)
-    return np.sum(error ** 2, axis=1)
+    return np.sum(error**2, axis=1)
 
 
 def bench_gaps(args) -> None:
     """The masked solve of eq. 5 (capture gaps) on the synthetic actor's markers with 5 % of the samples in
     occlusion gaps, against the same solve frame by frame (NumPy lstsq, SciPy nnls and bounded lsq_linear)."""
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
+    from workbench.settings.config import compose, resolved_without_hydra
 
-    cfg = resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", "dataset.gap_rate=0.05",
-                                                   "dataset.gap_policy=masked", "dataset.train_on=markers"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                f"dataset.n_frames={args.frames}",
+                "dataset.gap_rate=0.05",
+                "dataset.gap_policy=masked",
+                "dataset.train_on=markers",
+            ],
+        )
+    )
     capture = build_captures(cfg["dataset"])["markers"]
     visible = capture.eval_visible
-    print(f"== gaps: {len(capture.eval)} frames x 66 markers, {100 * (~visible).mean():.2f} % of the marker "
-          f"samples missing; masked solve (each frame on the markers it saw), n = 18")
+    print(
+        f"== gaps: {len(capture.eval)} frames x 66 markers, {100 * (~visible).mean():.2f} % of the marker "
+        f"samples missing; masked solve (each frame on the markers it saw), n = 18"
+    )
     eigenfaces = Eigenfaces(coverage=0.995).fit(capture.train)
     qe = build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces, projection="affine")
     rng = np.random.default_rng(0)
@@ -280,66 +346,82 @@ def bench_gaps(args) -> None:
         for kind, bounds in (("lstsq", {}), ("nnls", {}), ("box", {"lower": 0.0, "upper": 1.0})):
             solution, fast = timed(solve_weights, shapes, capture.eval, kind=kind, visible=visible, **bounds)
             _, unmasked = timed(solve_weights, shapes, capture.train, kind=kind, **bounds)
-            subset = np.sort(rng.choice(len(capture.eval), size=min(args.baseline_frames, len(capture.eval)),
-                                        replace=False))
+            subset = np.sort(
+                rng.choice(len(capture.eval), size=min(args.baseline_frames, len(capture.eval)), replace=False)
+            )
             frames, seen = capture.eval[subset], visible[subset]
             reference, slow = timed(per_frame_masked, kind, shapes, frames, seen)
             scale = len(capture.eval) / len(frames)
             ours = masked_objective(shapes, frames, solution.weights[subset], seen)
             theirs = masked_objective(shapes, frames, reference, seen)
             gap = np.max((ours - theirs) / np.maximum(theirs, 1e-12))
-            print(f"{label} {kind}: masked batched {fast:.3f} s (unmasked {unmasked:.3f} s) vs per-frame "
-                  f"{slow * scale:.2f} s (timed on {len(frames)} frames, x{scale:.1f} extrapolated)  "
-                  f"x{slow * scale / fast:.0f}; max relative objective excess {gap:.1e}; "
-                  f"fallback frames {solution.n_fallback_frames}")
+            print(
+                f"{label} {kind}: masked batched {fast:.3f} s (unmasked {unmasked:.3f} s) vs per-frame "
+                f"{slow * scale:.2f} s (timed on {len(frames)} frames, x{scale:.1f} extrapolated)  "
+                f"x{slow * scale / fast:.0f}; max relative objective excess {gap:.1e}; "
+                f"fallback frames {solution.n_fallback_frames}"
+            )
     print(f"peak memory {peak_mb():.0f} MB")
 
 
 def bench_mapped(args) -> None:
     """PCA of mesh frames that are an RBF map of marker frames: computed on the markers and lifted
     (``Eigenfaces.fit_mapped``) against the PCA of the materialised mesh frames, on the same capture."""
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
+    from workbench.settings.config import compose, resolved_without_hydra
 
-    overrides = (["dataset=animface", "dataset.train_on=mesh"] if args.mapped_dataset == "animface" else
-                 [f"dataset.n_frames={args.frames}", "dataset.train_on=mesh_rbf"])
+    overrides = (
+        ["dataset=animface", "dataset.train_on=mesh"]
+        if args.mapped_dataset == "animface"
+        else [f"dataset.n_frames={args.frames}", "dataset.train_on=mesh_rbf"]
+    )
     cfg = resolved_without_hydra(compose("paper", overrides))
     capture = next(iter(build_captures(cfg["dataset"]).values()))
-    print(f"== mapped PCA: {args.mapped_dataset}, {capture.train.shape[0]} frames x {capture.n_points} mesh points "
-          f"interpolated from {capture.train_source.shape[1] // 3} markers")
-    lifted, lifted_seconds = timed(Eigenfaces(coverage=0.995).fit_mapped, capture.train_source,
-                                   capture.train_operator)
+    print(
+        f"== mapped PCA: {args.mapped_dataset}, {capture.train.shape[0]} frames x {capture.n_points} mesh points "
+        f"interpolated from {capture.train_source.shape[1] // 3} markers"
+    )
+    lifted, lifted_seconds = timed(Eigenfaces(coverage=0.995).fit_mapped, capture.train_source, capture.train_operator)
     direct, direct_seconds = timed(Eigenfaces(coverage=0.995).fit, capture.train)
     m = min(lifted.n_components_, direct.n_components_)
     agreement = np.abs(np.abs(np.sum(lifted.components_[:m] * direct.components_[:m], axis=1)) - 1).max()
-    print(f"lifted {lifted_seconds:.2f} s vs direct ({direct.method_}) {direct_seconds:.2f} s  "
-          f"x{direct_seconds / lifted_seconds:.1f}; m {lifted.n_components_} vs {direct.n_components_}; coverage "
-          f"{lifted.coverage_:.10f} vs {direct.coverage_:.10f}; max |1 - |cos|| between eigenfaces {agreement:.1e}; "
-          f"peak {peak_mb():.0f} MB")
+    print(
+        f"lifted {lifted_seconds:.2f} s vs direct ({direct.method_}) {direct_seconds:.2f} s  "
+        f"x{direct_seconds / lifted_seconds:.1f}; m {lifted.n_components_} vs {direct.n_components_}; coverage "
+        f"{lifted.coverage_:.10f} vs {direct.coverage_:.10f}; max |1 - |cos|| between eigenfaces {agreement:.1e}; "
+        f"peak {peak_mb():.0f} MB"
+    )
 
 
 def bench_sweep(args) -> None:
     """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
     the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
     both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
+    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.study.run import run_study
 
     coverages = np.linspace(0.95, 0.999, args.sweep_runs)
-    print(f"== sweep: {args.sweep_runs} runs of the paper study (solver={args.solver}) on {args.frames} frames x 66 markers, "
-          f"basis.coverage {coverages[0]:.3f} ... {coverages[-1]:.3f}")
-    configs = [resolved_without_hydra(compose("paper", [f"dataset.n_frames={args.frames}", f"solver={args.solver}",
-                                                         f"basis.coverage={coverage:.6f}"]))
-               for coverage in coverages]
+    print(
+        f"== sweep: {args.sweep_runs} runs of the paper study (solver={args.solver}) on {args.frames} frames x 66 markers, "
+        f"basis.coverage {coverages[0]:.3f} ... {coverages[-1]:.3f}"
+    )
+    configs = [
+        resolved_without_hydra(
+            compose(
+                "paper", [f"dataset.n_frames={args.frames}", f"solver={args.solver}", f"basis.coverage={coverage:.6f}"]
+            )
+        )
+        for coverage in coverages
+    ]
     start = time.perf_counter()
     first, first_seconds = timed(run_study, configs[0])
     for cfg in configs[1:]:
         run_study(cfg)
     total = time.perf_counter() - start
-    print(f"first run (builds the dataset) {first_seconds:.2f} s; all {args.sweep_runs} runs {total:.1f} s "
-          f"({(total - first_seconds) / max(1, args.sweep_runs - 1):.2f} s a run after the first); "
-          f"peak {peak_mb():.0f} MB")
+    print(
+        f"first run (builds the dataset) {first_seconds:.2f} s; all {args.sweep_runs} runs {total:.1f} s "
+        f"({(total - first_seconds) / max(1, args.sweep_runs - 1):.2f} s a run after the first); "
+        f"peak {peak_mb():.0f} MB"
+    )
 
 
 CACHE_DATASETS = {"ict_livelink": ["dataset=ict_livelink"], "animface": ["dataset=animface"], "synthetic": []}
@@ -358,8 +440,17 @@ def captures_digest(captures: dict) -> str:
     digest = hashlib.sha256()
     for name, capture in captures.items():
         digest.update(name.encode())
-        for field in ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator",
-                      "point_support"):
+        for field in (
+            "neutral",
+            "train",
+            "eval",
+            "hand",
+            "faces",
+            "eval_visible",
+            "train_source",
+            "train_operator",
+            "point_support",
+        ):
             value = getattr(capture, field)
             if value is None:
                 digest.update(b"none")
@@ -374,19 +465,25 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
     paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
-    from workbench.study.run import run_study
     from workbench.reporting.run_text import alpha_table
+    from workbench.settings.config import compose, resolved_without_hydra
+    from workbench.study.run import run_study
 
     cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))
     if not study:
         captures, seconds = timed(build_captures, cfg["dataset"], cache_dir)
         return seconds, captures_digest(captures)
     results, seconds = timed(run_study, cfg)
-    tables = [alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                          coverage=result.eigenfaces.coverage_, paper_alpha={}).to_csv(float_format="%.17g")
-              for result in results]
+    tables = [
+        alpha_table(
+            result.rows,
+            data=result.data,
+            m=result.eigenfaces.n_components_,
+            coverage=result.eigenfaces.coverage_,
+            paper_alpha={},
+        ).to_csv(float_format="%.17g")
+        for result in results
+    ]
     return seconds, "\n".join(tables)
 
 
@@ -406,9 +503,8 @@ def bench_cache(args) -> None:
     costs: the source files (once per process) and the entry's files (every hit checks their SHA-256)."""
     import hashlib
 
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
     from workbench.dataset.cache import clear_memory, file_digest, source_files
+    from workbench.settings.config import compose, resolved_without_hydra
 
     def hash_files(paths):
         for path in paths:
@@ -416,8 +512,10 @@ def bench_cache(args) -> None:
                 hashlib.file_digest(stream, "sha256")
 
     root = Path(args.cache_dir) if args.cache_dir else Path(tempfile.mkdtemp(prefix="wb-cache-bench-"))
-    print(f"== dataset cache: {', '.join(args.cache_datasets)}; each step in a new process (imports not timed); "
-          f"medians of {args.repeats}; cache folders under {root}")
+    print(
+        f"== dataset cache: {', '.join(args.cache_datasets)}; each step in a new process (imports not timed); "
+        f"medians of {args.repeats}; cache folders under {root}"
+    )
     try:
         for name in args.cache_datasets:
             overrides, folder = CACHE_DATASETS[name], root / name
@@ -425,9 +523,13 @@ def bench_cache(args) -> None:
             digests = {key: set() for key in steps}
             for _ in range(args.repeats):  # interleaved, so that a change in the machine's load hits each alike
                 shutil.rmtree(folder, ignore_errors=True)
-                for step, cache_dir, study in (("build", None, False), ("miss", folder, False),
-                                               ("hit", folder, False), ("study", None, True),
-                                               ("study hit", folder, True)):
+                for step, cache_dir, study in (
+                    ("build", None, False),
+                    ("miss", folder, False),
+                    ("hit", folder, False),
+                    ("study", None, True),
+                    ("study hit", folder, True),
+                ):
                     seconds, digest = in_new_process(cache_step, overrides, cache_dir and str(folder), study)
                     steps[step].append(seconds)
                     digests[step].add(digest)
@@ -435,21 +537,27 @@ def bench_cache(args) -> None:
             entry = [path for path in folder.rglob("*") if path.is_file()]
             same = len(digests["build"] | digests["miss"] | digests["hit"]) == 1
             same_tables = len(digests["study"] | digests["study hit"]) == 1
-            print(f"{name}: build without cache {build:.2f} s; miss (build + write) {miss:.2f} s, so write "
-                  f"{miss - build:.2f} s (x{miss / build:.2f} the build); hit {hit:.2f} s (x{hit / build:.2f} the "
-                  f"build); on disk {folder_bytes(entry) / 2**20:.1f} MiB in {len(entry)} files; hit equals build: "
-                  f"{same}")
-            print(f"{name} whole paper study: without cache {study:.2f} s, from a cache hit {study_hit:.2f} s "
-                  f"(x{study_hit / study:.2f}); alpha tables identical to every digit: {same_tables}")
+            print(
+                f"{name}: build without cache {build:.2f} s; miss (build + write) {miss:.2f} s, so write "
+                f"{miss - build:.2f} s (x{miss / build:.2f} the build); hit {hit:.2f} s (x{hit / build:.2f} the "
+                f"build); on disk {folder_bytes(entry) / 2**20:.1f} MiB in {len(entry)} files; hit equals build: "
+                f"{same}"
+            )
+            print(
+                f"{name} whole paper study: without cache {study:.2f} s, from a cache hit {study_hit:.2f} s "
+                f"(x{study_hit / study:.2f}); alpha tables identical to every digit: {same_tables}"
+            )
             cfg = resolved_without_hydra(compose("paper", overrides))
             sources = source_files(cfg["dataset"])
             clear_memory()
             source_seconds = timed(lambda: [file_digest(path) for path in sources])[1]
             remembered = timed(lambda: [file_digest(path) for path in sources])[1]
             entry_seconds = float(np.median([timed(hash_files, entry)[1] for _ in range(args.repeats)]))
-            print(f"{name} hashing (SHA-256): its {len(sources)} source files ({folder_bytes(sources) / 2**20:.1f} "
-                  f"MiB) {source_seconds:.3f} s once per process, then {remembered * 1e3:.2f} ms (remembered); the "
-                  f"entry's files {entry_seconds:.3f} s, part of every hit")
+            print(
+                f"{name} hashing (SHA-256): its {len(sources)} source files ({folder_bytes(sources) / 2**20:.1f} "
+                f"MiB) {source_seconds:.3f} s once per process, then {remembered * 1e3:.2f} ms (remembered); the "
+                f"entry's files {entry_seconds:.3f} s, part of every hit"
+            )
     finally:
         if not args.cache_dir:
             shutil.rmtree(root, ignore_errors=True)
@@ -458,32 +566,56 @@ def bench_cache(args) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "coverage", "all"])
-    parser.add_argument("--mapped-dataset", choices=["animface", "synthetic"], default="animface",
-                        help="data of the mapped scenario (animface reads ../shared/data or WORKBENCH_DATA_ROOT)")
+    parser.add_argument(
+        "--mapped-dataset",
+        choices=["animface", "synthetic"],
+        default="animface",
+        help="data of the mapped scenario (animface reads ../shared/data or WORKBENCH_DATA_ROOT)",
+    )
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats of the marker fast path (median)")
     parser.add_argument("--solver", default="box", help="solver group of the sweep scenario (box, all, ...)")
     parser.add_argument("--sweep-runs", type=int, default=100, help="runs of the sweep scenario")
     parser.add_argument("--frames", type=int, default=35000, help="frames of the marker scenario")
-    parser.add_argument("--baseline-frames", type=int, default=2000,
-                        help="frames on which per-frame lsq_linear/bvls is timed, a quarter of them for the slower "
-                             "default lsq_linear (then extrapolated)")
+    parser.add_argument(
+        "--baseline-frames",
+        type=int,
+        default=2000,
+        help="frames on which per-frame lsq_linear/bvls is timed, a quarter of them for the slower "
+        "default lsq_linear (then extrapolated)",
+    )
     parser.add_argument("--mesh-frames", type=int, default=35000, help="frames of the mesh scenario")
     parser.add_argument("--mesh-rows", type=int, default=70, help="mesh rows of the mesh scenario (97 x 97 = 9,409)")
     parser.add_argument("--mesh-cols", type=int, default=60, help="mesh columns of the mesh scenario")
-    parser.add_argument("--dtype", choices=["float64", "float32"], default="float64",
-                        help="storage of the mesh frames (dataset.dtype)")
-    parser.add_argument("--storage", choices=["memory", "disk"], default="memory",
-                        help="where the mesh frames live (dataset.storage; disk needs --cache-dir)")
-    parser.add_argument("--cache-dir", default=None,
-                        help="paths.cache_dir of the mesh scenario; folder of the cache scenario's entries (a "
-                             "temporary folder, removed afterwards, when not given)")
-    parser.add_argument("--cache-datasets", nargs="+", choices=sorted(CACHE_DATASETS),
-                        default=["ict_livelink", "animface", "synthetic"], help="datasets of the cache scenario")
+    parser.add_argument(
+        "--dtype", choices=["float64", "float32"], default="float64", help="storage of the mesh frames (dataset.dtype)"
+    )
+    parser.add_argument(
+        "--storage",
+        choices=["memory", "disk"],
+        default="memory",
+        help="where the mesh frames live (dataset.storage; disk needs --cache-dir)",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        default=None,
+        help="paths.cache_dir of the mesh scenario; folder of the cache scenario's entries (a "
+        "temporary folder, removed afterwards, when not given)",
+    )
+    parser.add_argument(
+        "--cache-datasets",
+        nargs="+",
+        choices=sorted(CACHE_DATASETS),
+        default=["ict_livelink", "animface", "synthetic"],
+        help="datasets of the cache scenario",
+    )
     parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
     parser.add_argument("--replications", type=int, default=1000, help="AR(1) series per cell of the coverage table")
     parser.add_argument("--seed", type=int, default=0, help="seed of the coverage scenario's series")
-    parser.add_argument("--with-bootstrap", action="store_true",
-                        help="coverage: also the circular block bootstrap the batch means replaced (slow)")
+    parser.add_argument(
+        "--with-bootstrap",
+        action="store_true",
+        help="coverage: also the circular block bootstrap the batch means replaced (slow)",
+    )
     args = parser.parse_args()
     if args.scenario == "coverage":
         from interval_coverage import bench_coverage

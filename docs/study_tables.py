@@ -19,9 +19,9 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
-from workbench.settings.config import compose
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.collect import collect_and_write
+from workbench.settings.config import compose
 
 PAGE = Path(__file__).with_name("studies.md")
 BLOCK = re.compile(r"(<!-- collected: (\S+)((?: \w+=\S+)*) -->\n).*?(<!-- end collected: \2 -->)", re.DOTALL)
@@ -56,11 +56,13 @@ def block(study: str, root: Path, metric: str | None = None) -> str:
         runs = pd.read_parquet(Path(scratch) / "runs.parquet").drop_duplicates("run")
     seconds = runs["time_total"].sum() if "time_total" in runs.columns else float("nan")
     findings = "".join(f"- {line}\n" for line in written["findings"])
-    return (f"`.venv/bin/workbench --config-name {study}{sweep_overrides(sweep)}`, then `.venv/bin/workbench collect "
-            f"outputs/{study}/default {collect_options(layout)}`: {written['n_runs']} runs "
-            f"({seconds:,.0f} s of run time, the sum of the runs' own).\n\n{written['markdown']}\n"
-            f"<details><summary>Findings ({len(written['findings'])}, generated from the alpha table and the paired "
-            f"comparisons)</summary>\n\n{findings}\n</details>\n")
+    return (
+        f"`.venv/bin/workbench --config-name {study}{sweep_overrides(sweep)}`, then `.venv/bin/workbench collect "
+        f"outputs/{study}/default {collect_options(layout)}`: {written['n_runs']} runs "
+        f"({seconds:,.0f} s of run time, the sum of the runs' own).\n\n{written['markdown']}\n"
+        f"<details><summary>Findings ({len(written['findings'])}, generated from the alpha table and the paired "
+        f"comparisons)</summary>\n\n{findings}\n</details>\n"
+    )
 
 
 def main(argv: list[str]) -> int:

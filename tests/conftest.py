@@ -18,12 +18,17 @@ def shared_data_root() -> Path:
 def shared_data() -> Path:
     """The shared face data folder; skipped when absent, failed when ``WORKBENCH_REQUIRE_DATA=1`` (as CI sets)."""
     root = shared_data_root()
-    expected = ("ict-facekit/FaceXModel/generic_neutral_mesh.obj", "livelinkface/alex_rom_3.csv",
-                "animface/animface_jaw.c3d")
+    expected = (
+        "ict-facekit/FaceXModel/generic_neutral_mesh.obj",
+        "livelinkface/alex_rom_3.csv",
+        "animface/animface_jaw.c3d",
+    )
     missing = [name for name in expected if not (root / name).is_file()]
     if missing:
-        reason = (f"shared face data not found at {root} (missing {', '.join(missing)}); set WORKBENCH_DATA_ROOT "
-                  "to the folder holding ict-facekit/, livelinkface/ and animface/")
+        reason = (
+            f"shared face data not found at {root} (missing {', '.join(missing)}); set WORKBENCH_DATA_ROOT "
+            "to the folder holding ict-facekit/, livelinkface/ and animface/"
+        )
         if os.environ.get("WORKBENCH_REQUIRE_DATA") == "1":
             pytest.fail(reason + " -- required because WORKBENCH_REQUIRE_DATA=1", pytrace=False)
         pytest.skip(reason)
@@ -36,8 +41,9 @@ def chromium() -> str:
     after installing Debian's ``chromium``)."""
     import shutil
 
-    found = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome")
-                  if shutil.which(name)), None)
+    found = next(
+        (shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome") if shutil.which(name)), None
+    )
     if found is None:
         reason = "headless Chromium not found (install Debian's 'chromium' to check the report pages in a browser)"
         if os.environ.get("WORKBENCH_REQUIRE_BROWSER") == "1":
@@ -88,17 +94,34 @@ def mlflow_server(tmp_path_factory):
     url = f"http://127.0.0.1:{port}"
     with open(folder / "server.log", "wb") as server_log:
         server = subprocess.Popen(
-            [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{folder / 'mlflow.db'}",
-             "--artifacts-destination", str(folder / "artifacts"), "--host", "127.0.0.1", "--port", str(port),
-             "--workers", "1"],
-            env=dict(os.environ, MLFLOW_SERVER_ENABLE_JOB_EXECUTION="false"), stdout=server_log,
-            stderr=subprocess.STDOUT, start_new_session=True)
+            [
+                sys.executable,
+                "-m",
+                "mlflow",
+                "server",
+                "--backend-store-uri",
+                f"sqlite:///{folder / 'mlflow.db'}",
+                "--artifacts-destination",
+                str(folder / "artifacts"),
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--workers",
+                "1",
+            ],
+            env=dict(os.environ, MLFLOW_SERVER_ENABLE_JOB_EXECUTION="false"),
+            stdout=server_log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
     try:
         deadline = time.monotonic() + 300
         while not healthy(url):
             if server.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"mlflow server did not start: {(folder / 'server.log').read_text()[-2000:]}",
-                            pytrace=False)
+                pytest.fail(
+                    f"mlflow server did not start: {(folder / 'server.log').read_text()[-2000:]}", pytrace=False
+                )
             time.sleep(0.5)
         yield url
     finally:
@@ -122,8 +145,12 @@ def slurm_cluster() -> Path:
         require_or_skip("WORKBENCH_REQUIRE_CLUSTER", f"no test SLURM cluster (SLURM_CONF={conf}): {how}")
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher", reason="the cluster extra is not installed")
     try:
-        state = subprocess.run(["sinfo", "--noheader", "--partition", "debug", "--format", "%T"],
-                               capture_output=True, text=True, timeout=30).stdout.strip()
+        state = subprocess.run(
+            ["sinfo", "--noheader", "--partition", "debug", "--format", "%T"],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError) as error:
         state = f"sinfo failed: {error}"
     if state not in ("idle", "mixed", "allocated"):

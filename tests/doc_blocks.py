@@ -43,10 +43,10 @@ NOT_RUN = {
     r"\bmlflow (?:ui|server)\b": "a server that runs until it is stopped",
     r"<partition>": "needs a SLURM cluster's partition",
     r"slurm-cluster|hydra/launcher=slurm": "needs the one-machine SLURM cluster (started as root): "
-                                           "tests/test_cluster.py runs these steps in CI (.ci/run)",
+    "tests/test_cluster.py runs these steps in CI (.ci/run)",
     r"mylab|~/quasi-eigen-workbench": "a lab's own cluster, configs and MLflow server",
     r"(?<!-)\bpip install (?!-e)": "installs into an environment: CI builds, installs and runs the wheel and the "
-                                   "sdist (.ci/run)",
+    "sdist (.ci/run)",
 }
 """Commands (matched by a pattern) the doc test does not run, with the reason it says."""
 
@@ -59,13 +59,21 @@ def apt_get(match: re.Match) -> str:
 REWRITES = [
     # the virtual environment and its packages are the ones running the test: check, never install
     (re.compile(r"python3 -m venv \.venv"), lambda match: "true"),
-    (re.compile(r"(?:\.venv/bin/)?pip install -e (?:'\.\[([\w,]+)\]'|\.(?=\s|$))"),
-     lambda match: f"doc_has_extras '{match.group(1) or ''}'"),
+    (
+        re.compile(r"(?:\.venv/bin/)?pip install -e (?:'\.\[([\w,]+)\]'|\.(?=\s|$))"),
+        lambda match: f"doc_has_extras '{match.group(1) or ''}'",
+    ),
     (re.compile(r"npm install [^#\n]*gltf-validator"), lambda match: "doc_has_tool gltf-validator"),
     (re.compile(r"apt-get install ([^#\n]*)"), apt_get),
     # tools outside Python: run where installed (required where WORKBENCH_REQUIRE_TOOLS=1), else the block is skipped
-    (re.compile(r"^(chromium|blender) ", re.MULTILINE), lambda match: f"doc_has_tool {match.group(1)} && "
-     + ("doc_short_tmp " if match.group(1) == "chromium" else "") + match.group(0)),
+    (
+        re.compile(r"^(chromium|blender) ", re.MULTILINE),
+        lambda match: (
+            f"doc_has_tool {match.group(1)} && "
+            + ("doc_short_tmp " if match.group(1) == "chromium" else "")
+            + match.group(0)
+        ),
+    ),
     # a placeholder: the newest run of the paper study
     (re.compile(r"outputs/paper/<date-time>"), lambda match: 'outputs/paper/"$(ls outputs/paper | tail -n 1)"'),
 ]
@@ -141,6 +149,7 @@ STATE = re.compile(r"^\s*(?:source|\.|eval|export|cd)\s")
 @dataclass(frozen=True)
 class Command:
     """One command of a documented shell block, as written (continuation lines and here-documents included)."""
+
     doc: str
     line: int
     block: int
@@ -228,6 +237,7 @@ def all_commands(root: Path = REPO_ROOT) -> dict[str, list[Command]]:
 
 # --- what a command writes and reads -------------------------------------------------------------------------
 
+
 def plain_path(token: str) -> str:
     return token.strip("'\"").removeprefix("$PWD/").rstrip("/")
 
@@ -242,7 +252,7 @@ def workbench_args(code: str) -> list[str] | None:
         for i, word in enumerate(words):
             if Path(word).name == "workbench" and not word.endswith(".py"):
                 if i == 0 or words[i - 1] == "-m" or "=" in words[i - 1]:
-                    return words[i + 1:]
+                    return words[i + 1 :]
     return None
 
 
@@ -256,9 +266,14 @@ def writes(command: Command) -> set[str]:
     made |= {plain_path(value) for value in re.findall(r"--out[ =](\S+)", code)}
     args = workbench_args(code)
     if args is not None and not made and not (args and args[0] in ("report", "collect", "mlflow", "export")):
-        study = next((args[i + 1] if arg in ("--config-name", "-cn") else arg.split("=", 1)[1]
-                      for i, arg in enumerate(args) if arg in ("--config-name", "-cn")
-                      or arg.startswith(("--config-name=", "-cn="))), None)
+        study = next(
+            (
+                args[i + 1] if arg in ("--config-name", "-cn") else arg.split("=", 1)[1]
+                for i, arg in enumerate(args)
+                if arg in ("--config-name", "-cn") or arg.startswith(("--config-name=", "-cn="))
+            ),
+            None,
+        )
         if study:
             made.add(f"outputs/{study}/default")
         elif "-m" in args or "--multirun" in args:
@@ -310,14 +325,15 @@ def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Comman
 
 # --- running --------------------------------------------------------------------------------------------------
 
+
 @dataclass
 class Outcome:
     command: Command
-    status: str                # "ok", "failed", "skipped", "long"
+    status: str  # "ok", "failed", "skipped", "long"
     seconds: float = 0.0
     cpu_seconds: float = 0.0
     peak_mb: float = 0.0
-    load: float = 0.0          # the machine's load average over the last minute, when the command ended
+    load: float = 0.0  # the machine's load average over the last minute, when the command ended
     note: str = ""
     prerequisite: bool = False
     output: str = field(default="", repr=False)
@@ -355,8 +371,15 @@ def run_measured(script: str, cwd: Path, env: dict, timeout: float) -> tuple[int
     resident memory in MB of the largest process it ran (from ``wait4``), and its output. The whole process group
     is killed at ``timeout``."""
     started = time.perf_counter()
-    process = subprocess.Popen(["bash", "-c", script], cwd=cwd, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    process = subprocess.Popen(
+        ["bash", "-c", script],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
     output: list[str] = []
     reader = threading.Thread(target=lambda: output.append(process.stdout.read()), daemon=True)
     reader.start()
@@ -368,8 +391,13 @@ def run_measured(script: str, cwd: Path, env: dict, timeout: float) -> tuple[int
         timer.cancel()
     reader.join()
     process.returncode = os.waitstatus_to_exitcode(status)
-    return (process.returncode, time.perf_counter() - started, usage.ru_utime + usage.ru_stime,
-            usage.ru_maxrss / 1024, "".join(output))
+    return (
+        process.returncode,
+        time.perf_counter() - started,
+        usage.ru_utime + usage.ru_stime,
+        usage.ru_maxrss / 1024,
+        "".join(output),
+    )
 
 
 class Scratch:
@@ -381,8 +409,13 @@ class Scratch:
         self.folder, self.root = folder, folder / "checkout"
         self.tmp = folder / "tmp"
         self.tmp.mkdir(parents=True)
-        listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=root,
-                                capture_output=True, text=True, check=True).stdout.split("\0")
+        listed = subprocess.run(
+            ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.split("\0")
         for name in filter(None, listed):
             if (root / name).is_file():
                 (self.root / name).parent.mkdir(parents=True, exist_ok=True)
@@ -400,14 +433,21 @@ class Scratch:
         subprocess.run([*git, "init", "-q"], check=True)
         subprocess.run([*git, "add", "-A"], check=True)
         self.git = git
-        self.env = {key: value for key, value in os.environ.items()
-                    if key not in ("WORKBENCH_DATA_ROOT", "VIRTUAL_ENV", "PYTHONPATH")}
+        self.env = {
+            key: value
+            for key, value in os.environ.items()
+            if key not in ("WORKBENCH_DATA_ROOT", "VIRTUAL_ENV", "PYTHONPATH")
+        }
         self.env.update(PYTHONPATH=str(self.root), TMPDIR=str(self.tmp))
 
     def changes(self) -> list[str]:
         """Files the commands added, changed or removed in the checkout (outside what git ignores)."""
-        status = subprocess.run([*self.git, "status", "--porcelain", "--untracked-files=all", "--", ".",
-                                 ":!.venv", ":!.ci/node"], capture_output=True, text=True, check=True).stdout
+        status = subprocess.run(
+            [*self.git, "status", "--porcelain", "--untracked-files=all", "--", ".", ":!.venv", ":!.ci/node"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
         return [line for line in status.splitlines() if not line.startswith("A  ")]
 
     def run(self, command: Command, text: str, state: list[str], timeout: float) -> Outcome:
@@ -427,8 +467,11 @@ def table_rows(root: Path = REPO_ROOT) -> dict[str, list[str]]:
     if not path.is_file() or TABLE_START not in path.read_text():
         return {}
     rows = path.read_text().split(TABLE_START)[1].split(TABLE_END)[0]
-    cells = [[cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
-             for line in rows.splitlines() if line.startswith("|")]
+    cells = [
+        [cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+        for line in rows.splitlines()
+        if line.startswith("|")
+    ]
     return {row[-1].strip("`"): row for row in cells}
 
 
@@ -437,8 +480,9 @@ def measured_times(root: Path = REPO_ROOT) -> dict[str, float]:
     return {key: float(row[3].removesuffix(" s")) for key, row in table_rows(root).items()}
 
 
-def run_document(doc: str, scratch: Scratch, *, measure: bool = False, timeout: float = 900.0,
-                 report=print) -> list[Outcome]:
+def run_document(
+    doc: str, scratch: Scratch, *, measure: bool = False, timeout: float = 900.0, report=print
+) -> list[Outcome]:
     """Run a document's commands (after their prerequisites from other documents) in ``scratch``. Without
     ``measure``, commands measured at a minute or more are not run (a small preset stands in for a long study whose
     folder a later command reads); with it, everything runs."""
@@ -457,7 +501,7 @@ def run_document(doc: str, scratch: Scratch, *, measure: bool = False, timeout: 
     for index, (command, prerequisite) in enumerate(planned):
         block = (command.doc, command.block)
         lines = state.setdefault(block, [])
-        later_reads = {path for other, _ in planned[index + 1:] for path in reads(other)}
+        later_reads = {path for other, _ in planned[index + 1 :] for path in reads(other)}
         needed = prerequisite or any(covers(made, path) for made in writes(command) for path in later_reads)
         why = not_run_reason(command)
         # a long command runs only where a later one reads what it makes: a study as its small preset
@@ -468,8 +512,12 @@ def run_document(doc: str, scratch: Scratch, *, measure: bool = False, timeout: 
         elif long and not needed:
             outcome = Outcome(command, "long", note=f"{slowest[command.code]:.0f} CPU s measured")
         elif instead is not None:
-            outcome = scratch.run(command, runnable(Command(command.doc, command.line, command.block, instead),
-                                                    scratch.tmp), lines, timeout)
+            outcome = scratch.run(
+                command,
+                runnable(Command(command.doc, command.line, command.block, instead), scratch.tmp),
+                lines,
+                timeout,
+            )
             outcome.note = f"{slowest[command.code]:.0f} CPU s measured; ran {instead}"
         else:
             outcome = scratch.run(command, runnable(command, scratch.tmp), lines, timeout)
@@ -479,9 +527,11 @@ def run_document(doc: str, scratch: Scratch, *, measure: bool = False, timeout: 
         if STATE.match(command.code) and outcome.status == "ok":
             lines.append(runnable(command, scratch.tmp))
         outcomes.append(outcome)
-        report(f"{outcome.status:8s} {outcome.seconds:7.1f} s {outcome.cpu_seconds:7.1f} s CPU {outcome.peak_mb:7.0f} MB"
-               f" load {outcome.load:4.1f}  {command.doc}:{command.line}"
-               f"{' (prerequisite)' if prerequisite else ''}  {command.summary}  {outcome.note}")
+        report(
+            f"{outcome.status:8s} {outcome.seconds:7.1f} s {outcome.cpu_seconds:7.1f} s CPU {outcome.peak_mb:7.0f} MB"
+            f" load {outcome.load:4.1f}  {command.doc}:{command.line}"
+            f"{' (prerequisite)' if prerequisite else ''}  {command.summary}  {outcome.note}"
+        )
         if outcome.status == "failed" and not measure:
             break
     return outcomes
@@ -507,11 +557,14 @@ def write_times(outcomes: list[Outcome], root: Path = REPO_ROOT) -> None:
         command = outcome.command
         long = "long: not run" if outcome.cpu_seconds >= LONG_SECONDS else "run"
         shown = command.summary.replace("|", "\\|")
-        rows[command.key] = (f"| {command.doc}:{command.line} | `{shown}` | {outcome.seconds:.0f} s | "
-                             f"{outcome.cpu_seconds:.0f} s | {outcome.peak_mb / 1024:.1f} GB | {long} | {date}, "
-                             f"load {outcome.load:.1f} | `{command.key}` |")
-    places = {command.key: f"{command.doc}:{command.line}" for listed in all_commands(root).values()
-              for command in listed}
+        rows[command.key] = (
+            f"| {command.doc}:{command.line} | `{shown}` | {outcome.seconds:.0f} s | "
+            f"{outcome.cpu_seconds:.0f} s | {outcome.peak_mb / 1024:.1f} GB | {long} | {date}, "
+            f"load {outcome.load:.1f} | `{command.key}` |"
+        )
+    places = {
+        command.key: f"{command.doc}:{command.line}" for listed in all_commands(root).values() for command in listed
+    }
     kept = [re.sub(r"^\| [^|]+ \|", f"| {place} |", rows[key], count=1) for key, place in places.items() if key in rows]
     path.write_text(head + TABLE_START + "\n" + "".join(row + "\n" for row in kept) + TABLE_END + tail)
 
@@ -526,13 +579,15 @@ def main(argv: list[str]) -> int:
     outcomes = []
     for doc in docs:
         with tempfile.TemporaryDirectory(prefix="doc-measure-") as folder:
-            outcomes += run_document(doc, Scratch(Path(folder)), measure=True, timeout=4 * 3600,
-                                     report=lambda line: print(line, flush=True))
+            outcomes += run_document(
+                doc, Scratch(Path(folder)), measure=True, timeout=4 * 3600, report=lambda line: print(line, flush=True)
+            )
         write_times(outcomes)
     failed = [outcome for outcome in outcomes if outcome.status == "failed"]
     for outcome in failed:
-        print(f"FAILED {outcome.command.doc}:{outcome.command.line}: {outcome.command.summary}\n"
-              f"{outcome.output[-3000:]}")
+        print(
+            f"FAILED {outcome.command.doc}:{outcome.command.line}: {outcome.command.summary}\n{outcome.output[-3000:]}"
+        )
     return 1 if failed else 0
 
 

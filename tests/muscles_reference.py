@@ -8,8 +8,16 @@ in place and evaluates its weights only on the frame-points inside its zone with
 
 import numpy as np
 
-from workbench.dataset.synthetic.muscles import (_JAW_COLUMN, _JAW_PIVOT, _SPHINCTER_CENTRE, _SPHINCTER_COLUMN,
-                                                 JAW, LINEAR_MUSCLES, ORBICULARIS_ORIS, SATURATION)
+from workbench.dataset.synthetic.muscles import (
+    _JAW_COLUMN,
+    _JAW_PIVOT,
+    _SPHINCTER_CENTRE,
+    _SPHINCTER_COLUMN,
+    JAW,
+    LINEAR_MUSCLES,
+    ORBICULARIS_ORIS,
+    SATURATION,
+)
 
 
 def deform_reference(points: np.ndarray, activations: np.ndarray) -> np.ndarray:
@@ -57,8 +65,7 @@ def rotation_about_x_displacement(offsets: np.ndarray, angle: np.ndarray) -> np.
     """``R(angle) r - r`` for rotations about +x; offsets (..., 3), angle broadcastable to offsets[..., 0]."""
     sin_a, one_minus_cos = np.sin(angle), 1.0 - np.cos(angle)
     y, z = offsets[..., 1], offsets[..., 2]
-    return np.stack([np.zeros_like(y * sin_a), -sin_a * z - one_minus_cos * y, sin_a * y - one_minus_cos * z],
-                    axis=-1)
+    return np.stack([np.zeros_like(y * sin_a), -sin_a * z - one_minus_cos * y, sin_a * y - one_minus_cos * z], axis=-1)
 
 
 def turn_with_jaw(positions: np.ndarray, jaw_angle: np.ndarray) -> None:
@@ -90,8 +97,12 @@ def pull_linear_muscle(positions: np.ndarray, muscle, activation: np.ndarray, ja
     squared_distance = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]
     along_axis = offset[0] * axis[:, None, 0] + offset[1] * axis[:, None, 1] + offset[2] * axis[:, None, 2]
     cos_cone = np.cos(np.deg2rad(spec.cone_half_angle_deg))
-    inside = ((along_axis > 0.0) & (along_axis * along_axis > cos_cone * cos_cone * squared_distance)
-              & (squared_distance < zone_end * zone_end) & (activation[:, None] > 0.0))
+    inside = (
+        (along_axis > 0.0)
+        & (along_axis * along_axis > cos_cone * cos_cone * squared_distance)
+        & (squared_distance < zone_end * zone_end)
+        & (activation[:, None] > 0.0)
+    )
     frame_index = np.nonzero(inside)[0]
 
     distance = np.sqrt(squared_distance[inside])

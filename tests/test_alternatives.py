@@ -4,9 +4,18 @@ hand-computed cases."""
 import numpy as np
 import pytest
 
-from workbench.numerics.alternatives import (SurfaceDistance, fitted_hand_basis, ica_basis, leading_svd, nmf_basis,
-                                    sparse_pca_basis, splocs_basis, support_map, unit_activation)
 from workbench.core.errors import WorkbenchError
+from workbench.numerics.alternatives import (
+    SurfaceDistance,
+    fitted_hand_basis,
+    ica_basis,
+    leading_svd,
+    nmf_basis,
+    sparse_pca_basis,
+    splocs_basis,
+    support_map,
+    unit_activation,
+)
 from workbench.numerics.intuitiveness import locality, matched_closeness, point_areas, usage
 
 
@@ -21,11 +30,12 @@ def block_shapes(rng, n_shapes, n_points, width):
     """Shapes each moving its own block of ``width`` points (disjoint supports), random signed directions."""
     shapes = np.zeros((n_shapes, n_points, 3))
     for k in range(n_shapes):
-        shapes[k, k * width:(k + 1) * width] = rng.normal(size=(width, 3))
+        shapes[k, k * width : (k + 1) * width] = rng.normal(size=(width, 3))
     return shapes.reshape(n_shapes, -1)
 
 
 # --- known answers ------------------------------------------------------------------------------------------
+
 
 def test_sparse_pca_recovers_planted_sparse_components():
     rng = np.random.default_rng(0)
@@ -36,7 +46,7 @@ def test_sparse_pca_recovers_planted_sparse_components():
     assert np.all(best_abs_cosines(found, planted) > 0.99)
     # off their planted blocks the found shapes are (almost) exactly zero
     element, _, _ = matched_closeness(found, planted)
-    outside = (planted == 0)
+    outside = planted == 0
     assert np.all(np.abs(found[element][outside]) < 1e-6 * np.abs(found).max())
     # plain PCA of the same data mixes the blocks: the test can fail
     _, _, vt = leading_svd(frames, 4)
@@ -46,8 +56,9 @@ def test_sparse_pca_recovers_planted_sparse_components():
 def test_ica_recovers_planted_independent_sources():
     rng = np.random.default_rng(1)
     planted = rng.normal(size=(4, 60)) + 1.5 * rng.normal(size=60)  # dense shapes sharing a common part
-    sources = np.column_stack([rng.laplace(size=2000), rng.uniform(-1, 1, 2000),
-                               rng.laplace(size=2000) ** 3, np.sign(rng.normal(size=2000))])
+    sources = np.column_stack(
+        [rng.laplace(size=2000), rng.uniform(-1, 1, 2000), rng.laplace(size=2000) ** 3, np.sign(rng.normal(size=2000))]
+    )
     sources /= sources.std(axis=0)
     found = ica_basis(sources @ planted, n_components=4, seed=0)
     assert np.all(best_abs_cosines(found, planted) > 0.99)
@@ -84,7 +95,7 @@ def test_splocs_recovers_planted_local_components(on_mesh):
     centres = points[[15, 95, 180]]  # near three corners and the middle of the grid
     planted = []
     for centre, direction in zip(centres, ([0, 0, 1.0], [1.0, 0, 0.5], [0, -1.0, 0])):
-        bump = np.exp(-np.sum((points - centre) ** 2, axis=1) / (2 * 12.0 ** 2))
+        bump = np.exp(-np.sum((points - centre) ** 2, axis=1) / (2 * 12.0**2))
         planted.append((bump[:, None] * direction).reshape(-1))
     planted = np.array(planted)
     weights = rng.uniform(size=(300, 3)) * (rng.uniform(size=(300, 3)) < 0.6)
@@ -118,8 +129,9 @@ def test_fitted_hand_basis_recovers_a_basis_that_generated_the_data():
     # hand shapes sculpted with an error off the frames' span: the refit removes it to second order
     off = rng.normal(size=(6, 90))
     off -= off @ np.linalg.pinv(generating) @ generating  # orthogonal to the span of the generating shapes
-    hand = generating + 1e-3 * off / np.linalg.norm(off, axis=1, keepdims=True) * np.linalg.norm(generating, axis=1,
-                                                                                                 keepdims=True)
+    hand = generating + 1e-3 * off / np.linalg.norm(off, axis=1, keepdims=True) * np.linalg.norm(
+        generating, axis=1, keepdims=True
+    )
     refit = fitted_hand_basis(frames, hand, n_iterations=3)
     before = np.linalg.norm(hand - generating) / np.linalg.norm(generating)
     after = np.linalg.norm(refit - generating) / np.linalg.norm(generating)
@@ -151,6 +163,7 @@ def test_alternatives_are_deterministic_and_check_their_input():
 
 
 # --- intuitiveness measures, hand-computed ------------------------------------------------------------------
+
 
 def test_matched_closeness_is_the_optimal_one_to_one_matching():
     hand = np.eye(3)[:2]  # h0 = e0, h1 = e1
@@ -190,8 +203,12 @@ def test_locality_hand_computed():
 
 def test_usage_hand_computed():
     basis = np.diag([1.0, 0.1, 10.0])
-    weights = np.array([[1.0, 0.5, 0.05],     # contributions 1, 0.05, 0.5: two above 0.1 x 1
-                        [0.0, 0.0, 0.0],      # nothing moves: no element used
-                        [0.2, -30.0, 0.02]])  # contributions 0.2, 3, 0.2: only the second above 0.3
+    weights = np.array(
+        [
+            [1.0, 0.5, 0.05],  # contributions 1, 0.05, 0.5: two above 0.1 x 1
+            [0.0, 0.0, 0.0],  # nothing moves: no element used
+            [0.2, -30.0, 0.02],
+        ]
+    )  # contributions 0.2, 3, 0.2: only the second above 0.3
     assert usage(weights, basis).tolist() == [2, 0, 1]
     assert usage(weights, basis, threshold=0.0).tolist() == [3, 0, 3]

@@ -9,11 +9,19 @@ import pytest
 
 import workbench
 from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
-from workbench.settings.config import REPO_ROOT
 from workbench.numerics.metrics import alpha_per_frame
+from workbench.settings.config import REPO_ROOT
 
-PARAMETERS = {"coverage": 0.995, "n_components": None, "through": "mean", "solver": "lstsq", "bounds": (0.0, 1.0),
-              "empty_axis_eps": 0.05, "empty_axis_scale": "axis_std", "append_empty_axes": False}
+PARAMETERS = {
+    "coverage": 0.995,
+    "n_components": None,
+    "through": "mean",
+    "solver": "lstsq",
+    "bounds": (0.0, 1.0),
+    "empty_axis_eps": 0.05,
+    "empty_axis_scale": "axis_std",
+    "append_empty_axes": False,
+}
 
 
 def low_rank(variances=(9.0, 4.0, 1.0), n_frames=40, n_dims=12, seed=0):
@@ -38,16 +46,27 @@ def fitted():
 
 # --- manners ------------------------------------------------------------------------------------------------------
 
+
 def test_parameters_are_keyword_only_and_stored_untouched():
     assert QuasiEigenFaces().get_params() == PARAMETERS
-    odd = {"coverage": 7, "n_components": "many", "through": "sideways", "solver": "qp", "bounds": [1, 0],
-           "empty_axis_eps": -1.0, "empty_axis_scale": None, "append_empty_axes": "yes"}
+    odd = {
+        "coverage": 7,
+        "n_components": "many",
+        "through": "sideways",
+        "solver": "qp",
+        "bounds": [1, 0],
+        "empty_axis_eps": -1.0,
+        "empty_axis_scale": None,
+        "append_empty_axes": "yes",
+    }
     estimator = QuasiEigenFaces(**odd)  # checked by fit, not by __init__
     assert vars(estimator) == odd and estimator.get_params() == odd
     with pytest.raises(TypeError):
         QuasiEigenFaces(0.9)
-    assert repr(QuasiEigenFaces(n_components=18, through="neutral")) == \
-        "QuasiEigenFaces(n_components=18, through='neutral')"
+    assert (
+        repr(QuasiEigenFaces(n_components=18, through="neutral"))
+        == "QuasiEigenFaces(n_components=18, through='neutral')"
+    )
     assert QuasiEigenFaces().set_params(solver="nnls").solver == "nnls"
     with pytest.raises(WorkbenchError, match="no parameter 'alpha'"):
         QuasiEigenFaces().set_params(alpha=1)
@@ -58,15 +77,30 @@ def test_fit_returns_self_and_fitted_attributes_end_with_an_underscore(fitted):
     assert estimator.fit(frames, estimator.hand_shapes_) is estimator
     fitted_names = set(vars(estimator)) - set(PARAMETERS)
     assert fitted_names and all(name.endswith("_") and not name.startswith("_") for name in fitted_names)
-    assert {"mean_", "eigenfaces_", "explained_variance_ratio_", "m_", "shapes_", "pca_to_qe_weights_",
-            "empty_axes_", "n_features_in_", "hand_shapes_", "neutral_"} <= fitted_names
+    assert {
+        "mean_",
+        "eigenfaces_",
+        "explained_variance_ratio_",
+        "m_",
+        "shapes_",
+        "pca_to_qe_weights_",
+        "empty_axes_",
+        "n_features_in_",
+        "hand_shapes_",
+        "neutral_",
+    } <= fitted_names
     assert estimator.get_params() == dict(PARAMETERS, n_components=3)
 
 
-@pytest.mark.parametrize("use", [
-    lambda e, x: e.transform(x), lambda e, x: e.inverse_transform(np.ones((1, 4))), lambda e, x: e.alpha(x),
-    lambda e, x: e.alpha_summary(x, basis="PCA"),
-])
+@pytest.mark.parametrize(
+    "use",
+    [
+        lambda e, x: e.transform(x),
+        lambda e, x: e.inverse_transform(np.ones((1, 4))),
+        lambda e, x: e.alpha(x),
+        lambda e, x: e.alpha_summary(x, basis="PCA"),
+    ],
+)
 def test_a_clear_error_before_fit(use):
     frames, _, _ = low_rank()
     with pytest.raises(NotFittedError, match=r"QuasiEigenFaces instance is not fitted yet: call fit\(frames, "):
@@ -87,6 +121,7 @@ def test_eigenface_signs_are_deterministic():
 
 # --- known answers ------------------------------------------------------------------------------------------------
 
+
 def test_low_rank_frames_give_their_known_principal_components():
     frames, mean, directions = low_rank(variances=(9.0, 4.0, 1.0))
     hand = np.random.default_rng(4).standard_normal((3, frames.shape[1]))
@@ -98,8 +133,9 @@ def test_low_rank_frames_give_their_known_principal_components():
     np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14, 1 / 14], rtol=1e-12)
     np.testing.assert_allclose(np.abs(estimator.eigenfaces_ @ directions[:2].T), np.eye(2), rtol=0, atol=1e-12)
     every = QuasiEigenFaces(n_components=3).fit(frames, hand)
-    np.testing.assert_allclose(every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames,
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames, rtol=0, atol=1e-12
+    )
 
 
 @pytest.mark.parametrize("through", ["mean", "neutral"])
@@ -132,8 +168,9 @@ def test_alpha_of_a_frame_with_a_known_residual():
     estimator = QuasiEigenFaces(n_components=2).fit(frames, hand, neutral=neutral)
     expected_disp = 100 * np.linalg.norm(residual) / np.linalg.norm(frame)
     expected_abs = 100 * np.linalg.norm(residual) / np.linalg.norm(neutral + frame)
-    assert estimator.alpha(frame[None], basis="H", normalisation="displacement") == pytest.approx(expected_disp,
-                                                                                                  rel=1e-12)
+    assert estimator.alpha(frame[None], basis="H", normalisation="displacement") == pytest.approx(
+        expected_disp, rel=1e-12
+    )
     assert estimator.alpha(frame[None], basis="H") == pytest.approx(expected_abs, rel=1e-12)
     np.testing.assert_allclose(estimator.transform(frame[None], basis="H"), [[2.0, 0.0]], rtol=0, atol=1e-12)
 
@@ -148,26 +185,33 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
     reconstruction = estimator.inverse_transform(nnls)
     np.testing.assert_allclose(
         estimator.alpha(frames, solver="nnls", aggregate="per_frame"),
-        alpha_per_frame(estimator.neutral_ + frames, estimator.neutral_ + reconstruction), rtol=1e-9)
+        alpha_per_frame(estimator.neutral_ + frames, estimator.neutral_ + reconstruction),
+        rtol=1e-9,
+    )
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda e, x, h: e.fit(x[0], h), "frames must be a 2-D array"),
-    (lambda e, x, h: e.fit(x[:, :-1], h[:, :-1]), "frames must have 3 \\* n_points columns"),
-    (lambda e, x, h: e.fit(x, h[:, :-3]), "hand_shapes must have 12 columns"),
-    (lambda e, x, h: e.fit(x, h, neutral=np.zeros(5)), r"neutral must have shape \(12,\)"),
-    (lambda e, x, h: e.fit(x, h, names=["a"]), "names must be a sequence of one name per hand shape"),
-    (lambda e, x, h: e.set_params(through="origin").fit(x, h), "through must be one of 'mean', 'neutral'"),
-    (lambda e, x, h: e.set_params(solver="qp").fit(x, h), "solver must be one of 'lstsq', 'nnls', 'box'"),
-    (lambda e, x, h: e.set_params(coverage=1.5).fit(x, h), r"coverage must be in \(0, 1\], got 1.5"),
-    (lambda e, x, h: e.set_params(n_components=0).fit(x, h), "n_components must be a positive integer"),
-    (lambda e, x, h: e.fit(x, h).transform(x[:, :6]), "frames must have 12 columns"),
-    (lambda e, x, h: e.fit(x, h).transform(x, basis="ICA"), "basis must be one of 'QE', 'H', 'PCA'"),
-    (lambda e, x, h: e.fit(x, h).alpha(x), "normalisation='absolute' needs the neutral positions"),
-    (lambda e, x, h: e.fit(x, h).alpha(x, normalisation="disp"), "normalisation must be one of"),
-    (lambda e, x, h: e.fit(x, h).alpha(x, basis="PCA", solver="nnls", normalisation="displacement"),
-     "solver must be None for basis 'PCA'"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda e, x, h: e.fit(x[0], h), "frames must be a 2-D array"),
+        (lambda e, x, h: e.fit(x[:, :-1], h[:, :-1]), "frames must have 3 \\* n_points columns"),
+        (lambda e, x, h: e.fit(x, h[:, :-3]), "hand_shapes must have 12 columns"),
+        (lambda e, x, h: e.fit(x, h, neutral=np.zeros(5)), r"neutral must have shape \(12,\)"),
+        (lambda e, x, h: e.fit(x, h, names=["a"]), "names must be a sequence of one name per hand shape"),
+        (lambda e, x, h: e.set_params(through="origin").fit(x, h), "through must be one of 'mean', 'neutral'"),
+        (lambda e, x, h: e.set_params(solver="qp").fit(x, h), "solver must be one of 'lstsq', 'nnls', 'box'"),
+        (lambda e, x, h: e.set_params(coverage=1.5).fit(x, h), r"coverage must be in \(0, 1\], got 1.5"),
+        (lambda e, x, h: e.set_params(n_components=0).fit(x, h), "n_components must be a positive integer"),
+        (lambda e, x, h: e.fit(x, h).transform(x[:, :6]), "frames must have 12 columns"),
+        (lambda e, x, h: e.fit(x, h).transform(x, basis="ICA"), "basis must be one of 'QE', 'H', 'PCA'"),
+        (lambda e, x, h: e.fit(x, h).alpha(x), "normalisation='absolute' needs the neutral positions"),
+        (lambda e, x, h: e.fit(x, h).alpha(x, normalisation="disp"), "normalisation must be one of"),
+        (
+            lambda e, x, h: e.fit(x, h).alpha(x, basis="PCA", solver="nnls", normalisation="displacement"),
+            "solver must be None for basis 'PCA'",
+        ),
+    ],
+)
 def test_bad_input_is_refused_naming_the_argument_and_the_rule(call, message):
     frames, _, _ = low_rank()
     hand = np.random.default_rng(7).standard_normal((3, 12))
@@ -177,25 +221,50 @@ def test_bad_input_is_refused_naming_the_argument_and_the_rule(call, message):
 
 # --- the package's namespace --------------------------------------------------------------------------------------
 
+
 def test_the_public_names_are_listed_and_load_lazily():
-    expected = {"QuasiEigenFaces", "read_c3d", "read_livelink", "read_obj", "read_gltf", "read_mesh_sequence",
-                "read_blendshapes", "build_captures", "compose_config", "run_study", "record_study", "read_record"}
+    expected = {
+        "QuasiEigenFaces",
+        "read_c3d",
+        "read_livelink",
+        "read_obj",
+        "read_gltf",
+        "read_mesh_sequence",
+        "read_blendshapes",
+        "build_captures",
+        "compose_config",
+        "run_study",
+        "record_study",
+        "read_record",
+    }
     assert expected <= set(workbench.__all__) <= set(dir(workbench))
     assert all(callable(getattr(workbench, name)) for name in workbench.__all__)
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         workbench.nothing  # noqa: B018
-    code = ("import sys, workbench, workbench.cli.main; dir(workbench); "
-            "heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); assert not heavy, heavy; "
-            "workbench.QuasiEigenFaces; assert 'numpy' in sys.modules")
-    result = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)), timeout=120)
+    code = (
+        "import sys, workbench, workbench.cli.main; dir(workbench); "
+        "heavy = {'numpy', 'pandas', 'hydra', 'omegaconf'} & set(sys.modules); assert not heavy, heavy; "
+        "workbench.QuasiEigenFaces; assert 'numpy' in sys.modules"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+        timeout=120,
+    )
     assert result.returncode == 0, result.stderr
 
 
 # --- the same alpha as the command line's run ---------------------------------------------------------------------
 
-COLUMNS = {"alpha_abs_mean": ("absolute", "mean"), "alpha_abs_pooled": ("absolute", "pooled"),
-           "alpha_disp_mean": ("displacement", "mean"), "alpha_disp_pooled": ("displacement", "pooled")}
+COLUMNS = {
+    "alpha_abs_mean": ("absolute", "mean"),
+    "alpha_abs_pooled": ("absolute", "pooled"),
+    "alpha_disp_mean": ("displacement", "mean"),
+    "alpha_disp_pooled": ("displacement", "pooled"),
+}
 
 
 def check_estimator_against_record(record, captures):
@@ -205,22 +274,31 @@ def check_estimator_against_record(record, captures):
 
     checked = 0
     variants = [(data, capture, None) for data, capture in captures.items()]
-    variants += [(paper_regime_name(data), capture, len(capture.hand)) for data, capture in captures.items()
-                 if paper_regime_name(data) in record.metrics["data"]]  # the paper's regime: m = n
+    variants += [
+        (paper_regime_name(data), capture, len(capture.hand))
+        for data, capture in captures.items()
+        if paper_regime_name(data) in record.metrics["data"]
+    ]  # the paper's regime: m = n
     for data, capture, n_components in variants:
         rows = [row for row in record.metrics["rows"] if row["data"] == data]
         for through, label in (("mean", "QE"), ("neutral", "QE-linear")):
             estimator = QuasiEigenFaces(through=through, n_components=n_components).fit(
-                capture.train, capture.hand, neutral=capture.neutral, names=capture.hand_names)
+                capture.train, capture.hand, neutral=capture.neutral, names=capture.hand_names
+            )
             for row in (row for row in rows if row["basis"] in (label, "H", "PCA")):
                 basis = "QE" if row["basis"] == label else row["basis"]
                 solver = None if basis == "PCA" else row["solver"]
                 assert estimator.m_ == row["m"] and (basis != "QE" or len(estimator.shapes_) == row["n"])
                 for column, (normalisation, aggregate) in COLUMNS.items():
-                    alpha = estimator.alpha(capture.eval, solver=solver, basis=basis, normalisation=normalisation,
-                                            aggregate=aggregate)
-                    assert alpha == pytest.approx(row[column], rel=0, abs=1e-12), (data, row["basis"], row["solver"],
-                                                                                   column)
+                    alpha = estimator.alpha(
+                        capture.eval, solver=solver, basis=basis, normalisation=normalisation, aggregate=aggregate
+                    )
+                    assert alpha == pytest.approx(row[column], rel=0, abs=1e-12), (
+                        data,
+                        row["basis"],
+                        row["solver"],
+                        column,
+                    )
                     checked += 1
     return checked
 
@@ -239,8 +317,11 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
     estimator = QuasiEigenFaces(solver="nnls").fit(capture.train, capture.hand, neutral=capture.neutral)
-    row = next(row for row in record.metrics["rows"]
-               if row["data"] == "markers" and row["basis"] == "QE" and row["solver"] == "nnls")
+    row = next(
+        row
+        for row in record.metrics["rows"]
+        if row["data"] == "markers" and row["basis"] == "QE" and row["solver"] == "nnls"
+    )
     assert estimator.alpha(capture.eval) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-12)
     # and from the weights, reconstructed explicitly
     reconstruction = estimator.inverse_transform(estimator.transform(capture.eval))
@@ -254,8 +335,12 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
 
 
 def test_the_estimator_gives_the_alpha_of_a_run_on_a_real_take(shared_data, tmp_path):
-    overrides = ["dataset=animface", "dataset.train_on=markers", "dataset.frame_step=20",
-                 f"paths.data_root={shared_data}"]
+    overrides = [
+        "dataset=animface",
+        "dataset.train_on=markers",
+        "dataset.frame_step=20",
+        f"paths.data_root={shared_data}",
+    ]
     config = workbench.compose_config("paper", overrides)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.metrics["dataset"]["provenance"]["kind"] == "animface"

@@ -3,9 +3,17 @@
 import numpy as np
 import pytest
 
-from workbench.numerics.bases import (Eigenfaces, build_quasi_eigen_basis, covariance_eigen, empty_axes, flip_signs,
-                             n_components_for_coverage, pca_to_qe_weights, quasi_eigen_faces)
 from workbench.core.errors import WorkbenchError
+from workbench.numerics.bases import (
+    Eigenfaces,
+    build_quasi_eigen_basis,
+    covariance_eigen,
+    empty_axes,
+    flip_signs,
+    n_components_for_coverage,
+    pca_to_qe_weights,
+    quasi_eigen_faces,
+)
 
 
 def low_rank_capture(n_frames, n_dims, stds, seed=0):
@@ -113,8 +121,7 @@ def test_hand_shape_on_hyperplane_comes_back_unchanged(fitted, projection):
     if projection == "affine":
         on_plane = on_plane + mean
     weights = pca_to_qe_weights(on_plane, pca.components_, pca.mean_, projection)
-    np.testing.assert_allclose(quasi_eigen_faces(weights, pca.components_, pca.mean_, projection), on_plane,
-                               atol=1e-9)
+    np.testing.assert_allclose(quasi_eigen_faces(weights, pca.components_, pca.mean_, projection), on_plane, atol=1e-9)
 
 
 @pytest.mark.parametrize("projection", ["affine", "linear"])
@@ -122,10 +129,12 @@ def test_projection_is_idempotent_and_moves_by_least_distance(fitted, projection
     pca, _, _ = fitted
     rng = np.random.default_rng(2)
     hand = rng.standard_normal((6, 24)) * 5
-    once = quasi_eigen_faces(pca_to_qe_weights(hand, pca.components_, pca.mean_, projection),
-                             pca.components_, pca.mean_, projection)
-    twice = quasi_eigen_faces(pca_to_qe_weights(once, pca.components_, pca.mean_, projection),
-                              pca.components_, pca.mean_, projection)
+    once = quasi_eigen_faces(
+        pca_to_qe_weights(hand, pca.components_, pca.mean_, projection), pca.components_, pca.mean_, projection
+    )
+    twice = quasi_eigen_faces(
+        pca_to_qe_weights(once, pca.components_, pca.mean_, projection), pca.components_, pca.mean_, projection
+    )
     np.testing.assert_allclose(twice, once, atol=1e-9)
     # The move is orthogonal to the hyperplane, so it is the least Euclidean distance onto it.
     np.testing.assert_allclose((hand - once) @ pca.components_.T, 0.0, atol=1e-9)
@@ -151,16 +160,16 @@ def test_post_treatment_finds_and_appends_the_empty_axis(fitted):
     off_plane = rng.standard_normal((5, 24))
     off_plane -= (off_plane @ pca.components_.T) @ pca.components_
     hand = coefficients @ pca.components_ + off_plane
-    result = build_quasi_eigen_basis(hand, [f"h{i}" for i in range(5)], pca, projection="linear",
-                                     empty_axis_eps=0.01, append_empty_axes=True)
+    result = build_quasi_eigen_basis(
+        hand, [f"h{i}" for i in range(5)], pca, projection="linear", empty_axis_eps=0.01, append_empty_axes=True
+    )
     assert result.empty_axes == (2,)
     assert result.appended_axes == (2,)
     assert result.names[-1] == "pca_3"
     np.testing.assert_allclose(result.shapes[-1], pca.components_[2])
     assert result.shapes.shape == (6, 24)
     np.testing.assert_array_equal(empty_axes(result.weights, result.thresholds), [2])
-    kept = build_quasi_eigen_basis(hand, [f"h{i}" for i in range(5)], pca, projection="linear",
-                                   empty_axis_eps=0.01)
+    kept = build_quasi_eigen_basis(hand, [f"h{i}" for i in range(5)], pca, projection="linear", empty_axis_eps=0.01)
     assert kept.empty_axes == (2,) and kept.appended_axes == () and kept.shapes.shape == (5, 24)
 
 

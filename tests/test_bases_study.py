@@ -9,11 +9,10 @@ import sys
 import pandas as pd
 import pytest
 
-from workbench.settings.config import resolved_without_hydra
-from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose
 from workbench.core.errors import WorkbenchError
-from workbench.study.run import run_study
 from workbench.reporting.pages import main as report_main
+from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose, resolved_without_hydra
+from workbench.study.run import run_study
 
 ALTERNATIVES = ["SPCA", "ICA", "NMF", "SPLOCS", "H-fit"]
 
@@ -40,17 +39,28 @@ def test_alternatives_are_checked():
     with pytest.raises(WorkbenchError, match="distinct names of"):
         run_study(resolved_without_hydra(compose("paper", tiny + ["basis.alternatives=[PCA]"])))
     with pytest.raises(WorkbenchError, match="eval_on"):
-        run_study(resolved_without_hydra(compose("paper", tiny + [
-            "basis.alternatives=[ICA]", "dataset.train_on=[markers,mesh]", "dataset.eval_on=[markers]"])))
+        run_study(
+            resolved_without_hydra(
+                compose(
+                    "paper",
+                    tiny + ["basis.alternatives=[ICA]", "dataset.train_on=[markers,mesh]", "dataset.eval_on=[markers]"],
+                )
+            )
+        )
 
 
 @pytest.fixture(scope="module")
 def bases_sweep(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("bases")
     sweep = tmp_path / "bases_small"
-    result = subprocess.run([sys.executable, "-m", "workbench", "--config-name", "bases_small",
-                             f"hydra.sweep.dir={sweep}"], capture_output=True, text=True, cwd=tmp_path, timeout=600,
-                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "--config-name", "bases_small", f"hydra.sweep.dir={sweep}"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=600,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     return sweep, pd.read_parquet(sweep / "collected" / "runs.parquet"), result.stdout
 
@@ -70,8 +80,9 @@ def test_bases_preset_scores_every_basis_with_every_solver(bases_sweep):
     assert all(pooled["ICA"] <= pooled[basis] * (1 + 1e-9) for basis in ["H", "QE", "QE-linear", *ALTERNATIVES])
     assert pooled["H-fit"] < pooled["H"]
     # the takes differ, so every basis's alpha does (not only those of ICA's and NMF's starts)
-    by_seed = runs[runs["solver"] == "lstsq"].pivot_table(index="basis", columns="dataset.seed",
-                                                           values="alpha_abs_mean")
+    by_seed = runs[runs["solver"] == "lstsq"].pivot_table(
+        index="basis", columns="dataset.seed", values="alpha_abs_mean"
+    )
     assert (by_seed.nunique(axis=1) == 5).all()
     assert (runs["basis.alternatives_seed"] == runs["dataset.seed"]).all()
 

@@ -8,15 +8,18 @@ import numpy as np
 import pytest
 
 import workbench.numerics.frames
-from workbench.settings.config import compose
 from workbench.dataset import build_captures
 from workbench.dataset.cache import clear_memory
 from workbench.dataset.mesh_sequence import build_mesh_sequence
-from workbench.reporting.export import obj_text
 from workbench.numerics.frames import FramesOnDisk
+from workbench.reporting.export import obj_text
+from workbench.settings.config import compose
 
-STORAGES = {"memory": [], "float32": ["dataset.dtype=float32", "dataset.storage=disk"],
-            "disk": ["dataset.storage=disk"]}
+STORAGES = {
+    "memory": [],
+    "float32": ["dataset.dtype=float32", "dataset.storage=disk"],
+    "disk": ["dataset.storage=disk"],
+}
 
 
 def built(overrides, storage, cache_dir):
@@ -65,20 +68,32 @@ def sequence(tmp_path):
 
 
 def sequence_overrides(tmp_path, *more):
-    return ["dataset=mesh_sequence", "dataset.sequence=seq.npy", "dataset.blendshapes.path=basis",
-            f"paths.data_root={tmp_path}", *more]
+    return [
+        "dataset=mesh_sequence",
+        "dataset.sequence=seq.npy",
+        "dataset.blendshapes.path=basis",
+        f"paths.data_root={tmp_path}",
+        *more,
+    ]
 
 
 def test_mesh_sequence_in_float32_and_on_disk_matches_float64_in_memory(sequence, monkeypatch):
     tmp_path, frames = sequence
-    monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 7 * 42 * 3)  # 7 frames a chunk: 8 chunks of 50 frames
-    reference, _, disk = check_storages(sequence_overrides(tmp_path, "dataset.frame_step=3"), {"mesh": "mesh_sequence"},
-                                        tmp_path / "out")
+    monkeypatch.setattr(
+        workbench.numerics.frames, "CHUNK_ENTRIES", 7 * 42 * 3
+    )  # 7 frames a chunk: 8 chunks of 50 frames
+    reference, _, disk = check_storages(
+        sequence_overrides(tmp_path, "dataset.frame_step=3"), {"mesh": "mesh_sequence"}, tmp_path / "out"
+    )
     expected = (frames[::3] / 1000.0 * 1000.0 - frames[0] / 1000.0 * 1000.0).reshape(17, -1)
     np.testing.assert_array_equal(reference["mesh"].train, expected)
     # the same sequence again finds its file; a changed sequence file does not
-    assert built(sequence_overrides(tmp_path, "dataset.frame_step=3"), "disk", tmp_path / "out" / "disk")[
-        "mesh"].train.path == disk["mesh"].train.path
+    assert (
+        built(sequence_overrides(tmp_path, "dataset.frame_step=3"), "disk", tmp_path / "out" / "disk")[
+            "mesh"
+        ].train.path
+        == disk["mesh"].train.path
+    )
     changed = frames / 1000.0
     changed[3] += 0.0005
     np.save(tmp_path / "seq.npy", changed)
@@ -97,8 +112,13 @@ def test_mesh_sequence_tail_split_every_other_frame_from_npz_and_hdf5(sequence, 
     else:
         with h5py.File(tmp_path / "seq.h5", "w") as handle:
             handle["vertices"] = frames / 1000.0
-    overrides = sequence_overrides(tmp_path, f"dataset.sequence=seq{suffix}", "dataset.split=tail",
-                                   "dataset.eval_fraction=0.2", "dataset.frame_step=2")
+    overrides = sequence_overrides(
+        tmp_path,
+        f"dataset.sequence=seq{suffix}",
+        "dataset.split=tail",
+        "dataset.eval_fraction=0.2",
+        "dataset.frame_step=2",
+    )
     reference = built(overrides, "memory", tmp_path / "memory")["mesh"]
     on_disk = built(overrides, "float32", tmp_path / "float32")["mesh"]
     assert len(reference.train) == 20 and len(reference.eval) == 5
@@ -106,8 +126,7 @@ def test_mesh_sequence_tail_split_every_other_frame_from_npz_and_hdf5(sequence, 
     np.testing.assert_array_equal(reference.eval[-1], (metres[48] * 1000.0 - metres[0] * 1000.0).ravel())
     assert isinstance(on_disk.eval, FramesOnDisk) and on_disk.eval.path == on_disk.train.path
     for field in ("train", "eval"):
-        np.testing.assert_array_equal(np.asarray(getattr(on_disk, field)),
-                                      getattr(reference, field).astype(np.float32))
+        np.testing.assert_array_equal(np.asarray(getattr(on_disk, field)), getattr(reference, field).astype(np.float32))
 
 
 def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_array(tmp_path, monkeypatch):
@@ -119,16 +138,24 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     folder.mkdir()
     (folder / "neutral.obj").write_text(obj_text(neutral, np.array([[0, 1, 2]])))
     (folder / "shape.obj").write_text(obj_text(neutral + 1.0, np.array([[0, 1, 2]])))
-    positions = np.lib.format.open_memmap(tmp_path / "seq.npy", mode="w+", dtype=np.float64,
-                                          shape=(n_frames, n_vertices, 3))
+    positions = np.lib.format.open_memmap(
+        tmp_path / "seq.npy", mode="w+", dtype=np.float64, shape=(n_frames, n_vertices, 3)
+    )
     for start in range(0, n_frames, 50):
-        positions[start:start + 50] = neutral + rng.normal(0, 1, (50, n_vertices, 3))
+        positions[start : start + 50] = neutral + rng.normal(0, 1, (50, n_vertices, 3))
     positions[0] = neutral
     positions.flush()
     del positions
     monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 20 * n_vertices * 3)
-    cfg = {"kind": "mesh_sequence", "data_root": str(tmp_path), "sequence": "seq.npy", "frame_rate": 60,
-           "blendshapes": {"path": "basis", "neutral": "neutral.obj"}, "storage": "disk", "dtype": "float64"}
+    cfg = {
+        "kind": "mesh_sequence",
+        "data_root": str(tmp_path),
+        "sequence": "seq.npy",
+        "frame_rate": 60,
+        "blendshapes": {"path": "basis", "neutral": "neutral.obj"},
+        "storage": "disk",
+        "dtype": "float64",
+    }
     whole = n_frames * n_vertices * 3 * 8
     tracemalloc.start()
     try:
@@ -140,19 +167,31 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     print(f"peak traced memory {peak / 1e6:.2f} MB for a {whole / 1e6:.1f} MB float64 capture")
     assert peak < whole / 6
     reference = build_mesh_sequence(dict(cfg, storage="memory"))["mesh"].train
-    np.testing.assert_array_equal(capture.train[n_frames - 3:], reference[n_frames - 3:])
+    np.testing.assert_array_equal(capture.train[n_frames - 3 :], reference[n_frames - 3 :])
 
 
 def test_ict_livelink_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
     monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
-    check_storages(["dataset=ict_livelink", "dataset.max_frames=300", "dataset.train_on=[mesh,markers]",
-                    f"paths.data_root={shared_data}"],
-                   {"mesh": "ict_livelink_mesh", "markers": "ict_livelink_markers"}, tmp_path)
+    check_storages(
+        [
+            "dataset=ict_livelink",
+            "dataset.max_frames=300",
+            "dataset.train_on=[mesh,markers]",
+            f"paths.data_root={shared_data}",
+        ],
+        {"mesh": "ict_livelink_mesh", "markers": "ict_livelink_markers"},
+        tmp_path,
+    )
 
 
 def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, tmp_path):
-    overrides = ["dataset=ict_livelink", "dataset.max_frames=100", "dataset.train_on=mesh", "dataset.split=tail",
-                 f"paths.data_root={shared_data}"]
+    overrides = [
+        "dataset=ict_livelink",
+        "dataset.max_frames=100",
+        "dataset.train_on=mesh",
+        "dataset.split=tail",
+        f"paths.data_root={shared_data}",
+    ]
     reference = built(overrides, "memory", tmp_path / "memory")["mesh"]
     on_disk = built(overrides, "disk", tmp_path / "disk")["mesh"]
     assert on_disk.eval.path == on_disk.train.path and len(on_disk.eval) == len(reference.eval) == 20
@@ -162,8 +201,12 @@ def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, t
 
 def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
     monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
-    overrides = ["dataset=animface", "dataset.max_frames_per_take=150", "dataset.train_on=[mesh,markers]",
-                 f"paths.data_root={shared_data}"]
+    overrides = [
+        "dataset=animface",
+        "dataset.max_frames_per_take=150",
+        "dataset.train_on=[mesh,markers]",
+        f"paths.data_root={shared_data}",
+    ]
     reference, float32, disk = check_storages(overrides, {"mesh": "interpolated"}, tmp_path)
     # the note's largest displacement is computed a chunk at a time from the frames stored
     largest = np.linalg.norm(reference["mesh"].train.reshape(len(reference["mesh"].train), -1, 3), axis=2).max()

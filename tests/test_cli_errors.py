@@ -10,8 +10,9 @@ from workbench.settings.config import REPO_ROOT
 
 def run_cli(*args, cwd):
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
-    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+    )
 
 
 def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
@@ -20,16 +21,23 @@ def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
     assert quiet.stderr.strip().splitlines() == ["workbench: error: basis.coverage must be in (0, 1], got 1.5"]
     assert "Traceback" not in quiet.stdout + quiet.stderr
 
-    verbose = run_cli("--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}",
-                      cwd=tmp_path)
+    verbose = run_cli(
+        "--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path
+    )
     assert verbose.returncode == 2
     assert "Traceback (most recent call last)" in verbose.stderr and "schema.py" in verbose.stderr
     assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
 
 
 def test_bad_solver_bounds_name_the_setting(tmp_path):
-    result = run_cli("solver=box", "solver.box.lower=2", "solver.box.upper=1", "dataset.n_frames=300",
-                     f"paths.output_root={tmp_path}", cwd=tmp_path)
+    result = run_cli(
+        "solver=box",
+        "solver.box.lower=2",
+        "solver.box.upper=1",
+        "dataset.n_frames=300",
+        f"paths.output_root={tmp_path}",
+        cwd=tmp_path,
+    )
     assert result.returncode == 2
     assert result.stderr.strip() == "workbench: error: solver.box.lower (2.0) must not exceed solver.box.upper (1.0)"
 
@@ -49,16 +57,15 @@ def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
     cases = {
         ("collect",): "workbench collect: error: the following arguments are required: paths (see workbench "
-                      "collect --help)",
+        "collect --help)",
         ("report", str(record), "--bogus", "1"): "workbench report: error: unrecognized arguments: --bogus 1 (see "
-                                                 "workbench report --help)",
-        ("export",): "workbench export: error: the following arguments are required: run (see workbench export "
-                     "--help)",
+        "workbench report --help)",
+        ("export",): "workbench export: error: the following arguments are required: run (see workbench export --help)",
         ("report", str(record), "--shapes", "jaw_open,smile"): "workbench report: error: --shapes takes 4 distinct "
-                                                               "hand-shape names (figure 2 shows 4), got ['jaw_open', "
-                                                               "'smile']",
+        "hand-shape names (figure 2 shows 4), got ['jaw_open', "
+        "'smile']",
         ("collect", str(tmp_path / "sweep"), "--columns", "nope"): "workbench collect: error: collect --columns must "
-                                                                   "be 'metric' or a key of the runs",
+        "be 'metric' or a key of the runs",
     }
     for arguments, expected in cases.items():
         result = run_cli(*arguments, cwd=tmp_path)

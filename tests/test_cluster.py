@@ -19,14 +19,25 @@ import pandas as pd
 import pytest
 from mlflow_rest import rest
 
-from workbench.settings.config import REPO_ROOT
 from workbench.record.record import ALPHA_COLUMNS, find_records, load_record
+from workbench.settings.config import REPO_ROOT
 
 # A small sweep whatever the preset's size: 2 seeds x 2 coverages of 500 frames, named on the command line.
-STUDY = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
-         "paths.output_root=out"]
-ON_SLURM = ["hydra/launcher=slurm", "hydra.launcher.partition=debug", "hydra.launcher.cpus_per_task=1",
-            "hydra.launcher.mem_gb=2", "hydra.callbacks.mlflow.enabled=true"]
+STUDY = [
+    "--config-name",
+    "coverage_small",
+    "dataset.n_frames=500",
+    "dataset.seed=0,1",
+    "basis.coverage=0.95,0.995",
+    "paths.output_root=out",
+]
+ON_SLURM = [
+    "hydra/launcher=slurm",
+    "hydra.launcher.partition=debug",
+    "hydra.launcher.cpus_per_task=1",
+    "hydra.launcher.mem_gb=2",
+    "hydra.callbacks.mlflow.enabled=true",
+]
 ENV = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
 
 
@@ -48,8 +59,11 @@ def comparable(sweep: Path) -> pd.DataFrame:
 def sweep_runs(server, sweep: Path) -> tuple[dict, list]:
     """The REST query for a sweep's runs and the runs it returns."""
     experiment = rest(server, "GET", "experiments/get-by-name?experiment_name=coverage_small")["experiment"]
-    query = {"experiment_ids": [experiment["experiment_id"]], "filter": f"tags.sweep = '{sweep.resolve()}'",
-             "max_results": 100}
+    query = {
+        "experiment_ids": [experiment["experiment_id"]],
+        "filter": f"tags.sweep = '{sweep.resolve()}'",
+        "max_results": 100,
+    }
     return query, rest(server, "POST", "runs/search", query).get("runs", [])
 
 
@@ -61,8 +75,9 @@ def check_runs_against_records(runs: list) -> list[str]:
     """Every nested run's metrics equal its record's alpha table; one line per run for the log."""
     [parent] = [run for run in runs if tags_of(run)["kind"] == "sweep"]
     lines = [f"{tags_of(parent)['mlflow.runName']}: sweep run, {parent['info']['status']}"]
-    for run in sorted((run for run in runs if tags_of(run)["kind"] == "run"),
-                      key=lambda run: tags_of(run)["mlflow.runName"]):
+    for run in sorted(
+        (run for run in runs if tags_of(run)["kind"] == "run"), key=lambda run: tags_of(run)["mlflow.runName"]
+    ):
         tags = tags_of(run)
         assert tags["mlflow.parentRunId"] == parent["info"]["run_id"] and run["info"]["status"] == "FINISHED"
         record = load_record(Path(tags["record"]))
@@ -71,18 +86,25 @@ def check_runs_against_records(runs: list) -> list[str]:
         for row in record.table.to_dict("records"):
             for column in ALPHA_COLUMNS:
                 assert metrics[f"{column}.{row['data']}.{row['basis']}.{row['solver']}"] == pytest.approx(
-                    row[column], rel=1e-15), (tags["record"], column, row["basis"])
+                    row[column], rel=1e-15
+                ), (tags["record"], column, row["basis"])
                 checked += 1
         qe = record.table[record.table["basis"] == "QE"].iloc[0]
-        lines.append(f"  {tags['mlflow.runName']}: {run['info']['status']}, {checked} alpha metrics equal to "
-                     f"alpha_table.csv (alpha_abs_mean.markers.QE.lstsq = "
-                     f"{metrics['alpha_abs_mean.markers.QE.lstsq']!r}, record {float(qe['alpha_abs_mean'])!r})")
+        lines.append(
+            f"  {tags['mlflow.runName']}: {run['info']['status']}, {checked} alpha metrics equal to "
+            f"alpha_table.csv (alpha_abs_mean.markers.QE.lstsq = "
+            f"{metrics['alpha_abs_mean.markers.QE.lstsq']!r}, record {float(qe['alpha_abs_mean'])!r})"
+        )
     return lines
 
 
 def running_tasks() -> list[str]:
-    out = subprocess.run(["squeue", "--noheader", "--array", "--states=RUNNING", "--format=%i"], capture_output=True,
-                         text=True, timeout=30).stdout
+    out = subprocess.run(
+        ["squeue", "--noheader", "--array", "--states=RUNNING", "--format=%i"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    ).stdout
     return out.split()
 
 
@@ -101,22 +123,34 @@ def local_sweep(tmp_path_factory, mlflow_server):
     """The same sweep run locally (Hydra's default launcher, logging to the server too), timed."""
     root = tmp_path_factory.mktemp("local")
     start = time.monotonic()
-    result = subprocess.run(command("out/local", "hydra.callbacks.mlflow.enabled=true"), cwd=root,
-                            env=dict(ENV, MLFLOW_TRACKING_URI=mlflow_server), capture_output=True, text=True,
-                            timeout=900)
+    result = subprocess.run(
+        command("out/local", "hydra.callbacks.mlflow.enabled=true"),
+        cwd=root,
+        env=dict(ENV, MLFLOW_TRACKING_URI=mlflow_server),
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     seconds = time.monotonic() - start
     assert result.returncode == 0, result.stderr[-3000:]
     return root / "out" / "local", seconds
 
 
-def test_a_sweep_on_slurm_equals_the_local_sweep_and_its_runs_are_on_the_server(slurm_cluster, mlflow_server,
-                                                                                local_sweep, tmp_path, capsys):
+def test_a_sweep_on_slurm_equals_the_local_sweep_and_its_runs_are_on_the_server(
+    slurm_cluster, mlflow_server, local_sweep, tmp_path, capsys
+):
     local, local_seconds = local_sweep
     sweep = tmp_path / "out" / "slurm"
     env = dict(ENV, MLFLOW_TRACKING_URI=mlflow_server)
     start = time.monotonic()
-    process = subprocess.Popen(command("out/slurm", *ON_SLURM), cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        command("out/slurm", *ON_SLURM),
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     first_visible = None
     while process.poll() is None:  # the runs appear on the server while the sweep runs, as their jobs end
         if first_visible is None:
@@ -135,55 +169,75 @@ def test_a_sweep_on_slurm_equals_the_local_sweep_and_its_runs_are_on_the_server(
     pd.testing.assert_frame_equal(comparable(sweep), comparable(local))
     assert (sweep / "collected" / "alpha_table.md").read_text() == (local / "collected" / "alpha_table.md").read_text()
     assert "job states are read from squeue" in err + out and "sacct" not in (err + out).replace(
-        "(sacct: Slurm accounting storage is disabled)", "")
+        "(sacct: Slurm accounting storage is disabled)", ""
+    )
     assert first_visible is not None and first_visible < seconds
     query, runs = sweep_runs(mlflow_server, sweep)
     assert len(runs) == 5
     lines = check_runs_against_records(runs)
     with capsys.disabled():
-        print(f"\n=== SLURM sweep ({len(complete)} runs, {os.cpu_count()} CPUs, cpus_per_task=1) ===\n"
-              f"{shown(' '.join(command('out/slurm', *ON_SLURM)[3:]))}\n"
-              f"{shown(chr(10).join(line for line in (out + err).splitlines() if 'HYDRA' in line or 'mlflow' in line))}\n"
-              f"time: SLURM sweep {seconds:.1f} s, the same sweep locally (default launcher) {local_seconds:.1f} s; "
-              f"first run on the server {first_visible:.1f} s after submission; uptime: "
-              f"{subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}\n"
-              f"collected table equal to the local sweep's:\n{shown((sweep / 'collected' / 'alpha_table.md').read_text())}\n"
-              f"=== REST: POST {mlflow_server}/api/2.0/mlflow/runs/search {json.dumps(query)} ===\n"
-              f"{shown(chr(10).join(lines))}")
+        print(
+            f"\n=== SLURM sweep ({len(complete)} runs, {os.cpu_count()} CPUs, cpus_per_task=1) ===\n"
+            f"{shown(' '.join(command('out/slurm', *ON_SLURM)[3:]))}\n"
+            f"{shown(chr(10).join(line for line in (out + err).splitlines() if 'HYDRA' in line or 'mlflow' in line))}\n"
+            f"time: SLURM sweep {seconds:.1f} s, the same sweep locally (default launcher) {local_seconds:.1f} s; "
+            f"first run on the server {first_visible:.1f} s after submission; uptime: "
+            f"{subprocess.run(['uptime'], capture_output=True, text=True).stdout.strip()}\n"
+            f"collected table equal to the local sweep's:\n{shown((sweep / 'collected' / 'alpha_table.md').read_text())}\n"
+            f"=== REST: POST {mlflow_server}/api/2.0/mlflow/runs/search {json.dumps(query)} ===\n"
+            f"{shown(chr(10).join(lines))}"
+        )
 
 
-def test_an_interrupted_slurm_sweep_resumes_with_only_the_missing_runs(slurm_cluster, mlflow_server, local_sweep,
-                                                                       tmp_path, capsys):
+def test_an_interrupted_slurm_sweep_resumes_with_only_the_missing_runs(
+    slurm_cluster, mlflow_server, local_sweep, tmp_path, capsys
+):
     local, _ = local_sweep
     sweep = tmp_path / "out" / "cut"
     env = dict(ENV, MLFLOW_TRACKING_URI=mlflow_server, WORKBENCH_SLURM_DIR=str(slurm_cluster))
     evidence = []
-    process = subprocess.Popen(command("out/cut", *ON_SLURM), cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        command("out/cut", *ON_SLURM), cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     cancelled = wait_for(running_tasks)[0]
     queue = subprocess.run(["squeue", "--array"], capture_output=True, text=True).stdout
     subprocess.run(["scancel", cancelled], check=True)
     evidence += [f"queue:\n{shown(queue)}", f"scancel {cancelled} (running)"]
     other = wait_for(lambda: [task for task in running_tasks() if task != cancelled])[0]
-    restart = subprocess.run([str(REPO_ROOT / ".ci" / "slurm-cluster"), "restart-slurmd"], env=env,
-                             capture_output=True, text=True, timeout=300)
+    restart = subprocess.run(
+        [str(REPO_ROOT / ".ci" / "slurm-cluster"), "restart-slurmd"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert restart.returncode == 0, restart.stderr
     evidence.append(f"restart of slurmd while {other} runs:\n{shown(restart.stdout)}")
     out, err = process.communicate(timeout=900)
     assert process.returncode == 2, err[-3000:]
     [error] = [line for line in err.splitlines() if line.startswith("workbench")]
-    assert error.startswith("workbench: error: 1 of 4 submitted runs ended without a result: ") and \
-        f"{cancelled} (" in error and "CANCELLED" in error and "submit the same command again" in error
+    assert (
+        error.startswith("workbench: error: 1 of 4 submitted runs ended without a result: ")
+        and f"{cancelled} (" in error
+        and "CANCELLED" in error
+        and "submit the same command again" in error
+    )
     evidence.append(f"the sweep command (exit {process.returncode}):\n{shown(error)}")
     complete, incomplete = find_records([sweep])
     assert len(complete) == 3 and len(incomplete) <= 1
     before = {folder: (folder / "done").stat() for folder in complete}
-    evidence.append("records after the interruption: " + ", ".join(
-        f"{folder.name} {'complete' if folder in complete else 'incomplete'}"
-        for folder in sorted(sweep.iterdir()) if folder.is_dir() and not folder.name.startswith(".")))
+    evidence.append(
+        "records after the interruption: "
+        + ", ".join(
+            f"{folder.name} {'complete' if folder in complete else 'incomplete'}"
+            for folder in sorted(sweep.iterdir())
+            if folder.is_dir() and not folder.name.startswith(".")
+        )
+    )
 
-    again = subprocess.run(command("out/cut", *ON_SLURM), cwd=tmp_path, env=env, capture_output=True, text=True,
-                           timeout=900)
+    again = subprocess.run(
+        command("out/cut", *ON_SLURM), cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
+    )
     assert again.returncode == 0, again.stderr[-3000:]
     log = again.stdout + again.stderr
     assert log.count("complete record, not submitted") == 3 and "1 of 4 runs" in log
@@ -196,11 +250,16 @@ def test_an_interrupted_slurm_sweep_resumes_with_only_the_missing_runs(slurm_clu
     query, runs = sweep_runs(mlflow_server, sweep)
     assert len(runs) == 5  # one sweep run and one run per record: the resumed sweep duplicated nothing
     lines = check_runs_against_records(runs)
-    evidence.append(f"the same command again (exit 0):\n{shown(chr(10).join(line for line in log.splitlines() if 'HYDRA' in line or 'mlflow' in line))}")
+    evidence.append(
+        f"the same command again (exit 0):\n{shown(chr(10).join(line for line in log.splitlines() if 'HYDRA' in line or 'mlflow' in line))}"
+    )
     with capsys.disabled():
-        print("\n=== SLURM sweep interrupted and resumed ===\n" + "\n".join(evidence)
-              + f"\ncollected table equal to the local sweep's; REST: POST {mlflow_server}/api/2.0/mlflow/runs/search "
-              f"{json.dumps(query)}\n{shown(chr(10).join(lines))}")
+        print(
+            "\n=== SLURM sweep interrupted and resumed ===\n"
+            + "\n".join(evidence)
+            + f"\ncollected table equal to the local sweep's; REST: POST {mlflow_server}/api/2.0/mlflow/runs/search "
+            f"{json.dumps(query)}\n{shown(chr(10).join(lines))}"
+        )
 
 
 def test_job_states_from_squeue_cover_pending_ranges_and_single_jobs():
@@ -210,5 +269,10 @@ def test_job_states_from_squeue_cover_pending_ranges_and_single_jobs():
 
     states = squeue_states("17_0|CANCELLED|vm\n17_1|RUNNING|vm\n17_[2-3%4]|PENDING|\n21|COMPLETED|vm\n")
     assert {job: info["State"] for job, info in states.items()} == {
-        "17_0": "CANCELLED", "17_1": "RUNNING", "17_2": "PENDING", "17_3": "PENDING", "21": "COMPLETED"}
+        "17_0": "CANCELLED",
+        "17_1": "RUNNING",
+        "17_2": "PENDING",
+        "17_3": "PENDING",
+        "21": "COMPLETED",
+    }
     assert accounting_disabled("Slurm accounting storage is disabled\n")

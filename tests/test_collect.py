@@ -6,16 +6,19 @@ import pandas as pd
 import pytest
 import yaml
 
+from workbench.core.errors import WorkbenchError
 from workbench.record import record
-
 from workbench.reporting.collect import collect_and_write, format_estimate, format_range, main
 from workbench.reporting.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
 from workbench.reporting.tables import latex_table, markdown_table
-from workbench.core.errors import WorkbenchError
 
 ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
-    (0.9, 0): (1.0, 0.5, 0.4), (0.9, 1): (2.0, 0.7, 0.5), (0.9, 2): (4.0, 0.9, 0.6),
-    (0.99, 0): (1.5, 0.2, 0.1), (0.99, 1): (1.5, 0.3, 0.2), (0.99, 2): (1.5, 0.4, 0.3),
+    (0.9, 0): (1.0, 0.5, 0.4),
+    (0.9, 1): (2.0, 0.7, 0.5),
+    (0.9, 2): (4.0, 0.9, 0.6),
+    (0.99, 0): (1.5, 0.2, 0.1),
+    (0.99, 1): (1.5, 0.3, 0.2),
+    (0.99, 2): (1.5, 0.4, 0.3),
 }
 M = {0.9: (4, 5, 6), 0.99: (12, 12, 12)}
 
@@ -25,27 +28,56 @@ def write_record(folder, coverage, seed, job_num, complete=True, qe_rank=None, a
     with lstsq, then PCA); with ``qe_rank``, the QE basis's rank and PCA's exact method are recorded too."""
     h, qe, pca = alpha[(coverage, seed)]
     m = M[coverage][seed]
-    rows = [{"data": "markers", "basis": basis, "projection": projection, "solver": solver, "n": n, "m": m,
-             "coverage": coverage + 0.001, "alpha_abs_mean": value, "alpha_abs_pooled": value * 1.1,
-             "alpha_disp_mean": value * 50, "alpha_disp_pooled": value * 20, "rms_mm": value / 2,
-             "paper_alpha": paper}
-            for basis, projection, solver, n, value, paper in (
-                ("H", "-", "lstsq", 18, h, 5.2), ("QE", "affine", "lstsq", 18, qe, 0.72),
-                ("PCA", "-", "projection", m, pca, 0.62))]
-    config = {"study": "coverage", "dataset": {"kind": "synthetic", "seed": seed}, "basis": {"coverage": coverage},
-              "paths": {"output_root": f"/x{seed}"}}
-    metrics = {"study": "coverage", "config_hash": f"hash{coverage}{seed}", "job_num": job_num,
-               "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}", "paths.output_root=/x"],
-               "dataset": {"name": "test", "frame_rate": 120.0},
-               "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
-               "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
-               **({} if qe_rank is None else {"pca_facts": {"m": m, "method": "covariance"}}),
-               "git": {"commit": "abc", "dirty": False}}
+    rows = [
+        {
+            "data": "markers",
+            "basis": basis,
+            "projection": projection,
+            "solver": solver,
+            "n": n,
+            "m": m,
+            "coverage": coverage + 0.001,
+            "alpha_abs_mean": value,
+            "alpha_abs_pooled": value * 1.1,
+            "alpha_disp_mean": value * 50,
+            "alpha_disp_pooled": value * 20,
+            "rms_mm": value / 2,
+            "paper_alpha": paper,
+        }
+        for basis, projection, solver, n, value, paper in (
+            ("H", "-", "lstsq", 18, h, 5.2),
+            ("QE", "affine", "lstsq", 18, qe, 0.72),
+            ("PCA", "-", "projection", m, pca, 0.62),
+        )
+    ]
+    config = {
+        "study": "coverage",
+        "dataset": {"kind": "synthetic", "seed": seed},
+        "basis": {"coverage": coverage},
+        "paths": {"output_root": f"/x{seed}"},
+    }
+    metrics = {
+        "study": "coverage",
+        "config_hash": f"hash{coverage}{seed}",
+        "job_num": job_num,
+        "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}", "paths.output_root=/x"],
+        "dataset": {"name": "test", "frame_rate": 120.0},
+        "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
+        "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
+        **({} if qe_rank is None else {"pca_facts": {"m": m, "method": "covariance"}}),
+        "git": {"commit": "abc", "dirty": False},
+    }
     if qe_rank is not None:
         metrics["data"]["markers"]["pca"] = metrics.pop("pca_facts")
         metrics["rows"][1]["basis_conditioning"] = {"rank": qe_rank(m), "n_shapes": 18}
-    record.write_record(folder, resolved_yaml=yaml.safe_dump(config), table=pd.DataFrame(rows), text="",
-                        metrics=metrics, timings={"pca": 0.5, "total": 1.0 + seed})
+    record.write_record(
+        folder,
+        resolved_yaml=yaml.safe_dump(config),
+        table=pd.DataFrame(rows),
+        text="",
+        metrics=metrics,
+        timings={"pca": 0.5, "total": 1.0 + seed},
+    )
     if not complete:
         (folder / record.DONE).unlink()
 
@@ -117,7 +149,8 @@ def test_paired_comparisons_by_hand(sweep):
     half = T_975_2 * math.sqrt(sum((value - mean) ** 2 for value in logs) / 2) / math.sqrt(3)
     row = comparisons.loc[(0.99, "PCA", "QE")]
     assert (row["ratio"], row["ratio_low"], row["ratio_high"]) == pytest.approx(
-        (math.exp(mean), math.exp(mean - half), math.exp(mean + half)))
+        (math.exp(mean), math.exp(mean - half), math.exp(mean + half))
+    )
     assert row["n"] == 3 and row["verdict"] == "not distinguishable" and row["ratio_high"] > 1
     assert comparisons.loc[(0.99, "QE", "H"), "verdict"] == "<"
     assert (comparisons["ratio"] <= 1).all() and (comparisons["ratio_low"] > 0).all()
@@ -125,15 +158,18 @@ def test_paired_comparisons_by_hand(sweep):
 
 def test_alpha_table_exact_text(sweep, tmp_path):
     written = collect_and_write([sweep], tmp_path / "out", where={"solver": "lstsq"})
-    caption = ("alpha_abs_mean (%), solver = lstsq; cells: geometric mean over dataset.seed [95 % interval] "
-               "(geometric mean, t-interval on log values, n = 3 per cell); m: range over the runs")
+    caption = (
+        "alpha_abs_mean (%), solver = lstsq; cells: geometric mean over dataset.seed [95 % interval] "
+        "(geometric mean, t-interval on log values, n = 3 per cell); m: range over the runs"
+    )
     expected_markdown = (
         f"{caption}\n"
         "\n"
         "| basis.coverage |   m |                     H |                   QE |                  PCA |\n"
         "|----------------|----:|----------------------:|---------------------:|---------------------:|\n"
         "| 0.9            | 4-6 | 2.000 [0.357, 11.190] | 0.680 [0.327, 1.416] | 0.493 [0.298, 0.817] |\n"
-        "| 0.99           |  12 |                 1.500 | 0.288 [0.121, 0.685] | 0.182 [0.046, 0.722] |\n")
+        "| 0.99           |  12 |                 1.500 | 0.288 [0.121, 0.685] | 0.182 [0.046, 0.722] |\n"
+    )
     assert written["markdown"] == expected_markdown
     assert (tmp_path / "out" / "alpha_table.md").read_text() == expected_markdown
     expected_latex = (
@@ -145,15 +181,19 @@ def test_alpha_table_exact_text(sweep, tmp_path):
         "0.9 & 4-6 & 2.000 [0.357, 11.190] & 0.680 [0.327, 1.416] & 0.493 [0.298, 0.817] \\\\\n"
         "0.99 & 12 & 1.500 & 0.288 [0.121, 0.685] & 0.182 [0.046, 0.722] \\\\\n"
         "\\bottomrule\n"
-        "\\end{tabular}\n")
+        "\\end{tabular}\n"
+    )
     assert (tmp_path / "out" / "alpha_table.tex").read_text() == expected_latex
     assert written["n_runs"] == 6 and written["n_incomplete"] == 1
     findings = (tmp_path / "out" / "findings.md").read_text().splitlines()
-    assert findings[0].startswith("- **how to read**: levels are geometric means over the replicates; 'A < B': the "
-                                  "per-replicate ratio A/B (paired t on log ratios, n = 3) is below 1 at 95 %")
+    assert findings[0].startswith(
+        "- **how to read**: levels are geometric means over the replicates; 'A < B': the "
+        "per-replicate ratio A/B (paired t on log ratios, n = 3) is below 1 at 95 %"
+    )
     assert findings[2] == (
         "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq) `alpha_abs_mean`: PCA (n = 12) 0.182 ~ QE "
-        "0.288 < H 1.5; QE/H 0.192 [0.081, 0.457], QE/PCA 1.59 [0.945, 2.67].")
+        "0.288 < H 1.5; QE/H 0.192 [0.081, 0.457], QE/PCA 1.59 [0.945, 2.67]."
+    )
     # each number of the finding is a cell of the tables written beside it (QE/PCA: PCA/QE's row inverted)
     table = (tmp_path / "out" / "comparisons.md").read_text()
     assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in table
@@ -169,8 +209,9 @@ def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):
         pd.testing.assert_frame_equal(from_csv, from_parquet, check_dtype=False)
 
 
-def test_without_pyarrow_the_csv_files_are_written_and_the_notice_waits_for_verbose(sweep, tmp_path, monkeypatch,
-                                                                                   caplog):
+def test_without_pyarrow_the_csv_files_are_written_and_the_notice_waits_for_verbose(
+    sweep, tmp_path, monkeypatch, caplog
+):
     """No parquet copies without pyarrow; the line saying so is a debug note (``--verbose``), not on every call."""
     import logging
 
@@ -182,19 +223,22 @@ def test_without_pyarrow_the_csv_files_are_written_and_the_notice_waits_for_verb
     with caplog.at_level(logging.DEBUG, logger="workbench"):
         collect_and_write([sweep], tmp_path / "verbose")
     assert [record.getMessage().split(": pip")[0] for record in caplog.records] == [
-        "parquet copies of the tables left out"]
+        "parquet copies of the tables left out"
+    ]
 
 
 def test_metrics_as_columns_table(sweep, tmp_path):
-    text = collect_and_write([sweep], tmp_path / "out", columns="metric", where={"basis.coverage": "0.99"},
-                             extra=())["markdown"]
+    text = collect_and_write([sweep], tmp_path / "out", columns="metric", where={"basis.coverage": "0.99"}, extra=())[
+        "markdown"
+    ]
     assert text.splitlines()[0].startswith("alpha (%) by metric, basis.coverage = 0.99; ")
     assert text.splitlines()[2:] == [
         "| basis |       alpha_abs_mean |     alpha_abs_pooled |     alpha_disp_mean |  alpha_disp_pooled |",
         "|-------|---------------------:|---------------------:|--------------------:|-------------------:|",
         "| H     |                1.500 |                1.650 |               75.00 |              30.00 |",
         "| QE    | 0.288 [0.121, 0.685] | 0.317 [0.134, 0.754] | 14.42 [6.07, 34.26] | 5.77 [2.43, 13.70] |",
-        "| PCA   | 0.182 [0.046, 0.722] | 0.200 [0.050, 0.795] |  9.09 [2.29, 36.12] | 3.63 [0.91, 14.45] |"]
+        "| PCA   | 0.182 [0.046, 0.722] | 0.200 [0.050, 0.795] |  9.09 [2.29, 36.12] | 3.63 [0.91, 14.45] |",
+    ]
 
 
 def test_cli_collect_writes_next_to_the_sweep(sweep, capsys):
@@ -221,23 +265,35 @@ def test_formatting_helpers():
     assert markdown_table(["k", "v"], [["a", "1.0"]], [False, True]) == "| k |   v |\n|---|----:|\n| a | 1.0 |\n"
     assert latex_table(["a_b", "v"], [["x%", "1 ± 2"]], [False, True]) == (
         "\\begin{tabular}{lr}\n\\toprule\na\\_b & v \\\\\n\\midrule\nx\\% & 1 $\\pm$ 2 \\\\\n"
-        "\\bottomrule\n\\end{tabular}\n")
+        "\\bottomrule\n\\end{tabular}\n"
+    )
 
 
 def test_an_ordering_that_holds_by_construction_in_every_replicate_is_stated_not_tested(tmp_path):
     # at coverage 0.99 the QE basis has rank m + 1 in every run: QE <= PCA by construction, no test, no Holm share;
     # at 0.9 one run's QE basis falls short of m + 1, so there QE against PCA is a question for the data
-    alpha = {(0.9, 0): (1.0, 0.5, 0.55), (0.9, 1): (2.0, 0.6, 0.66), (0.9, 2): (4.0, 0.7, 0.8),
-             (0.99, 0): (1.5, 0.1, 0.12), (0.99, 1): (1.5, 0.2, 0.22), (0.99, 2): (1.5, 0.3, 0.35)}
+    alpha = {
+        (0.9, 0): (1.0, 0.5, 0.55),
+        (0.9, 1): (2.0, 0.6, 0.66),
+        (0.9, 2): (4.0, 0.7, 0.8),
+        (0.99, 0): (1.5, 0.1, 0.12),
+        (0.99, 1): (1.5, 0.2, 0.22),
+        (0.99, 2): (1.5, 0.3, 0.35),
+    }
     folder = tmp_path / "sweep"
     for job, (coverage, seed) in enumerate(alpha):
         short = coverage == 0.9 and seed == 1
-        write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}", coverage, seed, job, alpha=alpha,
-                     qe_rank=lambda m, short=short: m if short else m + 1)
+        write_record(
+            folder / f"basis.coverage={coverage},dataset.seed={seed}",
+            coverage,
+            seed,
+            job,
+            alpha=alpha,
+            qe_rank=lambda m, short=short: m if short else m + 1,
+        )
     written = collect_and_write([folder], tmp_path / "out", where={"solver": "lstsq"})
     comparisons = pd.read_csv(tmp_path / "out" / "comparisons.csv")
-    qe_pca = comparisons[(comparisons["first"] == "QE") & (comparisons["second"] == "PCA")].set_index(
-        "basis.coverage")
+    qe_pca = comparisons[(comparisons["first"] == "QE") & (comparisons["second"] == "PCA")].set_index("basis.coverage")
     assert qe_pca.loc[0.99, "verdict"] == "<= by construction" and math.isnan(qe_pca.loc[0.99, "p"])
     assert qe_pca.loc[0.99, "by_construction"] == "QE spans PCA's affine subspace, rank m + 1 in every run"
     assert qe_pca.loc[0.9, "verdict"] != "<= by construction" and 0.0 < qe_pca.loc[0.9, "p"] < 1.0

@@ -8,14 +8,20 @@ import sys
 import pytest
 
 from workbench import __version__
-from workbench.settings.config import REPO_ROOT
 from workbench.record.record import DONE
+from workbench.settings.config import REPO_ROOT
 
 
 def workbench(*args, cwd, env=None):
     environment = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", **(env or {}))
-    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=environment,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *args],
+        cwd=cwd,
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def completions(line, tmp_path):
@@ -27,13 +33,21 @@ def completions(line, tmp_path):
 
 def test_tab_completion_completes_groups_keys_and_studies(tmp_path):
     assert completions("workbench dataset=", tmp_path) == [
-        "dataset=animface", "dataset=ict_livelink", "dataset=mesh_sequence", "dataset=synthetic"]
+        "dataset=animface",
+        "dataset=ict_livelink",
+        "dataset=mesh_sequence",
+        "dataset=synthetic",
+    ]
     assert completions("workbench dataset.n_", tmp_path) == [
-        "dataset.n_face_markers=", "dataset.n_frames=", "dataset.n_head_markers="]
-    assert completions("workbench solver=", tmp_path) == [
-        "solver=all", "solver=box", "solver=lstsq", "solver=nnls"]
+        "dataset.n_face_markers=",
+        "dataset.n_frames=",
+        "dataset.n_head_markers=",
+    ]
+    assert completions("workbench solver=", tmp_path) == ["solver=all", "solver=box", "solver=lstsq", "solver=nnls"]
     assert completions("workbench --config-name=cov", tmp_path) == [
-        "--config-name=coverage", "--config-name=coverage_small"]
+        "--config-name=coverage",
+        "--config-name=coverage_small",
+    ]
     studies = completions("workbench --config-name=", tmp_path)
     assert "--config-name=paper" in studies and "--config-name=noise_small" in studies and len(studies) == 16
 
@@ -66,8 +80,7 @@ def test_flags_after_the_overrides(tmp_path):
     shown = workbench("dataset.n_frames=2000", "--cfg", "job", cwd=tmp_path)
     assert shown.returncode == 0, shown.stderr
     assert "  n_frames: 2000\n" in shown.stdout and "hydra:" not in shown.stdout
-    resolved = workbench("dataset=ict_livelink", "paths.data_root=somewhere", "--cfg", "job", "--resolve",
-                         cwd=tmp_path)
+    resolved = workbench("dataset=ict_livelink", "paths.data_root=somewhere", "--cfg", "job", "--resolve", cwd=tmp_path)
     assert resolved.returncode == 0 and "  data_root: somewhere\n" in resolved.stdout
 
 
@@ -88,8 +101,13 @@ def test_help_lists_studies_groups_and_commands(tmp_path):
     assert [line.split()[0] for line in commands.strip().splitlines()] == ["report", "collect", "mlflow", "export"]
     groups = text.split("== Configuration groups ==")[1].split("==")[0]
     assert groups.strip().splitlines()[1:] == [
-        "", "basis: default", "dataset: animface, ict_livelink, mesh_sequence, synthetic", "metric: default", "paths: default",
-        "solver: all, box, lstsq, nnls"]
+        "",
+        "basis: default",
+        "dataset: animface, ict_livelink, mesh_sequence, synthetic",
+        "metric: default",
+        "paths: default",
+        "solver: all, box, lstsq, nnls",
+    ]
 
 
 def test_version_is_the_workbenchs(tmp_path):
@@ -97,19 +115,37 @@ def test_version_is_the_workbenchs(tmp_path):
     assert (result.returncode, result.stdout) == (0, f"workbench {__version__}\n")
 
 
-@pytest.mark.parametrize("override, expected", [
-    ("solver.box.lower=x", "workbench: error: Error merging override solver.box.lower=x; "
-                           "Value 'x' of type 'str' could not be converted to Float"),
-    ("basis.projections=affine", "workbench: error: Error merging override basis.projections=affine; "
-                                 "Invalid value assigned: str is not a ListConfig, list or tuple"),
-    ("dataset.n_frames=2000.5", "workbench: error: Error merging override dataset.n_frames=2000.5; "
-                                "Value '2000.5' of type 'float' could not be converted to Integer"),
-    ("basis.covrage=0.9", "workbench: error: Could not override 'basis.covrage'; To append to your config use "
-                          "+basis.covrage=0.9; Key 'covrage' not in 'BasisSchema'"),
-    ("metric.bootstrap_seed=3", "workbench: error: setting metric.bootstrap_seed was retired: the within-run "
-                                "intervals are batch means over time and draw nothing at random "
-                                "(docs/statistics.md); leave it out"),
-])
+@pytest.mark.parametrize(
+    "override, expected",
+    [
+        (
+            "solver.box.lower=x",
+            "workbench: error: Error merging override solver.box.lower=x; "
+            "Value 'x' of type 'str' could not be converted to Float",
+        ),
+        (
+            "basis.projections=affine",
+            "workbench: error: Error merging override basis.projections=affine; "
+            "Invalid value assigned: str is not a ListConfig, list or tuple",
+        ),
+        (
+            "dataset.n_frames=2000.5",
+            "workbench: error: Error merging override dataset.n_frames=2000.5; "
+            "Value '2000.5' of type 'float' could not be converted to Integer",
+        ),
+        (
+            "basis.covrage=0.9",
+            "workbench: error: Could not override 'basis.covrage'; To append to your config use "
+            "+basis.covrage=0.9; Key 'covrage' not in 'BasisSchema'",
+        ),
+        (
+            "metric.bootstrap_seed=3",
+            "workbench: error: setting metric.bootstrap_seed was retired: the within-run "
+            "intervals are batch means over time and draw nothing at random "
+            "(docs/statistics.md); leave it out",
+        ),
+    ],
+)
 def test_wrong_type_or_unknown_key_fails_at_composition_in_one_line(tmp_path, override, expected):
     result = workbench(override, "paths.output_root=out", cwd=tmp_path)
     assert (result.returncode, result.stderr.strip()) == (2, expected)
@@ -119,7 +155,9 @@ def test_wrong_type_or_unknown_key_fails_at_composition_in_one_line(tmp_path, ov
 def test_range_checks_fail_at_composition_in_one_line(tmp_path):
     result = workbench("basis.coverage=1.5", "paths.output_root=out", cwd=tmp_path)
     assert (result.returncode, result.stderr.strip()) == (
-        2, "workbench: error: basis.coverage must be in (0, 1], got 1.5")
+        2,
+        "workbench: error: basis.coverage must be in (0, 1], got 1.5",
+    )
     assert not (tmp_path / "out").exists(), "nothing may run before the config is valid"
 
 
@@ -129,7 +167,10 @@ def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path):
     assert first.returncode == 0, first.stderr
     sweep_dir = tmp_path / "out" / "paper-multirun" / "default"
     runs = sorted(path.name for path in sweep_dir.iterdir() if path.is_dir())
-    assert runs == ["dataset.n_frames=400,dataset.seed=0,solver=lstsq", "dataset.n_frames=400,dataset.seed=1,solver=lstsq"]
+    assert runs == [
+        "dataset.n_frames=400,dataset.seed=0,solver=lstsq",
+        "dataset.n_frames=400,dataset.seed=1,solver=lstsq",
+    ]
     log = (sweep_dir / runs[0] / "workbench.log").read_text()
     assert log.startswith(f"done {sweep_dir / runs[0]}: markers m=n: alpha_abs_mean with lstsq: ")  # paper regime first
     assert log.splitlines()[0] in first.stdout

@@ -7,9 +7,9 @@ import sys
 import time
 from pathlib import Path
 
-from workbench.settings.config import REPO_ROOT
 from workbench.record.record import DONE, load_record
 from workbench.record.tracking import LOCK_FILE, lock_run_dir, unlock_run_dir
+from workbench.settings.config import REPO_ROOT
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
@@ -28,14 +28,27 @@ def default_sigint():
 
 
 def start(arguments, cwd: Path) -> subprocess.Popen:
-    return subprocess.Popen(command(*arguments), cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=cli_env(), preexec_fn=default_sigint)
+    return subprocess.Popen(
+        command(*arguments),
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=cli_env(),
+        preexec_fn=default_sigint,
+    )
 
 
 def test_identical_sweeps_into_one_folder_do_every_run_exactly_once(tmp_path):
     sweep = tmp_path / "sweep"
-    arguments = ["--config-name", "coverage_small", *SMALL, "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99",
-                 f"hydra.sweep.dir={sweep}"]
+    arguments = [
+        "--config-name",
+        "coverage_small",
+        *SMALL,
+        "dataset.seed=0,1",
+        "basis.coverage=0.9,0.95,0.99",
+        f"hydra.sweep.dir={sweep}",
+    ]
     processes = [start(arguments, tmp_path) for _ in range(2)]
     outputs = [process.communicate(timeout=300) for process in processes]
     for process, (out, err) in zip(processes, outputs):
@@ -54,14 +67,21 @@ def test_a_plain_run_into_a_locked_folder_stops_with_one_line_and_touches_nothin
     (folder / "alpha_table.csv").write_text("a live run's file")
     lock = lock_run_dir(folder)  # this test process is the live run
     try:
-        result = subprocess.run(command(*SMALL, f"hydra.run.dir={folder}"), cwd=tmp_path, capture_output=True,
-                                text=True, env=cli_env(), timeout=300)
+        result = subprocess.run(
+            command(*SMALL, f"hydra.run.dir={folder}"),
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            env=cli_env(),
+            timeout=300,
+        )
     finally:
         unlock_run_dir(lock)
     assert result.returncode == 2, result.stderr
     assert result.stderr.strip().splitlines() == [
         f"workbench: error: {folder} is in use by another workbench process (its lock file {LOCK_FILE} is held); "
-        "wait for it to end or write this run elsewhere"]
+        "wait for it to end or write this run elsewhere"
+    ]
     assert (folder / "alpha_table.csv").read_text() == "a live run's file"
 
 
@@ -96,8 +116,14 @@ def test_ctrl_c_ends_with_one_line_exit_130_and_no_stub_folder(tmp_path):
 
 def test_a_failed_plain_run_leaves_no_stub_folder(tmp_path):
     folder = tmp_path / "run"
-    result = subprocess.run(command("dataset.n_frames=-5", f"hydra.run.dir={folder}"), cwd=tmp_path,
-                            capture_output=True, text=True, env=cli_env(), timeout=300)
+    result = subprocess.run(
+        command("dataset.n_frames=-5", f"hydra.run.dir={folder}"),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=cli_env(),
+        timeout=300,
+    )
     assert result.returncode == 2, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not folder.exists()

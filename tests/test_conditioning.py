@@ -4,11 +4,10 @@ the alpha table when the hand basis is affected."""
 import numpy as np
 import pytest
 
-from workbench.settings.config import resolved_without_hydra
-from workbench.settings.config import compose
 from workbench.numerics.metrics import basis_conditioning
-from workbench.study.run import run_study
 from workbench.reporting.run_text import conditioning_lines, study_header
+from workbench.settings.config import compose, resolved_without_hydra
+from workbench.study.run import run_study
 
 
 def test_conditioning_known_values():
@@ -31,8 +30,7 @@ def test_conditioning_known_values():
 
 
 def test_hand_basis_with_a_duplicate_shape_gets_a_warning_above_the_table():
-    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.train_on=markers",
-                                                   "solver=lstsq"]))
+    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.train_on=markers", "solver=lstsq"]))
     results = run_study(cfg)
     lines = conditioning_lines(results[0].rows)
     assert lines[0].startswith("  bases: H condition number ") and "; QE " in lines[0]
@@ -49,8 +47,11 @@ def test_hand_basis_with_a_duplicate_shape_gets_a_warning_above_the_table():
     rng = np.random.default_rng(1)
     noise = rng.standard_normal(capture.hand.shape[1])
     near_copy = capture.hand[0] + 0.01 * np.linalg.norm(capture.hand[0]) * noise / np.linalg.norm(noise)
-    duplicated = replace(capture, hand=np.vstack([capture.hand, near_copy]),
-                         hand_names=capture.hand_names + (capture.hand_names[0] + "_copy",))
+    duplicated = replace(
+        capture,
+        hand=np.vstack([capture.hand, near_copy]),
+        hand_names=capture.hand_names + (capture.hand_names[0] + "_copy",),
+    )
     solvers = {"lstsq": {"kind": "lstsq", "lower": None, "upper": None}}
     result = run_on_capture("markers", duplicated, cfg["basis"], solvers, Timings())
     header = study_header([result], cfg)

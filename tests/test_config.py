@@ -1,13 +1,13 @@
 """Every study and every config-group option composes."""
 
-
 import pytest
 
 from workbench.settings.config import CONF_DIR, STUDIES_DIR, compose
 
 STUDIES = sorted(path.stem for path in STUDIES_DIR.glob("*.yaml"))
-GROUP_OPTIONS = sorted((folder.name, path.stem) for folder in CONF_DIR.iterdir() if folder.is_dir()
-                       for path in folder.glob("*.yaml"))
+GROUP_OPTIONS = sorted(
+    (folder.name, path.stem) for folder in CONF_DIR.iterdir() if folder.is_dir() for path in folder.glob("*.yaml")
+)
 
 
 def test_there_is_a_paper_study():

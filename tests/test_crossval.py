@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from workbench.settings.config import compose
-from workbench.dataset.capture import Timeline
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.capture import Timeline
+from workbench.settings.config import compose
 from workbench.study.crossval import fold_indices
 from workbench.study.run import run_study
 
@@ -13,8 +13,11 @@ from workbench.study.run import run_study
 def two_takes() -> Timeline:
     """Take a of 50 frames and take b of 37, both at 10 Hz."""
     a, b = Timeline.uniform("a", np.arange(50), 10.0), Timeline.uniform("b", np.arange(37), 10.0)
-    return Timeline(take=np.concatenate([a.take, b.take]), frame=np.concatenate([a.frame, b.frame]),
-                    seconds=np.concatenate([a.seconds, b.seconds]))
+    return Timeline(
+        take=np.concatenate([a.take, b.take]),
+        frame=np.concatenate([a.frame, b.frame]),
+        seconds=np.concatenate([a.seconds, b.seconds]),
+    )
 
 
 def test_kfold_blocks_are_contiguous_disjoint_cover_every_frame_and_leave_a_gap():
@@ -46,20 +49,33 @@ def test_take_out_holds_out_each_take_once():
     assert [train.tolist() for train, _ in folds] == [list(range(50, 87)), list(range(50))]
 
 
-@pytest.mark.parametrize("protocol, options, message", [
-    ("take_out", {}, "has one take"),
-    ("kfold", {"folds": 1}, "dataset.folds must be an integer >= 2"),
-    ("kfold", {"folds": 11}, "at least 11 frames"),
-    ("kfold", {"folds": 2, "gap_s": 10.0}, "fewer than 2 training frames"),
-])
+@pytest.mark.parametrize(
+    "protocol, options, message",
+    [
+        ("take_out", {}, "has one take"),
+        ("kfold", {"folds": 1}, "dataset.folds must be an integer >= 2"),
+        ("kfold", {"folds": 11}, "at least 11 frames"),
+        ("kfold", {"folds": 2, "gap_s": 10.0}, "fewer than 2 training frames"),
+    ],
+)
 def test_bad_folds_are_named(protocol, options, message):
     with pytest.raises(WorkbenchError, match=message):
         fold_indices(Timeline.uniform("a", np.arange(10), 10.0), protocol, **options)
 
 
 def test_kfold_scores_every_basis_on_the_same_frames_and_keeps_per_fold_values():
-    results = run_study(compose("paper", ["dataset.n_frames=500", "solver=lstsq", "dataset.held_out=kfold",
-                                          "dataset.folds=4", "dataset.fold_gap_s=0.2"]))
+    results = run_study(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=500",
+                "solver=lstsq",
+                "dataset.held_out=kfold",
+                "dataset.folds=4",
+                "dataset.fold_gap_s=0.2",
+            ],
+        )
+    )
     trained, held = results
     assert held.data == "markers held-out kfold" and held.folds["n_folds"] == 4
     assert len(held.capture.eval) == 500 and len(held.folds["m"]) == 4
@@ -74,14 +90,25 @@ def test_kfold_scores_every_basis_on_the_same_frames_and_keeps_per_fold_values()
         per_fold = held.folds["alpha_abs_pooled"][i]
         assert len(per_fold) == 4 and min(per_fold) <= row.alpha.absolute_pooled <= max(per_fold)
     from workbench.study.summary import data_metrics
+
     comparisons = data_metrics(held)["fold_comparisons"]
     assert comparisons and all(c["n"] == 4 and c["method"] == "paired t on log ratios" for c in comparisons)
 
 
 def test_animface_take_out_gives_a_fold_per_take(shared_data):
-    results = run_study(compose("paper", ["dataset=animface", "dataset.frame_step=20", "dataset.train_on=markers",
-                                          "dataset.held_out=take_out", "solver=lstsq",
-                                          f"paths.data_root={shared_data}"]))
+    results = run_study(
+        compose(
+            "paper",
+            [
+                "dataset=animface",
+                "dataset.frame_step=20",
+                "dataset.train_on=markers",
+                "dataset.held_out=take_out",
+                "solver=lstsq",
+                f"paths.data_root={shared_data}",
+            ],
+        )
+    )
     by_name = {result.data: result for result in results}
     held, trained = by_name["markers held-out take_out"], by_name["markers"]
     assert held.folds["n_folds"] == 3

@@ -14,18 +14,28 @@ import sys
 
 import pytest
 
-from workbench.cli import main as cli
 from workbench.api import run
-from workbench.settings.config import REPO_ROOT, compose
-from workbench.core.files import inside, sha256_of_file as file_checksum
+from workbench.cli import main as cli
+from workbench.core.files import inside
+from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.record import DONE, is_record_file
+from workbench.settings.config import REPO_ROOT, compose
 
 
 @pytest.fixture(scope="module")
 def record(tmp_path_factory):
     folder = tmp_path_factory.mktemp("records") / "sweep" / "run"
-    cfg = compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq",
-                            "save_inputs=true", "basis.paper_regime=false"])  # one data variant: inputs.npz
+    cfg = compose(
+        "paper",
+        [
+            "dataset.n_frames=300",
+            "dataset.mesh_rows=20",
+            "dataset.mesh_cols=20",
+            "solver=lstsq",
+            "save_inputs=true",
+            "basis.paper_regime=false",
+        ],
+    )  # one data variant: inputs.npz
     run(cfg, folder)
     return folder
 
@@ -41,6 +51,7 @@ def edit_json(name, change):
         value = json.loads((folder / name).read_text())
         change(value)
         (folder / name).write_text(json.dumps(value))
+
     return damage
 
 
@@ -61,30 +72,44 @@ DAMAGE = {
     "metrics.json a list": (write("metrics.json", "[]"), "metrics.json: must hold a JSON object"),
     "metrics.json missing": (lambda folder: (folder / "metrics.json").unlink(), "metrics.json is missing"),
     "rows not a list": (edit_json("metrics.json", lambda m: m.__setitem__("rows", 3)), "field 'rows'"),
-    "a row without alpha_abs_mean": (edit_json("metrics.json", lambda m: m["rows"][0].pop("alpha_abs_mean")),
-                                     "rows[0] has no 'alpha_abs_mean'"),
+    "a row without alpha_abs_mean": (
+        edit_json("metrics.json", lambda m: m["rows"][0].pop("alpha_abs_mean")),
+        "rows[0] has no 'alpha_abs_mean'",
+    ),
     "alpha a string": (set_row("alpha_abs_mean", "12"), "field 'rows[0].alpha_abs_mean' must be a number"),
     "alpha a bool": (set_row("alpha_abs_mean", True), "field 'rows[0].alpha_abs_mean' must be a number"),
     "basis a number": (set_row("basis", 4), "field 'rows[0].basis' must be a string"),
     "row of unknown data": (set_row("data", "elsewhere"), "rows[0].data 'elsewhere' is not one of"),
-    "data entry a list": (edit_json("metrics.json", lambda m: m["data"].__setitem__("markers", [])),
-                          "field 'data.markers' must be an object"),
+    "data entry a list": (
+        edit_json("metrics.json", lambda m: m["data"].__setitem__("markers", [])),
+        "field 'data.markers' must be an object",
+    ),
     "study a path": (edit_json("metrics.json", lambda m: m.__setitem__("study", "../../../x")), "field 'study'"),
     "job_num a string": (edit_json("metrics.json", lambda m: m.__setitem__("job_num", "3")), "field 'job_num'"),
-    "overrides a string": (edit_json("metrics.json", lambda m: m.__setitem__("overrides", "a=1")),
-                           "field 'overrides'"),
+    "overrides a string": (edit_json("metrics.json", lambda m: m.__setitem__("overrides", "a=1")), "field 'overrides'"),
     "timings not numbers": (write("timings.json", '{"total": "slow"}'), "timings.json: field 'total'"),
     "config.yaml not YAML": (write("config.yaml", "study: [unclosed"), "config.yaml: not valid YAML"),
     "config.yaml a list": (write("config.yaml", "- 1\n- 2\n"), "config.yaml: must be a mapping"),
-    "config.yaml study a path": (replace_in("config.yaml", "study: paper", "study: ../../../x"),
-                                 "config.yaml: must be a mapping whose field 'study' is a plain name"),
-    "config.yaml dataset a string": (replace_in("config.yaml", "dataset:", "dataset: 3\nunused:"),
-                                     "config.yaml: field 'dataset' must be a mapping"),
-    "CSV missing a column": (lambda folder: (folder / "alpha_table.csv").write_text(
-        "\n".join(",".join(line.split(",")[1:]) for line in (folder / "alpha_table.csv").read_text().splitlines())),
-        "alpha_table.csv: missing column(s) ['data']"),
-    "CSV missing rows": (lambda folder: (folder / "alpha_table.csv").write_text(
-        "\n".join((folder / "alpha_table.csv").read_text().splitlines()[:2]) + "\n"), "alpha_table.csv has 1 rows"),
+    "config.yaml study a path": (
+        replace_in("config.yaml", "study: paper", "study: ../../../x"),
+        "config.yaml: must be a mapping whose field 'study' is a plain name",
+    ),
+    "config.yaml dataset a string": (
+        replace_in("config.yaml", "dataset:", "dataset: 3\nunused:"),
+        "config.yaml: field 'dataset' must be a mapping",
+    ),
+    "CSV missing a column": (
+        lambda folder: (folder / "alpha_table.csv").write_text(
+            "\n".join(",".join(line.split(",")[1:]) for line in (folder / "alpha_table.csv").read_text().splitlines())
+        ),
+        "alpha_table.csv: missing column(s) ['data']",
+    ),
+    "CSV missing rows": (
+        lambda folder: (folder / "alpha_table.csv").write_text(
+            "\n".join((folder / "alpha_table.csv").read_text().splitlines()[:2]) + "\n"
+        ),
+        "alpha_table.csv has 1 rows",
+    ),
     "CSV empty": (write("alpha_table.csv", ""), "alpha_table.csv: not a readable CSV"),
     "CSV binary": (lambda folder: (folder / "alpha_table.csv").write_bytes(b"\xff\xfe\x00\x01"), "alpha_table.csv"),
 }
@@ -99,8 +124,9 @@ def cli_main(monkeypatch, capsys, *arguments):
 
 @pytest.mark.parametrize("command", ["report", "collect"])
 @pytest.mark.parametrize("case", list(DAMAGE))
-def test_damaged_record_is_refused_in_one_line_naming_file_and_field(record, tmp_path, monkeypatch, capsys, command,
-                                                                     case):
+def test_damaged_record_is_refused_in_one_line_naming_file_and_field(
+    record, tmp_path, monkeypatch, capsys, command, case
+):
     damage, expected = DAMAGE[case]
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
@@ -131,28 +157,41 @@ def edit_bytes(name, change):
 
 
 TAMPERED = {
-    "metrics.json edited": (edit_json("metrics.json", lambda m: m["rows"][0].__setitem__("alpha_abs_mean", 0.01)),
-                            "metrics.json was changed after the run"),
-    "config.yaml edited": (replace_in("config.yaml", "n_frames: 300", "n_frames: 301"),
-                           "config.yaml was changed after the run"),
-    "alpha_table.csv edited": (edit_bytes("alpha_table.csv", lambda data: data.replace(b"0.", b"1.", 1)),
-                               "alpha_table.csv was changed after the run"),
-    "inputs.npz edited": (edit_bytes("inputs.npz", lambda data: data[:-40] + bytes(40)),
-                          "inputs.npz was changed after the run"),
+    "metrics.json edited": (
+        edit_json("metrics.json", lambda m: m["rows"][0].__setitem__("alpha_abs_mean", 0.01)),
+        "metrics.json was changed after the run",
+    ),
+    "config.yaml edited": (
+        replace_in("config.yaml", "n_frames: 300", "n_frames: 301"),
+        "config.yaml was changed after the run",
+    ),
+    "alpha_table.csv edited": (
+        edit_bytes("alpha_table.csv", lambda data: data.replace(b"0.", b"1.", 1)),
+        "alpha_table.csv was changed after the run",
+    ),
+    "inputs.npz edited": (
+        edit_bytes("inputs.npz", lambda data: data[:-40] + bytes(40)),
+        "inputs.npz was changed after the run",
+    ),
     "timings.json removed": (lambda folder: (folder / "timings.json").unlink(), "timings.json is missing"),
-    "done damaged": (write(DONE, "{\"sha256\": 3}"), "'done' is damaged"),
+    "done damaged": (write(DONE, '{"sha256": 3}'), "'done' is damaged"),
     "done emptied": (write(DONE, ""), "'done' is empty"),
-    "alpha_per_frame.npz damaged": (edit_bytes("alpha_per_frame.npz", lambda data: data[:-40] + bytes(40)),
-                                    "alpha_per_frame.npz was changed after the run"),
-    "an archive added": (lambda folder: shutil.copy(folder / "inputs.npz", folder / "inputs_mesh.npz"),
-                         "inputs_mesh.npz is not one of the files the run wrote"),
+    "alpha_per_frame.npz damaged": (
+        edit_bytes("alpha_per_frame.npz", lambda data: data[:-40] + bytes(40)),
+        "alpha_per_frame.npz was changed after the run",
+    ),
+    "an archive added": (
+        lambda folder: shutil.copy(folder / "inputs.npz", folder / "inputs_mesh.npz"),
+        "inputs_mesh.npz is not one of the files the run wrote",
+    ),
 }
 
 
 def workbench_process(*arguments, cwd):
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+    )
 
 
 @pytest.mark.parametrize("case", list(TAMPERED))
@@ -161,10 +200,12 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     damage(folder)
-    commands = {"report": ["report", str(folder), "--out", str(tmp_path / "report")],
-                "collect": ["collect", str(tmp_path / "sweep"), "--out", str(tmp_path / "collected")],
-                "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
-                "export": ["export", str(folder), "--out", str(tmp_path / "export")]}
+    commands = {
+        "report": ["report", str(folder), "--out", str(tmp_path / "report")],
+        "collect": ["collect", str(tmp_path / "sweep"), "--out", str(tmp_path / "collected")],
+        "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
+        "export": ["export", str(folder), "--out", str(tmp_path / "export")],
+    }
     # every reader checks every file of the record, archives included, before it uses or copies any of them
     for command, arguments in commands.items():
         result = workbench_process(*arguments, cwd=tmp_path)
@@ -184,6 +225,8 @@ def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp
     (folder / "report").symlink_to(elsewhere)
     result = workbench_process("report", str(folder), cwd=tmp_path)
     assert result.returncode == 2, result.stderr
-    assert result.stderr.strip() == (f"workbench report: error: refusing to write {folder / 'report'}: it is not "
-                                     f"inside the output folder {folder} (a symbolic link leads to {elsewhere})")
+    assert result.stderr.strip() == (
+        f"workbench report: error: refusing to write {folder / 'report'}: it is not "
+        f"inside the output folder {folder} (a symbolic link leads to {elsewhere})"
+    )
     assert list(elsewhere.iterdir()) == []

@@ -14,18 +14,31 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-import workbench.settings.config
 import workbench.dataset.cache as cache
-from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
-from workbench.dataset import build_captures
-from workbench.dataset.synthetic_builder import build_synthetic
-from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
+import workbench.settings.config
 from workbench.core.errors import WorkbenchError
+from workbench.dataset import build_captures
+from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
+from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.numerics.frames import FramesOnDisk
+from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
 
-CONFIG = {"kind": "synthetic", "n_frames": 300, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7,
-          "head_rotation_deg": 3.0, "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "seed": 0,
-          "mesh_rows": 30, "mesh_cols": 26, "train_on": ["markers", "mesh"], "stabilise": True, "split": "same"}
+CONFIG = {
+    "kind": "synthetic",
+    "n_frames": 300,
+    "frame_rate": 120.0,
+    "n_face_markers": 66,
+    "n_head_markers": 7,
+    "head_rotation_deg": 3.0,
+    "head_translation_mm": 5.0,
+    "marker_noise_mm": 0.05,
+    "seed": 0,
+    "mesh_rows": 30,
+    "mesh_cols": 26,
+    "train_on": ["markers", "mesh"],
+    "stabilise": True,
+    "split": "same",
+}
 
 
 class CountingBuilder:
@@ -47,8 +60,11 @@ def assert_one_note(capsys, start: str, end: str) -> str:
 def entry_files(folder, key):
     """The json and npz of an entry, and its frames files (path -> spec from the json)."""
     meta, npz = folder / f"{key}.json", folder / f"{key}.npz"
-    frames = {folder / spec["path"]: spec for capture in json.loads(meta.read_text())["captures"].values()
-              for spec in capture["frames"].values()}
+    frames = {
+        folder / spec["path"]: spec
+        for capture in json.loads(meta.read_text())["captures"].values()
+        for spec in capture["frames"].values()
+    }
     return meta, npz, frames
 
 
@@ -87,8 +103,15 @@ def test_disk_cache_round_trips_every_field(tmp_path):
         for field in ("neutral", "train", "eval", "hand"):
             assert np.array_equal(getattr(a, field), getattr(b, field)), (name, field)
         assert (a.faces is None and b.faces is None) or np.array_equal(a.faces, b.faces)
-        assert (a.name, a.hand_names, a.point_labels, a.units, a.origin, a.frame_rate, a.notes) == \
-               (b.name, b.hand_names, b.point_labels, b.units, b.origin, b.frame_rate, b.notes)
+        assert (a.name, a.hand_names, a.point_labels, a.units, a.origin, a.frame_rate, a.notes) == (
+            b.name,
+            b.hand_names,
+            b.point_labels,
+            b.units,
+            b.origin,
+            b.frame_rate,
+            b.notes,
+        )
         assert b.eval is b.train  # split 'same' stays one array
     assert len(list(tmp_path.glob("*.npz"))) == 1 and len(list(tmp_path.glob("*.json"))) == 1
 
@@ -114,13 +137,21 @@ def test_key_follows_the_source_files_a_config_names(tmp_path):
 
 
 def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
+    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.study import run as pipeline
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
 
-    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=30",
-                                                   "dataset.mesh_cols=26", "solver=lstsq",
-                                                   f"paths.cache_dir={tmp_path}"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=300",
+                "dataset.mesh_rows=30",
+                "dataset.mesh_cols=26",
+                "solver=lstsq",
+                f"paths.cache_dir={tmp_path}",
+            ],
+        )
+    )
     first = pipeline.run_study(cfg)
     clear_memory()
 
@@ -136,9 +167,18 @@ def test_editing_the_marker_table_under_conf_rebuilds_the_dataset(shared_data, t
     conf = tmp_path / "conf"
     shutil.copytree(CONF_DIR, conf)
     monkeypatch.setattr(workbench.settings.config, "CONF_DIR", conf)
-    cfg = OmegaConf.to_container(compose("paper", ["dataset=ict_livelink", "dataset.max_frames=40",
-                                                   "dataset.train_on=markers", f"paths.data_root={shared_data}"]
-                                         ).dataset, resolve=True)
+    cfg = OmegaConf.to_container(
+        compose(
+            "paper",
+            [
+                "dataset=ict_livelink",
+                "dataset.max_frames=40",
+                "dataset.train_on=markers",
+                f"paths.data_root={shared_data}",
+            ],
+        ).dataset,
+        resolve=True,
+    )
     cache = tmp_path / "cache"
     before = build_captures(cfg, cache)["markers"]
     key = dataset_key(cfg)
@@ -167,9 +207,16 @@ def test_a_damaged_cache_entry_is_reported_and_rebuilt(tmp_path, capsys, damage)
     clear_memory()
     again = cached_captures(CONFIG, build, tmp_path)
     assert build.calls == 2
-    assert_one_note(capsys, f"workbench: cache entry {tmp_path / key}: " + {
-        "truncated npz": f"{key}.npz does not match its checksum", "bad json": f"{key}.json cannot be read",
-        "json of another shape": f"{key}.json does not match its checksum"}[damage], "; rebuilding it")
+    assert_one_note(
+        capsys,
+        f"workbench: cache entry {tmp_path / key}: "
+        + {
+            "truncated npz": f"{key}.npz does not match its checksum",
+            "bad json": f"{key}.json cannot be read",
+            "json of another shape": f"{key}.json does not match its checksum",
+        }[damage],
+        "; rebuilding it",
+    )
     np.testing.assert_array_equal(again["markers"].train, first["markers"].train)
     clear_memory()
     cached_captures(CONFIG, build, tmp_path)  # the rebuilt entry is whole again
@@ -194,6 +241,7 @@ def test_a_hit_maps_uncompressed_frames_read_only(tmp_path):
         assert "0_train" not in stored.files  # frames are not in the npz ...
     assert {path.parent for path in frames} == {tmp_path / "frames"}  # ... but in .npy files beside it
     import zipfile
+
     assert {info.compress_type for info in zipfile.ZipFile(npz).infolist()} == {zipfile.ZIP_STORED}
     for name in ("markers", "mesh"):
         train = loaded[name].train
@@ -204,8 +252,9 @@ def test_a_hit_maps_uncompressed_frames_read_only(tmp_path):
 
 
 @pytest.mark.parametrize("memoised", [False, True])
-def test_a_source_file_edited_in_place_with_size_and_time_kept_is_not_served_stale(tmp_path, monkeypatch, capsys,
-                                                                                    memoised):
+def test_a_source_file_edited_in_place_with_size_and_time_kept_is_not_served_stale(
+    tmp_path, monkeypatch, capsys, memoised
+):
     take = tmp_path / "data" / "take.csv"
     take.parent.mkdir()
     take.write_text("1,2,3\n")
@@ -239,14 +288,25 @@ def test_an_entry_of_another_dataset_is_detected_and_rebuilt(tmp_path, capsys):
     clear_memory()
     again = cached_captures(CONFIG, build, tmp_path)
     assert build.calls == 3
-    assert_one_note(capsys, f"workbench: cache entry {tmp_path / key}: {key}.json was made from other inputs "
-                            "(another dataset config)", "rebuilding it")
+    assert_one_note(
+        capsys,
+        f"workbench: cache entry {tmp_path / key}: {key}.json was made from other inputs (another dataset config)",
+        "rebuilding it",
+    )
     np.testing.assert_array_equal(again["markers"].train, original["markers"].train)
 
 
-@pytest.mark.parametrize("damage", ["the other dataset's npz", "hand shapes reversed",
-                                    "hand shapes and names reversed", "frames scaled by 1.5",
-                                    "frames of another dataset", "frames file missing"])
+@pytest.mark.parametrize(
+    "damage",
+    [
+        "the other dataset's npz",
+        "hand shapes reversed",
+        "hand shapes and names reversed",
+        "frames scaled by 1.5",
+        "frames of another dataset",
+        "frames file missing",
+    ],
+)
 def test_changed_arrays_are_detected_and_rebuilt(tmp_path, capsys, damage):
     build = CountingBuilder()
     original = cached_captures(CONFIG, build, tmp_path)
@@ -305,8 +365,11 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
     os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns))
     clear_memory()
     again = build_captures(cfg, tmp_path)["mesh"]
-    assert_one_note(capsys, f"workbench: cache entry {tmp_path / dataset_key(cfg)}: frames file {path} does not "
-                            "match its checksum", "rebuilding it")
+    assert_one_note(
+        capsys,
+        f"workbench: cache entry {tmp_path / dataset_key(cfg)}: frames file {path} does not match its checksum",
+        "rebuilding it",
+    )
     np.testing.assert_array_equal(np.asarray(again.train), original)  # the file was written anew, not reused
     clear_memory()
     build_captures(cfg, tmp_path)
@@ -314,18 +377,29 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
-    from workbench.study import run as pipeline
-    from workbench.settings.config import resolved_without_hydra
     from workbench.reporting.run_text import alpha_table
+    from workbench.settings.config import resolved_without_hydra
+    from workbench.study import run as pipeline
 
     def tables(cache_dir):
-        cfg = resolved_without_hydra(compose("paper", ["dataset=ict_livelink", "dataset.max_frames=300",
-                                                       "solver=all", f"paths.data_root={shared_data}"]
-                                             + ([f"paths.cache_dir={cache_dir}"] if cache_dir else [])))
+        cfg = resolved_without_hydra(
+            compose(
+                "paper",
+                ["dataset=ict_livelink", "dataset.max_frames=300", "solver=all", f"paths.data_root={shared_data}"]
+                + ([f"paths.cache_dir={cache_dir}"] if cache_dir else []),
+            )
+        )
         clear_memory()
-        return [alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                            coverage=result.eigenfaces.coverage_, paper_alpha={}).to_csv(float_format="%.17g")
-                for result in pipeline.run_study(cfg)]
+        return [
+            alpha_table(
+                result.rows,
+                data=result.data,
+                m=result.eigenfaces.n_components_,
+                coverage=result.eigenfaces.coverage_,
+                paper_alpha={},
+            ).to_csv(float_format="%.17g")
+            for result in pipeline.run_study(cfg)
+        ]
 
     built = tables(None)
     assert tables(tmp_path) == built  # a miss: built, then written
@@ -333,13 +407,24 @@ def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
 
 
 def test_a_hit_in_another_process_writes_the_same_alpha_table(tmp_path):
-    small = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "dataset.train_on=[markers,mesh]",
-             "solver=all"]
+    small = [
+        "dataset.n_frames=300",
+        "dataset.mesh_rows=20",
+        "dataset.mesh_cols=20",
+        "dataset.train_on=[markers,mesh]",
+        "solver=all",
+    ]
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
 
     def table(run, *extra):
-        subprocess.run([sys.executable, "-m", "workbench", *small, *extra, f"hydra.run.dir={tmp_path / run}"],
-                       cwd=tmp_path, env=env, check=True, capture_output=True, timeout=300)
+        subprocess.run(
+            [sys.executable, "-m", "workbench", *small, *extra, f"hydra.run.dir={tmp_path / run}"],
+            cwd=tmp_path,
+            env=env,
+            check=True,
+            capture_output=True,
+            timeout=300,
+        )
         return (tmp_path / run / "alpha_table.csv").read_bytes()
 
     built = table("no_cache")

@@ -31,8 +31,14 @@ def test_the_default_runs_report_has_no_placeholder(default_run, tmp_path):
     assert "not drawn" not in page.lower() and "not drawn" not in readme.lower()
     assert 'class="missing"' not in page
     stems = {path.stem for path in (out / "figures").iterdir()}
-    for name in ("fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "fig4_marker_errors", "vertex_rms",
-                 "animation", "view3d"):
+    for name in (
+        "fig2_hand_vs_quasi_eigen",
+        "fig3_reconstructions",
+        "fig4_marker_errors",
+        "vertex_rms",
+        "animation",
+        "view3d",
+    ):
         assert name in stems, name
     # marker versus mesh is no figure of a run on one data variant: left out, not a placeholder
     assert "marker_vs_mesh" not in stems and "Marker versus mesh" not in page
@@ -152,13 +158,22 @@ def test_frames_missing_a_marker_are_not_picked_for_the_faces():
 def test_the_real_datasets_give_the_face_mesh_their_markers_are_carried_onto(shared_data, name, step):
     from scipy.spatial import cKDTree
 
-    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.dataset import build_captures
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer
+    from workbench.settings.config import compose, resolved_without_hydra
 
-    cfg = resolved_without_hydra(compose("paper", [f"dataset={name}", f"paths.data_root={shared_data}",
-                                                   "dataset.train_on=markers", f"dataset.frame_step={step}"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                f"dataset={name}",
+                f"paths.data_root={shared_data}",
+                "dataset.train_on=markers",
+                f"dataset.frame_step={step}",
+            ],
+        )
+    )
     markers = build_captures(cfg["dataset"])["markers"]
     mesh = rest_mesh(cfg["dataset"], markers.provenance)
     distance, vertex = cKDTree(mesh.vertices).query(markers.neutral.reshape(-1, 3))

@@ -4,9 +4,21 @@ filled in and run: tests/doc_blocks.py and docs/commands.md)."""
 import re
 
 import pytest
-
-from doc_blocks import (LONG_SECONDS, REPO_ROOT, TIMES_DOC, Scratch, all_commands, documents, measured_times,
-                        prerequisites, reads, run_document, runnable, table_rows, writes)
+from doc_blocks import (
+    LONG_SECONDS,
+    REPO_ROOT,
+    TIMES_DOC,
+    Scratch,
+    all_commands,
+    documents,
+    measured_times,
+    prerequisites,
+    reads,
+    run_document,
+    runnable,
+    table_rows,
+    writes,
+)
 
 DOCUMENTED = all_commands()
 PLACEHOLDER = re.compile(r"<[A-Za-z][\w-]*>")
@@ -69,10 +81,17 @@ def test_documented_commands_run(doc, shared_data, tmp_path):
     outcomes = run_document(doc, scratch, report=lines.append)
     print("\n".join(lines))
     failed = [outcome for outcome in outcomes if outcome.status == "failed"]
-    assert not failed, (f"{failed[0].command.doc}:{failed[0].command.line} failed ({failed[0].note}): "
-                        f"{failed[0].command.summary}\n{failed[0].output[-4000:]}")
-    slow = [outcome for outcome in outcomes if outcome.status == "ok" and outcome.command.key not in times
-            and outcome.cpu_seconds >= LONG_SECONDS]
-    assert not slow, (f"{slow[0].command.doc}:{slow[0].command.line} took {slow[0].cpu_seconds:.0f} CPU s and is "
-                      f"not in {TIMES_DOC}: run 'tests/doc_blocks.py measure {slow[0].command.doc}'")
+    assert not failed, (
+        f"{failed[0].command.doc}:{failed[0].command.line} failed ({failed[0].note}): "
+        f"{failed[0].command.summary}\n{failed[0].output[-4000:]}"
+    )
+    slow = [
+        outcome
+        for outcome in outcomes
+        if outcome.status == "ok" and outcome.command.key not in times and outcome.cpu_seconds >= LONG_SECONDS
+    ]
+    assert not slow, (
+        f"{slow[0].command.doc}:{slow[0].command.line} took {slow[0].cpu_seconds:.0f} CPU s and is "
+        f"not in {TIMES_DOC}: run 'tests/doc_blocks.py measure {slow[0].command.doc}'"
+    )
     assert scratch.changes() == [], f"the commands of {doc} left files in the checkout"

@@ -11,16 +11,17 @@ from pathlib import Path
 import pytest
 
 from workbench.core import errors
-from workbench.settings.config import REPO_ROOT
 from workbench.core.files import write_atomic
+from workbench.settings.config import REPO_ROOT
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
 
 def workbench(cwd: Path, *arguments: str) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-m", "workbench", *arguments], cwd=cwd, capture_output=True, text=True,
-                          env=env, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *arguments], cwd=cwd, capture_output=True, text=True, env=env, timeout=300
+    )
 
 
 def one_line(result: subprocess.CompletedProcess) -> str:
@@ -34,8 +35,13 @@ def small_tmpfs(tmp_path):
     """A 24 KiB tmpfs (too small for a run record), where the test may mount one."""
     folder = tmp_path / "small-disk"
     folder.mkdir()
-    if shutil.which("mount") is None or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=24k", "tmpfs",
-                                                        str(folder)], capture_output=True).returncode != 0:
+    if (
+        shutil.which("mount") is None
+        or subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=24k", "tmpfs", str(folder)], capture_output=True
+        ).returncode
+        != 0
+    ):
         pytest.skip("cannot mount a tmpfs here (the simulated ENOSPC test covers the message)")
     yield folder
     subprocess.run(["umount", str(folder)], check=True)
@@ -44,8 +50,9 @@ def small_tmpfs(tmp_path):
 def test_a_full_disk_names_the_file_and_leaves_no_partial_record(small_tmpfs, tmp_path):
     folder = small_tmpfs / "run"
     line = one_line(workbench(tmp_path, *SMALL, f"hydra.run.dir={folder}"))
-    assert line.startswith(f"workbench: error: {folder}/") and line.endswith(": cannot write (No space left on "
-                                                                             "device)"), line
+    assert line.startswith(f"workbench: error: {folder}/") and line.endswith(
+        ": cannot write (No space left on device)"
+    ), line
     assert not folder.exists()
 
 
@@ -56,13 +63,22 @@ def test_a_full_disk_for_the_job_log_is_one_warning_line(tmp_path):
     from workbench.record.tracking import RunLog
 
     handler = RunLog(tmp_path / "full" / "workbench.log", delay=True)  # its folder missing: the open fails
-    result = subprocess.run([sys.executable, "-c", "import logging, sys; from workbench.record.tracking import RunLog; "
-                             f"h = RunLog({str(tmp_path / 'full' / 'workbench.log')!r}, delay=True); "
-                             "log = logging.getLogger('x'); log.addHandler(h); log.warning('a'); log.warning('b')"],
-                            capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import logging, sys; from workbench.record.tracking import RunLog; "
+            f"h = RunLog({str(tmp_path / 'full' / 'workbench.log')!r}, delay=True); "
+            "log = logging.getLogger('x'); log.addHandler(h); log.warning('a'); log.warning('b')",
+        ],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+    )
     assert result.returncode == 0 and result.stderr == (
         f"workbench: warning: cannot write {tmp_path / 'full' / 'workbench.log'} (No such file or directory); the "
-        "record is complete, only the copy of what the run printed is missing\n")
+        "record is complete, only the copy of what the run printed is missing\n"
+    )
     assert isinstance(handler, logging.FileHandler)
 
 
@@ -77,16 +93,22 @@ def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
     with pytest.raises(SystemExit) as stopped:
         errors.exit_on_error("workbench", raised.value)
     assert stopped.value.code == 2
-    assert capsys.readouterr().err == (f"workbench: error: {tmp_path / 'metrics.json'}: cannot write "
-                                       "(No space left on device)\n")
+    assert capsys.readouterr().err == (
+        f"workbench: error: {tmp_path / 'metrics.json'}: cannot write (No space left on device)\n"
+    )
 
 
-@pytest.mark.parametrize("error, expected", [
-    (PermissionError(errno.EACCES, "Permission denied", "/data/animface_jaw.c3d"),
-     "/data/animface_jaw.c3d: Permission denied"),
-    (IsADirectoryError(errno.EISDIR, "Is a directory", "/data/take.csv"), "/data/take.csv: Is a directory"),
-    (MemoryError(), "out of memory (MemoryError)"),
-])
+@pytest.mark.parametrize(
+    "error, expected",
+    [
+        (
+            PermissionError(errno.EACCES, "Permission denied", "/data/animface_jaw.c3d"),
+            "/data/animface_jaw.c3d: Permission denied",
+        ),
+        (IsADirectoryError(errno.EISDIR, "Is a directory", "/data/take.csv"), "/data/take.csv: Is a directory"),
+        (MemoryError(), "out of memory (MemoryError)"),
+    ],
+)
 def test_environment_faults_are_one_line_exit_2(error, expected, capsys):
     with pytest.raises(SystemExit) as stopped:
         errors.exit_on_error("workbench", error)
@@ -101,8 +123,15 @@ def test_an_unreadable_data_file_is_named(shared_data, tmp_path):
     shutil.copytree(shared_data / "livelinkface", root / "livelinkface")
     (root / "ict-facekit").symlink_to(shared_data / "ict-facekit")
     (root / "livelinkface" / "alex_rom_3.csv").chmod(0)
-    line = one_line(workbench(tmp_path, "dataset=ict_livelink", f"paths.data_root={root}", "dataset.max_frames=40",
-                              f"hydra.run.dir={tmp_path / 'run'}"))
+    line = one_line(
+        workbench(
+            tmp_path,
+            "dataset=ict_livelink",
+            f"paths.data_root={root}",
+            "dataset.max_frames=40",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        )
+    )
     assert "alex_rom_3.csv" in line and "Permission denied" in line
 
 
@@ -128,10 +157,13 @@ def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
 
 def test_a_cache_path_that_is_a_file_is_one_line(tmp_path):
     (tmp_path / "cache").write_text("")
-    line = one_line(workbench(tmp_path, *SMALL, f"paths.cache_dir={tmp_path / 'cache'}",
-                              f"hydra.run.dir={tmp_path / 'run'}"))
-    assert line == f"workbench: error: paths.cache_dir {tmp_path / 'cache'} is not a folder (a file is in the way); " \
-                   "give a folder or null"
+    line = one_line(
+        workbench(tmp_path, *SMALL, f"paths.cache_dir={tmp_path / 'cache'}", f"hydra.run.dir={tmp_path / 'run'}")
+    )
+    assert (
+        line == f"workbench: error: paths.cache_dir {tmp_path / 'cache'} is not a folder (a file is in the way); "
+        "give a folder or null"
+    )
 
 
 @pytest.mark.parametrize("preset, expected", [(None, "16"), ("28", "28")])

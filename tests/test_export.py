@@ -17,18 +17,33 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.settings.config import REPO_ROOT, compose
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.export import (ExportedBasis, check_plan, export_path, export_run, file_plan, livelink_channels,
-                              livelink_csv, main, playback_targets, timecode)
 from workbench.numerics.metrics import summarise_alpha
+from workbench.reporting.export import (
+    ExportedBasis,
+    check_plan,
+    export_path,
+    export_run,
+    file_plan,
+    livelink_channels,
+    livelink_csv,
+    main,
+    playback_targets,
+    timecode,
+)
+from workbench.settings.config import REPO_ROOT, compose
 
 sys.path.insert(0, str(REPO_ROOT / "tests" / "tools"))
 from playback_check import playback_differences  # noqa: E402  (a helper script beside the Blender one)
 
 # One fit per data variant (the paper regime's extra m = n variants are the regime tests' concern).
-RUN = ["dataset.n_frames=300", "dataset.train_on=[mesh,markers]", "solver=nnls", "basis.paper_regime=false",
-       "save_inputs=true"]
+RUN = [
+    "dataset.n_frames=300",
+    "dataset.train_on=[mesh,markers]",
+    "solver=nnls",
+    "basis.paper_regime=false",
+    "save_inputs=true",
+]
 ALPHA_COLUMNS = ["alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled"]
 TOOLS_REQUIRED = os.environ.get("WORKBENCH_REQUIRE_TOOLS") == "1"
 NODE_MODULES = Path(os.environ.get("WORKBENCH_NODE_MODULES", REPO_ROOT / ".ci" / "node" / "node_modules"))
@@ -55,11 +70,11 @@ def read_glb(path):
     assert magic == b"glTF" and version == 2 and length == len(data)
     json_length, json_type = struct.unpack_from("<II", data, 12)
     assert json_type == 0x4E4F534A
-    document = json.loads(data[20:20 + json_length])
+    document = json.loads(data[20 : 20 + json_length])
     bin_start = 20 + json_length
     bin_length, bin_type = struct.unpack_from("<II", data, bin_start)
     assert bin_type == 0x004E4942
-    blob = data[bin_start + 8:bin_start + 8 + bin_length]
+    blob = data[bin_start + 8 : bin_start + 8 + bin_length]
 
     def accessor(index):
         spec = document["accessors"][index]
@@ -67,8 +82,8 @@ def read_glb(path):
         dtype = {5126: np.float32, 5125: np.uint32}[spec["componentType"]]
         width = {"SCALAR": 1, "VEC3": 3}[spec["type"]]
         start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
-        return np.frombuffer(blob, dtype=dtype, count=spec["count"] * width, offset=start).reshape(spec["count"],
-                                                                                                  width)
+        return np.frombuffer(blob, dtype=dtype, count=spec["count"] * width, offset=start).reshape(spec["count"], width)
+
     return document, accessor
 
 
@@ -85,8 +100,13 @@ def rebuild_from_glb(path):
         weights.append(accessor(sampler["output"]).astype(np.float64).reshape(len(seconds[-1]), len(targets)))
     weights = np.concatenate(weights)
     frames = weights @ targets.reshape(len(targets), -1) * 1000.0
-    return document, frames, np.concatenate(seconds), accessor(primitive["attributes"]["POSITION"]).astype(
-        np.float64), weights
+    return (
+        document,
+        frames,
+        np.concatenate(seconds),
+        accessor(primitive["attributes"]["POSITION"]).astype(np.float64),
+        weights,
+    )
 
 
 @pytest.mark.parametrize("basis", ["H", "QE", "QE-linear", "PCA"])
@@ -96,8 +116,7 @@ def test_glb_morph_targets_and_animation_rebuild_the_runs_alpha(record, mesh_exp
     inputs = np.load(record / "inputs_mesh.npz")
     table = pd.read_csv(record / "alpha_table.csv").query("data == 'mesh' and basis == @basis")
     summary = summarise_alpha(inputs["neutral"], inputs["eval"], frames)
-    measured = [summary.absolute_mean, summary.absolute_pooled, summary.displacement_mean,
-                summary.displacement_pooled]
+    measured = [summary.absolute_mean, summary.absolute_pooled, summary.displacement_mean, summary.displacement_pooled]
     np.testing.assert_allclose(measured, table[ALPHA_COLUMNS].to_numpy()[0], rtol=1e-5, atol=0)
     np.testing.assert_allclose(neutral * 1000.0, inputs["neutral"].reshape(-1, 3), rtol=1e-6, atol=1e-4)
     np.testing.assert_allclose(seconds, np.arange(300) / 120.0, rtol=1e-6, atol=1e-7)
@@ -190,14 +209,22 @@ def test_timecodes_keep_the_frame_field_below_the_rate():
     assert timecode(3600 * 13 + 13 * 60 + 4 + 31.652 / 60) == "13:13:04:31.652"
     assert timecode(59.99999999) == "00:01:00:00.000" and timecode(0.5, 30.0) == "00:00:00:15.000"
     from workbench.formats.livelink import parse_timecodes
+
     np.testing.assert_allclose(parse_timecodes(codes, 60.0, Path("x")), seconds, atol=0.5e-3 / 60)
 
 
 def test_playback_targets_keep_weights_in_the_slider_range_and_the_frames_exact():
     rng = np.random.default_rng(0)
     names = ["a", "b", "c", "pca_01", "pca_02"]
-    weights = np.column_stack([rng.uniform(0, 1, 50), rng.uniform(-2, 3.5, 50), rng.uniform(-0.5, 0.9, 50),
-                               rng.normal(0, 40, 50), np.zeros(50)])
+    weights = np.column_stack(
+        [
+            rng.uniform(0, 1, 50),
+            rng.uniform(-2, 3.5, 50),
+            rng.uniform(-0.5, 0.9, 50),
+            rng.normal(0, 40, 50),
+            np.zeros(50),
+        ]
+    )
     weights[3, 0] = 1.0 + 1e-12  # a solver's rounding: clipped, not split
     shapes = rng.normal(size=(5, 12))
     targets = playback_targets(names, weights, [True, True, True, False, False])
@@ -205,8 +232,9 @@ def test_playback_targets_keep_weights_in_the_slider_range_and_the_frames_exact(
     assert targets.weights.min() == 0.0 and targets.weights.max() == 1.0
     np.testing.assert_allclose(targets.scales[[0, 1, 2, 3]], [1.0, 1.0, weights[:, 1].max() - 1, weights[:, 1].min()])
     np.testing.assert_allclose(targets.scales[6:8], [weights[:, 3].max(), weights[:, 3].min()])
-    np.testing.assert_allclose(targets.raw_weights(5), np.where(weights > 1 + 1e-9, weights, weights.clip(max=1)),
-                               rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        targets.raw_weights(5), np.where(weights > 1 + 1e-9, weights, weights.clip(max=1)), rtol=0, atol=1e-13
+    )
     np.testing.assert_allclose(targets.weights @ targets.deltas(shapes), weights @ shapes, rtol=0, atol=1e-11)
     with pytest.raises(WorkbenchError, match=r"morph target name\(s\) \['b_neg'\] would repeat"):
         playback_targets(["b", "b_neg"], np.array([[-1.0, 0.5]]), [True, True])
@@ -219,8 +247,11 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
         export_run(record, tmp_path / "out", data="face")
     with pytest.raises(WorkbenchError, match=r"export --solver box: the run's solvers are \['nnls'\]"):
         export_run(record, tmp_path / "out", solver="box")
-    with pytest.raises(WorkbenchError, match=r"export --bases ICA: data 'mesh' with solver 'nnls' has bases "
-                                             r"\['H', 'QE', 'QE-linear', 'PCA'\]"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"export --bases ICA: data 'mesh' with solver 'nnls' has bases "
+        r"\['H', 'QE', 'QE-linear', 'PCA'\]",
+    ):
         export_run(record, tmp_path / "out", bases=["ICA"])
     tampered = tmp_path / "tampered"
     shutil.copytree(record, tampered)
@@ -258,13 +289,18 @@ def test_hand_basis_bad_input(record, mesh_export, tmp_path):
         build(path=str(out / "H_obj"), unit_mm=10.0)
     with pytest.raises(WorkbenchError, match=r"dataset.hand_basis has unknown key\(s\) \['unit'\]"):
         build(path=str(out / "H_obj"), unit=10.0)
-    with pytest.raises(WorkbenchError, match=r"dataset.hand_basis: needs distinct shape names of the file's .*"
-                                             r"missing \['smile'\]"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"dataset.hand_basis: needs distinct shape names of the file's .*"
+        r"missing \['smile'\]",
+    ):
         build(path=str(out / "H_obj"), shapes=["jaw_open", "smile"])
     stated = tmp_path / "stated"
     shutil.copytree(out / "H_obj", stated)
     (stated / "manifest.json").write_text(json.dumps({"unit": "m", "unit_mm": "a lot"}))
-    with pytest.raises(WorkbenchError, match=r"stated/manifest.json: field 'unit_mm' must be a positive, finite number"):
+    with pytest.raises(
+        WorkbenchError, match=r"stated/manifest.json: field 'unit_mm' must be a positive, finite number"
+    ):
         build(path=str(stated))
     (stated / "manifest.json").write_text("{")
     with pytest.raises(WorkbenchError, match=r"stated/manifest.json: not a readable JSON file"):
@@ -288,13 +324,25 @@ def test_cli_export_prints_one_line_per_basis(record, tmp_path, capsys):
     assert main([str(record), "--out", str(tmp_path / "cli"), "--bases", "QE", "--data", "mesh"]) == 0
     printed = capsys.readouterr().out
     assert printed.startswith("QE (nnls, 18 shapes, alpha ") and "QE.glb, QE_obj/" in printed
-    result = subprocess.run([str(Path(os.sys.executable).parent / "workbench"), "export", str(record), "--bases",
-                             "XYZ", "--out", str(tmp_path / "x")], capture_output=True, text=True)
+    result = subprocess.run(
+        [
+            str(Path(os.sys.executable).parent / "workbench"),
+            "export",
+            str(record),
+            "--bases",
+            "XYZ",
+            "--out",
+            str(tmp_path / "x"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 2 and result.stderr.count("\n") == 1
     assert result.stderr.startswith("workbench export: error: export --bases XYZ")
 
 
 # --- independent readers: the Khronos validator and Blender (required where WORKBENCH_REQUIRE_TOOLS=1, as in CI) ---
+
 
 def require_tool(available: bool, what: str):
     if not available:
@@ -305,11 +353,18 @@ def require_tool(available: bool, what: str):
 
 def validate(path: Path) -> dict:
     """The Khronos validator's issues for one file."""
-    require_tool(shutil.which("node") is not None and (NODE_MODULES / "gltf-validator").is_dir(),
-                 f"node and the gltf-validator package (in {NODE_MODULES})")
+    require_tool(
+        shutil.which("node") is not None and (NODE_MODULES / "gltf-validator").is_dir(),
+        f"node and the gltf-validator package (in {NODE_MODULES})",
+    )
     script = REPO_ROOT / "tests" / "tools" / "validate_gltf.js"
-    result = subprocess.run(["node", str(script), str(path)], capture_output=True, text=True,
-                            env=dict(os.environ, NODE_PATH=str(NODE_MODULES)), timeout=120)
+    result = subprocess.run(
+        ["node", str(script), str(path)],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, NODE_PATH=str(NODE_MODULES)),
+        timeout=120,
+    )
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)["issues"]
 
@@ -320,15 +375,18 @@ def every_solver(tmp_path_factory):
     from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
 
     folder = tmp_path_factory.mktemp("solvers") / "run"
-    run(compose("paper", ["dataset.n_frames=300", "dataset.train_on=mesh", "solver=all", "basis.paper_regime=false"]),
-        folder)
+    run(
+        compose("paper", ["dataset.n_frames=300", "dataset.train_on=mesh", "solver=all", "basis.paper_regime=false"]),
+        folder,
+    )
     record = read_run_record(folder)
     (result,) = rebuild_results(record)
     exports = []
     for solver in ("lstsq", "nnls", "box"):
         out = folder.parent / solver
-        exports.append((solver, out, export_run(folder, out, solver=solver),
-                        exported_bases(result, None, solver, record.table)))
+        exports.append(
+            (solver, out, export_run(folder, out, solver=solver), exported_bases(result, None, solver, record.table))
+        )
     return exports, result.capture.neutral.reshape(-1, 3)
 
 
@@ -365,14 +423,27 @@ def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(e
 
 # --- real takes: several takes at 7.5 fps (AnimFace), the Live Link take's own timecodes (ICT) ---
 
+
 @pytest.fixture(scope="module")
 def animface_export(shared_data, tmp_path_factory):
     from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
 
     folder = tmp_path_factory.mktemp("animface") / "run"
-    run(compose("paper", ["dataset=animface", f"paths.data_root={shared_data}", "dataset.frame_step=8",
-                          "dataset.max_frames_per_take=40", "dataset.train_on=mesh", "solver=lstsq",
-                          "basis.paper_regime=false"]), folder)
+    run(
+        compose(
+            "paper",
+            [
+                "dataset=animface",
+                f"paths.data_root={shared_data}",
+                "dataset.frame_step=8",
+                "dataset.max_frames_per_take=40",
+                "dataset.train_on=mesh",
+                "solver=lstsq",
+                "basis.paper_regime=false",
+            ],
+        ),
+        folder,
+    )
     out = folder.parent / "export"
     manifest = export_run(folder, out)
     record = read_run_record(folder)
@@ -395,8 +466,9 @@ def test_takes_get_their_own_animation_files_and_times(animface_export):
         np.testing.assert_allclose(livelink.seconds, curves["time"], atol=1e-3 / 60)
     document, _ = read_glb(out / "QE.glb")
     assert [animation["name"] for animation in document["animations"]] == [f"QE_lstsq_{take}" for take in takes]
-    assert [take["animation"] for take in document["asset"]["extras"]["takes"]] == [f"QE_lstsq_{take}"
-                                                                                   for take in takes]
+    assert [take["animation"] for take in document["asset"]["extras"]["takes"]] == [
+        f"QE_lstsq_{take}" for take in takes
+    ]
     assert not list(out.glob("H_weights.csv")) and not list(out.glob("H_livelink.csv"))
 
 
@@ -417,8 +489,13 @@ def test_takes_play_back_in_blender_at_7_5_fps(animface_export, tmp_path):
 @pytest.fixture(scope="module")
 def ict_export(shared_data, tmp_path_factory):
     folder = tmp_path_factory.mktemp("ict") / "run"
-    run(compose("paper", ["dataset=ict_livelink", f"paths.data_root={shared_data}", "dataset.train_on=markers",
-                          "solver=lstsq"]), folder)
+    run(
+        compose(
+            "paper",
+            ["dataset=ict_livelink", f"paths.data_root={shared_data}", "dataset.train_on=markers", "solver=lstsq"],
+        ),
+        folder,
+    )
     return folder
 
 
@@ -460,6 +537,7 @@ def test_livelink_csv_is_the_source_takes_layout_and_timecodes(shared_data, ict_
 
 # --- units and names ---
 
+
 def test_obj_folders_are_in_metres_unless_millimetres_are_asked_for(record, mesh_export, tmp_path):
     out, manifest = mesh_export
     neutral = np.load(record / "inputs_mesh.npz")["neutral"].reshape(-1, 3)
@@ -480,24 +558,48 @@ def test_obj_folders_are_in_metres_unless_millimetres_are_asked_for(record, mesh
 
 @pytest.mark.parametrize("name", ["../../x", "sub/dir/name", "", ".", "..", "a\\b"])
 def test_names_that_would_leave_the_export_folder_are_refused(tmp_path, name):
-    with pytest.raises(WorkbenchError, match=r"cannot name a file inside .*: a shape, take or basis name must be a "
-                                             r"plain name"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"cannot name a file inside .*: a shape, take or basis name must be a "
+        r"plain name",
+    ):
         export_path(tmp_path, "H_obj", f"{name}.obj" if name not in ("", ".", "..") else name)
 
 
-@pytest.mark.parametrize("names, message", [
-    (["jaw", ""], r"'' cannot name a file inside"), (["jaw", "."], r"'\.' cannot name a file inside"),
-    (["neutral", "jaw"], r"\['neutral\.obj'\] would be written twice into .*H_obj"),
-    (["Jaw", "jaw"], r"\['Jaw\.obj', 'jaw\.obj'\] would be written twice")])
+@pytest.mark.parametrize(
+    "names, message",
+    [
+        (["jaw", ""], r"'' cannot name a file inside"),
+        (["jaw", "."], r"'\.' cannot name a file inside"),
+        (["neutral", "jaw"], r"\['neutral\.obj'\] would be written twice into .*H_obj"),
+        (["Jaw", "jaw"], r"\['Jaw\.obj', 'jaw\.obj'\] would be written twice"),
+    ],
+)
 def test_every_file_name_is_checked_before_anything_is_written(tmp_path, names, message):
-    from workbench.reporting.export import export_takes
     from workbench.dataset.capture import Capture
+    from workbench.reporting.export import export_takes
 
-    capture = Capture(name="x", neutral=np.zeros(9), train=np.zeros((2, 9)), eval=np.zeros((2, 9)),
-                      hand=np.zeros((2, 9)), hand_names=tuple(names), point_labels=("a", "b", "c"), units="mm",
-                      origin="o", frame_rate=30.0)
-    basis = ExportedBasis(label="H", names=tuple(names), shapes=np.zeros((2, 9)), weights=np.zeros((2, 2)),
-                          solver="lstsq", alpha={}, sculpted=(True, True))
+    capture = Capture(
+        name="x",
+        neutral=np.zeros(9),
+        train=np.zeros((2, 9)),
+        eval=np.zeros((2, 9)),
+        hand=np.zeros((2, 9)),
+        hand_names=tuple(names),
+        point_labels=("a", "b", "c"),
+        units="mm",
+        origin="o",
+        frame_rate=30.0,
+    )
+    basis = ExportedBasis(
+        label="H",
+        names=tuple(names),
+        shapes=np.zeros((2, 9)),
+        weights=np.zeros((2, 2)),
+        solver="lstsq",
+        alpha={},
+        sculpted=(True, True),
+    )
     plan = file_plan(basis, export_takes(capture, None, 60.0), mesh=True, arkit=False)
     with pytest.raises(WorkbenchError, match=message):
         check_plan(tmp_path / "out", [plan])
@@ -508,13 +610,17 @@ def with_target_names(glb: Path, names: list, path: Path) -> None:
     """A copy of a .glb with other morph-target names (the JSON chunk rewritten, padded to 4 bytes)."""
     data = glb.read_bytes()
     length = struct.unpack_from("<I", data, 12)[0]
-    document = json.loads(data[20:20 + length])
+    document = json.loads(data[20 : 20 + length])
     document["meshes"][0]["extras"]["targetNames"] = names
     text = json.dumps(document).encode()
     text += b" " * (-len(text) % 4)
-    rest = data[20 + length:]
-    path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + len(rest))
-                     + struct.pack("<II", len(text), 0x4E4F534A) + text + rest)
+    rest = data[20 + length :]
+    path.write_bytes(
+        struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + len(rest))
+        + struct.pack("<II", len(text), 0x4E4F534A)
+        + text
+        + rest
+    )
 
 
 def test_export_of_shapes_named_like_paths_stops_before_writing(mesh_export, tmp_path):
@@ -524,12 +630,31 @@ def test_export_of_shapes_named_like_paths_stops_before_writing(mesh_export, tmp
     with_target_names(out / "H.glb", hostile, tmp_path / "hostile.glb")
     shapes = "[" + ",".join(f"'{name}'" for name in hostile[:18]) + "]"
     folder = tmp_path / "run"
-    run(compose("paper", ["dataset.n_frames=300", "dataset.train_on=mesh", "solver=lstsq",
-                          f"+dataset.hand_basis.path={tmp_path / 'hostile.glb'}",
-                          f"+dataset.hand_basis.shapes={shapes}"]), folder)
+    run(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=300",
+                "dataset.train_on=mesh",
+                "solver=lstsq",
+                f"+dataset.hand_basis.path={tmp_path / 'hostile.glb'}",
+                f"+dataset.hand_basis.shapes={shapes}",
+            ],
+        ),
+        folder,
+    )
     before = sorted(path for path in tmp_path.rglob("*"))
-    result = subprocess.run([str(Path(sys.executable).parent / "workbench"), "export", str(folder), "--out",
-                             str(tmp_path / "deep" / "out")], capture_output=True, text=True)
+    result = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "workbench"),
+            "export",
+            str(folder),
+            "--out",
+            str(tmp_path / "deep" / "out"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "'../../x' cannot name a file inside" in result.stderr
     assert sorted(path for path in tmp_path.rglob("*")) == before and not (tmp_path / "x.obj").exists()

@@ -15,18 +15,38 @@ from PIL import Image
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import compact_svg, fixed_decimals, raster_bytes, save_figure, shorter_numbers
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
-from workbench.reporting.figures.faces import (colour_range, face_regions, nice_exaggeration, point_norms,
-                                               region_frames, shape_region, spread_by_rank)
-from workbench.reporting.figures.render import (PLAIN_COLOUR, MeshView, crop_background, render_meshes, support_weight,
-                                                vertex_colours)
-from workbench.reporting.figures.studies import (ci_columns, place_labels, plot_alpha_against, plot_alpha_over_time,
-                                                 plot_coverage_curve, plot_marker_vs_mesh, plot_weight_curves)
+from workbench.reporting.figures.faces import (
+    colour_range,
+    face_regions,
+    nice_exaggeration,
+    point_norms,
+    region_frames,
+    shape_region,
+    spread_by_rank,
+)
+from workbench.reporting.figures.render import (
+    PLAIN_COLOUR,
+    MeshView,
+    crop_background,
+    render_meshes,
+    support_weight,
+    vertex_colours,
+)
+from workbench.reporting.figures.studies import (
+    ci_columns,
+    place_labels,
+    plot_alpha_against,
+    plot_alpha_over_time,
+    plot_coverage_curve,
+    plot_marker_vs_mesh,
+    plot_weight_curves,
+)
 
 
 def grid_mesh(n: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """A bumpy square patch facing +z: vertices (n*n, 3) and triangles."""
     x, y = np.meshgrid(np.linspace(-50, 50, n), np.linspace(-50, 50, n))
-    z = 20 * np.exp(-(x ** 2 + y ** 2) / 800)
+    z = 20 * np.exp(-(x**2 + y**2) / 800)
     vertices = np.c_[x.ravel(), y.ravel(), z.ravel()]
     index = np.arange(n * n).reshape(n, n)
     a, b, c, d = index[:-1, :-1].ravel(), index[:-1, 1:].ravel(), index[1:, :-1].ravel(), index[1:, 1:].ravel()
@@ -79,15 +99,20 @@ def test_renders_are_lossless_webp_at_print_resolution(tmp_path):
 
 def test_svg_numbers_are_cut_in_attributes_only():
     svg = b'<path d="M 179.718736 172.6 L 0.123456 1e-05" style="stroke-width: 0.8123"/><text x="12.3456">0.9958</text>'
-    assert shorter_numbers(svg) == (b'<path d="M 179.7 172.6 L 0.1 1e-05" style="stroke-width: 0.81"/>'
-                                    b'<text x="12.34">0.9958</text>')
+    assert shorter_numbers(svg) == (
+        b'<path d="M 179.7 172.6 L 0.1 1e-05" style="stroke-width: 0.81"/><text x="12.34">0.9958</text>'
+    )
 
 
 def test_svg_is_compacted_without_changing_what_it_draws():
-    svg = (b'<svg>\n <!-- a comment -->\n <defs>\n  <path id="m1" d="M 0 0 \nL 1.23456 2 \nz\n"/>\n </defs>\n'
-           b' <g id="figure_1">\n  <use xlink:href="#m1" x="3"/>\n  <text x="1">a  b</text>\n </g>\n</svg>')
-    assert compact_svg(svg) == (b'<svg><defs><path id="m1" d="M 0 0 L 1.2 2 z "/></defs><g><use xlink:href="#m1" '
-                                b'x="3"/><text x="1">a  b</text></g></svg>')
+    svg = (
+        b'<svg>\n <!-- a comment -->\n <defs>\n  <path id="m1" d="M 0 0 \nL 1.23456 2 \nz\n"/>\n </defs>\n'
+        b' <g id="figure_1">\n  <use xlink:href="#m1" x="3"/>\n  <text x="1">a  b</text>\n </g>\n</svg>'
+    )
+    assert compact_svg(svg) == (
+        b'<svg><defs><path id="m1" d="M 0 0 L 1.2 2 z "/></defs><g><use xlink:href="#m1" '
+        b'x="3"/><text x="1">a  b</text></g></svg>'
+    )
 
 
 def test_recurring_svg_styles_become_classes_of_one_sheet_with_the_same_rules():
@@ -98,15 +123,19 @@ def test_recurring_svg_styles_become_classes_of_one_sheet_with_the_same_rules():
 
     from workbench.reporting.figures import shared_styles
 
-    svg = (b'<svg width="9"><style type="text/css">*{stroke-linecap: butt}</style>'
-           b'<use x="1" style="stroke: #000000; stroke-width: 0.8"/><use x="2" style="stroke: #000000; stroke-width: 0.8"/>'
-           b'<path d="M 0 0" style="fill: none"/><text style="font: 8px sans">a</text><text style="font: 8px sans">b</text>'
-           b'</svg>')
+    svg = (
+        b'<svg width="9"><style type="text/css">*{stroke-linecap: butt}</style>'
+        b'<use x="1" style="stroke: #000000; stroke-width: 0.8"/><use x="2" style="stroke: #000000; stroke-width: 0.8"/>'
+        b'<path d="M 0 0" style="fill: none"/><text style="font: 8px sans">a</text><text style="font: 8px sans">b</text>'
+        b"</svg>"
+    )
     shared = shared_styles(svg)
-    assert shared == (b'<svg width="9"><style>.s0{font: 8px sans}.s1{stroke: #000000; stroke-width: 0.8}</style>'
-                      b'<style type="text/css">*{stroke-linecap: butt}</style><use x="1" class="s1"/><use x="2" '
-                      b'class="s1"/><path d="M 0 0" style="fill: none"/><text class="s0">a</text><text class="s0">b'
-                      b'</text></svg>')
+    assert shared == (
+        b'<svg width="9"><style>.s0{font: 8px sans}.s1{stroke: #000000; stroke-width: 0.8}</style>'
+        b'<style type="text/css">*{stroke-linecap: butt}</style><use x="1" class="s1"/><use x="2" '
+        b'class="s1"/><path d="M 0 0" style="fill: none"/><text class="s0">a</text><text class="s0">b'
+        b"</text></svg>"
+    )
     figure = Figure(figsize=(3, 2))
     figure.subplots().plot(np.arange(30) % 7, "o-")
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "t"}):
@@ -147,7 +176,7 @@ def test_colour_fades_into_the_plain_shade_where_the_capture_has_no_data():
     assert np.all(np.diff(weight) <= 0)  # no jump: it only fades
     assert support_weight(points, None) is None and support_weight(points, np.ones(101, bool)) is None
     view = MeshView(cmap="YlOrRd", clim=(0.0, 1.0))
-    plain = np.array([int(PLAIN_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
+    plain = np.array([int(PLAIN_COLOUR[i : i + 2], 16) for i in (1, 3, 5)])
     colours = vertex_colours(np.r_[np.ones(100), np.nan], view, weight).astype(int)
     np.testing.assert_array_equal(colours[60:], np.tile(plain, (41, 1)))  # no data, and NaN: plain
     assert np.abs(colours[0] - plain).max() > 100  # full colour far inside
@@ -163,10 +192,11 @@ def test_openings_are_closed_by_dark_caps_and_missing_values_are_plain():
     loops = hole_loops(holed)
     assert len(loops) == 1 and np.all(np.linalg.norm(vertices[loops[0], :2], axis=1) < 35)
     values = np.where(vertices[:, 0] > 30, np.nan, 0.0)
-    image = render_meshes([vertices], holed, [values], MeshView(cmap="Greens", clim=(0.0, 1.0),
-                                                                 window_size=(200, 200), view=(0, 0, 1)))[0]
+    image = render_meshes(
+        [vertices], holed, [values], MeshView(cmap="Greens", clim=(0.0, 1.0), window_size=(200, 200), view=(0, 0, 1))
+    )[0]
     middle = image[90:110, 90:110].reshape(-1, 3).astype(int)
-    cap = np.array([int(CAP_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
+    cap = np.array([int(CAP_COLOUR[i : i + 2], 16) for i in (1, 3, 5)])
     assert np.all(middle.max(axis=1) < 120), "the opening shows the background"
     assert np.abs(middle.mean(axis=0) - cap).max() < 60
     right = image[100, 150:175].astype(int)  # x > 30: no value, plain grey (equal channels), not the map's green
@@ -195,7 +225,8 @@ def test_rendering_works_in_a_plain_subprocess_without_a_display(tmp_path):
         "f = np.array([[0, 1, 2], [1, 3, 2]])\n"
         "image = render_meshes([v], f, [v[:, 2]], MeshView(cmap='viridis', clim=(0, 0.3), window_size=(64, 48)))[0]\n"
         "assert image.shape == (48, 64, 3)\n"
-        "print('covered', float(np.any(image < 250, axis=2).mean()))\n")
+        "print('covered', float(np.any(image < 250, axis=2).mean()))\n"
+    )
     env = {key: value for key, value in os.environ.items() if key not in ("DISPLAY", "WAYLAND_DISPLAY")}
     done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
@@ -216,18 +247,33 @@ def test_selection_helpers():
 
 
 def test_figure_3_frames_cover_the_regions_of_the_face():
-    assert [shape_region(name) for name in ("browInnerUp_L", "corrugator_R", "eyeBlink_L", "jawOpen", "jaw_open",
-                                            "mouthSmile_L", "zygomatic_major_R", "mentalis")] == [
-        "brows", "brows", "eyes", "jaw", "jaw", "mouth", "mouth", "mouth"]
+    assert [
+        shape_region(name)
+        for name in (
+            "browInnerUp_L",
+            "corrugator_R",
+            "eyeBlink_L",
+            "jawOpen",
+            "jaw_open",
+            "mouthSmile_L",
+            "zygomatic_major_R",
+            "mentalis",
+        )
+    ] == ["brows", "brows", "eyes", "jaw", "jaw", "mouth", "mouth", "mouth"]
     # four points: one each for a brow shape, a mouth shape and the jaw; the last point no shape moves
     hand = np.zeros((3, 12))
     hand[0, 0:3], hand[1, 3:6], hand[2, 6:9] = [0, 5, 0], [0, 3, 0], [0, -20, 0]
     hand[2, 3:6] = [0, -4, 0]  # the jaw drags the mouth point a little: it stays the mouth's (relative reach)
     regions = face_regions(hand, ["browInnerUp_L", "mouthSmile_L", "jawOpen"])
     assert {name: list(np.flatnonzero(points)) for name, points in regions.items()} == {
-        "brows": [0], "mouth": [1], "jaw": [2]}
-    assert list(face_regions(hand, ["browInnerUp_L", "mouthSmile_L", "jawOpen"], np.array([0, 1, 1, 1], bool))[
-        "brows"]) == [False] * 4
+        "brows": [0],
+        "mouth": [1],
+        "jaw": [2],
+    }
+    assert (
+        list(face_regions(hand, ["browInnerUp_L", "mouthSmile_L", "jawOpen"], np.array([0, 1, 1, 1], bool))["brows"])
+        == [False] * 4
+    )
     captured = np.zeros((6, 12))
     captured[1, 1], captured[2, 4], captured[3, 7], captured[4, 7], captured[4, 4] = 2.0, 3.0, 9.0, 8.0, 3.5
     assert region_frames(captured, regions) == [("brows", 1), ("mouth", 4), ("jaw", 3)]
@@ -236,8 +282,11 @@ def test_figure_3_frames_cover_the_regions_of_the_face():
     seconds, takes = np.arange(6) * 0.5, np.array(["a"] * 6)
     assert region_frames(captured, regions, seconds, takes) == [("brows", 1), ("mouth", 4)]
     # in another take the same times are far apart
-    assert region_frames(captured, regions, seconds, np.array(list("aaabaa"))) == [("brows", 1), ("mouth", 4),
-                                                                                   ("jaw", 3)]
+    assert region_frames(captured, regions, seconds, np.array(list("aaabaa"))) == [
+        ("brows", 1),
+        ("mouth", 4),
+        ("jaw", 3),
+    ]
 
 
 def sweep_table(ci_style: str = "prefixed") -> pd.DataFrame:
@@ -245,13 +294,28 @@ def sweep_table(ci_style: str = "prefixed") -> pd.DataFrame:
     rows = []
     for noise in (0.0, 0.1, 0.2):
         for data in ("markers", "mesh"):
-            for basis, solver, base in (("H", "lstsq", 0.3), ("QE", "lstsq", 0.15), ("QE-linear", "lstsq", 0.18),
-                                        ("PCA", "projection", 0.16)):
+            for basis, solver, base in (
+                ("H", "lstsq", 0.3),
+                ("QE", "lstsq", 0.15),
+                ("QE-linear", "lstsq", 0.18),
+                ("PCA", "projection", 0.16),
+            ):
                 value = base + noise
-                row = {"dataset.marker_noise_mm": noise, "data": data, "basis": basis, "projection": "-",
-                       "solver": solver, "n_seeds": 3, "m": 10.0, "alpha_abs_mean": value}
-                low, high = ("alpha_abs_mean_ci_low", "alpha_abs_mean_ci_high") if ci_style == "prefixed" \
+                row = {
+                    "dataset.marker_noise_mm": noise,
+                    "data": data,
+                    "basis": basis,
+                    "projection": "-",
+                    "solver": solver,
+                    "n_seeds": 3,
+                    "m": 10.0,
+                    "alpha_abs_mean": value,
+                }
+                low, high = (
+                    ("alpha_abs_mean_ci_low", "alpha_abs_mean_ci_high")
+                    if ci_style == "prefixed"
                     else ("ci_low", "ci_high")
+                )
                 row.update({low: value - 0.02, high: value + 0.02})
                 rows.append(row)
     return pd.DataFrame(rows)
@@ -290,21 +354,27 @@ def test_marker_vs_mesh_draws_one_panel_per_evaluation_set_and_measure():
     table = sweep_table()
     table = table[table["dataset.marker_noise_mm"] == 0.0]
     # fitted on markers and on the mesh, each scored on the markers and on the mesh's face region
-    table = pd.concat([table.assign(data=f"{data}->{scored}") for data in ("markers", "mesh")
-                       for scored in ("markers", "face")], ignore_index=True).drop_duplicates(["data", "basis"])
+    table = pd.concat(
+        [table.assign(data=f"{data}->{scored}") for data in ("markers", "mesh") for scored in ("markers", "face")],
+        ignore_index=True,
+    ).drop_duplicates(["data", "basis"])
     table["rms_mm"] = table["alpha_abs_mean"] / 2
     figure = plot_marker_vs_mesh(table, ("alpha_abs_mean", "rms_mm"), title="marker versus mesh")
     assert len(figure.axes) == 4  # 2 measures x 2 evaluation sets
     first = figure.axes[0]
-    assert first.get_title(loc="left") == "scored on markers" and figure.axes[1].get_title(loc="left") == \
-        "scored on face"
+    assert (
+        first.get_title(loc="left") == "scored on markers" and figure.axes[1].get_title(loc="left") == "scored on face"
+    )
     assert len(first.patches) == 8  # 4 bases x fitted on 2 variants
     assert [t.get_text() for t in figure.legends[0].get_texts()] == ["fitted on markers", "fitted on mesh"]
     assert len(first.containers) >= 2 and "error bars: 95 % interval" in figure._suptitle.get_text()
     assert figure.axes[2].get_ylabel() == "RMS point error (mm)"
     # a run's own table, each variant scored on its own points: one panel each, never side by side
-    own = sweep_table().query("`dataset.marker_noise_mm` == 0.0").drop(
-        columns=["alpha_abs_mean_ci_low", "alpha_abs_mean_ci_high"])
+    own = (
+        sweep_table()
+        .query("`dataset.marker_noise_mm` == 0.0")
+        .drop(columns=["alpha_abs_mean_ci_low", "alpha_abs_mean_ci_high"])
+    )
     figure = plot_marker_vs_mesh(own, "alpha_abs_mean", title="own points")
     assert [ax.get_title(loc="left") for ax in figure.axes] == ["scored on markers", "scored on mesh"]
     assert all(len(ax.patches) == 4 for ax in figure.axes)
@@ -333,14 +403,19 @@ def test_alpha_over_time_has_a_panel_per_variant_and_seconds_on_x():
 
     frames = np.random.default_rng(0).random(240)
     seconds = np.arange(240) / 120.0
-    figure = plot_alpha_over_time({"markers": {"H": frames, "QE": frames / 2}, "mesh": {"H": frames}}, seconds,
-                                  ylabel="alpha (%)", title="over time")
+    figure = plot_alpha_over_time(
+        {"markers": {"H": frames, "QE": frames / 2}, "mesh": {"H": frames}},
+        seconds,
+        ylabel="alpha (%)",
+        title="over time",
+    )
     assert len(figure.axes) == 2
     assert figure.axes[0].lines[0].get_xdata()[-1] == pytest.approx(239 / 120.0)
     assert figure.axes[-1].get_xlabel() == "time in the take (s)"
     # Two takes, each starting at 0 s in its file: one axis through both, the boundary drawn and named.
-    timeline = Timeline.concatenate([Timeline.uniform("jaw", np.arange(0, 120, 4), 60.0),
-                                     Timeline.uniform("cheeks", np.arange(0, 120, 4), 60.0)])
+    timeline = Timeline.concatenate(
+        [Timeline.uniform("jaw", np.arange(0, 120, 4), 60.0), Timeline.uniform("cheeks", np.arange(0, 120, 4), 60.0)]
+    )
     elapsed = timeline.elapsed()
     assert elapsed[29] == pytest.approx(116 / 60) and elapsed[30] == pytest.approx(120 / 60)
     takes = [(str(timeline.take[start]), float(elapsed[start])) for start, _ in timeline.take_spans()]
@@ -350,8 +425,7 @@ def test_alpha_over_time_has_a_panel_per_variant_and_seconds_on_x():
 
 
 def test_alpha_against_in_a_grid_keeps_settings_apart_and_wraps_panels():
-    table = pd.concat([sweep_table().assign(**{"dataset.gap_rate": rate}) for rate in (0.0, 0.1)],
-                      ignore_index=True)
+    table = pd.concat([sweep_table().assign(**{"dataset.gap_rate": rate}) for rate in (0.0, 0.1)], ignore_index=True)
     figure = plot_alpha_against(table, "dataset.marker_noise_mm", by=["dataset.gap_rate"], title="grid")
     assert len(figure.axes[0].lines) == 8  # 4 bases x 2 gap rates, never one line through both
     labels = [t.get_text() for t in figure.legends[0].get_texts()]
@@ -359,8 +433,11 @@ def test_alpha_against_in_a_grid_keeps_settings_apart_and_wraps_panels():
     # Two settings at the same x (as 'lower' and 'random12' are both 12 hand shapes): points with error bars.
     table["n_hand"] = 12.0
     figure = plot_alpha_against(table, "n_hand", by=["dataset.gap_rate"], title="same x")
-    assert not [line for line in figure.axes[0].lines if line.get_linestyle() not in ("None", "none")
-                and len(line.get_xdata()) > 2]
+    assert not [
+        line
+        for line in figure.axes[0].lines
+        if line.get_linestyle() not in ("None", "none") and len(line.get_xdata()) > 2
+    ]
     assert len(figure.axes[0].containers) == 8
     many = pd.concat([sweep_table().assign(data=f"variant{k}") for k in range(4)], ignore_index=True)
     figure = plot_alpha_against(many, "dataset.marker_noise_mm", title="four variants")
@@ -372,7 +449,9 @@ def test_coverage_curve_names_the_paper_m_and_the_basis_size_on_one_line_when_th
     figure = plot_coverage_curve(ratios, {"mesh": 10}, threshold=0.995, title="c", paper_m=18, basis_size=18)
     near = figure.axes[0]
     labels = [t.get_text() for t in near.get_legend().get_texts()]
-    assert "paper: m = 18; hand shapes n = 18" in labels and not any(label.startswith("hand shapes") for label in labels)
+    assert "paper: m = 18; hand shapes n = 18" in labels and not any(
+        label.startswith("hand shapes") for label in labels
+    )
     figure = plot_coverage_curve(ratios, {"mesh": 10}, threshold=0.995, title="c", paper_m=18, basis_size=12)
     labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
     assert "paper: m = 18" in labels and "hand shapes n = 12" in labels
@@ -387,8 +466,11 @@ def weight_statistics_example():
         for basis, scale in (("H", 1.0), ("QE", 3.0), ("QE-linear", 2.0)):
             for k, solver in enumerate(("lstsq", "nnls", "box")):
                 statistics[data][(basis, solver)] = {
-                    "max_abs": 1.1 * scale / (k + 1), "outside_unit_share": 0.002 * (2 - k),
-                    "sparsity": 0.4 + 0.1 * k, "roughness": 91234.0 if k else 4.5e3 * scale}
+                    "max_abs": 1.1 * scale / (k + 1),
+                    "outside_unit_share": 0.002 * (2 - k),
+                    "sparsity": 0.4 + 0.1 * k,
+                    "roughness": 91234.0 if k else 4.5e3 * scale,
+                }
     return statistics
 
 
@@ -405,8 +487,11 @@ def test_weight_statistics_labels_never_print_over_each_other():
         assert boxes
         for i in range(len(boxes)):
             for j in range(i + 1, len(boxes)):
-                assert not boxes[i].overlaps(boxes[j]), (ax.get_title(loc="left"), texts[i].get_text(),
-                                                         texts[j].get_text())
+                assert not boxes[i].overlaps(boxes[j]), (
+                    ax.get_title(loc="left"),
+                    texts[i].get_text(),
+                    texts[j].get_text(),
+                )
         # every label below the panel's top, clear of its title
         top = ax.get_window_extent().y1
         assert all(box.y1 <= top + 1 for box in boxes), ax.get_title(loc="left")
@@ -422,13 +507,20 @@ def test_error_cdf_subtitles_and_legend_title_fit_within_the_figure():
     from workbench.reporting.figures.distributions import plot_error_cdf
 
     probabilities = np.linspace(0, 1, 51)
-    curves = {data: {(basis, solver): np.linspace(0.05, 0.6, 51) * (1 + i)
-                     for i, (basis, solver) in enumerate([("H", "lstsq"), ("QE", "lstsq"), ("QE", "nnls"),
-                                                          ("QE-linear", "lstsq"), ("PCA", "projection")])}
-              for data in ("markers", "mesh")}
-    regions = {"markers": "the face region: every one of the 66 markers",
-               "mesh": "the face region: the 2218 of 4200 mesh vertices some hand shape moves (the muscles' reach; "
-                       "the rest of the head patch never moves)"}
+    curves = {
+        data: {
+            (basis, solver): np.linspace(0.05, 0.6, 51) * (1 + i)
+            for i, (basis, solver) in enumerate(
+                [("H", "lstsq"), ("QE", "lstsq"), ("QE", "nnls"), ("QE-linear", "lstsq"), ("PCA", "projection")]
+            )
+        }
+        for data in ("markers", "mesh")
+    }
+    regions = {
+        "markers": "the face region: every one of the 66 markers",
+        "mesh": "the face region: the 2218 of 4200 mesh vertices some hand shape moves (the muscles' reach; "
+        "the rest of the head patch never moves)",
+    }
     figure = plot_error_cdf(curves, probabilities, title="Per-frame error", regions=regions)
     FigureCanvasAgg(figure).draw()
     renderer = figure.canvas.get_renderer()
@@ -444,8 +536,11 @@ def test_error_cdf_subtitles_and_legend_title_fit_within_the_figure():
     # the bases' colours: four different colours of the colour-blind-safe palette (QE and PCA were two purples or
     # reds), the same in every figure
     assert len(set(BASIS_COLOURS.values())) == len(BASIS_COLOURS) and set(BASIS_COLOURS.values()) <= set(
-        OKABE_ITO.values())
-    drawn = {line.get_label().split()[0]: line.get_color() for line in figure.axes[0].lines if line.get_label()[0] != "_"}
+        OKABE_ITO.values()
+    )
+    drawn = {
+        line.get_label().split()[0]: line.get_color() for line in figure.axes[0].lines if line.get_label()[0] != "_"
+    }
     assert drawn == BASIS_COLOURS
 
 
@@ -469,8 +564,16 @@ def test_point_labels_do_not_overlap():
 def test_weight_curves_mark_the_frames_and_tell_left_from_right():
     seconds = np.linspace(0, 6, 61)
     weights = {"H": np.random.default_rng(0).random((61, 3)), "QE": np.random.default_rng(1).random((61, 3))}
-    windows = [{"label": f"most displaced {region}: take frame {k}", "take": "take", "seconds": seconds + k,
-                "marked": 3.0 + k, "weights": weights} for k, region in enumerate(("brows", "jaw"))]
+    windows = [
+        {
+            "label": f"most displaced {region}: take frame {k}",
+            "take": "take",
+            "seconds": seconds + k,
+            "marked": 3.0 + k,
+            "weights": weights,
+        }
+        for k, region in enumerate(("brows", "jaw"))
+    ]
     figure = plot_weight_curves(windows, ["browInnerUp_L", "browInnerUp_R", "jawOpen"], [0, 1, 2], title="w")
     axes = np.array(figure.axes).reshape(2, 2)
     left, right, jaw = axes[0, 0].lines[:3]
@@ -486,12 +589,21 @@ def test_animation_is_wide_full_colour_and_states_its_speed(tmp_path):
 
     vertices, faces = grid_mesh()
     frames = [vertices + [0, 0, 3 * k] for k in range(4)]
-    panels = [render_meshes(frames, faces, None, MeshView(window_size=(200, 180))),
-              render_meshes(frames, faces, [vertices[:, 0]] * 4, MeshView(cmap="YlOrRd", clim=(-50, 50),
-                                                                          window_size=(200, 180)))]
-    path = write_animation(tmp_path / "a.webp", panels, ["captured", "H (error)"], [f"frame {k}" for k in range(4)],
-                           fps=15.0, speed="real time: 15 frames per second",
-                           colour=("YlOrRd", (0.0, 1.0), "max", "error (mm)"))
+    panels = [
+        render_meshes(frames, faces, None, MeshView(window_size=(200, 180))),
+        render_meshes(
+            frames, faces, [vertices[:, 0]] * 4, MeshView(cmap="YlOrRd", clim=(-50, 50), window_size=(200, 180))
+        ),
+    ]
+    path = write_animation(
+        tmp_path / "a.webp",
+        panels,
+        ["captured", "H (error)"],
+        [f"frame {k}" for k in range(4)],
+        fps=15.0,
+        speed="real time: 15 frames per second",
+        colour=("YlOrRd", (0.0, 1.0), "max", "error (mm)"),
+    )
     image = Image.open(path)
     assert image.format == "WEBP" and image.n_frames == 4 and image.size[0] >= ANIMATION_WIDTH
     image.load()
@@ -509,9 +621,16 @@ def test_view_data_decode_to_the_frames_and_reconstructions():
     vertices, faces = grid_mesh(5)
     rng = np.random.default_rng(0)
     captured, shown = rng.normal(size=75), rng.normal(size=75)
-    payload = view_payload(vertices.ravel(), faces, [ViewFrame("f", captured, {"H": shown}, {"H": "alpha 1 %"})],
-                           bases={"H": "hand"}, displacement_range=(0.0, 2.0, True), error_range=(0.0, 1.0, False),
-                           cmaps=("YlGnBu", "YlOrRd"), weight=np.linspace(0, 1, 25))
+    payload = view_payload(
+        vertices.ravel(),
+        faces,
+        [ViewFrame("f", captured, {"H": shown}, {"H": "alpha 1 %"})],
+        bases={"H": "hand"},
+        displacement_range=(0.0, 2.0, True),
+        error_range=(0.0, 1.0, False),
+        cmaps=("YlGnBu", "YlOrRd"),
+        weight=np.linspace(0, 1, 25),
+    )
 
     def unpack(text, dtype):
         return np.frombuffer(zlib.decompress(base64.b64decode(text)), dtype=dtype)

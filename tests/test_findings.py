@@ -5,101 +5,161 @@ import pandas as pd
 import pytest
 
 from workbench.core.errors import WorkbenchError
-
 from workbench.reporting.findings import facts_frame, run_findings, shared_notes
 
 PAPER = {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}
-ALPHA = {("H", "lstsq"): 1.0, ("QE", "lstsq"): 0.25, ("QE-linear", "lstsq"): 0.5,
-         ("H", "nnls"): 1.1, ("QE", "nnls"): 1.5, ("QE-linear", "nnls"): 0.55,
-         ("H", "box"): 1.2, ("QE", "box"): 1.0, ("QE-linear", "box"): 1.15, ("PCA", "projection"): 0.2}
+ALPHA = {
+    ("H", "lstsq"): 1.0,
+    ("QE", "lstsq"): 0.25,
+    ("QE-linear", "lstsq"): 0.5,
+    ("H", "nnls"): 1.1,
+    ("QE", "nnls"): 1.5,
+    ("QE-linear", "nnls"): 0.55,
+    ("H", "box"): 1.2,
+    ("QE", "box"): 1.0,
+    ("QE-linear", "box"): 1.15,
+    ("PCA", "projection"): 0.2,
+}
 
 
 def known_table(data: str = "mesh") -> pd.DataFrame:
     rows = []
     for (basis, solver), alpha in ALPHA.items():
-        rows.append({"data": data, "basis": basis, "projection": {"QE": "affine", "QE-linear": "linear"}.get(basis, "-"),
-                     "solver": solver, "n": 10 if basis == "PCA" else 18, "m": 10, "coverage": 0.9951,
-                     "alpha_abs_mean": alpha, "alpha_abs_pooled": 1.1 * alpha, "alpha_disp_mean": 40 * alpha,
-                     "alpha_disp_pooled": 30 * alpha * (2.0 if basis == "H" else 1.0),
-                     "err_mm_median": alpha, "err_mm_p95": 2 * alpha, "err_mm_max": 3 * alpha})
+        rows.append(
+            {
+                "data": data,
+                "basis": basis,
+                "projection": {"QE": "affine", "QE-linear": "linear"}.get(basis, "-"),
+                "solver": solver,
+                "n": 10 if basis == "PCA" else 18,
+                "m": 10,
+                "coverage": 0.9951,
+                "alpha_abs_mean": alpha,
+                "alpha_abs_pooled": 1.1 * alpha,
+                "alpha_disp_mean": 40 * alpha,
+                "alpha_disp_pooled": 30 * alpha * (2.0 if basis == "H" else 1.0),
+                "err_mm_median": alpha,
+                "err_mm_p95": 2 * alpha,
+                "err_mm_max": 3 * alpha,
+            }
+        )
     return pd.DataFrame.from_records(rows)
 
 
 def compared(a, b, low, high):
-    return {"a": list(a), "b": list(b), "estimate": ALPHA[a] - ALPHA[b], "low": low, "high": high, "n": 100,
-            "method": "circular block bootstrap over time"}
+    return {
+        "a": list(a),
+        "b": list(b),
+        "estimate": ALPHA[a] - ALPHA[b],
+        "low": low,
+        "high": high,
+        "n": 100,
+        "method": "circular block bootstrap over time",
+    }
 
 
 PCA = ("PCA", "projection")
 COMPARISONS = [
-    compared(PCA, ("QE", "lstsq"), -0.08, -0.02), compared(("QE", "lstsq"), ("QE-linear", "lstsq"), -0.3, -0.2),
+    compared(PCA, ("QE", "lstsq"), -0.08, -0.02),
+    compared(("QE", "lstsq"), ("QE-linear", "lstsq"), -0.3, -0.2),
     compared(("QE-linear", "lstsq"), ("H", "lstsq"), -0.6, -0.4),
-    compared(PCA, ("QE-linear", "nnls"), -0.4, -0.3), compared(("QE-linear", "nnls"), ("H", "nnls"), -0.7, -0.4),
+    compared(PCA, ("QE-linear", "nnls"), -0.4, -0.3),
+    compared(("QE-linear", "nnls"), ("H", "nnls"), -0.7, -0.4),
     compared(("QE", "nnls"), ("H", "nnls"), 0.2, 0.6),
-    compared(PCA, ("QE", "box"), -0.9, -0.7), compared(("QE", "box"), ("QE-linear", "box"), -0.3, 0.01),
-    compared(("QE-linear", "box"), ("H", "box"), -0.09, -0.01), compared(("QE", "box"), ("H", "box"), -0.3, -0.1)]
+    compared(PCA, ("QE", "box"), -0.9, -0.7),
+    compared(("QE", "box"), ("QE-linear", "box"), -0.3, 0.01),
+    compared(("QE-linear", "box"), ("H", "box"), -0.09, -0.01),
+    compared(("QE", "box"), ("H", "box"), -0.3, -0.1),
+]
 
 
 def weights(outside, negative, sparsity, roughness, total, largest=1.0):
-    return {"max_abs": largest, "outside_unit_share": outside, "negative_share": negative, "sparsity": sparsity,
-            "roughness": roughness, "sum_median": total}
+    return {
+        "max_abs": largest,
+        "outside_unit_share": outside,
+        "negative_share": negative,
+        "sparsity": sparsity,
+        "roughness": roughness,
+        "sum_median": total,
+    }
 
 
 def known_metrics(offset_share: float = 0.3, data: str = "mesh") -> dict:
-    rows = [{"data": data, "basis": basis, "solver": solver, "train_on": data,
-             "weights": None if basis == "PCA" else weights(0.9, 0.9, 0.3, 50.0, 3.0, 1.6)}
-            for basis, solver in ALPHA]
+    rows = [
+        {
+            "data": data,
+            "basis": basis,
+            "solver": solver,
+            "train_on": data,
+            "weights": None if basis == "PCA" else weights(0.9, 0.9, 0.3, 50.0, 3.0, 1.6),
+        }
+        for basis, solver in ALPHA
+    ]
     for row in rows:
         if row["basis"] == "QE":
-            row["weights"] = {"lstsq": weights(1.0, 1.0, 0.35, 2.5e4, 0.96, 33.6),
-                              "nnls": weights(0.34, 0.0, 0.76, 74.0, 1.69, 3.26),
-                              "box": weights(0.0, 0.0, 0.7, 60.0, 1.6)}[row["solver"]]
+            row["weights"] = {
+                "lstsq": weights(1.0, 1.0, 0.35, 2.5e4, 0.96, 33.6),
+                "nnls": weights(0.34, 0.0, 0.76, 74.0, 1.69, 3.26),
+                "box": weights(0.0, 0.0, 0.7, 60.0, 1.6),
+            }[row["solver"]]
             row["offset_error_share"] = {"lstsq": 0.0, "nnls": offset_share, "box": 0.25}[row["solver"]]
         if row["basis"] == "QE-linear" and row["solver"] == "lstsq":
             row["weights"] = weights(1.0, 0.96, 0.31, 2.3e4, -7.0, 31.8)
-    return {"data": {data: {"comparisons": COMPARISONS, "offset": {"norm": 56.4, "ratio": 0.22},
-                            "face_region": "the face region: every one of the 41 markers",
-                            "protocol": "training frames", "notes": ["split 'same': 100 training frames"]}},
-            "rows": rows, "dataset": {"provenance": {"kind": "other"}}}
+    return {
+        "data": {
+            data: {
+                "comparisons": COMPARISONS,
+                "offset": {"norm": 56.4, "ratio": 0.22},
+                "face_region": "the face region: every one of the 41 markers",
+                "protocol": "training frames",
+                "notes": ["split 'same': 100 training frames"],
+            }
+        },
+        "rows": rows,
+        "dataset": {"provenance": {"kind": "other"}},
+    }
 
 
-INTUITIVENESS = {"mesh": [
-    {"shape": "jawOpen", "projection": "affine", "relative_distance": 0.2, "cosine": 0.98},
-    {"shape": "browDown_L", "projection": "affine", "relative_distance": 0.9, "cosine": 0.45},
-    {"shape": "mouthPucker", "projection": "affine", "relative_distance": 0.6, "cosine": 0.8},
-    {"shape": "jawOpen", "projection": "linear", "relative_distance": 0.99, "cosine": 0.1},
-]}
+INTUITIVENESS = {
+    "mesh": [
+        {"shape": "jawOpen", "projection": "affine", "relative_distance": 0.2, "cosine": 0.98},
+        {"shape": "browDown_L", "projection": "affine", "relative_distance": 0.9, "cosine": 0.45},
+        {"shape": "mouthPucker", "projection": "affine", "relative_distance": 0.6, "cosine": 0.8},
+        {"shape": "jawOpen", "projection": "linear", "relative_distance": 0.99, "cosine": 0.1},
+    ]
+}
 
 
 def test_findings_of_a_known_table():
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
     assert lines[0].startswith("**how to read**: ") and lines[0].endswith(
-        "(9 comparisons of this record carry no p-value and keep their unadjusted interval).")
+        "(9 comparisons of this record carry no p-value and keep their unadjusted interval)."
+    )
     assert lines[1:] == [
-        '**mesh**: `alpha_abs_mean` from best to worst, lstsq: PCA 0.2 < QE 0.25 < QE-linear 0.5 < H 1; nnls:'
-        ' PCA 0.2 < QE-linear 0.55 < H 1.1 < QE 1.5; box: PCA 0.2 < QE 1 ~ QE-linear 1.15 < H 1.2.',
-        '**mesh**: with least squares, H/QE 4 (paper 7.22), QE/PCA 1.25 (paper 1.16); median per-frame error '
-        '(lstsq) H 1, QE 0.25, QE-linear 0.5, PCA 0.2 mm; over the 4 alpha variants H/QE runs from 4 to 8, so no '
-        'one ratio compares across datasets.',
-        '**mesh**: m = 10 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes can span them,'
-        ' so QE can match PCA.',
+        "**mesh**: `alpha_abs_mean` from best to worst, lstsq: PCA 0.2 < QE 0.25 < QE-linear 0.5 < H 1; nnls:"
+        " PCA 0.2 < QE-linear 0.55 < H 1.1 < QE 1.5; box: PCA 0.2 < QE 1 ~ QE-linear 1.15 < H 1.2.",
+        "**mesh**: with least squares, H/QE 4 (paper 7.22), QE/PCA 1.25 (paper 1.16); median per-frame error "
+        "(lstsq) H 1, QE 0.25, QE-linear 0.5, PCA 0.2 mm; over the 4 alpha variants H/QE runs from 4 to 8, so no "
+        "one ratio compares across datasets.",
+        "**mesh**: m = 10 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes can span them,"
+        " so QE can match PCA.",
         "**mesh**: with non-negative weights QE's alpha x6.00 (0.25 to 1.5), QE-linear's alpha x1.10 (0.5 to "
         "0.55), H's x1.10; QE is worse than H (QE - H +0.4 [+0.2, +0.6]), QE-linear is better than H (QE-"
-        'linear - H -0.55 [-0.7, -0.4]).',
+        "linear - H -0.55 [-0.7, -0.4]).",
         "**mesh**: why: every affine QE shape carries (I-P) mu, the capture mean's part outside the "
         "eigenfaces' span (56.4 mm, 22 % of the median frame's displacement); QE's least-squares weights sum "
-        'to 0.96 (median), 100 % of frames have a negative weight; with non-negative weights the sum is 1.69 '
+        "to 0.96 (median), 100 % of frames have a negative weight; with non-negative weights the sum is 1.69 "
         "and 30 % of QE's squared error lies along (I-P) mu (least squares: 0 %). QE-linear (no offset): 96 %"
         " of frames have a negative weight, alpha x1.10 against QE's x6.00. So negative weights alone do not "
         "explain the loss; the offset does in part: the constraint can no longer hold the weights' sum where "
-        'the offset needs it.',
-        '**mesh**: the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table '
+        "the offset needs it.",
+        "**mesh**: the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table "
         "'Error in millimetres and the weights'), lstsq: H 1.6, 50; QE 33.6, 2.5e+04; QE-linear 31.8, 2.3e+04.",
-        '**mesh**: the projection changes most, QE: browDown_L (cosine 0.45), mouthPucker (cosine 0.80); '
-        'median cosine of the 3 shapes 0.80; QE-linear: jawOpen (cosine 0.10); median cosine of the 1 shapes '
-        '0.10.',
+        "**mesh**: the projection changes most, QE: browDown_L (cosine 0.45), mouthPucker (cosine 0.80); "
+        "median cosine of the 3 shapes 0.80; QE-linear: jawOpen (cosine 0.10); median cosine of the 1 shapes "
+        "0.10.",
         "**caveat**: mesh is scored on the training frames (split 'same', the paper's protocol): PCA and QE "
-        'are fitted to the frames they reconstruct; no frames were held out.',
+        "are fitted to the frames they reconstruct; no frames were held out.",
     ]
 
 
@@ -110,66 +170,101 @@ def test_the_offset_is_not_offered_as_the_reason_when_the_numbers_do_not_show_it
 
 
 def test_the_offset_is_not_singled_out_when_qe_linear_loses_almost_as_much():
-    table = known_table().assign(alpha_abs_mean=lambda t: np.where(
-        (t["basis"] == "QE-linear") & (t["solver"] == "nnls"), 2.75, t["alpha_abs_mean"]))  # x5.5 against x6
-    why = next(line for line in run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())
-               if "why:" in line)
-    assert why.endswith("against QE's x6.00. QE-linear, needing as many negative weights, loses almost as much: "
-                        "these numbers do not single out the offset.")
+    table = known_table().assign(
+        alpha_abs_mean=lambda t: np.where(
+            (t["basis"] == "QE-linear") & (t["solver"] == "nnls"), 2.75, t["alpha_abs_mean"]
+        )
+    )  # x5.5 against x6
+    why = next(
+        line for line in run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics()) if "why:" in line
+    )
+    assert why.endswith(
+        "against QE's x6.00. QE-linear, needing as many negative weights, loses almost as much: "
+        "these numbers do not single out the offset."
+    )
 
 
 def test_without_paired_intervals_no_order_is_claimed():
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS)
-    assert lines[0] == ("**mesh**: `alpha_abs_mean` from best to worst (no paired intervals in this record: no order "
-                        "is claimed), lstsq: PCA 0.2, QE 0.25, QE-linear 0.5, H 1; nnls: PCA 0.2, QE-linear 0.55, "
-                        "H 1.1, QE 1.5; box: PCA 0.2, QE 1, QE-linear 1.15, H 1.2.")
+    assert lines[0] == (
+        "**mesh**: `alpha_abs_mean` from best to worst (no paired intervals in this record: no order "
+        "is claimed), lstsq: PCA 0.2, QE 0.25, QE-linear 0.5, H 1; nnls: PCA 0.2, QE-linear 0.55, "
+        "H 1.1, QE 1.5; box: PCA 0.2, QE 1, QE-linear 1.15, H 1.2."
+    )
     assert not any(" < " in line for line in lines)
 
 
 def test_more_eigenfaces_than_hand_shapes_is_said():
     table = known_table().assign(m=33)
     lines = run_findings(table, "alpha_abs_mean", PAPER, {})
-    assert "m = 33 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes cannot span them, so QE " \
-           "cannot reach PCA." in lines[2]
+    assert (
+        "m = 33 eigenfaces reach coverage 0.995 (paper: m = 18); the 18 hand shapes cannot span them, so QE "
+        "cannot reach PCA." in lines[2]
+    )
 
 
 def test_held_out_frames_beside_the_training_frames_and_the_caveats_of_the_data():
     held = known_table("mesh held-out tail").assign(alpha_abs_mean=lambda t: t["alpha_abs_mean"] * 1.5, m=9)
     metrics = known_metrics()
     metrics["data"]["mesh held-out tail"] = {
-        "protocol": "held-out tail of each take", "comparisons": [],
-        "notes": ["held out: the last 20 % of the take, scored with bases fitted on the rest: 80 training frames, "
-                  "20 evaluated"]}
+        "protocol": "held-out tail of each take",
+        "comparisons": [],
+        "notes": [
+            "held out: the last 20 % of the take, scored with bases fitted on the rest: 80 training frames, "
+            "20 evaluated"
+        ],
+    }
     metrics["rows"] += [dict(row, data="mesh held-out tail", train_on="mesh") for row in metrics["rows"]]
-    metrics["dataset"] = {"hand_names": ["jawOpen", "browInnerUp_L", "mouthSmile_L"], "provenance": {
-        "kind": "ict_livelink", "arkit_mapping": {"JawOpen": ["jawOpen"], "BrowInnerUp": ["browInnerUp_L",
-                                                                                             "browInnerUp_R"]}}}
+    metrics["dataset"] = {
+        "hand_names": ["jawOpen", "browInnerUp_L", "mouthSmile_L"],
+        "provenance": {
+            "kind": "ict_livelink",
+            "arkit_mapping": {"JawOpen": ["jawOpen"], "BrowInnerUp": ["browInnerUp_L", "browInnerUp_R"]},
+        },
+    }
     lines = run_findings(pd.concat([known_table(), held]), "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)
     held_lines = [line for line in lines if line.startswith("**mesh held-out tail**")]
-    assert len(held_lines) == 1 and held_lines[0].startswith("**mesh held-out tail** (m = 9; training frames: m = "
-                                                              "10): `alpha_abs_mean` from best to worst")
+    assert len(held_lines) == 1 and held_lines[0].startswith(
+        "**mesh held-out tail** (m = 9; training frames: m = 10): `alpha_abs_mean` from best to worst"
+    )
     assert held_lines[0].endswith("; held out / training frames: H x1.5, QE x1.5, QE-linear x1.5, PCA x1.5.")
     assert lines[-2:] == [
         "**caveat**: the capture is a noise-free linear blend of 3 ICT FaceKit shapes, 2 of the 3 hand shapes among "
         "them: H is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which flatters "
         "both against a real capture.",
         "**caveat**: mesh is scored on the training frames (split 'same', the paper's protocol): PCA and QE are "
-        "fitted to the frames they reconstruct; the held-out variants are not."]
-    metrics["dataset"] = {"provenance": {"kind": "animface", "performer_and_basis": "different faces",
-                                         "placement": {"scale": 0.912}}}
+        "fitted to the frames they reconstruct; the held-out variants are not.",
+    ]
+    metrics["dataset"] = {
+        "provenance": {"kind": "animface", "performer_and_basis": "different faces", "placement": {"scale": 0.912}}
+    }
     assert run_findings(known_table(), "alpha_abs_mean", PAPER, {}, metrics)[-2] == (
         "**caveat**: the hand shapes come from another face (ICT FaceKit, scaled by 0.912 into the performer's "
-        "frame): H's error includes the mismatch between the two faces, not only the motion its shapes cannot span.")
+        "frame): H's error includes the mismatch between the two faces, not only the motion its shapes cannot span."
+    )
 
 
 def test_facts_and_notes_are_stated_once():
-    metrics = {"data": {
-        "markers": {"n_points": 41, "n_train_frames": 100, "n_eval_frames": 100, "notes": ["shared", "markers only"],
-                    "pca": {"m": 9, "coverage_reached": 0.99512, "method": "covariance"},
-                    "quasi_eigen": {"affine": {"empty_axes": []}, "linear": {"empty_axes": [3, 5]}}},
-        "mesh": {"n_points": 9409, "n_train_frames": 100, "n_eval_frames": 100, "notes": ["shared"],
-                 "pca": {"m": 10, "coverage_reached": 0.9953, "method": "gram"},
-                 "quasi_eigen": {"affine": {"empty_axes": []}, "linear": {"empty_axes": []}}}}}
+    metrics = {
+        "data": {
+            "markers": {
+                "n_points": 41,
+                "n_train_frames": 100,
+                "n_eval_frames": 100,
+                "notes": ["shared", "markers only"],
+                "pca": {"m": 9, "coverage_reached": 0.99512, "method": "covariance"},
+                "quasi_eigen": {"affine": {"empty_axes": []}, "linear": {"empty_axes": [3, 5]}},
+            },
+            "mesh": {
+                "n_points": 9409,
+                "n_train_frames": 100,
+                "n_eval_frames": 100,
+                "notes": ["shared"],
+                "pca": {"m": 10, "coverage_reached": 0.9953, "method": "gram"},
+                "quasi_eigen": {"affine": {"empty_axes": []}, "linear": {"empty_axes": []}},
+            },
+        }
+    }
     facts = facts_frame(metrics)
     assert list(facts["m"]) == [9, 10] and facts.loc[0, "empty PCA axes"] == "affine: none; linear: 3, 5"
     assert shared_notes(metrics) == (["shared"], {"markers": ["markers only"], "mesh": []})
@@ -179,7 +274,8 @@ def test_facts_and_notes_are_stated_once():
 
 SEEDS = {  # coverage -> basis -> alpha_abs_mean of seeds 0 and 1 (the coverage preset's, as its records say)
     0.95: {"H": (0.31, 0.33), "QE": (0.42, 0.17), "QE-linear": (0.63, 0.39), "PCA": (0.49, 0.27)},
-    0.995: {"H": (0.31, 0.33), "QE": (0.16, 0.16), "QE-linear": (0.23, 0.18), "PCA": (0.19, 0.17)}}
+    0.995: {"H": (0.31, 0.33), "QE": (0.16, 0.16), "QE-linear": (0.23, 0.18), "PCA": (0.19, 0.17)},
+}
 
 
 def write_disagreeing_sweep(folder):
@@ -192,23 +288,47 @@ def write_disagreeing_sweep(folder):
     for coverage, alpha in SEEDS.items():
         for seed in (0, 1):
             m = (4 - seed) if coverage == 0.95 else (6 - seed)
-            rows = [{"data": "markers", "basis": basis, "projection": "affine" if basis.startswith("QE") else "-",
-                     "solver": "projection" if basis == "PCA" else "lstsq", "n": m if basis == "PCA" else 18, "m": m,
-                     "coverage": coverage, "alpha_abs_mean": values[seed], "alpha_abs_pooled": values[seed] * 1.1,
-                     "alpha_disp_mean": values[seed] * 50, "alpha_disp_pooled": values[seed] * 20,
-                     "rms_mm": values[seed] / 2, "paper_alpha": PAPER["alpha"].get(basis, float("nan"))}
-                    for basis, values in alpha.items()]
-            config = {"study": "coverage", "dataset": {"kind": "synthetic", "seed": seed},
-                      "basis": {"coverage": coverage}}
-            metrics = {"study": "coverage", "config_hash": f"h{coverage}{seed}", "job_num": seed,
-                       "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}"],
-                       "dataset": {"name": "test", "frame_rate": 120.0},
-                       "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
-                       "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
-                       "git": {"commit": "abc", "dirty": False}}
-            record.write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}",
-                                resolved_yaml=yaml.safe_dump(config), table=pd.DataFrame(rows), text="",
-                                metrics=metrics, timings={"total": 1.0})
+            rows = [
+                {
+                    "data": "markers",
+                    "basis": basis,
+                    "projection": "affine" if basis.startswith("QE") else "-",
+                    "solver": "projection" if basis == "PCA" else "lstsq",
+                    "n": m if basis == "PCA" else 18,
+                    "m": m,
+                    "coverage": coverage,
+                    "alpha_abs_mean": values[seed],
+                    "alpha_abs_pooled": values[seed] * 1.1,
+                    "alpha_disp_mean": values[seed] * 50,
+                    "alpha_disp_pooled": values[seed] * 20,
+                    "rms_mm": values[seed] / 2,
+                    "paper_alpha": PAPER["alpha"].get(basis, float("nan")),
+                }
+                for basis, values in alpha.items()
+            ]
+            config = {
+                "study": "coverage",
+                "dataset": {"kind": "synthetic", "seed": seed},
+                "basis": {"coverage": coverage},
+            }
+            metrics = {
+                "study": "coverage",
+                "config_hash": f"h{coverage}{seed}",
+                "job_num": seed,
+                "overrides": [f"dataset.seed={seed}", f"basis.coverage={coverage}"],
+                "dataset": {"name": "test", "frame_rate": 120.0},
+                "data": {"markers": {"n_points": 66, "n_train_frames": 100, "n_eval_frames": 100}},
+                "rows": [dict(row, train_on="markers", eval_on="markers") for row in rows],
+                "git": {"commit": "abc", "dirty": False},
+            }
+            record.write_record(
+                folder / f"basis.coverage={coverage},dataset.seed={seed}",
+                resolved_yaml=yaml.safe_dump(config),
+                table=pd.DataFrame(rows),
+                text="",
+                metrics=metrics,
+                timings={"total": 1.0},
+            )
     return folder
 
 
@@ -239,7 +359,7 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     qe = SEEDS[0.95]["QE"]
     # what the Student-t interval over the two seeds said: a mean of 0.295 and a lower bound of -1.29 %
     assert qe[0] > SEEDS[0.95]["H"][0] and qe[1] < SEEDS[0.95]["H"][1]
-    assert (sum(qe) / 2 - stats.t.ppf(0.975, 1) * stats.tstd(qe) / 2 ** 0.5) < -1.2
+    assert (sum(qe) / 2 - stats.t.ppf(0.975, 1) * stats.tstd(qe) / 2**0.5) < -1.2
     assert main([str(sweep), "--where", "solver=lstsq"]) == 0
     printed = capsys.readouterr().out
     finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
@@ -252,14 +372,17 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert len(bounds) >= 2 * (7 + 2 * 2) and min(bounds) > 0
     assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
-    pair = comparisons[(comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE")
-                       & (comparisons["second"] == "H")]
+    pair = comparisons[
+        (comparisons["basis.coverage"] == 0.95) & (comparisons["first"] == "QE") & (comparisons["second"] == "H")
+    ]
     assert pair["verdict"].tolist() == ["not distinguishable"] and (comparisons["ratio_low"] > 0).all()
     # every interval drawn lies above zero, and the figure names the method and n beside them
     runs, _ = collect_runs([sweep])
     summary = wide(summarise(runs))
-    for figure in (plot_alpha_against(summary, "basis.coverage", points=runs, title="disagreeing seeds"),
-                   plot_marker_vs_mesh(summary[summary["basis.coverage"] == 0.95], title="one variant")):
+    for figure in (
+        plot_alpha_against(summary, "basis.coverage", points=runs, title="disagreeing seeds"),
+        plot_marker_vs_mesh(summary[summary["basis.coverage"] == 0.95], title="one variant"),
+    ):
         drawn = drawn_intervals(figure)
         assert drawn and min(float(values.min()) for values in drawn) > 0
         assert "geometric mean, t-interval on log values; n = 2 seeds" in figure._suptitle.get_text().replace("\n", " ")
@@ -270,33 +393,61 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
 
 
 def known_comparisons(rows):
-    columns = ["basis.coverage", "data", "solver", "metric", "first", "second", "n", "ratio", "ratio_low",
-               "ratio_high", "method", "verdict"]
+    columns = [
+        "basis.coverage",
+        "data",
+        "solver",
+        "metric",
+        "first",
+        "second",
+        "n",
+        "ratio",
+        "ratio_low",
+        "ratio_high",
+        "method",
+        "verdict",
+    ]
     return pd.DataFrame([dict(zip(columns, row)) for row in rows])
 
 
 def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     from workbench.reporting.sweep_findings import sweep_findings
 
-    summary = pd.DataFrame({
-        "basis.coverage": [0.99] * 3, "data": ["mesh"] * 3, "basis": ["H", "QE", "PCA"],
-        "solver": ["lstsq", "lstsq", "projection"], "n_seeds": [5] * 3, "m_min": [9] * 3, "m_max": [11] * 3,
-        "n_min": [18, 18, 9], "n_max": [18, 18, 11], "alpha_abs_mean": [0.312, 0.162, 0.169]})
+    summary = pd.DataFrame(
+        {
+            "basis.coverage": [0.99] * 3,
+            "data": ["mesh"] * 3,
+            "basis": ["H", "QE", "PCA"],
+            "solver": ["lstsq", "lstsq", "projection"],
+            "n_seeds": [5] * 3,
+            "m_min": [9] * 3,
+            "m_max": [11] * 3,
+            "n_min": [18, 18, 9],
+            "n_max": [18, 18, 11],
+            "alpha_abs_mean": [0.312, 0.162, 0.169],
+        }
+    )
     method = "paired t on log ratios"
-    comparisons = known_comparisons([
-        (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "H", 5, 0.52, 0.46, 0.58, method, "<"),
-        (0.99, "mesh", "lstsq", "alpha_abs_mean", "PCA", "H", 5, 0.54, 0.5, 0.6, method, "<"),
-        (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "PCA", 5, 0.9586, 0.9, 1.02, method, "not distinguishable")])
+    comparisons = known_comparisons(
+        [
+            (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "H", 5, 0.52, 0.46, 0.58, method, "<"),
+            (0.99, "mesh", "lstsq", "alpha_abs_mean", "PCA", "H", 5, 0.54, 0.5, 0.6, method, "<"),
+            (0.99, "mesh", "lstsq", "alpha_abs_mean", "QE", "PCA", 5, 0.9586, 0.9, 1.02, method, "not distinguishable"),
+        ]
+    )
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq") == [
         "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
-        "0.169 < H 0.312; QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]."]
+        "0.169 < H 0.312; QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]."
+    ]
     # another solver or column: the ordering only (the primary contrasts are those of lstsq and the headline)
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", headline=False) == [
         "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
-        "0.169 < H 0.312."]
+        "0.169 < H 0.312."
+    ]
     # with nothing swept but the seed: one finding per data variant
     assert sweep_findings(summary, comparisons, [], "alpha_abs_mean", "lstsq")[0].startswith(
-        "**mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: ")
+        "**mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: "
+    )
 
 
 def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
@@ -305,47 +456,88 @@ def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
     first stays '<' although every raw p is below 0.05 and every interval excludes 1."""
     from workbench.reporting.sweep_findings import HOLM_COLUMN, holm_text, holm_verdicts, sweep_findings
 
-    summary = pd.DataFrame({
-        "data": ["mesh"] * 4 + ["mesh held-out tail"] * 4, "basis": ["H", "QE", "QE-linear", "PCA"] * 2,
-        "solver": ["lstsq", "lstsq", "lstsq", "projection"] * 2, "n_seeds": 5,
-        "alpha_abs_mean": [0.4, 0.1, 0.2, 0.3, 0.8, 0.2, 0.4, 0.6]})
+    summary = pd.DataFrame(
+        {
+            "data": ["mesh"] * 4 + ["mesh held-out tail"] * 4,
+            "basis": ["H", "QE", "QE-linear", "PCA"] * 2,
+            "solver": ["lstsq", "lstsq", "lstsq", "projection"] * 2,
+            "n_seeds": 5,
+            "alpha_abs_mean": [0.4, 0.1, 0.2, 0.3, 0.8, 0.2, 0.4, 0.6],
+        }
+    )
     method = "paired t on log ratios"
-    rows = [("mesh", "QE", "H", 0.25, 0.2, 0.3, 0.04), ("mesh", "QE", "PCA", 0.33, 0.3, 0.37, 0.03),
-            ("mesh", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.01), ("mesh", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.02),
-            ("mesh held-out tail", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.03),
-            ("mesh held-out tail", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.04)]
-    comparisons = pd.DataFrame([{"data": data, "solver": "lstsq", "metric": "alpha_abs_mean", "first": first,
-                                 "second": second, "n": 5, "ratio": ratio, "ratio_low": low, "ratio_high": high,
-                                 "method": method, "verdict": "<", "p": p}
-                                for data, first, second, ratio, low, high, p in rows])
+    rows = [
+        ("mesh", "QE", "H", 0.25, 0.2, 0.3, 0.04),
+        ("mesh", "QE", "PCA", 0.33, 0.3, 0.37, 0.03),
+        ("mesh", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.01),
+        ("mesh", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.02),
+        ("mesh held-out tail", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.03),
+        ("mesh held-out tail", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.04),
+    ]
+    comparisons = pd.DataFrame(
+        [
+            {
+                "data": data,
+                "solver": "lstsq",
+                "metric": "alpha_abs_mean",
+                "first": first,
+                "second": second,
+                "n": 5,
+                "ratio": ratio,
+                "ratio_low": low,
+                "ratio_high": high,
+                "method": method,
+                "verdict": "<",
+                "p": p,
+            }
+            for data, first, second, ratio, low, high, p in rows
+        ]
+    )
     adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
     assert adjusted[HOLM_COLUMN].iloc[:2].isna().all()  # the primary contrasts: not in the family
     assert adjusted[HOLM_COLUMN].iloc[2:].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
-    assert adjusted["verdict"].tolist() == ["<", "<", "<", "not distinguishable", "not distinguishable",
-                                            "not distinguishable"]
+    assert adjusted["verdict"].tolist() == [
+        "<",
+        "<",
+        "<",
+        "not distinguishable",
+        "not distinguishable",
+        "not distinguishable",
+    ]
     assert comparisons["verdict"].tolist() == ["<"] * 6  # the input is left as it was
     lines = sweep_findings(summary, adjusted, [], "alpha_abs_mean", "lstsq")
     assert lines == [
         "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 < QE-linear 0.2 ~ PCA 0.3, H 0.4; QE/H 0.25 [0.2, 0.3], "
         "QE/PCA 0.33 [0.3, 0.37].",
-        "**mesh held-out tail** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.2 ~ QE-linear 0.4 ~ PCA 0.6, H 0.8."]
+        "**mesh held-out tail** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.2 ~ QE-linear 0.4 ~ PCA 0.6, H 0.8.",
+    ]
     assert "the other 4 comparisons Holm-adjusted (p_holm < 0.05)" in holm_text(adjusted, "alpha_abs_mean")
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
     from workbench.reporting.sweep_findings import bases_findings
 
-    summary = pd.DataFrame({"data": ["mesh"] * 4, "basis": ["H", "QE", "PCA", "SPCA"], "n_seeds": [5] * 4,
-                            "n_min": [18, 18, 10, 18], "n_max": [18, 18, 10, 18],
-                            "alpha_abs_mean": [1.0, 0.2, 0.15, 0.1], "matched_abs_cosine": [1.0, 0.66, 0.43, 0.45],
-                            "locality": [0.07, 0.27, 0.25, 0.095]})
+    summary = pd.DataFrame(
+        {
+            "data": ["mesh"] * 4,
+            "basis": ["H", "QE", "PCA", "SPCA"],
+            "n_seeds": [5] * 4,
+            "n_min": [18, 18, 10, 18],
+            "n_max": [18, 18, 10, 18],
+            "alpha_abs_mean": [1.0, 0.2, 0.15, 0.1],
+            "matched_abs_cosine": [1.0, 0.66, 0.43, 0.45],
+            "locality": [0.07, 0.27, 0.25, 0.095],
+        }
+    )
     method = "paired t on log ratios"
-    rows = [("mesh", "alpha_abs_mean", "SPCA", "PCA", 5, 0.667, 0.6, 0.74, method, "<"),
-            ("mesh", "alpha_abs_mean", "PCA", "QE", 5, 0.75, 0.7, 0.8, method, "<"),
-            ("mesh", "alpha_abs_mean", "QE", "H", 5, 0.2, 0.18, 0.22, method, "<"),
-            ("mesh", "matched_abs_cosine", "SPCA", "QE", 5, 0.68, 0.6, 0.77, method, "<"),
-            ("mesh", "locality", "SPCA", "PCA", 5, 0.38, 0.3, 0.48, method, "<"),
-            ("mesh", "locality", "PCA", "QE", 5, 0.93, 0.8, 1.08, method, "not distinguishable")]
+    rows = [
+        ("mesh", "alpha_abs_mean", "SPCA", "PCA", 5, 0.667, 0.6, 0.74, method, "<"),
+        ("mesh", "alpha_abs_mean", "PCA", "QE", 5, 0.75, 0.7, 0.8, method, "<"),
+        ("mesh", "alpha_abs_mean", "QE", "H", 5, 0.2, 0.18, 0.22, method, "<"),
+        ("mesh", "matched_abs_cosine", "SPCA", "QE", 5, 0.68, 0.6, 0.77, method, "<"),
+        ("mesh", "locality", "SPCA", "PCA", 5, 0.38, 0.3, 0.48, method, "<"),
+        ("mesh", "locality", "PCA", "QE", 5, 0.93, 0.8, 1.08, method, "not distinguishable"),
+    ]
     columns = ["data", "metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict"]
     comparisons = pd.DataFrame([dict(zip(columns, row)) for row in rows])
     assert bases_findings(summary, comparisons, "alpha_abs_mean") == [
@@ -356,26 +548,48 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
         "**mesh**: closest to the hand shapes (mean matched |cosine|): QE 0.660, then SPCA 0.450 (the hand shapes' "
         "1.000); SPCA < QE (SPCA/QE 0.68 [0.6, 0.77]).",
         "**mesh**: most local (share of the face holding an element's displacement): SPCA 0.095, then PCA 0.250 "
-        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38 [0.3, 0.48])."]
+        "(the hand shapes' 0.070); SPCA < PCA (SPCA/PCA 0.38 [0.3, 0.48]).",
+    ]
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
-    from workbench.reporting.sweep_findings import bases_findings
     from workbench.reporting.runs import COMPARISON_COLUMNS
+    from workbench.reporting.sweep_findings import bases_findings
 
-    summary = pd.DataFrame({"data": ["mesh"] * 3, "basis": ["ICA", "H-fit", "PCA"], "n_seeds": [1] * 3,
-                            "n_min": [18, 18, 9], "n_max": [18, 18, 9],
-                            "alpha_abs_mean": [0.09612, 0.09621, 0.2], "matched_abs_cosine": [0.5, 0.74, 0.3],
-                            "locality": [0.2, 0.1, 0.5]})
-    comparisons = {"mesh": [
-        {"a": ["ICA", "lstsq"], "b": ["H-fit", "lstsq"], "estimate": -9e-05, "low": -0.0004, "high": 0.0002,
-         "n": 4000, "method": "circular block bootstrap over time", "block_frames": 53, "block_seconds": 0.44},
-        {"a": ["H-fit", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.104, "low": -0.11, "high": -0.09}]}
+    summary = pd.DataFrame(
+        {
+            "data": ["mesh"] * 3,
+            "basis": ["ICA", "H-fit", "PCA"],
+            "n_seeds": [1] * 3,
+            "n_min": [18, 18, 9],
+            "n_max": [18, 18, 9],
+            "alpha_abs_mean": [0.09612, 0.09621, 0.2],
+            "matched_abs_cosine": [0.5, 0.74, 0.3],
+            "locality": [0.2, 0.1, 0.5],
+        }
+    )
+    comparisons = {
+        "mesh": [
+            {
+                "a": ["ICA", "lstsq"],
+                "b": ["H-fit", "lstsq"],
+                "estimate": -9e-05,
+                "low": -0.0004,
+                "high": 0.0002,
+                "n": 4000,
+                "method": "circular block bootstrap over time",
+                "block_frames": 53,
+                "block_seconds": 0.44,
+            },
+            {"a": ["H-fit", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.104, "low": -0.11, "high": -0.09},
+        ]
+    }
     over_runs = pd.DataFrame(columns=["data", *COMPARISON_COLUMNS])  # one run: nothing to pair over runs
     assert bases_findings(summary, over_runs, "alpha_abs_mean", run_comparisons=comparisons)[0] == (
         "**mesh** (one run): `alpha_abs_mean` from best to worst: ICA 0.09612 ~ H-fit 0.09621 (ICA - H-fit -9e-05, "
         "95 % interval [-0.0004, +0.0002] (circular block bootstrap over time, blocks of 53 frames = 0.44 s, "
-        "n = 4000): not distinguishable) < PCA 0.2.")
+        "n = 4000): not distinguishable) < PCA 0.2."
+    )
 
 
 def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
@@ -389,12 +603,23 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
     metrics["data"]["mesh"]["pca"] = {"m": 10, "method": "covariance"}
     # a comparison whose interval would say "not distinguishable": it must not be used
     metrics["data"]["mesh"]["comparisons"] = [
-        {"a": ["QE", "lstsq"], "b": ["PCA", "projection"], "estimate": -0.01, "low": -0.05, "high": 0.03,
-         "n": 100, "method": "batch means over time, t-quantiles"}, *COMPARISONS[1:]]
+        {
+            "a": ["QE", "lstsq"],
+            "b": ["PCA", "projection"],
+            "estimate": -0.01,
+            "low": -0.05,
+            "high": 0.03,
+            "n": 100,
+            "method": "batch means over time, t-quantiles",
+        },
+        *COMPARISONS[1:],
+    ]
     first = run_findings(table, "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)[1]
-    assert first.startswith("**mesh**: `alpha_abs_mean` from best to worst, lstsq: QE 0.19 <= PCA 0.2 by "
-                            "construction (the 18 affine QE shapes have rank 11 = m + 1: they span mu + "
-                            "span(eigenfaces), where PCA's reconstruction lies), QE-linear 0.5 < H 1;")
+    assert first.startswith(
+        "**mesh**: `alpha_abs_mean` from best to worst, lstsq: QE 0.19 <= PCA 0.2 by "
+        "construction (the 18 affine QE shapes have rank 11 = m + 1: they span mu + "
+        "span(eigenfaces), where PCA's reconstruction lies), QE-linear 0.5 < H 1;"
+    )
     assert "QE - PCA" not in first
     # at rank m (QE does not reach mu + span(E^PCA)) the same pair is left to its interval
     for row in metrics["rows"]:
@@ -406,9 +631,11 @@ def test_qe_spanning_pca_is_stated_by_construction_and_not_tested():
 def test_identities_of_the_solvers_and_of_eckart_young():
     from workbench.stats.identities import identity_lookup, run_identities
 
-    rows = [{"basis": basis, "solver": solver, "n": 18 if basis != "PCA" else 20}
-            for basis in ("H", "QE") for solver in ("lstsq", "nnls", "box")] + [
-        {"basis": "PCA", "solver": "projection", "n": 20}]
+    rows = [
+        {"basis": basis, "solver": solver, "n": 18 if basis != "PCA" else 20}
+        for basis in ("H", "QE")
+        for solver in ("lstsq", "nnls", "box")
+    ] + [{"basis": "PCA", "solver": "projection", "n": 20}]
     facts = {"pca": {"m": 20, "method": "covariance"}, "protocol": "training frames", "notes": []}
     found = run_identities(rows, facts)
     mean, pooled = identity_lookup(found, "alpha_abs_mean"), identity_lookup(found, "alpha_abs_pooled")
@@ -419,38 +646,56 @@ def test_identities_of_the_solvers_and_of_eckart_young():
     assert mean(("PCA", "projection"), ("H", "nnls")) is None
     # held-out frames, or a randomised PCA: no Eckart-Young
     held = dict(facts, protocol="held out: tail")
-    assert identity_lookup(run_identities(rows, held), "alpha_abs_pooled")(("PCA", "projection"), ("H", "nnls")) \
-        is None
+    assert identity_lookup(run_identities(rows, held), "alpha_abs_pooled")(("PCA", "projection"), ("H", "nnls")) is None
     randomised = dict(facts, pca={"m": 20, "method": "randomized"})
-    assert identity_lookup(run_identities(rows, randomised), "alpha_abs_pooled")(
-        ("PCA", "projection"), ("H", "nnls")) is None
+    assert (
+        identity_lookup(run_identities(rows, randomised), "alpha_abs_pooled")(("PCA", "projection"), ("H", "nnls"))
+        is None
+    )
 
 
 def test_other_comparisons_are_holm_adjusted_and_the_primary_ones_are_not():
     metrics = known_metrics()
     # every comparison excludes 0 at its own 95 % with p = 0.02; Holm over the 9 non-primary ones makes each 0.18
     metrics["data"]["mesh"]["comparisons"] = [dict(entry, p_value=0.02) for entry in COMPARISONS] + [
-        {**compared(("H", "lstsq"), ("QE", "lstsq"), 0.7, 0.8), "p_value": 0.02}]
+        {**compared(("H", "lstsq"), ("QE", "lstsq"), 0.7, 0.8), "p_value": 0.02}
+    ]
     lines = run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, metrics)
-    assert "primary contrasts (H vs QE, QE vs PCA, lstsq, on mesh) at their own 95 %, the other 9 Holm-adjusted" \
+    assert (
+        "primary contrasts (H vs QE, QE vs PCA, lstsq, on mesh) at their own 95 %, the other 9 Holm-adjusted"
         in lines[0]
+    )
     first = lines[1]
     # PCA-QE primary (stated at its own 95 %); QE vs QE-linear and QE-linear vs H adjusted away
     assert "lstsq: PCA 0.2 < QE 0.25 ~ QE-linear 0.5 ~ H 1;" in first
     nnls = next(line for line in lines if "with non-negative weights" in line)
     assert nnls.endswith("QE is not distinguishable from H, QE-linear is not distinguishable from H.")
     # without the adjustment the same intervals state the orderings
-    assert "QE is worse than H (QE - H +0.4 [+0.2, +0.6])" in run_findings(
-        known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())[4]
+    assert (
+        "QE is worse than H (QE - H +0.4 [+0.2, +0.6])"
+        in run_findings(known_table(), "alpha_abs_mean", PAPER, INTUITIVENESS, known_metrics())[4]
+    )
 
 
 def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
     from workbench.reporting.findings import weights_text
 
-    rows = [{"data": "mesh", "basis": "QE", "solver": "lstsq", "basis_conditioning": {"rank": 11, "n_shapes": 18},
-             "weights": dict(weights(1.0, 0.96, 0.3, 2e4, 1.0, 30.0), needs_negative_share=0.0)},
-            {"data": "mesh", "basis": "H", "solver": "lstsq", "basis_conditioning": {"rank": 18, "n_shapes": 18},
-             "weights": dict(weights(0.5, 0.4, 0.3, 50.0, 1.0, 1.5), needs_negative_share=0.25)}]
+    rows = [
+        {
+            "data": "mesh",
+            "basis": "QE",
+            "solver": "lstsq",
+            "basis_conditioning": {"rank": 11, "n_shapes": 18},
+            "weights": dict(weights(1.0, 0.96, 0.3, 2e4, 1.0, 30.0), needs_negative_share=0.0),
+        },
+        {
+            "data": "mesh",
+            "basis": "H",
+            "solver": "lstsq",
+            "basis_conditioning": {"rank": 18, "n_shapes": 18},
+            "weights": dict(weights(0.5, 0.4, 0.3, 50.0, 1.0, 1.5), needs_negative_share=0.25),
+        },
+    ]
     text = weights_text("mesh", ["lstsq"], rows)
     assert "lstsq: H 1.5, 50; QE (minimum-norm, rank 11 of 18) 30, 2e+04" in text
     assert text.endswith("frames that need a negative weight (nnls error above lstsq's): H 25 %, QE 0 %")
@@ -463,12 +708,16 @@ def test_the_summary_states_the_claim_the_regime_and_the_verdict_in_under_200_wo
     metrics["data"]["mesh"]["comparisons"] = [*COMPARISONS, compared(("QE", "lstsq"), ("H", "lstsq"), -0.8, -0.7)]
     text = run_summary(known_table(), "alpha_abs_mean", metrics)
     assert len(text.split()) <= 200
-    assert "On mesh (m = 10 eigenfaces, n = 18 hand shapes: not the paper's regime m = n (run " \
-           "basis.n_components=18 for it))" in text
+    assert (
+        "On mesh (m = 10 eigenfaces, n = 18 hand shapes: not the paper's regime m = n (run "
+        "basis.n_components=18 for it))" in text
+    )
     assert "H/QE 4 (QE - H -0.75 [-0.8, -0.7]), QE/PCA 1.25 (QE - PCA +0.05 [+0.02, +0.08])" in text
     assert "H 1, QE 0.25, PCA 0.2 mm median per-frame error; QE better than H: reproduced." in text
-    assert text.endswith("Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
-                         "and QE are fitted to the frames they reconstruct; no frames were held out.")
+    assert text.endswith(
+        "Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
+        "and QE are fitted to the frames they reconstruct; no frames were held out."
+    )
 
 
 def test_findings_over_their_words_leave_out_details_first_and_say_where_they_are():
@@ -476,14 +725,19 @@ def test_findings_over_their_words_leave_out_details_first_and_say_where_they_ar
     from workbench.reporting.report_sections import Section
 
     kept = ["**how to read**: " + "word " * 100, "**caveat**: " + "word " * 100]
-    details = [Detail("**a**: " + "word " * 300, 1, "the table 'A'"), Detail("**b**: " + "word " * 300, 2, "the table 'B'"),
-               Detail("**c**: " + "word " * 300, 1, "the table 'C'")]
+    details = [
+        Detail("**a**: " + "word " * 300, 1, "the table 'A'"),
+        Detail("**b**: " + "word " * 300, 2, "the table 'B'"),
+        Detail("**c**: " + "word " * 300, 1, "the table 'C'"),
+    ]
     sections = fit_findings([Section("Findings", ["Generated.", [kept[0], *details, kept[1]]])])
     lines = sections[0].blocks[1]
     # b (rank 2) goes first, then c (the later of rank 1); a and both plain lines stay
     assert lines[:3] == [kept[0], details[0], kept[1]]
-    assert lines[3] == ("**left out**: 2 more findings, to keep this section within 800 words; their numbers are in "
-                        "the table 'B', the table 'C'.")
+    assert lines[3] == (
+        "**left out**: 2 more findings, to keep this section within 800 words; their numbers are in "
+        "the table 'B', the table 'C'."
+    )
     assert words(sections[0].blocks) <= 800
     short = [Section("Findings", ["Generated.", [kept[0], details[0]]])]
     assert fit_findings(short)[0].blocks[1] == [kept[0], details[0]]  # within the words: unchanged
@@ -496,21 +750,54 @@ def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
 
     coverages = [0.9, 0.92, 0.94, 0.95, 0.96, 0.98, 0.99, 0.995, 0.998, 0.999]
     bases = ["H", "QE", "QE-linear", "PCA"]
-    summary = pd.DataFrame([{"basis.coverage": c, "data": data, "basis": basis, "n_seeds": 5, "m_min": 8,
-                             "m_max": 10, "solver": "projection" if basis == "PCA" else solver,
-                             "alpha_abs_mean": (k + 1) * 0.1 * (1 + c)}
-                            for c in coverages for data in ("markers", "markers held-out tail")
-                            for solver in ("lstsq", "nnls") for k, basis in enumerate(bases)]).drop_duplicates(
-        ["basis.coverage", "data", "basis", "solver"])
-    comparisons = pd.DataFrame([{"basis.coverage": c, "data": data, "solver": solver, "metric": "alpha_abs_mean",
-                                 "first": a, "second": b, "n": 5, "ratio": 0.8, "ratio_low": 0.7,
-                                 "ratio_high": 0.9, "method": "paired t on log ratios", "verdict": "<", "p": 0.001}
-                                for c in coverages for data in ("markers", "markers held-out tail")
-                                for solver in ("lstsq", "nnls") for i, a in enumerate(bases) for b in bases[i + 1:]])
+    summary = pd.DataFrame(
+        [
+            {
+                "basis.coverage": c,
+                "data": data,
+                "basis": basis,
+                "n_seeds": 5,
+                "m_min": 8,
+                "m_max": 10,
+                "solver": "projection" if basis == "PCA" else solver,
+                "alpha_abs_mean": (k + 1) * 0.1 * (1 + c),
+            }
+            for c in coverages
+            for data in ("markers", "markers held-out tail")
+            for solver in ("lstsq", "nnls")
+            for k, basis in enumerate(bases)
+        ]
+    ).drop_duplicates(["basis.coverage", "data", "basis", "solver"])
+    comparisons = pd.DataFrame(
+        [
+            {
+                "basis.coverage": c,
+                "data": data,
+                "solver": solver,
+                "metric": "alpha_abs_mean",
+                "first": a,
+                "second": b,
+                "n": 5,
+                "ratio": 0.8,
+                "ratio_low": 0.7,
+                "ratio_high": 0.9,
+                "method": "paired t on log ratios",
+                "verdict": "<",
+                "p": 0.001,
+            }
+            for c in coverages
+            for data in ("markers", "markers held-out tail")
+            for solver in ("lstsq", "nnls")
+            for i, a in enumerate(bases)
+            for b in bases[i + 1 :]
+        ]
+    )
     comparisons = holm_verdicts(comparisons, "alpha_abs_mean")
     lines = [holm_text(comparisons, "alpha_abs_mean")] + [
-        line for solver in ("lstsq", "nnls")
-        for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)]
+        line
+        for solver in ("lstsq", "nnls")
+        for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)
+    ]
     section = Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", list(lines)])
     assert words(section.blocks) > 800  # 40 lines: more than the section holds
     fitted = fit_findings([section])[0].blocks[1]
@@ -519,31 +806,52 @@ def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
     # another solver's lines go before any of the lead solver's, the latest first
     assert all(line in fitted for line in lines if ", lstsq) " in line)
     left_out = [line for line in lines if line not in fitted]
-    assert left_out and all(", nnls) " in line for line in left_out) and left_out == lines[-len(left_out):]
+    assert left_out and all(", nnls) " in line for line in left_out) and left_out == lines[-len(left_out) :]
     assert fitted[1].startswith("basis.coverage = 0.9, **markers** (m = 8-10; 5 seeds, lstsq) `alpha_abs_mean`: ")
 
 
 def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_intervals_and_no_label_overlaps():
     from workbench.reporting.figures.headline import figure_headline, variant_label
 
-    levels = pd.DataFrame([{"data": data, "m": m, "n": 18, "basis": basis, "alpha": alpha * scale,
-                            "low": alpha * scale * 0.8, "high": alpha * scale * 1.2}
-                           for data, m, scale in (("markers m=n", 18, 1.0), ("markers", 10, 1.1))
-                           for basis, alpha in (("H", 1.8), ("QE", 0.7), ("PCA", 0.52))])
-    contrasts = pd.DataFrame([
-        {"data": "markers m=n", "contrast": "QE - H", "estimate": -1.1, "low": -1.3, "high": -0.9, "identity": ""},
-        {"data": "markers m=n", "contrast": "QE - PCA", "estimate": 0.18, "low": 0.1, "high": 0.26, "identity": ""},
-        {"data": "markers", "contrast": "QE - H", "estimate": -1.2, "low": -1.4, "high": -1.0, "identity": ""},
-        {"data": "markers", "contrast": "QE - PCA", "estimate": float("nan"), "low": float("nan"),
-         "high": float("nan"), "identity": "by construction"}])
+    levels = pd.DataFrame(
+        [
+            {
+                "data": data,
+                "m": m,
+                "n": 18,
+                "basis": basis,
+                "alpha": alpha * scale,
+                "low": alpha * scale * 0.8,
+                "high": alpha * scale * 1.2,
+            }
+            for data, m, scale in (("markers m=n", 18, 1.0), ("markers", 10, 1.1))
+            for basis, alpha in (("H", 1.8), ("QE", 0.7), ("PCA", 0.52))
+        ]
+    )
+    contrasts = pd.DataFrame(
+        [
+            {"data": "markers m=n", "contrast": "QE - H", "estimate": -1.1, "low": -1.3, "high": -0.9, "identity": ""},
+            {"data": "markers m=n", "contrast": "QE - PCA", "estimate": 0.18, "low": 0.1, "high": 0.26, "identity": ""},
+            {"data": "markers", "contrast": "QE - H", "estimate": -1.2, "low": -1.4, "high": -1.0, "identity": ""},
+            {
+                "data": "markers",
+                "contrast": "QE - PCA",
+                "estimate": float("nan"),
+                "low": float("nan"),
+                "high": float("nan"),
+                "identity": "by construction",
+            },
+        ]
+    )
     assert variant_label(levels, "markers m=n") == "m = n = 18 (H/QE 2.57, QE/PCA 1.35)"
     assert variant_label(levels, "markers") == "coverage rule, m = 10 (H/QE 2.57, QE/PCA 1.35)"
     figure = figure_headline(levels, contrasts, "alpha_abs_mean", "The paper's comparison, with intervals: test")
     left, right = figure.axes
     bars = [segment for collection in left.collections for segment in collection.get_segments()]
     assert len(bars) == 6 and all(segment[:, 1].min() > 0 for segment in bars)  # every level with its interval
-    assert sorted(round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars) == \
-        pytest.approx([1.5] * 6)
+    assert sorted(
+        round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars
+    ) == pytest.approx([1.5] * 6)
     assert any(text.get_text() == "<= 0 by construction" for text in right.texts)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -553,13 +861,16 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
     for ax in figure.axes:
         texts += [ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts]
         for axis, (low, high) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
-            texts += [tick.label1 for tick in axis.get_major_ticks()
-                      if min(low, high) <= tick.get_loc() <= max(low, high) and tick.label1.get_visible()]
+            texts += [
+                tick.label1
+                for tick in axis.get_major_ticks()
+                if min(low, high) <= tick.get_loc() <= max(low, high) and tick.label1.get_visible()
+            ]
     boxes = [(text.get_text(), text.get_window_extent(renderer)) for text in texts if text.get_text().strip()]
     assert len(boxes) > 15
     width, height = figure.bbox.width, figure.bbox.height
     for name, box in boxes:  # inside the figure
         assert box.x0 >= -1 and box.y0 >= -1 and box.x1 <= width + 1 and box.y1 <= height + 1, name
     for i, (first, a) in enumerate(boxes):
-        for second, b in boxes[i + 1:]:
+        for second, b in boxes[i + 1 :]:
             assert not a.overlaps(b), (first, second)

@@ -5,14 +5,13 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.settings.config import resolved_without_hydra
-from workbench.settings.config import compose
+from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.gaps import apply_gap_policy
-from workbench.core.errors import WorkbenchError
 from workbench.numerics.metrics import summarise_alpha
-from workbench.study.run import run_study
 from workbench.numerics.solve import solve_weights
+from workbench.settings.config import compose, resolved_without_hydra
+from workbench.study.run import run_study
 
 
 def random_masked_problem(seed, n_shapes=5, n_points=12, n_frames=150, missing=0.25):
@@ -93,9 +92,11 @@ def test_alpha_over_visible_points_equals_alpha_of_the_visible_subset():
         dims = np.repeat(visible[frame], 3)
         error = np.linalg.norm(captured[frame, dims] - reconstructed[frame, dims])
         assert summary.displacement_per_frame[frame] == pytest.approx(
-            100 * error / np.linalg.norm(captured[frame, dims]), rel=1e-12)
+            100 * error / np.linalg.norm(captured[frame, dims]), rel=1e-12
+        )
         assert summary.absolute_per_frame[frame] == pytest.approx(
-            100 * error / np.linalg.norm(neutral[dims] + captured[frame, dims]), rel=1e-12)
+            100 * error / np.linalg.norm(neutral[dims] + captured[frame, dims]), rel=1e-12
+        )
     seen = np.repeat(visible, 3, axis=1)
     squared_error = ((captured - reconstructed)[seen] ** 2).sum()
     assert summary.displacement_pooled == pytest.approx(100 * np.sqrt(squared_error / (captured[seen] ** 2).sum()))
@@ -135,10 +136,20 @@ def test_gap_policies_on_known_trajectories():
 
 
 def test_masked_policy_on_the_synthetic_actor():
-    cfg = resolved_without_hydra(compose("paper", [
-        "dataset.n_frames=800", "dataset.gap_rate=0.05", "dataset.gap_policy=masked", "solver=all",
-        "dataset.mesh_rows=30", "dataset.mesh_cols=26",
-        "dataset.train_on=[markers,mesh]"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=800",
+                "dataset.gap_rate=0.05",
+                "dataset.gap_policy=masked",
+                "solver=all",
+                "dataset.mesh_rows=30",
+                "dataset.mesh_cols=26",
+                "dataset.train_on=[markers,mesh]",
+            ],
+        )
+    )
     results = {result.data: result for result in run_study(cfg)}
     markers, mesh = results["markers"].capture, results["mesh"].capture
     assert markers.eval_visible is not None and mesh.eval_visible is None
@@ -151,9 +162,19 @@ def test_masked_policy_on_the_synthetic_actor():
 
 
 def test_masked_policy_with_eval_on_is_refused():
-    cfg = resolved_without_hydra(compose("paper", [
-        "dataset.n_frames=300", "dataset.gap_rate=0.05", "dataset.gap_policy=masked", "solver=lstsq",
-        "dataset.train_on=mesh", "+dataset.eval_on=markers"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=300",
+                "dataset.gap_rate=0.05",
+                "dataset.gap_policy=masked",
+                "solver=lstsq",
+                "dataset.train_on=mesh",
+                "+dataset.eval_on=markers",
+            ],
+        )
+    )
     with pytest.raises(WorkbenchError, match="masked.*eval_on"):
         run_study(cfg)
 
@@ -167,11 +188,19 @@ def lstsq_alpha(results):
 def test_masked_solve_on_real_takes_with_markers_removed_at_random(shared_data):
     """AnimFace markers with 5 % of the samples removed in random occlusion gaps: scored on the markers each frame
     saw, alpha stays within 10 % of the gap-free run's for every basis (measured: within 7 %)."""
-    common = [f"paths.data_root={shared_data}", "dataset=animface", "dataset.train_on=markers", "solver=lstsq",
-              "dataset.frame_step=2"]
+    common = [
+        f"paths.data_root={shared_data}",
+        "dataset=animface",
+        "dataset.train_on=markers",
+        "solver=lstsq",
+        "dataset.frame_step=2",
+    ]
     clean = lstsq_alpha(run_study(resolved_without_hydra(compose("paper", common))))
-    holed_results = run_study(resolved_without_hydra(compose("paper", common + [
-        "dataset.gap_rate=0.05", "dataset.gap_policy=masked", "dataset.gap_seed=3"])))
+    holed_results = run_study(
+        resolved_without_hydra(
+            compose("paper", common + ["dataset.gap_rate=0.05", "dataset.gap_policy=masked", "dataset.gap_seed=3"])
+        )
+    )
     holed = lstsq_alpha(holed_results)
     capture = holed_results[0].capture
     assert (~capture.eval_visible).mean() == pytest.approx(0.05, abs=0.015)
@@ -182,8 +211,14 @@ def test_masked_solve_on_real_takes_with_markers_removed_at_random(shared_data):
 
 
 def test_drop_and_linear_policies_on_real_takes(shared_data):
-    common = [f"paths.data_root={shared_data}", "dataset=animface", "dataset.train_on=markers",
-              "dataset.frame_step=4", "dataset.gap_rate=0.02", "dataset.gap_mean_frames=6"]
+    common = [
+        f"paths.data_root={shared_data}",
+        "dataset=animface",
+        "dataset.train_on=markers",
+        "dataset.frame_step=4",
+        "dataset.gap_rate=0.02",
+        "dataset.gap_mean_frames=6",
+    ]
     cfg = resolved_without_hydra(compose("paper", common + ["dataset.gap_policy=drop"]))
     dropped = build_captures(cfg["dataset"])["markers"]
     cfg = resolved_without_hydra(compose("paper", common + ["dataset.gap_policy=linear"]))
@@ -194,17 +229,24 @@ def test_drop_and_linear_policies_on_real_takes(shared_data):
 
 
 def test_masked_policy_can_fit_on_the_complete_frames_only():
-    overrides = ["dataset.n_frames=600", "dataset.gap_rate=0.02", "dataset.gap_policy=masked",
-                 "dataset.train_on=markers"]
+    overrides = [
+        "dataset.n_frames=600",
+        "dataset.gap_rate=0.02",
+        "dataset.gap_policy=masked",
+        "dataset.train_on=markers",
+    ]
     filled = build_captures(resolved_without_hydra(compose("paper", overrides))["dataset"])["markers"]
-    complete = build_captures(resolved_without_hydra(compose(
-        "paper", overrides + ["dataset.gap_fit_on=complete"]))["dataset"])["markers"]
+    complete = build_captures(
+        resolved_without_hydra(compose("paper", overrides + ["dataset.gap_fit_on=complete"]))["dataset"]
+    )["markers"]
     saw_all = filled.eval_visible.all(axis=1)
     assert len(filled.train) == 600 and 0 < saw_all.sum() < 600
     np.testing.assert_array_equal(complete.train, filled.train[saw_all])
     np.testing.assert_array_equal(complete.eval, filled.eval, strict=False)
-    assert any(f"fitted on the {int(saw_all.sum())} of 600 training frames that saw every marker" in note
-               for note in complete.notes)
+    assert any(
+        f"fitted on the {int(saw_all.sum())} of 600 training frames that saw every marker" in note
+        for note in complete.notes
+    )
     with pytest.raises(WorkbenchError, match="gap_fit_on must be one of"):
         build_captures(resolved_without_hydra(compose("paper", overrides + ["dataset.gap_fit_on=all"]))["dataset"])
 
@@ -214,9 +256,21 @@ def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_
     from workbench.reporting.pages import main
 
     record = tmp_path / "run"
-    run(compose("paper", ["dataset.n_frames=600", "dataset.gap_rate=0.02", "dataset.gap_policy=masked",
-                          "dataset.train_on=markers", "solver=lstsq", "save_inputs=true", "basis.paper_regime=false"]),
-        record)
+    run(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=600",
+                "dataset.gap_rate=0.02",
+                "dataset.gap_policy=masked",
+                "dataset.train_on=markers",
+                "solver=lstsq",
+                "save_inputs=true",
+                "basis.paper_regime=false",
+            ],
+        ),
+        record,
+    )
     with np.load(record / "inputs.npz", allow_pickle=False) as inputs:
         visible = inputs["eval_visible"]
         assert np.isnan(inputs["eval"][np.repeat(~visible, 3, axis=1)]).all()

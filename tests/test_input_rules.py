@@ -9,13 +9,13 @@ import struct
 
 import numpy as np
 import pytest
-
 from test_bad_input import tiny_config, tiny_root, write_c3d  # noqa: F401 - tiny_root is a fixture
-from workbench.settings.config import compose
+
+from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.formats.c3d import read_c3d_markers
 from workbench.formats.weight_curves import read_weight_curves
-from workbench.core.errors import WorkbenchError
+from workbench.settings.config import compose
 from workbench.settings.schema import check_study_config
 
 SMALL = ["dataset.n_frames=200", "solver=lstsq"]
@@ -25,18 +25,27 @@ SMALL = ["dataset.n_frames=200", "solver=lstsq"]
 # Settings: keys no schema knows are refused whatever the prefix; the weight curves' frame rate has a range
 # ----------------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("override, message", [
-    ("+basis.nope=1", "setting basis.nope does not exist; basis has ["),
-    ("++basis.nope=1", "setting basis.nope does not exist; basis has ["),
-    ("+paths.nope=1", "setting paths.nope does not exist; paths has ['cache_dir', 'data_root', 'output_root']"),
-    ("+basis.hand_basis=x", "setting basis.hand_basis does not exist (did you mean dataset.hand_basis?)"),
-    ("+metric.nope=1", "setting metric.nope does not exist"),
-    ("+solver.lstsq.nope=1", "setting solver.lstsq.nope does not exist; solver.lstsq has ['kind', 'lower', 'upper']"),
-    ("+basis.spca.nope=1", "setting basis.spca.nope does not exist; basis.spca has ['alpha', 'max_iter']"),
-    ("+paper.alpha.X=3", "setting paper.alpha.X does not exist; paper.alpha has ['H', 'PCA', 'QE']"),
-    ("++dataset.foo=1", "dataset.foo has no effect with dataset=synthetic: dataset kind 'synthetic' has no such "
-                        "setting"),
-])
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("+basis.nope=1", "setting basis.nope does not exist; basis has ["),
+        ("++basis.nope=1", "setting basis.nope does not exist; basis has ["),
+        ("+paths.nope=1", "setting paths.nope does not exist; paths has ['cache_dir', 'data_root', 'output_root']"),
+        ("+basis.hand_basis=x", "setting basis.hand_basis does not exist (did you mean dataset.hand_basis?)"),
+        ("+metric.nope=1", "setting metric.nope does not exist"),
+        (
+            "+solver.lstsq.nope=1",
+            "setting solver.lstsq.nope does not exist; solver.lstsq has ['kind', 'lower', 'upper']",
+        ),
+        ("+basis.spca.nope=1", "setting basis.spca.nope does not exist; basis.spca has ['alpha', 'max_iter']"),
+        ("+paper.alpha.X=3", "setting paper.alpha.X does not exist; paper.alpha has ['H', 'PCA', 'QE']"),
+        (
+            "++dataset.foo=1",
+            "dataset.foo has no effect with dataset=synthetic: dataset kind 'synthetic' has no such setting",
+        ),
+    ],
+)
 def test_unknown_keys_are_refused_whatever_the_prefix(override, message):
     cfg = compose("paper", SMALL + [override])
     with pytest.raises(WorkbenchError, match=re.escape(message)) as error:
@@ -45,15 +54,23 @@ def test_unknown_keys_are_refused_whatever_the_prefix(override, message):
 
 
 def test_dataset_settings_added_with_plus_are_still_taken():
-    cfg = compose("paper", ["dataset=ict_livelink", "+dataset.weight_curves=take.json",
-                            "+dataset.weight_frame_rate=30", "+dataset.eval_on=mesh"])
+    cfg = compose(
+        "paper",
+        [
+            "dataset=ict_livelink",
+            "+dataset.weight_curves=take.json",
+            "+dataset.weight_frame_rate=30",
+            "+dataset.eval_on=mesh",
+        ],
+    )
     check_study_config(cfg)
 
 
 @pytest.mark.parametrize("rate", ["-30", "0", "1e9"])
 def test_weight_frame_rate_must_be_a_capture_rate(rate):
-    cfg = compose("paper", ["dataset=ict_livelink", "+dataset.weight_curves=take.json",
-                            f"+dataset.weight_frame_rate={rate}"])
+    cfg = compose(
+        "paper", ["dataset=ict_livelink", "+dataset.weight_curves=take.json", f"+dataset.weight_frame_rate={rate}"]
+    )
     with pytest.raises(WorkbenchError, match=r"^dataset\.weight_frame_rate must be in \(0, 10000\] or null, got "):
         check_study_config(cfg)
 
@@ -62,13 +79,16 @@ def test_weight_frame_rate_must_be_a_capture_rate(rate):
 # Plausibility: the neutral face's size, on every dataset with a unit setting
 # ----------------------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("kind", ["ict_livelink", "animface"])
 @pytest.mark.parametrize("unit_mm, spans", [(0.1, "7 mm"), (1000.0, "7e+04 mm")])
 def test_face_size_names_the_unit_setting(tiny_root, kind, unit_mm, spans):  # noqa: F811
     cfg = tiny_config(tiny_root, kind, blendshapes={"unit_mm": unit_mm})
-    message = (f"face: with dataset.blendshapes.unit_mm={unit_mm:g} the neutral face spans {spans}, not a human "
-               "face's size (40-1000 mm); dataset.blendshapes.unit_mm (mm per file unit) is off by a factor; set "
-               "dataset.plausibility=warn")
+    message = (
+        f"face: with dataset.blendshapes.unit_mm={unit_mm:g} the neutral face spans {spans}, not a human "
+        "face's size (40-1000 mm); dataset.blendshapes.unit_mm (mm per file unit) is off by a factor; set "
+        "dataset.plausibility=warn"
+    )
     with pytest.raises(WorkbenchError, match=re.escape(message)):
         build_captures(cfg)
 
@@ -89,14 +109,16 @@ def test_missing_blendshape_folder_is_named(tiny_root):  # noqa: F811
 # Readers: C3D frame ranges, weight curves nested too deep
 # ----------------------------------------------------------------------------------------------------------
 
+
 def test_c3d_header_frames_running_backwards(tmp_path):
     path = write_c3d(tmp_path / "take.c3d", np.random.default_rng(0).uniform(-100, 100, (10, 3, 3)), "ABC")
     data = bytearray(path.read_bytes())
     assert struct.unpack("<HH", data[6:10]) == (1, 10)  # the header's first and last frame
     data[6:10] = struct.pack("<HH", 10, 5)
     path.write_bytes(bytes(data))
-    with pytest.raises(WorkbenchError, match=re.escape(f"{path}: its header says the last frame (5) precedes the "
-                                                       "first (10)")):
+    with pytest.raises(
+        WorkbenchError, match=re.escape(f"{path}: its header says the last frame (5) precedes the first (10)")
+    ):
         read_c3d_markers(path)
 
 
@@ -118,10 +140,20 @@ def test_a_marker_never_seen_is_named_without_warnings(tmp_path, recwarn):
 
     positions = np.random.default_rng(1).uniform(-50, 50, (20, 3, 3))
     positions[:, 1] = np.nan
-    take = MarkerTake(labels=("A", "B", "C"), positions=positions, frame_rate=60.0, units="mm", first_frame=1,
-                      path=tmp_path / "take.c3d")
-    with pytest.raises(WorkbenchError, match=re.escape(f"{tmp_path / 'take.c3d'}: marker(s) ['B'] named in table.csv "
-                                                       "have no sample in any of the take's 20 frames")):
+    take = MarkerTake(
+        labels=("A", "B", "C"),
+        positions=positions,
+        frame_rate=60.0,
+        units="mm",
+        first_frame=1,
+        path=tmp_path / "take.c3d",
+    )
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
+            f"{tmp_path / 'take.c3d'}: marker(s) ['B'] named in table.csv have no sample in any of the take's 20 frames"
+        ),
+    ):
         take.index_of(["A", "B"], named_in="table.csv")
     assert take.index_of(["C", "A"], named_in="table.csv").tolist() == [2, 0]
     assert not [warning for warning in recwarn if issubclass(warning.category, RuntimeWarning)]
@@ -142,14 +174,23 @@ def test_a_linked_obj_is_named_by_the_link(tmp_path):
 # Messages naming the setting: sizes beyond the data, units beyond any face mesh
 # ----------------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("override, message", [
-    ("dataset.n_face_markers=1000000000000000", "dataset.n_face_markers must not exceed the synthetic mesh's "
-                                                "dataset.mesh_rows x dataset.mesh_cols = 4200 vertices (the markers "
-                                                "sit on them), got 1000000000000000"),
-    ("dataset=ict_livelink dataset.blendshapes.unit_mm=1e300", "dataset.blendshapes.unit_mm must be in (0, 10000], "
-                                                               "got 1e+300"),
-    ("dataset=mesh_sequence dataset.unit_mm=1e300", "dataset.unit_mm must be in (0, 10000], got 1e+300"),
-])
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        (
+            "dataset.n_face_markers=1000000000000000",
+            "dataset.n_face_markers must not exceed the synthetic mesh's "
+            "dataset.mesh_rows x dataset.mesh_cols = 4200 vertices (the markers "
+            "sit on them), got 1000000000000000",
+        ),
+        (
+            "dataset=ict_livelink dataset.blendshapes.unit_mm=1e300",
+            "dataset.blendshapes.unit_mm must be in (0, 10000], got 1e+300",
+        ),
+        ("dataset=mesh_sequence dataset.unit_mm=1e300", "dataset.unit_mm must be in (0, 10000], got 1e+300"),
+    ],
+)
 def test_sizes_and_units_name_their_setting(override, message):
     with pytest.raises(WorkbenchError, match="^" + re.escape(message) + "$"):
         check_study_config(compose("paper", override.split()))
@@ -160,17 +201,23 @@ def test_basis_sizes_name_their_setting():
     from workbench.numerics.bases import Eigenfaces
 
     capture = np.random.default_rng(0).normal(size=(20, 12))
-    with pytest.raises(WorkbenchError, match=re.escape("basis.n_components must be between 1 and the capture's "
-                                                       "rank 12, got 500")):
+    with pytest.raises(
+        WorkbenchError, match=re.escape("basis.n_components must be between 1 and the capture's rank 12, got 500")
+    ):
         Eigenfaces(n_components=500).fit(capture)
-    with pytest.raises(WorkbenchError, match=re.escape("basis.alternatives_n: n_components must be between 1 and "
-                                                       "min(n_frames, n_dims) = 12, got 1000000")):
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
+            "basis.alternatives_n: n_components must be between 1 and min(n_frames, n_dims) = 12, got 1000000"
+        ),
+    ):
         sparse_pca_basis(capture, n_components=1_000_000)
 
 
 # ----------------------------------------------------------------------------------------------------------
 # The command line: names that are not UTF-8 refused before anything runs; Hydra's own arguments in one line
 # ----------------------------------------------------------------------------------------------------------
+
 
 def run_cli(*args, cwd):
     import os
@@ -180,21 +227,32 @@ def run_cli(*args, cwd):
     from workbench.settings.config import REPO_ROOT
 
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
-    return subprocess.run([sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True,
-                          timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True, timeout=120
+    )
 
 
-@pytest.mark.parametrize("arguments, line", [
-    ((b"study='p\xff'", b"dataset.n_frames=200"),
-     b"workbench: error: argument 'study='p\\xff'' is not valid UTF-8 (byte 0xff at position 8); name files, "
-     b"folders and settings in UTF-8"),
-    ((b"report", b"run\xfe"),
-     b"workbench: error: argument 'run\\xfe' is not valid UTF-8 (byte 0xfe at position 3); name files, folders and "
-     b"settings in UTF-8"),
-    ((b"--nope",), b"workbench: error: unrecognized arguments: --nope (see workbench --help)"),
-    ((b"--cfg", b"bogus"), b"workbench: error: argument --cfg/-c: invalid choice: 'bogus' (choose from 'job', "
-                           b"'hydra', 'all') (see workbench --help)"),
-])
+@pytest.mark.parametrize(
+    "arguments, line",
+    [
+        (
+            (b"study='p\xff'", b"dataset.n_frames=200"),
+            b"workbench: error: argument 'study='p\\xff'' is not valid UTF-8 (byte 0xff at position 8); name files, "
+            b"folders and settings in UTF-8",
+        ),
+        (
+            (b"report", b"run\xfe"),
+            b"workbench: error: argument 'run\\xfe' is not valid UTF-8 (byte 0xfe at position 3); name files, folders and "
+            b"settings in UTF-8",
+        ),
+        ((b"--nope",), b"workbench: error: unrecognized arguments: --nope (see workbench --help)"),
+        (
+            (b"--cfg", b"bogus"),
+            b"workbench: error: argument --cfg/-c: invalid choice: 'bogus' (choose from 'job', "
+            b"'hydra', 'all') (see workbench --help)",
+        ),
+    ],
+)
 def test_command_line_refusals_are_one_line(tmp_path, arguments, line):
     result = run_cli(*arguments, cwd=tmp_path)
     assert result.returncode == 2, result.stderr
@@ -212,12 +270,19 @@ def test_names_that_are_not_utf8_are_refused_in_the_config():
 # A sweep with bad values runs every valid one, then names the bad ones
 # ----------------------------------------------------------------------------------------------------------
 
+
 def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
     from workbench.record.record import DONE
 
     sweep = tmp_path / "sweep"
-    result = run_cli("-m", "dataset.n_frames=200", "solver=lstsq", "basis.coverage=1.5,0.9,2,0.95",
-                     f"hydra.sweep.dir={sweep}", cwd=tmp_path)
+    result = run_cli(
+        "-m",
+        "dataset.n_frames=200",
+        "solver=lstsq",
+        "basis.coverage=1.5,0.9,2,0.95",
+        f"hydra.sweep.dir={sweep}",
+        cwd=tmp_path,
+    )
     assert result.returncode == 2, result.stderr
     ran = sorted(path.parent.name for path in sweep.glob(f"*/{DONE}"))
     assert ran == [f"basis.coverage={value},dataset.n_frames=200,solver=lstsq" for value in ("0.9", "0.95")]
@@ -225,7 +290,8 @@ def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
         "workbench: error: 2 run(s) of the sweep failed, every other run ran: "
         "run basis.coverage=1.5,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 1.5 | "
         "run basis.coverage=2,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 2.0; "
-        "fix their values and run the sweep again (complete runs are skipped)"]
+        "fix their values and run the sweep again (complete runs are skipped)"
+    ]
 
 
 def test_ctrl_c_after_a_command_has_finished_is_ignored(monkeypatch):

@@ -15,9 +15,9 @@ import time
 
 import pytest
 
-from workbench.settings.config import REPO_ROOT
 from workbench.core.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt
 from workbench.record.record import DONE, load_record
+from workbench.settings.config import REPO_ROOT
 
 RUN = ["dataset.n_frames=20000", "solver=all"]
 DELAYS = (0.02, 0.15, 0.5, 1.0, 2.0, 3.5, 6.0)
@@ -32,8 +32,9 @@ def default_sigint():
 def start(arguments, cwd, script=None):
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
     command = [sys.executable, "-c", script] if script else [sys.executable, "-m", "workbench", *arguments]
-    return subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=default_sigint)
+    return subprocess.Popen(
+        command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint
+    )
 
 
 @pytest.fixture
@@ -69,7 +70,7 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_
     outcomes = []
     for pair in range(0, len(DELAYS), 2):  # two at a time: the machine has two cores
         runs = []
-        for delay in DELAYS[pair:pair + 2]:
+        for delay in DELAYS[pair : pair + 2]:
             folder = tmp_path / f"run-{delay}"
             runs.append((start([*RUN, f"hydra.run.dir={folder}"], tmp_path), folder, time.monotonic() + delay))
         for process, folder, due in runs:
@@ -135,8 +136,9 @@ def test_an_error_raised_because_of_ctrl_c_counts_as_ctrl_c():
         try:
             raise KeyboardInterrupt
         except KeyboardInterrupt as interrupt:
-            raise SystemError("CPUDispatcher(<function primal_active_set_frames>) returned a result with an "
-                              "exception set") from interrupt
+            raise SystemError(
+                "CPUDispatcher(<function primal_active_set_frames>) returned a result with an exception set"
+            ) from interrupt
 
     with pytest.raises(SystemError) as caught:
         compiled_call()

@@ -28,13 +28,20 @@ import pandas as pd
 import pytest
 import yaml
 
-from workbench.settings.config import REPO_ROOT
-from workbench.core.files import TEMPORARY_SUFFIX, sha256_of_file as file_checksum
+from workbench.core.files import TEMPORARY_SUFFIX
+from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.tracking import DONE, LOCK_FILE, record_state
+from workbench.settings.config import REPO_ROOT
 
 RUN = ["dataset.n_frames=300", "solver=lstsq", "save_inputs=true", "basis.paper_regime=false"]  # one inputs.npz
-SWEEP = ["--config-name", "coverage", "dataset.n_frames=300", "dataset.seed=0", "basis.coverage=0.9,0.99",
-         "save_inputs=true"]
+SWEEP = [
+    "--config-name",
+    "coverage",
+    "dataset.n_frames=300",
+    "dataset.seed=0",
+    "basis.coverage=0.9,0.99",
+    "save_inputs=true",
+]
 PARALLEL = 2
 """Processes at a time (the machine has two cores)."""
 N_UNIFORM = 7
@@ -44,14 +51,31 @@ N_WRITING = 4
 N_SWEEPS = 2
 SEED = 20261123
 
-RECORD_FILES = ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.json", "timings.json", "inputs.npz",
-                "alpha_per_frame.npz", DONE)
+RECORD_FILES = (
+    "config.yaml",
+    "alpha_table.csv",
+    "alpha_table.md",
+    "metrics.json",
+    "timings.json",
+    "inputs.npz",
+    "alpha_per_frame.npz",
+    DONE,
+)
 SAME_BYTES = ("config.yaml", "alpha_table.csv", "alpha_table.md")
 """Files whose content is the same in every run of the same config."""
 LOG_FILES = ("workbench.log",)
 """What the run printed, in every run folder (a plain run's also holds Hydra's ``.hydra`` folder): not the record."""
-COLLECTED_FILES = ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "comparisons.csv", "comparisons.md",
-                   "alpha_table.md", "alpha_table.tex", "findings.md")
+COLLECTED_FILES = (
+    "runs.csv",
+    "runs.parquet",
+    "summary.csv",
+    "summary.parquet",
+    "comparisons.csv",
+    "comparisons.md",
+    "alpha_table.md",
+    "alpha_table.tex",
+    "findings.md",
+)
 TEMPORARY = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX) + "$")
 
 
@@ -84,8 +108,14 @@ class Job:
         self.watched_before = _inode(self.watch)
         self.log.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log, "wb") as out, open(self.log.with_suffix(".err"), "wb") as err:
-            self.process = subprocess.Popen(command(*self.arguments), cwd=self.cwd, stdout=out, stderr=err,
-                                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)), start_new_session=True)
+            self.process = subprocess.Popen(
+                command(*self.arguments),
+                cwd=self.cwd,
+                stdout=out,
+                stderr=err,
+                env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+                start_new_session=True,
+            )
         self.started = time.monotonic()
         if self.kill is not None and self.kill[0] == "after":
             self.due = self.started + self.kill[1]
@@ -96,8 +126,12 @@ class Job:
             self.duration = self.duration or time.monotonic() - self.started
             return True
         now = time.monotonic()
-        if (self.kill is not None and self.due is None and self.kill[0] == "writing"
-                and _inode(self.watch) not in (None, self.watched_before)):
+        if (
+            self.kill is not None
+            and self.due is None
+            and self.kill[0] == "writing"
+            and _inode(self.watch) not in (None, self.watched_before)
+        ):
             self.due = now + self.kill[1]
         if self.due is not None and now >= self.due:
             os.killpg(self.process.pid, signal.SIGKILL)
@@ -107,8 +141,11 @@ class Job:
         return False
 
     def finish(self) -> None:
-        self.output = {"returncode": self.process.returncode, "stdout": self.log.read_text(),
-                       "stderr": self.log.with_suffix(".err").read_text()}
+        self.output = {
+            "returncode": self.process.returncode,
+            "stdout": self.log.read_text(),
+            "stderr": self.log.with_suffix(".err").read_text(),
+        }
 
 
 def _inode(path: Path | None) -> int | None:
@@ -151,6 +188,7 @@ def run_chains(chains, timeout: float = 300.0) -> None:
 
 def run_jobs(jobs, timeout: float = 300.0) -> None:
     """Run jobs side by side (each its own chain)."""
+
     def single(job):
         yield job
 
@@ -226,15 +264,20 @@ def check_run_folder(folder: Path, reference: Path, *, hydra_files: bool) -> str
         assert record_state(folder) == "complete"
         assert set(RECORD_FILES) <= set(names), f"{folder}: done without {set(RECORD_FILES) - set(names)}"
         assert not temporary, f"{folder}: a complete record with temporary files {temporary}"
-        assert json.loads((folder / "metrics.json").read_text())["config_hash"] == \
-            json.loads((reference / "metrics.json").read_text())["config_hash"]
+        assert (
+            json.loads((folder / "metrics.json").read_text())["config_hash"]
+            == json.loads((reference / "metrics.json").read_text())["config_hash"]
+        )
         return "complete"
     return "partial" if present else "empty"
 
 
 def snapshot(folder: Path) -> dict:
-    return {path.name: (path.stat().st_ino, path.stat().st_mtime_ns, path.read_bytes())
-            for path in sorted(folder.iterdir()) if path.is_file()}
+    return {
+        path.name: (path.stat().st_ino, path.stat().st_mtime_ns, path.read_bytes())
+        for path in sorted(folder.iterdir())
+        if path.is_file()
+    }
 
 
 def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: list):
@@ -244,8 +287,13 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
     folders = [root / f"chain{number}_run0"]
     for trial, rule in enumerate(rules):
         folder = folders[-1]
-        yield Job(RUN + [f"hydra.run.dir={folder}"], root, root / "logs" / f"chain{number}_{trial:02d}.log",
-                  kill=rule, watch=folder / "config.yaml")
+        yield Job(
+            RUN + [f"hydra.run.dir={folder}"],
+            root,
+            root / "logs" / f"chain{number}_{trial:02d}.log",
+            kill=rule,
+            watch=folder / "config.yaml",
+        )
         state = check_run_folder(folder, reference, hydra_files=True)
         outcomes.append((folder, rule, state))
         if state == "complete":
@@ -267,23 +315,35 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
 def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
     rng = np.random.default_rng(SEED)
     # Complete runs side by side measure the duration and the record-writing window, and are the reference.
-    references = [Job(RUN + [f"hydra.run.dir={tmp_path / f'reference{i}'}"], tmp_path, tmp_path / f"reference{i}.log")
-                  for i in range(PARALLEL)]
+    references = [
+        Job(RUN + [f"hydra.run.dir={tmp_path / f'reference{i}'}"], tmp_path, tmp_path / f"reference{i}.log")
+        for i in range(PARALLEL)
+    ]
     run_jobs(references)
     for job in references:
         assert job.output["returncode"] == 0, job.output["stderr"]
     reference = tmp_path / "reference0"
     assert check_run_folder(reference, tmp_path / "reference1", hydra_files=True) == "complete"
     duration = float(np.median([job.duration for job in references]))
-    writing = float(np.median([((tmp_path / f"reference{i}" / DONE).stat().st_mtime_ns
-                                - (tmp_path / f"reference{i}" / "config.yaml").stat().st_mtime_ns) / 1e9
-                               for i in range(PARALLEL)]))
+    writing = float(
+        np.median(
+            [
+                (
+                    (tmp_path / f"reference{i}" / DONE).stat().st_mtime_ns
+                    - (tmp_path / f"reference{i}" / "config.yaml").stat().st_mtime_ns
+                )
+                / 1e9
+                for i in range(PARALLEL)
+            ]
+        )
+    )
     assert 0 < writing < duration
 
     chains, outcomes = [], []
     for number in range(PARALLEL):
-        rules = ([("after", float(delay)) for delay in rng.uniform(0.0, 1.1 * duration, N_UNIFORM)]
-                 + [("writing", float(delay)) for delay in rng.uniform(0.0, writing, N_WRITING)])
+        rules = [("after", float(delay)) for delay in rng.uniform(0.0, 1.1 * duration, N_UNIFORM)] + [
+            ("writing", float(delay)) for delay in rng.uniform(0.0, writing, N_WRITING)
+        ]
         rules = [rules[i] for i in rng.permutation(len(rules))]
         chains.append(kill_chain(number, tmp_path, reference, rules, outcomes))
     run_chains(chains)
@@ -306,8 +366,15 @@ def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(tmp_path):
         assert check_run_folder(reference / name, reference / name, hydra_files=False) == "complete"
 
     delays = rng.uniform(0.3, 1.0, N_SWEEPS) * reference_job.duration
-    sweeps = [Job(SWEEP + [f"hydra.sweep.dir={tmp_path / f'sweep{i}'}"], tmp_path, tmp_path / f"sweep{i}.log",
-                  kill=("after", float(delay))) for i, delay in enumerate(delays)]
+    sweeps = [
+        Job(
+            SWEEP + [f"hydra.sweep.dir={tmp_path / f'sweep{i}'}"],
+            tmp_path,
+            tmp_path / f"sweep{i}.log",
+            kill=("after", float(delay)),
+        )
+        for i, delay in enumerate(delays)
+    ]
     run_jobs(sweeps)
     before = {}
     for i in range(N_SWEEPS):
@@ -332,24 +399,29 @@ def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(tmp_path):
             if (i, name) in before:
                 assert snapshot(sweep / name) == before[(i, name)], f"{sweep / name}: a complete record was touched"
         assert sorted(path.name for path in (sweep / "collected").iterdir()) == sorted(COLLECTED_FILES)
-        assert (sweep / "collected" / "alpha_table.md").read_text() == \
-            (reference / "collected" / "alpha_table.md").read_text()
+        assert (sweep / "collected" / "alpha_table.md").read_text() == (
+            reference / "collected" / "alpha_table.md"
+        ).read_text()
 
 
 # ----------------------------------------------------------------------------------------------------------
 # Every file the package writes goes through the atomic writer
 # ----------------------------------------------------------------------------------------------------------
 
-WRITERS = re.compile(r"\.write_(text|bytes)\(|\bopen\([^)]*['\"][wa]b?['\"]|\.savefig\((?!buffer)"
-                     r"|\.to_(csv|parquet|json)\((?!index=False\)|buffer)")
+WRITERS = re.compile(
+    r"\.write_(text|bytes)\(|\bopen\([^)]*['\"][wa]b?['\"]|\.savefig\((?!buffer)"
+    r"|\.to_(csv|parquet|json)\((?!index=False\)|buffer)"
+)
 NOT_YET_ATOMIC: dict[str, str] = {}
 """Files allowed to fail the check (with the reason): none."""
 
 
 def non_atomic_writes(path: Path) -> list[str]:
-    return [f"{path.relative_to(REPO_ROOT)}:{number}: {line.strip()}"
-            for number, line in enumerate(path.read_text().splitlines(), start=1)
-            if WRITERS.search(line) and not line.lstrip().startswith("#")]
+    return [
+        f"{path.relative_to(REPO_ROOT)}:{number}: {line.strip()}"
+        for number, line in enumerate(path.read_text().splitlines(), start=1)
+        if WRITERS.search(line) and not line.lstrip().startswith("#")
+    ]
 
 
 def writer_cases():
@@ -367,8 +439,20 @@ def test_files_are_written_through_the_atomic_writer(path):
 
 def test_the_writer_check_sees_writes():
     """The pattern above finds the usual ways of writing a file (guards against a vacuous pass)."""
-    lines = ['path.write_text("x")', 'open(path, "w")', "open(path, 'wb')", 'figure.savefig(path, format="svg")',
-             'table.to_csv(out / "runs.csv", index=False)']
+    lines = [
+        'path.write_text("x")',
+        'open(path, "w")',
+        "open(path, 'wb')",
+        'figure.savefig(path, format="svg")',
+        'table.to_csv(out / "runs.csv", index=False)',
+    ]
     assert all(WRITERS.search(line) for line in lines)
-    assert not any(WRITERS.search(line) for line in ['table.to_csv(index=False)', 'figure.savefig(buffer)',
-                                                      'open(path, "rb")', 'write_atomic(path, text)'])
+    assert not any(
+        WRITERS.search(line)
+        for line in [
+            "table.to_csv(index=False)",
+            "figure.savefig(buffer)",
+            'open(path, "rb")',
+            "write_atomic(path, text)",
+        ]
+    )

@@ -19,8 +19,14 @@ LINT = "import sys; from importlinter.cli import lint_imports_command; sys.exit(
 
 
 def lint_imports(folder: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", LINT, "--no-cache"], cwd=folder, capture_output=True, text=True,
-                          env={"PYTHONPATH": str(folder), "PATH": "/usr/bin:/bin"}, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", LINT, "--no-cache"],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        env={"PYTHONPATH": str(folder), "PATH": "/usr/bin:/bin"},
+        timeout=300,
+    )
 
 
 def contract_layers() -> list[list[str]]:
@@ -54,14 +60,17 @@ def test_an_upward_import_in_a_function_breaks_the_contract(tmp_path):
     package.mkdir()
     (package / "__init__.py").write_text("")
     (package / "high.py").write_text("from toy.low import value\n")
-    (package / "low.py").write_text(textwrap.dedent("""
+    (package / "low.py").write_text(
+        textwrap.dedent("""
         value = 1
 
         def upward():
             from toy import high
             return high
-    """))
-    (tmp_path / "pyproject.toml").write_text(textwrap.dedent("""
+    """)
+    )
+    (tmp_path / "pyproject.toml").write_text(
+        textwrap.dedent("""
         [tool.importlinter]
         root_package = "toy"
 
@@ -69,7 +78,8 @@ def test_an_upward_import_in_a_function_breaks_the_contract(tmp_path):
         name = "toy layers"
         type = "layers"
         layers = ["toy.high", "toy.low"]
-    """))
+    """)
+    )
     done = lint_imports(tmp_path)
     assert done.returncode != 0
     assert "toy.low is not allowed to import toy.high" in done.stdout

@@ -5,8 +5,8 @@ import warnings
 import numpy as np
 import pytest
 
-from workbench.formats.c3d import read_c3d_markers
 from workbench.core.errors import WorkbenchError
+from workbench.formats.c3d import read_c3d_markers
 
 LABELS = ["Nose", "Chin", "Brow"]
 
@@ -20,8 +20,8 @@ def write_c3d(path, positions, *, labels=LABELS, units="m", rate=100.0, gaps=(),
     writer.set_point_labels(labels[:255])
     # A parameter holds at most 255 entries: more labels go on in LABELS2, LABELS3, ... (as Vicon writes them).
     for group, start in enumerate(range(255, len(labels), 255), start=2):
-        text, size = c3d.Writer.pack_labels(labels[start:start + 255])
-        writer.point_group.add_str(f"LABELS{group}", "More point labels.", text, size, len(labels[start:start + 255]))
+        text, size = c3d.Writer.pack_labels(labels[start : start + 255])
+        writer.point_group.add_str(f"LABELS{group}", "More point labels.", text, size, len(labels[start : start + 255]))
     if len(labels) > 255:
         writer.point_group.add_str("DESCRIPTIONS", "Point descriptions.", " " * 255, 1, 255)
     n_markers = len(labels) if n_markers is None else n_markers
@@ -88,8 +88,10 @@ def test_not_a_c3d_duplicate_labels_unknown_units_and_unknown_labels(tmp_path, p
     np.testing.assert_array_equal(take.index_of(["Brow", "Nose"], named_in="a test"), [2, 0])
     with pytest.raises(WorkbenchError) as error:
         take.index_of(["Nose", "Ear_L"], named_in="dataset.rigid_markers")
-    assert str(error.value) == (f"{take.path}: unknown marker label(s) ['Ear_L'] named in dataset.rigid_markers; "
-                                "the file's 3 labels are Nose, Chin, Brow")
+    assert str(error.value) == (
+        f"{take.path}: unknown marker label(s) ['Ear_L'] named in dataset.rigid_markers; "
+        "the file's 3 labels are Nose, Chin, Brow"
+    )
     with pytest.raises(WorkbenchError, match="C3D file not found"):
         read_c3d_markers(tmp_path / "missing.c3d")
 
@@ -119,6 +121,9 @@ def test_more_than_255_markers_read_every_label_group(tmp_path):
 
 def test_label_count_other_than_marker_count_is_one_clear_error(tmp_path, positions):
     short = write_c3d(tmp_path / "short.c3d", np.zeros((2, 4, 3), np.float32), labels=LABELS, n_markers=4)
-    with pytest.raises(WorkbenchError, match=r"short\.c3d: 3 labels in POINT:LABELS, LABELS2, \.\.\. for 4 markers "
-                                             r"\(POINT:USED\); every marker needs one label$"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"short\.c3d: 3 labels in POINT:LABELS, LABELS2, \.\.\. for 4 markers "
+        r"\(POINT:USED\); every marker needs one label$",
+    ):
         read_c3d_markers(short)

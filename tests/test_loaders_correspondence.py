@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.settings.config import CONF_DIR
-from workbench.dataset.correspondence import placement_table_text, place_markers, read_marker_table
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.correspondence import place_markers, placement_table_text, read_marker_table
+from workbench.settings.config import CONF_DIR
 
 TABLE = CONF_DIR / "correspondence" / "animface_ict.csv"
 
@@ -24,8 +24,10 @@ def write_table(path, rows, header="marker,landmark,vertex,note"):
 
 
 def test_table_rows_landmarks_overrides_and_empty_vertices(tmp_path):
-    table = read_marker_table(write_table(tmp_path / "t.csv", [
-        "A,0,,landmark", "B,11,,", "C,143,143,fixed", "D,,60,override", "E,,,found"]), n_vertices=144)
+    table = read_marker_table(
+        write_table(tmp_path / "t.csv", ["A,0,,landmark", "B,11,,", "C,143,143,fixed", "D,,60,override", "E,,,found"]),
+        n_vertices=144,
+    )
     assert table.labels == ("A", "B", "C", "D", "E")
     np.testing.assert_array_equal(table.landmarks, [0, 11, 143, -1, -1])
     np.testing.assert_array_equal(table.vertices, [-1, -1, 143, 60, -1])
@@ -34,12 +36,15 @@ def test_table_rows_landmarks_overrides_and_empty_vertices(tmp_path):
         table.require_vertices("a test")
 
 
-@pytest.mark.parametrize("rows,message", [
-    (["A,0,,", "B,1,,", "A,2,,"], r"row 4: marker 'A' appears twice"),
-    (["A,0,,", "B,1,,", "C,2,x,"], r"row 4: vertex 'x' is not a vertex index"),
-    (["A,0,,", "B,1,,", "C,200,,"], r"row 4: landmark 200 is outside the mesh's vertices \[0, 144\)"),
-    (["A,0,,", "B,1,,", "C,,,"], r"2 row\(s\) with a landmark vertex; the similarity alignment needs at least 3"),
-])
+@pytest.mark.parametrize(
+    "rows,message",
+    [
+        (["A,0,,", "B,1,,", "A,2,,"], r"row 4: marker 'A' appears twice"),
+        (["A,0,,", "B,1,,", "C,2,x,"], r"row 4: vertex 'x' is not a vertex index"),
+        (["A,0,,", "B,1,,", "C,200,,"], r"row 4: landmark 200 is outside the mesh's vertices \[0, 144\)"),
+        (["A,0,,", "B,1,,", "C,,,"], r"2 row\(s\) with a landmark vertex; the similarity alignment needs at least 3"),
+    ],
+)
 def test_malformed_tables_name_file_and_row(tmp_path, rows, message):
     path = write_table(tmp_path / "bad.csv", rows)
     with pytest.raises(WorkbenchError, match=message) as error:
@@ -89,14 +94,18 @@ def test_shipped_table_is_the_automatic_placement_on_the_jaw_take(shared_data):
     from workbench.formats.c3d import read_c3d_markers
     from workbench.formats.obj import load_blendshapes
 
-    face = load_blendshapes(shared_data / "ict-facekit" / "FaceXModel", neutral_file="generic_neutral_mesh.obj",
-                            names=[], region_vertices=9409, unit_mm=10.0)
+    face = load_blendshapes(
+        shared_data / "ict-facekit" / "FaceXModel",
+        neutral_file="generic_neutral_mesh.obj",
+        names=[],
+        region_vertices=9409,
+        unit_mm=10.0,
+    )
     shipped = read_marker_table(TABLE, n_vertices=9409)
     assert len(shipped.labels) == 41 and len(set(shipped.vertices)) == 41 and shipped.vertices.min() >= 0
     take = read_c3d_markers(shared_data / "animface" / "animface_jaw.c3d")
     neutral = take.positions[0, take.index_of(shipped.labels, named_in=str(TABLE))]
-    placement = place_markers(replace(shipped, vertices=np.full(41, -1)), neutral, face.neutral,
-                              refine_iterations=50)
+    placement = place_markers(replace(shipped, vertices=np.full(41, -1)), neutral, face.neutral, refine_iterations=50)
     np.testing.assert_array_equal(placement.vertices, shipped.vertices)
     assert 0.9 < placement.mesh_to_capture.scale < 1.1  # the performer's face is about the ICT face's size
     assert placement.distances.mean() < 4.0 and placement.distances.max() < 8.0

@@ -3,12 +3,29 @@
 import numpy as np
 import pytest
 
-from workbench.formats.livelink import (ARKIT_NAMES, ROTATION_NAMES, arkit_target_names, drive_blendshapes,
-                                        map_arkit_channels, parse_timecodes, read_livelink_csv)
 from workbench.core.errors import WorkbenchError
+from workbench.formats.livelink import (
+    ARKIT_NAMES,
+    ROTATION_NAMES,
+    arkit_target_names,
+    drive_blendshapes,
+    map_arkit_channels,
+    parse_timecodes,
+    read_livelink_csv,
+)
 
-BASIS = ["jawOpen", "jawLeft", "mouthLeft", "mouthSmile_L", "mouthSmile_R", "browInnerUp_L", "browInnerUp_R",
-         "eyeBlink_L", "eyeBlink_R", "PupilDilate_L"]
+BASIS = [
+    "jawOpen",
+    "jawLeft",
+    "mouthLeft",
+    "mouthSmile_L",
+    "mouthSmile_R",
+    "browInnerUp_L",
+    "browInnerUp_R",
+    "eyeBlink_L",
+    "eyeBlink_R",
+    "PupilDilate_L",
+]
 
 
 def write_csv(path, n_frames=5, drop=(), rotations=True, weights=None):
@@ -132,5 +149,7 @@ def test_a_csv_pandas_cannot_parse_is_one_line_naming_the_row(tmp_path, shared_d
     (tmp_path / "ragged.csv").write_text("\n".join(lines[:5] + [lines[5] + ",1,2"] + lines[6:20]) + "\n")
     with pytest.raises(WorkbenchError) as error:
         read_livelink_csv(tmp_path / "ragged.csv")
-    assert str(error.value) == (f"{tmp_path / 'ragged.csv'}: not a readable CSV (Error tokenizing data. C error: "
-                                "Expected 63 fields in line 6, saw 65)")
+    assert str(error.value) == (
+        f"{tmp_path / 'ragged.csv'}: not a readable CSV (Error tokenizing data. C error: "
+        "Expected 63 fields in line 6, saw 65)"
+    )

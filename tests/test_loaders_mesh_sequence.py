@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.settings.config import compose
-from workbench.dataset import build_captures
 from workbench.core.errors import WorkbenchError
+from workbench.dataset import build_captures
 from workbench.reporting.export import obj_text
+from workbench.settings.config import compose
 
 SHAPES = ["side", "up"]  # sorted, as a folder lists them
 
@@ -41,8 +41,16 @@ def scan(tmp_path):
 
 
 def config(tmp_path, sequence, basis, *more):
-    return compose("paper", ["dataset=mesh_sequence", f"dataset.sequence={sequence}",
-                             f"dataset.blendshapes.path={basis}", f"paths.data_root={tmp_path}", *more]).dataset
+    return compose(
+        "paper",
+        [
+            "dataset=mesh_sequence",
+            f"dataset.sequence={sequence}",
+            f"dataset.blendshapes.path={basis}",
+            f"paths.data_root={tmp_path}",
+            *more,
+        ],
+    ).dataset
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".npy", ".h5"])
@@ -67,9 +75,20 @@ def test_sequence_files_give_displacements_from_the_neutral_frame(scan, suffix):
 def test_cli_runs_on_a_sequence_and_h_fits_the_blend(scan):
     tmp_path, frames, triangles, basis, _ = scan
     np.savez(tmp_path / "seq.npz", vertices=frames, faces=triangles)
-    text = run(compose("paper", ["dataset=mesh_sequence", "dataset.sequence=seq.npz", "dataset.blendshapes.path=basis",
-                                 f"paths.data_root={tmp_path}", "solver=lstsq", "basis.coverage=0.99"]),
-               tmp_path / "run")
+    text = run(
+        compose(
+            "paper",
+            [
+                "dataset=mesh_sequence",
+                "dataset.sequence=seq.npz",
+                "dataset.blendshapes.path=basis",
+                f"paths.data_root={tmp_path}",
+                "solver=lstsq",
+                "basis.coverage=0.99",
+            ],
+        ),
+        tmp_path / "run",
+    )
     table = pd.read_csv(tmp_path / "run" / "alpha_table.csv").set_index("basis")
     # the frames are the blend of the two shapes plus 0.01 mm noise: H reconstructs them almost exactly
     assert table.loc["H", "alpha_disp_mean"] < 1.0 and "mesh sequence seq.npz" in text
@@ -85,20 +104,26 @@ def test_bad_sequences_are_one_line_errors(scan):
         assert "\n" not in str(error.value)
 
     fails(r"bad\.npz: no array 'vertices' \(dataset.vertices_key\); it has \['points'\]", points=frames)
-    fails(r"bad\.npz: 'vertices' must have shape \(n_frames >= 2, n_vertices >= 3, 3\), got \(40, 42\)",
-          vertices=frames[:, :, 0])
+    fails(
+        r"bad\.npz: 'vertices' must have shape \(n_frames >= 2, n_vertices >= 3, 3\), got \(40, 42\)",
+        vertices=frames[:, :, 0],
+    )
     broken = frames.copy()
     broken[5, 3, 1] = np.nan
     fails(r"bad\.npz: 'vertices' frame 5 holds NaN or Inf", vertices=broken)
     fails(r"bad\.npz: 'faces' refers to vertex 42, outside the 42 vertices", vertices=frames, faces=triangles + 2)
     fails(r"bad\.npz: 'faces' must be integer triangles of shape \(n, 3\)", vertices=frames, faces=triangles * 1.0)
-    fails(r"dataset.neutral_frame 40 is outside the sequence's 40 frames", "dataset.neutral_frame=40",
-          vertices=frames)
-    fails(r"dataset.blendshapes.path .*basis: 42 vertices, but the sequence bad\.npz has 41 points",
-          vertices=frames[:, :41])
+    fails(r"dataset.neutral_frame 40 is outside the sequence's 40 frames", "dataset.neutral_frame=40", vertices=frames)
+    fails(
+        r"dataset.blendshapes.path .*basis: 42 vertices, but the sequence bad\.npz has 41 points",
+        vertices=frames[:, :41],
+    )
     fails(r"its neutral lies up to .* other units \(unit_mm\)", "dataset.unit_mm=1.0", vertices=frames)
-    fails(r"dataset.hand_shapes: needs distinct shape names of the file's \['side', 'up'\]; missing \['down'\]",
-          "dataset.hand_shapes=[down]", vertices=frames)
+    fails(
+        r"dataset.hand_shapes: needs distinct shape names of the file's \['side', 'up'\]; missing \['down'\]",
+        "dataset.hand_shapes=[down]",
+        vertices=frames,
+    )
     (tmp_path / "seq.txt").write_text("1 2 3")
     with pytest.raises(WorkbenchError, match=r"seq\.txt: a mesh sequence must be one of \.npz, \.npy, \.h5, \.hdf5"):
         build_captures(config(tmp_path, tmp_path / "seq.txt", basis))
@@ -116,16 +141,21 @@ def test_ict_performance_as_a_sequence_gives_the_ict_livelink_mesh_table(tmp_pat
     ict = ["dataset=ict_livelink", "dataset.max_frames=120", "dataset.train_on=mesh", *common]
     capture = build_captures(compose("paper", ict).dataset)["mesh"]
     neutral = capture.neutral.reshape(-1, 3)
-    np.savez(tmp_path / "take.npz", vertices=(neutral + capture.eval.reshape(120, -1, 3)) / 1000.0,
-             faces=capture.faces)
+    np.savez(tmp_path / "take.npz", vertices=(neutral + capture.eval.reshape(120, -1, 3)) / 1000.0, faces=capture.faces)
     (tmp_path / "neutral.obj").write_text(obj_text(neutral / 1000.0, capture.faces))
     hand = ",".join(capture.hand_names)
-    sequence = ["dataset=mesh_sequence", f"dataset.sequence={tmp_path / 'take.npz'}",
-                f"dataset.neutral={tmp_path / 'neutral.obj'}", "dataset.frame_rate=30",
-                "dataset.blendshapes.path=ict-facekit/FaceXModel",
-                "dataset.blendshapes.neutral=generic_neutral_mesh.obj",
-                "dataset.blendshapes.unit_mm=10", "dataset.blendshapes.region_vertices=9409",
-                f"dataset.hand_shapes=[{hand}]", *common]
+    sequence = [
+        "dataset=mesh_sequence",
+        f"dataset.sequence={tmp_path / 'take.npz'}",
+        f"dataset.neutral={tmp_path / 'neutral.obj'}",
+        "dataset.frame_rate=30",
+        "dataset.blendshapes.path=ict-facekit/FaceXModel",
+        "dataset.blendshapes.neutral=generic_neutral_mesh.obj",
+        "dataset.blendshapes.unit_mm=10",
+        "dataset.blendshapes.region_vertices=9409",
+        f"dataset.hand_shapes=[{hand}]",
+        *common,
+    ]
     run(compose("paper", ict), tmp_path / "ict")
     run(compose("paper", sequence), tmp_path / "sequence")
     expected = pd.read_csv(tmp_path / "ict" / "alpha_table.csv")
@@ -151,21 +181,30 @@ def test_sequence_plausibility_and_damaged_files_are_one_line_errors(scan):
 
     far = frames.copy()
     far[17, 5] += 1000.0  # a vertex a million millimetres away (file units: metres)
-    fails(r"bad\.npz: frame 17, vertex 5 lies 1e\+03 file units from the face's centre along an axis \(1 such "
-          r"frame\(s\)\), more than 20 x the face's extent", far)
+    fails(
+        r"bad\.npz: frame 17, vertex 5 lies 1e\+03 file units from the face's centre along an axis \(1 such "
+        r"frame\(s\)\), more than 20 x the face's extent",
+        far,
+    )
     jump = frames.copy()
     jump[20:] += [0.5, 0.0, 0.0]  # the whole face half a metre away from frame 20 on
-    fails(r"bad\.npz: vertex \d+ jumps 0\.5\d* file units from frame 19 to frame 20 \(1 such frame\(s\)\), more than "
-          r"1 x the face's extent", jump)
-    fails(r"bad\.npz: the sequence is static: no vertex moves more than 0 file units from the first frame",
-          np.repeat(frames[:1], 40, axis=0))
+    fails(
+        r"bad\.npz: vertex \d+ jumps 0\.5\d* file units from frame 19 to frame 20 \(1 such frame\(s\)\), more than "
+        r"1 x the face's extent",
+        jump,
+    )
+    fails(
+        r"bad\.npz: the sequence is static: no vertex moves more than 0 file units from the first frame",
+        np.repeat(frames[:1], 40, axis=0),
+    )
     fails(r"bad\.npz: 'vertices' must hold real numbers \(vertex positions\), got <U3", np.full((40, 42, 3), "abc"))
     fails(r"bad\.npz: 'vertices' must hold real numbers \(vertex positions\), got complex128", frames + 0j)
     whole = (tmp_path / "bad.npz").read_bytes()
-    fails(r"truncated\.npz: not a readable NumPy file", whole[:len(whole) // 2], name="truncated.npz")
+    fails(r"truncated\.npz: not a readable NumPy file", whole[: len(whole) // 2], name="truncated.npz")
     np.save(tmp_path / "whole.npy", frames)
-    fails(r"truncated\.npy: not a readable NumPy file", (tmp_path / "whole.npy").read_bytes()[:3000],
-          name="truncated.npy")
+    fails(
+        r"truncated\.npy: not a readable NumPy file", (tmp_path / "whole.npy").read_bytes()[:3000], name="truncated.npy"
+    )
     # kept, with a warning, when the researcher wants the data as it is
     np.savez(tmp_path / "jump.npz", vertices=jump, faces=triangles)
     capture = build_captures(config(tmp_path, tmp_path / "jump.npz", basis, "dataset.plausibility=warn"))["mesh"]

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from workbench.formats.obj import load_blendshapes, polygons_within, read_obj, triangulate
 from workbench.core.errors import WorkbenchError
+from workbench.formats.obj import load_blendshapes, polygons_within, read_obj, triangulate
 
 # Two quads and a triangle over 7 vertices; the triangle refers to its vertices relative to the end.
 NEUTRAL = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0], [3, 0, 0]], dtype=float)
@@ -109,8 +109,7 @@ def test_malformed_and_missing_files(folder, tmp_path):
 @pytest.fixture(scope="module")
 def ict(shared_data):
     folder = shared_data / "ict-facekit" / "FaceXModel"
-    return folder, load_blendshapes(folder, neutral_file="generic_neutral_mesh.obj", region_vertices=9409,
-                                    unit_mm=10.0)
+    return folder, load_blendshapes(folder, neutral_file="generic_neutral_mesh.obj", region_vertices=9409, unit_mm=10.0)
 
 
 def test_ict_facexmodel_topology_names_and_units(ict):

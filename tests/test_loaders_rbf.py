@@ -5,8 +5,8 @@ import pytest
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial.distance import cdist
 
-from workbench.dataset.rbf import geodesic_distances, interpolate_frames, mesh_rbf_operator, rbf_operator
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.rbf import geodesic_distances, interpolate_frames, mesh_rbf_operator, rbf_operator
 
 
 def sheet(n=20, spacing=5.0, gap_rows=()):
@@ -31,8 +31,10 @@ def slit_sheet(n=20):
     return vertices, np.concatenate([triangles, [[a, b, d], [a, d, c]]])
 
 
-@pytest.mark.parametrize("kernel,epsilon,degree", [("thin_plate_spline", None, 1), ("gaussian", 0.05, 1),
-                                                   ("inverse_multiquadric", 0.05, 0), ("linear", None, 0)])
+@pytest.mark.parametrize(
+    "kernel,epsilon,degree",
+    [("thin_plate_spline", None, 1), ("gaussian", 0.05, 1), ("inverse_multiquadric", 0.05, 0), ("linear", None, 0)],
+)
 def test_operator_is_scipy_rbf_and_the_distance_route_agrees(kernel, epsilon, degree):
     rng = np.random.default_rng(0)
     centres, targets = rng.normal(size=(25, 3)) * 40, rng.normal(size=(300, 3)) * 40
@@ -40,8 +42,15 @@ def test_operator_is_scipy_rbf_and_the_distance_route_agrees(kernel, epsilon, de
     expected = RBFInterpolator(centres, values, kernel=kernel, epsilon=epsilon or 1.0, degree=degree)(targets)
     operator = rbf_operator(centres, targets, kernel=kernel, epsilon=epsilon, degree=degree)
     np.testing.assert_allclose(operator @ values, expected, atol=1e-8)
-    by_distance = rbf_operator(centres, targets, kernel=kernel, epsilon=epsilon, degree=degree,
-                               centre_distances=cdist(centres, centres), target_distances=cdist(targets, centres))
+    by_distance = rbf_operator(
+        centres,
+        targets,
+        kernel=kernel,
+        epsilon=epsilon,
+        degree=degree,
+        centre_distances=cdist(centres, centres),
+        target_distances=cdist(targets, centres),
+    )
     np.testing.assert_allclose(by_distance @ values, expected, atol=1e-8)
 
 
@@ -50,8 +59,16 @@ def test_rbf_reproduces_marker_displacements_at_the_markers(metric):
     vertices, triangles = sheet()
     markers = np.array([0, 19, 380, 399, 105, 210, 250, 333, 66, 144])
     displacements = np.random.default_rng(1).normal(size=(7, len(markers), 3))
-    operator = mesh_rbf_operator(vertices, triangles, markers, np.arange(len(vertices)), metric=metric,
-                                 kernel="inverse_multiquadric", epsilon=0.05, degree=0)
+    operator = mesh_rbf_operator(
+        vertices,
+        triangles,
+        markers,
+        np.arange(len(vertices)),
+        metric=metric,
+        kernel="inverse_multiquadric",
+        epsilon=0.05,
+        degree=0,
+    )
     field = interpolate_frames(operator, displacements)
     assert field.shape == (7, 400, 3)
     np.testing.assert_allclose(field[:, markers], displacements, atol=1e-9)
@@ -78,8 +95,16 @@ def test_geodesic_rbf_keeps_the_two_sides_of_a_slit_apart():
     just_below = 9 * n + 8
     moved = {}
     for metric in ("euclidean", "geodesic"):
-        operator = mesh_rbf_operator(vertices, triangles, markers, np.array([just_below]), metric=metric,
-                                     kernel="inverse_multiquadric", epsilon=0.05, degree=0)
+        operator = mesh_rbf_operator(
+            vertices,
+            triangles,
+            markers,
+            np.array([just_below]),
+            metric=metric,
+            kernel="inverse_multiquadric",
+            epsilon=0.05,
+            degree=0,
+        )
         moved[metric] = np.linalg.norm(interpolate_frames(operator, displacement)[0, 0])
     assert moved["geodesic"] < 0.5 * moved["euclidean"]
 
@@ -97,5 +122,12 @@ def test_rbf_setting_errors():
     apart = np.concatenate([triangles, [[25, 26, 27]]])
     far = np.concatenate([vertices, [[100, 100, 0], [101, 100, 0], [100, 101, 0]]])
     with pytest.raises(WorkbenchError, match="geodesic RBF: vertex 25 is not connected to marker vertex 0"):
-        mesh_rbf_operator(far, apart, np.array([0, 4, 20]), np.arange(28), metric="geodesic",
-                          kernel="inverse_multiquadric", epsilon=0.05)
+        mesh_rbf_operator(
+            far,
+            apart,
+            np.array([0, 4, 20]),
+            np.arange(28),
+            metric="geodesic",
+            kernel="inverse_multiquadric",
+            epsilon=0.05,
+        )

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.formats.c3d import read_c3d_markers
-from workbench.dataset.rigid import similarity_transform, stabilise
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.rigid import similarity_transform, stabilise
+from workbench.formats.c3d import read_c3d_markers
 
 RIGID = ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"]  # conf/dataset/animface
 
@@ -23,14 +23,16 @@ def moved(n_frames=40, seed=0):
 
 def test_stabilise_with_gaps_uses_the_rigid_markers_present():
     markers, head, face = moved()
-    markers[5, 0] = np.nan          # one rigid marker missing: 5 remain
-    markers[9, 8] = np.nan          # a face marker missing: stays missing
-    markers[12, :4] = np.nan        # 2 rigid markers left: the frame cannot be aligned
+    markers[5, 0] = np.nan  # one rigid marker missing: 5 remain
+    markers[9, 8] = np.nan  # a face marker missing: stays missing
+    markers[12, :4] = np.nan  # 2 rigid markers left: the frame cannot be aligned
     result = stabilise(markers, np.arange(6), head)
     aligned = np.delete(np.arange(40), 12)
-    np.testing.assert_allclose(result.markers[aligned][:, 6:][np.isfinite(result.markers[aligned][:, 6:])],
-                               np.broadcast_to(face, (39, 10, 3))[np.isfinite(result.markers[aligned][:, 6:])],
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        result.markers[aligned][:, 6:][np.isfinite(result.markers[aligned][:, 6:])],
+        np.broadcast_to(face, (39, 10, 3))[np.isfinite(result.markers[aligned][:, 6:])],
+        atol=1e-9,
+    )
     assert np.isnan(result.markers[9, 8]).all() and np.isnan(result.markers[12]).all()
     assert np.isnan(result.residual_rms[12]) and np.nanmax(result.residual_rms) < 1e-9
 
@@ -48,8 +50,9 @@ def test_similarity_transform_recovers_scale_rotation_translation():
         similarity_transform(source[:2], target[:2])
 
 
-@pytest.mark.parametrize("take_name,mean_bound,max_bound", [("jaw", 1.0, 2.5), ("cheeks", 1.5, 3.0),
-                                                            ("eyebrows", 2.5, 5.0)])
+@pytest.mark.parametrize(
+    "take_name,mean_bound,max_bound", [("jaw", 1.0, 2.5), ("cheeks", 1.5, 3.0), ("eyebrows", 2.5, 5.0)]
+)
 def test_stabilisation_residual_on_the_real_takes(shared_data, take_name, mean_bound, max_bound):
     """The residual of the configured rigid set, reported and bounded per take (measured: jaw 0.50 / 1.57 mm,
     cheeks 1.16 / 2.43, eyebrows 2.05 / 4.48 mean / max: the forehead moves with the brows in the eyebrows take)."""
@@ -99,9 +102,11 @@ def test_noise_floor_gives_back_a_known_residual_and_jitter(rigid_sd, face_sd):
     assert floor.stabilisation_residual_mm == pytest.approx(rigid_sd * np.sqrt(2), rel=0.04, abs=1e-6)
     if rigid_sd == 0:  # rigid noise moves the face markers with the fitted head pose; alone, the jitter is known
         assert floor.jitter_mm == pytest.approx(face_sd * np.sqrt(3), rel=0.04)
-    assert floor.describe().startswith(f"noise floor: stabilisation residual {floor.stabilisation_residual_mm:.2f} mm, "
-                                       f"jitter {floor.jitter_mm:.3f} mm; differences below it are below the "
-                                       "capture's noise")
+    assert floor.describe().startswith(
+        f"noise floor: stabilisation residual {floor.stabilisation_residual_mm:.2f} mm, "
+        f"jitter {floor.jitter_mm:.3f} mm; differences below it are below the "
+        "capture's noise"
+    )
 
 
 def test_marker_jitter_skips_missing_samples_and_take_boundaries():

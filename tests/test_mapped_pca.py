@@ -4,11 +4,10 @@ small space and lifted: it must equal the PCA of the materialised frames."""
 import numpy as np
 import pytest
 
-from workbench.numerics.bases import Eigenfaces
-from workbench.settings.config import resolved_without_hydra
-from workbench.settings.config import compose
-from workbench.dataset import build_captures
 from workbench.core.errors import WorkbenchError
+from workbench.dataset import build_captures
+from workbench.numerics.bases import Eigenfaces
+from workbench.settings.config import compose, resolved_without_hydra
 from workbench.study.run import run_study
 
 
@@ -26,8 +25,9 @@ def test_mapped_pca_equals_pca_of_the_mapped_frames(n_frames, k, n_dims):
     np.testing.assert_allclose(lifted.mean_, direct.mean_, atol=1e-10)
     assert lifted.coverage_ == pytest.approx(direct.coverage_, abs=1e-12)
     fixed = Eigenfaces(n_components=3).fit_mapped(small, operator)
-    np.testing.assert_allclose(fixed.components_, Eigenfaces(n_components=3).fit(small @ operator.T).components_,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        fixed.components_, Eigenfaces(n_components=3).fit(small @ operator.T).components_, atol=1e-9
+    )
 
 
 def test_mapped_pca_rejects_mismatched_operator():
@@ -36,8 +36,18 @@ def test_mapped_pca_rejects_mismatched_operator():
 
 
 def test_rbf_mesh_capture_carries_its_marker_source_and_the_study_uses_it():
-    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.train_on=[markers,mesh_rbf]",
-                                                   "dataset.mesh_rows=30", "dataset.mesh_cols=26", "solver=lstsq"]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=400",
+                "dataset.train_on=[markers,mesh_rbf]",
+                "dataset.mesh_rows=30",
+                "dataset.mesh_cols=26",
+                "solver=lstsq",
+            ],
+        )
+    )
     captures = build_captures(cfg["dataset"])
     mesh = captures["mesh_rbf"]
     assert captures["markers"].train_source is None

@@ -68,13 +68,14 @@ def test_summary_equals_the_equation_functions_on_random_frames():
     captured[3] = 0.0  # a frame at rest: displacement alpha undefined
     reconstructed = captured + rng.normal(0.0, 0.3, captured.shape)
     summary = summarise_alpha(neutral, captured, reconstructed)
-    np.testing.assert_allclose(summary.absolute_per_frame,
-                               alpha_per_frame(neutral + captured, neutral + reconstructed), rtol=1e-10)
-    np.testing.assert_allclose(summary.displacement_per_frame, alpha_per_frame(captured, reconstructed),
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        summary.absolute_per_frame, alpha_per_frame(neutral + captured, neutral + reconstructed), rtol=1e-10
+    )
+    np.testing.assert_allclose(summary.displacement_per_frame, alpha_per_frame(captured, reconstructed), rtol=1e-10)
     assert np.isnan(summary.displacement_per_frame[3]) and summary.n_undefined_displacement_frames == 1
-    np.testing.assert_allclose(summary.absolute_pooled,
-                               alpha_pooled(neutral + captured, neutral + reconstructed), rtol=1e-10)
+    np.testing.assert_allclose(
+        summary.absolute_pooled, alpha_pooled(neutral + captured, neutral + reconstructed), rtol=1e-10
+    )
     np.testing.assert_allclose(summary.displacement_pooled, alpha_pooled(captured, reconstructed), rtol=1e-10)
     np.testing.assert_allclose(summary.rms_mm, rms_point_error(captured, reconstructed), rtol=1e-10)
 
@@ -87,8 +88,11 @@ def test_summary_from_a_chunked_reconstruction_equals_the_whole_one():
     whole = summarise_alpha(neutral, captured, reconstructed)
     chunked = summarise_alpha(neutral, captured, lambda rows: reconstructed[rows], chunk_frames=77)
     np.testing.assert_array_equal(whole.absolute_per_frame, chunked.absolute_per_frame)
-    assert (whole.absolute_pooled, whole.displacement_mean, whole.rms_mm) == \
-           (chunked.absolute_pooled, chunked.displacement_mean, chunked.rms_mm)
+    assert (whole.absolute_pooled, whole.displacement_mean, whole.rms_mm) == (
+        chunked.absolute_pooled,
+        chunked.displacement_mean,
+        chunked.rms_mm,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -132,7 +136,7 @@ def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
     # w = t^2 on uneven times: the three-point formula is exact for a parabola
     seconds = np.array([0.0, 0.5, 2.0, 2.25, 0.0, 1.0, 3.0])
     takes = np.array(["a", "a", "a", "a", "b", "b", "b"])
-    values = (seconds ** 2)[:, None]
+    values = (seconds**2)[:, None]
     result = second_derivative(values, seconds, takes)
     np.testing.assert_allclose(result, [[2.0], [2.0], [2.0]], rtol=1e-13)  # a: frames 1, 2; b: frame 5
     with pytest.raises(WorkbenchError, match="increase within each take"):
@@ -166,9 +170,9 @@ def test_a_rank_deficient_basis_whose_nnls_equals_lstsq_needs_no_negative_weight
     np.testing.assert_allclose(lstsq.weights[1], scale[1] * np.array([4, -2, 2]) / 3, rtol=1e-9)
     errors = [np.sum((frames - solution.weights @ basis) ** 2, axis=1) for solution in (lstsq, nnls)]
     assert weight_statistics(lstsq.weights, np.arange(50) / 120.0).negative_share == 1.0
-    assert needs_negative_share(*errors, np.sum(frames ** 2, axis=1)) == 0.0
+    assert needs_negative_share(*errors, np.sum(frames**2, axis=1)) == 0.0
     # a frame that does need one: -e1 is reached by least squares only
     target = np.vstack([frames, -e1])
     lstsq, nnls = (solve_weights(basis, target, kind=kind) for kind in ("lstsq", "nnls"))
     errors = [np.sum((target - solution.weights @ basis) ** 2, axis=1) for solution in (lstsq, nnls)]
-    assert needs_negative_share(*errors, np.sum(target ** 2, axis=1)) == 1 / 51
+    assert needs_negative_share(*errors, np.sum(target**2, axis=1)) == 1 / 51

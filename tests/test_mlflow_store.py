@@ -18,25 +18,49 @@ import pandas as pd
 import pytest
 from mlflow_rest import rest
 
-from workbench.settings.config import REPO_ROOT
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_records, load_record
+from workbench.settings.config import REPO_ROOT
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.record.mlflow import (Store, finished_ms, log_records, metric_key, open_store,  # noqa: E402
-                                              param_text, record_metrics, resolve_store, started_ms, store_uris)
+from workbench.record.mlflow import (  # noqa: E402
+    Store,
+    finished_ms,
+    log_records,
+    metric_key,
+    open_store,
+    param_text,
+    record_metrics,
+    resolve_store,
+    started_ms,
+    store_uris,
+)
 
-SWEEP = ["--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.95,0.995",
-         "metric.score_clean=true",
-         "paths.output_root=out", "hydra.sweep.dir=out/coverage_small/default", "hydra.callbacks.mlflow.enabled=true"]
+SWEEP = [
+    "--config-name",
+    "coverage_small",
+    "dataset.n_frames=500",
+    "dataset.seed=0,1",
+    "basis.coverage=0.95,0.995",
+    "metric.score_clean=true",
+    "paths.output_root=out",
+    "hydra.sweep.dir=out/coverage_small/default",
+    "hydra.callbacks.mlflow.enabled=true",
+]
 ENV = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
 ENV.pop("MLFLOW_TRACKING_URI", None)
 
 
 def workbench(*args, cwd, env=None, timeout=600):
-    return subprocess.run([sys.executable, "-m", "workbench", *map(str, args)], cwd=cwd, env=env or ENV,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *map(str, args)],
+        cwd=cwd,
+        env=env or ENV,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def search(store_folder, experiment="coverage_small"):
@@ -55,9 +79,13 @@ def swept(tmp_path_factory):
     result = workbench(*SWEEP, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert result.stdout.count("mlflow: logged ") == 4  # each job logged its run as it ended
-    assert "mlflow: sweep coverage_small/default: 4 runs in the store (0 added at the end of the sweep)" in result.stdout
-    assert f"browse with: mlflow ui --backend-store-uri sqlite:///{tmp_path / 'out' / '.mlflow' / 'mlflow.db'}" \
+    assert (
+        "mlflow: sweep coverage_small/default: 4 runs in the store (0 added at the end of the sweep)" in result.stdout
+    )
+    assert (
+        f"browse with: mlflow ui --backend-store-uri sqlite:///{tmp_path / 'out' / '.mlflow' / 'mlflow.db'}"
         in result.stdout
+    )
     return tmp_path
 
 
@@ -71,13 +99,19 @@ def test_one_nested_run_per_record_with_params_metrics_tags_and_artifacts(swept)
     assert len(runs) == len(complete) == 4
     assert set(runs["status"]) == {"FINISHED"} and set(runs["tags.mlflow.parentRunId"]) == {parent["run_id"]}
     assert sorted(zip(runs["params.basis.coverage"], runs["params.dataset.seed"])) == [
-        ("0.95", "0"), ("0.95", "1"), ("0.995", "0"), ("0.995", "1")]
+        ("0.95", "0"),
+        ("0.95", "1"),
+        ("0.995", "0"),
+        ("0.995", "1"),
+    ]
     # params as the config writes them: null and true, not Python's None and True
     assert set(runs["params.dataset.eval_on"]) == {"null"} and set(runs["params.dataset.stabilise"]) == {"true"}
     assert set(runs["params.basis.projections"]) == {"[affine, linear]"}
     assert set(runs["params.dataset.n_frames"]) == {"500"} and set(runs["params.solver.lstsq.kind"]) == {"lstsq"}
-    filtered = mlflow.search_runs(experiment_names=["coverage_small"],
-                                  filter_string="params.`basis.coverage` = '0.95' and tags.study = 'coverage_small'")
+    filtered = mlflow.search_runs(
+        experiment_names=["coverage_small"],
+        filter_string="params.`basis.coverage` = '0.95' and tags.study = 'coverage_small'",
+    )
     assert len(filtered) == 2
     for folder in complete:
         record = load_record(folder)
@@ -95,16 +129,24 @@ def test_one_nested_run_per_record_with_params_metrics_tags_and_artifacts(swept)
                 assert logged == row[column] if pd.notna(row[column]) else pd.isna(logged)
         assert pd.notna(run["metrics.w_max_abs.markers.QE.lstsq"])
         assert pd.notna(run["metrics.err_mm_p95.markers.PCA.projection"])
-        assert run["metrics.clean_alpha_abs_mean.markers.QE.lstsq"] == record.table.loc[
-            (record.table["basis"] == "QE") & (record.table["solver"] == "lstsq"), "clean_alpha_abs_mean"].item()
+        assert (
+            run["metrics.clean_alpha_abs_mean.markers.QE.lstsq"]
+            == record.table.loc[
+                (record.table["basis"] == "QE") & (record.table["solver"] == "lstsq"), "clean_alpha_abs_mean"
+            ].item()
+        )
         assert run["metrics.m.markers"] == record.table["m"].iloc[0]
         artifacts = {item.path for item in mlflow.MlflowClient().list_artifacts(run["run_id"])}
         assert {"alpha_table.csv", "alpha_table.md", "config.yaml", "metrics.json", "workbench.log"} <= artifacts
         stored = mlflow.artifacts.download_artifacts(run_id=run["run_id"], artifact_path="alpha_table.csv")
         pd.testing.assert_frame_equal(pd.read_csv(stored), record.table)
     metric_names = [name for name in runs.columns if name.startswith("metrics.alpha_abs_mean.")]
-    assert sorted(metric_names) == ["metrics.alpha_abs_mean.markers.H.lstsq", "metrics.alpha_abs_mean.markers.PCA.projection",
-                                    "metrics.alpha_abs_mean.markers.QE-linear.lstsq", "metrics.alpha_abs_mean.markers.QE.lstsq"]
+    assert sorted(metric_names) == [
+        "metrics.alpha_abs_mean.markers.H.lstsq",
+        "metrics.alpha_abs_mean.markers.PCA.projection",
+        "metrics.alpha_abs_mean.markers.QE-linear.lstsq",
+        "metrics.alpha_abs_mean.markers.QE.lstsq",
+    ]
     collected = {item.path for item in mlflow.MlflowClient().list_artifacts(parent["run_id"], "collected")}
     assert {"collected/runs.csv", "collected/alpha_table.md", "collected/summary.csv"} <= collected
 
@@ -152,9 +194,21 @@ def test_names_params_and_where_to_browse():
     assert metric_key("alpha_abs_mean", "markers->mesh", "QE", "lstsq") == "alpha_abs_mean.markers_to_mesh.QE.lstsq"
     assert metric_key("alpha_abs_mean", "../../x", "QE", "lstsq") == "alpha_abs_mean.______x.QE.lstsq"
     assert [param_text(value) for value in (None, True, False, 0.995, 1e-6, 12, "a b", ["markers", None], {})] == [
-        "null", "true", "false", "0.995", "1.0e-06", "12", "a b", "[markers, null]", "{}"]
+        "null",
+        "true",
+        "false",
+        "0.995",
+        "1.0e-06",
+        "12",
+        "a b",
+        "[markers, null]",
+        "{}",
+    ]
     assert Store("http://lab:5000/").browse_hint(["7"]) == "browse: http://lab:5000/#/experiments/7"
-    assert Store("sqlite:////a b/mlflow.db").browse_hint() == "browse with: mlflow ui --backend-store-uri 'sqlite:////a b/mlflow.db'"
+    assert (
+        Store("sqlite:////a b/mlflow.db").browse_hint()
+        == "browse with: mlflow ui --backend-store-uri 'sqlite:////a b/mlflow.db'"
+    )
 
 
 def test_the_store_named_wins_then_the_environment_then_the_default(tmp_path, monkeypatch):
@@ -167,10 +221,15 @@ def test_the_store_named_wins_then_the_environment_then_the_default(tmp_path, mo
     assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").lock_file == tmp_path / "x.db.lock"
     # artifacts beside the database named (never MLflow's ./mlruns of the current folder), unless named elsewhere
     assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db").artifact_root == (tmp_path / "x.artifacts").as_uri()
-    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/s/mlflow.db").artifact_root == \
-        (tmp_path / "s" / "artifacts").as_uri() == resolve_store(store=tmp_path / "s").artifact_root
-    assert resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db",
-                         artifact_location=str(tmp_path / "a")).artifact_root == (tmp_path / "a").as_uri()
+    assert (
+        resolve_store(tracking_uri=f"sqlite:///{tmp_path}/s/mlflow.db").artifact_root
+        == (tmp_path / "s" / "artifacts").as_uri()
+        == resolve_store(store=tmp_path / "s").artifact_root
+    )
+    assert (
+        resolve_store(tracking_uri=f"sqlite:///{tmp_path}/x.db", artifact_location=str(tmp_path / "a")).artifact_root
+        == (tmp_path / "a").as_uri()
+    )
     assert resolve_store(tracking_uri="http://lab:5000", artifact_location="s3://b/x/").artifact_root == "s3://b/x"
     assert resolve_store(tracking_uri="http://lab:5000").artifact_root is None  # the server decides
 
@@ -195,6 +254,7 @@ def test_two_rows_of_one_name_are_refused(swept):
 
 # --- real processes: concurrent imports, Ctrl-C, a full disk, names from a record, report figures -------------
 
+
 def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what_the_sweep_was(tmp_path):
     """MLFLOW_TRACKING_URI=sqlite:///<folder>/t.db, run from another folder: the artifacts go beside the database
     (not into ./mlruns), nothing is written anywhere else (the home folder included: no telemetry id), MLflow's own
@@ -205,9 +265,18 @@ def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what
     env = dict(ENV, MLFLOW_TRACKING_URI=f"sqlite:///{store / 't.db'}", HOME=str(home))
     for name in ("XDG_CONFIG_HOME", "XDG_CACHE_HOME", "XDG_DATA_HOME", "MLFLOW_DISABLE_TELEMETRY"):
         env.pop(name, None)
-    command = [sys.executable, "-m", "workbench", "--config-name", "coverage_small", "dataset.n_frames=500",
-               "dataset.seed=0", "basis.coverage=0.95,0.995", f"paths.output_root={out}",
-               "hydra.callbacks.mlflow.enabled=true"]
+    command = [
+        sys.executable,
+        "-m",
+        "workbench",
+        "--config-name",
+        "coverage_small",
+        "dataset.n_frames=500",
+        "dataset.seed=0",
+        "basis.coverage=0.95,0.995",
+        f"paths.output_root={out}",
+        "hydra.callbacks.mlflow.enabled=true",
+    ]
     started, ended, lines = time.time(), None, []
     process = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for line in process.stdout:  # the sweep ends with its last line (the interpreter's own teardown is not the sweep's)
@@ -233,8 +302,9 @@ def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what
     assert parent.data.params["basis.coverage"] == "0.95,0.995" and parent.data.params["dataset.seed"] == "0"
     assert parent.data.params["dataset.n_frames"] == "500"
     values = [run.data.metrics["alpha_abs_mean.markers.QE.lstsq"] for run in children_]
-    assert parent.data.metrics["alpha_abs_mean.markers.QE.lstsq"] == pytest.approx((values[0] * values[1]) ** 0.5,
-                                                                                   rel=1e-12)
+    assert parent.data.metrics["alpha_abs_mean.markers.QE.lstsq"] == pytest.approx(
+        (values[0] * values[1]) ** 0.5, rel=1e-12
+    )
     assert parent.data.metrics["runs"] == 2
     duration = (parent.info.end_time - parent.info.start_time) / 1000
     assert duration == pytest.approx(ended - started, abs=1.0), (duration, ended - started)
@@ -244,8 +314,9 @@ def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what
 def records_copy(swept, tmp_path):
     """The sweep's records copied (without the store), so that each test logs them into a store of its own."""
     target = tmp_path / "out" / "coverage_small" / "default"
-    shutil.copytree(swept / "out" / "coverage_small" / "default", target,
-                    ignore=shutil.ignore_patterns("collected", ".submitit"))
+    shutil.copytree(
+        swept / "out" / "coverage_small" / "default", target, ignore=shutil.ignore_patterns("collected", ".submitit")
+    )
     return target
 
 
@@ -254,7 +325,8 @@ def stored_runs(database):
     with sqlite3.connect(database) as connection:
         return connection.execute(
             "select coalesce((select value from tags where tags.run_uuid = runs.run_uuid and key = 'record'), ''), "
-            "status, lifecycle_stage from runs").fetchall()
+            "status, lifecycle_stage from runs"
+        ).fetchall()
 
 
 def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_path):
@@ -262,15 +334,19 @@ def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_p
     for trial in range(2):
         store = tmp_path / f"store{trial}"
         command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
-        processes = [subprocess.Popen(command, cwd=tmp_path, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                      text=True) for _ in range(2)]
+        processes = [
+            subprocess.Popen(command, cwd=tmp_path, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for _ in range(2)
+        ]
         outputs = [process.communicate(timeout=600) for process in processes]
         assert [process.returncode for process in processes] == [0, 0], [err for _, err in outputs]
         lines = sorted(out.strip().split(";")[0] for out, _ in outputs)
         assert lines == ["mlflow: 0 runs added, 4 already in the store", "mlflow: 4 runs added, 0 already in the store"]
         rows = stored_runs(store / "mlflow.db")
-        assert sorted(rows) == sorted([("", "FINISHED", "active")]
-                                      + [(str(folder.resolve()), "FINISHED", "active") for folder in find_records([sweep])[0]])
+        assert sorted(rows) == sorted(
+            [("", "FINISHED", "active")]
+            + [(str(folder.resolve()), "FINISHED", "active") for folder in find_records([sweep])[0]]
+        )
 
 
 def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record(swept, tmp_path):
@@ -286,8 +362,15 @@ def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record
         store.mkdir()
         shutil.copy(tmp_path / "empty" / "mlflow.db", store / "mlflow.db")
         command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
-        process = subprocess.Popen(command, cwd=tmp_path, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        process = subprocess.Popen(
+            command,
+            cwd=tmp_path,
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
         deadline = time.monotonic() + 300
         while process.poll() is None and time.monotonic() < deadline:  # until the first run row exists
             if (store / "mlflow.db").is_file():
@@ -332,11 +415,19 @@ def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
     disk.mkdir()
     for fill in ("full", "space for the database"):
         leave = "0" if fill == "full" else "1500"  # kilobytes left free
-        script = (f"mount -t tmpfs -o size=3m tmpfs {disk} && "
-                  f"(head -c $((3072 - {leave}))k /dev/zero > {disk}/filler 2>/dev/null; true) && "
-                  f"exec {sys.executable} -m workbench mlflow {sweep} --store {disk}/store")
-        result = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", script],
-                                cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=600)
+        script = (
+            f"mount -t tmpfs -o size=3m tmpfs {disk} && "
+            f"(head -c $((3072 - {leave}))k /dev/zero > {disk}/filler 2>/dev/null; true) && "
+            f"exec {sys.executable} -m workbench mlflow {sweep} --store {disk}/store"
+        )
+        result = subprocess.run(
+            ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", script],
+            cwd=tmp_path,
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         errors = [line for line in result.stderr.splitlines() if line.startswith("workbench")]
         assert result.returncode == 2, (fill, result.stderr[-3000:])
         assert len(errors) == 1 and "Traceback" not in result.stderr, (fill, result.stderr[-3000:])
@@ -372,8 +463,14 @@ def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
 def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
     """A run with its per-frame alpha (save_inputs=true) logged at once; its report's figures once it has one."""
     run_dir = tmp_path / "out" / "run"
-    result = workbench("dataset.n_frames=500", "solver=lstsq", "save_inputs=true", f"hydra.run.dir={run_dir}",
-                       "paths.output_root=out", cwd=tmp_path)
+    result = workbench(
+        "dataset.n_frames=500",
+        "solver=lstsq",
+        "save_inputs=true",
+        f"hydra.run.dir={run_dir}",
+        "paths.output_root=out",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     first = workbench("mlflow", run_dir, cwd=tmp_path)
     assert first.returncode == 0 and "mlflow: 1 runs added" in first.stdout, first.stderr
@@ -393,6 +490,7 @@ def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
 
 # --- a tracking server ----------------------------------------------------------------------------------------
 
+
 def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_path):
     """MLFLOW_TRACKING_URI alone sends the sweep to the server; the runs are found there through the REST API."""
     args = [arg.replace("coverage_small/default", "coverage_small/server") for arg in SWEEP]
@@ -402,8 +500,12 @@ def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_
     experiment_id = experiment["experiment"]["experiment_id"]
     assert f"browse: {mlflow_server}/#/experiments/{experiment_id}" in result.stdout
     sweep = (tmp_path / "out" / "coverage_small" / "server").resolve()
-    found = rest(mlflow_server, "POST", "runs/search",
-                 {"experiment_ids": [experiment_id], "filter": f"tags.sweep = '{sweep}'", "max_results": 100})["runs"]
+    found = rest(
+        mlflow_server,
+        "POST",
+        "runs/search",
+        {"experiment_ids": [experiment_id], "filter": f"tags.sweep = '{sweep}'", "max_results": 100},
+    )["runs"]
     tags = [{tag["key"]: tag["value"] for tag in run["data"]["tags"]} for run in found]
     assert sorted(tag["kind"] for tag in tags) == ["run"] * 4 + ["sweep"]
     for run, tag in zip(found, tags):
@@ -413,8 +515,9 @@ def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_
         metrics = {metric["key"]: metric["value"] for metric in run["data"]["metrics"]}
         for row in record.table.to_dict("records"):
             for column in ALPHA_COLUMNS:
-                assert metrics[f"{column}.markers.{row['basis']}.{row['solver']}"] == pytest.approx(row[column],
-                                                                                                   rel=1e-15)
+                assert metrics[f"{column}.markers.{row['basis']}.{row['solver']}"] == pytest.approx(
+                    row[column], rel=1e-15
+                )
         params = {param["key"]: param["value"] for param in run["data"]["params"]}
         assert params["dataset.eval_on"] == "null" and params["dataset.stabilise"] == "true"
     # the same records logged again by the command, with the server named on the command line: nothing added
@@ -426,12 +529,21 @@ def test_a_server_out_of_reach_stops_no_run_and_the_command_says_so_in_one_line(
     with socket.socket() as probe:  # a port nothing listens on
         probe.bind(("127.0.0.1", 0))
         nowhere = f"http://127.0.0.1:{probe.getsockname()[1]}"
-    result = workbench("--config-name", "coverage_small", "dataset.n_frames=500", "dataset.seed=0", "basis.coverage=0.95",
-                       "paths.output_root=out", "hydra.callbacks.mlflow.enabled=true",
-                       f"hydra.callbacks.mlflow.tracking_uri={nowhere}", cwd=tmp_path)
+    result = workbench(
+        "--config-name",
+        "coverage_small",
+        "dataset.n_frames=500",
+        "dataset.seed=0",
+        "basis.coverage=0.95",
+        "paths.output_root=out",
+        "hydra.callbacks.mlflow.enabled=true",
+        f"hydra.callbacks.mlflow.tracking_uri={nowhere}",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     assert len(find_records([tmp_path / "out" / "coverage_small" / "default"])[0]) == 1
     assert result.stdout.count(f"MLflow server {nowhere} cannot be reached") == 2  # at the start and at the end
     late = workbench("mlflow", tmp_path / "out", "--tracking-uri", nowhere, cwd=tmp_path)
     assert late.returncode == 2 and late.stderr.strip() == (
-        f"workbench mlflow: error: MLflow server {nowhere} cannot be reached ([Errno 111] Connection refused)")
+        f"workbench mlflow: error: MLflow server {nowhere} cannot be reached ([Errno 111] Connection refused)"
+    )

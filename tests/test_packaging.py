@@ -10,12 +10,12 @@ import re
 import shutil
 import subprocess
 import sys
-import tomllib
 
 import pytest
+import tomllib
 
-from workbench.settings.config import CONF_DIR, REPO_ROOT, STUDIES_DIR
 from workbench.core.extras import EXTRA_OF_MODULE, install_hint, missing_extra
+from workbench.settings.config import CONF_DIR, REPO_ROOT, STUDIES_DIR
 
 OPTIONAL_MODULES = sorted(EXTRA_OF_MODULE)
 PYPROJECT = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())
@@ -23,20 +23,31 @@ PYPROJECT = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())
 
 def python(code, *args, cwd, pythonpath=REPO_ROOT, timeout=300):
     env = dict(os.environ, PYTHONPATH=str(pythonpath), OPENBLAS_NUM_THREADS="1")
-    return subprocess.run([sys.executable, *(["-c", code] if code else []), *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, *(["-c", code] if code else []), *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def without(modules, argv):
     """Python code running the ``workbench`` command with ``argv`` as if ``modules`` were not installed."""
-    return (f"import sys; sys.modules.update(dict.fromkeys({list(modules)!r})); sys.argv = ['workbench', *{argv!r}]; "
-            "from workbench.cli.main import main; main()")
+    return (
+        f"import sys; sys.modules.update(dict.fromkeys({list(modules)!r})); sys.argv = ['workbench', *{argv!r}]; "
+        "from workbench.cli.main import main; main()"
+    )
 
 
 def test_pyproject_lists_every_package_and_maps_the_configs_into_it():
     setuptools = PYPROJECT["tool"]["setuptools"]
-    on_disk = {".".join(path.parent.relative_to(REPO_ROOT).parts)
-               for top in ("workbench", "hydra_plugins") for path in (REPO_ROOT / top).rglob("__init__.py")}
+    on_disk = {
+        ".".join(path.parent.relative_to(REPO_ROOT).parts)
+        for top in ("workbench", "hydra_plugins")
+        for path in (REPO_ROOT / top).rglob("__init__.py")
+    }
     assert set(setuptools["packages"]) == on_disk | {"hydra_plugins", "workbench.conf", "workbench.studies"}
     assert setuptools["package-dir"] == {"workbench.conf": "conf", "workbench.studies": "studies"}
     data = setuptools.get("package-data", {})
@@ -54,10 +65,20 @@ def test_build_system_reads_the_licence_field():
 
 def test_every_optional_module_belongs_to_an_extra_that_installs_it():
     extras = PYPROJECT["project"]["optional-dependencies"]
-    distributions = {"matplotlib": "matplotlib", "pyvista": "pyvista", "vtk": "pyvista", "vtkmodules": "pyvista",
-                     "PIL": "pillow", "jinja2": "jinja2", "markupsafe": "jinja2", "pyarrow": "pyarrow",
-                     "sklearn": "scikit-learn", "h5py": "h5py",
-                     "submitit": "hydra-submitit-launcher", "mlflow": "mlflow"}
+    distributions = {
+        "matplotlib": "matplotlib",
+        "pyvista": "pyvista",
+        "vtk": "pyvista",
+        "vtkmodules": "pyvista",
+        "PIL": "pillow",
+        "jinja2": "jinja2",
+        "markupsafe": "jinja2",
+        "pyarrow": "pyarrow",
+        "sklearn": "scikit-learn",
+        "h5py": "h5py",
+        "submitit": "hydra-submitit-launcher",
+        "mlflow": "mlflow",
+    }
     for module, extra in EXTRA_OF_MODULE.items():
         assert any(requirement.startswith(distributions[module]) for requirement in extras[extra]), module
     core = " ".join(PYPROJECT["project"]["dependencies"])
@@ -91,8 +112,9 @@ def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
 
 
 def test_a_report_without_the_report_extra_is_one_line_exit_2(tmp_path):
-    made = python(without(OPTIONAL_MODULES, ["dataset.n_frames=600", "solver=lstsq",
-                                             "hydra.run.dir=outputs/run"]), cwd=tmp_path)
+    made = python(
+        without(OPTIONAL_MODULES, ["dataset.n_frames=600", "solver=lstsq", "hydra.run.dir=outputs/run"]), cwd=tmp_path
+    )
     assert made.returncode == 0, made.stderr
     result = python(without(["matplotlib", "pyvista", "PIL"], ["report", "outputs/run"]), cwd=tmp_path)
     assert result.returncode == 2 and result.stdout == ""
@@ -103,9 +125,14 @@ def test_a_report_without_the_report_extra_is_one_line_exit_2(tmp_path):
 
 def imported_by(args, cwd, env=None):
     """The top-level modules ``python -X importtime -m workbench ARGS`` imports."""
-    result = subprocess.run([sys.executable, "-X", "importtime", "-m", "workbench", *args], cwd=cwd,
-                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT), **(env or {})),
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "workbench", *args],
+        cwd=cwd,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT), **(env or {})),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     return {line.split("|")[-1].strip() for line in result.stderr.splitlines() if line.startswith("import time:")}
 
@@ -113,22 +140,28 @@ def imported_by(args, cwd, env=None):
 HEAVY = {"numpy", "pandas", "scipy", "numba", "matplotlib", "pyvista", "sklearn", "pyarrow", "h5py", "mlflow"}
 
 
-@pytest.mark.parametrize("args, env", [
-    (["--version"], None),
-    (["-sc", "query=bash"], {"COMP_LINE": "workbench --config-name=cov"}),
-    (["-sc", "query=bash"], {"COMP_LINE": "workbench report "}),
-])
+@pytest.mark.parametrize(
+    "args, env",
+    [
+        (["--version"], None),
+        (["-sc", "query=bash"], {"COMP_LINE": "workbench --config-name=cov"}),
+        (["-sc", "query=bash"], {"COMP_LINE": "workbench report "}),
+    ],
+)
 def test_version_and_completions_without_config_import_neither_hydra_nor_numerics(tmp_path, args, env):
     assert not imported_by(args, tmp_path, env) & (HEAVY | {"hydra", "omegaconf"})
 
 
-@pytest.mark.parametrize("args, env", [
-    (["--help"], None),
-    (["dataset=animface", "--help"], None),
-    (["-sc", "query=bash"], {"COMP_LINE": "workbench "}),
-    (["-sc", "query=bash"], {"COMP_LINE": "workbench dataset."}),
-    (["-sc", "query=bash"], {"COMP_LINE": "workbench rep"}),
-])
+@pytest.mark.parametrize(
+    "args, env",
+    [
+        (["--help"], None),
+        (["dataset=animface", "--help"], None),
+        (["-sc", "query=bash"], {"COMP_LINE": "workbench "}),
+        (["-sc", "query=bash"], {"COMP_LINE": "workbench dataset."}),
+        (["-sc", "query=bash"], {"COMP_LINE": "workbench rep"}),
+    ],
+)
 def test_help_and_completions_import_hydra_but_no_numerics(tmp_path, args, env):
     imported = imported_by(args, tmp_path, env)
     assert "hydra" in imported and not imported & HEAVY
@@ -145,18 +178,30 @@ def test_an_installed_package_finds_its_configs_inside_it_and_runs_from_any_fold
     shutil.copytree(STUDIES_DIR, site / "workbench" / "studies")
     work = tmp_path / "elsewhere"
     work.mkdir()
-    where = python("from workbench.settings import config; print(config.INSTALLED, config.CONF_DIR, config.CHECKOUT)",
-                   cwd=work, pythonpath=site)
+    where = python(
+        "from workbench.settings import config; print(config.INSTALLED, config.CONF_DIR, config.CHECKOUT)",
+        cwd=work,
+        pythonpath=site,
+    )
     assert where.stdout.split() == ["True", str(site / "workbench" / "conf"), "None"], where.stderr
     helped = python(None, "-m", "workbench", "--help", cwd=work, pythonpath=site)
     assert helped.returncode == 0 and "coverage_small" in helped.stdout and "solver: all, box" in helped.stdout
-    run = python(None, "-m", "workbench", "dataset.n_frames=800", "solver=lstsq", "hydra.run.dir=outputs/one",
-                 cwd=work, pythonpath=site)
+    run = python(
+        None,
+        "-m",
+        "workbench",
+        "dataset.n_frames=800",
+        "solver=lstsq",
+        "hydra.run.dir=outputs/one",
+        cwd=work,
+        pythonpath=site,
+    )
     assert run.returncode == 0, run.stderr
     metrics = (work / "outputs" / "one" / "metrics.json").read_text()
     assert re.search(r'"commit": null', metrics) and re.search(r'"workbench": "\d', metrics)
-    swept = python(None, "-m", "workbench", "--config-name", "coverage_small", "dataset.n_frames=600",
-                   cwd=work, pythonpath=site)
+    swept = python(
+        None, "-m", "workbench", "--config-name", "coverage_small", "dataset.n_frames=600", cwd=work, pythonpath=site
+    )
     assert swept.returncode == 0, swept.stderr
     assert (work / "outputs" / "coverage_small" / "default" / "collected" / "alpha_table.md").is_file()
     refused = python(None, "-m", "workbench", "report", "outputs/one", "--reference", cwd=work, pythonpath=site)

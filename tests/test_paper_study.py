@@ -27,8 +27,15 @@ def small_run(tmp_path_factory):
 
 def test_run_writes_a_complete_record(small_run):
     output, text = small_run
-    for name in ("config.yaml", "alpha_table.csv", "alpha_table.md", "metrics.json", "timings.json",
-                 "inputs.npz", DONE):
+    for name in (
+        "config.yaml",
+        "alpha_table.csv",
+        "alpha_table.md",
+        "metrics.json",
+        "timings.json",
+        "inputs.npz",
+        DONE,
+    ):
         assert (output / name).is_file(), name
     assert not list(output.glob(".*.tmp"))
     metrics = json.loads((output / "metrics.json").read_text())
@@ -62,7 +69,7 @@ def test_table_recomputed_independently_from_inputs(small_run):
     train, evaluate, neutral, hand = data["train"], data["eval"], data["neutral"], data["hand"]
     mean = train.mean(axis=0)
     _, singular, vt = np.linalg.svd(train - mean, full_matrices=False)
-    variance = singular ** 2
+    variance = singular**2
     m = int(np.searchsorted(np.cumsum(variance) / variance.sum(), 0.995) + 1)
     assert m == table["m"].iloc[0]
     axes = vt[:m]
@@ -71,19 +78,17 @@ def test_table_recomputed_independently_from_inputs(small_run):
 
     def alpha_abs_mean(reconstruction):
         target = neutral + evaluate
-        return np.mean(100 * np.linalg.norm(target - (neutral + reconstruction), axis=1)
-                       / np.linalg.norm(target, axis=1))
+        return np.mean(
+            100 * np.linalg.norm(target - (neutral + reconstruction), axis=1) / np.linalg.norm(target, axis=1)
+        )
 
     pca = mean + ((evaluate - mean) @ axes.T) @ axes
     assert alpha_abs_mean(pca) == pytest.approx(table.loc[("PCA", "projection"), "alpha_abs_mean"], rel=1e-6)
     for label, basis in (("H", hand), ("QE", quasi_eigen)):
         weights = np.linalg.lstsq(basis.T, evaluate.T, rcond=None)[0].T
-        assert alpha_abs_mean(weights @ basis) == pytest.approx(table.loc[(label, "lstsq"), "alpha_abs_mean"],
-                                                                rel=1e-6)
-        boxed = np.array([lsq_linear(basis.T, frame, bounds=(0, 1), method="bvls", tol=1e-12).x
-                          for frame in evaluate])
-        assert alpha_abs_mean(boxed @ basis) == pytest.approx(table.loc[(label, "box"), "alpha_abs_mean"],
-                                                              rel=1e-5)
+        assert alpha_abs_mean(weights @ basis) == pytest.approx(table.loc[(label, "lstsq"), "alpha_abs_mean"], rel=1e-6)
+        boxed = np.array([lsq_linear(basis.T, frame, bounds=(0, 1), method="bvls", tol=1e-12).x for frame in evaluate])
+        assert alpha_abs_mean(boxed @ basis) == pytest.approx(table.loc[(label, "box"), "alpha_abs_mean"], rel=1e-5)
 
 
 def test_same_config_gives_identical_tables(small_run, tmp_path):
@@ -92,8 +97,14 @@ def test_same_config_gives_identical_tables(small_run, tmp_path):
 
 
 def run_cli(*overrides, cwd):
-    return subprocess.run([sys.executable, "-m", "workbench", *overrides], capture_output=True, text=True,
-                          cwd=cwd, timeout=600, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *overrides],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+    )
 
 
 def test_cli_runs_and_prints_the_table(tmp_path):
@@ -105,21 +116,31 @@ def test_cli_runs_and_prints_the_table(tmp_path):
 
 
 def test_cli_bad_parameter_is_one_line(tmp_path):
-    result = run_cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}",
-                     cwd=tmp_path)
+    result = run_cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 2
     assert result.stderr.strip() == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
     assert not (tmp_path / "run" / DONE).exists()
 
 
 def test_cli_multirun_sweeps(tmp_path):
-    result = run_cli("-m", "dataset.n_frames=300", "solver=box", "basis.coverage=0.99,0.995",
-                     f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    result = run_cli(
+        "-m",
+        "dataset.n_frames=300",
+        "solver=box",
+        "basis.coverage=0.99,0.995",
+        f"hydra.sweep.dir={tmp_path / 'sweep'}",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     # each run in a folder named by its overrides, so that the same sweep run again resumes
-    coverages = sorted(float(pd.read_csv(tmp_path / "sweep" / f"basis.coverage={coverage},dataset.n_frames=300,"
-                                         "solver=box" / "alpha_table.csv")["coverage"][0])
-                       for coverage in ("0.99", "0.995"))
+    coverages = sorted(
+        float(
+            pd.read_csv(
+                tmp_path / "sweep" / f"basis.coverage={coverage},dataset.n_frames=300,solver=box" / "alpha_table.csv"
+            )["coverage"][0]
+        )
+        for coverage in ("0.99", "0.995")
+    )
     assert coverages[0] <= coverages[1]
 
 
@@ -138,9 +159,19 @@ def test_paper_scale_default_study(tmp_path):
 
 def test_markers_and_mesh_in_one_run(tmp_path):
     """dataset.train_on as a list runs the method on each data variant of the same take, one table."""
-    text = run(compose("paper", ["dataset.n_frames=600", "dataset.train_on=[markers,mesh]", "solver=lstsq",
-                                 "basis.paper_regime=false",
-                                 "save_inputs=true"]), tmp_path)
+    text = run(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=600",
+                "dataset.train_on=[markers,mesh]",
+                "solver=lstsq",
+                "basis.paper_regime=false",
+                "save_inputs=true",
+            ],
+        ),
+        tmp_path,
+    )
     table = pd.read_csv(tmp_path / "alpha_table.csv")
     assert list(table["data"]) == ["markers"] * 4 + ["mesh"] * 4
     metrics = json.loads((tmp_path / "metrics.json").read_text())

@@ -8,15 +8,14 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from workbench.api import run
-from workbench.settings.config import compose
-from workbench.dataset import build_captures
-from workbench.formats.c3d import read_c3d_markers
-from workbench.dataset.cache import clear_memory
-from workbench.formats.plausibility import check_rigid_set
-from workbench.core.errors import WorkbenchError
-
 from tests.test_bad_input import write_c3d
+from workbench.api import run
+from workbench.core.errors import WorkbenchError
+from workbench.dataset import build_captures
+from workbench.dataset.cache import clear_memory
+from workbench.formats.c3d import read_c3d_markers
+from workbench.formats.plausibility import check_rigid_set
+from workbench.settings.config import compose
 
 TAKE = "animface/animface_eyebrows.c3d"
 
@@ -48,17 +47,30 @@ def changed_take(shared_data, root, name, change, units="mm"):
 
 def animface(root, takes, *overrides):
     listed = "[" + ",".join(takes) + "]"
-    cfg = compose("paper", ["dataset=animface", f"paths.data_root={root}", f"dataset.takes={listed}",
-                            "dataset.train_on=markers", "dataset.frame_step=3", *overrides])
+    cfg = compose(
+        "paper",
+        [
+            "dataset=animface",
+            f"paths.data_root={root}",
+            f"dataset.takes={listed}",
+            "dataset.train_on=markers",
+            "dataset.frame_step=3",
+            *overrides,
+        ],
+    )
     return OmegaConf.to_container(cfg.dataset, resolve=True)
 
 
 def test_a_take_in_metres_labelled_mm_is_refused(shared_data, data_root):
     metres = changed_take(shared_data, data_root, "metres.c3d", lambda p, _: p.__itruediv__(1000.0))
     good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
-    with pytest.raises(WorkbenchError, match=re.escape(
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
             f"{data_root / metres}: markers spread 0.0637 mm from their centroid (file units 'mm'); a face spans "
-            "20-500 mm, so the take's units are not what the file says")):
+            "20-500 mm, so the take's units are not what the file says"
+        ),
+    ):
         build_captures(animface(data_root, [good, metres]))
 
 
@@ -66,9 +78,14 @@ def test_takes_of_different_units_are_refused(shared_data, data_root):
     inches = changed_take(shared_data, data_root, "inches.c3d", lambda p, _: p.__imul__(4.0))
     good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
     third = changed_take(shared_data, data_root, "third.c3d", lambda p, _: p.__iadd__(0.5))
-    with pytest.raises(WorkbenchError, match=re.escape(f"{data_root / inches}: markers spread 255 mm from their "
-                                                       f"centroid against 63.7 mm in {data_root / good} (more than "
-                                                       "3 x apart")):
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
+            f"{data_root / inches}: markers spread 255 mm from their "
+            f"centroid against 63.7 mm in {data_root / good} (more than "
+            "3 x apart"
+        ),
+    ):
         build_captures(animface(data_root, [good, inches, third]))
 
 
@@ -76,8 +93,12 @@ def test_a_take_scaled_x4_beside_its_original_is_refused(shared_data, data_root)
     # with two takes, each against the median (their mean) was within 3x; smallest and largest are not
     scaled = changed_take(shared_data, data_root, "scaled.c3d", lambda p, _: p.__imul__(4.0))
     good = changed_take(shared_data, data_root, "good.c3d", lambda p, _: None)
-    with pytest.raises(WorkbenchError, match=re.escape(f"{data_root / scaled}: markers spread 255 mm from their "
-                                                       f"centroid against 63.7 mm in {data_root / good}")):
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
+            f"{data_root / scaled}: markers spread 255 mm from their centroid against 63.7 mm in {data_root / good}"
+        ),
+    ):
         build_captures(animface(data_root, [good, scaled]))
 
 
@@ -93,9 +114,13 @@ def test_a_take_listed_twice_or_copied_is_refused(shared_data, data_root):
 def test_a_c3d_rate_no_camera_records_at_is_refused(shared_data, data_root):
     take = read_c3d_markers(shared_data / TAKE)
     write_c3d(data_root / "animface" / "fast.c3d", take.positions, take.labels, rate=1e9)
-    with pytest.raises(WorkbenchError, match=re.escape(
+    with pytest.raises(
+        WorkbenchError,
+        match=re.escape(
             f"{data_root / 'animface' / 'fast.c3d'}: POINT:RATE 1e+09 frames per second is not a face capture's "
-            "(1-10000); the rate or the time stamps are in other units")):
+            "(1-10000); the rate or the time stamps are in other units"
+        ),
+    ):
         build_captures(animface(data_root, ["animface/fast.c3d"]))
 
 
@@ -105,18 +130,30 @@ def move_sample(positions, labels):
 
 def test_a_sample_moved_by_a_million_mm_is_named_by_marker_and_frame(shared_data, data_root):
     take = changed_take(shared_data, data_root, "jump.c3d", move_sample)
-    with pytest.raises(WorkbenchError, match=r"jump\.c3d: marker Leyebrow_M is 1e\+06 mm from its median position in "
-                                             r"frame 300 \(1 such sample\(s\)\), more than 20 x the capture's spread"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"jump\.c3d: marker Leyebrow_M is 1e\+06 mm from its median position in "
+        r"frame 300 \(1 such sample\(s\)\), more than 20 x the capture's spread",
+    ):
         build_captures(animface(data_root, [take]))
 
 
 def test_a_warned_outlier_is_printed_above_the_table_and_flagged_in_metrics(shared_data, data_root, tmp_path):
     take = changed_take(shared_data, data_root, "jump.c3d", move_sample)
-    cfg = compose("paper", ["dataset=animface", f"paths.data_root={data_root}", f"dataset.takes=[{take}]",
-                            "dataset.train_on=markers", "dataset.frame_step=3", "dataset.plausibility=warn",
-                            "solver=lstsq"])
+    cfg = compose(
+        "paper",
+        [
+            "dataset=animface",
+            f"paths.data_root={data_root}",
+            f"dataset.takes=[{take}]",
+            "dataset.train_on=markers",
+            "dataset.frame_step=3",
+            "dataset.plausibility=warn",
+            "solver=lstsq",
+        ],
+    )
     text = run(cfg, tmp_path / "run")
-    header = text[:text.index("\n|")]
+    header = text[: text.index("\n|")]
     assert "note: WARNING: " in header and "marker Leyebrow_M is 1e+06 mm" in header
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     [warning] = metrics["dataset"]["provenance"]["plausibility_warnings"]
@@ -128,8 +165,11 @@ def test_a_marker_parked_at_the_origin_is_refused(shared_data, data_root):
         positions[100:150, labels.index("Chin")] = 0.0
 
     take = changed_take(shared_data, data_root, "parked.c3d", park)
-    with pytest.raises(WorkbenchError, match=r"parked\.c3d: marker Chin is at the origin \(0, 0, 0\) in 50 frame\(s\) "
-                                             r"\(first: frame 100\)"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"parked\.c3d: marker Chin is at the origin \(0, 0, 0\) in 50 frame\(s\) "
+        r"\(first: frame 100\)",
+    ):
         build_captures(animface(data_root, [take]))
 
 
@@ -164,22 +204,37 @@ def ict_folder(shared_data, root, leave_out=(), change=None):
 
 
 def ict_livelink(root, folder, *overrides):
-    cfg = compose("paper", ["dataset=ict_livelink", f"paths.data_root={root}", f"dataset.blendshapes.folder={folder}",
-                            "dataset.train_on=markers", "dataset.max_frames=50", *overrides])
+    cfg = compose(
+        "paper",
+        [
+            "dataset=ict_livelink",
+            f"paths.data_root={root}",
+            f"dataset.blendshapes.folder={folder}",
+            "dataset.train_on=markers",
+            "dataset.max_frames=50",
+            *overrides,
+        ],
+    )
     return OmegaConf.to_container(cfg.dataset, resolve=True)
 
 
 def test_expression_objs_missing_from_the_folder_are_refused(shared_data, data_root):
     folder = ict_folder(shared_data, data_root, leave_out=("eyeBlink_L", "eyeBlink_R"))
-    with pytest.raises(WorkbenchError, match=r"alex_rom_3\.csv with .*FaceXModel: the take uses channel\(s\) "
-                                             r"EyeBlinkLeft \(max weight 0\.\d\d\), EyeBlinkRight .* no shape for them"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"alex_rom_3\.csv with .*FaceXModel: the take uses channel\(s\) "
+        r"EyeBlinkLeft \(max weight 0\.\d\d\), EyeBlinkRight .* no shape for them",
+    ):
         build_captures(ict_livelink(data_root, folder))
 
 
 def test_a_hand_shape_missing_from_the_folder_is_refused(shared_data, data_root):
     folder = ict_folder(shared_data, data_root, leave_out=("mouthPucker",))
-    with pytest.raises(WorkbenchError, match=r"dataset\.hand_shapes names \['mouthPucker'\], which the blendshape "
-                                             r"folder does not have"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"dataset\.hand_shapes names \['mouthPucker'\], which the blendshape "
+        r"folder does not have",
+    ):
         build_captures(ict_livelink(data_root, folder, "dataset.plausibility=warn"))
 
 
@@ -192,14 +247,19 @@ def test_an_obj_vertex_far_outside_the_face_is_named(shared_data, data_root, val
         return "\n".join(lines)
 
     folder = ict_folder(shared_data, data_root, change=("browInnerUp_L", move_vertex_10))
-    with pytest.raises(WorkbenchError, match=r"browInnerUp_L\.obj: vertex 10 lies 1e\+(06|300) file units from the "
-                                             r"face's centre along an axis \(1 such vertices\), more than 20 x the neutral"):
+    with pytest.raises(
+        WorkbenchError,
+        match=r"browInnerUp_L\.obj: vertex 10 lies 1e\+(06|300) file units from the "
+        r"face's centre along an axis \(1 such vertices\), more than 20 x the neutral",
+    ):
         build_captures(ict_livelink(data_root, folder))
 
 
 def test_the_shared_data_passes_every_check(shared_data):
     for name in ("animface", "ict_livelink"):
-        cfg = OmegaConf.to_container(compose("paper", [f"dataset={name}", f"paths.data_root={shared_data}",
-                                                       "dataset.train_on=markers"]).dataset, resolve=True)
+        cfg = OmegaConf.to_container(
+            compose("paper", [f"dataset={name}", f"paths.data_root={shared_data}", "dataset.train_on=markers"]).dataset,
+            resolve=True,
+        )
         captures = build_captures(cfg)
         assert not any(note.startswith("WARNING") for note in captures["markers"].notes)

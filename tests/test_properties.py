@@ -19,19 +19,24 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.core.errors import WorkbenchError
 from workbench.formats.c3d import read_c3d_markers
 from workbench.formats.livelink import ARKIT_NAMES, read_livelink_csv
 from workbench.formats.obj import read_obj
-from workbench.core.errors import WorkbenchError
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.metrics import summarise_alpha
 from workbench.numerics.solve import kkt_violation, solve_weights
 
 
 def examples(n: int):
     """Deterministic settings with ``n`` examples (files are written to a folder shared by the examples)."""
-    return settings(max_examples=n, deadline=None, derandomize=True, database=None,
-                    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+    return settings(
+        max_examples=n,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+    )
 
 
 seeds = st.integers(0, 2**32 - 1)
@@ -46,6 +51,7 @@ def fresh(folder, suffix: str):
 # ----------------------------------------------------------------------------------------------------------
 # Eigenfaces and quasi-eigen faces
 # ----------------------------------------------------------------------------------------------------------
+
 
 @st.composite
 def low_rank_captures(draw):
@@ -103,6 +109,7 @@ def test_hand_shape_on_the_hyperplane_is_unchanged(data, seed, projection):
 # Alpha
 # ----------------------------------------------------------------------------------------------------------
 
+
 @st.composite
 def alpha_problems(draw):
     n_points = draw(st.integers(1, 8))
@@ -138,6 +145,7 @@ def test_alpha_does_not_change_with_units_and_rms_scales(problem, factor, chunk)
 # Weights of eq. 5
 # ----------------------------------------------------------------------------------------------------------
 
+
 @st.composite
 def weight_problems(draw):
     n_shapes = draw(st.integers(1, 5))
@@ -168,10 +176,11 @@ def test_constrained_weights_satisfy_kkt_and_agree_with_scipy(problem, kind):
     if kind == "nnls":
         reference = np.array([nnls(basis.T, target)[0] for target in targets])
     else:
-        reference = np.array([lsq_linear(basis.T, target, bounds=(lower, upper), method="bvls", tol=1e-14).x
-                              for target in targets])
+        reference = np.array(
+            [lsq_linear(basis.T, target, bounds=(lower, upper), method="bvls", tol=1e-14).x for target in targets]
+        )
     ours, theirs = objective(basis, targets, weights), objective(basis, targets, reference)
-    np.testing.assert_allclose(ours, theirs, rtol=1e-7, atol=1e-10 * (np.sum(targets ** 2) + 1.0))
+    np.testing.assert_allclose(ours, theirs, rtol=1e-7, atol=1e-10 * (np.sum(targets**2) + 1.0))
 
 
 @examples(40)
@@ -180,17 +189,26 @@ def test_least_squares_weights_agree_with_numpy(problem):
     basis, targets = problem
     weights = solve_weights(basis, targets).weights
     reference = np.linalg.lstsq(basis.T, targets.T, rcond=None)[0].T
-    np.testing.assert_allclose(objective(basis, targets, weights), objective(basis, targets, reference),
-                               rtol=1e-9, atol=1e-10 * (np.sum(targets ** 2) + 1.0))
+    np.testing.assert_allclose(
+        objective(basis, targets, weights),
+        objective(basis, targets, reference),
+        rtol=1e-9,
+        atol=1e-10 * (np.sum(targets**2) + 1.0),
+    )
 
 
 # ----------------------------------------------------------------------------------------------------------
 # NaN or Inf anywhere in a core input is refused
 # ----------------------------------------------------------------------------------------------------------
 
+
 @examples(40)
-@given(low_rank_captures(), seeds, st.sampled_from([np.nan, np.inf, -np.inf]),
-       st.sampled_from(["fit", "solve_basis", "solve_targets", "alpha_captured", "alpha_reconstructed", "hand"]))
+@given(
+    low_rank_captures(),
+    seeds,
+    st.sampled_from([np.nan, np.inf, -np.inf]),
+    st.sampled_from(["fit", "solve_basis", "solve_targets", "alpha_captured", "alpha_reconstructed", "hand"]),
+)
 def test_non_finite_core_inputs_are_refused(data, seed, value, where):
     capture, _ = data
     rng = np.random.default_rng(seed)
@@ -230,8 +248,9 @@ coordinates = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 def obj_meshes(draw):
     """(text, vertices, polygon sizes, 0-based corners) of a valid OBJ with mixed corner syntax."""
     n_vertices = draw(st.integers(3, 12))
-    vertices = np.array(draw(st.lists(st.tuples(coordinates, coordinates, coordinates),
-                                      min_size=n_vertices, max_size=n_vertices)))
+    vertices = np.array(
+        draw(st.lists(st.tuples(coordinates, coordinates, coordinates), min_size=n_vertices, max_size=n_vertices))
+    )
     polygons = draw(st.lists(st.lists(st.integers(0, n_vertices - 1), min_size=3, max_size=5), max_size=6))
     corner = draw(st.sampled_from(["{i}", "{i}/{i}", "{i}//{i}", "{i}/{i}/{i}"]))
     lines = ["# written by a property test", "o mesh"]
@@ -261,7 +280,7 @@ def test_damaged_obj_is_an_error_or_a_valid_mesh(tmp_path_factory, mesh, data):
     raw = text.encode()
     damage = data.draw(st.sampled_from(["truncate", "garbage"]))
     if damage == "truncate":
-        raw = raw[:data.draw(st.integers(0, len(raw) - 1))]
+        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
     else:
         position = data.draw(st.integers(0, len(raw)))
         raw = raw[:position] + data.draw(st.binary(min_size=1, max_size=16)) + raw[position:]
@@ -295,6 +314,7 @@ def test_nan_text_in_an_obj_is_an_error(tmp_path_factory, mesh, data, word):
 # ----------------------------------------------------------------------------------------------------------
 # Live Link Face CSV files
 # ----------------------------------------------------------------------------------------------------------
+
 
 @st.composite
 def livelink_takes(draw):
@@ -332,7 +352,7 @@ def test_damaged_livelink_csv_is_an_error_or_a_valid_take(tmp_path_factory, take
     text, weights, _ = take
     raw = text.encode()
     if data.draw(st.booleans()):
-        raw = raw[:data.draw(st.integers(0, len(raw) - 1))]
+        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
     else:
         position = data.draw(st.integers(0, len(raw)))
         raw = raw[:position] + data.draw(st.binary(min_size=1, max_size=16)) + raw[position:]
@@ -359,14 +379,18 @@ def test_nan_text_in_a_livelink_csv_is_an_error(tmp_path_factory, take, data, wo
     lines[row] = ",".join(cells)
     path = fresh(tmp_path_factory.getbasetemp(), ".csv")
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(WorkbenchError, match=rf"row {row + 1}, column {ARKIT_NAMES[column - 2]}: .* is not a finite "
-                                             r"number"):
+    with pytest.raises(
+        WorkbenchError,
+        match=rf"row {row + 1}, column {ARKIT_NAMES[column - 2]}: .* is not a finite "
+        r"number",
+    ):
         read_livelink_csv(path)
 
 
 # ----------------------------------------------------------------------------------------------------------
 # C3D files
 # ----------------------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def small_c3d(tmp_path_factory):
@@ -397,7 +421,7 @@ def small_c3d(tmp_path_factory):
 def test_truncated_c3d_is_an_error_unless_only_padding_was_cut(tmp_path_factory, small_c3d, data):
     raw, positions, _ = small_c3d
     path = fresh(tmp_path_factory.getbasetemp(), ".c3d")
-    path.write_bytes(raw[:data.draw(st.integers(0, len(raw) - 1))])
+    path.write_bytes(raw[: data.draw(st.integers(0, len(raw) - 1))])
     try:
         take = read_c3d_markers(path)
     except WorkbenchError as error:
@@ -413,7 +437,7 @@ def test_garbage_in_c3d_frames_is_an_error_or_gaps(tmp_path_factory, small_c3d, 
     position = data.draw(st.integers(data_start, len(raw) - 1))
     garbage = data.draw(st.binary(min_size=1, max_size=32))
     path = fresh(tmp_path_factory.getbasetemp(), ".c3d")
-    path.write_bytes(raw[:position] + garbage + raw[position + len(garbage):])
+    path.write_bytes(raw[:position] + garbage + raw[position + len(garbage) :])
     try:
         take = read_c3d_markers(path)
     except WorkbenchError as error:

@@ -11,10 +11,9 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.settings.config import resolved_without_hydra
-from workbench.settings.config import REPO_ROOT, compose
-from workbench.dataset import build_captures
 from workbench.core.errors import WorkbenchError
+from workbench.dataset import build_captures
+from workbench.settings.config import REPO_ROOT, compose, resolved_without_hydra
 
 UPPER = {"browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "browDown_L", "browDown_R"}
 
@@ -44,8 +43,7 @@ def test_ict_livelink_mesh_and_virtual_markers(ict_livelink):
     assert len(mesh.hand_names) == 18 and len(UPPER & set(mesh.hand_names)) == 6
     assert not {"mouthClose", "PupilDilate_L", "PupilDilate_R"} & set(mesh.hand_names)
     # Virtual markers are the mesh's own vertices: the same motion and hand shapes there.
-    vertices = np.array([mesh.point_labels.index(f"v{v}") for v in
-                         mesh.provenance["virtual_marker_vertices"].values()])
+    vertices = np.array([mesh.point_labels.index(f"v{v}") for v in mesh.provenance["virtual_marker_vertices"].values()])
     as_points = mesh.train.reshape(101, -1, 3)[:, vertices]
     np.testing.assert_allclose(markers.train.reshape(101, -1, 3), as_points)
     np.testing.assert_allclose(markers.hand.reshape(18, -1, 3), mesh.hand.reshape(18, -1, 3)[:, vertices])
@@ -63,9 +61,13 @@ def test_ict_livelink_performance_is_the_weighted_blend(shared_data, ict_livelin
     mesh = ict_livelink["mesh"]
     mapping = mesh.provenance["arkit_mapping"]
     take = read_livelink_csv(shared_data / "livelinkface" / "alex_rom_3.csv")
-    face = load_blendshapes(shared_data / "ict-facekit" / "FaceXModel", neutral_file="generic_neutral_mesh.obj",
-                            names=sorted({shape for targets in mapping.values() for shape in targets}),
-                            region_vertices=9409, unit_mm=10.0)
+    face = load_blendshapes(
+        shared_data / "ict-facekit" / "FaceXModel",
+        neutral_file="generic_neutral_mesh.obj",
+        names=sorted({shape for targets in mapping.values() for shape in targets}),
+        region_vertices=9409,
+        unit_mm=10.0,
+    )
     frame = 37  # of every 40th: frame 1480 of the take
     expected = np.zeros((9409, 3))
     for channel, weight in zip(take.names, take.weights[frame * 40]):
@@ -86,8 +88,9 @@ def test_animface_markers_and_mesh(animface, shared_data):
     assert markers.point_labels[0] == "Leyebrow_M" and markers.frame_rate == 3.0 and markers.units == "mm"
     for capture in (markers, mesh):
         assert "performer and basis come from different faces" in capture.notes[0]
-        assert any("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0" in credit
-                   for credit in capture.provenance["credits"])
+        assert any(
+            "AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0" in credit for credit in capture.provenance["credits"]
+        )
     # RBF with smoothing 0 reproduces the marker displacements at the markers' vertices.
     placed = markers.provenance["placement"]["vertices"]
     vertices = [placed[label] for label in markers.point_labels]
@@ -105,25 +108,33 @@ def test_animface_markers_and_mesh(animface, shared_data):
     # The capture's noise floor, in the provenance (metrics.json) and in the notes the run prints.
     floor = markers.provenance["noise_floor_mm"]
     assert 0.3 < floor["stabilisation_residual_rms"] < 2.5 and 0 < floor["marker_jitter_rms"] < 0.5
-    assert sum(note.startswith("noise floor: stabilisation residual ") and "below the capture's noise" in note
-               for note in markers.notes) == 1
+    assert (
+        sum(
+            note.startswith("noise floor: stabilisation residual ") and "below the capture's noise" in note
+            for note in markers.notes
+        )
+        == 1
+    )
 
 
 def test_animface_neutral_is_the_rest_face_of_its_take(animface, shared_data):
     """The default neutral is the jaw take's frame nearest its median pose (head motion removed), and the notes say
     how far it lies from that pose; the take's first frame holds the inner brows off rest."""
     from workbench.dataset.animface import neutral_rest
-    from workbench.formats.c3d import read_c3d_markers
     from workbench.dataset.rigid import stabilise
+    from workbench.formats.c3d import read_c3d_markers
 
     rest = animface["markers"].provenance["neutral_from_rest_mm"]
     assert rest["take_frame_nearest_rest"] == 1544 and rest["rms"] < 0.8
     assert animface["markers"].provenance["neutral"] == "animface_jaw frame 1544"  # dataset.neutral_frame: null
-    assert any(note.startswith("the neutral, animface_jaw frame 1544, lies") and "it is the take's frame nearest"
-               in note for note in animface["mesh"].notes)
+    assert any(
+        note.startswith("the neutral, animface_jaw frame 1544, lies") and "it is the take's frame nearest" in note
+        for note in animface["mesh"].notes
+    )
     take = read_c3d_markers(shared_data / "animface/animface_jaw.c3d")
-    rigid = take.index_of(["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"],
-                          named_in="the test")
+    rigid = take.index_of(
+        ["ForeHead_M", "ForeHead_L", "ForeHead_R", "NoseTop", "Leye_Inside", "Reye_Inside"], named_in="the test"
+    )
     markers = stabilise(take.positions, rigid, take.positions[0, rigid]).markers
     first = neutral_rest(markers, take.labels, 0)
     assert first.nearest_frame == 1544 and first.rms_mm > 2 * rest["rms"]
@@ -159,8 +170,11 @@ def test_animface_timeline_is_the_files_frames_and_times(animface, shared_data):
         np.testing.assert_array_equal(timeline.frame[mine], np.arange(0, take.n_frames, 20))
         np.testing.assert_allclose(timeline.seconds[mine], np.arange(0, take.n_frames, 20) / 60.0)
         lengths[name] = take.n_frames / 60.0
-    assert [timeline.take[start] for start, _ in timeline.take_spans()] == ["animface_jaw", "animface_cheeks",
-                                                                          "animface_eyebrows"]
+    assert [timeline.take[start] for start, _ in timeline.take_spans()] == [
+        "animface_jaw",
+        "animface_cheeks",
+        "animface_eyebrows",
+    ]
     # one axis through the three takes: the whole capture (about 66 s), not the sub-sampled count over 60 Hz
     assert abs(timeline.elapsed()[-1] - sum(lengths.values())) < 20 / 60.0 + 1e-9
     assert timeline.label(1) == "animface_jaw frame 20 (t = 0.33 s)"
@@ -168,8 +182,13 @@ def test_animface_timeline_is_the_files_frames_and_times(animface, shared_data):
 
 
 def test_animface_takes_are_configurable(shared_data):
-    cfg = dataset_cfg(shared_data, "animface", "dataset.takes=[animface/animface_eyebrows.c3d]",
-                      "dataset.max_frames_per_take=50", "dataset.train_on=markers")
+    cfg = dataset_cfg(
+        shared_data,
+        "animface",
+        "dataset.takes=[animface/animface_eyebrows.c3d]",
+        "dataset.max_frames_per_take=50",
+        "dataset.train_on=markers",
+    )
     captures = build_captures(cfg)
     assert list(captures) == ["markers"] and captures["markers"].train.shape == (50, 3 * 35)  # the face markers
     assert "animface_eyebrows 50 frames" in captures["markers"].notes[1]
@@ -177,13 +196,18 @@ def test_animface_takes_are_configurable(shared_data):
     assert captures["markers"].provenance["neutral"].startswith("animface_eyebrows frame ")
 
 
-@pytest.mark.parametrize("override,message", [
-    ("dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
-     r"animface_jaw\.c3d: unknown marker label\(s\) \['Ear_L'\] named in dataset\.rigid_markers"),
-    ("dataset.hand_shapes=[jawOpen,smile]", r"dataset\.hand_shapes names \['smile'\], which the blendshape folder"),
-    ("dataset.takes=[animface/none.c3d]", r"none\.c3d: C3D file not found"),
-    ("dataset.rbf.kernel=spline", r"rbf\.kernel must be one of"),
-])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        (
+            "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
+            r"animface_jaw\.c3d: unknown marker label\(s\) \['Ear_L'\] named in dataset\.rigid_markers",
+        ),
+        ("dataset.hand_shapes=[jawOpen,smile]", r"dataset\.hand_shapes names \['smile'\], which the blendshape folder"),
+        ("dataset.takes=[animface/none.c3d]", r"none\.c3d: C3D file not found"),
+        ("dataset.rbf.kernel=spline", r"rbf\.kernel must be one of"),
+    ],
+)
 def test_animface_configuration_errors(shared_data, override, message):
     with pytest.raises(WorkbenchError, match=message):
         build_captures(dataset_cfg(shared_data, "animface", "dataset.max_frames_per_take=20", override))
@@ -205,10 +229,20 @@ def test_geodesic_rbf_beats_euclidean_on_the_ict_ground_truth(ict_livelink):
     truth = mesh.train.reshape(len(mesh.train), -1, 3)
     neutral = mesh.neutral.reshape(-1, 3)
     errors = {}
-    for metric, kernel, epsilon, degree in (("geodesic", "inverse_multiquadric", 0.05, 0),
-                                            ("euclidean", "thin_plate_spline", None, 1)):
-        operator = mesh_rbf_operator(neutral, mesh.faces, vertices, np.arange(len(neutral)), metric=metric,
-                                     kernel=kernel, epsilon=epsilon, degree=degree)
+    for metric, kernel, epsilon, degree in (
+        ("geodesic", "inverse_multiquadric", 0.05, 0),
+        ("euclidean", "thin_plate_spline", None, 1),
+    ):
+        operator = mesh_rbf_operator(
+            neutral,
+            mesh.faces,
+            vertices,
+            np.arange(len(neutral)),
+            metric=metric,
+            kernel=kernel,
+            epsilon=epsilon,
+            degree=degree,
+        )
         estimate = interpolate_frames(operator, markers.train.reshape(len(markers.train), -1, 3))
         errors[metric] = np.sqrt(np.mean(np.sum((estimate - truth) ** 2, axis=2)))
     assert errors["geodesic"] < 0.8 * errors["euclidean"]
@@ -227,8 +261,9 @@ def assert_paper_regime_has_m_equal_n(table):
 
 
 def test_paper_study_on_ict_livelink(shared_data, tmp_path):
-    text, table, metrics = paper_table(shared_data, tmp_path, "dataset=ict_livelink", "dataset.frame_step=20",
-                                       "dataset.mesh_vertex_step=4")
+    text, table, metrics = paper_table(
+        shared_data, tmp_path, "dataset=ict_livelink", "dataset.frame_step=20", "dataset.mesh_vertex_step=4"
+    )
     assert list(table["data"].unique()) == ["mesh m=n", "mesh", "markers m=n", "markers"]  # the paper's m = n first
     assert {"H", "QE", "QE-linear", "PCA"} == set(table["basis"])
     assert_paper_regime_has_m_equal_n(table)
@@ -240,8 +275,9 @@ def test_paper_study_on_ict_livelink(shared_data, tmp_path):
 
 
 def test_paper_study_on_animface_trains_on_markers_and_mesh(shared_data, tmp_path):
-    text, table, metrics = paper_table(shared_data, tmp_path, "dataset=animface", "dataset.frame_step=10",
-                                       "dataset.mesh_vertex_step=4")
+    text, table, metrics = paper_table(
+        shared_data, tmp_path, "dataset=animface", "dataset.frame_step=10", "dataset.mesh_vertex_step=4"
+    )
     assert list(table["data"].unique()) == ["markers m=n", "markers", "mesh m=n", "mesh"]
     assert len(table) == 4 * 10
     assert_paper_regime_has_m_equal_n(table)
@@ -255,10 +291,21 @@ def test_paper_study_on_animface_trains_on_markers_and_mesh(shared_data, tmp_pat
 
 def test_cli_names_an_unknown_marker_label_in_one_line(shared_data, tmp_path):
     result = subprocess.run(
-        [sys.executable, "-m", "workbench", "dataset=animface", f"paths.data_root={shared_data}",
-         "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]", f"hydra.run.dir={tmp_path / 'run'}"],
-        capture_output=True, text=True, cwd=tmp_path, timeout=600,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+        [
+            sys.executable,
+            "-m",
+            "workbench",
+            "dataset=animface",
+            f"paths.data_root={shared_data}",
+            "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=600,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+    )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("workbench: error: ")
@@ -275,13 +322,19 @@ def test_data_file_checksums_name_every_file_and_folder_a_config_reads(tmp_path)
     (tmp_path / "faces").mkdir()
     for name, data in (("b.obj", b"bee"), ("a.obj", b"ay")):
         (tmp_path / "faces" / name).write_bytes(data)
-    cfg = {"kind": "takes", "data_root": str(tmp_path), "takes": ["takes/a.c3d"],
-           "blendshapes": {"folder": "faces", "neutral": "a.obj"}, "marker_table": "correspondence/animface_ict.csv"}
+    cfg = {
+        "kind": "takes",
+        "data_root": str(tmp_path),
+        "takes": ["takes/a.c3d"],
+        "blendshapes": {"folder": "faces", "neutral": "a.obj"},
+        "marker_table": "correspondence/animface_ict.csv",
+    }
     found = data_file_checksums(cfg)
     assert list(found) == ["takes/a.c3d", "faces", "conf/correspondence/animface_ict.csv"]  # 'kind' names no file
     assert found["takes/a.c3d"] == {"sha256": hashlib.sha256(b"first").hexdigest(), "bytes": 5}
     # a folder: the SHA-256 of `sha256sum *` in it, file names sorted
-    lines = "".join(f"{hashlib.sha256(data).hexdigest()}  {name}\n" for name, data in (("a.obj", b"ay"),
-                                                                                      ("b.obj", b"bee")))
+    lines = "".join(
+        f"{hashlib.sha256(data).hexdigest()}  {name}\n" for name, data in (("a.obj", b"ay"), ("b.obj", b"bee"))
+    )
     assert found["faces"] == {"sha256": hashlib.sha256(lines.encode()).hexdigest(), "bytes": 5, "files": 2}
     assert data_file_checksums({"kind": "synthetic", "seed": 0}) == {}

@@ -5,7 +5,14 @@ import numpy as np
 import pytest
 
 from workbench.core.errors import WorkbenchError
-from workbench.numerics.frames import FramesOnDisk, FrameWriter, checksum_path, frame_chunks, is_stored_frames, written_intact
+from workbench.numerics.frames import (
+    FramesOnDisk,
+    FrameWriter,
+    checksum_path,
+    frame_chunks,
+    is_stored_frames,
+    written_intact,
+)
 from workbench.numerics.metrics import reference_squares, summarise_alpha, summarise_squares
 from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
@@ -28,11 +35,11 @@ def test_distances_equal_the_explicit_residuals_including_frames_in_the_span():
     spaces = {"B": Subspace(reduction.u), "PCA": Subspace(centred_basis, mean)}
     out = project_frames(frames, spaces, neutral, chunk_size=64)
     explicit = frames - (frames @ reduction.u) @ reduction.u.T
-    np.testing.assert_allclose(out.distance_sq["B"], np.sum(explicit ** 2, axis=1), rtol=1e-10, atol=1e-20)
+    np.testing.assert_allclose(out.distance_sq["B"], np.sum(explicit**2, axis=1), rtol=1e-10, atol=1e-20)
     assert np.all(out.distance_sq["B"][:5] < 1e-20)  # no cancellation noise where the frame is in the span
     assert out.n_explicit >= 5
     explicit = (frames - mean) - ((frames - mean) @ centred_basis) @ centred_basis.T
-    np.testing.assert_allclose(out.distance_sq["PCA"], np.sum(explicit ** 2, axis=1), rtol=1e-10, atol=1e-20)
+    np.testing.assert_allclose(out.distance_sq["PCA"], np.sum(explicit**2, axis=1), rtol=1e-10, atol=1e-20)
     np.testing.assert_allclose(out.coordinates["PCA"], (frames - mean) @ centred_basis, rtol=1e-12, atol=1e-12)
     displacement_sq, position_sq = reference_squares(neutral, frames)
     np.testing.assert_allclose(out.displacement_sq, displacement_sq, rtol=1e-13)
@@ -59,7 +66,7 @@ def test_frames_written_chunk_by_chunk_read_back(tmp_path, dtype):
     frames = np.random.default_rng(2).standard_normal((37, 12))
     writer = FrameWriter(tmp_path / "frames.npy", 37, 12, dtype)
     for start in range(0, 37, 10):
-        writer.write(frames[start:start + 10])
+        writer.write(frames[start : start + 10])
     stored = writer.close()
     assert isinstance(stored, FramesOnDisk) and stored.shape == (37, 12) and is_stored_frames(stored)
     expected = frames.astype(dtype).astype(float)
@@ -116,19 +123,30 @@ def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
 
 
 def study_alphas(tmp_path, *overrides):
-    from workbench.settings.config import resolved_without_hydra
-    from workbench.settings.config import compose
     from workbench.dataset.cache import clear_memory
+    from workbench.settings.config import compose, resolved_without_hydra
     from workbench.study.run import run_study
 
     clear_memory()
-    cfg = resolved_without_hydra(compose("paper", ["dataset.n_frames=400", "dataset.mesh_rows=24",
-                                                   "dataset.mesh_cols=20", "dataset.train_on=mesh", "solver=all",
-                                                   "basis.paper_regime=false",
-                                                   f"paths.cache_dir={tmp_path}", *overrides]))
+    cfg = resolved_without_hydra(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=400",
+                "dataset.mesh_rows=24",
+                "dataset.mesh_cols=20",
+                "dataset.train_on=mesh",
+                "solver=all",
+                "basis.paper_regime=false",
+                f"paths.cache_dir={tmp_path}",
+                *overrides,
+            ],
+        )
+    )
     (result,) = run_study(cfg)
-    return result, np.array([[row.alpha.absolute_mean, row.alpha.displacement_mean, row.alpha.rms_mm]
-                             for row in result.rows])
+    return result, np.array(
+        [[row.alpha.absolute_mean, row.alpha.displacement_mean, row.alpha.rms_mm] for row in result.rows]
+    )
 
 
 def test_mesh_study_in_float32_and_on_disk_matches_float64_in_memory(tmp_path):
@@ -164,8 +182,9 @@ def test_exact_pca_of_stored_frames_streams_the_covariance_and_equals_the_in_mem
     stored = writer.close()
     exact = frames.astype(dtype).astype(np.float64)
     mean = exact.mean(axis=0)
-    np.testing.assert_allclose(frames_covariance(stored, mean, chunk_size=7), np.cov(exact.T, bias=True),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        frames_covariance(stored, mean, chunk_size=7), np.cov(exact.T, bias=True), rtol=0, atol=1e-12
+    )
     from_disk, in_memory = Eigenfaces(svd_solver="exact").fit(stored), Eigenfaces(svd_solver="exact").fit(exact)
     assert from_disk.method_ == in_memory.method_ == "covariance" and from_disk.n_components_ == 6
     np.testing.assert_allclose(from_disk.explained_variance_, in_memory.explained_variance_, rtol=1e-12)

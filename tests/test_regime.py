@@ -4,9 +4,9 @@ printed header and the summary."""
 import pandas as pd
 import pytest
 
-from workbench.settings.config import compose
 from workbench.reporting.findings import beside_regime_text
 from workbench.reporting.run_text import study_header
+from workbench.settings.config import compose
 from workbench.study.regime import paper_regime_fit
 from workbench.study.run import run_study
 
@@ -64,12 +64,16 @@ def test_no_extra_fit_when_the_coverage_rule_already_gives_m_equal_n(regime_run)
 
 
 def test_the_summary_states_the_coverage_rule_beside_the_m_equal_n_run():
-    rows = [{"data": data, "basis": basis, "solver": solver, "m": m, "alpha": value}
-            for data, m, values in (("markers m=n", 18, (1.8, 0.7, 0.5)), ("markers", 33, (1.8, 1.44, 0.3)))
-            for (basis, solver), value in zip((("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection")), values)]
+    rows = [
+        {"data": data, "basis": basis, "solver": solver, "m": m, "alpha": value}
+        for data, m, values in (("markers m=n", 18, (1.8, 0.7, 0.5)), ("markers", 33, (1.8, 1.44, 0.3)))
+        for (basis, solver), value in zip((("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection")), values)
+    ]
     table = pd.DataFrame(rows)
-    assert beside_regime_text(table, "markers m=n", "alpha") == \
-        " Beside it, the coverage rule on markers (m = 33): H/QE 1.25, QE/PCA 4.8."
+    assert (
+        beside_regime_text(table, "markers m=n", "alpha")
+        == " Beside it, the coverage rule on markers (m = 33): H/QE 1.25, QE/PCA 4.8."
+    )
     assert beside_regime_text(table, "markers", "alpha") == ""
 
 
@@ -87,8 +91,7 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     summary = run_summary(table, "alpha_abs_mean", metrics)
     assert "On markers m=n (m = 18 eigenfaces, n = 18 hand shapes: the paper's regime (m = n))" in summary
     assert "QE's basis: condition number " in summary and "Beside it, the coverage rule on markers (m = " in summary
-    lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {},
-                         metrics)
+    lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {}, metrics)
     assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
     assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1
     assert sum(len(line.split()) for line in lines) <= 800

@@ -6,10 +6,10 @@ import sys
 
 import pytest
 
-from workbench.settings.config import REPO_ROOT
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.pages import main, report_folder
 from workbench.reporting.report_sections import commit_text, versions_section
+from workbench.settings.config import REPO_ROOT
 
 CONFIG = {"study": "paper", "dataset": {"kind": "synthetic"}}
 
@@ -19,8 +19,12 @@ def texts(section):
 
 
 def test_a_run_and_a_report_outside_a_git_checkout_say_so():
-    metrics = {"git": {"commit": None, "dirty": None}, "versions": {"numpy": "2.0"}, "config_hash": "abc",
-               "started_at": "2026-01-02T03:04:05+00:00"}
+    metrics = {
+        "git": {"commit": None, "dirty": None},
+        "versions": {"numpy": "2.0"},
+        "config_hash": "abc",
+        "started_at": "2026-01-02T03:04:05+00:00",
+    }
     builder = {"git": {"commit": None, "dirty": None}, "packages": {"numpy": "2.0"}}
     run_line, report_line = texts(versions_section(metrics, builder))
     assert run_line == "Run made on 2026-01-02 03:04 UTC not a git checkout, config hash `abc`."
@@ -49,8 +53,13 @@ def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, t
 def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(tmp_path):
     reports = REPO_ROOT / "reports"
     before = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
-    result = subprocess.run([sys.executable, "-m", "workbench", "report", str(tmp_path), "--reference", "--name", ""],
-                            capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "report", str(tmp_path), "--reference", "--name", ""],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "--name" in lines[0] and "not empty" in lines[0], result.stderr
@@ -81,13 +90,23 @@ def test_the_report_of_a_run_that_saved_no_inputs_draws_every_figure(run_without
     readme, page = (out / "README.md").read_text(), (out / "index.html").read_text()
     assert "not drawn" not in readme.lower() and "not drawn" not in page.lower()
     assert 'class="missing"' not in page
-    for name in ("fig2_hand_vs_quasi_eigen", "fig3_reconstructions", "fig4_marker_errors", "vertex_rms",
-                 "weight_curves", "alpha_over_time", "marker_vs_mesh", "animation", "view3d"):
+    for name in (
+        "fig2_hand_vs_quasi_eigen",
+        "fig3_reconstructions",
+        "fig4_marker_errors",
+        "vertex_rms",
+        "weight_curves",
+        "alpha_over_time",
+        "marker_vs_mesh",
+        "animation",
+        "view3d",
+    ):
         assert any(path.stem == name for path in (out / "figures").iterdir()), name
 
 
-def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(run_without_inputs, tmp_path,
-                                                                                 monkeypatch):
+def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(
+    run_without_inputs, tmp_path, monkeypatch
+):
     def unreadable(config):
         raise WorkbenchError("dataset.blendshapes: no file /data/ICT/face.obj")
 
@@ -95,10 +114,12 @@ def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(r
     out = tmp_path / "report"
     assert main([str(run_without_inputs), "--out", str(out)]) == 0
     readme = (out / "README.md").read_text()
-    assert ("**Figure 3: captured frames and their reconstructions**: not drawn (needs the frames of a mesh data "
-            "variant (a run with dataset.train_on=[markers,mesh]), or those of a marker variant and the dataset's "
-            "face mesh to carry them onto; the run saved no inputs and its data could not be read again: "
-            "dataset.blendshapes: no file /data/ICT/face.obj)") in readme
+    assert (
+        "**Figure 3: captured frames and their reconstructions**: not drawn (needs the frames of a mesh data "
+        "variant (a run with dataset.train_on=[markers,mesh]), or those of a marker variant and the dataset's "
+        "face mesh to carry them onto; the run saved no inputs and its data could not be read again: "
+        "dataset.blendshapes: no file /data/ICT/face.obj)"
+    ) in readme
 
 
 def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):
@@ -118,13 +139,21 @@ def test_the_html_page_escapes_every_text_and_the_markdown_keeps_it_as_written()
     from workbench.reporting.report_figures import FigureEntry
     from workbench.reporting.report_sections import Section
 
-    sections = [Section("A <b> & c", ["`x<y` and **bold <i>** end", ["item <z>"],
-                                      pd.DataFrame({"key": ["<td>"], "value": [1.5]}),
-                                      FigureEntry("stem", "Fig <1>", "cap `c`", missing="needs <mesh>")])]
+    sections = [
+        Section(
+            "A <b> & c",
+            [
+                "`x<y` and **bold <i>** end",
+                ["item <z>"],
+                pd.DataFrame({"key": ["<td>"], "value": [1.5]}),
+                FigureEntry("stem", "Fig <1>", "cap `c`", missing="needs <mesh>"),
+            ],
+        )
+    ]
     page = render_html("T <script>", sections)
     assert "<title>T &lt;script&gt;</title>" in page and "<h2>A &lt;b&gt; &amp; c</h2>" in page
     assert "<p><code>x&lt;y</code> and <strong>bold &lt;i&gt;</strong> end</p>" in page
-    assert "<li>item &lt;z&gt;</li>" in page and "<td>&lt;td&gt;</td><td class=\"num\">1.5</td>" in page
+    assert "<li>item &lt;z&gt;</li>" in page and '<td>&lt;td&gt;</td><td class="num">1.5</td>' in page
     assert "<strong>Fig &lt;1&gt;</strong>: not drawn (needs &lt;mesh&gt;)." in page
     assert "<script>" not in page.split("</h1>")[0]
     readme = render_markdown("T <script>", sections)

@@ -12,11 +12,10 @@ import pandas as pd
 import pytest
 
 from workbench.api import run
-from workbench.settings.config import REPO_ROOT, compose
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE, config_hash
-from workbench.settings.config import run_dir_name
 from workbench.record.tracking import LOCK_FILE, clear_partial, prepare_run_dir, record_state
+from workbench.settings.config import REPO_ROOT, compose, run_dir_name
 
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
 N_RUNS = 6
@@ -32,28 +31,35 @@ def cli_env() -> dict:
 
 
 def run_sweep(sweep_dir: Path, cwd: Path, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(sweep_command(sweep_dir, *extra), capture_output=True, text=True, cwd=cwd, timeout=600,
-                          env=cli_env())
+    return subprocess.run(
+        sweep_command(sweep_dir, *extra), capture_output=True, text=True, cwd=cwd, timeout=600, env=cli_env()
+    )
 
 
 def snapshot(folder: Path) -> dict:
     """Every file of a run folder: inode, modification time (ns) and content."""
-    return {path.name: (path.stat().st_ino, path.stat().st_mtime_ns, path.read_bytes())
-            for path in sorted(folder.iterdir())}
+    return {
+        path.name: (path.stat().st_ino, path.stat().st_mtime_ns, path.read_bytes()) for path in sorted(folder.iterdir())
+    }
 
 
 def comparable(table: pd.DataFrame) -> pd.DataFrame:
     """A collected table without what differs between two sweeps of the same runs (folders, timings)."""
     if "metric" in table.columns:
         table = table[~table["metric"].str.startswith("time_")].reset_index(drop=True)
-    return table.drop(columns=[column for column in table.columns
-                               if column == "sweep" or column.startswith("time_")])
+    return table.drop(columns=[column for column in table.columns if column == "sweep" or column.startswith("time_")])
 
 
 def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
     sweep = tmp_path / "killed"
-    process = subprocess.Popen(sweep_command(sweep), cwd=tmp_path, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.DEVNULL, env=cli_env(), start_new_session=True)
+    process = subprocess.Popen(
+        sweep_command(sweep),
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=cli_env(),
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 300
     while not list(sweep.glob("*/done")):
         assert process.poll() is None, "the sweep ended before any run finished"
@@ -84,22 +90,27 @@ def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
     complete = run_sweep(uninterrupted, tmp_path)
     assert complete.returncode == 0, complete.stderr
     for name in ("runs", "summary"):
-        pd.testing.assert_frame_equal(comparable(pd.read_parquet(sweep / "collected" / f"{name}.parquet")),
-                                      comparable(pd.read_parquet(uninterrupted / "collected" / f"{name}.parquet")))
-    assert (sweep / "collected" / "alpha_table.md").read_text() == \
-        (uninterrupted / "collected" / "alpha_table.md").read_text()
+        pd.testing.assert_frame_equal(
+            comparable(pd.read_parquet(sweep / "collected" / f"{name}.parquet")),
+            comparable(pd.read_parquet(uninterrupted / "collected" / f"{name}.parquet")),
+        )
+    assert (sweep / "collected" / "alpha_table.md").read_text() == (
+        uninterrupted / "collected" / "alpha_table.md"
+    ).read_text()
     assert sorted(path.name for path in sweep.iterdir()) == sorted(path.name for path in uninterrupted.iterdir())
 
 
 def test_parallel_sweep_with_joblib_launcher(tmp_path):
     """The sweep through Hydra's joblib launcher (two worker processes) names and records its runs the same way."""
     sweep = tmp_path / "parallel"
-    result = run_sweep(sweep, tmp_path, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "dataset.seed=0",
-                       "basis.coverage=0.9,0.99")
+    result = run_sweep(
+        sweep, tmp_path, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "dataset.seed=0", "basis.coverage=0.9,0.99"
+    )
     assert result.returncode == 0, result.stderr
     assert sorted(path.parent.name for path in sweep.glob("*/done")) == [
         "basis.coverage=0.9,dataset.n_frames=500,dataset.seed=0",
-        "basis.coverage=0.99,dataset.n_frames=500,dataset.seed=0"]
+        "basis.coverage=0.99,dataset.n_frames=500,dataset.seed=0",
+    ]
     assert "collected 2 runs" in result.stdout
     # determinism: the same runs in one sequential process give byte-identical tables (same BLAS thread count)
     sequential = tmp_path / "sequential"

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from workbench.dataset.rigid import kabsch, stabilise
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.rigid import kabsch, stabilise
 
 
 def moved_markers(n_frames=50, seed=0):
@@ -39,7 +39,7 @@ def test_stabilise_residual_reports_noise():
     noisy = moved + np.random.default_rng(1).normal(0, 0.5, moved.shape)
     residual = stabilise(noisy, np.arange(20, 27), reference).residual_rms
     # Fitting 6 rigid parameters to 21 noisy coordinates leaves sqrt(15/21) of the noise per coordinate.
-    assert np.mean(residual ** 2) == pytest.approx(3 * 0.25 * 15 / 21, rel=0.1)
+    assert np.mean(residual**2) == pytest.approx(3 * 0.25 * 15 / 21, rel=0.1)
 
 
 def test_stabilise_needs_three_rigid_markers():

@@ -11,18 +11,19 @@ from pathlib import Path
 
 import pytest
 
-from workbench.settings.config import REPO_ROOT
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE
 from workbench.record.tracking import LOCK_FILE, check_run_dir, clear_partial, discard_failed_run
+from workbench.settings.config import REPO_ROOT
 
 SMALL = ["dataset.n_frames=300", "solver=lstsq"]
 
 
 def workbench(*arguments, cwd, pythonpath=REPO_ROOT):
     env = dict(os.environ, PYTHONPATH=str(pythonpath), OPENBLAS_NUM_THREADS="1", PYTHONDONTWRITEBYTECODE="1")
-    return subprocess.run([sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+    )
 
 
 def snapshot(folder: Path) -> dict:
@@ -33,8 +34,9 @@ def snapshot(folder: Path) -> dict:
         if "__pycache__" in path.parts:
             continue
         is_file = path.is_file()
-        found[str(path.relative_to(folder))] = ((hashlib.sha256(path.read_bytes()).hexdigest(),
-                                                 path.lstat().st_mtime_ns) if is_file else "folder")
+        found[str(path.relative_to(folder))] = (
+            (hashlib.sha256(path.read_bytes()).hexdigest(), path.lstat().st_mtime_ns) if is_file else "folder"
+        )
     return found
 
 
@@ -76,11 +78,15 @@ def test_the_current_directory_is_never_a_run_folder_even_in_a_copy_of_the_check
         line = one_error_line(workbench(*SMALL, run_dir, cwd=checkout, pythonpath=checkout))
         assert "a run writes into a folder of its own" in line, line
     # the output root itself, whatever it holds (here: the checkout's files)
-    line = one_error_line(workbench(*SMALL, "paths.output_root=.", "hydra.run.dir=${paths.output_root}",
-                                    cwd=checkout, pythonpath=checkout))
+    line = one_error_line(
+        workbench(
+            *SMALL, "paths.output_root=.", "hydra.run.dir=${paths.output_root}", cwd=checkout, pythonpath=checkout
+        )
+    )
     assert "a run writes into a folder of its own" in line
-    line = one_error_line(workbench(*SMALL, "hydra.sweep.dir=", "dataset.seed=0,1", "-m", cwd=checkout,
-                                    pythonpath=checkout))
+    line = one_error_line(
+        workbench(*SMALL, "hydra.sweep.dir=", "dataset.seed=0,1", "-m", cwd=checkout, pythonpath=checkout)
+    )
     assert line.startswith("workbench: error: hydra.sweep.dir is empty")
     assert snapshot(checkout) == before, "a file of the checkout was touched"
 
@@ -91,8 +97,9 @@ def test_the_output_root_as_run_folder_is_refused_and_kept(tmp_path):
     assert first.returncode == 0, first.stderr
     (root / "notes.txt").write_text("mine\n")
     before = snapshot(root)
-    line = one_error_line(workbench(*SMALL, f"paths.output_root={root}", "hydra.run.dir=${paths.output_root}",
-                                    cwd=tmp_path))
+    line = one_error_line(
+        workbench(*SMALL, f"paths.output_root={root}", "hydra.run.dir=${paths.output_root}", cwd=tmp_path)
+    )
     assert f"{root} is not empty and holds no run record (notes.txt, paper)" in line
     assert snapshot(root) == before
 
@@ -134,8 +141,15 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
 def test_clean_up_removes_record_files_only(tmp_path):
     folder = tmp_path / "run"
     folder.mkdir()
-    for name in (LOCK_FILE, "config.yaml", ".metrics.json.ab12cd.tmp", "inputs_markers.npz", "workbench.log",
-                 "notes.txt", "figure.png"):
+    for name in (
+        LOCK_FILE,
+        "config.yaml",
+        ".metrics.json.ab12cd.tmp",
+        "inputs_markers.npz",
+        "workbench.log",
+        "notes.txt",
+        "figure.png",
+    ):
         (folder / name).write_text("x")
     assert clear_partial(folder) == [".metrics.json.ab12cd.tmp", "config.yaml", "inputs_markers.npz"]
     assert sorted(path.name for path in folder.iterdir()) == [LOCK_FILE, "figure.png", "notes.txt", "workbench.log"]
@@ -143,9 +157,17 @@ def test_clean_up_removes_record_files_only(tmp_path):
     assert sorted(path.name for path in folder.iterdir()) == [LOCK_FILE, "figure.png", "notes.txt"]
 
 
-@pytest.mark.parametrize("names, accepted", [
-    ((), True), ((LOCK_FILE, "config.yaml", "workbench.log"), True), ((DONE, "notes.txt"), True),
-    (("config.yaml",), False), ((LOCK_FILE, "notes.txt"), False), (("notes.txt",), False)])
+@pytest.mark.parametrize(
+    "names, accepted",
+    [
+        ((), True),
+        ((LOCK_FILE, "config.yaml", "workbench.log"), True),
+        ((DONE, "notes.txt"), True),
+        (("config.yaml",), False),
+        ((LOCK_FILE, "notes.txt"), False),
+        (("notes.txt",), False),
+    ],
+)
 def test_which_folders_a_run_may_write_into(tmp_path, names, accepted):
     folder = tmp_path / "run"
     folder.mkdir()

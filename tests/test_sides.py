@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from workbench.numerics.bases import pca_to_qe_weights, quasi_eigen_faces
-from workbench.reporting.sides import (left_side, pair_sides, shared_term, side_pairs, sides_finding, sides_frame)
+from workbench.reporting.sides import left_side, pair_sides, shared_term, side_pairs, sides_finding, sides_frame
 
 
 def face() -> np.ndarray:
@@ -31,8 +31,11 @@ def symmetric_capture(n_frames: int = 200, one_sided: float = 0.0, offset=None, 
     brow alone, plus a constant ``offset`` in every frame."""
     rng = np.random.default_rng(seed)
     brows, mouth, left = rng.normal(size=(3, n_frames))
-    frames = (brows[:, None] * (HAND[0] + HAND[1]) / 6 + mouth[:, None] * (HAND[2] + HAND[3]) / 8
-              + one_sided * left[:, None] * HAND[0] / 6)
+    frames = (
+        brows[:, None] * (HAND[0] + HAND[1]) / 6
+        + mouth[:, None] * (HAND[2] + HAND[3]) / 8
+        + one_sided * left[:, None] * HAND[0] / 6
+    )
     return frames + (0.0 if offset is None else offset)
 
 
@@ -101,5 +104,7 @@ def test_the_table_marks_the_faces_that_cross():
     bases, components, _ = bases_of(frames, 2)
     table = sides_frame(pair_sides(face(), frames, components, NAMES, bases))
     assert list(table["pair"]) == ["browInnerUp", "mouthSmile"]
-    assert table.loc[0, "QE _L own / other"] == "3.0 / 3.6 !" and table.loc[0, "QE-linear _L own / other"] == "3.0 / 3.0"
+    assert (
+        table.loc[0, "QE _L own / other"] == "3.0 / 3.6 !" and table.loc[0, "QE-linear _L own / other"] == "3.0 / 3.0"
+    )
     assert table.loc[0, "H _L own / other"] == "6.0 / 0.0" and table.loc[0, "kept L-R"] == "0.00"

@@ -8,8 +8,8 @@ from scipy.optimize import lsq_linear, nnls
 
 import workbench.numerics.solve
 from workbench.core.errors import WorkbenchError
-from workbench.numerics.solve import WeightSolution, kkt_violation, reconstruct, solve_weights
 from workbench.core.tolerances import TOL
+from workbench.numerics.solve import WeightSolution, kkt_violation, reconstruct, solve_weights
 
 N_FRAMES = 200
 
@@ -45,9 +45,7 @@ def scipy_bvls(basis, targets, lower, upper):
     weights = np.tile(np.where(fixed, lo, 0.0), (len(targets), 1))
     rest = targets - lo[fixed] @ basis[fixed]
     bounds = (lo[~fixed], hi[~fixed])
-    weights[:, ~fixed] = [
-        lsq_linear(basis[~fixed].T, d, bounds=bounds, method="bvls", tol=1e-12).x for d in rest
-    ]
+    weights[:, ~fixed] = [lsq_linear(basis[~fixed].T, d, bounds=bounds, method="bvls", tol=1e-12).x for d in rest]
     return weights
 
 
@@ -238,9 +236,7 @@ def test_box_is_unit_invariant():
 # ----------------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0), ("box", -0.2, 0.4)]
-)
+@pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0), ("box", -0.2, 0.4)])
 def test_kkt_conditions_hold(kind, lower, upper):
     basis, targets = random_problem(8, 18, 198)
     sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper)
@@ -367,8 +363,7 @@ def scipy_reference(basis, targets, lower, upper):
     if lower is None:
         return np.array([nnls(basis.T, d, maxiter=1000)[0] for d in targets])
     bounds = (lower, upper)
-    return np.array([lsq_linear(basis.T, d, bounds=bounds, method="bvls", tol=1e-12, max_iter=1000).x
-                     for d in targets])
+    return np.array([lsq_linear(basis.T, d, bounds=bounds, method="bvls", tol=1e-12, max_iter=1000).x for d in targets])
 
 
 @pytest.mark.parametrize("structure", STRUCTURES)
@@ -387,8 +382,10 @@ def test_rank_deficient_basis_matches_scipy_without_fallback(structure, kind, lo
     gram, rhs = basis @ basis.T, targets[some] @ basis.T
     assert np.all(kkt_violation(gram, rhs, expected, sol.lower, sol.upper) <= 1e-8)  # a trustworthy reference
     np.testing.assert_allclose(
-        objective(basis, targets[some], sol.weights[some]), objective(basis, targets[some], expected),
-        rtol=1e-8, atol=0,
+        objective(basis, targets[some], sol.weights[some]),
+        objective(basis, targets[some], expected),
+        rtol=1e-8,
+        atol=0,
     )
 
 
@@ -409,8 +406,7 @@ def test_rank_deficient_basis_without_warm_start(monkeypatch, kind, lower, upper
 @pytest.mark.parametrize("kind, lower, upper", [("nnls", None, None), ("box", 0.0, 1.0)])
 def test_rank_deficient_basis_falls_back_to_exact_scipy(kind, lower, upper):
     basis, targets = rank_deficient_problem("projected", 6, n_frames=100)
-    sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper,
-                        tol=replace(TOL, active_set_max_iter=0))
+    sol = solve_weights(basis, targets, kind=kind, lower=lower, upper=upper, tol=replace(TOL, active_set_max_iter=0))
     assert sol.n_fallback_frames >= 90
     assert sol.max_kkt_violation <= TOL.kkt
     expected = scipy_reference(basis, targets, lower, upper)
@@ -547,12 +543,25 @@ def with_nan(array, value=np.nan):
         (GOOD_BASIS, np.empty((0, 6)), {}, r"targets must not be empty"),
         (GOOD_BASIS, [["a"] * 6], {}, r"targets must be a numeric array"),
         (GOOD_BASIS, GOOD_TARGETS, {"kind": "qp"}, r"kind must be one of lstsq, nnls, box"),
-        (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "lower": 0.5, "upper": 0.2},
-         r"lower \(0\.5\) must not exceed upper \(0\.2\)"),
-        (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "lower": [0.0, 0.9, 0.0], "upper": 0.5},
-         r"lower\[1\] \(0\.9\) must not exceed upper\[1\] \(0\.5\)"),
+        (
+            GOOD_BASIS,
+            GOOD_TARGETS,
+            {"kind": "box", "lower": 0.5, "upper": 0.2},
+            r"lower \(0\.5\) must not exceed upper \(0\.2\)",
+        ),
+        (
+            GOOD_BASIS,
+            GOOD_TARGETS,
+            {"kind": "box", "lower": [0.0, 0.9, 0.0], "upper": 0.5},
+            r"lower\[1\] \(0\.9\) must not exceed upper\[1\] \(0\.5\)",
+        ),
         (GOOD_BASIS, GOOD_TARGETS, {"kind": "box"}, r"kind 'box' needs lower or upper"),
-        (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "lower": [0.0, 0.0]}, r"lower must be a scalar or have shape \(3,\)"),
+        (
+            GOOD_BASIS,
+            GOOD_TARGETS,
+            {"kind": "box", "lower": [0.0, 0.0]},
+            r"lower must be a scalar or have shape \(3,\)",
+        ),
         (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "upper": np.nan}, r"upper must not contain NaN"),
         (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "lower": np.inf}, r"lower must not be inf"),
         (GOOD_BASIS, GOOD_TARGETS, {"kind": "box", "upper": -np.inf}, r"upper must not be -inf"),

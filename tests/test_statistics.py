@@ -9,21 +9,35 @@ import math
 import numpy as np
 import pytest
 
-from workbench.core.errors import WorkbenchError
-from workbench.stats import statistics
 from benchmarks import block_bootstrap
 from benchmarks.block_bootstrap import block_bootstrap_totals, optimal_block_length
-from workbench.stats.statistics import (BATCH_MEANS, GEOMETRIC, PAIRED_LOG_RATIO, PAIRED_T, SIGNED, Interval,
-                                            comparison_lookup, geometric_interval, interval_text, ordering_text,
-                                            paired_difference_interval, paired_mean_difference,
-                                            paired_pooled_difference, paired_ratio_interval, reversed_interval,
-                                            t_interval)
+from workbench.core.errors import WorkbenchError
+from workbench.stats import statistics
+from workbench.stats.statistics import (
+    BATCH_MEANS,
+    GEOMETRIC,
+    PAIRED_LOG_RATIO,
+    PAIRED_T,
+    SIGNED,
+    Interval,
+    comparison_lookup,
+    geometric_interval,
+    interval_text,
+    ordering_text,
+    paired_difference_interval,
+    paired_mean_difference,
+    paired_pooled_difference,
+    paired_ratio_interval,
+    reversed_interval,
+    t_interval,
+)
 
 T_975_2 = 4.302652729749462  # Student t, 97.5 % quantile, 2 degrees of freedom (tables: 4.3027)
 T_975_4 = 2.7764451051977934  # 4 degrees of freedom (tables: 2.7764)
 
 
 # --- across replicates -------------------------------------------------------------------------------------------
+
 
 def test_geometric_interval_of_1_2_4_by_hand():
     # logs 0, ln 2, 2 ln 2: mean ln 2, sample sd ln 2; bounds 2 exp(-+ t ln 2 / sqrt 3)
@@ -72,7 +86,8 @@ def test_paired_ratio_interval_by_hand():
     assert interval.excludes_null and interval.sign == -1  # the first is smaller on every seed, by 10 % or more
     back = reversed_interval(interval)
     assert (back.estimate, back.low, back.high) == pytest.approx(
-        (1 / interval.estimate, 1 / interval.high, 1 / interval.low))
+        (1 / interval.estimate, 1 / interval.high, 1 / interval.low)
+    )
     assert back.sign == 1
 
 
@@ -98,13 +113,14 @@ def test_paired_difference_interval_by_hand():
 def test_interval_text_names_the_method_and_n():
     interval = Interval(0.012, 0.004, 0.02, 5, PAIRED_T, null=0.0)
     assert interval_text(interval) == "difference 0.012, 95 % interval [0.004, 0.02] (paired t, n = 5)"
-    assert interval_text(interval, "QE/H", "{:.3f}") == \
-        "QE/H 0.012, 95 % interval [0.004, 0.020] (paired t, n = 5)"
+    assert interval_text(interval, "QE/H", "{:.3f}") == "QE/H 0.012, 95 % interval [0.004, 0.020] (paired t, n = 5)"
     lone = paired_ratio_interval([0.2], [0.3])
     assert interval_text(lone, "QE/H") == "QE/H 0.667 (no interval: paired t on log ratios, n = 1)"
     constant = paired_ratio_interval([0.98, 0.98], [1.0, 1.0])  # a fixed ratio on replicates that did not vary
-    assert not constant.excludes_null and interval_text(constant, "A/B") == \
-        "A/B 0.98 (no interval: the same on every replicate)"
+    assert (
+        not constant.excludes_null
+        and interval_text(constant, "A/B") == "A/B 0.98 (no interval: the same on every replicate)"
+    )
     with pytest.raises(ValueError, match="no null"):
         geometric_interval([1.0, 2.0]).excludes_null
     with pytest.raises(ValueError, match="can be reversed"):
@@ -115,11 +131,12 @@ def test_interval_text_names_the_method_and_n():
 
 # --- within a run ------------------------------------------------------------------------------------------------
 
+
 def ar1(n: int, phi: float, rng: np.random.Generator) -> np.ndarray:
     """A stationary AR(1) series with unit innovations."""
     noise = rng.standard_normal(n)
     series = np.empty(n)
-    series[0] = noise[0] / math.sqrt(1.0 - phi ** 2)
+    series[0] = noise[0] / math.sqrt(1.0 - phi**2)
     for t in range(1, n):
         series[t] = phi * series[t - 1] + noise[t]
     return series
@@ -130,7 +147,7 @@ def test_block_length_follows_the_theory_on_autoregressive_series():
     rng = np.random.default_rng(1)
     n = 20000
     for phi in (0.5, 0.9):
-        theory = (1.5 * (2 * phi / (1 - phi ** 2)) ** 2) ** (1 / 3) * n ** (1 / 3)
+        theory = (1.5 * (2 * phi / (1 - phi**2)) ** 2) ** (1 / 3) * n ** (1 / 3)
         assert optimal_block_length(ar1(n, phi, rng)) == pytest.approx(theory, rel=0.2)
     assert optimal_block_length(rng.standard_normal(n)) < 4  # no memory: blocks of about one frame
 
@@ -166,8 +183,9 @@ def test_the_normal_route_has_the_bootstrap_s_exact_mean_and_covariance(monkeypa
     monkeypatch.setattr(block_bootstrap, "NORMAL_FROM_BLOCKS", 1)
     normal = block_bootstrap_totals(series, 7, np.random.default_rng(4), takes=takes, n_resamples=40000)
     # the circular scheme draws every frame equally often: the mean total is the series' own total
-    np.testing.assert_allclose(normal.mean(axis=0), series.sum(axis=1), atol=4 * np.sqrt(np.diag(np.cov(drawn.T))
-                                                                                        / 40000).max())
+    np.testing.assert_allclose(
+        normal.mean(axis=0), series.sum(axis=1), atol=4 * np.sqrt(np.diag(np.cov(drawn.T)) / 40000).max()
+    )
     # covariances agree to the Monte Carlo error of 40,000 draws (about 1 % of the variances)
     np.testing.assert_allclose(np.cov(normal.T), np.cov(drawn.T), atol=0.04 * np.diag(np.cov(drawn.T)).max())
 
@@ -215,8 +233,7 @@ def test_the_within_run_interval_draws_nothing():
 def test_the_interval_covers_the_true_difference_about_as_often_as_it_says():
     # 200 AR(1) series (phi 0.5, mean 0) of 1,000 frames: the 95 % interval of the mean holds 0 in about 95 %
     rng = np.random.default_rng(6)
-    held = [paired_mean_difference(ar1(1000, 0.5, rng), np.zeros(1000))
-            for k in range(200)]
+    held = [paired_mean_difference(ar1(1000, 0.5, rng), np.zeros(1000)) for k in range(200)]
     coverage = np.mean([interval.low <= 0.0 <= interval.high for interval in held])
     assert 0.88 <= coverage <= 0.99
 
@@ -225,8 +242,8 @@ def stationary_ar1(rng: np.random.Generator, n: int, phi: float, count: int) -> 
     """``count`` stationary AR(1) series of shape (count, n) with unit stationary variance."""
     from scipy.signal import lfilter
 
-    noise = rng.standard_normal((count, n)) * math.sqrt(1.0 - phi ** 2)
-    noise[:, 0] /= math.sqrt(1.0 - phi ** 2)
+    noise = rng.standard_normal((count, n)) * math.sqrt(1.0 - phi**2)
+    noise[:, 0] /= math.sqrt(1.0 - phi**2)
     return lfilter([1.0], [1.0, -phi], noise, axis=1)
 
 
@@ -248,8 +265,10 @@ def test_batch_means_cover_a_strongly_autocorrelated_pooled_difference():
     rng = np.random.default_rng(31)
     first, second = stationary_ar1(rng, 800, 0.99, 200), stationary_ar1(rng, 800, 0.99, 200)
     truth = 5.0 * math.exp(1.0 / 16.0)  # 100 (sqrt(E exp(x/2)) - sqrt(E exp(y/2) / 4)) / 10, E exp(x/2) = e^(1/8)
-    held = [paired_pooled_difference(np.exp(a / 2.0), np.exp(b / 2.0) / 4.0, np.full(800, 100.0))
-            for a, b in zip(first, second)]
+    held = [
+        paired_pooled_difference(np.exp(a / 2.0), np.exp(b / 2.0) / 4.0, np.full(800, 100.0))
+        for a, b in zip(first, second)
+    ]
     assert np.mean([interval.low <= truth <= interval.high for interval in held]) >= COVERAGE_FLOOR
 
 
@@ -301,28 +320,33 @@ def test_pooled_difference_is_the_difference_of_the_pooled_alphas():
 
 def test_ordering_states_less_than_only_with_an_interval_that_excludes_zero():
     values = {"H": 1.08, "QE": 1.21, "QE-linear": 1.04, "PCA": 0.19}
-    stored = [{"a": ["PCA"], "b": ["QE-linear"], "estimate": -0.85, "low": -0.9, "high": -0.8},
-              {"a": ["H"], "b": ["QE-linear"], "estimate": 0.04, "low": -0.01, "high": 0.09, "n": 5,
-               "method": PAIRED_T},
-              {"a": ["H"], "b": ["QE"], "estimate": -0.13, "low": -0.2, "high": -0.06}]
+    stored = [
+        {"a": ["PCA"], "b": ["QE-linear"], "estimate": -0.85, "low": -0.9, "high": -0.8},
+        {"a": ["H"], "b": ["QE-linear"], "estimate": 0.04, "low": -0.01, "high": 0.09, "n": 5, "method": PAIRED_T},
+        {"a": ["H"], "b": ["QE"], "estimate": -0.13, "low": -0.2, "high": -0.06},
+    ]
     lookup = comparison_lookup(stored)
     compare = lambda a, b: lookup((a,), (b,))  # noqa: E731
     assert ordering_text(values, compare) == (
         "PCA 0.19 < QE-linear 1.04 ~ H 1.08 (QE-linear - H -0.04, 95 % interval [-0.09, +0.01] (paired t, n = 5): "
-        "not distinguishable) < QE 1.21")
+        "not distinguishable) < QE 1.21"
+    )
     # without comparisons nothing is claimed
     assert ordering_text(values, lambda a, b: None) == "PCA 0.19, QE-linear 1.04, H 1.08, QE 1.21"
     # the same ordering from ratios over replicates: a tie is named by its ratio
     ratio = paired_ratio_interval([0.9, 1.1, 1.0], [1.0, 1.0, 1.0])
     assert ordering_text({"QE": 1.0, "H": 1.01}, lambda a, b: ratio) == (
-        f"QE 1 ~ H 1.01 ({interval_text(ratio, 'QE/H', '{:.4g}')}: not distinguishable)")
+        f"QE 1 ~ H 1.01 ({interval_text(ratio, 'QE/H', '{:.4g}')}: not distinguishable)"
+    )
 
 
 def test_interval_text_and_round_trip():
-    interval = Interval(estimate=0.0231, low=0.0104, high=0.0358, method="m", n=10, null=0.0, block_frames=3,
-                        block_seconds=0.025)
-    assert interval_text(interval, "QE - H", SIGNED) == ("QE - H +0.0231, 95 % interval [+0.0104, +0.0358] (m, blocks "
-                                                         "of 3 frames = 0.025 s, n = 10)")
+    interval = Interval(
+        estimate=0.0231, low=0.0104, high=0.0358, method="m", n=10, null=0.0, block_frames=3, block_seconds=0.025
+    )
+    assert interval_text(interval, "QE - H", SIGNED) == (
+        "QE - H +0.0231, 95 % interval [+0.0104, +0.0358] (m, blocks of 3 frames = 0.025 s, n = 10)"
+    )
     assert Interval.from_dict(interval.as_dict()) == interval
     # a comparison stored before the two interval types were one: its level is the confidence, its null 0
     stored = {"estimate": 0.0231, "low": 0.0104, "high": 0.0358, "level": 0.9, "method": "m", "n": 10}

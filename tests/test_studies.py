@@ -10,16 +10,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose
+from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.decimate import decimate
 from workbench.dataset.gaps import apply_gap_policy, longest_run, make_gap_mask
 from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, make_face_mesh, make_synthetic_take
 from workbench.dataset.transfer import point_transfer
-from workbench.core.errors import WorkbenchError
+from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose, resolved_without_hydra
 from workbench.study.protocols import hand_subset_indices
 from workbench.study.run import run_study
-from workbench.settings.config import resolved_without_hydra
 
 STUDIES = ("coverage", "basis_count", "marker_mesh", "noise", "choices", "generalisation")
 
@@ -29,6 +28,7 @@ def plain_config(study="paper", overrides=()):
 
 
 # --- options the studies sweep -------------------------------------------------------------------------------
+
 
 def test_hand_subsets():
     assert [MUSCLE_NAMES[i] for i in hand_subset_indices(MUSCLE_NAMES, "upper", 0)] == list(UPPER_FACE)
@@ -40,8 +40,11 @@ def test_hand_subsets():
     assert drawn.tolist() == hand_subset_indices(MUSCLE_NAMES, "random6", 3).tolist()
     assert drawn.tolist() != hand_subset_indices(MUSCLE_NAMES, "random6", 4).tolist()
     assert hand_subset_indices(MUSCLE_NAMES, ["jaw_open", "mentalis"], 0).tolist() == [15, 17]
-    for spec, message in (("random0", "1 <= k <= 18"), ("middle", "all, upper, lower, random<k>"),
-                          (["nose"], "distinct hand shapes")):
+    for spec, message in (
+        ("random0", "1 <= k <= 18"),
+        ("middle", "all, upper, lower, random<k>"),
+        (["nose"], "distinct hand shapes"),
+    ):
         with pytest.raises(WorkbenchError, match=message):
             hand_subset_indices(MUSCLE_NAMES, spec, 0)
 
@@ -59,7 +62,7 @@ def test_gap_mask_rate_length_and_seed():
 
 def test_linear_gap_filling():
     frames = np.arange(10, dtype=float)
-    positions = np.stack([np.stack([2 * frames, -frames, frames ** 2], axis=1)] * 2, axis=1)  # (10, 2, 3)
+    positions = np.stack([np.stack([2 * frames, -frames, frames**2], axis=1)] * 2, axis=1)  # (10, 2, 3)
     holed = positions.copy()
     holed[3:6, 0] = np.nan  # inside: linear interpolation is exact for the linear coordinates
     holed[:2, 1] = np.nan  # at the start: the first sample is held
@@ -95,13 +98,17 @@ def test_point_transfers():
     selection = point_transfer(mesh, markers)
     assert selection.method == "coincident"
     fields = rng.normal(size=(4, 600 * 3))
-    np.testing.assert_array_equal(selection.apply(fields), fields.reshape(4, 600, 3)[:, [5, 50, 300, 7, 120, 9, 44,
-                                                                                           210, 333, 500]].reshape(4, -1))
+    np.testing.assert_array_equal(
+        selection.apply(fields), fields.reshape(4, 600, 3)[:, [5, 50, 300, 7, 120, 9, 44, 210, 333, 500]].reshape(4, -1)
+    )
     rbf = point_transfer(markers, mesh)
     assert rbf.method == "rbf"
     affine = np.array([[1.0, 2.0, -1.0], [0.5, 0.0, 3.0], [0.0, 1.0, 1.0]])  # a thin-plate spline with a linear
-    np.testing.assert_allclose(rbf.apply_one((markers @ affine.T).reshape(-1)),  # tail reproduces affine fields
-                               (mesh @ affine.T).reshape(-1), atol=1e-6)
+    np.testing.assert_allclose(
+        rbf.apply_one((markers @ affine.T).reshape(-1)),  # tail reproduces affine fields
+        (mesh @ affine.T).reshape(-1),
+        atol=1e-6,
+    )
     nearest = point_transfer(mesh, markers + 0.5)
     assert nearest.method == "nearest" and nearest.max_distance == pytest.approx(np.sqrt(3) * 0.5)
 
@@ -118,8 +125,14 @@ def test_mesh_frames_at_kept_vertices_are_rows_of_the_full_mesh():
 
 
 def test_dropout_and_other_take_in_the_dataset():
-    cfg = plain_config(overrides=["dataset.n_frames=1200", "dataset.gap_rate=0.05", "dataset.split=other_take",
-                                  "dataset.train_on=[markers,mesh_rbf]"])
+    cfg = plain_config(
+        overrides=[
+            "dataset.n_frames=1200",
+            "dataset.gap_rate=0.05",
+            "dataset.split=other_take",
+            "dataset.train_on=[markers,mesh_rbf]",
+        ]
+    )
     captures = build_captures(cfg["dataset"])
     markers, interpolated = captures["markers"], captures["mesh_rbf"]
     gaps = markers.provenance["gaps"]
@@ -136,14 +149,15 @@ def test_dropout_and_other_take_in_the_dataset():
 def test_cross_evaluation_of_data_variants():
     base = ["dataset.n_frames=300", "solver=lstsq", "dataset.train_on=[markers,mesh]"]
     results = run_study(plain_config(overrides=base + ["dataset.eval_on=[markers,mesh]"]))
-    assert [result.data for result in results] == ["markers->markers", "markers->mesh", "mesh->markers",
-                                                    "mesh->mesh"]
+    assert [result.data for result in results] == ["markers->markers", "markers->mesh", "mesh->markers", "mesh->mesh"]
     assert [result.transfer for result in results] == ["identity", "rbf", "coincident", "identity"]
     assert [result.capture.n_points for result in results] == [66, 4200, 66, 4200]
     same = {result.data: result for result in run_study(plain_config(overrides=base))}
     for cross, own in (("markers->markers", "markers"), ("mesh->mesh", "mesh")):
-        crossed = {(row.basis, row.solver): row.alpha.absolute_mean for row in results[
-            [result.data for result in results].index(cross)].rows}
+        crossed = {
+            (row.basis, row.solver): row.alpha.absolute_mean
+            for row in results[[result.data for result in results].index(cross)].rows
+        }
         assert crossed == {(row.basis, row.solver): row.alpha.absolute_mean for row in same[own].rows}
     # a basis fitted on the mesh and carried to the markers (vertex selection) scores its own restriction
     mesh_to_markers = results[2]
@@ -176,8 +190,10 @@ def test_marker_mesh_scores_every_basis_on_the_same_evaluation_points():
     assert list(study.dataset.eval_on) == ["markers", "face"]
     scored = {}
     for fraction in (1.0, 0.25):
-        cfg = plain_config("marker_mesh", ["dataset.n_frames=200", "dataset.train_on=[markers,mesh_rbf,mesh]",
-                                           f"dataset.mesh_fraction={fraction}"])
+        cfg = plain_config(
+            "marker_mesh",
+            ["dataset.n_frames=200", "dataset.train_on=[markers,mesh_rbf,mesh]", f"dataset.mesh_fraction={fraction}"],
+        )
         for result in run_study(cfg):
             scored.setdefault(result.eval_on, []).append(result)
     assert sorted(scored) == ["face", "markers"]
@@ -198,22 +214,38 @@ def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
     study = compose("noise")
     params = {key: str(value).split(",") for key, value in study.hydra.sweeper.params.items()}
     assert params["basis.coverage_on"][0] == "clean"  # the primary axis
-    largest_noise, largest_gaps = max(map(float, params["dataset.marker_noise_mm"])), \
-        max(map(float, params["dataset.gap_rate"]))
+    largest_noise, largest_gaps = (
+        max(map(float, params["dataset.marker_noise_mm"])),
+        max(map(float, params["dataset.gap_rate"])),
+    )
     assert largest_noise == 2.0 and study.metric.score_clean
     for seed in (0, 1):
         base = ["dataset.n_frames=1000", f"dataset.seed={seed}"]
-        clean = run_study(plain_config("noise", base + ["dataset.marker_noise_mm=0", "dataset.gap_rate=0",
-                                                        "basis.coverage_on=training"]))[0]
-        noisy = run_study(plain_config("noise", base + [f"dataset.marker_noise_mm={largest_noise}",
-                                                        f"dataset.gap_rate={largest_gaps}",
-                                                        "basis.coverage_on=clean"]))[0]
-        free = run_study(plain_config("noise", base + [f"dataset.marker_noise_mm={largest_noise}",
-                                                       "basis.coverage_on=training"]))[0]
+        clean = run_study(
+            plain_config(
+                "noise", base + ["dataset.marker_noise_mm=0", "dataset.gap_rate=0", "basis.coverage_on=training"]
+            )
+        )[0]
+        noisy = run_study(
+            plain_config(
+                "noise",
+                base
+                + [
+                    f"dataset.marker_noise_mm={largest_noise}",
+                    f"dataset.gap_rate={largest_gaps}",
+                    "basis.coverage_on=clean",
+                ],
+            )
+        )[0]
+        free = run_study(
+            plain_config("noise", base + [f"dataset.marker_noise_mm={largest_noise}", "basis.coverage_on=training"])
+        )[0]
         assert noisy.eigenfaces.n_components_ == clean.eigenfaces.n_components_ < 20
         assert free.eigenfaces.n_components_ > 150  # the coverage rule on the noisy frames keeps the noise
-        assert any(note.startswith("m chosen on the clean capture: m = "
-                                   f"{clean.eigenfaces.n_components_} ") for note in noisy.capture.notes)
+        assert any(
+            note.startswith(f"m chosen on the clean capture: m = {clean.eigenfaces.n_components_} ")
+            for note in noisy.capture.notes
+        )
         # scored against the clean frames: the clean run scores the same there as against its own frames
         for row in clean.rows:
             assert row.clean_alpha.absolute_mean == pytest.approx(row.alpha.absolute_mean, rel=1e-9)
@@ -227,26 +259,35 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
     from workbench.study.protocols import clean_dataset_config, clean_frames
 
     # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
-    cfg = plain_config(overrides=["dataset.n_frames=600", "dataset.marker_noise_mm=0", "dataset.gap_rate=0.02",
-                                  "dataset.gap_policy=drop"])
+    cfg = plain_config(
+        overrides=[
+            "dataset.n_frames=600",
+            "dataset.marker_noise_mm=0",
+            "dataset.gap_rate=0.02",
+            "dataset.gap_policy=drop",
+        ]
+    )
     dropped = build_captures(cfg["dataset"])["markers"]
     clean = build_captures(clean_dataset_config(cfg["dataset"]))["markers"]
     assert len(dropped.eval) < len(clean.eval) == 600
     truth = clean_frames(dropped, clean)
     np.testing.assert_allclose(truth, dropped.eval, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(truth, clean.eval[dropped.timeline().frame])
-    tail = plain_config(overrides=["dataset.n_frames=600", "dataset.gap_rate=0.05", "dataset.gap_policy=drop",
-                                   "dataset.split=tail"])
+    tail = plain_config(
+        overrides=["dataset.n_frames=600", "dataset.gap_rate=0.05", "dataset.gap_policy=drop", "dataset.split=tail"]
+    )
     with pytest.raises(WorkbenchError, match="not among the clean capture's evaluated frames"):
-        clean_frames(build_captures(tail["dataset"])["markers"],
-                     build_captures(clean_dataset_config(tail["dataset"]))["markers"])
+        clean_frames(
+            build_captures(tail["dataset"])["markers"], build_captures(clean_dataset_config(tail["dataset"]))["markers"]
+        )
 
 
 def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rule():
     with pytest.raises(WorkbenchError, match="coverage_on must be one of"):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=noisy"]))
-    with pytest.raises(WorkbenchError, match="coverage_on=clean chooses m from the clean capture, so "
-                                             "basis.n_components must be null"):
+    with pytest.raises(
+        WorkbenchError, match="coverage_on=clean chooses m from the clean capture, so basis.n_components must be null"
+    ):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
     with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
         from workbench.study.protocols import clean_dataset_config
@@ -278,11 +319,17 @@ def test_cluster_launcher_config_composes():
 
 # --- every study's small preset, end to end through the command line -------------------------------------------
 
+
 def run_preset(study, tmp_path):
     sweep = tmp_path / study
-    result = subprocess.run([sys.executable, "-m", "workbench", "--config-name", f"{study}_small",
-                             f"hydra.sweep.dir={sweep}"], capture_output=True, text=True, cwd=tmp_path, timeout=600,
-                            env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    result = subprocess.run(
+        [sys.executable, "-m", "workbench", "--config-name", f"{study}_small", f"hydra.sweep.dir={sweep}"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=600,
+        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     collected = sweep / "collected"
     for name in ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "alpha_table.md", "alpha_table.tex"):
@@ -312,8 +359,10 @@ def test_coverage_preset(tmp_path):
     m = runs[runs["basis"] == "PCA"].set_index(["dataset.seed", "basis.coverage"])["m"]
     for seed in range(5):
         assert m[(seed, 0.95)] < m[(seed, 0.995)]
-    assert (lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.995}).to_numpy()
-            < lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.95}).to_numpy()).all()
+    assert (
+        lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.995}).to_numpy()
+        < lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.95}).to_numpy()
+    ).all()
 
 
 def test_basis_count_preset(tmp_path):
@@ -336,15 +385,18 @@ def test_marker_mesh_preset(tmp_path):
     sweep, runs, stdout = run_preset("marker_mesh", tmp_path)
     assert runs.groupby("run").ngroups == 20
     assert set(runs["data"]) == {"markers->markers", "markers->face", "mesh->markers", "mesh->face"}
-    points = runs.drop_duplicates(["dataset.mesh_fraction", "eval_on"]).set_index(
-        ["dataset.mesh_fraction", "eval_on"])["n_points"]
+    points = runs.drop_duplicates(["dataset.mesh_fraction", "eval_on"]).set_index(["dataset.mesh_fraction", "eval_on"])[
+        "n_points"
+    ]
     # one evaluation set each, whatever the mesh density the bases were fitted on
     assert points[(1.0, "markers")] == points[(0.25, "markers")] == 66
     assert points[(1.0, "face")] == points[(0.25, "face")] > 2000
     # fitted on the full dense mesh and scored on its face region, the quasi-eigen faces beat the hand shapes
     full = {"dataset.mesh_fraction": 1.0}
-    assert (lstsq_alpha(runs, "QE", data="mesh->face", **full).to_numpy()
-            < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()).all()
+    assert (
+        lstsq_alpha(runs, "QE", data="mesh->face", **full).to_numpy()
+        < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()
+    ).all()
     assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
     # the findings compare the data each basis was fitted on, within one evaluation set
     assert "scored on **face**, QE (5 seeds, lstsq) `alpha_disp_pooled` by the data fitted on: " in stdout
@@ -357,7 +409,8 @@ def test_noise_preset(tmp_path):
     sweep, runs, stdout = run_preset("noise", tmp_path)
     assert runs.groupby("run").ngroups == 40
     m = runs[runs["basis"] == "PCA"].set_index(
-        ["dataset.seed", "basis.coverage_on", "dataset.marker_noise_mm", "dataset.gap_rate"])["m"]
+        ["dataset.seed", "basis.coverage_on", "dataset.marker_noise_mm", "dataset.gap_rate"]
+    )["m"]
     for seed in range(5):
         assert m[(seed, "clean", 0.5, 0.05)] == m[(seed, "training", 0.0, 0.0)]  # m held at the clean capture's
         assert m[(seed, "training", 0.5, 0.0)] > 10 * m[(seed, "training", 0.0, 0.0)]  # the rule keeps the noise
@@ -375,7 +428,14 @@ def test_choices_preset(tmp_path):
     assert set(runs["projection"]) == {"-", "affine", "linear"}
     header = next(line for line in stdout.splitlines() if line.startswith("| basis"))
     assert [cell.strip() for cell in header.strip("|").split("|")] == [
-        "basis", "solver", "m", "alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled"]
+        "basis",
+        "solver",
+        "m",
+        "alpha_abs_mean",
+        "alpha_abs_pooled",
+        "alpha_disp_mean",
+        "alpha_disp_pooled",
+    ]
 
 
 def test_generalisation_preset(tmp_path):

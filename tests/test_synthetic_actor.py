@@ -2,13 +2,21 @@
 
 import numpy as np
 import pytest
-
 from muscles_reference import deform_reference
-from workbench.dataset.storage import FrameStorage
-from workbench.dataset.synthetic import (LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements,
-                                         make_activations, make_face_mesh, make_synthetic_take)
-from workbench.dataset.synthetic.face_mesh import eye_opening_mask
+
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.storage import FrameStorage
+from workbench.dataset.synthetic import (
+    LOWER_FACE,
+    MUSCLE_NAMES,
+    UPPER_FACE,
+    deform,
+    deform_displacements,
+    make_activations,
+    make_face_mesh,
+    make_synthetic_take,
+)
+from workbench.dataset.synthetic.face_mesh import eye_opening_mask
 from workbench.numerics.frames import FramesOnDisk
 
 MIRROR = np.array([-1.0, 1.0, 1.0])
@@ -27,8 +35,9 @@ def take():
 @pytest.fixture(scope="module")
 def still_take():
     """No head motion, no noise: markers are the deformed mesh vertices."""
-    return make_synthetic_take(n_frames=300, seed=1, head_rotation_deg=0.0, head_translation_mm=0.0,
-                               marker_noise_mm=0.0)
+    return make_synthetic_take(
+        n_frames=300, seed=1, head_rotation_deg=0.0, head_translation_mm=0.0, marker_noise_mm=0.0
+    )
 
 
 def one_hot(name, level=1.0):
@@ -61,9 +70,27 @@ def test_mesh_has_human_scale(mesh):
 def test_landmarks_are_plausible(mesh):
     v = mesh.vertices
     lm = mesh.landmarks
-    assert {"nose_tip", "chin", "mouth_corner_L", "mouth_corner_R", "upper_lip", "lower_lip", "brow_inner_L",
-            "brow_inner_R", "brow_outer_L", "brow_outer_R", "eye_inner_L", "eye_inner_R", "eye_outer_L",
-            "eye_outer_R", "forehead", "cheek_L", "cheek_R", "jaw_L", "jaw_R"} <= set(lm)
+    assert {
+        "nose_tip",
+        "chin",
+        "mouth_corner_L",
+        "mouth_corner_R",
+        "upper_lip",
+        "lower_lip",
+        "brow_inner_L",
+        "brow_inner_R",
+        "brow_outer_L",
+        "brow_outer_R",
+        "eye_inner_L",
+        "eye_inner_R",
+        "eye_outer_L",
+        "eye_outer_R",
+        "forehead",
+        "cheek_L",
+        "cheek_R",
+        "jaw_L",
+        "jaw_R",
+    } <= set(lm)
     nose = v[lm["nose_tip"]]
     assert lm["nose_tip"] == int(np.argmax(v[:, 2]))  # the most forward point of the face
     assert abs(nose[0]) < 5.0 and 95.0 <= nose[2] <= 110.0
@@ -109,6 +136,7 @@ def test_deformation_is_per_point(mesh):
 
 def test_skipping_unreachable_points_changes_nothing(mesh, monkeypatch):
     from workbench.dataset.synthetic import muscles
+
     rng = np.random.default_rng(9)
     activations = np.vstack([np.ones((1, 18)), rng.uniform(0.0, 1.0, (30, 18)), np.eye(18)])
     pruned = deform(mesh.vertices, activations)
@@ -162,9 +190,13 @@ def test_displacements_are_the_deformed_points_less_rest_rounded_once(mesh, dtyp
 
 def test_displacements_arguments_are_checked(mesh):
     activations = np.zeros((2, 18))
-    for bad in (np.empty((2, 3 * mesh.n_vertices - 1)), np.empty((3, 3 * mesh.n_vertices)),
-                np.empty((2, 3 * mesh.n_vertices), dtype=np.float16), np.empty((3 * mesh.n_vertices, 2)).T,
-                [[0.0] * 3 * mesh.n_vertices] * 2):
+    for bad in (
+        np.empty((2, 3 * mesh.n_vertices - 1)),
+        np.empty((3, 3 * mesh.n_vertices)),
+        np.empty((2, 3 * mesh.n_vertices), dtype=np.float16),
+        np.empty((3 * mesh.n_vertices, 2)).T,
+        [[0.0] * 3 * mesh.n_vertices] * 2,
+    ):
         with pytest.raises(WorkbenchError, match="out must be"):
             deform_displacements(mesh.vertices, activations, bad)
     frozen = np.empty((2, 3 * mesh.n_vertices))
@@ -179,8 +211,17 @@ def test_displacements_arguments_are_checked(mesh):
 def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
     from workbench.dataset.synthetic_builder import _mesh_frames, _take_key
 
-    cfg = {"n_frames": 61, "frame_rate": 120.0, "n_face_markers": 66, "n_head_markers": 7, "head_rotation_deg": 3.0,
-           "head_translation_mm": 5.0, "marker_noise_mm": 0.05, "mesh_rows": 30, "mesh_cols": 25}
+    cfg = {
+        "n_frames": 61,
+        "frame_rate": 120.0,
+        "n_face_markers": 66,
+        "n_head_markers": 7,
+        "head_rotation_deg": 3.0,
+        "head_translation_mm": 5.0,
+        "marker_noise_mm": 0.05,
+        "mesh_rows": 30,
+        "mesh_cols": 25,
+    }
     key = _take_key(cfg, 3)
     take = make_synthetic_take(**dict(key))
     expected = (take.mesh_sequence() - take.mesh.vertices).reshape(61, -1).astype(dtype)
@@ -224,8 +265,11 @@ def test_upper_face_muscles_leave_the_mouth_alone_and_vice_versa(mesh):
 
 def test_muscles_combine_non_linearly(mesh):
     points = mesh.vertices
-    pairs = [("zygomatic_major_L", "jaw_open"), ("orbicularis_oris", "risorius_L"),
-             ("frontalis_inner_L", "corrugator_L")]
+    pairs = [
+        ("zygomatic_major_L", "jaw_open"),
+        ("orbicularis_oris", "risorius_L"),
+        ("frontalis_inner_L", "corrugator_L"),
+    ]
     for first, second in pairs:
         both = one_hot(first) * 0.7 + one_hot(second) * 0.7
         combined = deform(points, both)[0] - points
@@ -326,8 +370,9 @@ def test_head_markers_are_rigid_and_off_the_face(take):
 
 def test_head_motion_is_a_small_smooth_rigid_motion(take):
     rotations, translations = take.head_motion.rotations, take.head_motion.translations
-    np.testing.assert_allclose(rotations @ np.swapaxes(rotations, 1, 2), np.broadcast_to(np.eye(3), rotations.shape),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        rotations @ np.swapaxes(rotations, 1, 2), np.broadcast_to(np.eye(3), rotations.shape), atol=1e-12
+    )
     np.testing.assert_allclose(np.linalg.det(rotations), 1.0, atol=1e-12)
     angle = np.degrees(np.arccos(np.clip((np.trace(rotations, axis1=1, axis2=2) - 1) / 2, -1, 1)))
     assert angle.max() <= 3.0 * np.sqrt(3) + 1e-9 and angle.max() > 0.1
@@ -346,8 +391,9 @@ def test_still_take_markers_equal_mesh_vertices(still_take):
     mesh = still_take.mesh
     face = still_take.markers[:, still_take.face_marker_index]
     assert np.array_equal(face[0], mesh.vertices[still_take.face_marker_vertices])  # the take starts at rest
-    assert np.array_equal(still_take.markers[:, still_take.head_marker_index],
-                          np.broadcast_to(still_take.head_marker_rest, (300, 7, 3)))
+    assert np.array_equal(
+        still_take.markers[:, still_take.head_marker_index], np.broadcast_to(still_take.head_marker_rest, (300, 7, 3))
+    )
     dense = still_take.mesh_sequence(200, 230)
     assert dense.shape == (30, mesh.n_vertices, 3)
     assert np.array_equal(dense[:, still_take.face_marker_vertices], face[200:230])
@@ -383,11 +429,23 @@ def test_take_arrays_are_read_only(take):
         take.markers[0, 0, 0] = 1.0
 
 
-@pytest.mark.parametrize("argument,value", [
-    ("n_frames", 0), ("n_frames", 2.5), ("frame_rate", 0.0), ("frame_rate", float("nan")),
-    ("n_face_markers", 0), ("n_face_markers", 100000), ("n_head_markers", 2), ("head_rotation_deg", -1.0),
-    ("head_translation_mm", -0.5), ("marker_noise_mm", -0.1), ("seed", -3), ("mesh_rows", 4),
-])
+@pytest.mark.parametrize(
+    "argument,value",
+    [
+        ("n_frames", 0),
+        ("n_frames", 2.5),
+        ("frame_rate", 0.0),
+        ("frame_rate", float("nan")),
+        ("n_face_markers", 0),
+        ("n_face_markers", 100000),
+        ("n_head_markers", 2),
+        ("head_rotation_deg", -1.0),
+        ("head_translation_mm", -0.5),
+        ("marker_noise_mm", -0.1),
+        ("seed", -3),
+        ("mesh_rows", 4),
+    ],
+)
 def test_bad_take_arguments_are_refused(argument, value):
     with pytest.raises(WorkbenchError, match=argument):
         make_synthetic_take(**{"n_frames": 10, argument: value})

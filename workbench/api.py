@@ -14,19 +14,19 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping, Sequence
 
-from workbench.settings.config import CHECKOUT, resolved_without_hydra, resolved_yaml_text
 from workbench.core.errors import WorkbenchError
+from workbench.settings.config import CHECKOUT, resolved_without_hydra, resolved_yaml_text
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
 
-    from workbench.formats.c3d import MarkerTake
     from workbench.dataset.capture import Capture
+    from workbench.formats.c3d import MarkerTake
+    from workbench.formats.gltf import MorphMesh
     from workbench.formats.livelink import LiveLinkTake
     from workbench.formats.obj import Blendshapes, ObjMesh
-    from workbench.formats.gltf import MorphMesh
-    from workbench.study.results import StudyResult
     from workbench.record.record import RunRecord
+    from workbench.study.results import StudyResult
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -78,8 +78,9 @@ def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "L
     return read_livelink_csv(path, timecode_rate=timecode_rate)
 
 
-def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = None,
-                       timecode_rate: float = 60.0) -> "LiveLinkTake":
+def read_weight_curves(
+    path: str | os.PathLike, *, frame_rate: float | None = None, timecode_rate: float = 60.0
+) -> "LiveLinkTake":
     """Named weight curves of a CSV or JSON file: Live Link Face, MediaPipe face blendshapes, or a generic table
     (:mod:`workbench.formats.weight_curves`).
 
@@ -108,8 +109,14 @@ def read_obj(path: str | os.PathLike) -> "ObjMesh":
     return read(path)
 
 
-def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence[str] | None = None,
-                     region_vertices: int | None = None, unit_mm: float = 1.0) -> "Blendshapes":
+def read_blendshapes(
+    folder: str | os.PathLike,
+    *,
+    neutral: str,
+    names: Sequence[str] | None = None,
+    region_vertices: int | None = None,
+    unit_mm: float = 1.0,
+) -> "Blendshapes":
     """A blendshape folder: a neutral OBJ and one OBJ per named expression (ICT FaceKit's ``FaceXModel`` layout), as
     displacements in millimetres (:func:`workbench.formats.obj.load_blendshapes`).
 
@@ -133,8 +140,7 @@ def read_blendshapes(folder: str | os.PathLike, *, neutral: str, names: Sequence
     """
     from workbench.formats.obj import load_blendshapes
 
-    return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices,
-                            unit_mm=unit_mm)
+    return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices, unit_mm=unit_mm)
 
 
 def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "MorphMesh":
@@ -152,8 +158,7 @@ def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "Morp
     return read_morph_mesh(path, mesh_name=mesh_name)
 
 
-def read_mesh_sequence(path: str | os.PathLike, *, vertices_key: str = "vertices",
-                       faces_key: str | None = "faces"):
+def read_mesh_sequence(path: str | os.PathLike, *, vertices_key: str = "vertices", faces_key: str | None = "faces"):
     """A registered mesh sequence (``.npz``, ``.npy`` or HDF5), read whole and checked
     (:func:`workbench.dataset.mesh_sequence.open_mesh_sequence`).
 
@@ -209,8 +214,9 @@ def _study_config(config) -> "DictConfig":
         return config
     if isinstance(config, Mapping):
         return OmegaConf.create(dict(config))
-    raise WorkbenchError(f"config must be a composed study config (compose_config) or a mapping of one, got "
-                         f"{type(config).__name__}")
+    raise WorkbenchError(
+        f"config must be a composed study config (compose_config) or a mapping of one, got {type(config).__name__}"
+    )
 
 
 def build_captures(config, *, cache_dir: str | None = None) -> dict[str, "Capture"]:
@@ -261,8 +267,8 @@ def run_study(config) -> list["StudyResult"]:
         One per data variant: its ``capture``, ``eigenfaces``, ``quasi_eigen`` bases, ``rows`` (the alpha table's
         rows: basis, solver and every alpha variant in ``row.alpha``) and ``weights``.
     """
-    from workbench.study.run import run_study as run
     from workbench.settings.schema import check_study_config, resolved_settings
+    from workbench.study.run import run_study as run
 
     config = _study_config(config)
     check_study_config(config)
@@ -338,16 +344,23 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     from omegaconf import OmegaConf
 
     from workbench.record.record import DONE, record_state, run_metrics, write_record
-    from workbench.study.run import run_study
-    from workbench.study.summary import (alpha_per_frame_arrays, frame_comparisons, results_metrics, saved_inputs,
-                                         saves_inputs)
     from workbench.reporting.run_text import alpha_table, headline, printed_tables, result_identities, study_header
+    from workbench.study.run import run_study
+    from workbench.study.summary import (
+        alpha_per_frame_arrays,
+        frame_comparisons,
+        results_metrics,
+        saved_inputs,
+        saves_inputs,
+    )
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     if record_state(output_dir) == "complete":
-        raise WorkbenchError(f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
-                             "overwritten: write the run elsewhere")
+        raise WorkbenchError(
+            f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
+            "overwritten: write the run elsewhere"
+        )
     from workbench.settings.schema import check_study_config
 
     check_study_config(cfg)
@@ -356,34 +369,68 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
     results = run_study(plain)
     paper_alpha = plain["paper"]["alpha"]
-    table = pd.concat([alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                                   coverage=result.eigenfaces.coverage_, paper_alpha=paper_alpha)
-                       for result in results], ignore_index=True)
+    table = pd.concat(
+        [
+            alpha_table(
+                result.rows,
+                data=result.data,
+                m=result.eigenfaces.n_components_,
+                coverage=result.eigenfaces.coverage_,
+                paper_alpha=paper_alpha,
+            )
+            for result in results
+        ],
+        ignore_index=True,
+    )
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
-    text = (study_header(results, plain) + "\n" + printed_tables(table) + "\n"
-            + headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results)))
+    text = (
+        study_header(results, plain)
+        + "\n"
+        + printed_tables(table)
+        + "\n"
+        + headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
+    )
 
-    metrics = run_metrics(results_metrics(results, table, comparisons), study=plain["study"],
-                          resolved_yaml=resolved_yaml, overrides=overrides, job_num=job_num, started_at=started_at,
-                          repository=CHECKOUT)
-    write_record(Path(output_dir), resolved_yaml=resolved_yaml, table=table, text=text, metrics=metrics,
-                 timings=dict(results[0].timings.seconds, total=time.time() - started),
-                 inputs=saved_inputs(results) if save_inputs else None,
-                 alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None)
+    metrics = run_metrics(
+        results_metrics(results, table, comparisons),
+        study=plain["study"],
+        resolved_yaml=resolved_yaml,
+        overrides=overrides,
+        job_num=job_num,
+        started_at=started_at,
+        repository=CHECKOUT,
+    )
+    write_record(
+        Path(output_dir),
+        resolved_yaml=resolved_yaml,
+        table=table,
+        text=text,
+        metrics=metrics,
+        timings=dict(results[0].timings.seconds, total=time.time() - started),
+        inputs=saved_inputs(results) if save_inputs else None,
+        alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None,
+    )
     return text
 
 
-def run_owned(cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None,
-              plain: bool) -> str | None:
+def run_owned(
+    cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None, plain: bool
+) -> str | None:
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
     holds a complete record of the same config. A folder that is not the workbench's is refused before anything
     is written into it (:func:`workbench.record.tracking.check_run_dir`). A plain run (``plain``) that fails or is
     interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
     rerun clears and redoes the run)."""
     from workbench.record.record import config_hash
-    from workbench.record.tracking import (check_run_dir, created_by_this_run, discard_failed_run, lock_run_dir,
-                                    prepare_run_dir, unlock_run_dir)
+    from workbench.record.tracking import (
+        check_run_dir,
+        created_by_this_run,
+        discard_failed_run,
+        lock_run_dir,
+        prepare_run_dir,
+        unlock_run_dir,
+    )
 
     found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
     lock = lock_run_dir(output_dir)

@@ -17,8 +17,10 @@ class WorkbenchSearchPathPlugin(SearchPathPlugin):
 
         # Only for the workbench's own apps (its studies are the primary config folder): other Hydra apps in the
         # same environment are left alone.
-        if any(element.path == f"file://{STUDIES_DIR}" or element.path == str(STUDIES_DIR)
-               for element in search_path.get_path()):
+        if any(
+            element.path == f"file://{STUDIES_DIR}" or element.path == str(STUDIES_DIR)
+            for element in search_path.get_path()
+        ):
             search_path.append(provider="workbench", path=f"{WorkbenchConfigSource.scheme()}://{CONF_DIR}")
 
 
@@ -33,5 +35,6 @@ class WorkbenchConfigSource(FileConfigSource):
 
     def is_group(self, config_path: str) -> bool:
         full_path = os.path.realpath(os.path.join(self.path, config_path))
-        return os.path.isdir(full_path) and any(name.endswith(".yaml") for _, _, names in os.walk(full_path)
-                                                for name in names)
+        return os.path.isdir(full_path) and any(
+            name.endswith(".yaml") for _, _, names in os.walk(full_path) for name in names
+        )

@@ -10,6 +10,7 @@ ranges and all) at the frame of each chosen key, and ``NPZ`` gets ``positions`` 
 Blender's coordinates (metres, +Z up) and ``frames`` (n_keys,); one line ``IMPORTED {json}`` per file says what
 came in (vertices, polygons, shape keys with their slider ranges, actions with their frame ranges, scene rate).
 """
+
 import json
 import math
 import re
@@ -61,13 +62,22 @@ def play(item):
             frames.append(frame)
     np.savez(item["out"], positions=np.array(positions), frames=np.array(frames))
     blocks = face.data.shape_keys.key_blocks
-    print("IMPORTED " + json.dumps({
-        "glb": item["glb"], "vertices": len(face.data.vertices), "polygons": len(face.data.polygons),
-        "shape_keys": [[block.name, block.slider_min, block.slider_max] for block in blocks],
-        "actions": {name: list(action.frame_range) for name, action in tracks.items()},
-        "fps": scene.render.fps, "fps_base": scene.render.fps_base,
-        "frame_range": [scene.frame_start, scene.frame_end],
-    }), flush=True)
+    print(
+        "IMPORTED "
+        + json.dumps(
+            {
+                "glb": item["glb"],
+                "vertices": len(face.data.vertices),
+                "polygons": len(face.data.polygons),
+                "shape_keys": [[block.name, block.slider_min, block.slider_max] for block in blocks],
+                "actions": {name: list(action.frame_range) for name, action in tracks.items()},
+                "fps": scene.render.fps,
+                "fps_base": scene.render.fps_base,
+                "frame_range": [scene.frame_start, scene.frame_end],
+            }
+        ),
+        flush=True,
+    )
 
 
 request = json.loads(Path(sys.argv[sys.argv.index("--") + 1]).read_text())

@@ -43,14 +43,29 @@ def blender_play(files: list[dict], timeout: float = 1200.0) -> list[dict]:
     with tempfile.TemporaryDirectory(prefix="playback-") as scratch:
         request = Path(scratch) / "request.json"
         request.write_text(json.dumps({"files": files}))
-        result = subprocess.run(["blender", "--background", "--factory-startup", "--python",
-                                 str(HERE / "blender_playback.py"), "--", str(request)],
-                                capture_output=True, text=True, timeout=timeout)
-    summaries = [json.loads(line[len("IMPORTED "):]) for line in result.stdout.splitlines()
-                 if line.startswith("IMPORTED ")]
+        result = subprocess.run(
+            [
+                "blender",
+                "--background",
+                "--factory-startup",
+                "--python",
+                str(HERE / "blender_playback.py"),
+                "--",
+                str(request),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+    summaries = [
+        json.loads(line[len("IMPORTED ") :]) for line in result.stdout.splitlines() if line.startswith("IMPORTED ")
+    ]
     if result.returncode != 0 or len(summaries) != len(files):
-        raise RuntimeError(f"blender exited {result.returncode} after {len(summaries)} of {len(files)} files:\n"
-                           + result.stdout[-3000:] + result.stderr[-3000:])
+        raise RuntimeError(
+            f"blender exited {result.returncode} after {len(summaries)} of {len(files)} files:\n"
+            + result.stdout[-3000:]
+            + result.stderr[-3000:]
+        )
     return summaries
 
 
@@ -61,8 +76,9 @@ def gltf_axes_mm(blender_positions: np.ndarray) -> np.ndarray:
     return np.stack([x, z, -y], axis=-1) * 1000.0
 
 
-def playback_differences(out: Path, manifest: dict, bases: list, neutral: np.ndarray, per_take: int = 12,
-                         scratch: Path | None = None) -> dict:
+def playback_differences(
+    out: Path, manifest: dict, bases: list, neutral: np.ndarray, per_take: int = 12, scratch: Path | None = None
+) -> dict:
     """Play every basis's .glb of an export back in Blender and compare it with the workbench's reconstruction.
 
     Parameters
@@ -91,8 +107,13 @@ def playback_differences(out: Path, manifest: dict, bases: list, neutral: np.nda
         entry = next(entry for entry in manifest["bases"] if entry["basis"] == basis.label)
         names = entry.get("animations") or [""]
         keys = chosen_keys(basis.weights, spans, per_take)
-        files.append({"glb": str(out / f"{basis.label}.glb"), "out": str(scratch / f"{basis.label}.playback.npz"),
-                      "keys": dict(zip(names, keys))})
+        files.append(
+            {
+                "glb": str(out / f"{basis.label}.glb"),
+                "out": str(scratch / f"{basis.label}.playback.npz"),
+                "keys": dict(zip(names, keys)),
+            }
+        )
         rows.append(np.concatenate([np.asarray(k) + start for k, (start, _) in zip(keys, spans)]))
     summaries = blender_play(files)
     found = {}
@@ -100,8 +121,11 @@ def playback_differences(out: Path, manifest: dict, bases: list, neutral: np.nda
         with np.load(file["out"]) as played:
             blender = gltf_axes_mm(played["positions"])
         expected = neutral[None] + (basis.weights[frame_rows] @ basis.shapes).reshape(len(frame_rows), -1, 3)
-        found[basis.label] = {"max_abs_mm": float(np.abs(blender - expected).max()), "keys": len(frame_rows),
-                              "imported": summary}
+        found[basis.label] = {
+            "max_abs_mm": float(np.abs(blender - expected).max()),
+            "keys": len(frame_rows),
+            "imported": summary,
+        }
     return found
 
 
@@ -119,13 +143,15 @@ def measure(run: Path, solvers: list[str] | None, data: str | None, per_take: in
     with tempfile.TemporaryDirectory(prefix="playback-check-") as scratch:
         for solver in solvers:
             out = Path(scratch) / solver
-            labels = None if solver == solvers[0] else [label for label in ("H", "QE", "QE-linear")
-                                                        if (label, solver) in result.weights]
+            labels = (
+                None
+                if solver == solvers[0]
+                else [label for label in ("H", "QE", "QE-linear") if (label, solver) in result.weights]
+            )
             manifest = export_run(run, out, data=data, solver=solver, bases=labels)
             bases = exported_bases(result, labels, solver, record.table)
             for label, found in playback_differences(out, manifest, bases, neutral, per_take).items():
-                measured.append((label, "projection" if label == "PCA" else solver, found["max_abs_mm"],
-                                 found["keys"]))
+                measured.append((label, "projection" if label == "PCA" else solver, found["max_abs_mm"], found["keys"]))
     return measured
 
 

@@ -129,17 +129,18 @@ def complete_runs(launcher, job_overrides: Sequence[Sequence[str]]) -> dict[int,
     """
     from hydra.core.hydra_config import HydraConfig
 
-    from workbench.settings.config import resolved_yaml_text
     from workbench.record.record import config_hash, record_state
     from workbench.record.tracking import recorded_config_hash
+    from workbench.settings.config import resolved_yaml_text
 
     found = {}
     for index, overrides in enumerate(job_overrides):
         sweep_config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, list(overrides))
         HydraConfig.instance().set_config(sweep_config)
         folder = Path(str(sweep_config.hydra.sweep.dir)) / str(sweep_config.hydra.sweep.subdir)
-        if record_state(folder) == "complete" and \
-                recorded_config_hash(folder) == config_hash(resolved_yaml_text(sweep_config)):
+        if record_state(folder) == "complete" and recorded_config_hash(folder) == config_hash(
+            resolved_yaml_text(sweep_config)
+        ):
             found[index] = folder
     HydraConfig.instance().set_config(launcher.config)
     return found
@@ -150,8 +151,15 @@ def skipped_return(launcher, overrides: Sequence[str], folder: Path):
     from hydra.core.utils import JobReturn, JobStatus
 
     sweep_config = launcher.hydra_context.config_loader.load_sweep_config(launcher.config, list(overrides))
-    return JobReturn(overrides=list(overrides), cfg=sweep_config, hydra_cfg=sweep_config, working_dir=str(folder),
-                     task_name=str(sweep_config.hydra.job.name), status=JobStatus.COMPLETED, _return_value=None)
+    return JobReturn(
+        overrides=list(overrides),
+        cfg=sweep_config,
+        hydra_cfg=sweep_config,
+        working_dir=str(folder),
+        task_name=str(sweep_config.hydra.job.name),
+        status=JobStatus.COMPLETED,
+        _return_value=None,
+    )
 
 
 def unfinished_line(job, overrides: Sequence[str]) -> str:
@@ -165,8 +173,11 @@ def unfinished_line(job, overrides: Sequence[str]) -> str:
         # the run's own error line, or SLURM's line saying why the task ended, else the last line
         telling = [line for line in lines if "workbench: error" in line or "***" in line]
         last = (telling or lines or [""])[-1]
-    return (f"{job.job_id} ({' '.join(filter_overrides(overrides))}): {state}"
-            + (f", '{last[:200]}'" if last else "") + f" [log {job.paths.stderr}]")
+    return (
+        f"{job.job_id} ({' '.join(filter_overrides(overrides))}): {state}"
+        + (f", '{last[:200]}'" if last else "")
+        + f" [log {job.paths.stderr}]"
+    )
 
 
 def launch(launcher, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> list:
@@ -203,13 +214,23 @@ def launch(launcher, job_overrides: Sequence[Sequence[str]], initial_job_idx: in
     pending = [index for index in range(len(job_overrides)) if index not in complete]
     jobs = []
     if pending:
-        job_params = [(list(job_overrides[index]), "hydra.sweep.dir", initial_job_idx + index,
-                       f"job_id_for_{initial_job_idx + index}", Singleton.get_state()) for index in pending]
+        job_params = [
+            (
+                list(job_overrides[index]),
+                "hydra.sweep.dir",
+                initial_job_idx + index,
+                f"job_id_for_{initial_job_idx + index}",
+                Singleton.get_state(),
+            )
+            for index in pending
+        ]
         jobs = [watched(job) for job in executor.map_array(launcher, *zip(*job_params))]
         array_id = jobs[0].job_id.split("_")[0]
-        log.info(f"submitted SLURM array job {array_id}: {len(jobs)} of {len(job_overrides)} runs "
-                 f"(partition {params.get('partition') or 'default'}); job logs in "
-                 f"{str(folder).replace('%j', array_id + '_<task>') if len(jobs) > 1 else jobs[0].paths.folder}")
+        log.info(
+            f"submitted SLURM array job {array_id}: {len(jobs)} of {len(job_overrides)} runs "
+            f"(partition {params.get('partition') or 'default'}); job logs in "
+            f"{str(folder).replace('%j', array_id + '_<task>') if len(jobs) > 1 else jobs[0].paths.folder}"
+        )
         for index, job in zip(pending, jobs):
             log.info(f"\t{job.job_id} : {' '.join(filter_overrides(job_overrides[index]))}")
     results, unfinished = {}, []
@@ -222,7 +243,8 @@ def launch(launcher, job_overrides: Sequence[Sequence[str]], initial_job_idx: in
     if unfinished:
         raise WorkbenchError(
             f"{len(unfinished)} of {len(jobs)} submitted runs ended without a result: {'; '.join(unfinished)}. "
-            "Complete records are kept: submit the same command again to run only the missing ones")
+            "Complete records are kept: submit the same command again to run only the missing ones"
+        )
     for index, run_folder in complete.items():
         results[index] = skipped_return(launcher, job_overrides[index], run_folder)
     return [results[index] for index in range(len(job_overrides))]

@@ -14,14 +14,30 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
-# Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
-# Hydra, pandas and the numerical code are imported by the functions that use them.
-from workbench.settings.config import (CONF_DIR, DEFAULT_STUDY, STUDIES_DIR, check_config_dirs, register_resolvers,
-                              resolved_yaml_text, study_names)
-from workbench.core.errors import (VERBOSE_FLAG, WorkbenchError, check_utf8, environment_fault, exit_on_error,
-                              show_tracebacks, single_line, tracebacks_shown)
+from workbench.core.errors import (
+    VERBOSE_FLAG,
+    WorkbenchError,
+    check_utf8,
+    environment_fault,
+    exit_on_error,
+    show_tracebacks,
+    single_line,
+    tracebacks_shown,
+)
 from workbench.core.extras import missing_extra
 from workbench.core.interrupt import caused_by_interrupt, raise_from_now_on
+
+# Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
+# Hydra, pandas and the numerical code are imported by the functions that use them.
+from workbench.settings.config import (
+    CONF_DIR,
+    DEFAULT_STUDY,
+    STUDIES_DIR,
+    check_config_dirs,
+    register_resolvers,
+    resolved_yaml_text,
+    study_names,
+)
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -63,13 +79,15 @@ def print_help(argv: Sequence[str]) -> bool:
         return False
     register_resolvers(COMMANDS)
     with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
-        cfg = compose(config_name=args.config_name or DEFAULT_STUDY, overrides=args.overrides,
-                      return_hydra_config=True)
+        cfg = compose(config_name=args.config_name or DEFAULT_STUDY, overrides=args.overrides, return_hydra_config=True)
     template = cfg.hydra.help.template
     with open_dict(cfg):
         del cfg["hydra"]
-    print(string.Template(template).safe_substitute(APP_CONFIG_GROUPS=config_groups_text(),
-                                                    CONFIG=OmegaConf.to_yaml(cfg, resolve=args.resolve)))
+    print(
+        string.Template(template).safe_substitute(
+            APP_CONFIG_GROUPS=config_groups_text(), CONFIG=OmegaConf.to_yaml(cfg, resolve=args.resolve)
+        )
+    )
     return True
 
 
@@ -89,8 +107,8 @@ def _hydra_main(cfg: DictConfig) -> None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from workbench.record.record import config_hash
     from workbench.api import run_owned
+    from workbench.record.record import config_hash
     from workbench.record.tracking import FolderBusy, as_typed
 
     hydra_cfg = HydraConfig.get()
@@ -102,8 +120,13 @@ def _hydra_main(cfg: DictConfig) -> None:
 
             for warning in check_study_config(cfg, as_typed(hydra_cfg.overrides.task), refuse_ineffective=False):
                 print(f"workbench: warning: {warning}", file=sys.stderr)
-        text = run_owned(cfg, output_dir, overrides=as_typed(hydra_cfg.overrides.task),
-                         job_num=int(hydra_cfg.job.num) if multirun else None, plain=not multirun)
+        text = run_owned(
+            cfg,
+            output_dir,
+            overrides=as_typed(hydra_cfg.overrides.task),
+            job_num=int(hydra_cfg.job.num) if multirun else None,
+            plain=not multirun,
+        )
     except FolderBusy as error:
         if not multirun:
             exit_on_error("workbench", error)
@@ -117,7 +140,8 @@ def _hydra_main(cfg: DictConfig) -> None:
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
         logging.getLogger("workbench.skip").info(
-            f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})")
+            f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
+        )
     elif multirun:
         log.info(f"done {output_dir}: {first_headline(text)}")
     else:
@@ -139,7 +163,7 @@ def first_headline(text: str) -> str:
     """The first line after the alpha table of a run's printed text (its headline), for a sweep's one-line log."""
     lines = text.splitlines()
     last_table_line = max((i for i, line in enumerate(lines) if line.startswith("|")), default=-1)
-    return next((line for line in lines[last_table_line + 1:] if line.strip()), "")
+    return next((line for line in lines[last_table_line + 1 :] if line.strip()), "")
 
 
 def complete_without_hydra() -> bool:
@@ -150,7 +174,7 @@ def complete_without_hydra() -> bool:
     words = os.environ.get("COMP_LINE", "").split(" ")
     for flag in ("--config-name=", "-cn="):
         if words[-1].startswith(flag):
-            prefix = words[-1][len(flag):]
+            prefix = words[-1][len(flag) :]
             print(" ".join(flag + study for study in study_names() if study.startswith(prefix)))
             return True
     if len(words) > 2 and words[1] in COMMANDS:
@@ -248,8 +272,7 @@ def main() -> None:
             exit_if_runs_failed(error)
         if full_error or tracebacks_shown():
             raise
-        print(f"workbench: error: {missing_extra(error) or retired_setting(error) or one_line(error)}",
-              file=sys.stderr)
+        print(f"workbench: error: {missing_extra(error) or retired_setting(error) or one_line(error)}", file=sys.stderr)
         sys.exit(2)
 
 
@@ -269,8 +292,9 @@ def one_line(error: BaseException) -> str:
         text += "\n" + str(error.__cause__)
     parts = []
     for line in text.split("Config search path:")[0].splitlines():
-        if not line.strip() or line.strip().startswith(("full_key:", "object_type=", "reference_type=",
-                                                        "Set the environment variable")):
+        if not line.strip() or line.strip().startswith(
+            ("full_key:", "object_type=", "reference_type=", "Set the environment variable")
+        ):
             continue
         if line.startswith(("\t", "    ")) and parts and parts[-1].endswith((":", ",")):
             parts[-1] += (" " if parts[-1].endswith(":") else " ") + line.strip() + ","

@@ -56,11 +56,15 @@ def closing_line(first: SweepRunFailed | None = None) -> tuple[str, int] | None:
     the failure Hydra raised from a job in another process)."""
     if FAILED:
         runs = " | ".join(str(failure) for failure in FAILED)
-        return (f"{len(FAILED)} run(s) of the sweep failed, every other run ran: {runs}; {AGAIN}",
-                max(failure.code for failure in FAILED))
+        return (
+            f"{len(FAILED)} run(s) of the sweep failed, every other run ran: {runs}; {AGAIN}",
+            max(failure.code for failure in FAILED),
+        )
     if first is not None:
-        return f"runs of the sweep failed, each named above (the first: {first.run}), every other run ran; {AGAIN}", \
-            first.code
+        return (
+            f"runs of the sweep failed, each named above (the first: {first.run}), every other run ran; {AGAIN}",
+            first.code,
+        )
     return None
 
 

@@ -10,7 +10,8 @@ import sys
 import traceback
 
 from workbench.core.extras import missing_extra
-from workbench.core.interrupt import INTERRUPTED, MESSAGE as INTERRUPTED_MESSAGE, caused_by_interrupt
+from workbench.core.interrupt import INTERRUPTED, caused_by_interrupt
+from workbench.core.interrupt import MESSAGE as INTERRUPTED_MESSAGE
 
 VERBOSE_FLAG = "--verbose"
 _verbose = False
@@ -70,8 +71,10 @@ def environment_fault(error: BaseException) -> str | None:
     if missing is not None:
         return missing
     if isinstance(error, MemoryError):
-        return ("out of memory (MemoryError); use a smaller dataset (dataset.n_frames, dataset.max_frames, "
-                "dataset.frame_step, dataset.mesh_vertex_step)")
+        return (
+            "out of memory (MemoryError); use a smaller dataset (dataset.n_frames, dataset.max_frames, "
+            "dataset.frame_step, dataset.mesh_vertex_step)"
+        )
     if isinstance(error, OSError) and error.strerror:
         paths = " -> ".join(str(path) for path in (error.filename, error.filename2) if path is not None)
         return f"{paths or 'a file of the run'}: {error.strerror}"
@@ -92,5 +95,7 @@ def check_utf8(text: str, what: str) -> None:
         character = text[error.start]
         byte = f"0x{ord(character) - 0xDC00:02x}" if 0xDC80 <= ord(character) <= 0xDCFF else repr(character)
         shown = text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
-        raise WorkbenchError(f"{what} '{shown}' is not valid UTF-8 (byte {byte} at position {error.start}); "
-                             "name files, folders and settings in UTF-8") from None
+        raise WorkbenchError(
+            f"{what} '{shown}' is not valid UTF-8 (byte {byte} at position {error.start}); "
+            "name files, folders and settings in UTF-8"
+        ) from None

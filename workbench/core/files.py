@@ -141,8 +141,10 @@ def inside(root: Path, *parts: str) -> Path:
     """
     root = Path(root)
     path = root.joinpath(*parts)
-    for resolved, base, target in ((False, os.path.abspath(root), os.path.abspath(path)),
-                                   (True, os.path.realpath(root), os.path.realpath(path))):
+    for resolved, base, target in (
+        (False, os.path.abspath(root), os.path.abspath(path)),
+        (True, os.path.realpath(root), os.path.realpath(path)),
+    ):
         if os.path.commonpath([base, target]) != base:
             link = f" (a symbolic link leads to {target})" if resolved else ""
             raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")

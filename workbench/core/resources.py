@@ -44,5 +44,7 @@ def require_memory(n_values: int, what: str, settings: str) -> None:
     available = available_memory()
     needed = int(n_values) * FLOAT_BYTES
     if available is not None and needed > available:
-        raise WorkbenchError(f"{what} would need about {needed / 2**30:.1f} GiB of memory but "
-                             f"{available / 2**30:.1f} GiB is available; reduce {settings}")
+        raise WorkbenchError(
+            f"{what} would need about {needed / 2**30:.1f} GiB of memory but "
+            f"{available / 2**30:.1f} GiB is available; reduce {settings}"
+        )

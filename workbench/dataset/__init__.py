@@ -9,20 +9,25 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Mapping
 
-from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS, build_animface
+from workbench.core.errors import WorkbenchError
+from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS
+from workbench.dataset.animface import build_animface
 from workbench.dataset.cache import cached_captures, dataset_key
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import apply_hand_basis
-from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS, build_ict_livelink
+from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS
+from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import TRAIN_ON, build_synthetic
-from workbench.core.errors import WorkbenchError
 
-
-BUILDERS = {"synthetic": build_synthetic, "ict_livelink": build_ict_livelink, "animface": build_animface,
-            "mesh_sequence": build_mesh_sequence}
+BUILDERS = {
+    "synthetic": build_synthetic,
+    "ict_livelink": build_ict_livelink,
+    "animface": build_animface,
+    "mesh_sequence": build_mesh_sequence,
+}
 """``dataset.kind`` -> builder taking the ``dataset`` config group and the :class:`FrameStorage` its dense frames are
 written into, returning ``{train_on name: Capture}``."""
 VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
@@ -38,8 +43,7 @@ def variant_names(cfg: Mapping, key: str) -> list[str] | None:
     names = [value] if isinstance(value, str) else list(value)
     allowed = VARIANTS.get(cfg.get("kind"), ())
     if not names or len(set(names)) != len(names) or (allowed and any(name not in allowed for name in names)):
-        raise WorkbenchError(f"dataset.{key} must be one of {tuple(allowed)} or a list of distinct ones, "
-                             f"got {value!r}")
+        raise WorkbenchError(f"dataset.{key} must be one of {tuple(allowed)} or a list of distinct ones, got {value!r}")
     return names
 
 
@@ -71,9 +75,14 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     def build(cfg):
         captures = BUILDERS[kind](cfg, storage)
         files = data_file_checksums(cfg)  # what the run read, for its provenance
-        return {name: stored_frames(replace(capture, provenance={**capture.provenance, "data_files": files})
-                                    if files else capture, storage, (dataset_key(cfg), name))
-                for name, capture in captures.items()}
+        return {
+            name: stored_frames(
+                replace(capture, provenance={**capture.provenance, "data_files": files}) if files else capture,
+                storage,
+                (dataset_key(cfg), name),
+            )
+            for name, capture in captures.items()
+        }
 
     # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
     built = cached_captures({key: value for key, value in cfg.items() if key != "hand_basis"}, build, cache_dir)

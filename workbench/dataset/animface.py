@@ -18,29 +18,59 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.formats.c3d import MarkerTake, read_c3d_markers
-from workbench.dataset.common import (interpolated_frames, largest_point_norm, marker_jitter_rms, masked_frames,
-                                      masked_training_frames, point_operator_matrix, split_frames, train_on_list)
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture, Timeline
+from workbench.dataset.common import (
+    interpolated_frames,
+    largest_point_norm,
+    marker_jitter_rms,
+    masked_frames,
+    masked_training_frames,
+    point_operator_matrix,
+    split_frames,
+    train_on_list,
+)
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
-from workbench.formats.obj import Blendshapes, expression_names
-from workbench.formats.plausibility import (check_rigid_set, face_size_problems, face_spread, frame_rate_problems,
-                                    outlier_problems, parked_marker_problems, plausibility_policy, settle,
-                                    take_units_problems, with_warnings)
 from workbench.dataset.rbf import mesh_rbf_operator
-from workbench.dataset.real import (ANIMFACE_CREDIT, ICT_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
+from workbench.dataset.real import (
+    ANIMFACE_CREDIT,
+    ICT_CREDIT,
+    conf_path,
+    data_path,
+    frame_selection,
+    hand_shape_names,
+    load_basis,
+    mesh_point_indices,
+    origin_text,
+)
 from workbench.dataset.rigid import Similarity, Stabilised, stabilise
-from workbench.settings.rules import integer_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
-from workbench.core.errors import WorkbenchError
+from workbench.formats.c3d import MarkerTake, read_c3d_markers
+from workbench.formats.obj import Blendshapes, expression_names
+from workbench.formats.plausibility import (
+    check_rigid_set,
+    face_size_problems,
+    face_spread,
+    frame_rate_problems,
+    outlier_problems,
+    parked_marker_problems,
+    plausibility_policy,
+    settle,
+    take_units_problems,
+    with_warnings,
+)
+from workbench.settings.rules import integer_setting, number_setting, seed_setting
 
 TRAIN_ON = ("markers", "mesh")
-DIFFERENT_FACES = ("performer and basis come from different faces: the motion is the AnimFace performer's, the hand "
-                   "shapes are the ICT FaceKit generic face's")
-ORIGIN = ("ICT FaceKit model origin (midline, near the centre of the head) placed on the performer by the "
-          "similarity alignment; axes x to the face's left, y up, z out of the face")
+DIFFERENT_FACES = (
+    "performer and basis come from different faces: the motion is the AnimFace performer's, the hand "
+    "shapes are the ICT FaceKit generic face's"
+)
+ORIGIN = (
+    "ICT FaceKit model origin (midline, near the centre of the head) placed on the performer by the "
+    "similarity alignment; axes x to the face's left, y up, z out of the face"
+)
 FACE_SCALE_RANGE = (0.5, 2.0)
 """Scales of the similarity alignment (basis face onto the performer) that two human faces can differ by; outside
 it the takes' ``POINT:UNITS`` and ``dataset.blendshapes.unit_mm`` disagree (a unit mismatch gives 10, 25.4 or 1000)."""
@@ -67,8 +97,10 @@ class NoiseFloor:
     jitter_mm: float
 
     def describe(self) -> str:
-        return (f"noise floor: stabilisation residual {self.stabilisation_residual_mm:.2f} mm, jitter "
-                f"{self.jitter_mm:.3f} mm; differences below it are below the capture's noise")
+        return (
+            f"noise floor: stabilisation residual {self.stabilisation_residual_mm:.2f} mm, jitter "
+            f"{self.jitter_mm:.3f} mm; differences below it are below the capture's noise"
+        )
 
     def as_dict(self) -> dict:
         return {"stabilisation_residual_rms": self.stabilisation_residual_mm, "marker_jitter_rms": self.jitter_mm}
@@ -90,8 +122,10 @@ def noise_floor(residuals: Sequence[np.ndarray], face_trajectories: Sequence[np.
     NoiseFloor
     """
     residual = np.concatenate([np.asarray(frames, dtype=np.float64) for frames in residuals])
-    return NoiseFloor(stabilisation_residual_mm=float(np.sqrt(np.nanmean(residual ** 2))),
-                      jitter_mm=marker_jitter_rms(face_trajectories))
+    return NoiseFloor(
+        stabilisation_residual_mm=float(np.sqrt(np.nanmean(residual**2))),
+        jitter_mm=marker_jitter_rms(face_trajectories),
+    )
 
 
 @dataclass(frozen=True)
@@ -160,11 +194,17 @@ class NeutralRest:
     nearest_rms_mm: float
 
     def describe(self, take: str) -> str:
-        nearest = ("the take's frame nearest that pose" if self.nearest_frame == self.frame else
-                   f"the take's frame nearest that pose is {self.nearest_frame} ({self.nearest_rms_mm:.2f} mm)")
-        return (f"the neutral, {take} frame {self.frame}, lies {self.rms_mm:.2f} mm RMS (largest {self.largest_mm:.1f} "
-                f"mm, {self.largest_marker}) from the median pose of its take, head motion removed: "
-                + ("it is " if self.nearest_frame == self.frame else "") + nearest)
+        nearest = (
+            "the take's frame nearest that pose"
+            if self.nearest_frame == self.frame
+            else f"the take's frame nearest that pose is {self.nearest_frame} ({self.nearest_rms_mm:.2f} mm)"
+        )
+        return (
+            f"the neutral, {take} frame {self.frame}, lies {self.rms_mm:.2f} mm RMS (largest {self.largest_mm:.1f} "
+            f"mm, {self.largest_marker}) from the median pose of its take, head motion removed: "
+            + ("it is " if self.nearest_frame == self.frame else "")
+            + nearest
+        )
 
 
 def neutral_rest(markers: np.ndarray, labels: Sequence[str], frame: int) -> NeutralRest:
@@ -185,12 +225,17 @@ def neutral_rest(markers: np.ndarray, labels: Sequence[str], frame: int) -> Neut
     """
     rest = np.nanmedian(markers, axis=0)
     distance = np.linalg.norm(markers - rest, axis=2)
-    rms = np.sqrt(np.nanmean(distance ** 2, axis=1))
+    rms = np.sqrt(np.nanmean(distance**2, axis=1))
     nearest = int(np.nanargmin(rms))
     largest = int(np.nanargmax(distance[frame]))
-    return NeutralRest(frame=frame, rms_mm=float(rms[frame]), largest_mm=float(distance[frame, largest]),
-                       largest_marker=str(labels[largest]), nearest_frame=nearest,
-                       nearest_rms_mm=float(rms[nearest]))
+    return NeutralRest(
+        frame=frame,
+        rms_mm=float(rms[frame]),
+        largest_mm=float(distance[frame, largest]),
+        largest_marker=str(labels[largest]),
+        nearest_frame=nearest,
+        nearest_rms_mm=float(rms[nearest]),
+    )
 
 
 def rest_frame(take: MarkerTake, rigid_index, table_index, labels: Sequence[str]) -> int:
@@ -212,8 +257,9 @@ def rest_frame(take: MarkerTake, rigid_index, table_index, labels: Sequence[str]
     """
     seen = np.flatnonzero(np.isfinite(take.positions[:, rigid_index]).all(axis=(1, 2)))
     if seen.size == 0:
-        raise WorkbenchError(f"{take.path}: no frame sees every rigid marker (dataset.rigid_markers); set "
-                             "dataset.neutral_frame")
+        raise WorkbenchError(
+            f"{take.path}: no frame sees every rigid marker (dataset.rigid_markers); set dataset.neutral_frame"
+        )
     reference = take.positions[seen[0], rigid_index]
     markers = stabilise(take.positions, rigid_index, reference).markers[:, table_index]
     return neutral_rest(markers, labels, int(seen[0])).nearest_frame
@@ -223,13 +269,15 @@ def face_markers(table: MarkerTable, rigid_labels: Sequence[str]) -> np.ndarray:
     """Which markers of the table are scored: all but the rigid ones; shape (n_markers,) of bool."""
     face = np.array([label not in rigid_labels for label in table.labels])
     if not face.any():
-        raise WorkbenchError(f"every marker of {table.path.name} is one of dataset.rigid_markers: no face marker is "
-                             "left to score")
+        raise WorkbenchError(
+            f"every marker of {table.path.name} is one of dataset.rigid_markers: no face marker is left to score"
+        )
     return face
 
 
-def stabilised_span(take: MarkerTake, selected: np.ndarray, rigid_labels: Sequence[str], table: MarkerTable,
-                    reference: np.ndarray) -> Stabilised:
+def stabilised_span(
+    take: MarkerTake, selected: np.ndarray, rigid_labels: Sequence[str], table: MarkerTable, reference: np.ndarray
+) -> Stabilised:
     """The table's markers of every frame of ``take`` from the first ``selected`` frame to the last, head motion
     removed, and the stabilisation residual of each frame: the noise floor is measured on consecutive frames, the
     capture's own, whatever ``dataset.frame_step``.
@@ -249,10 +297,14 @@ def stabilised_span(take: MarkerTake, selected: np.ndarray, rigid_labels: Sequen
     Stabilised
         ``markers`` of shape (selected[-1] - selected[0] + 1, n_table_markers, 3).
     """
-    dense = stabilise(take.positions[selected[0]:selected[-1] + 1],
-                      take.index_of(rigid_labels, named_in="dataset.rigid_markers"), reference)
-    return Stabilised(markers=dense.markers[:, take.index_of(table.labels, named_in=str(table.path))],
-                      residual_rms=dense.residual_rms)
+    dense = stabilise(
+        take.positions[selected[0] : selected[-1] + 1],
+        take.index_of(rigid_labels, named_in="dataset.rigid_markers"),
+        reference,
+    )
+    return Stabilised(
+        markers=dense.markers[:, take.index_of(table.labels, named_in=str(table.path))], residual_rms=dense.residual_rms
+    )
 
 
 def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mapping) -> StabilisedTakes:
@@ -276,26 +328,32 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     else:
         neutral_frame = integer_setting(cfg.get("neutral_frame"), "dataset.neutral_frame", minimum=0)
     if not 0 <= neutral_frame < first.n_frames:
-        raise WorkbenchError(f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
-                             f"the {len(takes)} takes")
+        raise WorkbenchError(
+            f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
+            f"the {len(takes)} takes"
+        )
     reference = first.positions[neutral_frame, rigid_index]
     if not np.all(np.isfinite(reference)):
-        raise WorkbenchError(f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
-                             "another dataset.neutral_frame")
+        raise WorkbenchError(
+            f"{first.path}: frame {neutral_frame} (the neutral) misses a rigid marker; choose "
+            "another dataset.neutral_frame"
+        )
     check_rigid_set(rigid_labels, reference, f"{first.path} frame {neutral_frame}")
     face = face_markers(table, rigid_labels)
     # The rigid reference is the neutral frame's own, so the neutral frame is already in the head frame.
     neutral = first.positions[neutral_frame, table_index]
-    rest = neutral_rest(stabilise(first.positions, rigid_index, reference).markers[:, table_index], table.labels,
-                        neutral_frame)
+    rest = neutral_rest(
+        stabilise(first.positions, rigid_index, reference).markers[:, table_index], table.labels, neutral_frame
+    )
 
     policy = cfg.get("gap_policy", "drop")
     rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
     gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
     pieces, visible, notes, record, timelines, problems, residuals, trajectories = [], [], [], {}, [], [], [], []
     for number, take in enumerate(takes):
-        selected = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"),
-                                   "dataset.max_frames_per_take")
+        selected = frame_selection(
+            take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"), "dataset.max_frames_per_take"
+        )
         dense = stabilised_span(take, selected, rigid_labels, table, reference)
         residuals.append(dense.residual_rms)
         trajectories.append(dense.markers[:, face])
@@ -311,29 +369,44 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         visible.append(outcome.visible)
         residual_mean, residual_max = float(np.nanmean(residual_rms)), float(np.nanmax(residual_rms))
         report = outcome.report
-        notes.append(f"{take.path.stem} {len(outcome.positions)} frames (residual mean {residual_mean:.2f}, max "
-                     f"{residual_max:.2f} mm" + (f"; {report.describe()}" if report.n_missing_samples else "")
-                     + ")")
+        notes.append(
+            f"{take.path.stem} {len(outcome.positions)} frames (residual mean {residual_mean:.2f}, max "
+            f"{residual_max:.2f} mm" + (f"; {report.describe()}" if report.n_missing_samples else "") + ")"
+        )
         record[take.path.name] = {
-            "frames_in_file": take.n_frames, "frame_rate_in_file": take.frame_rate, "frames_used": len(outcome.positions),
-            "frames_dropped_for_gaps": report.n_dropped_frames, "missing_samples_in_file": take.n_missing,
-            "simulated_dropout_rate": rate, "gaps": report.as_dict(), "units_in_file": take.units,
+            "frames_in_file": take.n_frames,
+            "frame_rate_in_file": take.frame_rate,
+            "frames_used": len(outcome.positions),
+            "frames_dropped_for_gaps": report.n_dropped_frames,
+            "missing_samples_in_file": take.n_missing,
+            "simulated_dropout_rate": rate,
+            "gaps": report.as_dict(),
+            "units_in_file": take.units,
             "stabilisation_residual_rms_mm": {"mean": residual_mean, "max": residual_max},
-            "noise_floor_mm": noise_floor(residuals[-1:], trajectories[-1:]).as_dict()}
+            "noise_floor_mm": noise_floor(residuals[-1:], trajectories[-1:]).as_dict(),
+        }
     positions = np.concatenate(pieces)
     if len(positions) < 2:
         raise WorkbenchError(f"{len(positions)} frames in the takes after gap policy {policy!r}; need at least 2")
-    return StabilisedTakes(positions=positions, neutral=neutral, notes=notes, record=record,
-                           timeline=Timeline.concatenate(timelines),
-                           visible=np.concatenate(visible) if policy == "masked" else None,
-                           warnings=settle(problems, plausibility_policy(cfg)), neutral_rest=rest, face=face,
-                           noise_floor=noise_floor(residuals, trajectories))
+    return StabilisedTakes(
+        positions=positions,
+        neutral=neutral,
+        notes=notes,
+        record=record,
+        timeline=Timeline.concatenate(timelines),
+        visible=np.concatenate(visible) if policy == "masked" else None,
+        warnings=settle(problems, plausibility_policy(cfg)),
+        neutral_rest=rest,
+        face=face,
+        noise_floor=noise_floor(residuals, trajectories),
+    )
 
 
 def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
     """Plausibility of the raw takes: per-take units (face size), frame rates and markers parked at the origin."""
-    problems = take_units_problems({str(take.path): face_spread(take.positions) for take in takes},
-                                   {str(take.path): take.units for take in takes})
+    problems = take_units_problems(
+        {str(take.path): face_spread(take.positions) for take in takes}, {str(take.path): take.units for take in takes}
+    )
     for take in takes:
         problems += frame_rate_problems(take.frame_rate, str(take.path), "POINT:RATE")
         problems += parked_marker_problems(take.positions, take.labels, str(take.path))
@@ -348,13 +421,16 @@ def check_distinct_takes(take_files: Sequence[str], takes: Sequence[MarkerTake])
         key = (take.positions.shape, np.nan_to_num(take.positions).tobytes())
         if key in seen:
             same = "is listed twice" if seen[key] == name else f"holds the same frames as {seen[key]}"
-            raise WorkbenchError(f"dataset.takes: {name} {same}; each take must be a different recording (its frames "
-                                 "would be counted twice)")
+            raise WorkbenchError(
+                f"dataset.takes: {name} {same}; each take must be a different recording (its frames "
+                "would be counted twice)"
+            )
         seen[key] = name
 
 
-def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray,
-                  rbf: Mapping) -> np.ndarray:
+def mesh_operator(
+    basis: Blendshapes, scale: float, marker_vertices: np.ndarray, mesh_points: np.ndarray, rbf: Mapping
+) -> np.ndarray:
     """The RBF interpolation from marker displacements to mesh points of the scaled basis face (a linear map).
 
     Parameters
@@ -373,10 +449,17 @@ def mesh_operator(basis: Blendshapes, scale: float, marker_vertices: np.ndarray,
         Mesh displacements are ``operator @ marker_displacements`` per coordinate.
     """
     settings = {**RBF_DEFAULTS, **rbf}
-    return mesh_rbf_operator(scale * basis.neutral, basis.triangles, marker_vertices, mesh_points,
-                             metric=settings["metric"], kernel=settings["kernel"],
-                             smoothing=float(settings["smoothing"]), epsilon=settings["epsilon"],
-                             degree=int(settings["degree"]))
+    return mesh_rbf_operator(
+        scale * basis.neutral,
+        basis.triangles,
+        marker_vertices,
+        mesh_points,
+        metric=settings["metric"],
+        kernel=settings["kernel"],
+        smoothing=float(settings["smoothing"]),
+        epsilon=settings["epsilon"],
+        degree=int(settings["degree"]),
+    )
 
 
 def within_marker_reach(vertices: np.ndarray, marker_vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -454,35 +537,55 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     check_distinct_takes(take_files, takes)
     warnings = settle(take_problems(takes), plausibility_policy(cfg))
     if len({take.frame_rate for take in takes}) != 1:
-        raise WorkbenchError(f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
-                             "concatenating them needs one")
+        raise WorkbenchError(
+            f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
+            "concatenating them needs one"
+        )
     folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
     hand_names = hand_shape_names(cfg, expression_names(folder, cfg["blendshapes"]["neutral"]))
     basis = load_basis(cfg, hand_names)
-    warnings += settle(face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
-                       plausibility_policy(cfg))
+    warnings += settle(
+        face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
+        plausibility_policy(cfg),
+    )
     table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
     stable = stabilised_takes(takes, table, cfg)
     warnings += stable.warnings
 
-    placement = place_markers(table, stable.neutral, basis.neutral,
-                              refine_iterations=integer_setting(cfg.get("refine_iterations", 0),
-                                                                "dataset.refine_iterations", minimum=0))
+    placement = place_markers(
+        table,
+        stable.neutral,
+        basis.neutral,
+        refine_iterations=integer_setting(cfg.get("refine_iterations", 0), "dataset.refine_iterations", minimum=0),
+    )
     similarity, scale = placement.mesh_to_capture, placement.mesh_to_capture.scale
     if not FACE_SCALE_RANGE[0] <= scale <= FACE_SCALE_RANGE[1]:
         raise WorkbenchError(
             f"unit mismatch: the basis face must be scaled by {scale:.4g} to fit the performer's markers "
             f"({table.path.name}), and two faces differ by less than {FACE_SCALE_RANGE[1]:g}x; check "
             f"dataset.blendshapes.unit_mm ({cfg['blendshapes']['unit_mm']} mm per OBJ unit) against the takes' "
-            f"POINT:UNITS ({', '.join(sorted({take.units for take in takes}))})")
+            f"POINT:UNITS ({', '.join(sorted({take.units for take in takes}))})"
+        )
     # Express the capture in the ICT head frame (axes and origin) while keeping the performer's size: the rigid
     # part of the inverse similarity. The ICT face then sits at scale * its own coordinates.
     neutral = (stable.neutral - similarity.translation) @ similarity.rotation
     displacements = (stable.positions - similarity.translation) @ similarity.rotation - neutral
     hand = scale * basis.shapes(hand_names)
-    return _Placed(take_files=take_files, takes=takes, warnings=warnings, hand_names=hand_names, basis=basis,
-                   table=table, stable=stable, placement=placement, similarity=similarity, scale=scale,
-                   neutral=neutral, displacements=displacements, hand=hand)
+    return _Placed(
+        take_files=take_files,
+        takes=takes,
+        warnings=warnings,
+        hand_names=hand_names,
+        basis=basis,
+        table=table,
+        stable=stable,
+        placement=placement,
+        similarity=similarity,
+        scale=scale,
+        neutral=neutral,
+        displacements=displacements,
+        hand=hand,
+    )
 
 
 def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float, dict]:
@@ -500,26 +603,40 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
         "second), concatenated in time: " + "; ".join(stable.notes),
         f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
         f"{neutral_name} (the neutral); residual = their RMS distance from it",
-        stable.neutral_rest.describe(takes[int(cfg.get('neutral_take', 0))].path.stem),
+        stable.neutral_rest.describe(takes[int(cfg.get("neutral_take", 0))].path.stem),
         stable.noise_floor.describe() + " (residual: RMS of the rigid markers after alignment; jitter: RMS of the "
         "face markers' second difference over frames / sqrt(6), an upper bound)",
         placement.describe(),
     ]
     provenance = {
-        "kind": "animface", "data_root": str(cfg["data_root"]), "takes": take_files, "per_take": stable.record,
-        "frame_rate_in_file": takes[0].frame_rate, "frame_step": frame_step,
-        "credits": [ANIMFACE_CREDIT, ICT_CREDIT], "performer_and_basis": "different faces",
+        "kind": "animface",
+        "data_root": str(cfg["data_root"]),
+        "takes": take_files,
+        "per_take": stable.record,
+        "frame_rate_in_file": takes[0].frame_rate,
+        "frame_step": frame_step,
+        "credits": [ANIMFACE_CREDIT, ICT_CREDIT],
+        "performer_and_basis": "different faces",
         "neutral": neutral_name,
-        "neutral_from_rest_mm": {"rms": stable.neutral_rest.rms_mm, "largest": stable.neutral_rest.largest_mm,
-                                 "take_frame_nearest_rest": stable.neutral_rest.nearest_frame},
-        "rigid_markers": rigid_labels, "blendshapes": cfg["blendshapes"]["folder"],
+        "neutral_from_rest_mm": {
+            "rms": stable.neutral_rest.rms_mm,
+            "largest": stable.neutral_rest.largest_mm,
+            "take_frame_nearest_rest": stable.neutral_rest.nearest_frame,
+        },
+        "rigid_markers": rigid_labels,
+        "blendshapes": cfg["blendshapes"]["folder"],
         "noise_floor_mm": dict(stable.noise_floor.as_dict(), jitter_estimator=JITTER_ESTIMATOR),
-        "marker_table": str(table.path), "rbf": rbf,
-        "placement": {"scale": scale, "rotation": similarity.rotation.tolist(),
-                      "translation_mm": similarity.translation.tolist(),
-                      "landmark_rms_mm": placement.landmark_rms, "refine_iterations": placement.refine_iterations,
-                      "vertices": dict(zip(table.labels, placement.vertices.tolist())),
-                      "distance_mm": dict(zip(table.labels, np.round(placement.distances, 2).tolist()))},
+        "marker_table": str(table.path),
+        "rbf": rbf,
+        "placement": {
+            "scale": scale,
+            "rotation": similarity.rotation.tolist(),
+            "translation_mm": similarity.translation.tolist(),
+            "landmark_rms_mm": placement.landmark_rms,
+            "refine_iterations": placement.refine_iterations,
+            "vertices": dict(zip(table.labels, placement.vertices.tolist())),
+            "distance_mm": dict(zip(table.labels, np.round(placement.distances, 2).tolist())),
+        },
     }
     return notes_common, provenance, frame_rate, rbf
 
@@ -537,9 +654,11 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
         points_neutral, frames = neutral[face], displacements[:, face]
         points_hand, faces = hand[:, placement.vertices[face]], None
         labels = tuple(label for label, scored in zip(table.labels, face) if scored)
-        notes.append(f"markers: the {len(labels)} face markers of {table.path.name}; the {int((~face).sum())} rigid "
-                     "ones remove head motion only and are not scored (they move only by the stabilisation "
-                     "residual)")
+        notes.append(
+            f"markers: the {len(labels)} face markers of {table.path.name}; the {int((~face).sum())} rigid "
+            "ones remove head motion only and are not scored (they move only by the stabilisation "
+            "residual)"
+        )
     else:
         mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
         operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
@@ -548,13 +667,15 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
         labels = tuple(f"v{i}" for i in mesh_points)
         faces = basis.triangles if len(mesh_points) == len(basis.neutral) else None
         support = within_marker_reach(scale * basis.neutral, placement.vertices, mesh_points)
-        notes.append(f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
-                     f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
-                     "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
-                     f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
-                     f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
-                     f"{int((~support).sum())} vertices farther from every marker than the markers' median "
-                     "spacing are extrapolated (the colour maps of the report fade there into the plain shade)")
+        notes.append(
+            f"mesh: {len(mesh_points)} ICT face-region vertices moved by an RBF interpolation "
+            f"({rbf['kernel']}, {rbf['metric']} distance, smoothing {float(rbf['smoothing']):g}) of the "
+            "marker displacements: the performer's motion carried onto the ICT face, not a scan of "
+            f"the performer; largest displacement {largest_point_norm(frames):.1f} mm on the "
+            f"mesh, {np.linalg.norm(displacements, axis=2).max():.1f} mm at the markers; "
+            f"{int((~support).sum())} vertices farther from every marker than the markers' median "
+            "spacing are extrapolated (the colour maps of the report fade there into the plain shade)"
+        )
     if name == "markers":
         frames = frames.reshape(len(frames), -1)
     train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
@@ -562,24 +683,36 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
     eval_visible = None
     if stable.visible is not None and name == "markers":
         visible = stable.visible[:, face]
-        eval_visible = visible[len(visible) - len(evaluate):]
+        eval_visible = visible[len(visible) - len(evaluate) :]
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, visible[:len(train)], cfg.get("gap_fit_on", "filled"))
-        notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
-                     f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
-                     + note)
+        train, note = masked_training_frames(train, visible[: len(train)], cfg.get("gap_fit_on", "filled"))
+        notes.append(
+            f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
+            f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); " + note
+        )
     elif stable.visible is not None:
-        notes.append("mesh: interpolated from the markers with their gaps filled linearly (the RBF needs every "
-                     "marker)")
+        notes.append("mesh: interpolated from the markers with their gaps filled linearly (the RBF needs every marker)")
     mapped = {}
     if name == "mesh":  # the PCA of the mesh frames is computed on the markers and lifted
-        mapped = {"train_source": displacements.reshape(len(displacements), -1)[:len(train)],
-                  "train_operator": point_operator_matrix(operator)}
+        mapped = {
+            "train_source": displacements.reshape(len(displacements), -1)[: len(train)],
+            "train_operator": point_operator_matrix(operator),
+        }
     return Capture(
         name="AnimFace optical capture (real performer) with ICT FaceKit hand shapes (a different face)",
-        neutral=points_neutral.reshape(-1), train=train, eval=evaluate,
-        hand=points_hand.reshape(len(hand_names), -1), hand_names=tuple(hand_names), point_labels=labels,
-        units="mm", origin=origin_text(ORIGIN, points_neutral), frame_rate=float(frame_rate),
-        **with_warnings(notes, dict(provenance, train_on=name), warnings), faces=faces,
-        eval_visible=eval_visible, point_support=support,
-        eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate):], **mapped)
+        neutral=points_neutral.reshape(-1),
+        train=train,
+        eval=evaluate,
+        hand=points_hand.reshape(len(hand_names), -1),
+        hand_names=tuple(hand_names),
+        point_labels=labels,
+        units="mm",
+        origin=origin_text(ORIGIN, points_neutral),
+        frame_rate=float(frame_rate),
+        **with_warnings(notes, dict(provenance, train_on=name), warnings),
+        faces=faces,
+        eval_visible=eval_visible,
+        point_support=support,
+        eval_timeline=stable.timeline[len(stable.timeline) - len(evaluate) :],
+        **mapped,
+    )

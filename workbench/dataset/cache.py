@@ -34,18 +34,27 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from workbench.dataset.capture import Capture, Timeline
-from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import sha256_of_file, write_atomic
+from workbench.dataset.capture import Capture, Timeline
+from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.numerics.frames import DTYPES, FramesOnDisk
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0
 """A file's content hash is remembered in the process only when the file last changed at least this long before it
 was hashed: an edit within the file system's timestamp granularity of the hashing could keep every time stamp."""
-_ARRAYS = ("neutral", "train", "eval", "hand", "faces", "eval_visible", "train_source", "train_operator",
-           "point_support")
+_ARRAYS = (
+    "neutral",
+    "train",
+    "eval",
+    "hand",
+    "faces",
+    "eval_visible",
+    "train_source",
+    "train_operator",
+    "point_support",
+)
 _FRAMES = ("train", "eval")
 _memory: "OrderedDict[str, dict[str, Capture]]" = OrderedDict()
 _digests: dict[str, tuple[tuple, str]] = {}
@@ -125,8 +134,6 @@ def file_digest(path: str | Path) -> str:
     return digest
 
 
-
-
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
@@ -146,8 +153,9 @@ def _strings(value):
             yield from _strings(item)
 
 
-def cached_captures(cfg: Mapping, build: Callable[[Mapping], dict], cache_dir: str | Path | None = None
-                    ) -> dict[str, Capture]:
+def cached_captures(
+    cfg: Mapping, build: Callable[[Mapping], dict], cache_dir: str | Path | None = None
+) -> dict[str, Capture]:
     """``build(cfg)``, or the captures it returned before for the same config.
 
     Parameters
@@ -193,8 +201,7 @@ def cache_folder(cache_dir: str | Path | None) -> Path | None:
         return None
     folder = Path(cache_dir)
     if folder.exists() and not folder.is_dir():
-        raise WorkbenchError(f"paths.cache_dir {folder} is not a folder (a file is in the way); give a folder or "
-                             "null")
+        raise WorkbenchError(f"paths.cache_dir {folder} is not a folder (a file is in the way); give a folder or null")
     return folder
 
 
@@ -206,8 +213,16 @@ def _load_or_report(folder: Path, key: str, inputs: dict) -> dict[str, Capture] 
         return _load(folder, key, inputs)
     except EntryMismatch as mismatch:
         reason = str(mismatch)
-    except (OSError, ValueError, KeyError, TypeError, AttributeError, EOFError, zipfile.BadZipFile,
-            WorkbenchError) as error:
+    except (
+        OSError,
+        ValueError,
+        KeyError,
+        TypeError,
+        AttributeError,
+        EOFError,
+        zipfile.BadZipFile,
+        WorkbenchError,
+    ) as error:
         reason = f"cannot be read ({type(error).__name__}: {error})"
     print(f"workbench: cache entry {folder / key}: {reason}; rebuilding it", file=sys.stderr)
     return None
@@ -274,18 +289,28 @@ def _save(folder: Path, key: str, inputs: dict, captures: dict[str, Capture]) ->
                 arrays[f"{index}_{field}"] = array
         if capture.eval_timeline is not None:
             arrays.update(capture.eval_timeline.as_arrays(f"{index}_timeline_"))
-        meta[name] = {"index": index, "same_frames": same_frames, "name": capture.name, "frames": frames,
-                      "hand_names": list(capture.hand_names), "point_labels": list(capture.point_labels),
-                      "units": capture.units, "origin": capture.origin, "frame_rate": capture.frame_rate,
-                      "provenance": _plain(capture.provenance), "notes": list(capture.notes)}
+        meta[name] = {
+            "index": index,
+            "same_frames": same_frames,
+            "name": capture.name,
+            "frames": frames,
+            "hand_names": list(capture.hand_names),
+            "point_labels": list(capture.point_labels),
+            "units": capture.units,
+            "origin": capture.origin,
+            "frame_rate": capture.frame_rate,
+            "provenance": _plain(capture.provenance),
+            "notes": list(capture.notes),
+        }
     buffer = io.BytesIO()
     np.savez(buffer, **arrays)  # uncompressed: compressing float frames saves little and costs most of a build
     payload = buffer.getvalue()
     write_atomic(folder / f"{key}.npz", payload)
     files = {f"{key}.npz": _sha256(payload), **{path: sha256_of_file(folder / path) for path in frame_paths}}
     document = {"key": key, "inputs": inputs, "captures": meta, "files": files}
-    write_atomic(folder / f"{key}.json", json.dumps(dict(document, sha256=_sha256(_canonical(document).encode())),
-                                                    indent=1))
+    write_atomic(
+        folder / f"{key}.json", json.dumps(dict(document, sha256=_sha256(_canonical(document).encode())), indent=1)
+    )
 
 
 def _frames_file(folder: Path, key: tuple, field: str, frames) -> dict:
@@ -330,14 +355,25 @@ def _load(folder: Path, key: str, inputs: dict) -> dict[str, Capture] | None:
         arrays.update({f"{index}_{field}": _open_frames(folder, spec) for field, spec in info["frames"].items()})
         train = arrays[f"{index}_train"]
         capture = Capture(
-            name=info["name"], neutral=arrays[f"{index}_neutral"], train=train,
-            eval=train if info["same_frames"] else arrays[f"{index}_eval"], hand=arrays[f"{index}_hand"],
-            hand_names=tuple(info["hand_names"]), point_labels=tuple(info["point_labels"]), units=info["units"],
-            origin=info["origin"], frame_rate=info["frame_rate"], provenance=info["provenance"],
-            notes=tuple(info["notes"]), faces=arrays.get(f"{index}_faces"),
-            eval_visible=arrays.get(f"{index}_eval_visible"), train_source=arrays.get(f"{index}_train_source"),
-            train_operator=arrays.get(f"{index}_train_operator"), point_support=arrays.get(f"{index}_point_support"),
-            eval_timeline=Timeline.from_arrays(arrays, f"{index}_timeline_"))
+            name=info["name"],
+            neutral=arrays[f"{index}_neutral"],
+            train=train,
+            eval=train if info["same_frames"] else arrays[f"{index}_eval"],
+            hand=arrays[f"{index}_hand"],
+            hand_names=tuple(info["hand_names"]),
+            point_labels=tuple(info["point_labels"]),
+            units=info["units"],
+            origin=info["origin"],
+            frame_rate=info["frame_rate"],
+            provenance=info["provenance"],
+            notes=tuple(info["notes"]),
+            faces=arrays.get(f"{index}_faces"),
+            eval_visible=arrays.get(f"{index}_eval_visible"),
+            train_source=arrays.get(f"{index}_train_source"),
+            train_operator=arrays.get(f"{index}_train_operator"),
+            point_support=arrays.get(f"{index}_point_support"),
+            eval_timeline=Timeline.from_arrays(arrays, f"{index}_timeline_"),
+        )
         captures[name] = _read_only(capture)
     return captures
 
@@ -350,8 +386,9 @@ def _differences(recorded: dict, inputs: dict) -> str:
     old, new = dict(map(tuple, recorded.get("sources") or [])), dict(inputs["sources"])
     changed = sorted(path for path in old.keys() | new.keys() if old.get(path) != new.get(path))
     if changed:
-        parts.append(f"source file {changed[0]} differs" + (f" and {len(changed) - 1} more" if len(changed) > 1
-                                                             else ""))
+        parts.append(
+            f"source file {changed[0]} differs" + (f" and {len(changed) - 1} more" if len(changed) > 1 else "")
+        )
     if recorded.get("code") != inputs["code"]:
         parts.append("other dataset code")
     return ", ".join(parts) or "inputs differ"
@@ -382,5 +419,5 @@ def _open_frames(folder: Path, spec: Mapping):
     """Frames of an entry: a read-only array memory-mapped from the file, or :class:`FramesOnDisk`."""
     path, first, rows = folder / spec["path"], int(spec["first"]), int(spec["rows"])
     if spec["mapped"]:
-        return np.asarray(np.load(path, mmap_mode="r", allow_pickle=False))[first:first + rows]
+        return np.asarray(np.load(path, mmap_mode="r", allow_pickle=False))[first : first + rows]
     return FramesOnDisk(path).rows(first, first + rows)

@@ -62,16 +62,22 @@ class Timeline:
         return list(zip(edges[:-1], edges[1:]))
 
     def as_arrays(self, prefix: str = "") -> dict:
-        return {f"{prefix}take": np.asarray(self.take, dtype=str), f"{prefix}frame": np.asarray(self.frame),
-                f"{prefix}seconds": np.asarray(self.seconds, dtype=float)}
+        return {
+            f"{prefix}take": np.asarray(self.take, dtype=str),
+            f"{prefix}frame": np.asarray(self.frame),
+            f"{prefix}seconds": np.asarray(self.seconds, dtype=float),
+        }
 
     @classmethod
     def from_arrays(cls, arrays, prefix: str = "") -> "Timeline | None":
         """The timeline stored by :meth:`as_arrays`, or None when ``arrays`` has none."""
         if f"{prefix}frame" not in arrays:
             return None
-        return cls(take=np.asarray(arrays[f"{prefix}take"]).astype(str), frame=np.asarray(arrays[f"{prefix}frame"]),
-                   seconds=np.asarray(arrays[f"{prefix}seconds"], dtype=float))
+        return cls(
+            take=np.asarray(arrays[f"{prefix}take"]).astype(str),
+            frame=np.asarray(arrays[f"{prefix}frame"]),
+            seconds=np.asarray(arrays[f"{prefix}seconds"], dtype=float),
+        )
 
     @classmethod
     def uniform(cls, take: str, frames: Sequence[int], frame_rate: float) -> "Timeline":
@@ -81,9 +87,11 @@ class Timeline:
 
     @classmethod
     def concatenate(cls, parts: Sequence["Timeline"]) -> "Timeline":
-        return cls(take=np.concatenate([p.take for p in parts]).astype(str),
-                   frame=np.concatenate([p.frame for p in parts]),
-                   seconds=np.concatenate([p.seconds for p in parts]))
+        return cls(
+            take=np.concatenate([p.take for p in parts]).astype(str),
+            frame=np.concatenate([p.frame for p in parts]),
+            seconds=np.concatenate([p.seconds for p in parts]),
+        )
 
 
 @dataclass(frozen=True)

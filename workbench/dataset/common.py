@@ -8,13 +8,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
-from workbench.core.errors import WorkbenchError
 from workbench.numerics.frames import FramesOnDisk, frame_chunks
 from workbench.settings.rules import GAP_FIT_ON, checked, number_setting, one_of
-
 
 SPLITS = ("same", "tail")
 
@@ -40,12 +39,15 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
     if split == "same":
         return frames, frames
     take = frames.rows if isinstance(frames, FramesOnDisk) else lambda start, stop: frames[start:stop]
-    eval_fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'",
-                                   lambda value: 0.0 < value < 1.0)
+    eval_fraction = number_setting(
+        eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'", lambda value: 0.0 < value < 1.0
+    )
     n_eval = int(round(eval_fraction * len(frames)))
     if n_eval < 1 or n_eval > len(frames) - 2:
-        raise WorkbenchError(f"dataset.eval_fraction {eval_fraction} leaves {n_eval} of {len(frames)} frames "
-                             "for evaluation; need at least 1 and at least 2 for training")
+        raise WorkbenchError(
+            f"dataset.eval_fraction {eval_fraction} leaves {n_eval} of {len(frames)} frames "
+            "for evaluation; need at least 1 and at least 2 for training"
+        )
     return take(0, len(frames) - n_eval), take(len(frames) - n_eval, len(frames))
 
 
@@ -54,8 +56,9 @@ def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
     value = cfg.get("train_on", allowed[0])
     names = [value] if isinstance(value, str) else list(value)
     if not names or any(name not in allowed for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(f"dataset.train_on must be one of {tuple(allowed)} or a list of distinct ones, "
-                             f"got {value!r}")
+        raise WorkbenchError(
+            f"dataset.train_on must be one of {tuple(allowed)} or a list of distinct ones, got {value!r}"
+        )
     return names
 
 
@@ -74,8 +77,13 @@ def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: Frame
     ndarray of shape (n_frames, 3 * n_target), read-only, or FramesOnDisk
     """
     key = (array_digest(points), array_digest(operator), code_fingerprint())
-    return storage.build("interpolated", key, len(points), 3 * len(operator),
-                         lambda rows: apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1))
+    return storage.build(
+        "interpolated",
+        key,
+        len(points),
+        3 * len(operator),
+        lambda rows: apply_point_operator(operator, points[rows]).reshape(rows.stop - rows.start, -1),
+    )
 
 
 def array_digest(array: np.ndarray) -> str:
@@ -136,10 +144,13 @@ def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) 
         return train, f"the bases are fitted on all {len(train)} training frames, their gaps filled linearly"
     complete = visible.all(axis=1)
     if complete.sum() < 2:
-        raise WorkbenchError(f"dataset.gap_fit_on 'complete': only {int(complete.sum())} of {len(train)} training "
-                             "frames saw every marker; need at least 2 (use gap_fit_on filled)")
-    return train[complete], (f"the bases are fitted on the {int(complete.sum())} of {len(train)} training frames "
-                             "that saw every marker")
+        raise WorkbenchError(
+            f"dataset.gap_fit_on 'complete': only {int(complete.sum())} of {len(train)} training "
+            "frames saw every marker; need at least 2 (use gap_fit_on filled)"
+        )
+    return train[complete], (
+        f"the bases are fitted on the {int(complete.sum())} of {len(train)} training frames that saw every marker"
+    )
 
 
 def masked_frames(frames: np.ndarray, visible: np.ndarray) -> np.ndarray:
@@ -171,7 +182,7 @@ def marker_jitter_rms(trajectories: Sequence[np.ndarray]) -> float:
     total, count = 0.0, 0
     for positions in trajectories:
         second = positions[:-2] - 2.0 * positions[1:-1] + positions[2:]
-        squared = np.sum(second ** 2, axis=2)
+        squared = np.sum(second**2, axis=2)
         seen = np.isfinite(squared)
         total, count = total + float(squared[seen].sum()), count + int(seen.sum())
     return float(np.sqrt(total / count / 6.0)) if count else float("nan")

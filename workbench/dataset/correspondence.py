@@ -30,8 +30,8 @@ from typing import Sequence
 
 import numpy as np
 
-from workbench.dataset.rigid import Similarity, similarity_transform
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.rigid import Similarity, similarity_transform
 
 TABLE_COLUMNS = ("marker", "landmark", "vertex", "note")
 
@@ -62,8 +62,10 @@ class MarkerTable:
         """Every marker's vertex, with a clear error when the table leaves some to the nearest-vertex search."""
         empty = [label for label, vertex in zip(self.labels, self.vertices) if vertex < 0]
         if empty:
-            raise WorkbenchError(f"{self.path}: {purpose} needs a vertex for every marker; row(s) {empty} have none "
-                                 "(fill them in, e.g. from an animface run's provenance)")
+            raise WorkbenchError(
+                f"{self.path}: {purpose} needs a vertex for every marker; row(s) {empty} have none "
+                "(fill them in, e.g. from an animface run's provenance)"
+            )
         return self.vertices
 
 
@@ -98,8 +100,9 @@ def read_marker_table(path: str | os.PathLike, *, n_vertices: int | None = None)
     header = [name.strip() for name in (reader.fieldnames or [])]
     missing = [column for column in TABLE_COLUMNS[:3] if column not in header]
     if missing:
-        raise WorkbenchError(f"{path}: missing column(s) {missing}; a correspondence table has columns "
-                             f"{', '.join(TABLE_COLUMNS)}")
+        raise WorkbenchError(
+            f"{path}: missing column(s) {missing}; a correspondence table has columns {', '.join(TABLE_COLUMNS)}"
+        )
     labels, landmarks, vertices, notes = [], [], [], []
     for number, row in enumerate(reader, start=2):
         row = {key.strip(): (value or "").strip() for key, value in row.items() if key is not None}
@@ -114,10 +117,17 @@ def read_marker_table(path: str | os.PathLike, *, n_vertices: int | None = None)
         notes.append(row.get("note", ""))
     n_landmarks = sum(landmark >= 0 for landmark in landmarks)
     if n_landmarks < 3:
-        raise WorkbenchError(f"{path}: {n_landmarks} row(s) with a landmark vertex; the similarity alignment needs "
-                             "at least 3 landmark pairs")
-    return MarkerTable(labels=tuple(labels), landmarks=np.array(landmarks, dtype=np.int64),
-                       vertices=np.array(vertices, dtype=np.int64), notes=tuple(notes), path=path)
+        raise WorkbenchError(
+            f"{path}: {n_landmarks} row(s) with a landmark vertex; the similarity alignment needs "
+            "at least 3 landmark pairs"
+        )
+    return MarkerTable(
+        labels=tuple(labels),
+        landmarks=np.array(landmarks, dtype=np.int64),
+        vertices=np.array(vertices, dtype=np.int64),
+        notes=tuple(notes),
+        path=path,
+    )
 
 
 def _parse_vertex(text: str, column: str, path: Path, number: int, n_vertices: int | None) -> int:
@@ -128,8 +138,9 @@ def _parse_vertex(text: str, column: str, path: Path, number: int, n_vertices: i
     except ValueError:
         raise WorkbenchError(f"{path}: row {number}: {column} {text!r} is not a vertex index") from None
     if vertex < 0 or (n_vertices is not None and vertex >= n_vertices):
-        raise WorkbenchError(f"{path}: row {number}: {column} {vertex} is outside the mesh's vertices "
-                             f"[0, {n_vertices})")
+        raise WorkbenchError(
+            f"{path}: row {number}: {column} {vertex} is outside the mesh's vertices [0, {n_vertices})"
+        )
     return vertex
 
 
@@ -170,18 +181,29 @@ class MarkerPlacement:
     def describe(self) -> str:
         """One line: alignment, scale and marker-to-vertex distances."""
         worst = int(np.argmax(self.distances))
-        refined = (f", then refitted to all {len(self.labels)} marker-vertex pairs "
-                   f"({self.refine_iterations} round{'s' if self.refine_iterations > 1 else ''})"
-                   if self.refine_iterations else "")
-        return (f"markers placed on the mesh: similarity alignment on {self.n_landmarks} landmark pairs "
-                f"(RMS {self.landmark_rms:.1f} mm){refined}, scale {self.mesh_to_capture.scale:.3f}; "
-                f"{int(self.found.sum())} vertices by nearest vertex, {int((~self.found).sum())} from the table; "
-                f"marker-to-vertex distance mean {self.distances.mean():.1f} mm, max "
-                f"{self.distances[worst]:.1f} mm ({self.labels[worst]})")
+        refined = (
+            f", then refitted to all {len(self.labels)} marker-vertex pairs "
+            f"({self.refine_iterations} round{'s' if self.refine_iterations > 1 else ''})"
+            if self.refine_iterations
+            else ""
+        )
+        return (
+            f"markers placed on the mesh: similarity alignment on {self.n_landmarks} landmark pairs "
+            f"(RMS {self.landmark_rms:.1f} mm){refined}, scale {self.mesh_to_capture.scale:.3f}; "
+            f"{int(self.found.sum())} vertices by nearest vertex, {int((~self.found).sum())} from the table; "
+            f"marker-to-vertex distance mean {self.distances.mean():.1f} mm, max "
+            f"{self.distances[worst]:.1f} mm ({self.labels[worst]})"
+        )
 
 
-def place_markers(table: MarkerTable, marker_neutral: np.ndarray, mesh_vertices: np.ndarray, *,
-                  candidate_vertices: Sequence[int] | None = None, refine_iterations: int = 0) -> MarkerPlacement:
+def place_markers(
+    table: MarkerTable,
+    marker_neutral: np.ndarray,
+    mesh_vertices: np.ndarray,
+    *,
+    candidate_vertices: Sequence[int] | None = None,
+    refine_iterations: int = 0,
+) -> MarkerPlacement:
     """Place capture markers on a mesh: similarity alignment on the landmark pairs, then the nearest vertex.
 
     Parameters
@@ -205,20 +227,26 @@ def place_markers(table: MarkerTable, marker_neutral: np.ndarray, mesh_vertices:
 
     marker_neutral = np.asarray(marker_neutral, dtype=np.float64)
     if marker_neutral.shape != (len(table.labels), 3):
-        raise WorkbenchError(f"{table.path}: {len(table.labels)} markers in the table but neutral positions of shape "
-                             f"{marker_neutral.shape}")
+        raise WorkbenchError(
+            f"{table.path}: {len(table.labels)} markers in the table but neutral positions of shape "
+            f"{marker_neutral.shape}"
+        )
     if not np.all(np.isfinite(marker_neutral)):
         gaps = [label for label, point in zip(table.labels, marker_neutral) if not np.all(np.isfinite(point))]
-        raise WorkbenchError(f"markers {gaps} have no position in the neutral frame; choose a neutral frame where "
-                             "every marker of the correspondence table is seen")
+        raise WorkbenchError(
+            f"markers {gaps} have no position in the neutral frame; choose a neutral frame where "
+            "every marker of the correspondence table is seen"
+        )
     for column, values in (("landmark", table.landmarks), ("vertex", table.vertices)):
         if values.max() >= len(mesh_vertices):
-            raise WorkbenchError(f"{table.path}: {column} {int(values.max())} is outside the mesh's "
-                                 f"{len(mesh_vertices)} vertices")
+            raise WorkbenchError(
+                f"{table.path}: {column} {int(values.max())} is outside the mesh's {len(mesh_vertices)} vertices"
+            )
     if not 0 <= int(refine_iterations):
         raise WorkbenchError(f"correspondence refine_iterations must be >= 0, got {refine_iterations}")
-    candidates = (np.arange(len(mesh_vertices)) if candidate_vertices is None
-                  else np.asarray(candidate_vertices, dtype=np.int64))
+    candidates = (
+        np.arange(len(mesh_vertices)) if candidate_vertices is None else np.asarray(candidate_vertices, dtype=np.int64)
+    )
     tree = cKDTree(mesh_vertices[candidates])
     found = table.vertices < 0
 
@@ -232,9 +260,17 @@ def place_markers(table: MarkerTable, marker_neutral: np.ndarray, mesh_vertices:
 
     with_landmark = table.landmarks >= 0
     similarity = similarity_transform(mesh_vertices[table.landmarks[with_landmark]], marker_neutral[with_landmark])
-    landmark_rms = float(np.sqrt(np.mean(np.sum(
-        (similarity.apply(mesh_vertices[table.landmarks[with_landmark]]) - marker_neutral[with_landmark]) ** 2,
-        axis=1))))
+    landmark_rms = float(
+        np.sqrt(
+            np.mean(
+                np.sum(
+                    (similarity.apply(mesh_vertices[table.landmarks[with_landmark]]) - marker_neutral[with_landmark])
+                    ** 2,
+                    axis=1,
+                )
+            )
+        )
+    )
     vertices = assign(similarity)
     iterations = 0
     for iterations in range(1, int(refine_iterations) + 1):
@@ -243,9 +279,16 @@ def place_markers(table: MarkerTable, marker_neutral: np.ndarray, mesh_vertices:
         if np.array_equal(previous, vertices):
             break
     distances = np.linalg.norm(similarity.apply(mesh_vertices[vertices]) - marker_neutral, axis=1)
-    return MarkerPlacement(labels=table.labels, vertices=vertices, found=found, mesh_to_capture=similarity,
-                           distances=distances, landmark_rms=landmark_rms, n_landmarks=int(with_landmark.sum()),
-                           refine_iterations=iterations)
+    return MarkerPlacement(
+        labels=table.labels,
+        vertices=vertices,
+        found=found,
+        mesh_to_capture=similarity,
+        distances=distances,
+        landmark_rms=landmark_rms,
+        n_landmarks=int(with_landmark.sum()),
+        refine_iterations=iterations,
+    )
 
 
 def placement_table_text(placement: MarkerPlacement, table: MarkerTable) -> str:
@@ -257,9 +300,9 @@ def placement_table_text(placement: MarkerPlacement, table: MarkerTable) -> str:
         CSV text with the columns of :data:`TABLE_COLUMNS`.
     """
     lines = [",".join(TABLE_COLUMNS)]
-    for label, landmark, vertex, note, found, distance in zip(placement.labels, table.landmarks,
-                                                              placement.vertices, table.notes, placement.found,
-                                                              placement.distances):
+    for label, landmark, vertex, note, found, distance in zip(
+        placement.labels, table.landmarks, placement.vertices, table.notes, placement.found, placement.distances
+    ):
         if found:
             note = "; ".join(part for part in (note, f"nearest vertex {distance:.1f} mm") if part)
         landmark_text = "" if landmark < 0 else str(landmark)

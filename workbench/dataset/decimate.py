@@ -56,13 +56,16 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, fraction: float) -> Decima
         return Decimation(kept=np.arange(len(vertices)), faces=faces.astype(np.int64), fraction=1.0)
     import fast_simplification
 
-    _, _, collapses = fast_simplification.simplify(vertices, faces, target_reduction=1.0 - float(fraction),
-                                                   return_collapses=True)
+    _, _, collapses = fast_simplification.simplify(
+        vertices, faces, target_reduction=1.0 - float(fraction), return_collapses=True
+    )
     _, new_faces, mapping = fast_simplification.replay_simplification(vertices, faces, collapses)
     removed = np.unique(np.asarray(collapses)[:, 1]) if len(collapses) else np.empty(0, dtype=np.int64)
     kept = np.setdiff1d(np.arange(len(vertices)), removed)
     # replay numbers the surviving vertices in their original order; check that before trusting new_faces
     if not np.array_equal(np.asarray(mapping)[kept], np.arange(kept.size)):
-        raise WorkbenchError("mesh decimation: the kept vertices are not numbered in their original order "
-                             "(unexpected fast-simplification behaviour); cannot carry data onto them")
+        raise WorkbenchError(
+            "mesh decimation: the kept vertices are not numbered in their original order "
+            "(unexpected fast-simplification behaviour); cannot carry data onto them"
+        )
     return Decimation(kept=kept, faces=np.asarray(new_faces, dtype=np.int64), fraction=float(fraction))

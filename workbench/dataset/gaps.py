@@ -52,14 +52,21 @@ class GapReport:
     n_dropped_frames: int = 0
 
     def as_dict(self) -> dict:
-        return {"policy": self.policy, "n_missing_samples": self.n_missing_samples,
-                "missing_fraction": self.missing_fraction, "longest_gap_frames": self.longest_gap_frames,
-                "n_filled_samples": self.n_filled_samples, "n_dropped_frames": self.n_dropped_frames}
+        return {
+            "policy": self.policy,
+            "n_missing_samples": self.n_missing_samples,
+            "missing_fraction": self.missing_fraction,
+            "longest_gap_frames": self.longest_gap_frames,
+            "n_filled_samples": self.n_filled_samples,
+            "n_dropped_frames": self.n_dropped_frames,
+        }
 
     def describe(self) -> str:
         """One line for the run's notes."""
-        text = (f"{self.n_missing_samples} missing marker samples ({100 * self.missing_fraction:.2f} %, longest "
-                f"gap {self.longest_gap_frames} frames), gap policy '{self.policy}'")
+        text = (
+            f"{self.n_missing_samples} missing marker samples ({100 * self.missing_fraction:.2f} %, longest "
+            f"gap {self.longest_gap_frames} frames), gap policy '{self.policy}'"
+        )
         if self.n_filled_samples:
             text += f": {self.n_filled_samples} samples filled by linear interpolation"
         if self.n_dropped_frames:
@@ -67,8 +74,9 @@ class GapReport:
         return text
 
 
-def make_gap_mask(n_frames: int, n_markers: int, rate: float, mean_length: float,
-                  rng: np.random.Generator) -> np.ndarray:
+def make_gap_mask(
+    n_frames: int, n_markers: int, rate: float, mean_length: float, rng: np.random.Generator
+) -> np.ndarray:
     """Draw occlusion gaps: for each marker, visible and missing runs alternate.
 
     Run lengths are geometric, missing runs with mean ``mean_length`` frames and visible runs with mean
@@ -107,10 +115,10 @@ def make_gap_mask(n_frames: int, n_markers: int, rate: float, mean_length: float
             visible = rng.geometric(min(1.0, 1.0 / mean_visible), n_pairs)
             runs = np.stack([gaps, visible] if missing else [visible, gaps], axis=1).reshape(-1)
             starts = frame + np.concatenate([[0], np.cumsum(runs)[:-1]])
-            for start, length in zip(starts[int(not missing)::2], runs[int(not missing)::2]):
+            for start, length in zip(starts[int(not missing) :: 2], runs[int(not missing) :: 2]):
                 if start >= n_frames:
                     break
-                mask[start:start + length, marker] = True
+                mask[start : start + length, marker] = True
             frame = int(starts[-1] + runs[-1])
     return mask
 
@@ -178,14 +186,17 @@ def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | 
         kept = (~np.isnan(filled).any(axis=(1, 2))) if policy == "linear" else (~missing).any(axis=1)
     if not kept.any():
         raise WorkbenchError(f"gap policy {policy!r} keeps no frame: every frame misses a marker")
-    report = GapReport(policy=policy, n_missing_samples=int(missing.sum()),
-                       missing_fraction=float(missing.mean()) if missing.size else 0.0,
-                       longest_gap_frames=longest_run(missing),
-                       n_filled_samples=int((missing[kept] & ~np.isnan(filled[kept]).any(axis=2)).sum())
-                       if policy != "drop" else 0,
-                       n_dropped_frames=int((~kept).sum()))
-    return GapOutcome(positions=filled[kept], visible=~missing[kept] if policy == "masked" else None, kept=kept,
-                      report=report)
+    report = GapReport(
+        policy=policy,
+        n_missing_samples=int(missing.sum()),
+        missing_fraction=float(missing.mean()) if missing.size else 0.0,
+        longest_gap_frames=longest_run(missing),
+        n_filled_samples=int((missing[kept] & ~np.isnan(filled[kept]).any(axis=2)).sum()) if policy != "drop" else 0,
+        n_dropped_frames=int((~kept).sum()),
+    )
+    return GapOutcome(
+        positions=filled[kept], visible=~missing[kept] if policy == "masked" else None, kept=kept, report=report
+    )
 
 
 def _interpolate(positions: np.ndarray, missing: np.ndarray, max_fill_frames: int | None) -> np.ndarray:

@@ -14,9 +14,9 @@ from typing import Mapping
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.formats.obj import Blendshapes, expression_names, load_blendshapes
-from workbench.core.errors import WorkbenchError
 
 NEUTRAL_MISMATCH = 0.1
 """A hand basis whose neutral lies further than this fraction of the capture's extent from the capture's neutral is
@@ -44,8 +44,8 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     Blendshapes
         Every shape of the file.
     """
-    from workbench.settings.rules import integer_setting, positive_setting
     from workbench.formats.gltf import read_morph_mesh
+    from workbench.settings.rules import integer_setting, positive_setting
 
     unknown = sorted(set(spec) - set(KEYS))
     if unknown:
@@ -54,21 +54,33 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
     region = None if region is None else integer_setting(region, f"{key}.region_vertices", minimum=3)
     if path.is_dir():
         neutral = spec.get("neutral") or "neutral.obj"
-        unit_mm = (positive_setting(spec["unit_mm"], f"{key}.unit_mm") if spec.get("unit_mm") is not None
-                   else folder_unit_mm(path))
-        return load_blendshapes(path, neutral_file=neutral, names=expression_names(path, neutral),
-                                region_vertices=region, unit_mm=unit_mm)
+        unit_mm = (
+            positive_setting(spec["unit_mm"], f"{key}.unit_mm")
+            if spec.get("unit_mm") is not None
+            else folder_unit_mm(path)
+        )
+        return load_blendshapes(
+            path, neutral_file=neutral, names=expression_names(path, neutral), region_vertices=region, unit_mm=unit_mm
+        )
     if path.suffix.lower() != ".glb":
-        raise WorkbenchError(f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) "
-                             "or a .glb file")
+        raise WorkbenchError(
+            f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) or a .glb file"
+        )
     mesh = read_morph_mesh(path, mesh_name=spec.get("mesh"))
     n_kept = len(mesh.neutral) if region is None else region
     if n_kept > len(mesh.neutral):
         raise WorkbenchError(f"{key}.region_vertices {region} exceeds the {len(mesh.neutral)} vertices of {path}")
     kept_triangles = mesh.triangles[np.all(mesh.triangles < n_kept, axis=1)]
-    return Blendshapes(neutral=mesh.neutral[:n_kept], names=mesh.names, deltas=mesh.deltas[:, :n_kept],
-                       triangles=kept_triangles, n_polygons=len(kept_triangles),
-                       n_vertices_in_file=len(mesh.neutral), unit_mm=1000.0, files={"glb": str(path)})
+    return Blendshapes(
+        neutral=mesh.neutral[:n_kept],
+        names=mesh.names,
+        deltas=mesh.deltas[:, :n_kept],
+        triangles=kept_triangles,
+        n_polygons=len(kept_triangles),
+        n_vertices_in_file=len(mesh.neutral),
+        unit_mm=1000.0,
+        files={"glb": str(path)},
+    )
 
 
 def folder_unit_mm(folder: Path) -> float:
@@ -82,11 +94,15 @@ def folder_unit_mm(folder: Path) -> float:
     try:
         stated = json.loads(manifest.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise WorkbenchError(f"{manifest}: not a readable JSON file ({error}); set dataset.hand_basis.unit_mm to "
-                             "read the folder without it") from None
+        raise WorkbenchError(
+            f"{manifest}: not a readable JSON file ({error}); set dataset.hand_basis.unit_mm to "
+            "read the folder without it"
+        ) from None
     if not isinstance(stated, dict) or "unit_mm" not in stated:
-        raise WorkbenchError(f"{manifest}: needs a field 'unit_mm' (millimetres per OBJ unit); set "
-                             "dataset.hand_basis.unit_mm to read the folder without it")
+        raise WorkbenchError(
+            f"{manifest}: needs a field 'unit_mm' (millimetres per OBJ unit); set "
+            "dataset.hand_basis.unit_mm to read the folder without it"
+        )
     return positive_setting(stated["unit_mm"], f"{manifest}: field 'unit_mm'")
 
 
@@ -95,8 +111,10 @@ def shape_subset(basis: Blendshapes, names, key: str) -> tuple[tuple[str, ...], 
     names = list(basis.names) if names is None else list(names)
     missing = [name for name in names if name not in basis.names]
     if missing or not names or len(set(names)) != len(names):
-        raise WorkbenchError(f"{key}: needs distinct shape names of the file's {list(basis.names)}; "
-                             f"{'missing ' + str(missing) if missing else 'got ' + str(names)}")
+        raise WorkbenchError(
+            f"{key}: needs distinct shape names of the file's {list(basis.names)}; "
+            f"{'missing ' + str(missing) if missing else 'got ' + str(names)}"
+        )
     return tuple(names), basis.shapes(names)
 
 
@@ -104,16 +122,20 @@ def check_same_points(points: np.ndarray, neutral: np.ndarray, key: str, path: P
     """Raise unless the file's neutral (n, 3) holds ``points`` (n, 3), the neutral of ``what``; returns the RMS
     distance (mm)."""
     if len(neutral) != len(points):
-        raise WorkbenchError(f"{key}.path {path}: {len(neutral)} vertices, but {what} has {len(points)} points; the "
-                             "shapes must hold its points in order (for an export: export that data variant, or set "
-                             "dataset.train_on to the variant it was exported from)")
+        raise WorkbenchError(
+            f"{key}.path {path}: {len(neutral)} vertices, but {what} has {len(points)} points; the "
+            "shapes must hold its points in order (for an export: export that data variant, or set "
+            "dataset.train_on to the variant it was exported from)"
+        )
     extent = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     distance = np.linalg.norm(neutral - points, axis=1)
     if distance.max() > NEUTRAL_MISMATCH * extent:
-        raise WorkbenchError(f"{key}.path {path}: its neutral lies up to {distance.max():.3g} mm from the data's "
-                             f"(more than {NEUTRAL_MISMATCH:g} of the data's {extent:.3g} mm extent): another face, "
-                             "another vertex order or other units (unit_mm)")
-    return float(np.sqrt(np.mean(distance ** 2)))
+        raise WorkbenchError(
+            f"{key}.path {path}: its neutral lies up to {distance.max():.3g} mm from the data's "
+            f"(more than {NEUTRAL_MISMATCH:g} of the data's {extent:.3g} mm extent): another face, "
+            "another vertex order or other units (unit_mm)"
+        )
+    return float(np.sqrt(np.mean(distance**2)))
 
 
 def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str, Capture]:
@@ -147,8 +169,12 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str,
     for name, capture in captures.items():
         names, shapes = shape_subset(basis, spec.get("shapes") or capture.hand_names, key)
         rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
-        note = (f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)")
-        replaced[name] = replace(capture, hand=shapes.reshape(len(names), -1), hand_names=names,
-                                 notes=capture.notes + (note,),
-                                 provenance=dict(capture.provenance, hand_basis=str(path)))
+        note = f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)"
+        replaced[name] = replace(
+            capture,
+            hand=shapes.reshape(len(names), -1),
+            hand_names=names,
+            notes=capture.notes + (note,),
+            provenance=dict(capture.provenance, hand_basis=str(path)),
+        )
     return replaced

@@ -17,13 +17,29 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
+from workbench.dataset.real import (
+    ICT_CREDIT,
+    LIVELINK_CREDIT,
+    conf_path,
+    data_path,
+    frame_selection,
+    hand_shape_names,
+    load_basis,
+    mesh_point_indices,
+    origin_text,
+)
+from workbench.dataset.storage import FrameStorage
 from workbench.formats.livelink import drive_blendshapes, map_arkit_channels, read_livelink_csv
 from workbench.formats.obj import Blendshapes, expression_names
-from workbench.formats.plausibility import (face_size_problems, frame_rate_problems, plausibility_policy, settle,
-                                    static_weights_problems, unused_channel_problems, with_warnings)
-from workbench.dataset.real import (ICT_CREDIT, LIVELINK_CREDIT, conf_path, data_path, frame_selection,
-                                    hand_shape_names, load_basis, mesh_point_indices, origin_text)
-from workbench.dataset.storage import FrameStorage
+from workbench.formats.plausibility import (
+    face_size_problems,
+    frame_rate_problems,
+    plausibility_policy,
+    settle,
+    static_weights_problems,
+    unused_channel_problems,
+    with_warnings,
+)
 from workbench.formats.weight_curves import read_weight_curves
 from workbench.settings.rules import positive_setting
 
@@ -48,17 +64,21 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     """
     names = train_on_list(cfg, TRAIN_ON)
     driven_take = _driven_take(cfg)
-    curves_key, curves_path, take_name, take = (driven_take.curves_key, driven_take.curves_path,
-                                                driven_take.take_name, driven_take.take)
+    curves_key, curves_path, take_name, take = (
+        driven_take.curves_key,
+        driven_take.curves_path,
+        driven_take.take_name,
+        driven_take.take,
+    )
     frames, warnings, basis, mapping = driven_take.frames, driven_take.warnings, driven_take.basis, driven_take.mapping
     hand_names = driven_take.hand_names
     frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
     weights = take.weights[frames]
-    timeline = Timeline(take=np.full(len(frames), take_name), frame=frames,
-                        seconds=take.seconds[frames] - take.seconds[0])
+    timeline = Timeline(
+        take=np.full(len(frames), take_name), frame=frames, seconds=take.seconds[frames] - take.seconds[0]
+    )
 
-    marker_table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"),
-                                     n_vertices=len(basis.neutral))
+    marker_table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
     marker_vertices = marker_table.require_vertices("dataset ict_livelink's virtual markers")
     mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
     points = {"mesh": mesh_points, "markers": marker_vertices}
@@ -72,26 +92,45 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
         neutral = basis.neutral[index]
         deltas = basis.deltas[:, index].reshape(len(basis.names), -1)
         key = (array_digest(weights), array_digest(mapping.matrix), array_digest(deltas), code_fingerprint())
-        displacements = storage.build(f"ict_livelink_{name}", key, len(weights), deltas.shape[1],
-                                      lambda rows, deltas=deltas: drive_blendshapes(weights[rows], mapping, deltas))
+        displacements = storage.build(
+            f"ict_livelink_{name}",
+            key,
+            len(weights),
+            deltas.shape[1],
+            lambda rows, deltas=deltas: drive_blendshapes(weights[rows], mapping, deltas),
+        )
         train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
         notes = list(notes_common)
         if name == "markers":
-            notes.append(f"virtual markers: {len(index)} ICT vertices of {marker_table.path.name} (the AnimFace "
-                         "marker layout placed on the ICT face), exact (no noise)")
+            notes.append(
+                f"virtual markers: {len(index)} ICT vertices of {marker_table.path.name} (the AnimFace "
+                "marker layout placed on the ICT face), exact (no noise)"
+            )
         else:
             notes.append(f"mesh: {len(index)} face-region vertices (every {int(cfg.get('mesh_vertex_step', 1))})")
         notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
         faces = basis.triangles if name == "mesh" and len(index) == len(basis.neutral) else None
         captures[name] = Capture(
-            name=("ICT FaceKit face driven by a Live Link Face take (real ARKit weights)" if curves_key == "livelink_csv"
-                  else f"ICT FaceKit face driven by the weight curves of {curves_path.name}"),
-            neutral=neutral.reshape(-1), train=train, eval=evaluate, hand=deltas[hand_index],
-            hand_names=tuple(hand_names), point_labels=labels[name], units="mm",
-            origin=origin_text("ICT FaceKit model origin: midline, about nose-tip height, near the centre of the "
-                               "head", neutral),
-            frame_rate=float(frame_rate), **with_warnings(notes, dict(provenance, train_on=name), warnings),
-            faces=faces, eval_timeline=timeline[len(timeline) - len(evaluate):])
+            name=(
+                "ICT FaceKit face driven by a Live Link Face take (real ARKit weights)"
+                if curves_key == "livelink_csv"
+                else f"ICT FaceKit face driven by the weight curves of {curves_path.name}"
+            ),
+            neutral=neutral.reshape(-1),
+            train=train,
+            eval=evaluate,
+            hand=deltas[hand_index],
+            hand_names=tuple(hand_names),
+            point_labels=labels[name],
+            units="mm",
+            origin=origin_text(
+                "ICT FaceKit model origin: midline, about nose-tip height, near the centre of the head", neutral
+            ),
+            frame_rate=float(frame_rate),
+            **with_warnings(notes, dict(provenance, train_on=name), warnings),
+            faces=faces,
+            eval_timeline=timeline[len(timeline) - len(evaluate) :],
+        )
     return captures
 
 
@@ -129,32 +168,58 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
     folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
     frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
     dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
-    problems = (static_weights_problems(take.weights[frames], str(take.path))
-                + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
-                + unused_channel_problems([channel for channel in folder_mapping.unmapped if channel not in dropped],
-                                          list(take.names), take.weights[frames], f"{take.path} with {folder}"))
+    problems = (
+        static_weights_problems(take.weights[frames], str(take.path))
+        + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
+        + unused_channel_problems(
+            [channel for channel in folder_mapping.unmapped if channel not in dropped],
+            list(take.names),
+            take.weights[frames],
+            f"{take.path} with {folder}",
+        )
+    )
     warnings = settle(problems, plausibility_policy(cfg))
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
-    warnings += settle(face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
-                       plausibility_policy(cfg))
+    warnings += settle(
+        face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
+        plausibility_policy(cfg),
+    )
     mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
-    return _DrivenTake(curves_key=curves_key, curves_path=curves_path, take_name=take_name, take=take, frames=frames,
-                       warnings=warnings, driven=driven, basis=basis, mapping=mapping, hand_names=hand_names,
-                       folder_mapping=folder_mapping)
+    return _DrivenTake(
+        curves_key=curves_key,
+        curves_path=curves_path,
+        take_name=take_name,
+        take=take,
+        frames=frames,
+        warnings=warnings,
+        driven=driven,
+        basis=basis,
+        mapping=mapping,
+        hand_names=hand_names,
+        folder_mapping=folder_mapping,
+    )
 
 
-def _shared_facts(cfg: Mapping, driven_take: _DrivenTake, marker_table, marker_vertices: np.ndarray,
-                  frame_rate: float) -> tuple[list[str], dict]:
+def _shared_facts(
+    cfg: Mapping, driven_take: _DrivenTake, marker_table, marker_vertices: np.ndarray, frame_rate: float
+) -> tuple[list[str], dict]:
     """The notes and provenance every data variant of the capture carries."""
-    curves_key, curves_path, take, frames = (driven_take.curves_key, driven_take.curves_path, driven_take.take,
-                                             driven_take.frames)
+    curves_key, curves_path, take, frames = (
+        driven_take.curves_key,
+        driven_take.curves_path,
+        driven_take.take,
+        driven_take.frames,
+    )
     driven, basis, mapping = driven_take.driven, driven_take.basis, driven_take.mapping
     folder_mapping = driven_take.folder_mapping
     notes_common = [
-        ("ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take"
-         if curves_key == "livelink_csv" else f"ICT FaceKit generic face driven by the weight curves of "
-         f"{curves_path.name}") + ": the motion "
+        (
+            "ICT FaceKit generic face driven by the ARKit weights of a real person's Live Link Face take"
+            if curves_key == "livelink_csv"
+            else f"ICT FaceKit generic face driven by the weight curves of {curves_path.name}"
+        )
+        + ": the motion "
         f"is a linear blend of the {len(driven)} driven ICT shapes (eq. 1), with no capture noise",
         f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
         f"{basis.n_vertices_in_file} vertices",
@@ -163,13 +228,20 @@ def _shared_facts(cfg: Mapping, driven_take: _DrivenTake, marker_table, marker_v
         f"{frame_rate:.2f} Hz from the timecodes",
     ]
     provenance = {
-        "kind": "ict_livelink", "data_root": str(cfg["data_root"]),
-        "files": {"blendshapes": cfg["blendshapes"]["folder"], curves_key: cfg[curves_key],
-                  "marker_table": str(marker_table.path)},
+        "kind": "ict_livelink",
+        "data_root": str(cfg["data_root"]),
+        "files": {
+            "blendshapes": cfg["blendshapes"]["folder"],
+            curves_key: cfg[curves_key],
+            "marker_table": str(marker_table.path),
+        },
         "credits": [ICT_CREDIT] + ([LIVELINK_CREDIT] if curves_key == "livelink_csv" else []),
-        "unit_mm": basis.unit_mm, "region_vertices": len(basis.neutral),
+        "unit_mm": basis.unit_mm,
+        "region_vertices": len(basis.neutral),
         "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
-        "n_frames_in_file": take.n_frames, "frames_used": len(frames), "frame_step": int(cfg.get("frame_step", 1)),
+        "n_frames_in_file": take.n_frames,
+        "frames_used": len(frames),
+        "frame_step": int(cfg.get("frame_step", 1)),
         "virtual_marker_vertices": dict(zip(marker_table.labels, marker_vertices.tolist())),
     }
     return notes_common, provenance

@@ -21,15 +21,21 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
-from workbench.formats.obj import read_obj, triangulate
-from workbench.formats.plausibility import SequenceMotion, face_size_problems, plausibility_policy, settle, with_warnings
 from workbench.dataset.real import data_path, frame_selection, origin_text
 from workbench.dataset.storage import FrameStorage
-from workbench.core.errors import WorkbenchError
+from workbench.formats.obj import read_obj, triangulate
+from workbench.formats.plausibility import (
+    SequenceMotion,
+    face_size_problems,
+    plausibility_policy,
+    settle,
+    with_warnings,
+)
 from workbench.numerics.frames import chunk_frames
 from workbench.settings.rules import integer_setting, positive_setting
 
@@ -53,20 +59,27 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
         raise WorkbenchError(f"{path}: mesh sequence file not found")
     if suffix not in SEQUENCE_SUFFIXES:
         raise WorkbenchError(f"{path}: a mesh sequence must be one of {', '.join(SEQUENCE_SUFFIXES)}")
-    opened = _hdf5_arrays(path, vertices_key, faces_key) if suffix in (".h5", ".hdf5") else \
-        _numpy_arrays(path, vertices_key, faces_key)
+    opened = (
+        _hdf5_arrays(path, vertices_key, faces_key)
+        if suffix in (".h5", ".hdf5")
+        else _numpy_arrays(path, vertices_key, faces_key)
+    )
     with opened as (vertices, faces):
         if len(vertices.shape) != 3 or vertices.shape[2] != 3 or vertices.shape[0] < 2 or vertices.shape[1] < 3:
-            raise WorkbenchError(f"{path}: '{vertices_key}' must have shape (n_frames >= 2, n_vertices >= 3, 3), "
-                                 f"got {vertices.shape}")
+            raise WorkbenchError(
+                f"{path}: '{vertices_key}' must have shape (n_frames >= 2, n_vertices >= 3, 3), got {vertices.shape}"
+            )
         digest, problems = _check_values(path, vertices_key, vertices)
         if faces is not None:
             if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
-                raise WorkbenchError(f"{path}: '{faces_key}' must be integer triangles of shape (n, 3), got "
-                                     f"{faces.dtype} {faces.shape}")
+                raise WorkbenchError(
+                    f"{path}: '{faces_key}' must be integer triangles of shape (n, 3), got {faces.dtype} {faces.shape}"
+                )
             if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
-                raise WorkbenchError(f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
-                                     f"{vertices.shape[1]} vertices (0-based)")
+                raise WorkbenchError(
+                    f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
+                    f"{vertices.shape[1]} vertices (0-based)"
+                )
         yield MeshSequence(vertices, faces, digest, tuple(problems))
 
 
@@ -135,8 +148,9 @@ def _read_chunk(path: Path, vertices, start: int, stop: int) -> np.ndarray:
     try:
         return vertices[start:stop]
     except (OSError, ValueError, EOFError) as error:
-        raise WorkbenchError(f"{path}: frames {start}-{stop - 1} cannot be read ({error}); the file is damaged or "
-                             "truncated") from None
+        raise WorkbenchError(
+            f"{path}: frames {start}-{stop - 1} cannot be read ({error}); the file is damaged or truncated"
+        ) from None
 
 
 @contextmanager
@@ -159,8 +173,10 @@ def _numpy_arrays(path: Path, vertices_key: str, faces_key: str | None):
             faces = loaded[faces_key] if faces_key and faces_key in loaded.files else None
             vertices = loaded[vertices_key]
         except damaged as error:
-            raise WorkbenchError(f"{path}: an array of the archive cannot be read ({type(error).__name__}: "
-                                 f"{error}); the file is damaged or truncated") from None
+            raise WorkbenchError(
+                f"{path}: an array of the archive cannot be read ({type(error).__name__}: "
+                f"{error}); the file is damaged or truncated"
+            ) from None
     yield vertices, faces
 
 
@@ -174,8 +190,9 @@ def _hdf5_arrays(path: Path, vertices_key: str, faces_key: str | None):
         raise WorkbenchError(f"{path}: not a readable HDF5 file ({error})") from None
     with handle:
         if vertices_key not in handle or not isinstance(handle[vertices_key], h5py.Dataset):
-            raise WorkbenchError(f"{path}: no dataset '{vertices_key}' (dataset.vertices_key); it has "
-                                 f"{sorted(handle.keys())}")
+            raise WorkbenchError(
+                f"{path}: no dataset '{vertices_key}' (dataset.vertices_key); it has {sorted(handle.keys())}"
+            )
         faces = handle[faces_key][()] if faces_key and faces_key in handle else None
         yield handle[vertices_key], faces
 
@@ -205,16 +222,18 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
         return _mesh_sequence_capture(cfg, storage, path, sequence, unit_mm, frame_rate)
 
 
-def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float,
-                           frame_rate: float) -> dict[str, Capture]:
+def _mesh_sequence_capture(
+    cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float, frame_rate: float
+) -> dict[str, Capture]:
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     warnings = settle(sequence.problems, plausibility_policy(cfg))
     if cfg.get("neutral"):
         neutral_path = data_path(cfg, cfg["neutral"], "neutral")
         neutral_mesh = read_obj(neutral_path)
         if neutral_mesh.n_vertices != n_vertices:
-            raise WorkbenchError(f"dataset.neutral {neutral_path}: {neutral_mesh.n_vertices} vertices, but the "
-                                 f"sequence has {n_vertices}")
+            raise WorkbenchError(
+                f"dataset.neutral {neutral_path}: {neutral_mesh.n_vertices} vertices, but the sequence has {n_vertices}"
+            )
         neutral = neutral_mesh.vertices * unit_mm
         faces = faces if faces is not None else triangulate(neutral_mesh.polygon_sizes, neutral_mesh.polygon_vertices)
         neutral_text = f"neutral: {neutral_path.name}"
@@ -227,8 +246,10 @@ def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequ
 
     spec = dict(cfg.get("blendshapes") or {})
     if not spec.get("path"):
-        raise WorkbenchError("dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
-                             "(a blendshape folder or a .glb)")
+        raise WorkbenchError(
+            "dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
+            "(a blendshape folder or a .glb)"
+        )
     basis_path = data_path(cfg, spec["path"], "blendshapes.path")
     if not basis_path.exists():
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
@@ -249,18 +270,35 @@ def _mesh_sequence_capture(cfg: Mapping, storage: FrameStorage, path: Path, sequ
     key = (sequence.digest, array_digest(neutral), float(unit_mm), array_digest(index), code_fingerprint())
     displacements = storage.build("mesh_sequence", key, len(index), 3 * n_vertices, chunk_of)
     train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
-    notes = (f"mesh sequence {path.name}: {len(index)} of {n_frames} frames (every {step}), "
-             f"{n_vertices} vertices, file units x {unit_mm:g} -> mm; {neutral_text}",
-             f"hand basis: {len(hand_names)} shapes of {basis_path.name} (its neutral {rms:.3g} mm RMS from the "
-             "sequence's)",
-             f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
-    provenance = {"kind": "mesh_sequence", "data_root": str(cfg.get("data_root")),
-                  "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
-                  "unit_mm": unit_mm, "n_frames_in_file": n_frames, "frames_used": len(index),
-                  "frame_step": step, "train_on": "mesh"}
-    return {"mesh": Capture(
-        name=f"mesh sequence {path.name}", neutral=neutral.reshape(-1), train=train, eval=evaluate,
-        hand=hand.reshape(len(hand_names), -1), hand_names=hand_names,
-        point_labels=tuple(f"v{i}" for i in range(n_vertices)), units="mm",
-        origin=origin_text("origin of the sequence file", neutral), frame_rate=frame_rate / step,
-        **with_warnings(notes, provenance, warnings), faces=np.asarray(faces, dtype=np.int64))}
+    notes = (
+        f"mesh sequence {path.name}: {len(index)} of {n_frames} frames (every {step}), "
+        f"{n_vertices} vertices, file units x {unit_mm:g} -> mm; {neutral_text}",
+        f"hand basis: {len(hand_names)} shapes of {basis_path.name} (its neutral {rms:.3g} mm RMS from the sequence's)",
+        f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated",
+    )
+    provenance = {
+        "kind": "mesh_sequence",
+        "data_root": str(cfg.get("data_root")),
+        "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
+        "unit_mm": unit_mm,
+        "n_frames_in_file": n_frames,
+        "frames_used": len(index),
+        "frame_step": step,
+        "train_on": "mesh",
+    }
+    return {
+        "mesh": Capture(
+            name=f"mesh sequence {path.name}",
+            neutral=neutral.reshape(-1),
+            train=train,
+            eval=evaluate,
+            hand=hand.reshape(len(hand_names), -1),
+            hand_names=hand_names,
+            point_labels=tuple(f"v{i}" for i in range(n_vertices)),
+            units="mm",
+            origin=origin_text("origin of the sequence file", neutral),
+            frame_rate=frame_rate / step,
+            **with_warnings(notes, provenance, warnings),
+            faces=np.asarray(faces, dtype=np.int64),
+        )
+    }

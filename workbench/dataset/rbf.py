@@ -20,13 +20,13 @@ from workbench.settings.rules import RBF_METRICS, checked, integer, interval, on
 
 KERNELS = {
     "linear": lambda r: -r,
-    "thin_plate_spline": lambda r: np.where(r > 0, r ** 2 * np.log(np.where(r > 0, r, 1.0)), 0.0),
-    "cubic": lambda r: r ** 3,
-    "quintic": lambda r: -(r ** 5),
-    "multiquadric": lambda r: -np.sqrt(r ** 2 + 1.0),
-    "inverse_multiquadric": lambda r: 1.0 / np.sqrt(r ** 2 + 1.0),
-    "inverse_quadratic": lambda r: 1.0 / (r ** 2 + 1.0),
-    "gaussian": lambda r: np.exp(-(r ** 2)),
+    "thin_plate_spline": lambda r: np.where(r > 0, r**2 * np.log(np.where(r > 0, r, 1.0)), 0.0),
+    "cubic": lambda r: r**3,
+    "quintic": lambda r: -(r**5),
+    "multiquadric": lambda r: -np.sqrt(r**2 + 1.0),
+    "inverse_multiquadric": lambda r: 1.0 / np.sqrt(r**2 + 1.0),
+    "inverse_quadratic": lambda r: 1.0 / (r**2 + 1.0),
+    "gaussian": lambda r: np.exp(-(r**2)),
 }
 """SciPy ``RBFInterpolator``'s kernels of ``r = epsilon * distance``, with its signs."""
 
@@ -64,10 +64,17 @@ def monomials(points: np.ndarray, degree: int, shift: np.ndarray, scale: np.ndar
     return np.stack(columns, axis=1)
 
 
-def rbf_operator(centres: np.ndarray, targets: np.ndarray, *, kernel: str = "thin_plate_spline",
-                 smoothing: float = 0.0, epsilon: float | None = None, degree: int = 1,
-                 centre_distances: np.ndarray | None = None,
-                 target_distances: np.ndarray | None = None) -> np.ndarray:
+def rbf_operator(
+    centres: np.ndarray,
+    targets: np.ndarray,
+    *,
+    kernel: str = "thin_plate_spline",
+    smoothing: float = 0.0,
+    epsilon: float | None = None,
+    degree: int = 1,
+    centre_distances: np.ndarray | None = None,
+    target_distances: np.ndarray | None = None,
+) -> np.ndarray:
     """The linear map from values at the centres to the RBF interpolant's values at the targets.
 
     Parameters
@@ -96,8 +103,9 @@ def rbf_operator(centres: np.ndarray, targets: np.ndarray, *, kernel: str = "thi
         from scipy.interpolate import RBFInterpolator
 
         try:
-            interpolator = RBFInterpolator(centres, np.eye(n_centres), kernel=kernel, smoothing=smoothing,
-                                           epsilon=epsilon, degree=degree)
+            interpolator = RBFInterpolator(
+                centres, np.eye(n_centres), kernel=kernel, smoothing=smoothing, epsilon=epsilon, degree=degree
+            )
         except (ValueError, np.linalg.LinAlgError) as error:
             raise WorkbenchError(f"RBF interpolation is not solvable for these markers ({error})") from None
         return interpolator(targets)
@@ -117,8 +125,9 @@ def rbf_operator(centres: np.ndarray, targets: np.ndarray, *, kernel: str = "thi
     try:
         coefficients = np.linalg.solve(system, right)
     except np.linalg.LinAlgError:
-        raise WorkbenchError("geodesic RBF system is singular: markers share vertices or are too few for the "
-                             f"degree-{degree} polynomial") from None
+        raise WorkbenchError(
+            f"geodesic RBF system is singular: markers share vertices or are too few for the degree-{degree} polynomial"
+        ) from None
     evaluation = np.concatenate([phi(epsilon * target_distances), monomials(targets, degree, shift, scale)], axis=1)
     return evaluation @ coefficients
 
@@ -145,9 +154,18 @@ def geodesic_distances(vertices: np.ndarray, triangles: np.ndarray, sources: np.
     return dijkstra(mesh_edge_graph(vertices, triangles), directed=False, indices=np.asarray(sources))
 
 
-def mesh_rbf_operator(vertices: np.ndarray, triangles: np.ndarray | None, centre_vertices: np.ndarray,
-                      target_vertices: np.ndarray, *, metric: str = "euclidean", kernel: str = "thin_plate_spline",
-                      smoothing: float = 0.0, epsilon: float | None = None, degree: int = 1) -> np.ndarray:
+def mesh_rbf_operator(
+    vertices: np.ndarray,
+    triangles: np.ndarray | None,
+    centre_vertices: np.ndarray,
+    target_vertices: np.ndarray,
+    *,
+    metric: str = "euclidean",
+    kernel: str = "thin_plate_spline",
+    smoothing: float = 0.0,
+    epsilon: float | None = None,
+    degree: int = 1,
+) -> np.ndarray:
     """RBF map from values at some mesh vertices (the markers) to values at others (the targets).
 
     Parameters
@@ -170,8 +188,10 @@ def mesh_rbf_operator(vertices: np.ndarray, triangles: np.ndarray | None, centre
     centre_vertices, target_vertices = np.asarray(centre_vertices), np.asarray(target_vertices)
     if len(np.unique(centre_vertices)) != len(centre_vertices):
         values, counts = np.unique(centre_vertices, return_counts=True)
-        raise WorkbenchError(f"RBF centres must be distinct vertices; vertex(es) {values[counts > 1].tolist()} "
-                             "carry more than one marker")
+        raise WorkbenchError(
+            f"RBF centres must be distinct vertices; vertex(es) {values[counts > 1].tolist()} "
+            "carry more than one marker"
+        )
     centres, targets = vertices[centre_vertices], vertices[target_vertices]
     options = dict(kernel=kernel, smoothing=smoothing, epsilon=epsilon, degree=degree)
     if metric == "euclidean":
@@ -182,11 +202,18 @@ def mesh_rbf_operator(vertices: np.ndarray, triangles: np.ndarray | None, centre
     unreachable = ~np.isfinite(distances[:, target_vertices])
     if unreachable.any():
         centre, target = np.argwhere(unreachable)[0]
-        raise WorkbenchError(f"geodesic RBF: vertex {int(target_vertices[target])} is not connected to marker vertex "
-                             f"{int(centre_vertices[centre])} on the mesh ({int(unreachable.any(axis=0).sum())} "
-                             "such vertices); use rbf.metric=euclidean or a connected region")
-    return rbf_operator(centres, targets, centre_distances=distances[:, centre_vertices],
-                        target_distances=distances[:, target_vertices].T, **options)
+        raise WorkbenchError(
+            f"geodesic RBF: vertex {int(target_vertices[target])} is not connected to marker vertex "
+            f"{int(centre_vertices[centre])} on the mesh ({int(unreachable.any(axis=0).sum())} "
+            "such vertices); use rbf.metric=euclidean or a connected region"
+        )
+    return rbf_operator(
+        centres,
+        targets,
+        centre_distances=distances[:, centre_vertices],
+        target_distances=distances[:, target_vertices].T,
+        **options,
+    )
 
 
 def interpolate_frames(operator: np.ndarray, marker_displacements: np.ndarray) -> np.ndarray:

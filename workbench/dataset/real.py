@@ -7,17 +7,21 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.formats.obj import Blendshapes, load_blendshapes
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import sha256_of_file
+from workbench.formats.obj import Blendshapes, load_blendshapes
 from workbench.settings.rules import integer_setting, positive_setting
 
 ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
-LIVELINK_CREDIT = ("Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
-                   "Motionbuilder), MIT licence")
-ANIMFACE_CREDIT = ("AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0 (bigoMay/AnimFace; thesis 'Efficient Facial "
-                   "Animation Integrating Euclidean and Geodesic Distance-Based Algorithms into Radial Basis Function "
-                   "Interpolation', Bournemouth University, 2019)")
+LIVELINK_CREDIT = (
+    "Live Link Face take by Alexandre Donciu-Julin (alexdjulin/LiveLinkFace-CSV-Retarget-For-"
+    "Motionbuilder), MIT licence"
+)
+ANIMFACE_CREDIT = (
+    "AnimFace by Miguel Ramos Carretero, CC BY-SA 4.0 (bigoMay/AnimFace; thesis 'Efficient Facial "
+    "Animation Integrating Euclidean and Geodesic Distance-Based Algorithms into Radial Basis Function "
+    "Interpolation', Bournemouth University, 2019)"
+)
 
 
 def data_root(cfg: Mapping) -> Path:
@@ -27,8 +31,10 @@ def data_root(cfg: Mapping) -> Path:
         raise WorkbenchError("dataset.data_root is not set (it defaults to ${paths.data_root})")
     path = Path(root).expanduser()
     if not path.is_dir():
-        raise WorkbenchError(f"dataset.data_root {path} (resolved {path.resolve()}) is not a folder: set "
-                             "WORKBENCH_DATA_ROOT or paths.data_root=... to where the shared face data lives")
+        raise WorkbenchError(
+            f"dataset.data_root {path} (resolved {path.resolve()}) is not a folder: set "
+            "WORKBENCH_DATA_ROOT or paths.data_root=... to where the shared face data lives"
+        )
     return path
 
 
@@ -91,8 +97,11 @@ def data_file_checksums(cfg: Mapping) -> dict:
                 elif path.is_dir() and path.resolve() != root.resolve():
                     files = sorted((item for item in path.iterdir() if item.is_file()), key=lambda item: item.name)
                     lines = "".join(f"{sha256_of_file(item)}  {item.name}\n" for item in files)
-                    found[prefix + value] = {"sha256": hashlib.sha256(lines.encode()).hexdigest(),
-                                             "bytes": sum(item.stat().st_size for item in files), "files": len(files)}
+                    found[prefix + value] = {
+                        "sha256": hashlib.sha256(lines.encode()).hexdigest(),
+                        "bytes": sum(item.stat().st_size for item in files),
+                        "files": len(files),
+                    }
 
     visit(cfg)
     return found
@@ -118,9 +127,13 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
             raise WorkbenchError(f"dataset.blendshapes.{key} is not set")
     region = spec.get("region_vertices")
     region = None if region is None else integer_setting(region, "dataset.blendshapes.region_vertices", minimum=3)
-    return load_blendshapes(data_path(cfg, spec["folder"], "blendshapes.folder"), neutral_file=spec["neutral"],
-                            names=names, region_vertices=region,
-                            unit_mm=positive_setting(spec["unit_mm"], "dataset.blendshapes.unit_mm"))
+    return load_blendshapes(
+        data_path(cfg, spec["folder"], "blendshapes.folder"),
+        neutral_file=spec["neutral"],
+        names=names,
+        region_vertices=region,
+        unit_mm=positive_setting(spec["unit_mm"], "dataset.blendshapes.unit_mm"),
+    )
 
 
 def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
@@ -132,8 +145,9 @@ def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
         raise WorkbenchError(f"dataset.hand_shapes must be distinct, got {names}")
     unknown = [name for name in names if name not in available]
     if unknown:
-        raise WorkbenchError(f"dataset.hand_shapes names {unknown}, which the blendshape folder does not have; "
-                             f"it has {list(available)}")
+        raise WorkbenchError(
+            f"dataset.hand_shapes names {unknown}, which the blendshape folder does not have; it has {list(available)}"
+        )
     return names
 
 

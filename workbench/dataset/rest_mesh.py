@@ -61,9 +61,8 @@ def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
     if kind == "synthetic":
         return _synthetic_rest_mesh(cfg)
     if kind in ("ict_livelink", "animface"):
-        from workbench.dataset.real import load_basis
-
         from workbench.dataset.animface import within_marker_reach
+        from workbench.dataset.real import load_basis
 
         basis = load_basis(cfg, [])  # the neutral only
         provenance = provenance or {}
@@ -73,8 +72,10 @@ def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
         else:
             placement = provenance.get("placement") or {}
             if "scale" not in placement or not placement.get("vertices"):
-                raise WorkbenchError("dataset animface: the record's provenance has no marker placement (scale and "
-                                     "vertices), so the ICT face cannot be put in the performer's frame")
+                raise WorkbenchError(
+                    "dataset animface: the record's provenance has no marker placement (scale and "
+                    "vertices), so the ICT face cannot be put in the performer's frame"
+                )
             vertices, markers = float(placement["scale"]) * basis.neutral, placement["vertices"]
             text = f"the ICT FaceKit face region ({len(vertices)} vertices) scaled into the performer's frame"
         markers = np.asarray(list(markers.values()), dtype=np.int64)
@@ -92,10 +93,10 @@ def _synthetic_rest_mesh(cfg: Mapping) -> RestMesh:
     try:
         rows, cols, n_markers = int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), int(cfg["n_face_markers"])
     except (KeyError, TypeError, ValueError) as error:
-        raise WorkbenchError(f"dataset synthetic: mesh_rows, mesh_cols and n_face_markers must be integers "
-                             f"({error})") from None
+        raise WorkbenchError(
+            f"dataset synthetic: mesh_rows, mesh_cols and n_face_markers must be integers ({error})"
+        ) from None
     mesh = make_face_mesh(rows, cols)
     support = np.zeros(mesh.n_vertices, dtype=bool)
     support[face_region(rows, cols, n_markers)[0]] = True
-    return RestMesh(mesh.vertices, mesh.faces, support,
-                    f"the synthetic actor's head mesh ({mesh.n_vertices} vertices)")
+    return RestMesh(mesh.vertices, mesh.faces, support, f"the synthetic actor's head mesh ({mesh.n_vertices} vertices)")

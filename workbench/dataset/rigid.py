@@ -10,8 +10,9 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 
 
-def kabsch(moving: np.ndarray, reference: np.ndarray,
-           weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def kabsch(
+    moving: np.ndarray, reference: np.ndarray, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Best rigid transforms taking each frame's points onto a reference, ``R p + t ~ q`` in least squares.
 
     Parameters
@@ -38,8 +39,9 @@ def kabsch(moving: np.ndarray, reference: np.ndarray,
         total = weights.sum(axis=1, keepdims=True)
         moving_centre = np.einsum("fk,fki->fi", weights, moving) / total
         reference_centre = weights @ reference / total
-        covariance = np.einsum("fk,fki,fkj->fij", weights, moving - moving_centre[:, None],
-                               reference[None] - reference_centre[:, None])
+        covariance = np.einsum(
+            "fk,fki,fkj->fij", weights, moving - moving_centre[:, None], reference[None] - reference_centre[:, None]
+        )
     u, _, vt = np.linalg.svd(covariance)
     # Flip the last singular direction where the best orthogonal map would be a reflection.
     d = np.sign(np.linalg.det(np.einsum("fij,fjk->fik", u, vt)))
@@ -98,8 +100,10 @@ def stabilise(markers: np.ndarray, rigid_index, reference: np.ndarray) -> Stabil
         rotations = np.full((len(markers), 3, 3), np.nan)
         translations = np.full((len(markers), 3), np.nan)
         rotations[alignable], translations[alignable] = kabsch(
-            np.where(present[alignable, :, None], rigid[alignable], 0.0), reference,
-            weights=present[alignable].astype(np.float64))
+            np.where(present[alignable, :, None], rigid[alignable], 0.0),
+            reference,
+            weights=present[alignable].astype(np.float64),
+        )
     aligned = np.einsum("fij,fmj->fmi", rotations, markers) + translations[:, None, :]
     squared = np.sum((aligned[:, rigid_index] - reference) ** 2, axis=2)
     seen = np.isfinite(squared).sum(axis=1)
@@ -144,15 +148,17 @@ def similarity_transform(source: np.ndarray, target: np.ndarray) -> Similarity:
     """
     source, target = np.asarray(source, dtype=np.float64), np.asarray(target, dtype=np.float64)
     if source.shape != target.shape or source.ndim != 2 or source.shape[1] != 3 or source.shape[0] < 3:
-        raise WorkbenchError(f"a similarity alignment needs two (n >= 3, 3) arrays of corresponding points, got "
-                             f"{source.shape} and {target.shape}")
+        raise WorkbenchError(
+            f"a similarity alignment needs two (n >= 3, 3) arrays of corresponding points, got "
+            f"{source.shape} and {target.shape}"
+        )
     source_centre, target_centre = source.mean(axis=0), target.mean(axis=0)
     source_centred, target_centred = source - source_centre, target - target_centre
     u, singular, vt = np.linalg.svd(target_centred.T @ source_centred / len(source))
     sign = np.ones(3)
     sign[2] = 1.0 if np.linalg.det(u) * np.linalg.det(vt) >= 0 else -1.0
     rotation = (u * sign) @ vt
-    variance = np.mean(np.sum(source_centred ** 2, axis=1))
+    variance = np.mean(np.sum(source_centred**2, axis=1))
     if not variance > 0:
         raise WorkbenchError("a similarity alignment needs source points that are not all in one place")
     scale = float(np.sum(singular * sign) / variance)

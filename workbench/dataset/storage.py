@@ -20,8 +20,8 @@ from typing import Callable, Mapping
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.numerics.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
 from workbench.core.progress import progress
+from workbench.numerics.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
 
 STORAGES = ("memory", "disk")
 FRAMES_FOLDER = "frames"
@@ -83,8 +83,9 @@ class FrameStorage:
         shape (rows.stop - rows.start, n_dims); see :meth:`generate`."""
         return self.generate(name, key, n_frames, n_dims, lambda rows, out: np.copyto(out, chunk_of(rows)))
 
-    def generate(self, name: str, key, n_frames: int, n_dims: int, fill: Callable[[slice, np.ndarray], object], *,
-                 desc: str = ""):
+    def generate(
+        self, name: str, key, n_frames: int, n_dims: int, fill: Callable[[slice, np.ndarray], object], *, desc: str = ""
+    ):
         """Frames computed a chunk at a time straight into this storage's dtype, or the file made before from
         ``key`` (on disk). A build that fails or is interrupted leaves no partial file behind.
 
@@ -163,6 +164,7 @@ def frame_storage(cfg: Mapping, cache_dir: str | None) -> FrameStorage:
     if dtype not in DTYPES:
         raise WorkbenchError(f"dataset.dtype must be one of {tuple(DTYPES)}, got {dtype!r}")
     if storage == "disk" and not cache_dir:
-        raise WorkbenchError("dataset.storage=disk keeps the frames in paths.cache_dir, which is not set: "
-                             "add paths.cache_dir=<folder>")
+        raise WorkbenchError(
+            "dataset.storage=disk keeps the frames in paths.cache_dir, which is not set: add paths.cache_dir=<folder>"
+        )
     return FrameStorage(dtype=dtype, folder=str(Path(cache_dir) / FRAMES_FOLDER) if storage == "disk" else None)

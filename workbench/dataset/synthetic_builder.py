@@ -9,18 +9,26 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
+from workbench.core.resources import require_memory
 from workbench.dataset.cache import code_fingerprint, on_forget
 from workbench.dataset.capture import Capture, Timeline
-from workbench.dataset.common import (SPLITS, gap_fit_on_setting, interpolated_frames, masked_frames,
-                                      masked_training_frames, point_operator_matrix, split_frames, train_on_list)
+from workbench.dataset.common import (
+    SPLITS,
+    gap_fit_on_setting,
+    interpolated_frames,
+    masked_frames,
+    masked_training_frames,
+    point_operator_matrix,
+    split_frames,
+    train_on_list,
+)
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.rigid import stabilise
-from workbench.settings.rules import bool_setting, number_setting, seed_setting
 from workbench.dataset.storage import FrameStorage
-from workbench.core.errors import WorkbenchError
-from workbench.core.resources import require_memory
+from workbench.settings.rules import bool_setting, number_setting, seed_setting
 
 TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 
@@ -53,15 +61,19 @@ def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dic
     gap_fit_on_setting(cfg.get("gap_fit_on", "filled"))
     seeds = [seed_setting(cfg["seed"], "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
     if len(set(seeds)) != len(seeds):
-        raise WorkbenchError(f"dataset.eval_seed {seeds[1]} equals dataset.seed: split 'other_take' evaluates on "
-                             "another take, so the two seeds must differ (null: seed + 1)")
-    require_memory(synthetic_values(cfg, names) * len(seeds), "the synthetic dataset",
-                   "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on")
+        raise WorkbenchError(
+            f"dataset.eval_seed {seeds[1]} equals dataset.seed: split 'other_take' evaluates on "
+            "another take, so the two seeds must differ (null: seed + 1)"
+        )
+    require_memory(
+        synthetic_values(cfg, names) * len(seeds),
+        "the synthetic dataset",
+        "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on",
+    )
     takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
     decimation = _mesh_decimation(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), cfg.get("mesh_fraction", 1.0))
     hand_mesh = takes[0].hand_shapes_mesh()
-    markers = ([_face_marker_frames(take, cfg) for take in takes]
-               if {"markers", "mesh_rbf"} & set(names) else None)
+    markers = [_face_marker_frames(take, cfg) for take in takes] if {"markers", "mesh_rbf"} & set(names) else None
     return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg, storage) for name in names}
 
 
@@ -80,11 +92,18 @@ def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:
     """The generation parameters of a take, hashable (the cache key of :func:`_synthetic_take`)."""
-    return (("n_frames", cfg["n_frames"]), ("frame_rate", cfg["frame_rate"]),
-            ("n_face_markers", cfg["n_face_markers"]), ("n_head_markers", cfg["n_head_markers"]),
-            ("head_rotation_deg", cfg["head_rotation_deg"]), ("head_translation_mm", cfg["head_translation_mm"]),
-            ("marker_noise_mm", cfg["marker_noise_mm"]), ("seed", seed), ("mesh_rows", cfg["mesh_rows"]),
-            ("mesh_cols", cfg["mesh_cols"]))
+    return (
+        ("n_frames", cfg["n_frames"]),
+        ("frame_rate", cfg["frame_rate"]),
+        ("n_face_markers", cfg["n_face_markers"]),
+        ("n_head_markers", cfg["n_head_markers"]),
+        ("head_rotation_deg", cfg["head_rotation_deg"]),
+        ("head_translation_mm", cfg["head_translation_mm"]),
+        ("marker_noise_mm", cfg["marker_noise_mm"]),
+        ("seed", seed),
+        ("mesh_rows", cfg["mesh_rows"]),
+        ("mesh_cols", cfg["mesh_cols"]),
+    )
 
 
 @lru_cache(maxsize=2)
@@ -117,9 +136,14 @@ def _mesh_frames(key: tuple, mesh_fraction: float, storage: FrameStorage = Frame
     take = _synthetic_take(key)
     kept = _mesh_decimation(take.mesh.grid_shape[0], take.mesh.grid_shape[1], mesh_fraction).kept
     rest = take.mesh.vertices[kept]
-    return storage.generate("synthetic_mesh", (key, mesh_fraction, code_fingerprint()), take.n_frames, 3 * len(rest),
-                            lambda rows, out: deform_displacements(rest, take.activations[rows], out),
-                            desc="mesh frames")
+    return storage.generate(
+        "synthetic_mesh",
+        (key, mesh_fraction, code_fingerprint()),
+        take.n_frames,
+        3 * len(rest),
+        lambda rows, out: deform_displacements(rest, take.activations[rows], out),
+        desc="mesh frames",
+    )
 
 
 @lru_cache(maxsize=4)
@@ -160,9 +184,14 @@ def _face_region_frames(key: tuple, storage: FrameStorage = FrameStorage()):
     take = _synthetic_take(key)
     vertices, _ = face_region(*take.mesh.grid_shape, len(take.face_marker_vertices))
     rest = take.mesh.vertices[vertices]
-    return storage.generate("synthetic_face", (key, code_fingerprint()), take.n_frames, 3 * len(rest),
-                            lambda rows, out: deform_displacements(rest, take.activations[rows], out),
-                            desc="face frames")
+    return storage.generate(
+        "synthetic_face",
+        (key, code_fingerprint()),
+        take.n_frames,
+        3 * len(rest),
+        lambda rows, out: deform_displacements(rest, take.activations[rows], out),
+        desc="face frames",
+    )
 
 
 def forget_kept_frames() -> None:
@@ -195,8 +224,7 @@ def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     if rate > 0:
         # the take draws from the first three children of its seed; gaps use the fourth
         rng = np.random.default_rng(np.random.SeedSequence(take.provenance["seed"], spawn_key=(3,)))
-        mask = make_gap_mask(positions.shape[0], positions.shape[1], rate,
-                             float(cfg.get("gap_mean_frames", 12)), rng)
+        mask = make_gap_mask(positions.shape[0], positions.shape[1], rate, float(cfg.get("gap_mean_frames", 12)), rng)
         positions = np.where(mask[:, :, None], np.nan, positions)
         if policy != "masked":
             outcome = apply_gap_policy(positions, policy, max_fill)
@@ -204,8 +232,10 @@ def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     if cfg.get("stabilise", True):
         stable = stabilise(positions, head, take.head_marker_rest)
         positions = stable.markers
-        notes.append(f"head motion removed with {head.size} head markers; rigid residual RMS "
-                     f"{np.nanmean(stable.residual_rms):.3f} mm (mean over frames)")
+        notes.append(
+            f"head motion removed with {head.size} head markers; rigid residual RMS "
+            f"{np.nanmean(stable.residual_rms):.3f} mm (mean over frames)"
+        )
     else:
         notes.append("head motion NOT removed (dataset.stabilise=false)")
     if rate > 0 and policy == "masked":
@@ -216,8 +246,9 @@ def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     if rate > 0:
         gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.get("gap_mean_frames", 12)))
         where = "before" if policy != "masked" else "after"
-        notes.append(f"marker dropout (seed {take.provenance['seed']}): {report.describe()} ({where} head-motion "
-                     "removal)")
+        notes.append(
+            f"marker dropout (seed {take.provenance['seed']}): {report.describe()} ({where} head-motion removal)"
+        )
     neutral = take.mesh.vertices[take.face_marker_vertices]
     return MarkerFrames(positions - neutral, tuple(notes), gaps, kept, visible)
 
@@ -246,8 +277,15 @@ class MarkerFrames:
     visible: np.ndarray | None
 
 
-def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decimation, markers, train_on: str,
-                       cfg: Mapping, storage: FrameStorage = FrameStorage()) -> Capture:
+def _synthetic_capture(
+    takes: Sequence,
+    hand_mesh: np.ndarray,
+    decimation: Decimation,
+    markers,
+    train_on: str,
+    cfg: Mapping,
+    storage: FrameStorage = FrameStorage(),
+) -> Capture:
     """One data variant of the synthetic take(s).
 
     Parameters
@@ -266,49 +304,77 @@ def _synthetic_capture(takes: Sequence, hand_mesh: np.ndarray, decimation: Decim
     vertices = take.mesh.vertices
     provenance = dict(take.provenance, train_on=train_on)
     points, faces, labels, per_take, visible, source, operator = _variant_frames(
-        takes, decimation, markers, train_on, cfg, storage, notes, provenance)
+        takes, decimation, markers, train_on, cfg, storage, notes, provenance
+    )
     if markers is not None and markers[0].gaps and train_on != "mesh":
         provenance["gaps"] = markers[0].gaps
     split = cfg.get("split", "same")
     eval_visible = None
     mapped = {}
-    timelines = [Timeline.uniform(f"synthetic seed {t.provenance['seed']}",
-                                  np.flatnonzero(part.kept) if markers is not None else np.arange(t.n_frames),
-                                  float(cfg["frame_rate"]))
-                 for t, part in zip(takes, markers or [None] * len(takes))]
+    timelines = [
+        Timeline.uniform(
+            f"synthetic seed {t.provenance['seed']}",
+            np.flatnonzero(part.kept) if markers is not None else np.arange(t.n_frames),
+            float(cfg["frame_rate"]),
+        )
+        for t, part in zip(takes, markers or [None] * len(takes))
+    ]
     if split == "other_take":
         train, evaluate = per_take
         timeline = timelines[1]
         eval_visible = visible[1] if visible else None
         if source is not None:
             mapped = {"train_source": source[0], "train_operator": point_operator_matrix(operator)}
-        notes.append(f"split 'other_take': {len(train)} training frames of take seed {takes[0].provenance['seed']}, "
-                     f"{len(evaluate)} evaluated of take seed {takes[1].provenance['seed']}")
+        notes.append(
+            f"split 'other_take': {len(train)} training frames of take seed {takes[0].provenance['seed']}, "
+            f"{len(evaluate)} evaluated of take seed {takes[1].provenance['seed']}"
+        )
         provenance["eval_seed"] = takes[1].provenance["seed"]
     else:
         train, evaluate = split_frames(per_take[0], split, cfg.get("eval_fraction", 0.2))
-        timeline = timelines[0][len(timelines[0]) - len(evaluate):]
-        eval_visible = visible[0][len(visible[0]) - len(evaluate):] if visible else None
+        timeline = timelines[0][len(timelines[0]) - len(evaluate) :]
+        eval_visible = visible[0][len(visible[0]) - len(evaluate) :] if visible else None
         if source is not None:
-            mapped = {"train_source": source[0][:len(train)], "train_operator": point_operator_matrix(operator)}
+            mapped = {"train_source": source[0][: len(train)], "train_operator": point_operator_matrix(operator)}
         notes.append(f"split '{split}': {len(train)} training frames, {len(evaluate)} evaluated")
     if eval_visible is not None:
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, visible[0][:len(train)], cfg.get("gap_fit_on", "filled"))
-        notes.append(f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
-                     f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); "
-                     + note)
+        train, note = masked_training_frames(train, visible[0][: len(train)], cfg.get("gap_fit_on", "filled"))
+        notes.append(
+            f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
+            f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); " + note
+        )
     hand = hand_mesh[:, points]
     return Capture(
         name="synthetic actor (generated by the workbench; not real capture)",
-        neutral=vertices[points].reshape(-1), train=train, eval=evaluate,
-        hand=hand.reshape(hand.shape[0], -1), hand_names=tuple(take.muscle_names), point_labels=labels,
-        units="mm", origin="centre of the synthetic head (face points lie 60-110 mm from it)",
-        frame_rate=float(cfg["frame_rate"]), provenance=provenance, notes=tuple(notes), faces=faces,
-        eval_visible=eval_visible, eval_timeline=timeline, **mapped)
+        neutral=vertices[points].reshape(-1),
+        train=train,
+        eval=evaluate,
+        hand=hand.reshape(hand.shape[0], -1),
+        hand_names=tuple(take.muscle_names),
+        point_labels=labels,
+        units="mm",
+        origin="centre of the synthetic head (face points lie 60-110 mm from it)",
+        frame_rate=float(cfg["frame_rate"]),
+        provenance=provenance,
+        notes=tuple(notes),
+        faces=faces,
+        eval_visible=eval_visible,
+        eval_timeline=timeline,
+        **mapped,
+    )
 
-def _variant_frames(takes: Sequence, decimation: Decimation, markers, train_on: str, cfg: Mapping,
-                    storage: FrameStorage, notes: list, provenance: dict) -> tuple:
+
+def _variant_frames(
+    takes: Sequence,
+    decimation: Decimation,
+    markers,
+    train_on: str,
+    cfg: Mapping,
+    storage: FrameStorage,
+    notes: list,
+    provenance: dict,
+) -> tuple:
     """The points, frames per take and marker visibility of one data variant; adds its notes and provenance.
 
     Returns
@@ -334,33 +400,41 @@ def _variant_frames(takes: Sequence, decimation: Decimation, markers, train_on: 
         if markers is not None:  # the frames the markers' gap policy kept
             per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
         provenance.update(n_face_region_points=int(points.size))
-        notes.append(f"the dense ground-truth mesh's face region: the {points.size} of {len(vertices)} vertices inside "
-                     "the face markers' convex hull (face plane), at full resolution whatever dataset.mesh_fraction "
-                     "(no head motion, no marker noise)")
+        notes.append(
+            f"the dense ground-truth mesh's face region: the {points.size} of {len(vertices)} vertices inside "
+            "the face markers' convex hull (face plane), at full resolution whatever dataset.mesh_fraction "
+            "(no head motion, no marker noise)"
+        )
     else:
         points = decimation.kept
         faces = decimation.faces
         labels = tuple(f"v{i}" for i in points)
         if decimation.fraction < 1.0:
-            notes.append(f"mesh decimated to {points.size} of {len(vertices)} vertices (mesh_fraction "
-                         f"{decimation.fraction}, quadric edge collapse); data and shapes taken at the kept vertices")
+            notes.append(
+                f"mesh decimated to {points.size} of {len(vertices)} vertices (mesh_fraction "
+                f"{decimation.fraction}, quadric edge collapse); data and shapes taken at the kept vertices"
+            )
         provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
         if train_on == "mesh":
-            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
-                        for t in takes]
+            per_take = [
+                _mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
+                for t in takes
+            ]
             if markers is not None:  # the frames the markers' gap policy kept
                 per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
             notes.append("the dense ground-truth mesh (no head motion, no marker noise)")
         else:
-            operator = mesh_rbf_operator(vertices, take.mesh.faces, take.face_marker_vertices, points,
-                                         metric="euclidean")
+            operator = mesh_rbf_operator(
+                vertices, take.mesh.faces, take.face_marker_vertices, points, metric="euclidean"
+            )
             per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
             source = [part.frames.reshape(len(part.frames), -1) for part in markers]
             notes += markers[0].notes
-            notes.append(f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
-                         "RBF (Euclidean, linear polynomial)")
+            notes.append(
+                f"stabilised markers interpolated onto {points.size} mesh vertices by a thin-plate-spline "
+                "RBF (Euclidean, linear polynomial)"
+            )
     return points, faces, labels, per_take, visible, source, operator
-
 
 
 on_forget(forget_kept_frames)

@@ -86,8 +86,7 @@ def apply_point_operator(operator: np.ndarray, points: np.ndarray) -> np.ndarray
     return np.transpose((operator @ stacked).reshape(len(operator), n_fields, n_coordinates), (1, 0, 2))
 
 
-def point_transfer(source: np.ndarray, target: np.ndarray, *,
-                   rbf_max_centres: int = RBF_MAX_CENTRES) -> PointTransfer:
+def point_transfer(source: np.ndarray, target: np.ndarray, *, rbf_max_centres: int = RBF_MAX_CENTRES) -> PointTransfer:
     """Choose and build the map from values at ``source`` points to values at ``target`` points.
 
     Parameters
@@ -114,6 +113,5 @@ def point_transfer(source: np.ndarray, target: np.ndarray, *,
     if np.all(distance <= COINCIDENT_TOL_MM):
         return PointTransfer(method="coincident", operator=selection, max_distance=float(distance.max()))
     if len(source) <= rbf_max_centres:
-        return PointTransfer(method="rbf", operator=rbf_operator(source, target, kernel="thin_plate_spline",
-                                                                 degree=1))
+        return PointTransfer(method="rbf", operator=rbf_operator(source, target, kernel="thin_plate_spline", degree=1))
     return PointTransfer(method="nearest", operator=selection, max_distance=float(distance.max()))

@@ -16,8 +16,17 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 
-MM_PER_UNIT = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "m": 1000.0, "meter": 1000.0,
-               "metre": 1000.0, "in": 25.4, "inch": 25.4}
+MM_PER_UNIT = {
+    "mm": 1.0,
+    "millimeter": 1.0,
+    "millimetre": 1.0,
+    "cm": 10.0,
+    "m": 1000.0,
+    "meter": 1000.0,
+    "metre": 1000.0,
+    "in": 25.4,
+    "inch": 25.4,
+}
 
 
 @dataclass(frozen=True)
@@ -71,15 +80,18 @@ class MarkerTake:
         position = {label: i for i, label in enumerate(self.labels)}
         unknown = [label for label in labels if label not in position]
         if unknown:
-            raise WorkbenchError(f"{self.path}: unknown marker label(s) {unknown} named in {named_in}; the file's "
-                                 f"{len(self.labels)} labels are {', '.join(self.labels)}")
+            raise WorkbenchError(
+                f"{self.path}: unknown marker label(s) {unknown} named in {named_in}; the file's "
+                f"{len(self.labels)} labels are {', '.join(self.labels)}"
+            )
         index = np.array([position[label] for label in labels], dtype=np.int64)
-        never = [label for label, seen in zip(labels, np.isfinite(self.positions[:, index, 0]).any(axis=0))
-                 if not seen]
+        never = [label for label, seen in zip(labels, np.isfinite(self.positions[:, index, 0]).any(axis=0)) if not seen]
         if never:
-            raise WorkbenchError(f"{self.path}: marker(s) {never} named in {named_in} have no sample in any of the "
-                                 f"take's {self.n_frames} frames; a marker never seen cannot be used: leave it out of "
-                                 f"{named_in}")
+            raise WorkbenchError(
+                f"{self.path}: marker(s) {never} named in {named_in} have no sample in any of the "
+                f"take's {self.n_frames} frames; a marker never seen cannot be used: leave it out of "
+                f"{named_in}"
+            )
         return index
 
 
@@ -112,12 +124,16 @@ parameters, and the header's last frame may then wrap."""
 def check_frame_range(reader, path: Path) -> None:
     """The frame numbers of a C3D's header (and of its ``TRIAL`` parameters, which the reader prefers) run
     forwards: a last frame before the first is a damaged header, not an empty take."""
-    for where, first, last in (("header", reader.header.first_frame, reader.header.last_frame),
-                               ("TRIAL:ACTUAL_START_FIELD/END_FIELD", reader.first_frame, reader.last_frame)):
+    for where, first, last in (
+        ("header", reader.header.first_frame, reader.header.last_frame),
+        ("TRIAL:ACTUAL_START_FIELD/END_FIELD", reader.first_frame, reader.last_frame),
+    ):
         wrapped = where == "header" and reader.last_frame > HEADER_FRAME_LIMIT
         if int(last) < int(first) and not wrapped:
-            raise WorkbenchError(f"{path}: its {where} says the last frame ({int(last)}) precedes the first "
-                                 f"({int(first)}); a damaged header (frame numbers must run forwards)")
+            raise WorkbenchError(
+                f"{path}: its {where} says the last frame ({int(last)}) precedes the first "
+                f"({int(first)}); a damaged header (frame numbers must run forwards)"
+            )
 
 
 def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
@@ -159,16 +175,20 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
         except Exception as error:  # the reader raises many kinds of error on a damaged file
             raise WorkbenchError(f"{path}: not a readable C3D file ({type(error).__name__}: {error})") from None
     if len(labels) != n_markers:
-        raise WorkbenchError(f"{path}: {len(labels)} labels in POINT:LABELS, LABELS2, ... for {n_markers} markers "
-                             "(POINT:USED); every marker needs one label")
+        raise WorkbenchError(
+            f"{path}: {len(labels)} labels in POINT:LABELS, LABELS2, ... for {n_markers} markers "
+            "(POINT:USED); every marker needs one label"
+        )
     if len(frames) < declared:
-        raise WorkbenchError(f"{path}: truncated: its header declares {declared} frames but the data ends after "
-                             f"{len(frames)}")
+        raise WorkbenchError(
+            f"{path}: truncated: its header declares {declared} frames but the data ends after {len(frames)}"
+        )
     if not labels or not frames:
         raise WorkbenchError(f"{path}: holds no marker trajectories ({len(labels)} labels, {len(frames)} frames)")
     if len(frames) < 2:
-        raise WorkbenchError(f"{path}: holds {len(frames)} frame; a take needs at least 2 (its motion is what is "
-                             "measured)")
+        raise WorkbenchError(
+            f"{path}: holds {len(frames)} frame; a take needs at least 2 (its motion is what is measured)"
+        )
     if len(set(labels)) != len(labels):
         duplicates = sorted({label for label in labels if labels.count(label) > 1})
         raise WorkbenchError(f"{path}: duplicate marker labels {duplicates}")
@@ -178,5 +198,11 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     positions = data[:, :, :3] * units_to_mm(units, path)
     # A sample is missing when the file marks it invalid, or when it holds NaN or Inf where a position should be.
     positions[(data[:, :, 3] < 0) | ~np.all(np.isfinite(positions), axis=2)] = np.nan
-    return MarkerTake(labels=labels, positions=positions, frame_rate=frame_rate, units=units.strip(),
-                      first_frame=int(reader.first_frame), path=path)
+    return MarkerTake(
+        labels=labels,
+        positions=positions,
+        frame_rate=frame_rate,
+        units=units.strip(),
+        first_frame=int(reader.first_frame),
+        path=path,
+    )

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
@@ -84,12 +85,20 @@ class _BinaryChunk:
 
         data = np.ascontiguousarray(array)
         component = {np.dtype(np.float32): FLOAT32, np.dtype(np.uint32): UINT32}[data.dtype]
-        self.gltf.bufferViews.append(pygltflib.BufferView(buffer=0, byteOffset=self.length,
-                                                          byteLength=data.nbytes, target=target))
+        self.gltf.bufferViews.append(
+            pygltflib.BufferView(buffer=0, byteOffset=self.length, byteLength=data.nbytes, target=target)
+        )
         flat = data.reshape(-1, COMPONENTS[kind])
-        self.gltf.accessors.append(pygltflib.Accessor(
-            bufferView=len(self.gltf.bufferViews) - 1, componentType=component, count=len(flat), type=kind,
-            min=flat.min(axis=0).tolist() if bounds else None, max=flat.max(axis=0).tolist() if bounds else None))
+        self.gltf.accessors.append(
+            pygltflib.Accessor(
+                bufferView=len(self.gltf.bufferViews) - 1,
+                componentType=component,
+                count=len(flat),
+                type=kind,
+                min=flat.min(axis=0).tolist() if bounds else None,
+                max=flat.max(axis=0).tolist() if bounds else None,
+            )
+        )
         padding = -data.nbytes % 4
         self.parts.append(data.tobytes() + b"\0" * padding)
         self.length += data.nbytes + padding
@@ -121,28 +130,47 @@ def glb_bytes(mesh: MorphMesh, *, mesh_name: str = "face", generator: str = "qua
     gltf = pygltflib.GLTF2(asset=pygltflib.Asset(generator=generator, extras=dict(mesh.extras)))
     chunk = _BinaryChunk(gltf)
     metres = 1.0 / MM_PER_METRE
-    position = chunk.add((mesh.neutral * metres).astype(np.float32), "VEC3", target=pygltflib.ARRAY_BUFFER,
-                         bounds=True)
-    indices = chunk.add(mesh.triangles.astype(np.uint32).reshape(-1), "SCALAR",
-                        target=pygltflib.ELEMENT_ARRAY_BUFFER)
-    targets = [pygltflib.Attributes(POSITION=chunk.add((delta * metres).astype(np.float32), "VEC3",
-                                                       target=pygltflib.ARRAY_BUFFER, bounds=True))
-               for delta in mesh.deltas]
-    gltf.meshes.append(pygltflib.Mesh(
-        name=mesh_name, weights=[0.0] * len(targets), extras={"targetNames": list(mesh.names), **mesh.mesh_extras},
-        primitives=[pygltflib.Primitive(attributes=pygltflib.Attributes(POSITION=position), indices=indices,
-                                        targets=targets, mode=pygltflib.TRIANGLES)]))
+    position = chunk.add((mesh.neutral * metres).astype(np.float32), "VEC3", target=pygltflib.ARRAY_BUFFER, bounds=True)
+    indices = chunk.add(mesh.triangles.astype(np.uint32).reshape(-1), "SCALAR", target=pygltflib.ELEMENT_ARRAY_BUFFER)
+    targets = [
+        pygltflib.Attributes(
+            POSITION=chunk.add((delta * metres).astype(np.float32), "VEC3", target=pygltflib.ARRAY_BUFFER, bounds=True)
+        )
+        for delta in mesh.deltas
+    ]
+    gltf.meshes.append(
+        pygltflib.Mesh(
+            name=mesh_name,
+            weights=[0.0] * len(targets),
+            extras={"targetNames": list(mesh.names), **mesh.mesh_extras},
+            primitives=[
+                pygltflib.Primitive(
+                    attributes=pygltflib.Attributes(POSITION=position),
+                    indices=indices,
+                    targets=targets,
+                    mode=pygltflib.TRIANGLES,
+                )
+            ],
+        )
+    )
     gltf.nodes.append(pygltflib.Node(name=mesh_name, mesh=0))
     gltf.scenes.append(pygltflib.Scene(nodes=[0]))
     gltf.scene = 0
     for animation in mesh.animations:
         times = chunk.add(np.asarray(animation.seconds, dtype=np.float32), "SCALAR", bounds=True)
         values = chunk.add(np.asarray(animation.weights, dtype=np.float32).reshape(-1), "SCALAR")
-        gltf.animations.append(pygltflib.Animation(
-            name=animation.name, extras=dict(animation.extras) or None,
-            samplers=[pygltflib.AnimationSampler(input=times, output=values, interpolation=pygltflib.ANIM_LINEAR)],
-            channels=[pygltflib.AnimationChannel(sampler=0, target=pygltflib.AnimationChannelTarget(
-                node=0, path="weights"))]))
+        gltf.animations.append(
+            pygltflib.Animation(
+                name=animation.name,
+                extras=dict(animation.extras) or None,
+                samplers=[pygltflib.AnimationSampler(input=times, output=values, interpolation=pygltflib.ANIM_LINEAR)],
+                channels=[
+                    pygltflib.AnimationChannel(
+                        sampler=0, target=pygltflib.AnimationChannelTarget(node=0, path="weights")
+                    )
+                ],
+            )
+        )
     blob = chunk.blob()
     gltf.buffers.append(pygltflib.Buffer(byteLength=len(blob)))
     gltf.set_binary_blob(blob)
@@ -155,8 +183,10 @@ def check_morph_mesh(mesh: MorphMesh) -> None:
     if mesh.neutral.ndim != 2 or mesh.neutral.shape[1] != 3 or n_vertices < 3:
         raise WorkbenchError(f"mesh neutral must have shape (n_vertices >= 3, 3), got {mesh.neutral.shape}")
     if mesh.deltas.shape != (len(mesh.names), n_vertices, 3):
-        raise WorkbenchError(f"morph targets must have shape ({len(mesh.names)}, {n_vertices}, 3) for "
-                             f"{len(mesh.names)} names, got {mesh.deltas.shape}")
+        raise WorkbenchError(
+            f"morph targets must have shape ({len(mesh.names)}, {n_vertices}, 3) for "
+            f"{len(mesh.names)} names, got {mesh.deltas.shape}"
+        )
     if mesh.triangles.ndim != 2 or mesh.triangles.shape[1] != 3 or not len(mesh.triangles):
         raise WorkbenchError(f"mesh triangles must have shape (n_triangles >= 1, 3), got {mesh.triangles.shape}")
     if mesh.triangles.min() < 0 or mesh.triangles.max() >= n_vertices:
@@ -165,9 +195,11 @@ def check_morph_mesh(mesh: MorphMesh) -> None:
         seconds = np.asarray(animation.seconds, dtype=np.float32)  # as the file holds them
         increasing = len(seconds) > 0 and seconds[0] >= 0 and np.all(np.diff(seconds) > 0)
         if animation.weights.shape != (len(seconds), len(mesh.names)) or not increasing:
-            raise WorkbenchError(f"animation {animation.name!r}: needs increasing times from 0 on (as float32) and "
-                                 f"weights of shape ({len(seconds)}, {len(mesh.names)}), got "
-                                 f"{animation.weights.shape}")
+            raise WorkbenchError(
+                f"animation {animation.name!r}: needs increasing times from 0 on (as float32) and "
+                f"weights of shape ({len(seconds)}, {len(mesh.names)}), got "
+                f"{animation.weights.shape}"
+            )
     arrays = [mesh.neutral, mesh.deltas] + [a.weights for a in mesh.animations]
     if not all(np.all(np.isfinite(array)) for array in arrays):
         raise WorkbenchError("mesh positions, morph targets and animation weights must be finite (no NaN/Inf)")
@@ -184,8 +216,12 @@ def _get(item, name: str):
 
 def _whole(value, what: str, path: Path, *, minimum: int = 0, maximum: int | None = None) -> int:
     """A whole-number field of the file, checked (pygltflib passes whatever the JSON holds)."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum or (maximum is not None
-                                                                                    and value > maximum):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int)
+        or value < minimum
+        or (maximum is not None and value > maximum)
+    ):
         bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
         raise WorkbenchError(f"{path}: {what} must be an integer {bound}, got {value!r}")
     return value
@@ -200,8 +236,11 @@ def _entry(items, index, what: str, path: Path):
     return items[index]
 
 
-ACCESSOR_KINDS = {"positions": ("VEC3", (FLOAT32,)), "scalars": ("SCALAR", (FLOAT32,)),
-                  "indices": ("SCALAR", tuple(INDEX_TYPES))}
+ACCESSOR_KINDS = {
+    "positions": ("VEC3", (FLOAT32,)),
+    "scalars": ("SCALAR", (FLOAT32,)),
+    "indices": ("SCALAR", tuple(INDEX_TYPES)),
+}
 """What the workbench reads -> the accessor type and component types it takes: float32 positions, weights and
 times, unsigned integer indices."""
 
@@ -215,50 +254,84 @@ def _accessor_array(gltf, blob: bytes, index: int, path: Path, kind: str) -> np.
     expected_type, components = ACCESSOR_KINDS[kind]
     dtype = {FLOAT32: np.float32, **INDEX_TYPES}.get(accessor.componentType)
     if accessor.type != expected_type or accessor.componentType not in components or accessor.normalized:
-        raise WorkbenchError(f"{path}: {what} is {accessor.type} of component type "
-                             f"{accessor.componentType}{' (normalized)' if accessor.normalized else ''}, but holds "
-                             f"{kind}; the workbench reads float32 positions, weights and times, and unsigned integer "
-                             "indices (quantized meshes: export without quantization)")
+        raise WorkbenchError(
+            f"{path}: {what} is {accessor.type} of component type "
+            f"{accessor.componentType}{' (normalized)' if accessor.normalized else ''}, but holds "
+            f"{kind}; the workbench reads float32 positions, weights and times, and unsigned integer "
+            "indices (quantized meshes: export without quantization)"
+        )
     width = COMPONENTS[accessor.type]
     count = _whole(accessor.count, f"{what} count", path, maximum=MAX_ELEMENTS)
     values = np.zeros((count, width), dtype=np.float64)
     if accessor.bufferView is not None:
-        values[:] = _view_values(gltf, blob, accessor.bufferView, _whole(accessor.byteOffset or 0,
-                                 f"{what} byteOffset", path), count, dtype, width, path)
+        values[:] = _view_values(
+            gltf,
+            blob,
+            accessor.bufferView,
+            _whole(accessor.byteOffset or 0, f"{what} byteOffset", path),
+            count,
+            dtype,
+            width,
+            path,
+        )
     if accessor.sparse is not None:  # targets that move few vertices are often stored sparse
         sparse = accessor.sparse
         n_sparse = _whole(sparse.count, f"{what} sparse count", path, minimum=1, maximum=count)
         index_type = INDEX_TYPES.get(sparse.indices.componentType)
         if index_type is None:
-            raise WorkbenchError(f"{path}: {what} sparse indices have component type {sparse.indices.componentType}; "
-                                 "they must be unsigned integers (5121, 5123 or 5125)")
-        rows = _view_values(gltf, blob, sparse.indices.bufferView, _whole(sparse.indices.byteOffset or 0,
-                            f"{what} sparse indices byteOffset", path), n_sparse, index_type, 1, path)[:, 0]
+            raise WorkbenchError(
+                f"{path}: {what} sparse indices have component type {sparse.indices.componentType}; "
+                "they must be unsigned integers (5121, 5123 or 5125)"
+            )
+        rows = _view_values(
+            gltf,
+            blob,
+            sparse.indices.bufferView,
+            _whole(sparse.indices.byteOffset or 0, f"{what} sparse indices byteOffset", path),
+            n_sparse,
+            index_type,
+            1,
+            path,
+        )[:, 0]
         if rows.max() >= count or np.any(np.diff(rows) <= 0):
-            raise WorkbenchError(f"{path}: {what} sparse indices must increase and stay below its {count} elements, "
-                                 f"got {rows.min():.0f} to {rows.max():.0f}")
+            raise WorkbenchError(
+                f"{path}: {what} sparse indices must increase and stay below its {count} elements, "
+                f"got {rows.min():.0f} to {rows.max():.0f}"
+            )
         values[rows.astype(np.int64)] = _view_values(
-            gltf, blob, sparse.values.bufferView, _whole(sparse.values.byteOffset or 0,
-                                                         f"{what} sparse values byteOffset", path),
-            n_sparse, dtype, width, path)
+            gltf,
+            blob,
+            sparse.values.bufferView,
+            _whole(sparse.values.byteOffset or 0, f"{what} sparse values byteOffset", path),
+            n_sparse,
+            dtype,
+            width,
+            path,
+        )
     if not np.all(np.isfinite(values)):
         bad = int(np.argmax(~np.all(np.isfinite(values), axis=1)))
         raise WorkbenchError(f"{path}: {what} element {bad} holds NaN or Inf ({kind})")
     return values.astype(np.int64) if kind == "indices" else values
 
 
-def _view_values(gltf, blob: bytes, view_index: int, offset: int, count: int, dtype, width: int,
-                 path: Path) -> np.ndarray:
+def _view_values(
+    gltf, blob: bytes, view_index: int, offset: int, count: int, dtype, width: int, path: Path
+) -> np.ndarray:
     view = _entry(gltf.bufferViews, view_index, "buffer view", path)
     item = np.dtype(dtype).itemsize * width
     stride = _whole(view.byteStride or item, f"buffer view {view_index} byteStride", path, minimum=item)
     view_start = _whole(view.byteOffset or 0, f"buffer view {view_index} byteOffset", path)
     start = view_start + offset
     end = start + stride * (count - 1) + item if count else start
-    if view.buffer != 0 or end > len(blob) or end > view_start + _whole(view.byteLength, f"buffer view {view_index} "
-                                                                        "byteLength", path):
-        raise WorkbenchError(f"{path}: buffer view {view_index} reaches past the binary data (or lies in an "
-                             "external buffer); the workbench reads self-contained .glb files")
+    if (
+        view.buffer != 0
+        or end > len(blob)
+        or end > view_start + _whole(view.byteLength, f"buffer view {view_index} byteLength", path)
+    ):
+        raise WorkbenchError(
+            f"{path}: buffer view {view_index} reaches past the binary data (or lies in an "
+            "external buffer); the workbench reads self-contained .glb files"
+        )
     raw = np.frombuffer(blob, dtype=np.uint8, count=end - start, offset=start)
     if stride != item:
         raw = np.lib.stride_tricks.as_strided(raw, shape=(count, item), strides=(stride, 1)).copy()
@@ -274,9 +347,11 @@ def _check_buffer_views(gltf, blob: bytes, path: Path) -> None:
         start = _whole(view.byteOffset or 0, f"buffer view {index} byteOffset", path)
         length = _whole(view.byteLength, f"buffer view {index} byteLength", path, minimum=1)
         if start + length > len(blob):
-            raise WorkbenchError(f"{path}: buffer view {index} reaches past the binary data: it claims bytes "
-                                 f"{start} to {start + length} of a {len(blob)}-byte binary chunk (a truncated or "
-                                 "damaged file)")
+            raise WorkbenchError(
+                f"{path}: buffer view {index} reaches past the binary data: it claims bytes "
+                f"{start} to {start + length} of a {len(blob)}-byte binary chunk (a truncated or "
+                "damaged file)"
+            )
 
 
 def _load_gltf(path: Path):
@@ -327,8 +402,10 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
         raise WorkbenchError(f"{path}: glTF file not found")
     with open(path, "rb") as stream:
         if stream.read(4) != b"glTF":
-            raise WorkbenchError(f"{path}: not a binary glTF file (.glb starts with 'glTF'); convert a .gltf with "
-                                 "external buffers to .glb first")
+            raise WorkbenchError(
+                f"{path}: not a binary glTF file (.glb starts with 'glTF'); convert a .gltf with "
+                "external buffers to .glb first"
+            )
     gltf = _load_gltf(path)
     if not str(_get(gltf.asset, "version")).startswith("2."):
         raise WorkbenchError(f"{path}: glTF version {_get(gltf.asset, 'version')}; the workbench reads glTF 2.0")
@@ -341,33 +418,56 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
     for number, primitive in enumerate(mesh.primitives):
         where = f"mesh {mesh.name!r} primitive {number}"
         if primitive.mode not in (None, pygltflib.TRIANGLES) or len(primitive.targets) != n_targets:
-            raise WorkbenchError(f"{path}: {where}: needs triangles (mode 4) and the same {n_targets} morph targets "
-                                 "as primitive 0")
+            raise WorkbenchError(
+                f"{path}: {where}: needs triangles (mode 4) and the same {n_targets} morph targets as primitive 0"
+            )
         if _get(primitive.attributes, "POSITION") is None:
             raise WorkbenchError(f"{path}: {where} has no POSITION attribute (the vertices)")
         positions = _accessor_array(gltf, blob, _get(primitive.attributes, "POSITION"), path, "positions")
         count = len(positions)
-        index = (np.arange(count) if primitive.indices is None
-                 else _accessor_array(gltf, blob, primitive.indices, path, "indices")[:, 0])
+        index = (
+            np.arange(count)
+            if primitive.indices is None
+            else _accessor_array(gltf, blob, primitive.indices, path, "indices")[:, 0]
+        )
         if len(index) % 3 or (len(index) and (index.min() < 0 or index.max() >= count)):
             raise WorkbenchError(f"{path}: {where}: indices are not triangles over its {count} vertices")
         neutral.append(positions)
         moved = [_get(target, "POSITION") for target in primitive.targets]
-        deltas.append(np.stack([np.zeros((count, 3)) if accessor is None
-                                else _accessor_array(gltf, blob, accessor, path, "positions") for accessor in moved]))
+        deltas.append(
+            np.stack(
+                [
+                    np.zeros((count, 3))
+                    if accessor is None
+                    else _accessor_array(gltf, blob, accessor, path, "positions")
+                    for accessor in moved
+                ]
+            )
+        )
         if any(len(delta) != count for delta in deltas[-1]):
             raise WorkbenchError(f"{path}: {where}: every morph target needs its {count} vertices")
         triangles.append(index.reshape(-1, 3) + offset)
         offset += count
     names = _get(mesh.extras or {}, "targetNames") or [f"target_{i + 1:02d}" for i in range(n_targets)]
-    if (not isinstance(names, list) or len(names) != n_targets or len(set(map(str, names))) != len(names)
-            or not all(isinstance(name, str) for name in names)):
-        raise WorkbenchError(f"{path}: mesh {mesh.name!r}: extras.targetNames must name its {n_targets} morph "
-                             f"targets once each, got {names!r:.100}")
-    result = MorphMesh(neutral=np.concatenate(neutral) * MM_PER_METRE, triangles=np.concatenate(triangles),
-                       names=tuple(names), deltas=np.concatenate(deltas, axis=1) * MM_PER_METRE,
-                       animations=_morph_animations(gltf, blob, chosen, n_targets, path), path=path,
-                       extras=dict(gltf.asset.extras or {}) if isinstance(gltf.asset.extras, dict) else {})
+    if (
+        not isinstance(names, list)
+        or len(names) != n_targets
+        or len(set(map(str, names))) != len(names)
+        or not all(isinstance(name, str) for name in names)
+    ):
+        raise WorkbenchError(
+            f"{path}: mesh {mesh.name!r}: extras.targetNames must name its {n_targets} morph "
+            f"targets once each, got {names!r:.100}"
+        )
+    result = MorphMesh(
+        neutral=np.concatenate(neutral) * MM_PER_METRE,
+        triangles=np.concatenate(triangles),
+        names=tuple(names),
+        deltas=np.concatenate(deltas, axis=1) * MM_PER_METRE,
+        animations=_morph_animations(gltf, blob, chosen, n_targets, path),
+        path=path,
+        extras=dict(gltf.asset.extras or {}) if isinstance(gltf.asset.extras, dict) else {},
+    )
     _check_plausible_shapes(result, path)
     return result
 
@@ -380,9 +480,11 @@ def _morph_mesh_index(gltf, mesh_name: str | None, path: Path) -> int:
         candidates = [i for i in candidates if gltf.meshes[i].name == mesh_name]
     if len(candidates) != 1:
         named = [gltf.meshes[i].name for i, mesh in enumerate(gltf.meshes) if any(p.targets for p in mesh.primitives)]
-        raise WorkbenchError(f"{path}: {len(candidates)} meshes with morph targets"
-                             f"{f' named {mesh_name!r}' if mesh_name is not None else ''}; the file's are {named} "
-                             "(name one with mesh_name)")
+        raise WorkbenchError(
+            f"{path}: {len(candidates)} meshes with morph targets"
+            f"{f' named {mesh_name!r}' if mesh_name is not None else ''}; the file's are {named} "
+            "(name one with mesh_name)"
+        )
     return candidates[0]
 
 
@@ -393,8 +495,9 @@ def _check_plausible_shapes(mesh: MorphMesh, path: Path) -> None:
 
     problems = mesh_outlier_problems(mesh.neutral, mesh.neutral, f"{path} (neutral)", unit="mm")
     for name, delta in zip(mesh.names, mesh.deltas):
-        problems += mesh_outlier_problems(mesh.neutral + delta, mesh.neutral, f"{path} (morph target {name})",
-                                          unit="mm")
+        problems += mesh_outlier_problems(
+            mesh.neutral + delta, mesh.neutral, f"{path} (morph target {name})", unit="mm"
+        )
     if problems:
         raise WorkbenchError(problems[0])
 
@@ -410,13 +513,22 @@ def _morph_animations(gltf, blob: bytes, mesh_index: int, n_targets: int, path: 
                 seconds = _accessor_array(gltf, blob, sampler.input, path, "scalars")[:, 0]
                 values = _accessor_array(gltf, blob, sampler.output, path, "scalars")[:, 0]
                 if sampler.interpolation == "CUBICSPLINE" or values.size != seconds.size * n_targets:
-                    raise WorkbenchError(f"{path}: animation {animation.name!r}: {values.size} weights for "
-                                         f"{seconds.size} keys of {n_targets} targets ({sampler.interpolation}); "
-                                         "the workbench reads LINEAR or STEP keys, one weight per target")
+                    raise WorkbenchError(
+                        f"{path}: animation {animation.name!r}: {values.size} weights for "
+                        f"{seconds.size} keys of {n_targets} targets ({sampler.interpolation}); "
+                        "the workbench reads LINEAR or STEP keys, one weight per target"
+                    )
                 if np.any(np.diff(seconds) <= 0):
                     key = int(np.argmax(np.diff(seconds) <= 0)) + 1
-                    raise WorkbenchError(f"{path}: animation {animation.name!r}: key times must increase (key {key} "
-                                         f"at {seconds[key]:g} s follows {seconds[key - 1]:g} s)")
-                found.append(MorphAnimation(name=animation.name or f"animation_{len(found) + 1}", seconds=seconds,
-                                            weights=values.reshape(seconds.size, n_targets)))
+                    raise WorkbenchError(
+                        f"{path}: animation {animation.name!r}: key times must increase (key {key} "
+                        f"at {seconds[key]:g} s follows {seconds[key - 1]:g} s)"
+                    )
+                found.append(
+                    MorphAnimation(
+                        name=animation.name or f"animation_{len(found) + 1}",
+                        seconds=seconds,
+                        weights=values.reshape(seconds.size, n_targets),
+                    )
+                )
     return tuple(found)

@@ -18,15 +18,58 @@ from workbench.core.errors import WorkbenchError, single_line
 from workbench.settings.rules import positive_setting
 
 ARKIT_NAMES = (
-    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
-    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
-    "EyeSquintRight", "EyeWideRight", "JawForward", "JawRight", "JawLeft", "JawOpen", "MouthClose", "MouthFunnel",
-    "MouthPucker", "MouthRight", "MouthLeft", "MouthSmileLeft", "MouthSmileRight", "MouthFrownLeft",
-    "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft", "MouthStretchRight",
-    "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper", "MouthPressLeft", "MouthPressRight",
-    "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft", "MouthUpperUpRight", "BrowDownLeft",
-    "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight", "CheekPuff", "CheekSquintLeft",
-    "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut",
+    "EyeBlinkLeft",
+    "EyeLookDownLeft",
+    "EyeLookInLeft",
+    "EyeLookOutLeft",
+    "EyeLookUpLeft",
+    "EyeSquintLeft",
+    "EyeWideLeft",
+    "EyeBlinkRight",
+    "EyeLookDownRight",
+    "EyeLookInRight",
+    "EyeLookOutRight",
+    "EyeLookUpRight",
+    "EyeSquintRight",
+    "EyeWideRight",
+    "JawForward",
+    "JawRight",
+    "JawLeft",
+    "JawOpen",
+    "MouthClose",
+    "MouthFunnel",
+    "MouthPucker",
+    "MouthRight",
+    "MouthLeft",
+    "MouthSmileLeft",
+    "MouthSmileRight",
+    "MouthFrownLeft",
+    "MouthFrownRight",
+    "MouthDimpleLeft",
+    "MouthDimpleRight",
+    "MouthStretchLeft",
+    "MouthStretchRight",
+    "MouthRollLower",
+    "MouthRollUpper",
+    "MouthShrugLower",
+    "MouthShrugUpper",
+    "MouthPressLeft",
+    "MouthPressRight",
+    "MouthLowerDownLeft",
+    "MouthLowerDownRight",
+    "MouthUpperUpLeft",
+    "MouthUpperUpRight",
+    "BrowDownLeft",
+    "BrowDownRight",
+    "BrowInnerUp",
+    "BrowOuterUpLeft",
+    "BrowOuterUpRight",
+    "CheekPuff",
+    "CheekSquintLeft",
+    "CheekSquintRight",
+    "NoseSneerLeft",
+    "NoseSneerRight",
+    "TongueOut",
 )
 """The 52 ARKit blendshape channels, in Live Link Face's column order."""
 
@@ -34,8 +77,17 @@ WEIGHT_SLACK = 0.1
 """ARKit weights are fractions in [0, 1]; exports overshoot by a little (up to about 1.004 seen), so a weight is
 refused only outside ``[-WEIGHT_SLACK, 1 + WEIGHT_SLACK]``: such values are in other units (percent)."""
 
-ROTATION_NAMES = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
-                  "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
+ROTATION_NAMES = (
+    "HeadYaw",
+    "HeadPitch",
+    "HeadRoll",
+    "LeftEyeYaw",
+    "LeftEyePitch",
+    "LeftEyeRoll",
+    "RightEyeYaw",
+    "RightEyePitch",
+    "RightEyeRoll",
+)
 
 
 @dataclass(frozen=True)
@@ -127,19 +179,28 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     if repeated:
         raise WorkbenchError(f"{path}: column(s) {repeated} appear more than once; each ARKit channel needs one column")
     if "Timecode" not in table.columns:
-        raise WorkbenchError(f"{path}: no 'Timecode' column; a Live Link Face CSV starts with Timecode, "
-                             "BlendShapeCount and the 52 ARKit weights")
+        raise WorkbenchError(
+            f"{path}: no 'Timecode' column; a Live Link Face CSV starts with Timecode, "
+            "BlendShapeCount and the 52 ARKit weights"
+        )
     missing = [name for name in ARKIT_NAMES if name not in table.columns]
     if missing:
         raise WorkbenchError(f"{path}: missing {len(missing)} of the 52 ARKit weight columns: {', '.join(missing)}")
     if len(table) < 2:
         raise WorkbenchError(f"{path}: {len(table)} frame(s); a take needs at least 2")
     weights = check_weight_range(_numeric_block(table, ARKIT_NAMES, path), ARKIT_NAMES, path)
-    rotations = (_numeric_block(table, ROTATION_NAMES, path)
-                 if all(name in table.columns for name in ROTATION_NAMES) else None)
+    rotations = (
+        _numeric_block(table, ROTATION_NAMES, path) if all(name in table.columns for name in ROTATION_NAMES) else None
+    )
     seconds = parse_timecodes(table["Timecode"].tolist(), timecode_rate, path)
-    return LiveLinkTake(names=ARKIT_NAMES, weights=weights, seconds=seconds,
-                        frame_rate=frame_rate_of(seconds, path, "timecodes"), rotations=rotations, path=path)
+    return LiveLinkTake(
+        names=ARKIT_NAMES,
+        weights=weights,
+        seconds=seconds,
+        frame_rate=frame_rate_of(seconds, path, "timecodes"),
+        rotations=rotations,
+        path=path,
+    )
 
 
 def check_weight_range(weights: np.ndarray, names: Sequence[str], path: Path, first_row: int = 2) -> np.ndarray:
@@ -148,9 +209,11 @@ def check_weight_range(weights: np.ndarray, names: Sequence[str], path: Path, fi
     outside = (weights < -WEIGHT_SLACK) | (weights > 1.0 + WEIGHT_SLACK)
     if outside.any():
         row, column = np.argwhere(outside)[0]
-        raise WorkbenchError(f"{path}: row {row + first_row}, column {names[column]}: weight {weights[row, column]:g} "
-                             f"is outside [0, 1] ({int(outside.sum())} such cells); ARKit weights are fractions, not "
-                             "percent")
+        raise WorkbenchError(
+            f"{path}: row {row + first_row}, column {names[column]}: weight {weights[row, column]:g} "
+            f"is outside [0, 1] ({int(outside.sum())} such cells); ARKit weights are fractions, not "
+            "percent"
+        )
     return weights
 
 
@@ -179,8 +242,10 @@ def _numeric_block(table, columns: Sequence[str], path: Path) -> np.ndarray:
     bad = ~np.isfinite(block)
     if bad.any():
         row, column = np.argwhere(bad)[0]
-        raise WorkbenchError(f"{path}: row {row + 2}, column {columns[column]}: {table[columns[column]].iloc[row]!r} "
-                             f"is not a finite number ({int(bad.sum())} such cells)")
+        raise WorkbenchError(
+            f"{path}: row {row + 2}, column {columns[column]}: {table[columns[column]].iloc[row]!r} "
+            f"is not a finite number ({int(bad.sum())} such cells)"
+        )
     return block
 
 
@@ -242,8 +307,9 @@ def arkit_target_names(channel: str, basis_names: Sequence[str]) -> tuple[str, .
     return ()
 
 
-def map_arkit_channels(channels: Sequence[str], basis_names: Sequence[str],
-                       overrides: Mapping[str, Sequence[str]] | None = None) -> ArkitMapping:
+def map_arkit_channels(
+    channels: Sequence[str], basis_names: Sequence[str], overrides: Mapping[str, Sequence[str]] | None = None
+) -> ArkitMapping:
     """Map ARKit channels onto the shapes of a blendshape basis by name (see :func:`arkit_target_names`).
 
     Parameters
@@ -287,8 +353,14 @@ def map_arkit_channels(channels: Sequence[str], basis_names: Sequence[str],
             matrix[i, column[name]] = 1.0
     unmapped = tuple(channel for channel in channels if not targets[channel])
     undriven = tuple(name for j, name in enumerate(basis_names) if not matrix[:, j].any())
-    return ArkitMapping(channels=tuple(channels), shapes=tuple(basis_names), matrix=matrix, targets=targets,
-                        unmapped=unmapped, undriven=undriven)
+    return ArkitMapping(
+        channels=tuple(channels),
+        shapes=tuple(basis_names),
+        matrix=matrix,
+        targets=targets,
+        unmapped=unmapped,
+        undriven=undriven,
+    )
 
 
 def drive_blendshapes(channel_weights: np.ndarray, mapping: ArkitMapping, deltas: np.ndarray) -> np.ndarray:

@@ -63,13 +63,14 @@ def _parse_vertices(lines: list[bytes], path: Path) -> np.ndarray:
         raise WorkbenchError(f"{path}: a 'v' line holds something that is not a number ({error})") from None
     bad = np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))
     if bad.size:
-        raise WorkbenchError(f"{path}: vertex {int(bad[0]) + 1} is not finite ({lines[bad[0]]!r}; {bad.size} such "
-                             "vertices); coordinates must be finite numbers")
+        raise WorkbenchError(
+            f"{path}: vertex {int(bad[0]) + 1} is not finite ({lines[bad[0]]!r}; {bad.size} such "
+            "vertices); coordinates must be finite numbers"
+        )
     return vertices
 
 
-def _parse_polygons(lines: list[bytes], vertices_before, n_vertices: int,
-                    path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _parse_polygons(lines: list[bytes], vertices_before, n_vertices: int, path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Corner vertex indices of ``f`` lines (``i``, ``i/t``, ``i//n`` or ``i/t/n``; negative = relative, with
     ``vertices_before()`` giving how many vertices precede each line)."""
     corners = [line.split()[1:] for line in lines]
@@ -87,8 +88,9 @@ def _parse_polygons(lines: list[bytes], vertices_before, n_vertices: int,
     index -= 1
     outside = (index < 0) | (index >= n_vertices)
     if outside.any():
-        raise WorkbenchError(f"{path}: a face refers to vertex {int(index[outside][0]) + 1}, outside the file's "
-                             f"{n_vertices} vertices")
+        raise WorkbenchError(
+            f"{path}: a face refers to vertex {int(index[outside][0]) + 1}, outside the file's {n_vertices} vertices"
+        )
     return sizes, index
 
 
@@ -113,8 +115,9 @@ def _split_obj(path_text: str, stamp: tuple[int, ...], size: int) -> _ObjLines:
     if not vertex_lines:
         raise WorkbenchError(f"{path}: no vertices ('v' lines); is this a Wavefront OBJ file?")
     # A digest of the face lines recognises a target with the neutral's exact polygons without parsing them.
-    return _ObjLines(vertex_lines=vertex_lines, face_lines=face_lines,
-                     face_digest=hashlib.sha256(b"\n".join(face_lines)).digest())
+    return _ObjLines(
+        vertex_lines=vertex_lines, face_lines=face_lines, face_digest=hashlib.sha256(b"\n".join(face_lines)).digest()
+    )
 
 
 def _vertices_before_faces(path: Path) -> np.ndarray:
@@ -147,8 +150,9 @@ def _vertices_cached(path_text: str, stamp: tuple[int, ...], size: int) -> tuple
 @functools.lru_cache(maxsize=16)
 def _polygons_cached(path_text: str, stamp: tuple[int, ...], size: int) -> tuple[np.ndarray, np.ndarray]:
     split = _split_obj(path_text, stamp, size)
-    sizes, corners = _parse_polygons(split.face_lines, lambda: _vertices_before_faces(Path(path_text)),
-                                     len(split.vertex_lines), Path(path_text))
+    sizes, corners = _parse_polygons(
+        split.face_lines, lambda: _vertices_before_faces(Path(path_text)), len(split.vertex_lines), Path(path_text)
+    )
     sizes.flags.writeable = corners.flags.writeable = False
     return sizes, corners
 
@@ -194,12 +198,12 @@ def triangulate(polygon_sizes: np.ndarray, polygon_vertices: np.ndarray) -> np.n
     first = np.repeat(starts, n_triangles)
     # Corner k of the fan's j-th triangle: first, first + j + 1, first + j + 2.
     j = np.arange(n_triangles.sum()) - np.repeat(np.cumsum(n_triangles) - n_triangles, n_triangles)
-    return np.stack([polygon_vertices[first], polygon_vertices[first + j + 1], polygon_vertices[first + j + 2]],
-                    axis=1)
+    return np.stack([polygon_vertices[first], polygon_vertices[first + j + 1], polygon_vertices[first + j + 2]], axis=1)
 
 
-def polygons_within(polygon_sizes: np.ndarray, polygon_vertices: np.ndarray,
-                    n_kept: int) -> tuple[np.ndarray, np.ndarray]:
+def polygons_within(
+    polygon_sizes: np.ndarray, polygon_vertices: np.ndarray, n_kept: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The polygons whose every corner is one of the first ``n_kept`` vertices.
 
     Returns
@@ -263,8 +267,14 @@ def expression_names(folder: Path, neutral_file: str) -> list[str]:
     return sorted(path.stem for path in folder.glob("*.obj") if path.name != neutral_file)
 
 
-def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Sequence[str] | None = None,
-                     region_vertices: int | None = None, unit_mm: float = 1.0) -> Blendshapes:
+def load_blendshapes(
+    folder: str | os.PathLike,
+    *,
+    neutral_file: str,
+    names: Sequence[str] | None = None,
+    region_vertices: int | None = None,
+    unit_mm: float = 1.0,
+) -> Blendshapes:
     """Read a blendshape folder: a neutral OBJ and one OBJ per named expression, all of the same topology.
 
     Parameters
@@ -308,8 +318,10 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
         raise WorkbenchError(f"expression names must be distinct, got {list(names)}")
     n_kept = neutral.n_vertices if region_vertices is None else int(region_vertices)
     if not 3 <= n_kept <= neutral.n_vertices:
-        raise WorkbenchError(f"region_vertices must be in [3, {neutral.n_vertices}] for {neutral_path} "
-                             f"({neutral.n_vertices} vertices), got {region_vertices}")
+        raise WorkbenchError(
+            f"region_vertices must be in [3, {neutral.n_vertices}] for {neutral_path} "
+            f"({neutral.n_vertices} vertices), got {region_vertices}"
+        )
 
     deltas = np.empty((len(names), n_kept, 3))
     neutral_digest = _vertices_cached(*_file_key(neutral_path))[1]
@@ -318,8 +330,10 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
         target_path = folder / f"{name}.obj"
         vertices, digest, n_faces = _vertices_cached(*_file_key(target_path))
         if len(vertices) != neutral.n_vertices:
-            raise WorkbenchError(f"{target_path}: {len(vertices)} vertices, but the neutral {neutral_path.name} "
-                                 f"has {neutral.n_vertices}; every expression must have the neutral's topology")
+            raise WorkbenchError(
+                f"{target_path}: {len(vertices)} vertices, but the neutral {neutral_path.name} "
+                f"has {neutral.n_vertices}; every expression must have the neutral's topology"
+            )
         check_vertices(vertices, neutral.vertices, target_path)
         # A target holding only vertices takes its polygons from the neutral.
         if n_faces and digest != neutral_digest:
@@ -327,10 +341,15 @@ def load_blendshapes(folder: str | os.PathLike, *, neutral_file: str, names: Seq
         deltas[i] = (vertices[:n_kept] - neutral.vertices[:n_kept]) * unit_mm
     sizes, corners = polygons_within(neutral.polygon_sizes, neutral.polygon_vertices, n_kept)
     return Blendshapes(
-        neutral=neutral.vertices[:n_kept] * unit_mm, names=tuple(names), deltas=deltas,
-        triangles=triangulate(sizes, corners), n_polygons=int(sizes.size), n_vertices_in_file=neutral.n_vertices,
+        neutral=neutral.vertices[:n_kept] * unit_mm,
+        names=tuple(names),
+        deltas=deltas,
+        triangles=triangulate(sizes, corners),
+        n_polygons=int(sizes.size),
+        n_vertices_in_file=neutral.n_vertices,
         unit_mm=float(unit_mm),
-        files={"neutral": str(neutral_path), **{name: str(folder / f"{name}.obj") for name in names}})
+        files={"neutral": str(neutral_path), **{name: str(folder / f"{name}.obj") for name in names}},
+    )
 
 
 def check_vertices(vertices: np.ndarray, neutral: np.ndarray, path: Path) -> None:
@@ -353,11 +372,17 @@ def check_vertices(vertices: np.ndarray, neutral: np.ndarray, path: Path) -> Non
 def check_same_topology(target: ObjMesh, neutral: ObjMesh) -> None:
     """Raise a :class:`WorkbenchError` naming ``target`` unless it has the neutral's vertices and polygons."""
     if target.n_vertices != neutral.n_vertices:
-        raise WorkbenchError(f"{target.path}: {target.n_vertices} vertices, but the neutral {neutral.path.name} "
-                             f"has {neutral.n_vertices}; every expression must have the neutral's topology")
-    if (target.polygon_sizes.shape != neutral.polygon_sizes.shape
-            or not np.array_equal(target.polygon_sizes, neutral.polygon_sizes)
-            or not np.array_equal(target.polygon_vertices, neutral.polygon_vertices)):
-        raise WorkbenchError(f"{target.path}: its polygons ({target.polygon_sizes.size}) differ from those of the "
-                             f"neutral {neutral.path.name} ({neutral.polygon_sizes.size}); every expression must "
-                             "have the neutral's topology")
+        raise WorkbenchError(
+            f"{target.path}: {target.n_vertices} vertices, but the neutral {neutral.path.name} "
+            f"has {neutral.n_vertices}; every expression must have the neutral's topology"
+        )
+    if (
+        target.polygon_sizes.shape != neutral.polygon_sizes.shape
+        or not np.array_equal(target.polygon_sizes, neutral.polygon_sizes)
+        or not np.array_equal(target.polygon_vertices, neutral.polygon_vertices)
+    ):
+        raise WorkbenchError(
+            f"{target.path}: its polygons ({target.polygon_sizes.size}) differ from those of the "
+            f"neutral {neutral.path.name} ({neutral.polygon_sizes.size}); every expression must "
+            "have the neutral's topology"
+        )

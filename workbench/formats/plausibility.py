@@ -95,8 +95,10 @@ def settle(problems: Sequence[str], policy: str) -> list[str]:
 def with_warnings(notes: Sequence[str], provenance: Mapping, warnings: Sequence[str]) -> dict:
     """A capture's ``notes`` and ``provenance`` with the plausibility warnings added: ``WARNING:`` notes are
     printed above the alpha table, ``provenance.plausibility_warnings`` goes into ``metrics.json``."""
-    return {"notes": tuple(notes) + tuple(f"WARNING: {warning}" for warning in warnings),
-            "provenance": dict(provenance, **({"plausibility_warnings": list(warnings)} if warnings else {}))}
+    return {
+        "notes": tuple(notes) + tuple(f"WARNING: {warning}" for warning in warnings),
+        "provenance": dict(provenance, **({"plausibility_warnings": list(warnings)} if warnings else {})),
+    }
 
 
 def face_spread(positions: np.ndarray) -> float:
@@ -133,16 +135,21 @@ def take_units_problems(spreads: Mapping[str, float], units: Mapping[str, str]) 
         Take -> the units its file declares.
     """
     low, high = LIMITS.face_spread_mm
-    problems = [f"{take}: markers spread {spread:.3g} mm from their centroid (file units {units[take]!r}); a face "
-                f"spans {low:g}-{high:g} mm, so the take's units are not what the file says"
-                for take, spread in spreads.items() if not low <= spread <= high]
+    problems = [
+        f"{take}: markers spread {spread:.3g} mm from their centroid (file units {units[take]!r}); a face "
+        f"spans {low:g}-{high:g} mm, so the take's units are not what the file says"
+        for take, spread in spreads.items()
+        if not low <= spread <= high
+    ]
     plausible = {take: spread for take, spread in spreads.items() if low <= spread <= high}
     if len(plausible) > 1:  # the smallest and largest face, not each against the median (two takes: their mean)
         smallest, largest = min(plausible, key=plausible.get), max(plausible, key=plausible.get)
         if plausible[largest] > LIMITS.take_spread_ratio * plausible[smallest]:
-            problems.append(f"{largest}: markers spread {plausible[largest]:.3g} mm from their centroid against "
-                            f"{plausible[smallest]:.3g} mm in {smallest} (more than {LIMITS.take_spread_ratio:g} x "
-                            "apart, one performer and one marker set); the takes' units or scales differ")
+            problems.append(
+                f"{largest}: markers spread {plausible[largest]:.3g} mm from their centroid against "
+                f"{plausible[smallest]:.3g} mm in {smallest} (more than {LIMITS.take_spread_ratio:g} x "
+                "apart, one performer and one marker set); the takes' units or scales differ"
+            )
     return problems
 
 
@@ -157,13 +164,17 @@ def parked_marker_problems(positions: np.ndarray, labels: Sequence[str], source:
         The file, for the message.
     """
     parked = np.all(positions == 0.0, axis=2)
-    return [f"{source}: marker {labels[j]} is at the origin (0, 0, 0) in {int(parked[:, j].sum())} frame(s) (first: "
-            f"frame {int(np.argmax(parked[:, j]))}); a marker on a face is never exactly there (an exporter's gap "
-            "written as zeros)" for j in np.flatnonzero(parked.any(axis=0))]
+    return [
+        f"{source}: marker {labels[j]} is at the origin (0, 0, 0) in {int(parked[:, j].sum())} frame(s) (first: "
+        f"frame {int(np.argmax(parked[:, j]))}); a marker on a face is never exactly there (an exporter's gap "
+        "written as zeros)"
+        for j in np.flatnonzero(parked.any(axis=0))
+    ]
 
 
-def outlier_problems(positions: np.ndarray, labels: Sequence[str], source: str, frames: np.ndarray | None = None
-                     ) -> list[str]:
+def outlier_problems(
+    positions: np.ndarray, labels: Sequence[str], source: str, frames: np.ndarray | None = None
+) -> list[str]:
     """Samples far beyond the capture's own spread, per marker (robust: medians and percentiles, not means).
 
     Parameters
@@ -187,9 +198,11 @@ def outlier_problems(positions: np.ndarray, labels: Sequence[str], source: str, 
     for j in np.flatnonzero(far.any(axis=0)):
         worst = int(np.nanargmax(np.where(far[:, j], distance[:, j], -np.inf)))
         frame = int(frames[worst]) if frames is not None else worst
-        problems.append(f"{source}: marker {labels[j]} is {distance[worst, j]:.3g} mm from its median position in "
-                        f"frame {frame} ({int(far[:, j].sum())} such sample(s)), more than {LIMITS.outlier_factor:g} x "
-                        f"the capture's spread ({scale[j]:.3g} mm)")
+        problems.append(
+            f"{source}: marker {labels[j]} is {distance[worst, j]:.3g} mm from its median position in "
+            f"frame {frame} ({int(far[:, j].sum())} such sample(s)), more than {LIMITS.outlier_factor:g} x "
+            f"the capture's spread ({scale[j]:.3g} mm)"
+        )
     return problems
 
 
@@ -213,9 +226,11 @@ def mesh_outlier_problems(vertices: np.ndarray, neutral: np.ndarray, source: str
     if not far.any():
         return []
     worst = int(np.argmax(np.where(far, np.nan_to_num(distance, nan=np.inf), -np.inf)))
-    return [f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre along an axis "
-            f"({int(far.sum())} such vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent "
-            f"({scale:.3g} {unit})"]
+    return [
+        f"{source}: vertex {worst} lies {distance[worst]:.3g} {unit} from the face's centre along an axis "
+        f"({int(far.sum())} such vertices), more than {LIMITS.mesh_outlier_factor:g} x the neutral face's extent "
+        f"({scale:.3g} {unit})"
+    ]
 
 
 def face_size_problems(neutral: np.ndarray, source: str, setting: str, unit_mm: float) -> list[str]:
@@ -238,8 +253,10 @@ def face_size_problems(neutral: np.ndarray, source: str, setting: str, unit_mm: 
         extent = float(np.max(np.ptp(np.asarray(neutral, dtype=np.float64), axis=0))) if len(neutral) else 0.0
     if low <= extent <= high:
         return []
-    return [f"{source}: with {setting}={unit_mm:g} the neutral face spans {extent:.3g} mm, not a human face's size "
-            f"({low:g}-{high:g} mm); {setting} (mm per file unit) is off by a factor"]
+    return [
+        f"{source}: with {setting}={unit_mm:g} the neutral face spans {extent:.3g} mm, not a human face's size "
+        f"({low:g}-{high:g} mm); {setting} (mm per file unit) is off by a factor"
+    ]
 
 
 def frame_rate_problems(rate: float, source: str, what: str = "frame rate") -> list[str]:
@@ -247,8 +264,10 @@ def frame_rate_problems(rate: float, source: str, what: str = "frame rate") -> l
     low, high = LIMITS.frame_rate_hz
     if low <= rate <= high:
         return []
-    return [f"{source}: {what} {rate:.6g} frames per second is not a face capture's ({low:g}-{high:g}); the rate or "
-            "the time stamps are in other units"]
+    return [
+        f"{source}: {what} {rate:.6g} frames per second is not a face capture's ({low:g}-{high:g}); the rate or "
+        "the time stamps are in other units"
+    ]
 
 
 def static_weights_problems(weights: np.ndarray, source: str) -> list[str]:
@@ -262,8 +281,10 @@ def static_weights_problems(weights: np.ndarray, source: str) -> list[str]:
     change = float(np.max(np.ptp(weights, axis=0), initial=0.0))
     if change > LIMITS.static_weight:
         return []
-    return [f"{source}: the take is static: no weight changes by more than {change:.3g} over its {len(weights)} "
-            "frames (a face that does not move has no motion to fit)"]
+    return [
+        f"{source}: the take is static: no weight changes by more than {change:.3g} over its {len(weights)} "
+        "frames (a face that does not move has no motion to fit)"
+    ]
 
 
 def _first_beyond(values: np.ndarray, limit: float, start: int) -> tuple[tuple | None, int]:
@@ -316,29 +337,37 @@ class SequenceMotion:
         first, count = _first_beyond(step, LIMITS.jump_factor * self.scale, start)
         self.jump, self.n_jumps = self.jump or first, self.n_jumps + count
         self.last = chunk[-1].astype(np.float64)
-        self.largest_motion = max(self.largest_motion,
-                                  float(np.linalg.norm(chunk - self.reference, axis=2).max(initial=0.0)))
+        self.largest_motion = max(
+            self.largest_motion, float(np.linalg.norm(chunk - self.reference, axis=2).max(initial=0.0))
+        )
 
     def problems(self) -> list[str]:
         found = []
         if self.outlier is not None:
             frame, vertex, distance = self.outlier
-            found.append(f"{self.source}: frame {frame}, vertex {vertex} lies {distance:.3g} {self.unit} from the "
-                         f"face's centre along an axis ({self.n_outlier_frames} such frame(s)), more than "
-                         f"{LIMITS.mesh_outlier_factor:g} x the face's extent ({self.scale:.3g} {self.unit})")
+            found.append(
+                f"{self.source}: frame {frame}, vertex {vertex} lies {distance:.3g} {self.unit} from the "
+                f"face's centre along an axis ({self.n_outlier_frames} such frame(s)), more than "
+                f"{LIMITS.mesh_outlier_factor:g} x the face's extent ({self.scale:.3g} {self.unit})"
+            )
         if self.jump is not None:
             frame, vertex, distance = self.jump
-            found.append(f"{self.source}: vertex {vertex} jumps {distance:.3g} {self.unit} from frame {frame - 1} to "
-                         f"frame {frame} ({self.n_jumps} such frame(s)), more than {LIMITS.jump_factor:g} x the face's "
-                         f"extent ({self.scale:.3g} {self.unit}); a face moves a few millimetres a frame")
+            found.append(
+                f"{self.source}: vertex {vertex} jumps {distance:.3g} {self.unit} from frame {frame - 1} to "
+                f"frame {frame} ({self.n_jumps} such frame(s)), more than {LIMITS.jump_factor:g} x the face's "
+                f"extent ({self.scale:.3g} {self.unit}); a face moves a few millimetres a frame"
+            )
         if self.reference is not None and self.largest_motion <= LIMITS.static_fraction * self.scale:
-            found.append(f"{self.source}: the sequence is static: no vertex moves more than {self.largest_motion:.3g} "
-                         f"{self.unit} from the first frame (a face that does not move has no motion to fit)")
+            found.append(
+                f"{self.source}: the sequence is static: no vertex moves more than {self.largest_motion:.3g} "
+                f"{self.unit} from the first frame (a face that does not move has no motion to fit)"
+            )
         return found
 
 
-def unused_channel_problems(unmapped: Sequence[str], channels: Sequence[str], weights: np.ndarray,
-                            source: str) -> list[str]:
+def unused_channel_problems(
+    unmapped: Sequence[str], channels: Sequence[str], weights: np.ndarray, source: str
+) -> list[str]:
     """Channels a take uses that no basis shape stands for (their shapes missing from the folder).
 
     Parameters
@@ -355,9 +384,11 @@ def unused_channel_problems(unmapped: Sequence[str], channels: Sequence[str], we
     if not used:
         return []
     listed = ", ".join(f"{channel} (max weight {value:.2f})" for channel, value in used.items())
-    return [f"{source}: the take uses channel(s) {listed} but the blendshape folder has no shape for them (their "
-            "OBJ files are missing), so that motion would be left out; to leave a channel out on purpose, map it to "
-            "no shape (dataset.arkit_overrides: {CHANNEL: []})"]
+    return [
+        f"{source}: the take uses channel(s) {listed} but the blendshape folder has no shape for them (their "
+        "OBJ files are missing), so that motion would be left out; to leave a channel out on purpose, map it to "
+        "no shape (dataset.arkit_overrides: {CHANNEL: []})"
+    ]
 
 
 def check_rigid_set(labels: Sequence[str], reference: np.ndarray, source: str) -> None:
@@ -378,11 +409,15 @@ def check_rigid_set(labels: Sequence[str], reference: np.ndarray, source: str) -
     """
     repeated = sorted({label for label in labels if list(labels).count(label) > 1})
     if repeated:
-        raise WorkbenchError(f"dataset.rigid_markers lists {repeated} more than once; the markers must be distinct "
-                             "(a repeated marker makes the head-motion residual look smaller than it is)")
+        raise WorkbenchError(
+            f"dataset.rigid_markers lists {repeated} more than once; the markers must be distinct "
+            "(a repeated marker makes the head-motion residual look smaller than it is)"
+        )
     if len(labels) < 3:
         raise WorkbenchError(f"dataset.rigid_markers has {len(labels)} marker(s); a head pose needs at least 3")
     singular = np.linalg.svd(reference - reference.mean(axis=0), compute_uv=False)
     if not singular[1] > LIMITS.rigid_flatness * singular[0]:
-        raise WorkbenchError(f"dataset.rigid_markers {list(labels)} are (nearly) collinear in {source} (singular "
-                             f"values {np.round(singular, 3).tolist()} mm); they cannot fix the head's rotation")
+        raise WorkbenchError(
+            f"dataset.rigid_markers {list(labels)} are (nearly) collinear in {source} (singular "
+            f"values {np.round(singular, 3).tolist()} mm); they cannot fix the head's rotation"
+        )

@@ -26,9 +26,14 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.formats.livelink import (LiveLinkTake, _numeric_block, check_weight_range, frame_rate_of,
-                                        read_livelink_csv)
 from workbench.core.errors import WorkbenchError, single_line
+from workbench.formats.livelink import (
+    LiveLinkTake,
+    _numeric_block,
+    check_weight_range,
+    frame_rate_of,
+    read_livelink_csv,
+)
 from workbench.settings.rules import positive_setting
 
 MEDIAPIPE_NEUTRAL = "_neutral"
@@ -36,8 +41,9 @@ TIME_COLUMNS = {"time": 1.0, "timestamp_ms": 1e-3}
 """Time column -> seconds per unit."""
 
 
-def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = None,
-                       timecode_rate: float = 60.0) -> LiveLinkTake:
+def read_weight_curves(
+    path: str | os.PathLike, *, frame_rate: float | None = None, timecode_rate: float = 60.0
+) -> LiveLinkTake:
     """Read named weight curves from a CSV or JSON file in any layout of this module.
 
     Parameters
@@ -76,8 +82,10 @@ def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = No
         except (ValueError, UnicodeDecodeError) as error:
             raise WorkbenchError(f"{path}: not valid JSON ({error})") from None
         except RecursionError:
-            raise WorkbenchError(f"{path}: JSON nested too deeply to be weight curves (an object of names, weights "
-                                 "and times, or a list of MediaPipe results, is nested a few levels)") from None
+            raise WorkbenchError(
+                f"{path}: JSON nested too deeply to be weight curves (an object of names, weights "
+                "and times, or a list of MediaPipe results, is nested a few levels)"
+            ) from None
         if isinstance(document, list):
             return _mediapipe_curves(document, path, frame_rate)
         if isinstance(document, dict):
@@ -86,8 +94,7 @@ def read_weight_curves(path: str | os.PathLike, *, frame_rate: float | None = No
     raise WorkbenchError(f"{path}: weight curves must be a .csv or .json file")
 
 
-def _take(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray, path: Path,
-          first_row: int) -> LiveLinkTake:
+def _take(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray, path: Path, first_row: int) -> LiveLinkTake:
     """Check and assemble curves: distinct names, at least 2 frames, weights in [0, 1], increasing times;
     MediaPipe's ``_neutral`` dropped."""
     names = [str(name) for name in names]
@@ -102,8 +109,9 @@ def _take(names: Sequence[str], weights: np.ndarray, seconds: np.ndarray, path: 
     names, weights = [names[i] for i in keep], weights[:, keep]
     check_weight_range(weights, names, path, first_row)
     rate = frame_rate_of(seconds, path, "frame times", first_row)
-    return LiveLinkTake(names=tuple(names), weights=weights, seconds=seconds - seconds[0], frame_rate=rate,
-                        rotations=None, path=path)
+    return LiveLinkTake(
+        names=tuple(names), weights=weights, seconds=seconds - seconds[0], frame_rate=rate, rotations=None, path=path
+    )
 
 
 def _frame_seconds(frames: np.ndarray, frame_rate: float | None, path: Path) -> np.ndarray:
@@ -125,37 +133,44 @@ def _read_csv_curves(path: Path, frame_rate: float | None) -> LiveLinkTake:
     table.columns = header if len(header) == len(table.columns) else [str(c).strip() for c in table.columns]
     timing = [column for column in (*TIME_COLUMNS, "frame") if column in table.columns]
     if not timing:
-        raise WorkbenchError(f"{path}: no time column ({', '.join(TIME_COLUMNS)}) or frame column ('frame'); "
-                             "the first columns must say when each row was captured")
+        raise WorkbenchError(
+            f"{path}: no time column ({', '.join(TIME_COLUMNS)}) or frame column ('frame'); "
+            "the first columns must say when each row was captured"
+        )
     names = [column for column in table.columns if column not in (*TIME_COLUMNS, "frame")]
     if len(set(table.columns)) != len(table.columns):
         repeated = sorted({name for name in table.columns if list(table.columns).count(name) > 1})
         raise WorkbenchError(f"{path}: column(s) {repeated} appear more than once")
     weights = _numeric_block(table, names, path)
     clock = _numeric_block(table, [timing[0]], path)[:, 0]
-    seconds = (clock * TIME_COLUMNS[timing[0]] if timing[0] in TIME_COLUMNS
-               else _frame_seconds(clock, frame_rate, path))
+    seconds = clock * TIME_COLUMNS[timing[0]] if timing[0] in TIME_COLUMNS else _frame_seconds(clock, frame_rate, path)
     return _take(names, weights, seconds, path, first_row=2)
 
 
 def _json_curves(document: Mapping, path: Path, frame_rate: float | None) -> LiveLinkTake:
     names, weights = document.get("names"), document.get("weights")
     if not isinstance(names, list) or not isinstance(weights, list):
-        raise WorkbenchError(f"{path}: a JSON object of weight curves needs 'names' (list) and 'weights' "
-                             "(one list of numbers per frame)")
+        raise WorkbenchError(
+            f"{path}: a JSON object of weight curves needs 'names' (list) and 'weights' (one list of numbers per frame)"
+        )
     try:
         matrix = np.array(weights, dtype=np.float64)
     except (TypeError, ValueError):
         raise WorkbenchError(f"{path}: 'weights' must be a list of equally long lists of numbers") from None
     if matrix.ndim != 2 or matrix.shape[1] != len(names):
-        raise WorkbenchError(f"{path}: 'weights' must have one row per frame of {len(names)} numbers (one per "
-                             f"name), got shape {matrix.shape}")
+        raise WorkbenchError(
+            f"{path}: 'weights' must have one row per frame of {len(names)} numbers (one per "
+            f"name), got shape {matrix.shape}"
+        )
     _check_finite(matrix, names, path, first_row=0)
     rate = document.get("frame_rate", frame_rate)
     if "time" in document:
         times = document["time"]
-        if (not isinstance(times, list) or len(times) != len(matrix)
-                or not all(_is_number(time) and np.isfinite(time) for time in times)):
+        if (
+            not isinstance(times, list)
+            or len(times) != len(matrix)
+            or not all(_is_number(time) and np.isfinite(time) for time in times)
+        ):
             raise WorkbenchError(f"{path}: 'time' must hold {len(matrix)} finite numbers (seconds), one per frame")
         seconds = np.array(times, dtype=np.float64)
     else:
@@ -167,8 +182,10 @@ def _check_finite(matrix: np.ndarray, names: Sequence[str], path: Path, first_ro
     bad = ~np.isfinite(matrix)
     if bad.any():
         row, column = np.argwhere(bad)[0]
-        raise WorkbenchError(f"{path}: frame {row + first_row}, weight {names[column]}: not a finite number "
-                             f"({int(bad.sum())} such values)")
+        raise WorkbenchError(
+            f"{path}: frame {row + first_row}, weight {names[column]}: not a finite number "
+            f"({int(bad.sum())} such values)"
+        )
 
 
 def _is_number(value) -> bool:
@@ -185,8 +202,9 @@ def _mediapipe_curves(results: list, path: Path, frame_rate: float | None) -> Li
     for number, result in enumerate(results):
         faces = _first(result, "face_blendshapes", "faceBlendshapes") if isinstance(result, Mapping) else None
         if not isinstance(faces, list) or not faces:
-            raise WorkbenchError(f"{path}: frame {number}: no face_blendshapes (a MediaPipe result per frame, with at "
-                                 "least one face)")
+            raise WorkbenchError(
+                f"{path}: frame {number}: no face_blendshapes (a MediaPipe result per frame, with at least one face)"
+            )
         face = faces[0]
         categories = face.get("categories") if isinstance(face, Mapping) else face
         try:
@@ -197,8 +215,10 @@ def _mediapipe_curves(results: list, path: Path, frame_rate: float | None) -> Li
         if names is None:
             names = frame_names
         elif frame_names != names:
-            raise WorkbenchError(f"{path}: frame {number}: its blendshape names differ from frame 0's; every frame "
-                                 "needs the same categories in the same order")
+            raise WorkbenchError(
+                f"{path}: frame {number}: its blendshape names differ from frame 0's; every frame "
+                "needs the same categories in the same order"
+            )
         rows.append([score for _, score in pairs])
         times.append(_first(result, "timestamp_ms", "timestampMs"))
     if names is None:
@@ -207,8 +227,10 @@ def _mediapipe_curves(results: list, path: Path, frame_rate: float | None) -> Li
     _check_finite(matrix, names, path, first_row=0)
     timed = [time is not None for time in times]
     if any(timed) and not all(timed):
-        raise WorkbenchError(f"{path}: frame {timed.index(False)} has no timestamp_ms but frame {timed.index(True)} "
-                             "has one; every frame needs one, or none (then the frame rate numbers them)")
+        raise WorkbenchError(
+            f"{path}: frame {timed.index(False)} has no timestamp_ms but frame {timed.index(True)} "
+            "has one; every frame needs one, or none (then the frame rate numbers them)"
+        )
     bad = next((number for number, time in enumerate(times) if time is not None and not _is_number(time)), None)
     if bad is not None:
         raise WorkbenchError(f"{path}: frame {bad}: timestamp_ms {times[bad]!r} is not a number (milliseconds)")

@@ -210,11 +210,25 @@ def primal_active_set_frames(gram, rhs, lo, hi, start, max_iter, threshold, inve
         factor = np.empty((n, n))
         index = np.empty(n, dtype=np.int64)
         for f in range(block * n_frames // n_blocks, (block + 1) * n_frames // n_blocks):
-            _admm_one(rhs[f], lo, hi, weights[f], inverse, gain, admm_steps, relax, vectors[0], vectors[1],
-                      vectors[2])
-            status[f], iterations[f] = _one_frame(gram, rhs[f], lo, hi, weights[f], max_iter, threshold, g_max,
-                                                  curvature, movable, flags, vectors[0], vectors[1], factor, index,
-                                                  vectors[2])
+            _admm_one(rhs[f], lo, hi, weights[f], inverse, gain, admm_steps, relax, vectors[0], vectors[1], vectors[2])
+            status[f], iterations[f] = _one_frame(
+                gram,
+                rhs[f],
+                lo,
+                hi,
+                weights[f],
+                max_iter,
+                threshold,
+                g_max,
+                curvature,
+                movable,
+                flags,
+                vectors[0],
+                vectors[1],
+                factor,
+                index,
+                vectors[2],
+            )
     return weights, status, iterations
 
 

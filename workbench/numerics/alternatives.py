@@ -27,6 +27,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from workbench.core.errors import WorkbenchError
 
+
 @contextmanager
 def _quiet():
     """Silence scikit-learn's convergence warnings: the iteration limits are settings of the run, recorded in
@@ -43,8 +44,10 @@ def _check_train(train, n_components: int) -> np.ndarray:
     if train.ndim != 2 or train.size == 0 or not np.all(np.isfinite(train)):
         raise WorkbenchError(f"training frames must be a finite, non-empty 2-D array, got shape {train.shape}")
     if isinstance(n_components, bool) or not 1 <= int(n_components) <= min(train.shape):
-        raise WorkbenchError(f"basis.alternatives_n: n_components must be between 1 and min(n_frames, n_dims) = "
-                             f"{min(train.shape)}, got {n_components} (null: the hand basis's size)")
+        raise WorkbenchError(
+            f"basis.alternatives_n: n_components must be between 1 and min(n_frames, n_dims) = "
+            f"{min(train.shape)}, got {n_components} (null: the hand basis's size)"
+        )
     return train
 
 
@@ -101,8 +104,9 @@ def unit_activation(shapes: np.ndarray, train: np.ndarray) -> np.ndarray:
     return shapes * scale[:, None]
 
 
-def sparse_pca_basis(train, *, n_components: int, alpha: float = 0.01, max_iter: int = 100,
-                     tol: float = 1e-6) -> np.ndarray:
+def sparse_pca_basis(
+    train, *, n_components: int, alpha: float = 0.01, max_iter: int = 100, tol: float = 1e-6
+) -> np.ndarray:
     """Sparse PCA about the neutral face: shapes with few non-zero coordinates that span most of the capture.
 
     The objective is scikit-learn's ``SparsePCA`` (sparse dictionary learning on the transposed data),
@@ -139,7 +143,7 @@ def sparse_pca_basis(train, *, n_components: int, alpha: float = 0.01, max_iter:
     n = int(n_components)
     reduced = np.linalg.qr(train, mode="r") if train.shape[0] > train.shape[1] else train
     reduced = reduced / (np.linalg.norm(reduced) / np.sqrt(reduced.shape[1]))
-    total = float(np.sum(reduced ** 2))
+    total = float(np.sum(reduced**2))
     loadings, _, _ = leading_svd(reduced, n)  # U, (k, n)
     shapes = loadings.T @ reduced  # V, (n, n_dims)
     previous = np.inf
@@ -159,8 +163,9 @@ def sparse_pca_basis(train, *, n_components: int, alpha: float = 0.01, max_iter:
     return unit_activation(shapes, train)
 
 
-def _lasso_rows(gram: np.ndarray, correlation: np.ndarray, alpha: float, start: np.ndarray,
-                sweeps: int = 20, tol: float = 1e-6) -> np.ndarray:
+def _lasso_rows(
+    gram: np.ndarray, correlation: np.ndarray, alpha: float, start: np.ndarray, sweeps: int = 20, tol: float = 1e-6
+) -> np.ndarray:
     """``min_v 1/2 |r - U v|^2 + alpha |v|_1`` for every column ``r`` of the data at once, by coordinate descent:
     at most ``sweeps`` sweeps from the warm start (each lowers the objective, and the alternation calls again),
     fewer once no coefficient moves by more than ``tol`` times the largest correlation.
@@ -288,14 +293,17 @@ def nmf_basis(train, *, n_components: int, max_iter: int = 200, tol: float = 1e-
     n_dims = train.shape[1]
     split = np.hstack([np.maximum(train, 0.0), np.maximum(-train, 0.0)])
     with _quiet():
-        model = NMF(n_components=int(n_components), init="nndsvda", solver="cd", max_iter=max_iter, tol=tol,
-                    random_state=seed).fit(split)
+        model = NMF(
+            n_components=int(n_components), init="nndsvda", solver="cd", max_iter=max_iter, tol=tol, random_state=seed
+        ).fit(split)
     parts = model.components_
     shapes = parts[:, :n_dims] - parts[:, n_dims:]
     empty = ~np.any(shapes != 0, axis=1)
     if empty.any():
-        raise WorkbenchError(f"NMF left {int(empty.sum())} of {n_components} components empty (the capture has "
-                             "fewer parts than components)")
+        raise WorkbenchError(
+            f"NMF left {int(empty.sum())} of {n_components} components empty (the capture has "
+            "fewer parts than components)"
+        )
     return unit_activation(shapes, train)
 
 
@@ -370,8 +378,9 @@ def _prox_group_l1(values: np.ndarray, strength: np.ndarray) -> np.ndarray:
     return values * shrink[..., None]
 
 
-def _splocs_greedy_start(residual: np.ndarray, distance: SurfaceDistance, k_count: int, d_min: float,
-                         d_max: float) -> tuple[np.ndarray, np.ndarray]:
+def _splocs_greedy_start(
+    residual: np.ndarray, distance: SurfaceDistance, k_count: int, d_min: float, d_max: float
+) -> tuple[np.ndarray, np.ndarray]:
     """SPLOCS's greedy start: each component grown from the point with the largest residual motion, inside its
     support. ``residual`` (shape (n_frames, n_points, 3), the scaled displacements) is used up in place.
 
@@ -413,9 +422,18 @@ def _splocs_update_weights(flat: np.ndarray, weights: np.ndarray, components: np
         rest -= np.outer(weights[:, k], ck)
 
 
-def splocs_basis(train, distance: SurfaceDistance, *, n_components: int, sparsity_lambda: float = 2.0,
-                 d_min: float = 0.1, d_max: float = 0.7, n_iterations: int = 10, n_admm_iterations: int = 10,
-                 rho: float = 10.0) -> np.ndarray:
+def splocs_basis(
+    train,
+    distance: SurfaceDistance,
+    *,
+    n_components: int,
+    sparsity_lambda: float = 2.0,
+    d_min: float = 0.1,
+    d_max: float = 0.7,
+    n_iterations: int = 10,
+    n_admm_iterations: int = 10,
+    rho: float = 10.0,
+) -> np.ndarray:
     """Sparse localised deformation components (Neumann, Varanasi, Wenger, Wacker, Magnor, Theobalt 2013).
 
     Minimises ``|X - W C|_F^2 + sum_k sum_j Lambda_kj |c_kj|`` (``c_kj`` the 3-vector of component ``k`` at
@@ -460,13 +478,13 @@ def splocs_basis(train, distance: SurfaceDistance, *, n_components: int, sparsit
     n_frames, n_dims = train.shape
     n_points = n_dims // 3
     if distance.points.shape[0] != n_points:
-        raise WorkbenchError(f"SPLOCS distances are over {distance.points.shape[0]} points, the frames have "
-                             f"{n_points}")
+        raise WorkbenchError(f"SPLOCS distances are over {distance.points.shape[0]} points, the frames have {n_points}")
     k_count = int(n_components)
     scale = float(np.std(train)) or 1.0
     data = train / scale
-    components, weights = _splocs_greedy_start(data.reshape(n_frames, n_points, 3).copy(), distance, k_count,
-                                               d_min, d_max)
+    components, weights = _splocs_greedy_start(
+        data.reshape(n_frames, n_points, 3).copy(), distance, k_count, d_min, d_max
+    )
     flat = data
     dual = np.zeros_like(components)
     strength = np.zeros((k_count, n_points))

@@ -12,8 +12,8 @@ import numpy as np
 import scipy.linalg
 
 from workbench.core.errors import WorkbenchError
-from workbench.numerics.frames import frame_chunks, is_stored_frames
 from workbench.core.tolerances import TOL, Tolerances
+from workbench.numerics.frames import frame_chunks, is_stored_frames
 from workbench.numerics.validation import CAPTURE, check_matrix
 
 PROJECTIONS = ("affine", "linear")
@@ -65,8 +65,10 @@ def check_hand_basis(hand: np.ndarray, names, *, tol: Tolerances = TOL) -> None:
     norms = np.linalg.norm(hand, axis=1)
     zero = [names[i] for i in np.flatnonzero(norms <= tol.zero_displacement)]
     if zero:
-        raise WorkbenchError(f"hand basis shape(s) {zero} are all zero (norm <= {tol.zero_displacement:g}); every "
-                             "hand shape must move some point")
+        raise WorkbenchError(
+            f"hand basis shape(s) {zero} are all zero (norm <= {tol.zero_displacement:g}); every "
+            "hand shape must move some point"
+        )
     gram = hand @ hand.T
     squared = np.diag(gram)
     distance_sq = squared[:, None] + squared[None, :] - 2.0 * gram
@@ -74,16 +76,20 @@ def check_hand_basis(hand: np.ndarray, names, *, tol: Tolerances = TOL) -> None:
     same = np.flatnonzero(distance_sq[first, second] <= tol.eigen_rel * squared.max())
     if same.size:
         a, b = first[same[0]], second[same[0]]
-        raise WorkbenchError(f"hand basis shapes {names[a]!r} and {names[b]!r} are the same shape (duplicates); "
-                             "every hand shape must differ from the others")
+        raise WorkbenchError(
+            f"hand basis shapes {names[a]!r} and {names[b]!r} are the same shape (duplicates); "
+            "every hand shape must differ from the others"
+        )
     values, vectors = np.linalg.eigh(gram)
     dependent = values <= tol.eigen_rel * values[-1]
     if dependent.any():
         combination = np.abs(vectors[:, 0])
         involved = [names[i] for i in np.flatnonzero(combination >= np.sqrt(tol.eigen_rel) * combination.max())]
-        raise WorkbenchError(f"hand basis is rank-deficient: its {len(names)} shapes span only "
-                             f"{int((~dependent).sum())} dimensions (shapes {involved} are linearly dependent); "
-                             "every hand shape must add a direction the others lack")
+        raise WorkbenchError(
+            f"hand basis is rank-deficient: its {len(names)} shapes span only "
+            f"{int((~dependent).sum())} dimensions (shapes {involved} are linearly dependent); "
+            "every hand shape must add a direction the others lack"
+        )
 
 
 def flip_signs(components: np.ndarray) -> np.ndarray:
@@ -189,9 +195,16 @@ def frames_covariance(capture, mean: np.ndarray, chunk_size: int = 4096) -> np.n
     return covariance / capture.shape[0]
 
 
-def randomized_covariance_eigen(capture: np.ndarray, mean: np.ndarray, n_eigen: int, rng: np.random.Generator, *,
-                                n_power_iter: int = 6, oversample: int = 20,
-                                iteration_dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+def randomized_covariance_eigen(
+    capture: np.ndarray,
+    mean: np.ndarray,
+    n_eigen: int,
+    rng: np.random.Generator,
+    *,
+    n_power_iter: int = 6,
+    oversample: int = 20,
+    iteration_dtype=np.float64,
+) -> tuple[np.ndarray, np.ndarray]:
     """Leading eigenpairs of the covariance by randomised subspace iteration (Halko, Martinsson & Tropp 2011).
 
     The centred capture is never formed: products with ``D~ = D - 1 mu^T`` are corrected by the mean, so memory
@@ -364,8 +377,15 @@ class Eigenfaces:
 
     RANDOMIZED_ABOVE = 4000
 
-    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, svd_solver: str = "auto",
-                 seed: int = 0, tol: Tolerances = TOL):
+    def __init__(
+        self,
+        *,
+        coverage: float = 0.995,
+        n_components: int | None = None,
+        svd_solver: str = "auto",
+        seed: int = 0,
+        tol: Tolerances = TOL,
+    ):
         self.coverage = coverage
         self.n_components = n_components
         self.svd_solver = svd_solver
@@ -403,7 +423,8 @@ class Eigenfaces:
             raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
         mean, total = frames_statistics("capture", capture) if stored else (capture.mean(axis=0), None)
         randomized = self.svd_solver == "randomized" or (
-            self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE)
+            self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE
+        )
         if randomized:
             values, vectors, total = self._randomized(capture, mean, n_components, coverage, total)
             method = "randomized"
@@ -438,8 +459,9 @@ class Eigenfaces:
         frames = check_matrix("frames", frames, CAPTURE)
         operator = check_matrix("operator", operator, CAPTURE)
         if operator.shape[1] != frames.shape[1]:
-            raise WorkbenchError(f"operator must have shape (n_dims, {frames.shape[1]}) to map the frames, got "
-                                 f"{operator.shape}")
+            raise WorkbenchError(
+                f"operator must have shape (n_dims, {frames.shape[1]}) to map the frames, got {operator.shape}"
+            )
         if frames.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {frames.shape[0]}")
         n_components = check_n_components(self.n_components)
@@ -462,7 +484,8 @@ class Eigenfaces:
             if not 1 <= m <= values.size:
                 raise WorkbenchError(
                     f"basis.n_components must be between 1 and the capture's rank {values.size}, got "
-                    f"{self.n_components}")
+                    f"{self.n_components}"
+                )
         self.mean_ = mean
         self.components_ = vectors[:m]
         self.explained_variance_ = values
@@ -472,8 +495,14 @@ class Eigenfaces:
         self.method_ = method
         return self
 
-    def _randomized(self, capture: np.ndarray, mean: np.ndarray, n_components: int | None,
-                    coverage: float | None, total: float | None = None):
+    def _randomized(
+        self,
+        capture: np.ndarray,
+        mean: np.ndarray,
+        n_components: int | None,
+        coverage: float | None,
+        total: float | None = None,
+    ):
         """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs; and the
         total variance (given, or computed here)."""
         rng = np.random.default_rng(self.seed)
@@ -487,8 +516,7 @@ class Eigenfaces:
             values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng, iteration_dtype=dtype)
             keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
             values, vectors = values[keep], vectors[keep]
-            enough = (n_components is not None or values.size < n_eigen
-                      or values.sum() >= (coverage - 1e-12) * total)
+            enough = n_components is not None or values.size < n_eigen or values.sum() >= (coverage - 1e-12) * total
             if enough or n_eigen >= limit:
                 return values, vectors, total
             n_eigen = min(2 * n_eigen, limit)
@@ -517,8 +545,9 @@ class Eigenfaces:
         return reconstruction
 
 
-def pca_to_qe_weights(hand: np.ndarray, components: np.ndarray, mean: np.ndarray,
-                      projection: str = "affine") -> np.ndarray:
+def pca_to_qe_weights(
+    hand: np.ndarray, components: np.ndarray, mean: np.ndarray, projection: str = "affine"
+) -> np.ndarray:
     """``w_ij = e_j^PCA . (e_i^H - mu)`` (eq. 3), or ``e_j^PCA . e_i^H`` for the linear reading.
 
     Parameters
@@ -544,8 +573,9 @@ def pca_to_qe_weights(hand: np.ndarray, components: np.ndarray, mean: np.ndarray
     return (hand - offset) @ components.T
 
 
-def quasi_eigen_faces(weights: np.ndarray, components: np.ndarray, mean: np.ndarray,
-                      projection: str = "affine") -> np.ndarray:
+def quasi_eigen_faces(
+    weights: np.ndarray, components: np.ndarray, mean: np.ndarray, projection: str = "affine"
+) -> np.ndarray:
     """``e_i^QE = mu + sum_j w_ij e_j^PCA`` (eq. 4), or without ``mu`` for the linear reading.
 
     Parameters
@@ -618,9 +648,16 @@ class QuasiEigenBasis:
     thresholds: np.ndarray
 
 
-def build_quasi_eigen_basis(hand, names, eigenfaces: Eigenfaces, *, projection: str = "affine",
-                            empty_axis_eps: float = 0.05, empty_axis_scale: str = "axis_std",
-                            append_empty_axes: bool = False) -> QuasiEigenBasis:
+def build_quasi_eigen_basis(
+    hand,
+    names,
+    eigenfaces: Eigenfaces,
+    *,
+    projection: str = "affine",
+    empty_axis_eps: float = 0.05,
+    empty_axis_scale: str = "axis_std",
+    append_empty_axes: bool = False,
+) -> QuasiEigenBasis:
     """Project the hand basis onto the eigenface hyperplane (eq. 3-4) and apply the post-treatment.
 
     Parameters
@@ -680,6 +717,13 @@ def build_quasi_eigen_basis(hand, names, eigenfaces: Eigenfaces, *, projection: 
     if appended.size:
         shapes = np.vstack([shapes, components[appended]])
         names = names + tuple(f"pca_{j + 1}" for j in appended)
-    return QuasiEigenBasis(shapes=shapes, names=names, weights=weights, projection=projection,
-                           empty_axes=tuple(int(j) for j in empty), appended_axes=tuple(int(j) for j in appended),
-                           axis_sums=np.abs(weights).sum(axis=0), thresholds=thresholds)
+    return QuasiEigenBasis(
+        shapes=shapes,
+        names=names,
+        weights=weights,
+        projection=projection,
+        empty_axes=tuple(int(j) for j in empty),
+        appended_axes=tuple(int(j) for j in appended),
+        axis_sums=np.abs(weights).sum(axis=0),
+        thresholds=thresholds,
+    )

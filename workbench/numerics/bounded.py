@@ -140,14 +140,22 @@ def primal_active_set(gram, rhs, lo, hi, start, max_iter: int, threshold: float)
             _step_to_bounds(k, w, z, below, above, lo, hi, upper, at_lo, at_hi, freed, finished)
         u = np.flatnonzero(~blocked)
         if u.size:
-            _free_or_finish(u, w, z, gram, c, c_size, g_max, curvature, threshold, lo < hi, upper, at_lo, at_hi,
-                            freed, finished)
+            _free_or_finish(
+                u, w, z, gram, c, c_size, g_max, curvature, threshold, lo < hi, upper, at_lo, at_hi, freed, finished
+            )
         weights[pending] = w
         if finished.any():
             done[pending[finished]] = True
             keep = ~finished
             pending, w, c, c_size, at_lo, at_hi, freed = (
-                pending[keep], w[keep], c[keep], c_size[keep], at_lo[keep], at_hi[keep], freed[keep])
+                pending[keep],
+                w[keep],
+                c[keep],
+                c_size[keep],
+                at_lo[keep],
+                at_hi[keep],
+                freed[keep],
+            )
             if not shared:
                 gram, g_max, curvature = gram[keep], g_max[keep], curvature[keep]
     return weights, done, n_iter
@@ -176,8 +184,9 @@ def _step_to_bounds(k, w, z, below, above, lo, hi, upper: bool, at_lo, at_hi, fr
     freed[k] = -1
 
 
-def _free_or_finish(u, w, z, gram, c, c_size, g_max, curvature, threshold: float, movable, upper: bool, at_lo, at_hi,
-                    freed, finished) -> None:
+def _free_or_finish(
+    u, w, z, gram, c, c_size, g_max, curvature, threshold: float, movable, upper: bool, at_lo, at_hi, freed, finished
+) -> None:
     """The frames ``u`` whose solve ``z`` stayed in the box: take ``z``, and free the pinned variable whose gradient
     pulls hardest out of its bound, or finish the frame when none does. Updates ``w``, ``at_lo``, ``at_hi``,
     ``freed`` and ``finished`` in place (a step of :func:`primal_active_set`)."""
@@ -230,8 +239,9 @@ def _pinned_solve(gram, c, w, free):
             rows = slice(part, part + block)
             out[rows] = _identity_pinned_solve(gram[rows], free[rows], b[rows, :, None])[:, :, 0]
         return out
-    _, first, group, count = np.unique(_set_key(free), return_index=True, return_inverse=True,
-                                       return_counts=True, axis=0)
+    _, first, group, count = np.unique(
+        _set_key(free), return_index=True, return_inverse=True, return_counts=True, axis=0
+    )
     group = group.ravel()
     width = int(min(MAX_SHARED, -(-n_frames // first.size)))
     order = np.argsort(group, kind="stable")
@@ -245,7 +255,7 @@ def _pinned_solve(gram, c, w, free):
     x[system, :, slot] = b[order]
     block = max(1, SYSTEM_ENTRIES // (n * n))
     for part in range(0, len(owner), block):
-        x[part:part + block] = _identity_pinned_solve(gram, owner[part:part + block], x[part:part + block])
+        x[part : part + block] = _identity_pinned_solve(gram, owner[part : part + block], x[part : part + block])
     out = np.empty_like(b)
     out[order] = x[system, :, slot]
     return out

@@ -12,8 +12,8 @@ import inspect
 
 import numpy as np
 
-from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.core.errors import WorkbenchError
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.metrics import AlphaSummary, summarise_squares
 from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
@@ -104,9 +104,18 @@ class QuasiEigenFaces:
     >>> qe.alpha(frames)  # doctest: +SKIP
     """
 
-    def __init__(self, *, coverage: float = 0.995, n_components: int | None = None, through: str = "mean",
-                 solver: str = "lstsq", bounds: tuple = (0.0, 1.0), empty_axis_eps: float = 0.05,
-                 empty_axis_scale: str = "axis_std", append_empty_axes: bool = False):
+    def __init__(
+        self,
+        *,
+        coverage: float = 0.995,
+        n_components: int | None = None,
+        through: str = "mean",
+        solver: str = "lstsq",
+        bounds: tuple = (0.0, 1.0),
+        empty_axis_eps: float = 0.05,
+        empty_axis_scale: str = "axis_std",
+        append_empty_axes: bool = False,
+    ):
         self.coverage = coverage
         self.n_components = n_components
         self.through = through
@@ -130,17 +139,18 @@ class QuasiEigenFaces:
         """Set parameters by name; returns ``self``. Fitted attributes are left as they are until the next fit."""
         unknown = sorted(set(params) - set(self._parameter_names()))
         if unknown:
-            raise WorkbenchError(f"QuasiEigenFaces has no parameter {unknown[0]!r}; its parameters are "
-                                 f"{self._parameter_names()}")
+            raise WorkbenchError(
+                f"QuasiEigenFaces has no parameter {unknown[0]!r}; its parameters are {self._parameter_names()}"
+            )
         for name, value in params.items():
             setattr(self, name, value)
         return self
 
     def __repr__(self) -> str:
-        defaults = {name: parameter.default
-                    for name, parameter in inspect.signature(type(self).__init__).parameters.items()}
-        changed = [f"{name}={value!r}" for name, value in self.get_params().items()
-                   if not _same(value, defaults[name])]
+        defaults = {
+            name: parameter.default for name, parameter in inspect.signature(type(self).__init__).parameters.items()
+        }
+        changed = [f"{name}={value!r}" for name, value in self.get_params().items() if not _same(value, defaults[name])]
         return f"{type(self).__name__}({', '.join(changed)})"
 
     # -- fitting ---------------------------------------------------------------------------------------------
@@ -178,12 +188,19 @@ class QuasiEigenFaces:
             neutral = _check_vector("neutral", neutral, frames.shape[1])
         names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if names is None else names
         if isinstance(names, str) or len(names) != hand.shape[0]:
-            raise WorkbenchError(f"names must be a sequence of one name per hand shape ({hand.shape[0]}), got "
-                                 f"{names!r:.80}")
+            raise WorkbenchError(
+                f"names must be a sequence of one name per hand shape ({hand.shape[0]}), got {names!r:.80}"
+            )
         eigenfaces = Eigenfaces(coverage=self.coverage, n_components=self.n_components).fit(frames)
-        basis = build_quasi_eigen_basis(hand, names, eigenfaces, projection=THROUGH[through],
-                                        empty_axis_eps=self.empty_axis_eps, empty_axis_scale=self.empty_axis_scale,
-                                        append_empty_axes=self.append_empty_axes)
+        basis = build_quasi_eigen_basis(
+            hand,
+            names,
+            eigenfaces,
+            projection=THROUGH[through],
+            empty_axis_eps=self.empty_axis_eps,
+            empty_axis_scale=self.empty_axis_scale,
+            append_empty_axes=self.append_empty_axes,
+        )
         self.n_features_in_ = frames.shape[1]
         self.mean_ = eigenfaces.mean_
         self.eigenfaces_ = eigenfaces.components_
@@ -253,8 +270,15 @@ class QuasiEigenFaces:
             return self.mean_ + reconstruct(self.eigenfaces_, weights)
         return reconstruct(self._shapes(basis), weights)
 
-    def alpha(self, frames, *, solver: str | None = None, basis: str = "QE", normalisation: str = "absolute",
-              aggregate: str = "mean"):
+    def alpha(
+        self,
+        frames,
+        *,
+        solver: str | None = None,
+        basis: str = "QE",
+        normalisation: str = "absolute",
+        aggregate: str = "mean",
+    ):
         """Reconstruction error alpha in percent (eq. 6) of ``frames`` reconstructed in a basis.
 
         Computed as a run computes the alpha table (:mod:`workbench.numerics.reduced`: each frame's coordinates in the
@@ -289,11 +313,13 @@ class QuasiEigenFaces:
         aggregate = _check_choice("aggregate", aggregate, AGGREGATES)
         self._check_fitted()
         if normalisation == "absolute" and self.neutral_ is None:
-            raise WorkbenchError("alpha with normalisation='absolute' needs the neutral positions: pass neutral= to "
-                                 "fit, or use normalisation='displacement'")
+            raise WorkbenchError(
+                "alpha with normalisation='absolute' needs the neutral positions: pass neutral= to "
+                "fit, or use normalisation='displacement'"
+            )
         summary = self.alpha_summary(frames, solver=solver, basis=basis)
         if aggregate == "per_frame":
-            return (summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame)
+            return summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame
         return getattr(summary, f"{normalisation}_{aggregate}")
 
     def alpha_summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
@@ -320,8 +346,9 @@ class QuasiEigenFaces:
         if basis == "PCA":
             _no_solver_for_pca(solver)
             projections = project_frames(frames, {"PCA": Subspace(self.eigenfaces_.T, self.mean_)}, neutral)
-            return summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
-                                     projections.position_sq, n_compared)
+            return summarise_squares(
+                projections.distance_sq["PCA"], projections.displacement_sq, projections.position_sq, n_compared
+            )
         reduction = reduce_basis(self._shapes(basis))
         projections = project_frames(frames, {basis: Subspace(reduction.u)}, neutral)
         coordinates = projections.coordinates[basis]
@@ -333,8 +360,9 @@ class QuasiEigenFaces:
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "shapes_"):
-            raise NotFittedError(f"This {type(self).__name__} instance is not fitted yet: call "
-                                 "fit(frames, hand_shapes) before using it")
+            raise NotFittedError(
+                f"This {type(self).__name__} instance is not fitted yet: call fit(frames, hand_shapes) before using it"
+            )
 
     def _checked_parameters(self) -> tuple[str, dict]:
         """``through`` and the solver's arguments, checked (the other parameters are checked by the functions they
@@ -379,8 +407,10 @@ def _check_vector(name: str, value, n_dims: int) -> np.ndarray:
 
 def _no_solver_for_pca(solver) -> None:
     if solver is not None:
-        raise WorkbenchError(f"solver must be None for basis 'PCA' (its reconstruction is the orthogonal projection "
-                             f"onto the eigenfaces), got {solver!r}")
+        raise WorkbenchError(
+            f"solver must be None for basis 'PCA' (its reconstruction is the orthogonal projection "
+            f"onto the eigenfaces), got {solver!r}"
+        )
 
 
 def _same(a, b) -> bool:

@@ -54,15 +54,18 @@ class FramesOnDisk:
         try:
             with open(self.path, "rb") as stream:
                 version = np.lib.format.read_magic(stream)
-                reader = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                          else np.lib.format.read_array_header_2_0)
+                reader = (
+                    np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                )
                 shape, fortran, dtype = reader(stream)
                 self._offset = stream.tell()
         except (OSError, ValueError) as error:
             raise WorkbenchError(f"{self.path}: not a readable .npy file of frames ({error})") from None
         if len(shape) != 2 or fortran or dtype not in (np.dtype(np.float32), np.dtype(np.float64)):
-            raise WorkbenchError(f"{self.path}: frames must be a C-ordered float32/float64 array of shape "
-                                 f"(n_frames, n_dims), got shape {shape}, dtype {dtype}, fortran {fortran}")
+            raise WorkbenchError(
+                f"{self.path}: frames must be a C-ordered float32/float64 array of shape "
+                f"(n_frames, n_dims), got shape {shape}, dtype {dtype}, fortran {fortran}"
+            )
         self.shape, self.dtype = tuple(int(n) for n in shape), dtype
         self._first = 0
 
@@ -105,8 +108,11 @@ class FramesOnDisk:
         rows = np.arange(self.shape[0])[index]
         if np.ndim(rows) == 0:
             return self.read(int(rows), int(rows) + 1)[0]
-        return np.concatenate([self.read(int(row), int(row) + 1) for row in rows]) if len(rows) else \
-            np.empty((0, self.shape[1]))
+        return (
+            np.concatenate([self.read(int(row), int(row) + 1) for row in rows])
+            if len(rows)
+            else np.empty((0, self.shape[1]))
+        )
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         whole = self.read(0, self.shape[0])
@@ -183,13 +189,15 @@ class FrameWriter:
             raise WorkbenchError(f"frame dtype must be one of {sorted(DTYPES)}, got {dtype!r}")
         self.path, self.shape, self.dtype = Path(path), (int(n_frames), int(n_dims)), np.dtype(DTYPES[dtype])
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        handle, self._temporary = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}.",
-                                                   suffix=TEMPORARY_SUFFIX)
+        handle, self._temporary = tempfile.mkstemp(
+            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=TEMPORARY_SUFFIX
+        )
         os.fchmod(handle, FILE_MODE)
         self._stream = os.fdopen(handle, "wb")
         header = io.BytesIO()
-        np.lib.format.write_array_header_1_0(header, {"descr": np.lib.format.dtype_to_descr(self.dtype),
-                                                      "fortran_order": False, "shape": self.shape})
+        np.lib.format.write_array_header_1_0(
+            header, {"descr": np.lib.format.dtype_to_descr(self.dtype), "fortran_order": False, "shape": self.shape}
+        )
         self._digest = hashlib.sha256(header.getvalue())
         self._stream.write(header.getvalue())
         self._written = 0

@@ -155,12 +155,15 @@ def intuitiveness(hand: np.ndarray, quasi_eigen: np.ndarray) -> tuple[np.ndarray
     hand = check_matrix("hand", hand, FRAMES, finite=False)
     quasi_eigen = check_matrix("quasi_eigen", quasi_eigen, FRAMES, finite=False)
     if quasi_eigen.shape != hand.shape:
-        raise WorkbenchError(f"quasi_eigen has shape {quasi_eigen.shape}, but hand has {hand.shape}; one quasi-eigen "
-                             "face per hand shape")
+        raise WorkbenchError(
+            f"quasi_eigen has shape {quasi_eigen.shape}, but hand has {hand.shape}; one quasi-eigen face per hand shape"
+        )
     hand_norm = np.linalg.norm(hand, axis=1)
     if not np.all(hand_norm > 0):
-        raise WorkbenchError(f"hand shape(s) {np.flatnonzero(~(hand_norm > 0)).tolist()} are all zero or not finite; "
-                             "their distance to a quasi-eigen face is undefined")
+        raise WorkbenchError(
+            f"hand shape(s) {np.flatnonzero(~(hand_norm > 0)).tolist()} are all zero or not finite; "
+            "their distance to a quasi-eigen face is undefined"
+        )
     qe_norm = np.linalg.norm(quasi_eigen, axis=1)
     relative_distance = np.linalg.norm(quasi_eigen - hand, axis=1) / hand_norm
     cosine = np.einsum("ij,ij->i", hand, quasi_eigen) / (hand_norm * qe_norm)

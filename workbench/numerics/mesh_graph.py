@@ -19,7 +19,11 @@ def mesh_edge_graph(vertices: np.ndarray, triangles: np.ndarray):
     edges = np.unique(np.sort(edges, axis=1), axis=0)
     lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
     n = len(vertices)
-    graph = coo_matrix((np.concatenate([lengths, lengths]),
-                        (np.concatenate([edges[:, 0], edges[:, 1]]), np.concatenate([edges[:, 1], edges[:, 0]]))),
-                       shape=(n, n))
+    graph = coo_matrix(
+        (
+            np.concatenate([lengths, lengths]),
+            (np.concatenate([edges[:, 0], edges[:, 1]]), np.concatenate([edges[:, 1], edges[:, 0]])),
+        ),
+        shape=(n, n),
+    )
     return graph.tocsr()

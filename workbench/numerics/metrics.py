@@ -19,8 +19,9 @@ def _check_same_shape(reference, reconstruction, *, points: bool = False) -> tup
     reference = check_matrix("reference", reference, FRAMES, points=points, finite=False)
     reconstruction = check_matrix("reconstruction", reconstruction, FRAMES, points=points, finite=False)
     if reconstruction.shape != reference.shape:
-        raise WorkbenchError(f"reconstruction has shape {reconstruction.shape}, but the reference has "
-                             f"{reference.shape}; they must match")
+        raise WorkbenchError(
+            f"reconstruction has shape {reconstruction.shape}, but the reference has {reference.shape}; they must match"
+        )
     return reference, reconstruction
 
 
@@ -28,12 +29,13 @@ def _check_finite(name: str, per_frame: np.ndarray) -> None:
     """Raise naming the first frame whose squared norm (or error) is not finite: its input holds NaN or Inf."""
     bad = np.flatnonzero(~np.isfinite(per_frame))
     if bad.size:
-        raise WorkbenchError(f"{name} holds NaN or Inf values in {bad.size} frame(s), the first frame {int(bad[0])}; "
-                             "alpha needs finite frames")
+        raise WorkbenchError(
+            f"{name} holds NaN or Inf values in {bad.size} frame(s), the first frame {int(bad[0])}; "
+            "alpha needs finite frames"
+        )
 
 
-def alpha_per_frame(reference: np.ndarray, reconstruction: np.ndarray, *,
-                    tol: Tolerances = TOL) -> np.ndarray:
+def alpha_per_frame(reference: np.ndarray, reconstruction: np.ndarray, *, tol: Tolerances = TOL) -> np.ndarray:
     """``alpha[%] = 100 |v* - v| / |v*|`` for each frame (eq. 6).
 
     Which vectors are passed decides the normalisation: absolute positions ``v* = v0 + d*`` give the paper's
@@ -130,10 +132,16 @@ class AlphaSummary:
     position_sq: np.ndarray | None = None
 
 
-def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
-                    tol: Tolerances = TOL, chunk_frames: int = 4096,
-                    squares: tuple[np.ndarray, np.ndarray] | None = None,
-                    visible: np.ndarray | None = None) -> AlphaSummary:
+def summarise_alpha(
+    neutral: np.ndarray,
+    captured: np.ndarray,
+    reconstructed,
+    *,
+    tol: Tolerances = TOL,
+    chunk_frames: int = 4096,
+    squares: tuple[np.ndarray, np.ndarray] | None = None,
+    visible: np.ndarray | None = None,
+) -> AlphaSummary:
     """Every error measure of one reconstruction.
 
     Parameters
@@ -180,11 +188,13 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
     if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, (int, np.integer)) or chunk_frames < 1:
         raise WorkbenchError(f"chunk_frames must be a positive integer, got {chunk_frames!r}")
     if visible is not None and np.shape(visible) != (n_frames, n_dims // 3):
-        raise WorkbenchError(f"visible must have shape ({n_frames}, {n_dims // 3}) (frames x points), got "
-                             f"{np.shape(visible)}")
+        raise WorkbenchError(
+            f"visible must have shape ({n_frames}, {n_dims // 3}) (frames x points), got {np.shape(visible)}"
+        )
     if squares is not None and any(np.shape(square) != (n_frames,) for square in squares):
-        raise WorkbenchError(f"squares must be two arrays of shape ({n_frames},), got "
-                             f"{[np.shape(square) for square in squares]}")
+        raise WorkbenchError(
+            f"squares must be two arrays of shape ({n_frames},), got {[np.shape(square) for square in squares]}"
+        )
     # Eq. 6 in both normalisations from three row-wise squared norms, one pass over the frames each: the error
     # v* - v equals d* - d, and |v0 + d*|^2 = |v0|^2 + 2 v0.d* + |d*|^2 (same values as alpha_per_frame and
     # alpha_pooled, without forming the absolute positions).
@@ -193,21 +203,30 @@ def summarise_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed, *,
         rows = slice(start, start + chunk_frames)
         estimate = reconstructed(rows) if callable(reconstructed) else reconstructed[rows]
         if np.shape(estimate) != captured[rows].shape:
-            raise WorkbenchError(f"reconstructed returned shape {np.shape(estimate)} for frames "
-                                 f"{rows.start}-{min(rows.stop, n_frames) - 1}; expected {captured[rows].shape}")
+            raise WorkbenchError(
+                f"reconstructed returned shape {np.shape(estimate)} for frames "
+                f"{rows.start}-{min(rows.stop, n_frames) - 1}; expected {captured[rows].shape}"
+            )
         difference = captured[rows] - estimate
         if visible is not None:
             difference = np.where(np.repeat(visible[rows], 3, axis=1), difference, 0.0)
         error_sq[rows] = np.einsum("ij,ij->i", difference, difference)
     with np.errstate(invalid="ignore", over="ignore"):  # NaN or Inf in the frames is named just below
-        displacement_sq, position_sq = (squares if squares is not None
-                                        else reference_squares(neutral, captured, visible=visible))
+        displacement_sq, position_sq = (
+            squares if squares is not None else reference_squares(neutral, captured, visible=visible)
+        )
     n_compared = visible.sum() if visible is not None else captured.shape[0] * (captured.shape[1] // 3)
     return summarise_squares(error_sq, displacement_sq, position_sq, n_compared, tol=tol)
 
 
-def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, position_sq: np.ndarray,
-                      n_compared_points: int, *, tol: Tolerances = TOL) -> AlphaSummary:
+def summarise_squares(
+    error_sq: np.ndarray,
+    displacement_sq: np.ndarray,
+    position_sq: np.ndarray,
+    n_compared_points: int,
+    *,
+    tol: Tolerances = TOL,
+) -> AlphaSummary:
     """Every error measure of one reconstruction from per-frame squared norms (eq. 6 in both normalisations).
 
     Parameters
@@ -239,12 +258,15 @@ def summarise_squares(error_sq: np.ndarray, displacement_sq: np.ndarray, positio
         displacement_pooled=float(100.0 * np.sqrt(error_sq.sum() / displacement_sq.sum())),
         rms_mm=float(rms_error(error_sq.sum(), n_compared_points)),
         n_undefined_displacement_frames=n_undefined,
-        error_sq=error_sq, displacement_sq=displacement_sq, position_sq=position_sq,
+        error_sq=error_sq,
+        displacement_sq=displacement_sq,
+        position_sq=position_sq,
     )
 
 
-def reference_squares(neutral: np.ndarray, captured: np.ndarray, *,
-                      visible: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def reference_squares(
+    neutral: np.ndarray, captured: np.ndarray, *, visible: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Squared norms of each captured frame as a displacement, ``|d*|^2``, and as positions, ``|v0 + d*|^2``.
 
     Parameters
@@ -270,7 +292,7 @@ def reference_squares(neutral: np.ndarray, captured: np.ndarray, *,
 
 def _alpha_from_squares(error_sq: np.ndarray, reference_sq: np.ndarray, tol: Tolerances) -> np.ndarray:
     """Per-frame ``100 |error| / |reference|`` from squared norms, NaN where the reference is (near) zero."""
-    defined = reference_sq > tol.zero_displacement ** 2
+    defined = reference_sq > tol.zero_displacement**2
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(defined, 100.0 * np.sqrt(error_sq / reference_sq), np.nan)
 
@@ -299,9 +321,13 @@ class Conditioning:
     near_duplicates: tuple
 
     def as_dict(self) -> dict:
-        return {"condition_number": self.condition_number, "rank": self.rank, "n_shapes": self.n_shapes,
-                "zero_shapes": list(self.zero_shapes),
-                "near_duplicates": [[i, j, round(c, 6)] for i, j, c in self.near_duplicates]}
+        return {
+            "condition_number": self.condition_number,
+            "rank": self.rank,
+            "n_shapes": self.n_shapes,
+            "zero_shapes": list(self.zero_shapes),
+            "near_duplicates": [[i, j, round(c, 6)] for i, j, c in self.near_duplicates],
+        }
 
 
 def basis_conditioning(shapes: np.ndarray, *, duplicate_cosine: float = 0.995) -> Conditioning:
@@ -329,8 +355,9 @@ def basis_conditioning(shapes: np.ndarray, *, duplicate_cosine: float = 0.995) -
     i, j = np.triu_indices(len(shapes), k=1)
     close = np.abs(cosine[i, j]) >= duplicate_cosine
     pairs = tuple((int(a), int(b), float(cosine[a, b])) for a, b in zip(i[close], j[close]))
-    return Conditioning(condition_number=condition, rank=rank, n_shapes=shapes.shape[0], zero_shapes=zero,
-                        near_duplicates=pairs)
+    return Conditioning(
+        condition_number=condition, rank=rank, n_shapes=shapes.shape[0], zero_shapes=zero, near_duplicates=pairs
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -377,8 +404,12 @@ def error_distribution(per_frame: np.ndarray) -> ErrorDistribution:
     if values.size == 0:
         return ErrorDistribution(math.nan, math.nan, math.nan, np.full(ERROR_QUANTILES.size, math.nan))
     quantiles = np.quantile(values, ERROR_QUANTILES)
-    return ErrorDistribution(median=float(np.median(values)), p95=float(np.quantile(values, 0.95)),
-                             max=float(values.max()), quantiles=quantiles)
+    return ErrorDistribution(
+        median=float(np.median(values)),
+        p95=float(np.quantile(values, 0.95)),
+        max=float(values.max()),
+        quantiles=quantiles,
+    )
 
 
 def rms_error(error_sq, n_points) -> np.ndarray:
@@ -437,13 +468,24 @@ class WeightStatistics:
     needs_negative_share: float = math.nan
 
     def as_dict(self) -> dict:
-        return {"max_abs": self.max_abs, "outside_unit_share": self.outside_unit_share,
-                "negative_share": self.negative_share, "sparsity": self.sparsity, "roughness": self.roughness,
-                "sum_median": self.sum_median, "needs_negative_share": self.needs_negative_share}
+        return {
+            "max_abs": self.max_abs,
+            "outside_unit_share": self.outside_unit_share,
+            "negative_share": self.negative_share,
+            "sparsity": self.sparsity,
+            "roughness": self.roughness,
+            "sum_median": self.sum_median,
+            "needs_negative_share": self.needs_negative_share,
+        }
 
 
-def needs_negative_share(error_sq_lstsq: np.ndarray, error_sq_nnls: np.ndarray, reference_sq: np.ndarray | None = None,
-                         *, tol: Tolerances = TOL) -> float:
+def needs_negative_share(
+    error_sq_lstsq: np.ndarray,
+    error_sq_nnls: np.ndarray,
+    reference_sq: np.ndarray | None = None,
+    *,
+    tol: Tolerances = TOL,
+) -> float:
     """Share of frames that need a negative weight: the non-negative solution's error exceeds the least-squares
     error by more than ``tol.tie_rel`` of the larger error or of the frame's reference norm (whichever is larger,
     so that two errors of rounding size on a frame the basis reproduces are a tie).
@@ -464,11 +506,13 @@ def needs_negative_share(error_sq_lstsq: np.ndarray, error_sq_nnls: np.ndarray, 
     float
         In [0, 1]; NaN without frames.
     """
-    lstsq, nnls = (np.sqrt(np.maximum(np.asarray(values, dtype=float), 0.0)) for values in (error_sq_lstsq,
-                                                                                            error_sq_nnls))
+    lstsq, nnls = (
+        np.sqrt(np.maximum(np.asarray(values, dtype=float), 0.0)) for values in (error_sq_lstsq, error_sq_nnls)
+    )
     if lstsq.shape != nnls.shape or lstsq.ndim != 1:
-        raise WorkbenchError(f"per-frame errors of the two solvers must be 1-D of one length, got shapes "
-                             f"{lstsq.shape} and {nnls.shape}")
+        raise WorkbenchError(
+            f"per-frame errors of the two solvers must be 1-D of one length, got shapes {lstsq.shape} and {nnls.shape}"
+        )
     if lstsq.size == 0:
         return math.nan
     scale = np.maximum(lstsq, nnls)
@@ -531,8 +575,9 @@ def second_derivative(values: np.ndarray, seconds: np.ndarray, takes=None) -> np
     return scale * (h1[:, None] * after - (h1 + h2)[:, None] * here + h2[:, None] * before)
 
 
-def weight_statistics(weights: np.ndarray, seconds: np.ndarray, takes=None, *,
-                      tol: Tolerances = TOL) -> WeightStatistics:
+def weight_statistics(
+    weights: np.ndarray, seconds: np.ndarray, takes=None, *, tol: Tolerances = TOL
+) -> WeightStatistics:
     """Range, bounds, sparsity and temporal roughness of a basis's weights over the evaluated frames.
 
     Parameters
@@ -551,8 +596,9 @@ def weight_statistics(weights: np.ndarray, seconds: np.ndarray, takes=None, *,
     """
     weights = check_matrix("weights", weights, FRAMES, finite=False)
     if np.shape(seconds) != (len(weights),):
-        raise WorkbenchError(f"seconds must give the time of each of the {len(weights)} frames, got shape "
-                             f"{np.shape(seconds)}")
+        raise WorkbenchError(
+            f"seconds must give the time of each of the {len(weights)} frames, got shape {np.shape(seconds)}"
+        )
     below, above = weights < -tol.weight_bound, weights > 1.0 + tol.weight_bound
     sparsity = hoyer_sparsity(weights) if weights.shape[1] > 1 else np.full(len(weights), np.nan)
     curvature = second_derivative(weights, seconds, takes)
@@ -561,5 +607,6 @@ def weight_statistics(weights: np.ndarray, seconds: np.ndarray, takes=None, *,
         outside_unit_share=float((below | above).any(axis=1).mean()),
         negative_share=float(below.any(axis=1).mean()),
         sparsity=float(np.nanmean(sparsity)) if np.isfinite(sparsity).any() else math.nan,
-        roughness=float(np.mean(curvature ** 2)) if curvature.size else math.nan,
-        sum_median=float(np.median(weights.sum(axis=1))))
+        roughness=float(np.mean(curvature**2)) if curvature.size else math.nan,
+        sum_median=float(np.median(weights.sum(axis=1))),
+    )

@@ -64,8 +64,9 @@ class FrameProjections:
     n_explicit: int
 
 
-def project_frames(frames, subspaces: Mapping[str, Subspace], neutral: np.ndarray, *,
-                   chunk_size: int | None = None) -> FrameProjections:
+def project_frames(
+    frames, subspaces: Mapping[str, Subspace], neutral: np.ndarray, *, chunk_size: int | None = None
+) -> FrameProjections:
     """Coordinates of every frame in every subspace, and its squared distance to each, in one pass.
 
     Parameters
@@ -85,8 +86,10 @@ def project_frames(frames, subspaces: Mapping[str, Subspace], neutral: np.ndarra
     """
     n_frames, n_dims = frames.shape
     labels = list(subspaces)
-    offsets = [np.zeros(n_dims) if subspaces[label].offset is None else np.asarray(subspaces[label].offset, float)
-               for label in labels]
+    offsets = [
+        np.zeros(n_dims) if subspaces[label].offset is None else np.asarray(subspaces[label].offset, float)
+        for label in labels
+    ]
     # One matrix product per chunk: every subspace's columns, then every offset and the neutral positions.
     widths = [subspaces[label].columns.shape[1] for label in labels]
     stops = np.cumsum(widths)
@@ -102,7 +105,7 @@ def project_frames(frames, subspaces: Mapping[str, Subspace], neutral: np.ndarra
         squares = np.einsum("ij,ij->i", chunk, chunk)
         displacement_sq[rows], neutral_dot[rows] = squares, products[:, -1]
         for index, label in enumerate(labels):
-            q = products[:, stops[index] - widths[index]:stops[index]] - offset_coordinates[index]
+            q = products[:, stops[index] - widths[index] : stops[index]] - offset_coordinates[index]
             scale = squares + offset_sq[index]
             distance = squares - 2.0 * products[:, stops[-1] + index] + offset_sq[index] - np.einsum("ij,ij->i", q, q)
             close = np.flatnonzero(distance <= EXPLICIT_BELOW * scale)
@@ -112,5 +115,10 @@ def project_frames(frames, subspaces: Mapping[str, Subspace], neutral: np.ndarra
                 n_explicit += close.size
             coordinates[label][rows], distance_sq[label][rows] = q, np.maximum(distance, 0.0)
     position_sq = np.maximum(displacement_sq + 2.0 * neutral_dot + neutral @ neutral, 0.0)
-    return FrameProjections(coordinates=coordinates, distance_sq=distance_sq, displacement_sq=displacement_sq,
-                            position_sq=position_sq, n_explicit=n_explicit)
+    return FrameProjections(
+        coordinates=coordinates,
+        distance_sq=distance_sq,
+        displacement_sq=displacement_sq,
+        position_sq=position_sq,
+        n_explicit=n_explicit,
+    )

@@ -70,11 +70,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-from workbench.numerics.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
-from workbench.numerics.bounded import (ADMM_RELAX, ADMM_RHO, admm, frames_of, largest_entry, positive, primal_active_set,
-                               times)
 from workbench.core.errors import WorkbenchError
 from workbench.core.tolerances import TOL, Tolerances
+from workbench.numerics.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
+from workbench.numerics.bounded import (
+    ADMM_RELAX,
+    ADMM_RHO,
+    admm,
+    frames_of,
+    largest_entry,
+    positive,
+    primal_active_set,
+    times,
+)
 from workbench.numerics.validation import SOLVER, check_matrix
 
 KINDS = ("lstsq", "nnls", "box")
@@ -232,8 +240,16 @@ def reduce_basis(basis) -> BasisReduction:
     return BasisReduction(basis=basis, u=u, singular=singular, vt=vt)
 
 
-def solve_projected(reduction: BasisReduction, projected, *, kind: str = "lstsq", lower=None, upper=None,
-                    tol: Tolerances = TOL, rhs: np.ndarray | None = None) -> WeightSolution:
+def solve_projected(
+    reduction: BasisReduction,
+    projected,
+    *,
+    kind: str = "lstsq",
+    lower=None,
+    upper=None,
+    tol: Tolerances = TOL,
+    rhs: np.ndarray | None = None,
+) -> WeightSolution:
     """:func:`solve_weights` from the frames' projections ``targets @ reduction.u`` alone.
 
     Parameters
@@ -252,8 +268,9 @@ def solve_projected(reduction: BasisReduction, projected, *, kind: str = "lstsq"
     """
     projected = check_matrix("projected", projected, SOLVER)
     if projected.shape[1] != reduction.u.shape[1]:
-        raise WorkbenchError(f"projected has {projected.shape[1]} columns but the basis reduction has "
-                             f"{reduction.u.shape[1]}")
+        raise WorkbenchError(
+            f"projected has {projected.shape[1]} columns but the basis reduction has {reduction.u.shape[1]}"
+        )
     basis = reduction.basis
     kind = _check_kind(kind)
     lo, hi, lower_out, upper_out = _bounds(kind, lower, upper, basis.shape[0])
@@ -266,7 +283,8 @@ def solve_projected(reduction: BasisReduction, projected, *, kind: str = "lstsq"
         rhs = (projected * reduction.singular) @ reduction.vt  # = targets @ basis.T
     ridge = _ridge(reduction.singular, gram.shape[0], tol.gram_ridge)
     weights, n_iter, n_fallback, violation = _solve_bounded(
-        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduced, lo, hi, frames, kind, ridge), tol)
+        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduced, lo, hi, frames, kind, ridge), tol
+    )
     return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
 
 
@@ -308,8 +326,10 @@ def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> Weight
     visible = check_visible(visible, targets.shape)
     seen = np.repeat(visible, 3, axis=1)
     if not np.isfinite(targets[seen]).all():
-        raise WorkbenchError("targets must be finite at every visible point; found "
-                             f"{np.count_nonzero(~np.isfinite(targets[seen]))} NaN/Inf values there")
+        raise WorkbenchError(
+            "targets must be finite at every visible point; found "
+            f"{np.count_nonzero(~np.isfinite(targets[seen]))} NaN/Inf values there"
+        )
     observed = np.where(seen, targets, 0.0)
     u, singular, vt = np.linalg.svd(basis.T, full_matrices=False)
     cutoff = np.finfo(float).eps * max(basis.shape) * singular.max(initial=0.0)
@@ -373,12 +393,15 @@ def check_visible(visible, targets_shape: tuple[int, int]) -> np.ndarray:
     if visible.dtype != bool:
         raise WorkbenchError(f"visible must be a boolean mask, got dtype {visible.dtype}")
     if visible.shape != (n_frames, n_dims // 3) or n_dims % 3:
-        raise WorkbenchError(f"visible must have shape (n_frames, n_points) = ({n_frames}, {n_dims // 3}) for "
-                             f"targets of shape {targets_shape}, got {visible.shape}")
+        raise WorkbenchError(
+            f"visible must have shape (n_frames, n_points) = ({n_frames}, {n_dims // 3}) for "
+            f"targets of shape {targets_shape}, got {visible.shape}"
+        )
     empty = np.flatnonzero(~visible.any(axis=1))
     if empty.size:
-        raise WorkbenchError(f"visible: {empty.size} frame(s) see no point at all (first: frame {empty[0]}); "
-                             "drop them before solving")
+        raise WorkbenchError(
+            f"visible: {empty.size} frame(s) see no point at all (first: frame {empty[0]}); drop them before solving"
+        )
     return visible
 
 
@@ -397,9 +420,7 @@ def reconstruct(basis, weights) -> np.ndarray:
     basis = check_matrix("basis", basis, SOLVER)
     weights = check_matrix("weights", weights, SOLVER)
     if weights.shape[1] != basis.shape[0]:
-        raise WorkbenchError(
-            f"weights has {weights.shape[1]} columns but basis has {basis.shape[0]} rows (n_shapes)"
-        )
+        raise WorkbenchError(f"weights has {weights.shape[1]} columns but basis has {basis.shape[0]} rows (n_shapes)")
     return weights @ basis
 
 
@@ -440,9 +461,15 @@ def kkt_violation(gram, rhs, weights, lower, upper) -> np.ndarray:
     lo = _bound_vector("lower", lower, n, -np.inf)[0]
     hi = _bound_vector("upper", upper, n, np.inf)[0]
     if gram.ndim == 2:  # one gram for every frame: compiled, frame by frame
-        return kkt_violation_frames(np.ascontiguousarray(gram.T), np.ascontiguousarray(rhs),
-                                    np.ascontiguousarray(weights), lo, hi, float(largest_entry(gram)),
-                                    _largest_finite(lo, hi))
+        return kkt_violation_frames(
+            np.ascontiguousarray(gram.T),
+            np.ascontiguousarray(rhs),
+            np.ascontiguousarray(weights),
+            lo,
+            hi,
+            float(largest_entry(gram)),
+            _largest_finite(lo, hi),
+        )
     grad = times(weights, np.swapaxes(gram, -1, -2)) - rhs
     w_size = np.abs(weights).max(axis=1)
     g_scale = positive(np.abs(rhs).max(axis=1) + largest_entry(gram) * w_size)[:, None]
@@ -575,14 +602,24 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
             penalty = ADMM_RHO * positive(np.diagonal(work).copy())
             inverse = np.linalg.inv(work + np.diag(penalty))
             found, status, iterations = primal_active_set_frames(
-                np.ascontiguousarray(work), np.ascontiguousarray(c), lo, hi, start[pending],
-                tol.active_set_max_iter, _FREE_FRACTION * tol.kkt, inverse, penalty[:, None] * inverse,
-                _ADMM_STEPS, ADMM_RELAX)
+                np.ascontiguousarray(work),
+                np.ascontiguousarray(c),
+                lo,
+                hi,
+                start[pending],
+                tol.active_set_max_iter,
+                _FREE_FRACTION * tol.kkt,
+                inverse,
+                penalty[:, None] * inverse,
+                _ADMM_STEPS,
+                ADMM_RELAX,
+            )
             weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
         else:
             guess = admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
             weights[pending], done[pending], n_iter = primal_active_set(
-                work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt)
+                work, c, lo, hi, guess, tol.active_set_max_iter, _FREE_FRACTION * tol.kkt
+            )
     violation = kkt_violation(gram, rhs, weights, lo, hi)
     redo = np.flatnonzero(~done | (violation > tol.kkt))
     if redo.size:
@@ -597,8 +634,14 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
 def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, kind: str, ridge: float) -> np.ndarray:
     """SciPy's per-frame solver on the reduced problem ``|diag(s) Vt w - (U^T d*)_f|^2`` for ``frames``."""
     design = reduction.singular[:, None] * reduction.vt
-    return _per_frame_designs(np.broadcast_to(design, (len(frames),) + design.shape), reduction.projected[frames],
-                              lo, hi, kind, np.full(len(frames), ridge))
+    return _per_frame_designs(
+        np.broadcast_to(design, (len(frames),) + design.shape),
+        reduction.projected[frames],
+        lo,
+        hi,
+        kind,
+        np.full(len(frames), ridge),
+    )
 
 
 def _per_frame_designs(designs, projected, lo, hi, kind: str, ridges) -> np.ndarray:

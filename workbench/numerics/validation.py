@@ -28,24 +28,33 @@ class MatrixWording:
 
 
 # The metrics' frames (workbench.numerics.metrics): NaN and Inf are found per frame there.
-FRAMES = MatrixWording("{name} must be a numeric array of shape (n_frames, n_dims): {error}",
-                       "{name} must be a non-empty array of shape (n_frames, n_dims), got shape {shape}",
-                       "{name} has {got} columns, but the captured frames have {n_columns}")
+FRAMES = MatrixWording(
+    "{name} must be a numeric array of shape (n_frames, n_dims): {error}",
+    "{name} must be a non-empty array of shape (n_frames, n_dims), got shape {shape}",
+    "{name} has {got} columns, but the captured frames have {n_columns}",
+)
 
 # Captures and bases (workbench.numerics.bases, workbench.numerics.estimator).
-CAPTURE = MatrixWording("{name} must be a numeric 2-D array (rows x dims): {error}",
-                        "{name} must be a 2-D array (rows x dims), got shape {shape}",
-                        "{name} must have {n_columns} columns to match the capture, got {got}",
-                        empty="{name} must not be empty, got shape {shape}")
+CAPTURE = MatrixWording(
+    "{name} must be a numeric 2-D array (rows x dims): {error}",
+    "{name} must be a 2-D array (rows x dims), got shape {shape}",
+    "{name} must have {n_columns} columns to match the capture, got {got}",
+    empty="{name} must not be empty, got shape {shape}",
+)
 
 # The solvers' bases, targets and weights (workbench.numerics.solve); they never check columns here.
-SOLVER = MatrixWording("{name} must be a numeric array ({error})", "{name} must be 2-dimensional, got shape {shape}",
-                       "", empty="{name} must not be empty, got shape {shape}",
-                       not_finite="{name} must be finite, found {bad} NaN/Inf")
+SOLVER = MatrixWording(
+    "{name} must be a numeric array ({error})",
+    "{name} must be 2-dimensional, got shape {shape}",
+    "",
+    empty="{name} must not be empty, got shape {shape}",
+    not_finite="{name} must be finite, found {bad} NaN/Inf",
+)
 
 
-def check_matrix(name: str, value, wording: MatrixWording, *, n_columns: int | None = None, points: bool = False,
-                 finite: bool = True) -> np.ndarray:
+def check_matrix(
+    name: str, value, wording: MatrixWording, *, n_columns: int | None = None, points: bool = False, finite: bool = True
+) -> np.ndarray:
     """``value`` as a non-empty 2-D float64 array, or a :class:`WorkbenchError` naming ``name``.
 
     Parameters

@@ -45,12 +45,24 @@ from datetime import datetime
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Sequence
 
-from workbench.settings.config import REPO_ROOT
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import lock_file, unlock_file
-from workbench.record.record import (ALPHA_COLUMNS, ALPHA_PER_FRAME_FILE, CLEAN_COLUMNS, CONFIG_FILE, FRAME_COLUMNS,
-                              METRICS_FILE, TABLE_FILE, TEXT_FILE, TIMINGS_FILE, RunRecord, find_records, is_complete,
-                              load_record)
+from workbench.record.record import (
+    ALPHA_COLUMNS,
+    ALPHA_PER_FRAME_FILE,
+    CLEAN_COLUMNS,
+    CONFIG_FILE,
+    FRAME_COLUMNS,
+    METRICS_FILE,
+    TABLE_FILE,
+    TEXT_FILE,
+    TIMINGS_FILE,
+    RunRecord,
+    find_records,
+    is_complete,
+    load_record,
+)
+from workbench.settings.config import REPO_ROOT
 
 log = logging.getLogger("workbench.sweep")
 """The callback's lines: to the console only (``conf/hydra/job_logging/workbench.yaml``), never into a record's
@@ -60,8 +72,7 @@ STORE_FOLDER = ".mlflow"
 """Hidden, so that the copies of records among its artifacts are never taken for runs by collect, report or this."""
 DATABASE_FILE = "mlflow.db"
 ARTIFACTS_FOLDER = "artifacts"
-ARTIFACT_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, ALPHA_PER_FRAME_FILE, METRICS_FILE, TIMINGS_FILE,
-                  "workbench.log")
+ARTIFACT_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, ALPHA_PER_FRAME_FILE, METRICS_FILE, TIMINGS_FILE, "workbench.log")
 REPORT_FOLDER = "report"
 COLLECTED_FOLDER = "collected"
 KIND_TAG, RUN_KIND, SWEEP_KIND = "kind", "run", "sweep"
@@ -108,6 +119,7 @@ def quiet_mlflow() -> None:
 # Which store
 # ---------------------------------------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class Store:
     """Where runs are logged.
@@ -152,13 +164,20 @@ def store_uris(store: Path) -> tuple[str, str]:
     store = Path(store).expanduser().resolve()
     for name in KEEP_OUT:
         if store.is_relative_to(REPO_ROOT / name):
-            raise WorkbenchError(f"MLflow store {store} is inside the source tree ({REPO_ROOT / name}); "
-                                 "put it under the output root (--store)")
+            raise WorkbenchError(
+                f"MLflow store {store} is inside the source tree ({REPO_ROOT / name}); "
+                "put it under the output root (--store)"
+            )
     return f"sqlite:///{store / DATABASE_FILE}", (store / ARTIFACTS_FOLDER).as_uri()
 
 
-def resolve_store(*, store: Path | None = None, tracking_uri: str | None = None,
-                  output_root: Path | str = "outputs", artifact_location: str | None = None) -> Store:
+def resolve_store(
+    *,
+    store: Path | None = None,
+    tracking_uri: str | None = None,
+    output_root: Path | str = "outputs",
+    artifact_location: str | None = None,
+) -> Store:
     """The store to log into: ``tracking_uri`` if given, else the embedded store in ``store`` if given, else
     ``$MLFLOW_TRACKING_URI`` if set, else the embedded store of ``output_root``.
 
@@ -179,8 +198,11 @@ def resolve_store(*, store: Path | None = None, tracking_uri: str | None = None,
         return Store(tracking_uri, chosen, None)
     lock = database_file.with_name(database_file.name + ".lock")
     database_file = database_file.expanduser().resolve()
-    beside = (database_file.parent / ARTIFACTS_FOLDER if database_file.name == DATABASE_FILE  # the embedded layout
-              else database_file.with_suffix(ARTIFACTS_SUFFIX))
+    beside = (
+        database_file.parent / ARTIFACTS_FOLDER
+        if database_file.name == DATABASE_FILE  # the embedded layout
+        else database_file.with_suffix(ARTIFACTS_SUFFIX)
+    )
     return Store(tracking_uri, chosen or beside.as_uri(), lock)
 
 
@@ -252,13 +274,16 @@ def store_error(target: Store, error: Exception) -> str:
     text = " ".join(str(error).split("\n")[0].split()) or type(error).__name__
     if "disk is full" in text or "No space left" in text:
         text = f"the disk is full ({text})"
-    return (f"MLflow store {target.tracking_uri}: {text[:300]}; records already logged are kept: rerun the same "
-            "command to log the rest")
+    return (
+        f"MLflow store {target.tracking_uri}: {text[:300]}; records already logged are kept: rerun the same "
+        "command to log the rest"
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # What a record becomes
 # ---------------------------------------------------------------------------------------------------------------
+
 
 def name_part(text) -> str:
     """One part of a metric or param name: ``->`` reads ``_to_`` and anything but letters, digits, ``_`` and
@@ -335,17 +360,29 @@ def version_tags(record: RunRecord) -> dict[str, str]:
     if version:
         tags["workbench.version"] = str(version)
     if record.git.get("commit"):
-        tags.update({"git_commit": str(record.git["commit"]), "mlflow.source.git.commit": str(record.git["commit"]),
-                     "git_dirty": str(record.git.get("dirty")).lower()})
+        tags.update(
+            {
+                "git_commit": str(record.git["commit"]),
+                "mlflow.source.git.commit": str(record.git["commit"]),
+                "git_dirty": str(record.git.get("dirty")).lower(),
+            }
+        )
     return tags
 
 
 def record_tags(record: RunRecord, parent_id: str | None) -> dict[str, str]:
     """The tags that find a run: kind, study, sweep, record folder, config hash, data variants, version, commit."""
     folder = record.folder.resolve()
-    tags = {KIND_TAG: RUN_KIND, "study": record.study, SWEEP_TAG: str(folder.parent), RECORD_TAG: str(folder),
-            "config_hash": str(record.config_hash), "data": ",".join(record.data_variants),
-            "mlflow.runName": folder.name, **version_tags(record)}
+    tags = {
+        KIND_TAG: RUN_KIND,
+        "study": record.study,
+        SWEEP_TAG: str(folder.parent),
+        RECORD_TAG: str(folder),
+        "config_hash": str(record.config_hash),
+        "data": ",".join(record.data_variants),
+        "mlflow.runName": folder.name,
+        **version_tags(record),
+    }
     if parent_id is not None:
         tags["mlflow.parentRunId"] = parent_id
     return tags
@@ -421,14 +458,14 @@ def sweep_metrics(records: Sequence[RunRecord]) -> dict[str, float]:
                 gathered.setdefault(metric_key(HEADLINE, row["data"], row["basis"], row["solver"]), []).append(value)
     metrics = {}
     for key, found in gathered.items():
-        metrics[key] = (math.exp(sum(map(math.log, found)) / len(found)) if min(found) > 0
-                        else sum(found) / len(found))
+        metrics[key] = math.exp(sum(map(math.log, found)) / len(found)) if min(found) > 0 else sum(found) / len(found)
     metrics["runs"] = float(len(records))
     return metrics
 
 
-def finish_sweep_run(client, run_id: str, study: str, records: Sequence[RunRecord], end_ms: int | None,
-                     wall_seconds: float | None = None) -> None:
+def finish_sweep_run(
+    client, run_id: str, study: str, records: Sequence[RunRecord], end_ms: int | None, wall_seconds: float | None = None
+) -> None:
     """Log a sweep run's params (those it does not hold yet: MLflow keeps a param's first value) and metrics, and
     finish it at ``end_ms`` (now when None).
 
@@ -456,6 +493,7 @@ def finish_sweep_run(client, run_id: str, study: str, records: Sequence[RunRecor
 # Logging
 # ---------------------------------------------------------------------------------------------------------------
 
+
 def experiment_id(client, study: str, artifact_root: str | None) -> str:
     """The id of the study's experiment, created if new (its artifacts in ``<artifact_root>/<study>``, or where
     the store puts them when ``artifact_root`` is None)."""
@@ -465,8 +503,9 @@ def experiment_id(client, study: str, artifact_root: str | None) -> str:
     if experiment is not None:
         return experiment.experiment_id
     try:
-        return client.create_experiment(study, artifact_location=None if artifact_root is None
-                                        else f"{artifact_root}/{study}")
+        return client.create_experiment(
+            study, artifact_location=None if artifact_root is None else f"{artifact_root}/{study}"
+        )
     except MlflowException:  # another process created it meanwhile
         experiment = client.get_experiment_by_name(study)
         if experiment is None:
@@ -489,16 +528,30 @@ def find_runs(client, experiment: str, **tags: str) -> list:
     terms = [f"tags.`{key}` = {quoted(value)}" for key, value in tags.items() if quoted(value)]
     runs, token = [], None
     while True:
-        page = client.search_runs([experiment], filter_string=" and ".join(terms), run_view_type=ViewType.ACTIVE_ONLY,
-                                  max_results=1000, page_token=token)
+        page = client.search_runs(
+            [experiment],
+            filter_string=" and ".join(terms),
+            run_view_type=ViewType.ACTIVE_ONLY,
+            max_results=1000,
+            page_token=token,
+        )
         runs.extend(run for run in page if all(run.data.tags.get(key) == value for key, value in tags.items()))
         token = page.token
         if not token:
             return runs
 
 
-def sweep_run(client, experiment: str, folder: Path, study: str, runs: Sequence, *, logged_by: str,
-              start_ms: int | None = None, version: Mapping[str, str] | None = None) -> tuple[str, bool]:
+def sweep_run(
+    client,
+    experiment: str,
+    folder: Path,
+    study: str,
+    runs: Sequence,
+    *,
+    logged_by: str,
+    start_ms: int | None = None,
+    version: Mapping[str, str] | None = None,
+) -> tuple[str, bool]:
     """A sweep's parent run: its id, created (running) if the store has none, and whether this caller is to finish
     it (it made it, or an interrupted import made it and left it running).
 
@@ -507,21 +560,28 @@ def sweep_run(client, experiment: str, folder: Path, study: str, runs: Sequence,
     logged_by : str
         ``sweep`` (the sweep's callback, which finishes the run when the sweep ends) or ``import``.
     """
-    found = sorted((run for run in runs if run.data.tags.get(KIND_TAG) == SWEEP_KIND),
-                   key=lambda run: run.info.start_time)
+    found = sorted(
+        (run for run in runs if run.data.tags.get(KIND_TAG) == SWEEP_KIND), key=lambda run: run.info.start_time
+    )
     if found:
         run = found[0]
         return run.info.run_id, run.info.status != "FINISHED" and run.data.tags.get(LOGGED_BY_TAG) == "import"
     folder = Path(folder).resolve()
-    tags = {KIND_TAG: SWEEP_KIND, "study": study, SWEEP_TAG: str(folder), "mlflow.runName": sweep_name(folder),
-            LOGGED_BY_TAG: logged_by, **(version or {})}
+    tags = {
+        KIND_TAG: SWEEP_KIND,
+        "study": study,
+        SWEEP_TAG: str(folder),
+        "mlflow.runName": sweep_name(folder),
+        LOGGED_BY_TAG: logged_by,
+        **(version or {}),
+    }
     run = client.create_run(experiment, start_time=start_ms or int(time.time() * 1000), tags=tags)
     return run.info.run_id, True
 
 
 def chunks(items: list, size: int) -> Iterator[list]:
     for start in range(0, len(items), size):
-        yield items[start:start + size]
+        yield items[start : start + size]
 
 
 def log_folders(client, run_id: str, folder: Path, names: Sequence[str], again: bool = False) -> None:
@@ -577,9 +637,16 @@ def log_record(client, experiment: str, record: RunRecord, previous: Sequence, p
     return outcome
 
 
-def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_uri: str | None = None,
-                sweep_run_id: str | None = None, finish_sweeps: bool = False, artifact_location: str | None = None,
-                wall_seconds: float | None = None) -> dict:
+def log_records(
+    paths: Iterable[Path],
+    *,
+    store: Path | None = None,
+    tracking_uri: str | None = None,
+    sweep_run_id: str | None = None,
+    finish_sweeps: bool = False,
+    artifact_location: str | None = None,
+    wall_seconds: float | None = None,
+) -> dict:
     """Log every complete record under ``paths`` that the store does not hold yet, nested in its sweep's run.
 
     Parameters
@@ -613,8 +680,12 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
     if not complete:
         raise WorkbenchError(f"no complete run record under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in complete]
-    target = resolve_store(store=store, tracking_uri=tracking_uri, artifact_location=artifact_location,
-                           output_root=records[0].config.get("paths", {}).get("output_root", "outputs"))
+    target = resolve_store(
+        store=store,
+        tracking_uri=tracking_uri,
+        artifact_location=artifact_location,
+        output_root=records[0].config.get("paths", {}).get("output_root", "outputs"),
+    )
     groups: dict[tuple, list[RunRecord]] = {}
     for record in records:
         groups.setdefault((record.study, sweep_folder(record) or record.folder.resolve().parent), []).append(record)
@@ -628,9 +699,20 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
             runs = find_runs(client, experiment, **{SWEEP_TAG: str(folder)})
             parent, finish = None, False
             if sweep_folder(group[0]) is not None:
-                parent, finish = (sweep_run_id, False) if sweep_run_id else sweep_run(
-                    client, experiment, folder, study, runs, logged_by="sweep" if finish_sweeps else "import",
-                    start_ms=min(map(started_ms, group)), version=version_tags(group[0]))
+                parent, finish = (
+                    (sweep_run_id, False)
+                    if sweep_run_id
+                    else sweep_run(
+                        client,
+                        experiment,
+                        folder,
+                        study,
+                        runs,
+                        logged_by="sweep" if finish_sweeps else "import",
+                        start_ms=min(map(started_ms, group)),
+                        version=version_tags(group[0]),
+                    )
+                )
                 sweeps[str(folder)] = parent
             by_record = {}
             for run in runs:
@@ -642,43 +724,72 @@ def log_records(paths: Iterable[Path], *, store: Path | None = None, tracking_ur
                 # the collected tables change as a sweep is resumed: the end of a sweep logs them again
                 log_folders(client, parent, folder, [COLLECTED_FOLDER, REPORT_FOLDER], again=finish or finish_sweeps)
                 if finish or finish_sweeps:  # the sweep's end (now), or the end of its last record imported
-                    finish_sweep_run(client, parent, study, group,
-                                     None if finish_sweeps else max(map(finished_ms, group)), wall_seconds)
-    return {"store": target, "tracking_uri": target.tracking_uri, "experiments": list(experiments.values()),
-            "sweeps": sweeps, **counts, "incomplete": incomplete}
+                    finish_sweep_run(
+                        client,
+                        parent,
+                        study,
+                        group,
+                        None if finish_sweeps else max(map(finished_ms, group)),
+                        wall_seconds,
+                    )
+    return {
+        "store": target,
+        "tracking_uri": target.tracking_uri,
+        "experiments": list(experiments.values()),
+        "sweeps": sweeps,
+        **counts,
+        "incomplete": incomplete,
+    }
 
 
 def summary_line(result: Mapping) -> str:
     resumed = f", {result['resumed']} left unfinished by an interrupted import completed" if result["resumed"] else ""
     note = f", {len(result['incomplete'])} incomplete run folders left out" if result["incomplete"] else ""
-    return (f"mlflow: {result['added']} runs added, {result['skipped']} already in the store{resumed}{note}; "
-            f"{result['store'].browse_hint(result['experiments'])}")
+    return (
+        f"mlflow: {result['added']} runs added, {result['skipped']} already in the store{resumed}{note}; "
+        f"{result['store'].browse_hint(result['experiments'])}"
+    )
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="workbench mlflow",
         description="Log finished run records into an MLflow tracking store (each record once, nested in its "
-                    "sweep's run).")
+        "sweep's run).",
+    )
     parser.add_argument("paths", nargs="+", type=Path, help="run folders, sweep folders or folders above them")
     target = parser.add_mutually_exclusive_group()
-    target.add_argument("--store", type=Path, default=None,
-                        help="folder of the embedded SQLite store (default: <paths.output_root>/.mlflow of the "
-                             "records)")
-    target.add_argument("--tracking-uri", default=None,
-                        help="an MLflow tracking URI instead, e.g. a server http://host:5000 (default: "
-                             "$MLFLOW_TRACKING_URI, else the embedded store)")
-    parser.add_argument("--artifact-location", default=None,
-                        help="where a new experiment keeps the runs' files (a folder or URI; default: beside the "
-                             "store's database, or where the server puts them)")
+    target.add_argument(
+        "--store",
+        type=Path,
+        default=None,
+        help="folder of the embedded SQLite store (default: <paths.output_root>/.mlflow of the records)",
+    )
+    target.add_argument(
+        "--tracking-uri",
+        default=None,
+        help="an MLflow tracking URI instead, e.g. a server http://host:5000 (default: "
+        "$MLFLOW_TRACKING_URI, else the embedded store)",
+    )
+    parser.add_argument(
+        "--artifact-location",
+        default=None,
+        help="where a new experiment keeps the runs' files (a folder or URI; default: beside the "
+        "store's database, or where the server puts them)",
+    )
     return parser.parse_args(list(argv))
 
 
 def main(argv: Sequence[str]) -> int:
     """``workbench mlflow <folder>... [--store DIR | --tracking-uri URI] [--artifact-location DIR]``."""
     args = parse_args(argv)
-    print(summary_line(log_records(args.paths, store=args.store, tracking_uri=args.tracking_uri,
-                                   artifact_location=args.artifact_location)))
+    print(
+        summary_line(
+            log_records(
+                args.paths, store=args.store, tracking_uri=args.tracking_uri, artifact_location=args.artifact_location
+            )
+        )
+    )
     return 0
 
 
@@ -703,8 +814,13 @@ class MlflowSweep(Callback):
     that cannot be reached stops no run: one line says so, and ``workbench mlflow <sweep folder>`` logs later.
     """
 
-    def __init__(self, enabled: bool = False, store: str | None = None, tracking_uri: str | None = None,
-                 artifact_location: str | None = None):
+    def __init__(
+        self,
+        enabled: bool = False,
+        store: str | None = None,
+        tracking_uri: str | None = None,
+        artifact_location: str | None = None,
+    ):
         self.enabled, self.store, self.tracking_uri = bool(enabled), store, tracking_uri
         self.artifact_location = artifact_location
         self.started_ms = process_start_ms()  # the sweep's run starts with the command
@@ -712,14 +828,23 @@ class MlflowSweep(Callback):
         self.jobs_log = True  # off when the store failed as the sweep started: the end of the sweep tries again
 
     def target(self, config) -> Store:
-        return resolve_store(store=None if self.store is None else Path(self.store), tracking_uri=self.tracking_uri,
-                             output_root=config.paths.output_root, artifact_location=self.artifact_location)
+        return resolve_store(
+            store=None if self.store is None else Path(self.store),
+            tracking_uri=self.tracking_uri,
+            output_root=config.paths.output_root,
+            artifact_location=self.artifact_location,
+        )
 
     def log(self, folder: Path, **options) -> dict:
         """:func:`log_records` into this callback's store."""
-        return log_records([folder], store=None if self.store is None else Path(self.store),
-                           tracking_uri=self.tracking_uri, sweep_run_id=self.sweep_run_id,
-                           artifact_location=self.artifact_location, **options)
+        return log_records(
+            [folder],
+            store=None if self.store is None else Path(self.store),
+            tracking_uri=self.tracking_uri,
+            sweep_run_id=self.sweep_run_id,
+            artifact_location=self.artifact_location,
+            **options,
+        )
 
     def on_multirun_start(self, config, **kwargs) -> None:
         if not self.enabled:
@@ -731,17 +856,22 @@ class MlflowSweep(Callback):
                 experiment = experiment_id(client, study, target.artifact_root)
                 runs = find_runs(client, experiment, **{SWEEP_TAG: str(sweep_dir.resolve())})
                 resumed = any(run.data.tags.get(KIND_TAG) == SWEEP_KIND for run in runs)
-                self.sweep_run_id, _ = sweep_run(client, experiment, sweep_dir, study, runs, logged_by="sweep",
-                                                 start_ms=self.started_ms)
+                self.sweep_run_id, _ = sweep_run(
+                    client, experiment, sweep_dir, study, runs, logged_by="sweep", start_ms=self.started_ms
+                )
                 if resumed:  # running again until this sweep ends
                     client.update_run(self.sweep_run_id, status="RUNNING")
         except (WorkbenchError, OSError) as error:
             self.jobs_log = False
-            log.error(f"workbench mlflow: error: {error} (the sweep goes on; its end tries again, or log it later "
-                      f"with 'workbench mlflow {sweep_dir}')")
+            log.error(
+                f"workbench mlflow: error: {error} (the sweep goes on; its end tries again, or log it later "
+                f"with 'workbench mlflow {sweep_dir}')"
+            )
             return
-        log.info(f"mlflow: sweep run {sweep_name(sweep_dir)} ({'resumed' if resumed else 'new'}) in experiment "
-                 f"{study} of {target.tracking_uri}; each run is logged as its job ends")
+        log.info(
+            f"mlflow: sweep run {sweep_name(sweep_dir)} ({'resumed' if resumed else 'new'}) in experiment "
+            f"{study} of {target.tracking_uri}; each run is logged as its job ends"
+        )
 
     def on_job_end(self, config, job_return=None, **kwargs) -> None:
         if not self.enabled or not self.jobs_log:
@@ -752,8 +882,10 @@ class MlflowSweep(Callback):
         try:
             result = self.log(folder)
         except (WorkbenchError, OSError) as error:
-            log.error(f"workbench mlflow: error: {error} (record kept; the end of the sweep or 'workbench mlflow "
-                      f"{folder}' logs it)")
+            log.error(
+                f"workbench mlflow: error: {error} (record kept; the end of the sweep or 'workbench mlflow "
+                f"{folder}' logs it)"
+            )
             return
         if result["added"] or result["resumed"]:
             log.info(f"mlflow: logged {folder.name}")
@@ -763,11 +895,14 @@ class MlflowSweep(Callback):
             return
         sweep_dir = Path(str(config.hydra.sweep.dir))
         try:
-            result = self.log(sweep_dir, finish_sweeps=True,
-                              wall_seconds=round(time.time() - self.started_ms / 1000, 3))
+            result = self.log(
+                sweep_dir, finish_sweeps=True, wall_seconds=round(time.time() - self.started_ms / 1000, 3)
+            )
         except (WorkbenchError, OSError) as error:  # the records are complete; say why the store is not
             log.error(f"workbench mlflow: error: {error} (records kept; rerun 'workbench mlflow {sweep_dir}')")
             return
         total = result["added"] + result["resumed"] + result["skipped"]
-        log.info(f"mlflow: sweep {sweep_name(sweep_dir)}: {total} runs in the store ({result['added']} added at "
-                 f"the end of the sweep); {result['store'].browse_hint(result['experiments'])}")
+        log.info(
+            f"mlflow: sweep {sweep_name(sweep_dir)}: {total} runs in the store ({result['added']} added at "
+            f"the end of the sweep); {result['store'].browse_hint(result['experiments'])}"
+        )

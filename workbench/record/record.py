@@ -33,14 +33,21 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import (TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file,
-                             write_atomic)
+from workbench.core.files import TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file, write_atomic
 
 if TYPE_CHECKING:
     import pandas as pd
 
-RECORD_PACKAGES = ("numpy", "scipy", "pandas", "matplotlib", "hydra-core", "omegaconf", "fast-simplification",
-                   "scikit-learn")
+RECORD_PACKAGES = (
+    "numpy",
+    "scipy",
+    "pandas",
+    "matplotlib",
+    "hydra-core",
+    "omegaconf",
+    "fast-simplification",
+    "scikit-learn",
+)
 
 
 def config_hash(resolved_yaml: str) -> str:
@@ -57,6 +64,7 @@ def git_state(repository: Path | None) -> dict:
 
     def git(*args):
         return subprocess.run(["git", "-C", str(repository), *args], capture_output=True, text=True, timeout=10)
+
     try:
         commit = git("rev-parse", "HEAD")
         status = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)reports")
@@ -82,8 +90,12 @@ def versions() -> dict:
     """The workbench's version, Python, platform and the versions of the packages that decide the numbers."""
     from workbench.version import __version__
 
-    return {"workbench": __version__, "python": sys.version.split()[0], "platform": platform.platform(),
-            **package_versions(RECORD_PACKAGES)}
+    return {
+        "workbench": __version__,
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        **package_versions(RECORD_PACKAGES),
+    }
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -99,15 +111,13 @@ METRICS_FILE = "metrics.json"
 TIMINGS_FILE = "timings.json"
 ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
 INPUTS_FILE = "inputs.npz"
-RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE,
-                DONE)
+RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE, DONE)
 """The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
 _VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
 """The alpha-table columns every row of a record must have (numbers)."""
-FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity",
-                 "w_roughness")
+FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity", "w_roughness")
 """The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
 frames, mm) and of the weights' statistics (:class:`workbench.numerics.metrics.WeightStatistics`: largest ``|w|``, share of
 frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
@@ -142,8 +152,16 @@ def is_record_file(name: str) -> bool:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def run_metrics(results_metrics: Mapping, *, study: str, resolved_yaml: str, overrides: Sequence[str],
-                job_num: int | None, started_at: str, repository: Path) -> dict:
+def run_metrics(
+    results_metrics: Mapping,
+    *,
+    study: str,
+    resolved_yaml: str,
+    overrides: Sequence[str],
+    job_num: int | None,
+    started_at: str,
+    repository: Path,
+) -> dict:
     """The content of ``metrics.json`` for a finished run.
 
     Parameters
@@ -184,9 +202,17 @@ def run_metrics(results_metrics: Mapping, *, study: str, resolved_yaml: str, ove
     }
 
 
-def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics: Mapping, timings: Mapping,
-                 inputs: Mapping[str, Mapping[str, np.ndarray]] | None = None,
-                 alpha_per_frame: Mapping[str, np.ndarray] | None = None) -> None:
+def write_record(
+    folder: Path,
+    *,
+    resolved_yaml: str,
+    table,
+    text: str,
+    metrics: Mapping,
+    timings: Mapping,
+    inputs: Mapping[str, Mapping[str, np.ndarray]] | None = None,
+    alpha_per_frame: Mapping[str, np.ndarray] | None = None,
+) -> None:
     """Write a run record into ``folder``, every file atomically and ``done`` last.
 
     Parameters
@@ -220,8 +246,9 @@ def write_record(folder: Path, *, resolved_yaml: str, table, text: str, metrics:
     write(METRICS_FILE, json_text(dict(metrics)))
     write(TIMINGS_FILE, json_text(dict(timings)))
     for data, arrays in (inputs or {}).items():
-        write(INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz",
-              npz_bytes(arrays))
+        write(
+            INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz", npz_bytes(arrays)
+        )
     if alpha_per_frame is not None:
         write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame))
     write_atomic(folder / DONE, json_text({"sha256": checksums}))
@@ -346,16 +373,21 @@ def read_checksums(folder: Path) -> dict:
     """
     text = _read_text(Path(folder) / DONE)
     if not text.strip():
-        raise WorkbenchError(f"run record {folder}: '{DONE}' is empty (it must hold the checksums of the record's "
-                             "files, as a run writes them); the record cannot be trusted")
+        raise WorkbenchError(
+            f"run record {folder}: '{DONE}' is empty (it must hold the checksums of the record's "
+            "files, as a run writes them); the record cannot be trusted"
+        )
     try:
         checksums = json.loads(text)["sha256"]
     except (ValueError, KeyError, TypeError):
         checksums = None
-    if not isinstance(checksums, dict) or not all(isinstance(name, str) and is_record_file(name)
-                                                  and isinstance(value, str) for name, value in checksums.items()):
-        raise WorkbenchError(f"run record {folder}: '{DONE}' is damaged (it must hold the checksums of the record's "
-                             "files, as a run writes them); the record cannot be trusted")
+    if not isinstance(checksums, dict) or not all(
+        isinstance(name, str) and is_record_file(name) and isinstance(value, str) for name, value in checksums.items()
+    ):
+        raise WorkbenchError(
+            f"run record {folder}: '{DONE}' is damaged (it must hold the checksums of the record's "
+            "files, as a run writes them); the record cannot be trusted"
+        )
     return checksums
 
 
@@ -368,8 +400,10 @@ def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
     """
     path = Path(folder) / name
     if name not in checksums:
-        raise WorkbenchError(f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
-                             f"{sorted(checksums)}); the record cannot be trusted: move the file away")
+        raise WorkbenchError(
+            f"run record {folder}: {name} is not one of the files the run wrote (its '{DONE}' lists "
+            f"{sorted(checksums)}); the record cannot be trusted: move the file away"
+        )
     try:
         found = sha256_of_file(path)
     except FileNotFoundError:
@@ -377,8 +411,10 @@ def check_file(folder: Path, name: str, checksums: Mapping[str, str]) -> None:
     except OSError as error:
         raise WorkbenchError(f"run record {folder}: {name} cannot be read ({error.strerror})") from None
     if found != checksums[name]:
-        raise WorkbenchError(f"run record {folder}: {name} was changed after the run (its SHA-256 no longer matches "
-                             f"the one in '{DONE}'); the record cannot be trusted: restore the file or run again")
+        raise WorkbenchError(
+            f"run record {folder}: {name} was changed after the run (its SHA-256 no longer matches "
+            f"the one in '{DONE}'); the record cannot be trusted: restore the file or run again"
+        )
 
 
 def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: bool = False) -> None:
@@ -393,9 +429,15 @@ def check_record_files(folder: Path, checksums: Mapping[str, str], *, archives: 
     for name in checksums:
         if archives or not name.endswith(".npz"):
             check_file(folder, name, checksums)
-    added = sorted(path.name for path in folder.iterdir()
-                   if path.name != DONE and (archives or not path.name.endswith(".npz")) and is_record_file(path.name)
-                   and not _TEMPORARY.fullmatch(path.name) and path.name not in checksums)
+    added = sorted(
+        path.name
+        for path in folder.iterdir()
+        if path.name != DONE
+        and (archives or not path.name.endswith(".npz"))
+        and is_record_file(path.name)
+        and not _TEMPORARY.fullmatch(path.name)
+        and path.name not in checksums
+    )
     if added:
         check_file(folder, added[0], checksums)
 
@@ -439,8 +481,10 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
     """The fields of ``metrics.json`` that readers rely on, with their types."""
     for key, kind in (("study", str), ("config_hash", str), ("rows", list), ("data", dict), ("dataset", dict)):
         if not isinstance(metrics.get(key), kind):
-            raise WorkbenchError(f"{path}: field '{key}' must be a {kind.__name__}, got "
-                                 f"{type(metrics.get(key)).__name__ if key in metrics else 'nothing'}")
+            raise WorkbenchError(
+                f"{path}: field '{key}' must be a {kind.__name__}, got "
+                f"{type(metrics.get(key)).__name__ if key in metrics else 'nothing'}"
+            )
     if not plain_name(metrics["study"]):
         raise WorkbenchError(f"{path}: field 'study' must be a plain name, got {metrics['study']!r:.60}")
     _check_field(path, "overrides", metrics.get("overrides", []), (list,), "a list of strings")
@@ -459,8 +503,9 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
         for key in ALPHA_COLUMNS:
             _check_field(path, f"rows[{i}].{key}", row[key], (int, float, type(None)), "a number or null")
         if row["data"] not in metrics["data"]:
-            raise WorkbenchError(f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' "
-                                 f"({sorted(metrics['data'])})")
+            raise WorkbenchError(
+                f"{path}: rows[{i}].data {row['data']!r} is not one of the field 'data' ({sorted(metrics['data'])})"
+            )
 
 
 def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
@@ -493,8 +538,10 @@ def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
     except yaml.YAMLError as error:
         raise WorkbenchError(f"{folder / CONFIG_FILE}: not valid YAML ({str(error).splitlines()[0]})") from None
     if not isinstance(config, dict) or not isinstance(config.get("study"), str) or not plain_name(config["study"]):
-        raise WorkbenchError(f"{folder / CONFIG_FILE}: must be a mapping whose field 'study' is a plain name "
-                             f"(no path), got {config.get('study') if isinstance(config, dict) else config!r:.60}")
+        raise WorkbenchError(
+            f"{folder / CONFIG_FILE}: must be a mapping whose field 'study' is a plain name "
+            f"(no path), got {config.get('study') if isinstance(config, dict) else config!r:.60}"
+        )
     if not isinstance(config.get("dataset", {}), dict):
         raise WorkbenchError(f"{folder / CONFIG_FILE}: field 'dataset' must be a mapping")
     metrics = _read_json(folder / METRICS_FILE)
@@ -503,21 +550,27 @@ def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
     for stage, seconds in timings.items():
         _check_field(folder / TIMINGS_FILE, stage, seconds, (int, float), "a number of seconds")
     try:
-        table = pd.read_csv(io.StringIO(_read_text(folder / TABLE_FILE)), keep_default_na=False,
-                            na_values={c: ["", "NaN", "nan"]
-                                       for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS, *CLEAN_COLUMNS)})
+        table = pd.read_csv(
+            io.StringIO(_read_text(folder / TABLE_FILE)),
+            keep_default_na=False,
+            na_values={c: ["", "NaN", "nan"] for c in ("paper_alpha", *ALPHA_COLUMNS, *FRAME_COLUMNS, *CLEAN_COLUMNS)},
+        )
     except (ValueError, pd.errors.ParserError) as error:
         raise WorkbenchError(f"{folder / TABLE_FILE}: not a readable CSV ({error})") from None
-    missing = [column for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)
-               if column not in table.columns]
+    missing = [
+        column
+        for column in ("data", "basis", "projection", "solver", "n", "m", *ALPHA_COLUMNS)
+        if column not in table.columns
+    ]
     if missing:
         raise WorkbenchError(f"{folder / TABLE_FILE}: missing column(s) {missing}")
     bad = [column for column in ALPHA_COLUMNS if not pd.api.types.is_numeric_dtype(table[column])]
     if bad:
         raise WorkbenchError(f"{folder / TABLE_FILE}: column(s) {bad} must hold numbers")
     if len(table) != len(metrics["rows"]):
-        raise WorkbenchError(f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists "
-                             f"{len(metrics['rows'])}")
+        raise WorkbenchError(
+            f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists {len(metrics['rows'])}"
+        )
     return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
 
 
@@ -538,10 +591,16 @@ def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:
         complete.update(marker.parent for marker in path.rglob(DONE) if marker.is_file())
         for name in (CONFIG_FILE, METRICS_FILE):
             # Hydra's own .hydra/config.yaml is not a run; a folder inside a complete record is part of it
-            candidates.update(found.parent for found in path.rglob(name)
-                              if not any(part.startswith(".") for part in found.relative_to(path).parts))
-    incomplete = {folder for folder in candidates
-                  if folder not in complete and not any(parent in complete for parent in folder.parents)}
+            candidates.update(
+                found.parent
+                for found in path.rglob(name)
+                if not any(part.startswith(".") for part in found.relative_to(path).parts)
+            )
+    incomplete = {
+        folder
+        for folder in candidates
+        if folder not in complete and not any(parent in complete for parent in folder.parents)
+    }
     return sorted(complete, key=_natural_path), sorted(incomplete, key=_natural_path)
 
 

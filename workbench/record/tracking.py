@@ -88,12 +88,14 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
             raise WorkbenchError(
                 f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json is missing, unreadable or "
                 "has no config_hash; records are never overwritten: move that record away or use another sweep "
-                "folder (hydra.sweep.dir=...)")
+                "folder (hydra.sweep.dir=...)"
+            )
         if recorded != config_hash:
             raise WorkbenchError(
                 f"{folder} holds a complete record of another config (config hash {recorded}, this run "
                 f"{config_hash}); records are never overwritten: use another sweep folder "
-                "(hydra.sweep.dir=...) or move that record away")
+                "(hydra.sweep.dir=...) or move that record away"
+            )
         return False
     if state == "partial":
         clear_partial(folder)
@@ -127,8 +129,11 @@ class RunLog(logging.FileHandler):
             self.reported = True
             error = sys.exc_info()[1]
             reason = getattr(error, "strerror", None) or error
-            print(f"workbench: warning: cannot write {self.baseFilename} ({reason}); the record is complete, only "
-                  "the copy of what the run printed is missing", file=sys.stderr)
+            print(
+                f"workbench: warning: cannot write {self.baseFilename} ({reason}); the record is complete, only "
+                "the copy of what the run printed is missing",
+                file=sys.stderr,
+            )
 
 
 def run_entry(name: str) -> bool:
@@ -146,13 +151,17 @@ def check_folder_setting(folder, setting: str) -> Path:
     """
     text = "" if folder is None else str(folder).strip()
     if not text or text == "None":
-        raise WorkbenchError(f"{setting} is empty: a run writes into a folder of its own, never into the current "
-                             f"directory; name one ({setting}=outputs/<name>) or leave the default")
+        raise WorkbenchError(
+            f"{setting} is empty: a run writes into a folder of its own, never into the current "
+            f"directory; name one ({setting}=outputs/<name>) or leave the default"
+        )
     path = Path(text).expanduser()
     here = Path.cwd().resolve()
     if path.resolve() == here or path.resolve() in here.parents:
-        raise WorkbenchError(f"{setting}={text} is the current directory or a folder above it; a run writes into a "
-                             f"folder of its own: name one ({setting}=outputs/<name>) or leave the default")
+        raise WorkbenchError(
+            f"{setting}={text} is the current directory or a folder above it; a run writes into a "
+            f"folder of its own: name one ({setting}=outputs/<name>) or leave the default"
+        )
     return path
 
 
@@ -196,9 +205,13 @@ def check_run_dir(folder: Path, setting: str = "hydra.run.dir") -> frozenset:
     elif foreign:
         what = f"is not empty and holds no run record ({shown})"
     else:
-        what = f"holds files named as a run record's ({shown}) but no run's lock file ({LOCK_FILE}), so no run wrote them"
-    raise WorkbenchError(f"{folder} {what}; a run writes only into a new or empty folder or its own record, and "
-                         f"touches nothing else: name another folder ({setting}=...)")
+        what = (
+            f"holds files named as a run record's ({shown}) but no run's lock file ({LOCK_FILE}), so no run wrote them"
+        )
+    raise WorkbenchError(
+        f"{folder} {what}; a run writes only into a new or empty folder or its own record, and "
+        f"touches nothing else: name another folder ({setting}=...)"
+    )
 
 
 class FolderBusy(WorkbenchError):
@@ -227,8 +240,10 @@ def lock_run_dir(folder: Path) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     handle = lock_file(folder / LOCK_FILE, wait=False)
     if handle is None:
-        raise FolderBusy(f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
-                         "held); wait for it to end or write this run elsewhere")
+        raise FolderBusy(
+            f"{folder} is in use by another workbench process (its lock file {LOCK_FILE} is "
+            "held); wait for it to end or write this run elsewhere"
+        )
     return handle
 
 

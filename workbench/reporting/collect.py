@@ -35,10 +35,17 @@ from workbench.core.errors import WorkbenchError
 from workbench.core.extras import has_module, install_hint
 from workbench.core.files import inside, write_atomic
 from workbench.record.record import DONE
-from workbench.reporting.runs import (PCA_SOLVER, STATISTICS, collect_runs, condition_keys, summarise,
-                                      sweep_comparisons, wide)
-from workbench.stats.statistics import GEOMETRIC
+from workbench.reporting.runs import (
+    PCA_SOLVER,
+    STATISTICS,
+    collect_runs,
+    condition_keys,
+    summarise,
+    sweep_comparisons,
+    wide,
+)
 from workbench.reporting.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
+from workbench.stats.statistics import GEOMETRIC
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
 ALPHA_METRICS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
@@ -72,8 +79,14 @@ def format_range(low: float, high: float, number_format: str) -> str:
     return low_text if low_text == high_text else f"{low_text}-{high_text}"
 
 
-def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns: str = "basis",
-               where: Mapping[str, str] | None = None, extra: Sequence[str] = ("m",)) -> tuple[list, list, int]:
+def alpha_grid(
+    summary: pd.DataFrame,
+    *,
+    metric: str = "alpha_abs_mean",
+    columns: str = "basis",
+    where: Mapping[str, str] | None = None,
+    extra: Sequence[str] = ("m",),
+) -> tuple[list, list, int]:
     """Lay a summary out as a grid: conditions down, ``columns`` across, ``geometric mean [95 % interval]`` in the
     cells.
 
@@ -120,8 +133,9 @@ def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns
     if table.empty:
         raise WorkbenchError(f"collect --where {dict(where or {})} leaves no rows")
     table = _pca_beside_every_solver(table)
-    candidates = [key for key in table.columns if key not in STATISTICS + (columns, "metric", "projection",
-                                                                           "train_on", "eval_on")]
+    candidates = [
+        key for key in table.columns if key not in STATISTICS + (columns, "metric", "projection", "train_on", "eval_on")
+    ]
     row_keys = [key for key in candidates if table[key].map(format_value).nunique() > 1] or candidates[:1]
     extras = [name for name in extra if name in available]
     column_values = shown if columns == "metric" else list(dict.fromkeys(table[columns]))
@@ -132,13 +146,19 @@ def alpha_grid(summary: pd.DataFrame, *, metric: str = "alpha_abs_mean", columns
         line = [format_value(value) for value in values]
         for name in extras:
             found = group[group["metric"] == name]
-            line.append(format_range(found["min"].iloc[0], found["max"].iloc[0], EXTRA_FORMATS.get(name, "{:.3f}"))
-                        if len(found) else "-")
+            line.append(
+                format_range(found["min"].iloc[0], found["max"].iloc[0], EXTRA_FORMATS.get(name, "{:.3f}"))
+                if len(found)
+                else "-"
+            )
         for value in column_values:
             name = value if columns == "metric" else metric
             found = group[(group["metric"] == name) & ((columns == "metric") | (group[columns] == value))]
-            line.append(format_estimate(*found[["geomean", "ci95_low", "ci95_high"]].iloc[0],
-                                        FLOAT_FORMATS.get(name, "{:.3f}")) if len(found) else "-")
+            line.append(
+                format_estimate(*found[["geomean", "ci95_low", "ci95_high"]].iloc[0], FLOAT_FORMATS.get(name, "{:.3f}"))
+                if len(found)
+                else "-"
+            )
         rows.append(line)
     return header, rows, len(row_keys)
 
@@ -156,19 +176,26 @@ def _pca_beside_every_solver(table: pd.DataFrame) -> pd.DataFrame:
     return combined.sort_values(["_solver_rank", "_row"], kind="stable").drop(columns=["_solver_rank", "_row"])
 
 
-def caption(summary: pd.DataFrame, metric: str, columns: str, where: Mapping[str, str] | None,
-            over: Sequence[str], extra: Sequence[str] = ()) -> str:
+def caption(
+    summary: pd.DataFrame,
+    metric: str,
+    columns: str,
+    where: Mapping[str, str] | None,
+    over: Sequence[str],
+    extra: Sequence[str] = (),
+) -> str:
     """One line naming the metric, the filters, the interval's method and how many replicates each cell has."""
     counted = ALPHA_METRICS[0] if columns == "metric" else metric
     counts = summary.loc[summary["metric"] == counted, "n"]
     n_text = f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
-    what = "alpha (%) by metric" if columns == "metric" else f"{metric} (%)" if metric.startswith("alpha") \
-        else metric
+    what = "alpha (%) by metric" if columns == "metric" else f"{metric} (%)" if metric.startswith("alpha") else metric
     filters = "".join(f", {key} = {value}" for key, value in (where or {}).items())
     replicates = ", ".join(over) if over else "no replicate key"
     ranges = f"; {', '.join(extra)}: range over the runs" if extra else ""
-    return (f"{what}{filters}; cells: geometric mean over {replicates} [95 % interval] ({GEOMETRIC}, "
-            f"n = {n_text} per cell){ranges}")
+    return (
+        f"{what}{filters}; cells: geometric mean over {replicates} [95 % interval] ({GEOMETRIC}, "
+        f"n = {n_text} per cell){ranges}"
+    )
 
 
 def parquet_bytes(table: pd.DataFrame) -> bytes:
@@ -177,9 +204,16 @@ def parquet_bytes(table: pd.DataFrame) -> bytes:
     return buffer.getvalue()
 
 
-def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_abs_mean",
-                      where: Mapping[str, str] | None = None, columns: str = "basis",
-                      extra: Sequence[str] = ("m",), over: Sequence[str] | None = None) -> dict:
+def collect_and_write(
+    paths: Iterable[Path],
+    out: Path,
+    *,
+    metric: str = "alpha_abs_mean",
+    where: Mapping[str, str] | None = None,
+    columns: str = "basis",
+    extra: Sequence[str] = ("m",),
+    over: Sequence[str] | None = None,
+) -> dict:
     """Collect the records under ``paths`` and write the runs table, the summary, the paired comparisons, the
     alpha table and the findings to ``out``.
 
@@ -212,18 +246,25 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
     comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where), metric)
-    solvers = [(where or {}).get("solver")] if (where or {}).get("solver") else \
-        [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
+    solvers = (
+        [(where or {}).get("solver")]
+        if (where or {}).get("solver")
+        else [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
+    )
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = [holm_text(comparisons, metric), *replicate_caveat(over)] + [line for solver in solvers
-                                         for line in sweep_statements(wide(summary), comparisons, swept, compared,
-                                                                      solver)]
+    findings = [holm_text(comparisons, metric), *replicate_caveat(over)] + [
+        line for solver in solvers for line in sweep_statements(wide(summary), comparisons, swept, compared, solver)
+    ]
     out = Path(out)
-    files = {"runs.csv": runs.to_csv(index=False), "summary.csv": summary.to_csv(index=False),
-             "comparisons.csv": comparisons.to_csv(index=False),
-             "comparisons.md": comparisons_markdown(comparisons, over),
-             "alpha_table.md": markdown, "alpha_table.tex": latex_table(header, rows, numeric, title),
-             "findings.md": "".join(f"- {line}\n" for line in findings)}
+    files = {
+        "runs.csv": runs.to_csv(index=False),
+        "summary.csv": summary.to_csv(index=False),
+        "comparisons.csv": comparisons.to_csv(index=False),
+        "comparisons.md": comparisons_markdown(comparisons, over),
+        "alpha_table.md": markdown,
+        "alpha_table.tex": latex_table(header, rows, numeric, title),
+        "findings.md": "".join(f"- {line}\n" for line in findings),
+    }
     if has_module("pyarrow"):
         files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
     else:  # the CSV files hold the same tables
@@ -231,8 +272,13 @@ def collect_and_write(paths: Iterable[Path], out: Path, *, metric: str = "alpha_
     for name, content in files.items():
         write_atomic(inside(out, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
-    return {"n_runs": n_runs, "n_incomplete": len(incomplete), "markdown": markdown, "findings": findings,
-            "files": [out / name for name in files]}
+    return {
+        "n_runs": n_runs,
+        "n_incomplete": len(incomplete),
+        "markdown": markdown,
+        "findings": findings,
+        "files": [out / name for name in files],
+    }
 
 
 def filtered(table: pd.DataFrame, where: Mapping[str, str] | None) -> pd.DataFrame:
@@ -246,16 +292,25 @@ def filtered(table: pd.DataFrame, where: Mapping[str, str] | None) -> pd.DataFra
 def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
     """The paired comparisons as a Markdown table under a caption naming the method and replicates."""
     shown = comparisons.drop(columns=["study", "method"])
-    shown = shown.loc[:, [column for column in shown.columns if shown[column].map(format_value).nunique() > 1
-                          or column in ("first", "second", "ratio", "ratio_low", "ratio_high", "n", "verdict")]]
+    shown = shown.loc[
+        :,
+        [
+            column
+            for column in shown.columns
+            if shown[column].map(format_value).nunique() > 1
+            or column in ("first", "second", "ratio", "ratio_low", "ratio_high", "n", "verdict")
+        ],
+    ]
     header, rows, numeric = frame_cells(shown)
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"]))
-    return (f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
-            f"95 % interval ({method} over {', '.join(over) or 'no replicate key'}), the smaller first; '<' only "
-            "where the interval excludes 1 (p_holm below 0.05 where it is adjusted); '<= by construction': holds in "
-            "every replicate whatever the data, not tested (the reason in by_construction)\n\n"
-            + markdown_table(header, rows, numeric))
+    return (
+        f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
+        f"95 % interval ({method} over {', '.join(over) or 'no replicate key'}), the smaller first; '<' only "
+        "where the interval excludes 1 (p_holm below 0.05 where it is adjusted); '<= by construction': holds in "
+        "every replicate whatever the data, not tested (the reason in by_construction)\n\n"
+        + markdown_table(header, rows, numeric)
+    )
 
 
 def findings_text(findings: Sequence[str]) -> str:
@@ -278,13 +333,19 @@ def main(argv: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog="workbench collect",
         description=f"Gather run records (folders with a '{DONE}' marker) of one or many sweeps into runs.csv/"
-                    ".parquet, summary.csv/.parquet (geometric mean and 95%% interval over seeds), comparisons.csv/.md "
-                    "(paired comparisons of the bases), alpha_table.md/.tex and findings.md.")
+        ".parquet, summary.csv/.parquet (geometric mean and 95%% interval over seeds), comparisons.csv/.md "
+        "(paired comparisons of the bases), alpha_table.md/.tex and findings.md.",
+    )
     parser.add_argument("paths", nargs="+", type=Path, help="sweep folders, run folders or folders above them")
     parser.add_argument("--out", type=Path, help="output folder (default: <the one path>/collected)")
     parser.add_argument("--metric", default="alpha_abs_mean", help="metric of the alpha table")
-    parser.add_argument("--where", action="append", default=[], metavar="KEY=VALUE",
-                        help="keep only rows with this value, e.g. solver=lstsq (repeatable)")
+    parser.add_argument(
+        "--where",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="keep only rows with this value, e.g. solver=lstsq (repeatable)",
+    )
     parser.add_argument("--columns", default="basis", help="key whose values become the table's columns")
     parser.add_argument("--extra", default="m", help="comma-separated metrics shown beside the row keys")
     parser.add_argument("--over", help="comma-separated replicate columns (default: the config keys naming a seed)")
@@ -293,9 +354,14 @@ def main(argv: Sequence[str]) -> int:
         raise WorkbenchError("collect: give --out when collecting more than one path")
     out = args.out or inside(args.paths[0], "collected")
     written = collect_and_write(
-        args.paths, out, metric=args.metric, where=parse_where(args.where), columns=args.columns,
+        args.paths,
+        out,
+        metric=args.metric,
+        where=parse_where(args.where),
+        columns=args.columns,
         extra=[name for name in args.extra.split(",") if name],
-        over=None if args.over is None else [name for name in args.over.split(",") if name])
+        over=None if args.over is None else [name for name in args.over.split(",") if name],
+    )
     print(written["markdown"] + findings_text(written["findings"]), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""
     print(f"collected {written['n_runs']} runs into {out}{note}")
@@ -325,8 +391,10 @@ class CollectSweep(Callback):
         try:
             written = collect_and_write([sweep_dir], inside(sweep_dir, "collected"), **self.layout)
         except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
-            print(f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
-                  file=sys.stderr)
+            print(
+                f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
+                file=sys.stderr,
+            )
             return
         print(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}")
         print(written["markdown"] + findings_text(written["findings"]), end="")

@@ -51,13 +51,15 @@ OBJ_UNITS = {"m": 1000.0, "mm": 1.0}
 """OBJ unit -> millimetres per unit."""
 LIVELINK_DECIMALS = "%.10f"
 """Live Link Face writes every weight and rotation with 10 decimals."""
-TARGETS_TEXT = ("the glTF file's morph-target weights all stay in [0, 1] (the shape-key slider range Blender's "
-                "importer sets, which Blender clamps to). A hand-made or quasi-eigen shape '<s>' keeps its own "
-                "target '<s>' (weight clipped into [0, 1]); weights above 1 go to '<s>_over' (the shape times "
-                "max weight - 1), weights below 0 to '<s>_neg' (the shape times the min weight); a PCA eigenface "
-                "'<e>' becomes '<e>_pos' and '<e>_neg', scaled by the largest positive and negative coefficient. "
-                "Raw weight of a shape = sum over its targets of scale x target weight (each target's 'scale'); the "
-                "raw weights are also in the weights CSV files")
+TARGETS_TEXT = (
+    "the glTF file's morph-target weights all stay in [0, 1] (the shape-key slider range Blender's "
+    "importer sets, which Blender clamps to). A hand-made or quasi-eigen shape '<s>' keeps its own "
+    "target '<s>' (weight clipped into [0, 1]); weights above 1 go to '<s>_over' (the shape times "
+    "max weight - 1), weights below 0 to '<s>_neg' (the shape times the min weight); a PCA eigenface "
+    "'<e>' becomes '<e>_pos' and '<e>_neg', scaled by the largest positive and negative coefficient. "
+    "Raw weight of a shape = sum over its targets of scale x target weight (each target's 'scale'); the "
+    "raw weights are also in the weights CSV files"
+)
 
 
 def read_run_record(folder: Path):
@@ -113,8 +115,9 @@ def pca_weights(result) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     if capture.eval_visible is None:
         coefficients = (capture.eval - eigenfaces.mean_) @ eigenfaces.components_.T
     else:  # with gaps, the projection becomes least squares over the seen points (as the alpha table does)
-        coefficients = solve_weights(eigenfaces.components_, capture.eval - eigenfaces.mean_,
-                                     visible=capture.eval_visible).weights
+        coefficients = solve_weights(
+            eigenfaces.components_, capture.eval - eigenfaces.mean_, visible=capture.eval_visible
+        ).weights
     names = (PCA_MEAN,) + tuple(f"pca_{j + 1:02d}" for j in range(eigenfaces.n_components_))
     weights = np.hstack([np.ones((len(coefficients), 1)), coefficients])
     return names, np.vstack([eigenfaces.mean_, eigenfaces.components_]), weights
@@ -143,9 +146,11 @@ def exported_bases(result, labels: Sequence[str] | None, solver: str, table: pd.
     chosen = available if labels is None else list(labels)
     unknown = [label for label in chosen if label not in available]
     if unknown or not chosen:
-        raise WorkbenchError(f"export --bases {','.join(chosen)}: data '{result.data}' with solver '{solver}' has "
-                             f"bases {available}" + ("" if pca_available else " (PCA is not exported where the bases "
-                                                     "were carried onto other points)"))
+        raise WorkbenchError(
+            f"export --bases {','.join(chosen)}: data '{result.data}' with solver '{solver}' has "
+            f"bases {available}"
+            + ("" if pca_available else " (PCA is not exported where the bases were carried onto other points)")
+        )
     rows = table[table["data"] == result.data]
     exported = []
     for label in chosen:
@@ -160,9 +165,17 @@ def exported_bases(result, labels: Sequence[str] | None, solver: str, table: pd.
             row = rows[(rows["basis"] == label) & (rows["solver"] == solver)]
             used = solver
             sculpted = tuple(i < n_hand for i in range(len(names)))  # a QE basis's appended eigenfaces are not
-        exported.append(ExportedBasis(label=label, names=tuple(names), shapes=np.asarray(basis), weights=weights,
-                                      solver=used, alpha={c: float(row[c].iloc[0]) for c in ALPHA_COLUMNS},
-                                      sculpted=sculpted))
+        exported.append(
+            ExportedBasis(
+                label=label,
+                names=tuple(names),
+                shapes=np.asarray(basis),
+                weights=weights,
+                solver=used,
+                alpha={c: float(row[c].iloc[0]) for c in ALPHA_COLUMNS},
+                sculpted=sculpted,
+            )
+        )
     return exported
 
 
@@ -171,19 +184,28 @@ def check_recomputed(results, table: pd.DataFrame, folder: Path) -> None:
     from workbench.reporting.run_text import alpha_table
 
     for result in results:
-        fresh = alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                            coverage=result.eigenfaces.coverage_, paper_alpha={})
+        fresh = alpha_table(
+            result.rows,
+            data=result.data,
+            m=result.eigenfaces.n_components_,
+            coverage=result.eigenfaces.coverage_,
+            paper_alpha={},
+        )
         recorded = table[table["data"] == result.data].reset_index(drop=True)
         keys = ["basis", "projection", "solver"]
         if len(recorded) != len(fresh) or not (recorded[keys].astype(str) == fresh[keys].astype(str)).all().all():
-            raise WorkbenchError(f"{folder}: the recomputed alpha table of data '{result.data}' has other rows than "
-                                 "the recorded one; rerun the study and export the new record")
+            raise WorkbenchError(
+                f"{folder}: the recomputed alpha table of data '{result.data}' has other rows than "
+                "the recorded one; rerun the study and export the new record"
+            )
         a, b = recorded[list(ALPHA_COLUMNS)].to_numpy(float), fresh[list(ALPHA_COLUMNS)].to_numpy(float)
         if not np.allclose(a, b, rtol=TABLE_CHECK_RTOL, atol=0.0, equal_nan=True):
             worst = np.nanmax(np.abs(a - b) / np.maximum(np.abs(a), 1e-300))
-            raise WorkbenchError(f"{folder}: recomputing the run gives alpha {worst:.2e} (relative) away from the "
-                                 f"recorded table for data '{result.data}' (allowed {TABLE_CHECK_RTOL:g}): the data or "
-                                 "the code changed since the run; rerun the study and export the new record")
+            raise WorkbenchError(
+                f"{folder}: recomputing the run gives alpha {worst:.2e} (relative) away from the "
+                f"recorded table for data '{result.data}' (allowed {TABLE_CHECK_RTOL:g}): the data or "
+                "the code changed since the run; rerun the study and export the new record"
+            )
 
 
 def rebuild_results(record):
@@ -196,6 +218,7 @@ def rebuild_results(record):
 
 
 # --- morph targets an animation tool plays back exactly ---
+
 
 @dataclass(frozen=True)
 class PlaybackTargets:
@@ -279,14 +302,20 @@ def playback_targets(names: Sequence[str], weights: np.ndarray, sculpted: Sequen
             add(name + NEGATIVE, i, low, w / low)
     repeated = sorted({name for name in target_names if target_names.count(name) > 1})
     if repeated:
-        raise WorkbenchError(f"export: morph target name(s) {repeated} would repeat: a shape is named like another "
-                             f"shape's {OVER!r}/{NEGATIVE!r}/{POSITIVE!r} target; rename the shape")
-    return PlaybackTargets(names=tuple(target_names), shapes=np.asarray(sources, dtype=int),
-                           scales=np.asarray(scales, dtype=float),
-                           weights=np.column_stack(columns) if columns else np.zeros((len(weights), 0)))
+        raise WorkbenchError(
+            f"export: morph target name(s) {repeated} would repeat: a shape is named like another "
+            f"shape's {OVER!r}/{NEGATIVE!r}/{POSITIVE!r} target; rename the shape"
+        )
+    return PlaybackTargets(
+        names=tuple(target_names),
+        shapes=np.asarray(sources, dtype=int),
+        scales=np.asarray(scales, dtype=float),
+        weights=np.column_stack(columns) if columns else np.zeros((len(weights), 0)),
+    )
 
 
 # --- takes and their times ---
+
 
 @dataclass(frozen=True)
 class ExportTake:
@@ -346,9 +375,18 @@ def export_takes(capture, source: "LiveLinkSource | None", timecode_rate: float)
         frames = np.asarray(timeline.frame[start:stop], dtype=int)
         seconds = np.asarray(timeline.seconds[start:stop], dtype=float)
         timecodes, rotations, said = take_timecodes(frames, seconds, source, timecode_rate)
-        takes.append(ExportTake(name=name if seen[name] == 1 else f"{name}_{seen[name]}", rows=slice(start, stop),
-                                frames=frames, seconds=seconds, frame_rate=float(capture.frame_rate),
-                                timecodes=tuple(timecodes), rotations=rotations, timecode_source=said))
+        takes.append(
+            ExportTake(
+                name=name if seen[name] == 1 else f"{name}_{seen[name]}",
+                rows=slice(start, stop),
+                frames=frames,
+                seconds=seconds,
+                frame_rate=float(capture.frame_rate),
+                timecodes=tuple(timecodes),
+                rotations=rotations,
+                timecode_source=said,
+            )
+        )
     return takes
 
 
@@ -370,16 +408,28 @@ def take_facts(take: ExportTake) -> dict:
     """A take's entry in the manifest and in ``asset.extras``: frames, times, rate and Blender's settings."""
     fps, fps_base = blender_frame_rate(take.frame_rate)
     first, last = float(take.seconds[0]) * fps / fps_base, float(take.seconds[-1]) * fps / fps_base
-    return {"take": take.name, "n_frames": len(take.frames), "rows": [take.rows.start, take.rows.stop],
-            "first_frame": int(take.frames[0]), "last_frame": int(take.frames[-1]),
-            "start_seconds": float(take.seconds[0]), "end_seconds": float(take.seconds[-1]),
-            "frame_rate": take.frame_rate, "missing_frames": take.missing_frames(),
-            "blender": {"fps": fps, "fps_base": fps_base, "frame_start": int(np.floor(first + 1e-6)),
-                        "frame_end": int(np.ceil(last - 1e-6))},
-            "livelink_timecodes": take.timecode_source}
+    return {
+        "take": take.name,
+        "n_frames": len(take.frames),
+        "rows": [take.rows.start, take.rows.stop],
+        "first_frame": int(take.frames[0]),
+        "last_frame": int(take.frames[-1]),
+        "start_seconds": float(take.seconds[0]),
+        "end_seconds": float(take.seconds[-1]),
+        "frame_rate": take.frame_rate,
+        "missing_frames": take.missing_frames(),
+        "blender": {
+            "fps": fps,
+            "fps_base": fps_base,
+            "frame_start": int(np.floor(first + 1e-6)),
+            "frame_end": int(np.ceil(last - 1e-6)),
+        },
+        "livelink_timecodes": take.timecode_source,
+    }
 
 
 # --- files ---
+
 
 def csv_text(table: pd.DataFrame, float_format: str) -> str:
     """A table as CSV text (no index column), numbers in ``float_format``; written by the atomic writer."""
@@ -416,8 +466,9 @@ def livelink_channels(names: Sequence[str], weights: np.ndarray) -> np.ndarray |
     return (weights @ mapping.matrix.T) / np.maximum(counts, 1.0)
 
 
-def livelink_csv(channels: np.ndarray, timecodes: Sequence[str],
-                 rotations: np.ndarray | None = None) -> tuple[str, int]:
+def livelink_csv(
+    channels: np.ndarray, timecodes: Sequence[str], rotations: np.ndarray | None = None
+) -> tuple[str, int]:
     """A take in the Live Link Face CSV layout, as the app writes it.
 
     ``Timecode``, ``BlendShapeCount`` (61), the 52 ARKit weights clipped into [0, 1] (ARKit weights are fractions)
@@ -442,8 +493,9 @@ def livelink_csv(channels: np.ndarray, timecodes: Sequence[str],
 
     clipped = int(((channels < 0.0) | (channels > 1.0)).sum())
     rotations = np.zeros((len(channels), len(ROTATION_NAMES))) if rotations is None else rotations
-    table = pd.DataFrame(np.hstack([np.clip(channels, 0.0, 1.0), rotations]) + 0.0,
-                         columns=[*ARKIT_NAMES, *ROTATION_NAMES])
+    table = pd.DataFrame(
+        np.hstack([np.clip(channels, 0.0, 1.0), rotations]) + 0.0, columns=[*ARKIT_NAMES, *ROTATION_NAMES]
+    )
     table.insert(0, "BlendShapeCount", len(ARKIT_NAMES) + len(ROTATION_NAMES))
     table.insert(0, "Timecode", list(timecodes))
     return csv_text(table, LIVELINK_DECIMALS), clipped
@@ -481,11 +533,14 @@ class LiveLinkSource:
 def livelink_source(dataset_cfg: Mapping) -> LiveLinkSource | None:
     """The source Live Link Face take of a dataset config (``dataset=ict_livelink`` driven by a Live Link CSV), or
     None for other data."""
-    from workbench.formats.livelink import read_livelink_csv
     from workbench.dataset.real import data_path
+    from workbench.formats.livelink import read_livelink_csv
 
-    if dataset_cfg.get("kind") != "ict_livelink" or dataset_cfg.get("weight_curves") or not dataset_cfg.get(
-            "livelink_csv"):
+    if (
+        dataset_cfg.get("kind") != "ict_livelink"
+        or dataset_cfg.get("weight_curves")
+        or not dataset_cfg.get("livelink_csv")
+    ):
         return None
     path = data_path(dataset_cfg, dataset_cfg["livelink_csv"], "livelink_csv")
     take = read_livelink_csv(path, timecode_rate=dataset_cfg.get("timecode_rate", 60.0))
@@ -493,8 +548,9 @@ def livelink_source(dataset_cfg: Mapping) -> LiveLinkSource | None:
     return LiveLinkSource(timecodes=column.str.strip().to_numpy(), rotations=take.rotations)
 
 
-def take_timecodes(frames: np.ndarray, seconds: np.ndarray, source: LiveLinkSource | None,
-                   timecode_rate: float) -> tuple[list[str], np.ndarray | None, str]:
+def take_timecodes(
+    frames: np.ndarray, seconds: np.ndarray, source: LiveLinkSource | None, timecode_rate: float
+) -> tuple[list[str], np.ndarray | None, str]:
     """Timecodes and rotations of a take's frames: the source take's rows where there is one, else timecodes of
     the frames' times (from 00:00:00:00.000) and no rotations; and a phrase saying which.
 
@@ -508,17 +564,25 @@ def take_timecodes(frames: np.ndarray, seconds: np.ndarray, source: LiveLinkSour
     from workbench.formats.livelink import parse_timecodes
 
     if source is None:
-        return ([timecode(second, timecode_rate) for second in seconds], None,
-                f"from the frames' times (00:00:00:00.000 at the take's start, {timecode_rate:g} frames a second)")
+        return (
+            [timecode(second, timecode_rate) for second in seconds],
+            None,
+            f"from the frames' times (00:00:00:00.000 at the take's start, {timecode_rate:g} frames a second)",
+        )
     timecodes = source.timecodes[frames]
     where = Path("the source take")
     start = parse_timecodes([source.timecodes[0]], timecode_rate, where)[0]
     if not np.allclose(parse_timecodes(list(timecodes), timecode_rate, where) - start, seconds, rtol=0.0, atol=1e-9):
-        raise WorkbenchError("export: the source Live Link take's timecodes do not give the run's frame times; the "
-                             "take changed since the run: rerun the study and export the new record")
+        raise WorkbenchError(
+            "export: the source Live Link take's timecodes do not give the run's frame times; the "
+            "take changed since the run: rerun the study and export the new record"
+        )
     rotations = None if source.rotations is None else source.rotations[frames]
-    return (list(timecodes), rotations, "the source take's own" + ("" if rotations is not None else
-                                                                    " (rotations: zeros, the source has none)"))
+    return (
+        list(timecodes),
+        rotations,
+        "the source take's own" + ("" if rotations is not None else " (rotations: zeros, the source has none)"),
+    )
 
 
 def obj_text(vertices: np.ndarray, triangles: np.ndarray) -> str:
@@ -539,11 +603,14 @@ def marker_basis_csv(labels: Sequence[str], neutral: np.ndarray, names: Sequence
 
 # --- where files go ---
 
+
 def plain_part(name: str, out: Path) -> str:
     """``name`` if it can name a file inside ``out`` without leaving it, else a :class:`WorkbenchError`."""
     if not plain_name(name):
-        raise WorkbenchError(f"export: {name!r} cannot name a file inside {out}: a shape, take or basis name must be "
-                             "a plain name (not empty, '.' or '..', no '/' or '\\')")
+        raise WorkbenchError(
+            f"export: {name!r} cannot name a file inside {out}: a shape, take or basis name must be "
+            "a plain name (not empty, '.' or '..', no '/' or '\\')"
+        )
     return name
 
 
@@ -561,8 +628,10 @@ def export_path(out: Path, *parts: str) -> Path:
     for part in parts:
         path = path / plain_part(part, out)
         if path.is_symlink():
-            raise WorkbenchError(f"export: refusing to write {Path(out).joinpath(*parts)}: {path} is a symbolic link "
-                                 f"(the export writes only plain files and folders inside {out})")
+            raise WorkbenchError(
+                f"export: refusing to write {Path(out).joinpath(*parts)}: {path} is a symbolic link "
+                f"(the export writes only plain files and folders inside {out})"
+            )
     return path
 
 
@@ -572,12 +641,17 @@ def file_plan(basis: ExportedBasis, takes: Sequence[ExportTake], *, mesh: bool, 
     names that file names are made of."""
     several = len(takes) > 1
     prefix = {take.name: f"{basis.label}_{take.name}_" if several else f"{basis.label}_" for take in takes}
-    plan = {"weights": {take: start + "weights.csv" for take, start in prefix.items()},
-            "livelink": {take: start + "livelink.csv" for take, start in prefix.items()} if arkit else {},
-            "names": [basis.label, *(prefix if several else [])]}
+    plan = {
+        "weights": {take: start + "weights.csv" for take, start in prefix.items()},
+        "livelink": {take: start + "livelink.csv" for take, start in prefix.items()} if arkit else {},
+        "names": [basis.label, *(prefix if several else [])],
+    }
     if mesh:
-        plan.update(glb=f"{basis.label}.glb", obj=f"{basis.label}_obj",
-                    obj_files=["neutral.obj", "manifest.json", *[f"{name}.obj" for name in basis.names]])
+        plan.update(
+            glb=f"{basis.label}.glb",
+            obj=f"{basis.label}_obj",
+            obj_files=["neutral.obj", "manifest.json", *[f"{name}.obj" for name in basis.names]],
+        )
         plan["names"] += list(basis.names)
     else:
         plan.update(npz=f"{basis.label}_basis.npz", csv=f"{basis.label}_basis.csv")
@@ -590,8 +664,15 @@ def check_plan(out: Path, plans: Sequence[dict]) -> None:
     for plan in plans:
         for name in plan["names"]:
             plain_part(name, out)
-    top = [name for plan in plans for name in [*plan["weights"].values(), *plan["livelink"].values(),
-                                               *[plan[kind] for kind in ("glb", "obj", "npz", "csv") if kind in plan]]]
+    top = [
+        name
+        for plan in plans
+        for name in [
+            *plan["weights"].values(),
+            *plan["livelink"].values(),
+            *[plan[kind] for kind in ("glb", "obj", "npz", "csv") if kind in plan],
+        ]
+    ]
     folders = [(plan["obj"], plan["obj_files"]) for plan in plans if "obj" in plan]
     for name in top:
         export_path(out, name)
@@ -602,14 +683,18 @@ def check_plan(out: Path, plans: Sequence[dict]) -> None:
         folded = [name.casefold() for name in names]
         twice = sorted({name for name, key in zip(names, folded) if folded.count(key) > 1})
         if twice:
-            raise WorkbenchError(f"export: {twice} would be written twice into {where} (a shape named 'neutral', or "
-                                 "names equal but for case); rename the shape or take")
+            raise WorkbenchError(
+                f"export: {twice} would be written twice into {where} (a shape named 'neutral', or "
+                "names equal but for case); rename the shape or take"
+            )
 
 
 # --- writing ---
 
-def export_basis(out: Path, result, basis: ExportedBasis, takes: Sequence[ExportTake], *, run_name: str,
-                 obj_unit: str) -> dict:
+
+def export_basis(
+    out: Path, result, basis: ExportedBasis, takes: Sequence[ExportTake], *, run_name: str, obj_unit: str
+) -> dict:
     """Write one basis's files into ``out`` and return their manifest entry."""
     from workbench.formats.gltf import MM_PER_METRE, MorphAnimation, MorphMesh, glb_bytes
 
@@ -620,14 +705,21 @@ def export_basis(out: Path, result, basis: ExportedBasis, takes: Sequence[Export
     channels = livelink_channels(basis.names, basis.weights)
     plan = file_plan(basis, takes, mesh=capture.faces is not None, arkit=channels is not None)
     files = {}
-    entry = {"basis": basis.label, "solver": basis.solver, "shapes": list(basis.names), "alpha": basis.alpha,
-             "files": files}
+    entry = {
+        "basis": basis.label,
+        "solver": basis.solver,
+        "shapes": list(basis.names),
+        "alpha": basis.alpha,
+        "files": files,
+    }
     for take in takes:
         name = plan["weights"][take.name]
-        write_atomic(export_path(out, name), weights_csv(basis.names, basis.weights[take.rows], take.frames,
-                                                         take.seconds))
-        files[name] = (f"take {take.name}: raw weights; frame (in the take's file), time (s in the take), one "
-                       "column per shape")
+        write_atomic(
+            export_path(out, name), weights_csv(basis.names, basis.weights[take.rows], take.frames, take.seconds)
+        )
+        files[name] = (
+            f"take {take.name}: raw weights; frame (in the take's file), time (s in the take), one column per shape"
+        )
     if channels is not None:
         clipped = 0
         for take in takes:
@@ -635,55 +727,109 @@ def export_basis(out: Path, result, basis: ExportedBasis, takes: Sequence[Export
             text, count = livelink_csv(channels[take.rows], take.timecodes, take.rotations)
             write_atomic(export_path(out, name), text)
             clipped += count
-            files[name] = (f"take {take.name} in the Live Link Face CSV layout: timecodes {take.timecode_source}; "
-                           f"52 ARKit channels ({count} values clipped into [0, 1]) and 9 rotations")
+            files[name] = (
+                f"take {take.name} in the Live Link Face CSV layout: timecodes {take.timecode_source}; "
+                f"52 ARKit channels ({count} values clipped into [0, 1]) and 9 rotations"
+            )
         entry["livelink_clipped"] = {"values": clipped, "of": int(channels.size)}
     if capture.faces is None:
-        write_npz(export_path(out, plan["npz"]), {"neutral": neutral, "shapes": shapes, "names": np.array(basis.names),
-                                                  "labels": np.array(capture.point_labels)})
-        write_atomic(export_path(out, plan["csv"]),
-                     marker_basis_csv(capture.point_labels, capture.neutral, basis.names, basis.shapes))
+        write_npz(
+            export_path(out, plan["npz"]),
+            {
+                "neutral": neutral,
+                "shapes": shapes,
+                "names": np.array(basis.names),
+                "labels": np.array(capture.point_labels),
+            },
+        )
+        write_atomic(
+            export_path(out, plan["csv"]),
+            marker_basis_csv(capture.point_labels, capture.neutral, basis.names, basis.shapes),
+        )
         files[plan["npz"]] = "neutral (n_markers, 3), shapes (n_shapes, n_markers, 3), names, labels; mm"
         files[plan["csv"]] = "row 'neutral' then one row per shape; <marker>_x|y|z columns, mm"
         return entry
     targets = playback_targets(basis.names, basis.weights, basis.sculpted)
-    animations = tuple(MorphAnimation(name=f"{basis.label}_{basis.solver}_{take.name}", seconds=take.seconds,
-                                      weights=targets.weights[take.rows],
-                                      extras={"take": take.name, "frame_rate": take.frame_rate,
-                                              "frames": [int(take.frames[0]), int(take.frames[-1])]})
-                       for take in takes)
+    animations = tuple(
+        MorphAnimation(
+            name=f"{basis.label}_{basis.solver}_{take.name}",
+            seconds=take.seconds,
+            weights=targets.weights[take.rows],
+            extras={
+                "take": take.name,
+                "frame_rate": take.frame_rate,
+                "frames": [int(take.frames[0]), int(take.frames[-1])],
+            },
+        )
+        for take in takes
+    )
     facts = [dict(take_facts(take), animation=animation.name) for take, animation in zip(takes, animations)]
-    mesh = MorphMesh(neutral=neutral, triangles=capture.faces, names=targets.names,
-                     deltas=targets.deltas(basis.shapes).reshape(len(targets.names), n_points, 3),
-                     animations=animations,
-                     extras={"units": "metres", "axes": AXES, "frame_rate": capture.frame_rate, "takes": facts,
-                             "basis": basis.label, "solver": basis.solver, "run": run_name, "data": result.data,
-                             "source": capture.name, "targets": TARGETS_TEXT,
-                             "credits": capture.provenance.get("credits", [])},
-                     mesh_extras={"targetShapes": [basis.names[i] for i in targets.shapes],
-                                  "targetScales": targets.scales.tolist()})
+    mesh = MorphMesh(
+        neutral=neutral,
+        triangles=capture.faces,
+        names=targets.names,
+        deltas=targets.deltas(basis.shapes).reshape(len(targets.names), n_points, 3),
+        animations=animations,
+        extras={
+            "units": "metres",
+            "axes": AXES,
+            "frame_rate": capture.frame_rate,
+            "takes": facts,
+            "basis": basis.label,
+            "solver": basis.solver,
+            "run": run_name,
+            "data": result.data,
+            "source": capture.name,
+            "targets": TARGETS_TEXT,
+            "credits": capture.provenance.get("credits", []),
+        },
+        mesh_extras={"targetShapes": [basis.names[i] for i in targets.shapes], "targetScales": targets.scales.tolist()},
+    )
     write_atomic(export_path(out, plan["glb"]), glb_bytes(mesh, mesh_name="face"))
-    files[plan["glb"]] = (f"glTF 2.0: neutral mesh, {len(targets.names)} morph targets (weights in [0, 1]) for "
-                          f"{len(basis.names)} shapes, one animation per take keyed at the frames' own times "
-                          f"({capture.frame_rate:g} fps); metres ({MM_PER_METRE:g} mm), {AXES}")
+    files[plan["glb"]] = (
+        f"glTF 2.0: neutral mesh, {len(targets.names)} morph targets (weights in [0, 1]) for "
+        f"{len(basis.names)} shapes, one animation per take keyed at the frames' own times "
+        f"({capture.frame_rate:g} fps); metres ({MM_PER_METRE:g} mm), {AXES}"
+    )
     entry["animations"] = [animation.name for animation in animations]
-    entry["targets"] = [{"target": name, "shape": basis.names[shape], "scale": float(scale)}
-                        for name, shape, scale in zip(targets.names, targets.shapes, targets.scales)]
+    entry["targets"] = [
+        {"target": name, "shape": basis.names[shape], "scale": float(scale)}
+        for name, shape, scale in zip(targets.names, targets.shapes, targets.scales)
+    ]
     folder, per_unit = plan["obj"], OBJ_UNITS[obj_unit]
     write_atomic(export_path(out, folder, "neutral.obj"), obj_text(neutral / per_unit, capture.faces))
     for name, shape in zip(basis.names, shapes):
         write_atomic(export_path(out, folder, f"{name}.obj"), obj_text((neutral + shape) / per_unit, capture.faces))
-    write_json(export_path(out, folder, "manifest.json"),
-               {"unit": obj_unit, "unit_mm": per_unit, "neutral": "neutral.obj", "shapes": list(basis.names),
-                "axes": AXES, "basis": basis.label, "run": run_name, "data": result.data})
-    files[folder + "/"] = (f"blendshape folder: neutral.obj and one OBJ per shape (neutral plus the shape) in "
-                           f"{obj_unit}, manifest.json with the unit (read back with "
-                           f"dataset.hand_basis.path={folder})")
+    write_json(
+        export_path(out, folder, "manifest.json"),
+        {
+            "unit": obj_unit,
+            "unit_mm": per_unit,
+            "neutral": "neutral.obj",
+            "shapes": list(basis.names),
+            "axes": AXES,
+            "basis": basis.label,
+            "run": run_name,
+            "data": result.data,
+        },
+    )
+    files[folder + "/"] = (
+        f"blendshape folder: neutral.obj and one OBJ per shape (neutral plus the shape) in "
+        f"{obj_unit}, manifest.json with the unit (read back with "
+        f"dataset.hand_basis.path={folder})"
+    )
     return entry
 
 
-def export_run(folder: Path, out: Path, *, data: str | None = None, bases: Sequence[str] | None = None,
-               solver: str | None = None, obj_unit: str = "m") -> dict:
+def export_run(
+    folder: Path,
+    out: Path,
+    *,
+    data: str | None = None,
+    bases: Sequence[str] | None = None,
+    solver: str | None = None,
+    obj_unit: str = "m",
+) -> dict:
     """Export one data variant of a run: every chosen basis's files and ``manifest.json``.
 
     Parameters
@@ -725,22 +871,35 @@ def export_run(folder: Path, out: Path, *, data: str | None = None, bases: Seque
     dataset_cfg = record.config.get("dataset") or {}
     takes = export_takes(capture, livelink_source(dataset_cfg), float(dataset_cfg.get("timecode_rate") or 60.0))
     mesh = capture.faces is not None
-    check_plan(out, [file_plan(basis, takes, mesh=mesh, arkit=livelink_channels(basis.names, basis.weights)
-                               is not None) for basis in chosen])
+    check_plan(
+        out,
+        [
+            file_plan(basis, takes, mesh=mesh, arkit=livelink_channels(basis.names, basis.weights) is not None)
+            for basis in chosen
+        ],
+    )
     entries = [export_basis(out, result, basis, takes, run_name=folder.name, obj_unit=obj_unit) for basis in chosen]
     manifest = {
-        "run": str(Path(folder).resolve()), "config_hash": record.config_hash, "data": data,
-        "dataset": capture.name, "credits": capture.provenance.get("credits", []),
-        "n_points": capture.n_points, "points": ("mesh vertices" if mesh
-                                          else "points without triangles (markers, or a thinned mesh)"),
+        "run": str(Path(folder).resolve()),
+        "config_hash": record.config_hash,
+        "data": data,
+        "dataset": capture.name,
+        "credits": capture.provenance.get("credits", []),
+        "n_points": capture.n_points,
+        "points": ("mesh vertices" if mesh else "points without triangles (markers, or a thinned mesh)"),
         "n_triangles": None if capture.faces is None else int(len(capture.faces)),
-        "n_frames": int(len(capture.eval)), "frame_rate": capture.frame_rate,
-        "frames": ("the run's evaluated frames in order, take by take; each is keyed at its own time in its take "
-                   "(seconds from the take's first frame in its file), so a frame the capture lacks (dropped, or "
-                   "removed by a gap policy) is a gap between keys"),
+        "n_frames": int(len(capture.eval)),
+        "frame_rate": capture.frame_rate,
+        "frames": (
+            "the run's evaluated frames in order, take by take; each is keyed at its own time in its take "
+            "(seconds from the take's first frame in its file), so a frame the capture lacks (dropped, or "
+            "removed by a gap policy) is a gap between keys"
+        ),
         "takes": [take_facts(take) for take in takes],
         "units": {"glb": "metres", "obj": obj_unit, "npz_csv": "mm", "weights": "dimensionless"},
-        "axes": AXES, "targets": TARGETS_TEXT if mesh else None, "bases": entries,
+        "axes": AXES,
+        "targets": TARGETS_TEXT if mesh else None,
+        "bases": entries,
     }
     write_json(export_path(out, "manifest.json"), manifest)
     return manifest
@@ -751,29 +910,41 @@ def main(argv: Sequence[str]) -> int:
     parser = argparse.ArgumentParser(
         prog="workbench export",
         description="Export a run's bases and weight curves: glTF 2.0 (.glb) with morph targets and one weight "
-                    "animation per take, an OBJ blendshape folder and CSV weight curves (raw, and in the Live Link "
-                    "Face layout) for mesh data; NPZ/CSV marker bases and weight curves for marker data.")
+        "animation per take, an OBJ blendshape folder and CSV weight curves (raw, and in the Live Link "
+        "Face layout) for mesh data; NPZ/CSV marker bases and weight curves for marker data.",
+    )
     parser.add_argument("run", type=Path, help="a complete run record (folder with a 'done' marker)")
     parser.add_argument("--out", type=Path, help="output folder (default: <run>/export)")
     parser.add_argument("--data", help="data variant (default: the run's first, e.g. mesh)")
     parser.add_argument("--bases", help="comma-separated basis labels, e.g. H,QE,PCA (default: all)")
     parser.add_argument("--solver", help="solver whose weights are exported (default: the run's first)")
-    parser.add_argument("--obj-unit", choices=sorted(OBJ_UNITS), default="m",
-                        help="unit of the OBJ files (default: m, as animation tools expect)")
+    parser.add_argument(
+        "--obj-unit",
+        choices=sorted(OBJ_UNITS),
+        default="m",
+        help="unit of the OBJ files (default: m, as animation tools expect)",
+    )
     args = parser.parse_args(list(argv))
     out = args.out or inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
     manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit)
     for entry in manifest["bases"]:
         alpha = entry["alpha"]["alpha_abs_mean"]
-        print(f"{entry['basis']} ({entry['solver']}, {len(entry['shapes'])} shapes, alpha {alpha:.3f}%): "
-              + ", ".join(entry["files"]))
+        print(
+            f"{entry['basis']} ({entry['solver']}, {len(entry['shapes'])} shapes, alpha {alpha:.3f}%): "
+            + ", ".join(entry["files"])
+        )
         clipped = entry.get("livelink_clipped", {})
         if clipped.get("values"):
-            print(f"warning: {entry['basis']}: {clipped['values']:,} of {clipped['of']:,} ARKit values "
-                  f"({100.0 * clipped['values'] / clipped['of']:.1f}%) lay outside [0, 1] and were clipped in the Live "
-                  f"Link file(s); the raw weights are in the weights CSV", file=sys.stderr)
+            print(
+                f"warning: {entry['basis']}: {clipped['values']:,} of {clipped['of']:,} ARKit values "
+                f"({100.0 * clipped['values'] / clipped['of']:.1f}%) lay outside [0, 1] and were clipped in the Live "
+                f"Link file(s); the raw weights are in the weights CSV",
+                file=sys.stderr,
+            )
     takes = manifest["takes"]
-    print(f"exported data '{manifest['data']}' of {args.run} ({manifest['n_frames']} frames at "
-          f"{manifest['frame_rate']:g} fps, {len(takes)} take{'s' if len(takes) != 1 else ''}) into {out}")
+    print(
+        f"exported data '{manifest['data']}' of {args.run} ({manifest['n_frames']} frames at "
+        f"{manifest['frame_rate']:g} fps, {len(takes)} take{'s' if len(takes) != 1 else ''}) into {out}"
+    )
     return 0

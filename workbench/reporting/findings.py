@@ -21,8 +21,14 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.stats.identities import identity_lookup, run_identities, scored_on_training_frames
-from workbench.stats.statistics import (SIGNED, Interval, comparison_lookup, comparison_name, holm_adjusted,
-                                  short_interval_text)
+from workbench.stats.statistics import (
+    SIGNED,
+    Interval,
+    comparison_lookup,
+    comparison_name,
+    holm_adjusted,
+    short_interval_text,
+)
 from workbench.stats.statistics import ordering_text as stated_ordering
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime, paper_regime_name
 
@@ -31,8 +37,12 @@ RUN_BASES = ("H", "QE", "QE-linear", "PCA")
 QE_BASES = ("QE", "QE-linear")
 CONSTRAINED = ("nnls", "box")
 SOLVER_NAMES = {"lstsq": "least squares", "nnls": "non-negative weights", "box": "box [0, 1] weights"}
-ALPHA_VARIANTS = {"alpha_abs_mean": "abs mean", "alpha_abs_pooled": "abs pooled", "alpha_disp_mean": "disp mean",
-                  "alpha_disp_pooled": "disp pooled"}
+ALPHA_VARIANTS = {
+    "alpha_abs_mean": "abs mean",
+    "alpha_abs_pooled": "abs pooled",
+    "alpha_disp_mean": "disp mean",
+    "alpha_disp_pooled": "disp pooled",
+}
 PCA_KEY = ("PCA", "projection")
 FINDINGS_WORDS = 800
 """The most words a report's findings section holds (as ``wc -w`` counts its Markdown: a bullet's ``-`` is one);
@@ -72,8 +82,15 @@ def fit_findings(sections: list, budget: int = FINDINGS_WORDS) -> list:
     if found is None or words(found.blocks) <= budget:
         return sections
     lists = [block for block in found.blocks if isinstance(block, list)]
-    candidates = sorted(((line.rank, k, j) for k, block in enumerate(lists) for j, line in enumerate(block)
-                         if isinstance(line, Detail)), reverse=True)
+    candidates = sorted(
+        (
+            (line.rank, k, j)
+            for k, block in enumerate(lists)
+            for j, line in enumerate(block)
+            if isinstance(line, Detail)
+        ),
+        reverse=True,
+    )
     dropped: list[Detail] = []
     note_words = 40  # the note that says what was left out
     for _, k, j in candidates:
@@ -85,10 +102,11 @@ def fit_findings(sections: list, budget: int = FINDINGS_WORDS) -> list:
         block[:] = [line for line in block if line is not None]
     if dropped and lists:
         where = ", ".join(dict.fromkeys(line.where for line in dropped))
-        lists[-1].append(f"**left out**: {len(dropped)} more finding{'s' if len(dropped) > 1 else ''}, to keep "
-                         f"this section within {budget} words; their numbers are in {where}.")
+        lists[-1].append(
+            f"**left out**: {len(dropped)} more finding{'s' if len(dropped) > 1 else ''}, to keep "
+            f"this section within {budget} words; their numbers are in {where}."
+        )
     return sections
-
 
 
 def _alpha(part: pd.DataFrame, basis: str, solver: str, column: str) -> float:
@@ -105,8 +123,9 @@ def _percent(share: float) -> str:
     return f"{100 * share:.0f} %"
 
 
-def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
-                         bases: Sequence[str] = RUN_BASES, identity=None) -> str:
+def paired_ordering_text(
+    part: pd.DataFrame, solver: str, column: str, compare, bases: Sequence[str] = RUN_BASES, identity=None
+) -> str:
     """The bases of one data variant from best to worst under a solver, ``<`` only where the paired per-frame
     difference's interval excludes zero, ``~`` with the interval where it does not, ``,`` without a comparison.
 
@@ -123,15 +142,29 @@ def paired_ordering_text(part: pd.DataFrame, solver: str, column: str, compare,
         ``identity(a, b)`` -> the :class:`workbench.stats.identities.Identity` saying ``a <= b`` by
         construction, or None (:func:`workbench.stats.identities.identity_lookup`).
     """
-    values = {(basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column)
-              for basis in bases}
+    values = {
+        (basis, "projection" if basis == "PCA" else solver): _alpha(part, basis, solver, column) for basis in bases
+    }
     reason = None if identity is None else (lambda a, b: getattr(identity(a, b), "reason", None))
-    return stated_ordering(values, compare or (lambda a, b: None), name=lambda key: key[0], digits=3,
-                           identity=reason, detail=lambda *args: "")
+    return stated_ordering(
+        values,
+        compare or (lambda a, b: None),
+        name=lambda key: key[0],
+        digits=3,
+        identity=reason,
+        detail=lambda *args: "",
+    )
 
 
-def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str = "lstsq",
-               column: str = "alpha_abs_mean", spread: bool = True, paper_shown: bool = True, error: str = "") -> str:
+def ratio_text(
+    part: pd.DataFrame,
+    paper_alpha: Mapping[str, float],
+    solver: str = "lstsq",
+    column: str = "alpha_abs_mean",
+    spread: bool = True,
+    paper_shown: bool = True,
+    error: str = "",
+) -> str:
     """H/QE and QE/PCA of one data variant in the headline column (with ``paper_shown``, beside the paper's), then
     ``error`` (:func:`error_text`), and (with ``spread``) how far the four alpha variants move H/QE (every variant's value is in the table 'Alpha beside
     the paper')."""
@@ -144,16 +177,19 @@ def ratio_text(part: pd.DataFrame, paper_alpha: Mapping[str, float], solver: str
         if math.isnan(first) or math.isnan(second):
             continue
         paper = paper_alpha.get(a, math.nan) / paper_alpha.get(b, math.nan)
-        texts.append(f"{a}/{b} {first / second:.3g}"
-                     + (f" (paper {paper:.3g})" if paper_shown and math.isfinite(paper) else ""))
+        texts.append(
+            f"{a}/{b} {first / second:.3g}" + (f" (paper {paper:.3g})" if paper_shown and math.isfinite(paper) else "")
+        )
     if not texts:
         return ""
     ratios = [_alpha(part, "H", solver, name) / _alpha(part, "QE", solver, name) for name in columns]
-    spread = (f"; over the {len(columns)} alpha variants H/QE runs from {min(ratios):.3g} to {max(ratios):.3g}, so "
-              "no one ratio compares across datasets" if spread and len(columns) > 1 and all(map(math.isfinite, ratios))
-              else "")
-    return (f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + (f"; {error}" if error else "")
-            + spread)
+    spread = (
+        f"; over the {len(columns)} alpha variants H/QE runs from {min(ratios):.3g} to {max(ratios):.3g}, so "
+        "no one ratio compares across datasets"
+        if spread and len(columns) > 1 and all(map(math.isfinite, ratios))
+        else ""
+    )
+    return f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + (f"; {error}" if error else "") + spread
 
 
 def m_text(part: pd.DataFrame, paper: Mapping) -> str:
@@ -161,10 +197,14 @@ def m_text(part: pd.DataFrame, paper: Mapping) -> str:
     m = round(float(part["m"].iloc[0]), 1)
     n = float(part.loc[part["basis"] == "H", "n"].iloc[0]) if (part["basis"] == "H").any() else math.nan
     spans = "can span" if m <= n else "cannot span"
-    reach = (f" reach coverage {float(part['coverage'].iloc[0]):.3g}" if "coverage" in part.columns
-             else " (mean over the runs)")
-    return (f"m = {m:g} eigenfaces{reach} (paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them"
-            + (", so QE can match PCA" if m <= n else ", so QE cannot reach PCA"))
+    reach = (
+        f" reach coverage {float(part['coverage'].iloc[0]):.3g}"
+        if "coverage" in part.columns
+        else " (mean over the runs)"
+    )
+    return f"m = {m:g} eigenfaces{reach} (paper: m = {paper.get('m')}); the {n:g} hand shapes {spans} them" + (
+        ", so QE can match PCA" if m <= n else ", so QE cannot reach PCA"
+    )
 
 
 def _verdict(compare, a: tuple, b: tuple, worse: str, better: str) -> str:
@@ -190,16 +230,20 @@ def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None) 
             continue
         moves.append(f"{basis}'s alpha x{q1 / q0:.2f} ({_fmt(q0)} to {_fmt(q1)})")
         verdict = _verdict(compare, (basis, solver), ("H", solver), "worse than", "better than")
-        verdicts.append(f"{basis} is {verdict}" if verdict else
-                        f"{basis} {_fmt(q1)} against H {_fmt(h1)} (no paired interval)")
-    return (f"with {SOLVER_NAMES.get(solver, solver)} " + ", ".join(moves)
-            + f", H's x{h1 / h0:.2f}; " + ", ".join(verdicts))
+        verdicts.append(
+            f"{basis} is {verdict}" if verdict else f"{basis} {_fmt(q1)} against H {_fmt(h1)} (no paired interval)"
+        )
+    return (
+        f"with {SOLVER_NAMES.get(solver, solver)} " + ", ".join(moves) + f", H's x{h1 / h0:.2f}; " + ", ".join(verdicts)
+    )
 
 
 def _row(rows: Sequence[Mapping], data: str, basis: str, solver: str) -> Mapping:
     """A row of ``metrics.json`` (empty when absent)."""
-    return next((row for row in rows if row.get("data") == data and row.get("basis") == basis
-                 and row.get("solver") == solver), {})
+    return next(
+        (row for row in rows if row.get("data") == data and row.get("basis") == basis and row.get("solver") == solver),
+        {},
+    )
 
 
 OFFSET_SHARE_STATED = 0.1
@@ -210,8 +254,9 @@ LINEAR_LOSS_STATED = 0.5
 fraction of QE's (``x1.8`` against ``x7.1``: yes; ``x1.54`` against ``x1.62``: no)."""
 
 
-def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: Mapping,
-                rows: Sequence[Mapping]) -> str:
+def offset_text(
+    data: str, part: pd.DataFrame, column: str, solver: str, facts: Mapping, rows: Sequence[Mapping]
+) -> str:
     """Why a constraint on the weights costs affine QE more than QE-linear, from the numbers the run kept: the
     offset ``(I - P) mu`` that every affine QE shape carries, what the weights' sum does to it under least squares
     and under the constraint, and how QE-linear (shapes in the eigenfaces' span, no offset) fares with as many
@@ -223,28 +268,39 @@ def offset_text(data: str, part: pd.DataFrame, column: str, solver: str, facts: 
         return ""
     share0, share1 = qe0.get("offset_error_share", math.nan), qe1.get("offset_error_share", math.nan)
     verb = "need" if _finite_value(qe0["weights"].get("needs_negative_share")) else "have"
-    text = (f"every affine QE shape carries (I-P) mu, the capture mean's part outside the eigenfaces' span "
-            f"({offset['norm']:.3g} mm"
-            + (f", {_percent(offset['ratio'])} of the median frame's displacement"
-               if math.isfinite(offset.get("ratio", math.nan)) else "")
-            + f"); QE's least-squares weights sum to {qe0['weights']['sum_median']:.2f} (median), "
-            f"{_percent(needs_negative(qe0['weights']))} of frames {verb} a negative weight; with "
-            f"{SOLVER_NAMES.get(solver, solver)} the sum is {qe1['weights']['sum_median']:.2f} and "
-            f"{_percent(share1)} of QE's squared error lies along (I-P) mu (least squares: {_percent(share0)})")
+    text = (
+        f"every affine QE shape carries (I-P) mu, the capture mean's part outside the eigenfaces' span "
+        f"({offset['norm']:.3g} mm"
+        + (
+            f", {_percent(offset['ratio'])} of the median frame's displacement"
+            if math.isfinite(offset.get("ratio", math.nan))
+            else ""
+        )
+        + f"); QE's least-squares weights sum to {qe0['weights']['sum_median']:.2f} (median), "
+        f"{_percent(needs_negative(qe0['weights']))} of frames {verb} a negative weight; with "
+        f"{SOLVER_NAMES.get(solver, solver)} the sum is {qe1['weights']['sum_median']:.2f} and "
+        f"{_percent(share1)} of QE's squared error lies along (I-P) mu (least squares: {_percent(share0)})"
+    )
     if lin0.get("weights") and lin1.get("weights"):
         l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
         q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
         verb = "need" if _finite_value(lin0["weights"].get("needs_negative_share")) else "have"
-        text += (f". QE-linear (no offset): {_percent(needs_negative(lin0['weights']))} of frames {verb} a negative "
-                 f"weight, alpha x{l1 / l0:.2f} against QE's x{q1 / q0:.2f}")
+        text += (
+            f". QE-linear (no offset): {_percent(needs_negative(lin0['weights']))} of frames {verb} a negative "
+            f"weight, alpha x{l1 / l0:.2f} against QE's x{q1 / q0:.2f}"
+        )
         needs_negative_too = needs_negative(lin0["weights"]) >= 0.8 * needs_negative(qe0["weights"])
         loses_less = l1 / l0 - 1.0 < LINEAR_LOSS_STATED * (q1 / q0 - 1.0)
         if needs_negative_too and loses_less and share1 >= OFFSET_SHARE_STATED:
-            text += (". So negative weights alone do not explain the loss; the offset does in part: the constraint "
-                     "can no longer hold the weights' sum where the offset needs it")
+            text += (
+                ". So negative weights alone do not explain the loss; the offset does in part: the constraint "
+                "can no longer hold the weights' sum where the offset needs it"
+            )
         elif needs_negative_too and not loses_less:
-            text += (". QE-linear, needing as many negative weights, loses almost as much: these numbers do not "
-                     "single out the offset")
+            text += (
+                ". QE-linear, needing as many negative weights, loses almost as much: these numbers do not "
+                "single out the offset"
+            )
     return text
 
 
@@ -280,18 +336,28 @@ def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> 
         found = [(basis, _row(rows, data, basis, solver)) for basis in RUN_BASES]
         found = [(basis, row) for basis, row in found if row.get("weights")]
         if found:
-            parts.append(f"{solver}: " + "; ".join(
-                f"{basis}{minimum_norm_label(row, solver)} {row['weights']['max_abs']:.3g}, "
-                f"{row['weights']['roughness']:.3g}" for basis, row in found))
+            parts.append(
+                f"{solver}: "
+                + "; ".join(
+                    f"{basis}{minimum_norm_label(row, solver)} {row['weights']['max_abs']:.3g}, "
+                    f"{row['weights']['roughness']:.3g}"
+                    for basis, row in found
+                )
+            )
         if solver == "lstsq":
-            needing = [f"{basis} {_percent(row['weights']['needs_negative_share'])}" for basis, row in found
-                       if _finite_value(row["weights"].get("needs_negative_share"))]
+            needing = [
+                f"{basis} {_percent(row['weights']['needs_negative_share'])}"
+                for basis, row in found
+                if _finite_value(row["weights"].get("needs_negative_share"))
+            ]
     if not parts:
         return ""
-    return ("the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table 'Error in "
-            "millimetres and the weights'), " + "; ".join(parts)
-            + (f"; frames that need a negative weight (nnls error above lstsq's): {', '.join(needing)}"
-               if needing else ""))
+    return (
+        "the weights an animator would get (largest |w|, roughness in 1/s^4; more in the table 'Error in "
+        "millimetres and the weights'), "
+        + "; ".join(parts)
+        + (f"; frames that need a negative weight (nnls error above lstsq's): {', '.join(needing)}" if needing else "")
+    )
 
 
 def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
@@ -299,8 +365,11 @@ def error_text(part: pd.DataFrame, solver: str, facts: Mapping) -> str:
     percentiles and maxima in the table 'Error in millimetres and the weights')."""
     if "err_mm_median" not in part.columns:
         return ""
-    entries = [f"{basis} {value:.3g}" for basis in RUN_BASES
-               if not math.isnan(value := _alpha(part, basis, solver, "err_mm_median"))]
+    entries = [
+        f"{basis} {value:.3g}"
+        for basis in RUN_BASES
+        if not math.isnan(value := _alpha(part, basis, solver, "err_mm_median"))
+    ]
     if not entries:
         return ""
     return f"median per-frame error ({solver}) " + ", ".join(entries) + " mm"
@@ -317,21 +386,28 @@ def closeness_text(intuitiveness: Sequence[Mapping], projection: str = "affine",
     count : int
         Shapes named.
     """
-    rows = sorted((row for row in intuitiveness if row["projection"] == projection),
-                  key=lambda row: -row["relative_distance"])
+    rows = sorted(
+        (row for row in intuitiveness if row["projection"] == projection), key=lambda row: -row["relative_distance"]
+    )
     if not rows:
         return ""
     cosines = sorted(row["cosine"] for row in rows)
-    median = cosines[len(cosines) // 2] if len(cosines) % 2 else (cosines[len(cosines) // 2 - 1]
-                                                                    + cosines[len(cosines) // 2]) / 2
+    median = (
+        cosines[len(cosines) // 2]
+        if len(cosines) % 2
+        else (cosines[len(cosines) // 2 - 1] + cosines[len(cosines) // 2]) / 2
+    )
     named = ", ".join(f"{row['shape']} (cosine {row['cosine']:.2f})" for row in rows[:count])
     return f"{named}; median cosine of the {len(rows)} shapes {median:.2f}"
 
 
 def closeness_line(intuitiveness: Sequence[Mapping]) -> str:
     """The shapes each projection (QE, QE-linear) changes most, in one sentence."""
-    parts = [f"{label}: {text}" for label, projection in (("QE", "affine"), ("QE-linear", "linear"))
-             if (text := closeness_text(intuitiveness, projection))]
+    parts = [
+        f"{label}: {text}"
+        for label, projection in (("QE", "affine"), ("QE-linear", "linear"))
+        if (text := closeness_text(intuitiveness, projection))
+    ]
     return ("the projection changes most, " + "; ".join(parts)) if parts else ""
 
 
@@ -346,34 +422,53 @@ def caveat_texts(metrics: Mapping) -> list[str]:
         driven = sorted({shape for shapes in (provenance.get("arkit_mapping") or {}).values() for shape in shapes})
         hand = dataset.get("hand_names") or []
         among = sum(name in driven for name in hand)
-        caveats.append(f"the capture is a noise-free linear blend of {len(driven) or 'the'} ICT FaceKit shapes, "
-                       f"{'all ' if among == len(hand) else ''}{among} of the {len(hand)} hand shapes among them: H "
-                       "is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which "
-                       "flatters both against a real capture")
+        caveats.append(
+            f"the capture is a noise-free linear blend of {len(driven) or 'the'} ICT FaceKit shapes, "
+            f"{'all ' if among == len(hand) else ''}{among} of the {len(hand)} hand shapes among them: H "
+            "is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which "
+            "flatters both against a real capture"
+        )
     if provenance.get("performer_and_basis") == "different faces":
         scale = (provenance.get("placement") or {}).get("scale")
-        caveats.append("the hand shapes come from another face (ICT FaceKit"
-                       + (f", scaled by {scale:.3f} into the performer's frame" if scale else "")
-                       + "): H's error includes the mismatch between the two faces, not only the motion its shapes "
-                       "cannot span")
+        caveats.append(
+            "the hand shapes come from another face (ICT FaceKit"
+            + (f", scaled by {scale:.3f} into the performer's frame" if scale else "")
+            + "): H's error includes the mismatch between the two faces, not only the motion its shapes "
+            "cannot span"
+        )
     if kind == "synthetic":
-        caveats.append("the data are generated by the workbench, and the hand shapes are the generator's own "
-                       "muscles, each fully contracted: its expressions are made from these very shapes, so H is "
-                       "scored on motion built from its own shapes, which flatters H against a real capture")
-    trained = [data for data, facts in (metrics.get("data") or {}).items()
-               if facts.get("protocol", "training frames") == "training frames"
-               and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", []))]
+        caveats.append(
+            "the data are generated by the workbench, and the hand shapes are the generator's own "
+            "muscles, each fully contracted: its expressions are made from these very shapes, so H is "
+            "scored on motion built from its own shapes, which flatters H against a real capture"
+        )
+    trained = [
+        data
+        for data, facts in (metrics.get("data") or {}).items()
+        if facts.get("protocol", "training frames") == "training frames"
+        and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", []))
+    ]
     if trained:
-        held = any(facts.get("protocol", "training frames") != "training frames"
-                   for facts in (metrics.get("data") or {}).values())
-        caveats.append(f"{', '.join(trained)} {'is' if len(trained) == 1 else 'are'} scored on the training frames "
-                       "(split 'same', the paper's protocol): PCA and QE are fitted to the frames they reconstruct"
-                       + ("; the held-out variants are not" if held else "; no frames were held out"))
+        held = any(
+            facts.get("protocol", "training frames") != "training frames"
+            for facts in (metrics.get("data") or {}).values()
+        )
+        caveats.append(
+            f"{', '.join(trained)} {'is' if len(trained) == 1 else 'are'} scored on the training frames "
+            "(split 'same', the paper's protocol): PCA and QE are fitted to the frames they reconstruct"
+            + ("; the held-out variants are not" if held else "; no frames were held out")
+        )
     return caveats
 
 
-def held_out_text(held: pd.DataFrame, trained: pd.DataFrame, column: str, facts: Mapping,
-                  trained_facts: Mapping, solver: str = "lstsq") -> str:
+def held_out_text(
+    held: pd.DataFrame,
+    trained: pd.DataFrame,
+    column: str,
+    facts: Mapping,
+    trained_facts: Mapping,
+    solver: str = "lstsq",
+) -> str:
     """A held-out variant against its training frames: each basis's alpha under a solver held out over trained
     (both values, and what was held out, are in the table 'Training frames and held-out frames')."""
     parts = []
@@ -386,8 +481,14 @@ def held_out_text(held: pd.DataFrame, trained: pd.DataFrame, column: str, facts:
     return "held out / training frames: " + ", ".join(parts)
 
 
-def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness: Mapping[str, Sequence[Mapping]],
-                 metrics: Mapping | None = None, config: Mapping | None = None) -> list[str]:
+def run_findings(
+    table: pd.DataFrame,
+    column: str,
+    paper: Mapping,
+    intuitiveness: Mapping[str, Sequence[Mapping]],
+    metrics: Mapping | None = None,
+    config: Mapping | None = None,
+) -> list[str]:
     """The findings of a run, one Markdown line per data variant and topic.
 
     Parameters
@@ -421,31 +522,37 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
     adjusted = adjusted_comparisons(metrics)
     lines = [multiplicity_text(metrics)] if adjusted else []
     trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
-    detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 \
-        else None
+    detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 else None
     said = {"paper": False}  # the paper's ratios: said on the first line that gives ratios
     for data, part in parts.items():
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
         if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
-            lines.append(f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
-                         f"{_ratios(part, paper, column, False, said)}; {m_text(part, paper)}.")
+            lines.append(
+                f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
+                f"{_ratios(part, paper, column, False, said)}; {m_text(part, paper)}."
+            )
             continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
         lead = detailed is None or data == detailed
         shown = solvers if lead or "lstsq" not in solvers else ["lstsq"]  # the others' are in the tables
-        ordering = "; ".join(f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}"
-                             for solver in shown)
+        ordering = "; ".join(
+            f"{solver}: {paired_ordering_text(part, solver, column, compare, bases, identity)}" for solver in shown
+        )
         claim = "" if compare else " (no paired intervals in this record: no order is claimed)"
         if facts.get("protocol", "training frames") != "training frames":
             base = next((row["train_on"] for row in rows if row.get("data") == data), None)
-            text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {}) \
-                if base in parts else ""
+            text = held_out_text(part, parts[base], column, facts, data_facts.get(base) or {}) if base in parts else ""
             m_base = f"; training frames: m = {float(parts[base]['m'].iloc[0]):g}" if base in parts else ""
-            lines.append(Detail(f"**{data}** (m = {float(part['m'].iloc[0]):g}{m_base}): `{column}` from best to "
-                                f"worst{claim}, {ordering}" + (f"; {text}" if text else "") + ".",
-                                1, "the table 'Training frames and held-out frames'"))
+            lines.append(
+                Detail(
+                    f"**{data}** (m = {float(part['m'].iloc[0]):g}{m_base}): `{column}` from best to "
+                    f"worst{claim}, {ordering}" + (f"; {text}" if text else "") + ".",
+                    1,
+                    "the table 'Training frames and held-out frames'",
+                )
+            )
             continue  # its error in mm: the table 'Training frames and held-out frames'
         lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
         if "lstsq" in solvers:
@@ -463,14 +570,23 @@ def run_findings(table: pd.DataFrame, column: str, paper: Mapping, intuitiveness
 
 def _ratios(part: pd.DataFrame, paper: Mapping, column: str, spread: bool, said: dict, error: str = "") -> str:
     """:func:`ratio_text` with least squares, the paper's ratios beside the first that is said only."""
-    text = ratio_text(part, paper.get("alpha", {}), column=column, spread=spread, paper_shown=not said["paper"],
-                      error=error)
+    text = ratio_text(
+        part, paper.get("alpha", {}), column=column, spread=spread, paper_shown=not said["paper"], error=error
+    )
     said["paper"] = said["paper"] or bool(text)
     return text
 
 
-def _detail_lines(data: str, part: pd.DataFrame, column: str, solvers: Sequence[str], compare, facts: Mapping,
-                  rows: Sequence[Mapping], intuitiveness: Sequence[Mapping]) -> list[str]:
+def _detail_lines(
+    data: str,
+    part: pd.DataFrame,
+    column: str,
+    solvers: Sequence[str],
+    compare,
+    facts: Mapping,
+    rows: Sequence[Mapping],
+    intuitiveness: Sequence[Mapping],
+) -> list[str]:
     """The findings said for the lead data variant only: what the constrained solvers do and why, the weights
     and the shapes the projection changes most (see :func:`run_findings`); each a :class:`Detail` that
     :func:`fit_findings` may leave out."""
@@ -478,8 +594,13 @@ def _detail_lines(data: str, part: pd.DataFrame, column: str, solvers: Sequence[
     # the first constrained solver (nnls) said; the others' alpha is in the table 'Alpha beside the paper'
     constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers][:1]
     for k, solver in enumerate(constrained):
-        lines.append(Detail(f"**{data}**: " + constraint_text(part, column, solver, compare) + ".", 2,
-                            "the tables 'Alpha beside the paper' and 'Paired comparisons within the run'"))
+        lines.append(
+            Detail(
+                f"**{data}**: " + constraint_text(part, column, solver, compare) + ".",
+                2,
+                "the tables 'Alpha beside the paper' and 'Paired comparisons within the run'",
+            )
+        )
         why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
         if why:
             lines.append(Detail(f"**{data}**: why: {why}.", 3, "the run record (metrics.json: offset)"))
@@ -508,15 +629,22 @@ def adjusted_comparisons(metrics: Mapping) -> dict:
     lead = primary_data(metrics)
     data_facts = metrics.get("data") or {}
     stored = {data: list(facts.get("comparisons") or []) for data, facts in data_facts.items()}
-    identities = {data: run_identities([row for row in metrics.get("rows") or [] if row.get("data") == data],
-                                       data_facts.get(data) or {}) for data in stored}
+    identities = {
+        data: run_identities(
+            [row for row in metrics.get("rows") or [] if row.get("data") == data], data_facts.get(data) or {}
+        )
+        for data in stored
+    }
 
     def untested(data: str, entry: Mapping) -> bool:
         """A primary contrast (its own 95 %) or an identity (no test at all): outside Holm's family."""
         a, b = tuple(entry["a"]), tuple(entry["b"])
         lookup = identity_lookup(identities[data], entry.get("column", ""))
-        return (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS) or lookup(a, b) is not None \
+        return (
+            (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS)
+            or lookup(a, b) is not None
             or lookup(b, a) is not None
+        )
 
     return holm_adjusted(stored, untested) if any(stored.values()) else {}
 
@@ -525,11 +653,17 @@ def multiplicity_text(metrics: Mapping) -> str:
     """The sentence that says how the run's orderings are decided, once, above them."""
     adjusted = adjusted_comparisons(metrics)
     family = sum(1 for entries in adjusted.values() for entry in entries if "holm_family" in entry)
-    without = sum(1 for entries in adjusted.values() for entry in entries
-                  if "holm_family" in entry and not _finite_value(entry.get("p_value")))
-    text = (f"**how to read**: '<': the paired 95 % interval (batch means over time, docs/statistics.md) excludes "
-            f"0; primary contrasts (H vs QE, QE vs PCA, lstsq, on {primary_data(metrics)}) at their own 95 %, the "
-            f"other {family} Holm-adjusted; '=': a tie within tolerance; '<= by construction': an identity, not tested")
+    without = sum(
+        1
+        for entries in adjusted.values()
+        for entry in entries
+        if "holm_family" in entry and not _finite_value(entry.get("p_value"))
+    )
+    text = (
+        f"**how to read**: '<': the paired 95 % interval (batch means over time, docs/statistics.md) excludes "
+        f"0; primary contrasts (H vs QE, QE vs PCA, lstsq, on {primary_data(metrics)}) at their own 95 %, the "
+        f"other {family} Holm-adjusted; '=': a tie within tolerance; '<= by construction': an identity, not tested"
+    )
     if without:
         text += f" ({without} comparisons of this record carry no p-value and keep their unadjusted interval)"
     return text + "."
@@ -546,11 +680,21 @@ def facts_frame(metrics: Mapping) -> pd.DataFrame:
     rows = []
     for data, values in metrics["data"].items():
         pca = values["pca"]
-        rows.append({"data": data, "points": values["n_points"], "training frames": values["n_train_frames"],
-                     "evaluated frames": values["n_eval_frames"], "m": pca["m"],
-                     "coverage": round(float(pca["coverage_reached"]), 4), "PCA method": pca["method"],
-                     "empty PCA axes": "; ".join(f"{projection}: {', '.join(map(str, qe['empty_axes'])) or 'none'}"
-                                                 for projection, qe in values["quasi_eigen"].items())})
+        rows.append(
+            {
+                "data": data,
+                "points": values["n_points"],
+                "training frames": values["n_train_frames"],
+                "evaluated frames": values["n_eval_frames"],
+                "m": pca["m"],
+                "coverage": round(float(pca["coverage_reached"]), 4),
+                "PCA method": pca["method"],
+                "empty PCA axes": "; ".join(
+                    f"{projection}: {', '.join(map(str, qe['empty_axes'])) or 'none'}"
+                    for projection, qe in values["quasi_eigen"].items()
+                ),
+            }
+        )
     return pd.DataFrame.from_records(rows)
 
 
@@ -615,36 +759,51 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
     compare = comparison_lookup(adjusted) if adjusted else None
     identity = identity_lookup(run_identities(rows, facts), column)
     m, n = int(part["m"].iloc[0]), int(part.loc[part["basis"] == "H", "n"].iloc[0])
-    regime = ("the paper's regime (m = n)" if m == n else
-              f"not the paper's regime m = n (run basis.n_components={n} for it)")
+    regime = (
+        "the paper's regime (m = n)" if m == n else f"not the paper's regime m = n (run basis.n_components={n} for it)"
+    )
     hq, hq_sign = _claim(compare, None, ("QE", "lstsq"), ("H", "lstsq"))
     qp, qp_sign = _claim(compare, identity, ("QE", "lstsq"), ("PCA", "projection"))
     first = {-1: "reproduced", 1: "reversed", 0: "not decided"}[hq_sign]
     mm = {basis: _alpha(part, basis, "lstsq", "err_mm_median") for basis in PAPER_BASES}
-    sizes = (", ".join(f"{basis} {value:.3g}" for basis, value in mm.items()) + " mm median per-frame error; "
-             if not any(math.isnan(value) for value in mm.values()) else "")
+    sizes = (
+        ", ".join(f"{basis} {value:.3g}" for basis, value in mm.items()) + " mm median per-frame error; "
+        if not any(math.isnan(value) for value in mm.values())
+        else ""
+    )
     caveats = caveat_texts(metrics)
     lead = caveats[0] if caveats else "one run's frames are the only replicate here"
     if m + 1 <= n and qp_sign == -1 and identity(("QE", "lstsq"), ("PCA", "projection")) is not None:
         lead = f"with m + 1 <= n QE cannot lose to PCA, so only the size of QE/PCA is evidence; {lead}"
-    return (f"Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
-            f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
-            f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
-            f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
-            f"{sizes}QE better than H: {first}.{conditioning_text(part, rows)}{beside_regime_text(table, data, column)}"
-            f" Caveat: {lead}.")
+    return (
+        f"Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
+        f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
+        f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
+        f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
+        f"{sizes}QE better than H: {first}.{conditioning_text(part, rows)}{beside_regime_text(table, data, column)}"
+        f" Caveat: {lead}."
+    )
 
 
 def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
     """The summary's clause on how well QE determines its weights: condition number (or rank) and the largest |w|
     with least squares (an animator cannot use weights of thousands); empty when not recorded."""
-    found = next((row.get("basis_conditioning") for row in rows if row.get("basis") == "QE"
-                  and row.get("solver") == "lstsq" and row.get("basis_conditioning")), None)
+    found = next(
+        (
+            row.get("basis_conditioning")
+            for row in rows
+            if row.get("basis") == "QE" and row.get("solver") == "lstsq" and row.get("basis_conditioning")
+        ),
+        None,
+    )
     largest = _alpha(part, "QE", "lstsq", "w_max_abs")
     if not found or math.isnan(largest):
         return ""
-    cond = (f"rank {found['rank']} of {found['n_shapes']}" if found["rank"] < found["n_shapes"]
-            else f"condition number {found['condition_number']:.3g}")
+    cond = (
+        f"rank {found['rank']} of {found['n_shapes']}"
+        if found["rank"] < found["n_shapes"]
+        else f"condition number {found['condition_number']:.3g}"
+    )
     return f" QE's basis: {cond}, largest lstsq |w| {largest:.3g}."
 
 
@@ -659,8 +818,10 @@ def beside_regime_text(table: pd.DataFrame, data: str, column: str) -> str:
     values = {basis: _alpha(part, basis, "lstsq", column) for basis in PAPER_BASES}
     if not len(part) or any(math.isnan(value) for value in values.values()):
         return ""
-    return (f" Beside it, the coverage rule on {base} (m = {int(part['m'].iloc[0])}): H/QE "
-            f"{values['H'] / values['QE']:.3g}, QE/PCA {values['QE'] / values['PCA']:.3g}.")
+    return (
+        f" Beside it, the coverage rule on {base} (m = {int(part['m'].iloc[0])}): H/QE "
+        f"{values['H'] / values['QE']:.3g}, QE/PCA {values['QE'] / values['PCA']:.3g}."
+    )
 
 
 def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:
@@ -697,22 +858,35 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                 verdict = "a = b (within the tie tolerance)"
             else:
                 verdict = {-1: "a < b", 1: "a > b", 0: "not distinguishable"}[interval.sign]
-            records.append({"data": data, "a": " ".join(a), "b": " ".join(b), "a - b": interval.estimate,
-                            "ci95_low": interval.low, "ci95_high": interval.high, "p": interval.p_value,
-                            "p (Holm)": interval.p_adjusted, "frames": interval.n,
-                            "batch (frames)": interval.block_frames, "batch (s)": interval.block_seconds,
-                            "verdict": verdict})
+            records.append(
+                {
+                    "data": data,
+                    "a": " ".join(a),
+                    "b": " ".join(b),
+                    "a - b": interval.estimate,
+                    "ci95_low": interval.low,
+                    "ci95_high": interval.high,
+                    "p": interval.p_value,
+                    "p (Holm)": interval.p_adjusted,
+                    "frames": interval.n,
+                    "batch (frames)": interval.block_frames,
+                    "batch (s)": interval.block_seconds,
+                    "verdict": verdict,
+                }
+            )
     return pd.DataFrame.from_records(records)
 
 
 def comparison_method_text(metrics: Mapping) -> str:
     """The paragraph above :func:`comparison_table`: how its intervals, identities, ties and adjustment are made."""
     lead = primary_data(metrics)
-    return ("Every '<' of the findings and of the printed headline is a row here. The difference is that of the "
-            "headline alpha between two rows of the alpha table on the same evaluated frames; its 95 % interval "
-            "comes from batch means over time: contiguous batches within takes, 3 to 30 of them, each at least six "
-            "autocorrelation times long, the variance corrected for the batches' remaining correlation, Student-t "
-            "quantiles (coverage measured on AR(1) series in docs/statistics.md). H vs QE and QE vs PCA with lstsq "
-            f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
-            "Holm-adjusted p-value over the run (p (Holm) < 0.05). Orderings that hold by construction are "
-            "marked so and not tested; differences within the tie tolerance are equal.")
+    return (
+        "Every '<' of the findings and of the printed headline is a row here. The difference is that of the "
+        "headline alpha between two rows of the alpha table on the same evaluated frames; its 95 % interval "
+        "comes from batch means over time: contiguous batches within takes, 3 to 30 of them, each at least six "
+        "autocorrelation times long, the variance corrected for the batches' remaining correlation, Student-t "
+        "quantiles (coverage measured on AR(1) series in docs/statistics.md). H vs QE and QE vs PCA with lstsq "
+        f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
+        "Holm-adjusted p-value over the run (p (Holm) < 0.05). Orderings that hold by construction are "
+        "marked so and not tested; differences within the tie tolerance are equal."
+    )

@@ -47,7 +47,7 @@ def _split(pattern: re.Pattern, text: str) -> list[tuple[bool, str]]:
     """``text`` cut at the matches of ``pattern``: (matched, text) pieces, a match by its group 1."""
     pieces, at = [], 0
     for match in pattern.finditer(text):
-        pieces += [(False, text[at:match.start()]), (True, match[1])]
+        pieces += [(False, text[at : match.start()]), (True, match[1])]
         at = match.end()
     return [(matched, piece) for matched, piece in [*pieces, (False, text[at:])] if piece]
 
@@ -58,10 +58,14 @@ def environment():
     layout is the document's."""
     from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 
-    env = Environment(loader=PackageLoader("workbench.reporting", "templates"),
-                      autoescape=select_autoescape(enabled_extensions=("html",), default_for_string=True,
-                                                   default=False),
-                      trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True, undefined=StrictUndefined)
+    env = Environment(
+        loader=PackageLoader("workbench.reporting", "templates"),
+        autoescape=select_autoescape(enabled_extensions=("html",), default_for_string=True, default=False),
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+        undefined=StrictUndefined,
+    )
     env.filters["spans"] = inline_spans
     return env
 
@@ -78,19 +82,36 @@ def _table_block(frame: pd.DataFrame, markdown: bool) -> dict:
     if markdown:
         return {"kind": "table", "text": markdown_frame(frame)}
     header, rows, numeric = frame_cells(frame)
-    cells = [[(text, "num" if is_number else ("" if len(text) <= SHORT_CELL else "txt"))
-              for text, is_number in zip(row, numeric)] for row in rows]
+    cells = [
+        [
+            (text, "num" if is_number else ("" if len(text) <= SHORT_CELL else "txt"))
+            for text, is_number in zip(row, numeric)
+        ]
+        for row in rows
+    ]
     return {"kind": "table", "header": list(header), "rows": cells}
 
 
 def _block(block, markdown: bool) -> dict:
     if isinstance(block, FigureEntry):
         files = [{"path": name, "format": name.rsplit(".", 1)[1].upper()} for name in block.files]
-        return {"kind": "figure", "stem": block.stem, "title": block.title, "caption": block.caption,
-                "missing": block.missing, "files": files}
+        return {
+            "kind": "figure",
+            "stem": block.stem,
+            "title": block.title,
+            "caption": block.caption,
+            "missing": block.missing,
+            "files": files,
+        }
     if isinstance(block, FacesBlock):
-        return {"kind": "faces", "view": block.view, "view_caption": block.view_caption,
-                "animation": block.animation, "caption": block.caption, "missing": block.missing}
+        return {
+            "kind": "faces",
+            "view": block.view,
+            "view_caption": block.view_caption,
+            "animation": block.animation,
+            "caption": block.caption,
+            "missing": block.missing,
+        }
     if isinstance(block, pd.DataFrame):
         return _table_block(block, markdown)
     if isinstance(block, list):
@@ -100,8 +121,10 @@ def _block(block, markdown: bool) -> dict:
 
 def page_sections(sections: Sequence[Section], markdown: bool) -> list[dict]:
     """The sections as the templates read them: a heading and blocks, each a dict with its ``kind``."""
-    return [{"heading": section.heading, "blocks": [_block(block, markdown) for block in section.blocks]}
-            for section in sections]
+    return [
+        {"heading": section.heading, "blocks": [_block(block, markdown) for block in section.blocks]}
+        for section in sections
+    ]
 
 
 def render_markdown(title: str, sections: Sequence[Section]) -> str:
@@ -112,10 +135,18 @@ def render_markdown(title: str, sections: Sequence[Section]) -> str:
 
 def render_html(title: str, sections: Sequence[Section]) -> str:
     """index.html of a report: one self-contained page, figures beside it in ``figures/``."""
-    return environment().get_template("report.html").render(
-        title=title, sections=page_sections(sections, False), style=static_text("report.css"),
-        figure_check=static_text("figure_check.js"), view_style=static_text("view3d.css"),
-        view_script=static_text("view3d.js"))
+    return (
+        environment()
+        .get_template("report.html")
+        .render(
+            title=title,
+            sections=page_sections(sections, False),
+            style=static_text("report.css"),
+            figure_check=static_text("figure_check.js"),
+            view_style=static_text("view3d.css"),
+            view_script=static_text("view3d.js"),
+        )
+    )
 
 
 def write_documents(out: Path, title: str, sections: Sequence[Section]) -> None:

@@ -35,7 +35,6 @@ def default_report_name(config: Mapping) -> str:
     return config["study"] if kind == "synthetic" else f"{config['study']}-{kind}"
 
 
-
 REPORT_FOLDER = "report"
 """Default report folder, inside the run or sweep folder it reports on."""
 SHARED_FOLDER = "shared"
@@ -46,8 +45,7 @@ def check_report_name(name: str) -> None:
     """``--name``: a plain folder name; an empty one is refused, never taken as the default (it would rewrite the
     default reference report)."""
     if not plain_name(name):
-        raise WorkbenchError(f"--name must be a plain folder name (not empty, no path, not '.' or '..'), got "
-                             f"{name!r}")
+        raise WorkbenchError(f"--name must be a plain folder name (not empty, no path, not '.' or '..'), got {name!r}")
 
 
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
@@ -64,25 +62,37 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
     if reference:
         name = default_report_name(config) if name is None else name
         if CHECKOUT is None:
-            raise WorkbenchError("--reference rewrites the committed reports of the workbench's checkout, and this "
-                                 "workbench is an installed package: use --out DIR, or run from a checkout")
+            raise WorkbenchError(
+                "--reference rewrites the committed reports of the workbench's checkout, and this "
+                "workbench is an installed package: use --out DIR, or run from a checkout"
+            )
         return inside(CHECKOUT / "reports", name)
     return Path(out) if out is not None else inside(folder, REPORT_FOLDER)
 
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="workbench report", description="Build the report of a run record or of a sweep folder, from its "
-        "records only. It goes into <folder>/report unless --out or --reference says otherwise.")
+        prog="workbench report",
+        description="Build the report of a run record or of a sweep folder, from its "
+        "records only. It goes into <folder>/report unless --out or --reference says otherwise.",
+    )
     parser.add_argument("folder", type=Path, help=f"a run record (holds '{DONE}') or a folder of run records")
     parser.add_argument("--out", type=Path, help="the report folder (default: <folder>/report)")
-    parser.add_argument("--reference", action="store_true",
-                        help="(re)write the workbench's committed reference report reports/<name> of the checkout")
-    parser.add_argument("--name", help="with --reference: the report's folder name (default: the study, plus the "
-                                       "dataset unless synthetic)")
-    parser.add_argument("--formats", default=",".join(FIGURE_FORMATS),
-                        help="copies of each figure besides the one the report shows (faces as WebP, line plots as "
-                             "SVG), comma-separated: png, svg, pdf (default: none)")
+    parser.add_argument(
+        "--reference",
+        action="store_true",
+        help="(re)write the workbench's committed reference report reports/<name> of the checkout",
+    )
+    parser.add_argument(
+        "--name",
+        help="with --reference: the report's folder name (default: the study, plus the dataset unless synthetic)",
+    )
+    parser.add_argument(
+        "--formats",
+        default=",".join(FIGURE_FORMATS),
+        help="copies of each figure besides the one the report shows (faces as WebP, line plots as "
+        "SVG), comma-separated: png, svg, pdf (default: none)",
+    )
     parser.add_argument("--shapes", help="figure 2: four hand-shape names, comma-separated")
     return parser.parse_args(list(argv))
 
@@ -95,8 +105,10 @@ def figure_2_shapes(text: str, record: RunRecord) -> list[str]:
     """``--shapes``: four distinct hand shapes of the run, checked before the report is written."""
     names = [name.strip() for name in text.split(",") if name.strip()]
     if len(names) != FIGURE_2_SHAPES or len(set(names)) != len(names):
-        raise WorkbenchError(f"--shapes takes {FIGURE_2_SHAPES} distinct hand-shape names (figure 2 shows "
-                             f"{FIGURE_2_SHAPES}), got {names}")
+        raise WorkbenchError(
+            f"--shapes takes {FIGURE_2_SHAPES} distinct hand-shape names (figure 2 shows "
+            f"{FIGURE_2_SHAPES}), got {names}"
+        )
     known = list(record.metrics["dataset"].get("hand_names") or [])
     unknown = [name for name in names if known and name not in known]
     if unknown:
@@ -120,8 +132,10 @@ def main(argv: Sequence[str]) -> int:
     if is_complete(folder):
         record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
-        options = {"shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None,
-                   "shared": out.parent / SHARED_FOLDER if args.reference else None}
+        options = {
+            "shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None,
+            "shared": out.parent / SHARED_FOLDER if args.reference else None,
+        }
         index = build_run_report(record, out, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]

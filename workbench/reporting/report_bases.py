@@ -34,12 +34,18 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
     for data, values in record.metrics["data"].items():
         table = record.table[record.table["data"] == data]
         for entry in (values.get("basis_intuitiveness") or {}).get("bases", []):
-            alpha = table.loc[(table["basis"] == entry["basis"]) & table["solver"].isin([solver, "projection"]),
-                              column]
-            rows.append({"data": data, "basis": entry["basis"], "n": entry["n"],
-                         column: float(alpha.iloc[0]) if len(alpha) else math.nan,
-                         "matched_abs_cosine": entry["matched_abs_cosine"], "locality": entry["locality"],
-                         "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan))})
+            alpha = table.loc[(table["basis"] == entry["basis"]) & table["solver"].isin([solver, "projection"]), column]
+            rows.append(
+                {
+                    "data": data,
+                    "basis": entry["basis"],
+                    "n": entry["n"],
+                    column: float(alpha.iloc[0]) if len(alpha) else math.nan,
+                    "matched_abs_cosine": entry["matched_abs_cosine"],
+                    "locality": entry["locality"],
+                    "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan)),
+                }
+            )
     return pd.DataFrame.from_records(rows)
 
 
@@ -55,18 +61,30 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd
     """
     records = []
     for (data, basis), group in per_run.groupby(["data", "basis"], sort=False):
-        row = {"data": data, "basis": basis, "n_min": int(group["n"].min()), "n_max": int(group["n"].max()),
-               "n_seeds": len(group), "ci_method": GEOMETRIC}
+        row = {
+            "data": data,
+            "basis": basis,
+            "n_min": int(group["n"].min()),
+            "n_max": int(group["n"].max()),
+            "n_seeds": len(group),
+            "ci_method": GEOMETRIC,
+        }
         for column in columns:
             statistics = level_statistics(group[column].to_numpy(float))
-            row.update({column: statistics["geomean"], f"{column}_ci_low": statistics["ci95_low"],
-                        f"{column}_ci_high": statistics["ci95_high"]})
+            row.update(
+                {
+                    column: statistics["geomean"],
+                    f"{column}_ci_low": statistics["ci95_low"],
+                    f"{column}_ci_high": statistics["ci95_high"],
+                }
+            )
         records.append(row)
     return pd.DataFrame.from_records(records)
 
 
-def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir: Path,
-                       formats: Sequence[str], ordering: bool = True) -> list:
+def with_bases_section(
+    sections: list, records: Sequence[RunRecord], figures_dir: Path, formats: Sequence[str], ordering: bool = True
+) -> list:
     """The report's sections with one on the other bases inserted before its figures: the table of alpha,
     closeness, locality and usage of every basis (geometric means over the runs), their paired comparisons and the
     figure of alpha against each; the findings gain the sizes, closeness and locality (and, with ``ordering``,
@@ -82,50 +100,92 @@ def with_bases_section(sections: list, records: Sequence[RunRecord], figures_dir
     first = found[0][0]
     column = headline_column(first.config)
     solver, _ = figure_solver(first.config)
-    settings = next(values["basis_intuitiveness"] for values in first.metrics["data"].values()
-                    if values.get("basis_intuitiveness"))
+    settings = next(
+        values["basis_intuitiveness"] for values in first.metrics["data"].values() if values.get("basis_intuitiveness")
+    )
     energy, threshold = settings["locality_energy"], settings["usage_threshold"]
-    per_run = pd.concat([frame.assign(study=record.study, run=str(record.folder)) for record, frame in found],
-                        ignore_index=True)
+    per_run = pd.concat(
+        [frame.assign(study=record.study, run=str(record.folder)) for record, frame in found], ignore_index=True
+    )
     summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
-    comparisons = holm_verdicts(pd.concat([paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
-                                           for name in (column, "matched_abs_cosine", "locality")],
-                                          ignore_index=True), column, solver)
+    comparisons = holm_verdicts(
+        pd.concat(
+            [
+                paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
+                for name in (column, "matched_abs_cosine", "locality")
+            ],
+            ignore_index=True,
+        ),
+        column,
+        solver,
+    )
     several = int(summary["n_seeds"].max()) > 1
     note = interval_label(summary, "runs")
-    caption = (f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
-               f"shapes, its locality and its usage" + (f", geometric means over runs; error bars: {note}."
-                                                         if several else "."))
+    caption = (
+        f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
+        f"shapes, its locality and its usage"
+        + (f", geometric means over runs; error bars: {note}." if several else ".")
+    )
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
-    entry = make_figures([("alpha_vs_intuitiveness", "Alpha against intuitiveness", caption,
-                           lambda _, options: plot_alpha_against_intuitiveness(
-                               summary, column, energy=energy, threshold=threshold, title=title))],
-                         None, figures_dir, formats, {})[0]
-    shown = summary[["data", "basis", "n_seeds", column, *([f"{column}_ci_low", f"{column}_ci_high"]
-                                                           if several else []), *INTUITIVENESS_COLUMNS]]
+    entry = make_figures(
+        [
+            (
+                "alpha_vs_intuitiveness",
+                "Alpha against intuitiveness",
+                caption,
+                lambda _, options: plot_alpha_against_intuitiveness(
+                    summary, column, energy=energy, threshold=threshold, title=title
+                ),
+            )
+        ],
+        None,
+        figures_dir,
+        formats,
+        {},
+    )[0]
+    shown = summary[
+        [
+            "data",
+            "basis",
+            "n_seeds",
+            column,
+            *([f"{column}_ci_low", f"{column}_ci_high"] if several else []),
+            *INTUITIVENESS_COLUMNS,
+        ]
+    ]
     shown.insert(2, "n", range_column(summary, "n"))
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons
-        run_comparisons = ({data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
-                           if len(found) == 1 else None)
+        run_comparisons = (
+            {data: values.get("comparisons") or [] for data, values in first.metrics["data"].items()}
+            if len(found) == 1
+            else None
+        )
         findings.blocks.append(bases_findings(summary, comparisons, column, ordering, run_comparisons, solver))
-    section = Section("Other bases: alpha against intuitiveness", [
-        f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
-        f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
-        "projection), " + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several
-                           else "one run."),
-        ["`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
-         "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
-         f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
-         "element's squared displacement, mean over elements (small: local).",
-         f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
-         f"largest, mean over the evaluated frames (weights of solver {solver})."],
-        shown,
-        f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
-        f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "
-        "p-value Holm-adjusted over this table's rows but QE/H and QE/PCA on the first data variant; '<' only where "
-        "their interval excludes 1, or p_holm is below 0.05 for the others.",
-        comparisons.drop(columns=["study", "method"]), entry])
+    section = Section(
+        "Other bases: alpha against intuitiveness",
+        [
+            f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
+            f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
+            "projection), "
+            + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several else "one run."),
+            [
+                "`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
+                "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
+                f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
+                "element's squared displacement, mean over elements (small: local).",
+                f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
+                f"largest, mean over the evaluated frames (weights of solver {solver}).",
+            ],
+            shown,
+            f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
+            f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "
+            "p-value Holm-adjusted over this table's rows but QE/H and QE/PCA on the first data variant; '<' only where "
+            "their interval excludes 1, or p_holm is below 0.05 for the others.",
+            comparisons.drop(columns=["study", "method"]),
+            entry,
+        ],
+    )
     headings = [item.heading for item in sections]
     at = headings.index("Figures") if "Figures" in headings else len(sections)
     return [*sections[:at], section, *sections[at:]]

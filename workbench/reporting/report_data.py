@@ -19,8 +19,9 @@ from workbench.record.record import RunRecord
 QE_PROJECTIONS = {"QE": "affine", "QE-linear": "linear"}
 
 
-def quasi_eigen_shapes(inputs: Mapping[str, np.ndarray], projection: str,
-                       appended_axes: Sequence[int] = ()) -> np.ndarray:
+def quasi_eigen_shapes(
+    inputs: Mapping[str, np.ndarray], projection: str, appended_axes: Sequence[int] = ()
+) -> np.ndarray:
     """The run's quasi-eigen basis from its saved inputs (eq. 3-4), with any appended eigenfaces.
 
     Parameters
@@ -89,9 +90,11 @@ def frame_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.nda
     from workbench.numerics.metrics import alpha_per_frame, rms_error
 
     squared = (captured - reconstructed) ** 2
-    return {"absolute": alpha_per_frame(neutral + captured, neutral + reconstructed),
-            "displacement": alpha_per_frame(captured, reconstructed),
-            "rms": rms_error(squared.reshape(len(squared), -1, 3).sum(axis=2).sum(axis=1), squared.shape[1] // 3)}
+    return {
+        "absolute": alpha_per_frame(neutral + captured, neutral + reconstructed),
+        "displacement": alpha_per_frame(captured, reconstructed),
+        "rms": rms_error(squared.reshape(len(squared), -1, 3).sum(axis=2).sum(axis=1), squared.shape[1] // 3),
+    }
 
 
 def dataset_label(record: RunRecord) -> str:
@@ -101,9 +104,11 @@ def dataset_label(record: RunRecord) -> str:
     return record.metrics["dataset"]["name"]
 
 
-SHORT_DATASET_LABELS = {"synthetic": "synthetic actor (generated)",
-                        "ict_livelink": "ICT FaceKit face, real Live Link Face take",
-                        "animface": "AnimFace capture, ICT FaceKit hand shapes (another face)"}
+SHORT_DATASET_LABELS = {
+    "synthetic": "synthetic actor (generated)",
+    "ict_livelink": "ICT FaceKit face, real Live Link Face take",
+    "animface": "AnimFace capture, ICT FaceKit hand shapes (another face)",
+}
 
 
 def short_label(record: RunRecord) -> str:
@@ -125,8 +130,9 @@ def record_inputs(record: RunRecord, data: str, cache: dict) -> dict | None:
     key = ("inputs", data)
     if key not in cache:
         saved = record.load_inputs(data)
-        cache[key] = saved if saved is not None or saved_inputs(record) else (
-            rebuilt_arrays(record, cache)["inputs"].get(data))
+        cache[key] = (
+            saved if saved is not None or saved_inputs(record) else (rebuilt_arrays(record, cache)["inputs"].get(data))
+        )
     return cache[key]
 
 
@@ -171,13 +177,22 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
         try:
             results = run_study(record.config)
         except (WorkbenchError, OSError) as error:
-            cache[key] = {"inputs": {}, "alpha_per_frame": None,
-                          "missing": f"the run saved no inputs and its data could not be read again: {error}"}
+            cache[key] = {
+                "inputs": {},
+                "alpha_per_frame": None,
+                "missing": f"the run saved no inputs and its data could not be read again: {error}",
+            }
             return cache[key]
         check_rebuilt(record, results)
-        cache[key] = {"inputs": {result.data: input_arrays(result) for result in results
-                                 if result.transfer == "identity" and result.protocol == "training frames"},
-                      "alpha_per_frame": alpha_per_frame_arrays(results), "missing": ""}
+        cache[key] = {
+            "inputs": {
+                result.data: input_arrays(result)
+                for result in results
+                if result.transfer == "identity" and result.protocol == "training frames"
+            },
+            "alpha_per_frame": alpha_per_frame_arrays(results),
+            "missing": "",
+        }
     return cache[key]
 
 
@@ -191,19 +206,29 @@ def check_rebuilt(record: RunRecord, results, rtol: float = 1e-6) -> None:
     found = results[0].capture.provenance.get("data_files") or {}
     for path, entry in recorded.items():
         if (found.get(path) or {}).get("sha256") != entry.get("sha256"):
-            raise WorkbenchError(f"run record {record.folder}: its data file {path} is not the one the run read (its "
-                                 "SHA-256 differs from the record's); the report cannot rebuild the run's inputs")
+            raise WorkbenchError(
+                f"run record {record.folder}: its data file {path} is not the one the run read (its "
+                "SHA-256 differs from the record's); the report cannot rebuild the run's inputs"
+            )
     paper = record.config.get("paper", {}).get("alpha", {})
     for result in results:
-        table = alpha_table(result.rows, data=result.data, m=result.eigenfaces.n_components_,
-                            coverage=result.eigenfaces.coverage_, paper_alpha=paper)
+        table = alpha_table(
+            result.rows,
+            data=result.data,
+            m=result.eigenfaces.n_components_,
+            coverage=result.eigenfaces.coverage_,
+            paper_alpha=paper,
+        )
         own = record.table[record.table["data"] == result.data]
         columns = [c for c in ("alpha_abs_mean", "alpha_disp_mean", "rms_mm") if c in table.columns]
-        if len(own) != len(table) or not np.allclose(own[columns].to_numpy(float), table[columns].to_numpy(float),
-                                                      rtol=rtol, atol=1e-12, equal_nan=True):
-            raise WorkbenchError(f"run record {record.folder}: the data rebuilt from its config.yaml give other "
-                                 f"numbers than its alpha table ({result.data}); the report cannot rebuild the "
-                                 "run's inputs")
+        if len(own) != len(table) or not np.allclose(
+            own[columns].to_numpy(float), table[columns].to_numpy(float), rtol=rtol, atol=1e-12, equal_nan=True
+        ):
+            raise WorkbenchError(
+                f"run record {record.folder}: the data rebuilt from its config.yaml give other "
+                f"numbers than its alpha table ({result.data}); the report cannot rebuild the "
+                "run's inputs"
+            )
 
 
 def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
@@ -215,8 +240,10 @@ def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
     return None
 
 
-NEEDS_FACE = ("needs the frames of a mesh data variant (a run with dataset.train_on=[markers,mesh]), or those of a "
-              "marker variant and the dataset's face mesh to carry them onto")
+NEEDS_FACE = (
+    "needs the frames of a mesh data variant (a run with dataset.train_on=[markers,mesh]), or those of a "
+    "marker variant and the dataset's face mesh to carry them onto"
+)
 """Why a face figure is not drawn when neither a mesh variant's nor a marker variant's frames can be had."""
 CARRIED_NOTE = "markers carried onto the mesh by RBF (as in the paper); the run has no mesh data variant"
 """Said by every face figure of a run without a mesh data variant."""
@@ -265,17 +292,22 @@ class FaceData:
         """:data:`CARRIED_NOTE` for carried faces, else ``""``."""
         if not self.carried:
             return ""
-        return CARRIED_NOTE if self.transfer.method == "rbf" else CARRIED_NOTE.replace(
-            "by RBF", f"by the map '{self.transfer.describe()}'")
+        return (
+            CARRIED_NOTE
+            if self.transfer.method == "rbf"
+            else CARRIED_NOTE.replace("by RBF", f"by the map '{self.transfer.describe()}'")
+        )
 
     def caption(self, numbers: str) -> str:
         """What a figure's caption adds for carried faces (``""`` otherwise); ``numbers`` says whose the numbers
         it shows are (a clause)."""
         if not self.carried:
             return ""
-        return (f"{self.note[0].upper()}{self.note[1:]}: the faces drawn are the displacement fields of the "
-                f"'{self.data}' variant carried onto {self.mesh_text} by one linear map and added to its rest pose; "
-                f"the weights are solved on the markers, as the run solved them; {numbers}.")
+        return (
+            f"{self.note[0].upper()}{self.note[1:]}: the faces drawn are the displacement fields of the "
+            f"'{self.data}' variant carried onto {self.mesh_text} by one linear map and added to its rest pose; "
+            f"the weights are solved on the markers, as the run solved them; {numbers}."
+        )
 
     def carry(self, fields: np.ndarray) -> np.ndarray:
         """Displacement fields on ``data``'s points, shape (n_fields, 3 * n_points), onto the mesh, shape
@@ -293,9 +325,9 @@ def face_data(record: RunRecord, cache: dict) -> FaceData | str:
 
 
 def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
+    from workbench.core.errors import WorkbenchError
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer
-    from workbench.core.errors import WorkbenchError
 
     found = mesh_variant(record, cache)
     if found is not None:
@@ -310,8 +342,7 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
     except (WorkbenchError, OSError) as error:
         return f"{NEEDS_FACE}: the run has no mesh data variant and the dataset's face mesh cannot be read ({error})"
     transfer = point_transfer(inputs["neutral"].reshape(-1, 3), mesh.vertices)
-    return FaceData(data, inputs, mesh.vertices.reshape(-1), mesh.triangles, mesh.support, transfer,
-                    mesh.description)
+    return FaceData(data, inputs, mesh.vertices.reshape(-1), mesh.triangles, mesh.support, transfer, mesh.description)
 
 
 def marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
@@ -336,26 +367,37 @@ def record_timeline(record: RunRecord, inputs: Mapping) -> Timeline:
     """The evaluated frames' take, frame number in the file and time (saved inputs), or frames of one take at the
     record's frame rate for records written before runs saved them."""
     found = Timeline.from_arrays(inputs, "eval_")
-    return found if found is not None else Timeline.uniform(
-        "take", np.arange(len(inputs["eval"])), record.metrics["dataset"]["frame_rate"])
+    return (
+        found
+        if found is not None
+        else Timeline.uniform("take", np.arange(len(inputs["eval"])), record.metrics["dataset"]["frame_rate"])
+    )
 
 
 def training_variants(record: RunRecord) -> list[str]:
     """The data variants scored on their training frames (the paper's protocol), not on held-out frames."""
-    return [data for data, values in record.metrics["data"].items()
-            if values.get("protocol", "training frames") == "training frames"]
+    return [
+        data
+        for data, values in record.metrics["data"].items()
+        if values.get("protocol", "training frames") == "training frames"
+    ]
 
 
 def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, every: bool = False) -> dict:
     """Basis label -> shapes: H and the run's quasi-eigen basis (with ``every``: both projections the run had)."""
     key = ("bases", data, every)
     if key not in cache:
-        labels = [label for label, projection in QE_PROJECTIONS.items()
-                  if projection in record.config["basis"]["projections"]]
+        labels = [
+            label for label, projection in QE_PROJECTIONS.items() if projection in record.config["basis"]["projections"]
+        ]
         labels = labels if every else [qe_label(record)]
-        cache[key] = {"H": inputs["hand"], **{label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label],
-                                                                         appended_axes(record, data, label))
-                                              for label in labels}}
+        cache[key] = {
+            "H": inputs["hand"],
+            **{
+                label: quasi_eigen_shapes(inputs, QE_PROJECTIONS[label], appended_axes(record, data, label))
+                for label in labels
+            },
+        }
     return cache[key]
 
 
@@ -407,7 +449,7 @@ def figure3_frames(record: RunRecord, inputs: Mapping) -> list[tuple[str, int]]:
     chosen = region_frames(frames, regions, timeline.seconds, timeline.take)
     if not chosen:
         lengths = np.nan_to_num(point_norms(frames))
-        chosen = [("face", int(np.argmax((lengths ** 2).sum(axis=1))))]
+        chosen = [("face", int(np.argmax((lengths**2).sum(axis=1))))]
     return chosen
 
 
@@ -441,8 +483,12 @@ def frame_caption(region: str, timeline: Timeline, frame: int) -> str:
     return f"most displaced {region}: {timeline.label(frame)}"
 
 
-def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], chunk: int = 256,
-               carry: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+def vertex_rms(
+    frames: np.ndarray,
+    reconstruct: Callable[[slice], np.ndarray],
+    chunk: int = 256,
+    carry: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> np.ndarray:
     """RMS over frames of the 3-D error at every point, in chunks of frames.
 
     Parameters
@@ -464,7 +510,7 @@ def vertex_rms(frames: np.ndarray, reconstruct: Callable[[slice], np.ndarray], c
         rows = slice(start, start + chunk)
         error = reconstruct(rows) - frames[rows]
         error = (error if carry is None else carry(error)).reshape(len(error), -1, 3)
-        total = (0.0 if total is None else total) + (error ** 2).sum(axis=(0, 2))
+        total = (0.0 if total is None else total) + (error**2).sum(axis=(0, 2))
     if total is None:
         n_points = frames.shape[1] // 3 if carry is None else carry(np.zeros((1, frames.shape[1]))).shape[1] // 3
         return np.zeros(n_points)
@@ -492,7 +538,7 @@ def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.nda
         length = min(n_frames, stop - start)
         # motion of the window [first, first + length): the changes into its frames after the first
         summed = np.concatenate([[0.0], np.cumsum(change[start:stop])])
-        motion = summed[length:] - summed[1:len(summed) - length + 1]
+        motion = summed[length:] - summed[1 : len(summed) - length + 1]
         first = int(np.argmax(motion))
         key = (length, float(motion[first]))  # a full-length window first, then the most motion
         if best_key is None or key > best_key:

@@ -10,15 +10,34 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.capture import Timeline
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.capture import Timeline
 from workbench.record.record import RunRecord
-from workbench.reporting.report_data import (QE_PROJECTIONS, FaceData, face_data, figure3_frames, figure_bases,
-                                             figure_solver, frame_alpha, frame_caption, frame_weights,
-                                             headline_column, marker_variant, mesh_variant, missing_reason,
-                                             most_displaced, negative_weight_share, qe_label, quasi_eigen_shapes,
-                                             reconstruct_frames, record_alpha_per_frame, record_timeline,
-                                             short_label, training_variants, vertex_rms)
+from workbench.reporting.report_data import (
+    QE_PROJECTIONS,
+    FaceData,
+    face_data,
+    figure3_frames,
+    figure_bases,
+    figure_solver,
+    frame_alpha,
+    frame_caption,
+    frame_weights,
+    headline_column,
+    marker_variant,
+    mesh_variant,
+    missing_reason,
+    most_displaced,
+    negative_weight_share,
+    qe_label,
+    quasi_eigen_shapes,
+    reconstruct_frames,
+    record_alpha_per_frame,
+    record_timeline,
+    short_label,
+    training_variants,
+    vertex_rms,
+)
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS: tuple[str, ...] = ()
@@ -85,11 +104,20 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
     quasi_eigen = quasi_eigen_shapes(inputs, projection)
     m = record.metrics["data"][data]["pca"]["m"]
     figure = figure_hand_vs_quasi_eigen(
-        face.neutral, face.faces, face.carry(inputs["hand"][chosen]), face.carry(quasi_eigen[chosen]),
-        [names[i] for i in chosen], [distance[names[i]] for i in chosen], [cosine[names[i]] for i in chosen],
-        title=(f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
-               f"data {data}, m = {m}, {projection} projection" + carried_title(face, "distance and cosine are")),
-        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})", support=face.support)
+        face.neutral,
+        face.faces,
+        face.carry(inputs["hand"][chosen]),
+        face.carry(quasi_eigen[chosen]),
+        [names[i] for i in chosen],
+        [distance[names[i]] for i in chosen],
+        [cosine[names[i]] for i in chosen],
+        title=(
+            f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
+            f"data {data}, m = {m}, {projection} projection" + carried_title(face, "distance and cosine are")
+        ),
+        qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})",
+        support=face.support,
+    )
     return with_caption(figure, face, "the relative distance and cosine under each pair are the markers' own")
 
 
@@ -107,25 +135,41 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
     chosen = figure3_frames(record, inputs)
     frames = [frame for _, frame in chosen]
     captured = inputs["eval"][frames]
-    reconstructed = {name: reconstruct_frames(shapes, captured, solver)
-                     for name, shapes in figure_bases(record, data, inputs, cache).items()}
+    reconstructed = {
+        name: reconstruct_frames(shapes, captured, solver)
+        for name, shapes in figure_bases(record, data, inputs, cache).items()
+    }
     alphas = {name: frame_alpha(inputs["neutral"], captured, frames_out) for name, frames_out in reconstructed.items()}
     absolute = fixed_decimals([a for alpha in alphas.values() for a in alpha["absolute"]], significant=3)
     displacement = fixed_decimals([a for alpha in alphas.values() for a in alpha["displacement"]], significant=3)
-    notes = {name: [f"alpha {a:.{absolute}f} % abs., {d:.{displacement}f} % disp."
-                    for a, d in zip(alpha["absolute"], alpha["displacement"])] for name, alpha in alphas.items()}
+    notes = {
+        name: [
+            f"alpha {a:.{absolute}f} % abs., {d:.{displacement}f} % disp."
+            for a, d in zip(alpha["absolute"], alpha["displacement"])
+        ]
+        for name, alpha in alphas.items()
+    }
     timeline = record_timeline(record, inputs)
-    labels = [f"most displaced {region}\n{timeline.label(frame).replace(' (', chr(10) + '(')}"
-              for region, frame in chosen]
+    labels = [
+        f"most displaced {region}\n{timeline.label(frame).replace(' (', chr(10) + '(')}" for region, frame in chosen
+    ]
     figure = figure_reconstructions(
-        face.neutral, face.faces, face.carry(captured),
-        {name: face.carry(frames_out) for name, frames_out in reconstructed.items()}, labels, notes,
-        title=(f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
-               f"{data}, solver {solver_name}; the most displaced frame of each region of the face"
-               + carried_title(face, "alpha values are")),
-        support=face.support)
-    return with_caption(figure, face,
-                        "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)")
+        face.neutral,
+        face.faces,
+        face.carry(captured),
+        {name: face.carry(frames_out) for name, frames_out in reconstructed.items()},
+        labels,
+        notes,
+        title=(
+            f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
+            f"{data}, solver {solver_name}; the most displaced frame of each region of the face"
+            + carried_title(face, "alpha values are")
+        ),
+        support=face.support,
+    )
+    return with_caption(
+        figure, face, "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)"
+    )
 
 
 def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int, str]:
@@ -141,8 +185,9 @@ def figure4_frame(record: RunRecord, inputs: Mapping, cache: dict) -> tuple[int,
         How it was chosen, for the title.
     """
     timeline = record_timeline(record, inputs)
-    seen_all = (inputs["eval_visible"].all(axis=1) if "eval_visible" in inputs
-                else np.ones(len(inputs["eval"]), dtype=bool))
+    seen_all = (
+        inputs["eval_visible"].all(axis=1) if "eval_visible" in inputs else np.ones(len(inputs["eval"]), dtype=bool)
+    )
     face = face_data(record, cache)
     if not isinstance(face, str):
         first = most_displaced(face.inputs, [frame for _, frame in figure3_frames(record, face.inputs)])
@@ -175,14 +220,23 @@ def draw_marker_errors(record: RunRecord, cache: dict | None = None):
     for name, shapes in figure_bases(record, data, inputs, cache).items():
         reconstructed[name] = reconstruct_frames(shapes, captured, solver)[0]
         alpha = frame_alpha(inputs["neutral"], captured, reconstructed[name][None])
-        titles[name] = (f"{basis_label(name)}\nalpha abs {alpha['absolute'][0]:.3f} %, disp "
-                        f"{alpha['displacement'][0]:.1f} %, RMS {alpha['rms'][0]:.3f} mm")
+        titles[name] = (
+            f"{basis_label(name)}\nalpha abs {alpha['absolute'][0]:.3f} %, disp "
+            f"{alpha['displacement'][0]:.1f} %, RMS {alpha['rms'][0]:.3f} mm"
+        )
     n_markers = inputs["neutral"].size // 3
     return figure_marker_errors(
-        inputs["neutral"], captured[0], reconstructed, titles, units=record.metrics["dataset"]["units"],
-        title=(f"Figure 4 (reproduced): reconstruction error at the {n_markers} markers, "
-               f"{record_timeline(record, inputs).label(frame)}, {why}\n{short_label(record)}; data {data}, solver "
-               f"{solver_name}; captured red, reconstructed blue"))
+        inputs["neutral"],
+        captured[0],
+        reconstructed,
+        titles,
+        units=record.metrics["dataset"]["units"],
+        title=(
+            f"Figure 4 (reproduced): reconstruction error at the {n_markers} markers, "
+            f"{record_timeline(record, inputs).label(frame)}, {why}\n{short_label(record)}; data {data}, solver "
+            f"{solver_name}; captured red, reconstructed blue"
+        ),
+    )
 
 
 def draw_vertex_rms(record: RunRecord, cache: dict):
@@ -201,13 +255,21 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
         rms[label] = vertex_rms(inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e, carry=carry)
     complete = np.isfinite(inputs["eval"]).all(axis=1)
     mean, components = inputs["mean"], inputs["components"]
-    rms["PCA"] = vertex_rms(inputs["eval"][complete], lambda rows: mean + (
-        (inputs["eval"][complete][rows] - mean) @ components.T) @ components, carry=carry)
+    rms["PCA"] = vertex_rms(
+        inputs["eval"][complete],
+        lambda rows: mean + ((inputs["eval"][complete][rows] - mean) @ components.T) @ components,
+        carry=carry,
+    )
     figure = figure_vertex_rms(
-        face.neutral, face.faces, rms, support=face.support,
-        title=(f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
-               f"{data}, solver {solver_name} (PCA: projection)"
-               + ("\n" + face.note if face.carried else "")))
+        face.neutral,
+        face.faces,
+        rms,
+        support=face.support,
+        title=(
+            f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
+            f"{data}, solver {solver_name} (PCA: projection)" + ("\n" + face.note if face.carried else "")
+        ),
+    )
     return with_caption(figure, face, "each vertex's RMS is that of the markers' errors carried onto the mesh")
 
 
@@ -216,9 +278,14 @@ def draw_alpha_per_solver(record: RunRecord, cache: dict):
 
     column = headline_column(record.config)
     return plot_alpha_per_solver(
-        record.table[record.table["data"].isin(training_variants(record))], column, negative_weight_share(record),
-        title=("Alpha per solver: constraints on the weights, and how many frames have a negative weight "
-               f"without them\n{short_label(record)}"))
+        record.table[record.table["data"].isin(training_variants(record))],
+        column,
+        negative_weight_share(record),
+        title=(
+            "Alpha per solver: constraints on the weights, and how many frames have a negative weight "
+            f"without them\n{short_label(record)}"
+        ),
+    )
 
 
 def draw_error_cdf(record: RunRecord, cache: dict | None = None):
@@ -233,9 +300,12 @@ def draw_error_cdf(record: RunRecord, cache: dict | None = None):
     if not curves:
         return "needs per-frame errors in the record (runs made before they were recorded have none)"
     regions = {data: values.get("face_region", "") for data, values in record.metrics["data"].items()}
-    return plot_error_cdf(curves, ERROR_QUANTILES, regions=regions,
-                          title=f"Per-frame error in millimetres, cumulative, every basis and solver\n"
-                                f"{short_label(record)}")
+    return plot_error_cdf(
+        curves,
+        ERROR_QUANTILES,
+        regions=regions,
+        title=f"Per-frame error in millimetres, cumulative, every basis and solver\n{short_label(record)}",
+    )
 
 
 def draw_weight_statistics(record: RunRecord, cache: dict | None = None):
@@ -248,8 +318,9 @@ def draw_weight_statistics(record: RunRecord, cache: dict | None = None):
             statistics.setdefault(row["data"], {})[(row["basis"], row["solver"])] = row["weights"]
     if not statistics:
         return "needs weight statistics in the record (runs made before they were recorded have none)"
-    return plot_weight_statistics(statistics, title=f"The weights an animator would get, per basis and solver\n"
-                                                    f"{short_label(record)}")
+    return plot_weight_statistics(
+        statistics, title=f"The weights an animator would get, per basis and solver\n{short_label(record)}"
+    )
 
 
 def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3.0, per_frame: int = 3):
@@ -276,20 +347,37 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
     for region, frame in figure3_frames(record, inputs):
         contribution = np.nan_to_num(np.abs(weights["H"][frame]) * sizes)
         shown += [int(k) for k in np.argsort(-contribution)[:per_frame] if contribution[k] > 0]
-        rows = np.flatnonzero((timeline.take == timeline.take[frame])
-                              & (np.abs(timeline.seconds - timeline.seconds[frame]) <= seconds_around))
-        windows.append({"label": frame_caption(region, timeline, frame), "seconds": timeline.seconds[rows],
-                        "marked": float(timeline.seconds[frame]), "take": str(timeline.take[frame]),
-                        "weights": {label: weights[label][rows] for label in labels}})
+        rows = np.flatnonzero(
+            (timeline.take == timeline.take[frame])
+            & (np.abs(timeline.seconds - timeline.seconds[frame]) <= seconds_around)
+        )
+        windows.append(
+            {
+                "label": frame_caption(region, timeline, frame),
+                "seconds": timeline.seconds[rows],
+                "marked": float(timeline.seconds[frame]),
+                "take": str(timeline.take[frame]),
+                "weights": {label: weights[label][rows] for label in labels},
+            }
+        )
     # a pair's two shapes one after the other, _L first (they share a column of the legend), pairs first
     pairs = {index: (left, right) for _, left, right in side_pairs(names) for index in (left, right)}
-    shown = list(dict.fromkeys([k for index in shown if index in pairs for k in pairs[index]]
-                               + [index for index in shown if index not in pairs]))
+    shown = list(
+        dict.fromkeys(
+            [k for index in shown if index in pairs for k in pairs[index]]
+            + [index for index in shown if index not in pairs]
+        )
+    )
     return plot_weight_curves(
-        windows, names, shown,
-        title=(f"Weights w_i(t) around figure 3's frames (marked), solver {solver_name}\n{short_label(record)}; "
-               f"data {data}; the {per_frame} hand shapes contributing most at each frame, with their left/right "
-               "partners"))
+        windows,
+        names,
+        shown,
+        title=(
+            f"Weights w_i(t) around figure 3's frames (marked), solver {solver_name}\n{short_label(record)}; "
+            f"data {data}; the {per_frame} hand shapes contributing most at each frame, with their left/right "
+            "partners"
+        ),
+    )
 
 
 def draw_intuitiveness_bars(record: RunRecord, cache: dict):
@@ -301,9 +389,11 @@ def draw_intuitiveness_bars(record: RunRecord, cache: dict):
     projections = list(dict.fromkeys(row["projection"] for row in rows))
     values = {(row["projection"], row["shape"]): row for row in rows}
     return plot_intuitiveness_bars(
-        names, {p: [values[p, n]["cosine"] for n in names] for p in projections},
+        names,
+        {p: [values[p, n]["cosine"] for n in names] for p in projections},
         {p: [values[p, n]["relative_distance"] for n in names] for p in projections},
-        title=f"How far each hand shape moves when projected (data {data})\n{short_label(record)}")
+        title=f"How far each hand shape moves when projected (data {data})\n{short_label(record)}",
+    )
 
 
 def draw_coverage_curve(record: RunRecord):
@@ -315,9 +405,12 @@ def draw_coverage_curve(record: RunRecord):
     hand = record.table[record.table["basis"] == "H"]
     return plot_coverage_curve(
         {data: np.asarray(p["explained_variance_ratio"]) for data, p in pca.items()},
-        {data: p["m"] for data, p in pca.items()}, threshold=threshold,
-        paper_m=record.config.get("paper", {}).get("m"), basis_size=int(hand["n"].iloc[0]) if len(hand) else None,
-        title=f"Coverage: cumulative explained variance of the leading eigenvalues\n{short_label(record)}")
+        {data: p["m"] for data, p in pca.items()},
+        threshold=threshold,
+        paper_m=record.config.get("paper", {}).get("m"),
+        basis_size=int(hand["n"].iloc[0]) if len(hand) else None,
+        title=f"Coverage: cumulative explained variance of the leading eigenvalues\n{short_label(record)}",
+    )
 
 
 def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
@@ -332,21 +425,26 @@ def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
     for data in training_variants(record):  # held-out frames are another timeline
         bases, solvers = arrays[f"{data}.basis"], arrays[f"{data}.solver"]
         values = arrays[f"{data}.{normalisation}"]
-        series[data] = {str(b): values[i] for i, (b, s) in enumerate(zip(bases, solvers))
-                        if s == solver_name or b == "PCA"}
+        series[data] = {
+            str(b): values[i] for i, (b, s) in enumerate(zip(bases, solvers)) if s == solver_name or b == "PCA"
+        }
     first = training_variants(record)[0]
     timeline = Timeline.from_arrays(arrays, f"{first}.") or Timeline.uniform(
-        "take", np.arange(len(arrays[f"{first}.absolute"][0])), record.metrics["dataset"]["frame_rate"])
+        "take", np.arange(len(arrays[f"{first}.absolute"][0])), record.metrics["dataset"]["frame_rate"]
+    )
     elapsed = timeline.elapsed()
     takes = [(str(timeline.take[start]), float(elapsed[start])) for start, _ in timeline.take_spans()]
-    return plot_alpha_over_time(series, elapsed, ylabel=f"alpha, {normalisation} (%)", takes=takes,
-                                title=f"Alpha of every frame over the take, solver {solver_name}\n"
-                                      f"{short_label(record)}")
+    return plot_alpha_over_time(
+        series,
+        elapsed,
+        ylabel=f"alpha, {normalisation} (%)",
+        takes=takes,
+        title=f"Alpha of every frame over the take, solver {solver_name}\n{short_label(record)}",
+    )
 
 
 def draw_marker_vs_mesh(record: RunRecord):
     from workbench.reporting.figures.studies import plot_marker_vs_mesh
-
     from workbench.study.regime import is_paper_regime
 
     # the variants at the coverage rule's m: a paper-regime variant (m = n) differs in m, not in the points
@@ -357,79 +455,122 @@ def draw_marker_vs_mesh(record: RunRecord):
     if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
-    return plot_marker_vs_mesh(table, ("rms_mm", "alpha_disp_pooled"), solver=solver_name,
-                               title=f"Marker versus mesh data: the method on each\n{short_label(record)}")
+    return plot_marker_vs_mesh(
+        table,
+        ("rms_mm", "alpha_disp_pooled"),
+        solver=solver_name,
+        title=f"Marker versus mesh data: the method on each\n{short_label(record)}",
+    )
 
 
 RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
-    ("fig1_analogy", "Figure 1: the analogical drawing",
-     "A seeded cloud of 300 points near a plane; PCA axes (red) from Eigenfaces, hand vectors (blue) off the "
-     "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
-     lambda record, options: draw_analogy()),
-    ("fig2_hand_vs_quasi_eigen", "Figure 2: hand shapes beside their quasi-eigen faces",
-     "Four hand shapes (first row) above their quasi-eigen faces (second row), plain shaded as in the paper, "
-     "with their relative distance |e^QE - e^H| / |e^H| and cosine; below, each one's signed displacement along "
-     "the surface normal (red: out of the face, blue: into it; zero white), one colour bar per pair reaching its "
-     "largest value. The four are spread over the ranks of the relative distance (least to most changed) unless "
-     "--shapes names them. Where the capture has no data (beyond the markers' reach) the quasi-eigen maps fade "
-     "into the plain shade.",
-     lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"), options["cache"])),
-    ("fig3_reconstructions", "Figure 3: captured frames and their reconstructions",
-     "The most displaced frame of each region of the face the hand shapes act on (brows, eyes, mouth, jaw; "
-     "named by take, frame of the source file and time), plain shaded as in the paper: captured, and "
-     "reconstructed with the hand basis and the quasi-eigen basis (the run's solver, alpha under each); then the "
-     "per-vertex error of each reconstruction on the captured face, on one colour bar (an arrow: a few vertices "
-     "go beyond it). Eyes and mouth are closed by dark caps; where the capture has no data the error maps fade "
-     "into the plain shade and stay out of the scale.",
-     lambda record, options: draw_reconstructions(record, options["cache"])),
-    ("fig4_marker_errors", "Figure 4: one frame's reconstruction error at the markers",
-     "Captured markers (red) and reconstructed markers (blue) of the most displaced of figure 3's frames, front "
-     "and side views; "
-     "the offsets are magnified by the stated factor so that sub-millimetre errors show.",
-     lambda record, options: draw_marker_errors(record, options["cache"])),
-    ("vertex_rms", "Where each basis errs over the whole take",
-     "Per-vertex RMS reconstruction error over every evaluated frame, for the hand basis, the quasi-eigen bases "
-     "and PCA, on one shared colour bar (an arrow: a few vertices go beyond it), with the RMS over the face and "
-     "the largest vertex.",
-     lambda record, options: draw_vertex_rms(record, options["cache"])),
-    ("alpha_per_solver", "Alpha per solver",
-     "The headline alpha of each basis under least squares, non-negative and box weights (PCA's projection as a "
-     "dashed line), with the share of frames whose least-squares weights include a negative one (from the "
-     "record). That share alone does not say what a constraint costs: the findings give the numbers that do.",
-     lambda record, options: draw_alpha_per_solver(record, options["cache"])),
-    ("error_cdf", "Per-frame error in millimetres, as a distribution",
-     "For each error in millimetres, the share of evaluated frames whose RMS point error over the face region is "
-     "at most that (the cumulative distribution over frames), for every basis and solver; the median and the "
-     "95th percentile are the grey lines. From the error quantiles the run recorded.",
-     lambda record, options: draw_error_cdf(record, options["cache"])),
-    ("weight_statistics", "The weights an animator would get",
-     "Per basis and solver: the largest |w|, the share of frames with a weight outside [0, 1], Hoyer's sparsity "
-     "(sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), mean over frames (1: one shape per frame), and the roughness, the "
-     "mean squared second time derivative of the weights (1/s^4, second differences over the frames' times within "
-     "each take). PCA's coefficients are no animator's weights and are left out.",
-     lambda record, options: draw_weight_statistics(record, options["cache"])),
-    ("weight_curves", "Weight curves w_i(t) of H and QE",
-     "The weights around each of figure 3's frames (dotted vertical line), in the hand basis and in the "
-     "quasi-eigen basis: the hand shapes that contribute most at those frames, with their left/right partners "
-     "(a pair shares a colour, _L solid, _R dashed); dotted horizontal: w = 1, a shape fully on.",
-     lambda record, options: draw_weight_curves(record, options["cache"])),
-    ("intuitiveness", "How far each hand shape moves when projected",
-     "Cosine (1: same direction) and relative distance |e^QE - e^H| / |e^H| (0: unchanged) between each hand "
-     "shape and its quasi-eigen face, per projection.",
-     lambda record, options: draw_intuitiveness_bars(record, options["cache"])),
-    ("coverage_curve", "Coverage curve",
-     "Cumulative explained variance against the number of eigenfaces m (the first 60 eigenvalues kept in the "
-     "record), with the coverage threshold, the chosen m of each data variant, the paper's m = 18 and the hand "
-     "basis size n.",
-     lambda record, options: draw_coverage_curve(record)),
-    ("alpha_over_time", "Alpha per frame over time",
-     "Per-frame alpha (the headline normalisation) of each basis over the take; takes concatenated in time are "
-     "drawn one after another with their boundaries named.",
-     lambda record, options: draw_alpha_over_time(record, options["cache"])),
-    ("marker_vs_mesh", "Marker versus mesh",
-     "RMS error (mm) and pooled displacement alpha of each basis when the method runs on the markers and on the "
-     "dense mesh, one panel per evaluated point set (values compare within a panel only).",
-     lambda record, options: draw_marker_vs_mesh(record)),
+    (
+        "fig1_analogy",
+        "Figure 1: the analogical drawing",
+        "A seeded cloud of 300 points near a plane; PCA axes (red) from Eigenfaces, hand vectors (blue) off the "
+        "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
+        lambda record, options: draw_analogy(),
+    ),
+    (
+        "fig2_hand_vs_quasi_eigen",
+        "Figure 2: hand shapes beside their quasi-eigen faces",
+        "Four hand shapes (first row) above their quasi-eigen faces (second row), plain shaded as in the paper, "
+        "with their relative distance |e^QE - e^H| / |e^H| and cosine; below, each one's signed displacement along "
+        "the surface normal (red: out of the face, blue: into it; zero white), one colour bar per pair reaching its "
+        "largest value. The four are spread over the ranks of the relative distance (least to most changed) unless "
+        "--shapes names them. Where the capture has no data (beyond the markers' reach) the quasi-eigen maps fade "
+        "into the plain shade.",
+        lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"), options["cache"]),
+    ),
+    (
+        "fig3_reconstructions",
+        "Figure 3: captured frames and their reconstructions",
+        "The most displaced frame of each region of the face the hand shapes act on (brows, eyes, mouth, jaw; "
+        "named by take, frame of the source file and time), plain shaded as in the paper: captured, and "
+        "reconstructed with the hand basis and the quasi-eigen basis (the run's solver, alpha under each); then the "
+        "per-vertex error of each reconstruction on the captured face, on one colour bar (an arrow: a few vertices "
+        "go beyond it). Eyes and mouth are closed by dark caps; where the capture has no data the error maps fade "
+        "into the plain shade and stay out of the scale.",
+        lambda record, options: draw_reconstructions(record, options["cache"]),
+    ),
+    (
+        "fig4_marker_errors",
+        "Figure 4: one frame's reconstruction error at the markers",
+        "Captured markers (red) and reconstructed markers (blue) of the most displaced of figure 3's frames, front "
+        "and side views; "
+        "the offsets are magnified by the stated factor so that sub-millimetre errors show.",
+        lambda record, options: draw_marker_errors(record, options["cache"]),
+    ),
+    (
+        "vertex_rms",
+        "Where each basis errs over the whole take",
+        "Per-vertex RMS reconstruction error over every evaluated frame, for the hand basis, the quasi-eigen bases "
+        "and PCA, on one shared colour bar (an arrow: a few vertices go beyond it), with the RMS over the face and "
+        "the largest vertex.",
+        lambda record, options: draw_vertex_rms(record, options["cache"]),
+    ),
+    (
+        "alpha_per_solver",
+        "Alpha per solver",
+        "The headline alpha of each basis under least squares, non-negative and box weights (PCA's projection as a "
+        "dashed line), with the share of frames whose least-squares weights include a negative one (from the "
+        "record). That share alone does not say what a constraint costs: the findings give the numbers that do.",
+        lambda record, options: draw_alpha_per_solver(record, options["cache"]),
+    ),
+    (
+        "error_cdf",
+        "Per-frame error in millimetres, as a distribution",
+        "For each error in millimetres, the share of evaluated frames whose RMS point error over the face region is "
+        "at most that (the cumulative distribution over frames), for every basis and solver; the median and the "
+        "95th percentile are the grey lines. From the error quantiles the run recorded.",
+        lambda record, options: draw_error_cdf(record, options["cache"]),
+    ),
+    (
+        "weight_statistics",
+        "The weights an animator would get",
+        "Per basis and solver: the largest |w|, the share of frames with a weight outside [0, 1], Hoyer's sparsity "
+        "(sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), mean over frames (1: one shape per frame), and the roughness, the "
+        "mean squared second time derivative of the weights (1/s^4, second differences over the frames' times within "
+        "each take). PCA's coefficients are no animator's weights and are left out.",
+        lambda record, options: draw_weight_statistics(record, options["cache"]),
+    ),
+    (
+        "weight_curves",
+        "Weight curves w_i(t) of H and QE",
+        "The weights around each of figure 3's frames (dotted vertical line), in the hand basis and in the "
+        "quasi-eigen basis: the hand shapes that contribute most at those frames, with their left/right partners "
+        "(a pair shares a colour, _L solid, _R dashed); dotted horizontal: w = 1, a shape fully on.",
+        lambda record, options: draw_weight_curves(record, options["cache"]),
+    ),
+    (
+        "intuitiveness",
+        "How far each hand shape moves when projected",
+        "Cosine (1: same direction) and relative distance |e^QE - e^H| / |e^H| (0: unchanged) between each hand "
+        "shape and its quasi-eigen face, per projection.",
+        lambda record, options: draw_intuitiveness_bars(record, options["cache"]),
+    ),
+    (
+        "coverage_curve",
+        "Coverage curve",
+        "Cumulative explained variance against the number of eigenfaces m (the first 60 eigenvalues kept in the "
+        "record), with the coverage threshold, the chosen m of each data variant, the paper's m = 18 and the hand "
+        "basis size n.",
+        lambda record, options: draw_coverage_curve(record),
+    ),
+    (
+        "alpha_over_time",
+        "Alpha per frame over time",
+        "Per-frame alpha (the headline normalisation) of each basis over the take; takes concatenated in time are "
+        "drawn one after another with their boundaries named.",
+        lambda record, options: draw_alpha_over_time(record, options["cache"]),
+    ),
+    (
+        "marker_vs_mesh",
+        "Marker versus mesh",
+        "RMS error (mm) and pooled displacement alpha of each basis when the method runs on the markers and on the "
+        "dense mesh, one panel per evaluated point set (values compare within a panel only).",
+        lambda record, options: draw_marker_vs_mesh(record),
+    ),
 )
 
 
@@ -459,8 +600,10 @@ def make_figures(specs, argument, folder: Path, formats: Sequence[str], options:
             entry.missing = result
         else:
             target = options.get("shared") if stem in SHARED_FIGURES and options.get("shared") else folder
-            entry.files = [Path(os.path.relpath(path, folder.parent)).as_posix()
-                           for path in save_figure(result, target, stem, formats)]
+            entry.files = [
+                Path(os.path.relpath(path, folder.parent)).as_posix()
+                for path in save_figure(result, target, stem, formats)
+            ]
         entries.append(entry)
     return entries
 

@@ -15,13 +15,17 @@ from workbench.reporting.figures.headline import headline_spec
 from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
-from workbench.reporting.report_data import (dataset_label, figure_bases, headline_column, qe_label,
-                                             record_inputs)
+from workbench.reporting.report_data import dataset_label, figure_bases, headline_column, qe_label, record_inputs
 from workbench.reporting.report_faces import FacesBlock, build_faces
-from workbench.reporting.report_figures import (FIGURE_FORMATS, RUN_FIGURES, FigureEntry, clear_figures,
-                                                make_figures)
-from workbench.reporting.report_sections import (Section, choices_rows, headline_table, provenance_section,
-                                                 report_versions, versions_section)
+from workbench.reporting.report_figures import FIGURE_FORMATS, RUN_FIGURES, FigureEntry, clear_figures, make_figures
+from workbench.reporting.report_sections import (
+    Section,
+    choices_rows,
+    headline_table,
+    provenance_section,
+    report_versions,
+    versions_section,
+)
 
 
 def run_facts(record: RunRecord) -> list:
@@ -33,9 +37,11 @@ def run_facts(record: RunRecord) -> list:
     lines = [*shared, *[f"{data} only: {note}" for data, notes in own.items() for note in notes]]
     paper = record.config.get("paper", {})
     if paper:
-        lines.append(f"paper: m = {paper.get('m')} at coverage {paper.get('coverage')}; alpha "
-                     + ", ".join(f"{k} {v}" for k, v in paper.get("alpha", {}).items())
-                     + " (absolute, QP with unstated constraints)")
+        lines.append(
+            f"paper: m = {paper.get('m')} at coverage {paper.get('coverage')}; alpha "
+            + ", ".join(f"{k} {v}" for k, v in paper.get("alpha", {}).items())
+            + " (absolute, QP with unstated constraints)"
+        )
     return [facts_frame(record.metrics), lines]
 
 
@@ -59,13 +65,16 @@ def left_right(record: RunRecord, cache: dict) -> LeftRight:
             continue
         names = [str(name) for name in inputs["hand_names"]]
         bases = figure_bases(record, data, inputs, cache, every=True)
-        bases = {label: shapes[:len(names)] for label, shapes in bases.items()}  # appended eigenfaces are no pair
+        bases = {label: shapes[: len(names)] for label, shapes in bases.items()}  # appended eigenfaces are no pair
         support = inputs.get("point_support")
         pairs = pair_sides(inputs["neutral"], inputs["eval"], inputs["components"], names, bases, support)
         if not pairs:
             continue
-        term = (shared_term(inputs["neutral"], inputs["components"], inputs["mean"], names, inputs["hand"], support)
-                if "QE" in bases else None)
+        term = (
+            shared_term(inputs["neutral"], inputs["components"], inputs["mean"], names, inputs["hand"], support)
+            if "QE" in bases
+            else None
+        )
         found.findings.append(sides_finding(data, pairs, term, qe_label(record)))
         frames.append(sides_frame(pairs).assign(data=data))
     if frames:
@@ -77,19 +86,28 @@ def left_right(record: RunRecord, cache: dict) -> LeftRight:
 def left_right_section(found: LeftRight) -> Section:
     """What the left/right pairs show, per data variant (said here, beside their table, not among the findings),
     then the table."""
-    return Section("Left and right", [
-        found.findings,
-        "Each left/right pair of hand shapes: how together the capture moves the two sides of the face (correlation "
-        "over the evaluated frames of the motion at the _L and _R hand shapes' peaks, along their directions), the "
-        "share |P e| / |e| of each shape, of their sum L+R and of their difference L-R that the eigenfaces span, "
-        "and, for each basis, the largest displacement of the _L and the _R face on its own side of the face and on "
-        "the other (mm; `!`: the other side moves over 10 % more). The sides are told apart by the hand shapes' "
-        "peaks.",
-        found.table])
+    return Section(
+        "Left and right",
+        [
+            found.findings,
+            "Each left/right pair of hand shapes: how together the capture moves the two sides of the face (correlation "
+            "over the evaluated frames of the motion at the _L and _R hand shapes' peaks, along their directions), the "
+            "share |P e| / |e| of each shape, of their sum L+R and of their difference L-R that the eigenfaces span, "
+            "and, for each basis, the largest displacement of the _L and the _R face on its own side of the face and on "
+            "the other (mm; `!`: the other side moves over 10 % more). The sides are told apart by the hand shapes' "
+            "peaks.",
+            found.table,
+        ],
+    )
 
 
-def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, faces: "FacesBlock | None" = None,
-                 sides: LeftRight | None = None) -> tuple[str, list[Section]]:
+def run_sections(
+    record: RunRecord,
+    figures: list[FigureEntry],
+    command: str,
+    faces: "FacesBlock | None" = None,
+    sides: LeftRight | None = None,
+) -> tuple[str, list[Section]]:
     from workbench.reporting.findings import run_findings, run_summary
 
     column = headline_column(record.config)
@@ -99,20 +117,31 @@ def run_sections(record: RunRecord, figures: list[FigureEntry], command: str, fa
     summary = run_summary(record.table, column, record.metrics)
     sections = [
         *([Section("Summary", [summary])] if summary else []),
-        Section("Findings", [
-            f"Generated from the run's numbers (`{column}`, %). "
-            + ("The data are synthetic: generated by the workbench, not a real capture. "
-               if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic" else ""),
-            run_findings(record.table, column, record.config.get("paper", {}), intuitiveness, record.metrics,
-                         record.config)]),
+        Section(
+            "Findings",
+            [
+                f"Generated from the run's numbers (`{column}`, %). "
+                + (
+                    "The data are synthetic: generated by the workbench, not a real capture. "
+                    if record.metrics["dataset"].get("provenance", {}).get("kind") == "synthetic"
+                    else ""
+                ),
+                run_findings(
+                    record.table, column, record.config.get("paper", {}), intuitiveness, record.metrics, record.config
+                ),
+            ],
+        ),
         Section("Run facts", run_facts(record)),
-        Section("Alpha beside the paper", [
-            f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
-            "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
-            "alpha variant on the same data (the findings give them under each), so no one ratio compares across "
-            "datasets.",
-            headline_table(record.table, column),
-        ]),
+        Section(
+            "Alpha beside the paper",
+            [
+                f"`{column}` (the run's headline alpha) under every solver, beside Kim & Ko's reported values. The "
+                "absolute alpha depends on the coordinate origin; ratios between rows do not, but they move with the "
+                "alpha variant on the same data (the findings give them under each), so no one ratio compares across "
+                "datasets.",
+                headline_table(record.table, column),
+            ],
+        ),
         *protocol_sections(record, column),
         *([Section("Faces you can turn", [faces])] if faces is not None else []),
         Section("Figures", figures),
@@ -143,17 +172,26 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
     columns = [column for column in FRAME_COLUMNS if column in record.table.columns]
     if not columns:
         return []
-    regions = [f"{data}: {values['face_region']}" for data, values in record.metrics["data"].items()
-               if values.get("face_region")]
-    return [Section("Error in millimetres and the weights", [
-        "`err_mm_*`: each evaluated frame's RMS 3-D point error over the face region, in mm; its median, 95th "
-        "percentile and maximum over the frames. `w_max_abs`: the largest |w|; `w_outside_01`: the share of frames "
-        "with a weight below 0 or above 1; `w_sparsity`: Hoyer's sparsity (sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), "
-        "mean over frames (1: one shape per frame, 0: all equal); `w_roughness`: the mean squared second time "
-        "derivative of the weights, 1/s^4, from second differences over the frames' times within each take. PCA's "
-        "coefficients are no animator's weights (`-`). The face region of each data variant:",
-        regions,
-        record.table[[*ROW_NAME_COLUMNS, *columns]]])]
+    regions = [
+        f"{data}: {values['face_region']}"
+        for data, values in record.metrics["data"].items()
+        if values.get("face_region")
+    ]
+    return [
+        Section(
+            "Error in millimetres and the weights",
+            [
+                "`err_mm_*`: each evaluated frame's RMS 3-D point error over the face region, in mm; its median, 95th "
+                "percentile and maximum over the frames. `w_max_abs`: the largest |w|; `w_outside_01`: the share of frames "
+                "with a weight below 0 or above 1; `w_sparsity`: Hoyer's sparsity (sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), "
+                "mean over frames (1: one shape per frame, 0: all equal); `w_roughness`: the mean squared second time "
+                "derivative of the weights, 1/s^4, from second differences over the frames' times within each take. PCA's "
+                "coefficients are no animator's weights (`-`). The face region of each data variant:",
+                regions,
+                record.table[[*ROW_NAME_COLUMNS, *columns]],
+            ],
+        )
+    ]
 
 
 def comparison_sections(record: RunRecord) -> list[Section]:
@@ -182,25 +220,46 @@ def protocol_sections(record: RunRecord, column: str) -> list[Section]:
             own = table[(table["data"] == base) & (table["basis"] == basis) & (table["solver"] == solver)]
             if own.empty:
                 continue
-            entry = {"data": base, "held out": protocols[data].removeprefix("held-out "), "basis": basis,
-                     "solver": solver, f"{column} training": float(own[column].iloc[0]),
-                     f"{column} held out": float(part[column].iloc[0])}
+            entry = {
+                "data": base,
+                "held out": protocols[data].removeprefix("held-out "),
+                "basis": basis,
+                "solver": solver,
+                f"{column} training": float(own[column].iloc[0]),
+                f"{column} held out": float(part[column].iloc[0]),
+            }
             entry["held out / training"] = entry[f"{column} held out"] / entry[f"{column} training"]
             if "err_mm_median" in table.columns:
                 entry["err_mm_median training"] = float(own["err_mm_median"].iloc[0])
                 entry["err_mm_median held out"] = float(part["err_mm_median"].iloc[0])
             rows.append(entry)
-    notes = [f"{data}: {next(note for note in record.metrics['data'][data]['notes'] if note.startswith('held out'))}"
-             for data in held if any(note.startswith("held out") for note in record.metrics["data"][data]["notes"])]
-    return [Section("Training frames and held-out frames", [
-        "The paper scores the frames its bases were fitted on (the training frames, split 'same'). Beside it, the "
-        "same method with the bases fitted without some frames and scored on those (`dataset.held_out`); the "
-        "held-out rows are data variants of their own in every table, with their own m and paired comparisons.",
-        notes, pd.DataFrame.from_records(rows)])]
+    notes = [
+        f"{data}: {next(note for note in record.metrics['data'][data]['notes'] if note.startswith('held out'))}"
+        for data in held
+        if any(note.startswith("held out") for note in record.metrics["data"][data]["notes"])
+    ]
+    return [
+        Section(
+            "Training frames and held-out frames",
+            [
+                "The paper scores the frames its bases were fitted on (the training frames, split 'same'). Beside it, the "
+                "same method with the bases fitted without some frames and scored on those (`dataset.held_out`); the "
+                "held-out rows are data variants of their own in every table, with their own m and paired comparisons.",
+                notes,
+                pd.DataFrame.from_records(rows),
+            ],
+        )
+    ]
 
 
-def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = FIGURE_FORMATS,
-                     options: Mapping | None = None, command: str = "workbench report") -> Path:
+def build_run_report(
+    record: RunRecord,
+    out: Path,
+    *,
+    formats: Sequence[str] = FIGURE_FORMATS,
+    options: Mapping | None = None,
+    command: str = "workbench report",
+) -> Path:
     """Write the report of one run into ``out``: index.html, README.md, figures/, alpha_table.csv and the
     run's config as run_config.yaml.
 
@@ -229,8 +288,9 @@ def build_run_report(record: RunRecord, out: Path, *, formats: Sequence[str] = F
     entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
-    headline = make_figures([headline_spec(record, headline_column(record.config), dataset_label(record))],
-                            record, figures_dir, formats, {})
+    headline = make_figures(
+        [headline_spec(record, headline_column(record.config), dataset_label(record))], record, figures_dir, formats, {}
+    )
     if sections and sections[0].heading == "Summary":  # the summary, then its figure
         sections[0].blocks += headline
     sections = fit_findings(with_bases_section(sections, [record], figures_dir, formats))

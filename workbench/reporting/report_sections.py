@@ -52,24 +52,38 @@ def choices_rows(config: Mapping) -> list[tuple[str, str]]:
     """The settings a run chose where the paper is silent, as (question, choice) pairs."""
     basis, dataset, metric = config["basis"], config["dataset"], config.get("metric", {})
     solvers = ", ".join(
-        f"{name} ({spec['kind']}" + (f", bounds [{spec.get('lower')}, {spec.get('upper')}]"
-                                     if spec["kind"] != "lstsq" else "") + ")"
-        for name, spec in config["solver"].items())
-    rule = (f"coverage {basis['coverage']}" if basis.get("n_components") is None
-            else f"fixed m = {basis['n_components']}")
+        f"{name} ({spec['kind']}"
+        + (f", bounds [{spec.get('lower')}, {spec.get('upper')}]" if spec["kind"] != "lstsq" else "")
+        + ")"
+        for name, spec in config["solver"].items()
+    )
+    rule = (
+        f"coverage {basis['coverage']}" if basis.get("n_components") is None else f"fixed m = {basis['n_components']}"
+    )
     return [
-        ("projection of the hand shapes (eq. 3-4)", ", ".join(basis["projections"])
-         + " (affine: through the capture mean, as written; linear: through the neutral face)"),
+        (
+            "projection of the hand shapes (eq. 3-4)",
+            ", ".join(basis["projections"])
+            + " (affine: through the capture mean, as written; linear: through the neutral face)",
+        ),
         ("mu", "mean displacement from neutral"),
         ("solver of eq. 5", solvers),
-        ("alpha normalisation and aggregation in the headline",
-         f"{metric.get('headline_normalisation', 'absolute')}, {metric.get('headline_aggregate', 'mean')} "
-         "(every variant is in the full table)"),
+        (
+            "alpha normalisation and aggregation in the headline",
+            f"{metric.get('headline_normalisation', 'absolute')}, {metric.get('headline_aggregate', 'mean')} "
+            "(every variant is in the full table)",
+        ),
         ("eigenfaces kept", rule),
-        ("post-treatment", f"empty axis if sum_i |w_ij| < {basis['empty_axis_eps']} x {basis['empty_axis_scale']}; "
-                           f"append empty axes: {basis['append_empty_axes']}"),
-        ("frames trained on / evaluated", f"split {dataset.get('split', 'same')}"
-         + (f", eval fraction {dataset.get('eval_fraction')}" if dataset.get("split") == "tail" else "")),
+        (
+            "post-treatment",
+            f"empty axis if sum_i |w_ij| < {basis['empty_axis_eps']} x {basis['empty_axis_scale']}; "
+            f"append empty axes: {basis['append_empty_axes']}",
+        ),
+        (
+            "frames trained on / evaluated",
+            f"split {dataset.get('split', 'same')}"
+            + (f", eval fraction {dataset.get('eval_fraction')}" if dataset.get("split") == "tail" else ""),
+        ),
         ("data variants", str(dataset.get("train_on"))),
     ]
 
@@ -97,8 +111,12 @@ def provenance_value(value, limit: int = 200) -> str:
         return text
     if isinstance(value, Mapping):
         keys = list(value)
-        return (f"{len(keys)} entries: " + ", ".join(map(str, keys[:8])) + (", ..." if len(keys) > 8 else "")
-                + " (in full in metrics.json)")
+        return (
+            f"{len(keys)} entries: "
+            + ", ".join(map(str, keys[:8]))
+            + (", ..." if len(keys) > 8 else "")
+            + " (in full in metrics.json)"
+        )
     return f"{len(value)} items (in full in metrics.json)"
 
 
@@ -122,8 +140,8 @@ def _display_path(text: str) -> str:
 
 
 def report_versions() -> dict:
-    from workbench.settings.config import CHECKOUT
     from workbench.record.record import git_state, package_versions
+    from workbench.settings.config import CHECKOUT
 
     return {"packages": package_versions(REPORT_PACKAGES), "git": git_state(CHECKOUT)}
 
@@ -131,25 +149,48 @@ def report_versions() -> dict:
 def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and licence") -> Section:
     dataset = metrics["dataset"]
     # The record keeps the first data variant's train_on here; the variants are listed under the choices.
-    provenance = {key: value for key, value in dataset.get("provenance", {}).items()
-                  if key not in ("train_on", "data_root", "data_files")}
+    provenance = {
+        key: value
+        for key, value in dataset.get("provenance", {}).items()
+        if key not in ("train_on", "data_root", "data_files")
+    }
     files = dataset.get("provenance", {}).get("data_files") or {}
-    return Section(heading, [
-        f"**{dataset['name']}**; units {dataset['units']}; coordinate origin: {dataset['origin']}; "
-        f"{float(dataset['frame_rate']):.4g} frames per second in the frames used"
-        + (f" (the file's {float(provenance['frame_rate_in_file']):.4g} Hz, every {provenance['frame_step']} "
-           "frame)" if provenance.get("frame_rate_in_file") and provenance.get("frame_step") else "") + ".",
-        f"Licence: {licence_text(provenance)}.",
-        pd.DataFrame({"key": list(provenance), "value": [provenance_value(v) for v in provenance.values()]}),
-        *(["The data the run read, with their SHA-256 checksums when it read them (a folder: of its files' "
-           "`<sha256>  <name>` lines sorted by name, as `LC_ALL=C sha256sum * | sha256sum` prints them there); "
-           "the files stay in the data folder, never in the repository:",
-           pd.DataFrame({"path": list(files),
-                         "what": [f"folder of {item['files']} files" if "files" in item else "file"
-                                  for item in files.values()],
-                         "bytes": [item["bytes"] for item in files.values()],
-                         "sha256": [item["sha256"] for item in files.values()]})] if files else []),
-    ])
+    return Section(
+        heading,
+        [
+            f"**{dataset['name']}**; units {dataset['units']}; coordinate origin: {dataset['origin']}; "
+            f"{float(dataset['frame_rate']):.4g} frames per second in the frames used"
+            + (
+                f" (the file's {float(provenance['frame_rate_in_file']):.4g} Hz, every {provenance['frame_step']} "
+                "frame)"
+                if provenance.get("frame_rate_in_file") and provenance.get("frame_step")
+                else ""
+            )
+            + ".",
+            f"Licence: {licence_text(provenance)}.",
+            pd.DataFrame({"key": list(provenance), "value": [provenance_value(v) for v in provenance.values()]}),
+            *(
+                [
+                    "The data the run read, with their SHA-256 checksums when it read them (a folder: of its files' "
+                    "`<sha256>  <name>` lines sorted by name, as `LC_ALL=C sha256sum * | sha256sum` prints them there); "
+                    "the files stay in the data folder, never in the repository:",
+                    pd.DataFrame(
+                        {
+                            "path": list(files),
+                            "what": [
+                                f"folder of {item['files']} files" if "files" in item else "file"
+                                for item in files.values()
+                            ],
+                            "bytes": [item["bytes"] for item in files.values()],
+                            "sha256": [item["sha256"] for item in files.values()],
+                        }
+                    ),
+                ]
+                if files
+                else []
+            ),
+        ],
+    )
 
 
 def _when(iso: str | None) -> str:
@@ -174,20 +215,29 @@ def versions_section(metrics: Mapping, builder: Mapping) -> Section:
     from datetime import datetime, timezone
 
     record_versions = metrics.get("versions", {})
-    return Section("Versions and commit", [
-        f"Run made on {_when(metrics.get('started_at'))} {commit_text(metrics.get('git'))}, config hash "
-        f"`{metrics.get('config_hash')}`.",
-        pd.DataFrame({"package": list(record_versions), "version": [str(v) for v in record_versions.values()]}),
-        f"Report built on {_when(datetime.now(timezone.utc).isoformat())} {commit_text(builder['git'])} with "
-        + ", ".join(f"{name} {version}" for name, version in builder["packages"].items()) + ".",
-    ])
+    return Section(
+        "Versions and commit",
+        [
+            f"Run made on {_when(metrics.get('started_at'))} {commit_text(metrics.get('git'))}, config hash "
+            f"`{metrics.get('config_hash')}`.",
+            pd.DataFrame({"package": list(record_versions), "version": [str(v) for v in record_versions.values()]}),
+            f"Report built on {_when(datetime.now(timezone.utc).isoformat())} {commit_text(builder['git'])} with "
+            + ", ".join(f"{name} {version}" for name, version in builder["packages"].items())
+            + ".",
+        ],
+    )
 
 
 def range_column(table: pd.DataFrame, column: str) -> pd.Series:
     """``8-12`` (or ``10``) per row: a column's range over the runs behind each row of a wide summary."""
+
     def text(low, high):
         if pd.isna(low):
             return "-"
         return f"{low:g}" if low == high else f"{low:g}-{high:g}"
-    return pd.Series([text(low, high) for low, high in zip(table[f"{column}_min"], table[f"{column}_max"])],
-                     index=table.index, name=column)
+
+    return pd.Series(
+        [text(low, high) for low, high in zip(table[f"{column}_min"], table[f"{column}_max"])],
+        index=table.index,
+        name=column,
+    )

@@ -15,14 +15,32 @@ from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
-from workbench.study.regime import is_paper_regime
-from workbench.reporting.report_figures import (FIGURE_FORMATS, FigureEntry, clear_figures, draw_coverage_curve,
-                                                make_figures)
-from workbench.reporting.report_sections import (Section, choices_rows, provenance_section, range_column,
-                                                 report_versions, versions_section)
+from workbench.reporting.report_figures import (
+    FIGURE_FORMATS,
+    FigureEntry,
+    clear_figures,
+    draw_coverage_curve,
+    make_figures,
+)
+from workbench.reporting.report_sections import (
+    Section,
+    choices_rows,
+    provenance_section,
+    range_column,
+    report_versions,
+    versions_section,
+)
+from workbench.reporting.runs import (
+    interval_label,
+    is_replicate_key,
+    runs_table,
+    summarise,
+    sweep_comparisons,
+    varying_keys,
+    wide,
+)
 from workbench.reporting.sweep_findings import holm_verdicts
-from workbench.reporting.runs import (interval_label, is_replicate_key, runs_table, summarise, sweep_comparisons,
-                                      varying_keys, wide)
+from workbench.study.regime import is_paper_regime
 
 
 def hand_basis_size(summary: pd.DataFrame, by: Sequence[str]) -> pd.Series:
@@ -56,13 +74,22 @@ def by_m(per_run: pd.DataFrame, swept: Sequence[str], over: Sequence[str]) -> pd
     others = [key for key in swept if key != "basis.coverage"]
     rows = per_run.drop(columns=["basis.coverage"]).assign(**{"pca.m": per_run["m"].astype(int)})
     rows = rows.drop_duplicates([*others, *over, "pca.m", "data", "basis", "solver"])
-    summary = wide(summarise(rows.drop(columns=[c for c in rows.columns if "." in c and c not in
-                                               (*others, *over, "pca.m")]), over=list(over)))
+    summary = wide(
+        summarise(
+            rows.drop(columns=[c for c in rows.columns if "." in c and c not in (*others, *over, "pca.m")]),
+            over=list(over),
+        )
+    )
     return summary.drop(columns=["m"]).rename(columns={"pca.m": "m"})
 
 
-def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Sequence[str],
-                  per_run: pd.DataFrame | None = None, over: Sequence[str] = ()) -> list:
+def sweep_figures(
+    records: Sequence[RunRecord],
+    summary: pd.DataFrame,
+    swept: Sequence[str],
+    per_run: pd.DataFrame | None = None,
+    over: Sequence[str] = (),
+) -> list:
     """Figure specs of a sweep report: the first run's coverage curve, alpha against each swept setting (and
     against m for a coverage sweep, runs grouped by m) with every run's own value as a point, alpha scored against
     the clean frames where the runs did, and marker versus mesh when the runs scored several data variants."""
@@ -72,9 +99,14 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
     column = headline_column(first.config)
     solver, _ = figure_solver(first.config)
     label = dataset_label(first)
-    specs = [("coverage_curve", "Coverage curve (first run)",
-              f"Cumulative explained variance against m for the run {first.folder.name}.",
-              lambda _, options: draw_coverage_curve(first))]
+    specs = [
+        (
+            "coverage_curve",
+            "Coverage curve (first run)",
+            f"Cumulative explained variance against m for the run {first.folder.name}.",
+            lambda _, options: draw_coverage_curve(first),
+        )
+    ]
     # (x, the swept setting it stands for): m stands for the coverage, the hand-basis size for the subset.
     targets = []
     for key in swept:
@@ -92,30 +124,49 @@ def sweep_figures(records: Sequence[RunRecord], summary: pd.DataFrame, swept: Se
             stem = "alpha_vs_" + x.replace(".", "_") + ("_clean" if y != column else "")
             against = " scored on the clean frames," if y != column else ""
             grouped = "; runs grouped by the m they kept (never averaged over different m)" if x == "m" else ""
-            specs.append((stem, f"Alpha{against} against {axis_label(x)}",
-                          f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}; "
-                          f"{interval_label(table)}{grouped}"
-                          + (f"; one line per value of {', '.join(others)}." if others else "."),
-                          lambda _, options, x=x, y=y, others=others, table=table: plot_alpha_against(
-                              table, x, y, solver=solver, by=others, panels=[p for p in panels if p != x],
-                              points=per_run if per_run is not None and x in per_run.columns else None,
-                              title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
-                                    f"{axis_label(x)}\n{label}")))
+            specs.append(
+                (
+                    stem,
+                    f"Alpha{against} against {axis_label(x)}",
+                    f"`{y}` (geometric mean over seeds) of each basis against {axis_label(x)}; "
+                    f"{interval_label(table)}{grouped}"
+                    + (f"; one line per value of {', '.join(others)}." if others else "."),
+                    lambda _, options, x=x, y=y, others=others, table=table: plot_alpha_against(
+                        table,
+                        x,
+                        y,
+                        solver=solver,
+                        by=others,
+                        panels=[p for p in panels if p != x],
+                        points=per_run if per_run is not None and x in per_run.columns else None,
+                        title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
+                        f"{axis_label(x)}\n{label}",
+                    ),
+                )
+            )
     # held-out frames are no data variant, and a paper-regime variant (m = n) differs in m, not in the points
     compared = [data for data in training_variants(first) if not is_paper_regime(data)]
     trained = summary[summary["data"].isin(compared)]
     if "eval_on" in trained.columns and trained["train_on"].nunique() > 1:
         fixed = [key for key in swept if key != "dataset.train_on"]
-        for values, part in (trained.groupby(fixed, sort=False) if fixed else [((), trained)]):
+        for values, part in trained.groupby(fixed, sort=False) if fixed else [((), trained)]:
             values = values if isinstance(values, tuple) else (values,)
             setting = ", ".join(f"{key} = {value}" for key, value in zip(fixed, values))
             stem = "marker_vs_mesh" + "".join(f"_{value}" for value in values).replace(".", "_")
-            specs.append((stem, f"Marker versus mesh{': ' + setting if setting else ''}",
-                          "Each basis fitted on each data variant and scored on the common evaluation sets, in "
-                          f"millimetres and `alpha_disp_pooled`; error bars: {interval_label(part)}.",
-                          lambda _, options, part=part, setting=setting: plot_marker_vs_mesh(
-                              part, ("rms_mm", "alpha_disp_pooled"), solver=solver,
-                              title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}")))
+            specs.append(
+                (
+                    stem,
+                    f"Marker versus mesh{': ' + setting if setting else ''}",
+                    "Each basis fitted on each data variant and scored on the common evaluation sets, in "
+                    f"millimetres and `alpha_disp_pooled`; error bars: {interval_label(part)}.",
+                    lambda _, options, part=part, setting=setting: plot_marker_vs_mesh(
+                        part,
+                        ("rms_mm", "alpha_disp_pooled"),
+                        solver=solver,
+                        title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}",
+                    ),
+                )
+            )
     return specs
 
 
@@ -123,9 +174,16 @@ def _natural(text: str):
     return (0, float(text)) if text.replace(".", "", 1).lstrip("-").isdigit() else (1, text)
 
 
-def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFrame, summary: pd.DataFrame,
-                   comparisons: pd.DataFrame, swept: Sequence[str], figures: list[FigureEntry],
-                   command: str) -> tuple[str, list[Section]]:
+def sweep_sections(
+    root: Path,
+    records: Sequence[RunRecord],
+    per_run: pd.DataFrame,
+    summary: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    swept: Sequence[str],
+    figures: list[FigureEntry],
+    command: str,
+) -> tuple[str, list[Section]]:
     from workbench.reporting.sweep_findings import holm_text, replicate_caveat, sweep_statements
 
     first = records[0]
@@ -134,51 +192,73 @@ def sweep_sections(root: Path, records: Sequence[RunRecord], per_run: pd.DataFra
     title = f"Study '{first.config['study']}': sweep over {', '.join(swept) or 'seeds'} on the {dataset_label(first)}"
     replicates = "; ".join(
         f"{key} " + ", ".join(sorted({str(value) for value in per_run[key].dropna()}, key=_natural))
-        for key in per_run.columns if is_replicate_key(key))
+        for key in per_run.columns
+        if is_replicate_key(key)
+    )
     columns = [column] + ([f"clean_{column}"] if f"clean_{column}" in summary.columns else [])
     shown = summary[[*swept, "data", "basis", "solver", "n_seeds"]].assign(
-        m=range_column(summary, "m"), n=range_column(summary, "n"))
+        m=range_column(summary, "m"), n=range_column(summary, "n")
+    )
     for name in columns:
-        shown = shown.assign(**{name: summary[name], f"{name}_ci_low": summary[f"{name}_ci_low"],
-                                f"{name}_ci_high": summary[f"{name}_ci_high"]})
+        shown = shown.assign(
+            **{
+                name: summary[name],
+                f"{name}_ci_low": summary[f"{name}_ci_low"],
+                f"{name}_ci_high": summary[f"{name}_ci_high"],
+            }
+        )
     shown = shown.assign(paper_alpha=summary["paper_alpha"])
     solvers = [name for name in dict.fromkeys(per_run["solver"]) if name != "projection"]
     hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
     compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    findings = [holm_text(comparisons, column), *replicate_caveat([key for key in per_run.columns
-                                                                  if is_replicate_key(key)])] + [
-        line for name in [solver, *(other for other in solvers if other != solver)]
-        for line in sweep_statements(summary, comparisons, swept, columns, name)]
+    findings = [
+        holm_text(comparisons, column),
+        *replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]),
+    ] + [
+        line
+        for name in [solver, *(other for other in solvers if other != solver)]
+        for line in sweep_statements(summary, comparisons, swept, columns, name)
+    ]
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
         Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", findings]),
-        Section("About this report", [
-            f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
-            f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
-            f"{replicates or 'nothing (one run each)'}. Levels: geometric means; {interval_label(summary)} (it stays "
-            "positive, as alpha does); m and n are ranges over the runs, never averaged.",
-        ]),
+        Section(
+            "About this report",
+            [
+                f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
+                f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
+                f"{replicates or 'nothing (one run each)'}. Levels: geometric means; {interval_label(summary)} (it stays "
+                "positive, as alpha does); m and n are ranges over the runs, never averaged.",
+            ],
+        ),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
-        Section("Paired comparisons", [
-            f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
-            f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
-            "the smaller first; `p`: the p-value of the same test, `p_holm`: Holm's adjustment of it over every row "
-            "but the primary contrasts (QE/H and QE/PCA with lstsq on the first data variant, NaN); 'verdict' '<' "
-            "only where the primary contrast's interval excludes 1, or the other row's p_holm is below 0.05.",
-            compared]),
+        Section(
+            "Paired comparisons",
+            [
+                f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
+                f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
+                "the smaller first; `p`: the p-value of the same test, `p_holm`: Holm's adjustment of it over every row "
+                "but the primary contrasts (QE/H and QE/PCA with lstsq on the first data variant, NaN); 'verdict' '<' "
+                "only where the primary contrast's interval excludes 1, or the other row's p_holm is below 0.05.",
+                compared,
+            ],
+        ),
         Section("Figures", figures),
         Section("Runs", [runs.astype(str)]),
-        Section("Choices the runs made (first run)",
-                [pd.DataFrame(choices_rows(first.config), columns=["question", "choice"])]),
+        Section(
+            "Choices the runs made (first run)",
+            [pd.DataFrame(choices_rows(first.config), columns=["question", "choice"])],
+        ),
         provenance_section(first.metrics, "Dataset provenance and licence (first run)"),
         versions_section(first.metrics, report_versions()),
     ]
     return title, sections
 
 
-def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE_FORMATS,
-                       command: str = "workbench report") -> Path:
+def build_sweep_report(
+    root: Path, out: Path, *, formats: Sequence[str] = FIGURE_FORMATS, command: str = "workbench report"
+) -> Path:
     """Write the report of every complete run under ``root`` into ``out``: index.html, README.md, figures/,
     summary.csv (the tidy table), comparisons.csv (the paired comparisons) and runs.csv (every row of every run).
 
@@ -201,8 +281,7 @@ def build_sweep_report(root: Path, out: Path, *, formats: Sequence[str] = FIGURE
     comparisons = holm_verdicts(sweep_comparisons(per_run, [column, f"clean_{column}"], over), column)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
-    entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir,
-                           formats, {})
+    entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir, formats, {})
     title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
     sections = fit_findings(with_bases_section(sections, records, figures_dir, formats, ordering=False))
     write_documents(out, title, sections)

@@ -11,20 +11,34 @@ from workbench.core.errors import WorkbenchError
 from workbench.record.record import CLEAN_COLUMNS, FRAME_COLUMNS
 
 ROW_NAME_COLUMNS = ("data", "basis", "projection", "solver")
-ALPHA_TABLE_COLUMNS = ("n", "m", "coverage", "alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean",
-                       "alpha_disp_pooled", "rms_mm", "paper_alpha")
+ALPHA_TABLE_COLUMNS = (
+    "n",
+    "m",
+    "coverage",
+    "alpha_abs_mean",
+    "alpha_abs_pooled",
+    "alpha_disp_mean",
+    "alpha_disp_pooled",
+    "rms_mm",
+    "paper_alpha",
+)
 TABLE_COLUMNS = (*ROW_NAME_COLUMNS, *ALPHA_TABLE_COLUMNS, *FRAME_COLUMNS)
 
 
 def alpha_columns(summary, prefix: str = "") -> dict:
     """The alpha-table columns of an :class:`workbench.numerics.metrics.AlphaSummary` (with ``prefix`` before each name)."""
-    return {f"{prefix}alpha_abs_mean": summary.absolute_mean, f"{prefix}alpha_abs_pooled": summary.absolute_pooled,
-            f"{prefix}alpha_disp_mean": summary.displacement_mean,
-            f"{prefix}alpha_disp_pooled": summary.displacement_pooled, f"{prefix}rms_mm": summary.rms_mm}
+    return {
+        f"{prefix}alpha_abs_mean": summary.absolute_mean,
+        f"{prefix}alpha_abs_pooled": summary.absolute_pooled,
+        f"{prefix}alpha_disp_mean": summary.displacement_mean,
+        f"{prefix}alpha_disp_pooled": summary.displacement_pooled,
+        f"{prefix}rms_mm": summary.rms_mm,
+    }
 
 
-def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
-                paper_alpha: Mapping[str, float]) -> pd.DataFrame:
+def alpha_table(
+    rows: Sequence, *, data: str, m: int, coverage: float, paper_alpha: Mapping[str, float]
+) -> pd.DataFrame:
     """One row per (basis, solver) with every alpha variant and the paper's value beside it.
 
     Parameters
@@ -45,12 +59,22 @@ def alpha_table(rows: Sequence, *, data: str, m: int, coverage: float,
         Columns ``TABLE_COLUMNS``, then :data:`CLEAN_COLUMNS` when a row was scored against the clean frames.
     """
     clean = any(getattr(row, "clean_alpha", None) is not None for row in rows)
-    records = [{
-        "data": data, "basis": row.basis, "projection": row.projection, "solver": row.solver, "n": row.n_shapes,
-        "m": m, "coverage": coverage, **alpha_columns(row.alpha), "paper_alpha": paper_alpha.get(row.basis, math.nan),
-        **frame_values(row),
-        **(alpha_columns(row.clean_alpha, "clean_") if clean and row.clean_alpha is not None else {}),
-    } for row in rows]
+    records = [
+        {
+            "data": data,
+            "basis": row.basis,
+            "projection": row.projection,
+            "solver": row.solver,
+            "n": row.n_shapes,
+            "m": m,
+            "coverage": coverage,
+            **alpha_columns(row.alpha),
+            "paper_alpha": paper_alpha.get(row.basis, math.nan),
+            **frame_values(row),
+            **(alpha_columns(row.clean_alpha, "clean_") if clean and row.clean_alpha is not None else {}),
+        }
+        for row in rows
+    ]
     return pd.DataFrame.from_records(records, columns=list(TABLE_COLUMNS) + (list(CLEAN_COLUMNS) if clean else []))
 
 
@@ -58,10 +82,15 @@ def frame_values(row) -> dict:
     """The :data:`FRAME_COLUMNS` of one row (NaN where it has no such measure)."""
     error, weights = getattr(row, "error_mm", None), getattr(row, "weight_statistics", None)
     nan = math.nan
-    return {"err_mm_median": error.median if error else nan, "err_mm_p95": error.p95 if error else nan,
-            "err_mm_max": error.max if error else nan, "w_max_abs": weights.max_abs if weights else nan,
-            "w_outside_01": weights.outside_unit_share if weights else nan,
-            "w_sparsity": weights.sparsity if weights else nan, "w_roughness": weights.roughness if weights else nan}
+    return {
+        "err_mm_median": error.median if error else nan,
+        "err_mm_p95": error.p95 if error else nan,
+        "err_mm_max": error.max if error else nan,
+        "w_max_abs": weights.max_abs if weights else nan,
+        "w_outside_01": weights.outside_unit_share if weights else nan,
+        "w_sparsity": weights.sparsity if weights else nan,
+        "w_roughness": weights.roughness if weights else nan,
+    }
 
 
 def printed_tables(table: pd.DataFrame) -> str:
@@ -84,14 +113,18 @@ def printed_tables(table: pd.DataFrame) -> str:
     text = markdown_frame(table[[*names, *[c for c in ALPHA_TABLE_COLUMNS if c in table.columns]]])
     frame = [column for column in FRAME_COLUMNS if column in table.columns]
     if frame:
-        text += ("\nper-frame error over the face region (mm: median, 95th percentile, maximum over frames) and the "
-                 "weights (largest |w|; share of frames with a weight outside [0, 1]; Hoyer sparsity, 1 = one shape "
-                 "per frame; roughness = mean squared second time derivative, 1/s^4):\n\n"
-                 + markdown_frame(table[[*names, *frame]]))
+        text += (
+            "\nper-frame error over the face region (mm: median, 95th percentile, maximum over frames) and the "
+            "weights (largest |w|; share of frames with a weight outside [0, 1]; Hoyer sparsity, 1 = one shape "
+            "per frame; roughness = mean squared second time derivative, 1/s^4):\n\n"
+            + markdown_frame(table[[*names, *frame]])
+        )
     clean = [column for column in CLEAN_COLUMNS if column in table.columns]
     if clean:
-        text += ("\nthe same reconstructions scored against the clean frames (no marker noise, no dropout; "
-                 "metric.score_clean):\n\n" + markdown_frame(table[[*names, *clean]]))
+        text += (
+            "\nthe same reconstructions scored against the clean frames (no marker noise, no dropout; "
+            "metric.score_clean):\n\n" + markdown_frame(table[[*names, *clean]])
+        )
     return text
 
 
@@ -111,9 +144,13 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
     """
     paper, basis = cfg["paper"], cfg["basis"]
     first = results[0].capture
-    rule = (f"fixed m = {basis['n_components']}" if basis["n_components"] is not None
-            else f"m of the clean capture at coverage threshold {basis['coverage']}"
-            if basis.get("coverage_on", "training") == "clean" else f"coverage threshold {basis['coverage']}")
+    rule = (
+        f"fixed m = {basis['n_components']}"
+        if basis["n_components"] is not None
+        else f"m of the clean capture at coverage threshold {basis['coverage']}"
+        if basis.get("coverage_on", "training") == "clean"
+        else f"coverage threshold {basis['coverage']}"
+    )
     lines = [
         f"Study '{cfg['study']}' on {first.name}",
         f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "
@@ -128,17 +165,22 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
         empty = "; ".join(
             f"{projection}: {[j + 1 for j in qe.empty_axes] or 'none'}"
             + (f" (appended {[j + 1 for j in qe.appended_axes]})" if qe.appended_axes else "")
-            for projection, qe in result.quasi_eigen.items())
+            for projection, qe in result.quasi_eigen.items()
+        )
         from workbench.study.regime import is_paper_regime
 
-        lines += [
-            f"data '{result.data}': {len(capture.train)} training frames, {len(capture.eval)} evaluated, "
-            f"{capture.n_points} points, {len(capture.hand_names)} hand shapes",
-            f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} "
-            f"({'m = n, basis.paper_regime' if is_paper_regime(result.data) else rule}); "
-            f"paper: m = {paper['m']} at {paper['coverage']}",
-            f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
-        ] if not result.folds else fold_lines(result)
+        lines += (
+            [
+                f"data '{result.data}': {len(capture.train)} training frames, {len(capture.eval)} evaluated, "
+                f"{capture.n_points} points, {len(capture.hand_names)} hand shapes",
+                f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} "
+                f"({'m = n, basis.paper_regime' if is_paper_regime(result.data) else rule}); "
+                f"paper: m = {paper['m']} at {paper['coverage']}",
+                f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
+            ]
+            if not result.folds
+            else fold_lines(result)
+        )
         lines += conditioning_lines(result.rows)
         lines += [f"  note: {note}" for note in capture.notes]
     return "\n".join(lines) + "\n"
@@ -150,9 +192,11 @@ def fold_lines(result) -> list[str]:
     from workbench.stats.statistics import paired_ratio_interval
 
     folds = result.folds
-    lines = [f"  {folds['n_folds']} folds; m chosen in each fold by the coverage rule on its training frames: "
-             f"m = {folds['m']}, held-out frames per fold {folds['n_eval_frames']}",
-             "  held-out alpha_abs_pooled over all folds' held-out frames [per fold]:"]
+    lines = [
+        f"  {folds['n_folds']} folds; m chosen in each fold by the coverage rule on its training frames: "
+        f"m = {folds['m']}, held-out frames per fold {folds['n_eval_frames']}",
+        "  held-out alpha_abs_pooled over all folds' held-out frames [per fold]:",
+    ]
     rows = folds["rows"]
     for i, (basis, _, solver) in enumerate(rows):
         per_fold = ", ".join(f"{value:.3g}" for value in folds["alpha_abs_pooled"][i])
@@ -165,15 +209,20 @@ def fold_lines(result) -> list[str]:
         if a is None or b is None:
             continue
         interval = paired_ratio_interval(folds["alpha_abs_pooled"][a], folds["alpha_abs_pooled"][b])
-        lines.append(f"  {first}/{second} ({solver}), geometric mean of per-fold ratios: {interval.estimate:.3g}, "
-                     f"95 % interval [{interval.low:.3g}, {interval.high:.3g}] (paired t on log ratios over folds, "
-                     f"n = {interval.n})")
+        lines.append(
+            f"  {first}/{second} ({solver}), geometric mean of per-fold ratios: {interval.estimate:.3g}, "
+            f"95 % interval [{interval.low:.3g}, {interval.high:.3g}] (paired t on log ratios over folds, "
+            f"n = {interval.n})"
+        )
     return lines
 
 
-
-HEADLINE_COLUMNS = {("absolute", "mean"): "absolute_mean", ("absolute", "pooled"): "absolute_pooled",
-                    ("displacement", "mean"): "displacement_mean", ("displacement", "pooled"): "displacement_pooled"}
+HEADLINE_COLUMNS = {
+    ("absolute", "mean"): "absolute_mean",
+    ("absolute", "pooled"): "absolute_pooled",
+    ("displacement", "mean"): "displacement_mean",
+    ("displacement", "pooled"): "displacement_pooled",
+}
 """``metric.headline_normalisation`` and ``headline_aggregate`` -> the :class:`workbench.numerics.metrics.AlphaSummary` field."""
 
 
@@ -194,8 +243,9 @@ def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
         Empty when no variant has H, QE and PCA with lstsq scored on its training frames.
     """
     metric, paper = cfg.get("metric") or {}, cfg["paper"]
-    field = HEADLINE_COLUMNS.get((metric.get("headline_normalisation", "absolute"),
-                                  metric.get("headline_aggregate", "mean")), "absolute_mean")
+    field = HEADLINE_COLUMNS.get(
+        (metric.get("headline_normalisation", "absolute"), metric.get("headline_aggregate", "mean")), "absolute_mean"
+    )
     regime, rule = [], []
     for result in results:
         if result.protocol != "training frames":
@@ -207,9 +257,11 @@ def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
     if not regime and not rule:
         return []
     reported = paper["alpha"]
-    head = (f"  the paper's regime m = n (paper: H/QE {reported['H'] / reported['QE']:.2g}, QE/PCA "
-            f"{reported['QE'] / reported['PCA']:.3g} at m = n = "
-            f"{paper['m']}; alpha {field}, lstsq; cond: the basis's condition number, or its rank when deficient):")
+    head = (
+        f"  the paper's regime m = n (paper: H/QE {reported['H'] / reported['QE']:.2g}, QE/PCA "
+        f"{reported['QE'] / reported['PCA']:.3g} at m = n = "
+        f"{paper['m']}; alpha {field}, lstsq; cond: the basis's condition number, or its rank when deficient):"
+    )
     lines = [head] + (regime or ["    none in this run (basis.n_components fixes m, or paper_regime is off)"])
     if rule:
         lines += ["  beside it, the coverage rule's m:"] + rule
@@ -220,20 +272,28 @@ def regime_text(result, field: str) -> str:
     """H/QE and QE/PCA of one variant (least squares, alpha ``field``), with H's and QE's conditioning and largest
     |w|; empty when H, QE or PCA is missing."""
     rows = {(row.basis, row.solver): row for row in result.rows}
-    found = {basis: rows.get((basis, solver)) for basis, solver in (("H", "lstsq"), ("QE", "lstsq"),
-                                                                    ("PCA", "projection"))}
+    found = {
+        basis: rows.get((basis, solver)) for basis, solver in (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
+    }
     if any(row is None for row in found.values()):
         return ""
     alpha = {basis: getattr(row.alpha, field) for basis, row in found.items()}
 
     def conditioning(basis: str) -> str:
         report, row = found[basis].conditioning, found[basis]
-        cond = ("?" if report is None else f"rank {report.rank}/{report.n_shapes}" if report.rank < report.n_shapes
-                else f"cond {report.condition_number:.3g}")
+        cond = (
+            "?"
+            if report is None
+            else f"rank {report.rank}/{report.n_shapes}"
+            if report.rank < report.n_shapes
+            else f"cond {report.condition_number:.3g}"
+        )
         return f"{basis} {cond}, max |w| {row.max_abs_weight:.3g}"
 
-    return (f"H/QE {alpha['H'] / alpha['QE']:.3g}, QE/PCA {alpha['QE'] / alpha['PCA']:.3g} (H {alpha['H']:.3g}, "
-            f"QE {alpha['QE']:.3g}, PCA {alpha['PCA']:.3g}); {conditioning('QE')}; {conditioning('H')}")
+    return (
+        f"H/QE {alpha['H'] / alpha['QE']:.3g}, QE/PCA {alpha['QE'] / alpha['PCA']:.3g} (H {alpha['H']:.3g}, "
+        f"QE {alpha['QE']:.3g}, PCA {alpha['PCA']:.3g}); {conditioning('QE')}; {conditioning('H')}"
+    )
 
 
 ILL_CONDITIONED = 1e6
@@ -260,22 +320,26 @@ def conditioning_lines(rows: Sequence) -> list[str]:
             continue
         seen.add(row.basis)
         if report.rank < report.n_shapes:
-            parts.append(f"{row.basis} rank {report.rank} of {report.n_shapes} (weights not unique; minimum-norm "
-                         "for lstsq)")
+            parts.append(
+                f"{row.basis} rank {report.rank} of {report.n_shapes} (weights not unique; minimum-norm for lstsq)"
+            )
         else:
             parts.append(f"{row.basis} condition number {report.condition_number:.3g}")
         problems = []
         if report.zero_shapes:
             problems.append(f"all-zero shapes {list(report.zero_shapes)}")
         if report.near_duplicates:
-            problems.append("near-duplicate shapes " + ", ".join(f"{i}~{j} (cos {c:.4f})"
-                                                                  for i, j, c in report.near_duplicates[:5]))
+            problems.append(
+                "near-duplicate shapes " + ", ".join(f"{i}~{j} (cos {c:.4f})" for i, j, c in report.near_duplicates[:5])
+            )
         if report.rank == report.n_shapes and report.condition_number > ILL_CONDITIONED:
             problems.append(f"condition number {report.condition_number:.3g} > {ILL_CONDITIONED:g}")
         if problems and row.basis == "H":
             largest = max(r.max_abs_weight for r in rows if r.basis == row.basis)
-            warnings.append(f"  WARNING: basis {row.basis} is ill-conditioned: {'; '.join(problems)}; its weights "
-                            f"are unstable (largest |w| {largest:.3g})")
+            warnings.append(
+                f"  WARNING: basis {row.basis} is ill-conditioned: {'; '.join(problems)}; its weights "
+                f"are unstable (largest |w| {largest:.3g})"
+            )
     return ([f"  bases: {'; '.join(parts)}"] if parts else []) + warnings
 
 
@@ -291,25 +355,41 @@ def result_identities(results: Sequence) -> dict:
 
     found = {}
     for result in results:
-        rows = [{"basis": row.basis, "solver": row.solver, "n": row.n_shapes,
-                 "train_on": result.train_on or result.data, "eval_on": result.eval_on or result.data,
-                 "basis_conditioning": row.conditioning.as_dict() if row.conditioning else None}
-                for row in result.rows]
-        facts = {"pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
-                 "protocol": result.protocol, "notes": list(result.capture.notes)}
+        rows = [
+            {
+                "basis": row.basis,
+                "solver": row.solver,
+                "n": row.n_shapes,
+                "train_on": result.train_on or result.data,
+                "eval_on": result.eval_on or result.data,
+                "basis_conditioning": row.conditioning.as_dict() if row.conditioning else None,
+            }
+            for row in result.rows
+        ]
+        facts = {
+            "pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
+            "protocol": result.protocol,
+            "notes": list(result.capture.notes),
+        }
         found[result.data] = run_identities(rows, facts)
     return found
 
 
-PAPER_ALPHA_NOTE = ("paper_alpha is Kim & Ko's own capture (35,000 frames, 66 markers), its own coordinate origin and "
-                    "absolute alpha: absolute alpha divides by |v*| and so moves with where the origin lies, and "
-                    "another face, capture and hand basis give other values; compare the ratios H/QE and QE/PCA "
-                    "(paper 7.2 and 1.16), not alpha itself")
+PAPER_ALPHA_NOTE = (
+    "paper_alpha is Kim & Ko's own capture (35,000 frames, 66 markers), its own coordinate origin and "
+    "absolute alpha: absolute alpha divides by |v*| and so moves with where the origin lies, and "
+    "another face, capture and hand basis give other values; compare the ratios H/QE and QE/PCA "
+    "(paper 7.2 and 1.16), not alpha itself"
+)
 
 
-def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, float],
-             comparisons: Mapping[str, Sequence[Mapping]] | None = None,
-             identities: Mapping[str, Sequence] | None = None) -> str:
+def headline(
+    table: pd.DataFrame,
+    metric: Mapping,
+    paper_alpha: Mapping[str, float],
+    comparisons: Mapping[str, Sequence[Mapping]] | None = None,
+    identities: Mapping[str, Sequence] | None = None,
+) -> str:
     """One line per solver: the configured alpha of every basis beside the paper's values; with ``comparisons``
     the bases from best to worst, ``<`` only where the paired per-frame difference's interval excludes zero.
 
@@ -335,8 +415,10 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
     short = {"absolute": "abs", "displacement": "disp"}
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
     if normalisation not in short or aggregate not in ("mean", "pooled"):
-        raise WorkbenchError(f"metric.headline_normalisation must be absolute|displacement and headline_aggregate "
-                         f"mean|pooled, got {normalisation!r}, {aggregate!r}")
+        raise WorkbenchError(
+            f"metric.headline_normalisation must be absolute|displacement and headline_aggregate "
+            f"mean|pooled, got {normalisation!r}, {aggregate!r}"
+        )
     column = f"alpha_{short[normalisation]}_{aggregate}"
     lines = []
     several = table["data"].nunique() > 1
@@ -346,22 +428,34 @@ def headline(table: pd.DataFrame, metric: Mapping, paper_alpha: Mapping[str, flo
             rows = part[part["solver"] == solver].set_index("basis")[column]
             prefix = (f"{data}: " if several else "") + f"{column} with {solver}: "
             if comparisons is None:
-                lines.append(prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index)
-                             + f", PCA {pca:.2f}")
+                lines.append(
+                    prefix + ", ".join(f"{basis} {rows[basis]:.2f}" for basis in rows.index) + f", PCA {pca:.2f}"
+                )
                 continue
             from workbench.stats.identities import identity_lookup
             from workbench.stats.statistics import comparison_lookup, ordering_text
 
-            values = {**{(basis, solver): float(rows[basis]) for basis in rows.index},
-                      ("PCA", "projection"): float(pca)}
+            values = {
+                **{(basis, solver): float(rows[basis]) for basis in rows.index},
+                ("PCA", "projection"): float(pca),
+            }
             lookup = identity_lookup((identities or {}).get(data, []), column)
-            lines.append(prefix + ordering_text(values, comparison_lookup(comparisons.get(data, [])),
-                                                name=lambda key: key[0], digits=3,
-                                                identity=lambda a, b: getattr(lookup(a, b), "reason", None)))
+            lines.append(
+                prefix
+                + ordering_text(
+                    values,
+                    comparison_lookup(comparisons.get(data, [])),
+                    name=lambda key: key[0],
+                    digits=3,
+                    identity=lambda a, b: getattr(lookup(a, b), "reason", None),
+                )
+            )
     if comparisons is not None:
-        lines.append("'<': the paired per-frame difference's 95 % batch-means interval excludes 0; '~': it does "
-                     "not (the two are not distinguishable on these frames); '=': equal within the tie tolerance; "
-                     "'<= by construction': an identity of the bases and solvers, not a finding (docs/statistics.md)")
+        lines.append(
+            "'<': the paired per-frame difference's 95 % batch-means interval excludes 0; '~': it does "
+            "not (the two are not distinguishable on these frames); '=': equal within the tie tolerance; "
+            "'<= by construction': an identity of the bases and solvers, not a finding (docs/statistics.md)"
+        )
     paper = ", ".join(f"{basis} {value}" for basis, value in paper_alpha.items())
     lines.append(f"paper (Kim & Ko, absolute alpha, QP solver with unstated constraints): {paper}")
     lines.append(PAPER_ALPHA_NOTE)

@@ -15,10 +15,10 @@ import numpy as np
 import pandas as pd
 
 from workbench.core.errors import WorkbenchError
-from workbench.stats.identities import run_identities
 from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
-from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.reporting.tables import is_missing
+from workbench.stats.identities import run_identities
+from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 
 ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
 """Columns that name one row of a run's alpha table."""
@@ -58,8 +58,9 @@ def varying_keys(configs: Sequence[Mapping]) -> list[str]:
     """Config keys whose value differs between runs, in config order, leaving out paths and the like."""
     flat = [flatten(config) for config in configs]
     keys = list(dict.fromkeys(key for config in flat for key in config))
-    return [key for key in keys if not key.startswith(IGNORED_KEYS)
-            and len({repr(config.get(key)) for config in flat}) > 1]
+    return [
+        key for key in keys if not key.startswith(IGNORED_KEYS) and len({repr(config.get(key)) for config in flat}) > 1
+    ]
 
 
 def natural_key(value) -> tuple:
@@ -69,8 +70,10 @@ def natural_key(value) -> tuple:
         return (2, ())
     if isinstance(value, (bool, np.bool_, int, float, np.integer, np.floating)):
         return (0, (float(value),))
-    return (1, tuple((0, int(part), "") if part.isdigit() else (1, 0, part)
-                     for part in re.findall(r"\d+|\D+", str(value))))
+    return (
+        1,
+        tuple((0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.findall(r"\d+|\D+", str(value))),
+    )
 
 
 def config_columns(runs: pd.DataFrame) -> list[str]:
@@ -90,8 +93,10 @@ def typed_columns(runs: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
         values = [value for value in runs[column] if not is_missing(value)]
         if values and all(isinstance(value, (bool, np.bool_)) for value in values):
             runs[column] = runs[column].astype("boolean")
-        elif values and all(isinstance(value, (int, float, np.integer, np.floating))
-                            and not isinstance(value, (bool, np.bool_)) for value in values):
+        elif values and all(
+            isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+            for value in values
+        ):
             runs[column] = pd.to_numeric(runs[column])
         else:
             runs[column] = [None if is_missing(value) else str(value) for value in runs[column]]
@@ -102,10 +107,15 @@ def record_rows(record: RunRecord, keys: Sequence[str], root: Path | None = None
     """One run's rows of the runs table: the run's identity, its values of ``keys``, then per alpha-table row
     that row's values, the data variant's sizes and the stage timings."""
     flat = flatten(record.config)
-    run = {"study": record.study, "sweep": str(record.folder.parent),
-           "run": str(record.folder.relative_to(root)) if root is not None else record.folder.name,
-           "job_num": record.job_num, "config_hash": record.config_hash,
-           "git_commit": record.git.get("commit"), "git_dirty": record.git.get("dirty")}
+    run = {
+        "study": record.study,
+        "sweep": str(record.folder.parent),
+        "run": str(record.folder.relative_to(root)) if root is not None else record.folder.name,
+        "job_num": record.job_num,
+        "config_hash": record.config_hash,
+        "git_commit": record.git.get("commit"),
+        "git_dirty": record.git.get("dirty"),
+    }
     run.update({key: flat.get(key) for key in keys})
     rows = []
     never_worse = never_worse_than(record)
@@ -115,8 +125,11 @@ def record_rows(record: RunRecord, keys: Sequence[str], root: Path | None = None
         entry[NEVER_WORSE_COLUMN] = never_worse.get((row["data"], row["basis"], row["solver"]), "-")
         entry.setdefault("train_on", row["data"])
         entry.setdefault("eval_on", row["data"])
-        entry.update(n_points=data.get("n_points"), n_train_frames=data.get("n_train_frames"),
-                     n_eval_frames=data.get("n_eval_frames"))
+        entry.update(
+            n_points=data.get("n_points"),
+            n_train_frames=data.get("n_train_frames"),
+            n_eval_frames=data.get("n_eval_frames"),
+        )
         entry.update({f"time_{stage}": seconds for stage, seconds in record.timings.items()})
         rows.append(entry)
     return rows
@@ -194,9 +207,13 @@ def runs_table(records: Sequence[RunRecord], root: Path | None = None) -> pd.Dat
     runs = pd.DataFrame.from_records([row for record in records for row in record_rows(record, keys, root)])
     sweeps = {sweep: i for i, sweep in enumerate(dict.fromkeys(runs["sweep"]))}
     order_keys = ["study", "sweep", "job_num", *keys]
-    order = sorted(range(len(runs)), key=lambda i: tuple(
-        (0, (sweeps[runs["sweep"].iloc[i]],)) if key == "sweep" else natural_key(runs[key].iloc[i])
-        for key in order_keys))
+    order = sorted(
+        range(len(runs)),
+        key=lambda i: tuple(
+            (0, (sweeps[runs["sweep"].iloc[i]],)) if key == "sweep" else natural_key(runs[key].iloc[i])
+            for key in order_keys
+        ),
+    )
     runs = runs.iloc[order].reset_index(drop=True)
     return typed_columns(runs, keys)
 
@@ -215,8 +232,7 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     paths = [Path(path) for path in paths]
     complete, incomplete = find_records(paths)
     if not complete:
-        raise WorkbenchError(f"no complete run record (a folder with '{DONE}') under "
-                             f"{', '.join(map(str, paths))}")
+        raise WorkbenchError(f"no complete run record (a folder with '{DONE}') under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in progress(complete, desc="records")]
     root = paths[0] if len(paths) == 1 and paths[0] not in complete else None
     return runs_table(records, root), incomplete
@@ -225,11 +241,19 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
 def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
     """``95 % interval: geometric mean, t-interval on log values; n = 5 seeds``: the method and replicate count
     of a summary's intervals (its ``ci_method`` and ``n_seeds``), named beside every interval shown or drawn."""
-    method = str(table["ci_method"].dropna().iloc[0]) if "ci_method" in table.columns and \
-        table["ci_method"].notna().any() else GEOMETRIC
+    method = (
+        str(table["ci_method"].dropna().iloc[0])
+        if "ci_method" in table.columns and table["ci_method"].notna().any()
+        else GEOMETRIC
+    )
     counts = table["n_seeds"].dropna().astype(int) if "n_seeds" in table.columns else pd.Series([], dtype=int)
-    n_text = "" if counts.empty else "; n = " + (f"{counts.min()}" if counts.min() == counts.max()
-                                                 else f"{counts.min()}-{counts.max()}") + f" {replicates}"
+    n_text = (
+        ""
+        if counts.empty
+        else "; n = "
+        + (f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}")
+        + f" {replicates}"
+    )
     return f"95 % interval: {method}{n_text}"
 
 
@@ -246,12 +270,17 @@ def level_statistics(values) -> dict:
     values = np.asarray(values, dtype=np.float64)
     values = values[np.isfinite(values)]
     interval = geometric_interval(values)
-    return {"n": int(values.size), "mean": float(values.mean()) if values.size else np.nan,
-            "std": float(values.std(ddof=1)) if values.size > 1 else np.nan,
-            "min": float(values.min()) if values.size else np.nan,
-            "max": float(values.max()) if values.size else np.nan,
-            "geomean": interval.estimate, "ci95_low": interval.low, "ci95_high": interval.high,
-            "ci_method": interval.method}
+    return {
+        "n": int(values.size),
+        "mean": float(values.mean()) if values.size else np.nan,
+        "std": float(values.std(ddof=1)) if values.size > 1 else np.nan,
+        "min": float(values.min()) if values.size else np.nan,
+        "max": float(values.max()) if values.size else np.nan,
+        "geomean": interval.estimate,
+        "ci95_low": interval.low,
+        "ci95_high": interval.high,
+        "ci_method": interval.method,
+    }
 
 
 def condition_keys(runs: pd.DataFrame, over: Sequence[str] | None) -> tuple[list[str], list[str]]:
@@ -265,8 +294,12 @@ def condition_keys(runs: pd.DataFrame, over: Sequence[str] | None) -> tuple[list
     return [column for column in conditions if column not in over], over
 
 
-def summarise(runs: pd.DataFrame, over: Sequence[str] | None = None,
-              metrics: Sequence[str] = SUMMARY_METRICS, row_keys: Sequence[str] = ROW_KEYS) -> pd.DataFrame:
+def summarise(
+    runs: pd.DataFrame,
+    over: Sequence[str] | None = None,
+    metrics: Sequence[str] = SUMMARY_METRICS,
+    row_keys: Sequence[str] = ROW_KEYS,
+) -> pd.DataFrame:
     """Every metric over the replicate settings, per condition and table row: mean, range, and the geometric mean
     with its 95 % interval, which stays positive (:func:`level_statistics`).
 
@@ -292,8 +325,13 @@ def summarise(runs: pd.DataFrame, over: Sequence[str] | None = None,
     records = []
     for group_values, group in runs.groupby(keys, sort=False, dropna=False):
         for metric in present:
-            records.append(dict(zip(keys, group_values), metric=metric,
-                                **level_statistics(pd.to_numeric(group[metric], errors="coerce").to_numpy(float))))
+            records.append(
+                dict(
+                    zip(keys, group_values),
+                    metric=metric,
+                    **level_statistics(pd.to_numeric(group[metric], errors="coerce").to_numpy(float)),
+                )
+            )
     return pd.DataFrame.from_records(records)
 
 
@@ -306,15 +344,32 @@ def wide(summary: pd.DataFrame) -> pd.DataFrame:
     for values, group in summary.groupby(keys, sort=False, dropna=False):
         row = dict(zip(keys, values), n_seeds=int(group["n"].iloc[0]), ci_method=GEOMETRIC)
         for entry in group.itertuples(index=False):
-            row.update({entry.metric: entry.geomean, f"{entry.metric}_ci_low": entry.ci95_low,
-                        f"{entry.metric}_ci_high": entry.ci95_high, f"{entry.metric}_min": entry.min,
-                        f"{entry.metric}_max": entry.max})
+            row.update(
+                {
+                    entry.metric: entry.geomean,
+                    f"{entry.metric}_ci_low": entry.ci95_low,
+                    f"{entry.metric}_ci_high": entry.ci95_high,
+                    f"{entry.metric}_min": entry.min,
+                    f"{entry.metric}_max": entry.max,
+                }
+            )
         records.append(row)
     return pd.DataFrame.from_records(records)
 
 
-COMPARISON_COLUMNS = ("metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict", "p",
-                      "by_construction")
+COMPARISON_COLUMNS = (
+    "metric",
+    "first",
+    "second",
+    "n",
+    "ratio",
+    "ratio_low",
+    "ratio_high",
+    "method",
+    "verdict",
+    "p",
+    "by_construction",
+)
 """Columns of :func:`paired_comparisons` after the condition and row keys."""
 NOT_DISTINGUISHABLE = "not distinguishable"
 BY_CONSTRUCTION = "<= by construction"
@@ -346,8 +401,13 @@ IMPLIED_KEYS = {"basis": ("projection",), "train_on": ("data", "dataset.train_on
 setting with the variant the bases were fitted on)."""
 
 
-def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | None = None,
-                       row_keys: Sequence[str] = ROW_KEYS, between: str = "basis") -> pd.DataFrame:
+def paired_comparisons(
+    runs: pd.DataFrame,
+    metric: str,
+    over: Sequence[str] | None = None,
+    row_keys: Sequence[str] = ROW_KEYS,
+    between: str = "basis",
+) -> pd.DataFrame:
     """Every pair of bases (or of the variants they were fitted on) compared on the same replicates, per condition:
     the geometric mean of the per-replicate ratio ``first / second`` and its 95 % interval
     (:func:`workbench.stats.statistics.paired_ratio_interval`), and the verdict it allows. Each pair is
@@ -388,11 +448,12 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
     records = []
     for group_values, group in with_pca_beside_every_solver(runs).groupby(keys, sort=False, dropna=False):
         replicate = group[over].astype(str).agg(" ".join, axis=1) if over else ""
-        table = group.assign(_replicate=replicate).pivot_table(index="_replicate", columns=between, values=metric,
-                                                               aggfunc="first", sort=False, dropna=False)
+        table = group.assign(_replicate=replicate).pivot_table(
+            index="_replicate", columns=between, values=metric, aggfunc="first", sort=False, dropna=False
+        )
         bases = list(dict.fromkeys(group[between]))
         for i, first in enumerate(bases):
-            for second in bases[i + 1:]:
+            for second in bases[i + 1 :]:
                 interval = paired_ratio_interval(table[first].to_numpy(float), table[second].to_numpy(float))
                 lower, higher = (first, second) if not interval.estimate > 1.0 else (second, first)
                 if lower != first:
@@ -403,17 +464,30 @@ def paired_comparisons(runs: pd.DataFrame, metric: str, over: Sequence[str] | No
                     lower, higher, interval = higher, lower, reversed_interval(interval)
                 if holds_by_construction(group, lower, higher, metric, between):
                     verdict, reason, p_value = BY_CONSTRUCTION, construction_reason(lower), math.nan
-                records.append(dict(zip(keys, group_values), metric=metric, first=lower, second=higher,
-                                    n=interval.n, ratio=interval.estimate, ratio_low=interval.low,
-                                    ratio_high=interval.high, method=interval.method, verdict=verdict,
-                                    p=p_value, by_construction=reason))
+                records.append(
+                    dict(
+                        zip(keys, group_values),
+                        metric=metric,
+                        first=lower,
+                        second=higher,
+                        n=interval.n,
+                        ratio=interval.estimate,
+                        ratio_low=interval.low,
+                        ratio_high=interval.high,
+                        method=interval.method,
+                        verdict=verdict,
+                        p=p_value,
+                        by_construction=reason,
+                    )
+                )
     return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
 
 
 def fitted_on_several(runs: pd.DataFrame) -> bool:
     """Whether the runs scored bases fitted on several data variants on the same evaluated one (eval_on)."""
-    return bool({"train_on", "eval_on"} <= set(runs.columns)
-                and (runs.groupby("eval_on")["train_on"].nunique() > 1).any())
+    return bool(
+        {"train_on", "eval_on"} <= set(runs.columns) and (runs.groupby("eval_on")["train_on"].nunique() > 1).any()
+    )
 
 
 def sweep_comparisons(runs: pd.DataFrame, metrics: Sequence[str], over: Sequence[str] | None = None) -> pd.DataFrame:

@@ -47,15 +47,21 @@ class PairSides:
 
     def crossed(self, label: str) -> list[str]:
         """The shapes of the pair whose face in basis ``label`` moves the other side of the face most."""
-        return [f"{self.pair}_{side}" for side, (own, other) in zip("LR", self.peaks[label])
-                if other > OTHER_SIDE_MARGIN * own]
+        return [
+            f"{self.pair}_{side}"
+            for side, (own, other) in zip("LR", self.peaks[label])
+            if other > OTHER_SIDE_MARGIN * own
+        ]
 
 
 def side_pairs(names: Sequence[str]) -> list[tuple[str, int, int]]:
     """(stem, index of ``<stem>_L``, index of ``<stem>_R``) for every left/right pair among the shape names."""
     index = {name: i for i, name in enumerate(names)}
-    return [(name[:-2], index[name], index[name[:-2] + "_R"]) for name in names
-            if name.endswith("_L") and name[:-2] + "_R" in index]
+    return [
+        (name[:-2], index[name], index[name[:-2] + "_R"])
+        for name in names
+        if name.endswith("_L") and name[:-2] + "_R" in index
+    ]
 
 
 def point_norms(shape: np.ndarray, support: np.ndarray | None = None) -> np.ndarray:
@@ -64,8 +70,9 @@ def point_norms(shape: np.ndarray, support: np.ndarray | None = None) -> np.ndar
     return norms if support is None else np.where(support, norms, 0.0)
 
 
-def left_side(points: np.ndarray, hand_left: np.ndarray, hand_right: np.ndarray,
-              support: np.ndarray | None = None) -> np.ndarray:
+def left_side(
+    points: np.ndarray, hand_left: np.ndarray, hand_right: np.ndarray, support: np.ndarray | None = None
+) -> np.ndarray:
     """Which points lie on the side of the face of a pair's ``_L`` shape: the side of its peak, with the midline
     halfway between the ``_L`` and ``_R`` shapes' peaks (no assumption on the axes).
 
@@ -84,8 +91,14 @@ def left_side(points: np.ndarray, hand_left: np.ndarray, hand_right: np.ndarray,
     return (points - 0.5 * (peak_left + peak_right)) @ across > 0
 
 
-def pair_sides(neutral: np.ndarray, frames: np.ndarray, components: np.ndarray, names: Sequence[str],
-               bases: Mapping[str, np.ndarray], support: np.ndarray | None = None) -> list[PairSides]:
+def pair_sides(
+    neutral: np.ndarray,
+    frames: np.ndarray,
+    components: np.ndarray,
+    names: Sequence[str],
+    bases: Mapping[str, np.ndarray],
+    support: np.ndarray | None = None,
+) -> list[PairSides]:
     """How one-sided every left/right pair of hand shapes and its quasi-eigen faces are, with the capture's
     left/right correlation and the share of each shape the eigenfaces span.
 
@@ -127,8 +140,11 @@ def pair_sides(neutral: np.ndarray, frames: np.ndarray, components: np.ndarray, 
         for label, shapes in bases.items():
             peaks[label] = tuple(
                 (float(heights[own].max(initial=0.0)), float(heights[~own].max(initial=0.0)))
-                for heights, own in ((point_norms(shapes[left], support), on_left),
-                                     (point_norms(shapes[right], support), ~on_left)))
+                for heights, own in (
+                    (point_norms(shapes[left], support), on_left),
+                    (point_norms(shapes[right], support), ~on_left),
+                )
+            )
         found.append(PairSides(pair=stem, correlation=correlation, kept=kept, peaks=peaks))
     return found
 
@@ -155,8 +171,14 @@ class SharedTerm:
     side: str
 
 
-def shared_term(neutral: np.ndarray, components: np.ndarray, mean: np.ndarray, names: Sequence[str],
-                hand: np.ndarray, support: np.ndarray | None = None) -> SharedTerm:
+def shared_term(
+    neutral: np.ndarray,
+    components: np.ndarray,
+    mean: np.ndarray,
+    names: Sequence[str],
+    hand: np.ndarray,
+    support: np.ndarray | None = None,
+) -> SharedTerm:
     """The part of the capture mean outside the eigenfaces' span, which eq. 4 adds to every quasi-eigen face.
 
     Its side is read against the first left/right pair of hand shapes (:func:`left_side`); ``midline`` when it
@@ -188,8 +210,13 @@ def shared_term(neutral: np.ndarray, components: np.ndarray, mean: np.ndarray, n
         offset = float((points[top] - 0.5 * (peak_left + peak_right)) @ across)
         if abs(offset) > 0.05 * float(np.ptp(points @ across)):
             side = "L" if offset > 0 else "R"
-    return SharedTerm(norm_mm=float(np.linalg.norm(term)), mean_norm_mm=float(np.linalg.norm(mean)),
-                      largest_mm=float(heights[top]), point=top, side=side)
+    return SharedTerm(
+        norm_mm=float(np.linalg.norm(term)),
+        mean_norm_mm=float(np.linalg.norm(mean)),
+        largest_mm=float(heights[top]),
+        point=top,
+        side=side,
+    )
 
 
 SIDE_WORDS = {"L": "left", "R": "right", "midline": "midline"}
@@ -214,7 +241,9 @@ def sides_frame(pairs: Sequence[PairSides]) -> pd.DataFrame:
         for label, sides in pair.peaks.items():
             for side, (own, other) in zip("LR", sides):
                 crossed = other > OTHER_SIDE_MARGIN * own
-                row[f"{label} _{side} own / other"] = f"{own:.{decimals}f} / {other:.{decimals}f}" + (" !" if crossed else "")
+                row[f"{label} _{side} own / other"] = f"{own:.{decimals}f} / {other:.{decimals}f}" + (
+                    " !" if crossed else ""
+                )
         rows.append(row)
     return pd.DataFrame.from_records(rows)
 
@@ -226,26 +255,37 @@ def sides_finding(data: str, pairs: Sequence[PairSides], term: SharedTerm | None
     if not pairs:
         return ""
     correlations = [pair.correlation for pair in pairs]
-    text = (f"**{data}**: the capture moves the two sides of the face together (correlation of the motion at the "
-            f"_L and _R hand peaks {min(correlations):.2f} to {max(correlations):.2f} over the {len(pairs)} left/right "
-            "pairs), so the eigenfaces keep more of a pair's symmetric part L+R than of its one-sided part L-R "
-            f"(|P e| / |e|, median {np.median([pair.kept['L+R'] for pair in pairs]):.2f} against "
-            f"{np.median([pair.kept['L-R'] for pair in pairs]):.2f})")
+    text = (
+        f"**{data}**: the capture moves the two sides of the face together (correlation of the motion at the "
+        f"_L and _R hand peaks {min(correlations):.2f} to {max(correlations):.2f} over the {len(pairs)} left/right "
+        "pairs), so the eigenfaces keep more of a pair's symmetric part L+R than of its one-sided part L-R "
+        f"(|P e| / |e|, median {np.median([pair.kept['L+R'] for pair in pairs]):.2f} against "
+        f"{np.median([pair.kept['L-R'] for pair in pairs]):.2f})"
+    )
     weakest = min(pairs, key=lambda pair: pair.kept["L-R"])
-    text += (f"; least of {weakest.pair} (correlation {weakest.correlation:.2f}; L+R {weakest.kept['L+R']:.2f}, L-R "
-             f"{weakest.kept['L-R']:.2f}; {weakest.pair}_L {weakest.kept['L']:.2f}, {weakest.pair}_R "
-             f"{weakest.kept['R']:.2f})")
+    text += (
+        f"; least of {weakest.pair} (correlation {weakest.correlation:.2f}; L+R {weakest.kept['L+R']:.2f}, L-R "
+        f"{weakest.kept['L-R']:.2f}; {weakest.pair}_L {weakest.kept['L']:.2f}, {weakest.pair}_R "
+        f"{weakest.kept['R']:.2f})"
+    )
     if term is not None:
-        text += (f"; the affine projection adds the capture mean's part outside the eigenfaces, (I - P) mu, to every "
-                 f"quasi-eigen face: {term.norm_mm:.1f} mm long ({100 * term.norm_mm / term.mean_norm_mm:.0f} % of the "
-                 f"mean), largest {term.largest_mm:.{millimetre_decimals(pairs)}f} mm at one point "
-                 f"({SIDE_WORDS[term.side]})")
+        text += (
+            f"; the affine projection adds the capture mean's part outside the eigenfaces, (I - P) mu, to every "
+            f"quasi-eigen face: {term.norm_mm:.1f} mm long ({100 * term.norm_mm / term.mean_norm_mm:.0f} % of the "
+            f"mean), largest {term.largest_mm:.{millimetre_decimals(pairs)}f} mm at one point "
+            f"({SIDE_WORDS[term.side]})"
+        )
     decimals = millimetre_decimals(pairs)
     for label in (label for label in pairs[0].peaks if label != "H"):
         crossed = [(pair, name) for pair in pairs for name in pair.crossed(label)]
-        listed = ", ".join(f"{name} ({pair.peaks[label]['LR'.index(name[-1])][1]:.{decimals}f} mm against "
-                           f"{pair.peaks[label]['LR'.index(name[-1])][0]:.{decimals}f} on its own side)"
-                           for pair, name in crossed)
-        text += (f"; {label} faces moving the other side most: {listed}" if crossed else
-                 f"; every {label} face of a pair moves its own side most")
+        listed = ", ".join(
+            f"{name} ({pair.peaks[label]['LR'.index(name[-1])][1]:.{decimals}f} mm against "
+            f"{pair.peaks[label]['LR'.index(name[-1])][0]:.{decimals}f} on its own side)"
+            for pair, name in crossed
+        )
+        text += (
+            f"; {label} faces moving the other side most: {listed}"
+            if crossed
+            else f"; every {label} face of a pair moves its own side most"
+        )
     return text + "."

@@ -18,10 +18,16 @@ import pandas as pd
 
 from workbench.reporting.findings import Detail
 from workbench.reporting.runs import NOT_DISTINGUISHABLE
-from workbench.stats.statistics import (CONFIDENCE, Interval, comparison_lookup, holm, reversed_interval,
-                                  short_interval_text)
-from workbench.stats.statistics import ordering_text as stated_ordering
 from workbench.reporting.tables import cell_text
+from workbench.stats.statistics import (
+    CONFIDENCE,
+    Interval,
+    comparison_lookup,
+    holm,
+    reversed_interval,
+    short_interval_text,
+)
+from workbench.stats.statistics import ordering_text as stated_ordering
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
 """The paper's claims, stated with their intervals and tested at their own 95 % in a sweep (least squares, the
@@ -33,8 +39,12 @@ HOLM_COLUMN = "p_holm"
 def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq") -> bool:
     """Whether a row of a sweep's comparisons table is a primary contrast (:data:`PRIMARY_PAIRS`)."""
     pair = {row.get("first"), row.get("second")}
-    return (row.get("metric") == column and row.get("solver", solver) == solver and row.get("data") == lead
-            and any(pair == set(primary) for primary in PRIMARY_PAIRS))
+    return (
+        row.get("metric") == column
+        and row.get("solver", solver) == solver
+        and row.get("data") == lead
+        and any(pair == set(primary) for primary in PRIMARY_PAIRS)
+    )
 
 
 def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> pd.DataFrame:
@@ -62,15 +72,22 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     if table.empty or "p" not in table.columns:
         return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float)})
     lead = next(iter(table["data"].dropna()), None) if "data" in table.columns else None
-    primary = [is_primary(row, column, lead, solver) or isinstance(row.get("by_construction"), str)
-               for row in table.to_dict("records")]
+    primary = [
+        is_primary(row, column, lead, solver) or isinstance(row.get("by_construction"), str)
+        for row in table.to_dict("records")
+    ]
     family = [k for k, flag in enumerate(primary) if not flag]  # an identity spends no test
     adjusted = pd.Series(math.nan, index=table.index)
     adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
     table[HOLM_COLUMN] = adjusted
     for k in family:
-        interval = Interval(float(table["ratio"].iloc[k]), float(table["ratio_low"].iloc[k]),
-                            float(table["ratio_high"].iloc[k]), null=1.0, p_adjusted=float(adjusted.iloc[k]))
+        interval = Interval(
+            float(table["ratio"].iloc[k]),
+            float(table["ratio_low"].iloc[k]),
+            float(table["ratio_high"].iloc[k]),
+            null=1.0,
+            p_adjusted=float(adjusted.iloc[k]),
+        )
         table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
     return table
 
@@ -82,12 +99,15 @@ def holm_text(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> 
     n = int(comparisons["n"].max()) if len(comparisons) else 0
     family = int(comparisons[HOLM_COLUMN].notna().sum()) if HOLM_COLUMN in comparisons.columns else 0
     lead = next(iter(comparisons["data"].dropna()), "-") if "data" in comparisons.columns else "-"
-    return (f"**how to read**: levels are geometric means over the replicates; 'A < B': the per-replicate ratio "
-            f"A/B ({method}, n = {n}) is below 1 at 95 %; '~': not distinguishable; '=': a tie; the primary "
-            f"contrasts QE/H and QE/PCA (`{column}`, {solver}, on {lead}; stated with their 95 % interval) at their "
-            f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); "
-            "'A <= B by construction': holds in every replicate whatever the data (its reason beside it), so it is "
-            "not tested and only its size is data; every ratio, interval and p-value is a row of comparisons.csv.")
+    return (
+        f"**how to read**: levels are geometric means over the replicates; 'A < B': the per-replicate ratio "
+        f"A/B ({method}, n = {n}) is below 1 at 95 %; '~': not distinguishable; '=': a tie; the primary "
+        f"contrasts QE/H and QE/PCA (`{column}`, {solver}, on {lead}; stated with their 95 % interval) at their "
+        f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); "
+        "'A <= B by construction': holds in every replicate whatever the data (its reason beside it), so it is "
+        "not tested and only its size is data; every ratio, interval and p-value is a row of comparisons.csv."
+    )
+
 
 def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
     """The paired ratio ``first / second`` from a comparisons table (either orientation), as an interval."""
@@ -96,8 +116,15 @@ def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
         if len(found):
             row = found.iloc[0]
             adjusted = float(row[HOLM_COLUMN]) if HOLM_COLUMN in row.index else math.nan
-            interval = Interval(float(row["ratio"]), float(row["ratio_low"]), float(row["ratio_high"]),
-                                int(row["n"]), str(row["method"]), null=1.0, p_adjusted=adjusted)
+            interval = Interval(
+                float(row["ratio"]),
+                float(row["ratio_low"]),
+                float(row["ratio_high"]),
+                int(row["n"]),
+                str(row["method"]),
+                null=1.0,
+                p_adjusted=adjusted,
+            )
             return reversed_interval(interval) if flip else interval
     return Interval(math.nan, math.nan, math.nan, 0, "no paired values", null=1.0)
 
@@ -128,8 +155,9 @@ def _range_text(row, column: str) -> str:
     return f"{low:g}" if low == high else f"{low:g}-{high:g}"
 
 
-def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis",
-                            primary: bool = False) -> str:
+def ordering_with_intervals(
+    part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis", primary: bool = False
+) -> str:
     """The bases of one condition from best to worst by their geometric mean, each neighbouring pair joined by its
     verdict in the comparisons table (``<``, ``~`` not distinguishable, ``=`` a tie, ``,`` no comparison), then
     (with ``primary``) the primary contrasts with their intervals: ``QE 0.162 ~ PCA (n = 9-11) 0.169 < H 0.312;
@@ -164,13 +192,25 @@ def ordering_with_intervals(part: pd.DataFrame, comparisons: pd.DataFrame, colum
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
     values = {name: float(value) for name, value in zip(ranked[key], ranked[column])}
-    text = stated_ordering(values, compare, name=lambda item: names[item], digits=3, detail=lambda *args: "",
-                           identity=lambda first, second: construction(comparisons, first, second))
+    text = stated_ordering(
+        values,
+        compare,
+        name=lambda item: names[item],
+        digits=3,
+        detail=lambda *args: "",
+        identity=lambda first, second: construction(comparisons, first, second),
+    )
     if primary:
-        stated = [short_interval_text(found, f"{a}/{b}", "{:.3g}")
-                  + (" (by construction: its size, not its sign)" if construction(comparisons, a, b)
-                     or construction(comparisons, b, a) else "")
-                  for a, b in PRIMARY_PAIRS if a in values and b in values and (found := compare(a, b)) is not None]
+        stated = [
+            short_interval_text(found, f"{a}/{b}", "{:.3g}")
+            + (
+                " (by construction: its size, not its sign)"
+                if construction(comparisons, a, b) or construction(comparisons, b, a)
+                else ""
+            )
+            for a, b in PRIMARY_PAIRS
+            if a in values and b in values and (found := compare(a, b)) is not None
+        ]
         text += "; " + ", ".join(stated) if stated else ""
     return text
 
@@ -185,8 +225,9 @@ def construction(comparisons: pd.DataFrame, first: str, second: str) -> str | No
     return reasons[0] if reasons else None
 
 
-def _of_solver(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str,
-               solver: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _of_solver(
+    summary: pd.DataFrame, comparisons: pd.DataFrame, column: str, solver: str
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The summary's rows of a solver (PCA's projection beside it) and the comparisons of ``column`` under it."""
     rows = summary[(summary["solver"] == solver) | (summary["solver"] == "projection")]
     if len(comparisons):
@@ -201,8 +242,14 @@ def _matching(comparisons: pd.DataFrame, keys: Sequence[str], values: Sequence) 
     return comparisons
 
 
-def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str,
-                   solver: str, headline: bool = True) -> list[str]:
+def sweep_findings(
+    summary: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    swept: Sequence[str],
+    column: str,
+    solver: str,
+    headline: bool = True,
+) -> list[str]:
     """Findings of a sweep, one per swept condition and data variant: m over the runs and the bases from best to
     worst by their geometric mean over the replicates, each neighbouring pair joined by its verdict in the
     comparisons table (:func:`ordering_with_intervals`), and on the lead (first) data variant, with least squares
@@ -241,15 +288,20 @@ def sweep_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequ
         first = part.iloc[0]
         m = f"m = {_range_text(first, 'm')}; " if _has(part, "m") else ""
         ordering = ordering_with_intervals(part, mine, column, primary=primary and values[-1] == lead)
-        lines.append(Detail(f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} "
-                            f"seeds, {solver}) `{column}`: {ordering}.", 1 if primary else 2,
-                            "the tables 'Paired comparisons' and "
-                            f"'{column} over seeds'"))
+        lines.append(
+            Detail(
+                f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} "
+                f"seeds, {solver}) `{column}`: {ordering}.",
+                1 if primary else 2,
+                f"the tables 'Paired comparisons' and '{column} over seeds'",
+            )
+        )
     return lines
 
 
-def training_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str,
-                      solver: str) -> list[str]:
+def training_findings(
+    summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], column: str, solver: str
+) -> list[str]:
     """Findings of a sweep that fitted the bases on several data variants and scored each on common evaluation sets
     (``dataset.eval_on``): per condition, evaluation set and basis, the variants fitted on from best to worst, and
     for each neighbouring pair "A < B" only where the paired interval excludes 1.
@@ -277,15 +329,27 @@ def training_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: S
             continue
         mine = _matching(comparisons, keys, values)
         setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-2]))
-        lines.append(Detail(f"{setting + ', ' if setting else ''}scored on **{values[-2]}**, {values[-1]} "
-                            f"({int(part['n_seeds'].max())} seeds, {solver}) `{column}` by the data fitted on: "
-                            + ordering_with_intervals(part, mine, column, key="train_on") + ".", 2,
-                            "the table 'Paired comparisons'"))
+        lines.append(
+            Detail(
+                f"{setting + ', ' if setting else ''}scored on **{values[-2]}**, {values[-1]} "
+                f"({int(part['n_seeds'].max())} seeds, {solver}) `{column}` by the data fitted on: "
+                + ordering_with_intervals(part, mine, column, key="train_on")
+                + ".",
+                2,
+                "the table 'Paired comparisons'",
+            )
+        )
     return lines
 
 
-def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str, ordering: bool = True,
-                   run_comparisons: Mapping[str, Sequence[Mapping]] | None = None, solver: str = "lstsq") -> list[str]:
+def bases_findings(
+    summary: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    column: str,
+    ordering: bool = True,
+    run_comparisons: Mapping[str, Sequence[Mapping]] | None = None,
+    solver: str = "lstsq",
+) -> list[str]:
     """Findings of a run or sweep that scored other bases, per data variant: the bases from most to least
     accurate with the paired verdict of each neighbouring pair and the sizes that differ, and which bases are
     closest to the hand shapes and most local, each stated only where the paired interval allows it.
@@ -311,38 +375,56 @@ def bases_findings(summary: pd.DataFrame, comparisons: pd.DataFrame, column: str
     for data, part in summary.groupby("data", sort=False):
         mine = comparisons[comparisons["data"] == data]
         if ordering and run_comparisons is not None:
-            values = {(basis, "projection" if basis == "PCA" else solver): float(value)
-                      for basis, value in zip(part["basis"], part[column])}
-            lines.append(f"**{data}** (one run): `{column}` from best to worst: "
-                         + stated_ordering(values, comparison_lookup(run_comparisons.get(data, [])),
-                                           name=lambda key: key[0]) + ".")
+            values = {
+                (basis, "projection" if basis == "PCA" else solver): float(value)
+                for basis, value in zip(part["basis"], part[column])
+            }
+            lines.append(
+                f"**{data}** (one run): `{column}` from best to worst: "
+                + stated_ordering(values, comparison_lookup(run_comparisons.get(data, [])), name=lambda key: key[0])
+                + "."
+            )
         elif ordering:
-            lines.append(f"**{data}** ({int(part['n_seeds'].max())} runs) `{column}`: "
-                         + ordering_with_intervals(part, mine[mine["metric"] == column], column,
-                                                   primary=data == lead and solver == "lstsq") + ".")
+            lines.append(
+                f"**{data}** ({int(part['n_seeds'].max())} runs) `{column}`: "
+                + ordering_with_intervals(
+                    part, mine[mine["metric"] == column], column, primary=data == lead and solver == "lstsq"
+                )
+                + "."
+            )
         hand = part[part["basis"] == "H"]
         sizes = {row["basis"]: _range_text(row, "n") for row in part.to_dict("records")}
         other = {basis: size for basis, size in sizes.items() if len(hand) and size != sizes["H"]}
         if other:
-            lines.append(Detail(f"**{data}**: bases of other sizes than the hand basis's n = {sizes['H']}: "
-                                + ", ".join(f"{basis} n = {size}" for basis, size in other.items())
-                                + "; their alpha is not that of a basis of the same size.", 3,
-                                "the table 'Other bases: alpha against intuitiveness'"))
+            lines.append(
+                Detail(
+                    f"**{data}**: bases of other sizes than the hand basis's n = {sizes['H']}: "
+                    + ", ".join(f"{basis} n = {size}" for basis, size in other.items())
+                    + "; their alpha is not that of a basis of the same size.",
+                    3,
+                    "the table 'Other bases: alpha against intuitiveness'",
+                )
+            )
         others = part[part["basis"] != "H"]
-        for measure, ascending, what in (("matched_abs_cosine", False, "closest to the hand shapes "
-                                                                      "(mean matched |cosine|)"),
-                                         ("locality", True, "most local (share of the face holding an element's "
-                                                            "displacement)")):
+        for measure, ascending, what in (
+            ("matched_abs_cosine", False, "closest to the hand shapes (mean matched |cosine|)"),
+            ("locality", True, "most local (share of the face holding an element's displacement)"),
+        ):
             ranked = others.dropna(subset=[measure]).sort_values(measure, ascending=ascending, kind="stable")
             if len(ranked) < 2:
                 continue
             best, runner = ranked.iloc[0], ranked.iloc[1]
             verdict = pair_text(mine[mine["metric"] == measure], best["basis"], runner["basis"])
-            lead = (f"{best['basis']} {cell_text(measure, best[measure])}, then {runner['basis']} "
-                    f"{cell_text(measure, runner[measure])}"
-                    + (f" (the hand shapes' {cell_text(measure, hand[measure].iloc[0])})" if len(hand) else ""))
-            lines.append(Detail(f"**{data}**: {what}: {lead}; {verdict}.", 2,
-                                "the table 'Other bases: alpha against intuitiveness'"))
+            lead = (
+                f"{best['basis']} {cell_text(measure, best[measure])}, then {runner['basis']} "
+                f"{cell_text(measure, runner[measure])}"
+                + (f" (the hand shapes' {cell_text(measure, hand[measure].iloc[0])})" if len(hand) else "")
+            )
+            lines.append(
+                Detail(
+                    f"**{data}**: {what}: {lead}; {verdict}.", 2, "the table 'Other bases: alpha against intuitiveness'"
+                )
+            )
     return lines
 
 
@@ -358,12 +440,15 @@ def replicate_caveat(replicates: Sequence[str]) -> list[str]:
     if any(key.startswith("dataset.") for key in replicates):
         return []
     varied = ", ".join(replicates) or "nothing"
-    return [f"The replicates vary {varied} only, not the data: the intervals below cover that, not other takes, "
-            "and no finding here generalises beyond this one capture."]
+    return [
+        f"The replicates vary {varied} only, not the data: the intervals below cover that, not other takes, "
+        "and no finding here generalises beyond this one capture."
+    ]
 
 
-def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str],
-                     columns: Sequence[str], solver: str) -> list[str]:
+def sweep_statements(
+    summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], columns: Sequence[str], solver: str
+) -> list[str]:
     """Every finding of a sweep for each of ``columns``: the bases compared (:func:`sweep_findings`), then the
     data variants fitted on where the comparisons hold those (:func:`training_findings`).
 
@@ -378,9 +463,11 @@ def sweep_statements(summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Se
     """
     by_basis = comparisons[comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
     by_variant = comparisons[~comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
-    lines = [line for column in columns for line in sweep_findings(summary, by_basis, swept, column, solver,
-                                                                   headline=column == columns[0])]
+    lines = [
+        line
+        for column in columns
+        for line in sweep_findings(summary, by_basis, swept, column, solver, headline=column == columns[0])
+    ]
     if len(by_variant):
-        lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column,
-                                                                           solver)]
+        lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column, solver)]
     return lines

@@ -13,10 +13,22 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-FLOAT_FORMATS = {"coverage": "{:.4f}", "alpha_abs_mean": "{:.3f}", "alpha_abs_pooled": "{:.3f}",
-                 "alpha_disp_mean": "{:.2f}", "alpha_disp_pooled": "{:.2f}", "rms_mm": "{:.3f}",
-                 "paper_alpha": "{:.2f}", "err_mm_median": "{:.3f}", "err_mm_p95": "{:.3f}", "err_mm_max": "{:.3f}",
-                 "w_max_abs": "{:.3g}", "w_outside_01": "{:.2f}", "w_sparsity": "{:.2f}", "w_roughness": "{:.3g}"}
+FLOAT_FORMATS = {
+    "coverage": "{:.4f}",
+    "alpha_abs_mean": "{:.3f}",
+    "alpha_abs_pooled": "{:.3f}",
+    "alpha_disp_mean": "{:.2f}",
+    "alpha_disp_pooled": "{:.2f}",
+    "rms_mm": "{:.3f}",
+    "paper_alpha": "{:.2f}",
+    "err_mm_median": "{:.3f}",
+    "err_mm_p95": "{:.3f}",
+    "err_mm_max": "{:.3f}",
+    "w_max_abs": "{:.3g}",
+    "w_outside_01": "{:.2f}",
+    "w_sparsity": "{:.2f}",
+    "w_roughness": "{:.3g}",
+}
 """Decimals of the alpha table's columns, wherever they are shown."""
 THREE_DECIMALS = ("relative", "cosine", "relative_distance", "matched_abs_cosine", "locality", "usage")
 """Other columns shown with three decimals (intuitiveness measures)."""
@@ -49,10 +61,13 @@ def cell_text(column: str, value) -> str:
 def frame_cells(frame: pd.DataFrame) -> tuple[list[str], list[list[str]], list[bool]]:
     """Header, cell texts and which columns are numeric (right-aligned) of a DataFrame."""
     columns = [str(column) for column in frame.columns]
-    numeric = [pd.api.types.is_numeric_dtype(frame[column]) and not pd.api.types.is_bool_dtype(frame[column])
-               for column in frame.columns]
-    rows = [[cell_text(column, value) for column, value in zip(columns, values)]
-            for values in frame.itertuples(index=False)]
+    numeric = [
+        pd.api.types.is_numeric_dtype(frame[column]) and not pd.api.types.is_bool_dtype(frame[column])
+        for column in frame.columns
+    ]
+    rows = [
+        [cell_text(column, value) for column, value in zip(columns, values)] for values in frame.itertuples(index=False)
+    ]
     return columns, rows, numeric
 
 
@@ -68,29 +83,52 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric
     widths = [max([len(name)] + [len(row[i]) for row in rows]) for i, name in enumerate(header)]
 
     def line(values):
-        return "| " + " | ".join(value.rjust(width) if is_number else value.ljust(width)
-                                 for value, width, is_number in zip(values, widths, numeric)) + " |"
+        return (
+            "| "
+            + " | ".join(
+                value.rjust(width) if is_number else value.ljust(width)
+                for value, width, is_number in zip(values, widths, numeric)
+            )
+            + " |"
+        )
 
-    rule = "|" + "|".join(("-" * (width + 1) + ":") if is_number else ("-" * (width + 2))
-                          for width, is_number in zip(widths, numeric)) + "|"
+    rule = (
+        "|"
+        + "|".join(
+            ("-" * (width + 1) + ":") if is_number else ("-" * (width + 2)) for width, is_number in zip(widths, numeric)
+        )
+        + "|"
+    )
     return "\n".join([line(header), rule] + [line(row) for row in rows]) + "\n"
 
 
-LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-                 "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+LATEX_SPECIAL = {
+    "\\": r"\textbackslash{}",
+    "&": r"\&",
+    "%": r"\%",
+    "$": r"\$",
+    "#": r"\#",
+    "_": r"\_",
+    "{": r"\{",
+    "}": r"\}",
+    "~": r"\textasciitilde{}",
+    "^": r"\textasciicircum{}",
+}
 
 
 def latex_escape(text: str) -> str:
     return "".join(LATEX_SPECIAL.get(character, character) for character in text).replace("±", r"$\pm$")
 
 
-def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: Sequence[bool],
-                title: str = "") -> str:
+def latex_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: Sequence[bool], title: str = "") -> str:
     """A booktabs ``tabular`` (text columns ``l``, numeric columns ``r``), with ``title`` as a comment."""
     spec = "".join("r" if is_number else "l" for is_number in numeric)
     lines = ([f"% {title}"] if title else []) + [
-        rf"\begin{{tabular}}{{{spec}}}", r"\toprule",
-        " & ".join(latex_escape(name) for name in header) + r" \\", r"\midrule"]
+        rf"\begin{{tabular}}{{{spec}}}",
+        r"\toprule",
+        " & ".join(latex_escape(name) for name in header) + r" \\",
+        r"\midrule",
+    ]
     lines += [" & ".join(latex_escape(cell) for cell in row) + r" \\" for row in rows]
     lines += [r"\bottomrule", r"\end{tabular}"]
     return "\n".join(lines) + "\n"
@@ -100,13 +138,18 @@ def html_table(header: Sequence[str], rows: Sequence[Sequence[str]], numeric: Se
     """An HTML table in a horizontally scrolling box; cells kept on one line unless classed ``txt`` (longer text,
     wraps), numbers classed ``num`` (right-aligned). Short cells carry no class: a report's tables have
     thousands of them."""
+
     def cell_start(text: str, is_number: bool) -> str:
-        return "<td class=\"num\">" if is_number else ("<td>" if len(text) <= 24 else "<td class=\"txt\">")
+        return '<td class="num">' if is_number else ("<td>" if len(text) <= 24 else '<td class="txt">')
 
     head = "".join(f"<th>{html.escape(name)}</th>" for name in header)
-    body = "".join("<tr>" + "".join(f"{cell_start(text, is_number)}{html.escape(text)}</td>"
-                                    for text, is_number in zip(row, numeric)) + "</tr>" for row in rows)
-    return f"<div class=\"scroll\"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>"
+    body = "".join(
+        "<tr>"
+        + "".join(f"{cell_start(text, is_number)}{html.escape(text)}</td>" for text, is_number in zip(row, numeric))
+        + "</tr>"
+        for row in rows
+    )
+    return f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
 
 
 def markdown_frame(frame: pd.DataFrame) -> str:

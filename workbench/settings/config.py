@@ -36,8 +36,10 @@ def check_config_dirs() -> None:
     """The config folders exist: beside the package in the checkout, or inside a built package."""
     for folder in (CONF_DIR, STUDIES_DIR):
         if not folder.is_dir():
-            raise WorkbenchError(f"config folder {folder} is missing: reinstall the workbench (pip install "
-                                 "quasi-eigen-workbench, or 'pip install -e .' in its checkout)")
+            raise WorkbenchError(
+                f"config folder {folder} is missing: reinstall the workbench (pip install "
+                "quasi-eigen-workbench, or 'pip install -e .' in its checkout)"
+            )
 
 
 def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
@@ -54,13 +56,13 @@ def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     -------
     omegaconf.DictConfig
     """
-    from hydra import compose as hydra_compose, initialize_config_dir
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
 
     register_resolvers()
     check_config_dirs()
     with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
-        return hydra_compose(config_name=study, overrides=list(overrides),
-                             return_hydra_config=True)
+        return hydra_compose(config_name=study, overrides=list(overrides), return_hydra_config=True)
 
 
 RUN_ID_MAX = 120
@@ -88,7 +90,7 @@ def run_dir_name(override_dirname: str) -> str:
     safe = re.sub(r"[^A-Za-z0-9._=,+\-]", "_", text)
     if safe == text and len(text) <= RUN_ID_MAX:
         return text
-    return f"{safe[:RUN_ID_MAX - 9]}-{hashlib.sha256(text.encode()).hexdigest()[:8]}"
+    return f"{safe[: RUN_ID_MAX - 9]}-{hashlib.sha256(text.encode()).hexdigest()[:8]}"
 
 
 def study_names() -> list[str]:

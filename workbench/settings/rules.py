@@ -35,22 +35,36 @@ def _integer(value, *, whole_floats: bool = False) -> bool:
     """A whole number (not a boolean); with ``whole_floats``, a float with no fraction counts too."""
     if _boolean(value):
         return False
-    return isinstance(value, numbers.Integral) or (whole_floats and isinstance(value, numbers.Real)
-                                                    and math.isfinite(value) and float(value).is_integer())
+    return isinstance(value, numbers.Integral) or (
+        whole_floats and isinstance(value, numbers.Real) and math.isfinite(value) and float(value).is_integer()
+    )
 
 
 def rule(check: Callable[[Any], bool], text: str, *, optional: bool = False) -> dict:
     """A rule: ``check(value)`` must hold (null is allowed with ``optional``), stated by ``text``."""
-    return {"check": (lambda value: value is None or check(value)) if optional else check,
-            "rule": text + (" or null" if optional else "")}
+    return {
+        "check": (lambda value: value is None or check(value)) if optional else check,
+        "rule": text + (" or null" if optional else ""),
+    }
 
 
-def interval(low: float | None = None, high: float | None = None, *, low_open: bool = False, high_open: bool = False,
-             optional: bool = False) -> dict:
+def interval(
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    optional: bool = False,
+) -> dict:
     """A finite number in an interval (either end open or absent)."""
+
     def check(value):
-        return (_number(value) and (low is None or (value > low if low_open else value >= low))
-                and (high is None or (value < high if high_open else value <= high)))
+        return (
+            _number(value)
+            and (low is None or (value > low if low_open else value >= low))
+            and (high is None or (value < high if high_open else value <= high))
+        )
+
     if low is not None and high is not None:
         text = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
     elif low is not None:
@@ -64,8 +78,11 @@ def integer(low: int, high: int | None = None, *, optional: bool = False, whole_
     """A whole number ``>= low`` (and ``<= high``); with ``whole_floats``, ``2.0`` counts as 2 (values computed in
     Python; a composed config's integers are ints)."""
     text = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
-    return rule(lambda value: (_integer(value, whole_floats=whole_floats) and value >= low
-                               and (high is None or value <= high)), text, optional=optional)
+    return rule(
+        lambda value: _integer(value, whole_floats=whole_floats) and value >= low and (high is None or value <= high),
+        text,
+        optional=optional,
+    )
 
 
 def one_of(*choices: str) -> dict:
@@ -142,6 +159,8 @@ def coverage_on_setting(basis_cfg: Mapping) -> str:
     must be null."""
     value = checked(basis_cfg.get("coverage_on", "training"), "basis.coverage_on", one_of(*COVERAGE_ON))
     if value == "clean" and basis_cfg.get("n_components") is not None:
-        raise WorkbenchError(f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
-                             f"be null, got {basis_cfg['n_components']}")
+        raise WorkbenchError(
+            f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
+            f"be null, got {basis_cfg['n_components']}"
+        )
     return value

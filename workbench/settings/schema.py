@@ -16,34 +16,60 @@ instead of being read as true).
 from __future__ import annotations
 
 import re
-from dataclasses import MISSING as NO_DEFAULT, dataclass, field, fields, is_dataclass
+from dataclasses import MISSING as NO_DEFAULT
+from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError, check_utf8
-from workbench.settings.rules import (BOOLEAN, COVERAGE_ON, GAP_FIT_ON, GAP_POLICIES, RBF_METRICS, SEED, _integer,
-                                      _number, checked, coverage_on_setting, integer, interval, one_of, rule)
-
+from workbench.settings.rules import (
+    BOOLEAN,
+    COVERAGE_ON,
+    GAP_FIT_ON,
+    GAP_POLICIES,
+    RBF_METRICS,
+    SEED,
+    _integer,
+    _number,
+    checked,
+    coverage_on_setting,
+    integer,
+    interval,
+    one_of,
+    rule,
+)
 
 # ---------------------------------------------------------------------------------------------------------------
 # The rules of the schema's fields (the generic ones live in workbench.settings.rules)
 # ---------------------------------------------------------------------------------------------------------------
 
+
 def names(*choices: str, optional: bool = False, allow_empty: bool = False) -> dict:
     """One of ``choices`` or a list of distinct ones."""
+
     def check(value):
         listed = [value] if isinstance(value, str) else value
-        return (isinstance(listed, (list, tuple)) and (allow_empty or len(listed) > 0)
-                and all(isinstance(name, str) and name in choices for name in listed)
-                and len(set(listed)) == len(listed))
+        return (
+            isinstance(listed, (list, tuple))
+            and (allow_empty or len(listed) > 0)
+            and all(isinstance(name, str) and name in choices for name in listed)
+            and len(set(listed)) == len(listed)
+        )
+
     return rule(check, f"one of {choices} or a list of distinct ones", optional=optional)
 
 
 def plain_name_rule(value) -> bool:
     """A name that can become a file or folder name without leaving its parent (no separator, not '.' or '..')."""
-    return (isinstance(value, str) and bool(value) and value not in (".", "..") and value == value.strip()
-            and not any(character in value for character in "/\\\0") and not value.startswith("."))
+    return (
+        isinstance(value, str)
+        and bool(value)
+        and value not in (".", "..")
+        and value == value.strip()
+        and not any(character in value for character in "/\\\0")
+        and not value.startswith(".")
+    )
 
 
 PLAIN_NAME = rule(plain_name_rule, "a plain name (it names a folder: not empty, no '/' or '\\', not starting with '.')")
@@ -55,14 +81,23 @@ thousand; more is a unit error (a rate in mHz, a time base)."""
 UNIT_MM = interval(0, 10_000, low_open=True)
 """Millimetres per file unit: 1 (mm), 10 (cm), 25.4 (inch), 1000 (m); beyond 10 m a unit no face mesh is stored in
 (and values near the largest float overflow every sum of squares)."""
-HAND_SUBSET = rule(lambda value: (isinstance(value, str)
-                                  and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
-                   or (isinstance(value, (list, tuple)) and len(value) > 0
-                       and all(map(plain_name_rule, value)) and len(set(value)) == len(value)),
-                   "all, upper, lower, random<k> or a list of distinct hand-shape names")
+HAND_SUBSET = rule(
+    lambda value: (
+        (isinstance(value, str) and bool(re.fullmatch(r"all|upper|lower|random[1-9]\d*", value)))
+        or (
+            isinstance(value, (list, tuple))
+            and len(value) > 0
+            and all(map(plain_name_rule, value))
+            and len(set(value)) == len(value)
+        )
+    ),
+    "all, upper, lower, random<k> or a list of distinct hand-shape names",
+)
 ALTERNATIVE_NAMES = ("SPCA", "ICA", "NMF", "SPLOCS", "H-fit")
-SHAPE_NAMES = rule(lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
-                   "a non-empty list of distinct shape names (plain names: each names a file in an export)")
+SHAPE_NAMES = rule(
+    lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
+    "a non-empty list of distinct shape names (plain names: each names a file in an export)",
+)
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
 HELD_OUT = names("tail", "take", "kfold", "take_out", optional=True)
 """``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
@@ -201,9 +236,13 @@ class SyntheticSchema:
     n_head_markers: int = meta(MISSING, integer(3, 32))
     head_rotation_deg: float = meta(MISSING, interval(0, 45))
     head_translation_mm: float = meta(MISSING, interval(0, 200))
-    marker_noise_mm: float = meta(MISSING, rule(lambda value: _number(value) and 0 <= value <= 10,
-                                                "in [0, 10] (mm; optical marker noise is below a millimetre, and "
-                                                "10 mm is a tenth of the face)"))
+    marker_noise_mm: float = meta(
+        MISSING,
+        rule(
+            lambda value: _number(value) and 0 <= value <= 10,
+            "in [0, 10] (mm; optical marker noise is below a millimetre, and 10 mm is a tenth of the face)",
+        ),
+    )
     seed: int = meta(0, SEED)
     mesh_rows: int = meta(MISSING, integer(20))
     mesh_cols: int = meta(MISSING, integer(20))
@@ -334,17 +373,24 @@ class MeshSequenceSchema:
     dtype: str = meta("float64", DTYPE)
 
 
-DATASET_SCHEMAS = {"synthetic": SyntheticSchema, "ict_livelink": IctLivelinkSchema, "animface": AnimfaceSchema,
-                   "mesh_sequence": MeshSequenceSchema}
+DATASET_SCHEMAS = {
+    "synthetic": SyntheticSchema,
+    "ict_livelink": IctLivelinkSchema,
+    "animface": AnimfaceSchema,
+    "mesh_sequence": MeshSequenceSchema,
+}
 DATASET_EXTRAS = {
     "hand_basis": ("synthetic", "ict_livelink", "animface", "mesh_sequence"),
-    "weight_curves": ("ict_livelink",), "weight_frame_rate": ("ict_livelink",),
+    "weight_curves": ("ict_livelink",),
+    "weight_frame_rate": ("ict_livelink",),
     "eval_on": ("ict_livelink", "animface"),
 }
 """Dataset settings added with ``+`` (not in the kind's schema, so that configs without them hash as before) ->
 the kinds that read them (docs/formats.md, docs/studies.md)."""
-DATASET_EXTRA_RULES = {"weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
-                       "weight_curves": OPTIONAL_TEXT}
+DATASET_EXTRA_RULES = {
+    "weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
+    "weight_curves": OPTIONAL_TEXT,
+}
 """The rules of the dataset settings added with ``+`` (the rate numbers the frames of weight curves, as
 :data:`FRAME_RATE` does a capture's)."""
 
@@ -396,13 +442,18 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
     kind = plain["dataset"].get("kind") if isinstance(plain.get("dataset"), Mapping) else None
     if kind not in DATASET_SCHEMAS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SCHEMAS)}, got {kind!r}")
-    _check_node(plain["dataset"], DATASET_SCHEMAS[kind], "dataset.",
-                extras={key for key, kinds in DATASET_EXTRAS.items() if kind in kinds})
+    _check_node(
+        plain["dataset"],
+        DATASET_SCHEMAS[kind],
+        "dataset.",
+        extras={key for key, kinds in DATASET_EXTRAS.items() if kind in kinds},
+    )
     _check_relations(plain)
     ineffective = ineffective_settings(plain, overrides)
     if ineffective and refuse_ineffective:
-        raise WorkbenchError(f"{ineffective[0]}; leave it out" + (f" (and {len(ineffective) - 1} more)"
-                                                                  if len(ineffective) > 1 else ""))
+        raise WorkbenchError(
+            f"{ineffective[0]}; leave it out" + (f" (and {len(ineffective) - 1} more)" if len(ineffective) > 1 else "")
+        )
     return [] if refuse_ineffective else ineffective
 
 
@@ -428,7 +479,8 @@ def resolved_settings(cfg) -> dict:
 
 RETIRED_SETTINGS = dict.fromkeys(
     ["metric.bootstrap_resamples", "metric.bootstrap_seed"],
-    "the within-run intervals are batch means over time and draw nothing at random (docs/statistics.md)")
+    "the within-run intervals are batch means over time and draw nothing at random (docs/statistics.md)",
+)
 """Settings earlier versions had, with why they went: a record written then still holds them."""
 
 
@@ -477,8 +529,11 @@ def _check_keys(plain: Mapping) -> None:
     for key in dataset:
         if key not in allowed and kind not in DATASET_EXTRAS.get(key, ()):
             readers = DATASET_EXTRAS.get(key)
-            why = (f"only dataset kind(s) {list(readers)} read it" if readers
-                   else f"dataset kind '{kind}' has no such setting")
+            why = (
+                f"only dataset kind(s) {list(readers)} read it"
+                if readers
+                else f"dataset kind '{kind}' has no such setting"
+            )
             raise WorkbenchError(f"dataset.{key} has no effect with dataset={kind}: {why}; leave it out")
 
 
@@ -512,8 +567,10 @@ def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:
     for key in values:
         if key not in known and key not in extras:
             elsewhere = f" (did you mean dataset.{key}?)" if key in DATASET_EXTRAS and prefix != "dataset." else ""
-            raise WorkbenchError(f"setting {prefix}{key} does not exist{elsewhere}; {prefix.rstrip('.') or 'a study'} "
-                                 f"has {sorted(known)}: check its spelling or leave it out")
+            raise WorkbenchError(
+                f"setting {prefix}{key} does not exist{elsewhere}; {prefix.rstrip('.') or 'a study'} "
+                f"has {sorted(known)}: check its spelling or leave it out"
+            )
 
 
 def _nested_schema(spec):
@@ -540,14 +597,17 @@ def _check_relations(plain: Mapping) -> None:
     """Rules between settings."""
     splocs = plain["basis"].get("splocs") or {}
     if _number(splocs.get("d_min")) and _number(splocs.get("d_max")) and not splocs["d_min"] < splocs["d_max"]:
-        raise WorkbenchError(f"basis.splocs.d_min ({splocs['d_min']}) must be below basis.splocs.d_max "
-                             f"({splocs['d_max']})")
+        raise WorkbenchError(
+            f"basis.splocs.d_min ({splocs['d_min']}) must be below basis.splocs.d_max ({splocs['d_max']})"
+        )
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
         _check_marker_count(plain["dataset"])
     coverage_on_setting(basis)
-    for key, wants_clean in (("basis.coverage_on", basis.get("coverage_on") == "clean"),
-                             ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True)):
+    for key, wants_clean in (
+        ("basis.coverage_on", basis.get("coverage_on") == "clean"),
+        ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True),
+    ):
         if wants_clean and kind != "synthetic":
             raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
 
@@ -557,8 +617,10 @@ def _check_marker_count(dataset: Mapping) -> None:
     before the dataset's memory estimate, so that the message names the setting at fault)."""
     markers, rows, cols = (dataset.get(key) for key in ("n_face_markers", "mesh_rows", "mesh_cols"))
     if all(map(_integer, (markers, rows, cols))) and markers > rows * cols:
-        raise WorkbenchError(f"dataset.n_face_markers must not exceed the synthetic mesh's dataset.mesh_rows x "
-                             f"dataset.mesh_cols = {rows * cols} vertices (the markers sit on them), got {markers}")
+        raise WorkbenchError(
+            f"dataset.n_face_markers must not exceed the synthetic mesh's dataset.mesh_rows x "
+            f"dataset.mesh_cols = {rows * cols} vertices (the markers sit on them), got {markers}"
+        )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -585,49 +647,87 @@ def _alternatives(plain: Mapping) -> list:
 
 
 INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
-    "dataset.eval_fraction": lambda c: None if c["dataset"].get("split") == "tail" or "tail" in _held_out(c) else
-    f"only dataset.split=tail or dataset.held_out=tail uses it (this run: split={c['dataset'].get('split')})",
+    "dataset.eval_fraction": lambda c: (
+        None
+        if c["dataset"].get("split") == "tail" or "tail" in _held_out(c)
+        else f"only dataset.split=tail or dataset.held_out=tail uses it (this run: split={c['dataset'].get('split')})"
+    ),
     "dataset.folds": lambda c: None if "kfold" in _held_out(c) else "only dataset.held_out=kfold uses it",
     "dataset.fold_gap_s": lambda c: None if "kfold" in _held_out(c) else "only dataset.held_out=kfold uses it",
-    "dataset.eval_seed": lambda c: None if c["dataset"].get("split") == "other_take" else
-    f"only dataset.split=other_take uses it (this run: split={c['dataset'].get('split')})",
-    "dataset.gap_mean_frames": lambda c: None if (c["dataset"].get("gap_rate") or 0) > 0 else
-    "it shapes the simulated dropout, and dataset.gap_rate is 0",
-    "dataset.gap_seed": lambda c: None if (c["dataset"].get("gap_rate") or 0) > 0 else
-    "it seeds the simulated dropout, and dataset.gap_rate is 0",
-    "dataset.gap_max_fill_frames": lambda c: None if c["dataset"].get("gap_policy") == "linear" else
-    f"only dataset.gap_policy=linear fills gaps (this run: {c['dataset'].get('gap_policy')})",
-    "dataset.gap_fit_on": lambda c: None if c["dataset"].get("gap_policy") == "masked" else
-    f"only dataset.gap_policy=masked uses it (this run: {c['dataset'].get('gap_policy')})",
-    "dataset.mesh_fraction": lambda c: None if _variants(c["dataset"]) & {"mesh", "mesh_rbf"} else
-    "no data variant of this run lives on the mesh (dataset.train_on/eval_on)",
-    "dataset.mesh_vertex_step": lambda c: None if "mesh" in _variants(c["dataset"]) else
-    "no data variant of this run lives on the mesh (dataset.train_on)",
-    "dataset.rbf": lambda c: None if "mesh" in _variants(c["dataset"]) else
-    "the RBF carries markers onto the mesh, and no data variant of this run lives on the mesh",
-    "dataset.neutral_frame": lambda c: None if c["dataset"].get("kind") != "mesh_sequence"
-    or not c["dataset"].get("neutral") else "dataset.neutral names the neutral face",
-    "dataset.weight_frame_rate": lambda c: None if c["dataset"].get("weight_curves") else
-    "only weight curves given with dataset.weight_curves use it",
-    "basis.coverage": lambda c: None if c["basis"].get("n_components") is None else
-    f"basis.n_components={c['basis']['n_components']} fixes m",
-    "basis.paper_regime": lambda c: None if c["basis"].get("n_components") is None
-    and not c["dataset"].get("eval_on") else
-    "it adds an m = n fit beside the coverage rule's m, and basis.n_components fixes m (or dataset.eval_on carries "
-    "the bases onto other points)",
-    "basis.subset_seed": lambda c: None if str(c["basis"].get("hand_subset")).startswith("random") else
-    f"only basis.hand_subset=random<k> draws (this run: {c['basis'].get('hand_subset')})",
-    "basis.alternatives_n": lambda c: None if set(_alternatives(c)) - {"H-fit"} else
-    "no basis.alternatives other than H-fit are fitted",
-    "basis.alternatives_seed": lambda c: None if {"ICA", "NMF"} & set(_alternatives(c)) else
-    "only basis.alternatives ICA and NMF draw",
+    "dataset.eval_seed": lambda c: (
+        None
+        if c["dataset"].get("split") == "other_take"
+        else f"only dataset.split=other_take uses it (this run: split={c['dataset'].get('split')})"
+    ),
+    "dataset.gap_mean_frames": lambda c: (
+        None
+        if (c["dataset"].get("gap_rate") or 0) > 0
+        else "it shapes the simulated dropout, and dataset.gap_rate is 0"
+    ),
+    "dataset.gap_seed": lambda c: (
+        None if (c["dataset"].get("gap_rate") or 0) > 0 else "it seeds the simulated dropout, and dataset.gap_rate is 0"
+    ),
+    "dataset.gap_max_fill_frames": lambda c: (
+        None
+        if c["dataset"].get("gap_policy") == "linear"
+        else f"only dataset.gap_policy=linear fills gaps (this run: {c['dataset'].get('gap_policy')})"
+    ),
+    "dataset.gap_fit_on": lambda c: (
+        None
+        if c["dataset"].get("gap_policy") == "masked"
+        else f"only dataset.gap_policy=masked uses it (this run: {c['dataset'].get('gap_policy')})"
+    ),
+    "dataset.mesh_fraction": lambda c: (
+        None
+        if _variants(c["dataset"]) & {"mesh", "mesh_rbf"}
+        else "no data variant of this run lives on the mesh (dataset.train_on/eval_on)"
+    ),
+    "dataset.mesh_vertex_step": lambda c: (
+        None
+        if "mesh" in _variants(c["dataset"])
+        else "no data variant of this run lives on the mesh (dataset.train_on)"
+    ),
+    "dataset.rbf": lambda c: (
+        None
+        if "mesh" in _variants(c["dataset"])
+        else "the RBF carries markers onto the mesh, and no data variant of this run lives on the mesh"
+    ),
+    "dataset.neutral_frame": lambda c: (
+        None
+        if c["dataset"].get("kind") != "mesh_sequence" or not c["dataset"].get("neutral")
+        else "dataset.neutral names the neutral face"
+    ),
+    "dataset.weight_frame_rate": lambda c: (
+        None if c["dataset"].get("weight_curves") else "only weight curves given with dataset.weight_curves use it"
+    ),
+    "basis.coverage": lambda c: (
+        None if c["basis"].get("n_components") is None else f"basis.n_components={c['basis']['n_components']} fixes m"
+    ),
+    "basis.paper_regime": lambda c: (
+        None
+        if c["basis"].get("n_components") is None and not c["dataset"].get("eval_on")
+        else "it adds an m = n fit beside the coverage rule's m, and basis.n_components fixes m (or dataset.eval_on carries "
+        "the bases onto other points)"
+    ),
+    "basis.subset_seed": lambda c: (
+        None
+        if str(c["basis"].get("hand_subset")).startswith("random")
+        else f"only basis.hand_subset=random<k> draws (this run: {c['basis'].get('hand_subset')})"
+    ),
+    "basis.alternatives_n": lambda c: (
+        None if set(_alternatives(c)) - {"H-fit"} else "no basis.alternatives other than H-fit are fitted"
+    ),
+    "basis.alternatives_seed": lambda c: (
+        None if {"ICA", "NMF"} & set(_alternatives(c)) else "only basis.alternatives ICA and NMF draw"
+    ),
     "basis.spca": lambda c: None if "SPCA" in _alternatives(c) else "SPCA is not in basis.alternatives",
     "basis.ica": lambda c: None if "ICA" in _alternatives(c) else "ICA is not in basis.alternatives",
     "basis.nmf": lambda c: None if "NMF" in _alternatives(c) else "NMF is not in basis.alternatives",
     "basis.splocs": lambda c: None if "SPLOCS" in _alternatives(c) else "SPLOCS is not in basis.alternatives",
     "basis.hand_fit": lambda c: None if "H-fit" in _alternatives(c) else "H-fit is not in basis.alternatives",
-    "basis.intuitiveness": lambda c: None if _alternatives(c) else
-    "intuitiveness is measured only with basis.alternatives",
+    "basis.intuitiveness": lambda c: (
+        None if _alternatives(c) else "intuitiveness is measured only with basis.alternatives"
+    ),
 }
 """Setting -> why it has no effect in a run (None when it has one)."""
 

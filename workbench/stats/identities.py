@@ -55,9 +55,9 @@ class Identity:
 
 def scored_on_training_frames(facts: Mapping) -> bool:
     """Whether a data variant was scored on the very frames its bases were fitted on (split 'same')."""
-    return (facts.get("protocol", "training frames") == "training frames"
-            and not any(str(note).startswith(("split 'tail'", "split 'other_take'"))
-                        for note in facts.get("notes", [])))
+    return facts.get("protocol", "training frames") == "training frames" and not any(
+        str(note).startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", [])
+    )
 
 
 def run_identities(rows: Sequence[Mapping], facts: Mapping) -> list[Identity]:
@@ -79,25 +79,50 @@ def run_identities(rows: Sequence[Mapping], facts: Mapping) -> list[Identity]:
     keys = {(row["basis"], row["solver"]) for row in rows}
     for basis in dict.fromkeys(row["basis"] for row in rows if row["solver"] in SOLVER_ORDER):
         nested = [solver for solver in SOLVER_ORDER if (basis, solver) in keys]
-        found += [Identity((basis, a), (basis, b), f"{a} minimises the error over a superset of {b}'s weights")
-                  for a, b in zip(nested, nested[1:])]
+        found += [
+            Identity((basis, a), (basis, b), f"{a} minimises the error over a superset of {b}'s weights")
+            for a, b in zip(nested, nested[1:])
+        ]
     pca = facts.get("pca") or {}
     m = pca.get("m")
     same_points = all(row.get("train_on", row.get("data")) == row.get("eval_on", row.get("data")) for row in rows)
     qe = next((row for row in rows if row["basis"] == "QE" and row["solver"] == "lstsq"), None)
     rank = ((qe or {}).get("basis_conditioning") or {}).get("rank")
-    if qe is not None and qe.get("n") is not None and ("PCA", "projection") in keys and m is not None and same_points and rank is not None \
-            and rank >= m + 1:
-        found.append(Identity(("QE", "lstsq"), ("PCA", "projection"),
-                              f"the {qe['n']:g} affine QE shapes have rank {rank} = m + 1: they span mu + "
-                              "span(eigenfaces), where PCA's reconstruction lies"))
-    if ("PCA", "projection") in keys and m is not None and same_points and scored_on_training_frames(facts) \
-            and pca.get("method") in EXACT_PCA:
+    if (
+        qe is not None
+        and qe.get("n") is not None
+        and ("PCA", "projection") in keys
+        and m is not None
+        and same_points
+        and rank is not None
+        and rank >= m + 1
+    ):
+        found.append(
+            Identity(
+                ("QE", "lstsq"),
+                ("PCA", "projection"),
+                f"the {qe['n']:g} affine QE shapes have rank {rank} = m + 1: they span mu + "
+                "span(eigenfaces), where PCA's reconstruction lies",
+            )
+        )
+    if (
+        ("PCA", "projection") in keys
+        and m is not None
+        and same_points
+        and scored_on_training_frames(facts)
+        and pca.get("method") in EXACT_PCA
+    ):
         for row in rows:
             if row["basis"] != "PCA" and row.get("n") is not None and row["n"] <= m:
-                found.append(Identity(("PCA", "projection"), (row["basis"], row["solver"]),
-                                      f"Eckart-Young: on its training frames PCA's m = {m} is the best pooled fit "
-                                      f"of any {row['n']:g} <= m shapes", pooled_only=True))
+                found.append(
+                    Identity(
+                        ("PCA", "projection"),
+                        (row["basis"], row["solver"]),
+                        f"Eckart-Young: on its training frames PCA's m = {m} is the best pooled fit "
+                        f"of any {row['n']:g} <= m shapes",
+                        pooled_only=True,
+                    )
+                )
     return found
 
 
@@ -113,8 +138,13 @@ def identity_lookup(identities: Sequence[Identity], column: str) -> Callable[[tu
         a, b = tuple(a), tuple(b)
         if (a, b) in direct:
             return direct[a, b]
-        if a[0] == b[0] and a[0] in nested and a[1] in SOLVER_ORDER and b[1] in SOLVER_ORDER \
-                and SOLVER_ORDER.index(a[1]) < SOLVER_ORDER.index(b[1]):
+        if (
+            a[0] == b[0]
+            and a[0] in nested
+            and a[1] in SOLVER_ORDER
+            and b[1] in SOLVER_ORDER
+            and SOLVER_ORDER.index(a[1]) < SOLVER_ORDER.index(b[1])
+        ):
             return Identity(a, b, f"{a[1]} minimises the error over a superset of {b[1]}'s weights")
         return None
 
@@ -123,5 +153,7 @@ def identity_lookup(identities: Sequence[Identity], column: str) -> Callable[[tu
 
 def identity_text(identity: Identity) -> str:
     """``QE lstsq <= PCA by construction (reason)``."""
-    return (f"{' '.join(identity.smaller).replace(' projection', '')} <= "
-            f"{' '.join(identity.larger).replace(' projection', '')} by construction ({identity.reason})")
+    return (
+        f"{' '.join(identity.smaller).replace(' projection', '')} <= "
+        f"{' '.join(identity.larger).replace(' projection', '')} by construction ({identity.reason})"
+    )

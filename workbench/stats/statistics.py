@@ -133,19 +133,42 @@ class Interval:
 
     def as_dict(self) -> dict:
         """The fields by name (JSON-ready: a record's ``metrics.json`` stores its comparisons so)."""
-        return {"estimate": self.estimate, "low": self.low, "high": self.high, "n": self.n, "method": self.method,
-                "confidence": self.confidence, "null": self.null, "block_frames": self.block_frames,
-                "block_seconds": self.block_seconds, "p_value": self.p_value, "scale": self.scale,
-                "p_adjusted": self.p_adjusted}
+        return {
+            "estimate": self.estimate,
+            "low": self.low,
+            "high": self.high,
+            "n": self.n,
+            "method": self.method,
+            "confidence": self.confidence,
+            "null": self.null,
+            "block_frames": self.block_frames,
+            "block_seconds": self.block_seconds,
+            "p_value": self.p_value,
+            "scale": self.scale,
+            "p_adjusted": self.p_adjusted,
+        }
 
     @classmethod
     def from_dict(cls, values: Mapping) -> "Interval":
         """The interval of :meth:`as_dict`'s fields. A stored comparison without ``null`` is a difference (null 0),
         and ``level`` is read as ``confidence`` (records written before the two were one type)."""
-        fields = {key: values[key] for key in ("estimate", "low", "high", "n", "method", "confidence",
-                                               "block_frames", "block_seconds", "p_value", "scale",
-                                               "p_adjusted")
-                  if key in values}
+        fields = {
+            key: values[key]
+            for key in (
+                "estimate",
+                "low",
+                "high",
+                "n",
+                "method",
+                "confidence",
+                "block_frames",
+                "block_seconds",
+                "p_value",
+                "scale",
+                "p_adjusted",
+            )
+            if key in values
+        }
         if "confidence" not in fields and "level" in values:
             fields["confidence"] = values["level"]
         return cls(**fields, null=values.get("null", 0.0))
@@ -174,11 +197,15 @@ def interval_text(interval: Interval, name: str = "difference", number_format: s
     how = [interval.method] if interval.method else []
     if interval.block_frames:
         unit = "batches" if interval.method == BATCH_MEANS else "blocks"
-        how.append(f"{unit} of {interval.block_frames} frame{'s' if interval.block_frames > 1 else ''}" + (
-            f" = {interval.block_seconds:.2g} s" if math.isfinite(interval.block_seconds) else ""))
+        how.append(
+            f"{unit} of {interval.block_frames} frame{'s' if interval.block_frames > 1 else ''}"
+            + (f" = {interval.block_seconds:.2g} s" if math.isfinite(interval.block_seconds) else "")
+        )
     adjusted = f", Holm-adjusted p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
-    return (f"{name} {estimate}, {100 * interval.confidence:g} % interval [{number_format.format(interval.low)}, "
-            f"{number_format.format(interval.high)}] ({', '.join([*how, f'n = {interval.n}'])}){adjusted}")
+    return (
+        f"{name} {estimate}, {100 * interval.confidence:g} % interval [{number_format.format(interval.low)}, "
+        f"{number_format.format(interval.high)}] ({', '.join([*how, f'n = {interval.n}'])}){adjusted}"
+    )
 
 
 def short_interval_text(interval: Interval, name: str = "difference", number_format: str = "{:.3g}") -> str:
@@ -188,8 +215,7 @@ def short_interval_text(interval: Interval, name: str = "difference", number_for
     if not interval.defined:
         return f"{name} {estimate} (no interval)"
     adjusted = f", Holm p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
-    return (f"{name} {estimate} [{number_format.format(interval.low)}, {number_format.format(interval.high)}]"
-            f"{adjusted}")
+    return f"{name} {estimate} [{number_format.format(interval.low)}, {number_format.format(interval.high)}]{adjusted}"
 
 
 def comparison_name(first: str, second: str, interval: Interval) -> str:
@@ -233,8 +259,9 @@ def _t_quantile(confidence: float, degrees: int) -> float:
     return float(stats.t.ppf(0.5 + confidence / 2.0, degrees))
 
 
-def t_interval(values, confidence: float = CONFIDENCE, *, method: str = "Student t",
-               null: float | None = None) -> Interval:
+def t_interval(
+    values, confidence: float = CONFIDENCE, *, method: str = "Student t", null: float | None = None
+) -> Interval:
     """Mean and two-sided Student-t interval of the mean, ``mean +- t_{(1+c)/2, n-1} s / sqrt(n)``.
 
     For values that may take either sign (differences). Non-finite values are left out.
@@ -290,11 +317,18 @@ def geometric_interval(values, confidence: float = CONFIDENCE) -> Interval:
     """
     values = _finite(values)
     if np.any(values <= 0.0):
-        return Interval(math.nan, math.nan, math.nan, int(values.size), f"{GEOMETRIC} (needs positive values)",
-                        confidence)
+        return Interval(
+            math.nan, math.nan, math.nan, int(values.size), f"{GEOMETRIC} (needs positive values)", confidence
+        )
     logs = t_interval(np.log(values), confidence)
-    return Interval(math.exp(logs.estimate) if logs.n else math.nan, math.exp(logs.low), math.exp(logs.high),
-                    logs.n, GEOMETRIC, confidence)
+    return Interval(
+        math.exp(logs.estimate) if logs.n else math.nan,
+        math.exp(logs.low),
+        math.exp(logs.high),
+        logs.n,
+        GEOMETRIC,
+        confidence,
+    )
 
 
 def paired_difference_interval(differences, confidence: float = CONFIDENCE) -> Interval:
@@ -335,8 +369,16 @@ def paired_ratio_interval(first, second, confidence: float = CONFIDENCE) -> Inte
     usable = np.isfinite(first) & np.isfinite(second) & (first > 0) & (second > 0)
     logs = t_interval(np.log(first[usable] / second[usable]), confidence, null=0.0)
     estimate = math.exp(logs.estimate) if logs.n else math.nan
-    return Interval(estimate, math.exp(logs.low), math.exp(logs.high), logs.n, PAIRED_LOG_RATIO, confidence, 1.0,
-                    p_value=logs.p_value)
+    return Interval(
+        estimate,
+        math.exp(logs.low),
+        math.exp(logs.high),
+        logs.n,
+        PAIRED_LOG_RATIO,
+        confidence,
+        1.0,
+        p_value=logs.p_value,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -419,9 +461,9 @@ def persistence(series: np.ndarray, takes: Sequence | None = None) -> float:
         return 0.0
     rho = acv / acv[0]
     lag1 = float(rho[1]) + (1.0 + 3.0 * float(rho[1])) / n
-    lag1 += PERSISTENCE_SE * math.sqrt(max(1.0 - lag1 ** 2, 0.0) / n)
-    pairs = rho[1:(n - 1) // 2 * 2 + 1].reshape(-1, 2).sum(axis=1)
-    positive = pairs[:int(np.argmax(pairs <= 0.0))] if np.any(pairs <= 0.0) else pairs
+    lag1 += PERSISTENCE_SE * math.sqrt(max(1.0 - lag1**2, 0.0) / n)
+    pairs = rho[1 : (n - 1) // 2 * 2 + 1].reshape(-1, 2).sum(axis=1)
+    positive = pairs[: int(np.argmax(pairs <= 0.0))] if np.any(pairs <= 0.0) else pairs
     tau = 1.0 + 2.0 * float(positive.sum())
     return float(min(max(lag1, (tau - 1.0) / (tau + 1.0), 0.0), PERSISTENCE_MAX))
 
@@ -447,7 +489,7 @@ def batch_edges(spans: Sequence[tuple[int, int]], phi: float) -> list[tuple[int,
 def _ar1_sum_variance(m, phi: float) -> np.ndarray:
     """Variance of the sum of ``m`` consecutive values of a unit-innovation AR(1) with coefficient ``phi``."""
     m = np.maximum(np.asarray(m, dtype=float), 0.0)  # pairs that overlap (the diagonal) are set apart
-    return (m * (1 + phi) / (1 - phi) - 2 * phi * (1 - phi ** m) / (1 - phi) ** 2) / (1 - phi ** 2)
+    return (m * (1 + phi) / (1 - phi) - 2 * phi * (1 - phi**m) / (1 - phi) ** 2) / (1 - phi**2)
 
 
 def ar1_batch_correction(edges: Sequence[tuple[int, int]], spans: Sequence[tuple[int, int]], phi: float) -> float:
@@ -471,8 +513,12 @@ def ar1_batch_correction(edges: Sequence[tuple[int, int]], spans: Sequence[tuple
     first, last = np.minimum(a[0], a[1]), np.maximum(b[0], b[1])
     low_stop, high_start = np.minimum(b[0], b[1]), np.maximum(a[0], a[1])
     # covariance of two batch sums: 1/2 (V(span) + V(gap) - V(first to the later start) - V(earlier stop to end))
-    cross = 0.5 * (_ar1_sum_variance(last - first, phi) + _ar1_sum_variance(high_start - low_stop, phi)
-                   - _ar1_sum_variance(high_start - first, phi) - _ar1_sum_variance(last - low_stop, phi))
+    cross = 0.5 * (
+        _ar1_sum_variance(last - first, phi)
+        + _ar1_sum_variance(high_start - low_stop, phi)
+        - _ar1_sum_variance(high_start - first, phi)
+        - _ar1_sum_variance(last - low_stop, phi)
+    )
     covariance = np.where(take[:, None] == take[None, :], cross, 0.0)
     np.fill_diagonal(covariance, _ar1_sum_variance(stops - starts, phi))
     n, count = float((stops - starts).sum()), len(edges)
@@ -481,9 +527,15 @@ def ar1_batch_correction(edges: Sequence[tuple[int, int]], spans: Sequence[tuple
     return float(max(covariance.sum() / expected, 1.0))
 
 
-def batch_means_interval(series: np.ndarray, statistic: Callable[[np.ndarray], np.ndarray], *,
-                         takes: Sequence | None = None, seconds: Sequence | None = None,
-                         confidence: float = CONFIDENCE, scale: float = math.nan) -> Interval:
+def batch_means_interval(
+    series: np.ndarray,
+    statistic: Callable[[np.ndarray], np.ndarray],
+    *,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+    scale: float = math.nan,
+) -> Interval:
     """A statistic of per-frame means with its batch-means interval over time; null 0 (a difference).
 
     The statistic is linearised at the means (delta method, central differences): each frame's influence
@@ -517,30 +569,51 @@ def batch_means_interval(series: np.ndarray, statistic: Callable[[np.ndarray], n
     means = series.mean(axis=1)
     estimate = float(statistic(means))
     steps = 1e-6 * np.maximum(np.abs(means), 1e-300)
-    gradient = np.array([(statistic(means + step * unit) - statistic(means - step * unit)) / (2 * step)
-                         for step, unit in zip(steps, np.eye(len(means)))])
+    gradient = np.array(
+        [
+            (statistic(means + step * unit) - statistic(means - step * unit)) / (2 * step)
+            for step, unit in zip(steps, np.eye(len(means)))
+        ]
+    )
     influence = gradient @ (series - means[:, None])
     spans, phi = take_spans(takes, n), persistence(influence, takes)
     edges = batch_edges(spans, phi)
     lengths = np.array([stop - start for start, stop in edges])
     step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
-    found = Interval(estimate, math.nan, math.nan, n, BATCH_MEANS, confidence, 0.0, int(np.median(lengths)),
-                     float(np.median(lengths)) * step, scale=scale)
+    found = Interval(
+        estimate,
+        math.nan,
+        math.nan,
+        n,
+        BATCH_MEANS,
+        confidence,
+        0.0,
+        int(np.median(lengths)),
+        float(np.median(lengths)) * step,
+        scale=scale,
+    )
     if len(edges) < 2:
         return found
     sums = np.array([influence[start:stop].sum() for start, stop in edges])
-    variance = len(edges) / (len(edges) - 1) * float(np.sum((sums - lengths * influence.mean()) ** 2)) / n ** 2
+    variance = len(edges) / (len(edges) - 1) * float(np.sum((sums - lengths * influence.mean()) ** 2)) / n**2
     variance *= ar1_batch_correction(edges, spans, phi)
     if variance <= 0.0:  # the same in every batch: the estimate is exact (as a bootstrap would find it)
         return replace(found, low=estimate, high=estimate, p_value=0.0 if estimate else 1.0)
     error = math.sqrt(variance)
     half = _t_quantile(confidence, len(edges) - 1) * error
-    return replace(found, low=estimate - half, high=estimate + half,
-                   p_value=_t_p_value(estimate / error, len(edges) - 1))
+    return replace(
+        found, low=estimate - half, high=estimate + half, p_value=_t_p_value(estimate / error, len(edges) - 1)
+    )
 
 
-def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | None = None,
-                           seconds: Sequence | None = None, confidence: float = CONFIDENCE) -> Interval:
+def paired_mean_difference(
+    a: np.ndarray,
+    b: np.ndarray,
+    *,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+) -> Interval:
     """Mean over frames of ``a - b`` (two rows' per-frame alpha on the same frames), with its batch-means
     interval (:func:`batch_means_interval`). Frames where either value is NaN (alpha undefined) are left out of
     both means.
@@ -564,13 +637,25 @@ def paired_mean_difference(a: np.ndarray, b: np.ndarray, *, takes: Sequence | No
     if not np.any(difference):
         return _identical(int(valid.sum()), confidence)
     scale = float(max(np.abs(a[valid]).mean(), np.abs(b[valid]).mean()))
-    return batch_means_interval(np.vstack([difference, valid.astype(float)]), lambda m: m[0] / m[1], takes=takes,
-                                seconds=seconds, confidence=confidence, scale=scale)
+    return batch_means_interval(
+        np.vstack([difference, valid.astype(float)]),
+        lambda m: m[0] / m[1],
+        takes=takes,
+        seconds=seconds,
+        confidence=confidence,
+        scale=scale,
+    )
 
 
-def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference: np.ndarray, *,
-                             takes: Sequence | None = None, seconds: Sequence | None = None,
-                             confidence: float = CONFIDENCE) -> Interval:
+def paired_pooled_difference(
+    error_a: np.ndarray,
+    error_b: np.ndarray,
+    reference: np.ndarray,
+    *,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+) -> Interval:
     """Difference of two pooled alphas (eq. 6 over all frames, ``100 sqrt(sum |err|^2 / sum |ref|^2)``) of the same
     frames, with its batch-means interval (:func:`batch_means_interval`, delta method).
 
@@ -596,16 +681,23 @@ def paired_pooled_difference(error_a: np.ndarray, error_b: np.ndarray, reference
         return _identical(error_a.size, confidence)
     total = reference.sum()
     scale = 100.0 * math.sqrt(max(error_a.sum(), error_b.sum()) / total) if total > 0 else math.nan
-    return batch_means_interval(np.vstack([error_a, error_b, reference]),
-                                lambda m: 100.0 * (np.sqrt(m[0] / m[2]) - np.sqrt(m[1] / m[2])), takes=takes,
-                                seconds=seconds, confidence=confidence, scale=scale)
+    return batch_means_interval(
+        np.vstack([error_a, error_b, reference]),
+        lambda m: 100.0 * (np.sqrt(m[0] / m[2]) - np.sqrt(m[1] / m[2])),
+        takes=takes,
+        seconds=seconds,
+        confidence=confidence,
+        scale=scale,
+    )
 
 
 def _paired(a, b) -> tuple[np.ndarray, np.ndarray]:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.ndim != 1 or a.shape != b.shape or a.size == 0:
-        raise WorkbenchError(f"paired per-frame values must be two non-empty 1-D arrays of one length, got shapes "
-                             f"{a.shape} and {b.shape}")
+        raise WorkbenchError(
+            f"paired per-frame values must be two non-empty 1-D arrays of one length, got shapes "
+            f"{a.shape} and {b.shape}"
+        )
     return a, b
 
 
@@ -654,10 +746,14 @@ def holm(p_values) -> np.ndarray:
     return adjusted
 
 
-def ordering_text(values: Mapping, compare: Callable[[object, object], Interval | None],
-                  name: Callable[[object], str] = str, digits: int = 4,
-                  identity: Callable[[object, object], str | None] | None = None,
-                  detail: Callable[..., str] | None = None) -> str:
+def ordering_text(
+    values: Mapping,
+    compare: Callable[[object, object], Interval | None],
+    name: Callable[[object], str] = str,
+    digits: int = 4,
+    identity: Callable[[object, object], str | None] | None = None,
+    detail: Callable[..., str] | None = None,
+) -> str:
     """Items from smallest to largest value, each neighbouring pair joined by what its paired comparison allows.
 
     ``A 0.17 = B 0.17`` when the two values tie (:func:`values_tie`, or the interval is :attr:`Interval.tied`);
@@ -686,8 +782,11 @@ def ordering_text(values: Mapping, compare: Callable[[object, object], Interval 
     -------
     str
     """
-    ranked = sorted((value, index, item) for index, (item, value) in enumerate(values.items())
-                    if value is not None and math.isfinite(value))
+    ranked = sorted(
+        (value, index, item)
+        for index, (item, value) in enumerate(values.items())
+        if value is not None and math.isfinite(value)
+    )
     if not ranked:
         return ""
     text = f"{name(ranked[0][2])} {ranked[0][0]:.{digits}g}"

@@ -15,19 +15,19 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from workbench.dataset.capture import Capture, Timeline
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.capture import Capture, Timeline
 from workbench.numerics.metrics import error_distribution, summarise_squares
 from workbench.settings.rules import checked, integer, number_setting
 from workbench.stats.statistics import paired_ratio_interval
-
 
 FOLDED = {"kfold": "held-out blocked k-fold", "take_out": "held-out leave-one-take-out"}
 """``dataset.held_out`` protocols scored by cross-validation -> how their frames are described."""
 
 
-def fold_indices(timeline: Timeline, protocol: str, folds: int = 5,
-                 gap_s: float = 0.5) -> list[tuple[np.ndarray, np.ndarray]]:
+def fold_indices(
+    timeline: Timeline, protocol: str, folds: int = 5, gap_s: float = 0.5
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """The training and held-out frames of every fold.
 
     Parameters
@@ -49,16 +49,19 @@ def fold_indices(timeline: Timeline, protocol: str, folds: int = 5,
     everything = np.arange(len(timeline))
     if protocol == "take_out":
         if len(spans) < 2:
-            raise WorkbenchError("dataset.held_out 'take_out' holds out each take in turn, and this capture has one "
-                                 "take; use 'kfold'")
+            raise WorkbenchError(
+                "dataset.held_out 'take_out' holds out each take in turn, and this capture has one take; use 'kfold'"
+            )
         return [(np.setdiff1d(everything, np.arange(start, stop)), np.arange(start, stop)) for start, stop in spans]
     if protocol != "kfold":
         raise WorkbenchError(f"dataset.held_out: {protocol!r} is not cross-validated ({list(FOLDED)})")
     checked(folds, "dataset.folds", integer(2))
     number_setting(gap_s, "dataset.fold_gap_s", "a number >= 0 (seconds)", lambda seconds: seconds >= 0)
     if any(stop - start < folds for start, stop in spans):
-        raise WorkbenchError(f"dataset.folds {folds} needs every take to have at least {folds} frames, got takes of "
-                             f"{[stop - start for start, stop in spans]}")
+        raise WorkbenchError(
+            f"dataset.folds {folds} needs every take to have at least {folds} frames, got takes of "
+            f"{[stop - start for start, stop in spans]}"
+        )
     seconds = np.asarray(timeline.seconds, dtype=float)
     result = []
     for k in range(folds):
@@ -84,14 +87,20 @@ def fold_capture(capture: Capture, train: np.ndarray, held: np.ndarray, note: st
 
     notes = tuple(n for n in capture.notes if not n.startswith("split '")) + (note,)
     timeline = capture.timeline()
-    return replace(capture, train=select_frames(capture.train, train), eval=select_frames(capture.eval, held),
-                   eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
-                   train_source=None if capture.train_source is None else capture.train_source[train],
-                   eval_timeline=timeline[held], notes=notes)
+    return replace(
+        capture,
+        train=select_frames(capture.train, train),
+        eval=select_frames(capture.eval, held),
+        eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
+        train_source=None if capture.train_source is None else capture.train_source[train],
+        eval_timeline=timeline[held],
+        notes=notes,
+    )
 
 
-def cross_validated(data: str, capture: Capture, protocol: str, dataset_cfg: Mapping,
-                    fit_and_score: Callable[[str, Capture], object]):
+def cross_validated(
+    data: str, capture: Capture, protocol: str, dataset_cfg: Mapping, fit_and_score: Callable[[str, Capture], object]
+):
     """One data variant cross-validated: every fold fitted (m by the coverage rule on its training frames) and
     scored on its held-out frames, pooled into one result.
 
@@ -112,10 +121,13 @@ def cross_validated(data: str, capture: Capture, protocol: str, dataset_cfg: Map
         Rows pooled over all held-out frames (:func:`pooled_rows`); ``folds`` holds each fold's m, frames and
         alphas.
     """
-    if len(capture.train) != len(capture.eval) or (capture.train_source is not None
-                                                   and len(capture.train_source) != len(capture.train)):
-        raise WorkbenchError("dataset.held_out needs the training and evaluated frames to be the same frames "
-                             "(split 'same'; with gap_policy masked, gap_fit_on filled)")
+    if len(capture.train) != len(capture.eval) or (
+        capture.train_source is not None and len(capture.train_source) != len(capture.train)
+    ):
+        raise WorkbenchError(
+            "dataset.held_out needs the training and evaluated frames to be the same frames "
+            "(split 'same'; with gap_policy masked, gap_fit_on filled)"
+        )
     gap_s = dataset_cfg.get("fold_gap_s", 0.5)
     folds = fold_indices(capture.timeline(), protocol, dataset_cfg.get("folds", 5), gap_s)
     name = f"{data} held-out {protocol}"
@@ -124,18 +136,32 @@ def cross_validated(data: str, capture: Capture, protocol: str, dataset_cfg: Map
         note = f"fold {k + 1} of {len(folds)}: {len(train)} training frames, {len(held)} evaluated"
         parts.append(fit_and_score(f"{name} fold {k + 1}", fold_capture(capture, train, held, note)))
     held_all = np.concatenate([held for _, held in folds])
-    how = (f"{len(folds)} contiguous blocks of every take, a gap of {gap_s:g} s left out of training at each "
-           "block's edges" if protocol == "kfold" else f"each of the {len(folds)} takes held out in turn")
-    note = (f"held out by cross-validation, {len(folds)} folds ({how}); every basis scored on the same held-out "
-            f"frames, m chosen in each fold (m = {[part.eigenfaces.n_components_ for part in parts]}); alpha pooled "
-            "over all held-out frames, weight statistics per fold not pooled")
+    how = (
+        f"{len(folds)} contiguous blocks of every take, a gap of {gap_s:g} s left out of training at each block's edges"
+        if protocol == "kfold"
+        else f"each of the {len(folds)} takes held out in turn"
+    )
+    note = (
+        f"held out by cross-validation, {len(folds)} folds ({how}); every basis scored on the same held-out "
+        f"frames, m chosen in each fold (m = {[part.eigenfaces.n_components_ for part in parts]}); alpha pooled "
+        "over all held-out frames, weight statistics per fold not pooled"
+    )
     pooled = fold_capture(capture, np.arange(len(capture.train)), held_all, note)
     pooled = replace(pooled, notes=tuple(n for n in pooled.notes if not n.startswith("fold ")))
     first = parts[0]
-    return replace(first, data=name, capture=pooled, rows=pooled_rows(pooled, [part.rows for part in parts]),
-                   weights=pooled_weights([part.weights for part in parts]), train_on=data, eval_on=data,
-                   protocol=FOLDED[protocol], basis_intuitiveness={}, offset={},
-                   folds=fold_values(parts))
+    return replace(
+        first,
+        data=name,
+        capture=pooled,
+        rows=pooled_rows(pooled, [part.rows for part in parts]),
+        weights=pooled_weights([part.weights for part in parts]),
+        train_on=data,
+        eval_on=data,
+        protocol=FOLDED[protocol],
+        basis_intuitiveness={},
+        offset={},
+        folds=fold_values(parts),
+    )
 
 
 def pooled_rows(capture: Capture, fold_rows: Sequence[Sequence]) -> list:
@@ -144,8 +170,9 @@ def pooled_rows(capture: Capture, fold_rows: Sequence[Sequence]) -> list:
     keys = [[(row.basis, row.projection, row.solver) for row in rows] for rows in fold_rows]
     if any(key != keys[0] for key in keys):
         raise WorkbenchError("cross-validation: the folds scored different rows; cannot pool them")
-    n_compared = (int(capture.eval_visible.sum()) if capture.eval_visible is not None
-                  else len(capture.eval) * capture.n_points)
+    n_compared = (
+        int(capture.eval_visible.sum()) if capture.eval_visible is not None else len(capture.eval) * capture.n_points
+    )
     pooled = []
     for i, first in enumerate(fold_rows[0]):
         rows = [rows[i] for rows in fold_rows]
@@ -154,21 +181,37 @@ def pooled_rows(capture: Capture, fold_rows: Sequence[Sequence]) -> list:
             values = [get(row) for row in rows]
             return None if any(value is None for value in values) else np.concatenate(values)
 
-        alpha = summarise_squares(*(joined(lambda row, f=f: getattr(row.alpha, f))
-                                    for f in ("error_sq", "displacement_sq", "position_sq")), n_compared)
+        alpha = summarise_squares(
+            *(joined(lambda row, f=f: getattr(row.alpha, f)) for f in ("error_sq", "displacement_sq", "position_sq")),
+            n_compared,
+        )
         clean = None
         if first.clean_alpha is not None:
-            clean = summarise_squares(*(joined(lambda row, f=f: getattr(row.clean_alpha, f))
-                                        for f in ("error_sq", "displacement_sq", "position_sq")), n_compared)
+            clean = summarise_squares(
+                *(
+                    joined(lambda row, f=f: getattr(row.clean_alpha, f))
+                    for f in ("error_sq", "displacement_sq", "position_sq")
+                ),
+                n_compared,
+            )
         frame_error = joined(lambda row: row.frame_error_mm)
-        pooled.append(replace(first, alpha=alpha, clean_alpha=clean, n_shapes=max(row.n_shapes for row in rows),
-                              n_iterations=sum(row.n_iterations for row in rows),
-                              n_fallback_frames=sum(row.n_fallback_frames for row in rows),
-                              max_kkt_violation=max(row.max_kkt_violation for row in rows),
-                              max_abs_weight=max(row.max_abs_weight for row in rows),
-                              conditioning=None, weight_statistics=None, frame_error_mm=frame_error,
-                              error_mm=None if frame_error is None else error_distribution(frame_error),
-                              offset_error_share=float("nan")))
+        pooled.append(
+            replace(
+                first,
+                alpha=alpha,
+                clean_alpha=clean,
+                n_shapes=max(row.n_shapes for row in rows),
+                n_iterations=sum(row.n_iterations for row in rows),
+                n_fallback_frames=sum(row.n_fallback_frames for row in rows),
+                max_kkt_violation=max(row.max_kkt_violation for row in rows),
+                max_abs_weight=max(row.max_abs_weight for row in rows),
+                conditioning=None,
+                weight_statistics=None,
+                frame_error_mm=frame_error,
+                error_mm=None if frame_error is None else error_distribution(frame_error),
+                offset_error_share=float("nan"),
+            )
+        )
     return pooled
 
 
@@ -193,15 +236,20 @@ def fold_values(parts: Sequence) -> dict:
         (``[basis, projection, solver]`` per row) and ``alpha_abs_pooled`` / ``alpha_disp_pooled`` of shape
         (n_rows, n_folds) as nested lists.
     """
-    return {"n_folds": len(parts), "m": [int(part.eigenfaces.n_components_) for part in parts],
-            "coverage": [float(part.eigenfaces.coverage_) for part in parts],
-            "n_train_frames": [len(part.capture.train) for part in parts],
-            "n_eval_frames": [len(part.capture.eval) for part in parts],
-            "rows": [[row.basis, row.projection, row.solver] for row in parts[0].rows],
-            "alpha_abs_pooled": [[float(part.rows[i].alpha.absolute_pooled) for part in parts]
-                                 for i in range(len(parts[0].rows))],
-            "alpha_disp_pooled": [[float(part.rows[i].alpha.displacement_pooled) for part in parts]
-                                  for i in range(len(parts[0].rows))]}
+    return {
+        "n_folds": len(parts),
+        "m": [int(part.eigenfaces.n_components_) for part in parts],
+        "coverage": [float(part.eigenfaces.coverage_) for part in parts],
+        "n_train_frames": [len(part.capture.train) for part in parts],
+        "n_eval_frames": [len(part.capture.eval) for part in parts],
+        "rows": [[row.basis, row.projection, row.solver] for row in parts[0].rows],
+        "alpha_abs_pooled": [
+            [float(part.rows[i].alpha.absolute_pooled) for part in parts] for i in range(len(parts[0].rows))
+        ],
+        "alpha_disp_pooled": [
+            [float(part.rows[i].alpha.displacement_pooled) for part in parts] for i in range(len(parts[0].rows))
+        ],
+    }
 
 
 def fold_comparisons(folds: Mapping, pairs: Sequence[tuple[int, int]], column: str = "alpha_abs_pooled") -> list:
@@ -222,5 +270,12 @@ def fold_comparisons(folds: Mapping, pairs: Sequence[tuple[int, int]], column: s
         ``a`` and ``b`` as ``[basis, solver]``, ``column`` and the interval's fields.
     """
     rows, values = folds["rows"], folds[column]
-    return [{"a": [rows[a][0], rows[a][2]], "b": [rows[b][0], rows[b][2]], "column": column,
-             **paired_ratio_interval(values[a], values[b]).as_dict()} for a, b in pairs]
+    return [
+        {
+            "a": [rows[a][0], rows[a][2]],
+            "b": [rows[b][0], rows[b][2]],
+            "column": column,
+            **paired_ratio_interval(values[a], values[b]).as_dict(),
+        }
+        for a, b in pairs
+    ]

@@ -7,10 +7,10 @@ from typing import Mapping
 
 import numpy as np
 
-from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer
-from workbench.core.errors import WorkbenchError
+from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.reduced import Subspace
 from workbench.study.results import Timings
 
@@ -29,10 +29,16 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
-                capture.hand, capture.hand_names, eigenfaces, projection=projection,
-                empty_axis_eps=basis_cfg["empty_axis_eps"], empty_axis_scale=basis_cfg["empty_axis_scale"],
-                append_empty_axes=basis_cfg["append_empty_axes"])
-            for projection in basis_cfg["projections"]}
+                capture.hand,
+                capture.hand_names,
+                eigenfaces,
+                projection=projection,
+                empty_axis_eps=basis_cfg["empty_axis_eps"],
+                empty_axis_scale=basis_cfg["empty_axis_scale"],
+                append_empty_axes=basis_cfg["append_empty_axes"],
+            )
+            for projection in basis_cfg["projections"]
+        }
     return eigenfaces, quasi_eigen
 
 
@@ -78,8 +84,7 @@ def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings
     names = basis_cfg.get("alternatives") or []
     names = [names] if isinstance(names, str) else list(names)
     if any(name not in ALTERNATIVE_OPTIONS for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_OPTIONS)}, "
-                             f"got {names}")
+        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_OPTIONS)}, got {names}")
     n = basis_cfg.get("alternatives_n") or capture.hand.shape[0]
     seed = int(basis_cfg.get("alternatives_seed") or 0)
     bases = {}

@@ -9,15 +9,18 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset import variant_names
 from workbench.dataset.capture import Capture
-from workbench.core.errors import WorkbenchError
 from workbench.settings.rules import number_setting, seed_setting
 from workbench.study.fitting import fit_eigenfaces
 
-
-HELD_OUT = {"tail": "held-out tail of each take", "take": "held-out last take",
-            "kfold": "held-out blocked k-fold", "take_out": "held-out leave-one-take-out"}
+HELD_OUT = {
+    "tail": "held-out tail of each take",
+    "take": "held-out last take",
+    "kfold": "held-out blocked k-fold",
+    "take_out": "held-out leave-one-take-out",
+}
 """``dataset.held_out`` protocol -> how its frames are described."""
 
 
@@ -31,12 +34,15 @@ def held_out_protocols(dataset_cfg: Mapping) -> list[str]:
     else:
         names = list(value)
     if any(not isinstance(name, str) or name not in HELD_OUT for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, "
-                             f"got {value!r}")
+        raise WorkbenchError(
+            f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, got {value!r}"
+        )
     if names and dataset_cfg.get("split", "same") != "same":
-        raise WorkbenchError(f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
-                             f"with dataset.split {dataset_cfg.get('split')!r} the run is already held out: leave "
-                             "one of them unset")
+        raise WorkbenchError(
+            f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
+            f"with dataset.split {dataset_cfg.get('split')!r} the run is already held out: leave "
+            "one of them unset"
+        )
     return names
 
 
@@ -56,37 +62,57 @@ def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> C
     -------
     Capture
     """
-    if len(capture.train) != len(capture.eval) or (capture.train_source is not None
-                                                   and len(capture.train_source) != len(capture.train)):
-        raise WorkbenchError("dataset.held_out needs the training and evaluated frames to be the same frames "
-                             "(split 'same'; with gap_policy masked, gap_fit_on filled)")
+    if len(capture.train) != len(capture.eval) or (
+        capture.train_source is not None and len(capture.train_source) != len(capture.train)
+    ):
+        raise WorkbenchError(
+            "dataset.held_out needs the training and evaluated frames to be the same frames "
+            "(split 'same'; with gap_policy masked, gap_fit_on filled)"
+        )
     timeline = capture.timeline()
     spans = timeline.take_spans()
     if protocol == "take":
         if len(spans) < 2:
-            raise WorkbenchError("dataset.held_out 'take' holds out the last take, and this capture has one take; "
-                                 "use 'tail'")
+            raise WorkbenchError(
+                "dataset.held_out 'take' holds out the last take, and this capture has one take; use 'tail'"
+            )
         held = np.arange(spans[-1][0], spans[-1][1])
-        described = (f"held out: the last take, {timeline.take[held[0]]}, scored with bases fitted on the other "
-                     f"{len(spans) - 1} takes")
+        described = (
+            f"held out: the last take, {timeline.take[held[0]]}, scored with bases fitted on the other "
+            f"{len(spans) - 1} takes"
+        )
     else:
-        fraction = number_setting(eval_fraction, "dataset.eval_fraction", "in (0, 1) for dataset.held_out 'tail'",
-                                  lambda value: 0.0 < value < 1.0)
+        fraction = number_setting(
+            eval_fraction,
+            "dataset.eval_fraction",
+            "in (0, 1) for dataset.held_out 'tail'",
+            lambda value: 0.0 < value < 1.0,
+        )
         counts = [int(round(fraction * (stop - start))) for start, stop in spans]
         if any(count < 1 or count > stop - start - 2 for count, (start, stop) in zip(counts, spans)):
-            raise WorkbenchError(f"dataset.eval_fraction {fraction} holds out {counts} frames of takes of "
-                                 f"{[stop - start for start, stop in spans]}; each take needs at least 1 held out "
-                                 "and 2 for training")
+            raise WorkbenchError(
+                f"dataset.eval_fraction {fraction} holds out {counts} frames of takes of "
+                f"{[stop - start for start, stop in spans]}; each take needs at least 1 held out "
+                "and 2 for training"
+            )
         held = np.concatenate([np.arange(stop - count, stop) for count, (_, stop) in zip(counts, spans)])
-        described = (f"held out: the last {100 * fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
-                     "scored with bases fitted on the rest")
+        described = (
+            f"held out: the last {100 * fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
+            "scored with bases fitted on the rest"
+        )
     kept = np.setdiff1d(np.arange(len(capture.eval)), held)
     notes = tuple(note for note in capture.notes if not note.startswith("split '")) + (
-        f"{described}: {len(kept)} training frames, {len(held)} evaluated",)
-    return replace(capture, train=select_frames(capture.train, kept), eval=select_frames(capture.eval, held),
-                   eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
-                   train_source=None if capture.train_source is None else capture.train_source[kept],
-                   eval_timeline=timeline[held], notes=notes)
+        f"{described}: {len(kept)} training frames, {len(held)} evaluated",
+    )
+    return replace(
+        capture,
+        train=select_frames(capture.train, kept),
+        eval=select_frames(capture.eval, held),
+        eval_visible=None if capture.eval_visible is None else capture.eval_visible[held],
+        train_source=None if capture.train_source is None else capture.train_source[kept],
+        eval_timeline=timeline[held],
+        notes=notes,
+    )
 
 
 def select_frames(frames, index: np.ndarray):
@@ -98,8 +124,10 @@ def select_frames(frames, index: np.ndarray):
         start, stop = int(index[0]), int(index[-1]) + 1
         return frames.rows(start, stop) if isinstance(frames, FramesOnDisk) else frames[start:stop]
     if isinstance(frames, FramesOnDisk):
-        raise WorkbenchError("dataset.held_out 'tail' of several takes picks frames from each, which frames on disk "
-                             "(dataset.storage disk) cannot give; use dataset.storage memory or held_out 'take'")
+        raise WorkbenchError(
+            "dataset.held_out 'tail' of several takes picks frames from each, which frames on disk "
+            "(dataset.storage disk) cannot give; use dataset.storage memory or held_out 'take'"
+        )
     return frames[index]
 
 
@@ -117,8 +145,10 @@ def clean_dataset_config(dataset_cfg: Mapping) -> dict:
     """
     kind = dataset_cfg.get("kind")
     if kind != "synthetic":
-        raise WorkbenchError(f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
-                             f"capture, which only the synthetic actor has (dataset.kind synthetic), got {kind!r}")
+        raise WorkbenchError(
+            f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
+            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {kind!r}"
+        )
     return dict(dataset_cfg, marker_noise_mm=0.0, gap_rate=0.0)
 
 
@@ -142,9 +172,11 @@ def with_clean_m(capture: Capture, basis_cfg: Mapping, clean: Capture | None) ->
         return capture, dict(basis_cfg)
     clean_pca = fit_eigenfaces(clean, basis_cfg["coverage"])
     m = int(clean_pca.n_components_)
-    note = (f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
-            "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
-            "capture with that m (basis.coverage_on clean)")
+    note = (
+        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
+        "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
+        "capture with that m (basis.coverage_on clean)"
+    )
     return replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=m)
 
 
@@ -176,9 +208,11 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
         found = frames[at] == ours.frame[mine]
         index[mine[found]] = pool[order[at[found]]]
     if np.any(index < 0):
-        raise WorkbenchError(f"metric.score_clean: {int((index < 0).sum())} evaluated frames are not among the clean "
-                             "capture's evaluated frames (frames a gap policy dropped before a tail split); use "
-                             "dataset.split same or gap_policy linear")
+        raise WorkbenchError(
+            f"metric.score_clean: {int((index < 0).sum())} evaluated frames are not among the clean "
+            "capture's evaluated frames (frames a gap policy dropped before a tail split); use "
+            "dataset.split same or gap_policy linear"
+        )
     return np.asarray(clean.eval)[index]
 
 
@@ -217,22 +251,26 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
         region = UPPER_FACE if spec == "upper" else LOWER_FACE
         index = np.array([i for i, name in enumerate(names) if name in region], dtype=int)
         if index.size == 0:
-            raise WorkbenchError(f"basis.hand_subset={spec} names the synthetic actor's {spec}-face muscles, and "
-                                 "this dataset's hand shapes include none of them; list the shapes by name instead")
+            raise WorkbenchError(
+                f"basis.hand_subset={spec} names the synthetic actor's {spec}-face muscles, and "
+                "this dataset's hand shapes include none of them; list the shapes by name instead"
+            )
         return index
     if isinstance(spec, str):
         match = re.fullmatch(r"random(\d+)", spec)
         if match is None:
-            raise WorkbenchError(f"basis.hand_subset must be all, upper, lower, random<k> or a list of hand-shape "
-                                 f"names, got {spec!r}")
+            raise WorkbenchError(
+                f"basis.hand_subset must be all, upper, lower, random<k> or a list of hand-shape names, got {spec!r}"
+            )
         k = int(match.group(1))
         if not 1 <= k <= len(names):
             raise WorkbenchError(f"basis.hand_subset=random{k} needs 1 <= k <= {len(names)} (the hand shapes)")
-        return np.sort(np.random.default_rng(seed_setting(seed, "basis.subset_seed")).choice(len(names), size=k, replace=False))
+        return np.sort(
+            np.random.default_rng(seed_setting(seed, "basis.subset_seed")).choice(len(names), size=k, replace=False)
+        )
     unknown = [name for name in spec if name not in names]
     if unknown or not spec or len(set(spec)) != len(spec):
-        raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; "
-                             f"got {list(spec)}")
+        raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; got {list(spec)}")
     return np.array(sorted(names.index(name) for name in spec), dtype=int)
 
 

@@ -8,7 +8,6 @@ from typing import Mapping
 
 from workbench.dataset.capture import Capture
 
-
 PAPER_REGIME_SUFFIX = "m=n"
 """The paper-regime variant of data variant ``markers`` is named ``markers m=n``."""
 
@@ -54,14 +53,27 @@ def paper_regime_fit(capture: Capture, basis_cfg: Mapping, fitted_m: int) -> tup
         return capture, None, None
     n = len(capture.hand_names)
     if fitted_m == n:
-        return capture, None, (f"{PAPER_REGIME_NOTE}: the coverage rule already keeps m = n = {n} eigenfaces, so this "
-                               "variant is the paper's regime (no separate m = n fit)")
+        return (
+            capture,
+            None,
+            (
+                f"{PAPER_REGIME_NOTE}: the coverage rule already keeps m = n = {n} eigenfaces, so this "
+                "variant is the paper's regime (no separate m = n fit)"
+            ),
+        )
     frames = capture.train_source if capture.train_source is not None else capture.train
     rank = min(len(frames) - 1, frames.shape[1])
     if rank < n:
-        return capture, None, (f"{PAPER_REGIME_NOTE}: m = n = {n} eigenfaces need {n} directions, and the training "
-                               f"frames have at most {rank}: no m = n fit")
-    note = (f"{PAPER_REGIME_NOTE}: m = n = {n} eigenfaces, as many as hand shapes (Kim & Ko: 18 for 18), fitted on the "
-            f"same training frames beside the coverage rule's m = {fitted_m} (basis.paper_regime)")
-    return (replace(capture, notes=capture.notes + (note,)),
-            dict(basis_cfg, n_components=n, alternatives=[]), None)
+        return (
+            capture,
+            None,
+            (
+                f"{PAPER_REGIME_NOTE}: m = n = {n} eigenfaces need {n} directions, and the training "
+                f"frames have at most {rank}: no m = n fit"
+            ),
+        )
+    note = (
+        f"{PAPER_REGIME_NOTE}: m = n = {n} eigenfaces, as many as hand shapes (Kim & Ko: 18 for 18), fitted on the "
+        f"same training frames beside the coverage rule's m = {fitted_m} (basis.paper_regime)"
+    )
+    return (replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=n, alternatives=[]), None)

@@ -8,10 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.numerics.bases import Eigenfaces
 from workbench.dataset.capture import Capture
+from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics
-
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
 

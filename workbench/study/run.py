@@ -11,16 +11,25 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
-from workbench.core.errors import WorkbenchError
 from workbench.settings.rules import coverage_on_setting
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
-from workbench.study.protocols import (CLEAN_M_NOTE, HELD_OUT, clean_dataset_config, clean_frames, data_variants,
-                                       held_out_capture, held_out_protocols, select_shapes, subset_hand_shapes,
-                                       with_clean_m)
+from workbench.study.protocols import (
+    CLEAN_M_NOTE,
+    HELD_OUT,
+    clean_dataset_config,
+    clean_frames,
+    data_variants,
+    held_out_capture,
+    held_out_protocols,
+    select_shapes,
+    subset_hand_shapes,
+    with_clean_m,
+)
 from workbench.study.regime import paper_regime_fit, paper_regime_name
 from workbench.study.results import StudyResult, Timings
 from workbench.study.scoring import basis_intuitiveness, face_region, offset_facts, score_alternative_bases, score_bases
@@ -64,57 +73,99 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
     train_names, eval_names = data_variants(dataset_cfg)
     held_out = held_out_protocols(dataset_cfg)
     if held_out and eval_names:
-        raise WorkbenchError("dataset.held_out scores each data variant on its own held-out frames; with "
-                             "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset")
+        raise WorkbenchError(
+            "dataset.held_out scores each data variant on its own held-out frames; with "
+            "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset"
+        )
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
     coverage_on = coverage_on_setting(basis_cfg)
     score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
-    build_cfg = {key: value for key, value in dataset_cfg.items() if key not in ("held_out", "folds", "fold_gap_s")}  # the same built data
+    build_cfg = {
+        key: value for key, value in dataset_cfg.items() if key not in ("held_out", "folds", "fold_gap_s")
+    }  # the same built data
     built_cfg = dict(build_cfg, train_on=build_names) if eval_names else build_cfg
     with timings.stage("dataset"):
         captures = build_captures(built_cfg, cache_dir=cfg.get("paths", {}).get("cache_dir"))
-        clean = (build_captures(clean_dataset_config(built_cfg), cache_dir=cfg.get("paths", {}).get("cache_dir"))
-                 if coverage_on == "clean" or score_clean else None)
+        clean = (
+            build_captures(clean_dataset_config(built_cfg), cache_dir=cfg.get("paths", {}).get("cache_dir"))
+            if coverage_on == "clean" or score_clean
+            else None
+        )
     if eval_names and basis_cfg.get("alternatives"):
-        raise WorkbenchError("basis.alternatives are fitted and scored on each data variant's own points; "
-                             "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset")
+        raise WorkbenchError(
+            "basis.alternatives are fitted and scored on each data variant's own points; "
+            "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset"
+        )
     if not eval_names:
         results = []
         for data, capture in captures.items():
-            capture, fitted_cfg = with_clean_m(subset_hand_shapes(capture, basis_cfg), basis_cfg,
-                                               clean[data] if coverage_on == "clean" else None)
+            capture, fitted_cfg = with_clean_m(
+                subset_hand_shapes(capture, basis_cfg), basis_cfg, clean[data] if coverage_on == "clean" else None
+            )
             truth = clean_frames(capture, clean[data]) if score_clean else None
-            results += with_paper_regime(run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth),
-                                         fitted_cfg, solvers, timings, truth)
+            results += with_paper_regime(
+                run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth),
+                fitted_cfg,
+                solvers,
+                timings,
+                truth,
+            )
             for protocol in held_out:
                 if protocol in FOLDED:
-                    results.append(cross_validated(data, capture, protocol, dataset_cfg, lambda name, part: (
-                        run_on_capture(name, part, fitted_cfg, solvers, timings,
-                                       truth=clean_frames(part, clean[data]) if score_clean else None))))
+                    results.append(
+                        cross_validated(
+                            data,
+                            capture,
+                            protocol,
+                            dataset_cfg,
+                            lambda name, part: run_on_capture(
+                                name,
+                                part,
+                                fitted_cfg,
+                                solvers,
+                                timings,
+                                truth=clean_frames(part, clean[data]) if score_clean else None,
+                            ),
+                        )
+                    )
                     continue
                 part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
                 truth = clean_frames(part, clean[data]) if score_clean else None
-                results.append(replace(run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers,
-                                                      timings, truth=truth), train_on=data, eval_on=data,
-                                       protocol=HELD_OUT[protocol]))
+                results.append(
+                    replace(
+                        run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers, timings, truth=truth),
+                        train_on=data,
+                        eval_on=data,
+                        protocol=HELD_OUT[protocol],
+                    )
+                )
         return results
     return carried_results(captures, clean, train_names, eval_names, cfg, solvers, timings)
 
-def with_paper_regime(result: StudyResult, basis_cfg: Mapping, solvers: Mapping[str, Mapping], timings: Timings,
-                      truth: np.ndarray | None) -> list[StudyResult]:
+
+def with_paper_regime(
+    result: StudyResult, basis_cfg: Mapping, solvers: Mapping[str, Mapping], timings: Timings, truth: np.ndarray | None
+) -> list[StudyResult]:
     """``basis.paper_regime``: the variant fitted at m = n (:func:`workbench.study.regime.paper_regime_fit`), named
     ``<data> m=n``, first, then the coverage rule's ``result``; only ``result`` (with a note saying why) when there
     is no separate m = n fit."""
     capture, regime_cfg, note = paper_regime_fit(result.capture, basis_cfg, result.eigenfaces.n_components_)
     if regime_cfg is None:
-        return [replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,)))
-                if note else result]
+        return [
+            replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
+        ]
     return [run_on_capture(paper_regime_name(result.data), capture, regime_cfg, solvers, timings, truth=truth), result]
 
 
-def carried_results(captures: Mapping[str, Capture], clean: Mapping[str, Capture] | None, train_names: Sequence[str],
-                    eval_names: Sequence[str], cfg: Mapping, solvers: Mapping[str, Mapping],
-                    timings: Timings) -> list[StudyResult]:
+def carried_results(
+    captures: Mapping[str, Capture],
+    clean: Mapping[str, Capture] | None,
+    train_names: Sequence[str],
+    eval_names: Sequence[str],
+    cfg: Mapping,
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+) -> list[StudyResult]:
     """``dataset.eval_on``: the bases fitted on each training variant, carried onto the points of each evaluated
     variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair."""
     basis_cfg = cfg["basis"]
@@ -122,37 +173,69 @@ def carried_results(captures: Mapping[str, Capture], clean: Mapping[str, Capture
     score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
     if masked:
-        raise WorkbenchError(f"dataset.gap_policy 'masked' leaves gaps in the evaluated frames of {masked}; "
-                             "carrying bases onto them (dataset.eval_on) is not supported: use gap_policy linear "
-                             "or drop, or leave dataset.eval_on unset")
+        raise WorkbenchError(
+            f"dataset.gap_policy 'masked' leaves gaps in the evaluated frames of {masked}; "
+            "carrying bases onto them (dataset.eval_on) is not supported: use gap_policy linear "
+            "or drop, or leave dataset.eval_on unset"
+        )
     results = []
     for train_on in train_names:
-        source, fitted_cfg = with_clean_m(subset_hand_shapes(captures[train_on], basis_cfg), basis_cfg,
-                                          clean[train_on] if coverage_on == "clean" else None)
+        source, fitted_cfg = with_clean_m(
+            subset_hand_shapes(captures[train_on], basis_cfg),
+            basis_cfg,
+            clean[train_on] if coverage_on == "clean" else None,
+        )
         eigenfaces, quasi_eigen = fit_bases(source, fitted_cfg, timings)
         for eval_on in eval_names:
             target = select_shapes(captures[eval_on], source.hand_names)
             with timings.stage("transfer"):
                 transfer = point_transfer(source.neutral.reshape(-1, 3), target.neutral.reshape(-1, 3))
-            note = (f"bases fitted on '{train_on}' ({source.n_points} points) and carried onto '{eval_on}' "
-                    f"({target.n_points} points): {transfer.describe()}")
+            note = (
+                f"bases fitted on '{train_on}' ({source.n_points} points) and carried onto '{eval_on}' "
+                f"({target.n_points} points): {transfer.describe()}"
+            )
             m_notes = tuple(note for note in source.notes if note.startswith(CLEAN_M_NOTE))
             target = replace(target, notes=target.notes + m_notes + (note,))
-            carried = {projection: replace(qe, shapes=transfer.apply(qe.shapes))
-                       for projection, qe in quasi_eigen.items()}
+            carried = {
+                projection: replace(qe, shapes=transfer.apply(qe.shapes)) for projection, qe in quasi_eigen.items()
+            }
             carried_pca = pca_subspace(eigenfaces, transfer)
-            rows, weights = score_bases(target, eigenfaces, carried, carried_pca, solvers, timings,
-                                        truth=clean_frames(target, clean[eval_on]) if score_clean else None)
-            results.append(StudyResult(data=f"{train_on}->{eval_on}", capture=target, eigenfaces=eigenfaces,
-                                       quasi_eigen=carried, rows=rows, weights=weights, timings=timings,
-                                       train_on=train_on, eval_on=eval_on, transfer=transfer.method,
-                                       face_region=face_region(target).description,
-                                       offset=offset_facts(carried_pca, rows)))
+            rows, weights = score_bases(
+                target,
+                eigenfaces,
+                carried,
+                carried_pca,
+                solvers,
+                timings,
+                truth=clean_frames(target, clean[eval_on]) if score_clean else None,
+            )
+            results.append(
+                StudyResult(
+                    data=f"{train_on}->{eval_on}",
+                    capture=target,
+                    eigenfaces=eigenfaces,
+                    quasi_eigen=carried,
+                    rows=rows,
+                    weights=weights,
+                    timings=timings,
+                    train_on=train_on,
+                    eval_on=eval_on,
+                    transfer=transfer.method,
+                    face_region=face_region(target).description,
+                    offset=offset_facts(carried_pca, rows),
+                )
+            )
     return results
 
 
-def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Mapping[str, Mapping],
-                   timings: Timings, truth: np.ndarray | None = None) -> StudyResult:
+def run_on_capture(
+    data: str,
+    capture: Capture,
+    basis_cfg: Mapping,
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+    truth: np.ndarray | None = None,
+) -> StudyResult:
     """The paper's method on one capture: eigenfaces, quasi-eigen faces, weights of every basis and solver, alpha.
 
     Parameters
@@ -174,17 +257,29 @@ def run_on_capture(data: str, capture: Capture, basis_cfg: Mapping, solvers: Map
     StudyResult
     """
     eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
-    rows, weights = score_bases(capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings,
-                                truth=truth)
+    rows, weights = score_bases(
+        capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings, truth=truth
+    )
     alternatives = fit_alternative_bases(capture, basis_cfg, timings)
     measured = {}
     if alternatives:
         more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings, truth=truth)
         rows, weights = rows + more_rows, {**weights, **more_weights}
         with timings.stage("intuitiveness"):
-            measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights,
-                                           basis_cfg.get("intuitiveness") or {})
-    return StudyResult(data=data, capture=capture, eigenfaces=eigenfaces, quasi_eigen=quasi_eigen, rows=rows,
-                       weights=weights, timings=timings, train_on=data, eval_on=data, basis_intuitiveness=measured,
-                       face_region=face_region(capture).description,
-                       offset=offset_facts(pca_subspace(eigenfaces), rows))
+            measured = basis_intuitiveness(
+                capture, eigenfaces, quasi_eigen, alternatives, weights, basis_cfg.get("intuitiveness") or {}
+            )
+    return StudyResult(
+        data=data,
+        capture=capture,
+        eigenfaces=eigenfaces,
+        quasi_eigen=quasi_eigen,
+        rows=rows,
+        weights=weights,
+        timings=timings,
+        train_on=data,
+        eval_on=data,
+        basis_intuitiveness=measured,
+        face_region=face_region(capture).description,
+        offset=offset_facts(pca_subspace(eigenfaces), rows),
+    )

@@ -8,18 +8,33 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.numerics.bases import Eigenfaces
 from workbench.dataset.capture import Capture
+from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.frames import frame_chunks
-from workbench.numerics.metrics import (AlphaSummary, basis_conditioning, error_distribution, needs_negative_share,
-                               reference_squares, rms_error, summarise_alpha, summarise_squares, weight_statistics)
+from workbench.numerics.metrics import (
+    AlphaSummary,
+    basis_conditioning,
+    error_distribution,
+    needs_negative_share,
+    reference_squares,
+    rms_error,
+    summarise_alpha,
+    summarise_squares,
+    weight_statistics,
+)
 from workbench.numerics.reduced import FrameProjections, Subspace, project_frames
 from workbench.numerics.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.study.results import QE_LABELS, Row, Timings
 
 
-def clean_scores(capture: Capture, truth: np.ndarray, rows: Sequence[Row], shapes: Mapping[str, np.ndarray],
-                 weights: Mapping, pca_reconstruction=None) -> list[Row]:
+def clean_scores(
+    capture: Capture,
+    truth: np.ndarray,
+    rows: Sequence[Row],
+    shapes: Mapping[str, np.ndarray],
+    weights: Mapping,
+    pca_reconstruction=None,
+) -> list[Row]:
     """The rows with ``clean_alpha`` set: each basis's reconstruction of the evaluated (noisy) frames scored
     against the clean frames, so that a basis that reproduces the noise (over-fitting) is told from one that
     removes it (denoising).
@@ -48,16 +63,23 @@ def clean_scores(capture: Capture, truth: np.ndarray, rows: Sequence[Row], shape
         if row.basis == "PCA":
             estimate = pca_reconstruction
         else:
-            estimate = (lambda frames, b=shapes[row.basis], w=weights[(row.basis, row.solver)]:  # noqa: E731
-                        reconstruct(b, w[frames]))
+            estimate = lambda frames, b=shapes[row.basis], w=weights[(row.basis, row.solver)]: (  # noqa: E731
+                reconstruct(b, w[frames])
+            )
         summary = None if estimate is None else summarise_alpha(capture.neutral, truth, estimate, squares=squares)
         scored.append(replace(row, clean_alpha=summary))
     return scored
 
 
-def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, pca: Subspace,
-                solvers: Mapping[str, Mapping], timings: Timings,
-                truth: np.ndarray | None = None) -> tuple[list, dict]:
+def score_bases(
+    capture: Capture,
+    eigenfaces: Eigenfaces,
+    quasi_eigen: Mapping,
+    pca: Subspace,
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+    truth: np.ndarray | None = None,
+) -> tuple[list, dict]:
     """Weights (eq. 5) and alpha (eq. 6) of H and every quasi-eigen basis with every solver, then PCA.
 
     Parameters
@@ -82,7 +104,8 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n_shapes).
     """
     bases = [("H", "-", capture.hand)] + [
-        (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()]
+        (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()
+    ]
     with timings.stage("metrics"):
         conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
     if capture.eval_visible is None:
@@ -90,12 +113,21 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
         extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
         rows, weights, projections = projected_rows(capture, bases, solvers, timings, conditioning, extra)
         with timings.stage("pca_reconstruction"):
-            summary = summarise_squares(projections.distance_sq["PCA"], projections.displacement_sq,
-                                        projections.position_sq, len(capture.eval) * capture.n_points)
+            summary = summarise_squares(
+                projections.distance_sq["PCA"],
+                projections.displacement_sq,
+                projections.position_sq,
+                len(capture.eval) * capture.n_points,
+            )
         pca_fit = (pca.columns.T, projections.coordinates["PCA"], pca.offset)
         if offset is not None:
-            rows = offset_error_shares(rows, weights, {label: shapes for label, _, shapes in bases}, offset,
-                                       projections.coordinates[OFFSET][:, 0])
+            rows = offset_error_shares(
+                rows,
+                weights,
+                {label: shapes for label, _, shapes in bases},
+                offset,
+                projections.coordinates[OFFSET][:, 0],
+            )
     else:
         rows, weights = masked_rows(capture, bases, solvers, timings, conditioning)
         with timings.stage("pca_reconstruction"):
@@ -103,20 +135,28 @@ def score_bases(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping, 
             visible = capture.eval_visible
             offsets = solve_weights(eigenfaces.components_, capture.eval - eigenfaces.mean_, visible=visible).weights
             summary = summarise_alpha(
-                capture.neutral, capture.eval,
+                capture.neutral,
+                capture.eval,
                 lambda rows: eigenfaces.mean_ + reconstruct(eigenfaces.components_, offsets[rows]),
-                squares=reference_squares(capture.neutral, capture.eval, visible=visible), visible=visible)
+                squares=reference_squares(capture.neutral, capture.eval, visible=visible),
+                visible=visible,
+            )
         pca_fit = (eigenfaces.components_, offsets, eigenfaces.mean_)
-    rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_,
-                    alpha=summary))
+    rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_, alpha=summary))
     basis_shapes = {label: shapes for label, _, shapes in bases}
     with timings.stage("frame_measures"):
         rows = frame_measures(capture, rows, weights, basis_shapes, pca_fit)
     if truth is not None:
         directions, coefficients, mean = pca_fit
         with timings.stage("metrics"):
-            rows = clean_scores(capture, truth, rows, basis_shapes, weights,
-                                lambda frames: mean + reconstruct(directions, coefficients[frames]))
+            rows = clean_scores(
+                capture,
+                truth,
+                rows,
+                basis_shapes,
+                weights,
+                lambda frames: mean + reconstruct(directions, coefficients[frames]),
+            )
     return rows, weights
 
 
@@ -160,8 +200,9 @@ def offset_facts(pca: Subspace, rows: Sequence[Row]) -> dict:
     return {"norm": norm, "ratio": norm / median if median > 0 else float("nan")}
 
 
-def offset_error_shares(rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray], unit: np.ndarray,
-                        frames_along: np.ndarray) -> list[Row]:
+def offset_error_shares(
+    rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray], unit: np.ndarray, frames_along: np.ndarray
+) -> list[Row]:
     """The rows with the share of their squared error that lies along ``unit`` (``offset_error_share``).
 
     Parameters
@@ -218,21 +259,30 @@ def face_region(capture: Capture) -> FaceRegion:
         return FaceRegion(None, f"the face region: every one of the {n} markers")
     if kind == "synthetic":
         moved = np.linalg.norm(capture.hand.reshape(len(capture.hand), n, 3), axis=2).max(axis=0) > 0.0
-        return FaceRegion(None if moved.all() else moved,
-                          f"the face region: the {int(moved.sum())} of {n} mesh vertices some hand shape moves (the "
-                          "muscles' reach; the rest of the head patch never moves)")
+        return FaceRegion(
+            None if moved.all() else moved,
+            f"the face region: the {int(moved.sum())} of {n} mesh vertices some hand shape moves (the "
+            "muscles' reach; the rest of the head patch never moves)",
+        )
     if capture.point_support is not None and not capture.point_support.all():
-        return FaceRegion(np.asarray(capture.point_support, dtype=bool),
-                          f"the face region: the {int(capture.point_support.sum())} of {n} vertices within reach of "
-                          "the markers (the others' motion is extrapolated)")
+        return FaceRegion(
+            np.asarray(capture.point_support, dtype=bool),
+            f"the face region: the {int(capture.point_support.sum())} of {n} vertices within reach of "
+            "the markers (the others' motion is extrapolated)",
+        )
     if kind == "ict_livelink":
         region = capture.provenance.get("region_vertices")
         return FaceRegion(None, f"the ICT face region (the {n} vertices of [0, {region}) of the model)")
     return FaceRegion(None, f"the face region: every one of the {n} vertices")
 
 
-def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shapes: Mapping[str, np.ndarray],
-                   pca_fit: tuple | None = None) -> list[Row]:
+def frame_measures(
+    capture: Capture,
+    rows: Sequence[Row],
+    weights: Mapping,
+    shapes: Mapping[str, np.ndarray],
+    pca_fit: tuple | None = None,
+) -> list[Row]:
     """The rows with their per-frame error in millimetres over the face region (and its distribution) and the
     statistics of their weights.
 
@@ -256,7 +306,7 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
     takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once, as integers
     points = np.ones(capture.n_points, dtype=bool) if region.points is None else region.points
     visible = capture.eval_visible
-    counts = (visible[:, points].sum(axis=1) if visible is not None else int(points.sum()))
+    counts = visible[:, points].sum(axis=1) if visible is not None else int(points.sum())
     fits = {}
     for row in rows:
         key = (row.basis, row.solver)
@@ -271,8 +321,14 @@ def frame_measures(capture: Capture, rows: Sequence[Row], weights: Mapping, shap
         error_sq = explicit.get(key, row.alpha.error_sq if region.points is None else None)
         per_frame = rms_error(error_sq, counts) if error_sq is not None else None
         statistics = weight_statistics(weights[key], timeline.seconds, takes) if key in weights else None
-        measured.append(replace(row, weight_statistics=statistics, frame_error_mm=per_frame,
-                                error_mm=error_distribution(per_frame) if per_frame is not None else None))
+        measured.append(
+            replace(
+                row,
+                weight_statistics=statistics,
+                frame_error_mm=per_frame,
+                error_mm=error_distribution(per_frame) if per_frame is not None else None,
+            )
+        )
     return with_needs_negative_share(measured)
 
 
@@ -324,8 +380,11 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
             restricted = np.zeros(int(dims.sum())) if offset is None else np.asarray(offset, dtype=float)[dims]
             blocks[basis] = (shapes[:, dims], restricted)
             where[basis] = sum(len(block) + 1 for block, _ in list(blocks.values())[:-1])
-            quadratic[basis] = (blocks[basis][0] @ blocks[basis][0].T, blocks[basis][0] @ restricted,
-                                float(restricted @ restricted))
+            quadratic[basis] = (
+                blocks[basis][0] @ blocks[basis][0].T,
+                blocks[basis][0] @ restricted,
+                float(restricted @ restricted),
+            )
         parts[key] = (*blocks[basis], weights, basis)
     together = np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T
     errors = {key: np.empty(frames.shape[0]) for key in fits}
@@ -341,10 +400,15 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
         for key, (shapes, offset, weights, basis) in parts.items():
             gram, shapes_offset, offset_sq = quadratic[basis]
             k, w, first = shapes.shape[0], weights[rows], where[basis]
-            along = products[:, first:first + k] - shapes_offset  # S (x - o)
+            along = products[:, first : first + k] - shapes_offset  # S (x - o)
             frame_offset = products[:, first + k]
-            error = (squares - 2.0 * frame_offset + offset_sq - 2.0 * np.einsum("ij,ij->i", w, along)
-                     + np.einsum("ij,ij->i", w @ gram, w))
+            error = (
+                squares
+                - 2.0 * frame_offset
+                + offset_sq
+                - 2.0 * np.einsum("ij,ij->i", w, along)
+                + np.einsum("ij,ij->i", w @ gram, w)
+            )
             close = np.flatnonzero(error <= EXPLICIT_BELOW * (squares + offset_sq))
             if close.size:
                 residual = chunk[close] - w[close] @ shapes - offset
@@ -353,9 +417,14 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
     return errors
 
 
-def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, Mapping], timings: Timings,
-                   conditioning: Mapping | None = None, subspaces: Mapping[str, Subspace] | None = None
-                   ) -> tuple[list, dict, FrameProjections]:
+def projected_rows(
+    capture: Capture,
+    bases: Sequence[tuple],
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+    conditioning: Mapping | None = None,
+    subspaces: Mapping[str, Subspace] | None = None,
+) -> tuple[list, dict, FrameProjections]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
     The pass (:func:`workbench.numerics.reduced.project_frames`) takes the frames' coordinates in every basis's span and
@@ -386,8 +455,10 @@ def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[st
     with timings.stage("projection"):
         reductions = {label: reduce_basis(shapes) for label, _, shapes in bases}
         projections = project_frames(
-            capture.eval, {**{label: Subspace(r.u) for label, r in reductions.items()}, **(subspaces or {})},
-            capture.neutral)
+            capture.eval,
+            {**{label: Subspace(r.u) for label, r in reductions.items()}, **(subspaces or {})},
+            capture.neutral,
+        )
     n_compared = len(capture.eval) * capture.n_points
     rows, weights = [], {}
     for solver_name, solver in solvers.items():
@@ -397,15 +468,19 @@ def projected_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[st
                 solution = solve_projected(reduction, coordinates, **solver)
             with timings.stage("metrics"):
                 error_sq = projections.distance_sq[label] + in_span_error_sq(reduction, coordinates, solution.weights)
-                summary = summarise_squares(error_sq, projections.displacement_sq, projections.position_sq,
-                                            n_compared)
+                summary = summarise_squares(error_sq, projections.displacement_sq, projections.position_sq, n_compared)
             weights[(label, solver_name)] = solution.weights
             rows.append(solved_row(label, projection, solver_name, shapes, summary, solution, conditioning))
     return rows, weights, projections
 
 
-def masked_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, Mapping], timings: Timings,
-                conditioning: Mapping | None = None) -> tuple[list, dict]:
+def masked_rows(
+    capture: Capture,
+    bases: Sequence[tuple],
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+    conditioning: Mapping | None = None,
+) -> tuple[list, dict]:
     """:func:`projected_rows` under capture gaps: each frame solved and scored on the points it saw."""
     visible = capture.eval_visible
     with timings.stage("metrics"):
@@ -416,27 +491,54 @@ def masked_rows(capture: Capture, bases: Sequence[tuple], solvers: Mapping[str, 
             with timings.stage(f"solve_{solver_name}"):
                 solution = solve_weights(shapes, capture.eval, visible=visible, **solver)
             with timings.stage("metrics"):
-                summary = summarise_alpha(capture.neutral, capture.eval,
-                                          lambda rows: reconstruct(shapes, solution.weights[rows]), squares=squares,
-                                          visible=visible)
+                summary = summarise_alpha(
+                    capture.neutral,
+                    capture.eval,
+                    lambda rows: reconstruct(shapes, solution.weights[rows]),
+                    squares=squares,
+                    visible=visible,
+                )
             weights[(label, solver_name)] = solution.weights
             rows.append(solved_row(label, projection, solver_name, shapes, summary, solution, conditioning))
     return rows, weights
 
 
-def solved_row(label: str, projection: str, solver_name: str, shapes: np.ndarray, summary: AlphaSummary,
-               solution, conditioning: Mapping | None) -> Row:
+def solved_row(
+    label: str,
+    projection: str,
+    solver_name: str,
+    shapes: np.ndarray,
+    summary: AlphaSummary,
+    solution,
+    conditioning: Mapping | None,
+) -> Row:
     """The table row of one basis solved with one solver (its largest weight and conditioning with
     ``conditioning``)."""
-    extra = {} if conditioning is None else {"max_abs_weight": float(np.abs(solution.weights).max()),
-                                             "conditioning": conditioning[label]}
-    return Row(basis=label, projection=projection, solver=solver_name, n_shapes=shapes.shape[0], alpha=summary,
-               n_iterations=solution.n_iterations, n_fallback_frames=solution.n_fallback_frames,
-               max_kkt_violation=solution.max_kkt_violation, **extra)
+    extra = (
+        {}
+        if conditioning is None
+        else {"max_abs_weight": float(np.abs(solution.weights).max()), "conditioning": conditioning[label]}
+    )
+    return Row(
+        basis=label,
+        projection=projection,
+        solver=solver_name,
+        n_shapes=shapes.shape[0],
+        alpha=summary,
+        n_iterations=solution.n_iterations,
+        n_fallback_frames=solution.n_fallback_frames,
+        max_kkt_violation=solution.max_kkt_violation,
+        **extra,
+    )
 
 
-def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], solvers: Mapping[str, Mapping],
-                            timings: Timings, truth: np.ndarray | None = None) -> tuple[list, dict]:
+def score_alternative_bases(
+    capture: Capture,
+    bases: Mapping[str, np.ndarray],
+    solvers: Mapping[str, Mapping],
+    timings: Timings,
+    truth: np.ndarray | None = None,
+) -> tuple[list, dict]:
     """Weights (eq. 5) and alpha (eq. 6) of each alternative basis with every solver, exactly as H and QE (and
     against the clean frames ``truth`` when given).
 
@@ -459,8 +561,14 @@ def score_alternative_bases(capture: Capture, bases: Mapping[str, np.ndarray], s
     return rows, weights
 
 
-def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: Mapping,
-                        alternatives: Mapping[str, np.ndarray], weights: Mapping, settings: Mapping) -> dict:
+def basis_intuitiveness(
+    capture: Capture,
+    eigenfaces: Eigenfaces,
+    quasi_eigen: Mapping,
+    alternatives: Mapping[str, np.ndarray],
+    weights: Mapping,
+    settings: Mapping,
+) -> dict:
     """Closeness to the hand shapes, locality and usage of H, each quasi-eigen basis, PCA and the alternatives
     (:mod:`workbench.numerics.intuitiveness`), as plain values for the run record.
 
@@ -485,14 +593,24 @@ def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: M
         ``usage`` (solver -> mean elements used per evaluated frame) and ``elements`` (per element: the matched
         hand shape, its ``|cosine|`` and the element's locality).
     """
-    from workbench.numerics.intuitiveness import (LOCALITY_ENERGY, USAGE_THRESHOLD, locality, matched_closeness,
-                                         point_areas, usage)
+    from workbench.numerics.intuitiveness import (
+        LOCALITY_ENERGY,
+        USAGE_THRESHOLD,
+        locality,
+        matched_closeness,
+        point_areas,
+        usage,
+    )
 
     energy = float(settings.get("locality_energy", LOCALITY_ENERGY))
     threshold = float(settings.get("usage_threshold", USAGE_THRESHOLD))
     areas = point_areas(capture.neutral, capture.faces)
-    bases = {"H": capture.hand, **{QE_LABELS[p]: qe.shapes for p, qe in quasi_eigen.items()},
-             "PCA": eigenfaces.components_, **alternatives}
+    bases = {
+        "H": capture.hand,
+        **{QE_LABELS[p]: qe.shapes for p, qe in quasi_eigen.items()},
+        "PCA": eigenfaces.components_,
+        **alternatives,
+    }
     per_basis = {label: {solver: w for (b, solver), w in weights.items() if b == label} for label in bases}
     if getattr(capture, "eval_visible", None) is None:  # PCA's weights: the projection coefficients
         per_basis["PCA"] = {"projection": (capture.eval - eigenfaces.mean_) @ eigenfaces.components_.T}
@@ -500,13 +618,27 @@ def basis_intuitiveness(capture: Capture, eigenfaces: Eigenfaces, quasi_eigen: M
     for label, shapes in bases.items():
         element, hand_index, cosine = matched_closeness(shapes, capture.hand)
         local = locality(shapes, areas, energy)
-        entries.append({
-            "basis": label, "n": int(shapes.shape[0]), "matched_abs_cosine": float(cosine.mean()),
-            "locality": float(np.nanmean(local)),
-            "usage": {solver: float(usage(w, shapes, threshold).mean()) for solver, w in per_basis[label].items()},
-            "elements": [{"element": int(e), "hand_shape": capture.hand_names[h], "abs_cosine": float(c),
-                          "locality": float(local[e])} for e, h, c in zip(element, hand_index, cosine)],
-        })
-    return {"locality_energy": energy, "usage_threshold": threshold,
-            "point_weights": "mesh triangle areas" if capture.faces is not None else "equal per point",
-            "bases": entries}
+        entries.append(
+            {
+                "basis": label,
+                "n": int(shapes.shape[0]),
+                "matched_abs_cosine": float(cosine.mean()),
+                "locality": float(np.nanmean(local)),
+                "usage": {solver: float(usage(w, shapes, threshold).mean()) for solver, w in per_basis[label].items()},
+                "elements": [
+                    {
+                        "element": int(e),
+                        "hand_shape": capture.hand_names[h],
+                        "abs_cosine": float(c),
+                        "locality": float(local[e]),
+                    }
+                    for e, h, c in zip(element, hand_index, cosine)
+                ],
+            }
+        )
+    return {
+        "locality_energy": energy,
+        "usage_threshold": threshold,
+        "point_weights": "mesh triangle areas" if capture.faces is not None else "equal per point",
+        "bases": entries,
+    }

@@ -20,10 +20,18 @@ def intuitiveness_table(result: StudyResult) -> list[dict]:
     n_hand = result.capture.hand.shape[0]
     for projection, qe in result.quasi_eigen.items():
         distance, cosine = intuitiveness(result.capture.hand, qe.shapes[:n_hand])
-        for name, d, c, norm in zip(result.capture.hand_names, distance, cosine,
-                                    np.linalg.norm(result.capture.hand, axis=1)):
-            records.append({"projection": projection, "shape": name, "relative_distance": float(d),
-                            "cosine": float(c), "hand_norm": float(norm)})
+        for name, d, c, norm in zip(
+            result.capture.hand_names, distance, cosine, np.linalg.norm(result.capture.hand, axis=1)
+        ):
+            records.append(
+                {
+                    "projection": projection,
+                    "shape": name,
+                    "relative_distance": float(d),
+                    "cosine": float(c),
+                    "hand_norm": float(norm),
+                }
+            )
     return records
 
 
@@ -39,8 +47,9 @@ def alpha_per_frame_arrays(results) -> dict:
         arrays[f"{result.data}.solver"] = np.array([row.solver for row in result.rows])
         arrays[f"{result.data}.absolute"] = np.array([row.alpha.absolute_per_frame for row in result.rows])
         arrays[f"{result.data}.displacement"] = np.array([row.alpha.displacement_per_frame for row in result.rows])
-        arrays[f"{result.data}.error_mm"] = np.array([np.full(n_frames, np.nan) if row.frame_error_mm is None
-                                                      else row.frame_error_mm for row in result.rows])
+        arrays[f"{result.data}.error_mm"] = np.array(
+            [np.full(n_frames, np.nan) if row.frame_error_mm is None else row.frame_error_mm for row in result.rows]
+        )
         arrays.update(result.capture.timeline().as_arrays(f"{result.data}."))
     return arrays
 
@@ -62,10 +71,10 @@ def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
     pairs = []
     for solver in solvers:
         members = [i for i, row in enumerate(rows) if row.solver in (solver, "projection")]
-        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1 :]]
     for basis in dict.fromkeys(row.basis for row in rows if row.solver != "projection"):
         members = [i for i, row in enumerate(rows) if row.basis == basis and row.solver != "projection"]
-        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1:]]
+        pairs += [(a, b) for k, a in enumerate(members) for b in members[k + 1 :]]
     return list(dict.fromkeys(pairs))
 
 
@@ -97,10 +106,17 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
             interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds)
         else:
             reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
-            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, takes=takes,
-                                                seconds=timeline.seconds)
-        found.append({"a": [result.rows[a].basis, result.rows[a].solver],
-                      "b": [result.rows[b].basis, result.rows[b].solver], "column": column, **interval.as_dict()})
+            interval = paired_pooled_difference(
+                first.error_sq, second.error_sq, reference, takes=takes, seconds=timeline.seconds
+            )
+        found.append(
+            {
+                "a": [result.rows[a].basis, result.rows[a].solver],
+                "b": [result.rows[b].basis, result.rows[b].solver],
+                "column": column,
+                **interval.as_dict(),
+            }
+        )
     return found
 
 
@@ -108,16 +124,29 @@ def data_metrics(result) -> dict:
     """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
     capture, eigenfaces = result.capture, result.eigenfaces
     return {
-        "n_points": capture.n_points, "n_train_frames": len(capture.train), "n_eval_frames": len(capture.eval),
-        "notes": list(capture.notes), "face_region": result.face_region, "offset": dict(result.offset),
+        "n_points": capture.n_points,
+        "n_train_frames": len(capture.train),
+        "n_eval_frames": len(capture.eval),
+        "notes": list(capture.notes),
+        "face_region": result.face_region,
+        "offset": dict(result.offset),
         "protocol": result.protocol,
-        "pca": {"m": eigenfaces.n_components_, "coverage_reached": eigenfaces.coverage_,
-                "method": eigenfaces.method_, "rank": int(eigenfaces.explained_variance_.size),
-                "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist()},
-        "quasi_eigen": {projection: {"empty_axes": [j + 1 for j in qe.empty_axes],
-                                     "appended_axes": [j + 1 for j in qe.appended_axes],
-                                     "axis_sums": qe.axis_sums.tolist(), "thresholds": qe.thresholds.tolist()}
-                        for projection, qe in result.quasi_eigen.items()},
+        "pca": {
+            "m": eigenfaces.n_components_,
+            "coverage_reached": eigenfaces.coverage_,
+            "method": eigenfaces.method_,
+            "rank": int(eigenfaces.explained_variance_.size),
+            "explained_variance_ratio": eigenfaces.explained_variance_ratio_[:60].tolist(),
+        },
+        "quasi_eigen": {
+            projection: {
+                "empty_axes": [j + 1 for j in qe.empty_axes],
+                "appended_axes": [j + 1 for j in qe.appended_axes],
+                "axis_sums": qe.axis_sums.tolist(),
+                "thresholds": qe.thresholds.tolist(),
+            }
+            for projection, qe in result.quasi_eigen.items()
+        },
         "intuitiveness": intuitiveness_table(result),
         **({"basis_intuitiveness": result.basis_intuitiveness} if result.basis_intuitiveness else {}),
         **fold_metrics(result),
@@ -137,14 +166,19 @@ def fold_metrics(result) -> dict:
 def input_arrays(result) -> dict:
     """The arrays of ``inputs.npz``: what figures 2-4 need to recompute a few frames with the core."""
     capture = result.capture
-    return {"train": capture.train, "eval": capture.eval, "neutral": capture.neutral, "hand": capture.hand,
-            "hand_names": np.array(capture.hand_names), "mean": result.eigenfaces.mean_,
-            "components": result.eigenfaces.components_,
-            **({"faces": capture.faces} if capture.faces is not None else {}),
-            **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {}),
-            **({"point_support": capture.point_support} if capture.point_support is not None
-               else {}),
-            **capture.timeline().as_arrays("eval_")}
+    return {
+        "train": capture.train,
+        "eval": capture.eval,
+        "neutral": capture.neutral,
+        "hand": capture.hand,
+        "hand_names": np.array(capture.hand_names),
+        "mean": result.eigenfaces.mean_,
+        "components": result.eigenfaces.components_,
+        **({"faces": capture.faces} if capture.faces is not None else {}),
+        **({"eval_visible": capture.eval_visible} if capture.eval_visible is not None else {}),
+        **({"point_support": capture.point_support} if capture.point_support is not None else {}),
+        **capture.timeline().as_arrays("eval_"),
+    }
 
 
 def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[str, list] | None = None) -> dict:
@@ -168,22 +202,35 @@ def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[
     capture = results[0].capture
     rows = [(result, result_row) for result in results for result_row in result.rows]
     return {
-        "dataset": {"name": capture.name, "units": capture.units, "origin": capture.origin,
-                    "frame_rate": capture.frame_rate, "hand_names": list(capture.hand_names),
-                    "provenance": capture.provenance},
-        "data": {result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
-                 for result in results},
-        "rows": [dict(table.iloc[i].to_dict(), train_on=result.train_on or result.data,
-                      eval_on=result.eval_on or result.data, solver_iterations=row.n_iterations,
-                      solver_fallback_frames=row.n_fallback_frames,
-                      solver_max_kkt_violation=row.max_kkt_violation,
-                      max_abs_weight=row.max_abs_weight,
-                      basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
-                      undefined_displacement_frames=row.alpha.n_undefined_displacement_frames,
-                      weights=row.weight_statistics.as_dict() if row.weight_statistics else None,
-                      error_mm_quantiles=row.error_mm.quantiles.tolist() if row.error_mm else None,
-                      offset_error_share=row.offset_error_share)
-                 for i, (result, row) in enumerate(rows)],
+        "dataset": {
+            "name": capture.name,
+            "units": capture.units,
+            "origin": capture.origin,
+            "frame_rate": capture.frame_rate,
+            "hand_names": list(capture.hand_names),
+            "provenance": capture.provenance,
+        },
+        "data": {
+            result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
+            for result in results
+        },
+        "rows": [
+            dict(
+                table.iloc[i].to_dict(),
+                train_on=result.train_on or result.data,
+                eval_on=result.eval_on or result.data,
+                solver_iterations=row.n_iterations,
+                solver_fallback_frames=row.n_fallback_frames,
+                solver_max_kkt_violation=row.max_kkt_violation,
+                max_abs_weight=row.max_abs_weight,
+                basis_conditioning=row.conditioning.as_dict() if row.conditioning else None,
+                undefined_displacement_frames=row.alpha.n_undefined_displacement_frames,
+                weights=row.weight_statistics.as_dict() if row.weight_statistics else None,
+                error_mm_quantiles=row.error_mm.quantiles.tolist() if row.error_mm else None,
+                offset_error_share=row.offset_error_share,
+            )
+            for i, (result, row) in enumerate(rows)
+        ],
     }
 
 
@@ -192,8 +239,11 @@ def saved_inputs(results: Sequence[StudyResult]) -> dict:
     under the paper's protocol. Bases carried onto other points (``dataset.eval_on``) live in two point sets, no
     single inputs file; the figures show the paper's protocol, so held-out frames (``dataset.held_out``) are not
     saved either."""
-    return {result.data: input_arrays(result) for result in results
-            if result.transfer == "identity" and result.protocol == "training frames"}
+    return {
+        result.data: input_arrays(result)
+        for result in results
+        if result.transfer == "identity" and result.protocol == "training frames"
+    }
 
 
 def saves_inputs(cfg: Mapping) -> bool:

@@ -11,6 +11,15 @@ from workbench.dataset.synthetic.muscles import LOWER_FACE, MUSCLE_NAMES, UPPER_
 from workbench.dataset.synthetic.performance import make_activations
 
 __all__ = [
-    "FaceMesh", "HeadMotion", "LOWER_FACE", "MUSCLE_NAMES", "SyntheticTake", "UPPER_FACE", "deform",
-    "deform_displacements", "make_activations", "make_face_mesh", "make_synthetic_take",
+    "FaceMesh",
+    "HeadMotion",
+    "LOWER_FACE",
+    "MUSCLE_NAMES",
+    "SyntheticTake",
+    "UPPER_FACE",
+    "deform",
+    "deform_displacements",
+    "make_activations",
+    "make_face_mesh",
+    "make_synthetic_take",
 ]

@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.synthetic.face_mesh import FaceMesh, eye_opening_mask, head_shell_point, make_face_mesh
 from workbench.dataset.synthetic.muscles import MUSCLE_NAMES, N_MUSCLES, deform
 from workbench.dataset.synthetic.performance import make_activations
-from workbench.core.errors import WorkbenchError
 
 
 @dataclass(frozen=True)
@@ -43,9 +43,24 @@ class HeadMotionStyle:
 
 LAYOUT = MarkerLayout()
 MARKER_LANDMARKS: tuple[str, ...] = (
-    "nose_tip", "upper_lip", "lower_lip", "mouth_corner_L", "mouth_corner_R", "chin", "brow_inner_L",
-    "brow_inner_R", "brow_outer_L", "brow_outer_R", "nose_root", "nostril_L", "nostril_R", "cheek_L", "cheek_R",
-    "jaw_L", "jaw_R", "forehead",
+    "nose_tip",
+    "upper_lip",
+    "lower_lip",
+    "mouth_corner_L",
+    "mouth_corner_R",
+    "chin",
+    "brow_inner_L",
+    "brow_inner_R",
+    "brow_outer_L",
+    "brow_outer_R",
+    "nose_root",
+    "nostril_L",
+    "nostril_R",
+    "cheek_L",
+    "cheek_R",
+    "jaw_L",
+    "jaw_R",
+    "forehead",
 )
 """Landmarks that always carry a face marker (the first ``n_face_markers`` of them if fewer are asked for)."""
 HEAD_MOTION_STYLE = HeadMotionStyle()
@@ -160,15 +175,25 @@ class SyntheticTake:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise WorkbenchError(f"{name} must be an integer, got {value!r}")
         if not 0 <= start < stop <= self.n_frames:
-            raise WorkbenchError(f"frame range must satisfy 0 <= start < stop <= {self.n_frames}, "
-                                 f"got start={start}, stop={stop}")
+            raise WorkbenchError(
+                f"frame range must satisfy 0 <= start < stop <= {self.n_frames}, got start={start}, stop={stop}"
+            )
         return deform(self.mesh.vertices, self.activations[start:stop])
 
 
-def make_synthetic_take(*, n_frames: int = 35000, frame_rate: float = 120.0, n_face_markers: int = 66,
-                        n_head_markers: int = 7, head_rotation_deg: float = 3.0, head_translation_mm: float = 5.0,
-                        marker_noise_mm: float = 0.05, seed: int = 0, mesh_rows: int = 70,
-                        mesh_cols: int = 60) -> SyntheticTake:
+def make_synthetic_take(
+    *,
+    n_frames: int = 35000,
+    frame_rate: float = 120.0,
+    n_face_markers: int = 66,
+    n_head_markers: int = 7,
+    head_rotation_deg: float = 3.0,
+    head_translation_mm: float = 5.0,
+    marker_noise_mm: float = 0.05,
+    seed: int = 0,
+    mesh_rows: int = 70,
+    mesh_cols: int = 60,
+) -> SyntheticTake:
     """Generate the synthetic actor's take, deterministically from ``seed``.
 
     Parameters
@@ -214,8 +239,9 @@ def make_synthetic_take(*, n_frames: int = 35000, frame_rate: float = 120.0, n_f
     face_marker_vertices = place_face_markers(mesh, int(n_face_markers))
     face_marker_rest = mesh.vertices[face_marker_vertices]
     head_marker_rest = head_marker_layout(int(n_head_markers))
-    head_motion = make_head_motion(int(n_frames), float(frame_rate), float(head_rotation_deg),
-                                   float(head_translation_mm), head_rng)
+    head_motion = make_head_motion(
+        int(n_frames), float(frame_rate), float(head_rotation_deg), float(head_translation_mm), head_rng
+    )
 
     face_positions = deform(face_marker_rest, activations)
     head_positions = np.broadcast_to(head_marker_rest, (int(n_frames),) + head_marker_rest.shape)
@@ -227,20 +253,46 @@ def make_synthetic_take(*, n_frames: int = 35000, frame_rate: float = 120.0, n_f
     face_marker_index = np.arange(n_face)
     head_marker_index = np.arange(n_face, n_face + int(n_head_markers))
     labels = tuple(f"F{i:02d}" for i in range(n_face)) + tuple(f"H{i}" for i in range(int(n_head_markers)))
-    provenance = _provenance(seed=int(seed), n_frames=int(n_frames), frame_rate=float(frame_rate),
-                             n_face_markers=n_face, n_head_markers=int(n_head_markers),
-                             head_rotation_deg=float(head_rotation_deg),
-                             head_translation_mm=float(head_translation_mm), marker_noise_mm=float(marker_noise_mm),
-                             mesh_rows=int(mesh_rows), mesh_cols=int(mesh_cols), n_vertices=mesh.n_vertices)
-    for array in (activations, face_marker_vertices, face_marker_rest, head_marker_rest, markers,
-                  head_motion.rotations, head_motion.translations, face_marker_index, head_marker_index):
+    provenance = _provenance(
+        seed=int(seed),
+        n_frames=int(n_frames),
+        frame_rate=float(frame_rate),
+        n_face_markers=n_face,
+        n_head_markers=int(n_head_markers),
+        head_rotation_deg=float(head_rotation_deg),
+        head_translation_mm=float(head_translation_mm),
+        marker_noise_mm=float(marker_noise_mm),
+        mesh_rows=int(mesh_rows),
+        mesh_cols=int(mesh_cols),
+        n_vertices=mesh.n_vertices,
+    )
+    for array in (
+        activations,
+        face_marker_vertices,
+        face_marker_rest,
+        head_marker_rest,
+        markers,
+        head_motion.rotations,
+        head_motion.translations,
+        face_marker_index,
+        head_marker_index,
+    ):
         array.setflags(write=False)
     return SyntheticTake(
-        mesh=mesh, muscle_names=MUSCLE_NAMES, activations=activations, frame_rate=float(frame_rate),
-        face_marker_vertices=face_marker_vertices, face_marker_rest=face_marker_rest,
-        head_marker_rest=head_marker_rest, marker_labels=labels, face_marker_index=face_marker_index,
-        head_marker_index=head_marker_index, markers=markers, head_motion=head_motion,
-        provenance=provenance)
+        mesh=mesh,
+        muscle_names=MUSCLE_NAMES,
+        activations=activations,
+        frame_rate=float(frame_rate),
+        face_marker_vertices=face_marker_vertices,
+        face_marker_rest=face_marker_rest,
+        head_marker_rest=head_marker_rest,
+        marker_labels=labels,
+        face_marker_index=face_marker_index,
+        head_marker_index=head_marker_index,
+        markers=markers,
+        head_motion=head_motion,
+        provenance=provenance,
+    )
 
 
 def _provenance(**settings) -> dict:
@@ -264,8 +316,13 @@ def face_marker_candidates(mesh: FaceMesh) -> np.ndarray:
     ndarray of shape (n_vertices,) of bool
     """
     x, y = mesh.face_plane[:, 0], mesh.face_plane[:, 1]
-    return ((np.abs(x) <= LAYOUT.face_x_max) & (y >= LAYOUT.face_y_min) & (y <= LAYOUT.face_y_max)
-            & (mesh.vertices[:, 2] >= LAYOUT.face_z_min) & ~eye_opening_mask(mesh.face_plane))
+    return (
+        (np.abs(x) <= LAYOUT.face_x_max)
+        & (y >= LAYOUT.face_y_min)
+        & (y <= LAYOUT.face_y_max)
+        & (mesh.vertices[:, 2] >= LAYOUT.face_z_min)
+        & ~eye_opening_mask(mesh.face_plane)
+    )
 
 
 def place_face_markers(mesh: FaceMesh, n_markers: int) -> np.ndarray:
@@ -284,11 +341,17 @@ def place_face_markers(mesh: FaceMesh, n_markers: int) -> np.ndarray:
     candidates = np.flatnonzero(face_marker_candidates(mesh))
     positions = mesh.vertices[candidates]
     x, y = mesh.face_plane[candidates, 0], mesh.face_plane[candidates, 1]
-    priority = (1.0 + LAYOUT.mouth_priority * np.exp(-(x / 30.0) ** 2 - ((y + 56.0) / 18.0) ** 2)
-                + LAYOUT.brow_priority * np.exp(-((np.abs(x) - 30.0) / 20.0) ** 2 - ((y - 27.0) / 8.0) ** 2))
+    priority = (
+        1.0
+        + LAYOUT.mouth_priority * np.exp(-((x / 30.0) ** 2) - ((y + 56.0) / 18.0) ** 2)
+        + LAYOUT.brow_priority * np.exp(-(((np.abs(x) - 30.0) / 20.0) ** 2) - ((y - 27.0) / 8.0) ** 2)
+    )
     position_in_candidates = {int(vertex): i for i, vertex in enumerate(candidates)}
-    chosen = [position_in_candidates[mesh.landmarks[name]] for name in MARKER_LANDMARKS
-              if mesh.landmarks[name] in position_in_candidates][:n_markers]
+    chosen = [
+        position_in_candidates[mesh.landmarks[name]]
+        for name in MARKER_LANDMARKS
+        if mesh.landmarks[name] in position_in_candidates
+    ][:n_markers]
     nearest = np.min(np.linalg.norm(positions[:, None, :] - positions[None, chosen, :], axis=2), axis=1)
     while len(chosen) < n_markers:
         chosen.append(int(np.argmax(nearest * priority)))
@@ -306,12 +369,13 @@ def head_marker_layout(n_markers: int) -> np.ndarray:
     """
     side = np.linspace(-1.0, 1.0, n_markers)
     azimuth = np.deg2rad(LAYOUT.headband_azimuth_deg) * side
-    y = LAYOUT.headband_top_y - (LAYOUT.headband_top_y - LAYOUT.headband_temple_y) * side ** 2
+    y = LAYOUT.headband_top_y - (LAYOUT.headband_top_y - LAYOUT.headband_temple_y) * side**2
     return head_shell_point(azimuth, y, LAYOUT.headband_standoff)
 
 
-def make_head_motion(n_frames: int, frame_rate: float, rotation_deg: float, translation_mm: float,
-                     rng: np.random.Generator) -> HeadMotion:
+def make_head_motion(
+    n_frames: int, frame_rate: float, rotation_deg: float, translation_mm: float, rng: np.random.Generator
+) -> HeadMotion:
     """Smooth rigid head motion: each rotation-vector and translation component is a sum of slow sinusoids.
 
     Each component stays within ``+-rotation_deg`` (rotation vector) or ``+-translation_mm``; zero amplitudes
@@ -339,8 +403,9 @@ def _rotation_matrices(rotation_vectors: np.ndarray) -> np.ndarray:
     safe_angle = np.where(angle > 0, angle, 1.0)
     kx, ky, kz = (rotation_vectors / safe_angle[:, None]).T
     zero = np.zeros_like(kx)
-    cross = np.stack([np.stack([zero, -kz, ky], -1), np.stack([kz, zero, -kx], -1),
-                      np.stack([-ky, kx, zero], -1)], axis=1)
+    cross = np.stack(
+        [np.stack([zero, -kz, ky], -1), np.stack([kz, zero, -kx], -1), np.stack([-ky, kx, zero], -1)], axis=1
+    )
     sin_a, one_minus_cos = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
     return np.eye(3) + sin_a * cross + one_minus_cos * (cross @ cross)
 
@@ -350,15 +415,21 @@ def _check_int(name: str, value, lower: int, upper: int | None = None, note: str
         rule = f"an integer between {lower} and {upper}{note}"
     else:
         rule = {0: "a non-negative integer", 1: "a positive integer"}.get(lower, f"an integer >= {lower}")
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lower \
-            or (upper is not None and value > upper):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or value < lower
+        or (upper is not None and value > upper)
+    ):
         raise WorkbenchError(f"{name} must be {rule}, got {value!r}")
 
 
-def _check_float(name: str, value, *, lower: float, upper: float | None = None,
-                 lower_inclusive: bool = True) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(value):
+def _check_float(name: str, value, *, lower: float, upper: float | None = None, lower_inclusive: bool = True) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not np.isfinite(value)
+    ):
         raise WorkbenchError(f"{name} must be a finite number, got {value!r}")
     if value < lower or (value == lower and not lower_inclusive) or (upper is not None and value > upper):
         bound = (">= " if lower_inclusive else "> ") + f"{lower:g}"

@@ -182,8 +182,13 @@ def make_face_mesh(n_rows: int = 70, n_cols: int = 60) -> FaceMesh:
     landmarks = _find_landmarks(vertices, face_plane)
     for array in (vertices, faces, face_plane):
         array.setflags(write=False)
-    return FaceMesh(vertices=vertices, faces=faces, landmarks=landmarks, face_plane=face_plane,
-                    grid_shape=(int(n_rows), int(n_cols)))
+    return FaceMesh(
+        vertices=vertices,
+        faces=faces,
+        landmarks=landmarks,
+        face_plane=face_plane,
+        grid_shape=(int(n_rows), int(n_cols)),
+    )
 
 
 def skin_point(x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -258,15 +263,18 @@ def _smoothstep(edge0: float, edge1: float, value: np.ndarray) -> np.ndarray:
 def _half_width(y: np.ndarray) -> np.ndarray:
     to_jaw = _smoothstep(-5.0, -68.0, y)
     to_chin = _smoothstep(-68.0, -105.0, y)
-    return HEAD.half_width - (HEAD.half_width - HEAD.half_width_jaw) * to_jaw - (
-        HEAD.half_width_jaw - HEAD.half_width_chin) * to_chin
+    return (
+        HEAD.half_width
+        - (HEAD.half_width - HEAD.half_width_jaw) * to_jaw
+        - (HEAD.half_width_jaw - HEAD.half_width_chin) * to_chin
+    )
 
 
 def _front_depth(y: np.ndarray) -> np.ndarray:
     half_height = np.where(y >= 0, HEAD.half_height_up, HEAD.half_height_down)
     exponent = np.where(y >= 0, HEAD.exponent_up, HEAD.exponent_down)
     ratio = np.clip(np.abs(y) / half_height, 0.0, 1.0)
-    return HEAD.depth * np.clip(1.0 - ratio ** exponent, 0.0, 1.0) ** (1.0 / exponent)
+    return HEAD.depth * np.clip(1.0 - ratio**exponent, 0.0, 1.0) ** (1.0 / exponent)
 
 
 def _base_point(azimuth: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -317,8 +325,11 @@ def _row_warp(n_rows: int) -> np.ndarray:
     """Row parameters in [0, 1], denser around the mouth and the eyes (where the features are small)."""
     fine = np.linspace(0.0, 1.0, 2001)
     y_midline = HEAD.chin_bottom_y + (HEAD.top_y - HEAD.chin_bottom_y) * fine
-    density = (1.0 + 1.2 * np.exp(-0.5 * ((y_midline + 56.0) / 11.0) ** 2)
-               + 0.5 * np.exp(-0.5 * ((y_midline - 10.0) / 10.0) ** 2))
+    density = (
+        1.0
+        + 1.2 * np.exp(-0.5 * ((y_midline + 56.0) / 11.0) ** 2)
+        + 0.5 * np.exp(-0.5 * ((y_midline - 10.0) / 10.0) ** 2)
+    )
     cumulative = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]))])
     cumulative /= cumulative[-1]
     return np.interp(np.linspace(0.0, 1.0, n_rows), cumulative, fine)
@@ -328,8 +339,8 @@ def _grid_parameters(n_rows: int, n_cols: int) -> tuple[np.ndarray, np.ndarray]:
     """Azimuth and height of each grid vertex, shape (n_rows, n_cols) each."""
     column = np.linspace(-1.0, 1.0, n_cols)
     # Slightly denser columns toward the middle of the face.
-    azimuth = np.deg2rad(HEAD.max_azimuth_deg) * (column + 0.5 * column ** 3) / 1.5
-    side = (column ** 2)[None, :]
+    azimuth = np.deg2rad(HEAD.max_azimuth_deg) * (column + 0.5 * column**3) / 1.5
+    side = (column**2)[None, :]
     bottom = HEAD.chin_bottom_y + (HEAD.jaw_angle_y - HEAD.chin_bottom_y) * side
     top = HEAD.top_y - HEAD.top_drop_at_sides * side
     row = _row_warp(n_rows)[:, None]

@@ -25,17 +25,30 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit, prange
 
-from workbench.dataset.synthetic.face_mesh import skin_point
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.synthetic.face_mesh import skin_point
 
 UPPER_FACE: tuple[str, ...] = (
-    "frontalis_inner_L", "frontalis_inner_R", "frontalis_outer_L", "frontalis_outer_R",
-    "corrugator_L", "corrugator_R",
+    "frontalis_inner_L",
+    "frontalis_inner_R",
+    "frontalis_outer_L",
+    "frontalis_outer_R",
+    "corrugator_L",
+    "corrugator_R",
 )
 LOWER_FACE: tuple[str, ...] = (
-    "zygomatic_major_L", "zygomatic_major_R", "levator_labii_L", "levator_labii_R",
-    "depressor_anguli_L", "depressor_anguli_R", "risorius_L", "risorius_R",
-    "depressor_labii", "mentalis", "orbicularis_oris", "jaw_open",
+    "zygomatic_major_L",
+    "zygomatic_major_R",
+    "levator_labii_L",
+    "levator_labii_R",
+    "depressor_anguli_L",
+    "depressor_anguli_R",
+    "risorius_L",
+    "risorius_R",
+    "depressor_labii",
+    "mentalis",
+    "orbicularis_oris",
+    "jaw_open",
 )
 MUSCLE_NAMES: tuple[str, ...] = UPPER_FACE + LOWER_FACE
 N_MUSCLES = len(MUSCLE_NAMES)
@@ -143,20 +156,34 @@ class JawRotation:
 # Geometry of the left-side and midline muscles; right-side muscles mirror the left ones in x.
 LINEAR_MUSCLES_LEFT_AND_MIDLINE: tuple[LinearMuscle, ...] = (
     #            name                  attachment      depth  insertion      cone  falloff max mm bulge  on jaw
-    LinearMuscle("frontalis_inner_L",  (17.0, 92.0),   6.0,   (16.0, 26.0),  22.0, 1.25,   9.0,   0.0),
-    LinearMuscle("frontalis_outer_L",  (44.0, 88.0),   6.0,   (45.0, 24.0),  20.0, 1.25,   8.0,   0.0),
-    LinearMuscle("corrugator_L",       (8.0, 16.0),    8.0,   (30.0, 29.0),  35.0, 1.6,    5.5,   0.0),
-    LinearMuscle("zygomatic_major_L",  (60.0, -5.0),   8.0,   (24.0, -55.0), 20.0, 1.3,    13.0,  3.0),
-    LinearMuscle("levator_labii_L",    (20.0, -8.0),   8.0,   (12.0, -49.0), 22.0, 1.25,   7.0,   1.0),
-    LinearMuscle("depressor_anguli_L", (34.0, -88.0),  6.0,   (24.0, -57.0), 22.0, 1.3,    9.0,   0.0,  True),
-    LinearMuscle("risorius_L",         (52.0, -60.0),  6.0,   (24.0, -56.0), 18.0, 1.3,    9.0,   0.0),
-    LinearMuscle("depressor_labii",    (0.0, -92.0),   8.0,   (0.0, -62.0),  35.0, 1.25,   6.0,   0.0,  True),
-    LinearMuscle("mentalis",           (0.0, -72.0),   10.0,  (0.0, -92.0),  40.0, 1.3,    5.0,   3.0,  True),
+    LinearMuscle("frontalis_inner_L", (17.0, 92.0), 6.0, (16.0, 26.0), 22.0, 1.25, 9.0, 0.0),
+    LinearMuscle("frontalis_outer_L", (44.0, 88.0), 6.0, (45.0, 24.0), 20.0, 1.25, 8.0, 0.0),
+    LinearMuscle("corrugator_L", (8.0, 16.0), 8.0, (30.0, 29.0), 35.0, 1.6, 5.5, 0.0),
+    LinearMuscle("zygomatic_major_L", (60.0, -5.0), 8.0, (24.0, -55.0), 20.0, 1.3, 13.0, 3.0),
+    LinearMuscle("levator_labii_L", (20.0, -8.0), 8.0, (12.0, -49.0), 22.0, 1.25, 7.0, 1.0),
+    LinearMuscle("depressor_anguli_L", (34.0, -88.0), 6.0, (24.0, -57.0), 22.0, 1.3, 9.0, 0.0, True),
+    LinearMuscle("risorius_L", (52.0, -60.0), 6.0, (24.0, -56.0), 18.0, 1.3, 9.0, 0.0),
+    LinearMuscle("depressor_labii", (0.0, -92.0), 8.0, (0.0, -62.0), 35.0, 1.25, 6.0, 0.0, True),
+    LinearMuscle("mentalis", (0.0, -72.0), 10.0, (0.0, -92.0), 40.0, 1.3, 5.0, 3.0, True),
 )
-ORBICULARIS_ORIS = SphincterMuscle("orbicularis_oris", centre_xy=(0.0, -55.5), semi_axes=(36.0, 24.0),
-                                   flat_fraction=0.55, contraction=(0.4, 0.25), pucker=8.0)
-JAW = JawRotation("jaw_open", joint_yz=(-20.0, 12.0), joint_half_span=52.0, max_angle_deg=18.0,
-                  mouth_line_y=-55.5, lip_band=3.5, mouth_half_width=24.0, band_widening=0.3)
+ORBICULARIS_ORIS = SphincterMuscle(
+    "orbicularis_oris",
+    centre_xy=(0.0, -55.5),
+    semi_axes=(36.0, 24.0),
+    flat_fraction=0.55,
+    contraction=(0.4, 0.25),
+    pucker=8.0,
+)
+JAW = JawRotation(
+    "jaw_open",
+    joint_yz=(-20.0, 12.0),
+    joint_half_span=52.0,
+    max_angle_deg=18.0,
+    mouth_line_y=-55.5,
+    lip_band=3.5,
+    mouth_half_width=24.0,
+    band_widening=0.3,
+)
 
 
 @dataclass(frozen=True)
@@ -174,9 +201,12 @@ class _ResolvedLinearMuscle:
 
 
 def _mirror(muscle: LinearMuscle) -> LinearMuscle:
-    return replace(muscle, name=muscle.name[:-2] + "_R",
-                   attachment_xy=(-muscle.attachment_xy[0], muscle.attachment_xy[1]),
-                   insertion_xy=(-muscle.insertion_xy[0], muscle.insertion_xy[1]))
+    return replace(
+        muscle,
+        name=muscle.name[:-2] + "_R",
+        attachment_xy=(-muscle.attachment_xy[0], muscle.attachment_xy[1]),
+        insertion_xy=(-muscle.insertion_xy[0], muscle.insertion_xy[1]),
+    )
 
 
 def _resolve(muscle: LinearMuscle) -> _ResolvedLinearMuscle:
@@ -207,13 +237,13 @@ _ZONE_MARGIN = 1.0
 _BLOCKS = 64
 """Blocks of frames the parallel loop hands out (each allocates its work space once)."""
 
-_STEP_NAMES: tuple[str, ...] = (JAW.name,) + tuple(muscle.spec.name for muscle in LINEAR_MUSCLES) + (
-    ORBICULARIS_ORIS.name,)
+_STEP_NAMES: tuple[str, ...] = (
+    (JAW.name,) + tuple(muscle.spec.name for muscle in LINEAR_MUSCLES) + (ORBICULARIS_ORIS.name,)
+)
 """The steps in the order they act: the jaw, the linear muscles, the sphincter."""
 
 
-def deform(points: np.ndarray, activations: np.ndarray, *,
-           chunk_points: int = DEFAULT_CHUNK_POINTS) -> np.ndarray:
+def deform(points: np.ndarray, activations: np.ndarray, *, chunk_points: int = DEFAULT_CHUNK_POINTS) -> np.ndarray:
     """Positions of skin points under muscle activations.
 
     Parameters
@@ -264,8 +294,9 @@ def deform_displacements(points: np.ndarray, activations: np.ndarray, out: np.nd
     activations = _checked_activations(activations)
     shape = (activations.shape[0], 3 * points.shape[0])
     if not isinstance(out, np.ndarray) or out.dtype not in (np.float32, np.float64):
-        raise WorkbenchError(f"out must be a float32 or float64 array, got {type(out).__name__} "
-                             f"{getattr(out, 'dtype', '')}".rstrip())
+        raise WorkbenchError(
+            f"out must be a float32 or float64 array, got {type(out).__name__} {getattr(out, 'dtype', '')}".rstrip()
+        )
     if out.shape != shape or not out.flags.c_contiguous or not out.flags.writeable:
         raise WorkbenchError(f"out must be a writeable C-contiguous array of shape {shape}, got shape {out.shape}")
     _run_kernel(points, activations, out.reshape(shape[0], points.shape[0], 3), subtract_rest=True)
@@ -293,8 +324,19 @@ def _run_kernel(points: np.ndarray, activations: np.ndarray, out: np.ndarray, *,
     # Writeable C-contiguous inputs whatever the caller passes (read-only take arrays, slices): one compiled
     # version per dtype of ``out`` only.
     points, activations = (np.require(array, np.float64, ("C", "W")) for array in (points, activations))
-    _deform_frames(points, activations, jaw_angle, attachments, axes, _LINEAR_CONSTANTS, _LINEAR_COLUMNS,
-                   step_points, step_start, out, subtract_rest)
+    _deform_frames(
+        points,
+        activations,
+        jaw_angle,
+        attachments,
+        axes,
+        _LINEAR_CONSTANTS,
+        _LINEAR_COLUMNS,
+        step_points,
+        step_start,
+        out,
+        subtract_rest,
+    )
 
 
 def _muscle_frames(jaw_angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -363,8 +405,9 @@ def _reachable_points(points: np.ndarray) -> dict[str, np.ndarray]:
         reachable[spec.name] = np.flatnonzero(near)
         moved[near] += spec.max_displacement + spec.bulge
     slack = moved + _ZONE_MARGIN
-    near = ((np.abs(points[:, 0] - _SPHINCTER_CENTRE[0]) < ORBICULARIS_ORIS.semi_axes[0] + slack)
-            & (np.abs(points[:, 1] - _SPHINCTER_CENTRE[1]) < ORBICULARIS_ORIS.semi_axes[1] + slack))
+    near = (np.abs(points[:, 0] - _SPHINCTER_CENTRE[0]) < ORBICULARIS_ORIS.semi_axes[0] + slack) & (
+        np.abs(points[:, 1] - _SPHINCTER_CENTRE[1]) < ORBICULARIS_ORIS.semi_axes[1] + slack
+    )
     reachable[ORBICULARIS_ORIS.name] = np.flatnonzero(near)
     return reachable
 
@@ -376,8 +419,7 @@ def _rotation_about_x_displacement(offsets: np.ndarray, angle: np.ndarray) -> np
     """
     sin_a, one_minus_cos = np.sin(angle), 1.0 - np.cos(angle)
     y, z = offsets[..., 1], offsets[..., 2]
-    return np.stack([np.zeros_like(y * sin_a), -sin_a * z - one_minus_cos * y, sin_a * y - one_minus_cos * z],
-                    axis=-1)
+    return np.stack([np.zeros_like(y * sin_a), -sin_a * z - one_minus_cos * y, sin_a * y - one_minus_cos * z], axis=-1)
 
 
 def _on_jaw(point: np.ndarray, jaw_angle: np.ndarray) -> np.ndarray:
@@ -402,8 +444,14 @@ _REST_LENGTH, _ZONE_END, _COS_CONE_SQUARED, _CONE, _MAX_DISPLACEMENT, _BULGE = r
 def _linear_constants(muscle: _ResolvedLinearMuscle) -> list[float]:
     cone = float(np.deg2rad(muscle.spec.cone_half_angle_deg))
     cos_cone = float(np.cos(cone))
-    return [muscle.rest_length, muscle.spec.falloff_ratio * muscle.rest_length, cos_cone * cos_cone, cone,
-            muscle.spec.max_displacement, muscle.spec.bulge]
+    return [
+        muscle.rest_length,
+        muscle.spec.falloff_ratio * muscle.rest_length,
+        cos_cone * cos_cone,
+        cone,
+        muscle.spec.max_displacement,
+        muscle.spec.bulge,
+    ]
 
 
 _LINEAR_CONSTANTS = np.array([_linear_constants(muscle) for muscle in LINEAR_MUSCLES])
@@ -461,8 +509,11 @@ def _pull_linear_muscle(x, y, z, activation, attachments, axes, constants, frame
     axis_x, axis_y, axis_z = axes[frame, muscle, 0], axes[frame, muscle, 1], axes[frame, muscle, 2]
     along_axis = offset_x * axis_x + offset_y * axis_y + offset_z * axis_z
     rest_length, zone_end = constants[muscle, _REST_LENGTH], constants[muscle, _ZONE_END]
-    if not (along_axis > 0.0 and along_axis * along_axis > constants[muscle, _COS_CONE_SQUARED] * squared_distance
-            and squared_distance < zone_end * zone_end):
+    if not (
+        along_axis > 0.0
+        and along_axis * along_axis > constants[muscle, _COS_CONE_SQUARED] * squared_distance
+        and squared_distance < zone_end * zone_end
+    ):
         return x, y, z
     distance = np.sqrt(squared_distance)
     cos_angle = min(along_axis / distance, 1.0)
@@ -499,13 +550,27 @@ def _contract_sphincter(x, y, z, activation):
     fall = min(max((radius - _FLAT_FRACTION) / (1.0 - _FLAT_FRACTION), 0.0), 1.0)
     weight = np.cos(_HALF_PI * fall)
     response = _saturate(activation * (weight * weight))
-    return (x - _CONTRACTION_X * dx * response, y - _CONTRACTION_Y * dy * response,
-            z + _PUCKER * response * (1.0 - 0.6 * squared_radius))
+    return (
+        x - _CONTRACTION_X * dx * response,
+        y - _CONTRACTION_Y * dy * response,
+        z + _PUCKER * response * (1.0 - 0.6 * squared_radius),
+    )
 
 
 @njit(cache=True, parallel=True)
-def _deform_frames(points, activations, jaw_angle, attachments, axes, linear_constants, linear_columns,
-                   step_points, step_start, out, subtract_rest):
+def _deform_frames(
+    points,
+    activations,
+    jaw_angle,
+    attachments,
+    axes,
+    linear_constants,
+    linear_columns,
+    step_points,
+    step_start,
+    out,
+    subtract_rest,
+):
     """Every point of every frame through the jaw, the linear muscles and the sphincter, into ``out``.
 
     points (n_points, 3); activations (n_frames, 18); jaw_angle (n_frames,); attachments, axes
@@ -529,21 +594,31 @@ def _deform_frames(points, activations, jaw_angle, attachments, axes, linear_con
                 for k in range(step_start[0], step_start[1]):
                     p = step_points[k]
                     positions[p, 0], positions[p, 1], positions[p, 2] = _turn_with_jaw(
-                        positions[p, 0], positions[p, 1], positions[p, 2], angle)
+                        positions[p, 0], positions[p, 1], positions[p, 2], angle
+                    )
             for muscle in range(n_linear):
                 activation = activations[frame, linear_columns[muscle]]
                 if activation > 0.0:
                     for k in range(step_start[1 + muscle], step_start[2 + muscle]):
                         p = step_points[k]
                         positions[p, 0], positions[p, 1], positions[p, 2] = _pull_linear_muscle(
-                            positions[p, 0], positions[p, 1], positions[p, 2], activation, attachments, axes,
-                            linear_constants, frame, muscle)
+                            positions[p, 0],
+                            positions[p, 1],
+                            positions[p, 2],
+                            activation,
+                            attachments,
+                            axes,
+                            linear_constants,
+                            frame,
+                            muscle,
+                        )
             activation = activations[frame, _SPHINCTER_COLUMN]
             if activation > 0.0:
                 for k in range(step_start[n_linear + 1], step_start[n_linear + 2]):
                     p = step_points[k]
                     positions[p, 0], positions[p, 1], positions[p, 2] = _contract_sphincter(
-                        positions[p, 0], positions[p, 1], positions[p, 2], activation)
+                        positions[p, 0], positions[p, 1], positions[p, 2], activation
+                    )
             for p in range(n_points):
                 for c in range(3):
                     out[frame, p, c] = positions[p, c] - points[p, c] if subtract_rest else positions[p, c]

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.dataset.synthetic.muscles import MUSCLE_NAMES, N_MUSCLES
 from workbench.core.errors import WorkbenchError
+from workbench.dataset.synthetic.muscles import MUSCLE_NAMES, N_MUSCLES
 
 
 @dataclass(frozen=True)
@@ -39,16 +39,28 @@ EXPRESSIONS: tuple[Expression, ...] = (
     Expression("laugh", _both("zygomatic_major", 1.0) + _both("levator_labii", 0.4) + (("jaw_open", 0.45),)),
     Expression("surprise", _both("frontalis_inner", 1.0) + _both("frontalis_outer", 1.0) + (("jaw_open", 0.6),)),
     Expression("brow_raise", _both("frontalis_inner", 0.8) + _both("frontalis_outer", 0.7)),
-    Expression("anger", _both("corrugator", 1.0) + _both("levator_labii", 0.3)
-               + (("orbicularis_oris", 0.4), ("mentalis", 0.3))),
+    Expression(
+        "anger", _both("corrugator", 1.0) + _both("levator_labii", 0.3) + (("orbicularis_oris", 0.4), ("mentalis", 0.3))
+    ),
     Expression("brow_lower", _both("corrugator", 0.9)),
-    Expression("sadness", _both("frontalis_inner", 0.8) + _both("corrugator", 0.4) + _both("depressor_anguli", 0.8)
-               + (("mentalis", 0.4),)),
+    Expression(
+        "sadness",
+        _both("frontalis_inner", 0.8)
+        + _both("corrugator", 0.4)
+        + _both("depressor_anguli", 0.8)
+        + (("mentalis", 0.4),),
+    ),
     Expression("pucker", (("orbicularis_oris", 1.0), ("mentalis", 0.3))),
     Expression("jaw_drop", (("jaw_open", 1.0),)),
     Expression("disgust", _both("levator_labii", 1.0) + _both("corrugator", 0.5) + (("depressor_labii", 0.3),)),
-    Expression("fear", _both("frontalis_inner", 0.8) + _both("frontalis_outer", 0.4) + _both("corrugator", 0.5)
-               + _both("risorius", 0.8) + (("jaw_open", 0.3), ("depressor_labii", 0.4))),
+    Expression(
+        "fear",
+        _both("frontalis_inner", 0.8)
+        + _both("frontalis_outer", 0.4)
+        + _both("corrugator", 0.5)
+        + _both("risorius", 0.8)
+        + (("jaw_open", 0.3), ("depressor_labii", 0.4)),
+    ),
     Expression("grimace", _both("risorius", 1.0) + _both("depressor_anguli", 0.5) + (("depressor_labii", 0.5),)),
     Expression("doubt", (("mentalis", 0.8), ("orbicularis_oris", 0.3)) + _both("depressor_anguli", 0.5)),
     Expression("smirk", (("zygomatic_major_L", 0.7), ("risorius_L", 0.5))),
@@ -135,8 +147,7 @@ def _events(times: np.ndarray, frame_rate: float, rng: np.random.Generator):
         if kind == "speech":
             length = rng.uniform(*STYLE.speech_length)
         else:
-            attack, hold, release = (rng.uniform(*STYLE.attack), rng.uniform(*STYLE.hold),
-                                     rng.uniform(*STYLE.release))
+            attack, hold, release = (rng.uniform(*STYLE.attack), rng.uniform(*STYLE.hold), rng.uniform(*STYLE.release))
             length = attack + hold + release
         first, stop = int(np.ceil(start * frame_rate)), int(np.ceil((start + length) * frame_rate))
         window = slice(first, min(stop, times.size))
@@ -173,8 +184,7 @@ def _speech(local_time: np.ndarray, length: float, rng: np.random.Generator) -> 
     phase = 2.0 * np.pi * rate * np.concatenate([[0.0], np.cumsum(drift[:-1] * np.diff(local_time))])
     syllable = phase / (2.0 * np.pi)
     loudness = np.interp(syllable, np.arange(int(syllable[-1]) + 3), rng.uniform(0.3, 1.0, int(syllable[-1]) + 3))
-    fade = np.minimum(_envelope(local_time, STYLE.speech_fade, length - 2 * STYLE.speech_fade, STYLE.speech_fade),
-                      1.0)
+    fade = np.minimum(_envelope(local_time, STYLE.speech_fade, length - 2 * STYLE.speech_fade, STYLE.speech_fade), 1.0)
     open_close = 0.5 - 0.5 * np.cos(phase)
     curves = {
         "jaw_open": rng.uniform(0.25, 0.55) * loudness * open_close,

@@ -36,19 +36,34 @@ RENDER_DPI = 110
 
 # One colour-blind-safe palette for every plot (Okabe & Ito's eight colours, distinct in the common forms of colour
 # blindness and in grey): a basis, and a data variant, look the same everywhere.
-OKABE_ITO = {"blue": "#0072B2", "vermillion": "#D55E00", "bluish green": "#009E73", "reddish purple": "#CC79A7",
-             "orange": "#E69F00", "sky blue": "#56B4E9", "yellow": "#F0E442", "black": "#000000"}
-BASIS_COLOURS = {"H": OKABE_ITO["blue"], "QE": OKABE_ITO["vermillion"], "QE-linear": OKABE_ITO["bluish green"],
-                 "PCA": OKABE_ITO["reddish purple"]}
+OKABE_ITO = {
+    "blue": "#0072B2",
+    "vermillion": "#D55E00",
+    "bluish green": "#009E73",
+    "reddish purple": "#CC79A7",
+    "orange": "#E69F00",
+    "sky blue": "#56B4E9",
+    "yellow": "#F0E442",
+    "black": "#000000",
+}
+BASIS_COLOURS = {
+    "H": OKABE_ITO["blue"],
+    "QE": OKABE_ITO["vermillion"],
+    "QE-linear": OKABE_ITO["bluish green"],
+    "PCA": OKABE_ITO["reddish purple"],
+}
 DATA_COLOURS = {"markers": OKABE_ITO["sky blue"], "mesh": OKABE_ITO["orange"]}
-BASIS_LABELS = {"H": "hand $E^H$", "QE": "quasi-eigen $E^{QE}$ (affine)",
-                "QE-linear": "quasi-eigen (linear)", "PCA": "PCA $E^{PCA}$"}
+BASIS_LABELS = {
+    "H": "hand $E^H$",
+    "QE": "quasi-eigen $E^{QE}$ (affine)",
+    "QE-linear": "quasi-eigen (linear)",
+    "PCA": "PCA $E^{PCA}$",
+}
 
 # Text-as-text SVG with a fixed hash salt and no date: the same figure gives the same bytes on every rebuild.
 # Text as text; the font named once, with two fallbacks, instead of matplotlib's list of eleven on every label (the
 # labels are drawn in DejaVu Sans either way: the list only changes what a browser without it falls back to).
-SVG_RC = {"svg.fonttype": "none", "svg.hashsalt": "workbench",
-          "font.sans-serif": ["DejaVu Sans", "Arial", "Helvetica"]}
+SVG_RC = {"svg.fonttype": "none", "svg.hashsalt": "workbench", "font.sans-serif": ["DejaVu Sans", "Arial", "Helvetica"]}
 
 
 def new_figure(width: float, height: float) -> Figure:
@@ -206,11 +221,14 @@ def shared_styles(svg: bytes) -> bytes:
     if not recurring or b" class=" in svg:
         return svg
     names = {style: b"s%d" % number for number, style in enumerate(recurring)}
-    svg = re.sub(rb' style="([^"]*)"', lambda match: b' class="%s"' % names[match.group(1)]
-                 if match.group(1) in names else match.group(0), svg)
+    svg = re.sub(
+        rb' style="([^"]*)"',
+        lambda match: b' class="%s"' % names[match.group(1)] if match.group(1) in names else match.group(0),
+        svg,
+    )
     sheet = b"<style>" + b"".join(b".%s{%s}" % (names[style], style) for style in recurring) + b"</style>"
     opening = re.search(rb"<svg[^>]*>", svg)
-    return svg[:opening.end()] + sheet + svg[opening.end():]
+    return svg[: opening.end()] + sheet + svg[opening.end() :]
 
 
 def is_raster(figure: Figure) -> bool:

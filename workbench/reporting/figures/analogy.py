@@ -43,8 +43,9 @@ class AnalogyExample:
     quasi_eigen: np.ndarray
 
 
-def make_analogy_example(rng: np.random.Generator, *, n_points: int = 300, off_plane_std: float = 0.04
-                         ) -> AnalogyExample:
+def make_analogy_example(
+    rng: np.random.Generator, *, n_points: int = 300, off_plane_std: float = 0.04
+) -> AnalogyExample:
     """A seeded cloud near a tilted plane and three hand vectors off it, projected by the core.
 
     Parameters
@@ -89,7 +90,7 @@ def figure_analogy(example: AnalogyExample) -> Figure:
     """
     eigen = example.eigenfaces
     mean, axes = eigen.mean_, eigen.components_
-    half_lengths = 2.0 * np.sqrt(eigen.explained_variance_[:eigen.n_components_])
+    half_lengths = 2.0 * np.sqrt(eigen.explained_variance_[: eigen.n_components_])
 
     figure = new_figure(7.6, 6.4)
     ax = figure.add_subplot(projection="3d")
@@ -117,25 +118,45 @@ def figure_analogy(example: AnalogyExample) -> Figure:
     ax.set_zlabel("z")
     ax.view_init(elev=24, azim=-58)
     ax.set_box_aspect(np.ptp(np.vstack([example.points, example.hand, origin[None]]), axis=0))
-    figure.legend(handles=[
-        Line2D([], [], color="0.45", marker="o", linestyle="", markersize=4, label="captured frames (points)"),
-        Line2D([], [], color=PCA_RED, linewidth=2.4, label=f"PCA axes $e_j^{{PCA}}$ (2 std; m = "
-                                                          f"{eigen.n_components_}, coverage {eigen.coverage_:.3f})"),
-        Line2D([], [], color=HAND_BLUE, linewidth=1.8, label="hand vectors $e_i^H$ (off the plane)"),
-        Line2D([], [], color=QE_PURPLE, linewidth=1.8,
-               label=r"quasi-eigen $e_i^{QE} = \mu + \Sigma_j\, w_{ij}\, e_j^{PCA}$ (eq. 3-4)"),
-        Line2D([], [], color="0.2", linestyle=":", linewidth=1.4, label="projection: least distance to the plane"),
-    ], loc="outside lower center", ncols=2, fontsize=9, frameon=False)
-    figure.suptitle("Figure 1 (reproduced): quasi-eigen projection onto the PCA plane\n"
-                    f"computed by the workbench core on a seeded 3-D example ({len(example.points)} points)",
-                    fontsize=11)
+    figure.legend(
+        handles=[
+            Line2D([], [], color="0.45", marker="o", linestyle="", markersize=4, label="captured frames (points)"),
+            Line2D(
+                [],
+                [],
+                color=PCA_RED,
+                linewidth=2.4,
+                label=f"PCA axes $e_j^{{PCA}}$ (2 std; m = {eigen.n_components_}, coverage {eigen.coverage_:.3f})",
+            ),
+            Line2D([], [], color=HAND_BLUE, linewidth=1.8, label="hand vectors $e_i^H$ (off the plane)"),
+            Line2D(
+                [],
+                [],
+                color=QE_PURPLE,
+                linewidth=1.8,
+                label=r"quasi-eigen $e_i^{QE} = \mu + \Sigma_j\, w_{ij}\, e_j^{PCA}$ (eq. 3-4)",
+            ),
+            Line2D([], [], color="0.2", linestyle=":", linewidth=1.4, label="projection: least distance to the plane"),
+        ],
+        loc="outside lower center",
+        ncols=2,
+        fontsize=9,
+        frameon=False,
+    )
+    figure.suptitle(
+        "Figure 1 (reproduced): quasi-eigen projection onto the PCA plane\n"
+        f"computed by the workbench core on a seeded 3-D example ({len(example.points)} points)",
+        fontsize=11,
+    )
     return figure
 
 
 def _draw_plane(ax, centre: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray) -> None:
     """A translucent rectangle through ``centre`` spanned by two unit ``axes`` (shape (2, 3))."""
     s, t = np.meshgrid(np.linspace(-1, 1, 2), np.linspace(-1, 1, 2))
-    corners = (centre[None, None, :] + s[..., None] * half_lengths[0] * axes[0]
-               + t[..., None] * half_lengths[1] * axes[1])
-    ax.plot_surface(corners[..., 0], corners[..., 1], corners[..., 2], color=PCA_RED, alpha=0.08,
-                    edgecolor=PCA_RED, linewidth=0.4)
+    corners = (
+        centre[None, None, :] + s[..., None] * half_lengths[0] * axes[0] + t[..., None] * half_lengths[1] * axes[1]
+    )
+    ax.plot_surface(
+        corners[..., 0], corners[..., 1], corners[..., 2], color=PCA_RED, alpha=0.08, edgecolor=PCA_RED, linewidth=0.4
+    )

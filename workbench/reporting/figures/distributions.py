@@ -16,16 +16,21 @@ from matplotlib.ticker import FuncFormatter
 from workbench.reporting.figures import basis_colour, new_figure, shown_as_pixels, wrap_title, wrap_to_width
 
 SOLVER_STYLES = {"lstsq": "-", "nnls": "--", "box": ":", "projection": "-"}
-WEIGHT_PANELS = (("max_abs", "largest |w|", True), ("outside_unit_share", "frames with a weight outside [0, 1]", False),
-                 ("sparsity", "Hoyer sparsity (1: one shape per frame)", False),
-                 ("roughness", "roughness: mean (d^2 w / dt^2)^2, 1/s^4", True))
+WEIGHT_PANELS = (
+    ("max_abs", "largest |w|", True),
+    ("outside_unit_share", "frames with a weight outside [0, 1]", False),
+    ("sparsity", "Hoyer sparsity (1: one shape per frame)", False),
+    ("roughness", "roughness: mean (d^2 w / dt^2)^2, 1/s^4", True),
+)
 PANEL_WIDTH = 6.2
 """Inches of figure width per panel of the error curves."""
 PANEL_TEXT_WIDTH = 5.0
 """Inches a panel's subtitle may take: its axes' width (the panel less its axis labels), so that two panels'
 subtitles never run into each other nor past the figure's edge."""
-CDF_LEGEND_TITLE = ("basis (colour) and solver (solid: least squares, PCA by projection; dashed: non-negative; "
-                    "dotted: box [0, 1])\ngrey lines: median and 95th percentile")
+CDF_LEGEND_TITLE = (
+    "basis (colour) and solver (solid: least squares, PCA by projection; dashed: non-negative; "
+    "dotted: box [0, 1])\ngrey lines: median and 95th percentile"
+)
 
 
 def minor_tick_text(value: float, _position=None) -> str:
@@ -36,8 +41,13 @@ def minor_tick_text(value: float, _position=None) -> str:
     return f"{value:g}" if min(abs(mantissa - 2), abs(mantissa - 5)) < 1e-6 else ""
 
 
-def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabilities: np.ndarray, *,
-                   title: str, regions: Mapping[str, str] | None = None) -> Figure:
+def plot_error_cdf(
+    curves: Mapping[str, Mapping[tuple, np.ndarray]],
+    probabilities: np.ndarray,
+    *,
+    title: str,
+    regions: Mapping[str, str] | None = None,
+) -> Figure:
     """Cumulative per-frame error curves: for each error in millimetres, the share of frames reconstructed at least
     that well; one panel per data variant, one line per basis (colour) and solver (line style).
 
@@ -68,9 +78,14 @@ def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabiliti
             # every second recorded quantile (steps of 2 % of the frames, both ends kept): the same smooth curve in
             # half the points, and half the file
             shown = np.unique(np.r_[np.arange(0, len(probabilities), 2), len(probabilities) - 1])
-            ax.plot(quantiles[shown], probabilities[shown], color=basis_colour(basis),
-                    linestyle=SOLVER_STYLES.get(solver, "-."),
-                    linewidth=1.4, label=f"{basis} {solver}" if solver != "projection" else basis)
+            ax.plot(
+                quantiles[shown],
+                probabilities[shown],
+                color=basis_colour(basis),
+                linestyle=SOLVER_STYLES.get(solver, "-."),
+                linewidth=1.4,
+                label=f"{basis} {solver}" if solver != "projection" else basis,
+            )
         ax.set_xscale("log")
         # plain millimetres (0.1, 0.2, 0.5), not 2 x 10^-1 labels on every minor tick that run into each other
         ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
@@ -84,12 +99,20 @@ def plot_error_cdf(curves: Mapping[str, Mapping[tuple, np.ndarray]], probabiliti
         subtitle = f"data: {data}" + (f"\n{region}" if region else "")
         ax.set_title(wrap_to_width(subtitle, PANEL_TEXT_WIDTH, 9), fontsize=9, loc="left")
         ax.grid(alpha=0.3, which="both")
-    for ax in axes[len(variants):]:
+    for ax in axes[len(variants) :]:
         ax.set_visible(False)
     handles, labels = axes[0].get_legend_handles_labels()
     # the title on lines no wider than one panel, so that it is whole however narrow the figure is shown
-    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 5), fontsize=8, frameon=False,
-                  title=wrap_to_width(CDF_LEGEND_TITLE, PANEL_TEXT_WIDTH, 8), title_fontsize=8)
+    figure.legend(
+        handles,
+        labels,
+        loc="outside lower center",
+        ncols=min(len(labels), 5),
+        fontsize=8,
+        frameon=False,
+        title=wrap_to_width(CDF_LEGEND_TITLE, PANEL_TEXT_WIDTH, 8),
+        title_fontsize=8,
+    )
     figure.suptitle(wrap_title(title, width), fontsize=10)
     return figure
 
@@ -132,16 +155,31 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
         solvers = list(dict.fromkeys(solver for _, solver in keys))
         step = 0.8 / len(solvers)
         for ax, (field, label, log) in zip(row, WEIGHT_PANELS):
-            values = {solver: [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
-                      for solver in solvers}
+            values = {
+                solver: [statistics[data].get((basis, solver), {}).get(field, math.nan) for basis in bases]
+                for solver in solvers
+            }
             # a panel's labels upright where one is wider than a bar (9.1e4 beside 9.1e4 would print over each other)
             upright = max(len(bar_text(value)) for shown in values.values() for value in shown) > 4
             for k, solver in enumerate(solvers):
                 positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
-                bars = ax.bar(positions, values[solver], width=step * 0.92, color=[basis_colour(b) for b in bases],
-                              alpha=1.0 - 0.3 * k, edgecolor="#333333", linewidth=0.4, label=solver)
-                ax.bar_label(bars, labels=[bar_text(value) for value in values[solver]], fontsize=6, padding=1,
-                             rotation=90 if upright else 0)
+                bars = ax.bar(
+                    positions,
+                    values[solver],
+                    width=step * 0.92,
+                    color=[basis_colour(b) for b in bases],
+                    alpha=1.0 - 0.3 * k,
+                    edgecolor="#333333",
+                    linewidth=0.4,
+                    label=solver,
+                )
+                ax.bar_label(
+                    bars,
+                    labels=[bar_text(value) for value in values[solver]],
+                    fontsize=6,
+                    padding=1,
+                    rotation=90 if upright else 0,
+                )
             if log:
                 ax.set_yscale("log")
             if field == "max_abs":
@@ -158,7 +196,15 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
             low, high = ax.get_ylim()
             ax.set_ylim(low, high * (high / low) ** room if log else high + room * (high - low))
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
-                  title="solver (left to right in each group, lighter each); dotted line: |w| = 1", title_fontsize=8)
+    figure.legend(
+        handles,
+        labels,
+        loc="outside lower center",
+        ncols=len(labels),
+        fontsize=8,
+        frameon=False,
+        title="solver (left to right in each group, lighter each); dotted line: |w| = 1",
+        title_fontsize=8,
+    )
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return shown_as_pixels(figure)

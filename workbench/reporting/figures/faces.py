@@ -103,8 +103,12 @@ def spread_by_rank(values: Sequence[float], n: int) -> list[int]:
 
 # Regions of the face, top to bottom, and the words of the hand shapes that act there; a shape named by none of
 # them acts on the mouth (lips, corners, cheeks).
-REGIONS = (("brows", ("brow", "frontalis", "corrugator")), ("eyes", ("eye", "blink", "squint", "lid", "oculi")),
-           ("mouth", ()), ("jaw", ("jaw",)))
+REGIONS = (
+    ("brows", ("brow", "frontalis", "corrugator")),
+    ("eyes", ("eye", "blink", "squint", "lid", "oculi")),
+    ("mouth", ()),
+    ("jaw", ("jaw",)),
+)
 REGION_REACH = 0.3
 """A point belongs to the region whose hand shapes move it most, relative to their largest displacement, when that
 share reaches this."""
@@ -149,8 +153,13 @@ def face_regions(hand: np.ndarray, names: Sequence[str], support: np.ndarray | N
     return {region: inside & (strongest == k) for k, region in enumerate(reach)}
 
 
-def region_frames(captured: np.ndarray, regions: Mapping[str, np.ndarray], seconds: np.ndarray | None = None,
-                  takes: np.ndarray | None = None, apart_s: float = 1.0) -> list[tuple[str, int]]:
+def region_frames(
+    captured: np.ndarray,
+    regions: Mapping[str, np.ndarray],
+    seconds: np.ndarray | None = None,
+    takes: np.ndarray | None = None,
+    apart_s: float = 1.0,
+) -> list[tuple[str, int]]:
     """The most displaced frame of each region of the face (RMS displacement over its points), each at least
     ``apart_s`` from the frames chosen before it in the same take, so that the frames cover the face.
 
@@ -176,9 +185,16 @@ def region_frames(captured: np.ndarray, regions: Mapping[str, np.ndarray], secon
             continue
         strength = np.sqrt((lengths[:, points] ** 2).mean(axis=1))
         for frame in np.argsort(-strength, kind="stable"):
-            near = [f for _, f in chosen if f == frame or (
-                seconds is not None and (takes is None or takes[f] == takes[frame])
-                and abs(seconds[f] - seconds[frame]) < apart_s)]
+            near = [
+                f
+                for _, f in chosen
+                if f == frame
+                or (
+                    seconds is not None
+                    and (takes is None or takes[f] == takes[frame])
+                    and abs(seconds[f] - seconds[frame]) < apart_s
+                )
+            ]
             if not near:
                 chosen.append((region, int(frame)))
                 break
@@ -204,8 +220,9 @@ class ColourRange:
     extend: str = "neither"
 
 
-def colour_range(values: Sequence[np.ndarray], *, symmetric: bool = False,
-                 percentile: float | None = None) -> ColourRange:
+def colour_range(
+    values: Sequence[np.ndarray], *, symmetric: bool = False, percentile: float | None = None
+) -> ColourRange:
     """A colour range shared by several panels: up to the largest value, or, with ``percentile``, up to that
     percentile of the values (a few extreme points then do not wash out the rest) with extend arrows where the
     data go beyond it. NaN values (no data) are left out.
@@ -240,8 +257,14 @@ def colour_bar(figure: Figure, axes, cmap: str, span: ColourRange, label: str, *
     """A horizontal colour bar under ``axes`` for ``span``, with arrows where the data go beyond it, and the
     data's largest value in its label when they do."""
     note = f"; largest {span.largest:.{fixed_decimals([span.high])}f}" if span.extend != "neither" else ""
-    figure.colorbar(ScalarMappable(Normalize(span.low, span.high), cmap), ax=axes, location="bottom",
-                    extend=span.extend, label=label + note, **options)
+    figure.colorbar(
+        ScalarMappable(Normalize(span.low, span.high), cmap),
+        ax=axes,
+        location="bottom",
+        extend=span.extend,
+        label=label + note,
+        **options,
+    )
 
 
 def masked(values: np.ndarray, support: np.ndarray | None) -> np.ndarray:
@@ -257,10 +280,19 @@ def _show(ax, image: np.ndarray) -> None:
         spine.set_visible(False)
 
 
-def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.ndarray, quasi_eigen: np.ndarray,
-                               names: Sequence[str], relative_distance: Sequence[float],
-                               cosine: Sequence[float], *, title: str, qe_label: str,
-                               support: np.ndarray | None = None) -> Figure:
+def figure_hand_vs_quasi_eigen(
+    neutral: np.ndarray,
+    faces: np.ndarray,
+    hand: np.ndarray,
+    quasi_eigen: np.ndarray,
+    names: Sequence[str],
+    relative_distance: Sequence[float],
+    cosine: Sequence[float],
+    *,
+    title: str,
+    qe_label: str,
+    support: np.ndarray | None = None,
+) -> Figure:
     """Figure 2: hand shapes above their quasi-eigen faces as plain shaded renders (as the paper shows them), and
     under them each one's signed displacement along the surface normal (a diverging map centred at zero, so
     raising and lowering differ), with each pair's intuitiveness numbers.
@@ -303,15 +335,16 @@ def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.
         signed = [normal_displacement(hand[k], normals), masked(normal_displacement(quasi_eigen[k], normals), support)]
         spans.append(colour_range(signed, symmetric=True))
         view = MeshView(cmap=NORMAL_CMAP, clim=(spans[-1].low, spans[-1].high))
-        images += render_meshes(meshes[2 * k:2 * k + 1], faces, signed[:1], view)
-        images += render_meshes(meshes[2 * k + 1:2 * k + 2], faces, signed[1:], view, weight)
+        images += render_meshes(meshes[2 * k : 2 * k + 1], faces, signed[:1], view)
+        images += render_meshes(meshes[2 * k + 1 : 2 * k + 2], faces, signed[1:], view, weight)
     images = crop_background(images)
     width = 2.3 * n + 0.7
     figure = new_figure(width, 11.4)
     axes = figure.subplots(4, n, squeeze=False)
     for k in range(n):
-        for row, image in enumerate((images[2 * k], images[2 * k + 1], images[2 * n + 2 * k],
-                                     images[2 * n + 2 * k + 1])):
+        for row, image in enumerate(
+            (images[2 * k], images[2 * k + 1], images[2 * n + 2 * k], images[2 * n + 2 * k + 1])
+        ):
             _show(axes[row, k], image)
         axes[0, k].set_title(names[k], fontsize=11)
         axes[1, k].set_xlabel(f"rel. distance {relative_distance[k]:.2f}, cosine {cosine[k]:.2f}", fontsize=9)
@@ -322,10 +355,17 @@ def figure_hand_vs_quasi_eigen(neutral: np.ndarray, faces: np.ndarray, hand: np.
     return figure
 
 
-def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.ndarray,
-                           reconstructed: Mapping[str, np.ndarray], row_labels: Sequence[str],
-                           panel_notes: Mapping[str, Sequence[str]], *, title: str,
-                           support: np.ndarray | None = None) -> Figure:
+def figure_reconstructions(
+    neutral: np.ndarray,
+    faces: np.ndarray,
+    captured: np.ndarray,
+    reconstructed: Mapping[str, np.ndarray],
+    row_labels: Sequence[str],
+    panel_notes: Mapping[str, Sequence[str]],
+    *,
+    title: str,
+    support: np.ndarray | None = None,
+) -> Figure:
     """Figure 3: captured frames (left) beside their reconstructions with each basis, plain shaded as the paper
     shows them, then the per-vertex error of each reconstruction as separate panels (drawn on the captured face),
     on one error scale.
@@ -352,8 +392,10 @@ def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.
     """
     labels = list(reconstructed)
     n_rows, n_cols = len(captured), 1 + 2 * len(labels)
-    errors = {label: [masked(values, support) for values in point_norms(frames - captured)]
-              for label, frames in reconstructed.items()}
+    errors = {
+        label: [masked(values, support) for values in point_norms(frames - captured)]
+        for label, frames in reconstructed.items()
+    }
     span = colour_range([e for per_frame in errors.values() for e in per_frame], percentile=99.5)
     error_view = MeshView(cmap=ERROR_CMAP, clim=(span.low, span.high))
     weight = support_weight(neutral, support)
@@ -377,8 +419,15 @@ def figure_reconstructions(neutral: np.ndarray, faces: np.ndarray, captured: np.
     for j, label in enumerate(labels, start=1):
         axes[0, j].set_title(f"reconstructed with\n{basis_label(label)}", fontsize=9.5, color=basis_colour(label))
         axes[0, j + len(labels)].set_title(f"error of\n{basis_label(label)}", fontsize=9.5, color=basis_colour(label))
-    colour_bar(figure, axes[:, 1 + len(labels):], ERROR_CMAP, span,
-               "reconstruction error |d - d*| per vertex (mm)", shrink=0.9, aspect=18)
+    colour_bar(
+        figure,
+        axes[:, 1 + len(labels) :],
+        ERROR_CMAP,
+        span,
+        "reconstruction error |d - d*| per vertex (mm)",
+        shrink=0.9,
+        aspect=18,
+    )
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
 
@@ -387,7 +436,7 @@ def nice_exaggeration(largest_error: float, target: float) -> int:
     """The factor from 1, 2, 5, 10, 20, ... that draws ``largest_error`` closest to, and at most, ``target``."""
     if largest_error <= 0:
         return 1
-    factors = [base * 10 ** power for power in range(4) for base in (1, 2, 5)]
+    factors = [base * 10**power for power in range(4) for base in (1, 2, 5)]
     fitting = [f for f in factors if f * largest_error <= target]
     return fitting[-1] if fitting else 1
 
@@ -396,9 +445,16 @@ def _padded_range(values: np.ndarray, pad: float) -> tuple[float, float]:
     return float(np.min(values)) - pad, float(np.max(values)) + pad
 
 
-def figure_marker_errors(neutral: np.ndarray, captured: np.ndarray, reconstructed: Mapping[str, np.ndarray],
-                         panel_titles: Mapping[str, str], *, title: str, units: str = "mm",
-                         target_fraction: float = 0.1) -> Figure:
+def figure_marker_errors(
+    neutral: np.ndarray,
+    captured: np.ndarray,
+    reconstructed: Mapping[str, np.ndarray],
+    panel_titles: Mapping[str, str],
+    *,
+    title: str,
+    units: str = "mm",
+    target_fraction: float = 0.1,
+) -> Figure:
     """Figure 4: one frame's reconstruction error at the markers, captured (red) and reconstructed (blue),
     for each basis a front view (x-y) and a side view (z-y).
 
@@ -433,20 +489,35 @@ def figure_marker_errors(neutral: np.ndarray, captured: np.ndarray, reconstructe
     # Panel widths follow the data's extent in x and z, so equal aspect needs no clipping.
     reach = factor * largest
     extents = [float(np.ptp(captured_points[:, axis])) + 2 * reach + 10.0 for axis in (0, 2)]
-    axes = figure.subplots(1, 2 * len(labels), squeeze=False, width_ratios=extents * len(labels),
-                           sharey=True)[0]
+    axes = figure.subplots(1, 2 * len(labels), squeeze=False, width_ratios=extents * len(labels), sharey=True)[0]
     views = (("front", 0, "x"), ("side", 2, "z"))
     for j, label in enumerate(labels):
         drawn = captured_points + factor * offsets[label]
         for i, (view, horizontal, name) in enumerate(views):
             ax = axes[2 * j + i]
-            ax.add_collection(LineCollection(  # one element for every offset: a small SVG
-                np.stack([captured_points[:, [horizontal, 1]], drawn[:, [horizontal, 1]]], axis=1),
-                colors="0.45", linewidths=0.9))
-            ax.scatter(captured_points[:, horizontal], captured_points[:, 1], s=9, color=CAPTURED_RED, zorder=3,
-                       label="captured")
-            ax.scatter(drawn[:, horizontal], drawn[:, 1], s=9, color=RECONSTRUCTED_BLUE, zorder=3,
-                       label=f"reconstructed (offset from captured drawn x{factor})")
+            ax.add_collection(
+                LineCollection(  # one element for every offset: a small SVG
+                    np.stack([captured_points[:, [horizontal, 1]], drawn[:, [horizontal, 1]]], axis=1),
+                    colors="0.45",
+                    linewidths=0.9,
+                )
+            )
+            ax.scatter(
+                captured_points[:, horizontal],
+                captured_points[:, 1],
+                s=9,
+                color=CAPTURED_RED,
+                zorder=3,
+                label="captured",
+            )
+            ax.scatter(
+                drawn[:, horizontal],
+                drawn[:, 1],
+                s=9,
+                color=RECONSTRUCTED_BLUE,
+                zorder=3,
+                label=f"reconstructed (offset from captured drawn x{factor})",
+            )
             ax.set_xlim(*_padded_range(captured_points[:, horizontal], reach + 5.0))
             ax.set_ylim(*_padded_range(captured_points[:, 1], reach + 5.0))
             ax.set_aspect("equal", adjustable="box")
@@ -460,8 +531,14 @@ def figure_marker_errors(neutral: np.ndarray, captured: np.ndarray, reconstructe
     return figure
 
 
-def figure_vertex_rms(neutral: np.ndarray, faces: np.ndarray, rms: Mapping[str, np.ndarray], *, title: str,
-                      support: np.ndarray | None = None) -> Figure:
+def figure_vertex_rms(
+    neutral: np.ndarray,
+    faces: np.ndarray,
+    rms: Mapping[str, np.ndarray],
+    *,
+    title: str,
+    support: np.ndarray | None = None,
+) -> Figure:
     """Per-vertex RMS reconstruction error over the whole take, one face per basis, on one shared colour bar (up to
     the 99.5th percentile, with an arrow when a few vertices go beyond).
 
@@ -483,10 +560,11 @@ def figure_vertex_rms(neutral: np.ndarray, faces: np.ndarray, rms: Mapping[str, 
     values = [masked(np.asarray(rms[label]), support) for label in labels]
     span = colour_range(values, percentile=99.5)
     view = MeshView(cmap=ERROR_CMAP, clim=(span.low, span.high))
-    images = crop_background(render_meshes([neutral] * len(labels), faces, values, view,
-                                           support_weight(neutral, support)))
+    images = crop_background(
+        render_meshes([neutral] * len(labels), faces, values, view, support_weight(neutral, support))
+    )
     # the RMS over the face's vertices and the largest one, in one number format
-    summary = [(float(np.sqrt(np.nanmean(value ** 2))), float(np.nanmax(value))) for value in values]
+    summary = [(float(np.sqrt(np.nanmean(value**2))), float(np.nanmax(value))) for value in values]
     decimals = fixed_decimals([number for pair in summary for number in pair])
     width = 2.5 * len(labels) + 0.4
     figure = new_figure(width, 4.8)

@@ -17,8 +17,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
-from workbench.stats.identities import identity_lookup, run_identities
 from workbench.reporting.figures import OKABE_ITO, basis_colour, new_figure, wrap_title
+from workbench.stats.identities import identity_lookup, run_identities
 from workbench.stats.statistics import Interval, batch_means_interval, comparison_lookup
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
@@ -46,21 +46,28 @@ def level_interval(per_frame: Mapping | None, data: str, basis: str, solver: str
     kind = PER_FRAME.get(column)
     if per_frame is None or kind is None or f"{data}.{kind}" not in per_frame:
         return None
-    rows = [k for k, (b, s) in enumerate(zip(per_frame[f"{data}.basis"], per_frame[f"{data}.solver"]))
-            if str(b) == basis and str(s) == solver]
+    rows = [
+        k
+        for k, (b, s) in enumerate(zip(per_frame[f"{data}.basis"], per_frame[f"{data}.solver"]))
+        if str(b) == basis and str(s) == solver
+    ]
     if not rows:
         return None
     series = np.asarray(per_frame[f"{data}.{kind}"][rows[0]], dtype=float)
     valid = np.isfinite(series)
     takes = per_frame.get(f"{data}.take")
     seconds = per_frame.get(f"{data}.seconds")
-    return batch_means_interval(series[valid][None, :], lambda means: means[0],
-                                takes=None if takes is None else np.asarray(takes)[valid],
-                                seconds=None if seconds is None else np.asarray(seconds)[valid])
+    return batch_means_interval(
+        series[valid][None, :],
+        lambda means: means[0],
+        takes=None if takes is None else np.asarray(takes)[valid],
+        seconds=None if seconds is None else np.asarray(seconds)[valid],
+    )
 
 
-def headline_tables(table: pd.DataFrame, metrics: Mapping, per_frame: Mapping | None,
-                    column: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+def headline_tables(
+    table: pd.DataFrame, metrics: Mapping, per_frame: Mapping | None, column: str
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """What the figure draws.
 
     Returns
@@ -84,9 +91,17 @@ def headline_tables(table: pd.DataFrame, metrics: Mapping, per_frame: Mapping | 
             if found.empty:
                 continue
             interval = level_interval(per_frame, data, basis, solver, column)
-            levels.append({"data": data, "m": m, "n": n, "basis": basis, "alpha": float(found[column].iloc[0]),
-                           "low": interval.low if interval else math.nan,
-                           "high": interval.high if interval else math.nan})
+            levels.append(
+                {
+                    "data": data,
+                    "m": m,
+                    "n": n,
+                    "basis": basis,
+                    "alpha": float(found[column].iloc[0]),
+                    "low": interval.low if interval else math.nan,
+                    "high": interval.high if interval else math.nan,
+                }
+            )
         facts = (metrics.get("data") or {}).get(data) or {}
         compare = comparison_lookup(facts.get("comparisons") or [])
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
@@ -95,11 +110,16 @@ def headline_tables(table: pd.DataFrame, metrics: Mapping, per_frame: Mapping | 
             interval = compare(a, b)
             if interval is None and found is None:
                 continue
-            contrasts.append({"data": data, "contrast": f"{a[0]} - {b[0]}",
-                              "estimate": interval.estimate if interval else math.nan,
-                              "low": interval.low if interval else math.nan,
-                              "high": interval.high if interval else math.nan,
-                              "identity": "" if found is None else "by construction"})
+            contrasts.append(
+                {
+                    "data": data,
+                    "contrast": f"{a[0]} - {b[0]}",
+                    "estimate": interval.estimate if interval else math.nan,
+                    "low": interval.low if interval else math.nan,
+                    "high": interval.high if interval else math.nan,
+                    "identity": "" if found is None else "by construction",
+                }
+            )
     return pd.DataFrame.from_records(levels), pd.DataFrame.from_records(contrasts)
 
 
@@ -108,8 +128,11 @@ def variant_label(levels: pd.DataFrame, data: str) -> str:
     part = levels[levels["data"] == data].set_index("basis")
     m, n = int(part["m"].iloc[0]), int(part["n"].iloc[0])
     regime = f"m = n = {m}" if m == n else f"coverage rule, m = {m}"
-    ratios = [f"{a}/{b} {part.loc[a, 'alpha'] / part.loc[b, 'alpha']:.3g}" for a, b in (("H", "QE"), ("QE", "PCA"))
-              if a in part.index and b in part.index]
+    ratios = [
+        f"{a}/{b} {part.loc[a, 'alpha'] / part.loc[b, 'alpha']:.3g}"
+        for a, b in (("H", "QE"), ("QE", "PCA"))
+        if a in part.index and b in part.index
+    ]
     return f"{regime}" + (f" ({', '.join(ratios)})" if ratios else "")
 
 
@@ -129,11 +152,26 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
             row = part.loc[basis]
             colour = basis_colour(basis)
             bounds = np.array([[row["alpha"] - row["low"]], [row["high"] - row["alpha"]]])
-            left.errorbar(x + offsets[k], row["alpha"], yerr=None if math.isnan(row["low"]) else bounds,
-                          fmt=VARIANT_MARKERS[k % 2], color=colour, mfc=colour if k == 0 else "white", mew=1.5,
-                          ms=7, capsize=4, lw=1.5)
-        left.plot([], [], VARIANT_MARKERS[k % 2], color=OKABE_ITO["black"], mfc=OKABE_ITO["black"] if k == 0
-                  else "white", label=variant_label(levels, data))
+            left.errorbar(
+                x + offsets[k],
+                row["alpha"],
+                yerr=None if math.isnan(row["low"]) else bounds,
+                fmt=VARIANT_MARKERS[k % 2],
+                color=colour,
+                mfc=colour if k == 0 else "white",
+                mew=1.5,
+                ms=7,
+                capsize=4,
+                lw=1.5,
+            )
+        left.plot(
+            [],
+            [],
+            VARIANT_MARKERS[k % 2],
+            color=OKABE_ITO["black"],
+            mfc=OKABE_ITO["black"] if k == 0 else "white",
+            label=variant_label(levels, data),
+        )
     left.set_xticks(range(len(bases)), bases)
     left.set_xlim(-0.5, len(bases) - 0.5)
     left.set_yscale("log")
@@ -151,14 +189,31 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
             y = names.index(row["contrast"]) - offsets[k]
             shade = OKABE_ITO["black"]
             if row["identity"]:
-                right.annotate("<= 0 by construction", (0.0, y), xytext=(-8, 0), textcoords="offset points",
-                               ha="right", va="center", fontsize=8, color=shade)
+                right.annotate(
+                    "<= 0 by construction",
+                    (0.0, y),
+                    xytext=(-8, 0),
+                    textcoords="offset points",
+                    ha="right",
+                    va="center",
+                    fontsize=8,
+                    color=shade,
+                )
                 right.plot([0.0], [y], VARIANT_MARKERS[k % 2], color=shade, mfc="white", ms=7, mew=1.5)
                 continue
             bounds = np.array([[row["estimate"] - row["low"]], [row["high"] - row["estimate"]]])
-            right.errorbar(row["estimate"], y, xerr=None if math.isnan(row["low"]) else bounds,
-                           fmt=VARIANT_MARKERS[k % 2], color=shade, mfc=shade if k == 0 else "white", mew=1.5,
-                           ms=7, capsize=4, lw=1.5)
+            right.errorbar(
+                row["estimate"],
+                y,
+                xerr=None if math.isnan(row["low"]) else bounds,
+                fmt=VARIANT_MARKERS[k % 2],
+                color=shade,
+                mfc=shade if k == 0 else "white",
+                mew=1.5,
+                ms=7,
+                capsize=4,
+                lw=1.5,
+            )
     right.axvline(0.0, color=OKABE_ITO["black"], lw=0.8)
     right.set_yticks(range(len(names)), names)
     right.set_ylim(len(names) - 0.5, -0.5)
@@ -187,12 +242,13 @@ def headline_spec(record, column: str, label: str) -> tuple:
         levels, contrasts = headline_tables(record.table, record.metrics, record.load_alpha_per_frame(), column)
         if levels.empty or len(set(levels["basis"])) < len(HEADLINE_BASES):
             return "the run has no H, QE and PCA with least squares to compare"
-        return figure_headline(levels, contrasts, column,
-                               f"The paper's comparison, with intervals: {label}")
+        return figure_headline(levels, contrasts, column, f"The paper's comparison, with intervals: {label}")
 
-    caption = (f"`{column}` of H, QE (lstsq) and PCA (projection) on the lead data variant (filled: the paper's "
-               "regime m = n when the run has it) and with the coverage rule beside it (open); left: each level with "
-               "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only); right: "
-               "the paired differences QE - H and QE - PCA on the same frames with their 95 % intervals (the primary "
-               "contrasts; every number in the table 'Paired comparisons within the run').")
+    caption = (
+        f"`{column}` of H, QE (lstsq) and PCA (projection) on the lead data variant (filled: the paper's "
+        "regime m = n when the run has it) and with the coverage rule beside it (open); left: each level with "
+        "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only); right: "
+        "the paired differences QE - H and QE - PCA on the same frames with their 95 % intervals (the primary "
+        "contrasts; every number in the table 'Paired comparisons within the run')."
+    )
     return ("headline", "The paper's comparison, with intervals", caption, draw)

@@ -73,10 +73,19 @@ def colour_table(cmap: str, levels: int = COLOUR_LEVELS) -> str:
     return "".join(f"{r:02x}{g:02x}{b:02x}" for r, g, b in rgb)
 
 
-def view_payload(neutral: np.ndarray, faces: np.ndarray, frames: Sequence[ViewFrame], *, bases: Mapping[str, str],
-                 displacement_range: tuple[float, float, bool], error_range: tuple[float, float, bool],
-                 cmaps: tuple[str, str], weight: np.ndarray | None = None, title: str = "",
-                 plain_colour: str = "#cfc6be") -> dict:
+def view_payload(
+    neutral: np.ndarray,
+    faces: np.ndarray,
+    frames: Sequence[ViewFrame],
+    *,
+    bases: Mapping[str, str],
+    displacement_range: tuple[float, float, bool],
+    error_range: tuple[float, float, bool],
+    cmaps: tuple[str, str],
+    weight: np.ndarray | None = None,
+    title: str = "",
+    plain_colour: str = "#cfc6be",
+) -> dict:
     """The data of the interactive view, ready for JSON.
 
     Parameters
@@ -110,19 +119,31 @@ def view_payload(neutral: np.ndarray, faces: np.ndarray, frames: Sequence[ViewFr
     from workbench.reporting.figures.render import hole_loops
 
     faces = np.asarray(faces)
-    wide = faces.max() >= 2 ** 16
+    wide = faces.max() >= 2**16
     return {
-        "title": title, "step": STEP_MM, "n_vertices": int(np.asarray(neutral).size // 3),
+        "title": title,
+        "step": STEP_MM,
+        "n_vertices": int(np.asarray(neutral).size // 3),
         "neutral": _packed(np.asarray(neutral, dtype="<f4")),
-        "faces": _packed(faces.astype("<u4" if wide else "<u2")), "faces_bytes": 4 if wide else 2,
+        "faces": _packed(faces.astype("<u4" if wide else "<u2")),
+        "faces_bytes": 4 if wide else 2,
         "loops": [loop.tolist() for loop in hole_loops(faces)],
         "weight": None if weight is None else _packed(np.round(255 * np.clip(weight, 0, 1)).astype(np.uint8)),
         "bases": [{"key": key, "name": name} for key, name in bases.items()],
-        "frames": [{"label": frame.label, "captured": _quantised(frame.captured),
-                    "shown": {key: _quantised(np.asarray(frame.reconstructed[key]) - frame.captured) for key in bases},
-                    "notes": {key: frame.notes.get(key, "") for key in bases}} for frame in frames],
-        "displacement": {"clim": list(displacement_range[:2]), "beyond": bool(displacement_range[2]),
-                         "colours": colour_table(cmaps[0])},
+        "frames": [
+            {
+                "label": frame.label,
+                "captured": _quantised(frame.captured),
+                "shown": {key: _quantised(np.asarray(frame.reconstructed[key]) - frame.captured) for key in bases},
+                "notes": {key: frame.notes.get(key, "") for key in bases},
+            }
+            for frame in frames
+        ],
+        "displacement": {
+            "clim": list(displacement_range[:2]),
+            "beyond": bool(displacement_range[2]),
+            "colours": colour_table(cmaps[0]),
+        },
         "error": {"clim": list(error_range[:2]), "beyond": bool(error_range[2]), "colours": colour_table(cmaps[1])},
         "plain": plain_colour,
     }
@@ -157,9 +178,17 @@ def colour_bar_strip(width: int, cmap: str, clim: tuple[float, float], extend: s
     return np.asarray(Image.open(buffer).convert("RGB"))
 
 
-def write_animation(path: Path, panels: Sequence[Sequence[np.ndarray]], titles: Sequence[str], captions: Sequence[str],
-                    *, fps: float, speed: str, colour: tuple[str, tuple[float, float], str, str] | None = None,
-                    quality: int = 45) -> Path:
+def write_animation(
+    path: Path,
+    panels: Sequence[Sequence[np.ndarray]],
+    titles: Sequence[str],
+    captions: Sequence[str],
+    *,
+    fps: float,
+    speed: str,
+    colour: tuple[str, tuple[float, float], str, str] | None = None,
+    quality: int = 45,
+) -> Path:
     """A looping animated WebP of several panels side by side, one image per time step, with each panel's title, the
     frame shown, the playback speed and a colour bar under the coloured panels, at least
     :data:`ANIMATION_WIDTH` pixels wide in type a reader can read.
@@ -214,7 +243,17 @@ def write_animation(path: Path, panels: Sequence[Sequence[np.ndarray]], titles: 
         frames.append(frame)
     buffer = io.BytesIO()
     # every frame a key frame: a lossy frame that updates only part of the last one leaves block seams on the face
-    frames[0].save(buffer, format="webp", save_all=True, append_images=frames[1:], duration=round(1000 / fps), loop=0,
-                   quality=quality, method=4, kmin=1, kmax=1)
+    frames[0].save(
+        buffer,
+        format="webp",
+        save_all=True,
+        append_images=frames[1:],
+        duration=round(1000 / fps),
+        loop=0,
+        quality=quality,
+        method=4,
+        kmin=1,
+        kmax=1,
+    )
     write_atomic(path, buffer.getvalue())
     return path

@@ -76,8 +76,9 @@ def support_weight(points: np.ndarray, support: np.ndarray | None, band: float =
     return np.where(support, np.clip(distance / max(width, 1e-12), 0.0, 1.0), 0.0)
 
 
-def vertex_colours(values: np.ndarray | None, view: MeshView, weight: np.ndarray | None = None,
-                   n_points: int | None = None) -> np.ndarray:
+def vertex_colours(
+    values: np.ndarray | None, view: MeshView, weight: np.ndarray | None = None, n_points: int | None = None
+) -> np.ndarray:
     """RGB colour of every point: the colour map over ``view.clim`` blended into the plain shade by ``weight``
     (NaN values take the plain shade too); the plain shade everywhere when ``view.cmap`` is None.
 
@@ -108,8 +109,13 @@ def vertex_colours(values: np.ndarray | None, view: MeshView, weight: np.ndarray
     return np.round(255 * (share * coloured[:, :3] + (1 - share) * plain)).astype(np.uint8)
 
 
-def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: Sequence[np.ndarray] | None,
-                  view: MeshView, weight: np.ndarray | None = None) -> list[np.ndarray]:
+def render_meshes(
+    positions: Sequence[np.ndarray],
+    faces: np.ndarray,
+    scalars: Sequence[np.ndarray] | None,
+    view: MeshView,
+    weight: np.ndarray | None = None,
+) -> list[np.ndarray]:
     """Render meshes of one topology off-screen, plain shaded or each coloured by its own per-vertex scalars.
 
     Parameters
@@ -147,12 +153,23 @@ def render_meshes(positions: Sequence[np.ndarray], faces: np.ndarray, scalars: S
         for k, points in enumerate(positions):
             points = np.asarray(points, dtype=float).reshape(-1, 3)
             mesh = pyvista.PolyData(points, cells)
-            mesh.point_data["colour"] = vertex_colours(None if scalars is None else scalars[k], view, weight,
-                                                       n_points=len(points))
+            mesh.point_data["colour"] = vertex_colours(
+                None if scalars is None else scalars[k], view, weight, n_points=len(points)
+            )
             for actor in actors:
                 plotter.remove_actor(actor)  # not plotter.clear(): that also removes the lights
-            actors = [plotter.add_mesh(mesh, scalars="colour", rgb=True, show_scalar_bar=False, smooth_shading=True,
-                                       specular=SPECULAR, specular_power=20, ambient=AMBIENT)]
+            actors = [
+                plotter.add_mesh(
+                    mesh,
+                    scalars="colour",
+                    rgb=True,
+                    show_scalar_bar=False,
+                    smooth_shading=True,
+                    specular=SPECULAR,
+                    specular_power=20,
+                    ambient=AMBIENT,
+                )
+            ]
             if loops:
                 centres = np.array([points[loop].mean(axis=0) for loop in loops])
                 caps = pyvista.PolyData(np.vstack([points, centres]), cap_cells)
@@ -209,8 +226,10 @@ def hole_loops(faces: np.ndarray) -> list[np.ndarray]:
 
 def _fan_cells(loops: Sequence[np.ndarray], n_vertices: int) -> np.ndarray:
     """Cells of triangle fans closing each loop at an extra vertex (``n_vertices + k`` for loop k)."""
-    cells = [np.column_stack([np.full(len(loop), 3), loop, np.roll(loop, -1), np.full(len(loop), n_vertices + k)])
-             for k, loop in enumerate(loops)]
+    cells = [
+        np.column_stack([np.full(len(loop), 3), loop, np.roll(loop, -1), np.full(len(loop), n_vertices + k)])
+        for k, loop in enumerate(loops)
+    ]
     return np.concatenate(cells).ravel() if cells else np.zeros(0, dtype=int)
 
 

@@ -31,8 +31,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.figures import (DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure,
-                                        wrap_title)
+from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.runs import interval_label
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
@@ -73,8 +72,10 @@ def check_positive_intervals(table: pd.DataFrame, y: str, ci: tuple[str, str] | 
         return
     low = pd.to_numeric(table[ci[0]], errors="coerce")
     if (low < 0).any():
-        raise WorkbenchError(f"the interval of {y} reaches below zero ({low.min():.3g}); {y} cannot be negative: "
-                             "use a geometric interval (workbench.stats.statistics.geometric_interval)")
+        raise WorkbenchError(
+            f"the interval of {y} reaches below zero ({low.min():.3g}); {y} cannot be negative: "
+            "use a geometric interval (workbench.stats.statistics.geometric_interval)"
+        )
 
 
 def _check_columns(table: pd.DataFrame, columns) -> None:
@@ -93,9 +94,15 @@ def _ordered_bases(bases) -> list[str]:
     return [b for b in BASIS_ORDER if b in present] + [b for b in present if b not in BASIS_ORDER]
 
 
-def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str, int], *,
-                        threshold: float | None, title: str, paper_m: int | None = None,
-                        basis_size: int | None = None) -> Figure:
+def plot_coverage_curve(
+    ratios: Mapping[str, np.ndarray],
+    chosen_m: Mapping[str, int],
+    *,
+    threshold: float | None,
+    title: str,
+    paper_m: int | None = None,
+    basis_size: int | None = None,
+) -> Figure:
     """Cumulative explained variance against m, the coverage threshold and the chosen m, per data variant.
 
     Left: the cumulative explained variance near the chosen m. Right: the variance left out,
@@ -145,12 +152,18 @@ def plot_coverage_curve(ratios: Mapping[str, np.ndarray], chosen_m: Mapping[str,
             continue
         for ax in (near, tail):
             if ax is tail or value <= zoom:
-                ax.axvline(value, color=colour, linestyle=style, linewidth=1.4,
-                           label=text.format(value) if ax is near or value > zoom else None)
+                ax.axvline(
+                    value,
+                    color=colour,
+                    linestyle=style,
+                    linewidth=1.4,
+                    label=text.format(value) if ax is near or value > zoom else None,
+                )
     if threshold is not None:
         near.axhline(threshold, color="0.2", linestyle="--", linewidth=1, label=f"threshold {threshold}")
-        tail.axhline(1.0 - threshold, color="0.2", linestyle="--", linewidth=1,
-                     label=f"1 - threshold = {1.0 - threshold:.3g}")
+        tail.axhline(
+            1.0 - threshold, color="0.2", linestyle="--", linewidth=1, label=f"1 - threshold = {1.0 - threshold:.3g}"
+        )
     near.set_xlabel("eigenfaces m")
     near.set_ylabel("cumulative explained variance")
     near.set_title("near the chosen m (circled)", fontsize=10)
@@ -169,9 +182,18 @@ MAX_PANEL_COLUMNS = 3
 MARKERS = ("o", "s", "^", "D", "v", "P")
 
 
-def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *, solver: str = "lstsq",
-                       title: str, by: Sequence[str] = (), log_x: bool = False,
-                       points: pd.DataFrame | None = None, panels: Sequence[str] = ("data",)) -> Figure:
+def plot_alpha_against(
+    table: pd.DataFrame,
+    x: str,
+    y: str = "alpha_abs_mean",
+    *,
+    solver: str = "lstsq",
+    title: str,
+    by: Sequence[str] = (),
+    log_x: bool = False,
+    points: pd.DataFrame | None = None,
+    panels: Sequence[str] = ("data",),
+) -> Figure:
     """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 % interval
     over seeds as a band where the table has one (its method and n in the title) and every seed's own value as a
     small point.
@@ -214,11 +236,12 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     width = max(4.6 * n_cols + 0.8, 8.0 if by else 0.0)
     figure = new_figure(width, 3.9 * n_rows + 0.7 + 0.25 * len(by))
     grid = figure.subplots(n_rows, n_cols, squeeze=False, sharey=True)
-    axes = grid.ravel()[:len(panel_values)]
-    for unused in grid.ravel()[len(panel_values):]:
+    axes = grid.ravel()[: len(panel_values)]
+    for unused in grid.ravel()[len(panel_values) :]:
         unused.set_visible(False)
     rows, seeds, categories = _positions(rows, points, x, solver)
     groups = list(rows.groupby(list(by), sort=False, dropna=False)) if by else [((), rows)]
+
     def in_panel(frame: pd.DataFrame, panel: tuple) -> pd.Series:
         return (frame[panels].astype(str) == pd.Series(panel, index=panels)).all(axis=1)
 
@@ -241,7 +264,7 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     for row in grid:
         row[0].set_ylabel(axis_label(y))
     drawn = ci is not None and rows[list(ci)].notna().any(axis=None)
-    band = (f" ({interval_label(rows)}" + ("; points: each seed)" if points is not None else ")") if drawn else "")
+    band = f" ({interval_label(rows)}" + ("; points: each seed)" if points is not None else ")") if drawn else ""
     handles, labels = axes[-1].get_legend_handles_labels()
     # As many legend columns as the longest label leaves room for (about 5 points per character at size 8).
     columns = max(1, min(4, int(width * 72 / (5.0 * max(len(label) for label in labels) + 40))))
@@ -250,8 +273,9 @@ def plot_alpha_against(table: pd.DataFrame, x: str, y: str = "alpha_abs_mean", *
     return figure
 
 
-def _positions(rows: pd.DataFrame, points: pd.DataFrame | None, x: str,
-               solver: str) -> tuple[pd.DataFrame, pd.DataFrame | None, list[str] | None]:
+def _positions(
+    rows: pd.DataFrame, points: pd.DataFrame | None, x: str, solver: str
+) -> tuple[pd.DataFrame, pd.DataFrame | None, list[str] | None]:
     """The rows and every seed's points (``points`` of ``solver``, or None) with a categorical ``x`` (a text or
     boolean setting, e.g. basis.hand_subset=all|upper|lower) replaced by its positions in order of appearance,
     and those categories (None for a numeric ``x``)."""
@@ -267,8 +291,7 @@ def _positions(rows: pd.DataFrame, points: pd.DataFrame | None, x: str,
     return rows, seeds, categories
 
 
-def _label_panel(ax, x: str, categories: list[str] | None, panels: Sequence[str], panel: tuple,
-                 log_x: bool) -> None:
+def _label_panel(ax, x: str, categories: list[str] | None, panels: Sequence[str], panel: tuple, log_x: bool) -> None:
     """The x axis (categories as ticks, log scale), title and grid of one panel of :func:`plot_alpha_against`."""
     if categories is not None:
         ax.set_xticks(range(len(categories)), categories)
@@ -279,8 +302,9 @@ def _label_panel(ax, x: str, categories: list[str] | None, panels: Sequence[str]
         ax.set_xscale("log")
 
 
-def _draw_basis(ax, line: pd.DataFrame, x: str, y: str, ci, colour, label: str, k: int, dodge: float,
-                seeds: pd.DataFrame | None) -> None:
+def _draw_basis(
+    ax, line: pd.DataFrame, x: str, y: str, ci, colour, label: str, k: int, dodge: float, seeds: pd.DataFrame | None
+) -> None:
     """One basis's line of :func:`plot_alpha_against` in one setting ``k`` of the grid: the line, every seed's
     point (``seeds``), and the interval as a band (error bars where only some points have one); points with
     error bars, shifted by ``dodge``, where several settings share an x."""
@@ -289,11 +313,27 @@ def _draw_basis(ax, line: pd.DataFrame, x: str, y: str, ci, colour, label: str, 
         # Several settings share an x (e.g. hand subsets 'lower' and 'random12', both 12 shapes):
         # points with error bars, never a line zigzagging between them.
         errors = np.vstack([line[y] - line[ci[0]], line[ci[1]] - line[y]]) if has_ci else None
-        ax.errorbar(line[x] + dodge, line[y], yerr=errors, color=colour, marker=MARKERS[k % len(MARKERS)],
-                    markersize=5, linestyle="none", capsize=3, label=label)
+        ax.errorbar(
+            line[x] + dodge,
+            line[y],
+            yerr=errors,
+            color=colour,
+            marker=MARKERS[k % len(MARKERS)],
+            markersize=5,
+            linestyle="none",
+            capsize=3,
+            label=label,
+        )
         return
-    ax.plot(line[x], line[y], marker=MARKERS[k % len(MARKERS)], markersize=4, color=colour,
-            linestyle=LINE_STYLES[k % len(LINE_STYLES)], label=label)
+    ax.plot(
+        line[x],
+        line[y],
+        marker=MARKERS[k % len(MARKERS)],
+        markersize=4,
+        color=colour,
+        linestyle=LINE_STYLES[k % len(LINE_STYLES)],
+        label=label,
+    )
     if seeds is not None:
         ax.scatter(seeds[x], seeds[y], s=9, color=colour, alpha=0.45, linewidths=0, zorder=3)
     if has_ci:
@@ -301,12 +341,20 @@ def _draw_basis(ax, line: pd.DataFrame, x: str, y: str, ci, colour, label: str, 
     elif ci is not None and line[list(ci)].notna().any(axis=None):
         # some points lack an interval (one run kept that m): error bars where there is one
         known = line.dropna(subset=list(ci))
-        ax.errorbar(known[x], known[y], yerr=np.vstack([known[y] - known[ci[0]], known[ci[1]] - known[y]]),
-                    color=colour, linestyle="none", capsize=3, alpha=0.6)
+        ax.errorbar(
+            known[x],
+            known[y],
+            yerr=np.vstack([known[y] - known[ci[0]], known[ci[1]] - known[y]]),
+            color=colour,
+            linestyle="none",
+            capsize=3,
+            alpha=0.6,
+        )
 
 
-def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"), *,
-                        solver: str = "lstsq", title: str) -> Figure:
+def plot_marker_vs_mesh(
+    table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"), *, solver: str = "lstsq", title: str
+) -> Figure:
     """Each basis fitted on each data variant, scored on one evaluation set per panel (bars, with the 95 %
     interval where the table has one): values compare within a panel, never across panels, whose points differ.
 
@@ -359,8 +407,15 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
                     errors = np.vstack([part[measure] - part[ci[0]], part[ci[1]] - part[measure]])
                 positions = np.arange(len(bases)) + (k - (len(parts) - 1) / 2) * width
                 colour = DATA_COLOURS.get(train, f"C{trained.index(train)}")
-                bars = ax.bar(positions, part[measure], width=width * 0.95, yerr=errors, capsize=3, color=colour,
-                              label=f"fitted on {train}")
+                bars = ax.bar(
+                    positions,
+                    part[measure],
+                    width=width * 0.95,
+                    yerr=errors,
+                    capsize=3,
+                    color=colour,
+                    label=f"fitted on {train}",
+                )
                 legend.setdefault(f"fitted on {train}", bars)
                 ax.bar_label(bars, fmt="%.3g", fontsize=7, padding=2)
             ax.set_xticks(np.arange(len(bases)), [basis_label(b).replace(" (", "\n(") for b in bases], fontsize=8)
@@ -373,8 +428,14 @@ def plot_marker_vs_mesh(table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm",
         if ci is not None and rows[list(ci)].notna().any(axis=None):
             notes.append(interval_label(rows))
     # every colour drawn in any panel has its entry (a panel alone may hold only some of the variants)
-    figure.legend(list(legend.values()), list(legend), loc="outside lower center", ncols=max(1, len(legend)),
-                  fontsize=8, frameon=False)
+    figure.legend(
+        list(legend.values()),
+        list(legend),
+        loc="outside lower center",
+        ncols=max(1, len(legend)),
+        fontsize=8,
+        frameon=False,
+    )
     band = f", error bars: {notes[0]}" if notes else ""
     figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", figure_width), fontsize=10)
     return figure
@@ -407,8 +468,14 @@ def envelope(x: np.ndarray, y: np.ndarray, bins: int = 360) -> tuple[np.ndarray,
     return x[kept], y[kept]
 
 
-def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds: np.ndarray, *, ylabel: str,
-                         title: str, takes: Sequence[tuple[str, float]] = ()) -> Figure:
+def plot_alpha_over_time(
+    series: Mapping[str, Mapping[str, np.ndarray]],
+    seconds: np.ndarray,
+    *,
+    ylabel: str,
+    title: str,
+    takes: Sequence[tuple[str, float]] = (),
+) -> Figure:
     """Per-frame alpha over the take, one panel per data variant and one line per basis, with the boundaries of
     concatenated takes.
 
@@ -430,19 +497,33 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
     figure = new_figure(9.0, 3.1 * len(series) + 1.0)
     axes = figure.subplots(len(series), 1, squeeze=False, sharex=True)[:, 0]
     seconds = np.asarray(seconds, dtype=float)
-    decimals = fixed_decimals([np.nanmean(np.asarray(values, dtype=float)) for per_basis in series.values()
-                               for values in per_basis.values()], significant=3)
+    decimals = fixed_decimals(
+        [np.nanmean(np.asarray(values, dtype=float)) for per_basis in series.values() for values in per_basis.values()],
+        significant=3,
+    )
     for ax, (data, per_basis) in zip(axes, series.items()):
         if len(takes) > 1:
             for name, start in takes:
                 ax.axvline(start, color="0.35", linewidth=0.8, linestyle=":")
-                ax.annotate(name, (start, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -3),
-                            textcoords="offset points", fontsize=7, color="0.3", va="top")
+                ax.annotate(
+                    name,
+                    (start, 1.0),
+                    xycoords=("data", "axes fraction"),
+                    xytext=(3, -3),
+                    textcoords="offset points",
+                    fontsize=7,
+                    color="0.3",
+                    va="top",
+                )
         for basis in _ordered_bases(per_basis):
             values = np.asarray(per_basis[basis], dtype=float)
-            ax.plot(*envelope(seconds, values), color=basis_colour(basis), linewidth=0.7,
-                    linestyle="--" if basis == "PCA" else "-",
-                    label=f"{basis_label(basis)}: mean {np.nanmean(values):.{decimals}f}")
+            ax.plot(
+                *envelope(seconds, values),
+                color=basis_colour(basis),
+                linewidth=0.7,
+                linestyle="--" if basis == "PCA" else "-",
+                label=f"{basis_label(basis)}: mean {np.nanmean(values):.{decimals}f}",
+            )
         ax.set_ylabel(ylabel, fontsize=9)
         ax.set_title(f"data: {data}", fontsize=10, loc="left")
         ax.grid(alpha=0.3)
@@ -454,20 +535,31 @@ def plot_alpha_over_time(series: Mapping[str, Mapping[str, np.ndarray]], seconds
 
 
 # Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.reporting.figures).
-OTHER_BASIS_COLOURS = {"SPCA": "#56B4E9", "ICA": "#882255", "NMF": "#8c564b", "SPLOCS": "#999933",
-                       "H-fit": "#4a4a4a"}
-BASIS_MARKERS = {"H": "s", "QE": "o", "QE-linear": "o", "PCA": "D", "SPCA": "^", "ICA": "v", "NMF": "P",
-                 "SPLOCS": "X", "H-fit": "s"}
+OTHER_BASIS_COLOURS = {"SPCA": "#56B4E9", "ICA": "#882255", "NMF": "#8c564b", "SPLOCS": "#999933", "H-fit": "#4a4a4a"}
+BASIS_MARKERS = {
+    "H": "s",
+    "QE": "o",
+    "QE-linear": "o",
+    "PCA": "D",
+    "SPCA": "^",
+    "ICA": "v",
+    "NMF": "P",
+    "SPLOCS": "X",
+    "H-fit": "s",
+}
 INTUITIVENESS_AXES = (
     ("matched_abs_cosine", "closeness to the hand shapes:\nmean matched |cos| (higher: closer)"),
-    ("locality",
-     "locality: area holding {energy_percent:g} % of an\nelement's squared displacement (lower: more local)"),
+    (
+        "locality",
+        "locality: area holding {energy_percent:g} % of an\nelement's squared displacement (lower: more local)",
+    ),
     ("usage", "usage: elements a frame uses\n(contribution > {threshold:g} x largest; lower: fewer)"),
 )
 
 
-def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_mean", *, title: str,
-                                     energy: float = 0.9, threshold: float = 0.1) -> Figure:
+def plot_alpha_against_intuitiveness(
+    table: pd.DataFrame, y: str = "alpha_abs_mean", *, title: str, energy: float = 0.9, threshold: float = 0.1
+) -> Figure:
     """Alpha against each measure of intuitiveness, one point per basis: the trade-off in one picture.
 
     Parameters
@@ -507,9 +599,18 @@ def plot_alpha_against_intuitiveness(table: pd.DataFrame, y: str = "alpha_abs_me
                     if low in part.columns and pd.notna(values[low]) and values[high] > values[low]:
                         errors[axis] = [[values[name] - values[low]], [values[high] - values[name]]]
                 colour = OTHER_BASIS_COLOURS.get(basis, basis_colour(basis))
-                ax.errorbar(values[column], values[y], **errors, color=colour, marker=BASIS_MARKERS.get(basis, "o"),
-                            markersize=8, linestyle="none", capsize=3,
-                            markerfacecolor="none" if basis in ("QE-linear", "H-fit") else colour, label=basis)
+                ax.errorbar(
+                    values[column],
+                    values[y],
+                    **errors,
+                    color=colour,
+                    marker=BASIS_MARKERS.get(basis, "o"),
+                    markersize=8,
+                    linestyle="none",
+                    capsize=3,
+                    markerfacecolor="none" if basis in ("QE-linear", "H-fit") else colour,
+                    label=basis,
+                )
                 labelled.append((ax, values[column], values[y], basis, colour))
             ax.set_xlabel(label.format(energy_percent=energy * 100, threshold=threshold), fontsize=9)
             ax.grid(alpha=0.3)
@@ -572,12 +673,21 @@ def place_labels(ax, points, fontsize: float = 8) -> None:
                 break
         _, (dx, dy), box = best
         taken.append(box)
-        ax.annotate(text, (x, y), textcoords="offset points", xytext=(dx, dy), fontsize=fontsize, color=colour,
-                    ha="right" if dx < 0 else "center" if dx == 0 else "left", va="top" if dy < 0 else "bottom")
+        ax.annotate(
+            text,
+            (x, y),
+            textcoords="offset points",
+            xytext=(dx, dy),
+            fontsize=fontsize,
+            color=colour,
+            ha="right" if dx < 0 else "center" if dx == 0 else "left",
+            va="top" if dy < 0 else "bottom",
+        )
 
 
-def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *,
-                          title: str) -> Figure:
+def plot_alpha_per_solver(
+    table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *, title: str
+) -> Figure:
     """Alpha of each basis under each solver (bars), one panel per data variant, with the share of frames whose
     unconstrained weights go negative: the frames a non-negative or box constraint must change.
 
@@ -610,23 +720,45 @@ def plot_alpha_per_solver(table: pd.DataFrame, y: str, negative_share: Mapping[s
         for k, solver in enumerate(solvers):
             values = part[part["solver"] == solver].set_index("basis").reindex(bases)[y]
             positions = np.arange(len(bases)) + (k - (len(solvers) - 1) / 2) * step
-            bars = ax.bar(positions, values, width=step * 0.92, color=[basis_colour(b) for b in bases],
-                          alpha=1.0 - 0.25 * k, hatch=hatches.get(solver, ""), edgecolor="white", label=solver)
+            bars = ax.bar(
+                positions,
+                values,
+                width=step * 0.92,
+                color=[basis_colour(b) for b in bases],
+                alpha=1.0 - 0.25 * k,
+                hatch=hatches.get(solver, ""),
+                edgecolor="white",
+                label=solver,
+            )
             ax.bar_label(bars, fmt=f"%.{decimals}f", fontsize=7, padding=1)
         pca = part.loc[part["basis"] == "PCA", y]
         if len(pca):
             ax.axhline(float(pca.iloc[0]), color=basis_colour("PCA"), linestyle="--", linewidth=1)
         shares = negative_share.get(data, {})
-        ax.set_xticks(np.arange(len(bases)), [f"{b}\n{100 * shares[b]:.0f} % of frames\nneed w < 0" if b in shares
-                                              else b for b in bases], fontsize=8)
+        ax.set_xticks(
+            np.arange(len(bases)),
+            [f"{b}\n{100 * shares[b]:.0f} % of frames\nneed w < 0" if b in shares else b for b in bases],
+            fontsize=8,
+        )
         ax.set_ylabel(axis_label(y), fontsize=9)
-        ax.set_title(f"data: {data}" + (f"; PCA (dashed) {float(pca.iloc[0]):.{decimals}f}" if len(pca) else ""),
-                     fontsize=10, loc="left")
+        ax.set_title(
+            f"data: {data}" + (f"; PCA (dashed) {float(pca.iloc[0]):.{decimals}f}" if len(pca) else ""),
+            fontsize=10,
+            loc="left",
+        )
         ax.grid(axis="y", alpha=0.3)
         ax.margins(y=0.15)
     handles, labels = axes[-1].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=8, frameon=False,
-                  title="solver (hatching); dashed: PCA by projection", title_fontsize=8)
+    figure.legend(
+        handles,
+        labels,
+        loc="outside lower center",
+        ncols=len(labels),
+        fontsize=8,
+        frameon=False,
+        title="solver (hatching); dashed: PCA by projection",
+        title_fontsize=8,
+    )
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
 
@@ -642,12 +774,13 @@ def shape_styles(names: Sequence[str]) -> dict[str, tuple[str, str]]:
     and unpaired shapes, dashed for ``_R``."""
     stems = list(dict.fromkeys(name[:-2] if name[-2:] in PAIR_STYLES else name for name in names))
     colours = {stem: f"C{k % 10}" for k, stem in enumerate(stems)}
-    return {name: (colours[name[:-2] if name[-2:] in PAIR_STYLES else name], PAIR_STYLES.get(name[-2:], "-"))
-            for name in names}
+    return {
+        name: (colours[name[:-2] if name[-2:] in PAIR_STYLES else name], PAIR_STYLES.get(name[-2:], "-"))
+        for name in names
+    }
 
 
-def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: Sequence[int], *,
-                       title: str) -> Figure:
+def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: Sequence[int], *, title: str) -> Figure:
     """Weight curves w_i(t) of several bases around marked frames: one column per frame, one row per basis; the
     two shapes of a left/right pair share a colour (``_L`` solid, ``_R`` dashed).
 
@@ -679,8 +812,14 @@ def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: 
             step = max(1, -(-len(values) // WEIGHT_POINTS))  # a 120 Hz capture: every 5th frame still draws smooth
             for index in shown:
                 colour, style = styles[names[index]]
-                ax.plot(window["seconds"][::step], values[::step, index], color=colour, linestyle=style,
-                        linewidth=1.2, label=names[index])
+                ax.plot(
+                    window["seconds"][::step],
+                    values[::step, index],
+                    color=colour,
+                    linestyle=style,
+                    linewidth=1.2,
+                    label=names[index],
+                )
             ax.axvline(window["marked"], color="0.15", linewidth=1.0, linestyle=":")
             ax.axhline(0.0, color="0.3", linewidth=0.8)
             ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
@@ -690,15 +829,27 @@ def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: 
         axes[0, column].set_title(wrap_title(window["label"], width / len(windows), 9), fontsize=9)
         axes[-1, column].set_xlabel(f"time in {window['take']} (s)", fontsize=9)
     handles, legend = axes[0, 0].get_legend_handles_labels()
-    figure.legend(handles, legend, loc="outside lower center", ncols=max(1, -(-len(legend) // 2)), fontsize=8.5,
-                  frameon=False, title="hand shape (pairs: _L solid, _R dashed); dotted vertical: the frame of figure 3",
-                  title_fontsize=8.5)
+    figure.legend(
+        handles,
+        legend,
+        loc="outside lower center",
+        ncols=max(1, -(-len(legend) // 2)),
+        fontsize=8.5,
+        frameon=False,
+        title="hand shape (pairs: _L solid, _R dashed); dotted vertical: the frame of figure 3",
+        title_fontsize=8.5,
+    )
     figure.suptitle(wrap_title(title, width), fontsize=11)
     return figure
 
 
-def plot_intuitiveness_bars(names: Sequence[str], cosine: Mapping[str, Sequence[float]],
-                            relative_distance: Mapping[str, Sequence[float]], *, title: str) -> Figure:
+def plot_intuitiveness_bars(
+    names: Sequence[str],
+    cosine: Mapping[str, Sequence[float]],
+    relative_distance: Mapping[str, Sequence[float]],
+    *,
+    title: str,
+) -> Figure:
     """How far each hand shape moved when projected: cosine and relative distance to its quasi-eigen face, bars
     per shape, one bar per projection.
 
@@ -723,10 +874,20 @@ def plot_intuitiveness_bars(names: Sequence[str], cosine: Mapping[str, Sequence[
     rows = np.arange(len(names))
     for k, projection in enumerate(projections):
         offset = (k - (len(projections) - 1) / 2) * step
-        left.barh(rows + offset, cosine[projection], height=step * 0.9, color=colours.get(projection, f"C{k}"),
-                  label=projection)
-        right.barh(rows + offset, relative_distance[projection], height=step * 0.9,
-                   color=colours.get(projection, f"C{k}"), label=projection)
+        left.barh(
+            rows + offset,
+            cosine[projection],
+            height=step * 0.9,
+            color=colours.get(projection, f"C{k}"),
+            label=projection,
+        )
+        right.barh(
+            rows + offset,
+            relative_distance[projection],
+            height=step * 0.9,
+            color=colours.get(projection, f"C{k}"),
+            label=projection,
+        )
     left.set_yticks(rows, names, fontsize=8)
     left.invert_yaxis()
     left.set_xlim(min(0.0, float(np.min([np.min(v) for v in cosine.values()]))), 1.0)
