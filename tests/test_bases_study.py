@@ -2,16 +2,14 @@
 preset end to end through the command line, and its report."""
 
 import json
-import os
-import subprocess
-import sys
 
 import pandas as pd
 import pytest
+from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.pages import main as report_main
-from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose, resolved_without_hydra
+from workbench.settings.config import STUDIES_DIR, compose, resolved_without_hydra
 from workbench.study.run import run_study
 
 ALTERNATIVES = ["SPCA", "ICA", "NMF", "SPLOCS", "H-fit"]
@@ -53,14 +51,7 @@ def test_alternatives_are_checked():
 def bases_sweep(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("bases")
     sweep = tmp_path / "bases_small"
-    result = subprocess.run(
-        [sys.executable, "-m", "workbench", "--config-name", "bases_small", f"hydra.sweep.dir={sweep}"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        timeout=600,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
-    )
+    result = run_workbench("--config-name", "bases_small", f"hydra.sweep.dir={sweep}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     return sweep, pd.read_parquet(sweep / "collected" / "runs.parquet"), result.stdout
 

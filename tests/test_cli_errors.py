@@ -1,18 +1,11 @@
 """The command line's error behaviour: one line naming the problem, non-zero exit, the traceback only with
 ``--verbose``."""
 
-import os
-import subprocess
-import sys
-
-from workbench.settings.config import REPO_ROOT
+from in_process import run_workbench
 
 
 def run_cli(*args, cwd):
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
-    return subprocess.run(
-        [sys.executable, "-m", "workbench", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
-    )
+    return run_workbench(*args, cwd=cwd)
 
 
 def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):

@@ -1,11 +1,8 @@
 """The command line keeps Hydra's conventions: completion, flags after overrides, --info, --help, --version,
 typed configs failing at composition in one line, ad-hoc sweeps that resume, and logging into workbench.log."""
 
-import os
-import subprocess
-import sys
-
 import pytest
+from in_process import run_workbench
 
 from workbench import __version__
 from workbench.record.record import DONE
@@ -13,15 +10,7 @@ from workbench.settings.config import REPO_ROOT
 
 
 def workbench(*args, cwd, env=None):
-    environment = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", **(env or {}))
-    return subprocess.run(
-        [sys.executable, "-m", "workbench", *args],
-        cwd=cwd,
-        env=environment,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    return run_workbench(*args, cwd=cwd, env=env)
 
 
 def completions(line, tmp_path):

@@ -7,19 +7,18 @@ between a malformed file and the tables.
 """
 
 import json
-import os
 import shutil
-import subprocess
 import sys
 
 import pytest
+from in_process import run_workbench
 
 from workbench.api import run
 from workbench.cli import main as cli
 from workbench.core.files import inside
 from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.record import DONE, is_record_file
-from workbench.settings.config import REPO_ROOT, compose
+from workbench.settings.config import compose
 
 
 @pytest.fixture(scope="module")
@@ -188,10 +187,7 @@ TAMPERED = {
 
 
 def workbench_process(*arguments, cwd):
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
-    return subprocess.run(
-        [sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
-    )
+    return run_workbench(*arguments, cwd=cwd)
 
 
 @pytest.mark.parametrize("case", list(TAMPERED))

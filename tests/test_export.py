@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import run_workbench
 
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
@@ -324,19 +325,7 @@ def test_cli_export_prints_one_line_per_basis(record, tmp_path, capsys):
     assert main([str(record), "--out", str(tmp_path / "cli"), "--bases", "QE", "--data", "mesh"]) == 0
     printed = capsys.readouterr().out
     assert printed.startswith("QE (nnls, 18 shapes, alpha ") and "QE.glb, QE_obj/" in printed
-    result = subprocess.run(
-        [
-            str(Path(os.sys.executable).parent / "workbench"),
-            "export",
-            str(record),
-            "--bases",
-            "XYZ",
-            "--out",
-            str(tmp_path / "x"),
-        ],
-        capture_output=True,
-        text=True,
-    )
+    result = run_workbench("export", str(record), "--bases", "XYZ", "--out", str(tmp_path / "x"), cwd=tmp_path)
     assert result.returncode == 2 and result.stderr.count("\n") == 1
     assert result.stderr.startswith("workbench export: error: export --bases XYZ")
 
@@ -644,17 +633,7 @@ def test_export_of_shapes_named_like_paths_stops_before_writing(mesh_export, tmp
         folder,
     )
     before = sorted(path for path in tmp_path.rglob("*"))
-    result = subprocess.run(
-        [
-            str(Path(sys.executable).parent / "workbench"),
-            "export",
-            str(folder),
-            "--out",
-            str(tmp_path / "deep" / "out"),
-        ],
-        capture_output=True,
-        text=True,
-    )
+    result = run_workbench("export", str(folder), "--out", str(tmp_path / "deep" / "out"), cwd=tmp_path)
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "'../../x' cannot name a file inside" in result.stderr
     assert sorted(path for path in tmp_path.rglob("*")) == before and not (tmp_path / "x.obj").exists()

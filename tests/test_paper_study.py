@@ -1,18 +1,16 @@
 """The paper study end to end: records, the table, independent recomputation, determinism, the CLI."""
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import run_workbench
 from scipy.optimize import lsq_linear
 
 from workbench.api import run
 from workbench.record.record import DONE
-from workbench.settings.config import REPO_ROOT, compose
+from workbench.settings.config import compose
 
 SMALL = ["dataset.n_frames=4000", "save_inputs=true", "basis.paper_regime=false"]  # 33 s of performance: enough
 # motion above the noise; the coverage rule's run alone (the m = n variant: tests/test_regime.py)
@@ -97,14 +95,7 @@ def test_same_config_gives_identical_tables(small_run, tmp_path):
 
 
 def run_cli(*overrides, cwd):
-    return subprocess.run(
-        [sys.executable, "-m", "workbench", *overrides],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
-    )
+    return run_workbench(*overrides, cwd=cwd)
 
 
 def test_cli_runs_and_prints_the_table(tmp_path):

@@ -2,18 +2,16 @@
 each (at reduced size: every k-th frame, a coarser mesh)."""
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import run_workbench
 
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
-from workbench.settings.config import REPO_ROOT, compose, resolved_without_hydra
+from workbench.settings.config import compose, resolved_without_hydra
 
 UPPER = {"browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R", "browDown_L", "browDown_R"}
 
@@ -290,21 +288,12 @@ def test_paper_study_on_animface_trains_on_markers_and_mesh(shared_data, tmp_pat
 
 
 def test_cli_names_an_unknown_marker_label_in_one_line(shared_data, tmp_path):
-    result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "workbench",
-            "dataset=animface",
-            f"paths.data_root={shared_data}",
-            "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
-            f"hydra.run.dir={tmp_path / 'run'}",
-        ],
-        capture_output=True,
-        text=True,
+    result = run_workbench(
+        "dataset=animface",
+        f"paths.data_root={shared_data}",
+        "dataset.rigid_markers=[ForeHead_M,NoseTop,Ear_L]",
+        f"hydra.run.dir={tmp_path / 'run'}",
         cwd=tmp_path,
-        timeout=600,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
     )
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

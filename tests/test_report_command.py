@@ -1,10 +1,8 @@
 """The ``workbench report`` command's own rules: where a report goes, the names it takes, and what it says of
 the code that made a run and the report."""
 
-import subprocess
-import sys
-
 import pytest
+from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.pages import main, report_folder
@@ -53,13 +51,7 @@ def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, t
 def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(tmp_path):
     reports = REPO_ROOT / "reports"
     before = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
-    result = subprocess.run(
-        [sys.executable, "-m", "workbench", "report", str(tmp_path), "--reference", "--name", ""],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    result = run_workbench("report", str(tmp_path), "--reference", "--name", "", cwd=tmp_path)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "--name" in lines[0] and "not empty" in lines[0], result.stderr
