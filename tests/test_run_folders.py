@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE
@@ -20,6 +21,10 @@ SMALL = ["dataset.n_frames=300", "solver=lstsq"]
 
 
 def workbench(*arguments, cwd, pythonpath=REPO_ROOT):
+    """The command in this process, or in a child process that imports the workbench from ``pythonpath`` (a copy of
+    the checkout)."""
+    if pythonpath == REPO_ROOT:
+        return run_workbench(*arguments, cwd=cwd)
     env = dict(os.environ, PYTHONPATH=str(pythonpath), OPENBLAS_NUM_THREADS="1", PYTHONDONTWRITEBYTECODE="1")
     return subprocess.run(
         [sys.executable, "-m", "workbench", *arguments], cwd=cwd, env=env, capture_output=True, text=True, timeout=300

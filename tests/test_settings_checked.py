@@ -3,6 +3,7 @@
 import re
 
 import pytest
+from in_process import run_workbench
 
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
@@ -165,14 +166,7 @@ def test_every_study_and_dataset_passes_its_own_checks():
 
 
 def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path):
-    """Real processes, two at a time: exit 2, one line, no output folder (the former exit-3 cases among them)."""
-    import os
-    import subprocess
-    import sys
-
-    from workbench.settings.config import REPO_ROOT
-
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
+    """The command: exit 2, one line, no output folder (the former exit-3 cases among them)."""
     cases = [
         "basis.hand_subset=5",
         "basis.ica.max_iter=0",
@@ -183,33 +177,13 @@ def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path)
         "dataset.eval_fraction=0.3",
         "basis.nmf.tol=-1",
     ]
-    for pair in range(0, len(cases), 2):
-        processes = {
-            case: subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "workbench",
-                    "dataset.n_frames=200",
-                    "solver=lstsq",
-                    case,
-                    "paths.output_root=out",
-                ],
-                cwd=tmp_path,
-                env=env,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE,
-                text=True,
-            )
-            for case in cases[pair : pair + 2]
-        }
-        for case, process in processes.items():
-            out, err = process.communicate(timeout=300)
-            assert process.returncode == 2, (case, err)
-            assert err.splitlines() == [
-                f"workbench: error: {COMPOSITION_CASES[case]}"
-                + ("; leave it out" if "no effect" in COMPOSITION_CASES[case] else "")
-            ], (case, err)
+    for case in cases:
+        done = run_workbench("dataset.n_frames=200", "solver=lstsq", case, "paths.output_root=out", cwd=tmp_path)
+        assert done.returncode == 2, (case, done.stderr)
+        assert done.stderr.splitlines() == [
+            f"workbench: error: {COMPOSITION_CASES[case]}"
+            + ("; leave it out" if "no effect" in COMPOSITION_CASES[case] else "")
+        ], (case, done.stderr)
     assert not (tmp_path / "out").exists()
 
 

@@ -2,13 +2,11 @@
 study's small preset run end to end through the command line."""
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
+from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
@@ -16,7 +14,7 @@ from workbench.dataset.decimate import decimate
 from workbench.dataset.gaps import apply_gap_policy, longest_run, make_gap_mask
 from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, make_face_mesh, make_synthetic_take
 from workbench.dataset.transfer import point_transfer
-from workbench.settings.config import REPO_ROOT, STUDIES_DIR, compose, resolved_without_hydra
+from workbench.settings.config import STUDIES_DIR, compose, resolved_without_hydra
 from workbench.study.protocols import hand_subset_indices
 from workbench.study.run import run_study
 
@@ -322,14 +320,7 @@ def test_cluster_launcher_config_composes():
 
 def run_preset(study, tmp_path):
     sweep = tmp_path / study
-    result = subprocess.run(
-        [sys.executable, "-m", "workbench", "--config-name", f"{study}_small", f"hydra.sweep.dir={sweep}"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        timeout=600,
-        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)),
-    )
+    result = run_workbench("--config-name", f"{study}_small", f"hydra.sweep.dir={sweep}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     collected = sweep / "collected"
     for name in ("runs.csv", "runs.parquet", "summary.csv", "summary.parquet", "alpha_table.md", "alpha_table.tex"):

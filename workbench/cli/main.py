@@ -256,6 +256,7 @@ def main() -> None:
     from workbench.cli import sweep_failures
 
     sweep_failures.MAIN_PROCESS = os.getpid()
+    sweep_failures.FAILED.clear()  # this command's sweep only (main may be called again in one process)
     try:
         with one_line_usage_errors("workbench"):  # Hydra's argument parser: one line, not its usage block
             if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
