@@ -11,13 +11,12 @@ must print one line and exit non-zero. Last, a static check that nothing loads d
 import ast
 import os
 import re
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
@@ -902,7 +901,7 @@ CLI_XFAIL = {}
 
 @pytest.fixture(scope="module")
 def cli_results(tmp_path_factory, tiny_root):
-    """Every CLI case run at once (two cores share the start-up cost), each into its own folder."""
+    """Every CLI case run, each into its own folder."""
     from conftest import shared_data_root
 
     tmp = tmp_path_factory.mktemp("cli")
@@ -914,21 +913,10 @@ def cli_results(tmp_path_factory, tiny_root):
         data = source.read_bytes()
         (real / "animface" / "animface_jaw.c3d").write_bytes(data[: len(data) // 2])
     cases = cli_cases(tmp, tiny_root, real)
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
-    processes = {}
-    for name, (arguments, _) in cases.items():
-        processes[name] = subprocess.Popen(
-            [sys.executable, "-m", "workbench", *arguments, f"hydra.run.dir={tmp / name}"],
-            cwd=tmp,
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
     results = {}
-    for name, process in processes.items():
-        stdout, stderr = process.communicate(timeout=300)
-        results[name] = (process.returncode, stdout, stderr, cases[name][1])
+    for name, (arguments, pattern) in cases.items():
+        done = run_workbench(*arguments, f"hydra.run.dir={tmp / name}", cwd=tmp)
+        results[name] = (done.returncode, done.stdout, done.stderr, pattern)
     return results
 
 
@@ -967,16 +955,8 @@ def test_cli_prints_one_line_and_exits_non_zero(cli_results, case):
 
 
 def test_cli_subcommands_print_one_line(tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
     for command in ("report", "collect"):
-        result = subprocess.run(
-            [sys.executable, "-m", "workbench", command, str(tmp_path / "nowhere")],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+        result = run_workbench(command, str(tmp_path / "nowhere"), cwd=tmp_path)
         assert result.returncode != 0 and "Traceback" not in result.stdout + result.stderr
         assert len(result.stderr.splitlines()) == 1 and "nowhere" in result.stderr, result.stderr
 
