@@ -4,7 +4,8 @@ a new interpreter spends importing NumPy, Hydra and pandas and compiling the sol
 A child process is kept where the process itself is what a test checks (signals and kills, exit at start-up, the
 installed command, packaging, concurrency, the cluster). Everything the command changes in the process is put back
 afterwards: the arguments, the working folder, the environment, the signal handlers, the verbose flag, the logging
-handlers Hydra's job logging adds and Hydra's global state.
+handlers Hydra's job logging adds and Hydra's global state. Each call starts, as a new process would, with the
+dataset stage's memory (the captures built and the file digests of earlier calls) empty.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Mapping
 from workbench.cli import main as cli
 from workbench.cli import sweep_failures
 from workbench.core import errors
+from workbench.dataset import cache
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -57,6 +59,8 @@ def run_workbench(*args, cwd: str | Path, env: Mapping[str, str | None] | None =
     }
     saved_verbose, saved_main = errors._verbose, sweep_failures.MAIN_PROCESS
     out, err = io.StringIO(), io.StringIO()
+    cache._memory.clear()
+    cache._digests.clear()
     try:
         for name, value in (env or {}).items():
             if value is None:

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from in_process import run_workbench
 
 from workbench.core import errors
 from workbench.core.files import write_atomic
@@ -17,14 +18,11 @@ from workbench.settings.config import REPO_ROOT
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
 
-def workbench(cwd: Path, *arguments: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    return subprocess.run(
-        [sys.executable, "-m", "workbench", *arguments], cwd=cwd, capture_output=True, text=True, env=env, timeout=300
-    )
+def workbench(cwd: Path, *arguments: str):
+    return run_workbench(*arguments, cwd=cwd)
 
 
-def one_line(result: subprocess.CompletedProcess) -> str:
+def one_line(result) -> str:
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert result.returncode == 2 and len(lines) == 1, (result.returncode, result.stderr)
     return lines[0]
