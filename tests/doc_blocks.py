@@ -401,8 +401,9 @@ def run_measured(script: str, cwd: Path, env: dict, timeout: float) -> tuple[int
 
 
 class Scratch:
-    """A copy of the checkout's files (tracked, and new ones git does not ignore) with ``../shared`` beside it,
-    the running virtual environment as ``.venv`` and the glTF validator of ``.ci/node`` when installed; staged in
+    """A copy of the checkout's files (tracked, and new ones git does not ignore, with numba's cache of the compiled
+    solvers) with ``../shared`` beside it, the running virtual environment as ``.venv`` and the glTF validator of
+    ``.ci/node`` when installed; staged in
     a git index of its own so that :meth:`changes` lists what the commands left in it."""
 
     def __init__(self, folder: Path, root: Path = REPO_ROOT, venv: Path = Path(sys.prefix)):
@@ -420,6 +421,11 @@ class Scratch:
             if (root / name).is_file():
                 (self.root / name).parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(root / name, self.root / name)
+        # numba's compiled solvers, cached beside the sources (valid while a source's time and size are the same,
+        # which copy2 keeps): without them every scratch copy compiles them again, about 12 s per document
+        for cached in (root / "workbench").rglob("__pycache__/*.nb[ic]"):
+            (self.root / cached.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(cached, self.root / cached.relative_to(root))
         (self.root / ".venv").symlink_to(venv)
         if (root / ".ci" / "node").is_dir():
             (self.root / ".ci" / "node").symlink_to(root / ".ci" / "node")

@@ -22,6 +22,8 @@ from mlflow_rest import rest
 from workbench.record.record import ALPHA_COLUMNS, find_records, load_record
 from workbench.settings.config import REPO_ROOT
 
+pytestmark = pytest.mark.slow  # a SLURM cluster and an MLflow server, both real (CI starts them)
+
 # A small sweep whatever the preset's size: 2 seeds x 2 coverages of 500 frames, named on the command line.
 STUDY = [
     "--config-name",

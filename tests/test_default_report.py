@@ -24,6 +24,7 @@ def default_run(tmp_path_factory):
     return record
 
 
+@pytest.mark.slow
 def test_the_default_runs_report_has_no_placeholder(default_run, tmp_path):
     out = tmp_path / "report"
     assert main([str(default_run), "--out", str(out)]) == 0

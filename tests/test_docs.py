@@ -72,9 +72,19 @@ def test_measured_rows_are_documented_commands():
         assert cells[5] == ("long: not run" if float(cells[3].removesuffix(" s")) >= LONG_SECONDS else "run")
 
 
+@pytest.fixture(scope="module")
+def compiled_solvers():
+    """A small run in this process first: numba compiles the solvers and the synthetic actor into its cache beside
+    the sources, which every scratch copy takes along (tests/doc_blocks.py)."""
+    from workbench.settings.config import compose
+    from workbench.study import run_study
+
+    run_study(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=all"]))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("doc", documents())
-def test_documented_commands_run(doc, shared_data, tmp_path):
+def test_documented_commands_run(doc, shared_data, tmp_path, compiled_solvers):
     scratch = Scratch(tmp_path)
     times = measured_times()
     lines = []

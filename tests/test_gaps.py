@@ -251,6 +251,7 @@ def test_masked_policy_can_fit_on_the_complete_frames_only():
         build_captures(resolved_without_hydra(compose("paper", overrides + ["dataset.gap_fit_on=all"]))["dataset"])
 
 
+@pytest.mark.slow
 def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_path):
     from workbench.api import run
     from workbench.reporting.pages import main

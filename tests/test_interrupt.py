@@ -66,6 +66,7 @@ def check_interrupted(process, folder=None):
     return "interrupted"
 
 
+@pytest.mark.slow
 def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_here):
     outcomes = []
     for pair in range(0, len(DELAYS), 2):  # two at a time: the machine has two cores

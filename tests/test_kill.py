@@ -312,6 +312,7 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
     assert snapshot(folders[0]) == before, f"{folders[0]}: a complete record was touched"
 
 
+@pytest.mark.slow
 def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
     rng = np.random.default_rng(SEED)
     # Complete runs side by side measure the duration and the record-writing window, and are the reference.
@@ -354,6 +355,7 @@ def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
     assert "empty" in states, f"no kill fell before a record: {outcomes}"
 
 
+@pytest.mark.slow
 def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(tmp_path):
     rng = np.random.default_rng(SEED + 1)
     reference_job = Job(SWEEP + [f"hydra.sweep.dir={tmp_path / 'reference'}"], tmp_path, tmp_path / "reference.log")

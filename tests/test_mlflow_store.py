@@ -327,6 +327,7 @@ def stored_runs(database):
         ).fetchall()
 
 
+@pytest.mark.slow
 def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_path):
     sweep = records_copy(swept, tmp_path)
     for trial in range(2):
@@ -347,6 +348,7 @@ def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_p
         )
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record(swept, tmp_path):
     """SIGINT (as Ctrl-C sends) while the runs are being written, at several moments; the same command again
     finishes the job: every record once, in the store's own rows too (deleted runs counted)."""
@@ -458,6 +460,7 @@ def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
     assert not any(".." in name for name in run if name.startswith("metrics."))
 
 
+@pytest.mark.slow
 def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
     """A run with its per-frame alpha (save_inputs=true) logged at once; its report's figures once it has one."""
     run_dir = tmp_path / "out" / "run"

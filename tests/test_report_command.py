@@ -76,6 +76,7 @@ def run_without_inputs(tmp_path_factory):
     return record
 
 
+@pytest.mark.slow
 def test_the_report_of_a_run_that_saved_no_inputs_draws_every_figure(run_without_inputs, tmp_path):
     out = tmp_path / "report"
     assert main([str(run_without_inputs), "--out", str(out)]) == 0

@@ -314,6 +314,7 @@ def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
             np.testing.assert_allclose(alpha["displacement"], per_frame[f"{data}.displacement"][row, frames], rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_save_those_of_a_missing_variant(tmp_path):
     record = tmp_path / "run"
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
@@ -680,6 +681,7 @@ def animface_run(shared_data, tmp_path_factory):
     return record_dir, out
 
 
+@pytest.mark.slow
 def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     """On AnimFace (60 Hz, every 20th frame): the per-frame times are the file's frame numbers over its rate, the
     takes are named, figure 3 shows one frame per region of the face, the brows' from the eyebrows take, and figure
@@ -787,6 +789,7 @@ def test_committed_animface_renders_have_no_holes(name):
         assert holes(np.asarray(image.convert("RGB")), lossy=name == "animation.webp") == 0, (name, k)
 
 
+@pytest.mark.slow
 def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     """Every face render of the AnimFace report (figures 2 and 3, the per-vertex error, the animation's panels) is
     whole, eye and mouth openings closed; where the capture has no data (beyond the markers' reach) a coloured map

@@ -344,6 +344,7 @@ def test_every_preset_runs_five_seeds():
             assert str(seeds).split(",") == ["0", "1", "2", "3", "4"], name
 
 
+@pytest.mark.slow
 def test_coverage_preset(tmp_path):
     sweep, runs, stdout = run_preset("coverage", tmp_path)
     assert runs.groupby("run").ngroups == 10 and "| basis.coverage |" in stdout
@@ -356,6 +357,7 @@ def test_coverage_preset(tmp_path):
     ).all()
 
 
+@pytest.mark.slow
 def test_basis_count_preset(tmp_path):
     sweep, runs, _ = run_preset("basis_count", tmp_path)
     assert runs.groupby("run").ngroups == 30
@@ -372,6 +374,7 @@ def test_basis_count_preset(tmp_path):
     assert upper.mean() > full.mean()
 
 
+@pytest.mark.slow
 def test_marker_mesh_preset(tmp_path):
     sweep, runs, stdout = run_preset("marker_mesh", tmp_path)
     assert runs.groupby("run").ngroups == 20
@@ -396,6 +399,7 @@ def test_marker_mesh_preset(tmp_path):
     assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
 
 
+@pytest.mark.slow
 def test_noise_preset(tmp_path):
     sweep, runs, stdout = run_preset("noise", tmp_path)
     assert runs.groupby("run").ngroups == 40
@@ -412,6 +416,7 @@ def test_noise_preset(tmp_path):
     assert gaps["policy"] == "linear" and gaps["n_missing_samples"] > 0
 
 
+@pytest.mark.slow
 def test_choices_preset(tmp_path):
     sweep, runs, stdout = run_preset("choices", tmp_path)
     assert runs.groupby("run").ngroups == 5
@@ -429,6 +434,7 @@ def test_choices_preset(tmp_path):
     ]
 
 
+@pytest.mark.slow
 def test_generalisation_preset(tmp_path):
     sweep, runs, stdout = run_preset("generalisation", tmp_path)
     assert runs.groupby("run").ngroups == 15

@@ -172,6 +172,7 @@ def test_compiled_model_equals_the_numpy_reference(mesh, case):
     np.testing.assert_allclose(compiled, reference, rtol=0, atol=REFERENCE_TOLERANCE_MM)
 
 
+@pytest.mark.slow
 def test_compiled_model_at_rest_equals_the_reference_exactly(mesh):
     activations = np.zeros((3, 18))
     assert np.array_equal(deform(mesh.vertices, activations), deform_reference(mesh.vertices, activations))
