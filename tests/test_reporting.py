@@ -630,6 +630,7 @@ def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_sh
 BASES_REFERENCE = ["dataset.n_frames=4000", "dataset.held_out=tail"]
 
 
+@pytest.mark.slow
 def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
     reference = REPO_ROOT / "reports" / "bases"
     if not (reference / "summary.csv").is_file():

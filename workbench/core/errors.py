@@ -6,6 +6,7 @@ the rule it broke; the command line prints that message as one line (:func:`exit
 
 from __future__ import annotations
 
+import signal
 import sys
 import traceback
 
@@ -50,6 +51,7 @@ def exit_on_error(program: str, error: BaseException) -> None:
     if _verbose:
         traceback.print_exception(error, file=sys.stderr)
     if caused_by_interrupt(error):
+        ignore_further_interrupts()  # a signal still pending (a compiled loop's) must not cut the exit short
         print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
         sys.exit(INTERRUPTED)
     fault = environment_fault(error)
@@ -59,6 +61,14 @@ def exit_on_error(program: str, error: BaseException) -> None:
     hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
     print(f"{program}: error: unexpected {type(error).__name__}: {single_line(error)}{hint}", file=sys.stderr)
     sys.exit(3)
+
+
+def ignore_further_interrupts() -> None:
+    """Ignore Ctrl-C from now on: the interrupted command has cleaned up and only its one line and exit remain."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to ignore here
+        pass
 
 
 def environment_fault(error: BaseException) -> str | None:
