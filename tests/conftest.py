@@ -7,20 +7,6 @@ import pytest
 
 from workbench.settings.config import REPO_ROOT
 
-SPREAD_FILES = {"test_docs", "test_studies"}
-"""Test files whose tests share no module fixture: pytest-xdist spreads their tests over the workers one by one.
-Every other file stays on one worker (its module fixtures, such as a run, are built once)."""
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """Group each test by its file for ``--dist loadgroup`` (before pytest-xdist reads the groups), except the
-    files of :data:`SPREAD_FILES`."""
-    for item in items:
-        name = Path(str(item.fspath)).stem
-        if name not in SPREAD_FILES:
-            item.add_marker(pytest.mark.xdist_group(name))
-
 
 def shared_data_root() -> Path:
     """The data root the loader tests read: ``WORKBENCH_DATA_ROOT`` or ``<repo>/../shared/data``."""

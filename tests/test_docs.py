@@ -82,9 +82,9 @@ def compiled_solvers():
     run_study(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=all"]))
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("doc", documents())
-def test_documented_commands_run(doc, shared_data, tmp_path, compiled_solvers):
+def check_documented_commands(doc: str, tmp_path) -> None:
+    """Every command of ``doc`` runs in a scratch copy of the checkout, none unmeasured takes a CPU-minute, and
+    none leaves a file in the checkout."""
     scratch = Scratch(tmp_path)
     times = measured_times()
     lines = []
@@ -105,3 +105,23 @@ def test_documented_commands_run(doc, shared_data, tmp_path, compiled_solvers):
         f"not in {TIMES_DOC}: run 'tests/doc_blocks.py measure {slow[0].command.doc}'"
     )
     assert scratch.changes() == [], f"the commands of {doc} left files in the checkout"
+
+
+def commands_test_class(doc: str) -> type:
+    """A test class of its own for one document's commands: pytest-xdist (``--dist loadscope``) sends each class
+    to whichever worker is free, so the documents' commands run on both workers while every test file keeps its
+    tests, and its module fixtures, on one."""
+
+    @pytest.mark.slow
+    class TestDocumentedCommands:
+        def test_commands_run(self, shared_data, tmp_path, compiled_solvers):
+            check_documented_commands(doc, tmp_path)
+
+    name = "TestCommandsOf_" + re.sub(r"\W", "_", doc)
+    TestDocumentedCommands.__name__ = TestDocumentedCommands.__qualname__ = name
+    return TestDocumentedCommands
+
+
+for _doc in documents():
+    _class = commands_test_class(_doc)
+    globals()[_class.__name__] = _class
