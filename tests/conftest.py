@@ -7,6 +7,33 @@ import pytest
 
 from workbench.settings.config import REPO_ROOT
 
+LONGEST_FIRST = (
+    "tests/test_reporting.py::",  # the reference reports redone: about ten minutes in all
+    "tests/test_docs.py::TestCommandsOf_docs_studies_md::",
+    "tests/test_docs.py::TestCommandsOf_docs_reports_md::",
+    "tests/test_docs.py::TestCommandsOf_README_md::",
+    "tests/test_docs.py::TestCommandsOf_docs_performance_md::",
+    "tests/test_docs.py::TestCommandsOf_docs_formats_md::",
+    "tests/test_studies.py::",
+    "tests/test_docs.py::TestCommandsOf_docs_export_md::",
+    "tests/test_mlflow_store.py::",
+    "tests/test_docs.py::TestCommandsOf_docs_tracking_md::",
+    "tests/test_kill.py::",
+)
+"""The longest scopes of the suite (a file, or a document's commands in tests/test_docs.py), longest first, as CI
+measured them: pytest-xdist hands scopes out in the order they are collected, and a long one handed out last keeps
+one process busy alone at the end."""
+
+
+def pytest_collection_modifyitems(items):
+    """Collect the scopes of :data:`LONGEST_FIRST` first, in that order; everything else after them, as before
+    (every scope stays in one block, so its module fixtures are built once)."""
+
+    def rank(item) -> int:
+        return next((i for i, prefix in enumerate(LONGEST_FIRST) if item.nodeid.startswith(prefix)), len(LONGEST_FIRST))
+
+    items.sort(key=rank)
+
 
 def shared_data_root() -> Path:
     """The data root the loader tests read: ``WORKBENCH_DATA_ROOT`` or ``<repo>/../shared/data``."""

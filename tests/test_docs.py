@@ -72,7 +72,7 @@ def test_measured_rows_are_documented_commands():
         assert cells[5] == ("long: not run" if float(cells[3].removesuffix(" s")) >= LONG_SECONDS else "run")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def compiled_solvers():
     """A small run in this process first: numba compiles the solvers and the synthetic actor into its cache beside
     the sources, which every scratch copy takes along (tests/doc_blocks.py)."""
