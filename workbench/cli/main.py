@@ -25,7 +25,7 @@ from workbench.core.errors import (
     tracebacks_shown,
 )
 from workbench.core.extras import missing_extra
-from workbench.core.interrupt import caused_by_interrupt, raise_from_now_on
+from workbench.core.interrupt import caused_by_interrupt, ignore_further_interrupts, raise_from_now_on
 
 # Only what every command needs is imported here: `--help`, `--version` and tab completion must start fast, so
 # Hydra, pandas and the numerical code are imported by the functions that use them.
@@ -240,9 +240,7 @@ def main() -> None:
                 code = getattr(importlib.import_module(module), function)(sys.argv[2:])
         except BaseException as error:  # noqa: BLE001 - SystemExit passes through, Ctrl-C is one line
             exit_on_error(f"workbench {sys.argv[1]}", error)
-        import signal
-
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done and reported: Ctrl-C would only cut the libraries' exit
+        ignore_further_interrupts()  # done and reported: Ctrl-C would only cut the libraries' exit
         sys.exit(code)
     try:
         check_config_dirs()

@@ -6,12 +6,11 @@ the rule it broke; the command line prints that message as one line (:func:`exit
 
 from __future__ import annotations
 
-import signal
 import sys
 import traceback
 
 from workbench.core.extras import missing_extra
-from workbench.core.interrupt import INTERRUPTED, caused_by_interrupt
+from workbench.core.interrupt import INTERRUPTED, caused_by_interrupt, ignore_further_interrupts
 from workbench.core.interrupt import MESSAGE as INTERRUPTED_MESSAGE
 
 VERBOSE_FLAG = "--verbose"
@@ -61,14 +60,6 @@ def exit_on_error(program: str, error: BaseException) -> None:
     hint = "" if _verbose else f" (run with {VERBOSE_FLAG} for the traceback)"
     print(f"{program}: error: unexpected {type(error).__name__}: {single_line(error)}{hint}", file=sys.stderr)
     sys.exit(3)
-
-
-def ignore_further_interrupts() -> None:
-    """Ignore Ctrl-C from now on: the interrupted command has cleaned up and only its one line and exit remain."""
-    try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: nothing to ignore here
-        pass
 
 
 def environment_fault(error: BaseException) -> str | None:

@@ -43,6 +43,16 @@ def raise_from_now_on() -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def ignore_further_interrupts() -> None:
+    """Ignore Ctrl-C from now on: the command has done its work (or cleaned up after an interrupt) and only its
+    last line and exit remain, which a Ctrl-C, or a signal still pending from a compiled loop, would only cut
+    short."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to ignore here
+        pass
+
+
 def caused_by_interrupt(error: BaseException) -> bool:
     """Whether ``error`` is a ``KeyboardInterrupt`` or was raised because of one: a compiled function (numba)
     interrupted by Ctrl-C returns with the interrupt pending, which Python reports as a ``SystemError`` whose
