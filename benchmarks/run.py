@@ -465,9 +465,9 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
     paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
-    from workbench.reporting.run_text import alpha_table
     from workbench.settings.config import compose, resolved_without_hydra
     from workbench.study.run import run_study
+    from workbench.study.table import alpha_table
 
     cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))
     if not study:

@@ -19,8 +19,9 @@ import pandas as pd
 import pytest
 from mlflow_rest import rest
 
-from workbench.record.record import ALPHA_COLUMNS, find_records, load_record
+from workbench.record.record import find_records, load_record
 from workbench.settings.config import REPO_ROOT
+from workbench.study.table import ALPHA_COLUMNS
 
 pytestmark = pytest.mark.slow  # a SLURM cluster and an MLflow server, both real (CI starts them)
 

@@ -377,9 +377,9 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
-    from workbench.reporting.run_text import alpha_table
     from workbench.settings.config import resolved_without_hydra
     from workbench.study import run as pipeline
+    from workbench.study.table import alpha_table
 
     def tables(cache_dir):
         cfg = resolved_without_hydra(

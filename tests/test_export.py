@@ -361,7 +361,8 @@ def validate(path: Path) -> dict:
 @pytest.fixture(scope="module")
 def every_solver(tmp_path_factory):
     """A synthetic mesh run under every solver, exported under each: (solver, folder, manifest, raw bases)."""
-    from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
+    from workbench.record.replay import replay
+    from workbench.reporting.export import exported_bases, read_run_record
 
     folder = tmp_path_factory.mktemp("solvers") / "run"
     run(
@@ -369,7 +370,7 @@ def every_solver(tmp_path_factory):
         folder,
     )
     record = read_run_record(folder)
-    (result,) = rebuild_results(record)
+    (result,) = replay(record, "a test replays it")
     exports = []
     for solver in ("lstsq", "nnls", "box"):
         out = folder.parent / solver
@@ -415,7 +416,8 @@ def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(e
 
 @pytest.fixture(scope="module")
 def animface_export(shared_data, tmp_path_factory):
-    from workbench.reporting.export import exported_bases, read_run_record, rebuild_results
+    from workbench.record.replay import replay
+    from workbench.reporting.export import exported_bases, read_run_record
 
     folder = tmp_path_factory.mktemp("animface") / "run"
     run(
@@ -436,7 +438,7 @@ def animface_export(shared_data, tmp_path_factory):
     out = folder.parent / "export"
     manifest = export_run(folder, out)
     record = read_run_record(folder)
-    (result,) = rebuild_results(record)
+    (result,) = replay(record, "a test replays it")
     return out, manifest, exported_bases(result, None, "lstsq", record.table), result.capture.neutral.reshape(-1, 3)
 
 

@@ -20,8 +20,9 @@ from in_process import run_workbench
 from mlflow_rest import rest
 
 from workbench.core.errors import WorkbenchError
-from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, find_records, load_record
+from workbench.record.record import find_records, load_record
 from workbench.settings.config import REPO_ROOT
+from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 

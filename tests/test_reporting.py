@@ -462,8 +462,8 @@ def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():
 
 
 def test_collect_and_report_give_the_same_numbers_for_one_sweep(tmp_path):
-    from workbench.record.record import ALPHA_COLUMNS
     from workbench.reporting.collect import collect_and_write
+    from workbench.study.table import ALPHA_COLUMNS
 
     root = make_sweep(tmp_path / "sweep", coverages=(0.99, 0.995))
     assert main([str(root), "--formats", "png"]) == 0  # beside the runs: <sweep>/report

@@ -344,7 +344,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     from omegaconf import OmegaConf
 
     from workbench.record.record import DONE, record_state, run_metrics, write_record
-    from workbench.reporting.run_text import alpha_table, headline, printed_tables, result_identities, study_header
+    from workbench.reporting.run_text import headline, printed_tables, result_identities, study_header
     from workbench.study.run import run_study
     from workbench.study.summary import (
         alpha_per_frame_arrays,
@@ -353,6 +353,7 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         saved_inputs,
         saves_inputs,
     )
+    from workbench.study.table import alpha_table
 
     started = time.time()
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")

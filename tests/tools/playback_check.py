@@ -131,11 +131,12 @@ def playback_differences(
 
 def measure(run: Path, solvers: list[str] | None, data: str | None, per_take: int) -> list[tuple]:
     """(basis, solver, max abs mm, keys) for every basis of a run exported under each solver (PCA once)."""
-    from workbench.reporting.export import export_run, exported_bases, read_run_record, rebuild_results
+    from workbench.record.replay import replay
+    from workbench.reporting.export import export_run, exported_bases, read_run_record
 
     record = read_run_record(run)
     solvers = solvers or list(record.config.get("solver") or {})
-    results = {result.data: result for result in rebuild_results(record)}
+    results = {result.data: result for result in replay(record, "rerun the study and check the new record")}
     data = data or next(iter(results))
     result = results[data]
     neutral = result.capture.neutral.reshape(-1, 3)

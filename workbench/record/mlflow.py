@@ -48,11 +48,8 @@ from typing import Iterable, Iterator, Mapping, Sequence
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import lock_file, unlock_file
 from workbench.record.record import (
-    ALPHA_COLUMNS,
     ALPHA_PER_FRAME_FILE,
-    CLEAN_COLUMNS,
     CONFIG_FILE,
-    FRAME_COLUMNS,
     METRICS_FILE,
     TABLE_FILE,
     TEXT_FILE,
@@ -63,6 +60,7 @@ from workbench.record.record import (
     load_record,
 )
 from workbench.settings.config import REPO_ROOT
+from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 log = logging.getLogger("workbench.sweep")
 """The callback's lines: to the console only (``conf/hydra/job_logging/workbench.yaml``), never into a record's

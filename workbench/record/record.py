@@ -34,6 +34,7 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file, write_atomic
+from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -115,16 +116,6 @@ RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, 
 """The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
 _VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
-ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled", "rms_mm")
-"""The alpha-table columns every row of a record must have (numbers)."""
-FRAME_COLUMNS = ("err_mm_median", "err_mm_p95", "err_mm_max", "w_max_abs", "w_outside_01", "w_sparsity", "w_roughness")
-"""The alpha-table columns of the per-frame error over the face region (median, 95th percentile and maximum over
-frames, mm) and of the weights' statistics (:class:`workbench.numerics.metrics.WeightStatistics`: largest ``|w|``, share of
-frames with a weight outside [0, 1], Hoyer sparsity, mean squared second time derivative in 1/s^4); empty (NaN)
-for PCA's weights, and absent from records made before they were measured."""
-CLEAN_COLUMNS = tuple(f"clean_{column}" for column in ALPHA_COLUMNS)
-"""The alpha-table columns of the same reconstructions scored against the clean frames (``metric.score_clean``):
-present only in runs that did so, empty (NaN) in rows that have no clean frames."""
 
 
 def record_state(folder: Path) -> str:

@@ -36,9 +36,8 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import inside, plain_name, write_atomic, write_json, write_npz
+from workbench.record.replay import replay
 
-TABLE_CHECK_RTOL = 1e-6
-"""Recomputed alpha must match the recorded table to this relative tolerance before anything is exported."""
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
 PCA_MEAN = "pca_mean"
 AXES = "+Y up, the face looking along +Z (glTF's convention), coordinates as the data's"
@@ -60,6 +59,10 @@ TARGETS_TEXT = (
     "Raw weight of a shape = sum over its targets of scale x target weight (each target's 'scale'); the "
     "raw weights are also in the weights CSV files"
 )
+
+
+REPLAY_REFUSED = "rerun the study and export the new record"
+"""How an export refused by :func:`workbench.record.replay.replay` ends its line."""
 
 
 def read_run_record(folder: Path):
@@ -177,44 +180,6 @@ def exported_bases(result, labels: Sequence[str] | None, solver: str, table: pd.
             )
         )
     return exported
-
-
-def check_recomputed(results, table: pd.DataFrame, folder: Path) -> None:
-    """Refuse an export whose recomputed alpha differs from the record (data or code changed since the run)."""
-    from workbench.reporting.run_text import alpha_table
-
-    for result in results:
-        fresh = alpha_table(
-            result.rows,
-            data=result.data,
-            m=result.eigenfaces.n_components_,
-            coverage=result.eigenfaces.coverage_,
-            paper_alpha={},
-        )
-        recorded = table[table["data"] == result.data].reset_index(drop=True)
-        keys = ["basis", "projection", "solver"]
-        if len(recorded) != len(fresh) or not (recorded[keys].astype(str) == fresh[keys].astype(str)).all().all():
-            raise WorkbenchError(
-                f"{folder}: the recomputed alpha table of data '{result.data}' has other rows than "
-                "the recorded one; rerun the study and export the new record"
-            )
-        a, b = recorded[list(ALPHA_COLUMNS)].to_numpy(float), fresh[list(ALPHA_COLUMNS)].to_numpy(float)
-        if not np.allclose(a, b, rtol=TABLE_CHECK_RTOL, atol=0.0, equal_nan=True):
-            worst = np.nanmax(np.abs(a - b) / np.maximum(np.abs(a), 1e-300))
-            raise WorkbenchError(
-                f"{folder}: recomputing the run gives alpha {worst:.2e} (relative) away from the "
-                f"recorded table for data '{result.data}' (allowed {TABLE_CHECK_RTOL:g}): the data or "
-                "the code changed since the run; rerun the study and export the new record"
-            )
-
-
-def rebuild_results(record):
-    """Run the recorded config again and check it against the record; returns the study results."""
-    from workbench.study.run import run_study
-
-    results = run_study(record.config)
-    check_recomputed(results, record.table, record.folder)
-    return results
 
 
 # --- morph targets an animation tool plays back exactly ---
@@ -864,7 +829,7 @@ def export_run(
     data = data or variants[0]
     if data not in variants:
         raise WorkbenchError(f"export --data {data}: the run's data variants are {variants}")
-    results = {result.data: result for result in rebuild_results(record)}
+    results = {result.data: result for result in replay(record, REPLAY_REFUSED)}
     result = results[data]
     capture = result.capture
     chosen = exported_bases(result, bases, solver, record.table)

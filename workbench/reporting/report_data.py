@@ -169,6 +169,7 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
         When the rebuilt data differ from the data the run read.
     """
     from workbench.core.errors import WorkbenchError
+    from workbench.record.replay import check_replayed
     from workbench.study.run import run_study
     from workbench.study.summary import alpha_per_frame_arrays, input_arrays
 
@@ -183,7 +184,7 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
                 "missing": f"the run saved no inputs and its data could not be read again: {error}",
             }
             return cache[key]
-        check_rebuilt(record, results)
+        check_replayed(record, results, "the report cannot rebuild the run's inputs")
         cache[key] = {
             "inputs": {
                 result.data: input_arrays(result)
@@ -194,41 +195,6 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
             "missing": "",
         }
     return cache[key]
-
-
-def check_rebuilt(record: RunRecord, results, rtol: float = 1e-6) -> None:
-    """Refuse data rebuilt from a record's config that differ from the data the run read: a data file whose
-    checksum is not the one the record names, or an alpha that differs from the record's alpha table."""
-    from workbench.core.errors import WorkbenchError
-    from workbench.reporting.run_text import alpha_table
-
-    recorded = (record.metrics["dataset"].get("provenance") or {}).get("data_files") or {}
-    found = results[0].capture.provenance.get("data_files") or {}
-    for path, entry in recorded.items():
-        if (found.get(path) or {}).get("sha256") != entry.get("sha256"):
-            raise WorkbenchError(
-                f"run record {record.folder}: its data file {path} is not the one the run read (its "
-                "SHA-256 differs from the record's); the report cannot rebuild the run's inputs"
-            )
-    paper = record.config.get("paper", {}).get("alpha", {})
-    for result in results:
-        table = alpha_table(
-            result.rows,
-            data=result.data,
-            m=result.eigenfaces.n_components_,
-            coverage=result.eigenfaces.coverage_,
-            paper_alpha=paper,
-        )
-        own = record.table[record.table["data"] == result.data]
-        columns = [c for c in ("alpha_abs_mean", "alpha_disp_mean", "rms_mm") if c in table.columns]
-        if len(own) != len(table) or not np.allclose(
-            own[columns].to_numpy(float), table[columns].to_numpy(float), rtol=rtol, atol=1e-12, equal_nan=True
-        ):
-            raise WorkbenchError(
-                f"run record {record.folder}: the data rebuilt from its config.yaml give other "
-                f"numbers than its alpha table ({result.data}); the report cannot rebuild the "
-                "run's inputs"
-            )
 
 
 def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:

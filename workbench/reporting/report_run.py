@@ -159,7 +159,7 @@ def run_sections(
 
 def alpha_columns(table: pd.DataFrame) -> pd.DataFrame:
     """The alpha table's naming and alpha columns (the per-frame error and weight columns go in their section)."""
-    from workbench.reporting.run_text import FRAME_COLUMNS
+    from workbench.study.table import FRAME_COLUMNS
 
     return table[[column for column in table.columns if column not in FRAME_COLUMNS]]
 
@@ -167,7 +167,7 @@ def alpha_columns(table: pd.DataFrame) -> pd.DataFrame:
 def error_and_weight_sections(record: RunRecord) -> list[Section]:
     """The per-frame error in millimetres and the weights' statistics of every row, with what each column means
     and the face region of each data variant; nothing for records without them."""
-    from workbench.reporting.run_text import FRAME_COLUMNS, ROW_NAME_COLUMNS
+    from workbench.study.table import FRAME_COLUMNS, ROW_NAME_COLUMNS
 
     columns = [column for column in FRAME_COLUMNS if column in record.table.columns]
     if not columns:

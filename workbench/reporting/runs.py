@@ -15,10 +15,11 @@ import numpy as np
 import pandas as pd
 
 from workbench.core.errors import WorkbenchError
-from workbench.record.record import ALPHA_COLUMNS, CLEAN_COLUMNS, DONE, RunRecord, find_records, load_record
+from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.tables import is_missing
 from workbench.stats.identities import run_identities
 from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
+from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS
 
 ROW_KEYS = ("data", "train_on", "eval_on", "basis", "projection", "solver")
 """Columns that name one row of a run's alpha table."""

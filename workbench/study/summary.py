@@ -191,7 +191,7 @@ def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[
     results : sequence of StudyResult
         One per data variant.
     table : pandas.DataFrame
-        The run's alpha table (``workbench.reporting.run_text.alpha_table`` of every result, concatenated).
+        The run's alpha table (``workbench.study.table.alpha_table`` of every result, concatenated).
     comparisons : mapping, optional
         Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
 
