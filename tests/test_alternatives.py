@@ -212,3 +212,26 @@ def test_usage_hand_computed():
     )  # contributions 0.2, 3, 0.2: only the second above 0.3
     assert usage(weights, basis).tolist() == [2, 0, 1]
     assert usage(weights, basis, threshold=0.0).tolist() == [3, 0, 3]
+
+
+def test_every_basis_of_the_table_has_its_fit_its_settings_and_their_defaults():
+    """A basis is its fit and one entry of workbench.settings.bases: the settings' schema, the names
+    basis.alternatives takes and the report's colours follow the table; conf/basis/default.yaml states the same
+    option defaults as the entry's schema."""
+    from dataclasses import asdict, fields
+
+    import yaml
+
+    from workbench.numerics.alternatives import FITS
+    from workbench.reporting.figures.studies import BASIS_MARKERS, OTHER_BASIS_COLOURS
+    from workbench.settings.bases import ALTERNATIVE_BASES
+    from workbench.settings.config import CONF_DIR
+    from workbench.settings.schema import ALTERNATIVE_NAMES, BasisSchema
+
+    defaults = yaml.safe_load((CONF_DIR / "basis" / "default.yaml").read_text())
+    schema_fields = {spec.name: spec for spec in fields(BasisSchema)}
+    assert list(FITS) == list(ALTERNATIVE_BASES) == list(ALTERNATIVE_NAMES)
+    for label, basis in ALTERNATIVE_BASES.items():
+        assert schema_fields[basis.options_key].default_factory is basis.options
+        assert defaults[basis.options_key] == asdict(basis.options()), label
+        assert OTHER_BASIS_COLOURS[label] == basis.colour and BASIS_MARKERS[label] == basis.marker

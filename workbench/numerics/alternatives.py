@@ -538,3 +538,19 @@ def fitted_hand_basis(train, hand, *, n_iterations: int = 5) -> np.ndarray:
         weights = np.linalg.lstsq(shapes.T, train.T, rcond=None)[0].T
         shapes = np.linalg.lstsq(weights, train, rcond=None)[0]
     return shapes
+
+
+FITS = {
+    "SPCA": lambda face, n, seed, options: sparse_pca_basis(face.train, n_components=n, **options),
+    "ICA": lambda face, n, seed, options: ica_basis(face.train, n_components=n, seed=seed, **options),
+    "NMF": lambda face, n, seed, options: nmf_basis(face.train, n_components=n, seed=seed, **options),
+    "SPLOCS": lambda face, n, seed, options: splocs_basis(
+        face.train, SurfaceDistance(face.neutral, face.faces), n_components=n, **options
+    ),
+    "H-fit": lambda face, n, seed, options: fitted_hand_basis(face.train, face.hand, **options),
+}
+"""Label -> fit ``(face, n, seed, options) -> ndarray of shape (n, n_dims)`` of each basis of
+``workbench.settings.bases.ALTERNATIVE_BASES``: ``face`` has the training frames ``train`` (n_frames, n_dims),
+the ``neutral`` (n_dims,), its triangles ``faces`` (or None) and the ``hand`` shapes (n_shapes, n_dims); ``n`` is
+the number of shapes (those that are not sized ignore it), ``seed`` the seed of those that draw, and ``options``
+the keyword arguments of the basis's options."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from dataclasses import field
 from typing import Any, Callable, Mapping
 
 from workbench.core.errors import WorkbenchError
@@ -164,3 +165,10 @@ def coverage_on_setting(basis_cfg: Mapping) -> str:
             f"be null, got {basis_cfg['n_components']}"
         )
     return value
+
+
+def meta(default, check: dict) -> Any:
+    """A dataclass field with a default (or ``MISSING``) and its rule."""
+    if isinstance(default, (list, dict)):
+        return field(default_factory=lambda: type(default)(default), metadata=check)
+    return field(default=default, metadata=check)

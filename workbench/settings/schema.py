@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import re
 from dataclasses import MISSING as NO_DEFAULT
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError, check_utf8
+from workbench.settings.bases import ALTERNATIVE_BASES
 from workbench.settings.rules import (
     BOOLEAN,
     COVERAGE_ON,
@@ -36,6 +37,7 @@ from workbench.settings.rules import (
     coverage_on_setting,
     integer,
     interval,
+    meta,
     one_of,
     rule,
 )
@@ -93,7 +95,7 @@ HAND_SUBSET = rule(
     ),
     "all, upper, lower, random<k> or a list of distinct hand-shape names",
 )
-ALTERNATIVE_NAMES = ("SPCA", "ICA", "NMF", "SPLOCS", "H-fit")
+ALTERNATIVE_NAMES = tuple(ALTERNATIVE_BASES)
 SHAPE_NAMES = rule(
     lambda value: len(value) > 0 and len(set(value)) == len(value) and all(map(plain_name_rule, value)),
     "a non-empty list of distinct shape names (plain names: each names a file in an export)",
@@ -108,43 +110,9 @@ STORAGE = one_of("memory", "disk")
 DTYPE = one_of("float64", "float32")
 
 
-def meta(default, check: dict) -> Any:
-    """A dataclass field with a default (or ``MISSING``) and its rule."""
-    if isinstance(default, (list, dict)):
-        return field(default_factory=lambda: type(default)(default), metadata=check)
-    return field(default=default, metadata=check)
-
-
 # ---------------------------------------------------------------------------------------------------------------
 # The schemas
 # ---------------------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class SparsePCASchema:
-    alpha: float = meta(0.01, interval(0, low_open=True))
-    max_iter: int = meta(100, integer(1))
-
-
-@dataclass
-class IterativeFitSchema:
-    max_iter: int = meta(200, integer(1))
-    tol: float = meta(1.0e-4, interval(0))
-
-
-@dataclass
-class SplocsSchema:
-    sparsity_lambda: float = meta(2.0, interval(0))
-    d_min: float = meta(0.1, interval(0))
-    d_max: float = meta(0.7, interval(0, low_open=True))
-    n_iterations: int = meta(10, integer(1))
-    n_admm_iterations: int = meta(10, integer(1))
-    rho: float = meta(10.0, interval(0, low_open=True))
-
-
-@dataclass
-class HandFitSchema:
-    n_iterations: int = meta(5, integer(1))
 
 
 @dataclass
@@ -154,7 +122,7 @@ class IntuitivenessSchema:
 
 
 @dataclass
-class BasisSchema:
+class _BasisSettings:
     coverage: float = meta(MISSING, interval(0, 1, low_open=True))
     n_components: Optional[int] = meta(None, integer(1, optional=True))
     paper_regime: Any = meta(True, BOOLEAN)
@@ -168,12 +136,22 @@ class BasisSchema:
     alternatives: List[str] = meta([], names(*ALTERNATIVE_NAMES, allow_empty=True))
     alternatives_n: Optional[int] = meta(None, integer(1, optional=True))
     alternatives_seed: int = meta(0, SEED)
-    spca: SparsePCASchema = field(default_factory=SparsePCASchema)
-    ica: IterativeFitSchema = field(default_factory=IterativeFitSchema)
-    nmf: IterativeFitSchema = field(default_factory=IterativeFitSchema)
-    splocs: SplocsSchema = field(default_factory=SplocsSchema)
-    hand_fit: HandFitSchema = field(default_factory=HandFitSchema)
-    intuitiveness: IntuitivenessSchema = field(default_factory=IntuitivenessSchema)
+
+
+BasisSchema = make_dataclass(
+    "BasisSchema",
+    [
+        *(
+            (basis.options_key, basis.options, field(default_factory=basis.options))
+            for basis in ALTERNATIVE_BASES.values()
+        ),
+        ("intuitiveness", IntuitivenessSchema, field(default_factory=IntuitivenessSchema)),
+    ],
+    bases=(_BasisSettings,),
+)
+"""The ``basis`` group: :class:`_BasisSettings`, then the options of each alternative basis
+(:data:`workbench.settings.bases.ALTERNATIVE_BASES`, ``basis.<options_key>``), then ``intuitiveness``, in the order
+of ``conf/basis/default.yaml``."""
 
 
 @dataclass
@@ -646,6 +624,14 @@ def _alternatives(plain: Mapping) -> list:
     return [value] if isinstance(value, str) else list(value)
 
 
+def _unsized() -> list[str]:
+    return [label for label, basis in ALTERNATIVE_BASES.items() if not basis.sized]
+
+
+def _drawing() -> list[str]:
+    return [label for label, basis in ALTERNATIVE_BASES.items() if basis.draws]
+
+
 INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
     "dataset.eval_fraction": lambda c: (
         None
@@ -715,16 +701,21 @@ INEFFECTIVE: dict[str, Callable[[Mapping], Optional[str]]] = {
         else f"only basis.hand_subset=random<k> draws (this run: {c['basis'].get('hand_subset')})"
     ),
     "basis.alternatives_n": lambda c: (
-        None if set(_alternatives(c)) - {"H-fit"} else "no basis.alternatives other than H-fit are fitted"
+        None
+        if any(ALTERNATIVE_BASES[name].sized for name in _alternatives(c))
+        else f"no basis.alternatives other than {' and '.join(_unsized())} are fitted"
     ),
     "basis.alternatives_seed": lambda c: (
-        None if {"ICA", "NMF"} & set(_alternatives(c)) else "only basis.alternatives ICA and NMF draw"
+        None
+        if any(ALTERNATIVE_BASES[name].draws for name in _alternatives(c))
+        else f"only basis.alternatives {' and '.join(_drawing())} draw"
     ),
-    "basis.spca": lambda c: None if "SPCA" in _alternatives(c) else "SPCA is not in basis.alternatives",
-    "basis.ica": lambda c: None if "ICA" in _alternatives(c) else "ICA is not in basis.alternatives",
-    "basis.nmf": lambda c: None if "NMF" in _alternatives(c) else "NMF is not in basis.alternatives",
-    "basis.splocs": lambda c: None if "SPLOCS" in _alternatives(c) else "SPLOCS is not in basis.alternatives",
-    "basis.hand_fit": lambda c: None if "H-fit" in _alternatives(c) else "H-fit is not in basis.alternatives",
+    **{
+        f"basis.{basis.options_key}": (
+            lambda c, label=label: None if label in _alternatives(c) else f"{label} is not in basis.alternatives"
+        )
+        for label, basis in ALTERNATIVE_BASES.items()
+    },
     "basis.intuitiveness": lambda c: (
         None if _alternatives(c) else "intuitiveness is measured only with basis.alternatives"
     ),

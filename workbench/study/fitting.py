@@ -12,6 +12,7 @@ from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer
 from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.reduced import Subspace
+from workbench.settings.bases import ALTERNATIVE_BASES
 from workbench.study.results import Timings
 
 
@@ -66,41 +67,28 @@ def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) 
     return Subspace(orthonormal, transfer.apply_one(eigenfaces.mean_))
 
 
-ALTERNATIVE_OPTIONS = {"SPCA": "spca", "ICA": "ica", "NMF": "nmf", "SPLOCS": "splocs", "H-fit": "hand_fit"}
-"""Basis label -> the ``basis`` config key holding its options."""
-
-
 def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> dict:
-    """Fit the bases ``basis.alternatives`` names on the training frames (:mod:`workbench.numerics.alternatives`).
+    """Fit the bases ``basis.alternatives`` names on the training frames (their table:
+    :data:`workbench.settings.bases.ALTERNATIVE_BASES`; their fits: :data:`workbench.numerics.alternatives.FITS`).
 
     Returns
     -------
     dict
         Label (``SPCA``, ``ICA``, ``NMF``, ``SPLOCS``, ``H-fit``) -> ndarray of shape (n, n_dims), in the
-        configured order; ``n`` is ``basis.alternatives_n`` or the hand basis size (H-fit: always the latter).
+        configured order; ``n`` is ``basis.alternatives_n`` or the hand basis size (always the latter for a basis
+        that is not sized, H-fit).
     """
-    from workbench.numerics import alternatives as alt
+    from workbench.numerics.alternatives import FITS
 
     names = basis_cfg.get("alternatives") or []
     names = [names] if isinstance(names, str) else list(names)
-    if any(name not in ALTERNATIVE_OPTIONS for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_OPTIONS)}, got {names}")
+    if any(name not in ALTERNATIVE_BASES for name in names) or len(set(names)) != len(names):
+        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_BASES)}, got {names}")
     n = basis_cfg.get("alternatives_n") or capture.hand.shape[0]
     seed = int(basis_cfg.get("alternatives_seed") or 0)
     bases = {}
     for name in names:
-        key = ALTERNATIVE_OPTIONS[name]
-        options = dict(basis_cfg.get(key) or {})
+        key = ALTERNATIVE_BASES[name].options_key
         with timings.stage(f"fit_{key}"):
-            if name == "SPCA":
-                bases[name] = alt.sparse_pca_basis(capture.train, n_components=n, **options)
-            elif name == "ICA":
-                bases[name] = alt.ica_basis(capture.train, n_components=n, seed=seed, **options)
-            elif name == "NMF":
-                bases[name] = alt.nmf_basis(capture.train, n_components=n, seed=seed, **options)
-            elif name == "SPLOCS":
-                distance = alt.SurfaceDistance(capture.neutral, capture.faces)
-                bases[name] = alt.splocs_basis(capture.train, distance, n_components=n, **options)
-            else:
-                bases[name] = alt.fitted_hand_basis(capture.train, capture.hand, **options)
+            bases[name] = FITS[name](capture, n, seed, dict(basis_cfg.get(key) or {}))
     return bases

@@ -33,6 +33,7 @@ from matplotlib.figure import Figure
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.runs import interval_label
+from workbench.settings.bases import ALTERNATIVE_BASES
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 AXIS_LABELS = {
@@ -534,19 +535,17 @@ def plot_alpha_over_time(
     return figure
 
 
-# Colours and markers of the bases beyond the paper's (the paper's keep theirs from workbench.reporting.figures).
-OTHER_BASIS_COLOURS = {"SPCA": "#56B4E9", "ICA": "#882255", "NMF": "#8c564b", "SPLOCS": "#999933", "H-fit": "#4a4a4a"}
+# Colours and markers of the bases beyond the paper's come from their table (the paper's keep theirs from
+# workbench.reporting.figures).
+OTHER_BASIS_COLOURS = {label: basis.colour for label, basis in ALTERNATIVE_BASES.items()}
 BASIS_MARKERS = {
     "H": "s",
     "QE": "o",
     "QE-linear": "o",
     "PCA": "D",
-    "SPCA": "^",
-    "ICA": "v",
-    "NMF": "P",
-    "SPLOCS": "X",
-    "H-fit": "s",
+    **{label: basis.marker for label, basis in ALTERNATIVE_BASES.items()},
 }
+HOLLOW_MARKERS = {"QE-linear", *(label for label, basis in ALTERNATIVE_BASES.items() if basis.hollow)}
 INTUITIVENESS_AXES = (
     ("matched_abs_cosine", "closeness to the hand shapes:\nmean matched |cos| (higher: closer)"),
     (
@@ -608,7 +607,7 @@ def plot_alpha_against_intuitiveness(
                     markersize=8,
                     linestyle="none",
                     capsize=3,
-                    markerfacecolor="none" if basis in ("QE-linear", "H-fit") else colour,
+                    markerfacecolor="none" if basis in HOLLOW_MARKERS else colour,
                     label=basis,
                 )
                 labelled.append((ax, values[column], values[y], basis, colour))
