@@ -257,6 +257,23 @@ def test_the_public_names_are_listed_and_load_lazily():
     assert result.returncode == 0, result.stderr
 
 
+def test_the_readers_are_the_registered_formats_with_their_own_docstrings():
+    """Each reader of workbench.formats.registry is public under its name, as the function itself (its docstring
+    says what it returns, with shapes), and a dataset finds a reader by what the file holds and its suffix."""
+    from workbench.formats.registry import FORMATS, format_for
+
+    public = {entry.public_name for entry in FORMATS.values()}
+    assert public <= set(workbench.__all__)
+    assert {name for name in workbench.__all__ if name.startswith("read_") and name != "read_record"} == public
+    for entry in FORMATS.values():
+        assert getattr(workbench, entry.public_name) is entry.read
+        assert "Returns" in entry.read.__doc__, entry.name
+    assert format_for("take.C3D", "marker take", "dataset.takes").name == "c3d"
+    assert format_for("curves.csv", "weight curves", "dataset.weight_curves").name == "weight_curves"
+    with pytest.raises(WorkbenchError, match=r"dataset\.takes take\.trc: no reader of a marker take reads '\.trc'"):
+        format_for("take.trc", "marker take", "dataset.takes")
+
+
 # --- the same alpha as the command line's run ---------------------------------------------------------------------
 
 COLUMNS = {

@@ -21,10 +21,6 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
     from workbench.dataset.capture import Capture
-    from workbench.formats.c3d import MarkerTake
-    from workbench.formats.gltf import MorphMesh
-    from workbench.formats.livelink import LiveLinkTake
-    from workbench.formats.obj import Blendshapes, ObjMesh
     from workbench.record.record import RunRecord
     from workbench.study.results import StudyResult
 
@@ -34,150 +30,16 @@ if TYPE_CHECKING:
 # ---------------------------------------------------------------------------------------------------------------
 
 
-def read_c3d(path: str | os.PathLike) -> "MarkerTake":
-    """Labelled 3-D marker trajectories of a C3D file, in millimetres (:mod:`workbench.formats.c3d`).
+def __getattr__(name: str):
+    """The readers of :data:`workbench.formats.registry.FORMATS` under their public names (``read_c3d``, ...),
+    each the reader itself with its own docstring; the formats are imported when one is first asked for."""
+    from workbench.formats.registry import FORMATS
 
-    Parameters
-    ----------
-    path : path-like
-
-    Returns
-    -------
-    MarkerTake
-        ``labels`` (one per marker), ``positions`` of shape (n_frames, n_markers, 3) in mm with NaN at gaps,
-        ``frame_rate`` in Hz.
-
-    Raises
-    ------
-    WorkbenchError
-        A missing, truncated or unreadable file, a label count other than the marker count, duplicate labels,
-        unknown units.
-    """
-    from workbench.formats.c3d import read_c3d_markers
-
-    return read_c3d_markers(path)
-
-
-def read_livelink(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> "LiveLinkTake":
-    """The 52 ARKit weight curves of a Live Link Face CSV export (:mod:`workbench.formats.livelink`).
-
-    Parameters
-    ----------
-    path : path-like
-    timecode_rate : float, default 60.0
-        Frames per second the timecode's frame field counts (Live Link Face: 60, whatever the capture rate).
-
-    Returns
-    -------
-    LiveLinkTake
-        ``names`` (ARKit channels), ``weights`` of shape (n_frames, n_channels) in [0, 1], ``seconds`` of shape
-        (n_frames,), ``frame_rate``, ``rotations`` (head and eyes) or None.
-    """
-    from workbench.formats.livelink import read_livelink_csv
-
-    return read_livelink_csv(path, timecode_rate=timecode_rate)
-
-
-def read_weight_curves(
-    path: str | os.PathLike, *, frame_rate: float | None = None, timecode_rate: float = 60.0
-) -> "LiveLinkTake":
-    """Named weight curves of a CSV or JSON file: Live Link Face, MediaPipe face blendshapes, or a generic table
-    (:mod:`workbench.formats.weight_curves`).
-
-    Parameters
-    ----------
-    path : path-like
-    frame_rate : float, optional
-        Frames per second, for files that number frames instead of timing them.
-    timecode_rate : float, default 60.0
-        For Live Link Face CSV files (:func:`read_livelink`).
-
-    Returns
-    -------
-    LiveLinkTake
-    """
-    from workbench.formats.weight_curves import read_weight_curves as read
-
-    return read(path, frame_rate=frame_rate, timecode_rate=timecode_rate)
-
-
-def read_obj(path: str | os.PathLike) -> "ObjMesh":
-    """The geometry of one OBJ file: ``vertices`` of shape (n_vertices, 3) in the file's units and its polygons
-    (:mod:`workbench.formats.obj`)."""
-    from workbench.formats.obj import read_obj as read
-
-    return read(path)
-
-
-def read_blendshapes(
-    folder: str | os.PathLike,
-    *,
-    neutral: str,
-    names: Sequence[str] | None = None,
-    region_vertices: int | None = None,
-    unit_mm: float = 1.0,
-) -> "Blendshapes":
-    """A blendshape folder: a neutral OBJ and one OBJ per named expression (ICT FaceKit's ``FaceXModel`` layout), as
-    displacements in millimetres (:func:`workbench.formats.obj.load_blendshapes`).
-
-    Parameters
-    ----------
-    folder : path-like
-    neutral : str
-        File name of the neutral OBJ inside ``folder``.
-    names : sequence of str, optional
-        Expressions to read (every other ``*.obj`` when None).
-    region_vertices : int, optional
-        Keep vertices ``[0, region_vertices)`` only (ICT's face region: 9,409).
-    unit_mm : float, default 1.0
-        Millimetres per OBJ unit (ICT FaceKit: 10).
-
-    Returns
-    -------
-    Blendshapes
-        ``neutral`` of shape (n_vertices, 3), ``names``, ``deltas`` of shape (n_shapes, n_vertices, 3),
-        ``triangles``. ``deltas.reshape(len(deltas), -1)`` are hand shapes for :class:`QuasiEigenFaces`.
-    """
-    from workbench.formats.obj import load_blendshapes
-
-    return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices, unit_mm=unit_mm)
-
-
-def read_gltf(path: str | os.PathLike, *, mesh_name: str | None = None) -> "MorphMesh":
-    """A glTF 2.0 binary (``.glb``) mesh with named morph targets and any morph-weight animations, in millimetres
-    (:func:`workbench.formats.gltf.read_morph_mesh`).
-
-    Returns
-    -------
-    MorphMesh
-        ``neutral`` of shape (n_vertices, 3), ``triangles``, ``names``, ``deltas`` of shape
-        (n_targets, n_vertices, 3), ``animations``.
-    """
-    from workbench.formats.gltf import read_morph_mesh
-
-    return read_morph_mesh(path, mesh_name=mesh_name)
-
-
-def read_mesh_sequence(path: str | os.PathLike, *, vertices_key: str = "vertices", faces_key: str | None = "faces"):
-    """A registered mesh sequence (``.npz``, ``.npy`` or HDF5), read whole and checked
-    (:func:`workbench.dataset.mesh_sequence.open_mesh_sequence`).
-
-    Parameters
-    ----------
-    path : path-like
-    vertices_key, faces_key : str
-        The arrays' names in an ``.npz`` or their paths in an HDF5 file (``faces_key`` None: no triangles).
-
-    Returns
-    -------
-    vertices : ndarray of shape (n_frames, n_vertices, 3)
-        Positions in the file's units, float64.
-    faces : ndarray of shape (n_faces, 3) of int, or None
-    """
-    from workbench.dataset.mesh_sequence import open_mesh_sequence
-
-    with open_mesh_sequence(Path(path), vertices_key, faces_key) as sequence:
-        return sequence.frames(0, sequence.n_frames), sequence.faces
+    for entry in FORMATS.values():
+        if entry.public_name == name:
+            globals()[name] = entry.read  # later uses skip this function
+            return entry.read
+    raise AttributeError(f"module 'workbench.api' has no attribute {name!r}")
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -46,7 +46,7 @@ from workbench.dataset.real import (
 )
 from workbench.dataset.rigid import Similarity, Stabilised, stabilise
 from workbench.dataset.storage import FrameStorage
-from workbench.formats.c3d import MarkerTake, read_c3d_markers
+from workbench.formats.c3d import MarkerTake
 from workbench.formats.obj import Blendshapes, expression_names
 from workbench.formats.plausibility import (
     check_rigid_set,
@@ -60,6 +60,7 @@ from workbench.formats.plausibility import (
     take_units_problems,
     with_warnings,
 )
+from workbench.formats.registry import format_for
 from workbench.settings.rules import integer_setting, number_setting, seed_setting
 
 TRAIN_ON = ("markers", "mesh")
@@ -527,13 +528,18 @@ class _Placed:
     hand: np.ndarray
 
 
+def read_take(path) -> MarkerTake:
+    """One take, read by the marker-take format of its suffix (:data:`workbench.formats.registry.FORMATS`)."""
+    return format_for(path, "marker take", "dataset.takes").read(path)
+
+
 def _placed_takes(cfg: Mapping) -> _Placed:
     """Read and check the takes, stabilise them, place the basis face on the performer's markers and express the
     capture in the ICT head frame."""
     take_files = list(cfg.get("takes") or [])
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
-    takes = [read_c3d_markers(data_path(cfg, name, "takes")) for name in take_files]
+    takes = [read_take(data_path(cfg, name, "takes")) for name in take_files]
     check_distinct_takes(take_files, takes)
     warnings = settle(take_problems(takes), plausibility_policy(cfg))
     if len({take.frame_rate for take in takes}) != 1:

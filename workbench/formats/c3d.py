@@ -137,7 +137,7 @@ def check_frame_range(reader, path: Path) -> None:
 
 
 def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
-    """Read the labelled 3-D marker trajectories of a C3D file.
+    """Read the labelled 3-D marker trajectories of a C3D file, in millimetres.
 
     Parameters
     ----------
@@ -146,6 +146,8 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     Returns
     -------
     MarkerTake
+        ``labels`` (one per marker), ``positions`` of shape (n_frames, n_markers, 3) in mm with NaN at gaps,
+        ``frame_rate`` in Hz.
 
     Raises
     ------

@@ -383,7 +383,8 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
     Returns
     -------
     MorphMesh
-        In millimetres. The primitives of the mesh are concatenated in order (vertices and triangles), each
+        In millimetres: ``neutral`` of shape (n_vertices, 3), ``triangles``, ``names``, ``deltas`` of shape
+        (n_targets, n_vertices, 3), ``animations``. The primitives of the mesh are concatenated in order (vertices and triangles), each
         needing the same morph targets.
 
     Raises

@@ -144,17 +144,19 @@ def parse_timecodes(timecodes: Sequence[str], timecode_rate: float, path: Path) 
 
 
 def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -> LiveLinkTake:
-    """Read the ARKit weight curves of a Live Link Face CSV export.
+    """Read the 52 ARKit weight curves of a Live Link Face CSV export.
 
     Parameters
     ----------
     path : path-like
-    timecode_rate : float
+    timecode_rate : float, default 60.0
         Frames per second the timecode's frame field counts (Live Link Face: 60, whatever the capture rate).
 
     Returns
     -------
     LiveLinkTake
+        ``names`` (ARKit channels), ``weights`` of shape (n_frames, n_channels) in [0, 1], ``seconds`` of shape
+        (n_frames,), ``frame_rate``, ``rotations`` (head and eyes) or None.
 
     Raises
     ------

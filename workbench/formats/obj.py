@@ -167,7 +167,8 @@ def read_obj(path: str | os.PathLike) -> ObjMesh:
     Returns
     -------
     ObjMesh
-        Arrays are read-only (results are cached per file version).
+        ``vertices`` of shape (n_vertices, 3) in the file's units and its polygons; arrays are read-only (results
+        are cached per file version).
 
     Raises
     ------
@@ -386,3 +387,35 @@ def check_same_topology(target: ObjMesh, neutral: ObjMesh) -> None:
             f"neutral {neutral.path.name} ({neutral.polygon_sizes.size}); every expression must "
             "have the neutral's topology"
         )
+
+
+def read_blendshapes(
+    folder: str | os.PathLike,
+    *,
+    neutral: str,
+    names: Sequence[str] | None = None,
+    region_vertices: int | None = None,
+    unit_mm: float = 1.0,
+) -> Blendshapes:
+    """A blendshape folder: a neutral OBJ and one OBJ per named expression (ICT FaceKit's ``FaceXModel`` layout), as
+    displacements in millimetres (:func:`load_blendshapes`).
+
+    Parameters
+    ----------
+    folder : path-like
+    neutral : str
+        File name of the neutral OBJ inside ``folder``.
+    names : sequence of str, optional
+        Expressions to read (every other ``*.obj`` when None).
+    region_vertices : int, optional
+        Keep vertices ``[0, region_vertices)`` only (ICT's face region: 9,409).
+    unit_mm : float, default 1.0
+        Millimetres per OBJ unit (ICT FaceKit: 10).
+
+    Returns
+    -------
+    Blendshapes
+        ``neutral`` of shape (n_vertices, 3), ``names``, ``deltas`` of shape (n_shapes, n_vertices, 3),
+        ``triangles``. ``deltas.reshape(len(deltas), -1)`` are hand shapes for ``QuasiEigenFaces``.
+    """
+    return load_blendshapes(folder, neutral_file=neutral, names=names, region_vertices=region_vertices, unit_mm=unit_mm)

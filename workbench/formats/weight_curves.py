@@ -44,7 +44,8 @@ TIME_COLUMNS = {"time": 1.0, "timestamp_ms": 1e-3}
 def read_weight_curves(
     path: str | os.PathLike, *, frame_rate: float | None = None, timecode_rate: float = 60.0
 ) -> LiveLinkTake:
-    """Read named weight curves from a CSV or JSON file in any layout of this module.
+    """Read named weight curves from a CSV or JSON file in any layout of this module: Live Link Face, MediaPipe face
+    blendshapes, or a generic table.
 
     Parameters
     ----------
