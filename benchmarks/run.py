@@ -221,8 +221,8 @@ def bench_markers(args) -> None:
 
 
 def bench_mesh(args) -> None:
+    from workbench.api import run_study
     from workbench.settings.config import compose, resolved_without_hydra
-    from workbench.study.run import run_study
 
     overrides = [
         f"dataset.n_frames={args.mesh_frames}",
@@ -396,8 +396,8 @@ def bench_sweep(args) -> None:
     """A sweep of the paper study on markers at paper scale, as Hydra's default launcher runs it: one process,
     the dataset built once (the cache) and every run's study (PCA, both QE projections, the chosen solvers,
     both alpha normalisations) after it, without Hydra's per-job overhead and record writing."""
+    from workbench.api import run_study
     from workbench.settings.config import compose, resolved_without_hydra
-    from workbench.study.run import run_study
 
     coverages = np.linspace(0.95, 0.999, args.sweep_runs)
     print(
@@ -465,8 +465,8 @@ def cache_step(overrides: list, cache_dir: str | None, study: bool) -> tuple[flo
     """One step of the cache scenario, run in a new process (:func:`in_new_process`): build the dataset of the
     paper study with ``overrides`` (or run the whole study) with ``paths.cache_dir`` as given; its seconds, imports
     excluded, and a digest of its arrays (or its alpha tables, every digit) to compare routes."""
+    from workbench.api import run_study
     from workbench.settings.config import compose, resolved_without_hydra
-    from workbench.study.run import run_study
     from workbench.study.table import alpha_table
 
     cfg = resolved_without_hydra(compose("paper", [*overrides, f"paths.cache_dir={cache_dir or 'null'}"]))

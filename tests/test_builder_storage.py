@@ -151,6 +151,7 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
         "kind": "mesh_sequence",
         "data_root": str(tmp_path),
         "sequence": "seq.npy",
+        "unit_mm": 1.0,  # the file is in mm (the schema's default is metres)
         "frame_rate": 60,
         "blendshapes": {"path": "basis", "neutral": "neutral.obj"},
         "storage": "disk",

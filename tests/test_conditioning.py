@@ -4,10 +4,10 @@ the alpha table when the hand basis is affected."""
 import numpy as np
 import pytest
 
+from workbench.api import run_study
 from workbench.numerics.metrics import basis_conditioning
 from workbench.reporting.run_text import conditioning_lines, study_header
 from workbench.settings.config import compose, resolved_without_hydra
-from workbench.study.run import run_study
 
 
 def test_conditioning_known_values():
@@ -53,7 +53,9 @@ def test_hand_basis_with_a_duplicate_shape_gets_a_warning_above_the_table():
         hand_names=capture.hand_names + (capture.hand_names[0] + "_copy",),
     )
     solvers = {"lstsq": {"kind": "lstsq", "lower": None, "upper": None}}
-    result = run_on_capture("markers", duplicated, cfg["basis"], solvers, Timings())
+    from workbench.settings.typed import study_settings
+
+    result = run_on_capture("markers", duplicated, study_settings(cfg).basis, solvers, Timings())
     header = study_header([result], cfg)
     assert "WARNING: basis H is ill-conditioned: near-duplicate shapes 0~18 (cos 1.0000)" in header
     assert "H condition number" in header and "largest |w|" in header

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Timeline
 from workbench.settings.config import compose
 from workbench.study.crossval import fold_indices
-from workbench.study.run import run_study
 
 
 def two_takes() -> Timeline:

@@ -138,6 +138,7 @@ def test_key_follows_the_source_files_a_config_names(tmp_path):
 
 def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
     from workbench.settings.config import compose, resolved_without_hydra
+    from workbench.settings.typed import study_settings
     from workbench.study import run as pipeline
 
     cfg = resolved_without_hydra(
@@ -152,14 +153,14 @@ def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
             ],
         )
     )
-    first = pipeline.run_study(cfg)
+    first = pipeline.run_study(study_settings(cfg))
     clear_memory()
 
     def no_build(_cfg):
         raise AssertionError("the dataset was rebuilt although it is in the disk cache")
 
     monkeypatch.setitem(pipeline.build_captures.__globals__["BUILDERS"], "synthetic", no_build)
-    second = pipeline.run_study(cfg)
+    second = pipeline.run_study(study_settings(cfg))
     assert [row.alpha.absolute_mean for row in first[0].rows] == [row.alpha.absolute_mean for row in second[0].rows]
 
 
@@ -378,6 +379,7 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
 
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     from workbench.settings.config import resolved_without_hydra
+    from workbench.settings.typed import study_settings
     from workbench.study import run as pipeline
     from workbench.study.table import alpha_table
 
@@ -398,7 +400,7 @@ def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
                 coverage=result.eigenfaces.coverage_,
                 paper_alpha={},
             ).to_csv(float_format="%.17g")
-            for result in pipeline.run_study(cfg)
+            for result in pipeline.run_study(study_settings(cfg))
         ]
 
     built = tables(None)

@@ -176,7 +176,9 @@ def test_the_real_datasets_give_the_face_mesh_their_markers_are_carried_onto(sha
         )
     )
     markers = build_captures(cfg["dataset"])["markers"]
-    mesh = rest_mesh(cfg["dataset"], markers.provenance)
+    from workbench.settings.typed import dataset_settings
+
+    mesh = rest_mesh(dataset_settings(cfg["dataset"]), markers.provenance)
     distance, vertex = cKDTree(mesh.vertices).query(markers.neutral.reshape(-1, 3))
     # ICT's virtual markers are vertices of its face; AnimFace's performer's markers lie near the placed face
     assert distance.max() < (1e-9 if name == "ict_livelink" else 10.0)

@@ -76,8 +76,8 @@ def test_measured_rows_are_documented_commands():
 def compiled_solvers():
     """A small run in this process first: numba compiles the solvers and the synthetic actor into its cache beside
     the sources, which every scratch copy takes along (tests/doc_blocks.py)."""
+    from workbench.api import run_study
     from workbench.settings.config import compose
-    from workbench.study import run_study
 
     run_study(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=all"]))
 

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear, nnls
 
+from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.gaps import apply_gap_policy
 from workbench.numerics.metrics import summarise_alpha
 from workbench.numerics.solve import solve_weights
 from workbench.settings.config import compose, resolved_without_hydra
-from workbench.study.run import run_study
 
 
 def random_masked_problem(seed, n_shapes=5, n_points=12, n_frames=150, missing=0.25):

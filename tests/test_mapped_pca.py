@@ -4,11 +4,11 @@ small space and lifted: it must equal the PCA of the materialised frames."""
 import numpy as np
 import pytest
 
+from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.numerics.bases import Eigenfaces
 from workbench.settings.config import compose, resolved_without_hydra
-from workbench.study.run import run_study
 
 
 @pytest.mark.parametrize("n_frames,k,n_dims", [(500, 30, 900), (40, 60, 300)])

@@ -123,9 +123,9 @@ def test_randomised_pca_of_stored_frames_equals_the_in_memory_one(tmp_path):
 
 
 def study_alphas(tmp_path, *overrides):
+    from workbench.api import run_study
     from workbench.dataset.cache import clear_memory
     from workbench.settings.config import compose, resolved_without_hydra
-    from workbench.study.run import run_study
 
     clear_memory()
     cfg = resolved_without_hydra(

@@ -4,11 +4,11 @@ printed header and the summary."""
 import pandas as pd
 import pytest
 
+from workbench.api import run_study
 from workbench.reporting.findings import beside_regime_text
 from workbench.reporting.run_text import study_header
 from workbench.settings.config import compose
 from workbench.study.regime import paper_regime_fit
-from workbench.study.run import run_study
 
 SMALL = ["dataset.n_frames=600"]  # the synthetic actor's coverage rule keeps m < 18 here
 
@@ -55,12 +55,16 @@ def test_no_extra_fit_when_m_is_fixed():
 
 def test_no_extra_fit_when_the_coverage_rule_already_gives_m_equal_n(regime_run):
     cfg, results = regime_run
-    capture, basis = results[1].capture, dict(cfg["basis"])
+    from dataclasses import replace
+
+    from workbench.settings.typed import study_settings
+
+    capture, basis = results[1].capture, study_settings(cfg).basis
     same, fitted, note = paper_regime_fit(capture, basis, len(capture.hand_names))
     assert fitted is None and same is capture and "already keeps m = n = 18" in note
-    assert paper_regime_fit(capture, dict(basis, paper_regime=False), 9) == (capture, None, None)
+    assert paper_regime_fit(capture, replace(basis, paper_regime=False), 9) == (capture, None, None)
     _, fitted, _ = paper_regime_fit(capture, basis, 9)
-    assert fitted["n_components"] == 18 and fitted["alternatives"] == []
+    assert fitted.n_components == 18 and fitted.alternatives == []
 
 
 def test_the_summary_states_the_coverage_rule_beside_the_m_equal_n_run():

@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture, Timeline
 from workbench.numerics.metrics import needs_negative_share, weight_statistics
 from workbench.settings.config import compose
 from workbench.study.protocols import held_out_capture
-from workbench.study.run import run_study
 from workbench.study.scoring import face_region
 
 SMALL = [
@@ -151,7 +151,7 @@ def test_held_out_frames_of_several_takes():
 @pytest.mark.parametrize(
     "overrides, message",
     [
-        (["dataset.held_out=sideways"], "dataset.held_out must be null, one of"),
+        (["dataset.held_out=sideways"], "dataset.held_out must be one of"),
         (["dataset.held_out=tail", "dataset.split=tail"], "the run is already held out"),
         (["dataset.held_out=take"], "holds out the last take, and this capture has one take"),
         (["dataset.held_out=tail", "dataset.train_on=markers", "dataset.eval_on=markers"], "dataset.eval_on"),

@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 from in_process import run_workbench
 
+from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.decimate import decimate
@@ -16,7 +17,6 @@ from workbench.dataset.synthetic import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, ma
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.config import STUDIES_DIR, compose, resolved_without_hydra
 from workbench.study.protocols import hand_subset_indices
-from workbench.study.run import run_study
 
 STUDIES = ("coverage", "basis_count", "marker_mesh", "noise", "choices", "generalisation")
 
@@ -254,6 +254,7 @@ def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
 
 
 def test_clean_frames_are_matched_by_take_and_frame_number():
+    from workbench.settings.typed import dataset_settings
     from workbench.study.protocols import clean_dataset_config, clean_frames
 
     # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
@@ -266,7 +267,7 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
         ]
     )
     dropped = build_captures(cfg["dataset"])["markers"]
-    clean = build_captures(clean_dataset_config(cfg["dataset"]))["markers"]
+    clean = build_captures(clean_dataset_config(dataset_settings(cfg["dataset"])))["markers"]
     assert len(dropped.eval) < len(clean.eval) == 600
     truth = clean_frames(dropped, clean)
     np.testing.assert_allclose(truth, dropped.eval, rtol=0, atol=1e-9)
@@ -276,7 +277,8 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
     )
     with pytest.raises(WorkbenchError, match="not among the clean capture's evaluated frames"):
         clean_frames(
-            build_captures(tail["dataset"])["markers"], build_captures(clean_dataset_config(tail["dataset"]))["markers"]
+            build_captures(tail["dataset"])["markers"],
+            build_captures(clean_dataset_config(dataset_settings(tail["dataset"])))["markers"],
         )
 
 
@@ -288,9 +290,10 @@ def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rul
     ):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
     with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
+        from workbench.settings.typed import dataset_settings
         from workbench.study.protocols import clean_dataset_config
 
-        clean_dataset_config({"kind": "animface"})
+        clean_dataset_config(dataset_settings({"kind": "animface"}))
 
 
 def test_eval_on_needs_train_on():

@@ -211,8 +211,10 @@ def test_displacements_arguments_are_checked(mesh):
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
     from workbench.dataset.synthetic_builder import _mesh_frames, _take_key
+    from workbench.settings.typed import dataset_settings
 
     cfg = {
+        "kind": "synthetic",
         "n_frames": 61,
         "frame_rate": 120.0,
         "n_face_markers": 66,
@@ -223,7 +225,7 @@ def test_dense_mesh_frames_are_the_same_in_memory_and_on_disk(tmp_path, dtype):
         "mesh_rows": 30,
         "mesh_cols": 25,
     }
-    key = _take_key(cfg, 3)
+    key = _take_key(dataset_settings(cfg), 3)
     take = make_synthetic_take(**dict(key))
     expected = (take.mesh_sequence() - take.mesh.vertices).reshape(61, -1).astype(dtype)
     in_memory = _mesh_frames(key, 1.0, FrameStorage(dtype=dtype))

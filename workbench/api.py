@@ -110,8 +110,10 @@ def build_captures(config, *, cache_dir: str | None = None) -> dict[str, "Captur
         paths = config.get("paths") or {}
         cache_dir = paths.get("cache_dir") if cache_dir is None else cache_dir
         config = config["dataset"]
+    from workbench.settings.typed import dataset_settings
+
     plain = OmegaConf.to_container(config, resolve=True) if OmegaConf.is_config(config) else dict(config)
-    return build(plain, cache_dir=cache_dir)
+    return build(dataset_settings(plain, check=True), cache_dir=cache_dir)
 
 
 def run_study(config) -> list["StudyResult"]:
@@ -129,12 +131,10 @@ def run_study(config) -> list["StudyResult"]:
         One per data variant: its ``capture``, ``eigenfaces``, ``quasi_eigen`` bases, ``rows`` (the alpha table's
         rows: basis, solver and every alpha variant in ``row.alpha``) and ``weights``.
     """
-    from workbench.settings.schema import check_study_config, resolved_settings
+    from workbench.settings.typed import study_settings
     from workbench.study.run import run_study as run
 
-    config = _study_config(config)
-    check_study_config(config)
-    return run(resolved_settings(config))
+    return run(study_settings(_study_config(config)))
 
 
 def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[str] = ()) -> "RunRecord":
@@ -213,7 +213,6 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         frame_comparisons,
         results_metrics,
         saved_inputs,
-        saves_inputs,
     )
     from workbench.study.table import alpha_table
 
@@ -224,13 +223,12 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
             f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
             "overwritten: write the run elsewhere"
         )
-    from workbench.settings.schema import check_study_config
+    from workbench.settings.typed import study_settings
 
-    check_study_config(cfg)
+    settings = study_settings(cfg)  # checked once, before the run
     plain = resolved_without_hydra(cfg)
-    save_inputs = saves_inputs(plain)  # checked before the run, not after
     resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
-    results = run_study(plain)
+    results = run_study(settings)
     paper_alpha = plain["paper"]["alpha"]
     table = pd.concat(
         [
@@ -271,8 +269,8 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         text=text,
         metrics=metrics,
         timings=dict(results[0].timings.seconds, total=time.time() - started),
-        inputs=saved_inputs(results) if save_inputs else None,
-        alpha_per_frame=alpha_per_frame_arrays(results) if save_inputs else None,
+        inputs=saved_inputs(results) if settings.save_inputs else None,
+        alpha_per_frame=alpha_per_frame_arrays(results) if settings.save_inputs else None,
     )
     return text
 

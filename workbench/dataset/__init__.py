@@ -21,6 +21,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import TRAIN_ON, build_synthetic
+from workbench.settings.typed import dataset_settings, without_settings
 
 BUILDERS = {
     "synthetic": build_synthetic,
@@ -28,8 +29,8 @@ BUILDERS = {
     "animface": build_animface,
     "mesh_sequence": build_mesh_sequence,
 }
-"""``dataset.kind`` -> builder taking the ``dataset`` config group and the :class:`FrameStorage` its dense frames are
-written into, returning ``{train_on name: Capture}``."""
+"""``dataset.kind`` -> builder taking the typed ``dataset`` settings and the :class:`FrameStorage` its dense frames
+are written into, returning ``{train_on name: Capture}``."""
 VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
 """``dataset.kind`` -> the data variants it builds (the names ``dataset.train_on`` and ``dataset.eval_on`` take)."""
 
@@ -37,11 +38,11 @@ VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animf
 def variant_names(cfg: Mapping, key: str) -> list[str] | None:
     """``dataset.<key>`` (``train_on`` or ``eval_on``) as a list of distinct data variants of the dataset's kind,
     or None when not set; the message names ``key``."""
-    value = cfg.get(key)
+    value = getattr(cfg, key, None)
     if value is None:
         return None
     names = [value] if isinstance(value, str) else list(value)
-    allowed = VARIANTS.get(cfg.get("kind"), ())
+    allowed = VARIANTS.get(cfg.kind, ())
     if not names or len(set(names)) != len(names) or (allowed and any(name not in allowed for name in names)):
         raise WorkbenchError(f"dataset.{key} must be one of {tuple(allowed)} or a list of distinct ones, got {value!r}")
     return names
@@ -55,8 +56,9 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
 
     Parameters
     ----------
-    cfg : mapping
-        The ``dataset`` config group; ``kind`` selects the builder.
+    cfg : typed dataset settings or mapping
+        The ``dataset`` group (:func:`workbench.settings.typed.dataset_settings`, which checks a mapping); ``kind``
+        selects the builder.
     cache_dir : str, optional
         Folder of the disk cache (``paths.cache_dir``); memory only when None. Frames stored on disk
         (``dataset.storage: disk``) are kept in its ``frames`` folder.
@@ -67,26 +69,24 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
         ``train_on`` name -> :class:`Capture`, in the configured order; with ``dataset.hand_basis`` set, their
         hand shapes read from that file (:mod:`workbench.dataset.hand_basis`).
     """
-    kind = cfg.get("kind")
-    if kind not in BUILDERS:
-        raise WorkbenchError(f"dataset.kind must be one of {sorted(BUILDERS)}, got {kind!r}")
-    storage = frame_storage(cfg, cache_dir)
+    dataset = dataset_settings(cfg)
+    storage = frame_storage(dataset, cache_dir)
+    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
+    keyed = without_settings(dataset, ("hand_basis",))
 
-    def build(cfg):
-        captures = BUILDERS[kind](cfg, storage)
-        files = data_file_checksums(cfg)  # what the run read, for its provenance
+    def build(plain: Mapping):
+        captures = BUILDERS[keyed.kind](keyed, storage)
+        files = data_file_checksums(plain)  # what the run read, for its provenance
         return {
             name: stored_frames(
                 replace(capture, provenance={**capture.provenance, "data_files": files}) if files else capture,
                 storage,
-                (dataset_key(cfg), name),
+                (dataset_key(plain), name),
             )
             for name, capture in captures.items()
         }
 
-    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
-    built = cached_captures({key: value for key, value in cfg.items() if key != "hand_basis"}, build, cache_dir)
-    return apply_hand_basis(built, cfg)
+    return apply_hand_basis(cached_captures(keyed.plain, build, cache_dir), dataset)
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

@@ -13,7 +13,7 @@ onto the mesh"; the rigid markers anchor the forehead and nose bridge there). Th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -55,13 +55,13 @@ from workbench.formats.plausibility import (
     frame_rate_problems,
     outlier_problems,
     parked_marker_problems,
-    plausibility_policy,
     settle,
     take_units_problems,
     with_warnings,
 )
 from workbench.formats.registry import format_for
 from workbench.settings.rules import integer_setting, number_setting, seed_setting
+from workbench.settings.typed import dataset_settings
 
 TRAIN_ON = ("markers", "mesh")
 DIFFERENT_FACES = (
@@ -317,17 +317,17 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     (:func:`workbench.dataset.gaps.apply_gap_policy`; the default ``drop`` keeps the frames that saw every marker
     of the table), per take.
     """
-    rigid_labels = list(cfg.get("rigid_markers") or [])
-    neutral_take = integer_setting(cfg.get("neutral_take", 0), "dataset.neutral_take", minimum=0)
+    rigid_labels = list(cfg.rigid_markers or [])
+    neutral_take = integer_setting(cfg.neutral_take, "dataset.neutral_take", minimum=0)
     if not 0 <= neutral_take < len(takes):
         raise WorkbenchError(f"dataset.neutral_take {neutral_take} is not one of the {len(takes)} takes")
     first = takes[neutral_take]
     rigid_index = first.index_of(rigid_labels, named_in="dataset.rigid_markers")
     table_index = first.index_of(table.labels, named_in=str(table.path))
-    if cfg.get("neutral_frame") is None:
+    if cfg.neutral_frame is None:
         neutral_frame = rest_frame(first, rigid_index, table_index, table.labels)
     else:
-        neutral_frame = integer_setting(cfg.get("neutral_frame"), "dataset.neutral_frame", minimum=0)
+        neutral_frame = integer_setting(cfg.neutral_frame, "dataset.neutral_frame", minimum=0)
     if not 0 <= neutral_frame < first.n_frames:
         raise WorkbenchError(
             f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
@@ -347,13 +347,13 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         stabilise(first.positions, rigid_index, reference).markers[:, table_index], table.labels, neutral_frame
     )
 
-    policy = cfg.get("gap_policy", "drop")
-    rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
-    gap_seed = seed_setting(cfg.get("gap_seed", 0), "dataset.gap_seed")
+    policy = cfg.gap_policy
+    rate = number_setting(cfg.gap_rate, "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
+    gap_seed = seed_setting(cfg.gap_seed, "dataset.gap_seed")
     pieces, visible, notes, record, timelines, problems, residuals, trajectories = [], [], [], {}, [], [], [], []
     for number, take in enumerate(takes):
         selected = frame_selection(
-            take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames_per_take"), "dataset.max_frames_per_take"
+            take.n_frames, cfg.frame_step, cfg.max_frames_per_take, "dataset.max_frames_per_take"
         )
         dense = stabilised_span(take, selected, rigid_labels, table, reference)
         residuals.append(dense.residual_rms)
@@ -362,9 +362,9 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         problems += outlier_problems(markers, table.labels, str(take.path), frames=selected)
         if rate > 0:
             rng = np.random.default_rng(np.random.SeedSequence(gap_seed, spawn_key=(number,)))
-            mask = make_gap_mask(len(markers), markers.shape[1], rate, float(cfg.get("gap_mean_frames", 12)), rng)
+            mask = make_gap_mask(len(markers), markers.shape[1], rate, float(cfg.gap_mean_frames), rng)
             markers = np.where(mask[:, :, None], np.nan, markers)
-        outcome = apply_gap_policy(markers, policy, cfg.get("gap_max_fill_frames"))
+        outcome = apply_gap_policy(markers, policy, cfg.gap_max_fill_frames)
         pieces.append(outcome.positions)
         timelines.append(Timeline.uniform(take.path.stem, selected[outcome.kept], take.frame_rate))
         visible.append(outcome.visible)
@@ -396,7 +396,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         record=record,
         timeline=Timeline.concatenate(timelines),
         visible=np.concatenate(visible) if policy == "masked" else None,
-        warnings=settle(problems, plausibility_policy(cfg)),
+        warnings=settle(problems, cfg.plausibility),
         neutral_rest=rest,
         face=face,
         noise_floor=noise_floor(residuals, trajectories),
@@ -486,12 +486,12 @@ def within_marker_reach(vertices: np.ndarray, marker_vertices: np.ndarray, point
     return tree.query(vertices[points])[0] <= spacing
 
 
-def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
+def build_animface(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """Real optical takes with ICT hand shapes, on the markers and/or interpolated onto the ICT face.
 
     Parameters
     ----------
-    cfg : mapping
+    cfg : typed dataset settings or mapping
         The ``dataset`` config group (see ``conf/dataset/animface.yaml``).
     storage : FrameStorage
         Where the interpolated mesh frames are written, a chunk of frames at a time (``dataset.storage``,
@@ -502,6 +502,7 @@ def build_animface(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
+    cfg = dataset_settings(cfg)
     names = train_on_list(cfg, TRAIN_ON)
     placed = _placed_takes(cfg)
     shared = _shared_facts(cfg, placed)
@@ -536,25 +537,25 @@ def read_take(path) -> MarkerTake:
 def _placed_takes(cfg: Mapping) -> _Placed:
     """Read and check the takes, stabilise them, place the basis face on the performer's markers and express the
     capture in the ICT head frame."""
-    take_files = list(cfg.get("takes") or [])
+    take_files = list(cfg.takes or [])
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
     takes = [read_take(data_path(cfg, name, "takes")) for name in take_files]
     check_distinct_takes(take_files, takes)
-    warnings = settle(take_problems(takes), plausibility_policy(cfg))
+    warnings = settle(take_problems(takes), cfg.plausibility)
     if len({take.frame_rate for take in takes}) != 1:
         raise WorkbenchError(
             f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
             "concatenating them needs one"
         )
-    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
-    hand_names = hand_shape_names(cfg, expression_names(folder, cfg["blendshapes"]["neutral"]))
+    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    hand_names = hand_shape_names(cfg, expression_names(folder, cfg.blendshapes.neutral))
     basis = load_basis(cfg, hand_names)
     warnings += settle(
         face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
-        plausibility_policy(cfg),
+        cfg.plausibility,
     )
-    table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
+    table = read_marker_table(conf_path(cfg.marker_table, "marker_table"), n_vertices=len(basis.neutral))
     stable = stabilised_takes(takes, table, cfg)
     warnings += stable.warnings
 
@@ -562,14 +563,14 @@ def _placed_takes(cfg: Mapping) -> _Placed:
         table,
         stable.neutral,
         basis.neutral,
-        refine_iterations=integer_setting(cfg.get("refine_iterations", 0), "dataset.refine_iterations", minimum=0),
+        refine_iterations=integer_setting(cfg.refine_iterations, "dataset.refine_iterations", minimum=0),
     )
     similarity, scale = placement.mesh_to_capture, placement.mesh_to_capture.scale
     if not FACE_SCALE_RANGE[0] <= scale <= FACE_SCALE_RANGE[1]:
         raise WorkbenchError(
             f"unit mismatch: the basis face must be scaled by {scale:.4g} to fit the performer's markers "
             f"({table.path.name}), and two faces differ by less than {FACE_SCALE_RANGE[1]:g}x; check "
-            f"dataset.blendshapes.unit_mm ({cfg['blendshapes']['unit_mm']} mm per OBJ unit) against the takes' "
+            f"dataset.blendshapes.unit_mm ({cfg.blendshapes.unit_mm} mm per OBJ unit) against the takes' "
             f"POINT:UNITS ({', '.join(sorted({take.units for take in takes}))})"
         )
     # Express the capture in the ICT head frame (axes and origin) while keeping the performer's size: the rigid
@@ -598,10 +599,11 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
     """What every data variant of the capture says about itself: notes, provenance, frame rate, RBF settings."""
     takes, stable, placement, similarity = placed.takes, placed.stable, placed.placement, placed.similarity
     scale, table, take_files = placed.scale, placed.table, placed.take_files
-    rbf = {**RBF_DEFAULTS, **(cfg.get("rbf") or {})}
-    rigid_labels = list(cfg.get("rigid_markers") or [])
-    neutral_name = f"{takes[int(cfg.get('neutral_take', 0))].path.stem} frame {stable.neutral_rest.frame}"
-    frame_step = integer_setting(cfg.get("frame_step", 1), "dataset.frame_step", minimum=1)
+    given = asdict(cfg.rbf) if cfg.rbf is not None else {}
+    rbf = {**RBF_DEFAULTS, **{key: value for key, value in given.items() if value is not None}}
+    rigid_labels = list(cfg.rigid_markers or [])
+    neutral_name = f"{takes[int(cfg.neutral_take)].path.stem} frame {stable.neutral_rest.frame}"
+    frame_step = integer_setting(cfg.frame_step, "dataset.frame_step", minimum=1)
     frame_rate = takes[0].frame_rate / frame_step
     notes_common = [
         DIFFERENT_FACES + f" (scaled by {scale:.3f} into the performer's frame)",
@@ -609,14 +611,14 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
         "second), concatenated in time: " + "; ".join(stable.notes),
         f"head motion removed per frame (Kabsch) on rigid markers {', '.join(rigid_labels)}, to their positions in "
         f"{neutral_name} (the neutral); residual = their RMS distance from it",
-        stable.neutral_rest.describe(takes[int(cfg.get("neutral_take", 0))].path.stem),
+        stable.neutral_rest.describe(takes[int(cfg.neutral_take)].path.stem),
         stable.noise_floor.describe() + " (residual: RMS of the rigid markers after alignment; jitter: RMS of the "
         "face markers' second difference over frames / sqrt(6), an upper bound)",
         placement.describe(),
     ]
     provenance = {
         "kind": "animface",
-        "data_root": str(cfg["data_root"]),
+        "data_root": str(cfg.data_root),
         "takes": take_files,
         "per_take": stable.record,
         "frame_rate_in_file": takes[0].frame_rate,
@@ -630,7 +632,7 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
             "take_frame_nearest_rest": stable.neutral_rest.nearest_frame,
         },
         "rigid_markers": rigid_labels,
-        "blendshapes": cfg["blendshapes"]["folder"],
+        "blendshapes": cfg.blendshapes.folder,
         "noise_floor_mm": dict(stable.noise_floor.as_dict(), jitter_estimator=JITTER_ESTIMATOR),
         "marker_table": str(table.path),
         "rbf": rbf,
@@ -666,7 +668,7 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
             "residual)"
         )
     else:
-        mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
+        mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
         operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
         frames = interpolated_frames(operator, displacements, storage)
         points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]
@@ -684,14 +686,14 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
         )
     if name == "markers":
         frames = frames.reshape(len(frames), -1)
-    train, evaluate = split_frames(frames, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
-    notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+    train, evaluate = split_frames(frames, cfg.split, cfg.eval_fraction)
+    notes.append(f"split '{cfg.split}': {len(train)} training frames, {len(evaluate)} evaluated")
     eval_visible = None
     if stable.visible is not None and name == "markers":
         visible = stable.visible[:, face]
         eval_visible = visible[len(visible) - len(evaluate) :]
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, visible[: len(train)], cfg.get("gap_fit_on", "filled"))
+        train, note = masked_training_frames(train, visible[: len(train)], cfg.gap_fit_on)
         notes.append(
             f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
             f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); " + note

@@ -53,7 +53,7 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
 
 def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
     """``dataset.train_on`` as a list of distinct names (one name or a list of them), each in ``allowed``."""
-    value = cfg.get("train_on", allowed[0])
+    value = cfg.train_on
     names = [value] if isinstance(value, str) else list(value)
     if not names or any(name not in allowed for name in names) or len(set(names)) != len(names):
         raise WorkbenchError(

@@ -155,7 +155,7 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str,
     """
     from workbench.dataset.real import data_path
 
-    spec = cfg.get("hand_basis")
+    spec = cfg.hand_basis
     if not spec:
         return dict(captures)
     key = "dataset.hand_basis"

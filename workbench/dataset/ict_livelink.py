@@ -34,7 +34,6 @@ from workbench.formats.obj import Blendshapes, expression_names
 from workbench.formats.plausibility import (
     face_size_problems,
     frame_rate_problems,
-    plausibility_policy,
     settle,
     static_weights_problems,
     unused_channel_problems,
@@ -42,16 +41,17 @@ from workbench.formats.plausibility import (
 )
 from workbench.formats.weight_curves import read_weight_curves
 from workbench.settings.rules import positive_setting
+from workbench.settings.typed import dataset_settings
 
 TRAIN_ON = ("mesh", "markers")
 
 
-def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
+def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """The ICT face driven by a Live Link Face take, on the mesh and/or at virtual markers.
 
     Parameters
     ----------
-    cfg : mapping
+    cfg : typed dataset settings or mapping
         The ``dataset`` config group (see ``conf/dataset/ict_livelink.yaml``).
     storage : FrameStorage
         Where the frames are written, a chunk of frames at a time (``dataset.storage``, ``dataset.dtype``), so the
@@ -62,6 +62,7 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     dict
         ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
     """
+    cfg = dataset_settings(cfg)
     names = train_on_list(cfg, TRAIN_ON)
     driven_take = _driven_take(cfg)
     curves_key, curves_path, take_name, take = (
@@ -72,15 +73,15 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
     )
     frames, warnings, basis, mapping = driven_take.frames, driven_take.warnings, driven_take.basis, driven_take.mapping
     hand_names = driven_take.hand_names
-    frame_rate = take.frame_rate / int(cfg.get("frame_step", 1))
+    frame_rate = take.frame_rate / int(cfg.frame_step)
     weights = take.weights[frames]
     timeline = Timeline(
         take=np.full(len(frames), take_name), frame=frames, seconds=take.seconds[frames] - take.seconds[0]
     )
 
-    marker_table = read_marker_table(conf_path(cfg.get("marker_table"), "marker_table"), n_vertices=len(basis.neutral))
+    marker_table = read_marker_table(conf_path(cfg.marker_table, "marker_table"), n_vertices=len(basis.neutral))
     marker_vertices = marker_table.require_vertices("dataset ict_livelink's virtual markers")
-    mesh_points = mesh_point_indices(len(basis.neutral), cfg.get("mesh_vertex_step", 1))
+    mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
     points = {"mesh": mesh_points, "markers": marker_vertices}
     labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
 
@@ -99,7 +100,7 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
             deltas.shape[1],
             lambda rows, deltas=deltas: drive_blendshapes(weights[rows], mapping, deltas),
         )
-        train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+        train, evaluate = split_frames(displacements, cfg.split, cfg.eval_fraction)
         notes = list(notes_common)
         if name == "markers":
             notes.append(
@@ -107,8 +108,8 @@ def build_ict_livelink(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> 
                 "marker layout placed on the ICT face), exact (no noise)"
             )
         else:
-            notes.append(f"mesh: {len(index)} face-region vertices (every {int(cfg.get('mesh_vertex_step', 1))})")
-        notes.append(f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated")
+            notes.append(f"mesh: {len(index)} face-region vertices (every {int(cfg.mesh_vertex_step)})")
+        notes.append(f"split '{cfg.split}': {len(train)} training frames, {len(evaluate)} evaluated")
         faces = basis.triangles if name == "mesh" and len(index) == len(basis.neutral) else None
         captures[name] = Capture(
             name=(
@@ -154,20 +155,20 @@ class _DrivenTake:
 def _driven_take(cfg: Mapping) -> _DrivenTake:
     """Read the take's weight curves (Live Link CSV or ``dataset.weight_curves``), check them, and load the ICT
     shapes they drive and the hand shapes."""
-    timecode_rate = positive_setting(cfg.get("timecode_rate", 60.0), "dataset.timecode_rate")
-    curves_key = "weight_curves" if cfg.get("weight_curves") else "livelink_csv"
-    curves_path = data_path(cfg, cfg.get(curves_key), curves_key)
+    timecode_rate = positive_setting(cfg.timecode_rate, "dataset.timecode_rate")
+    curves_key = "weight_curves" if cfg.weight_curves else "livelink_csv"
+    curves_path = data_path(cfg, getattr(cfg, curves_key), curves_key)
     take_name = curves_path.stem
     if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.formats.weight_curves)
-        take = read_weight_curves(curves_path, frame_rate=cfg.get("weight_frame_rate"), timecode_rate=timecode_rate)
+        take = read_weight_curves(curves_path, frame_rate=cfg.weight_frame_rate, timecode_rate=timecode_rate)
     else:
         take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
-    folder = data_path(cfg, cfg["blendshapes"]["folder"], "blendshapes.folder")
-    available = expression_names(folder, cfg["blendshapes"]["neutral"])
+    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    available = expression_names(folder, cfg.blendshapes.neutral)
     hand_names = hand_shape_names(cfg, available)
-    folder_mapping = map_arkit_channels(take.names, available, cfg.get("arkit_overrides") or {})
-    frames = frame_selection(take.n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
-    dropped = [channel for channel, shapes in (cfg.get("arkit_overrides") or {}).items() if not shapes]
+    folder_mapping = map_arkit_channels(take.names, available, cfg.arkit_overrides or {})
+    frames = frame_selection(take.n_frames, cfg.frame_step, cfg.max_frames, "dataset.max_frames")
+    dropped = [channel for channel, shapes in (cfg.arkit_overrides or {}).items() if not shapes]
     problems = (
         static_weights_problems(take.weights[frames], str(take.path))
         + frame_rate_problems(take.frame_rate, str(take.path), "frame rate (from its time stamps)")
@@ -178,14 +179,14 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
             f"{take.path} with {folder}",
         )
     )
-    warnings = settle(problems, plausibility_policy(cfg))
+    warnings = settle(problems, cfg.plausibility)
     driven = [name for name in folder_mapping.shapes if name not in folder_mapping.undriven]
     basis = load_basis(cfg, sorted(set(driven) | set(hand_names)))
     warnings += settle(
         face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),
-        plausibility_policy(cfg),
+        cfg.plausibility,
     )
-    mapping = map_arkit_channels(take.names, basis.names, cfg.get("arkit_overrides") or {})  # rows of basis.deltas
+    mapping = map_arkit_channels(take.names, basis.names, cfg.arkit_overrides or {})  # rows of basis.deltas
     return _DrivenTake(
         curves_key=curves_key,
         curves_path=curves_path,
@@ -224,15 +225,15 @@ def _shared_facts(
         f"ICT OBJ units (about cm) x {basis.unit_mm:g} -> mm; face region = the first {len(basis.neutral)} of "
         f"{basis.n_vertices_in_file} vertices",
         *folder_mapping.describe(),
-        f"frames: {len(frames)} of {take.n_frames} (every {int(cfg.get('frame_step', 1))}), "
+        f"frames: {len(frames)} of {take.n_frames} (every {int(cfg.frame_step)}), "
         f"{frame_rate:.2f} Hz from the timecodes",
     ]
     provenance = {
         "kind": "ict_livelink",
-        "data_root": str(cfg["data_root"]),
+        "data_root": str(cfg.data_root),
         "files": {
-            "blendshapes": cfg["blendshapes"]["folder"],
-            curves_key: cfg[curves_key],
+            "blendshapes": cfg.blendshapes.folder,
+            curves_key: getattr(cfg, curves_key),
             "marker_table": str(marker_table.path),
         },
         "credits": [ICT_CREDIT] + ([LIVELINK_CREDIT] if curves_key == "livelink_csv" else []),
@@ -241,7 +242,7 @@ def _shared_facts(
         "arkit_mapping": {channel: list(targets) for channel, targets in mapping.targets.items()},
         "n_frames_in_file": take.n_frames,
         "frames_used": len(frames),
-        "frame_step": int(cfg.get("frame_step", 1)),
+        "frame_step": int(cfg.frame_step),
         "virtual_marker_vertices": dict(zip(marker_table.labels, marker_vertices.tolist())),
     }
     return notes_common, provenance

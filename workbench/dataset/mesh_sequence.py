@@ -13,6 +13,7 @@ read whole.
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from pathlib import Path
 from typing import Mapping
 
@@ -29,21 +30,21 @@ from workbench.formats.mesh_sequence import MeshSequence, open_mesh_sequence
 from workbench.formats.obj import read_obj, triangulate
 from workbench.formats.plausibility import (
     face_size_problems,
-    plausibility_policy,
     settle,
     with_warnings,
 )
 from workbench.settings.rules import integer_setting, positive_setting
+from workbench.settings.typed import dataset_settings
 
 TRAIN_ON = ("mesh",)
 
 
-def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
+def build_mesh_sequence(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """A dense mesh sequence with a hand basis on the same vertices (see ``conf/dataset/mesh_sequence.yaml``).
 
     Parameters
     ----------
-    cfg : mapping
+    cfg : typed dataset settings or mapping
         The ``dataset`` config group.
     storage : FrameStorage
         Where the displacements are written, a chunk of frames at a time (``dataset.storage``, ``dataset.dtype``):
@@ -54,12 +55,12 @@ def build_mesh_sequence(cfg: Mapping, storage: FrameStorage = FrameStorage()) ->
     dict
         ``{"mesh": Capture}``.
     """
+    cfg = dataset_settings(cfg)
     train_on_list(cfg, TRAIN_ON)
-    path = data_path(cfg, cfg.get("sequence"), "sequence")
-    unit_mm = positive_setting(cfg.get("unit_mm", 1.0), "dataset.unit_mm")
-    frame_rate = positive_setting(cfg.get("frame_rate"), "dataset.frame_rate")
-    plausibility_policy(cfg)  # checked before the file is read
-    with open_mesh_sequence(path, str(cfg.get("vertices_key") or "vertices"), cfg.get("faces_key")) as sequence:
+    path = data_path(cfg, cfg.sequence, "sequence")
+    unit_mm = positive_setting(cfg.unit_mm, "dataset.unit_mm")
+    frame_rate = positive_setting(cfg.frame_rate, "dataset.frame_rate")
+    with open_mesh_sequence(path, str(cfg.vertices_key or "vertices"), cfg.faces_key) as sequence:
         return _mesh_sequence_capture(cfg, storage, path, sequence, unit_mm, frame_rate)
 
 
@@ -67,9 +68,9 @@ def _mesh_sequence_capture(
     cfg: Mapping, storage: FrameStorage, path: Path, sequence: MeshSequence, unit_mm: float, frame_rate: float
 ) -> dict[str, Capture]:
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
-    warnings = settle(sequence.problems, plausibility_policy(cfg))
-    if cfg.get("neutral"):
-        neutral_path = data_path(cfg, cfg["neutral"], "neutral")
+    warnings = settle(sequence.problems, cfg.plausibility)
+    if cfg.neutral:
+        neutral_path = data_path(cfg, cfg.neutral, "neutral")
         neutral_mesh = read_obj(neutral_path)
         if neutral_mesh.n_vertices != n_vertices:
             raise WorkbenchError(
@@ -79,13 +80,13 @@ def _mesh_sequence_capture(
         faces = faces if faces is not None else triangulate(neutral_mesh.polygon_sizes, neutral_mesh.polygon_vertices)
         neutral_text = f"neutral: {neutral_path.name}"
     else:
-        frame = integer_setting(cfg.get("neutral_frame", 0), "dataset.neutral_frame", minimum=0)
+        frame = integer_setting(cfg.neutral_frame, "dataset.neutral_frame", minimum=0)
         if frame >= n_frames:
             raise WorkbenchError(f"dataset.neutral_frame {frame} is outside the sequence's {n_frames} frames")
         neutral = sequence.frames(frame, frame + 1)[0] * unit_mm
         neutral_text = f"neutral: frame {frame} of the sequence"
 
-    spec = dict(cfg.get("blendshapes") or {})
+    spec = asdict(cfg.blendshapes) if cfg.blendshapes is not None else {}
     if not spec.get("path"):
         raise WorkbenchError(
             "dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
@@ -96,12 +97,12 @@ def _mesh_sequence_capture(
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
     basis = read_shape_file(spec, "dataset.blendshapes", basis_path)
     rms = check_same_points(neutral, basis.neutral, "dataset.blendshapes", basis_path, f"the sequence {path.name}")
-    warnings += settle(face_size_problems(neutral, str(path), "dataset.unit_mm", unit_mm), plausibility_policy(cfg))
-    hand_names, hand = shape_subset(basis, cfg.get("hand_shapes"), "dataset.hand_shapes")
+    warnings += settle(face_size_problems(neutral, str(path), "dataset.unit_mm", unit_mm), cfg.plausibility)
+    hand_names, hand = shape_subset(basis, cfg.hand_shapes, "dataset.hand_shapes")
     faces = faces if faces is not None else basis.triangles
 
-    index = frame_selection(n_frames, cfg.get("frame_step", 1), cfg.get("max_frames"), "dataset.max_frames")
-    step = int(cfg.get("frame_step", 1))
+    index = frame_selection(n_frames, cfg.frame_step, cfg.max_frames, "dataset.max_frames")
+    step = int(cfg.frame_step)
 
     def chunk_of(rows: slice) -> np.ndarray:
         # frame_selection takes every step-th frame from the start: a chunk of them is one strided slice
@@ -110,17 +111,17 @@ def _mesh_sequence_capture(
 
     key = (sequence.digest, array_digest(neutral), float(unit_mm), array_digest(index), code_fingerprint())
     displacements = storage.build("mesh_sequence", key, len(index), 3 * n_vertices, chunk_of)
-    train, evaluate = split_frames(displacements, cfg.get("split", "same"), cfg.get("eval_fraction", 0.2))
+    train, evaluate = split_frames(displacements, cfg.split, cfg.eval_fraction)
     notes = (
         f"mesh sequence {path.name}: {len(index)} of {n_frames} frames (every {step}), "
         f"{n_vertices} vertices, file units x {unit_mm:g} -> mm; {neutral_text}",
         f"hand basis: {len(hand_names)} shapes of {basis_path.name} (its neutral {rms:.3g} mm RMS from the sequence's)",
-        f"split '{cfg.get('split', 'same')}': {len(train)} training frames, {len(evaluate)} evaluated",
+        f"split '{cfg.split}': {len(train)} training frames, {len(evaluate)} evaluated",
     )
     provenance = {
         "kind": "mesh_sequence",
-        "data_root": str(cfg.get("data_root")),
-        "files": {"sequence": str(cfg["sequence"]), "blendshapes": str(spec["path"])},
+        "data_root": str(cfg.data_root),
+        "files": {"sequence": str(cfg.sequence), "blendshapes": str(spec["path"])},
         "unit_mm": unit_mm,
         "n_frames_in_file": n_frames,
         "frames_used": len(index),

@@ -26,7 +26,7 @@ ANIMFACE_CREDIT = (
 
 def data_root(cfg: Mapping) -> Path:
     """The configured data root (``dataset.data_root``, usually ``paths.data_root``), which must exist."""
-    root = cfg.get("data_root")
+    root = cfg.data_root
     if not root:
         raise WorkbenchError("dataset.data_root is not set (it defaults to ${paths.data_root})")
     path = Path(root).expanduser()
@@ -121,24 +121,24 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
     -------
     Blendshapes
     """
-    spec = cfg.get("blendshapes") or {}
+    spec = cfg.blendshapes
     for key in ("folder", "neutral", "unit_mm"):
-        if spec.get(key) is None:
+        if spec is None or getattr(spec, key) is None:
             raise WorkbenchError(f"dataset.blendshapes.{key} is not set")
-    region = spec.get("region_vertices")
+    region = spec.region_vertices
     region = None if region is None else integer_setting(region, "dataset.blendshapes.region_vertices", minimum=3)
     return load_blendshapes(
-        data_path(cfg, spec["folder"], "blendshapes.folder"),
-        neutral_file=spec["neutral"],
+        data_path(cfg, spec.folder, "blendshapes.folder"),
+        neutral_file=spec.neutral,
         names=names,
         region_vertices=region,
-        unit_mm=positive_setting(spec["unit_mm"], "dataset.blendshapes.unit_mm"),
+        unit_mm=positive_setting(spec.unit_mm, "dataset.blendshapes.unit_mm"),
     )
 
 
 def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
     """``dataset.hand_shapes``: distinct names of shapes the basis folder has."""
-    names = list(cfg.get("hand_shapes") or [])
+    names = list(cfg.hand_shapes or [])
     if not names:
         raise WorkbenchError("dataset.hand_shapes is empty: list the blendshape names that form the hand basis")
     if len(set(names)) != len(names):

@@ -57,7 +57,7 @@ def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
     WorkbenchError
         When the dataset has no face mesh or its files cannot be read.
     """
-    kind = cfg.get("kind")
+    kind = cfg.kind
     if kind == "synthetic":
         return _synthetic_rest_mesh(cfg)
     if kind in ("ict_livelink", "animface"):
@@ -91,7 +91,7 @@ def _synthetic_rest_mesh(cfg: Mapping) -> RestMesh:
     from workbench.dataset.synthetic_builder import face_region
 
     try:
-        rows, cols, n_markers = int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), int(cfg["n_face_markers"])
+        rows, cols, n_markers = int(cfg.mesh_rows), int(cfg.mesh_cols), int(cfg.n_face_markers)
     except (KeyError, TypeError, ValueError) as error:
         raise WorkbenchError(
             f"dataset synthetic: mesh_rows, mesh_cols and n_face_markers must be integers ({error})"

@@ -158,7 +158,7 @@ class FrameSink:
 
 def frame_storage(cfg: Mapping, cache_dir: str | None) -> FrameStorage:
     """The ``dataset.storage`` and ``dataset.dtype`` settings, checked; disk storage lives in ``cache_dir``."""
-    storage, dtype = cfg.get("storage", "memory"), cfg.get("dtype", "float64")
+    storage, dtype = cfg.storage, cfg.dtype
     if storage not in STORAGES:
         raise WorkbenchError(f"dataset.storage must be one of {STORAGES}, got {storage!r}")
     if dtype not in DTYPES:

@@ -29,6 +29,7 @@ from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage
 from workbench.settings.rules import bool_setting, number_setting, seed_setting
+from workbench.settings.typed import dataset_settings
 
 TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 
@@ -36,12 +37,12 @@ TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 
 
-def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
+def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
     """The synthetic actor's capture: stabilised markers, the dense mesh and/or the markers interpolated onto it.
 
     Parameters
     ----------
-    cfg : mapping
+    cfg : typed dataset settings or mapping
         The ``dataset`` config group (see ``conf/dataset/synthetic.yaml``).
     storage : FrameStorage
         Where the dense mesh frames are written, chunk by chunk (``dataset.storage``, ``dataset.dtype``).
@@ -52,14 +53,15 @@ def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dic
         ``train_on`` name (``markers``, ``mesh`` or ``mesh_rbf``) -> :class:`Capture`, all from the same take
         (with ``split: other_take``, the evaluated frames come from a second take of the same actor).
     """
+    cfg = dataset_settings(cfg)
     names = train_on_list(cfg, TRAIN_ON)
-    split = cfg.get("split", "same")
+    split = cfg.split
     if split not in SPLITS + ("other_take",):
         raise WorkbenchError(f"dataset.split must be one of {SPLITS + ('other_take',)}, got {split!r}")
-    bool_setting(cfg.get("stabilise", True), "dataset.stabilise")
-    gap_policy_setting(cfg.get("gap_policy", "linear"), cfg.get("gap_max_fill_frames"))  # checked even without gaps
-    gap_fit_on_setting(cfg.get("gap_fit_on", "filled"))
-    seeds = [seed_setting(cfg["seed"], "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
+    bool_setting(cfg.stabilise, "dataset.stabilise")
+    gap_policy_setting(cfg.gap_policy, cfg.gap_max_fill_frames)  # checked even without gaps
+    gap_fit_on_setting(cfg.gap_fit_on)
+    seeds = [seed_setting(cfg.seed, "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
     if len(set(seeds)) != len(seeds):
         raise WorkbenchError(
             f"dataset.eval_seed {seeds[1]} equals dataset.seed: split 'other_take' evaluates on "
@@ -71,7 +73,7 @@ def build_synthetic(cfg: Mapping, storage: FrameStorage = FrameStorage()) -> dic
         "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on",
     )
     takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
-    decimation = _mesh_decimation(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), cfg.get("mesh_fraction", 1.0))
+    decimation = _mesh_decimation(int(cfg.mesh_rows), int(cfg.mesh_cols), cfg.mesh_fraction)
     hand_mesh = takes[0].hand_shapes_mesh()
     markers = [_face_marker_frames(take, cfg) for take in takes] if {"markers", "mesh_rbf"} & set(names) else None
     return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg, storage) for name in names}
@@ -82,27 +84,27 @@ def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
     lives on the mesh (x, y and z per point and frame; in the storage's dtype, none with ``dataset.storage=disk``).
     An estimate only: 0 when a size is not a number (the generator names the bad setting)."""
     try:
-        n_frames, n_markers = int(cfg["n_frames"]), int(cfg["n_face_markers"]) + int(cfg["n_head_markers"])
-        n_mesh = int(cfg["mesh_rows"]) * int(cfg["mesh_cols"]) if {"mesh", "mesh_rbf", "face"} & set(names) else 0
+        n_frames, n_markers = int(cfg.n_frames), int(cfg.n_face_markers) + int(cfg.n_head_markers)
+        n_mesh = int(cfg.mesh_rows) * int(cfg.mesh_cols) if {"mesh", "mesh_rbf", "face"} & set(names) else 0
     except (TypeError, ValueError):
         return 0
-    stored = 0.0 if cfg.get("storage", "memory") == "disk" else 0.5 if cfg.get("dtype") == "float32" else 1.0
+    stored = 0.0 if cfg.storage == "disk" else 0.5 if cfg.dtype == "float32" else 1.0
     return int(max(n_frames, 0) * (max(n_markers, 0) + stored * max(n_mesh, 0)) * 3)
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:
     """The generation parameters of a take, hashable (the cache key of :func:`_synthetic_take`)."""
     return (
-        ("n_frames", cfg["n_frames"]),
-        ("frame_rate", cfg["frame_rate"]),
-        ("n_face_markers", cfg["n_face_markers"]),
-        ("n_head_markers", cfg["n_head_markers"]),
-        ("head_rotation_deg", cfg["head_rotation_deg"]),
-        ("head_translation_mm", cfg["head_translation_mm"]),
-        ("marker_noise_mm", cfg["marker_noise_mm"]),
+        ("n_frames", cfg.n_frames),
+        ("frame_rate", cfg.frame_rate),
+        ("n_face_markers", cfg.n_face_markers),
+        ("n_head_markers", cfg.n_head_markers),
+        ("head_rotation_deg", cfg.head_rotation_deg),
+        ("head_translation_mm", cfg.head_translation_mm),
+        ("marker_noise_mm", cfg.marker_noise_mm),
         ("seed", seed),
-        ("mesh_rows", cfg["mesh_rows"]),
-        ("mesh_cols", cfg["mesh_cols"]),
+        ("mesh_rows", cfg.mesh_rows),
+        ("mesh_cols", cfg.mesh_cols),
     )
 
 
@@ -203,8 +205,8 @@ def forget_kept_frames() -> None:
 
 
 def _eval_seed(cfg: Mapping) -> int:
-    seed = cfg.get("eval_seed")
-    return seed_setting(cfg["seed"], "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")
+    seed = cfg.eval_seed
+    return seed_setting(cfg.seed, "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")
 
 
 def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
@@ -216,20 +218,20 @@ def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     """
     positions, notes, gaps, visible = take.markers, [], {}, None
     kept = np.ones(len(positions), dtype=bool)
-    rate = number_setting(cfg.get("gap_rate", 0.0), "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
-    policy = cfg.get("gap_policy", "linear")
-    max_fill = cfg.get("gap_max_fill_frames")
+    rate = number_setting(cfg.gap_rate, "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
+    policy = cfg.gap_policy
+    max_fill = cfg.gap_max_fill_frames
     head = np.asarray(take.head_marker_index)
     face_index = np.setdiff1d(np.arange(take.markers.shape[1]), head)
     if rate > 0:
         # the take draws from the first three children of its seed; gaps use the fourth
         rng = np.random.default_rng(np.random.SeedSequence(take.provenance["seed"], spawn_key=(3,)))
-        mask = make_gap_mask(positions.shape[0], positions.shape[1], rate, float(cfg.get("gap_mean_frames", 12)), rng)
+        mask = make_gap_mask(positions.shape[0], positions.shape[1], rate, float(cfg.gap_mean_frames), rng)
         positions = np.where(mask[:, :, None], np.nan, positions)
         if policy != "masked":
             outcome = apply_gap_policy(positions, policy, max_fill)
             positions, kept, report = outcome.positions, outcome.kept, outcome.report
-    if cfg.get("stabilise", True):
+    if cfg.stabilise:
         stable = stabilise(positions, head, take.head_marker_rest)
         positions = stable.markers
         notes.append(
@@ -244,7 +246,7 @@ def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
     else:
         positions = positions[:, face_index]
     if rate > 0:
-        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.get("gap_mean_frames", 12)))
+        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.gap_mean_frames))
         where = "before" if policy != "masked" else "after"
         notes.append(
             f"marker dropout (seed {take.provenance['seed']}): {report.describe()} ({where} head-motion removal)"
@@ -308,14 +310,14 @@ def _synthetic_capture(
     )
     if markers is not None and markers[0].gaps and train_on != "mesh":
         provenance["gaps"] = markers[0].gaps
-    split = cfg.get("split", "same")
+    split = cfg.split
     eval_visible = None
     mapped = {}
     timelines = [
         Timeline.uniform(
             f"synthetic seed {t.provenance['seed']}",
             np.flatnonzero(part.kept) if markers is not None else np.arange(t.n_frames),
-            float(cfg["frame_rate"]),
+            float(cfg.frame_rate),
         )
         for t, part in zip(takes, markers or [None] * len(takes))
     ]
@@ -331,7 +333,7 @@ def _synthetic_capture(
         )
         provenance["eval_seed"] = takes[1].provenance["seed"]
     else:
-        train, evaluate = split_frames(per_take[0], split, cfg.get("eval_fraction", 0.2))
+        train, evaluate = split_frames(per_take[0], split, cfg.eval_fraction)
         timeline = timelines[0][len(timelines[0]) - len(evaluate) :]
         eval_visible = visible[0][len(visible[0]) - len(evaluate) :] if visible else None
         if source is not None:
@@ -339,7 +341,7 @@ def _synthetic_capture(
         notes.append(f"split '{split}': {len(train)} training frames, {len(evaluate)} evaluated")
     if eval_visible is not None:
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, visible[0][: len(train)], cfg.get("gap_fit_on", "filled"))
+        train, note = masked_training_frames(train, visible[0][: len(train)], cfg.gap_fit_on)
         notes.append(
             f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
             f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); " + note
@@ -355,7 +357,7 @@ def _synthetic_capture(
         point_labels=labels,
         units="mm",
         origin="centre of the synthetic head (face points lie 60-110 mm from it)",
-        frame_rate=float(cfg["frame_rate"]),
+        frame_rate=float(cfg.frame_rate),
         provenance=provenance,
         notes=tuple(notes),
         faces=faces,
@@ -394,7 +396,7 @@ def _variant_frames(
         labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
         visible = [part.visible for part in markers] if markers[0].visible is not None else None
     elif train_on == "face":
-        points, faces = face_region(int(cfg["mesh_rows"]), int(cfg["mesh_cols"]), len(take.face_marker_vertices))
+        points, faces = face_region(int(cfg.mesh_rows), int(cfg.mesh_cols), len(take.face_marker_vertices))
         labels = tuple(f"v{i}" for i in points)
         per_take = [_face_region_frames(_take_key(cfg, t.provenance["seed"]), storage) for t in takes]
         if markers is not None:  # the frames the markers' gap policy kept
@@ -416,10 +418,7 @@ def _variant_frames(
             )
         provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
         if train_on == "mesh":
-            per_take = [
-                _mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.get("mesh_fraction", 1.0), storage)
-                for t in takes
-            ]
+            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.mesh_fraction, storage) for t in takes]
             if markers is not None:  # the frames the markers' gap policy kept
                 per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
             notes.append("the dense ground-truth mesh (no head motion, no marker noise)")

@@ -76,14 +76,6 @@ class Limits:
 LIMITS = Limits()
 
 
-def plausibility_policy(cfg: Mapping) -> str:
-    """``dataset.plausibility``, checked: ``error`` (default) or ``warn``."""
-    policy = cfg.get("plausibility", "error")
-    if policy not in POLICIES:
-        raise WorkbenchError(f"dataset.plausibility must be one of {POLICIES}, got {policy!r}")
-    return policy
-
-
 def settle(problems: Sequence[str], policy: str) -> list[str]:
     """Raise the first problem as a one-line error under ``error``; return them all as warnings under ``warn``."""
     if problems and policy == "error":

@@ -47,11 +47,12 @@ def quasi_eigen_shapes(
 
 def figure_solver(config: Mapping) -> tuple[str, dict]:
     """The solver figures 2-4 use: ``lstsq`` when the run had it, else the first configured one."""
-    from workbench.study.run import check_solver_config
+    from workbench.settings.schema import SolverSchema
+    from workbench.settings.typed import solver_options, typed
 
     solvers = config["solver"]
     name = "lstsq" if "lstsq" in solvers else next(iter(solvers))
-    return name, check_solver_config(name, solvers[name])
+    return name, solver_options(typed(SolverSchema, solvers[name]))
 
 
 def reconstruct_frames(shapes: np.ndarray, frames: np.ndarray, solver: Mapping) -> np.ndarray:
@@ -170,13 +171,14 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
     """
     from workbench.core.errors import WorkbenchError
     from workbench.record.replay import check_replayed
+    from workbench.settings.typed import study_settings
     from workbench.study.run import run_study
     from workbench.study.summary import alpha_per_frame_arrays, input_arrays
 
     key = ("rebuilt",)
     if key not in cache:
         try:
-            results = run_study(record.config)
+            results = run_study(study_settings(record.config))
         except (WorkbenchError, OSError) as error:
             cache[key] = {
                 "inputs": {},
@@ -294,6 +296,7 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
     from workbench.core.errors import WorkbenchError
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer
+    from workbench.settings.typed import dataset_settings
 
     found = mesh_variant(record, cache)
     if found is not None:
@@ -304,7 +307,7 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
         return NEEDS_FACE
     data, inputs = found
     try:
-        mesh = rest_mesh(record.config["dataset"], record.metrics["dataset"].get("provenance"))
+        mesh = rest_mesh(dataset_settings(record.config["dataset"]), record.metrics["dataset"].get("provenance"))
     except (WorkbenchError, OSError) as error:
         return f"{NEEDS_FACE}: the run has no mesh data variant and the dataset's face mesh cannot be read ({error})"
     transfer = point_transfer(inputs["neutral"].reshape(-1, 3), mesh.vertices)

@@ -413,9 +413,18 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
         Naming the first setting that breaks its rule, a key no schema knows, or an interpolation that cannot be
         resolved.
     """
+    return checked_settings(cfg, overrides, refuse_ineffective=refuse_ineffective)[1]
+
+
+def checked_settings(cfg, overrides: Sequence[str] = (), *, refuse_ineffective: bool = False) -> tuple[dict, list[str]]:
+    """:func:`check_study_config`, returning the resolved config it checked (without Hydra's node and the retired
+    settings of an earlier version's record) beside the sentences on settings with no effect."""
     plain = _without_retired(resolved_settings(cfg), overrides)
     _check_text(plain, "")
     _check_keys(plain)
+    for group in ("dataset", "basis", "solver"):
+        if group not in plain:
+            raise WorkbenchError(f"the study config has no {group} group: compose it with compose_config")
     _check_node(plain, StudySchema, "")
     kind = plain["dataset"].get("kind") if isinstance(plain.get("dataset"), Mapping) else None
     if kind not in DATASET_SCHEMAS:
@@ -432,7 +441,20 @@ def check_study_config(cfg, overrides: Sequence[str] = (), *, refuse_ineffective
         raise WorkbenchError(
             f"{ineffective[0]}; leave it out" + (f" (and {len(ineffective) - 1} more)" if len(ineffective) > 1 else "")
         )
-    return [] if refuse_ineffective else ineffective
+    return plain, [] if refuse_ineffective else ineffective
+
+
+def check_dataset_group(values: Mapping) -> None:
+    """Check a ``dataset`` group alone (a builder called without a study): every setting it gives against its
+    kind's schema (settings it leaves out are not asked for)."""
+    kind = values.get("kind")
+    if kind not in DATASET_SCHEMAS:
+        raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SCHEMAS)}, got {kind!r}")
+    _check_node(
+        values, DATASET_SCHEMAS[kind], "dataset.", extras={k for k, kinds in DATASET_EXTRAS.items() if kind in kinds}
+    )
+    if kind == "synthetic":
+        _check_marker_count(values)
 
 
 def resolved_settings(cfg) -> dict:
@@ -530,7 +552,7 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
         if spec.name not in values:
             continue
         value = values[spec.name]
-        nested = _nested_schema(spec)
+        nested = nested_schema(spec)
         if nested is not None and value is not None:
             _check_node(value, nested, key + ".")
         elif spec.name == "solver" and schema is StudySchema:
@@ -551,7 +573,7 @@ def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:
             )
 
 
-def _nested_schema(spec):
+def nested_schema(spec):
     """The dataclass of a field that holds a nested schema, or None."""
     if spec.default_factory is not NO_DEFAULT and is_dataclass(spec.default_factory):
         return spec.default_factory
@@ -581,6 +603,7 @@ def _check_relations(plain: Mapping) -> None:
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
         _check_marker_count(plain["dataset"])
+    _check_held_out(plain)
     coverage_on_setting(basis)
     for key, wants_clean in (
         ("basis.coverage_on", basis.get("coverage_on") == "clean"),
@@ -588,6 +611,28 @@ def _check_relations(plain: Mapping) -> None:
     ):
         if wants_clean and kind != "synthetic":
             raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
+
+
+def _check_held_out(plain: Mapping) -> None:
+    """What ``dataset.held_out`` and ``dataset.eval_on`` (bases carried onto other points) cannot be combined with."""
+    dataset, carried = plain["dataset"], plain["dataset"].get("eval_on") is not None
+    held_out = _held_out(plain)
+    if held_out and dataset.get("split", "same") != "same":
+        raise WorkbenchError(
+            f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
+            f"with dataset.split {dataset.get('split')!r} the run is already held out: leave "
+            "one of them unset"
+        )
+    if held_out and carried:
+        raise WorkbenchError(
+            "dataset.held_out scores each data variant on its own held-out frames; with "
+            "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset"
+        )
+    if carried and _alternatives(plain):
+        raise WorkbenchError(
+            "basis.alternatives are fitted and scored on each data variant's own points; "
+            "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset"
+        )
 
 
 def _check_marker_count(dataset: Mapping) -> None:

@@ -99,7 +99,7 @@ def fold_capture(capture: Capture, train: np.ndarray, held: np.ndarray, note: st
 
 
 def cross_validated(
-    data: str, capture: Capture, protocol: str, dataset_cfg: Mapping, fit_and_score: Callable[[str, Capture], object]
+    data: str, capture: Capture, protocol: str, dataset, fit_and_score: Callable[[str, Capture], object]
 ):
     """One data variant cross-validated: every fold fitted (m by the coverage rule on its training frames) and
     scored on its held-out frames, pooled into one result.
@@ -110,8 +110,8 @@ def cross_validated(
     capture : Capture
         Trained and evaluated on the same frames (split 'same').
     protocol : {"kfold", "take_out"}
-    dataset_cfg : mapping
-        ``folds`` and ``fold_gap_s`` are read from it.
+    dataset : typed dataset settings
+        ``folds`` and ``fold_gap_s`` are read from it (:func:`workbench.settings.typed.dataset_settings`).
     fit_and_score : callable
         ``(name, capture) -> StudyResult`` (the run's method on one capture).
 
@@ -128,8 +128,8 @@ def cross_validated(
             "dataset.held_out needs the training and evaluated frames to be the same frames "
             "(split 'same'; with gap_policy masked, gap_fit_on filled)"
         )
-    gap_s = dataset_cfg.get("fold_gap_s", 0.5)
-    folds = fold_indices(capture.timeline(), protocol, dataset_cfg.get("folds", 5), gap_s)
+    gap_s = dataset.fold_gap_s
+    folds = fold_indices(capture.timeline(), protocol, dataset.folds, gap_s)
     name = f"{data} held-out {protocol}"
     parts = []
     for k, (train, held) in enumerate(folds):

@@ -3,20 +3,20 @@ alternative bases (``basis.alternatives``)."""
 
 from __future__ import annotations
 
-from typing import Mapping
+from dataclasses import asdict
 
 import numpy as np
 
-from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import PointTransfer
 from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
 from workbench.numerics.reduced import Subspace
 from workbench.settings.bases import ALTERNATIVE_BASES
+from workbench.settings.schema import BasisSchema
 from workbench.study.results import Timings
 
 
-def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[Eigenfaces, dict]:
+def fit_bases(capture: Capture, basis: BasisSchema, timings: Timings) -> tuple[Eigenfaces, dict]:
     """Eigenfaces (eq. 2) of the training frames and the quasi-eigen faces (eq. 3-4) of each projection.
 
     Returns
@@ -26,7 +26,7 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
         Projection name -> :class:`workbench.numerics.bases.QuasiEigenBasis`.
     """
     with timings.stage("pca"):
-        eigenfaces = fit_eigenfaces(capture, basis_cfg["coverage"], basis_cfg["n_components"])
+        eigenfaces = fit_eigenfaces(capture, basis.coverage, basis.n_components)
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
@@ -34,11 +34,11 @@ def fit_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> tuple[E
                 capture.hand_names,
                 eigenfaces,
                 projection=projection,
-                empty_axis_eps=basis_cfg["empty_axis_eps"],
-                empty_axis_scale=basis_cfg["empty_axis_scale"],
-                append_empty_axes=basis_cfg["append_empty_axes"],
+                empty_axis_eps=basis.empty_axis_eps,
+                empty_axis_scale=basis.empty_axis_scale,
+                append_empty_axes=basis.append_empty_axes,
             )
-            for projection in basis_cfg["projections"]
+            for projection in basis.projections
         }
     return eigenfaces, quasi_eigen
 
@@ -67,7 +67,7 @@ def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) 
     return Subspace(orthonormal, transfer.apply_one(eigenfaces.mean_))
 
 
-def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings) -> dict:
+def fit_alternative_bases(capture: Capture, basis: BasisSchema, timings: Timings) -> dict:
     """Fit the bases ``basis.alternatives`` names on the training frames (their table:
     :data:`workbench.settings.bases.ALTERNATIVE_BASES`; their fits: :data:`workbench.numerics.alternatives.FITS`).
 
@@ -80,15 +80,11 @@ def fit_alternative_bases(capture: Capture, basis_cfg: Mapping, timings: Timings
     """
     from workbench.numerics.alternatives import FITS
 
-    names = basis_cfg.get("alternatives") or []
-    names = [names] if isinstance(names, str) else list(names)
-    if any(name not in ALTERNATIVE_BASES for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(f"basis.alternatives must list distinct names of {list(ALTERNATIVE_BASES)}, got {names}")
-    n = basis_cfg.get("alternatives_n") or capture.hand.shape[0]
-    seed = int(basis_cfg.get("alternatives_seed") or 0)
+    names = [basis.alternatives] if isinstance(basis.alternatives, str) else list(basis.alternatives or ())
+    n = basis.alternatives_n or capture.hand.shape[0]
     bases = {}
     for name in names:
         key = ALTERNATIVE_BASES[name].options_key
         with timings.stage(f"fit_{key}"):
-            bases[name] = FITS[name](capture, n, seed, dict(basis_cfg.get(key) or {}))
+            bases[name] = FITS[name](capture, n, basis.alternatives_seed, asdict(getattr(basis, key)))
     return bases

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -13,6 +13,8 @@ from workbench.core.errors import WorkbenchError
 from workbench.dataset import variant_names
 from workbench.dataset.capture import Capture
 from workbench.settings.rules import number_setting, seed_setting
+from workbench.settings.schema import BasisSchema
+from workbench.settings.typed import changed_dataset
 from workbench.study.fitting import fit_eigenfaces
 
 HELD_OUT = {
@@ -24,26 +26,10 @@ HELD_OUT = {
 """``dataset.held_out`` protocol -> how its frames are described."""
 
 
-def held_out_protocols(dataset_cfg: Mapping) -> list[str]:
-    """``dataset.held_out`` as a list of distinct protocols of :data:`HELD_OUT` (empty when null)."""
-    value = dataset_cfg.get("held_out")
-    if value is None:
-        names = []
-    elif isinstance(value, (str, Mapping)) or not hasattr(value, "__iter__"):
-        names = [value]
-    else:
-        names = list(value)
-    if any(not isinstance(name, str) or name not in HELD_OUT for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(
-            f"dataset.held_out must be null, one of {list(HELD_OUT)} or a list of distinct ones, got {value!r}"
-        )
-    if names and dataset_cfg.get("split", "same") != "same":
-        raise WorkbenchError(
-            f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
-            f"with dataset.split {dataset_cfg.get('split')!r} the run is already held out: leave "
-            "one of them unset"
-        )
-    return names
+def held_out_protocols(dataset) -> list[str]:
+    """``dataset.held_out`` (typed dataset settings) as a list of protocols of :data:`HELD_OUT` (empty when null)."""
+    value = dataset.held_out
+    return [] if value is None else [value] if isinstance(value, str) else list(value)
 
 
 def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> Capture:
@@ -134,8 +120,8 @@ def select_frames(frames, index: np.ndarray):
 CLEAN_M_NOTE = "m chosen on the clean capture"
 
 
-def clean_dataset_config(dataset_cfg: Mapping) -> dict:
-    """The dataset config of the clean capture of the same take: the synthetic actor without marker noise and
+def clean_dataset_config(dataset):
+    """The dataset settings of the clean capture of the same take: the synthetic actor without marker noise and
     without marker dropout (same seed, so the same performance and head motion).
 
     Raises
@@ -143,41 +129,40 @@ def clean_dataset_config(dataset_cfg: Mapping) -> dict:
     WorkbenchError
         For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
     """
-    kind = dataset_cfg.get("kind")
-    if kind != "synthetic":
+    if dataset.kind != "synthetic":
         raise WorkbenchError(
             f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
-            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {kind!r}"
+            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {dataset.kind!r}"
         )
-    return dict(dataset_cfg, marker_noise_mm=0.0, gap_rate=0.0)
+    return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
 
 
-def with_clean_m(capture: Capture, basis_cfg: Mapping, clean: Capture | None) -> tuple[Capture, dict]:
+def with_clean_m(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
     """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
     fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
 
     Parameters
     ----------
     capture : Capture
-    basis_cfg : mapping
+    basis : BasisSchema
     clean : Capture or None
         The same data variant of the clean capture (:func:`clean_dataset_config`).
 
     Returns
     -------
     capture : Capture
-    basis_cfg : dict
+    basis : BasisSchema
     """
     if clean is None:
-        return capture, dict(basis_cfg)
-    clean_pca = fit_eigenfaces(clean, basis_cfg["coverage"])
+        return capture, basis
+    clean_pca = fit_eigenfaces(clean, basis.coverage)
     m = int(clean_pca.n_components_)
     note = (
-        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis_cfg['coverage']} "
+        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis.coverage} "
         "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
         "capture with that m (basis.coverage_on clean)"
     )
-    return replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=m)
+    return replace(capture, notes=capture.notes + (note,)), replace(basis, n_components=m)
 
 
 def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
@@ -216,9 +201,9 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
     return np.asarray(clean.eval)[index]
 
 
-def data_variants(dataset_cfg: Mapping) -> tuple[list[str], list[str] | None]:
+def data_variants(dataset) -> tuple[list[str], list[str] | None]:
     """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
-    train_names, eval_names = variant_names(dataset_cfg, "train_on"), variant_names(dataset_cfg, "eval_on")
+    train_names, eval_names = variant_names(dataset, "train_on"), variant_names(dataset, "eval_on")
     if eval_names is not None and train_names is None:
         raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
     return train_names or [], eval_names
@@ -274,10 +259,9 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
     return np.array(sorted(names.index(name) for name in spec), dtype=int)
 
 
-def subset_hand_shapes(capture: Capture, basis_cfg: Mapping) -> Capture:
+def subset_hand_shapes(capture: Capture, basis: BasisSchema) -> Capture:
     """The capture with only the hand shapes ``basis.hand_subset`` keeps."""
-    spec = basis_cfg.get("hand_subset", "all")
-    index = hand_subset_indices(capture.hand_names, spec, basis_cfg.get("subset_seed", 0))
+    index = hand_subset_indices(capture.hand_names, basis.hand_subset, basis.subset_seed)
     if index.size == len(capture.hand_names):
         return capture
     return select_shapes(capture, [capture.hand_names[i] for i in index])

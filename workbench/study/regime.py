@@ -4,9 +4,9 @@ beside the coverage rule's m as an extra data variant (``basis.paper_regime``)."
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Mapping
 
 from workbench.dataset.capture import Capture
+from workbench.settings.schema import BasisSchema
 
 PAPER_REGIME_SUFFIX = "m=n"
 """The paper-regime variant of data variant ``markers`` is named ``markers m=n``."""
@@ -25,14 +25,16 @@ def is_paper_regime(data: str) -> bool:
     return str(data).endswith(f" {PAPER_REGIME_SUFFIX}")
 
 
-def paper_regime_fit(capture: Capture, basis_cfg: Mapping, fitted_m: int) -> tuple[Capture, dict | None, str | None]:
+def paper_regime_fit(
+    capture: Capture, basis: BasisSchema, fitted_m: int
+) -> tuple[Capture, BasisSchema | None, str | None]:
     """Whether and how a data variant is also fitted at m = n (``basis.paper_regime``).
 
     Parameters
     ----------
     capture : Capture
         The capture the coverage rule's bases were fitted on (hand shapes already subset).
-    basis_cfg : mapping
+    basis : BasisSchema
         The ``basis`` settings the coverage rule's bases were fitted with.
     fitted_m : int
         The m the coverage rule kept.
@@ -41,7 +43,7 @@ def paper_regime_fit(capture: Capture, basis_cfg: Mapping, fitted_m: int) -> tup
     -------
     capture : Capture
         The capture of the m = n variant, with a note saying what it is (``capture`` itself when there is none).
-    basis_cfg : dict or None
+    basis : BasisSchema or None
         The settings of the m = n fit (``n_components`` = the hand basis size, no alternative bases), or None when
         there is no extra fit: ``paper_regime`` off, ``n_components`` set explicitly, the coverage rule already at
         m = n, or fewer directions in the training frames than hand shapes.
@@ -49,7 +51,7 @@ def paper_regime_fit(capture: Capture, basis_cfg: Mapping, fitted_m: int) -> tup
         Why no extra fit was made, for the coverage rule's variant (None when made or when the setting is off or m
         is fixed).
     """
-    if not basis_cfg.get("paper_regime", False) or basis_cfg.get("n_components") is not None:
+    if basis.paper_regime is not True or basis.n_components is not None:
         return capture, None, None
     n = len(capture.hand_names)
     if fitted_m == n:
@@ -76,4 +78,4 @@ def paper_regime_fit(capture: Capture, basis_cfg: Mapping, fitted_m: int) -> tup
         f"{PAPER_REGIME_NOTE}: m = n = {n} eigenfaces, as many as hand shapes (Kim & Ko: 18 for 18), fitted on the "
         f"same training frames beside the coverage rule's m = {fitted_m} (basis.paper_regime)"
     )
-    return (replace(capture, notes=capture.notes + (note,)), dict(basis_cfg, n_components=n, alternatives=[]), None)
+    return (replace(capture, notes=capture.notes + (note,)), replace(basis, n_components=n, alternatives=[]), None)

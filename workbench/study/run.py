@@ -1,6 +1,6 @@
 """One run of a study: dataset -> bases -> solve -> metrics, returned as plain results.
 
-``run_study`` takes a plain mapping (a resolved config) and returns one :class:`~workbench.study.results.StudyResult`
+``run_study`` takes a study's checked, typed settings (:mod:`workbench.settings.typed`) and returns one :class:`~workbench.study.results.StudyResult`
 per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record.record``'s job and printing is
 ``workbench.reporting.run_text``'s."""
 
@@ -15,7 +15,8 @@ from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
-from workbench.settings.rules import coverage_on_setting
+from workbench.settings.schema import BasisSchema
+from workbench.settings.typed import StudySettings, changed_dataset, solver_options, without_settings
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (
@@ -35,29 +36,15 @@ from workbench.study.results import StudyResult, Timings
 from workbench.study.scoring import basis_intuitiveness, face_region, offset_facts, score_alternative_bases, score_bases
 
 
-def check_solver_config(name: str, solver: Mapping) -> dict:
-    """Validate one entry of the ``solver`` config group and return it as keyword arguments."""
-    kind = solver.get("kind")
-    if kind not in ("lstsq", "nnls", "box"):
-        raise WorkbenchError(f"solver.{name}.kind must be one of lstsq, nnls, box; got {kind!r}")
-    lower, upper = solver.get("lower"), solver.get("upper")
-    if kind == "box" and lower is None and upper is None:
-        raise WorkbenchError(f"solver.{name} is a box solver without bounds: set lower and/or upper")
-    if kind == "lstsq":
-        lower = upper = None
-    if kind == "box" and lower is not None and upper is not None and np.any(np.asarray(lower) > np.asarray(upper)):
-        raise WorkbenchError(f"solver.{name}.lower ({lower}) must not exceed solver.{name}.upper ({upper})")
-    return {"kind": kind, "lower": lower, "upper": upper}
-
-
-def run_study(cfg: Mapping) -> list[StudyResult]:
+def run_study(settings: StudySettings) -> list[StudyResult]:
     """Build the data, then for each data variant fit eigenfaces and quasi-eigen faces on the training frames
     and score every basis on the evaluated ones (of the same variant, or of each ``dataset.eval_on`` variant).
 
     Parameters
     ----------
-    cfg : mapping
-        A resolved study config with ``dataset``, ``basis`` and ``solver`` groups.
+    settings : StudySettings
+        A study's settings, checked and typed (:func:`workbench.settings.typed.study_settings` of a composed or
+        resolved config; :func:`workbench.api.run_study` takes the config itself).
 
     Returns
     -------
@@ -65,96 +52,85 @@ def run_study(cfg: Mapping) -> list[StudyResult]:
         One per ``dataset.train_on`` variant, in the configured order (times each ``dataset.eval_on`` variant
         when that is set); they share one :class:`Timings`.
     """
-    timings = Timings()
-    solvers = {name: check_solver_config(name, spec) for name, spec in cfg["solver"].items()}
-    if not solvers:
-        raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
-    dataset_cfg, basis_cfg = cfg["dataset"], cfg["basis"]
-    train_names, eval_names = data_variants(dataset_cfg)
-    held_out = held_out_protocols(dataset_cfg)
-    if held_out and eval_names:
+    if not isinstance(settings, StudySettings):
         raise WorkbenchError(
-            "dataset.held_out scores each data variant on its own held-out frames; with "
-            "dataset.eval_on (bases carried onto other points) it is not supported: leave one unset"
+            f"run_study takes a study's checked settings (workbench.settings.typed.study_settings), got "
+            f"{type(settings).__name__}; workbench.run_study takes a config"
         )
+    timings = Timings()
+    solvers = {name: solver_options(solver) for name, solver in settings.solvers.items()}
+    dataset, basis = settings.dataset, settings.basis
+    train_names, eval_names = data_variants(dataset)
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
-    coverage_on = coverage_on_setting(basis_cfg)
-    score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
-    build_cfg = {
-        key: value for key, value in dataset_cfg.items() if key not in ("held_out", "folds", "fold_gap_s")
-    }  # the same built data
-    built_cfg = dict(build_cfg, train_on=build_names) if eval_names else build_cfg
+    # the same built data whatever is held out of it
+    built = without_settings(dataset, ("held_out", "folds", "fold_gap_s"))
+    built = changed_dataset(built, train_on=build_names) if eval_names else built
+    score_clean = settings.metric.score_clean is True
     with timings.stage("dataset"):
-        captures = build_captures(built_cfg, cache_dir=cfg.get("paths", {}).get("cache_dir"))
+        captures = build_captures(built, cache_dir=settings.paths.cache_dir)
         clean = (
-            build_captures(clean_dataset_config(built_cfg), cache_dir=cfg.get("paths", {}).get("cache_dir"))
-            if coverage_on == "clean" or score_clean
+            build_captures(clean_dataset_config(built), cache_dir=settings.paths.cache_dir)
+            if basis.coverage_on == "clean" or score_clean
             else None
         )
-    if eval_names and basis_cfg.get("alternatives"):
-        raise WorkbenchError(
-            "basis.alternatives are fitted and scored on each data variant's own points; "
-            "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset"
+    if eval_names:
+        return carried_results(captures, clean, train_names, eval_names, settings, solvers, timings)
+    results = []
+    for data, capture in captures.items():
+        capture, fitted = with_clean_m(
+            subset_hand_shapes(capture, basis), basis, clean[data] if basis.coverage_on == "clean" else None
         )
-    if not eval_names:
-        results = []
-        for data, capture in captures.items():
-            capture, fitted_cfg = with_clean_m(
-                subset_hand_shapes(capture, basis_cfg), basis_cfg, clean[data] if coverage_on == "clean" else None
-            )
-            truth = clean_frames(capture, clean[data]) if score_clean else None
-            results += with_paper_regime(
-                run_on_capture(data, capture, fitted_cfg, solvers, timings, truth=truth),
-                fitted_cfg,
-                solvers,
-                timings,
-                truth,
-            )
-            for protocol in held_out:
-                if protocol in FOLDED:
-                    results.append(
-                        cross_validated(
-                            data,
-                            capture,
-                            protocol,
-                            dataset_cfg,
-                            lambda name, part: run_on_capture(
-                                name,
-                                part,
-                                fitted_cfg,
-                                solvers,
-                                timings,
-                                truth=clean_frames(part, clean[data]) if score_clean else None,
-                            ),
-                        )
-                    )
-                    continue
-                part = held_out_capture(capture, protocol, dataset_cfg.get("eval_fraction", 0.2))
-                truth = clean_frames(part, clean[data]) if score_clean else None
+        truth = clean_frames(capture, clean[data]) if score_clean else None
+        results += with_paper_regime(
+            run_on_capture(data, capture, fitted, solvers, timings, truth=truth), fitted, solvers, timings, truth
+        )
+        for protocol in held_out_protocols(dataset):
+            if protocol in FOLDED:
                 results.append(
-                    replace(
-                        run_on_capture(f"{data} held-out {protocol}", part, fitted_cfg, solvers, timings, truth=truth),
-                        train_on=data,
-                        eval_on=data,
-                        protocol=HELD_OUT[protocol],
+                    cross_validated(
+                        data,
+                        capture,
+                        protocol,
+                        dataset,
+                        lambda name, part: run_on_capture(
+                            name,
+                            part,
+                            fitted,
+                            solvers,
+                            timings,
+                            truth=clean_frames(part, clean[data]) if score_clean else None,
+                        ),
                     )
                 )
-        return results
-    return carried_results(captures, clean, train_names, eval_names, cfg, solvers, timings)
+                continue
+            part = held_out_capture(capture, protocol, dataset.eval_fraction)
+            truth = clean_frames(part, clean[data]) if score_clean else None
+            results.append(
+                replace(
+                    run_on_capture(f"{data} held-out {protocol}", part, fitted, solvers, timings, truth=truth),
+                    train_on=data,
+                    eval_on=data,
+                    protocol=HELD_OUT[protocol],
+                )
+            )
+    return results
 
 
 def with_paper_regime(
-    result: StudyResult, basis_cfg: Mapping, solvers: Mapping[str, Mapping], timings: Timings, truth: np.ndarray | None
+    result: StudyResult, basis: BasisSchema, solvers: Mapping[str, Mapping], timings: Timings, truth: np.ndarray | None
 ) -> list[StudyResult]:
     """``basis.paper_regime``: the variant fitted at m = n (:func:`workbench.study.regime.paper_regime_fit`), named
     ``<data> m=n``, first, then the coverage rule's ``result``; only ``result`` (with a note saying why) when there
     is no separate m = n fit."""
-    capture, regime_cfg, note = paper_regime_fit(result.capture, basis_cfg, result.eigenfaces.n_components_)
-    if regime_cfg is None:
+    capture, regime_basis, note = paper_regime_fit(result.capture, basis, result.eigenfaces.n_components_)
+    if regime_basis is None:
         return [
             replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
         ]
-    return [run_on_capture(paper_regime_name(result.data), capture, regime_cfg, solvers, timings, truth=truth), result]
+    return [
+        run_on_capture(paper_regime_name(result.data), capture, regime_basis, solvers, timings, truth=truth),
+        result,
+    ]
 
 
 def carried_results(
@@ -162,15 +138,13 @@ def carried_results(
     clean: Mapping[str, Capture] | None,
     train_names: Sequence[str],
     eval_names: Sequence[str],
-    cfg: Mapping,
+    settings: StudySettings,
     solvers: Mapping[str, Mapping],
     timings: Timings,
 ) -> list[StudyResult]:
     """``dataset.eval_on``: the bases fitted on each training variant, carried onto the points of each evaluated
     variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair."""
-    basis_cfg = cfg["basis"]
-    coverage_on = coverage_on_setting(basis_cfg)
-    score_clean = bool((cfg.get("metric") or {}).get("score_clean", False))
+    basis, score_clean = settings.basis, settings.metric.score_clean is True
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
     if masked:
         raise WorkbenchError(
@@ -180,12 +154,12 @@ def carried_results(
         )
     results = []
     for train_on in train_names:
-        source, fitted_cfg = with_clean_m(
-            subset_hand_shapes(captures[train_on], basis_cfg),
-            basis_cfg,
-            clean[train_on] if coverage_on == "clean" else None,
+        source, fitted = with_clean_m(
+            subset_hand_shapes(captures[train_on], basis),
+            basis,
+            clean[train_on] if basis.coverage_on == "clean" else None,
         )
-        eigenfaces, quasi_eigen = fit_bases(source, fitted_cfg, timings)
+        eigenfaces, quasi_eigen = fit_bases(source, fitted, timings)
         for eval_on in eval_names:
             target = select_shapes(captures[eval_on], source.hand_names)
             with timings.stage("transfer"):
@@ -231,7 +205,7 @@ def carried_results(
 def run_on_capture(
     data: str,
     capture: Capture,
-    basis_cfg: Mapping,
+    basis: BasisSchema,
     solvers: Mapping[str, Mapping],
     timings: Timings,
     truth: np.ndarray | None = None,
@@ -243,10 +217,11 @@ def run_on_capture(
     data : str
         Name of the data variant, kept in the result.
     capture : Capture
-    basis_cfg : mapping
-        The ``basis`` config group.
+    basis : BasisSchema
+        The ``basis`` settings, typed.
     solvers : mapping
-        Solver name -> keyword arguments of :func:`workbench.numerics.solve.solve_weights` (see :func:`check_solver_config`).
+        Solver name -> keyword arguments of :func:`workbench.numerics.solve.solve_weights`
+        (:func:`workbench.settings.typed.solver_options`).
     timings : Timings
         Stage times are added to it.
     truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
@@ -256,19 +231,17 @@ def run_on_capture(
     -------
     StudyResult
     """
-    eigenfaces, quasi_eigen = fit_bases(capture, basis_cfg, timings)
+    eigenfaces, quasi_eigen = fit_bases(capture, basis, timings)
     rows, weights = score_bases(
         capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings, truth=truth
     )
-    alternatives = fit_alternative_bases(capture, basis_cfg, timings)
+    alternatives = fit_alternative_bases(capture, basis, timings)
     measured = {}
     if alternatives:
         more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings, truth=truth)
         rows, weights = rows + more_rows, {**weights, **more_weights}
         with timings.stage("intuitiveness"):
-            measured = basis_intuitiveness(
-                capture, eigenfaces, quasi_eigen, alternatives, weights, basis_cfg.get("intuitiveness") or {}
-            )
+            measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights, basis.intuitiveness)
     return StudyResult(
         data=data,
         capture=capture,

@@ -24,6 +24,7 @@ from workbench.numerics.metrics import (
 )
 from workbench.numerics.reduced import FrameProjections, Subspace, project_frames
 from workbench.numerics.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
+from workbench.settings.schema import IntuitivenessSchema
 from workbench.study.results import QE_LABELS, Row, Timings
 
 
@@ -567,7 +568,7 @@ def basis_intuitiveness(
     quasi_eigen: Mapping,
     alternatives: Mapping[str, np.ndarray],
     weights: Mapping,
-    settings: Mapping,
+    settings: IntuitivenessSchema,
 ) -> dict:
     """Closeness to the hand shapes, locality and usage of H, each quasi-eigen basis, PCA and the alternatives
     (:mod:`workbench.numerics.intuitiveness`), as plain values for the run record.
@@ -582,7 +583,7 @@ def basis_intuitiveness(
         Label -> shapes of shape (n, n_dims).
     weights : mapping
         ``(basis, solver)`` -> weights of the evaluated frames, shape (n_eval_frames, n).
-    settings : mapping
+    settings : IntuitivenessSchema
         ``locality_energy`` and ``usage_threshold`` (``basis.intuitiveness``).
 
     Returns
@@ -594,16 +595,13 @@ def basis_intuitiveness(
         hand shape, its ``|cosine|`` and the element's locality).
     """
     from workbench.numerics.intuitiveness import (
-        LOCALITY_ENERGY,
-        USAGE_THRESHOLD,
         locality,
         matched_closeness,
         point_areas,
         usage,
     )
 
-    energy = float(settings.get("locality_energy", LOCALITY_ENERGY))
-    threshold = float(settings.get("usage_threshold", USAGE_THRESHOLD))
+    energy, threshold = float(settings.locality_energy), float(settings.usage_threshold)
     areas = point_areas(capture.neutral, capture.faces)
     bases = {
         "H": capture.hand,

@@ -9,7 +9,6 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.numerics.intuitiveness import intuitiveness
-from workbench.settings.rules import bool_setting
 from workbench.stats.statistics import paired_mean_difference, paired_pooled_difference
 from workbench.study.results import StudyResult
 
@@ -244,8 +243,3 @@ def saved_inputs(results: Sequence[StudyResult]) -> dict:
         for result in results
         if result.transfer == "identity" and result.protocol == "training frames"
     }
-
-
-def saves_inputs(cfg: Mapping) -> bool:
-    """``save_inputs``, checked: whether the record keeps :func:`saved_inputs` and :func:`alpha_per_frame_arrays`."""
-    return bool_setting(cfg.get("save_inputs", False), "save_inputs")

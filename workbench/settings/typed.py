@@ -1,0 +1,168 @@
+"""The settings of a study, checked once and typed: what the study and the dataset stage take.
+
+:func:`study_settings` checks a composed or resolved config (:func:`workbench.settings.schema.check_study_config`)
+and turns it into the schema's own dataclasses, every setting the config leaves out at its schema default, so that
+below it settings are attributes (``settings.basis.coverage``, ``settings.dataset.eval_fraction``) and no default is
+restated. The resolved config as checked travels beside them (``plain``): the record writes it as YAML and the
+dataset cache keys its captures by it, both as before.
+"""
+
+from __future__ import annotations
+
+from dataclasses import MISSING as NO_DEFAULT
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
+from typing import Any, Mapping, Optional, Sequence
+
+from omegaconf import MISSING
+
+from workbench.core.errors import WorkbenchError
+from workbench.settings.schema import (
+    DATASET_EXTRAS,
+    DATASET_SCHEMAS,
+    BasisSchema,
+    MetricSchema,
+    PaperSchema,
+    PathsSchema,
+    SolverSchema,
+    check_dataset_group,
+    checked_settings,
+    nested_schema,
+)
+
+
+def typed(schema: type, values: Mapping):
+    """``values`` as an instance of the dataclass ``schema``: nested schemas typed in turn, a field ``values``
+    leaves out at its default (None where the schema has no default). The values are not checked here."""
+    given = {}
+    for spec in fields(schema):
+        if spec.name in values:
+            value, nested = values[spec.name], nested_schema(spec)
+            given[spec.name] = typed(nested, value) if nested is not None and isinstance(value, Mapping) else value
+        elif spec.default_factory is not NO_DEFAULT:
+            given[spec.name] = spec.default_factory()
+        elif spec.default is NO_DEFAULT or spec.default == MISSING:
+            given[spec.name] = None
+    return schema(**given)
+
+
+def _dataset_class(kind: str) -> type:
+    """The typed settings of a dataset kind: its schema, then the settings only added with ``+``
+    (:data:`~workbench.settings.schema.DATASET_EXTRAS`, None when not given) and the group as given (``plain``)."""
+    extras = [name for name, kinds in DATASET_EXTRAS.items() if kind in kinds]
+    return make_dataclass(
+        f"{DATASET_SCHEMAS[kind].__name__.removesuffix('Schema')}Settings",
+        [
+            *((name, Any, field(default=None)) for name in extras),
+            ("plain", dict, field(default_factory=dict, repr=False, compare=False)),
+        ],
+        bases=(DATASET_SCHEMAS[kind],),
+    )
+
+
+DATASET_SETTINGS = {kind: _dataset_class(kind) for kind in DATASET_SCHEMAS}
+"""Dataset kind -> its typed settings (a subclass of the kind's schema)."""
+
+
+def dataset_settings(values, *, check: bool = False) -> Any:
+    """The ``dataset`` group as its kind's typed settings (:data:`DATASET_SETTINGS`); typed settings are returned as
+    they are. With ``check``, a plain group is checked first (:func:`~workbench.settings.schema.check_dataset_group`:
+    :func:`workbench.api.build_captures` does); :func:`study_settings` checks the whole study instead, and a builder
+    called with a plain group (a test's) types it unchecked, as it read it before.
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the first setting that breaks its rule, or a ``kind`` the workbench has no builder for.
+    """
+    if is_dataclass(values):
+        return values
+    if not isinstance(values, Mapping):
+        raise WorkbenchError(f"the dataset settings must be a mapping, got {type(values).__name__}")
+    if check:
+        check_dataset_group(values)
+    kind = values.get("kind")
+    if kind not in DATASET_SETTINGS:
+        raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SETTINGS)}, got {kind!r}")
+    settings = typed(DATASET_SETTINGS[kind], {key: value for key, value in values.items() if key != "plain"})
+    settings.plain = dict(values)
+    return settings
+
+
+def changed_dataset(settings, **changes) -> Any:
+    """The typed dataset settings with some settings changed, in ``plain`` too (what the cache keys by)."""
+    return dataset_settings({**settings.plain, **changes}, check=False)
+
+
+def without_settings(settings, names: Sequence[str]) -> Any:
+    """The typed dataset settings without ``names`` (back at their defaults), left out of ``plain`` too."""
+    return dataset_settings({key: value for key, value in settings.plain.items() if key not in names}, check=False)
+
+
+def solver_options(solver: SolverSchema) -> dict:
+    """One ``solver`` entry as the keyword arguments of :func:`workbench.numerics.solve.solve_weights`
+    (least squares takes no bounds)."""
+    if solver.kind == "lstsq":
+        return {"kind": "lstsq", "lower": None, "upper": None}
+    return {"kind": solver.kind, "lower": solver.lower, "upper": solver.upper}
+
+
+@dataclass
+class StudySettings:
+    """A study's settings, checked and typed.
+
+    Attributes
+    ----------
+    dataset : the kind's typed settings (:data:`DATASET_SETTINGS`)
+    basis : BasisSchema
+    solvers : dict
+        Solver name -> :class:`~workbench.settings.schema.SolverSchema`, in the configured order.
+    metric : MetricSchema
+    paths : PathsSchema
+    study : str
+    save_inputs : bool
+    paper : PaperSchema or None
+    plain : dict
+        The resolved config as checked (without Hydra's node and retired settings).
+    """
+
+    dataset: Any
+    basis: BasisSchema
+    solvers: dict
+    metric: MetricSchema
+    paths: PathsSchema
+    study: Optional[str] = None
+    save_inputs: bool = False
+    paper: Optional[PaperSchema] = None
+    plain: dict = field(default_factory=dict, repr=False, compare=False)
+
+
+def study_settings(cfg, overrides: Sequence[str] = ()) -> StudySettings:
+    """Check a study config and type it; typed settings are returned as they are.
+
+    Parameters
+    ----------
+    cfg : omegaconf.DictConfig, mapping or StudySettings
+        A composed study config, or one resolved (a record's ``config.yaml``).
+    overrides : sequence of str
+        The overrides that made it (a retired setting given again is refused).
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the first setting that breaks its rule (:func:`workbench.settings.schema.check_study_config`).
+    """
+    if isinstance(cfg, StudySettings):
+        return cfg
+    plain, _ = checked_settings(cfg, overrides)
+    metric, paths, paper = plain.get("metric") or {}, plain.get("paths") or {}, plain.get("paper")
+    return StudySettings(
+        dataset=dataset_settings(plain["dataset"], check=False),
+        basis=typed(BasisSchema, plain["basis"]),
+        solvers={name: typed(SolverSchema, spec) for name, spec in plain["solver"].items()},
+        metric=typed(MetricSchema, metric),
+        paths=typed(PathsSchema, paths),
+        study=plain.get("study"),
+        save_inputs=plain.get("save_inputs") is True,
+        paper=typed(PaperSchema, paper) if isinstance(paper, Mapping) else None,
+        plain=plain,
+    )
