@@ -245,7 +245,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         hand = check_matrix("hand_shapes", self.hand_shapes, CAPTURE, n_columns=frames.shape[1])
         _check_scale("hand_shapes", hand)
         neutral = None if self.neutral is None else _check_vector("neutral", self.neutral, frames.shape[1])
-        largest = float(np.max(np.abs(frames)))
+        largest = _largest(frames)
         scale = 2.0 ** np.round(np.log2(largest)) if 0 < largest < WORKING_SCALE_BELOW else 1.0
         if scale != 1.0:  # a power of two: exact
             frames, hand = frames / scale, hand / scale
@@ -519,10 +519,15 @@ def _check_bounds(bounds) -> None:
         raise WorkbenchError(f"bounds must have lower <= upper, got {tuple(bounds)!r}")
 
 
+def _largest(array: np.ndarray) -> float:
+    """The largest ``|value|`` of a finite array, without an absolute copy of it (a mesh capture is gigabytes)."""
+    return max(float(array.max()), -float(array.min()))
+
+
 def _check_scale(name: str, array: np.ndarray) -> None:
     """A :class:`WorkbenchError` naming ``name`` when its largest ``|value|`` lies outside :data:`SCALE_RANGE` (but
     for all zeros, which the fit's own rules refuse)."""
-    largest = float(np.max(np.abs(array)))
+    largest = _largest(array)
     low, high = SCALE_RANGE
     if largest and not low <= largest <= high:
         raise WorkbenchError(
