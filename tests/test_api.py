@@ -260,6 +260,10 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
         (lambda e, x, h: e.fit(np.ma.masked_less(x, 0.0)), "^frames must not be a NumPy masked array"),
         (lambda e, x, h: e.fit(x).transform(np.ma.masked_array(x)), "^frames must not be a NumPy masked array"),
         (lambda e, x, h: e.fit(scipy.sparse.csr_matrix(x)), "^frames must be a dense array: sparse input"),
+        (
+            lambda e, x, h: e.set_params(hand_shapes=h * 1e-140, neutral=np.full(12, 1e200)).fit(x * 1e-140),
+            r"^neutral is too large against the frames' scale [0-9.e+-]+: rescale both$",
+        ),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument_and_the_rule(call, message):

@@ -246,10 +246,12 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         _check_scale("hand_shapes", hand)
         neutral = None if self.neutral is None else _check_vector("neutral", self.neutral, frames.shape[1])
         largest = _largest(frames)
-        scale = 2.0 ** np.round(np.log2(largest)) if 0 < largest < WORKING_SCALE_BELOW else 1.0
+        scale = float(2.0 ** np.round(np.log2(largest))) if 0 < largest < WORKING_SCALE_BELOW else 1.0
         if scale != 1.0:  # a power of two: exact
             frames, hand = frames / scale, hand / scale
-            if neutral is not None and not np.all(np.isfinite(neutral / scale)):
+            with np.errstate(over="ignore"):  # an overflow is refused here, in one line
+                overflows = neutral is not None and not np.all(np.isfinite(neutral / scale))
+            if overflows:
                 raise WorkbenchError(f"neutral is too large against the frames' scale {largest:.3g}: rescale both")
         names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if self.names is None else self.names
         if isinstance(names, str) or len(names) != hand.shape[0]:
