@@ -1,18 +1,25 @@
 """The public Python API: the estimator's manners, known answers, and the same alpha as the command line's run."""
 
+import importlib.util
 import os
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
+import scipy.sparse
 
 import workbench
 from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
+from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.metrics import alpha_per_frame
 from workbench.settings.config import REPO_ROOT
 
 PARAMETERS = {
+    "hand_shapes": None,
+    "neutral": None,
+    "names": None,
     "coverage": 0.995,
     "n_components": None,
     "through": "mean",
@@ -41,7 +48,7 @@ def low_rank(variances=(9.0, 4.0, 1.0), n_frames=40, n_dims=12, seed=0):
 def fitted():
     frames, _, directions = low_rank()
     hand = np.random.default_rng(1).standard_normal((4, frames.shape[1]))
-    return QuasiEigenFaces(n_components=3).fit(frames, hand, neutral=np.full(frames.shape[1], 50.0)), frames
+    return QuasiEigenFaces(hand_shapes=hand, neutral=np.full(frames.shape[1], 50.0), n_components=3).fit(frames), frames
 
 
 # --- manners ------------------------------------------------------------------------------------------------------
@@ -50,6 +57,9 @@ def fitted():
 def test_parameters_are_keyword_only_and_stored_untouched():
     assert QuasiEigenFaces().get_params() == PARAMETERS
     odd = {
+        "hand_shapes": "shapes",
+        "neutral": 0,
+        "names": "abc",
         "coverage": 7,
         "n_components": "many",
         "through": "sideways",
@@ -74,7 +84,7 @@ def test_parameters_are_keyword_only_and_stored_untouched():
 
 def test_fit_returns_self_and_fitted_attributes_end_with_an_underscore(fitted):
     estimator, frames = fitted
-    assert estimator.fit(frames, estimator.hand_shapes_) is estimator
+    assert estimator.fit(frames) is estimator
     fitted_names = set(vars(estimator)) - set(PARAMETERS)
     assert fitted_names and all(name.endswith("_") and not name.startswith("_") for name in fitted_names)
     assert {
@@ -89,7 +99,11 @@ def test_fit_returns_self_and_fitted_attributes_end_with_an_underscore(fitted):
         "hand_shapes_",
         "neutral_",
     } <= fitted_names
-    assert estimator.get_params() == dict(PARAMETERS, n_components=3)
+    params = estimator.get_params()
+    assert params.pop("hand_shapes") is estimator.hand_shapes and params.pop("neutral") is estimator.neutral
+    assert params == {name: value for name, value in PARAMETERS.items() if name not in ("hand_shapes", "neutral")} | {
+        "n_components": 3
+    }
 
 
 @pytest.mark.parametrize(
@@ -103,16 +117,40 @@ def test_fit_returns_self_and_fitted_attributes_end_with_an_underscore(fitted):
 )
 def test_a_clear_error_before_fit(use):
     frames, _, _ = low_rank()
-    with pytest.raises(NotFittedError, match=r"QuasiEigenFaces instance is not fitted yet: call fit\(frames, "):
+    with pytest.raises(NotFittedError, match=r"QuasiEigenFaces instance is not fitted yet: call fit\(frames\) before"):
         use(QuasiEigenFaces(), frames)
     assert issubclass(NotFittedError, ValueError) and issubclass(NotFittedError, AttributeError)
+
+
+def test_the_estimator_needs_no_scikit_learn(monkeypatch):
+    """The core without the bases extra: the same estimator, its own NotFittedError (scikit-learn's when installed,
+    tests/test_sklearn.py)."""
+    for name in [name for name in sys.modules if name == "sklearn" or name.startswith("sklearn.")] + ["sklearn"]:
+        monkeypatch.setitem(sys.modules, name, None)  # import sklearn... raises ImportError
+    path = REPO_ROOT / "workbench" / "numerics" / "estimator.py"
+    spec = importlib.util.spec_from_file_location("estimator_without_scikit_learn", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.ESTIMATOR_BASES == () and module.QuasiEigenFaces.__mro__[1:] == (object,)
+    assert issubclass(module.NotFittedError, WorkbenchError) and issubclass(module.NotFittedError, AttributeError)
+    frames, _, _ = low_rank()
+    hand = np.random.default_rng(1).standard_normal((3, frames.shape[1]))
+    estimator = module.QuasiEigenFaces(hand_shapes=hand, n_components=3)
+    with pytest.raises(module.NotFittedError, match="not fitted yet"):
+        estimator.transform(frames)
+    fitted = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(frames)
+    np.testing.assert_array_equal(estimator.fit(frames).transform(frames), fitted.transform(frames))
+    assert estimator.score(frames) == fitted.score(frames) and repr(estimator) == repr(fitted)
+    assert estimator.set_params(solver="nnls").get_params()["solver"] == "nnls"
 
 
 def test_eigenface_signs_are_deterministic():
     frames, _, _ = low_rank(seed=3)
     hand = np.random.default_rng(2).standard_normal((3, frames.shape[1]))
-    first = QuasiEigenFaces(n_components=3).fit(frames, hand)
-    flipped = QuasiEigenFaces(n_components=3).fit(-frames, hand)  # same covariance, eigenvectors of either sign
+    first = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(frames)
+    flipped = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(
+        -frames
+    )  # same covariance, eigenvectors of either sign
     rows = np.arange(3)
     pivots = np.argmax(np.abs(first.eigenfaces_), axis=1)
     assert np.all(first.eigenfaces_[rows, pivots] > 0)
@@ -125,14 +163,14 @@ def test_eigenface_signs_are_deterministic():
 def test_low_rank_frames_give_their_known_principal_components():
     frames, mean, directions = low_rank(variances=(9.0, 4.0, 1.0))
     hand = np.random.default_rng(4).standard_normal((3, frames.shape[1]))
-    estimator = QuasiEigenFaces(coverage=0.9).fit(frames, hand)
+    estimator = QuasiEigenFaces(hand_shapes=hand, coverage=0.9).fit(frames)
     # 9/14 = 0.643 < 0.9 <= 13/14 = 0.929: two eigenfaces
     assert estimator.m_ == 2 and estimator.coverage_ == pytest.approx(13 / 14, abs=1e-12)
     np.testing.assert_allclose(estimator.mean_, mean, rtol=0, atol=1e-12)
     np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
     np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14, 1 / 14], rtol=1e-12)
     np.testing.assert_allclose(np.abs(estimator.eigenfaces_ @ directions[:2].T), np.eye(2), rtol=0, atol=1e-12)
-    every = QuasiEigenFaces(n_components=3).fit(frames, hand)
+    every = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(frames)
     np.testing.assert_allclose(
         every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames, rtol=0, atol=1e-12
     )
@@ -141,11 +179,11 @@ def test_low_rank_frames_give_their_known_principal_components():
 @pytest.mark.parametrize("through", ["mean", "neutral"])
 def test_a_hand_shape_on_the_hyperplane_comes_back_unchanged(through):
     frames, mean, directions = low_rank()
-    estimator = QuasiEigenFaces(n_components=3, through=through)
     offset = mean if through == "mean" else 0.0
     on_plane = offset + np.array([2.0, -1.0, 0.5]) @ directions
     off_plane = np.random.default_rng(5).standard_normal(frames.shape[1]) * 3.0
-    estimator.fit(frames, np.vstack([on_plane, off_plane]), names=["on", "off"])
+    hand = np.vstack([on_plane, off_plane])
+    estimator = QuasiEigenFaces(hand_shapes=hand, names=["on", "off"], n_components=3, through=through).fit(frames)
     np.testing.assert_allclose(estimator.shapes_[0], on_plane, rtol=0, atol=1e-12)
     signs = np.diag(estimator.eigenfaces_ @ directions.T)  # each eigenface is +-1 times its direction
     np.testing.assert_allclose(np.abs(signs), 1.0, rtol=0, atol=1e-12)
@@ -165,7 +203,7 @@ def test_alpha_of_a_frame_with_a_known_residual():
     residual -= hand.T @ np.linalg.lstsq(hand.T, residual, rcond=None)[0]
     frame = 2.0 * hand[0] + residual
     neutral = np.full(12, 10.0)
-    estimator = QuasiEigenFaces(n_components=2).fit(frames, hand, neutral=neutral)
+    estimator = QuasiEigenFaces(hand_shapes=hand, neutral=neutral, n_components=2).fit(frames)
     expected_disp = 100 * np.linalg.norm(residual) / np.linalg.norm(frame)
     expected_abs = 100 * np.linalg.norm(residual) / np.linalg.norm(neutral + frame)
     assert estimator.alpha(frame[None], basis="H", normalisation="displacement") == pytest.approx(
@@ -193,30 +231,104 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda e, x, h: e.fit(x[0], h), "frames must be a 2-D array"),
-        (lambda e, x, h: e.fit(x[:, :-1], h[:, :-1]), "frames must have 3 \\* n_points columns"),
-        (lambda e, x, h: e.fit(x, h[:, :-3]), "hand_shapes must have 12 columns"),
-        (lambda e, x, h: e.fit(x, h, neutral=np.zeros(5)), r"neutral must have shape \(12,\)"),
-        (lambda e, x, h: e.fit(x, h, names=["a"]), "names must be a sequence of one name per hand shape"),
-        (lambda e, x, h: e.set_params(through="origin").fit(x, h), "through must be one of 'mean', 'neutral'"),
-        (lambda e, x, h: e.set_params(solver="qp").fit(x, h), "solver must be one of 'lstsq', 'nnls', 'box'"),
-        (lambda e, x, h: e.set_params(coverage=1.5).fit(x, h), r"coverage must be in \(0, 1\], got 1.5"),
-        (lambda e, x, h: e.set_params(n_components=0).fit(x, h), "n_components must be a positive integer"),
-        (lambda e, x, h: e.fit(x, h).transform(x[:, :6]), "frames must have 12 columns"),
-        (lambda e, x, h: e.fit(x, h).transform(x, basis="ICA"), "basis must be one of 'QE', 'H', 'PCA'"),
-        (lambda e, x, h: e.fit(x, h).alpha(x), "normalisation='absolute' needs the neutral positions"),
-        (lambda e, x, h: e.fit(x, h).alpha(x, normalisation="disp"), "normalisation must be one of"),
+        (lambda e, x, h: e.fit(x[0]), "frames must be a 2-D array"),
+        (lambda e, x, h: e.set_params(hand_shapes=h[:, :-1]).fit(x[:, :-1]), "frames must have 3 \\* n_points columns"),
+        (lambda e, x, h: e.set_params(hand_shapes=None).fit(x), r"hand_shapes must be given: QuasiEigenFaces\(hand_"),
+        (lambda e, x, h: e.set_params(hand_shapes=h[:, :-3]).fit(x), "hand_shapes must have 12 columns"),
+        (lambda e, x, h: e.set_params(neutral=np.zeros(5)).fit(x), r"neutral must have shape \(12,\)"),
+        (lambda e, x, h: e.set_params(names=["a"]).fit(x), "names must be a sequence of one name per hand shape"),
+        (lambda e, x, h: e.set_params(through="origin").fit(x), "through must be one of 'mean', 'neutral'"),
+        (lambda e, x, h: e.set_params(solver="qp").fit(x), "solver must be one of 'lstsq', 'nnls', 'box'"),
+        (lambda e, x, h: e.set_params(coverage=1.5).fit(x), r"coverage must be in \(0, 1\], got 1.5"),
+        (lambda e, x, h: e.set_params(n_components=0).fit(x), "n_components must be a positive integer"),
+        (lambda e, x, h: e.fit(x).transform(x[:, :6]), "frames must have 12 columns"),
+        (lambda e, x, h: e.fit(x).transform(x, basis="ICA"), "basis must be one of 'QE', 'H', 'PCA'"),
+        (lambda e, x, h: e.fit(x).alpha(x), "normalisation='absolute' needs the neutral positions"),
+        (lambda e, x, h: e.fit(x).alpha(x, normalisation="disp"), "normalisation must be one of"),
         (
-            lambda e, x, h: e.fit(x, h).alpha(x, basis="PCA", solver="nnls", normalisation="displacement"),
+            lambda e, x, h: e.fit(x).alpha(x, basis="PCA", solver="nnls", normalisation="displacement"),
             "solver must be None for basis 'PCA'",
+        ),
+        # bounds are checked at fit whatever the solver (transform may ask for "box")
+        (lambda e, x, h: e.set_params(bounds=(1, 0)).fit(x), r"^bounds must have lower <= upper, got \(1, 0\)$"),
+        (lambda e, x, h: e.set_params(solver="box", bounds=(None, None)).fit(x), "^bounds must be a pair"),
+        (lambda e, x, h: e.set_params(bounds=0.5).fit(x), r"^bounds must be a pair \(lower, upper\)"),
+        (lambda e, x, h: e.set_params(bounds=(0, float("nan"))).fit(x), "^bounds must be a pair"),
+        # what a conversion to floats would silently change
+        (lambda e, x, h: e.fit(x + 1j * x), r"^frames must be real: Complex data not supported \(dtype complex128\)"),
+        (lambda e, x, h: e.set_params(hand_shapes=h * (1 + 0j)).fit(x), "^hand_shapes must be real"),
+        (lambda e, x, h: e.fit(np.ma.masked_less(x, 0.0)), "^frames must not be a NumPy masked array"),
+        (lambda e, x, h: e.fit(x).transform(np.ma.masked_array(x)), "^frames must not be a NumPy masked array"),
+        (lambda e, x, h: e.fit(scipy.sparse.csr_matrix(x)), "^frames must be a dense array: sparse input"),
+        (
+            lambda e, x, h: e.set_params(hand_shapes=h * 1e-140, neutral=np.full(12, 1e200)).fit(x * 1e-140),
+            r"^neutral is too large against the frames' scale [0-9.e+-]+: rescale both$",
         ),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument_and_the_rule(call, message):
     frames, _, _ = low_rank()
     hand = np.random.default_rng(7).standard_normal((3, 12))
-    with pytest.raises(WorkbenchError, match=message):
-        call(QuasiEigenFaces(), frames, hand)
+    with pytest.raises(WorkbenchError, match=message) as refused:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # refused, not converted with a warning
+            call(QuasiEigenFaces(hand_shapes=hand), frames, hand)
+    assert "\n" not in str(refused.value)
+
+
+def test_identical_or_numerically_constant_frames_are_refused():
+    """50 copies of one frame have a round-off variance (about 1e-29), which must not make an eigenface; frames
+    that differ only at round-off of their scale are as constant; a small motion far from neutral is not."""
+    frames, _, _ = low_rank()
+    hand = np.random.default_rng(8).standard_normal((1, 12))
+    estimator = QuasiEigenFaces(hand_shapes=hand, n_components=1)
+    copies = np.tile(frames[0] + 10.0, (50, 1))
+    assert 0 < Eigenfaces(n_components=1).fit(copies).explained_variance_[0] < 1e-25  # what the rule is for
+    for same in (copies, np.zeros((50, 12))):
+        with pytest.raises(WorkbenchError, match=r"^frames are numerically constant: all 50 frames are the same$"):
+            estimator.fit(same)
+    jitter = copies * (1 + 1e-15 * np.random.default_rng(9).standard_normal(copies.shape))  # round-off apart
+    with pytest.raises(WorkbenchError, match=r"^frames are numerically constant: their spread [0-9.e+-]+ is at most"):
+        estimator.fit(jitter)
+    moving = frames[0] * 1e3 + 1e-6 * frames  # a relative spread of about 1e-9: a capture, fitted
+    assert estimator.fit(moving).m_ == 1
+
+
+@pytest.mark.parametrize("scale", [1e100, 1e-100, 2.0**-60])
+def test_the_fit_is_relative_to_the_frames_scale(scale):
+    """Frames and hand shapes scaled together give the same eigenfaces, basis weights and alpha."""
+    frames, _, _ = low_rank(seed=4)
+    hand = np.random.default_rng(10).standard_normal((3, 12))
+    neutral = np.full(12, 50.0)
+    one = QuasiEigenFaces(hand_shapes=hand, neutral=neutral, n_components=3).fit(frames)
+    scaled = QuasiEigenFaces(hand_shapes=hand * scale, neutral=neutral * scale, n_components=3).fit(frames * scale)
+    np.testing.assert_allclose(scaled.eigenfaces_, one.eigenfaces_, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(scaled.explained_variance_ratio_, one.explained_variance_ratio_, rtol=1e-10)
+    np.testing.assert_allclose(scaled.explained_variance_, one.explained_variance_ * scale**2, rtol=1e-10)
+    np.testing.assert_allclose(scaled.shapes_, one.shapes_ * scale, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(scaled.transform(frames * scale), one.transform(frames), rtol=0, atol=1e-9)
+    for solver in ("lstsq", "nnls", "box"):
+        assert scaled.alpha(frames * scale, solver=solver) == pytest.approx(one.alpha(frames, solver=solver), rel=1e-9)
+
+
+@pytest.mark.parametrize("scale", [1e300, 1e-200])
+def test_frames_beyond_float64_squares_are_refused_naming_their_scaling(scale):
+    frames, _, _ = low_rank()
+    hand = np.random.default_rng(11).standard_normal((3, 12))
+    with pytest.raises(WorkbenchError, match=r"^frames are scaled beyond float64's squares: largest \|value\| "):
+        QuasiEigenFaces(hand_shapes=hand * scale).fit(frames * scale)
+
+
+def test_a_rank_deficient_basis_is_warned_about_as_the_command_line_notes_it():
+    frames, _, _ = low_rank(variances=(9.0, 4.0, 1.0))
+    hand = np.random.default_rng(12).standard_normal((4, 12))
+    # through the mean the quasi-eigen faces span the mean too (rank m + 1); through the neutral face, m
+    for through, rank in (("mean", 3), ("neutral", 2)):
+        with pytest.warns(UserWarning, match=rf"quasi-eigen basis is rank-deficient, rank {rank} of 4 shapes on 2 e"):
+            QuasiEigenFaces(hand_shapes=hand, n_components=2, through=through).fit(frames)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        QuasiEigenFaces(hand_shapes=hand[:2], n_components=2).fit(frames)  # as many eigenfaces as shapes: none
 
 
 # --- the package's namespace --------------------------------------------------------------------------------------
@@ -299,9 +411,13 @@ def check_estimator_against_record(record, captures):
     for data, capture, n_components in variants:
         rows = [row for row in record.metrics["rows"] if row["data"] == data]
         for through, label in (("mean", "QE"), ("neutral", "QE-linear")):
-            estimator = QuasiEigenFaces(through=through, n_components=n_components).fit(
-                capture.train, capture.hand, neutral=capture.neutral, names=capture.hand_names
-            )
+            estimator = QuasiEigenFaces(
+                hand_shapes=capture.hand,
+                neutral=capture.neutral,
+                names=capture.hand_names,
+                through=through,
+                n_components=n_components,
+            ).fit(capture.train)
             for row in (row for row in rows if row["basis"] in (label, "H", "PCA")):
                 basis = "QE" if row["basis"] == label else row["basis"]
                 solver = None if basis == "PCA" else row["solver"]
@@ -333,7 +449,7 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
-    estimator = QuasiEigenFaces(solver="nnls").fit(capture.train, capture.hand, neutral=capture.neutral)
+    estimator = QuasiEigenFaces(hand_shapes=capture.hand, neutral=capture.neutral, solver="nnls").fit(capture.train)
     row = next(
         row
         for row in record.metrics["rows"]

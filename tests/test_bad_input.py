@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse
 from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
@@ -68,10 +69,16 @@ def with_value(array, index, value):
         (np.ones((20, N_DIMS, 1)), r"capture must be a 2-D array"),
         ([[1.0, 2.0], [3.0]], r"capture must be a numeric 2-D array"),
         ([["a", "b"], ["c", "d"]], r"capture must be a numeric 2-D array .*'a'"),
+        # refused, never converted: the imaginary part, the mask or the sparse structure would be lost
+        (np.ones((4, N_DIMS)) * (1 + 2j), r"^capture must be real: Complex data not supported \(dtype complex128\)"),
+        ([[1j, 2.0], [3.0, 4.0]], r"^capture must be real"),
+        (np.ma.masked_array(np.ones((4, N_DIMS)), mask=np.eye(4, N_DIMS)), r"^capture must not be a NumPy masked arr"),
+        (scipy.sparse.eye(4, N_DIMS, format="csr"), r"^capture must be a dense array: sparse input is not supported"),
     ],
 )
 def test_eigenfaces_shapes(bad, message):
-    with pytest.raises(WorkbenchError, match=message):
+    with pytest.raises(WorkbenchError, match=message), warnings.catch_warnings():
+        warnings.simplefilter("error")  # no ComplexWarning on the way
         Eigenfaces().fit(bad)
 
 

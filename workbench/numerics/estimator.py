@@ -4,17 +4,23 @@ No config and no files: frames, hand shapes and (for the paper's absolute alpha)
 arrays out. Every number comes from the functions the command line runs (:mod:`workbench.numerics.bases`,
 :mod:`workbench.numerics.solve`, :mod:`workbench.numerics.reduced`, :mod:`workbench.numerics.metrics`), composed as a run composes them, so
 that an estimator fitted on a capture's arrays gives the alpha of that run's record.
+
+scikit-learn (the ``bases`` extra) is optional: when it is installed the estimator is one of its estimators
+(``BaseEstimator``, ``TransformerMixin``: tags, cloning, the HTML display) and :class:`NotFittedError` is its
+``sklearn.exceptions.NotFittedError``; without it the estimator keeps the same parameters and methods.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
+import warnings
 
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
-from workbench.numerics.metrics import AlphaSummary, summarise_squares
+from workbench.numerics.metrics import AlphaSummary, basis_conditioning, summarise_squares
 from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.numerics.validation import CAPTURE, check_matrix
@@ -25,14 +31,33 @@ THROUGH = {"mean": "affine", "neutral": "linear"}
 BASES = ("QE", "H", "PCA")
 NORMALISATIONS = ("absolute", "displacement")
 AGGREGATES = ("mean", "pooled", "per_frame")
+CONSTANT_REL = 1e-10
+"""Frames whose spread ``sqrt(total variance)`` is at most this times their root-mean-square norm are numerically
+constant (round-off of the mean, not motion)."""
+SCALE_RANGE = (1e-150, 1e150)
+"""The largest ``|value|`` of frames and hand shapes must lie in this range: the fit sums squares of the values,
+which overflow (``inf``) above it and underflow to zero below it in float64."""
+WORKING_SCALE_BELOW = 1e-3
+"""Frames whose largest ``|value|`` is below this are divided by the power of two nearest it for the computation
+(``scale_``), so that the tolerances the workbench states in data units (``TOL.zero_displacement``: 1e-9) stay
+small against them; at or above it (millimetres, metres) they are computed as given, as a run computes them."""
+
+try:
+    from sklearn.base import BaseEstimator, TransformerMixin
+    from sklearn.exceptions import NotFittedError
+except ImportError:  # the core without the bases extra
+
+    class NotFittedError(WorkbenchError, AttributeError):
+        """A fitted attribute or method of an estimator used before ``fit`` (a ``ValueError`` and an
+        ``AttributeError``, as scikit-learn's ``NotFittedError``, which takes its place when scikit-learn is
+        installed)."""
+
+    ESTIMATOR_BASES: tuple = ()
+else:
+    ESTIMATOR_BASES = (TransformerMixin, BaseEstimator)
 
 
-class NotFittedError(WorkbenchError, AttributeError):
-    """A fitted attribute or method of an estimator used before ``fit`` (scikit-learn's ``NotFittedError`` is
-    also both a ``ValueError`` and an ``AttributeError``)."""
-
-
-class QuasiEigenFaces:
+class QuasiEigenFaces(*ESTIMATOR_BASES):
     """Quasi-eigen faces (Kim & Ko, eq. 2-6): eigenfaces of a capture, the hand shapes projected onto their
     hyperplane, weights of frames in that basis and the reconstruction error alpha.
 
@@ -41,6 +66,15 @@ class QuasiEigenFaces:
 
     Parameters
     ----------
+    hand_shapes : array-like of shape (n_shapes, n_dims)
+        ``E^H``: the hand-made shapes as displacements from neutral; none all zero, none a copy of another,
+        linearly independent. Required by :meth:`fit`; a parameter (not an argument of ``fit``) so that a
+        ``Pipeline``, ``GridSearchCV`` or ``cross_validate`` fits every clone with them.
+    neutral : array-like of shape (n_dims,) or None, default None
+        Neutral positions ``v0``, for the paper's absolute alpha (:meth:`alpha`, :meth:`score`); not used by the
+        fit.
+    names : sequence of str or None, default None
+        One distinct name per hand shape (default ``shape_1``, ``shape_2``, ...).
     coverage : float, default 0.995
         Keep the smallest ``m`` eigenfaces whose cumulative explained variance reaches this (the paper: 99.5 %);
         ignored when ``n_components`` is given.
@@ -76,7 +110,9 @@ class QuasiEigenFaces:
         positive (deterministic signs, as scikit-learn's ``svd_flip``).
     explained_variance_ : ndarray of shape (rank,)
         Every non-zero eigenvalue of the frames' covariance (eq. 2), descending (the leading ones only when the
-        frames are so large that the randomised solver is used, as in a run).
+        frames are so large that the randomised solver is used, as in a run). The covariance divides by
+        ``n_frames`` (the paper's ``C = D~ D~^T / L``, as a run computes it), where scikit-learn's ``PCA`` divides
+        by ``n_frames - 1``: multiply by ``n_frames / (n_frames - 1)`` to compare. The ratios are the same.
     explained_variance_ratio_ : ndarray of shape (rank,)
         Each eigenvalue over the total variance.
     m_ : int
@@ -96,10 +132,13 @@ class QuasiEigenFaces:
         0-based indices of the eigenface axes the quasi-eigen faces leave empty (post-treatment).
     neutral_ : ndarray of shape (n_dims,) or None
         Neutral positions ``v0`` given to :meth:`fit` (the absolute alpha of eq. 6 needs them).
+    scale_ : float
+        1.0, or for frames whose largest ``|value|`` is below ``WORKING_SCALE_BELOW`` (1e-3) the power of two they
+        are divided by inside the computation (every attribute and result is in the frames' own units).
 
     Examples
     --------
-    >>> qe = QuasiEigenFaces(n_components=18).fit(frames, hand_shapes, neutral=neutral)  # doctest: +SKIP
+    >>> qe = QuasiEigenFaces(hand_shapes=hand, neutral=neutral, n_components=18).fit(frames)  # doctest: +SKIP
     >>> weights = qe.transform(frames, solver="nnls")  # doctest: +SKIP
     >>> qe.alpha(frames)  # doctest: +SKIP
     """
@@ -107,6 +146,9 @@ class QuasiEigenFaces:
     def __init__(
         self,
         *,
+        hand_shapes=None,
+        neutral=None,
+        names=None,
         coverage: float = 0.995,
         n_components: int | None = None,
         through: str = "mean",
@@ -116,6 +158,9 @@ class QuasiEigenFaces:
         empty_axis_scale: str = "axis_std",
         append_empty_axes: bool = False,
     ):
+        self.hand_shapes = hand_shapes
+        self.neutral = neutral
+        self.names = names
         self.coverage = coverage
         self.n_components = n_components
         self.through = through
@@ -150,25 +195,28 @@ class QuasiEigenFaces:
         defaults = {
             name: parameter.default for name, parameter in inspect.signature(type(self).__init__).parameters.items()
         }
-        changed = [f"{name}={value!r}" for name, value in self.get_params().items() if not _same(value, defaults[name])]
+        changed = [
+            f"{name}={_shown(value)}" for name, value in self.get_params().items() if not _same(value, defaults[name])
+        ]
         return f"{type(self).__name__}({', '.join(changed)})"
+
+    def __sklearn_is_fitted__(self) -> bool:
+        """Whether :meth:`fit` has run (scikit-learn's ``check_is_fitted`` asks this)."""
+        return hasattr(self, "shapes_")
 
     # -- fitting ---------------------------------------------------------------------------------------------
 
-    def fit(self, frames, hand_shapes, *, neutral=None, names=None) -> "QuasiEigenFaces":
+    def fit(self, frames, y=None) -> "QuasiEigenFaces":
         """Fit the eigenfaces on ``frames`` (eq. 2) and project ``hand_shapes`` onto their hyperplane (eq. 3-4).
 
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Training frames as displacements from the neutral face, ``n_dims = 3 * n_points``; at least 2.
-        hand_shapes : array-like of shape (n_shapes, n_dims)
-            ``E^H``: the hand-made shapes as displacements from neutral; none all zero, none a copy of another,
-            linearly independent.
-        neutral : array-like of shape (n_dims,), optional
-            Neutral positions ``v0``, for the paper's absolute alpha (:meth:`alpha`); not used by the fit.
-        names : sequence of str, optional
-            One distinct name per hand shape (default ``shape_1``, ``shape_2``, ...).
+            Training frames as displacements from the neutral face, ``n_dims = 3 * n_points``; at least 2, not all
+            the same. Real numbers only: complex values and NumPy masked arrays are refused (the estimator has no
+            gap policy; drop or fill masked frames first).
+        y : None
+            Ignored (scikit-learn's convention); the hand shapes are the parameter ``hand_shapes``.
 
         Returns
         -------
@@ -178,47 +226,82 @@ class QuasiEigenFaces:
         ------
         WorkbenchError
             Naming the argument or parameter and the rule it broke.
+
+        Warns
+        -----
+        UserWarning
+            When the quasi-eigen basis is rank-deficient (more hand shapes than eigenfaces): its weights are not
+            unique, as the command line's table notes.
         """
         through, _ = self._checked_parameters()
         frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
-        hand = check_matrix("hand_shapes", hand_shapes, CAPTURE, n_columns=frames.shape[1])
-        if neutral is not None:
-            neutral = _check_vector("neutral", neutral, frames.shape[1])
-        names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if names is None else names
+        _check_scale("frames", frames)
+        if self.hand_shapes is None:
+            raise WorkbenchError(
+                "hand_shapes must be given: QuasiEigenFaces(hand_shapes=<array of shape (n_shapes, n_dims)>)"
+            )
+        hand = check_matrix("hand_shapes", self.hand_shapes, CAPTURE, n_columns=frames.shape[1])
+        _check_scale("hand_shapes", hand)
+        neutral = None if self.neutral is None else _check_vector("neutral", self.neutral, frames.shape[1])
+        largest = _largest(frames)
+        scale = float(2.0 ** np.round(np.log2(largest))) if 0 < largest < WORKING_SCALE_BELOW else 1.0
+        if scale != 1.0:  # a power of two: exact
+            frames, hand = frames / scale, hand / scale
+            with np.errstate(over="ignore"):  # an overflow is refused here, in one line
+                overflows = neutral is not None and not np.all(np.isfinite(neutral / scale))
+            if overflows:
+                raise WorkbenchError(f"neutral is too large against the frames' scale {largest:.3g}: rescale both")
+        names = tuple(f"shape_{i + 1}" for i in range(hand.shape[0])) if self.names is None else self.names
         if isinstance(names, str) or len(names) != hand.shape[0]:
             raise WorkbenchError(
                 f"names must be a sequence of one name per hand shape ({hand.shape[0]}), got {names!r:.80}"
             )
+        if not np.ptp(frames, axis=0).any():
+            raise WorkbenchError(f"frames are numerically constant: all {frames.shape[0]} frames are the same")
         eigenfaces = Eigenfaces(coverage=self.coverage, n_components=self.n_components).fit(frames)
+        _check_not_constant(eigenfaces)
+        epsilon = self.empty_axis_eps
+        if self.empty_axis_scale == "absolute" and _is_number(epsilon):  # in data units
+            epsilon = epsilon / scale
         basis = build_quasi_eigen_basis(
             hand,
             names,
             eigenfaces,
             projection=THROUGH[through],
-            empty_axis_eps=self.empty_axis_eps,
+            empty_axis_eps=epsilon,
             empty_axis_scale=self.empty_axis_scale,
             append_empty_axes=self.append_empty_axes,
         )
         self.n_features_in_ = frames.shape[1]
-        self.mean_ = eigenfaces.mean_
+        self.scale_ = scale
+        self.mean_ = eigenfaces.mean_ * scale
         self.eigenfaces_ = eigenfaces.components_
-        self.explained_variance_ = eigenfaces.explained_variance_
+        self.explained_variance_ = eigenfaces.explained_variance_ * scale**2
         self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_
         self.m_ = int(eigenfaces.n_components_)
         self.coverage_ = float(eigenfaces.coverage_)
-        self.hand_shapes_ = hand.copy()
+        self.hand_shapes_ = hand * scale
         self.shape_names_ = basis.names
-        self.pca_to_qe_weights_ = basis.weights
-        self.shapes_ = basis.shapes
+        self.pca_to_qe_weights_ = basis.weights * scale
+        self.shapes_ = basis.shapes * scale
         self.empty_axes_ = basis.empty_axes
         self.neutral_ = neutral
+        conditioning = basis_conditioning(self.shapes_)
+        if conditioning.rank < conditioning.n_shapes:
+            warnings.warn(
+                f"QuasiEigenFaces: the quasi-eigen basis is rank-deficient, rank {conditioning.rank} of "
+                f"{conditioning.n_shapes} shapes on {self.m_} eigenfaces (weights not unique; minimum-norm for "
+                "lstsq); n_components >= the number of hand shapes gives a full-rank basis",
+                UserWarning,
+                stacklevel=2,
+            )
         return self
 
-    def fit_transform(self, frames, hand_shapes, *, neutral=None, names=None) -> np.ndarray:
-        """:meth:`fit`, then :meth:`transform` of the same frames."""
-        return self.fit(frames, hand_shapes, neutral=neutral, names=names).transform(frames)
+    def fit_transform(self, frames, y=None) -> np.ndarray:
+        """:meth:`fit`, then :meth:`transform` of the same frames; ``y`` is ignored."""
+        return self.fit(frames).transform(frames)
 
     # -- using the fit ---------------------------------------------------------------------------------------
 
@@ -248,7 +331,8 @@ class QuasiEigenFaces:
         if basis == "PCA":
             _no_solver_for_pca(solver)
             return (frames - self.mean_) @ self.eigenfaces_.T
-        return solve_weights(self._shapes(basis), frames, **self._solver_arguments(solver)).weights
+        shapes, frames = self._working(self._shapes(basis)), self._working(frames)
+        return solve_weights(shapes, frames, **self._solver_arguments(solver)).weights
 
     def inverse_transform(self, weights, *, basis: str = "QE") -> np.ndarray:
         """Reconstructed displacements from weights: ``weights @ shapes`` (eq. 1 without ``v0``), for PCA
@@ -322,6 +406,28 @@ class QuasiEigenFaces:
             return summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame
         return getattr(summary, f"{normalisation}_{aggregate}")
 
+    def score(self, frames, y=None) -> float:
+        """Minus the headline alpha of ``frames`` in percent, for a search that maximises its score.
+
+        The headline is a run's (``metric.headline_*``): the quasi-eigen basis with the estimator's ``solver``,
+        absolute alpha (eq. 6 over positions ``neutral + frames``), mean of the per-frame values, i.e. the record's
+        ``alpha_abs_mean`` of the ``QE`` row. Without ``neutral`` the positions are measured from the neutral face,
+        so it is the mean displacement alpha (``alpha_disp_mean``).
+
+        Parameters
+        ----------
+        frames : array-like of shape (n_frames, n_dims)
+            Displacements from neutral.
+        y : None
+            Ignored (scikit-learn's convention).
+
+        Returns
+        -------
+        float
+            ``-alpha``: higher is better.
+        """
+        return -float(self.alpha_summary(frames).absolute_mean)
+
     def alpha_summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
         """Every variant of eq. 6 and the RMS point error of one reconstruction, as a run's table row holds them.
 
@@ -342,35 +448,52 @@ class QuasiEigenFaces:
         frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
         basis = _check_choice("basis", basis, BASES)
         neutral = self.neutral_ if self.neutral_ is not None else np.zeros(self.n_features_in_)
+        frames, neutral = self._working(frames), self._working(neutral)
         n_compared = frames.shape[0] * (frames.shape[1] // 3)
         if basis == "PCA":
             _no_solver_for_pca(solver)
-            projections = project_frames(frames, {"PCA": Subspace(self.eigenfaces_.T, self.mean_)}, neutral)
-            return summarise_squares(
-                projections.distance_sq["PCA"], projections.displacement_sq, projections.position_sq, n_compared
-            )
-        reduction = reduce_basis(self._shapes(basis))
-        projections = project_frames(frames, {basis: Subspace(reduction.u)}, neutral)
-        coordinates = projections.coordinates[basis]
-        solution = solve_projected(reduction, coordinates, **self._solver_arguments(solver))
-        error_sq = projections.distance_sq[basis] + in_span_error_sq(reduction, coordinates, solution.weights)
-        return summarise_squares(error_sq, projections.displacement_sq, projections.position_sq, n_compared)
+            subspace = Subspace(self.eigenfaces_.T, self._working(self.mean_))
+            projections = project_frames(frames, {"PCA": subspace}, neutral)
+            error_sq = projections.distance_sq["PCA"]
+        else:
+            reduction = reduce_basis(self._working(self._shapes(basis)))
+            projections = project_frames(frames, {basis: Subspace(reduction.u)}, neutral)
+            coordinates = projections.coordinates[basis]
+            solution = solve_projected(reduction, coordinates, **self._solver_arguments(solver))
+            error_sq = projections.distance_sq[basis] + in_span_error_sq(reduction, coordinates, solution.weights)
+        summary = summarise_squares(error_sq, projections.displacement_sq, projections.position_sq, n_compared)
+        if self.scale_ == 1.0:
+            return summary
+        squared = self.scale_**2  # back to data units: alpha is a ratio, the RMS and the squares are not
+        return dataclasses.replace(
+            summary,
+            rms_mm=summary.rms_mm * self.scale_,
+            error_sq=summary.error_sq * squared,
+            displacement_sq=summary.displacement_sq * squared,
+            position_sq=summary.position_sq * squared,
+        )
 
     # -- checks ----------------------------------------------------------------------------------------------
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "shapes_"):
             raise NotFittedError(
-                f"This {type(self).__name__} instance is not fitted yet: call fit(frames, hand_shapes) before using it"
+                f"This {type(self).__name__} instance is not fitted yet: call fit(frames) before using it"
             )
 
     def _checked_parameters(self) -> tuple[str, dict]:
-        """``through`` and the solver's arguments, checked (the other parameters are checked by the functions they
-        go to: coverage and n_components by the eigenfaces, the post-treatment's by the quasi-eigen basis)."""
+        """``through``, ``bounds`` and the solver's arguments, checked (the other parameters are checked by the
+        functions they go to: coverage and n_components by the eigenfaces, the post-treatment's by the quasi-eigen
+        basis). ``bounds`` is checked whatever the solver, since :meth:`transform` may ask for ``"box"``."""
+        _check_bounds(self.bounds)
         return _check_choice("through", self.through, tuple(THROUGH)), self._solver_arguments(None)
 
     def _shapes(self, basis: str) -> np.ndarray:
         return self.shapes_ if basis == "QE" else self.hand_shapes_
+
+    def _working(self, array: np.ndarray) -> np.ndarray:
+        """``array`` in the units the fit computed in: divided by ``scale_`` (a power of two, so exactly)."""
+        return array if self.scale_ == 1.0 else array / self.scale_
 
     def _solver_arguments(self, solver: str | None) -> dict:
         """Keyword arguments of :func:`workbench.numerics.solve.solve_weights` for a solver (the estimator's by default), as
@@ -384,6 +507,48 @@ class QuasiEigenFaces:
         if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
             raise WorkbenchError(f"bounds must be a pair (lower, upper) for solver 'box', got {bounds!r}")
         return {"kind": kind, "lower": bounds[0], "upper": bounds[1]}
+
+
+def _check_bounds(bounds) -> None:
+    """A :class:`WorkbenchError` naming ``bounds`` unless it is ``(lower, upper)``, each a number or None (not both
+    None), with ``lower <= upper``."""
+    pair = not isinstance(bounds, (str, bytes)) and hasattr(bounds, "__len__") and len(bounds) == 2
+    numbers = pair and all(value is None or _is_number(value) for value in bounds)
+    if not numbers or all(value is None for value in bounds) or any(value != value for value in bounds):
+        raise WorkbenchError(f"bounds must be a pair (lower, upper) of numbers or None, not both None; got {bounds!r}")
+    lower, upper = bounds
+    if lower is not None and upper is not None and lower > upper:
+        raise WorkbenchError(f"bounds must have lower <= upper, got {tuple(bounds)!r}")
+
+
+def _largest(array: np.ndarray) -> float:
+    """The largest ``|value|`` of a finite array, without an absolute copy of it (a mesh capture is gigabytes)."""
+    return max(float(array.max()), -float(array.min()))
+
+
+def _check_scale(name: str, array: np.ndarray) -> None:
+    """A :class:`WorkbenchError` naming ``name`` when its largest ``|value|`` lies outside :data:`SCALE_RANGE` (but
+    for all zeros, which the fit's own rules refuse)."""
+    largest = _largest(array)
+    low, high = SCALE_RANGE
+    if largest and not low <= largest <= high:
+        raise WorkbenchError(
+            f"{name} are scaled beyond float64's squares: largest |value| {largest:.3g} is outside [{low:g}, "
+            f"{high:g}], where their squares {'overflow to inf' if largest > high else 'underflow to zero'}; "
+            "rescale them (e.g. to millimetres)"
+        )
+
+
+def _check_not_constant(eigenfaces: Eigenfaces) -> None:
+    """A :class:`WorkbenchError` naming ``frames`` when their variance is round-off against their scale
+    (:data:`CONSTANT_REL`): identical frames give a round-off eigenvalue that would otherwise make an eigenface."""
+    total = float(eigenfaces.explained_variance_[0] / eigenfaces.explained_variance_ratio_[0])
+    mean_square = total + float(eigenfaces.mean_ @ eigenfaces.mean_)
+    if total <= CONSTANT_REL**2 * mean_square:
+        raise WorkbenchError(
+            f"frames are numerically constant: their spread {np.sqrt(total):.3g} is at most {CONSTANT_REL:g} of "
+            f"their root-mean-square norm {np.sqrt(mean_square):.3g}; frames must vary to have eigenfaces"
+        )
 
 
 def _check_choice(name: str, value, choices: tuple) -> str:
@@ -411,6 +576,17 @@ def _no_solver_for_pca(solver) -> None:
             f"solver must be None for basis 'PCA' (its reconstruction is the orthogonal projection "
             f"onto the eigenfaces), got {solver!r}"
         )
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _shown(value) -> str:
+    """A parameter as the repr shows it: arrays by shape and dtype, anything else by its repr."""
+    if isinstance(value, np.ndarray):
+        return f"<array of shape {value.shape}, {value.dtype}>"
+    return repr(value)
 
 
 def _same(a, b) -> bool:

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
 
 from workbench.core.errors import WorkbenchError
 
@@ -25,6 +26,12 @@ class MatrixWording:
     empty: str | None = None
     not_points: str = "{name} must have 3 * n_points columns (x, y, z per point), got {got}"
     not_finite: str = "{name} holds NaN or Inf values ({bad} entries)"
+    not_real: str = "{name} must be real: Complex data not supported (dtype {dtype}); pass the real part if meant"
+    sparse: str = "{name} must be a dense array: sparse input is not supported; pass {name}.toarray()"
+    masked: str = (
+        "{name} must not be a NumPy masked array (its mask would be ignored): drop the masked rows or fill them "
+        "(e.g. {name}.filled(...)) first"
+    )
 
 
 # The metrics' frames (workbench.numerics.metrics): NaN and Inf are found per frame there.
@@ -57,6 +64,9 @@ def check_matrix(
 ) -> np.ndarray:
     """``value`` as a non-empty 2-D float64 array, or a :class:`WorkbenchError` naming ``name``.
 
+    Complex values, NumPy masked arrays and SciPy sparse matrices are refused, never converted (a conversion
+    would drop the imaginary part or the mask, or make an array of objects).
+
     Parameters
     ----------
     name : str
@@ -76,10 +86,18 @@ def check_matrix(
     ndarray of shape (n_rows, n_dims)
         float64.
     """
+    if np.ma.isMaskedArray(value):
+        raise WorkbenchError(wording.masked.format(name=name))
+    if scipy.sparse.issparse(value):
+        raise WorkbenchError(wording.sparse.format(name=name))
     try:
-        array = np.asarray(value, dtype=np.float64)
+        given = np.asarray(value)
+        complex_values = np.iscomplexobj(given)
+        array = None if complex_values else np.asarray(given, dtype=np.float64)
     except (TypeError, ValueError) as error:
         raise WorkbenchError(wording.not_numeric.format(name=name, error=error)) from None
+    if complex_values:
+        raise WorkbenchError(wording.not_real.format(name=name, dtype=given.dtype))
     if array.ndim != 2:
         raise WorkbenchError(wording.not_2d.format(name=name, shape=array.shape))
     if array.size == 0:
