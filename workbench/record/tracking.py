@@ -283,9 +283,10 @@ class RunFolders(Callback):
     """
 
     def on_run_start(self, config, **kwargs) -> None:
-        from workbench.settings.schema import check_study_config
+        from workbench.settings.schema import check_hydra_settings, check_study_config
 
         with _refusal_ends_the_process():
+            check_hydra_settings(config.hydra)
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=True)
             folder = config.hydra.run.dir
             check_run_dir(folder)
@@ -293,9 +294,10 @@ class RunFolders(Callback):
                 _NEW_RUN_DIRS.add(os.path.abspath(Path(str(folder)).expanduser()))
 
     def on_multirun_start(self, config, **kwargs) -> None:
-        from workbench.settings.schema import check_study_config
+        from workbench.settings.schema import check_hydra_settings, check_study_config
 
         with _refusal_ends_the_process():
+            check_hydra_settings(config.hydra)
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=False)
             check_folder_setting(config.hydra.sweep.dir, "hydra.sweep.dir")
 
