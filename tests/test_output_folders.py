@@ -150,3 +150,25 @@ def test_a_symbolic_link_or_a_file_as_the_output_folder_is_refused(tmp_path):
         check_output_folder(tmp_path / "link", "--out", writer="a report")
     with pytest.raises(WorkbenchError, match="is a file, not a folder"):
         check_output_folder(tmp_path / "file", "--out", writer="a report")
+
+
+def replace_many_times(out: Path, writer: int) -> int:
+    """Replace ``out`` 100 times; the number of failures."""
+    failures = 0
+    for time in range(100):
+        try:
+            with output_folder(out, "--out", writer="collect") as staging:
+                write_atomic(staging / "runs.csv", f"{writer} {time}\n")
+        except Exception:  # noqa: BLE001 - counted, whatever it is
+            failures += 1
+    return failures
+
+
+def test_two_processes_replacing_one_output_folder_take_turns(tmp_path):
+    """As two identical sweeps ending together both collect their tables into <sweep>/collected."""
+    import multiprocessing
+
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        assert pool.starmap(replace_many_times, [(tmp_path / "collected", 0), (tmp_path / "collected", 1)]) == [0, 0]
+    assert sorted(os.listdir(tmp_path)) == ["collected"]
+    assert sorted(os.listdir(tmp_path / "collected")) == [OUTPUT_MARKER, "runs.csv"]

@@ -16,7 +16,7 @@ import json
 import os
 import shutil
 import tempfile
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
@@ -229,12 +229,19 @@ def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[st
     WorkbenchError
     """
     path = check_folder_setting(folder, setting, writer)
+    with _folder_locked(path.parent):
+        _refuse_foreign(path, setting, writer, known)
+    return path
+
+
+def _refuse_foreign(path: Path, setting: str, writer: str, known: Iterable[str]) -> None:
+    """:func:`check_output_folder` of a checked path, with the lock of its parent held."""
     if path.is_symlink():
         raise WorkbenchError(
             f"{path} is a symbolic link; {writer} replaces its folder as a whole: name the folder itself ({setting}=...)"
         )
     if not os.path.lexists(path):
-        return path
+        return
     if not path.is_dir():
         raise WorkbenchError(f"{path} is a file, not a folder; name a new or empty folder ({setting}=...)")
     names = set(os.listdir(path))
@@ -245,7 +252,6 @@ def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[st
             f"{path} holds files the workbench did not write there ({shown_names(foreign)}); {writer} goes only into "
             f"a new or empty folder or one it wrote before, and touches nothing else: name another folder ({setting}=...)"
         )
-    return path
 
 
 @contextmanager
@@ -255,6 +261,7 @@ def output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = (
     The folder is checked (:func:`check_output_folder`); what the command writes goes into a new temporary folder
     beside it, which, once complete and marked (:data:`OUTPUT_MARKER`), takes the folder's place, and an earlier
     output there is removed. A failure or an interrupt removes the temporary folder and leaves the old one as it was.
+    Two processes replacing one folder take turns (the lock of its parent folder).
 
     Parameters
     ----------
@@ -277,14 +284,38 @@ def output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = (
         os.chmod(staging, FOLDER_MODE)
         yield staging
         write_json(staging / OUTPUT_MARKER, {"written_by": writer, "files": sorted(os.listdir(staging))})
-        check_output_folder(path, setting, writer=writer, known=known)  # nothing came in meanwhile
-        if os.path.lexists(path):
-            old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
-            os.replace(path, old)
-        os.replace(staging, path)
+        with _folder_locked(path.parent):
+            _refuse_foreign(path, setting, writer, known)  # nothing came in meanwhile
+            if os.path.lexists(path):
+                old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
+                os.replace(path, old)
+            try:
+                os.replace(staging, path)
+            except BaseException:
+                if old is not None:  # the earlier output back in place
+                    os.replace(old, path)
+                    old = None
+                raise
     finally:
-        if old is not None and not os.path.lexists(path):  # stopped between the two renames: the old one back
-            os.replace(old, path)
         for leftover in (staging, old):
             if leftover is not None and os.path.lexists(leftover):
                 shutil.rmtree(leftover, ignore_errors=True)
+
+
+@contextmanager
+def _folder_locked(folder: Path) -> Iterator[None]:
+    """The advisory lock (``fcntl.flock``) on a folder itself, which needs no lock file in it; nothing to lock when
+    the folder does not exist yet, and no lock where the file system refuses one on a folder (some network file
+    systems)."""
+    try:
+        handle = os.open(folder, os.O_RDONLY)
+    except OSError:
+        handle = None
+    try:
+        if handle is not None:
+            with suppress(OSError):
+                fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        if handle is not None:
+            os.close(handle)
