@@ -172,3 +172,17 @@ def test_two_processes_replacing_one_output_folder_take_turns(tmp_path):
         assert pool.starmap(replace_many_times, [(tmp_path / "collected", 0), (tmp_path / "collected", 1)]) == [0, 0]
     assert sorted(os.listdir(tmp_path)) == ["collected"]
     assert sorted(os.listdir(tmp_path / "collected")) == [OUTPUT_MARKER, "runs.csv"]
+
+
+def test_the_committed_reference_reports_can_be_rebuilt_in_place():
+    """``report --reference`` rewrites reports/<name>, made before folders were marked: each holds only what a
+    report of a run (or of a sweep, reports/bases) writes."""
+    from workbench.reporting.pages import SWEEP_REPORT_FILES
+    from workbench.settings.config import REPO_ROOT
+
+    reports = sorted(path.parent for path in (REPO_ROOT / "reports").glob("*/index.html"))
+    if not reports:
+        pytest.skip("no committed reference reports")
+    for report in reports:
+        known = SWEEP_REPORT_FILES if (report / "runs.csv").exists() else REPORT_FILES
+        assert check_output_folder(report, "--name", writer="a report", known=known) == report
