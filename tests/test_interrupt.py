@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from workbench.core.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt
+from workbench.core.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt, interrupts_deferred
 from workbench.record.record import DONE, load_record
 from workbench.settings.config import REPO_ROOT
 
@@ -145,3 +145,26 @@ def test_an_error_raised_because_of_ctrl_c_counts_as_ctrl_c():
         compiled_call()
     assert caused_by_interrupt(caught.value)
     assert not caused_by_interrupt(ValueError("x"))
+
+
+def test_ctrl_c_held_back_is_acted_on_once_the_step_ends_and_an_ignored_one_stays_ignored():
+    saved = signal.getsignal(signal.SIGINT)
+    try:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        steps = []
+        with pytest.raises(KeyboardInterrupt):
+            with interrupts_deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.05)  # the signal is delivered here, and held back
+                steps.append("ended")
+        assert steps == ["ended"]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        with interrupts_deferred():  # no signal: nothing raised
+            pass
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, saved)

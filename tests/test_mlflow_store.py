@@ -28,6 +28,7 @@ mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed
 
 from workbench.record.mlflow import (  # noqa: E402
     Store,
+    create_database,
     finished_ms,
     log_records,
     metric_key,
@@ -549,3 +550,76 @@ def test_a_server_out_of_reach_stops_no_run_and_the_command_says_so_in_one_line(
     assert late.returncode == 2 and late.stderr.strip() == (
         f"workbench mlflow: error: MLflow server {nowhere} cannot be reached ([Errno 111] Connection refused)"
     )
+
+
+STORE_FILES = {"artifacts", "mlflow.db", "mlflow.db.lock"}
+"""What a store folder holds after an import: no temporary file of its set-up."""
+
+
+def test_a_new_store_is_set_up_in_a_temporary_file_and_a_failure_leaves_none(tmp_path, monkeypatch):
+    from mlflow.store.tracking import sqlalchemy_store
+
+    target = resolve_store(store=tmp_path / "store")
+    seen = []
+
+    class Failing(sqlalchemy_store.SqlAlchemyStore):
+        def __init__(self, db_uri, default_artifact_root):
+            seen.append(sorted(os.listdir(tmp_path / "store")))
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(sqlalchemy_store, "SqlAlchemyStore", Failing)
+    with pytest.raises(KeyboardInterrupt):
+        create_database(target)
+    assert len(seen[0]) == 1 and seen[0][0].startswith(".mlflow.db.") and seen[0][0].endswith(".tmp"), seen
+    assert os.listdir(tmp_path / "store") == []  # no database, no temporary file
+    monkeypatch.undo()
+    (tmp_path / "store" / ".mlflow.db.abc123.tmp").write_bytes(b"a killed set-up's")
+    create_database(target)
+    assert os.listdir(tmp_path / "store") == ["mlflow.db"]
+    with sqlite3.connect(tmp_path / "store" / "mlflow.db") as connection:
+        tables = {row[0] for row in connection.execute("select name from sqlite_master where type = 'table'")}
+    assert {"experiments", "runs", "metrics", "params", "tags", "alembic_version"} <= tables
+    before = (tmp_path / "store" / "mlflow.db").read_bytes()
+    create_database(target)  # an existing store is left as it is
+    assert (tmp_path / "store" / "mlflow.db").read_bytes() == before
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_a_new_store_is_set_up_leaves_one_the_same_command_completes(swept, tmp_path):
+    """SIGINT at several moments from when the import takes a new store's lock, over the seconds MLflow's schema
+    migrations take: the command ends with the one line (or ends its work first), never swallows the interrupt,
+    and the same command again makes the store and logs every record once."""
+    sweep = records_copy(swept, tmp_path)
+    records = sorted(str(folder.resolve()) for folder in find_records([sweep])[0])
+    outcomes = []
+    for trial, delay in enumerate((0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.6)):
+        store = tmp_path / f"store{trial}"
+        command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
+        process = subprocess.Popen(
+            command,
+            cwd=tmp_path,
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
+        deadline = time.monotonic() + 300
+        while process.poll() is None and not (store / "mlflow.db.lock").exists() and time.monotonic() < deadline:
+            time.sleep(0.005)
+        time.sleep(delay)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=120)
+        outcomes.append(process.returncode)
+        assert "Exception ignored" not in err and "Traceback" not in err, err
+        if process.returncode == 130:
+            assert err.strip().splitlines() == ["workbench mlflow: interrupted; rerun the same command to resume"]
+        else:  # the import ended first (its last steps ignore Ctrl-C, or Python no longer handles it)
+            assert process.returncode in (0, -signal.SIGINT) and out.startswith("mlflow: 4 runs added"), (out, err)
+        again = subprocess.run(command, cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=600)
+        assert again.returncode == 0, again.stderr
+        rows = stored_runs(store / "mlflow.db")
+        assert sorted(record for record, _, _ in rows if record) == records
+        assert {(status, stage) for _, status, stage in rows} == {("FINISHED", "active")}
+        assert set(os.listdir(store)) == STORE_FILES
+    assert outcomes.count(130) >= 4, outcomes

@@ -39,7 +39,7 @@ def test_a_checkout_names_its_commit_as_before():
     assert "at commit `0123abc` (uncommitted changes: True), config hash `abc`." in run_line
 
 
-@pytest.mark.parametrize("name", ["", ".", "..", "a/b"])
+@pytest.mark.parametrize("name", ["", ".", "..", "a/b", " ", "\t"])
 def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, tmp_path):
     with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name \(not empty"):
         report_folder(tmp_path, CONFIG, out=None, reference=True, name=name)
@@ -59,6 +59,22 @@ def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(t
     assert after == before
     # the default name still works as before when --name is not given
     assert report_folder(tmp_path, CONFIG, out=None, reference=True, name=None).name == "paper"
+
+
+@pytest.mark.parametrize("name", [" ", "\t", "shared"])
+def test_a_blank_or_reserved_reference_name_exits_2_with_one_line_and_writes_nothing(name, tmp_path):
+    reports = REPO_ROOT / "reports"
+    before = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    result = run_workbench("report", str(tmp_path), "--reference", "--name", name, cwd=tmp_path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--name" in lines[0], result.stderr
+    assert ("reserved" if name == "shared" else "blank") in lines[0]
+    after = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
+    assert after == before
+    # a study of that name is refused the same way as the default name of its reference report
+    with pytest.raises(WorkbenchError, match="--name"):
+        report_folder(tmp_path, {**CONFIG, "study": name}, out=None, reference=True, name=None)
 
 
 # A small run on both data variants (5 s of performance on a coarse mesh), without save_inputs.

@@ -187,6 +187,44 @@ def test_the_command_refuses_them_in_one_line_before_making_any_folder(tmp_path)
     assert not (tmp_path / "out").exists()
 
 
+HYDRA_CASES = {
+    "+hydra.nope=1": "setting hydra.nope does not exist; hydra has ['callbacks', 'defaults', ",
+    "++hydra.job.nope=1": "setting hydra.job.nope does not exist; hydra.job has ['chdir', 'config', ",
+    "+hydra.launcher.nope=1": "setting hydra.launcher.nope does not exist; hydra.launcher has ['_target_']",
+}
+
+
+@pytest.mark.parametrize("override", list(HYDRA_CASES))
+def test_a_key_hydras_own_settings_do_not_have_is_refused(override):
+    from workbench.settings.schema import check_hydra_settings
+
+    with pytest.raises(WorkbenchError, match="^" + re.escape(HYDRA_CASES[override])):
+        check_hydra_settings(compose("paper", [override]).hydra)
+
+
+def test_hydras_own_settings_of_every_study_and_launcher_pass_and_free_mappings_take_any_key():
+    from workbench.settings.config import STUDIES_DIR
+    from workbench.settings.schema import check_hydra_settings
+
+    for study in sorted(path.stem for path in STUDIES_DIR.glob("*.yaml")):
+        for launcher in ([], ["hydra/launcher=joblib"], ["hydra/launcher=slurm"]):
+            check_hydra_settings(compose(study, launcher).hydra)
+    free = ["+hydra.job.env_set.X=1", "++hydra.job.chdir=false", "+hydra.callbacks.x={_target_:builtins.dict}"]
+    check_hydra_settings(compose("paper", free).hydra)
+
+
+def test_the_command_refuses_a_key_hydra_does_not_have_in_one_line_before_making_any_folder(tmp_path):
+    for case in HYDRA_CASES:
+        for sweep in ([], ["-m", "dataset.seed=0,1"]):
+            done = run_workbench(
+                *sweep, "dataset.n_frames=200", "solver=lstsq", case, "paths.output_root=out", cwd=tmp_path
+            )
+            assert done.returncode == 2, (case, done.stderr)
+            lines = done.stderr.splitlines()
+            assert len(lines) == 1 and lines[0].startswith(f"workbench: error: {HYDRA_CASES[case]}"), (case, lines)
+    assert not (tmp_path / "out").exists()
+
+
 def test_fold_settings_have_effect_only_with_kfold():
     from workbench.settings.schema import check_study_config
 

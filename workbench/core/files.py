@@ -1,6 +1,7 @@
 """Files, the one way the workbench writes and checks them: atomic writes (a reader sees the old content or the
-whole new content, never a part), the one file hash (SHA-256), the one advisory lock, and the checks that a name
-stays inside its folder.
+whole new content, never a part), the one file hash (SHA-256), the one advisory lock, the checks that a name
+stays inside its folder, and the output folders of reports, exports and collected tables (written whole into a
+folder of their own, never into one holding someone's files).
 
 Every module that writes a file (run records, cached frames, reports, exports) writes it here.
 """
@@ -13,9 +14,11 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import tempfile
+from contextlib import contextmanager, suppress
 from pathlib import Path
-from typing import Mapping
+from typing import Iterable, Iterator, Mapping
 
 import numpy as np
 
@@ -26,14 +29,17 @@ TEMPORARY_SUFFIX = ".tmp"
 part of a final file. Readers look only at final names; a rerun clears a killed run's folder."""
 
 
-def _file_mode() -> int:
-    """Permissions of a new file under the process's umask (the temporary file is created private)."""
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back)."""
     umask = os.umask(0o022)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
 
 
-FILE_MODE = _file_mode()
+FILE_MODE = 0o666 & ~_umask()
+"""Permissions of a new file under the process's umask (the temporary file is created private)."""
+FOLDER_MODE = 0o777 & ~_umask()
+"""Permissions of a new folder under the process's umask (a temporary folder is created private)."""
 
 
 def write_atomic(path: Path, data: bytes | str) -> None:
@@ -149,3 +155,167 @@ def inside(root: Path, *parts: str) -> Path:
             link = f" (a symbolic link leads to {target})" if resolved else ""
             raise WorkbenchError(f"refusing to write {path}: it is not inside the output folder {root}{link}")
     return path
+
+
+def shown_names(names: Iterable[str]) -> str:
+    """The first three of ``names`` and how many more, for a one-line message."""
+    names = sorted(names)
+    return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+
+
+def check_folder_setting(folder, setting: str, writer: str = "a run") -> Path:
+    """A folder setting (``hydra.run.dir``, ``hydra.sweep.dir``, ``--out``) as a path, refused when it is empty or is
+    the current directory or a folder above it (``writer`` writes into a folder of its own).
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    text = "" if folder is None else str(folder).strip()
+    if not text or text == "None":
+        raise WorkbenchError(
+            f"{setting} is empty: {writer} writes into a folder of its own, never into the current "
+            f"directory; name one ({setting}=outputs/<name>) or leave the default"
+        )
+    path = Path(text).expanduser()
+    here = Path.cwd().resolve()
+    if path.resolve() == here or path.resolve() in here.parents:
+        raise WorkbenchError(
+            f"{setting}={text} is the current directory or a folder above it; {writer} writes into a "
+            f"folder of its own: name one ({setting}=outputs/<name>) or leave the default"
+        )
+    return path
+
+
+OUTPUT_MARKER = ".workbench-output"
+"""Written into a report, export or collected-tables folder with the rest of it: the names the workbench wrote
+there (JSON). A later report, export or collect may replace a folder holding only those names and the marker."""
+
+
+def written_names(folder: Path) -> set[str] | None:
+    """The names an output folder's marker lists, or None when it has no readable marker (the workbench did not
+    write the folder, or wrote it before folders were marked)."""
+    try:
+        names = json.loads((Path(folder) / OUTPUT_MARKER).read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return {name for name in names if isinstance(name, str)} if isinstance(names, list) else None
+
+
+def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = ()) -> Path:
+    """Refuse an output folder holding anything the workbench did not write there, before anything is written.
+
+    The folder may be new, empty, or hold only what an earlier run of the command wrote (the names its
+    :data:`OUTPUT_MARKER` lists). The current directory, by an empty name or any other, is never one.
+
+    Parameters
+    ----------
+    folder : path or str
+        The folder as given.
+    setting : str
+        The option that names it, for the message (``--out``, ``--name``).
+    writer : str
+        What writes it, for the message (``a report``).
+    known : iterable of str
+        Names the command writes, accepted without a marker where the workbench chose the folder itself (a
+        default folder inside a record, or a reference report, written before folders were marked).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    path = check_folder_setting(folder, setting, writer)
+    with _folder_locked(path.parent):
+        _refuse_foreign(path, setting, writer, known)
+    return path
+
+
+def _refuse_foreign(path: Path, setting: str, writer: str, known: Iterable[str]) -> None:
+    """:func:`check_output_folder` of a checked path, with the lock of its parent held."""
+    if path.is_symlink():
+        raise WorkbenchError(
+            f"{path} is a symbolic link; {writer} replaces its folder as a whole: name the folder itself ({setting}=...)"
+        )
+    if not os.path.lexists(path):
+        return
+    if not path.is_dir():
+        raise WorkbenchError(f"{path} is a file, not a folder; name a new or empty folder ({setting}=...)")
+    names = set(os.listdir(path))
+    listed = written_names(path)
+    foreign = names - ({OUTPUT_MARKER, *listed} if listed is not None else set(known))
+    if foreign:
+        raise WorkbenchError(
+            f"{path} holds files the workbench did not write there ({shown_names(foreign)}); {writer} goes only into "
+            f"a new or empty folder or one it wrote before, and touches nothing else: name another folder ({setting}=...)"
+        )
+
+
+@contextmanager
+def output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = ()) -> Iterator[Path]:
+    """A report's, export's or collect's folder, written whole or not at all.
+
+    The folder is checked (:func:`check_output_folder`); what the command writes goes into a new temporary folder
+    beside it, which, once complete and marked (:data:`OUTPUT_MARKER`), takes the folder's place, and an earlier
+    output there is removed. A failure or an interrupt removes the temporary folder and leaves the old one as it was.
+    Two processes replacing one folder take turns (the lock of its parent folder).
+
+    Parameters
+    ----------
+    folder, setting, writer, known
+        As :func:`check_output_folder`.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary folder to write into (beside ``folder``, so relative links to its neighbours hold).
+    """
+    path = check_output_folder(folder, setting, writer=writer, known=known)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
+    except OSError as error:
+        raise naming(error, path) from None
+    old = None
+    try:
+        os.chmod(staging, FOLDER_MODE)
+        yield staging
+        write_json(staging / OUTPUT_MARKER, {"written_by": writer, "files": sorted(os.listdir(staging))})
+        with _folder_locked(path.parent):
+            _refuse_foreign(path, setting, writer, known)  # nothing came in meanwhile
+            if os.path.lexists(path):
+                old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
+                os.replace(path, old)
+            try:
+                os.replace(staging, path)
+            except BaseException:
+                if old is not None:  # the earlier output back in place
+                    os.replace(old, path)
+                    old = None
+                raise
+    finally:
+        for leftover in (staging, old):
+            if leftover is not None and os.path.lexists(leftover):
+                shutil.rmtree(leftover, ignore_errors=True)
+
+
+@contextmanager
+def _folder_locked(folder: Path) -> Iterator[None]:
+    """The advisory lock (``fcntl.flock``) on a folder itself, which needs no lock file in it; nothing to lock when
+    the folder does not exist yet, and no lock where the file system refuses one on a folder (some network file
+    systems)."""
+    try:
+        handle = os.open(folder, os.O_RDONLY)
+    except OSError:
+        handle = None
+    try:
+        if handle is not None:
+            with suppress(OSError):
+                fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        if handle is not None:
+            os.close(handle)

@@ -12,6 +12,7 @@ standard library, so that it is in place within milliseconds.
 import os
 import signal
 import sys
+from contextlib import contextmanager
 
 INTERRUPTED = 130
 """Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
@@ -64,3 +65,29 @@ def caused_by_interrupt(error: BaseException) -> bool:
         seen.add(id(error))
         error = error.__cause__ or error.__context__
     return False
+
+
+@contextmanager
+def interrupts_deferred():
+    """Hold Ctrl-C back while a step that must not be cut in two runs (a store's schema being set up), then act on
+    it: a SIGINT that came meanwhile is handed to the handler that was in place (``KeyboardInterrupt``, or the
+    start-up's :func:`exit_at_once`) as the step ends, so it is never lost, nor raised where a library would only
+    print it as ignored. A SIGINT that is ignored stays ignored; outside the main thread nothing is held back."""
+    came = []
+    previous = signal.getsignal(signal.SIGINT)
+    held = previous is not signal.SIG_IGN
+    if held:
+        try:
+            signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
+        except ValueError:  # not the main thread: signals are handled there only
+            held = False
+    try:
+        yield
+    finally:
+        if held:
+            signal.signal(signal.SIGINT, previous if previous is not None else signal.default_int_handler)
+            if came:
+                if callable(previous):
+                    previous(signal.SIGINT, came[0])
+                else:  # SIG_DFL, or a handler not installed from Python
+                    raise KeyboardInterrupt

@@ -33,11 +33,13 @@ database), so concurrent imports and concurrent jobs are safe.
 from __future__ import annotations
 
 import argparse
+import glob
 import logging
 import math
 import os
 import re
 import shlex
+import tempfile
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -46,7 +48,8 @@ from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import lock_file, unlock_file
+from workbench.core.files import TEMPORARY_SUFFIX, lock_file, unlock_file
+from workbench.core.interrupt import interrupts_deferred
 from workbench.record.record import (
     ALPHA_PER_FRAME_FILE,
     CONFIG_FILE,
@@ -190,8 +193,7 @@ def resolve_store(
         folder = default_store(output_root) if store is None else Path(store)
         uri, artifacts = store_uris(folder)
         return Store(uri, chosen or artifacts, folder.expanduser().resolve() / f"{DATABASE_FILE}.lock")
-    database = re.match(r"sqlite:///(.+)$", tracking_uri)
-    database_file = Path(database.group(1).split("?")[0]) if database else None
+    database_file = sqlite_database(tracking_uri)
     if database_file is None:
         return Store(tracking_uri, chosen, None)
     lock = database_file.with_name(database_file.name + ".lock")
@@ -202,6 +204,41 @@ def resolve_store(
         else database_file.with_suffix(ARTIFACTS_SUFFIX)
     )
     return Store(tracking_uri, chosen or beside.as_uri(), lock)
+
+
+def sqlite_database(tracking_uri: str) -> Path | None:
+    """The database file of a SQLite tracking URI (``sqlite:///<path>[?options]``), or None for any other store."""
+    database = re.match(r"sqlite:///(.+)$", tracking_uri)
+    return Path(database.group(1).split("?")[0]) if database else None
+
+
+def create_database(target: Store) -> None:
+    """Set up a new SQLite store whole or not at all: its schema is made in a temporary file beside the database
+    (MLflow's migrations take seconds) and the file is moved into place once complete, so a kill leaves no store
+    that every later command refuses (tables half made), only a temporary file, which the next set-up removes.
+    Ctrl-C is held back until the schema is set up (:func:`workbench.core.interrupt.interrupts_deferred`), then
+    acted on. Call it with the store's lock held; a store that exists, or any other kind of store, is left as it
+    is."""
+    from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
+
+    database = sqlite_database(target.tracking_uri)
+    if database is None or database.expanduser().exists():
+        return
+    database = Path(os.path.abspath(database.expanduser()))
+    database.parent.mkdir(parents=True, exist_ok=True)
+    for leftover in database.parent.glob(f".{glob.escape(database.name)}.*{TEMPORARY_SUFFIX}*"):  # a killed set-up's
+        leftover.unlink(missing_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=database.parent, prefix=f".{database.name}.", suffix=TEMPORARY_SUFFIX)
+    os.close(handle)
+    options = target.tracking_uri.partition("?")[2]
+    try:
+        with interrupts_deferred():
+            made = SqlAlchemyStore(f"sqlite:///{temporary}" + (f"?{options}" if options else ""), target.artifact_root)
+            made.engine.dispose()  # every connection closed: the file is complete
+            os.replace(temporary, database)
+    finally:
+        for leftover in ("", "-journal", "-wal", "-shm"):
+            Path(temporary + leftover).unlink(missing_ok=True)
 
 
 ARTIFACTS_SUFFIX = ".artifacts"
@@ -234,6 +271,7 @@ def open_store(target: Store) -> Iterator:
         target.lock_file.parent.mkdir(parents=True, exist_ok=True)
         handle = lock_file(target.lock_file)
     try:
+        create_database(target)
         yield mlflow.MlflowClient(tracking_uri=target.tracking_uri)
     except MlflowException as error:
         raise WorkbenchError(store_error(target, error)) from None

@@ -27,7 +27,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from workbench.core.errors import WorkbenchError, exit_on_error
-from workbench.core.files import lock_file, unlock_file
+from workbench.core.files import check_folder_setting, lock_file, shown_names, unlock_file
 from workbench.record.record import DONE, METRICS_FILE, is_record_file, record_state
 
 
@@ -141,30 +141,6 @@ def run_entry(name: str) -> bool:
     return is_record_file(name) or name in (LOCK_FILE, LOG_FILE, HYDRA_FOLDER)
 
 
-def check_folder_setting(folder, setting: str) -> Path:
-    """A run or sweep folder setting (``hydra.run.dir``, ``hydra.sweep.dir``) as a path, refused when it is empty or
-    is the current directory or a folder above it (a run writes into a folder of its own).
-
-    Raises
-    ------
-    WorkbenchError
-    """
-    text = "" if folder is None else str(folder).strip()
-    if not text or text == "None":
-        raise WorkbenchError(
-            f"{setting} is empty: a run writes into a folder of its own, never into the current "
-            f"directory; name one ({setting}=outputs/<name>) or leave the default"
-        )
-    path = Path(text).expanduser()
-    here = Path.cwd().resolve()
-    if path.resolve() == here or path.resolve() in here.parents:
-        raise WorkbenchError(
-            f"{setting}={text} is the current directory or a folder above it; a run writes into a "
-            f"folder of its own: name one ({setting}=outputs/<name>) or leave the default"
-        )
-    return path
-
-
 def check_run_dir(folder: Path, setting: str = "hydra.run.dir") -> frozenset:
     """Refuse a run folder the workbench does not own, before anything is written into it.
 
@@ -198,8 +174,7 @@ def check_run_dir(folder: Path, setting: str = "hydra.run.dir") -> frozenset:
     foreign = sorted(name for name in names if not run_entry(name))
     if LOCK_FILE in names and not foreign:
         return names
-    listed = foreign or sorted(names)
-    shown = ", ".join(listed[:3]) + (f" and {len(listed) - 3} more" if len(listed) > 3 else "")
+    shown = shown_names(foreign or names)
     if LOCK_FILE in names:
         what = f"holds a killed run's files and others no run writes ({shown})"
     elif foreign:
@@ -308,9 +283,10 @@ class RunFolders(Callback):
     """
 
     def on_run_start(self, config, **kwargs) -> None:
-        from workbench.settings.schema import check_study_config
+        from workbench.settings.schema import check_hydra_settings, check_study_config
 
         with _refusal_ends_the_process():
+            check_hydra_settings(config.hydra)
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=True)
             folder = config.hydra.run.dir
             check_run_dir(folder)
@@ -318,9 +294,10 @@ class RunFolders(Callback):
                 _NEW_RUN_DIRS.add(os.path.abspath(Path(str(folder)).expanduser()))
 
     def on_multirun_start(self, config, **kwargs) -> None:
-        from workbench.settings.schema import check_study_config
+        from workbench.settings.schema import check_hydra_settings, check_study_config
 
         with _refusal_ends_the_process():
+            check_hydra_settings(config.hydra)
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=False)
             check_folder_setting(config.hydra.sweep.dir, "hydra.sweep.dir")
 

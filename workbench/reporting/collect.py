@@ -33,7 +33,7 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.extras import has_module, install_hint
-from workbench.core.files import inside, write_atomic
+from workbench.core.files import check_output_folder, inside, output_folder, write_atomic
 from workbench.record.record import DONE
 from workbench.reporting.runs import (
     PCA_SOLVER,
@@ -204,6 +204,24 @@ def parquet_bytes(table: pd.DataFrame) -> bytes:
     return buffer.getvalue()
 
 
+COLLECTED = "collected"
+"""The default output folder of collect, inside the one folder collected (and a study's sweep folder)."""
+COLLECTED_FILES = (
+    "runs.csv",
+    "summary.csv",
+    "comparisons.csv",
+    "comparisons.md",
+    "alpha_table.md",
+    "alpha_table.tex",
+    "findings.md",
+    "runs.parquet",
+    "summary.parquet",
+)
+"""What collect writes: accepted without the output marker in ``<sweep>/collected``, as tables collected before
+folders were marked hold them."""
+WRITER = "collect"
+
+
 def collect_and_write(
     paths: Iterable[Path],
     out: Path,
@@ -213,6 +231,7 @@ def collect_and_write(
     columns: str = "basis",
     extra: Sequence[str] = ("m",),
     over: Sequence[str] | None = None,
+    known: Sequence[str] = (),
 ) -> dict:
     """Collect the records under ``paths`` and write the runs table, the summary, the paired comparisons, the
     alpha table and the findings to ``out``.
@@ -222,11 +241,16 @@ def collect_and_write(
     paths : iterable of pathlib.Path
         Sweep folders (or run folders, or folders holding several sweeps).
     out : pathlib.Path
+        Output folder: new, empty or one collect wrote before (replaced as a whole); written in a temporary folder
+        beside it and moved into place when complete (:func:`workbench.core.files.output_folder`).
     metric, where, columns, extra
         Layout of the alpha table (see :func:`alpha_grid`); ``metric`` and ``where`` also choose what the
         comparisons and findings are about.
     over : sequence of str, optional
         Replicate columns (default: config columns naming a seed).
+    known : sequence of str
+        Names accepted in ``out`` without the output marker (:func:`workbench.core.files.check_output_folder`):
+        :data:`COLLECTED_FILES` where the workbench chose the folder itself (``<sweep>/collected``).
 
     Returns
     -------
@@ -269,8 +293,9 @@ def collect_and_write(
         files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
     else:  # the CSV files hold the same tables
         logging.getLogger("workbench").debug(f"parquet copies of the tables left out: {install_hint('parquet')}")
-    for name, content in files.items():
-        write_atomic(inside(out, name), content)
+    with output_folder(out, "--out", writer=WRITER, known=known) as staging:
+        for name, content in files.items():
+            write_atomic(inside(staging, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
     return {
         "n_runs": n_runs,
@@ -337,7 +362,9 @@ def main(argv: Sequence[str]) -> int:
         "(paired comparisons of the bases), alpha_table.md/.tex and findings.md.",
     )
     parser.add_argument("paths", nargs="+", type=Path, help="sweep folders, run folders or folders above them")
-    parser.add_argument("--out", type=Path, help="output folder (default: <the one path>/collected)")
+    parser.add_argument(
+        "--out", help="output folder: new, empty, or one collect wrote before (default: <the one path>/collected)"
+    )
     parser.add_argument("--metric", default="alpha_abs_mean", help="metric of the alpha table")
     parser.add_argument(
         "--where",
@@ -352,7 +379,9 @@ def main(argv: Sequence[str]) -> int:
     args = parser.parse_args(list(argv))
     if args.out is None and len(args.paths) != 1:
         raise WorkbenchError("collect: give --out when collecting more than one path")
-    out = args.out or inside(args.paths[0], "collected")
+    if args.out is not None:  # refused before any record is read
+        check_output_folder(args.out, "--out", writer=WRITER)
+    out = Path(args.out) if args.out is not None else inside(args.paths[0], COLLECTED)
     written = collect_and_write(
         args.paths,
         out,
@@ -361,6 +390,7 @@ def main(argv: Sequence[str]) -> int:
         columns=args.columns,
         extra=[name for name in args.extra.split(",") if name],
         over=None if args.over is None else [name for name in args.over.split(",") if name],
+        known=COLLECTED_FILES if args.out is None else (),
     )
     print(written["markdown"] + findings_text(written["findings"]), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""
@@ -389,7 +419,7 @@ class CollectSweep(Callback):
 
         sweep_dir = Path(str(config.hydra.sweep.dir))
         try:
-            written = collect_and_write([sweep_dir], inside(sweep_dir, "collected"), **self.layout)
+            written = collect_and_write([sweep_dir], inside(sweep_dir, COLLECTED), **self.layout, known=COLLECTED_FILES)
         except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
             print(
                 f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",

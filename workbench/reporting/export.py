@@ -35,7 +35,15 @@ import numpy as np
 import pandas as pd
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import inside, plain_name, write_atomic, write_json, write_npz
+from workbench.core.files import (
+    check_output_folder,
+    inside,
+    output_folder,
+    plain_name,
+    write_atomic,
+    write_json,
+    write_npz,
+)
 from workbench.record.replay import replay
 
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
@@ -787,6 +795,9 @@ def export_basis(
     return entry
 
 
+WRITER = "an export"
+
+
 def export_run(
     folder: Path,
     out: Path,
@@ -803,7 +814,8 @@ def export_run(
     folder : pathlib.Path
         A complete run record.
     out : pathlib.Path
-        Output folder (created).
+        Output folder: new, empty or an earlier export's (replaced as a whole); written in a temporary folder beside
+        it and moved into place when complete (:func:`workbench.core.files.output_folder`).
     data : str, optional
         Data variant (a row's ``data`` in the alpha table); default the run's first.
     bases : sequence of str, optional
@@ -844,8 +856,24 @@ def export_run(
             for basis in chosen
         ],
     )
-    entries = [export_basis(out, result, basis, takes, run_name=folder.name, obj_unit=obj_unit) for basis in chosen]
-    manifest = {
+    with output_folder(out, "--out", writer=WRITER) as staging:
+        manifest = export_manifest(
+            [export_basis(staging, result, basis, takes, run_name=folder.name, obj_unit=obj_unit) for basis in chosen],
+            folder,
+            record,
+            capture,
+            data=data,
+            takes=takes,
+            obj_unit=obj_unit,
+        )
+        write_json(export_path(staging, "manifest.json"), manifest)
+    return manifest
+
+
+def export_manifest(entries, folder, record, capture, *, data, takes, obj_unit) -> dict:
+    """``manifest.json`` of an export: the run, the data and its units, and every basis's files (``entries``)."""
+    mesh = capture.faces is not None
+    return {
         "run": str(Path(folder).resolve()),
         "config_hash": record.config_hash,
         "data": data,
@@ -867,8 +895,6 @@ def export_run(
         "targets": TARGETS_TEXT if mesh else None,
         "bases": entries,
     }
-    write_json(export_path(out, "manifest.json"), manifest)
-    return manifest
 
 
 def main(argv: Sequence[str]) -> int:
@@ -880,7 +906,9 @@ def main(argv: Sequence[str]) -> int:
         "Face layout) for mesh data; NPZ/CSV marker bases and weight curves for marker data.",
     )
     parser.add_argument("run", type=Path, help="a complete run record (folder with a 'done' marker)")
-    parser.add_argument("--out", type=Path, help="output folder (default: <run>/export)")
+    parser.add_argument(
+        "--out", help="output folder: new, empty, or one an export wrote before (default: <run>/export)"
+    )
     parser.add_argument("--data", help="data variant (default: the run's first, e.g. mesh)")
     parser.add_argument("--bases", help="comma-separated basis labels, e.g. H,QE,PCA (default: all)")
     parser.add_argument("--solver", help="solver whose weights are exported (default: the run's first)")
@@ -891,7 +919,9 @@ def main(argv: Sequence[str]) -> int:
         help="unit of the OBJ files (default: m, as animation tools expect)",
     )
     args = parser.parse_args(list(argv))
-    out = args.out or inside(args.run, "export")
+    if args.out is not None:  # refused before the run is rebuilt
+        check_output_folder(args.out, "--out", writer=WRITER)
+    out = Path(args.out) if args.out is not None else inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
     manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit)
     for entry in manifest["bases"]:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import inside, plain_name
+from workbench.core.files import check_output_folder, inside, output_folder, plain_name
 from workbench.record.record import DONE, RunRecord, is_complete, load_record
 from workbench.reporting.report_figures import FIGURE_FORMATS
 from workbench.reporting.report_run import build_run_report
@@ -39,13 +39,25 @@ REPORT_FOLDER = "report"
 """Default report folder, inside the run or sweep folder it reports on."""
 SHARED_FOLDER = "shared"
 """Folder of the figures the reference reports share, beside them (``reports/shared``)."""
+REPORT_FILES = ("index.html", "README.md", "figures", "alpha_table.csv", "run_config.yaml")
+SWEEP_REPORT_FILES = ("index.html", "README.md", "figures", "summary.csv", "comparisons.csv", "runs.csv")
+"""What a report of a run, or of a sweep, writes: accepted without the output marker in a folder the workbench
+chose itself (``<folder>/report``, ``reports/<name>``), as reports written before folders were marked hold them."""
+WRITER = "a report"
 
 
 def check_report_name(name: str) -> None:
-    """``--name``: a plain folder name; an empty one is refused, never taken as the default (it would rewrite the
-    default reference report)."""
-    if not plain_name(name):
-        raise WorkbenchError(f"--name must be a plain folder name (not empty, no path, not '.' or '..'), got {name!r}")
+    """``--name``: a plain folder name that is not blank and not :data:`SHARED_FOLDER`; an empty one is refused,
+    never taken as the default (it would rewrite the default reference report)."""
+    if not plain_name(name) or not name.strip():
+        raise WorkbenchError(
+            f"--name must be a plain folder name (not empty or blank, no path, not '.' or '..'), got {name!r}"
+        )
+    if name == SHARED_FOLDER:
+        raise WorkbenchError(
+            f"--name {SHARED_FOLDER} is reserved: reports/{SHARED_FOLDER} holds the figures the reference reports "
+            "share; choose another name"
+        )
 
 
 def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
@@ -61,6 +73,7 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
         check_report_name(name)
     if reference:
         name = default_report_name(config) if name is None else name
+        check_report_name(name)
         if CHECKOUT is None:
             raise WorkbenchError(
                 "--reference rewrites the committed reports of the workbench's checkout, and this "
@@ -77,7 +90,10 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
         "records only. It goes into <folder>/report unless --out or --reference says otherwise.",
     )
     parser.add_argument("folder", type=Path, help=f"a run record (holds '{DONE}') or a folder of run records")
-    parser.add_argument("--out", type=Path, help="the report folder (default: <folder>/report)")
+    parser.add_argument(
+        "--out",
+        help="the report folder: new, empty, or one a report wrote before (default: <folder>/report)",
+    )
     parser.add_argument(
         "--reference",
         action="store_true",
@@ -125,10 +141,13 @@ def main(argv: Sequence[str]) -> int:
     unknown = sorted(set(formats) - {"png", "svg", "pdf"})
     if unknown:
         raise WorkbenchError(f"--formats takes png, svg, pdf; got {unknown}")
+    if args.out is not None:  # refused before any record is read
+        check_output_folder(args.out, "--out", writer=WRITER)
     folder = args.folder
     if not folder.is_dir():
         raise WorkbenchError(f"{folder} is not a folder")
     command = "workbench report " + " ".join(argv)
+    setting = "--name" if args.reference else "--out"
     if is_complete(folder):
         record = load_record(folder, check_archives=True)
         out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
@@ -136,10 +155,14 @@ def main(argv: Sequence[str]) -> int:
             "shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None,
             "shared": out.parent / SHARED_FOLDER if args.reference else None,
         }
-        index = build_run_report(record, out, formats=formats, options=options, command=command)
+        known = REPORT_FILES if args.out is None else ()
+        with output_folder(out, setting, writer=WRITER, known=known) as staging:
+            build_run_report(record, staging, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]
         out = report_folder(folder, first.config, out=args.out, reference=args.reference, name=args.name)
-        index = build_sweep_report(folder, out, formats=formats, command=command)
-    print(f"report: {index}")
+        known = SWEEP_REPORT_FILES if args.out is None else ()
+        with output_folder(out, setting, writer=WRITER, known=known) as staging:
+            build_sweep_report(folder, staging, formats=formats, command=command)
+    print(f"report: {out / 'index.html'}")
     return 0

@@ -537,6 +537,33 @@ def _check_keys(plain: Mapping) -> None:
             raise WorkbenchError(f"dataset.{key} has no effect with dataset={kind}: {why}; leave it out")
 
 
+def check_hydra_settings(node, prefix: str = "hydra.") -> None:
+    """Refuse a key of Hydra's own settings that Hydra's schema does not have (``+hydra.nope=1``,
+    ``++hydra.job.nope=1``: Hydra adds it and nothing reads it), in the words used for the study's settings.
+
+    Parameters
+    ----------
+    node : omegaconf.DictConfig
+        The composed config's ``hydra`` node (each of its parts checked against its dataclass, where it has one;
+        free mappings such as ``hydra.job.env_set`` or ``hydra.callbacks`` take any key).
+    prefix : str
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    from omegaconf import DictConfig, OmegaConf
+
+    schema = OmegaConf.get_type(node)
+    if is_dataclass(schema):
+        groups = {spec.name: spec for spec in fields(schema)}.get("defaults")  # config groups, such as hydra/env
+        chosen = groups.default_factory() if groups is not None and groups.default_factory is not NO_DEFAULT else []
+        _check_known(node, schema, prefix, {key for entry in chosen if isinstance(entry, Mapping) for key in entry})
+    for key, value in node.items_ex(resolve=False):
+        if isinstance(value, DictConfig) and node.get(key) is not None:  # a mapping, not one set to null
+            check_hydra_settings(value, f"{prefix}{key}.")
+
+
 def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset()) -> None:
     """Apply the rules of ``schema``'s fields to ``values`` (recursing into nested schemas); a key the schema does
     not have (added with ``+`` or ``++``) is refused unless it is one of ``extras``."""
