@@ -234,6 +234,10 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
         (lambda e, x, h: e.fit(x[0]), "frames must be a 2-D array"),
         (lambda e, x, h: e.set_params(hand_shapes=h[:, :-1]).fit(x[:, :-1]), "frames must have 3 \\* n_points columns"),
         (lambda e, x, h: e.set_params(hand_shapes=None).fit(x), r"hand_shapes must be given: QuasiEigenFaces\(hand_"),
+        (
+            lambda e, x, h: e.set_params(hand_shapes=None).fit(x, h),
+            r"fit takes the frames alone: give the hand shapes as QuasiEigenFaces\(hand_",
+        ),
         (lambda e, x, h: e.set_params(hand_shapes=h[:, :-3]).fit(x), "hand_shapes must have 12 columns"),
         (lambda e, x, h: e.set_params(neutral=np.zeros(5)).fit(x), r"neutral must have shape \(12,\)"),
         (lambda e, x, h: e.set_params(names=["a"]).fit(x), "names must be a sequence of one name per hand shape"),

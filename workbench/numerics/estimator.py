@@ -216,7 +216,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             the same. Real numbers only: complex values and NumPy masked arrays are refused (the estimator has no
             gap policy; drop or fill masked frames first).
         y : None
-            Ignored (scikit-learn's convention); the hand shapes are the parameter ``hand_shapes``.
+            Ignored (scikit-learn's convention); the hand shapes are the parameter ``hand_shapes`` (without it, a 2-D
+            ``y``, the hand shapes given here as earlier versions took them, is refused saying so).
 
         Returns
         -------
@@ -234,6 +235,12 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             unique, as the command line's table notes.
         """
         through, _ = self._checked_parameters()
+        if (
+            self.hand_shapes is None and y is not None and np.ndim(y) == 2
+        ):  # the hand shapes as earlier versions took them
+            raise WorkbenchError(
+                "fit takes the frames alone: give the hand shapes as QuasiEigenFaces(hand_shapes=...), not as y"
+            )
         frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
