@@ -112,6 +112,9 @@ def test_bad_sequences_are_one_line_errors(scan):
     broken[5, 3, 1] = np.nan
     fails(r"bad\.npz: 'vertices' frame 5 holds NaN or Inf", vertices=broken)
     fails(r"bad\.npz: 'faces' refers to vertex 42, outside the 42 vertices", vertices=frames, faces=triangles + 2)
+    negative = triangles.copy()
+    negative[0, 0] = -1
+    fails(r"bad\.npz: 'faces' refers to vertex -1, outside the 42 vertices", vertices=frames, faces=negative)
     fails(r"bad\.npz: 'faces' must be integer triangles of shape \(n, 3\)", vertices=frames, faces=triangles * 1.0)
     fails(r"dataset.neutral_frame 40 is outside the sequence's 40 frames", "dataset.neutral_frame=40", vertices=frames)
     fails(

@@ -71,7 +71,8 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
                 )
             if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
                 raise WorkbenchError(
-                    f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
+                    f"{path}: '{faces_key}' refers to vertex "
+                    f"{int(faces.min() if faces.min() < 0 else faces.max())}, outside the "
                     f"{vertices.shape[1]} vertices (0-based)"
                 )
         yield MeshSequence(vertices, faces, digest, tuple(problems))
