@@ -2,6 +2,7 @@
 
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 import warnings
@@ -492,3 +493,84 @@ def test_the_readers_read_the_shared_takes(shared_data):
     assert curves.weights.shape == (len(curves.seconds), len(curves.names)) and len(curves.names) >= 52
     neutral = workbench.read_obj(shared_data / "ict-facekit" / "FaceXModel" / "generic_neutral_mesh.obj")
     assert neutral.vertices.shape[1] == 3 and neutral.n_vertices > 9409
+
+
+RETIRED_LINE = (
+    "setting metric.bootstrap_{} was retired: the within-run intervals are batch means over time and draw nothing at "
+    "random (docs/statistics.md); leave it out"
+)
+
+
+@pytest.mark.parametrize(
+    "study, overrides, message",
+    [
+        ("paper", ["dataset.n_frames=abc"], "^Error merging override dataset.n_frames=abc; Value 'abc' of type 'str'"),
+        ("paper", ["solver=bogus"], "^In 'paper': Could not find 'solver/bogus'; Available options in 'solver': all,"),
+        ("paper", ["dataset=nope"], "^In 'paper': Could not find 'dataset/nope'; Available options in 'dataset'"),
+        ("paper", ["basis.nope=1"], "^Could not override 'basis.nope'; To append to your config use"),
+        ("paper", ["basis.coverage=[1,"], r"^override 'basis.coverage=\[1,' cannot be parsed: no viable alternative"),
+        ("nope", [], r"^study must be one of .*paper .*\(studies/\), got 'nope'$"),
+        ("../../../etc/passwd", [], r"^study must be one of .*, got '../../../etc/passwd'$"),
+        (None, [], "^study must be one of .*, got None$"),
+        ("paper", None, "^overrides must be a list of 'key=value' strings, got None$"),
+        ("paper", [1], r"^overrides must be a list of 'key=value' strings, got \[1\]$"),
+        (
+            "paper",
+            "dataset.n_frames=300",
+            r"^overrides must be a list .* got the string 'dataset.n_frames=300'; give \[",
+        ),
+        ("paper", ["+metric.bootstrap_resamples=5"], re.escape(RETIRED_LINE.format("resamples"))),
+        ("paper", ["++metric.bootstrap_seed=5"], re.escape(RETIRED_LINE.format("seed"))),
+        ("paper", ["metric.bootstrap_seed=1"], re.escape(RETIRED_LINE.format("seed"))),
+    ],
+)
+def test_compose_config_refuses_in_one_line_as_the_command_line(study, overrides, message):
+    with pytest.raises(WorkbenchError, match=message) as refused:
+        workbench.compose_config(study, overrides)
+    assert "\n" not in str(refused.value) and type(refused.value) is WorkbenchError
+
+
+def test_the_command_line_refuses_the_same_overrides_in_the_same_words(tmp_path):
+    from in_process import run_workbench
+
+    for override in ("+metric.bootstrap_resamples=5", "metric.bootstrap_seed=1", "basis.coverage=[1,"):
+        with pytest.raises(WorkbenchError) as refused:
+            workbench.compose_config("paper", [override])
+        done = run_workbench(override, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+        assert done.returncode == 2 and done.stderr.strip() == f"workbench: error: {refused.value}"
+        assert "+metric" not in done.stderr  # no advice to add a retired setting with '+'
+    done = run_workbench("--config-name", "nope", cwd=tmp_path)
+    assert done.returncode == 2 and "Cannot find primary config 'nope'; the studies are bases," in done.stderr
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda cfg, tmp: workbench.record_study(cfg, None), "^output_dir is empty"),
+        (
+            lambda cfg, tmp: workbench.record_study(cfg, tmp / "run", overrides="dataset.n_frames=300"),
+            "^overrides must be a list of 'key=value' strings, got the string 'dataset.n_frames=300'",
+        ),
+        (lambda cfg, tmp: workbench.read_record(None), "^folder must be the path of a run record, got None$"),
+        (lambda cfg, tmp: workbench.read_c3d(None), r"^path must be a path \(C3D file\), got None$"),
+        (lambda cfg, tmp: workbench.read_obj(3), r"^path must be a path \(OBJ file\), got 3$"),
+        (lambda cfg, tmp: workbench.read_gltf(""), r"^path must be a path \(glTF file\), got ''$"),
+        (lambda cfg, tmp: workbench.read_livelink(None), r"^path must be a path \(Live Link Face CSV\), got None$"),
+        (lambda cfg, tmp: workbench.read_weight_curves([]), r"^path must be a path \(weight-curve file\), got \[\]$"),
+        (lambda cfg, tmp: workbench.read_mesh_sequence(None), r"^path must be a path \(mesh sequence file\)"),
+        (lambda cfg, tmp: workbench.read_blendshapes(None, neutral="n.obj"), r"^folder must be a path \(blendshape"),
+        (lambda cfg, tmp: workbench.read_c3d("/dev/zero"), r"^/dev/zero: is a device, pipe or socket, not a file"),
+        (lambda cfg, tmp: workbench.read_c3d(tmp), r": is a folder, not a file \(C3D file expected\)$"),
+        (lambda cfg, tmp: workbench.read_mesh_sequence(tmp), r": is a folder, not a file \(mesh sequence file"),
+        (
+            lambda cfg, tmp: workbench.read_blendshapes(__file__, neutral="n.obj"),
+            r"test_api.py: is a file, not a folder \(blendshape folder expected\)$",
+        ),
+    ],
+)
+def test_the_api_refuses_a_wrong_argument_naming_it(tmp_path, call, message):
+    config = workbench.compose_config("paper", ["dataset.n_frames=300"])
+    with pytest.raises(WorkbenchError, match=message) as refused:
+        call(config, tmp_path)
+    assert "\n" not in str(refused.value)
+    assert not (tmp_path / "run").exists()

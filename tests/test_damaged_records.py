@@ -13,8 +13,9 @@ import sys
 import pytest
 from in_process import run_workbench
 
-from workbench.api import run
+from workbench.api import read_record, run
 from workbench.cli import main as cli
+from workbench.core.errors import WorkbenchError
 from workbench.core.files import inside
 from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.record import DONE, is_record_file
@@ -78,6 +79,15 @@ DAMAGE = {
     "alpha a string": (set_row("alpha_abs_mean", "12"), "field 'rows[0].alpha_abs_mean' must be a number"),
     "alpha a bool": (set_row("alpha_abs_mean", True), "field 'rows[0].alpha_abs_mean' must be a number"),
     "basis a number": (set_row("basis", 4), "field 'rows[0].basis' must be a string"),
+    "alpha NaN while the table has a value": (
+        set_row("alpha_abs_mean", float("nan")),
+        "field 'rows[0].alpha_abs_mean' must be a finite number equal to alpha_table.csv row 1's",
+    ),
+    "alpha infinite": (
+        set_row("alpha_disp_pooled", float("inf")),
+        "field 'rows[0].alpha_disp_pooled' must be a finite",
+    ),
+    "alpha not the table's": (set_row("rms_mm", 1e6), "field 'rows[0].rms_mm' must be a finite number equal to"),
     "row of unknown data": (set_row("data", "elsewhere"), "rows[0].data 'elsewhere' is not one of"),
     "data entry a list": (
         edit_json("metrics.json", lambda m: m["data"].__setitem__("markers", [])),
@@ -137,6 +147,39 @@ def test_damaged_record_is_refused_in_one_line_naming_file_and_field(
     assert code == 2, captured.err
     assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: ") and expected in lines[0], lines
     assert str(folder) in lines[0]
+
+
+def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(record, tmp_path):
+    folder = tmp_path / "sweep" / "run"
+    shutil.copytree(record, folder)
+    set_row("alpha_abs_mean", float("nan"))(folder)
+    reseal(folder)  # the checksums pass: only the value itself can be refused
+    with pytest.raises(WorkbenchError) as refused:
+        read_record(folder)
+    message = str(refused.value)
+    assert "\n" not in message and str(folder / "metrics.json") in message and "rows[0].alpha_abs_mean" in message
+    commands = {
+        "export": ["export", str(folder), "--out", str(tmp_path / "export")],
+        "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
+    }
+    for command, arguments in commands.items():
+        result = workbench_process(*arguments, cwd=tmp_path)
+        assert result.returncode == 2, (command, result.stderr)
+        assert "field 'rows[0].alpha_abs_mean' must be a finite number" in result.stderr, (command, result.stderr)
+        assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+
+
+def test_a_record_with_undefined_values_in_both_files_is_read(record, tmp_path):
+    folder = tmp_path / "run"
+    shutil.copytree(record, folder)
+    table = (folder / "alpha_table.csv").read_text().splitlines()
+    column = table[0].split(",").index("alpha_disp_mean")
+    cells = table[1].split(",")
+    cells[column] = ""
+    (folder / "alpha_table.csv").write_text("\n".join([table[0], ",".join(cells), *table[2:]]) + "\n")
+    set_row("alpha_disp_mean", None)(folder)
+    reseal(folder)
+    assert read_record(folder).metrics["rows"][0]["alpha_disp_mean"] is None
 
 
 def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, tmp_path, monkeypatch, capsys):

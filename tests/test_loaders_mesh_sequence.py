@@ -112,6 +112,9 @@ def test_bad_sequences_are_one_line_errors(scan):
     broken[5, 3, 1] = np.nan
     fails(r"bad\.npz: 'vertices' frame 5 holds NaN or Inf", vertices=broken)
     fails(r"bad\.npz: 'faces' refers to vertex 42, outside the 42 vertices", vertices=frames, faces=triangles + 2)
+    negative = triangles.copy()
+    negative[0, 0] = -1
+    fails(r"bad\.npz: 'faces' refers to vertex -1, outside the 42 vertices", vertices=frames, faces=negative)
     fails(r"bad\.npz: 'faces' must be integer triangles of shape \(n, 3\)", vertices=frames, faces=triangles * 1.0)
     fails(r"dataset.neutral_frame 40 is outside the sequence's 40 frames", "dataset.neutral_frame=40", vertices=frames)
     fails(
@@ -210,3 +213,24 @@ def test_sequence_plausibility_and_damaged_files_are_one_line_errors(scan):
     capture = build_captures(config(tmp_path, tmp_path / "jump.npz", basis, "dataset.plausibility=warn"))["mesh"]
     assert any(note.startswith("WARNING: ") and "jumps" in note for note in capture.notes)
     assert len(capture.provenance["plausibility_warnings"]) == 1
+
+
+def test_a_faces_key_the_file_lacks_is_refused_naming_its_arrays(scan):
+    from workbench.formats.mesh_sequence import read_mesh_sequence
+
+    tmp_path, frames, triangles, _, _ = scan
+    np.savez(tmp_path / "seq.npz", vertices=frames, faces=triangles)
+    with h5py.File(tmp_path / "seq.h5", "w") as handle:
+        handle["vertices"], handle["faces"] = frames, triangles
+    for name in ("seq.npz", "seq.h5"):
+        path = tmp_path / name
+        with pytest.raises(WorkbenchError) as refused:
+            read_mesh_sequence(path, faces_key="nope")
+        assert str(refused.value) == (
+            f"{path}: no array 'nope' (faces_key, dataset.faces_key); it has ['faces', 'vertices']; give null to use "
+            "the hand basis's triangles"
+        )
+        assert (read_mesh_sequence(path)[1] == triangles).all()
+        assert read_mesh_sequence(path, faces_key=None)[1] is None
+    np.savez(tmp_path / "positions.npz", vertices=frames)
+    assert read_mesh_sequence(tmp_path / "positions.npz")[1] is None  # the default name may be absent

@@ -88,6 +88,12 @@ def test_expression_holding_only_vertices_takes_the_neutral_polygons(folder):
     np.testing.assert_allclose(shapes.deltas, 1.0)
 
 
+def test_expression_names_given_as_one_string_are_refused(folder):
+    with pytest.raises(WorkbenchError, match=r"^names must be a list of expression names, got the string 'lift_L'"):
+        load_blendshapes(folder, neutral_file="neutral.obj", names="lift_L")
+    assert load_blendshapes(folder, neutral_file="neutral.obj", names=["lift_L"]).names == ("lift_L",)
+
+
 def test_malformed_and_missing_files(folder, tmp_path):
     (folder / "junk.obj").write_text("v 1 2 x\nf 1 2 3\n")
     with pytest.raises(WorkbenchError, match=r"junk\.obj: a 'v' line holds something that is not a number"):
@@ -102,7 +108,7 @@ def test_malformed_and_missing_files(folder, tmp_path):
         load_blendshapes(folder, neutral_file="neutral.obj", names=["smile"])
     with pytest.raises(WorkbenchError, match="OBJ file not found"):
         load_blendshapes(folder, neutral_file="missing.obj")
-    with pytest.raises(WorkbenchError, match="blendshape folder .* not found"):
+    with pytest.raises(WorkbenchError, match="nowhere: blendshape folder not found"):
         load_blendshapes(tmp_path / "nowhere", neutral_file="neutral.obj")
 
 

@@ -263,3 +263,37 @@ def test_the_shared_data_passes_every_check(shared_data):
         )
         captures = build_captures(cfg)
         assert not any(note.startswith("WARNING") for note in captures["markers"].notes)
+
+
+def test_a_take_whose_markers_all_jump_at_one_frame_is_refused_or_warned(shared_data, data_root):
+    def jump(positions, labels):
+        positions[300:] += np.array([500.0, 0.0, 0.0])
+
+    take = changed_take(shared_data, data_root, "jump.c3d", jump)
+    line = (
+        f"{data_root / take}: the markers jump 500 mm together (median over markers) from frame 299 to frame 300 "
+        "(1 such frame(s)), more than 1 x the face's size (63.7 mm); a head moves a few millimetres a frame"
+    )
+    with pytest.raises(WorkbenchError, match=re.escape(line)):
+        build_captures(animface(data_root, [take]))
+    captures = build_captures(animface(data_root, [take], "dataset.plausibility=warn"))
+    assert line in captures["markers"].provenance["plausibility_warnings"]
+
+
+def test_a_take_that_never_moves_is_refused_naming_it(shared_data, data_root):
+    take = changed_take(shared_data, data_root, "static.c3d", lambda p, _: p.__setitem__(slice(None), p[0]))
+    with pytest.raises(WorkbenchError, match=re.escape(f"{data_root / take}: the take is static: no marker moves")):
+        build_captures(animface(data_root, [take]))
+
+
+def test_a_c3d_rate_of_zero_is_refused_naming_the_rate(shared_data, tmp_path):
+    import struct
+
+    take = read_c3d_markers(shared_data / TAKE)
+    path = write_c3d(tmp_path / "rate0.c3d", take.positions, take.labels)
+    data = path.read_bytes()
+    parameters_end = (struct.unpack_from("<H", data, 16)[0] - 1) * 512  # header word 9: first data block
+    rate, zero = struct.pack("<f", 60.0), struct.pack("<f", 0.0)
+    path.write_bytes(data[:parameters_end].replace(rate, zero) + data[parameters_end:])
+    with pytest.raises(WorkbenchError, match=re.escape(f"{path}: POINT:RATE (the frame rate) must be positive, got 0")):
+        read_c3d_markers(path)

@@ -55,17 +55,22 @@ def compose_config(study: str = "paper", overrides: Sequence[str] = ()) -> "Dict
     study : str, default "paper"
         A study of ``studies/`` (``workbench --config-name STUDY``).
     overrides : sequence of str
-        The command line's overrides, e.g. ``["dataset=ict_livelink", "dataset.frame_step=20"]``.
+        The command line's overrides, e.g. ``["dataset=ict_livelink", "dataset.frame_step=20"]`` (a single string
+        is refused, not read as its letters).
 
     Returns
     -------
     omegaconf.DictConfig
+
+    Raises
+    ------
+    WorkbenchError
+        In one line, with the command line's words: an unknown study, an override that is not a string, cannot be
+        parsed, names an unknown key or option, a retired setting or a value of the wrong type.
     """
     from workbench.settings.config import compose
 
-    if isinstance(overrides, str):
-        raise WorkbenchError(f"overrides must be a list of 'key=value' strings, got the string {overrides!r}")
-    return compose(study, list(overrides))
+    return compose(study, overrides)
 
 
 def _study_config(config) -> "DictConfig":
@@ -149,15 +154,22 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
     config : DictConfig or mapping
         As :func:`run_study`.
     output_dir : path-like
+        Not empty, nor the current folder or one above it.
     overrides : sequence of str
-        The overrides that made ``config``, kept in the record (``metrics.json``'s ``overrides``).
+        The overrides that made ``config``, kept in the record (``metrics.json``'s ``overrides``); a single string
+        is refused, not read as its letters.
 
     Returns
     -------
     workbench.record.record.RunRecord
     """
+    from workbench.core.files import check_folder_setting
+    from workbench.settings.config import override_list
+
     config = _study_config(config)
-    run_owned(config, Path(output_dir), overrides=list(overrides), job_num=None, plain=True)
+    output_dir = check_folder_setting(output_dir, "output_dir")
+    overrides = override_list(overrides, "overrides")
+    run_owned(config, output_dir, overrides=overrides, job_num=None, plain=True)
     return read_record(output_dir)
 
 
@@ -180,6 +192,8 @@ def read_record(folder: str | os.PathLike, *, check_archives: bool = False) -> "
     """
     from workbench.record.record import load_record
 
+    if not isinstance(folder, (str, os.PathLike)) or not str(folder).strip():
+        raise WorkbenchError(f"folder must be the path of a run record, got {folder!r}")
     return load_record(Path(folder), check_archives=check_archives)
 
 

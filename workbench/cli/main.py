@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import logging
 import os
-import re
 import sys
 import traceback
 from contextlib import contextmanager
@@ -34,6 +33,7 @@ from workbench.settings.config import (
     DEFAULT_STUDY,
     STUDIES_DIR,
     check_config_dirs,
+    config_error_line,
     register_resolvers,
     resolved_yaml_text,
     study_names,
@@ -271,32 +271,5 @@ def main() -> None:
             exit_if_runs_failed(error)
         if full_error or tracebacks_shown():
             raise
-        print(f"workbench: error: {missing_extra(error) or retired_setting(error) or one_line(error)}", file=sys.stderr)
+        print(f"workbench: error: {missing_extra(error) or config_error_line(error)}", file=sys.stderr)
         sys.exit(2)
-
-
-def retired_setting(error: BaseException) -> str | None:
-    """Hydra's refusal to override a setting earlier versions had, said as why the setting went."""
-    from workbench.settings.schema import RETIRED_SETTINGS, retired_message
-
-    found = re.match(r"Could not override '([^']+)'", str(error))
-    return retired_message(found.group(1)) if found and found.group(1) in RETIRED_SETTINGS else None
-
-
-def one_line(error: BaseException) -> str:
-    """Hydra's multi-line message of a config error (and its cause's) as one line: lists such as the available
-    options of a config group are joined, the config search path is left out."""
-    text = str(error)
-    if error.__cause__ is not None and str(error.__cause__) not in text:
-        text += "\n" + str(error.__cause__)
-    parts = []
-    for line in text.split("Config search path:")[0].splitlines():
-        if not line.strip() or line.strip().startswith(
-            ("full_key:", "object_type=", "reference_type=", "Set the environment variable")
-        ):
-            continue
-        if line.startswith(("\t", "    ")) and parts and parts[-1].endswith((":", ",")):
-            parts[-1] += (" " if parts[-1].endswith(":") else " ") + line.strip() + ","
-        else:
-            parts.append(line.strip())
-    return "; ".join(part.rstrip(",.") for part in parts)

@@ -163,6 +163,26 @@ def shown_names(names: Iterable[str]) -> str:
     return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
 
 
+def input_path(path, what: str, argument: str = "path", *, folder: bool = False) -> Path:
+    """``path`` as a ``Path`` to read ``what`` from: refused in one line when it is not a path (naming
+    ``argument``), is missing, or is a folder where a file is expected (or a file where a ``folder`` is), or a
+    device, pipe or socket rather than a regular file.
+
+    Raises
+    ------
+    WorkbenchError
+    """
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise WorkbenchError(f"{argument} must be a path ({what}), got {path!r}")
+    path = Path(path)
+    if folder and path.is_dir() or not folder and path.is_file():
+        return path
+    if not path.exists():
+        raise WorkbenchError(f"{path}: {what} not found")
+    kind = "a folder" if path.is_dir() else "a file" if path.is_file() else "a device, pipe or socket"
+    raise WorkbenchError(f"{path}: is {kind}, not a {'folder' if folder else 'file'} ({what} expected)")
+
+
 def check_folder_setting(folder, setting: str, writer: str = "a run") -> Path:
     """A folder setting (``hydra.run.dir``, ``hydra.sweep.dir``, ``--out``) as a path, refused when it is empty or is
     the current directory or a folder above it (``writer`` writes into a folder of its own).

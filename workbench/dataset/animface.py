@@ -56,6 +56,7 @@ from workbench.formats.plausibility import (
     outlier_problems,
     parked_marker_problems,
     settle,
+    take_motion_problems,
     take_units_problems,
     with_warnings,
 )
@@ -404,13 +405,15 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
 
 
 def take_problems(takes: Sequence[MarkerTake]) -> list[str]:
-    """Plausibility of the raw takes: per-take units (face size), frame rates and markers parked at the origin."""
+    """Plausibility of the raw takes: per-take units (face size), frame rates, markers parked at the origin,
+    markers jumping together between frames and takes that never move."""
     problems = take_units_problems(
         {str(take.path): face_spread(take.positions) for take in takes}, {str(take.path): take.units for take in takes}
     )
     for take in takes:
         problems += frame_rate_problems(take.frame_rate, str(take.path), "POINT:RATE")
         problems += parked_marker_problems(take.positions, take.labels, str(take.path))
+        problems += take_motion_problems(take.positions, str(take.path), take.units)
     return problems
 
 

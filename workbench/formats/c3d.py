@@ -15,6 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.files import input_path
 
 MM_PER_UNIT = {
     "mm": 1.0,
@@ -157,9 +158,7 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     """
     import c3d
 
-    path = Path(path)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: C3D file not found")
+    path = input_path(path, "C3D file")
     with open(path, "rb") as handle, warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the reader warns (rather than fails) on a short file: checked below
         try:
@@ -171,6 +170,8 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
             units_parameter = reader.get("POINT:UNITS")
             units = units_parameter.string_value if units_parameter is not None else "mm"
             frame_rate = float(reader.point_rate)
+            if not frame_rate > 0:  # before the frames: the reader divides by it
+                raise WorkbenchError(f"{path}: POINT:RATE (the frame rate) must be positive, got {frame_rate}")
             frames = [points[:, :4].astype(np.float64) for _, points, _ in reader.read_frames(copy=True)]
         except WorkbenchError:
             raise
@@ -194,8 +195,6 @@ def read_c3d_markers(path: str | os.PathLike) -> MarkerTake:
     if len(set(labels)) != len(labels):
         duplicates = sorted({label for label in labels if labels.count(label) > 1})
         raise WorkbenchError(f"{path}: duplicate marker labels {duplicates}")
-    if not frame_rate > 0:
-        raise WorkbenchError(f"{path}: POINT:RATE must be positive, got {frame_rate}")
     data = np.stack(frames)
     positions = data[:, :, :3] * units_to_mm(units, path)
     # A sample is missing when the file marks it invalid, or when it holds NaN or Inf where a position should be.

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.files import input_path
 
 MM_PER_METRE = 1000.0
 FLOAT32, UINT8, UINT16, UINT32 = 5126, 5121, 5123, 5125
@@ -398,9 +399,7 @@ def read_morph_mesh(path: str | os.PathLike, *, mesh_name: str | None = None) ->
     """
     import pygltflib
 
-    path = Path(path)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: glTF file not found")
+    path = input_path(path, "glTF file")
     with open(path, "rb") as stream:
         if stream.read(4) != b"glTF":
             raise WorkbenchError(

@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError, single_line
+from workbench.core.files import input_path
 from workbench.settings.rules import positive_setting
 
 ARKIT_NAMES = (
@@ -167,9 +168,7 @@ def read_livelink_csv(path: str | os.PathLike, *, timecode_rate: float = 60.0) -
     """
     import pandas as pd
 
-    path = Path(path)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: Live Link Face CSV not found")
+    path = input_path(path, "Live Link Face CSV")
     positive_setting(timecode_rate, "timecode_rate")
     try:
         table = pd.read_csv(path, skipinitialspace=True)

@@ -18,10 +18,24 @@ from typing import Iterator
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.files import input_path
 from workbench.formats.plausibility import SequenceMotion
 from workbench.numerics.frames import chunk_frames
 
 SEQUENCE_SUFFIXES = (".npz", ".npy", ".h5", ".hdf5")
+DEFAULT_FACES_KEY = "faces"
+"""The triangles' array when none is named: a file without it has none (the hand basis's are used). An array
+named otherwise must exist."""
+
+
+def _missing_faces(path: Path, faces_key: str | None, found: bool, names) -> None:
+    """Refuse a ``faces_key`` other than the default that names no array of the file (``found`` False; ``names``
+    are the file's arrays)."""
+    if faces_key is not None and faces_key != DEFAULT_FACES_KEY and not found:
+        raise WorkbenchError(
+            f"{path}: no array '{faces_key}' (faces_key, dataset.faces_key); it has {sorted(names)}; "
+            "give null to use the hand basis's triangles"
+        )
 
 
 @contextmanager
@@ -35,9 +49,8 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
     WorkbenchError
         If the file is missing or of another kind, lacks the named arrays, or they have the wrong shape or values.
     """
+    path = input_path(path, "mesh sequence file")
     suffix = path.suffix.lower()
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: mesh sequence file not found")
     if suffix not in SEQUENCE_SUFFIXES:
         raise WorkbenchError(f"{path}: a mesh sequence must be one of {', '.join(SEQUENCE_SUFFIXES)}")
     opened = (
@@ -58,7 +71,8 @@ def open_mesh_sequence(path: Path, vertices_key: str, faces_key: str | None) -> 
                 )
             if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[1]):
                 raise WorkbenchError(
-                    f"{path}: '{faces_key}' refers to vertex {int(faces.max())}, outside the "
+                    f"{path}: '{faces_key}' refers to vertex "
+                    f"{int(faces.min() if faces.min() < 0 else faces.max())}, outside the "
                     f"{vertices.shape[1]} vertices (0-based)"
                 )
         yield MeshSequence(vertices, faces, digest, tuple(problems))
@@ -145,11 +159,13 @@ def _numpy_arrays(path: Path, vertices_key: str, faces_key: str | None):
     except damaged as error:
         raise WorkbenchError(f"{path}: not a readable NumPy file ({error})") from None
     if isinstance(loaded, np.ndarray):  # .npy: positions only
+        _missing_faces(path, faces_key, False, [])
         yield loaded, None
         return
     with loaded:
         if vertices_key not in loaded.files:
             raise WorkbenchError(f"{path}: no array '{vertices_key}' (dataset.vertices_key); it has {loaded.files}")
+        _missing_faces(path, faces_key, faces_key in loaded.files, loaded.files)
         try:  # a .npz's arrays are read here: a truncated or damaged archive fails now
             faces = loaded[faces_key] if faces_key and faces_key in loaded.files else None
             vertices = loaded[vertices_key]
@@ -174,6 +190,7 @@ def _hdf5_arrays(path: Path, vertices_key: str, faces_key: str | None):
             raise WorkbenchError(
                 f"{path}: no dataset '{vertices_key}' (dataset.vertices_key); it has {sorted(handle.keys())}"
             )
+        _missing_faces(path, faces_key, bool(faces_key) and faces_key in handle, list(handle.keys()))
         faces = handle[faces_key][()] if faces_key and faces_key in handle else None
         yield handle[vertices_key], faces
 
@@ -187,7 +204,8 @@ def read_mesh_sequence(
     ----------
     path : path-like
     vertices_key, faces_key : str
-        The arrays' names in an ``.npz`` or their paths in an HDF5 file (``faces_key`` None: no triangles).
+        The arrays' names in an ``.npz`` or their paths in an HDF5 file (``faces_key`` None: no triangles). A
+        file without ``faces`` has none; a ``faces_key`` named otherwise that the file lacks is refused.
 
     Returns
     -------
@@ -195,5 +213,5 @@ def read_mesh_sequence(
         Positions in the file's units, float64.
     faces : ndarray of shape (n_faces, 3) of int, or None
     """
-    with open_mesh_sequence(Path(path), vertices_key, faces_key) as sequence:
+    with open_mesh_sequence(path, vertices_key, faces_key) as sequence:
         return sequence.frames(0, sequence.n_frames), sequence.faces

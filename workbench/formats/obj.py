@@ -18,6 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.files import input_path
 
 
 @dataclass(frozen=True)
@@ -133,8 +134,7 @@ def _file_key(path: Path) -> tuple[str, tuple[int, ...], int]:
     change time, which any write sets to now and no program can set back, so a file edited in place with its size
     and modification time restored is read afresh. The path is kept as named (not resolved), so that a message
     about a file reached through a symbolic link names the link the user gave."""
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: OBJ file not found")
+    path = input_path(path, "OBJ file")
     stat = path.stat()
     return os.path.abspath(path), (stat.st_dev, stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns), stat.st_size
 
@@ -175,7 +175,7 @@ def read_obj(path: str | os.PathLike) -> ObjMesh:
     WorkbenchError
         If the file is missing or a ``v`` / ``f`` line cannot be read.
     """
-    path = Path(path)
+    path = input_path(path, "OBJ file")
     key = _file_key(path)
     vertices = _vertices_cached(*key)[0]
     sizes, corners = _polygons_cached(*key)
@@ -263,8 +263,7 @@ class Blendshapes:
 
 def expression_names(folder: Path, neutral_file: str) -> list[str]:
     """Names of the expression OBJs in a blendshape folder: every ``*.obj`` but the neutral, sorted."""
-    if not Path(folder).is_dir():
-        raise WorkbenchError(f"blendshape folder {folder} not found")
+    folder = input_path(folder, "blendshape folder", "folder", folder=True)
     return sorted(path.stem for path in folder.glob("*.obj") if path.name != neutral_file)
 
 
@@ -302,11 +301,11 @@ def load_blendshapes(
         If the folder or a named file is missing, or an expression's vertex count or polygons differ from the
         neutral's.
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise WorkbenchError(f"blendshape folder {folder} not found")
+    folder = input_path(folder, "blendshape folder", "folder", folder=True)
     if not unit_mm > 0:
         raise WorkbenchError(f"blendshape unit_mm must be positive, got {unit_mm}")
+    if isinstance(names, str):
+        raise WorkbenchError(f"names must be a list of expression names, got the string {names!r}; give [{names!r}]")
     neutral_path = folder / neutral_file
     neutral = read_obj(neutral_path)
     available = expression_names(folder, neutral_file)
@@ -406,7 +405,8 @@ def read_blendshapes(
     neutral : str
         File name of the neutral OBJ inside ``folder``.
     names : sequence of str, optional
-        Expressions to read (every other ``*.obj`` when None).
+        Expressions to read (every other ``*.obj`` when None); a single string is refused, not read as its
+        letters.
     region_vertices : int, optional
         Keep vertices ``[0, region_vertices)`` only (ICT's face region: 9,409).
     unit_mm : float, default 1.0

@@ -45,10 +45,12 @@ class Limits:
         first.
     jump_factor : float
         A vertex of a mesh sequence jumps when it moves farther than this many times the face's extent (as in
-        ``mesh_outlier_factor``) from one frame to the next: a face moves a few millimetres a frame.
+        ``mesh_outlier_factor``) from one frame to the next: a face moves a few millimetres a frame. The markers of
+        a take jump when their median move from one frame to the next is farther than this many times the take's
+        face size (:func:`face_spread`).
     static_fraction : float
         A mesh sequence is static when no vertex ever moves farther than this fraction of the face's extent from
-        the first frame.
+        the first frame; a take of markers, when no marker moves farther than this fraction of its face size.
     static_weight : float
         A take of blendshape weights is static when no channel's weight ever changes by more than this.
     frame_rate_hz : tuple of float
@@ -162,6 +164,44 @@ def parked_marker_problems(positions: np.ndarray, labels: Sequence[str], source:
         "written as zeros)"
         for j in np.flatnonzero(parked.any(axis=0))
     ]
+
+
+def take_motion_problems(positions: np.ndarray, source: str, units: str) -> list[str]:
+    """The markers of a take jumping together from one frame to the next (their median move beyond
+    :attr:`Limits.jump_factor` x the take's face size: a head moves a few millimetres a frame, so such a take
+    joins two recordings or changes units part way), or a take that never moves (no marker farther than
+    :attr:`Limits.static_fraction` x the face size from the first frame). Single markers far from their place are
+    :func:`outlier_problems`'.
+
+    Parameters
+    ----------
+    positions : ndarray of shape (n_frames, n_markers, 3)
+        As read (head motion included); NaN where missing.
+    source : str
+    units : str
+        The take's units, for the message.
+    """
+    if len(positions) < 2:
+        return []
+    spread = face_spread(positions)
+    with _quiet_nan():
+        step = np.nanmedian(np.linalg.norm(np.diff(positions, axis=0), axis=2), axis=1)
+        beyond = np.flatnonzero(step > LIMITS.jump_factor * spread)
+        largest = float(np.nanmax(np.linalg.norm(positions - positions[:1], axis=2), initial=0.0))
+    problems = []
+    if beyond.size:
+        frame = int(beyond[0])
+        problems.append(
+            f"{source}: the markers jump {step[frame]:.3g} {units} together (median over markers) from frame "
+            f"{frame} to frame {frame + 1} ({beyond.size} such frame(s)), more than {LIMITS.jump_factor:g} x the "
+            f"face's size ({spread:.3g} {units}); a head moves a few millimetres a frame"
+        )
+    if largest <= LIMITS.static_fraction * spread:
+        problems.append(
+            f"{source}: the take is static: no marker moves more than {largest:.3g} {units} from the first frame "
+            "(a face that does not move has no motion to fit)"
+        )
+    return problems
 
 
 def outlier_problems(

@@ -27,6 +27,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError, single_line
+from workbench.core.files import input_path
 from workbench.formats.livelink import (
     LiveLinkTake,
     _numeric_block,
@@ -67,9 +68,7 @@ def read_weight_curves(
         column without ``frame_rate``), repeated names, a value that is not a finite number or a weight outside
         [0, 1], times that do not increase, fewer than 2 frames.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise WorkbenchError(f"{path}: weight-curve file not found")
+    path = input_path(path, "weight-curve file")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         from workbench.formats.livelink import _header

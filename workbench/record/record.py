@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import platform
 import re
 import subprocess
@@ -499,6 +500,23 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
             )
 
 
+def _check_values(folder: Path, rows: Sequence[Mapping], table) -> None:
+    """Every alpha value of ``metrics.json``'s rows is finite and its alpha table cell's (to rounding), or, where
+    the cell is empty (no value: alpha undefined), null or NaN: a record re-signed after its values were changed
+    is refused by what it says, not only by its checksums."""
+    for i, row in enumerate(rows):
+        for key in ALPHA_COLUMNS:
+            value, cell = row[key], float(table[key].iloc[i])
+            stated = math.nan if value is None else float(value)
+            if math.isnan(cell) and math.isnan(stated):
+                continue
+            if not math.isfinite(stated) or not math.isclose(stated, cell, rel_tol=1e-9, abs_tol=1e-12):
+                raise WorkbenchError(
+                    f"{folder / METRICS_FILE}: field 'rows[{i}].{key}' must be a finite number equal to {TABLE_FILE} "
+                    f"row {i + 1}'s ({cell:.6g}), got {value}"
+                )
+
+
 def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
     """Read and check a complete run record: every file against the checksum the run wrote into ``done``
     (:func:`verify_record`), then the fields readers rely on.
@@ -562,6 +580,7 @@ def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
         raise WorkbenchError(
             f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists {len(metrics['rows'])}"
         )
+    _check_values(folder, metrics["rows"], table)
     return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
 
 

@@ -56,14 +56,74 @@ def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     Returns
     -------
     omegaconf.DictConfig
+
+    Raises
+    ------
+    WorkbenchError
+        One line, in the command line's words: a study that is not one of ``studies/``, an override that is not a
+        string, cannot be parsed, names a retired setting (:func:`workbench.settings.schema.refuse_retired`), an
+        unknown key or option, or a value of the wrong type.
     """
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
 
+    from workbench.settings.schema import refuse_retired
+
+    if not isinstance(study, str) or study not in study_names():
+        raise WorkbenchError(f"study must be one of {', '.join(study_names())} (studies/), got {study!r}")
+    overrides = override_list(overrides, "overrides")
+    refuse_retired(overrides)
     register_resolvers()
     check_config_dirs()
-    with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
-        return hydra_compose(config_name=study, overrides=list(overrides), return_hydra_config=True)
+    try:
+        with initialize_config_dir(config_dir=str(STUDIES_DIR), version_base="1.3"):
+            return hydra_compose(config_name=study, overrides=overrides, return_hydra_config=True)
+    except (HydraException, OmegaConfBaseException) as error:
+        raise WorkbenchError(config_error_line(error)) from None
+
+
+def override_list(overrides, argument: str) -> list[str]:
+    """``overrides`` as a list of ``key=value`` strings; a single string (which would be read as its letters), or
+    anything else that is not a sequence of strings, is refused in one line naming ``argument``."""
+    if isinstance(overrides, str):
+        raise WorkbenchError(
+            f"{argument} must be a list of 'key=value' strings, got the string {overrides!r}; give [{overrides!r}]"
+        )
+    if not isinstance(overrides, Sequence) or not all(isinstance(item, str) for item in overrides):
+        raise WorkbenchError(f"{argument} must be a list of 'key=value' strings, got {overrides!r}")
+    return list(overrides)
+
+
+def config_error_line(error: BaseException) -> str:
+    """Hydra's or OmegaConf's error composing a config as one line, as the command line prints it: a retired
+    setting says why it went, an override that cannot be parsed is named, a study that is not found lists the
+    studies, and Hydra's multi-line text (and its cause's) is joined, leaving out the config search path."""
+    from workbench.settings.schema import RETIRED_SETTINGS, retired_message
+
+    text = str(error)
+    found = re.match(r"Could not override '([^']+)'", text)
+    if found and found.group(1) in RETIRED_SETTINGS:
+        return retired_message(found.group(1))
+    if error.__cause__ is not None and str(error.__cause__) not in text:
+        text += "\n" + str(error.__cause__)
+    parts = []
+    for line in text.split("Config search path:")[0].splitlines():
+        if not line.strip() or line.strip().startswith(
+            ("full_key:", "object_type=", "reference_type=", "Set the environment variable")
+        ):
+            continue
+        if line.startswith(("\t", "    ")) and parts and parts[-1].endswith((":", ",")):
+            parts[-1] += " " + line.strip() + ","
+        else:
+            parts.append(line.strip())
+    line = "; ".join(part.rstrip(",.") for part in parts)
+    if type(error).__name__ == "OverrideParseException":
+        line = f"override {getattr(error, 'override', '')!r} cannot be parsed: {line}"
+    elif line.startswith("Cannot find primary config"):
+        line = f"{line.split('. ')[0]}; the studies are {', '.join(study_names())}"
+    return line
 
 
 RUN_ID_MAX = 120

@@ -489,13 +489,20 @@ def retired_message(key: str) -> str:
     return f"setting {key} was retired: {RETIRED_SETTINGS[key]}; leave it out"
 
 
-def _without_retired(plain: dict, overrides: Sequence[str]) -> dict:
-    """``plain`` without the retired settings a record of an earlier version holds; one given as an override is
-    refused, naming why it went."""
-    given = {override.lstrip("+~").split("=", 1)[0].strip() for override in overrides}
+def refuse_retired(overrides: Sequence[str]) -> None:
+    """Refuse an override (``key=value``, ``+key=value``, ``++key=value``, ``~key``) of a retired setting, naming why
+    it went: the command line and :func:`workbench.settings.config.compose` both check it before composing."""
+    given = {str(override).lstrip("+~").split("=", 1)[0].strip() for override in overrides}
     for key in RETIRED_SETTINGS:
         if key in given:
             raise WorkbenchError(retired_message(key))
+
+
+def _without_retired(plain: dict, overrides: Sequence[str]) -> dict:
+    """``plain`` without the retired settings a record of an earlier version holds; one given as an override is
+    refused, naming why it went."""
+    refuse_retired(overrides)
+    for key in RETIRED_SETTINGS:
         group, name = key.split(".")
         if isinstance(plain.get(group), Mapping) and name in plain[group]:
             plain[group] = {k: v for k, v in plain[group].items() if k != name}
