@@ -142,7 +142,7 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
     ``hydra.run.dir``); returns the record read back.
 
     A folder holding a complete record of the same config is not run again (its record is returned), one holding
-    anything else that is not a record of the workbench's is refused, and a run that fails removes what it wrote.
+    anything else that is not a record of the workbench's is refused, and a run that fails removes what it wrote and the folders it made.
 
     Parameters
     ----------
@@ -156,7 +156,10 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
     -------
     workbench.record.record.RunRecord
     """
+    from workbench.record.tracking import note_new_run_dir
+
     config = _study_config(config)
+    note_new_run_dir(Path(output_dir))  # a failed run removes the folder (and parents) it made
     run_owned(config, Path(output_dir), overrides=list(overrides), job_num=None, plain=True)
     return read_record(output_dir)
 
@@ -281,8 +284,8 @@ def run_owned(
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
     holds a complete record of the same config. A folder that is not the workbench's is refused before anything
     is written into it (:func:`workbench.record.tracking.check_run_dir`). A plain run (``plain``) that fails or is
-    interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
-    rerun clears and redoes the run)."""
+    interrupted removes what it wrote, and its folder and the parents it made for it if it made them (a sweep's run
+    keeps its partial record: its rerun clears and redoes the run). A complete record keeps no lock file."""
     from workbench.record.record import config_hash
     from workbench.record.tracking import (
         check_run_dir,
@@ -290,7 +293,8 @@ def run_owned(
         discard_failed_run,
         lock_run_dir,
         prepare_run_dir,
-        unlock_run_dir,
+        release_run_dir,
+        remove_made_parents,
     )
 
     found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
@@ -300,8 +304,8 @@ def run_owned(
             return None
         return run(cfg, output_dir, overrides=overrides, job_num=job_num)
     except BaseException:
-        if plain:
-            discard_failed_run(output_dir, found, created_by_this_run(output_dir))
+        if plain and discard_failed_run(output_dir, found, created_by_this_run(output_dir)):
+            remove_made_parents(output_dir)
         raise
     finally:
-        unlock_run_dir(lock)
+        release_run_dir(output_dir, lock)
