@@ -228,6 +228,38 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
     )
 
 
+def test_alpha_summary_is_a_small_table_of_every_basis(fitted):
+    estimator, frames = fitted
+    table = estimator.alpha_summary(frames, solver="nnls")
+    assert list(table["basis"]) == ["QE", "H", "PCA"] and list(table["solver"]) == ["nnls", "nnls", "projection"]
+    assert list(table.columns) == [
+        "basis",
+        "solver",
+        "n_frames",
+        "alpha_abs_mean",
+        "alpha_abs_pooled",
+        "alpha_disp_mean",
+        "alpha_disp_pooled",
+        "rms_mm",
+    ]
+    assert (table["n_frames"] == len(frames)).all() and table.shape == (3, 8)
+    for row in table.itertuples():
+        solver = None if row.basis == "PCA" else "nnls"
+        for normalisation, short in (("absolute", "abs"), ("displacement", "disp")):
+            for aggregate in ("mean", "pooled"):
+                value = estimator.alpha(
+                    frames, solver=solver, basis=row.basis, normalisation=normalisation, aggregate=aggregate
+                )
+                assert getattr(row, f"alpha_{short}_{aggregate}") == value, (row.basis, normalisation, aggregate)
+    one = estimator.alpha_summary(frames, basis="H")  # one basis, the estimator's solver
+    assert one.shape == (1, 8) and one.loc[0, "solver"] == "lstsq"
+    assert one.loc[0, "alpha_abs_mean"] == estimator.alpha(frames, basis="H")
+    with pytest.raises(WorkbenchError, match="^solver must be None for basis 'PCA'"):
+        estimator.alpha_summary(frames, basis="PCA", solver="nnls")
+    with pytest.raises(WorkbenchError, match="^basis must be one of 'QE', 'H', 'PCA' or a list of them; got \\[\\]$"):
+        estimator.alpha_summary(frames, basis=[])
+
+
 @pytest.mark.parametrize(
     "call, message",
     [
@@ -441,11 +473,13 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     config = workbench.compose_config("paper", overrides)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
+    assert not (tmp_path / "run" / ".lock").exists(), "a complete record keeps no lock file"
     captures = workbench.build_captures(config)
     # markers at the coverage rule's m and markers m=n (the paper's regime), 4 alpha variants, 2 projections
     assert check_estimator_against_record(record, captures) == 2 * 4 * 2 * (3 + 3 + 1)
     # a folder holding the complete record of the same config is not run again; the dataset group alone builds too
     assert workbench.record_study(config, tmp_path / "run", overrides=overrides).metrics == record.metrics
+    assert not (tmp_path / "run" / ".lock").exists()
     assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
@@ -462,6 +496,16 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert np.mean(explicit) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-10)
     # the same study in memory, from the record's resolved config
     results = workbench.run_study(record.config)
+    # the paper's regime gives two results of one capture: their names tell them apart, and say which is which
+    assert [result.data for result in results] == ["markers m=n", "markers"]
+    assert len({result.capture.name for result in results}) == 1
+    assert [result.name for result in results] == [
+        f"{results[0].capture.name} [{data}]" for data in ("markers m=n", "markers")
+    ]
+    assert (
+        repr(results[1])
+        == f"StudyResult(name={results[1].name!r}, m={results[1].eigenfaces.n_components_}, frames={len(results[1].capture.eval)}, rows={len(results[1].rows)})"
+    )
     markers = next(result for result in results if result.data == "markers")
     qe = next(r for r in markers.rows if r.basis == "QE" and r.solver == "nnls")
     assert qe.alpha.absolute_mean == row["alpha_abs_mean"]

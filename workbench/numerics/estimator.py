@@ -401,7 +401,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
                 "alpha with normalisation='absolute' needs the neutral positions: pass neutral= to "
                 "fit, or use normalisation='displacement'"
             )
-        summary = self.alpha_summary(frames, solver=solver, basis=basis)
+        summary = self._summary(frames, solver=solver, basis=basis)
         if aggregate == "per_frame":
             return summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame
         return getattr(summary, f"{normalisation}_{aggregate}")
@@ -426,24 +426,51 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         float
             ``-alpha``: higher is better.
         """
-        return -float(self.alpha_summary(frames).absolute_mean)
+        return -float(self._summary(frames).absolute_mean)
 
-    def alpha_summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
-        """Every variant of eq. 6 and the RMS point error of one reconstruction, as a run's table row holds them.
+    def alpha_summary(self, frames, *, solver: str | None = None, basis=BASES):
+        """Every variant of eq. 6 and the RMS point error, one row per basis, as a run's alpha table holds them.
 
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
             Displacements from neutral.
-        solver, basis
-            As :meth:`alpha`.
+        solver : {"lstsq", "nnls", "box"}, optional
+            The solver of eq. 5 for ``QE`` and ``H`` (the estimator's ``solver`` when None); PCA takes none.
+        basis : str or sequence of str, default ("QE", "H", "PCA")
+            The bases compared, as in :meth:`alpha`.
 
         Returns
         -------
-        workbench.numerics.metrics.AlphaSummary
-            Without ``neutral`` given to :meth:`fit`, the absolute variants are those of the origin at the neutral
-            face (equal to the displacement ones).
+        pandas.DataFrame
+            One row per basis, columns ``basis``, ``solver`` (``projection`` for PCA, as in a run's table),
+            ``n_frames``, ``alpha_abs_mean``, ``alpha_abs_pooled``, ``alpha_disp_mean``, ``alpha_disp_pooled`` (in
+            percent) and ``rms_mm`` (the RMS point error, in the frames' units): the record's column names. Without
+            ``neutral`` given to :meth:`fit`, the absolute variants are those of the origin at the neutral face
+            (equal to the displacement ones). The per-frame values are :meth:`alpha`'s ``aggregate="per_frame"``.
         """
+        import pandas as pd
+
+        names = [basis] if isinstance(basis, str) else list(basis) if isinstance(basis, (list, tuple)) else None
+        if not names:
+            raise WorkbenchError(f"basis must be one of {', '.join(map(repr, BASES))} or a list of them; got {basis!r}")
+        rows = []
+        for name in names:
+            given = solver if isinstance(basis, str) or name != "PCA" else None  # a list: PCA without the solver
+            summary = self._summary(frames, solver=given, basis=name)
+            rows.append(
+                {
+                    "basis": name,
+                    "solver": "projection" if name == "PCA" else solver or self.solver,
+                    "n_frames": len(summary.absolute_per_frame),
+                    **summary.table_values(),
+                }
+            )
+        return pd.DataFrame(rows)
+
+    def _summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
+        """Every variant of eq. 6, per frame too, and the RMS point error of one basis's reconstruction
+        (:class:`workbench.numerics.metrics.AlphaSummary`, what a run's table row holds)."""
         self._check_fitted()
         frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
         basis = _check_choice("basis", basis, BASES)
