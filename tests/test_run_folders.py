@@ -3,6 +3,7 @@ record of its own; any other folder is refused in one line (exit 2) with nothing
 directory is never a run folder; a failed run removes only what it wrote; names that become paths stay plain."""
 
 import hashlib
+import importlib
 import os
 import shutil
 import subprocess
@@ -149,6 +150,18 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     (tmp_path / "outputs").mkdir()
     assert workbench(*failing, cwd=tmp_path).returncode == 2
     assert list((tmp_path / "outputs").iterdir()) == []
+
+
+def test_a_run_failing_before_it_claims_its_folder_leaves_no_empty_folder(tmp_path, monkeypatch):
+    api = importlib.import_module("workbench.api")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("broken before the run")
+
+    monkeypatch.setattr(api, "run_owned", broken)
+    result = workbench(*SMALL, cwd=tmp_path)
+    assert result.returncode == 3 and "broken before the run" in result.stderr, result.stderr
+    assert not (tmp_path / "outputs").exists(), "Hydra made outputs/paper/<date and time>; the failed run removes it"
 
 
 def test_clean_up_removes_record_files_only(tmp_path):

@@ -299,19 +299,24 @@ def created_by_this_run(folder: Path) -> bool:
     return os.path.abspath(folder) in _NEW_RUN_DIRS
 
 
-def remove_made_parents(folder: Path) -> None:
-    """After :func:`discard_failed_run` removed ``folder``: remove the parents this run made for it
-    (:func:`note_new_run_dir`), innermost first, each only while it is empty (another run may be writing beside)."""
+def remove_made_folders(folder: Path) -> None:
+    """After a plain run failed (and :func:`discard_failed_run` removed its files): remove ``folder`` and the parents
+    this run made for it (:func:`note_new_run_dir`), innermost first, each only while it is empty (another run may
+    be writing beside it). Nothing when the run did not make ``folder``."""
     path = os.path.abspath(folder)
     outermost = _NEW_RUN_DIRS.get(path)
-    if outermost is None or os.path.lexists(path):
+    if outermost is None:
         return
-    while path != outermost:
-        path = os.path.dirname(path)
+    while True:
         try:
             os.rmdir(path)
-        except OSError:  # not empty, or gone: what is left is not only this run's
+        except FileNotFoundError:  # removed already (discard_failed_run)
+            pass
+        except OSError:  # not empty: what is left is not only this run's
             return
+        if path == outermost:
+            return
+        path = os.path.dirname(path)
 
 
 try:
