@@ -22,6 +22,8 @@ PARAMETERS = {
     "names": None,
     "coverage": 0.995,
     "n_components": None,
+    "svd_solver": "auto",
+    "random_state": None,
     "through": "mean",
     "solver": "lstsq",
     "bounds": (0.0, 1.0),
@@ -62,6 +64,8 @@ def test_parameters_are_keyword_only_and_stored_untouched():
         "names": "abc",
         "coverage": 7,
         "n_components": "many",
+        "svd_solver": "arpack",
+        "random_state": "seed",
         "through": "sideways",
         "solver": "qp",
         "bounds": [1, 0],
@@ -167,13 +171,62 @@ def test_low_rank_frames_give_their_known_principal_components():
     # 9/14 = 0.643 < 0.9 <= 13/14 = 0.929: two eigenfaces
     assert estimator.m_ == 2 and estimator.coverage_ == pytest.approx(13 / 14, abs=1e-12)
     np.testing.assert_allclose(estimator.mean_, mean, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
-    np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14, 1 / 14], rtol=1e-12)
+    np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0], rtol=1e-12)  # one per eigenface kept
+    np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14], rtol=1e-12)
     np.testing.assert_allclose(np.abs(estimator.eigenfaces_ @ directions[:2].T), np.eye(2), rtol=0, atol=1e-12)
     every = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(frames)
     np.testing.assert_allclose(
         every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames, rtol=0, atol=1e-12
     )
+
+
+def test_both_svd_solvers_give_the_same_fit_with_the_same_attributes(monkeypatch):
+    frames, _, directions = low_rank(variances=(9.0, 4.0, 1.0, 0.01), n_frames=300, n_dims=60, seed=3)
+    hand = np.random.default_rng(5).standard_normal((5, frames.shape[1]))
+    fits = {
+        solver: QuasiEigenFaces(hand_shapes=hand, coverage=0.99, svd_solver=solver, random_state=7).fit(frames)
+        for solver in ("full", "randomized")
+    }
+    full, randomized = fits["full"], fits["randomized"]
+    assert full.m_ == randomized.m_ == 3 and full.explained_variance_.shape == randomized.explained_variance_.shape
+    np.testing.assert_allclose(randomized.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-9)
+    np.testing.assert_allclose(full.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(randomized.explained_variance_ratio_, full.explained_variance_ratio_, rtol=1e-9)
+    np.testing.assert_allclose(randomized.eigenfaces_, full.eigenfaces_, rtol=0, atol=1e-9)  # signs fixed alike
+    np.testing.assert_allclose(randomized.shapes_, full.shapes_, rtol=0, atol=1e-8)
+    assert {name for name in vars(full) if name.endswith("_")} == {
+        name for name in vars(randomized) if name.endswith("_")
+    }
+    # the same random_state, the same fit; "auto" switches to the randomised path above the run's size
+    again = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, svd_solver="randomized", random_state=7).fit(frames)
+    assert np.array_equal(again.eigenfaces_, randomized.eigenfaces_)
+    auto = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, random_state=7)
+    assert np.array_equal(auto.fit(frames).eigenfaces_, full.eigenfaces_)
+    monkeypatch.setattr(Eigenfaces, "RANDOMIZED_ABOVE", 50)
+    assert np.array_equal(auto.fit(frames).eigenfaces_, randomized.eigenfaces_)
+    assert auto.explained_variance_.shape == full.explained_variance_.shape == (3,)
+    # a Generator is used as given
+    generated = QuasiEigenFaces(hand_shapes=hand, svd_solver="randomized", random_state=np.random.default_rng(7))
+    np.testing.assert_allclose(generated.fit(frames).eigenfaces_, full.eigenfaces_, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"svd_solver": "arpack"}, "^svd_solver must be one of 'auto', 'full', 'randomized'; got 'arpack'$"),
+        ({"svd_solver": "exact"}, "^svd_solver must be one of 'auto', 'full', 'randomized'; got 'exact'$"),
+        (
+            {"random_state": -1},
+            "^random_state must be None, a non-negative integer or a numpy.random.Generator; got -1$",
+        ),
+        ({"random_state": 1.5}, "^random_state must be None, a non-negative integer or a numpy.random.Generator"),
+        ({"random_state": True}, "^random_state must be None, a non-negative integer or a numpy.random.Generator"),
+    ],
+)
+def test_bad_svd_solver_or_random_state_is_refused_naming_it(params, message):
+    frames, _, _ = low_rank()
+    with pytest.raises(WorkbenchError, match=message):
+        QuasiEigenFaces(hand_shapes=frames[:2], **params).fit(frames)
 
 
 @pytest.mark.parametrize("through", ["mean", "neutral"])

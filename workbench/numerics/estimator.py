@@ -25,6 +25,8 @@ from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.numerics.validation import CAPTURE, check_matrix
 
+SVD_SOLVERS = {"auto": "auto", "full": "exact", "randomized": "randomized"}
+"""``svd_solver`` as scikit-learn names it -> :class:`workbench.numerics.bases.Eigenfaces`' own name."""
 THROUGH = {"mean": "affine", "neutral": "linear"}
 """``through`` -> the projection of :func:`workbench.numerics.bases.build_quasi_eigen_basis` (the run's ``QE`` and
 ``QE-linear`` rows)."""
@@ -80,6 +82,14 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         ignored when ``n_components`` is given.
     n_components : int or None, default None
         A fixed ``m`` instead of the coverage rule (at most the rank of the frames).
+    svd_solver : {"auto", "full", "randomized"}, default "auto"
+        How the eigenfaces are found, as scikit-learn's ``PCA`` names it: ``"full"`` decomposes the covariance (or
+        the frames' Gram matrix, whichever is smaller) and finds every eigenvalue; ``"randomized"`` finds the
+        leading ones by randomised subspace iteration, as many as the coverage needs; ``"auto"`` is ``"full"``
+        unless both the frames and the columns number more than 4,000, as a run decides.
+    random_state : int, numpy.random.Generator or None, default None
+        Seed of the randomised solver's test matrix; None is the seed a run uses (0), so that the default
+        reproduces a run (unlike scikit-learn, where None draws a new seed). Unused by ``"full"``.
     through : {"mean", "neutral"}, default "mean"
         Where the hand shapes are projected through: ``"mean"`` is eq. 3-4 as written (affine, through the capture
         mean ``mu``: the run's ``QE`` rows); ``"neutral"`` projects through the neutral face, the origin of
@@ -108,13 +118,13 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
     eigenfaces_ : ndarray of shape (m, n_dims)
         ``E^PCA``: orthonormal eigenfaces as rows, largest variance first, each with its largest-magnitude entry
         positive (deterministic signs, as scikit-learn's ``svd_flip``).
-    explained_variance_ : ndarray of shape (rank,)
-        Every non-zero eigenvalue of the frames' covariance (eq. 2), descending (the leading ones only when the
-        frames are so large that the randomised solver is used, as in a run). The covariance divides by
+    explained_variance_ : ndarray of shape (m,)
+        The eigenvalues of the frames' covariance (eq. 2) of the ``m`` eigenfaces kept, descending, whichever
+        ``svd_solver`` found them (as scikit-learn's ``PCA``, one per component). The covariance divides by
         ``n_frames`` (the paper's ``C = D~ D~^T / L``, as a run computes it), where scikit-learn's ``PCA`` divides
         by ``n_frames - 1``: multiply by ``n_frames / (n_frames - 1)`` to compare. The ratios are the same.
-    explained_variance_ratio_ : ndarray of shape (rank,)
-        Each eigenvalue over the total variance.
+    explained_variance_ratio_ : ndarray of shape (m,)
+        Each over the total variance (the trace of the covariance); they sum to ``coverage_``.
     m_ : int
         Number of eigenfaces kept.
     coverage_ : float
@@ -151,6 +161,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         names=None,
         coverage: float = 0.995,
         n_components: int | None = None,
+        svd_solver: str = "auto",
+        random_state=None,
         through: str = "mean",
         solver: str = "lstsq",
         bounds: tuple = (0.0, 1.0),
@@ -163,6 +175,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         self.names = names
         self.coverage = coverage
         self.n_components = n_components
+        self.svd_solver = svd_solver
+        self.random_state = random_state
         self.through = through
         self.solver = solver
         self.bounds = bounds
@@ -234,6 +248,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             unique, as the command line's table notes.
         """
         through, _ = self._checked_parameters()
+        svd_solver = SVD_SOLVERS[_check_choice("svd_solver", self.svd_solver, tuple(SVD_SOLVERS))]
+        seed = _check_random_state(self.random_state)
         frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
@@ -260,7 +276,9 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             )
         if not np.ptp(frames, axis=0).any():
             raise WorkbenchError(f"frames are numerically constant: all {frames.shape[0]} frames are the same")
-        eigenfaces = Eigenfaces(coverage=self.coverage, n_components=self.n_components).fit(frames)
+        eigenfaces = Eigenfaces(
+            coverage=self.coverage, n_components=self.n_components, svd_solver=svd_solver, seed=seed
+        ).fit(frames)
         _check_not_constant(eigenfaces)
         epsilon = self.empty_axis_eps
         if self.empty_axis_scale == "absolute" and _is_number(epsilon):  # in data units
@@ -278,9 +296,9 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         self.scale_ = scale
         self.mean_ = eigenfaces.mean_ * scale
         self.eigenfaces_ = eigenfaces.components_
-        self.explained_variance_ = eigenfaces.explained_variance_ * scale**2
-        self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_
         self.m_ = int(eigenfaces.n_components_)
+        self.explained_variance_ = eigenfaces.explained_variance_[: self.m_] * scale**2
+        self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_[: self.m_]
         self.coverage_ = float(eigenfaces.coverage_)
         self.hand_shapes_ = hand * scale
         self.shape_names_ = basis.names
@@ -576,6 +594,20 @@ def _check_not_constant(eigenfaces: Eigenfaces) -> None:
             f"frames are numerically constant: their spread {np.sqrt(total):.3g} is at most {CONSTANT_REL:g} of "
             f"their root-mean-square norm {np.sqrt(mean_square):.3g}; frames must vary to have eigenfaces"
         )
+
+
+def _check_random_state(value):
+    """``random_state`` as the seed :class:`workbench.numerics.bases.Eigenfaces` takes (None: a run's seed, 0), or a
+    :class:`WorkbenchError` naming it."""
+    if value is None:
+        return 0
+    if isinstance(value, np.random.Generator):
+        return value
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0:
+        return int(value)
+    raise WorkbenchError(
+        f"random_state must be None, a non-negative integer or a numpy.random.Generator; got {value!r:.80}"
+    )
 
 
 def _check_choice(name: str, value, choices: tuple) -> str:
