@@ -23,6 +23,8 @@ PARAMETERS = {
     "names": None,
     "coverage": 0.995,
     "n_components": None,
+    "svd_solver": "auto",
+    "random_state": None,
     "through": "mean",
     "solver": "lstsq",
     "bounds": (0.0, 1.0),
@@ -63,6 +65,8 @@ def test_parameters_are_keyword_only_and_stored_untouched():
         "names": "abc",
         "coverage": 7,
         "n_components": "many",
+        "svd_solver": "arpack",
+        "random_state": "seed",
         "through": "sideways",
         "solver": "qp",
         "bounds": [1, 0],
@@ -168,13 +172,62 @@ def test_low_rank_frames_give_their_known_principal_components():
     # 9/14 = 0.643 < 0.9 <= 13/14 = 0.929: two eigenfaces
     assert estimator.m_ == 2 and estimator.coverage_ == pytest.approx(13 / 14, abs=1e-12)
     np.testing.assert_allclose(estimator.mean_, mean, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
-    np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14, 1 / 14], rtol=1e-12)
+    np.testing.assert_allclose(estimator.explained_variance_, [9.0, 4.0], rtol=1e-12)  # one per eigenface kept
+    np.testing.assert_allclose(estimator.explained_variance_ratio_, [9 / 14, 4 / 14], rtol=1e-12)
     np.testing.assert_allclose(np.abs(estimator.eigenfaces_ @ directions[:2].T), np.eye(2), rtol=0, atol=1e-12)
     every = QuasiEigenFaces(hand_shapes=hand, n_components=3).fit(frames)
     np.testing.assert_allclose(
         every.inverse_transform(every.transform(frames, basis="PCA"), basis="PCA"), frames, rtol=0, atol=1e-12
     )
+
+
+def test_both_svd_solvers_give_the_same_fit_with_the_same_attributes(monkeypatch):
+    frames, _, directions = low_rank(variances=(9.0, 4.0, 1.0, 0.01), n_frames=300, n_dims=60, seed=3)
+    hand = np.random.default_rng(5).standard_normal((5, frames.shape[1]))
+    fits = {
+        solver: QuasiEigenFaces(hand_shapes=hand, coverage=0.99, svd_solver=solver, random_state=7).fit(frames)
+        for solver in ("full", "randomized")
+    }
+    full, randomized = fits["full"], fits["randomized"]
+    assert full.m_ == randomized.m_ == 3 and full.explained_variance_.shape == randomized.explained_variance_.shape
+    np.testing.assert_allclose(randomized.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-9)
+    np.testing.assert_allclose(full.explained_variance_, [9.0, 4.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(randomized.explained_variance_ratio_, full.explained_variance_ratio_, rtol=1e-9)
+    np.testing.assert_allclose(randomized.eigenfaces_, full.eigenfaces_, rtol=0, atol=1e-9)  # signs fixed alike
+    np.testing.assert_allclose(randomized.shapes_, full.shapes_, rtol=0, atol=1e-8)
+    assert {name for name in vars(full) if name.endswith("_")} == {
+        name for name in vars(randomized) if name.endswith("_")
+    }
+    # the same random_state, the same fit; "auto" switches to the randomised path above the run's size
+    again = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, svd_solver="randomized", random_state=7).fit(frames)
+    assert np.array_equal(again.eigenfaces_, randomized.eigenfaces_)
+    auto = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, random_state=7)
+    assert np.array_equal(auto.fit(frames).eigenfaces_, full.eigenfaces_)
+    monkeypatch.setattr(Eigenfaces, "RANDOMIZED_ABOVE", 50)
+    assert np.array_equal(auto.fit(frames).eigenfaces_, randomized.eigenfaces_)
+    assert auto.explained_variance_.shape == full.explained_variance_.shape == (3,)
+    # a Generator is used as given
+    generated = QuasiEigenFaces(hand_shapes=hand, svd_solver="randomized", random_state=np.random.default_rng(7))
+    np.testing.assert_allclose(generated.fit(frames).eigenfaces_, full.eigenfaces_, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ({"svd_solver": "arpack"}, "^svd_solver must be one of 'auto', 'full', 'randomized'; got 'arpack'$"),
+        ({"svd_solver": "exact"}, "^svd_solver must be one of 'auto', 'full', 'randomized'; got 'exact'$"),
+        (
+            {"random_state": -1},
+            "^random_state must be None, a non-negative integer or a numpy.random.Generator; got -1$",
+        ),
+        ({"random_state": 1.5}, "^random_state must be None, a non-negative integer or a numpy.random.Generator"),
+        ({"random_state": True}, "^random_state must be None, a non-negative integer or a numpy.random.Generator"),
+    ],
+)
+def test_bad_svd_solver_or_random_state_is_refused_naming_it(params, message):
+    frames, _, _ = low_rank()
+    with pytest.raises(WorkbenchError, match=message):
+        QuasiEigenFaces(hand_shapes=frames[:2], **params).fit(frames)
 
 
 @pytest.mark.parametrize("through", ["mean", "neutral"])
@@ -227,6 +280,38 @@ def test_solvers_keep_their_constraints_and_alpha_orders_them(fitted):
         alpha_per_frame(estimator.neutral_ + frames, estimator.neutral_ + reconstruction),
         rtol=1e-9,
     )
+
+
+def test_alpha_summary_is_a_small_table_of_every_basis(fitted):
+    estimator, frames = fitted
+    table = estimator.alpha_summary(frames, solver="nnls")
+    assert list(table["basis"]) == ["QE", "H", "PCA"] and list(table["solver"]) == ["nnls", "nnls", "projection"]
+    assert list(table.columns) == [
+        "basis",
+        "solver",
+        "n_frames",
+        "alpha_abs_mean",
+        "alpha_abs_pooled",
+        "alpha_disp_mean",
+        "alpha_disp_pooled",
+        "rms_mm",
+    ]
+    assert (table["n_frames"] == len(frames)).all() and table.shape == (3, 8)
+    for row in table.itertuples():
+        solver = None if row.basis == "PCA" else "nnls"
+        for normalisation, short in (("absolute", "abs"), ("displacement", "disp")):
+            for aggregate in ("mean", "pooled"):
+                value = estimator.alpha(
+                    frames, solver=solver, basis=row.basis, normalisation=normalisation, aggregate=aggregate
+                )
+                assert getattr(row, f"alpha_{short}_{aggregate}") == value, (row.basis, normalisation, aggregate)
+    one = estimator.alpha_summary(frames, basis="H")  # one basis, the estimator's solver
+    assert one.shape == (1, 8) and one.loc[0, "solver"] == "lstsq"
+    assert one.loc[0, "alpha_abs_mean"] == estimator.alpha(frames, basis="H")
+    with pytest.raises(WorkbenchError, match="^solver must be None for basis 'PCA'"):
+        estimator.alpha_summary(frames, basis="PCA", solver="nnls")
+    with pytest.raises(WorkbenchError, match="^basis must be one of 'QE', 'H', 'PCA' or a list of them; got \\[\\]$"):
+        estimator.alpha_summary(frames, basis=[])
 
 
 @pytest.mark.parametrize(
@@ -446,11 +531,13 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     config = workbench.compose_config("paper", overrides)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
+    assert not (tmp_path / "run" / ".lock").exists(), "a complete record keeps no lock file"
     captures = workbench.build_captures(config)
     # markers at the coverage rule's m and markers m=n (the paper's regime), 4 alpha variants, 2 projections
     assert check_estimator_against_record(record, captures) == 2 * 4 * 2 * (3 + 3 + 1)
     # a folder holding the complete record of the same config is not run again; the dataset group alone builds too
     assert workbench.record_study(config, tmp_path / "run", overrides=overrides).metrics == record.metrics
+    assert not (tmp_path / "run" / ".lock").exists()
     assert workbench.build_captures(config.dataset)["markers"].train.shape == captures["markers"].train.shape
     # the headline is the default: the record's alpha_abs_mean of QE with the estimator's solver
     capture = captures["markers"]
@@ -467,6 +554,16 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert np.mean(explicit) == pytest.approx(row["alpha_abs_mean"], rel=0, abs=1e-10)
     # the same study in memory, from the record's resolved config
     results = workbench.run_study(record.config)
+    # the paper's regime gives two results of one capture: their names tell them apart, and say which is which
+    assert [result.data for result in results] == ["markers m=n", "markers"]
+    assert len({result.capture.name for result in results}) == 1
+    assert [result.name for result in results] == [
+        f"{results[0].capture.name} [{data}]" for data in ("markers m=n", "markers")
+    ]
+    assert (
+        repr(results[1])
+        == f"StudyResult(name={results[1].name!r}, m={results[1].eigenfaces.n_components_}, frames={len(results[1].capture.eval)}, rows={len(results[1].rows)})"
+    )
     markers = next(result for result in results if result.data == "markers")
     qe = next(r for r in markers.rows if r.basis == "QE" and r.solver == "nnls")
     assert qe.alpha.absolute_mean == row["alpha_abs_mean"]

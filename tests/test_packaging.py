@@ -106,8 +106,8 @@ def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
     result = python(without(OPTIONAL_MODULES, ["dataset.n_frames=1000", "solver=lstsq"]), cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     # the paper's regime m = n first, then the coverage rule's variant
-    assert "| markers m=n | QE        | affine     | lstsq " in result.stdout
-    assert "| markers     | QE        | affine     | lstsq " in result.stdout
+    assert "| markers m=n | QE        | lstsq " in result.stdout
+    assert "| markers     | QE        | lstsq " in result.stdout
     assert list((tmp_path / "outputs" / "paper").iterdir())
 
 

@@ -88,7 +88,10 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     from workbench.reporting.findings import run_findings, run_summary
 
     text = run(compose("paper", [*SMALL, "solver=lstsq"]), tmp_path)
-    assert text.splitlines()[1].startswith("  the paper's regime m = n")
+    lines = text.splitlines()
+    study = next(i for i, line in enumerate(lines) if line.startswith("Study 'paper' on "))
+    assert lines[0].startswith("The paper's claims, on markers m=n (m = 18, lstsq")  # the verdict, first
+    assert lines[study + 1].startswith("  the paper's regime m = n")
     table = pd.read_csv(tmp_path / "alpha_table.csv")
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert list(metrics["data"]) == ["markers m=n", "markers"]

@@ -3,6 +3,7 @@ record of its own; any other folder is refused in one line (exit 2) with nothing
 directory is never a run folder; a failed run removes only what it wrote; names that become paths stay plain."""
 
 import hashlib
+import importlib
 import os
 import shutil
 import subprocess
@@ -115,10 +116,12 @@ def test_a_sweep_never_deletes_a_users_file_in_a_run_folder(tmp_path):
     first = workbench(*arguments, cwd=tmp_path)
     assert first.returncode == 0, first.stderr
     complete, redo = sorted(path.parent for path in sweep.glob(f"*/{DONE}"))
+    assert not list(sweep.glob(f"*/{LOCK_FILE}")), "a complete record keeps no lock file"
     # a note beside a complete record: the resumed sweep skips the record and leaves the note
     (complete / "notes.txt").write_text("beside my record\n")
     # a record made partial (as a kill leaves it) that also holds the user's file: refused, nothing deleted
     (redo / DONE).unlink()
+    (redo / LOCK_FILE).touch()  # a killed run's folder keeps its lock file (a complete record has none)
     (redo / "notes.txt").write_text("inside a killed run's folder\n")
     before = {folder: snapshot(folder) for folder in (complete, redo)}
     line = one_error_line(workbench(*arguments, cwd=tmp_path))
@@ -141,6 +144,24 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     new = tmp_path / "new"
     assert workbench(*failing, f"hydra.run.dir={new}", cwd=tmp_path).returncode == 2
     assert not new.exists(), "a folder the run made is removed"
+    # the default folder, outputs/paper/<date and time>: the parents the run made go too, a parent it found stays
+    assert workbench(*failing, cwd=tmp_path).returncode == 2
+    assert not (tmp_path / "outputs").exists(), "a failed run leaves no empty outputs/paper/"
+    (tmp_path / "outputs").mkdir()
+    assert workbench(*failing, cwd=tmp_path).returncode == 2
+    assert list((tmp_path / "outputs").iterdir()) == []
+
+
+def test_a_run_failing_before_it_claims_its_folder_leaves_no_empty_folder(tmp_path, monkeypatch):
+    api = importlib.import_module("workbench.api")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("broken before the run")
+
+    monkeypatch.setattr(api, "run_owned", broken)
+    result = workbench(*SMALL, cwd=tmp_path)
+    assert result.returncode == 3 and "broken before the run" in result.stderr, result.stderr
+    assert not (tmp_path / "outputs").exists(), "Hydra made outputs/paper/<date and time>; the failed run removes it"
 
 
 def test_clean_up_removes_record_files_only(tmp_path):

@@ -147,7 +147,7 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
     ``hydra.run.dir``); returns the record read back.
 
     A folder holding a complete record of the same config is not run again (its record is returned), one holding
-    anything else that is not a record of the workbench's is refused, and a run that fails removes what it wrote.
+    anything else that is not a record of the workbench's is refused, and a run that fails removes what it wrote and the folders it made.
 
     Parameters
     ----------
@@ -164,12 +164,14 @@ def record_study(config, output_dir: str | os.PathLike, *, overrides: Sequence[s
     workbench.record.record.RunRecord
     """
     from workbench.core.files import check_folder_setting
+    from workbench.record.tracking import note_new_run_dir
     from workbench.settings.config import override_list
 
     config = _study_config(config)
     output_dir = check_folder_setting(output_dir, "output_dir")
     overrides = override_list(overrides, "overrides")
-    run_owned(config, output_dir, overrides=overrides, job_num=None, plain=True)
+    note_new_run_dir(Path(output_dir))  # a failed run removes the folder (and parents) it made
+    run_owned(config, Path(output_dir), overrides=overrides, job_num=None, plain=True)
     return read_record(output_dir)
 
 
@@ -197,7 +199,14 @@ def read_record(folder: str | os.PathLike, *, check_archives: bool = False) -> "
     return load_record(Path(folder), check_archives=check_archives)
 
 
-def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_num: int | None = None) -> str:
+def run(
+    cfg: DictConfig,
+    output_dir: Path,
+    overrides: Sequence[str] = (),
+    job_num: int | None = None,
+    *,
+    wide: bool = True,
+) -> str:
     """Run the study a config describes, write its record into ``output_dir`` and return the printed text.
 
     Parameters
@@ -210,17 +219,29 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         The command-line and sweep overrides that made ``cfg``, kept in the record.
     job_num : int, optional
         The run's position in its sweep (Hydra's job number), kept so that tables list runs in sweep order.
+    wide : bool, default True
+        Return the full text, as the record's ``alpha_table.md`` holds it (``workbench --wide``); False: the text
+        the command prints by default, within 120 columns
+        (:data:`workbench.reporting.run_text.PRINT_WIDTH`).
 
     Returns
     -------
     str
-        The header and the Markdown alpha table.
+        One sentence on what was reproduced, the header, the Markdown alpha table and the headline.
     """
     import pandas as pd
     from omegaconf import OmegaConf
 
     from workbench.record.record import DONE, record_state, run_metrics, write_record
-    from workbench.reporting.run_text import headline, printed_tables, result_identities, study_header
+    from workbench.reporting.run_text import (
+        compact_tables,
+        fit_width,
+        headline,
+        printed_tables,
+        reproduced_sentence,
+        result_identities,
+        study_header,
+    )
     from workbench.study.run import run_study
     from workbench.study.summary import (
         alpha_per_frame_arrays,
@@ -259,13 +280,11 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
     )
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
-    text = (
-        study_header(results, plain)
-        + "\n"
-        + printed_tables(table)
-        + "\n"
-        + headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
-    )
+    sentence = reproduced_sentence(results, plain, comparisons)
+    opening = fit_width(sentence) + "\n" if sentence else ""
+    header = study_header(results, plain)
+    closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
+    text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(
         results_metrics(results, table, comparisons),
@@ -286,17 +305,24 @@ def run(cfg: DictConfig, output_dir: Path, overrides: Sequence[str] = (), job_nu
         inputs=saved_inputs(results) if settings.save_inputs else None,
         alpha_per_frame=alpha_per_frame_arrays(results) if settings.save_inputs else None,
     )
-    return text
+    return text if wide else fit_width(opening + header + "\n" + compact_tables(table) + "\n" + closing)
 
 
 def run_owned(
-    cfg: DictConfig, output_dir: Path, *, overrides: Sequence[str], job_num: int | None, plain: bool
+    cfg: DictConfig,
+    output_dir: Path,
+    *,
+    overrides: Sequence[str],
+    job_num: int | None,
+    plain: bool,
+    wide: bool = True,
 ) -> str | None:
     """:func:`run` while holding the run folder's lock: the text it printed, or None when the folder already
     holds a complete record of the same config. A folder that is not the workbench's is refused before anything
     is written into it (:func:`workbench.record.tracking.check_run_dir`). A plain run (``plain``) that fails or is
-    interrupted removes what it wrote, and its folder if it made it (a sweep's run keeps its partial record: its
-    rerun clears and redoes the run)."""
+    interrupted removes what it wrote, and its folder and the parents it made for it if it made them (a sweep's run
+    keeps its partial record: its rerun clears and redoes the run). A complete record keeps no lock file;
+    ``wide`` as :func:`run`."""
     from workbench.record.record import config_hash
     from workbench.record.tracking import (
         check_run_dir,
@@ -304,7 +330,8 @@ def run_owned(
         discard_failed_run,
         lock_run_dir,
         prepare_run_dir,
-        unlock_run_dir,
+        release_run_dir,
+        remove_made_folders,
     )
 
     found = check_run_dir(output_dir, "hydra.sweep.dir" if not plain else "hydra.run.dir")
@@ -312,10 +339,10 @@ def run_owned(
     try:
         if not prepare_run_dir(output_dir, config_hash(resolved_yaml_text(cfg))):
             return None
-        return run(cfg, output_dir, overrides=overrides, job_num=job_num)
+        return run(cfg, output_dir, overrides=overrides, job_num=job_num, wide=wide)
     except BaseException:
-        if plain:
-            discard_failed_run(output_dir, found, created_by_this_run(output_dir))
+        if plain and discard_failed_run(output_dir, found, created_by_this_run(output_dir)):
+            remove_made_folders(output_dir)
         raise
     finally:
-        unlock_run_dir(lock)
+        release_run_dir(output_dir, lock)

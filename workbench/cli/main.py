@@ -43,6 +43,9 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
 log = logging.getLogger("workbench")
+WIDE_FLAG = "--wide"
+"""Print a run's full text (every table column, long lines whole) instead of the 120 columns it fits by default."""
+_wide = False
 
 # Subcommands other than running a study: name -> "module:function", the function taking the remaining
 # arguments (a list of str) and returning an exit code. Imported only when used.
@@ -126,6 +129,7 @@ def _hydra_main(cfg: DictConfig) -> None:
             overrides=as_typed(hydra_cfg.overrides.task),
             job_num=int(hydra_cfg.job.num) if multirun else None,
             plain=not multirun,
+            wide=_wide or multirun,  # a sweep logs one headline line per run
         )
     except FolderBusy as error:
         if not multirun:
@@ -136,6 +140,10 @@ def _hydra_main(cfg: DictConfig) -> None:
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
         if multirun and isinstance(error, Exception) and not caused_by_interrupt(error):
             return sweep_run_error(error, output_dir)  # the sweep goes on with its other values
+        if not multirun:  # failed before its run claimed the folder Hydra made: no empty outputs/paper/<date>
+            from workbench.record.tracking import remove_made_folders
+
+            remove_made_folders(output_dir)
         exit_on_error("workbench", error)
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
@@ -224,6 +232,10 @@ def main() -> None:
         sys.exit(0)
     if "query=bash" in sys.argv[1:] and complete_without_hydra():
         sys.exit(0)
+    global _wide
+    _wide = WIDE_FLAG in sys.argv[1:] and not (len(sys.argv) > 1 and sys.argv[1] in COMMANDS)
+    if _wide:
+        sys.argv = [arg for arg in sys.argv if arg != WIDE_FLAG]
     if VERBOSE_FLAG in sys.argv[1:]:
         show_tracebacks()
         os.environ.setdefault("MLFLOW_LOGGING_LEVEL", "INFO")  # MLflow's own lines too (quiet otherwise)

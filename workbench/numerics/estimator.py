@@ -25,6 +25,8 @@ from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.numerics.validation import CAPTURE, check_matrix
 
+SVD_SOLVERS = {"auto": "auto", "full": "exact", "randomized": "randomized"}
+"""``svd_solver`` as scikit-learn names it -> :class:`workbench.numerics.bases.Eigenfaces`' own name."""
 THROUGH = {"mean": "affine", "neutral": "linear"}
 """``through`` -> the projection of :func:`workbench.numerics.bases.build_quasi_eigen_basis` (the run's ``QE`` and
 ``QE-linear`` rows)."""
@@ -80,6 +82,14 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         ignored when ``n_components`` is given.
     n_components : int or None, default None
         A fixed ``m`` instead of the coverage rule (at most the rank of the frames).
+    svd_solver : {"auto", "full", "randomized"}, default "auto"
+        How the eigenfaces are found, as scikit-learn's ``PCA`` names it: ``"full"`` decomposes the covariance (or
+        the frames' Gram matrix, whichever is smaller) and finds every eigenvalue; ``"randomized"`` finds the
+        leading ones by randomised subspace iteration, as many as the coverage needs; ``"auto"`` is ``"full"``
+        unless both the frames and the columns number more than 4,000, as a run decides.
+    random_state : int, numpy.random.Generator or None, default None
+        Seed of the randomised solver's test matrix; None is the seed a run uses (0), so that the default
+        reproduces a run (unlike scikit-learn, where None draws a new seed). Unused by ``"full"``.
     through : {"mean", "neutral"}, default "mean"
         Where the hand shapes are projected through: ``"mean"`` is eq. 3-4 as written (affine, through the capture
         mean ``mu``: the run's ``QE`` rows); ``"neutral"`` projects through the neutral face, the origin of
@@ -108,13 +118,13 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
     eigenfaces_ : ndarray of shape (m, n_dims)
         ``E^PCA``: orthonormal eigenfaces as rows, largest variance first, each with its largest-magnitude entry
         positive (deterministic signs, as scikit-learn's ``svd_flip``).
-    explained_variance_ : ndarray of shape (rank,)
-        Every non-zero eigenvalue of the frames' covariance (eq. 2), descending (the leading ones only when the
-        frames are so large that the randomised solver is used, as in a run). The covariance divides by
+    explained_variance_ : ndarray of shape (m,)
+        The eigenvalues of the frames' covariance (eq. 2) of the ``m`` eigenfaces kept, descending, whichever
+        ``svd_solver`` found them (as scikit-learn's ``PCA``, one per component). The covariance divides by
         ``n_frames`` (the paper's ``C = D~ D~^T / L``, as a run computes it), where scikit-learn's ``PCA`` divides
         by ``n_frames - 1``: multiply by ``n_frames / (n_frames - 1)`` to compare. The ratios are the same.
-    explained_variance_ratio_ : ndarray of shape (rank,)
-        Each eigenvalue over the total variance.
+    explained_variance_ratio_ : ndarray of shape (m,)
+        Each over the total variance (the trace of the covariance); they sum to ``coverage_``.
     m_ : int
         Number of eigenfaces kept.
     coverage_ : float
@@ -151,6 +161,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         names=None,
         coverage: float = 0.995,
         n_components: int | None = None,
+        svd_solver: str = "auto",
+        random_state=None,
         through: str = "mean",
         solver: str = "lstsq",
         bounds: tuple = (0.0, 1.0),
@@ -163,6 +175,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         self.names = names
         self.coverage = coverage
         self.n_components = n_components
+        self.svd_solver = svd_solver
+        self.random_state = random_state
         self.through = through
         self.solver = solver
         self.bounds = bounds
@@ -235,12 +249,12 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             unique, as the command line's table notes.
         """
         through, _ = self._checked_parameters()
-        if (
-            self.hand_shapes is None and y is not None and np.ndim(y) == 2
-        ):  # the hand shapes as earlier versions took them
+        if self.hand_shapes is None and y is not None and np.ndim(y) == 2:  # as earlier versions took them
             raise WorkbenchError(
                 "fit takes the frames alone: give the hand shapes as QuasiEigenFaces(hand_shapes=...), not as y"
             )
+        svd_solver = SVD_SOLVERS[_check_choice("svd_solver", self.svd_solver, tuple(SVD_SOLVERS))]
+        seed = _check_random_state(self.random_state)
         frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
@@ -267,7 +281,9 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             )
         if not np.ptp(frames, axis=0).any():
             raise WorkbenchError(f"frames are numerically constant: all {frames.shape[0]} frames are the same")
-        eigenfaces = Eigenfaces(coverage=self.coverage, n_components=self.n_components).fit(frames)
+        eigenfaces = Eigenfaces(
+            coverage=self.coverage, n_components=self.n_components, svd_solver=svd_solver, seed=seed
+        ).fit(frames)
         _check_not_constant(eigenfaces)
         epsilon = self.empty_axis_eps
         if self.empty_axis_scale == "absolute" and _is_number(epsilon):  # in data units
@@ -285,9 +301,9 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         self.scale_ = scale
         self.mean_ = eigenfaces.mean_ * scale
         self.eigenfaces_ = eigenfaces.components_
-        self.explained_variance_ = eigenfaces.explained_variance_ * scale**2
-        self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_
         self.m_ = int(eigenfaces.n_components_)
+        self.explained_variance_ = eigenfaces.explained_variance_[: self.m_] * scale**2
+        self.explained_variance_ratio_ = eigenfaces.explained_variance_ratio_[: self.m_]
         self.coverage_ = float(eigenfaces.coverage_)
         self.hand_shapes_ = hand * scale
         self.shape_names_ = basis.names
@@ -408,7 +424,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
                 "alpha with normalisation='absolute' needs the neutral positions: pass neutral= to "
                 "fit, or use normalisation='displacement'"
             )
-        summary = self.alpha_summary(frames, solver=solver, basis=basis)
+        summary = self._summary(frames, solver=solver, basis=basis)
         if aggregate == "per_frame":
             return summary.absolute_per_frame if normalisation == "absolute" else summary.displacement_per_frame
         return getattr(summary, f"{normalisation}_{aggregate}")
@@ -433,24 +449,51 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         float
             ``-alpha``: higher is better.
         """
-        return -float(self.alpha_summary(frames).absolute_mean)
+        return -float(self._summary(frames).absolute_mean)
 
-    def alpha_summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
-        """Every variant of eq. 6 and the RMS point error of one reconstruction, as a run's table row holds them.
+    def alpha_summary(self, frames, *, solver: str | None = None, basis=BASES):
+        """Every variant of eq. 6 and the RMS point error, one row per basis, as a run's alpha table holds them.
 
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
             Displacements from neutral.
-        solver, basis
-            As :meth:`alpha`.
+        solver : {"lstsq", "nnls", "box"}, optional
+            The solver of eq. 5 for ``QE`` and ``H`` (the estimator's ``solver`` when None); PCA takes none.
+        basis : str or sequence of str, default ("QE", "H", "PCA")
+            The bases compared, as in :meth:`alpha`.
 
         Returns
         -------
-        workbench.numerics.metrics.AlphaSummary
-            Without ``neutral`` given to :meth:`fit`, the absolute variants are those of the origin at the neutral
-            face (equal to the displacement ones).
+        pandas.DataFrame
+            One row per basis, columns ``basis``, ``solver`` (``projection`` for PCA, as in a run's table),
+            ``n_frames``, ``alpha_abs_mean``, ``alpha_abs_pooled``, ``alpha_disp_mean``, ``alpha_disp_pooled`` (in
+            percent) and ``rms_mm`` (the RMS point error, in the frames' units): the record's column names. Without
+            ``neutral`` given to :meth:`fit`, the absolute variants are those of the origin at the neutral face
+            (equal to the displacement ones). The per-frame values are :meth:`alpha`'s ``aggregate="per_frame"``.
         """
+        import pandas as pd
+
+        names = [basis] if isinstance(basis, str) else list(basis) if isinstance(basis, (list, tuple)) else None
+        if not names:
+            raise WorkbenchError(f"basis must be one of {', '.join(map(repr, BASES))} or a list of them; got {basis!r}")
+        rows = []
+        for name in names:
+            given = solver if isinstance(basis, str) or name != "PCA" else None  # a list: PCA without the solver
+            summary = self._summary(frames, solver=given, basis=name)
+            rows.append(
+                {
+                    "basis": name,
+                    "solver": "projection" if name == "PCA" else solver or self.solver,
+                    "n_frames": len(summary.absolute_per_frame),
+                    **summary.table_values(),
+                }
+            )
+        return pd.DataFrame(rows)
+
+    def _summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
+        """Every variant of eq. 6, per frame too, and the RMS point error of one basis's reconstruction
+        (:class:`workbench.numerics.metrics.AlphaSummary`, what a run's table row holds)."""
         self._check_fitted()
         frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
         basis = _check_choice("basis", basis, BASES)
@@ -556,6 +599,20 @@ def _check_not_constant(eigenfaces: Eigenfaces) -> None:
             f"frames are numerically constant: their spread {np.sqrt(total):.3g} is at most {CONSTANT_REL:g} of "
             f"their root-mean-square norm {np.sqrt(mean_square):.3g}; frames must vary to have eigenfaces"
         )
+
+
+def _check_random_state(value):
+    """``random_state`` as the seed :class:`workbench.numerics.bases.Eigenfaces` takes (None: a run's seed, 0), or a
+    :class:`WorkbenchError` naming it."""
+    if value is None:
+        return 0
+    if isinstance(value, np.random.Generator):
+        return value
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0:
+        return int(value)
+    raise WorkbenchError(
+        f"random_state must be None, a non-negative integer or a numpy.random.Generator; got {value!r:.80}"
+    )
 
 
 def _check_choice(name: str, value, choices: tuple) -> str:

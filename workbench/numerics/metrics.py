@@ -131,6 +131,17 @@ class AlphaSummary:
     displacement_sq: np.ndarray | None = None
     position_sq: np.ndarray | None = None
 
+    def table_values(self) -> dict:
+        """The five numbers of an alpha-table row under the table's column names: ``alpha_abs_mean``,
+        ``alpha_abs_pooled``, ``alpha_disp_mean``, ``alpha_disp_pooled`` and ``rms_mm``."""
+        return {
+            "alpha_abs_mean": self.absolute_mean,
+            "alpha_abs_pooled": self.absolute_pooled,
+            "alpha_disp_mean": self.displacement_mean,
+            "alpha_disp_pooled": self.displacement_pooled,
+            "rms_mm": self.rms_mm,
+        }
+
 
 def summarise_alpha(
     neutral: np.ndarray,

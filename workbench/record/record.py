@@ -3,7 +3,7 @@
 A run record is a folder holding
 
 - ``config.yaml``: the resolved config (without Hydra's own node);
-- ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the text the run printed;
+- ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the full text the run printed (``--wide``);
 - ``metrics.json``: study, config hash, overrides, dataset facts, per-data-variant metrics, every table row with
   its solver diagnostics, versions, git state and times;
 - ``timings.json``: seconds per stage;

@@ -14,7 +14,8 @@ A run folder belongs to one live process at a time: the run holds an advisory lo
 ``<folder>/.lock`` from before it decides anything about the folder until it ends. The operating system releases
 the lock when the process ends, however it ends, so a killed run never leaves a folder locked. A second process
 finding the folder locked skips it (sweeps) or stops with one line (plain runs); it never clears the files of a
-live run.
+live run. A run that ends with a complete record removes the lock file (:func:`release_run_dir`): a complete record
+is never written again, so it needs no lock, and only a killed run's folder keeps one, marking its files as a run's.
 """
 
 from __future__ import annotations
@@ -103,8 +104,9 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
 
 
 LOCK_FILE = ".lock"
-"""The lock file of a run folder, created before anything else a run writes there; it marks the folder as a run's
-(kept: removing it while another process waits on it would split the lock)."""
+"""The lock file of a run folder, created before anything else a run writes there; it marks the folder of a run
+that did not end as a run's. Removed only once the record is complete (:func:`release_run_dir`): a process that
+opened the old file meanwhile then only finds the complete record, which it skips or refuses."""
 LOG_FILE = "workbench.log"
 """The job log Hydra writes into a run folder (``hydra.job.name`` is ``workbench``)."""
 HYDRA_FOLDER = ".hydra"
@@ -227,6 +229,23 @@ def unlock_run_dir(handle: int) -> None:
     unlock_file(handle)
 
 
+def release_run_dir(folder: Path, handle: int) -> None:
+    """Release a lock taken by :func:`lock_run_dir`; a folder holding a complete record keeps no lock file.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The run folder locked.
+    handle : int
+        The lock file's descriptor (:func:`lock_run_dir`).
+    """
+    try:
+        if record_state(folder) == "complete":
+            (Path(folder) / LOCK_FILE).unlink(missing_ok=True)
+    finally:
+        unlock_file(handle)
+
+
 def discard_failed_run(folder: Path, found: frozenset = frozenset(), created: bool = False) -> bool:
     """After a plain run failed or was interrupted: remove what it wrote (the run files that were not in the
     folder when it started), and the folder itself when the run created it and it is left empty. A complete record
@@ -257,14 +276,47 @@ def discard_failed_run(folder: Path, found: frozenset = frozenset(), created: bo
     return True
 
 
-_NEW_RUN_DIRS: set[str] = set()
-"""Run folders that did not exist when this process started its run (:class:`RunFolders` notes them before Hydra
-creates them), so that a failed run removes only a folder it created."""
+_NEW_RUN_DIRS: dict[str, str] = {}
+"""Run folders that did not exist when this process started its run (:func:`note_new_run_dir`, before Hydra or
+the run creates them) -> the outermost of the folder and its parents that did not exist either, so that a failed
+run removes only folders it created, its parents (``outputs/paper/``) included."""
+
+
+def note_new_run_dir(folder: Path) -> None:
+    """Note ``folder`` as made by this process's run if it does not exist yet, with its missing parents."""
+    folder = os.path.abspath(Path(str(folder)).expanduser())
+    if os.path.lexists(folder):
+        _NEW_RUN_DIRS.pop(folder, None)  # made by an earlier run of this process, not by this one
+        return
+    outermost = folder
+    while not os.path.lexists(os.path.dirname(outermost)) and os.path.dirname(outermost) != outermost:
+        outermost = os.path.dirname(outermost)
+    _NEW_RUN_DIRS[folder] = outermost
 
 
 def created_by_this_run(folder: Path) -> bool:
-    """Whether this process's run created ``folder`` (noted by :class:`RunFolders` before Hydra made it)."""
+    """Whether this process's run created ``folder`` (:func:`note_new_run_dir`)."""
     return os.path.abspath(folder) in _NEW_RUN_DIRS
+
+
+def remove_made_folders(folder: Path) -> None:
+    """After a plain run failed (and :func:`discard_failed_run` removed its files): remove ``folder`` and the parents
+    this run made for it (:func:`note_new_run_dir`), innermost first, each only while it is empty (another run may
+    be writing beside it). Nothing when the run did not make ``folder``."""
+    path = os.path.abspath(folder)
+    outermost = _NEW_RUN_DIRS.get(path)
+    if outermost is None:
+        return
+    while True:
+        try:
+            os.rmdir(path)
+        except FileNotFoundError:  # removed already (discard_failed_run)
+            pass
+        except OSError:  # not empty: what is left is not only this run's
+            return
+        if path == outermost:
+            return
+        path = os.path.dirname(path)
 
 
 try:
@@ -290,8 +342,7 @@ class RunFolders(Callback):
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=True)
             folder = config.hydra.run.dir
             check_run_dir(folder)
-            if not os.path.lexists(Path(str(folder)).expanduser()):
-                _NEW_RUN_DIRS.add(os.path.abspath(Path(str(folder)).expanduser()))
+            note_new_run_dir(folder)
 
     def on_multirun_start(self, config, **kwargs) -> None:
         from workbench.settings.schema import check_hydra_settings, check_study_config

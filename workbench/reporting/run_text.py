@@ -1,7 +1,9 @@
-"""What a run prints: its alpha table as a tidy DataFrame, the header above it and the headline below it."""
+"""What a run prints: one sentence on what was reproduced, the header, the alpha table and the headline below it,
+within :data:`PRINT_WIDTH` columns (:func:`fit_width`) or, with ``--wide`` and in the record, in full."""
 
 from __future__ import annotations
 
+import textwrap
 from typing import Mapping, Sequence
 
 import pandas as pd
@@ -43,6 +45,131 @@ def printed_tables(table: pd.DataFrame) -> str:
             "metric.score_clean):\n\n" + markdown_frame(table[[*names, *clean]])
         )
     return text
+
+
+PRINT_WIDTH = 120
+"""The columns a run's printed text fits in by default; ``workbench --wide`` prints the full tables unwrapped (the
+record's ``alpha_table.md`` holds that text)."""
+COMPACT_NAMES = {
+    "alpha_abs_mean": "abs_mean",
+    "alpha_abs_pooled": "abs_pooled",
+    "alpha_disp_mean": "disp_mean",
+    "alpha_disp_pooled": "disp_pooled",
+    "rms_mm": "rms_mm",
+    "paper_alpha": "paper",
+}
+"""The alpha table's columns printed by default, with their short headers."""
+
+
+def compact_tables(table: pd.DataFrame) -> str:
+    """The alpha table as printed by default, within :data:`PRINT_WIDTH` for the data variants of the shipped
+    datasets: the names, ``m`` and the alpha columns under short headers (:data:`COMPACT_NAMES`), the numbers as
+    :func:`printed_tables` prints them; the other columns and tables are left to ``--wide`` and the record.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`workbench.study.table.alpha_table` (several data variants concatenated).
+
+    Returns
+    -------
+    str
+        A line saying what the short headers are and where the rest is, then the Markdown table.
+    """
+    from workbench.reporting.tables import frame_cells, markdown_table
+
+    names = [column for column in ("data", "basis", "solver") if column in table.columns]
+    columns = [column for column in ("m", *COMPACT_NAMES) if column in table.columns]
+    header, rows, numeric = frame_cells(table[[*names, *columns]])
+    return (
+        "alpha in % (abs_mean is the record's alpha_abs_mean, and so on; paper: Kim & Ko's value); the projection, "
+        "n, coverage, the per-frame errors and the weights: workbench --wide, or the record's alpha_table.md\n\n"
+        + markdown_table([COMPACT_NAMES.get(name, name) for name in header], rows, numeric)
+    )
+
+
+def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
+    """``text`` with every line longer than ``width`` wrapped at spaces, its continuations indented two spaces more
+    than it; table lines (starting with ``|``) are left whole.
+
+    Parameters
+    ----------
+    text : str
+    width : int
+
+    Returns
+    -------
+    str
+    """
+    lines = []
+    for line in text.split("\n"):
+        if len(line) <= width or line.startswith("|"):
+            lines.append(line)
+            continue
+        indent = line[: len(line) - len(line.lstrip(" "))]
+        lines += textwrap.wrap(
+            line.strip(),
+            width,
+            initial_indent=indent,
+            subsequent_indent=indent + "  ",
+            break_long_words=False,
+            break_on_hyphens=False,
+        )
+    return "\n".join(lines)
+
+
+def reproduced_sentence(results: Sequence, cfg: Mapping, comparisons: Mapping[str, Sequence[Mapping]]) -> str:
+    """One sentence on the paper's two claims, first in what a run prints: QE reconstructs better than H
+    (reproduced when the paired per-frame interval of QE - H lies below 0, not reproduced when above, not decided
+    when it holds 0), and QE comes close to PCA (reproduced when QE/PCA is at most the paper's, 1.16).
+
+    Taken on the variants at the paper's regime m = n scored on their training frames (those of
+    ``basis.paper_regime``), else on the first variant scored on its training frames, with least squares (else the
+    first solver) and the headline alpha (``metric.headline_*``).
+
+    Parameters
+    ----------
+    results : sequence of workbench.study.results.StudyResult
+    cfg : mapping
+        The resolved study config (``metric``, ``paper``).
+    comparisons : mapping
+        Data variant -> its paired comparisons (:func:`workbench.study.summary.frame_comparisons`).
+
+    Returns
+    -------
+    str
+        One line (empty when no variant has H, QE and PCA).
+    """
+    from workbench.stats.statistics import comparison_lookup
+
+    metric, paper = cfg.get("metric") or {}, cfg["paper"]
+    normalisation = metric.get("headline_normalisation", "absolute")
+    aggregate = metric.get("headline_aggregate", "mean")
+    field = HEADLINE_COLUMNS.get((normalisation, aggregate), "absolute_mean")
+    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
+    trained = [result for result in results if result.protocol == "training frames"]
+    chosen = [r for r in trained if r.eigenfaces.n_components_ == len(r.capture.hand_names)] or trained[:1]
+    reported = paper["alpha"]
+    paper_ratio = reported["QE"] / reported["PCA"]
+    parts = []
+    for result in chosen:
+        rows = {(row.basis, row.solver): row for row in result.rows}
+        solvers = [row.solver for row in result.rows if row.basis == "QE" and row.solver != "projection"]
+        solver = "lstsq" if "lstsq" in solvers else solvers[0] if solvers else None
+        found = [rows.get(key) for key in (("QE", solver), ("H", solver), ("PCA", "projection"))]
+        if None in found:
+            continue
+        qe, h, pca = (getattr(row.alpha, field) for row in found)
+        interval = comparison_lookup(comparisons.get(result.data, []))(("QE", solver), ("H", solver))
+        sign = interval.sign if interval is not None else 0
+        better = {-1: "reproduced", 1: "not reproduced (H is better)", 0: "not decided (not distinguishable)"}[sign]
+        close = "reproduced" if qe / pca <= paper_ratio else "not reproduced"
+        parts.append(
+            f"on {result.data} (m = {result.eigenfaces.n_components_}, {solver}, {column}): QE better than H: "
+            f"{better} (H/QE {h / qe:.3g}, paper {reported['H'] / reported['QE']:.2g}); QE/PCA at most the "
+            f"paper's {paper_ratio:.3g}: {close} ({qe / pca:.3g})"
+        )
+    return f"The paper's claims, {'; '.join(parts)}." if parts else ""
 
 
 def study_header(results: Sequence, cfg: Mapping) -> str:

@@ -56,15 +56,19 @@ class Row:
     clean_alpha: AlphaSummary | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class StudyResult:
-    """Everything a run computed.
+    """Everything a run computed on one data variant; :attr:`name` tells the results of one run apart.
 
     Attributes
     ----------
     data : str
-        The data variant trained and evaluated on (``dataset.train_on``: ``markers``, ``mesh``, ...).
+        The data variant: ``dataset.train_on``'s (``markers``, ``mesh``, ...), ``<variant> m=n`` for the paper's
+        regime (``basis.paper_regime``), ``<variant> held-out <protocol>`` for a held-out protocol, and
+        ``<train_on>-><eval_on>`` for bases carried onto other points (``dataset.eval_on``); the alpha table's
+        ``data`` column. Distinct within a run.
     capture : Capture
+        The frames scored; the variants of one dataset share its ``name``.
     eigenfaces : Eigenfaces
     quasi_eigen : dict
         Projection name -> :class:`workbench.numerics.bases.QuasiEigenBasis`.
@@ -110,3 +114,14 @@ class StudyResult:
     offset: dict = field(default_factory=dict)
     protocol: str = "training frames"
     folds: dict = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The capture's name and the data variant, e.g. ``ICT Live Link ... [markers m=n]``: distinct within a run."""
+        return f"{self.capture.name} [{self.data}]"
+
+    def __repr__(self) -> str:
+        return (
+            f"StudyResult(name={self.name!r}, m={self.eigenfaces.n_components_}, "
+            f"frames={self.capture.eval.shape[0]}, rows={len(self.rows)})"
+        )

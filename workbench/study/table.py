@@ -36,13 +36,7 @@ TABLE_COLUMNS = (*ROW_NAME_COLUMNS, *ALPHA_TABLE_COLUMNS, *FRAME_COLUMNS)
 
 def alpha_columns(summary, prefix: str = "") -> dict:
     """The alpha-table columns of an :class:`workbench.numerics.metrics.AlphaSummary` (with ``prefix`` before each name)."""
-    return {
-        f"{prefix}alpha_abs_mean": summary.absolute_mean,
-        f"{prefix}alpha_abs_pooled": summary.absolute_pooled,
-        f"{prefix}alpha_disp_mean": summary.displacement_mean,
-        f"{prefix}alpha_disp_pooled": summary.displacement_pooled,
-        f"{prefix}rms_mm": summary.rms_mm,
-    }
+    return {f"{prefix}{name}": value for name, value in summary.table_values().items()}
 
 
 def alpha_table(
