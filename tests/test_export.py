@@ -267,8 +267,13 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
     from workbench.core.files import sha256_of_file as file_checksum
     from workbench.record.record import DONE
 
+    # ... and whose metrics.json says the same (a record's values are read against its table first)
+    metrics = json.loads((tampered / "metrics.json").read_text())
+    metrics["rows"][1]["alpha_abs_mean"] = float(table.loc[1, "alpha_abs_mean"])  # the table's row 1, as read
+    (tampered / "metrics.json").write_text(json.dumps(metrics))
     done = json.loads((tampered / DONE).read_text())
-    done["sha256"]["alpha_table.csv"] = file_checksum(tampered / "alpha_table.csv")
+    for name in ("alpha_table.csv", "metrics.json"):
+        done["sha256"][name] = file_checksum(tampered / name)
     (tampered / DONE).write_text(json.dumps(done))
     with pytest.raises(WorkbenchError, match=r"recomputing the run gives alpha .* away from the recorded table"):
         export_run(tampered, tmp_path / "out")
