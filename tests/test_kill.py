@@ -28,7 +28,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from workbench.core.files import TEMPORARY_SUFFIX
+from workbench.core.files import OUTPUT_MARKER, TEMPORARY_SUFFIX
 from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.tracking import DONE, LOCK_FILE, record_state
 from workbench.settings.config import REPO_ROOT
@@ -75,6 +75,7 @@ COLLECTED_FILES = (
     "alpha_table.md",
     "alpha_table.tex",
     "findings.md",
+    OUTPUT_MARKER,  # what the workbench wrote there (core.files.output_folder)
 )
 TEMPORARY = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX) + "$")
 

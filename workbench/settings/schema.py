@@ -149,6 +149,7 @@ BasisSchema = make_dataclass(
     ],
     bases=(_BasisSettings,),
 )
+BasisSchema.__module__ = __name__  # pickled by name: the joblib and SLURM launchers send the config store to workers
 """The ``basis`` group: :class:`_BasisSettings`, then the options of each alternative basis
 (:data:`workbench.settings.bases.ALTERNATIVE_BASES`, ``basis.<options_key>``), then ``intuitiveness``, in the order
 of ``conf/basis/default.yaml``."""

@@ -61,6 +61,9 @@ def _dataset_class(kind: str) -> type:
 
 DATASET_SETTINGS = {kind: _dataset_class(kind) for kind in DATASET_SCHEMAS}
 """Dataset kind -> its typed settings (a subclass of the kind's schema)."""
+for _settings in DATASET_SETTINGS.values():  # module attributes, so that pickle finds them by name
+    _settings.__module__ = __name__
+    globals()[_settings.__name__] = _settings
 
 
 def dataset_settings(values, *, check: bool = False) -> Any:
