@@ -257,13 +257,21 @@ def rest_frame(take: MarkerTake, rigid_index, table_index, labels: Sequence[str]
     int
         A frame of the take's file.
     """
-    seen = np.flatnonzero(np.isfinite(take.positions[:, rigid_index]).all(axis=(1, 2)))
+    return rest_frame_of(take.positions, rigid_index, table_index, labels, where=str(take.path))
+
+
+def rest_frame_of(
+    positions: np.ndarray, rigid_index, table_index, labels: Sequence[str], *, where: str = "markers"
+) -> int:
+    """:func:`rest_frame` on an array of positions of shape (n_frames, n_markers, 3) in mm; ``where`` names them in
+    the error raised when no frame sees every rigid marker."""
+    seen = np.flatnonzero(np.isfinite(positions[:, rigid_index]).all(axis=(1, 2)))
     if seen.size == 0:
         raise WorkbenchError(
-            f"{take.path}: no frame sees every rigid marker (dataset.rigid_markers); set dataset.neutral_frame"
+            f"{where}: no frame sees every rigid marker (dataset.rigid_markers); set dataset.neutral_frame"
         )
-    reference = take.positions[seen[0], rigid_index]
-    markers = stabilise(take.positions, rigid_index, reference).markers[:, table_index]
+    reference = positions[seen[0], rigid_index]
+    markers = stabilise(positions, rigid_index, reference).markers[:, table_index]
     return neutral_rest(markers, labels, int(seen[0])).nearest_frame
 
 
@@ -578,8 +586,8 @@ def _placed_takes(cfg: Mapping) -> _Placed:
         )
     # Express the capture in the ICT head frame (axes and origin) while keeping the performer's size: the rigid
     # part of the inverse similarity. The ICT face then sits at scale * its own coordinates.
-    neutral = (stable.neutral - similarity.translation) @ similarity.rotation
-    displacements = (stable.positions - similarity.translation) @ similarity.rotation - neutral
+    neutral = placement.in_mesh_frame(stable.neutral)
+    displacements = placement.in_mesh_frame(stable.positions) - neutral
     hand = scale * basis.shapes(hand_names)
     return _Placed(
         take_files=take_files,

@@ -178,6 +178,22 @@ class MarkerPlacement:
     n_landmarks: int
     refine_iterations: int
 
+    def in_mesh_frame(self, points: np.ndarray) -> np.ndarray:
+        """Capture points in the mesh's head frame (its axes and origin) at the capture's size: the rigid part of
+        the inverse of ``mesh_to_capture``, ``(points - translation) @ rotation``.
+
+        Parameters
+        ----------
+        points : ndarray of shape (..., 3)
+            In capture coordinates (mm).
+
+        Returns
+        -------
+        ndarray of shape (..., 3)
+            In mm; the mesh there sits at ``mesh_to_capture.scale`` times its own coordinates.
+        """
+        return (points - self.mesh_to_capture.translation) @ self.mesh_to_capture.rotation
+
     def describe(self) -> str:
         """One line: alignment, scale and marker-to-vertex distances."""
         worst = int(np.argmax(self.distances))
