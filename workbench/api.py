@@ -21,6 +21,9 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
     from workbench.dataset.capture import Capture
+    from workbench.dataset.correspondence import MarkerPlacement, MarkerTable
+    from workbench.dataset.rigid import Stabilised
+    from workbench.formats.livelink import ArkitMapping
     from workbench.record.record import RunRecord
     from workbench.study.results import StudyResult
 
@@ -40,6 +43,271 @@ def __getattr__(name: str):
             globals()[name] = entry.read  # later uses skip this function
             return entry.read
     raise AttributeError(f"module 'workbench.api' has no attribute {name!r}")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Real-data helpers: the steps the dataset builders take, on plain arrays
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def _names(value, argument: str) -> list[str]:
+    """A list of strings, or a one-line error naming ``argument`` (a single string is refused)."""
+    if isinstance(value, str) or not isinstance(value, Sequence) or not all(isinstance(v, str) for v in value):
+        raise WorkbenchError(f"{argument} must be a list of names (strings), got {value!r:.80}")
+    return list(value)
+
+
+def _points(value, argument: str, shape: str, ndim: int):
+    """A finite-or-NaN float64 array of ``ndim`` dimensions whose last is 3, or a one-line error naming it."""
+    import numpy as np
+
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise WorkbenchError(f"{argument} must be an array of shape {shape} of numbers") from None
+    if array.ndim != ndim or array.shape[-1] != 3:
+        raise WorkbenchError(f"{argument} must have shape {shape}, got {array.shape}")
+    return array
+
+
+def _indices(value, argument: str, size: int):
+    """An array of integer indices into ``size`` points, or a one-line error naming ``argument``."""
+    import numpy as np
+
+    array = np.asarray(value)
+    if array.ndim != 1 or array.size == 0 or not np.issubdtype(array.dtype, np.integer):
+        raise WorkbenchError(f"{argument} must be a non-empty list of integer indices, got {value!r:.80}")
+    if array.min() < -size or array.max() >= size:
+        raise WorkbenchError(f"{argument} must index the {size} points, got {array.min()} .. {array.max()}")
+    return array
+
+
+def arkit_mapping(
+    channel_names: Sequence[str], basis_names: Sequence[str], overrides: Mapping[str, Sequence[str]] | None = None
+) -> "ArkitMapping":
+    """Which basis shapes each ARKit channel drives: the mapping dataset ``ict_livelink`` builds
+    (:func:`workbench.formats.livelink.map_arkit_channels`).
+
+    The rule, per channel: its name with a lower-case first letter if the basis has it (``JawOpen -> jawOpen``,
+    ``JawLeft -> jawLeft``, ``MouthLeft -> mouthLeft``); else ``...Left``/``...Right`` as ``..._L``/``..._R``
+    (``MouthSmileLeft -> mouthSmile_L``); else, for a channel without a side, the basis's pair
+    (``BrowInnerUp -> browInnerUp_L`` and ``browInnerUp_R``); else nothing. ``overrides`` replaces the rule.
+
+    Parameters
+    ----------
+    channel_names : sequence of str
+        ARKit channels, e.g. ``read_livelink(path).names`` (52).
+    basis_names : sequence of str
+        The basis's shape names, e.g. ``read_blendshapes(...).names``, in the order of its ``deltas``.
+    overrides : mapping, optional
+        Channel -> list of shape names, replacing the rule for that channel (``[]`` leaves it unmapped), as
+        ``dataset.arkit_overrides`` (``conf/dataset/ict_livelink.yaml``: ``TongueOut: []``).
+
+    Returns
+    -------
+    workbench.formats.livelink.ArkitMapping
+        ``matrix`` of shape (n_channels, n_shapes), 1 where a channel drives a shape; ``targets`` (channel ->
+        shapes), ``unmapped`` channels and ``undriven`` shapes. Displacements in the basis's units (mm for
+        ``read_blendshapes(..., unit_mm=10)``) are ``(weights @ matrix) @ deltas.reshape(n_shapes, -1)``, with
+        ``weights`` of shape (n_frames, n_channels): shape (n_frames, 3 * n_vertices).
+    """
+    from workbench.formats.livelink import map_arkit_channels
+
+    channels = _names(channel_names, "channel_names")
+    shapes = _names(basis_names, "basis_names")
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise WorkbenchError(f"overrides must be a mapping of channel -> list of shape names, got {overrides!r:.80}")
+    return map_arkit_channels(channels, shapes, dict(overrides or {}))
+
+
+def rest_frame(markers, rigid_markers: Sequence[int]) -> int:
+    """The take's rest face: its frame nearest the median pose of its frames (RMS over the markers), head motion
+    removed; dataset ``animface`` takes it as the neutral when ``dataset.neutral_frame`` is null
+    (:func:`workbench.dataset.animface.rest_frame`).
+
+    Parameters
+    ----------
+    markers : array-like of shape (n_frames, n_markers, 3)
+        Every frame of the take, in mm, NaN at gaps: the builder measures the markers of its correspondence
+        table, ``read_c3d(path).positions[:, table_index]``.
+    rigid_markers : sequence of int
+        Indices of the markers that move only with the head (at least 3).
+
+    Returns
+    -------
+    int
+        A frame of ``markers``.
+    """
+    from workbench.dataset.animface import rest_frame_of
+
+    markers = _points(markers, "markers", "(n_frames, n_markers, 3)", 3)
+    rigid = _indices(rigid_markers, "rigid_markers", markers.shape[1])
+    return rest_frame_of(markers, rigid, slice(None), [f"marker {i}" for i in range(markers.shape[1])])
+
+
+def stabilise_markers(markers, rigid_markers: Sequence[int], reference) -> "Stabilised":
+    """Remove rigid head motion: each frame is moved so its rigid markers best fit their reference positions
+    (Kabsch, least squares), as dataset ``animface`` does (:func:`workbench.dataset.rigid.stabilise`).
+
+    A frame with gaps is aligned on the rigid markers it has; with fewer than 3 it comes back NaN.
+
+    Parameters
+    ----------
+    markers : array-like of shape (n_frames, n_markers, 3)
+        Marker positions in mm (e.g. ``read_c3d(path).positions``), NaN at gaps.
+    rigid_markers : sequence of int
+        Indices of the markers that move only with the head (at least 3; AnimFace's: forehead, nose bridge,
+        inner eye corners).
+    reference : array-like of shape (n_rigid, 3)
+        Their positions in the head frame, in mm: the builder's are the neutral frame's,
+        ``markers[neutral_frame, rigid_markers]`` (see :func:`rest_frame`).
+
+    Returns
+    -------
+    workbench.dataset.rigid.Stabilised
+        ``markers`` of shape (n_frames, n_markers, 3) in mm, in the reference's head frame, and ``residual_rms`` of
+        shape (n_frames,): the rigid markers' RMS distance from the reference after alignment, in mm.
+    """
+    from workbench.dataset.rigid import stabilise
+
+    markers = _points(markers, "markers", "(n_frames, n_markers, 3)", 3)
+    rigid = _indices(rigid_markers, "rigid_markers", markers.shape[1])
+    reference = _points(reference, "reference", f"({rigid.size}, 3)", 2)
+    if len(reference) != rigid.size:
+        raise WorkbenchError(
+            f"reference must have shape ({rigid.size}, 3), one row per rigid marker, got {reference.shape}"
+        )
+    return stabilise(markers, rigid, reference)
+
+
+def read_marker_table(path: str | os.PathLike, *, n_vertices: int | None = None) -> "MarkerTable":
+    """A marker-to-vertex correspondence table (``marker,landmark,vertex,note``; the shipped one is
+    ``conf/correspondence/animface_ict.csv``), as both real datasets read it
+    (:func:`workbench.dataset.correspondence.read_marker_table`).
+
+    Parameters
+    ----------
+    path : path-like
+    n_vertices : int, optional
+        Vertices of the mesh (ICT's face region: 9,409); indices must be below it.
+
+    Returns
+    -------
+    workbench.dataset.correspondence.MarkerTable
+        ``labels`` (n_markers,), ``landmarks`` and ``vertices`` of shape (n_markers,) of int (-1 where empty):
+        ``vertices`` are the mesh vertices of dataset ``ict_livelink``'s virtual markers.
+    """
+    from workbench.dataset.correspondence import read_marker_table as read
+
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise WorkbenchError(f"path must be the path of a correspondence table, got {path!r:.80}")
+    return read(path, n_vertices=n_vertices)
+
+
+def place_markers(
+    table: "MarkerTable", marker_neutral, mesh_vertices, *, refine_iterations: int = 0
+) -> "MarkerPlacement":
+    """Place capture markers on a mesh, as dataset ``animface`` does: a similarity alignment (with scale) on the
+    table's landmark pairs, refined on every marker-vertex pair, then the nearest vertex for each marker the table
+    leaves empty (:func:`workbench.dataset.correspondence.place_markers`).
+
+    Parameters
+    ----------
+    table : MarkerTable
+        From :func:`read_marker_table`.
+    marker_neutral : array-like of shape (n_markers, 3)
+        The table's markers in the neutral frame, in table order, in mm.
+    mesh_vertices : array-like of shape (n_vertices, 3)
+        The mesh's neutral (``read_blendshapes(...).neutral``), in mm.
+    refine_iterations : int, default 0
+        Rounds of refinement (``dataset.refine_iterations``: 50).
+
+    Returns
+    -------
+    workbench.dataset.correspondence.MarkerPlacement
+        ``vertices`` of shape (n_markers,) of int, ``mesh_to_capture`` (the similarity; its ``scale`` is the
+        performer's size over the mesh's) and ``in_mesh_frame(points)``, which expresses capture points of shape
+        (..., 3) in the mesh's head frame at the performer's size, in mm (the frame of the builder's arrays).
+    """
+    from workbench.dataset.correspondence import MarkerTable
+    from workbench.dataset.correspondence import place_markers as place
+
+    if not isinstance(table, MarkerTable):
+        raise WorkbenchError(f"table must be a MarkerTable (read_marker_table), got {type(table).__name__}")
+    marker_neutral = _points(marker_neutral, "marker_neutral", "(n_markers, 3)", 2)
+    mesh_vertices = _points(mesh_vertices, "mesh_vertices", "(n_vertices, 3)", 2)
+    if isinstance(refine_iterations, bool) or not isinstance(refine_iterations, int) or refine_iterations < 0:
+        raise WorkbenchError(f"refine_iterations must be an integer >= 0, got {refine_iterations!r}")
+    return place(table, marker_neutral, mesh_vertices, refine_iterations=refine_iterations)
+
+
+def rbf_carry(
+    marker_displacements,
+    vertices,
+    triangles,
+    marker_vertices: Sequence[int],
+    target_vertices: Sequence[int] | None = None,
+    *,
+    metric: str = "euclidean",
+    kernel: str = "thin_plate_spline",
+    epsilon: float | None = None,
+    smoothing: float = 0.0,
+    degree: int = 1,
+):
+    """Carry marker displacements onto a mesh by radial-basis interpolation, as dataset ``animface`` builds its
+    ``mesh`` (:func:`workbench.dataset.rbf.mesh_rbf_operator`: one linear map applied to every frame).
+
+    Parameters
+    ----------
+    marker_displacements : array-like of shape (n_frames, n_markers, 3)
+        Each marker's displacement from the neutral, in mm.
+    vertices : array-like of shape (n_vertices, 3)
+        The mesh's neutral, in mm (the builder's: ``placement.mesh_to_capture.scale * neutral``).
+    triangles : array-like of shape (n_triangles, 3) of int, or None
+        Needed for ``metric="geodesic"``.
+    marker_vertices : sequence of int
+        The vertex each marker sits on (distinct), shape (n_markers,).
+    target_vertices : sequence of int, optional
+        The vertices wanted; all when None.
+    metric, kernel, epsilon, smoothing, degree
+        ``dataset.rbf``: the defaults are the builder's without it; ``conf/dataset/animface.yaml`` sets
+        ``metric="geodesic"``, ``kernel="inverse_multiquadric"``, ``epsilon=0.05`` (1/mm), ``degree=0``.
+
+    Returns
+    -------
+    ndarray of shape (n_frames, n_targets, 3)
+        Displacements at the target vertices, in mm.
+    """
+    import numpy as np
+
+    from workbench.dataset.rbf import interpolate_frames, mesh_rbf_operator
+
+    marker_displacements = _points(marker_displacements, "marker_displacements", "(n_frames, n_markers, 3)", 3)
+    vertices = _points(vertices, "vertices", "(n_vertices, 3)", 2)
+    centres = _indices(marker_vertices, "marker_vertices", len(vertices))
+    if len(centres) != marker_displacements.shape[1]:
+        raise WorkbenchError(
+            f"marker_vertices must give one vertex per marker ({marker_displacements.shape[1]}), got {len(centres)}"
+        )
+    targets = (
+        np.arange(len(vertices))
+        if target_vertices is None
+        else _indices(target_vertices, "target_vertices", len(vertices))
+    )
+    if triangles is not None:
+        triangles = np.asarray(triangles)
+    operator = mesh_rbf_operator(
+        vertices,
+        triangles,
+        centres,
+        targets,
+        metric=metric,
+        kernel=kernel,
+        smoothing=smoothing,
+        epsilon=epsilon,
+        degree=degree,
+    )
+    return interpolate_frames(operator, marker_displacements)
 
 
 # ---------------------------------------------------------------------------------------------------------------
