@@ -58,7 +58,7 @@ def _names(value, argument: str) -> list[str]:
 
 
 def _points(value, argument: str, shape: str, ndim: int):
-    """A finite-or-NaN float64 array of ``ndim`` dimensions whose last is 3, or a one-line error naming it."""
+    """A float64 array of ``ndim`` dimensions, the last of length 3, or a one-line error naming ``argument``."""
     import numpy as np
 
     try:
@@ -77,8 +77,8 @@ def _indices(value, argument: str, size: int):
     array = np.asarray(value)
     if array.ndim != 1 or array.size == 0 or not np.issubdtype(array.dtype, np.integer):
         raise WorkbenchError(f"{argument} must be a non-empty list of integer indices, got {value!r:.80}")
-    if array.min() < -size or array.max() >= size:
-        raise WorkbenchError(f"{argument} must index the {size} points, got {array.min()} .. {array.max()}")
+    if array.min() < 0 or array.max() >= size:
+        raise WorkbenchError(f"{argument} must be indices in [0, {size}), got {array.min()} .. {array.max()}")
     return array
 
 
