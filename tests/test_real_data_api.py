@@ -1,5 +1,5 @@
-"""The real-data helpers of the public API: a notebook that builds the real datasets' arrays from the readers and
-the helpers alone gets the arrays of ``build_captures`` and the same alpha."""
+"""The real-data steps of the public API: a notebook that builds the real datasets' arrays from the readers and
+these functions alone gets the arrays of ``build_captures`` and the same alpha."""
 
 import numpy as np
 import pytest
@@ -150,7 +150,7 @@ def test_a_notebook_builds_the_animface_arrays(shared_data, tmp_path):
         (lambda: workbench.rbf_carry(np.zeros((2, 3)), np.zeros((9, 3)), None, [0, 1]), "marker_displacements must"),
     ],
 )
-def test_the_helpers_refuse_bad_arguments_in_one_line(call, message):
+def test_the_real_data_functions_refuse_bad_arguments_in_one_line(call, message):
     with pytest.raises(workbench.WorkbenchError, match=message) as error:
         call()
     assert "\n" not in str(error.value)

@@ -46,7 +46,7 @@ def __getattr__(name: str):
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Real-data helpers: the steps the dataset builders take, on plain arrays
+# Real data: the steps the dataset builders take, on plain arrays
 # ---------------------------------------------------------------------------------------------------------------
 
 
