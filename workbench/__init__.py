@@ -3,7 +3,8 @@
 Data flows one way: ``dataset`` -> ``bases`` -> ``solve`` -> ``metrics`` -> ``record`` -> ``report``.
 The numerical core (``bases``, ``solve``, ``metrics``) is pure: arrays in, arrays and frozen dataclasses out.
 The public API (``__all__``, docs/api.md): the method as an estimator on plain arrays (:class:`QuasiEigenFaces`), the
-readers, ``build_captures``, ``run_study`` and ``read_record``.
+readers, the real datasets' steps (``arkit_mapping``, ``stabilise_markers``, ...), ``build_captures``, ``run_study``
+and ``read_record``.
 """
 
 import os

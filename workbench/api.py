@@ -1,4 +1,5 @@
-"""The public Python API beside the estimator: the file readers, the captures of a dataset config, a study run from
+"""The public Python API beside the estimator: the file readers, the real datasets' steps on plain arrays (ARKit
+mapping, head stabilisation, marker placement, RBF carry), the captures of a dataset config, a study run from
 Python and the run records it writes. ``import workbench`` re-exports these names (lazily: nothing here is
 imported until a name is used).
 
