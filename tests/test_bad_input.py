@@ -641,6 +641,25 @@ def test_tiny_datasets_build(tiny_root):
     assert captures["mesh"].train.shape == (40, 3 * GRID * GRID)
 
 
+@pytest.mark.parametrize("kind", ["animface", "ict_livelink"])
+def test_a_mesh_vertex_step_keeping_too_few_vertices_names_the_largest_that_keeps_enough(tiny_root, kind):
+    build = build_animface if kind == "animface" else build_ict_livelink
+    changes = {"train_on": "mesh"} if kind == "animface" else {}
+    with pytest.raises(WorkbenchError) as refused:
+        build(tiny_config(tiny_root, kind, mesh_vertex_step=1000, **changes))
+    found = re.fullmatch(
+        r"dataset.mesh_vertex_step=1000 keeps 1 of the 64 mesh vertices, too few for the hand shapes \(every hand "
+        r"shape must move a kept vertex and add a direction of its own there\); use dataset.mesh_vertex_step=(\d+) "
+        r"or less",
+        str(refused.value),
+    )
+    assert found, refused.value
+    largest = int(found.group(1))
+    assert build(tiny_config(tiny_root, kind, mesh_vertex_step=largest, **changes))["mesh"]  # the step named works
+    with pytest.raises(WorkbenchError, match="mesh_vertex_step"):
+        build(tiny_config(tiny_root, kind, mesh_vertex_step=largest + 1, **changes))
+
+
 def test_unit_mismatch_between_takes_and_basis(tiny_root):
     with pytest.raises(
         WorkbenchError,

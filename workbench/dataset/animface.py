@@ -671,7 +671,7 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
             "residual)"
         )
     else:
-        mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
+        mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, hand, hand_names)
         operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
         frames = interpolated_frames(operator, displacements, storage)
         points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]

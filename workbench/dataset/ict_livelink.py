@@ -81,12 +81,12 @@ def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str,
 
     marker_table = read_marker_table(conf_path(cfg.marker_table, "marker_table"), n_vertices=len(basis.neutral))
     marker_vertices = marker_table.require_vertices("dataset ict_livelink's virtual markers")
-    mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
+    hand_index = [basis.names.index(name) for name in hand_names]
+    mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, basis.deltas[hand_index], hand_names)
     points = {"mesh": mesh_points, "markers": marker_vertices}
     labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
 
     notes_common, provenance = _shared_facts(cfg, driven_take, marker_table, marker_vertices, frame_rate)
-    hand_index = [basis.names.index(name) for name in hand_names]
     captures = {}
     for name in names:
         index = points[name]
