@@ -32,6 +32,7 @@ from workbench.dataset.common import (
 )
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
+from workbench.dataset.hand_basis import check_hand_shapes
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (
     ANIMFACE_CREDIT,
@@ -581,6 +582,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     neutral = (stable.neutral - similarity.translation) @ similarity.rotation
     displacements = (stable.positions - similarity.translation) @ similarity.rotation - neutral
     hand = scale * basis.shapes(hand_names)
+    check_hand_shapes(hand.reshape(len(hand_names), -1), hand_names, f"dataset.blendshapes.folder {folder}")
     return _Placed(
         take_files=take_files,
         takes=takes,
