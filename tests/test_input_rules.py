@@ -318,6 +318,7 @@ def test_a_sweep_runs_every_other_run_when_one_fails_once_started_and_then_names
         f"workbench: error: 1 run(s) of the sweep failed, every other run ran: run {refused.name}: {refused} is not "
         "empty and holds no run record (mine.txt)"
     ), lines
+    assert lines[0].endswith("; fix what each names and run the sweep again (complete runs are skipped)")
     assert (refused / "mine.txt").read_text() == "a user's file"
 
 
