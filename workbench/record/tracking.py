@@ -362,7 +362,6 @@ def check_sweep_values(config) -> None:
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
-    from omegaconf import OmegaConf
 
     from workbench.settings.config import config_error_line
     from workbench.settings.typed import study_settings
@@ -381,9 +380,7 @@ def check_sweep_values(config) -> None:
     for job in jobs:
         values = " ".join(override for override in job if override.split("=", 1)[0] in swept) or " ".join(job)
         try:
-            job_config = loader.load_sweep_config(master_config=config, sweep_overrides=list(job))
-            OmegaConf.copy_cache(from_config=config, to_config=job_config)
-            study_settings(job_config, job)
+            study_settings(loader.load_sweep_config(master_config=config, sweep_overrides=list(job)), job)
         except Exception as error:  # noqa: BLE001 - one line for any refusal
             message = str(error) if isinstance(error, WorkbenchError) else config_error_line(error)
             _refuse_sweep(f"the sweep's run {values} is refused: {message}")
