@@ -641,6 +641,43 @@ def test_tiny_datasets_build(tiny_root):
     assert captures["mesh"].train.shape == (40, 3 * GRID * GRID)
 
 
+@pytest.mark.parametrize("kind", ["animface", "ict_livelink"])
+def test_a_mesh_vertex_step_keeping_too_few_vertices_names_the_largest_that_keeps_enough(tiny_root, kind):
+    build = build_animface if kind == "animface" else build_ict_livelink
+    changes = {"train_on": "mesh"} if kind == "animface" else {}
+    with pytest.raises(WorkbenchError) as refused:
+        build(tiny_config(tiny_root, kind, mesh_vertex_step=1000, **changes))
+    found = re.fullmatch(
+        r"dataset.mesh_vertex_step=1000 keeps 1 of the 64 mesh vertices, too few for the hand shapes \(every hand "
+        r"shape must move a kept vertex and add a direction of its own there\); use dataset.mesh_vertex_step=(\d+) "
+        r"or less",
+        str(refused.value),
+    )
+    assert found, refused.value
+    largest = int(found.group(1))
+    assert build(tiny_config(tiny_root, kind, mesh_vertex_step=largest, **changes))["mesh"]  # the step named works
+    with pytest.raises(WorkbenchError, match="mesh_vertex_step"):
+        build(tiny_config(tiny_root, kind, mesh_vertex_step=largest + 1, **changes))
+
+
+@pytest.mark.parametrize("kind", ["animface", "ict_livelink"])
+def test_a_dependent_hand_shape_in_the_blendshape_folder_names_the_setting_and_folder(tiny_root, tmp_path, kind):
+    import shutil
+
+    root = tmp_path / "data"
+    shutil.copytree(tiny_root, root)
+    neutral, quads, deltas = tiny_face()
+    faces = "".join(f"f {a + 1} {b + 1} {c + 1} {d + 1}\n" for a, b, c, d in quads)
+    (root / "face" / f"{SHAPES[3]}.obj").write_text(obj_text(neutral + deltas[0] + deltas[1], faces))
+    build = build_animface if kind == "animface" else build_ict_livelink
+    with pytest.raises(
+        WorkbenchError,
+        match=f"^dataset.blendshapes.folder {re.escape(str(root / 'face'))}: hand basis is rank-deficient: its 4 "
+        "shapes span only 3 dimensions",
+    ):
+        build(tiny_config(root, kind))
+
+
 def test_unit_mismatch_between_takes_and_basis(tiny_root):
     with pytest.raises(
         WorkbenchError,
@@ -717,14 +754,13 @@ def test_all_zero_and_duplicate_hand_shapes_in_a_dataset(tiny_root, tmp_path):
         (folder / path.name).write_bytes(path.read_bytes())
     (folder / "still.obj").write_bytes((folder / "neutral.obj").read_bytes())
     (folder / "twin.obj").write_bytes((folder / "jawOpen.obj").read_bytes())
-    capture = build_animface(
-        tiny_config(tiny_root, blendshapes={"folder": str(folder)}, hand_shapes=[*SHAPES, "still", "twin"])
-    )["markers"]
-    eigenfaces = Eigenfaces(coverage=0.99).fit(capture.train)
-    with pytest.raises(WorkbenchError, match=r"hand basis shape\(s\) \['still'\] are all zero"):
-        build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces)
-    with pytest.raises(WorkbenchError, match=r"hand basis shapes 'jawOpen' and 'twin' are the same shape"):
-        build_quasi_eigen_basis(capture.hand[[0, 1, 2, 3, 5]], [*SHAPES, "twin"], eigenfaces)
+    named = f"^dataset.blendshapes.folder {re.escape(str(folder))}: "  # refused when read, not at the fit
+    with pytest.raises(WorkbenchError, match=named + r"hand basis shape\(s\) \['still'\] are all zero"):
+        build_animface(
+            tiny_config(tiny_root, blendshapes={"folder": str(folder)}, hand_shapes=[*SHAPES, "still", "twin"])
+        )
+    with pytest.raises(WorkbenchError, match=named + r"hand basis shapes 'jawOpen' and 'twin' are the same shape"):
+        build_animface(tiny_config(tiny_root, blendshapes={"folder": str(folder)}, hand_shapes=[*SHAPES, "twin"]))
 
 
 @pytest.mark.parametrize(

@@ -65,3 +65,26 @@ def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
         assert result.returncode == 2, (arguments, result.stderr)
         assert len(result.stderr.splitlines()) == 1 and result.stderr.startswith(expected), (arguments, result.stderr)
     assert not (record / "report").exists() and not (tmp_path / "sweep" / "collected").exists()
+
+
+def test_a_removed_current_folder_is_named_in_one_line(tmp_path):
+    """A child process: its own working folder is what is tested (removed while the shell was in it)."""
+    import os
+    import subprocess
+    import sys
+
+    from workbench.settings.config import REPO_ROOT
+
+    gone = tmp_path / "gone"
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    line = (
+        "workbench: error: the current folder was removed (deleted or moved away while this shell was in it); cd "
+        "into an existing folder and run the command again"
+    )
+    for arguments in (["dataset.n_frames=300"], ["-m", "dataset.n_frames=300,400"], ["report", "x"]):
+        gone.mkdir()
+        script = f'cd "{gone}" && rmdir "{gone}" && exec "$0" -m workbench "$@"'
+        done = subprocess.run(
+            ["sh", "-c", script, sys.executable, *arguments], env=env, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode == 2 and done.stderr.splitlines() == [line], (arguments, done.stderr)

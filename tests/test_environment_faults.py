@@ -96,6 +96,28 @@ def test_a_simulated_full_disk_names_the_file(tmp_path, monkeypatch, capsys):
     )
 
 
+@pytest.mark.parametrize("storage", ["memory", "disk"])
+def test_a_full_disk_under_the_cache_names_the_setting_and_the_folder(tmp_path, monkeypatch, storage):
+    from workbench.api import build_captures
+    from workbench.dataset import cache
+    from workbench.settings.config import compose
+
+    def full(_):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    cfg = compose("paper", [*SMALL, f"dataset.storage={storage}"])
+    monkeypatch.setattr(cache, "_memory", type(cache._memory)())  # built here, not found in this process's memory
+    monkeypatch.setattr("workbench.numerics.frames.os.fsync", full)
+    folder = tmp_path / "cache"
+    with pytest.raises(errors.WorkbenchError) as raised:
+        build_captures(cfg, cache_dir=str(folder))
+    assert str(raised.value).startswith(
+        f"paths.cache_dir {folder}: no space left on its disk writing {folder / 'frames'}/"
+    ), raised.value
+    assert str(raised.value).endswith("; free space there or set paths.cache_dir to a folder on another disk")
+    assert [path for path in folder.rglob("*") if path.is_file()] == []  # no partial file left
+
+
 @pytest.mark.parametrize(
     "error, expected",
     [

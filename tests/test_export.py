@@ -315,6 +315,19 @@ def test_hand_basis_bad_input(record, mesh_export, tmp_path):
     with pytest.raises(WorkbenchError, match=r"its neutral lies up to .* mm from the data's"):
         build(path=str(stated))
     assert build(path=str(stated), unit_mm=1000.0)
+    from dataclasses import replace
+
+    from workbench.formats.gltf import glb_bytes, read_morph_mesh
+
+    mesh = read_morph_mesh(out / "H.glb")
+    deltas = mesh.deltas.copy()
+    deltas[2] = deltas[0] + deltas[1]  # a shape the two first make: the file's basis is rank-deficient
+    (tmp_path / "dependent.glb").write_bytes(glb_bytes(replace(mesh, deltas=deltas, path=None)))
+    with pytest.raises(
+        WorkbenchError,
+        match=f"^dataset.hand_basis.path {re.escape(str(tmp_path / 'dependent.glb'))}: hand basis is rank-deficient",
+    ):
+        build(path=str(tmp_path / "dependent.glb"))
     (tmp_path / "basis.obj").write_text("v 0 0 0\n")
     with pytest.raises(WorkbenchError, match=r"must be a blendshape folder .* or a \.glb file"):
         build(path=str(tmp_path / "basis.obj"))

@@ -267,31 +267,59 @@ def test_names_that_are_not_utf8_are_refused_in_the_config():
 
 
 # ----------------------------------------------------------------------------------------------------------
-# A sweep with bad values runs every valid one, then names the bad ones
+# A sweep with a bad value is refused before any run starts; a run failing once started lets the others run
 # ----------------------------------------------------------------------------------------------------------
 
+REFUSED_SWEEPS = {
+    "dataset.n_frames=300,abc,400": "the sweep's run dataset.n_frames=abc is refused: Error merging override "
+    "dataset.n_frames=abc; Value 'abc' of type 'str' could not be converted to Integer",
+    "solver=lstsq,bogus,nnls": "the sweep's run solver=bogus is refused: In 'paper': Could not find 'solver/bogus'",
+    "dataset.n_frames=300,-5,400": "the sweep's run dataset.n_frames=-5 is refused: dataset.n_frames must be an "
+    "integer >= 2, got -5",
+    "basis.coverage=0.9,1.5": "the sweep's run basis.coverage=1.5 is refused: basis.coverage must be in (0, 1], "
+    "got 1.5",
+}
 
-def test_a_sweep_runs_every_valid_value_and_then_names_the_bad_ones(tmp_path):
+
+@pytest.mark.parametrize("sweep", list(REFUSED_SWEEPS))
+@pytest.mark.parametrize("launcher", [[], ["hydra/launcher=joblib"]])
+def test_a_sweep_with_a_bad_value_is_refused_in_one_line_before_any_run(tmp_path, sweep, launcher):
+    from in_process import run_workbench
+
+    other = [] if sweep.startswith("solver") else ["solver=lstsq"]
+    done = run_workbench("-m", sweep, *other, *launcher, "paths.output_root=out", cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"workbench: error: {REFUSED_SWEEPS[sweep]}"), lines
+    assert lines[0].endswith("no run of the sweep started: fix the value and run it again")
+    assert list(tmp_path.iterdir()) == []  # no run started, no folder made
+
+
+def test_a_sweep_runs_every_other_run_when_one_fails_once_started_and_then_names_it(tmp_path):
     from workbench.record.record import DONE
 
     sweep = tmp_path / "sweep"
+    refused = sweep / "basis.coverage=0.9,dataset.n_frames=200,solver=lstsq"
+    refused.mkdir(parents=True)
+    (refused / "mine.txt").write_text("a user's file")
     result = run_cli(
         "-m",
         "dataset.n_frames=200",
         "solver=lstsq",
-        "basis.coverage=1.5,0.9,2,0.95",
+        "basis.coverage=0.9,0.95",
         f"hydra.sweep.dir={sweep}",
         cwd=tmp_path,
     )
     assert result.returncode == 2, result.stderr
     ran = sorted(path.parent.name for path in sweep.glob(f"*/{DONE}"))
-    assert ran == [f"basis.coverage={value},dataset.n_frames=200,solver=lstsq" for value in ("0.9", "0.95")]
-    assert result.stderr.decode().splitlines() == [
-        "workbench: error: 2 run(s) of the sweep failed, every other run ran: "
-        "run basis.coverage=1.5,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 1.5 | "
-        "run basis.coverage=2,dataset.n_frames=200,solver=lstsq: basis.coverage must be in (0, 1], got 2.0; "
-        "fix their values and run the sweep again (complete runs are skipped)"
-    ]
+    assert ran == ["basis.coverage=0.95,dataset.n_frames=200,solver=lstsq"]
+    lines = result.stderr.decode().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        f"workbench: error: 1 run(s) of the sweep failed, every other run ran: run {refused.name}: {refused} is not "
+        "empty and holds no run record (mine.txt)"
+    ), lines
+    assert lines[0].endswith("; fix what each names and run the sweep again (complete runs are skipped)")
+    assert (refused / "mine.txt").read_text() == "a user's file"
 
 
 def test_ctrl_c_after_a_command_has_finished_is_ignored(monkeypatch):

@@ -220,6 +220,16 @@ def main() -> None:
     runs one of :data:`workbench.cli.main.COMMANDS`. ``--verbose`` anywhere adds the traceback to an error's one line (Hydra's own
     errors: set ``HYDRA_FULL_ERROR=1``).
     """
+    try:
+        os.getcwd()
+    except FileNotFoundError:  # every relative path would fail with a bare "[Errno 2]"
+        exit_on_error(
+            "workbench",
+            WorkbenchError(
+                "the current folder was removed (deleted or moved away while this shell was in it); cd into an "
+                "existing folder and run the command again"
+            ),
+        )
     for argument in sys.argv[1:]:  # before anything runs: a record cannot hold a name that is not UTF-8
         try:
             check_utf8(argument, "argument")

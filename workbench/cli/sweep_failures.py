@@ -1,5 +1,7 @@
-"""The runs of a sweep that failed: the sweep goes on with its other values and, when every run has ended, names
-the failed ones in one line and exits non-zero (2 for bad input, 3 when a run failed unexpectedly).
+"""The runs of a sweep that failed once started (a bad value refuses the whole sweep before it starts:
+:func:`workbench.record.tracking.check_sweep_values`): the sweep goes on with its other runs and, when every run
+has ended, names the failed ones in one line and exits non-zero (2 for bad input, 3 when a run failed
+unexpectedly).
 
 Jobs that run in the workbench's own process (Hydra's basic launcher, the default) keep their failure here and
 return; the command line then prints the closing line (:func:`exit_if_runs_failed`). A job in another process (the
@@ -14,7 +16,7 @@ import sys
 
 from workbench.core.errors import WorkbenchError
 
-AGAIN = "fix their values and run the sweep again (complete runs are skipped)"
+AGAIN = "fix what each names and run the sweep again (complete runs are skipped)"
 
 
 class SweepRunFailed(WorkbenchError):

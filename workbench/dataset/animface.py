@@ -32,6 +32,7 @@ from workbench.dataset.common import (
 )
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
+from workbench.dataset.hand_basis import check_hand_shapes
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (
     ANIMFACE_CREDIT,
@@ -589,6 +590,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     neutral = placement.in_mesh_frame(stable.neutral)
     displacements = placement.in_mesh_frame(stable.positions) - neutral
     hand = scale * basis.shapes(hand_names)
+    check_hand_shapes(hand.reshape(len(hand_names), -1), hand_names, f"dataset.blendshapes.folder {folder}")
     return _Placed(
         take_files=take_files,
         takes=takes,
@@ -679,7 +681,7 @@ def _variant_capture(name: str, cfg: Mapping, placed: _Placed, shared: tuple, st
             "residual)"
         )
     else:
-        mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
+        mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, hand, hand_names)
         operator = mesh_operator(basis, scale, placement.vertices, mesh_points, rbf)
         frames = interpolated_frames(operator, displacements, storage)
         points_neutral, points_hand = scale * basis.neutral[mesh_points], hand[:, mesh_points]

@@ -21,6 +21,7 @@ Cached arrays are read-only, so no run can change what the next one gets.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import io
 import json
@@ -180,9 +181,17 @@ def cached_captures(
     folder = cache_folder(cache_dir)
     captures = _load_or_report(folder, key, inputs) if folder else None
     if captures is None:
-        captures = {name: _read_only(capture) for name, capture in build(cfg).items()}
-        if folder:
-            _save(folder, key, inputs, captures)
+        try:
+            captures = {name: _read_only(capture) for name, capture in build(cfg).items()}
+            if folder:
+                _save(folder, key, inputs, captures)
+        except OSError as error:
+            if folder and error.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise WorkbenchError(
+                    f"paths.cache_dir {folder}: no space left on its disk writing {error.filename or 'a file'}; "
+                    "free space there or set paths.cache_dir to a folder on another disk"
+                ) from None
+            raise
     _memory[key] = captures
     while len(_memory) > MEMORY_SLOTS:
         _memory.popitem(last=False)

@@ -106,6 +106,17 @@ def folder_unit_mm(folder: Path) -> float:
     return positive_setting(stated["unit_mm"], f"{manifest}: field 'unit_mm'")
 
 
+def check_hand_shapes(hand: np.ndarray, names, where: str) -> None:
+    """:func:`workbench.numerics.bases.check_hand_basis` on shapes read from a file, its refusal naming ``where``
+    (the setting and the file) before anything is fitted."""
+    from workbench.numerics.bases import check_hand_basis
+
+    try:
+        check_hand_basis(hand, names)
+    except WorkbenchError as error:
+        raise WorkbenchError(f"{where}: {error}") from None
+
+
 def shape_subset(basis: Blendshapes, names, key: str) -> tuple[tuple[str, ...], np.ndarray]:
     """The named shapes of ``basis`` (all when ``names`` is None), shape (n, n_vertices, 3)."""
     names = list(basis.names) if names is None else list(names)
@@ -168,6 +179,7 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str,
     replaced = {}
     for name, capture in captures.items():
         names, shapes = shape_subset(basis, spec.get("shapes") or capture.hand_names, key)
+        check_hand_shapes(shapes.reshape(len(names), -1), names, f"{key}.path {path}")
         rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
         note = f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)"
         replaced[name] = replace(

@@ -17,6 +17,7 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.common import array_digest, split_frames, train_on_list
 from workbench.dataset.correspondence import read_marker_table
+from workbench.dataset.hand_basis import check_hand_shapes
 from workbench.dataset.real import (
     ICT_CREDIT,
     LIVELINK_CREDIT,
@@ -81,12 +82,17 @@ def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str,
 
     marker_table = read_marker_table(conf_path(cfg.marker_table, "marker_table"), n_vertices=len(basis.neutral))
     marker_vertices = marker_table.require_vertices("dataset ict_livelink's virtual markers")
-    mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step)
+    hand_index = [basis.names.index(name) for name in hand_names]
+    check_hand_shapes(
+        basis.deltas[hand_index].reshape(len(hand_names), -1),
+        hand_names,
+        f"dataset.blendshapes.folder {data_path(cfg, cfg.blendshapes.folder, 'blendshapes.folder')}",
+    )
+    mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, basis.deltas[hand_index], hand_names)
     points = {"mesh": mesh_points, "markers": marker_vertices}
     labels = {"mesh": tuple(f"v{i}" for i in mesh_points), "markers": marker_table.labels}
 
     notes_common, provenance = _shared_facts(cfg, driven_take, marker_table, marker_vertices, frame_rate)
-    hand_index = [basis.names.index(name) for name in hand_names]
     captures = {}
     for name in names:
         index = points[name]

@@ -167,9 +167,39 @@ def frame_selection(n_frames: int, frame_step: int, max_frames: int | None, what
     return index
 
 
-def mesh_point_indices(n_vertices: int, vertex_step: int) -> np.ndarray:
-    """Vertices used as mesh points: every ``vertex_step``-th one (1 keeps the whole mesh, for full runs)."""
-    return np.arange(0, n_vertices, integer_setting(vertex_step, "dataset.mesh_vertex_step", minimum=1))
+def mesh_point_indices(n_vertices: int, vertex_step: int, hand: np.ndarray | None = None, names=()) -> np.ndarray:
+    """Vertices used as mesh points: every ``vertex_step``-th one (1 keeps the whole mesh, for full runs).
+
+    With ``hand`` (the hand shapes on the whole mesh, shape (n_shapes, n_vertices, 3), named ``names``), a step
+    that keeps too few vertices for the hand shapes (one that no longer moves any kept vertex, or shapes no longer
+    independent there, while the whole mesh has them all) is refused naming the largest step that keeps them.
+    """
+    step = integer_setting(vertex_step, "dataset.mesh_vertex_step", minimum=1)
+    points = np.arange(0, n_vertices, step)
+    if hand is None or step == 1 or _hand_basis_holds(hand, names, points):
+        return points
+    if not _hand_basis_holds(hand, names, np.arange(n_vertices)):
+        return points  # the whole mesh breaks the rule too: not the step's fault, the fit names it
+    largest = next(
+        s
+        for s in range(min(step, n_vertices + 1) - 1, 0, -1)
+        if _hand_basis_holds(hand, names, np.arange(0, n_vertices, s))
+    )
+    raise WorkbenchError(
+        f"dataset.mesh_vertex_step={step} keeps {len(points)} of the {n_vertices} mesh vertices, too few for the "
+        f"hand shapes (every hand shape must move a kept vertex and add a direction of its own there); use "
+        f"dataset.mesh_vertex_step={largest} or less"
+    )
+
+
+def _hand_basis_holds(hand: np.ndarray, names, points: np.ndarray) -> bool:
+    from workbench.numerics.bases import check_hand_basis
+
+    try:
+        check_hand_basis(hand[:, points].reshape(len(hand), -1), names)
+    except WorkbenchError:
+        return False
+    return True
 
 
 def origin_text(description: str, neutral_points: np.ndarray) -> str:

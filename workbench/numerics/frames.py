@@ -18,7 +18,7 @@ from typing import Iterator
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, sha256_of_file, write_atomic
+from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, naming, sha256_of_file, write_atomic
 
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
@@ -209,7 +209,11 @@ class FrameWriter:
             self.abort()
             raise WorkbenchError(f"{self.path}: more frames written than the {self.shape[0]} announced")
         data = np.ascontiguousarray(chunk, dtype=self.dtype).data  # no copy of the chunk
-        self._stream.write(data)
+        try:
+            self._stream.write(data)
+        except OSError as error:  # a full disk fails a write on an open file, which names none
+            self.abort()
+            raise naming(error, self.path) from None
         self._digest.update(data)
         self._written += len(chunk)
 
@@ -224,12 +228,17 @@ class FrameWriter:
             checksum_path(self.path).unlink(missing_ok=True)  # the file that is replaced loses its checksum first
             os.replace(self._temporary, self.path)
             write_atomic(checksum_path(self.path), self._digest.hexdigest() + "\n")
-        except BaseException:
+        except BaseException as error:
             self.abort()
+            if isinstance(error, OSError) and error.filename is None:
+                raise naming(error, self.path) from None
             raise
         return FramesOnDisk(self.path)
 
     def abort(self) -> None:
         """Drop the temporary file."""
-        self._stream.close()
+        try:
+            self._stream.close()  # flushes what is buffered, which fails again on a full disk
+        except OSError:
+            pass
         Path(self._temporary).unlink(missing_ok=True)

@@ -351,6 +351,46 @@ class RunFolders(Callback):
             check_hydra_settings(config.hydra)
             check_study_config(config, as_typed(config.hydra.overrides.task), refuse_ineffective=False)
             check_folder_setting(config.hydra.sweep.dir, "hydra.sweep.dir")
+        check_sweep_values(config)
+
+
+def check_sweep_values(config) -> None:
+    """Before a sweep starts, compose and check the config of each of its runs: a value Hydra cannot parse or
+    compose and a value that breaks a setting's rule alike refuse the whole sweep in one line naming the run's
+    values, before any run starts or any folder is made. Only Hydra's basic sweeper (the workbench's) is expanded
+    here; another sweeper chooses its values as it goes."""
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from workbench.settings.config import config_error_line
+    from workbench.settings.typed import study_settings
+
+    if not str(config.hydra.sweeper.get("_target_", "")).endswith(".BasicSweeper"):
+        return
+    params = config.hydra.sweeper.get("params") or {}
+    arguments = [f"{key}={value}" for key, value in params.items()] + as_typed(config.hydra.overrides.task)
+    loader = GlobalHydra.instance().config_loader()
+    try:
+        parsed = OverridesParser.create(config_loader=loader).parse_overrides(arguments)
+        swept = {override.get_key_element() for override in parsed if override.is_sweep_override()}
+        jobs = [job for batch in BasicSweeper.split_arguments(parsed, None) for job in batch]
+    except Exception as error:  # noqa: BLE001 - Hydra's own refusal, as one line
+        _refuse_sweep(config_error_line(error))
+    for job in jobs:
+        values = " ".join(override for override in job if override.split("=", 1)[0] in swept) or " ".join(job)
+        try:
+            study_settings(loader.load_sweep_config(master_config=config, sweep_overrides=list(job)), job)
+        except Exception as error:  # noqa: BLE001 - one line for any refusal
+            message = str(error) if isinstance(error, WorkbenchError) else config_error_line(error)
+            _refuse_sweep(f"the sweep's run {values} is refused: {message}")
+
+
+def _refuse_sweep(message: str) -> None:
+    """End the process with a sweep's refusal (exit 2): no run of it started."""
+    exit_on_error(
+        "workbench", WorkbenchError(f"{message}; no run of the sweep started: fix the value and run it again")
+    )
 
 
 def as_typed(overrides) -> list[str]:
