@@ -141,13 +141,14 @@ def reproduced_sentence(results: Sequence, cfg: Mapping, comparisons: Mapping[st
     str
         One line (empty when no variant has H, QE and PCA).
     """
+    from workbench.reporting.report_data import headline_column
     from workbench.stats.statistics import comparison_lookup
 
     metric, paper = cfg.get("metric") or {}, cfg["paper"]
     normalisation = metric.get("headline_normalisation", "absolute")
     aggregate = metric.get("headline_aggregate", "mean")
     field = HEADLINE_COLUMNS.get((normalisation, aggregate), "absolute_mean")
-    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
+    column = headline_column(cfg)
     trained = [result for result in results if result.protocol == "training frames"]
     chosen = [r for r in trained if r.eigenfaces.n_components_ == len(r.capture.hand_names)] or trained[:1]
     reported = paper["alpha"]
