@@ -320,6 +320,19 @@ def records_copy(swept, tmp_path):
     return target
 
 
+def interruptible(command: list[str], cwd) -> subprocess.Popen:
+    """``command`` started with SIGINT at its default action, whatever the test process has it set to."""
+    return subprocess.Popen(
+        command,
+        cwd=cwd,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+
+
 def stored_runs(database):
     """Every run row of a SQLite store, deleted ones too: (record tag, '' for a sweep run; status; stage)."""
     with sqlite3.connect(database) as connection:
@@ -364,15 +377,7 @@ def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record
         store.mkdir()
         shutil.copy(tmp_path / "empty" / "mlflow.db", store / "mlflow.db")
         command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
-        process = subprocess.Popen(
-            command,
-            cwd=tmp_path,
-            env=ENV,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-        )
+        process = interruptible(command, tmp_path)
         deadline = time.monotonic() + 300
         while process.poll() is None and time.monotonic() < deadline:  # until the first run row exists
             if (store / "mlflow.db").is_file():
@@ -595,15 +600,7 @@ def test_ctrl_c_while_a_new_store_is_set_up_leaves_one_the_same_command_complete
     for trial, delay in enumerate((0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.3, 1.6)):
         store = tmp_path / f"store{trial}"
         command = [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(store)]
-        process = subprocess.Popen(
-            command,
-            cwd=tmp_path,
-            env=ENV,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-        )
+        process = interruptible(command, tmp_path)
         deadline = time.monotonic() + 300
         while process.poll() is None and not (store / "mlflow.db.lock").exists() and time.monotonic() < deadline:
             time.sleep(0.005)
