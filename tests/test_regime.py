@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 
 from workbench.api import run_study
-from workbench.reporting.findings import beside_regime_text
 from workbench.reporting.run_text import study_header
+from workbench.reporting.summary import beside_regime_text
 from workbench.settings.config import compose
 from workbench.study.regime import paper_regime_fit
 
@@ -85,7 +85,8 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     import json
 
     from workbench.api import run
-    from workbench.reporting.findings import run_findings, run_summary
+    from workbench.reporting.findings import run_findings
+    from workbench.reporting.summary import run_summary
 
     text = run(compose("paper", [*SMALL, "solver=lstsq"]), tmp_path)
     lines = text.splitlines()
@@ -96,8 +97,10 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert list(metrics["data"]) == ["markers m=n", "markers"]
     summary = run_summary(table, "alpha_abs_mean", metrics)
-    assert "On markers m=n (m = 18 eigenfaces, n = 18 hand shapes: the paper's regime (m = n))" in summary
-    assert "QE's basis: condition number " in summary and "Beside it, the coverage rule on markers (m = " in summary
+    assert "On markers m=n (m = 18, n = 18: the paper's regime m = n, coverage 0.99" in summary
+    assert "QE better than H: " in summary and "QE within the paper's 1.16 of PCA: " in summary
+    assert "H condition number " in summary and "; QE condition number " in summary
+    assert "Beside it, the coverage rule on markers (m = " in summary and len(summary.split()) <= 200
     lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {}, metrics)
     assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
     assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1

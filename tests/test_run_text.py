@@ -1,5 +1,5 @@
-"""What a run prints first: one sentence on the paper's claims, decided by the paired comparison and the paper's
-QE/PCA ratio, and text that fits in 120 columns unless ``--wide`` is asked for."""
+"""What a run prints first: one sentence on the paper's two claims, each decided by the interval of its ratio, and
+text that fits in 120 columns unless ``--wide`` is asked for."""
 
 from types import SimpleNamespace
 
@@ -11,50 +11,57 @@ from workbench.reporting.run_text import PRINT_WIDTH, fit_width, reproduced_sent
 PAPER = {"paper": {"alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, "metric": {}}
 
 
-def result(data, m, alphas, protocol="training frames", n=18):
+def result(data, m, protocol="training frames", n=18, rank=18):
     rows = [
-        SimpleNamespace(basis=basis, solver=solver, alpha=SimpleNamespace(absolute_mean=alphas.get(basis, 1.0)))
+        SimpleNamespace(
+            basis=basis, solver=solver, n_shapes=n, conditioning=SimpleNamespace(as_dict=lambda: {"rank": rank})
+        )
         for basis, solver in (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
     ]
     return SimpleNamespace(
         data=data,
         protocol=protocol,
         rows=rows,
-        eigenfaces=SimpleNamespace(n_components_=m),
-        capture=SimpleNamespace(hand_names=("shape",) * n),
+        train_on=data,
+        eval_on=data,
+        eigenfaces=SimpleNamespace(n_components_=m, method_="covariance"),
+        capture=SimpleNamespace(hand_names=("shape",) * n, notes=()),
     )
 
 
-def qe_minus_h(low, high):
-    return {"a": ["QE", "lstsq"], "b": ["H", "lstsq"], "estimate": (low + high) / 2, "low": low, "high": high}
+def ratios(h_over_qe, qe_over_pca):
+    return {
+        name: {"estimate": sum(bounds) / 2, "low": bounds[0], "high": bounds[1], "null": 1.0}
+        for name, bounds in (("H/QE", h_over_qe), ("QE/PCA", qe_over_pca))
+    }
 
 
 @pytest.mark.parametrize(
-    "interval, verdict",
+    "h_over_qe, first, qe_over_pca, second",
     [
-        ((-0.2, -0.1), "reproduced"),
-        ((-0.2, 0.1), "not decided (not distinguishable)"),
-        ((0.1, 0.2), "not reproduced (H is better)"),
+        ((1.5, 2.5), "reproduced (H/QE 2 [1.5, 2.5]; the paper's 7.2 above it)", (1.0, 1.1), "reproduced"),
+        ((0.9, 3.1), "not decided (H/QE 2 [0.9, 3.1]; the paper's 7.2 above it)", (1.1, 1.3), "not decided"),
+        ((0.5, 0.9), "not reproduced (H/QE 0.7 [0.5, 0.9]; the paper's 7.2 above it)", (1.2, 1.4), "not reproduced"),
+        ((5.0, 9.0), "reproduced (H/QE 7 [5, 9]; the paper's 7.2 inside it)", (1.2, 1.4), "not reproduced"),
     ],
 )
-def test_qe_better_than_h_is_decided_by_the_paired_interval(interval, verdict):
-    results = [result("markers m=n", 18, {"H": 0.4, "QE": 0.2, "PCA": 0.1}), result("markers", 13, {})]
-    sentence = reproduced_sentence(results, PAPER, {"markers m=n": [qe_minus_h(*interval)]})
-    assert sentence == (
-        f"The paper's claims, on markers m=n (m = 18, lstsq, alpha_abs_mean): QE better than H: {verdict} (H/QE 2, "
-        "paper 7.2); QE close to PCA: QE/PCA 2, paper 1.16 (a point value, no interval: not decided)."
+def test_each_claim_is_decided_by_the_interval_of_its_ratio(h_over_qe, first, qe_over_pca, second):
+    results = [result("markers m=n", 18), result("markers", 13)]
+    sentence = reproduced_sentence(results, PAPER, {"markers m=n": ratios(h_over_qe, qe_over_pca)})
+    assert sentence.startswith(
+        f"The paper's claims, on markers m=n (m = 18, lstsq, alpha_abs_mean): QE better than H: {first}; "
+        f"QE within the paper's 1.16 of PCA: {second} (QE/PCA "
     )
 
 
-def test_qe_close_to_pca_is_stated_without_a_verdict_and_other_variants_are_left_out():
-    close = result("markers m=n", 18, {"H": 0.4, "QE": 0.115, "PCA": 0.1})
-    held_out = result("markers held-out tail", 18, {"H": 9, "QE": 9, "PCA": 9}, protocol="held-out tail of each take")
-    sentence = reproduced_sentence([close, result("markers", 13, {}), held_out], PAPER, {})
-    assert sentence.endswith("QE/PCA 1.15, paper 1.16 (a point value, no interval: not decided).")
-    assert "held-out" not in sentence
-    assert "QE better than H: not decided" in sentence  # no comparison stored: nothing is claimed
-    # without a variant at m = n, the first one scored on its training frames
-    assert "on markers (m = 13," in reproduced_sentence([result("markers", 13, {"H": 1, "QE": 1, "PCA": 1})], PAPER, {})
+def test_qe_within_pca_by_construction_is_not_tested_and_held_out_variants_are_left_out():
+    held_out = result("markers held-out tail", 18, protocol="held-out tail of each take")
+    found = {"markers": ratios((1.5, 2.5), (0.9, 0.95)), "markers held-out tail": ratios((9, 10), (9, 10))}
+    # no variant at m = n: the first one scored on its training frames; QE's rank 14 = m + 1 spans PCA's subspace
+    sentence = reproduced_sentence([result("markers", 13, rank=14), held_out], PAPER, found)
+    assert "on markers (m = 13," in sentence and "held-out" not in sentence
+    assert sentence.endswith("QE within the paper's 1.16 of PCA: QE <= PCA by construction.")
+    assert reproduced_sentence([result("markers", 13)], PAPER, {}) == ""
 
 
 def test_long_lines_are_wrapped_and_tables_are_not():

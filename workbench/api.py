@@ -514,6 +514,7 @@ def run(
     from workbench.study.run import run_study
     from workbench.study.summary import (
         alpha_per_frame_arrays,
+        claim_ratios,
         frame_comparisons,
         results_metrics,
         saved_inputs,
@@ -549,14 +550,15 @@ def run(
     )
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
-    sentence = reproduced_sentence(results, plain, comparisons)
+        ratios = {result.data: claim_ratios(result, plain["metric"]) for result in results}
+    sentence = reproduced_sentence(results, plain, ratios)
     opening = fit_width(sentence) + "\n" if sentence else ""
     header = study_header(results, plain)
     closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(
-        results_metrics(results, table, comparisons),
+        results_metrics(results, table, comparisons, ratios),
         study=plain["study"],
         resolved_yaml=resolved_yaml,
         overrides=overrides,

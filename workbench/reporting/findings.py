@@ -30,7 +30,7 @@ from workbench.stats.statistics import (
     short_interval_text,
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
-from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime, paper_regime_name
+from workbench.study.regime import is_paper_regime, paper_regime_name
 
 PAPER_BASES = ("H", "QE", "PCA")
 RUN_BASES = ("H", "QE", "QE-linear", "PCA")
@@ -637,13 +637,14 @@ def adjusted_comparisons(metrics: Mapping) -> dict:
     }
 
     def untested(data: str, entry: Mapping) -> bool:
-        """A primary contrast (its own 95 %) or an identity (no test at all): outside Holm's family."""
+        """A primary contrast (its own 95 %), an identity or a tie (no test at all): outside Holm's family."""
         a, b = tuple(entry["a"]), tuple(entry["b"])
         lookup = identity_lookup(identities[data], entry.get("column", ""))
         return (
             (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS)
             or lookup(a, b) is not None
             or lookup(b, a) is not None
+            or Interval.from_dict(entry).tied
         )
 
     return holm_adjusted(stored, untested) if any(stored.values()) else {}
@@ -713,117 +714,6 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}
 
 
-PAPER_RATIOS = {"H/QE": 5.2 / 0.72, "QE/PCA": 0.72 / 0.62}
-"""The paper's ratios, from its absolute alpha (H 5.2, QE 0.72, PCA 0.62 %)."""
-
-
-def _claim(compare, identity, a: tuple, b: tuple) -> tuple[str, int]:
-    """How the data speak on ``a`` against ``b``: the text and the sign (-1: a smaller, +1: larger, 0: not
-    decided; an identity counts as -1 with its reason)."""
-    found = identity(a, b) if identity else None
-    if found is not None:
-        return f"{a[0]} <= {b[0]} by construction ({found.reason})", -1
-    interval = compare(a, b) if compare else None
-    if interval is None:
-        return f"no paired interval for {a[0]} - {b[0]}", 0
-    return short_interval_text(interval, f"{a[0]} - {b[0]}", SIGNED), interval.sign
-
-
-def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
-    """The summary a report opens with (at most about 200 words): the paper's claim, whether these data reproduce
-    it and in which regime, the effect sizes in mm and as ratios with the paired intervals of the alpha
-    differences, and the caveat that matters most. Pages put it above the findings.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        The run's alpha table.
-    column : str
-        The headline alpha column.
-    metrics : mapping
-        The run's ``metrics.json``.
-
-    Returns
-    -------
-    str
-        Empty when the lead data variant lacks H, QE or PCA with least squares.
-    """
-    data = primary_data(metrics) or (table["data"].iloc[0] if len(table) else None)
-    part = table[table["data"] == data]
-    values = {basis: _alpha(part, basis, "lstsq", column) for basis in PAPER_BASES}
-    if not len(part) or any(math.isnan(value) for value in values.values()):
-        return ""
-    facts = (metrics.get("data") or {}).get(data) or {}
-    rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
-    adjusted = adjusted_comparisons(metrics).get(data)
-    compare = comparison_lookup(adjusted) if adjusted else None
-    identity = identity_lookup(run_identities(rows, facts), column)
-    m, n = int(part["m"].iloc[0]), int(part.loc[part["basis"] == "H", "n"].iloc[0])
-    regime = (
-        "the paper's regime (m = n)" if m == n else f"not the paper's regime m = n (run basis.n_components={n} for it)"
-    )
-    hq, hq_sign = _claim(compare, None, ("QE", "lstsq"), ("H", "lstsq"))
-    qp, qp_sign = _claim(compare, identity, ("QE", "lstsq"), ("PCA", "projection"))
-    first = {-1: "reproduced", 1: "reversed", 0: "not decided"}[hq_sign]
-    mm = {basis: _alpha(part, basis, "lstsq", "err_mm_median") for basis in PAPER_BASES}
-    sizes = (
-        ", ".join(f"{basis} {value:.3g}" for basis, value in mm.items()) + " mm median per-frame error; "
-        if not any(math.isnan(value) for value in mm.values())
-        else ""
-    )
-    caveats = caveat_texts(metrics)
-    lead = caveats[0] if caveats else "one run's frames are the only replicate here"
-    if m + 1 <= n and qp_sign == -1 and identity(("QE", "lstsq"), ("PCA", "projection")) is not None:
-        lead = f"with m + 1 <= n QE cannot lose to PCA, so only the size of QE/PCA is evidence; {lead}"
-    return (
-        f"Kim & Ko report quasi-eigen faces (QE) nearly as accurate as PCA and far better than the "
-        f"hand basis H (H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}, at m = n = 18). "
-        f"On {data} (m = {m} eigenfaces, n = {n} hand shapes: {regime}), with least squares, `{column}`: "
-        f"H/QE {values['H'] / values['QE']:.3g} ({hq}), QE/PCA {values['QE'] / values['PCA']:.3g} ({qp}); "
-        f"{sizes}QE better than H: {first}.{conditioning_text(part, rows)}{beside_regime_text(table, data, column)}"
-        f" Caveat: {lead}."
-    )
-
-
-def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
-    """The summary's clause on how well QE determines its weights: condition number (or rank) and the largest |w|
-    with least squares (an animator cannot use weights of thousands); empty when not recorded."""
-    found = next(
-        (
-            row.get("basis_conditioning")
-            for row in rows
-            if row.get("basis") == "QE" and row.get("solver") == "lstsq" and row.get("basis_conditioning")
-        ),
-        None,
-    )
-    largest = _alpha(part, "QE", "lstsq", "w_max_abs")
-    if not found or math.isnan(largest):
-        return ""
-    cond = (
-        f"rank {found['rank']} of {found['n_shapes']}"
-        if found["rank"] < found["n_shapes"]
-        else f"condition number {found['condition_number']:.3g}"
-    )
-    return f" QE's basis: {cond}, largest lstsq |w| {largest:.3g}."
-
-
-def beside_regime_text(table: pd.DataFrame, data: str, column: str) -> str:
-    """The summary's sentence on the coverage rule's run beside the paper's regime: its m, H/QE and QE/PCA with
-    least squares (empty unless ``data`` is an m = n variant of ``basis.paper_regime`` whose coverage-rule variant
-    is in the table)."""
-    if not is_paper_regime(data):
-        return ""
-    base = data[: -len(PAPER_REGIME_SUFFIX) - 1]
-    part = table[table["data"] == base]
-    values = {basis: _alpha(part, basis, "lstsq", column) for basis in PAPER_BASES}
-    if not len(part) or any(math.isnan(value) for value in values.values()):
-        return ""
-    return (
-        f" Beside it, the coverage rule on {base} (m = {int(part['m'].iloc[0])}): H/QE "
-        f"{values['H'] / values['QE']:.3g}, QE/PCA {values['QE'] / values['PCA']:.3g}."
-    )
-
-
 def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:
     """The run's paired comparisons as the report's table 'Paired comparisons within the run', with what decides
     each verdict: an identity (``a <= b by construction``, no test), a tie (``a = b``), or the interval, at its
@@ -840,7 +730,7 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
     -------
     pandas.DataFrame
         One row per comparison: ``data``, ``a``, ``b``, ``a - b``, ``ci95_low``, ``ci95_high``, ``p``,
-        ``p (Holm)`` (NaN for a primary contrast), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
+        ``p (Holm)`` (NaN for a primary contrast; both NaN for an identity or a tie, which are not tested), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
     """
     records = []
     for data, entries in adjusted_comparisons(metrics).items():
@@ -851,8 +741,9 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
             interval = Interval.from_dict(entry)
             a, b = tuple(entry["a"]), tuple(entry["b"])
             lookup = identity_lookup(identities, column or entry.get("column", ""))
-            if lookup(a, b) is not None or lookup(b, a) is not None:
-                found = lookup(a, b) or lookup(b, a)
+            found = lookup(a, b) or lookup(b, a)
+            tested = found is None and not interval.tied
+            if found is not None:
                 verdict = f"{'a <= b' if lookup(a, b) else 'b <= a'} by construction ({found.reason})"
             elif interval.tied:
                 verdict = "a = b (within the tie tolerance)"
@@ -866,8 +757,8 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                     "a - b": interval.estimate,
                     "ci95_low": interval.low,
                     "ci95_high": interval.high,
-                    "p": interval.p_value,
-                    "p (Holm)": interval.p_adjusted,
+                    "p": interval.p_value if tested else math.nan,
+                    "p (Holm)": interval.p_adjusted if tested else math.nan,
                     "frames": interval.n,
                     "batch (frames)": interval.block_frames,
                     "batch (s)": interval.block_seconds,

@@ -108,7 +108,8 @@ def run_sections(
     faces: "FacesBlock | None" = None,
     sides: LeftRight | None = None,
 ) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import run_findings, run_summary
+    from workbench.reporting.findings import run_findings
+    from workbench.reporting.summary import run_summary
 
     column = headline_column(record.config)
     title = f"Study '{record.config['study']}' on the {dataset_label(record)}"

@@ -118,57 +118,50 @@ def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
     return "\n".join(lines)
 
 
-def reproduced_sentence(results: Sequence, cfg: Mapping, comparisons: Mapping[str, Sequence[Mapping]]) -> str:
-    """One sentence on the paper's two claims, first in what a run prints: QE reconstructs better than H
-    (reproduced when the paired per-frame interval of QE - H lies below 0, not reproduced when above, not decided
-    when it holds 0); and QE/PCA beside the paper's 1.16, without a verdict: a ratio is a point value until it has an
-    interval of its own, and two point values do not decide a claim.
+def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Mapping]) -> str:
+    """One sentence on the paper's two claims, first in what a run prints, each decided by the interval of its
+    ratio (:func:`workbench.reporting.summary.claims_text`): QE better than H (H/QE above 1) and QE within the
+    paper's 1.16 of PCA (QE/PCA at most 1.16).
 
     Taken on the variants at the paper's regime m = n scored on their training frames (those of
-    ``basis.paper_regime``), else on the first variant scored on its training frames, with least squares (else the
-    first solver) and the headline alpha (``metric.headline_*``).
+    ``basis.paper_regime``), else on the first variant scored on its training frames, with least squares and the
+    headline alpha (``metric.headline_*``).
 
     Parameters
     ----------
     results : sequence of workbench.study.results.StudyResult
     cfg : mapping
-        The resolved study config (``metric``, ``paper``).
-    comparisons : mapping
-        Data variant -> its paired comparisons (:func:`workbench.study.summary.frame_comparisons`).
+        The resolved study config (``metric``).
+    ratios : mapping
+        Data variant -> its claims' ratios (:func:`workbench.study.summary.claim_ratios`).
 
     Returns
     -------
     str
-        One line (empty when no variant has H, QE and PCA).
+        One line (empty when no chosen variant has both ratios).
     """
     from workbench.reporting.report_data import headline_column
-    from workbench.stats.statistics import comparison_lookup
+    from workbench.reporting.summary import claims_text
 
-    metric, paper = cfg.get("metric") or {}, cfg["paper"]
-    normalisation = metric.get("headline_normalisation", "absolute")
-    aggregate = metric.get("headline_aggregate", "mean")
-    field = HEADLINE_COLUMNS.get((normalisation, aggregate), "absolute_mean")
     column = headline_column(cfg)
     trained = [result for result in results if result.protocol == "training frames"]
     chosen = [r for r in trained if r.eigenfaces.n_components_ == len(r.capture.hand_names)] or trained[:1]
-    reported = paper["alpha"]
-    paper_ratio = reported["QE"] / reported["PCA"]
+    identities = result_identities(chosen)
     parts = []
     for result in chosen:
-        rows = {(row.basis, row.solver): row for row in result.rows}
-        solvers = [row.solver for row in result.rows if row.basis == "QE" and row.solver != "projection"]
-        solver = "lstsq" if "lstsq" in solvers else solvers[0] if solvers else None
-        found = [rows.get(key) for key in (("QE", solver), ("H", solver), ("PCA", "projection"))]
-        if None in found:
+        found = ratios.get(result.data) or {}
+        if not found:
             continue
-        qe, h, pca = (getattr(row.alpha, field) for row in found)
-        interval = comparison_lookup(comparisons.get(result.data, []))(("QE", solver), ("H", solver))
-        sign = interval.sign if interval is not None else 0
-        better = {-1: "reproduced", 1: "not reproduced (H is better)", 0: "not decided (not distinguishable)"}[sign]
+        spans = next(
+            (
+                item.reason
+                for item in identities[result.data]
+                if (item.smaller, item.larger) == (("QE", "lstsq"), ("PCA", "projection"))
+            ),
+            None,
+        )
         parts.append(
-            f"on {result.data} (m = {result.eigenfaces.n_components_}, {solver}, {column}): QE better than H: "
-            f"{better} (H/QE {h / qe:.3g}, paper {reported['H'] / reported['QE']:.2g}); QE close to PCA: QE/PCA "
-            f"{qe / pca:.3g}, paper {paper_ratio:.3g} (a point value, no interval: not decided)"
+            f"on {result.data} (m = {result.eigenfaces.n_components_}, lstsq, {column}): {claims_text(found, spans)}"
         )
     return f"The paper's claims, {'; '.join(parts)}." if parts else ""
 

@@ -9,7 +9,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.numerics.intuitiveness import intuitiveness
-from workbench.stats.statistics import paired_mean_difference, paired_pooled_difference
+from workbench.stats.ratios import ratio_of_means, ratio_of_pooled
+from workbench.stats.statistics import paired_mean_difference, paired_pooled_difference, paired_ratio_interval
 from workbench.study.results import StudyResult
 
 
@@ -119,6 +120,54 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
     return found
 
 
+CLAIM_ROWS = {"H/QE": (("H", "lstsq"), ("QE", "lstsq")), "QE/PCA": (("QE", "lstsq"), ("PCA", "projection"))}
+"""The paper's two claims as ratios of two rows (basis, solver): QE far better than H, QE nearly as accurate as PCA."""
+
+
+def claim_ratios(result, metric: Mapping) -> dict:
+    """``H/QE`` and ``QE/PCA`` (least squares) of a result in the run's headline alpha, each with its interval: over
+    the folds for a cross-validated variant (paired t on log ratios, pooled alpha), else batch means over the
+    evaluated frames (:mod:`workbench.stats.ratios`).
+
+    Parameters
+    ----------
+    result : StudyResult
+    metric : mapping
+        The ``metric`` config group: the headline's normalisation and aggregate.
+
+    Returns
+    -------
+    dict
+        ``H/QE`` and ``QE/PCA`` -> ``column`` and the :class:`Interval`'s fields; a claim whose rows the result
+        lacks is left out.
+    """
+    normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
+    index = {(row.basis, row.solver): i for i, row in enumerate(result.rows)}
+    found = {}
+    for claim, (a, b) in CLAIM_ROWS.items():
+        if a not in index or b not in index:
+            continue
+        first, second = result.rows[index[a]].alpha, result.rows[index[b]].alpha
+        if result.folds:
+            column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_pooled"
+            fold_rows = [(basis, solver) for basis, _, solver in result.folds["rows"]]
+            values = result.folds[column]
+            interval = paired_ratio_interval(values[fold_rows.index(a)], values[fold_rows.index(b)])
+        else:
+            column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
+            timeline = result.capture.timeline()
+            where = {"takes": np.unique(timeline.take, return_inverse=True)[1], "seconds": timeline.seconds}
+            interval = (
+                ratio_of_means(
+                    getattr(first, f"{normalisation}_per_frame"), getattr(second, f"{normalisation}_per_frame"), **where
+                )
+                if aggregate == "mean"
+                else ratio_of_pooled(first.error_sq, second.error_sq, **where)
+            )
+        found[claim] = {"column": column, **interval.as_dict()}
+    return found
+
+
 def data_metrics(result) -> dict:
     """The part of ``metrics.json`` about one data variant: frames, points, spectrum, empty axes, intuitiveness."""
     capture, eigenfaces = result.capture, result.eigenfaces
@@ -126,6 +175,7 @@ def data_metrics(result) -> dict:
         "n_points": capture.n_points,
         "n_train_frames": len(capture.train),
         "n_eval_frames": len(capture.eval),
+        "n_eval_takes": int(np.unique(result.capture.timeline().take).size),
         "notes": list(capture.notes),
         "face_region": result.face_region,
         "offset": dict(result.offset),
@@ -180,7 +230,12 @@ def input_arrays(result) -> dict:
     }
 
 
-def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[str, list] | None = None) -> dict:
+def results_metrics(
+    results: Sequence[StudyResult],
+    table,
+    comparisons: Mapping[str, list] | None = None,
+    ratios: Mapping[str, dict] | None = None,
+) -> dict:
     """What a run found, as ``metrics.json`` keeps it: ``dataset`` (the first variant's capture), ``data`` (each
     data variant's :func:`data_metrics` and its comparisons) and ``rows`` (every table row with its solver
     diagnostics).
@@ -193,6 +248,8 @@ def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[
         The run's alpha table (``workbench.study.table.alpha_table`` of every result, concatenated).
     comparisons : mapping, optional
         Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
+    ratios : mapping, optional
+        Data variant -> its :func:`claim_ratios`, kept as ``data.<variant>.ratios``.
 
     Returns
     -------
@@ -210,7 +267,11 @@ def results_metrics(results: Sequence[StudyResult], table, comparisons: Mapping[
             "provenance": capture.provenance,
         },
         "data": {
-            result.data: dict(data_metrics(result), comparisons=(comparisons or {}).get(result.data, []))
+            result.data: dict(
+                data_metrics(result),
+                comparisons=(comparisons or {}).get(result.data, []),
+                ratios=(ratios or {}).get(result.data, {}),
+            )
             for result in results
         },
         "rows": [

@@ -1,0 +1,134 @@
+"""The paper's two claims as ratios: ``H/QE`` and ``QE/PCA`` of one run's alphas, each with its interval, and how
+each compares with the ratio Kim & Ko report.
+
+Within a run the ratio of two rows' alphas on the same frames gets the batch-means interval over time of
+:func:`workbench.stats.statistics.batch_means_interval` (delta method: the ratio of two means, or of two pooled
+alphas, linearised at the means). Across replicates (folds, seeds) the ratios get the paired t-interval on log
+ratios (:func:`workbench.stats.statistics.paired_ratio_interval`). A ratio's null value is 1; no p-value is
+computed, because the claims are read against the paper's ratios, not against 1 alone (:func:`claim_verdict`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Sequence
+
+import numpy as np
+
+from workbench.core.errors import WorkbenchError
+from workbench.stats.statistics import CONFIDENCE, Interval, batch_means_interval
+
+
+def _ratio(interval: Interval) -> Interval:
+    return replace(interval, null=1.0, p_value=math.nan, scale=math.nan)
+
+
+def ratio_of_means(
+    a: np.ndarray,
+    b: np.ndarray,
+    *,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+) -> Interval:
+    """``mean(a) / mean(b)`` of two rows' per-frame alphas on the same frames, with its batch-means interval.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (n_frames,)
+        Frames where either is NaN are left out of both means.
+    takes, seconds, confidence
+        As :func:`workbench.stats.statistics.batch_means_interval`.
+
+    Returns
+    -------
+    Interval
+        Null 1, no p-value.
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.ndim != 1 or a.shape != b.shape:
+        raise WorkbenchError(f"a ratio of means needs two 1-D arrays of one length, got {a.shape} and {b.shape}")
+    valid = np.isfinite(a) & np.isfinite(b)
+    if not valid.any() or not np.any(b[valid]):
+        raise WorkbenchError("a ratio of means needs frames where both values are defined and the second is not 0")
+    series = np.vstack([np.where(valid, a, 0.0), np.where(valid, b, 0.0)])
+    return _ratio(
+        batch_means_interval(series, lambda m: m[0] / m[1], takes=takes, seconds=seconds, confidence=confidence)
+    )
+
+
+def ratio_of_pooled(
+    error_a: np.ndarray,
+    error_b: np.ndarray,
+    *,
+    takes: Sequence | None = None,
+    seconds: Sequence | None = None,
+    confidence: float = CONFIDENCE,
+) -> Interval:
+    """The ratio of two pooled alphas of the same frames, ``sqrt(sum |err_a|^2 / sum |err_b|^2)`` (the reference
+    of eq. 6 cancels), with its batch-means interval.
+
+    Parameters
+    ----------
+    error_a, error_b : ndarray of shape (n_frames,)
+        Per-frame squared errors of the two reconstructions.
+    takes, seconds, confidence
+        As :func:`workbench.stats.statistics.batch_means_interval`.
+
+    Returns
+    -------
+    Interval
+        Null 1, no p-value.
+    """
+    error_a, error_b = np.asarray(error_a, dtype=float), np.asarray(error_b, dtype=float)
+    if error_a.ndim != 1 or error_a.shape != error_b.shape or not np.any(error_b):
+        raise WorkbenchError(
+            f"a ratio of pooled alphas needs two 1-D arrays of squared errors of one length, the second not all 0, "
+            f"got shapes {error_a.shape} and {error_b.shape}"
+        )
+    return _ratio(
+        batch_means_interval(
+            np.vstack([error_a, error_b]),
+            lambda m: math.sqrt(max(m[0], 0.0) / m[1]),
+            takes=takes,
+            seconds=seconds,
+            confidence=confidence,
+        )
+    )
+
+
+REPRODUCED, NOT_REPRODUCED, NOT_DECIDED = "reproduced", "not reproduced", "not decided"
+
+
+def claim_verdict(interval: Interval, threshold: float, above: bool) -> str:
+    """Whether a ratio's interval reproduces a claim that it lies above (``above``) or at most at ``threshold``.
+
+    Parameters
+    ----------
+    interval : Interval
+    threshold : float
+        1 for "QE better than H" (H/QE above 1); the paper's 1.16 for "QE nearly as accurate as PCA" (QE/PCA at
+        most 1.16).
+    above : bool
+
+    Returns
+    -------
+    str
+        :data:`REPRODUCED` when the whole interval lies on the claimed side, :data:`NOT_REPRODUCED` when it lies
+        wholly on the other, :data:`NOT_DECIDED` otherwise (or without bounds).
+    """
+    if not interval.defined:
+        return NOT_DECIDED
+    if (interval.low > threshold) if above else (interval.high <= threshold):
+        return REPRODUCED
+    if (interval.high <= threshold) if above else (interval.low > threshold):
+        return NOT_REPRODUCED
+    return NOT_DECIDED
+
+
+def where_lies(value: float, interval: Interval) -> str:
+    """``inside``, ``above`` or ``below`` the interval: where a paper's value lies relative to a measured one."""
+    if not interval.defined or interval.low <= value <= interval.high:
+        return "inside" if interval.defined else "beside"
+    return "above" if value > interval.high else "below"
