@@ -625,6 +625,31 @@ def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_sh
             assert where.is_relative_to(page.parent) or where == root / "shared" / "fig1_analogy.svg", (page, target)
 
 
+def _markdown_rows(section: str) -> list[dict]:
+    """The rows of the first Markdown table of a section, as column -> cell."""
+    lines = [line for line in section.splitlines() if line.startswith("|")]
+    header = [cell.strip() for cell in lines[0].strip("|").split("|")]
+    return [dict(zip(header, (cell.strip() for cell in line.strip("|").split("|")))) for line in lines[2:]]
+
+
+def test_committed_reports_open_with_both_claims_and_test_no_identity():
+    root = REPO_ROOT / "reports"
+    readmes = {page.parent.name: page.read_text() for page in root.glob("*/README.md") if page.parent.name != "shared"}
+    if not readmes:
+        pytest.skip("no committed reference reports")
+    for name, readme in readmes.items():
+        summary = section_text("## Summary", readme).split("\n### ")[0]
+        assert "QE better than H: " in summary and "of PCA: " in summary, name
+        assert len(summary.split()) - 2 <= 200, name  # the heading's two words aside
+        tables = [heading for heading in re.findall(r"^## (.*)$", readme, re.M) if "comparisons" in heading.lower()]
+        assert len(tables) == 1, (name, tables)  # one comparison table, one Holm family
+        rows = _markdown_rows(section_text(f"## {tables[0]}", readme + "\n## end"))
+        p_columns = [column for column in rows[0] if column.startswith("p")]
+        for row in rows:
+            if "by construction" in " ".join(row.values()) or row.get("verdict", "").startswith("a = b"):
+                assert all(row[column] in ("-", "") for column in p_columns), (name, row)
+
+
 # The committed report of the bases study and the runs it was built from (five takes, seeds 0 to 4, each with its
 # own start of ICA and NMF; the last 20 % of every take held out beside the training frames).
 BASES_REFERENCE = ["dataset.n_frames=4000", "dataset.held_out=tail"]

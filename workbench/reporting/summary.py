@@ -26,6 +26,9 @@ from workbench.stats.ratios import claim_verdict, where_lies
 from workbench.stats.statistics import Interval
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
+SUMMARY_WORDS = 200
+"""The summary's length limit in words."""
+
 PAPER_RATIOS = {"H/QE": 5.2 / 0.72, "QE/PCA": 0.72 / 0.62}
 """The paper's ratios, from its absolute alpha (H 5.2, QE 0.72, PCA 0.62 %)."""
 
@@ -84,8 +87,21 @@ def design_text(facts: Mapping) -> str:
         batches = f"batches of {interval.block_frames} frames" + (
             f", {degrees:g} degrees of freedom" if math.isfinite(degrees) else ""
         )
-        text += f", {batches} (batch means over time; frames are not independent)"
-    return text
+        text += f", {batches} (batch means over time)"
+    takes_said = interval_by_take(facts)
+    return text + (f"; {takes_said}" if takes_said else "")
+
+
+def interval_by_take(facts: Mapping) -> str:
+    """What each take says on its own about H/QE (its ratio and the share of frames where H's alpha exceeds QE's),
+    when the record has several takes: few takes make few batches, and this is what the interval cannot show."""
+    per_take = ((facts.get("ratios") or {}).get("H/QE") or {}).get("per_take") or {}
+    if len(per_take) < 2:
+        return ""
+    ratios = ", ".join(f"{value['ratio']:.3g}" for value in per_take.values())
+    low, high = (100 * f(value["share_above"] for value in per_take.values()) for f in (min, max))
+    shares = f"{low:.0f} %" if round(low) == round(high) else f"{low:.0f}-{high:.0f} %"
+    return f"H/QE per take {ratios}, H worse than QE on {shares} of each take's frames"
 
 
 def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
@@ -196,4 +212,6 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         f"Intervals (95 %) rest on {design_text(facts)}." if design_text(facts) else "",
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
+    if len(" ".join(sentences).split()) > SUMMARY_WORDS:  # the coverage rule's sentence is the one to spare
+        sentences[3] = ""
     return " ".join(sentence for sentence in sentences if sentence)

@@ -165,6 +165,35 @@ def claim_ratios(result, metric: Mapping) -> dict:
                 else ratio_of_pooled(first.error_sq, second.error_sq, **where)
             )
         found[claim] = {"column": column, **interval.as_dict()}
+        if not result.folds and aggregate == "mean":
+            found[claim]["per_take"] = take_ratios(
+                getattr(first, f"{normalisation}_per_frame"),
+                getattr(second, f"{normalisation}_per_frame"),
+                result.capture.timeline().take,
+            )
+    return found
+
+
+def take_ratios(a: np.ndarray, b: np.ndarray, takes: np.ndarray) -> dict:
+    """Take -> ``mean(a) / mean(b)`` over its frames (both defined), and the share of its frames where ``a > b``:
+    what each take says on its own when the takes are few. Empty for a single take.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (n_frames,)
+    takes : ndarray of shape (n_frames,)
+    """
+    names = list(dict.fromkeys(np.asarray(takes).tolist()))
+    if len(names) < 2:
+        return {}
+    found = {}
+    for name in names:
+        where = (np.asarray(takes) == name) & np.isfinite(a) & np.isfinite(b)
+        if where.any() and np.any(b[where]):
+            found[str(name)] = {
+                "ratio": float(a[where].mean() / b[where].mean()),
+                "share_above": float(np.mean(a[where] > b[where])),
+            }
     return found
 
 
