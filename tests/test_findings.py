@@ -836,9 +836,9 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
             {
                 "data": "markers",
                 "contrast": "QE - PCA",
-                "estimate": float("nan"),
-                "low": float("nan"),
-                "high": float("nan"),
+                "estimate": -0.0094,
+                "low": -0.0153,
+                "high": -0.0036,
                 "identity": "by construction",
             },
         ]
@@ -852,7 +852,12 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
     assert sorted(
         round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars
     ) == pytest.approx([1.5] * 6)
-    assert any(text.get_text() == "<= 0 by construction" for text in right.texts)
+    # the identity is drawn at its measured size with its interval, as a diamond named so, not at 0
+    assert any(text.get_text() == "by construction" for text in right.texts)
+    diamonds = [line for line in right.lines if line.get_marker() == "D" and len(line.get_xdata())]
+    assert len(diamonds) == 1 and float(diamonds[0].get_xdata()[0]) == pytest.approx(-0.0094, abs=1e-12)
+    spans = [segment[:, 0] for collection in right.collections for segment in collection.get_segments()]
+    assert any(span.min() == pytest.approx(-0.0153) and span.max() == pytest.approx(-0.0036) for span in spans)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     renderer = FigureCanvasAgg(figure).get_renderer()
@@ -874,3 +879,41 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
     for i, (first, a) in enumerate(boxes):
         for second, b in boxes[i + 1 :]:
             assert not a.overlaps(b), (first, second)
+
+
+def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown():
+    from types import SimpleNamespace
+
+    from workbench.reporting.report_bases import basis_intuitiveness_rows, usage_weights_text
+    from workbench.reporting.report_run import weights_labels
+
+    rows = [
+        {"data": "markers", "basis": basis, "solver": solver, "basis_conditioning": {"rank": rank, "n_shapes": 18}}
+        for basis, rank in (("H", 18), ("QE", 11))
+        for solver in ("lstsq", "nnls")
+    ]
+    table = pd.DataFrame(
+        [{"data": row["data"], "basis": row["basis"], "solver": row["solver"], "alpha_abs_mean": 0.5} for row in rows]
+    )
+    intuitiveness = {
+        "bases": [
+            {"basis": basis, "n": 18, "matched_abs_cosine": 0.7, "locality": 0.1, "usage": {"lstsq": 5.0, "nnls": 4.0}}
+            for basis in ("H", "QE")
+        ]
+    }
+    record = SimpleNamespace(
+        config={"metric": {}, "solver": {"lstsq": {}, "nnls": {}}},
+        metrics={"rows": rows, "data": {"markers": {"basis_intuitiveness": intuitiveness}}},
+        table=table,
+        rows=lambda: [dict(row) for row in rows],
+    )
+    # the run report's weights table: least-squares weights of the rank-deficient QE only
+    assert weights_labels(record) == ["-", "-", "minimum-norm, rank 11 of 18", "-"]
+    # the bases report's usage, per run and over runs whose ranks differ
+    per_run = basis_intuitiveness_rows(record)
+    assert list(per_run["usage_weights"]) == ["-", "minimum-norm, rank 11 of 18"]
+    assert usage_weights_text(pd.Series(["minimum-norm, rank 11 of 18"] * 2)) == "minimum-norm, rank 11 of 18"
+    assert usage_weights_text(pd.Series(["-", "-"])) == "-"
+    assert usage_weights_text(pd.Series(["minimum-norm, rank 10 of 18", "minimum-norm, rank 11 of 18"])) == (
+        "minimum-norm, rank 10 of 18 (1 of 2 runs); minimum-norm, rank 11 of 18 (1 of 2 runs)"
+    )

@@ -10,7 +10,7 @@ import pandas as pd
 
 from workbench.record.record import RunRecord
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column
-from workbench.reporting.report_figures import make_figures
+from workbench.reporting.report_figures import make_figures, minimum_norm_text
 from workbench.reporting.report_sections import Section, range_column
 from workbench.reporting.runs import interval_label, level_statistics, paired_comparisons
 from workbench.stats.statistics import GEOMETRIC
@@ -25,11 +25,13 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``data``, ``basis``, ``n``, the headline alpha column and :data:`INTUITIVENESS_COLUMNS`; empty
-        when the run scored no other bases.
+        Columns ``data``, ``basis``, ``n``, the headline alpha column, :data:`INTUITIVENESS_COLUMNS` and
+        ``usage_weights`` (``minimum-norm, rank r of n`` where the usage counts least-squares weights of a
+        rank-deficient basis, else ``-``); empty when the run scored no other bases.
     """
     column = headline_column(record.config)
     solver, _ = figure_solver(record.config)
+    conditioning = {(row["data"], row["basis"], row["solver"]): row for row in record.rows()}
     rows = []
     for data, values in record.metrics["data"].items():
         table = record.table[record.table["data"] == data]
@@ -44,6 +46,7 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
                     "matched_abs_cosine": entry["matched_abs_cosine"],
                     "locality": entry["locality"],
                     "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan)),
+                    "usage_weights": minimum_norm_text(conditioning.get((data, entry["basis"], solver)) or {}) or "-",
                 }
             )
     return pd.DataFrame.from_records(rows)
@@ -78,8 +81,34 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd
                     f"{column}_ci_high": statistics["ci95_high"],
                 }
             )
+        if "usage_weights" in group.columns:
+            row["usage_weights"] = usage_weights_text(group["usage_weights"])
         records.append(row)
     return pd.DataFrame.from_records(records)
+
+
+def usage_weights_text(labels: pd.Series) -> str:
+    """The runs' distinct minimum-norm labels of one basis (``-`` when every run's weights are unique), with how
+    many runs each holds for when they differ."""
+    counts = labels[labels != "-"].value_counts(sort=False)
+    if counts.empty:
+        return "-"
+    if len(counts) == 1 and counts.iloc[0] == len(labels):
+        return str(counts.index[0])
+    return "; ".join(f"{label} ({count} of {len(labels)} runs)" for label, count in counts.sort_index().items())
+
+
+def minimum_norm_note(summary: pd.DataFrame, solver: str) -> str:
+    """The caption's words on the bases whose usage counts minimum-norm weights, or empty."""
+    if "usage_weights" not in summary.columns:
+        return ""
+    labelled = summary[summary["usage_weights"] != "-"]
+    named = list(
+        dict.fromkeys(f"{basis} ({text})" for basis, text in zip(labelled["basis"], labelled["usage_weights"]))
+    )
+    if not named:
+        return ""
+    return f" Usage with {solver} weights that are minimum-norm, not unique: {', '.join(named)}."
 
 
 def with_bases_section(
@@ -125,6 +154,7 @@ def with_bases_section(
         f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
         f"shapes, its locality and its usage"
         + (f", geometric means over runs; error bars: {note}." if several else ".")
+        + minimum_norm_note(summary, solver)
     )
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
     entry = make_figures(
@@ -151,6 +181,7 @@ def with_bases_section(
             column,
             *([f"{column}_ci_low", f"{column}_ci_high"] if several else []),
             *INTUITIVENESS_COLUMNS,
+            *(["usage_weights"] if "usage_weights" in summary.columns else []),
         ]
     ]
     shown.insert(2, "n", range_column(summary, "n"))
@@ -175,7 +206,9 @@ def with_bases_section(
                 f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
                 "element's squared displacement, mean over elements (small: local).",
                 f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
-                f"largest, mean over the evaluated frames (weights of solver {solver}).",
+                f"largest, mean over the evaluated frames (weights of solver {solver}); `usage_weights`: "
+                "'minimum-norm, rank r of n' where those are least-squares weights of a basis whose n shapes have "
+                "rank r < n (many weight vectors give its error; the usage is that of the shortest, not of the basis).",
             ],
             shown,
             f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
