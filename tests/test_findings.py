@@ -1,5 +1,7 @@
 """The findings text is produced from the numbers: checked on a constructed alpha table with known answers."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -230,8 +232,8 @@ def test_held_out_frames_beside_the_training_frames_and_the_caveats_of_the_data(
     assert held_lines[0].endswith("; held out / training frames: H x1.5, QE x1.5, QE-linear x1.5, PCA x1.5.")
     assert lines[-2:] == [
         "**caveat**: the capture is a noise-free linear blend of 3 ICT FaceKit shapes, 2 of the 3 hand shapes among "
-        "them: H is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which flatters "
-        "both against a real capture.",
+        "them: H, and QE made from H's shapes, are scored on motion built from H's own shapes, and PCA on a blend of "
+        "fixed shapes, which flatters all three against a real capture.",
         "**caveat**: mesh is scored on the training frames (split 'same', the paper's protocol): PCA and QE are "
         "fitted to the frames they reconstruct; the held-out variants are not.",
     ]
@@ -917,3 +919,30 @@ def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown(
     assert usage_weights_text(pd.Series(["minimum-norm, rank 10 of 18", "minimum-norm, rank 11 of 18"])) == (
         "minimum-norm, rank 10 of 18 (1 of 2 runs); minimum-norm, rank 11 of 18 (1 of 2 runs)"
     )
+
+
+def test_caveats_say_that_h_and_qe_are_both_built_from_the_hand_shapes_the_data_are_made_of():
+    from workbench.reporting.findings import caveat_texts
+
+    synthetic = caveat_texts({"dataset": {"provenance": {"kind": "synthetic"}}})[0]
+    assert "H and QE are both scored on motion built from H's own shapes" in synthetic
+    ict = caveat_texts({"dataset": {"hand_names": ["jawOpen"], "provenance": {"kind": "ict_livelink"}}})[0]
+    assert "H, and QE made from H's shapes, are scored on motion built from H's own shapes" in ict
+
+
+def test_the_glossary_the_reports_point_to_defines_every_term_they_use():
+    from pathlib import Path
+
+    from workbench.reporting.report_sections import GLOSSARY_NOTE
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "reports.md").read_text(encoding="utf-8")
+    assert "docs/reports.md" in GLOSSARY_NOTE and "glossary" in GLOSSARY_NOTE
+    glossary = text.split("\n## Glossary\n", 1)[1].split("\n## ", 1)[0]
+    defined = {term.lower() for term in re.findall(r"\*\*([^*]+)\*\*", glossary)}
+    terms = [
+        "H", "PCA", "QE", "QE-linear", "m", "n", "m = n, the paper's regime", "coverage, the coverage rule",
+        "(I - P) mu", "alpha", "median", "Hoyer sparsity", "roughness (1/s^4)", "minimum-norm weights",
+        "condition number", 'identity, "by construction"', "Eckart-Young", "batch means", "primary contrast",
+        "Holm adjustment", "tie tolerance", "held-out tail", "blocked k-fold", "leave-one-take-out", "noise floor",
+    ]  # fmt: skip
+    assert [term for term in terms if term.lower() not in defined] == []

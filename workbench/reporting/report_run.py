@@ -26,6 +26,7 @@ from workbench.reporting.report_figures import (
     minimum_norm_text,
 )
 from workbench.reporting.report_sections import (
+    GLOSSARY_NOTE,
     Section,
     choices_rows,
     headline_table,
@@ -159,7 +160,10 @@ def run_sections(
         Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
         provenance_section(record.metrics),
         versions_section(record.metrics, report_versions()),
-        Section("About this report", [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`."]),
+        Section(
+            "About this report",
+            [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`. {GLOSSARY_NOTE}"],
+        ),
     ]
     return title, sections
 
