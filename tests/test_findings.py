@@ -913,11 +913,14 @@ def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown(
     assert weights_labels(record) == ["-", "-", "minimum-norm, rank 11 of 18", "-"]
     # the bases report's usage, per run and over runs whose ranks differ
     per_run = basis_intuitiveness_rows(record)
-    assert list(per_run["usage_weights"]) == ["-", "minimum-norm, rank 11 of 18"]
-    assert usage_weights_text(pd.Series(["minimum-norm, rank 11 of 18"] * 2)) == "minimum-norm, rank 11 of 18"
-    assert usage_weights_text(pd.Series(["-", "-"])) == "-"
-    assert usage_weights_text(pd.Series(["minimum-norm, rank 10 of 18", "minimum-norm, rank 11 of 18"])) == (
-        "minimum-norm, rank 10 of 18 (1 of 2 runs); minimum-norm, rank 11 of 18 (1 of 2 runs)"
+    assert per_run["usage_rank"].tolist() == pytest.approx([float("nan"), 11], nan_ok=True)
+    assert usage_weights_text(per_run["usage_rank"][1:], per_run["usage_n_shapes"][1:]) == "minimum-norm, rank 11 of 18"
+    nan = float("nan")
+    assert usage_weights_text(pd.Series([nan, nan]), pd.Series([nan, nan])) == "-"
+    assert usage_weights_text(pd.Series([6.0, 17.0, 7.0]), pd.Series([18.0] * 3)) == "minimum-norm, rank 6-17 of 18"
+    assert (
+        usage_weights_text(pd.Series([nan, 11.0]), pd.Series([nan, 18.0]))
+        == "minimum-norm, rank 11 of 18 in 1 of 2 runs"
     )
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import pandas as pd
 
@@ -26,8 +26,8 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
     -------
     pandas.DataFrame
         Columns ``data``, ``basis``, ``n``, the headline alpha column, :data:`INTUITIVENESS_COLUMNS` and
-        ``usage_weights`` (``minimum-norm, rank r of n`` where the usage counts least-squares weights of a
-        rank-deficient basis, else ``-``); empty when the run scored no other bases.
+        ``usage_rank`` and ``usage_n_shapes`` (the basis's rank and size where the usage counts the minimum-norm
+        least-squares weights of a rank-deficient basis, else NaN); empty when the run scored no other bases.
     """
     column = headline_column(record.config)
     solver, _ = figure_solver(record.config)
@@ -46,7 +46,7 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
                     "matched_abs_cosine": entry["matched_abs_cosine"],
                     "locality": entry["locality"],
                     "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan)),
-                    "usage_weights": minimum_norm_text(conditioning.get((data, entry["basis"], solver)) or {}) or "-",
+                    **usage_rank(conditioning.get((data, entry["basis"], solver)) or {}),
                 }
             )
     return pd.DataFrame.from_records(rows)
@@ -81,21 +81,30 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd
                     f"{column}_ci_high": statistics["ci95_high"],
                 }
             )
-        if "usage_weights" in group.columns:
-            row["usage_weights"] = usage_weights_text(group["usage_weights"])
+        if "usage_rank" in group.columns:
+            row["usage_weights"] = usage_weights_text(group["usage_rank"], group["usage_n_shapes"])
         records.append(row)
     return pd.DataFrame.from_records(records)
 
 
-def usage_weights_text(labels: pd.Series) -> str:
-    """The runs' distinct minimum-norm labels of one basis (``-`` when every run's weights are unique), with how
-    many runs each holds for when they differ."""
-    counts = labels[labels != "-"].value_counts(sort=False)
-    if counts.empty:
+def usage_rank(row: Mapping) -> dict:
+    """``usage_rank`` and ``usage_n_shapes`` of a ``metrics.json`` row whose weights are the minimum-norm choice of a
+    rank-deficient basis (:func:`workbench.reporting.report_figures.minimum_norm_text` decides), else NaN."""
+    if not minimum_norm_text(row):
+        return {"usage_rank": math.nan, "usage_n_shapes": math.nan}
+    conditioning = row["basis_conditioning"]
+    return {"usage_rank": conditioning["rank"], "usage_n_shapes": conditioning["n_shapes"]}
+
+
+def usage_weights_text(ranks: pd.Series, sizes: pd.Series) -> str:
+    """``minimum-norm, rank r of n`` over the runs of one basis (``r`` a range where the runs differ, with how many
+    runs when not all are rank-deficient), or ``-`` when every run's weights are unique."""
+    labelled = ranks.notna()
+    if not labelled.any():
         return "-"
-    if len(counts) == 1 and counts.iloc[0] == len(labels):
-        return str(counts.index[0])
-    return "; ".join(f"{label} ({count} of {len(labels)} runs)" for label, count in counts.sort_index().items())
+    low, high, size = int(ranks[labelled].min()), int(ranks[labelled].max()), int(sizes[labelled].max())
+    text = f"minimum-norm, rank {low if low == high else f'{low}-{high}'} of {size}"
+    return text if labelled.all() else f"{text} in {int(labelled.sum())} of {len(ranks)} runs"
 
 
 def minimum_norm_note(summary: pd.DataFrame, solver: str) -> str:
