@@ -120,6 +120,22 @@ def minimum_norm_note(summary: pd.DataFrame, solver: str) -> str:
     return f" Usage with {solver} weights that are minimum-norm, not unique: {', '.join(named)}."
 
 
+def measure_notes(settings: Mapping, solver: str) -> list[str]:
+    """What the bases table's closeness, locality and usage columns mean, with the settings they were measured
+    with (``basis_intuitiveness`` of ``metrics.json``)."""
+    energy, threshold = settings["locality_energy"], settings["usage_threshold"]
+    return [
+        "`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
+        "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
+        f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
+        "element's squared displacement, mean over elements (small: local).",
+        f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
+        f"largest, mean over the evaluated frames (weights of solver {solver}); `usage_weights`: "
+        "'minimum-norm, rank r of n' where those are least-squares weights of a basis whose n shapes have "
+        "rank r < n (many weight vectors give its error; the usage is that of the shortest, not of the basis).",
+    ]
+
+
 def with_bases_section(
     sections: list, records: Sequence[RunRecord], figures_dir: Path, formats: Sequence[str], ordering: bool = True
 ) -> list:
@@ -209,16 +225,7 @@ def with_bases_section(
             f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
             "projection), "
             + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several else "one run."),
-            [
-                "`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
-                "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
-                f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
-                "element's squared displacement, mean over elements (small: local).",
-                f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
-                f"largest, mean over the evaluated frames (weights of solver {solver}); `usage_weights`: "
-                "'minimum-norm, rank r of n' where those are least-squares weights of a basis whose n shapes have "
-                "rank r < n (many weight vectors give its error; the usage is that of the shortest, not of the basis).",
-            ],
+            measure_notes(settings, solver),
             shown,
             f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
             f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "
