@@ -645,3 +645,16 @@ def test_view_data_decode_to_the_frames_and_reconstructions():
     np.testing.assert_array_equal(unpack(payload["faces"], "<u2").reshape(-1, 3), faces)
     assert payload["displacement"]["beyond"] and not payload["error"]["beyond"]
     assert len(payload["error"]["colours"]) == 6 * 64 and unpack(payload["weight"], np.uint8)[-1] == 255
+
+
+def test_weight_statistics_mark_minimum_norm_weights_of_a_rank_deficient_basis():
+    from workbench.reporting.figures.distributions import plot_weight_statistics
+
+    labels = {"markers": {"QE": "minimum-norm, rank 11 of 18"}}
+    figure = plot_weight_statistics(weight_statistics_example(), title="weights", minimum_norm=labels)
+    markers, mesh = figure.axes[0], figure.axes[4]
+    assert [tick.get_text() for tick in markers.get_xticklabels()] == ["H", "QE*", "QE-linear"]
+    assert [tick.get_text() for tick in mesh.get_xticklabels()] == ["H", "QE", "QE-linear"]
+    notes = [text.get_text() for text in markers.texts if text.get_text().startswith("*")]
+    assert notes == ["* lstsq weights:\nQE minimum-norm, rank 11 of 18"]
+    assert not any(text.get_text().startswith("*") for text in mesh.texts)

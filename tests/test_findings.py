@@ -1,5 +1,7 @@
 """The findings text is produced from the numbers: checked on a constructed alpha table with known answers."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -230,8 +232,8 @@ def test_held_out_frames_beside_the_training_frames_and_the_caveats_of_the_data(
     assert held_lines[0].endswith("; held out / training frames: H x1.5, QE x1.5, QE-linear x1.5, PCA x1.5.")
     assert lines[-2:] == [
         "**caveat**: the capture is a noise-free linear blend of 3 ICT FaceKit shapes, 2 of the 3 hand shapes among "
-        "them: H is scored on motion built from its own shapes and PCA on a blend of fixed shapes, which flatters "
-        "both against a real capture.",
+        "them: H, and QE made from H's shapes, are scored on motion built from H's own shapes, and PCA on a blend of "
+        "fixed shapes, which flatters all three against a real capture.",
         "**caveat**: mesh is scored on the training frames (split 'same', the paper's protocol): PCA and QE are "
         "fitted to the frames they reconstruct; the held-out variants are not.",
     ]
@@ -853,9 +855,9 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
             {
                 "data": "markers",
                 "contrast": "QE - PCA",
-                "estimate": float("nan"),
-                "low": float("nan"),
-                "high": float("nan"),
+                "estimate": -0.0094,
+                "low": -0.0153,
+                "high": -0.0036,
                 "identity": "by construction",
             },
         ]
@@ -869,7 +871,12 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
     assert sorted(
         round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars
     ) == pytest.approx([1.5] * 6)
-    assert any(text.get_text() == "<= 0 by construction" for text in right.texts)
+    # the identity is drawn at its measured size with its interval, as a diamond named so, not at 0
+    assert any(text.get_text() == "by construction" for text in right.texts)
+    diamonds = [line for line in right.lines if line.get_marker() == "D" and len(line.get_xdata())]
+    assert len(diamonds) == 1 and float(diamonds[0].get_xdata()[0]) == pytest.approx(-0.0094, abs=1e-12)
+    spans = [segment[:, 0] for collection in right.collections for segment in collection.get_segments()]
+    assert any(span.min() == pytest.approx(-0.0153) and span.max() == pytest.approx(-0.0036) for span in spans)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     renderer = FigureCanvasAgg(figure).get_renderer()
@@ -934,3 +941,71 @@ def test_identities_of_qe_linear_carried_bases_ica_and_h_fit():
     )
     assert carried(("QE", "lstsq"), ("QE-linear", "lstsq")) is not None
     assert carried(("ICA", "lstsq"), ("PCA", "projection")) is None
+
+
+def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown():
+    from types import SimpleNamespace
+
+    from workbench.reporting.report_bases import basis_intuitiveness_rows, usage_weights_text
+    from workbench.reporting.report_run import weights_labels
+
+    rows = [
+        {"data": "markers", "basis": basis, "solver": solver, "basis_conditioning": {"rank": rank, "n_shapes": 18}}
+        for basis, rank in (("H", 18), ("QE", 11))
+        for solver in ("lstsq", "nnls")
+    ]
+    table = pd.DataFrame(
+        [{"data": row["data"], "basis": row["basis"], "solver": row["solver"], "alpha_abs_mean": 0.5} for row in rows]
+    )
+    intuitiveness = {
+        "bases": [
+            {"basis": basis, "n": 18, "matched_abs_cosine": 0.7, "locality": 0.1, "usage": {"lstsq": 5.0, "nnls": 4.0}}
+            for basis in ("H", "QE")
+        ]
+    }
+    record = SimpleNamespace(
+        config={"metric": {}, "solver": {"lstsq": {}, "nnls": {}}},
+        metrics={"rows": rows, "data": {"markers": {"basis_intuitiveness": intuitiveness}}},
+        table=table,
+        rows=lambda: [dict(row) for row in rows],
+    )
+    # the run report's weights table: least-squares weights of the rank-deficient QE only
+    assert weights_labels(record) == ["-", "-", "minimum-norm, rank 11 of 18", "-"]
+    # the bases report's usage, per run and over runs whose ranks differ
+    per_run = basis_intuitiveness_rows(record)
+    assert per_run["usage_rank"].tolist() == pytest.approx([float("nan"), 11], nan_ok=True)
+    assert usage_weights_text(per_run["usage_rank"][1:], per_run["usage_n_shapes"][1:]) == "minimum-norm, rank 11 of 18"
+    nan = float("nan")
+    assert usage_weights_text(pd.Series([nan, nan]), pd.Series([nan, nan])) == "-"
+    assert usage_weights_text(pd.Series([6.0, 17.0, 7.0]), pd.Series([18.0] * 3)) == "minimum-norm, rank 6-17 of 18"
+    assert (
+        usage_weights_text(pd.Series([nan, 11.0]), pd.Series([nan, 18.0]))
+        == "minimum-norm, rank 11 of 18 in 1 of 2 runs"
+    )
+
+
+def test_caveats_say_that_h_and_qe_are_both_built_from_the_hand_shapes_the_data_are_made_of():
+    from workbench.reporting.findings import caveat_texts
+
+    synthetic = caveat_texts({"dataset": {"provenance": {"kind": "synthetic"}}})[0]
+    assert "H and QE are both scored on motion built from H's own shapes" in synthetic
+    ict = caveat_texts({"dataset": {"hand_names": ["jawOpen"], "provenance": {"kind": "ict_livelink"}}})[0]
+    assert "H, and QE made from H's shapes, are scored on motion built from H's own shapes" in ict
+
+
+def test_the_glossary_the_reports_point_to_defines_every_term_they_use():
+    from pathlib import Path
+
+    from workbench.reporting.report_sections import GLOSSARY_NOTE
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "reports.md").read_text(encoding="utf-8")
+    assert "docs/reports.md" in GLOSSARY_NOTE and "glossary" in GLOSSARY_NOTE
+    glossary = text.split("\n## Glossary\n", 1)[1].split("\n## ", 1)[0]
+    defined = {term.lower() for term in re.findall(r"\*\*([^*]+)\*\*", glossary)}
+    terms = [
+        "H", "PCA", "QE", "QE-linear", "m", "n", "m = n, the paper's regime", "coverage, the coverage rule",
+        "(I - P) mu", "alpha", "median", "Hoyer sparsity", "roughness (1/s^4)", "minimum-norm weights",
+        "condition number", 'identity, "by construction"', "Eckart-Young", "batch means", "primary contrast",
+        "Holm adjustment", "tie tolerance", "held-out tail", "blocked k-fold", "leave-one-take-out", "noise floor",
+    ]  # fmt: skip
+    assert [term for term in terms if term.lower() not in defined] == []

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import pandas as pd
 
 from workbench.record.record import RunRecord
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column
-from workbench.reporting.report_figures import make_figures
+from workbench.reporting.report_figures import make_figures, minimum_norm_text
 from workbench.reporting.report_sections import Section, range_column
 from workbench.reporting.runs import interval_label, level_statistics, paired_comparisons
 from workbench.stats.statistics import GEOMETRIC
@@ -25,11 +25,13 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``data``, ``basis``, ``n``, the headline alpha column and :data:`INTUITIVENESS_COLUMNS`; empty
-        when the run scored no other bases.
+        Columns ``data``, ``basis``, ``n``, the headline alpha column, :data:`INTUITIVENESS_COLUMNS` and
+        ``usage_rank`` and ``usage_n_shapes`` (the basis's rank and size where the usage counts the minimum-norm
+        least-squares weights of a rank-deficient basis, else NaN); empty when the run scored no other bases.
     """
     column = headline_column(record.config)
     solver, _ = figure_solver(record.config)
+    conditioning = {(row["data"], row["basis"], row["solver"]): row for row in record.rows()}
     rows = []
     for data, values in record.metrics["data"].items():
         table = record.table[record.table["data"] == data]
@@ -44,6 +46,7 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
                     "matched_abs_cosine": entry["matched_abs_cosine"],
                     "locality": entry["locality"],
                     "usage": entry["usage"].get(solver, entry["usage"].get("projection", math.nan)),
+                    **usage_rank(conditioning.get((data, entry["basis"], solver)) or {}),
                 }
             )
     return pd.DataFrame.from_records(rows)
@@ -78,8 +81,59 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd
                     f"{column}_ci_high": statistics["ci95_high"],
                 }
             )
+        if "usage_rank" in group.columns:
+            row["usage_weights"] = usage_weights_text(group["usage_rank"], group["usage_n_shapes"])
         records.append(row)
     return pd.DataFrame.from_records(records)
+
+
+def usage_rank(row: Mapping) -> dict:
+    """``usage_rank`` and ``usage_n_shapes`` of a ``metrics.json`` row whose weights are the minimum-norm choice of a
+    rank-deficient basis (:func:`workbench.reporting.report_figures.minimum_norm_text` decides), else NaN."""
+    if not minimum_norm_text(row):
+        return {"usage_rank": math.nan, "usage_n_shapes": math.nan}
+    conditioning = row["basis_conditioning"]
+    return {"usage_rank": conditioning["rank"], "usage_n_shapes": conditioning["n_shapes"]}
+
+
+def usage_weights_text(ranks: pd.Series, sizes: pd.Series) -> str:
+    """``minimum-norm, rank r of n`` over the runs of one basis (``r`` a range where the runs differ, with how many
+    runs when not all are rank-deficient), or ``-`` when every run's weights are unique."""
+    labelled = ranks.notna()
+    if not labelled.any():
+        return "-"
+    low, high, size = int(ranks[labelled].min()), int(ranks[labelled].max()), int(sizes[labelled].max())
+    text = f"minimum-norm, rank {low if low == high else f'{low}-{high}'} of {size}"
+    return text if labelled.all() else f"{text} in {int(labelled.sum())} of {len(ranks)} runs"
+
+
+def minimum_norm_note(summary: pd.DataFrame, solver: str) -> str:
+    """The caption's words on the bases whose usage counts minimum-norm weights, or empty."""
+    if "usage_weights" not in summary.columns:
+        return ""
+    labelled = summary[summary["usage_weights"] != "-"]
+    named = list(
+        dict.fromkeys(f"{basis} ({text})" for basis, text in zip(labelled["basis"], labelled["usage_weights"]))
+    )
+    if not named:
+        return ""
+    return f" Usage with {solver} weights that are minimum-norm, not unique: {', '.join(named)}."
+
+
+def measure_notes(settings: Mapping, solver: str) -> list[str]:
+    """What the bases table's closeness, locality and usage columns mean, with the settings they were measured
+    with (``basis_intuitiveness`` of ``metrics.json``)."""
+    energy, threshold = settings["locality_energy"], settings["usage_threshold"]
+    return [
+        "`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
+        "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
+        f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
+        "element's squared displacement, mean over elements (small: local).",
+        f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
+        f"largest, mean over the evaluated frames (weights of solver {solver}); `usage_weights`: "
+        "'minimum-norm, rank r of n' where those are least-squares weights of a basis whose n shapes have "
+        "rank r < n (many weight vectors give its error; the usage is that of the shortest, not of the basis).",
+    ]
 
 
 def with_bases_section(
@@ -125,6 +179,7 @@ def with_bases_section(
         f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
         f"shapes, its locality and its usage"
         + (f", geometric means over runs; error bars: {note}." if several else ".")
+        + minimum_norm_note(summary, solver)
     )
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
     entry = make_figures(
@@ -151,6 +206,7 @@ def with_bases_section(
             column,
             *([f"{column}_ci_low", f"{column}_ci_high"] if several else []),
             *INTUITIVENESS_COLUMNS,
+            *(["usage_weights"] if "usage_weights" in summary.columns else []),
         ]
     ]
     shown.insert(2, "n", range_column(summary, "n"))
@@ -169,14 +225,7 @@ def with_bases_section(
             f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
             "projection), "
             + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several else "one run."),
-            [
-                "`matched_abs_cosine`: the elements matched one-to-one to the hand shapes by the Hungarian method on "
-                "|cosine|, the mean |cosine| of the matched pairs (1: each element is a hand shape up to scale).",
-                f"`locality`: the fraction of the face's area ({settings['point_weights']}) holding {energy * 100:g} % of an "
-                "element's squared displacement, mean over elements (small: local).",
-                f"`usage`: elements whose contribution |w_i| |e_i| to a frame exceeds {threshold:g} of the frame's "
-                f"largest, mean over the evaluated frames (weights of solver {solver}).",
-            ],
+            measure_notes(settings, solver),
             shown,
             f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
             f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "

@@ -308,18 +308,31 @@ def draw_error_cdf(record: RunRecord, cache: dict | None = None):
     )
 
 
+def minimum_norm_text(row: Mapping) -> str:
+    """``minimum-norm, rank r of n`` for a ``metrics.json`` row whose least-squares weights are the minimum-norm
+    choice of a rank-deficient basis (:func:`workbench.reporting.findings.minimum_norm_label`), else empty."""
+    from workbench.reporting.findings import minimum_norm_label
+
+    return minimum_norm_label(row, row.get("solver", "")).strip().removeprefix("(").removesuffix(")")
+
+
 def draw_weight_statistics(record: RunRecord, cache: dict | None = None):
     """Range, bounds, sparsity and roughness of every basis's weights under every solver, from the record."""
     from workbench.reporting.figures.distributions import plot_weight_statistics
 
-    statistics = {}
+    statistics, minimum_norm = {}, {}
     for row in record.rows():
         if row.get("weights"):
             statistics.setdefault(row["data"], {})[(row["basis"], row["solver"])] = row["weights"]
+            label = minimum_norm_text(row)
+            if label:
+                minimum_norm.setdefault(row["data"], {})[row["basis"]] = label
     if not statistics:
         return "needs weight statistics in the record (runs made before they were recorded have none)"
     return plot_weight_statistics(
-        statistics, title=f"The weights an animator would get, per basis and solver\n{short_label(record)}"
+        statistics,
+        title=f"The weights an animator would get, per basis and solver\n{short_label(record)}",
+        minimum_norm=minimum_norm,
     )
 
 
@@ -531,7 +544,9 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "Per basis and solver: the largest |w|, the share of frames with a weight outside [0, 1], Hoyer's sparsity "
         "(sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), mean over frames (1: one shape per frame), and the roughness, the "
         "mean squared second time derivative of the weights (1/s^4, second differences over the frames' times within "
-        "each take). PCA's coefficients are no animator's weights and are left out.",
+        "each take). PCA's coefficients are no animator's weights and are left out. A * marks a basis whose n shapes "
+        "have rank r < n on the scored points (the note under its row gives r): its least-squares weights are the "
+        "minimum-norm choice among many with the same error, so their bars describe that choice, not the basis.",
         lambda record, options: draw_weight_statistics(record, options["cache"]),
     ),
     (

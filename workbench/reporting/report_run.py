@@ -17,8 +17,16 @@ from workbench.reporting.page import write_documents
 from workbench.reporting.report_bases import with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_bases, headline_column, qe_label, record_inputs
 from workbench.reporting.report_faces import FacesBlock, build_faces
-from workbench.reporting.report_figures import FIGURE_FORMATS, RUN_FIGURES, FigureEntry, clear_figures, make_figures
+from workbench.reporting.report_figures import (
+    FIGURE_FORMATS,
+    RUN_FIGURES,
+    FigureEntry,
+    clear_figures,
+    make_figures,
+    minimum_norm_text,
+)
 from workbench.reporting.report_sections import (
+    GLOSSARY_NOTE,
     Section,
     choices_rows,
     headline_table,
@@ -153,7 +161,10 @@ def run_sections(
         Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
         provenance_section(record.metrics),
         versions_section(record.metrics, report_versions()),
-        Section("About this report", [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`."]),
+        Section(
+            "About this report",
+            [f"Rebuilt from the run record `{record.folder.name}` only, by `{command}`. {GLOSSARY_NOTE}"],
+        ),
     ]
     return title, sections
 
@@ -178,6 +189,10 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
         for data, values in record.metrics["data"].items()
         if values.get("face_region")
     ]
+    shown = record.table[[*ROW_NAME_COLUMNS, *columns]]
+    labels = weights_labels(record)
+    if any(label != "-" for label in labels):
+        shown = shown.assign(weights=labels)
     return [
         Section(
             "Error in millimetres and the weights",
@@ -187,11 +202,25 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
                 "with a weight below 0 or above 1; `w_sparsity`: Hoyer's sparsity (sqrt(n) - |w|_1/|w|_2) / (sqrt(n) - 1), "
                 "mean over frames (1: one shape per frame, 0: all equal); `w_roughness`: the mean squared second time "
                 "derivative of the weights, 1/s^4, from second differences over the frames' times within each take. PCA's "
-                "coefficients are no animator's weights (`-`). The face region of each data variant:",
+                "coefficients are no animator's weights (`-`). `weights`: 'minimum-norm, rank r of n' where the basis's "
+                "n shapes have rank r < n on the scored points: least squares then has many weight vectors with the "
+                "same error and returns the shortest, so the w_ columns describe that choice, not the basis. The face "
+                "region of each data variant:",
                 regions,
-                record.table[[*ROW_NAME_COLUMNS, *columns]],
+                shown,
             ],
         )
+    ]
+
+
+def weights_labels(record: RunRecord) -> list[str]:
+    """Per alpha-table row, ``minimum-norm, rank r of n`` for least-squares weights of a rank-deficient basis
+    (:func:`workbench.reporting.report_figures.minimum_norm_text`, from the row's ``basis_conditioning`` in
+    ``metrics.json``), else ``-``."""
+    found = {(row["data"], row["basis"], row["solver"]): row for row in record.rows()}
+    return [
+        minimum_norm_text(found.get(key) or {}) or "-"
+        for key in record.table[["data", "basis", "solver"]].itertuples(index=False, name=None)
     ]
 
 

@@ -12,6 +12,12 @@ from typing import Mapping
 import pandas as pd
 
 REPORT_PACKAGES = ("matplotlib", "pyvista", "vtk", "pandas", "numpy")
+GLOSSARY_NOTE = (
+    "The terms this report uses (H, QE, QE-linear, PCA, m = n, the coverage rule, alpha and its variants, "
+    "identities, batch means, Holm's adjustment, ties, minimum-norm weights, held-out frames, ...) are defined in "
+    "the glossary of the workbench's docs/reports.md."
+)
+"""The pointer to the glossary every report's 'About this report' section ends with."""
 
 
 @dataclass

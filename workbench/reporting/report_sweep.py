@@ -23,6 +23,7 @@ from workbench.reporting.report_figures import (
     make_figures,
 )
 from workbench.reporting.report_sections import (
+    GLOSSARY_NOTE,
     Section,
     choices_rows,
     provenance_section,
@@ -229,7 +230,7 @@ def sweep_sections(
                 f"Rebuilt from {len(records)} complete run records under `{root.name}` only, by `{command}`. "
                 f"Swept: {', '.join(swept) or 'nothing but the seed'}; replicates over "
                 f"{replicates or 'nothing (one run each)'}. Levels: geometric means; {interval_label(summary)} (it stays "
-                "positive, as alpha does); m and n are ranges over the runs, never averaged.",
+                f"positive, as alpha does); m and n are ranges over the runs, never averaged. {GLOSSARY_NOTE}",
             ],
         ),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),

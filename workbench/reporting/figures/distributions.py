@@ -7,7 +7,7 @@ is recomputed.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -127,7 +127,29 @@ def bar_text(value: float) -> str:
     return f"{mantissa}e{int(exponent)}" if exponent else text
 
 
-def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, float]]], *, title: str) -> Figure:
+def name_bases(ax, bases: Sequence[str], minimum_norm: Mapping[str, str], note: bool) -> None:
+    """A panel's basis names, ``*`` on those whose least-squares weights are minimum-norm, and (``note``) under it
+    a line per such basis with its rank: narrower than the panel, which the layout would otherwise widen."""
+    ax.set_xticks(np.arange(len(bases)), [f"{b}*" if b in minimum_norm else b for b in bases], fontsize=8)
+    if minimum_norm and note:
+        ax.annotate(
+            "\n".join(["* lstsq weights:", *(f"{b} {text}" for b, text in minimum_norm.items())]),
+            (0.0, 0.0),
+            xycoords="axes fraction",
+            xytext=(0, -22),
+            textcoords="offset points",
+            ha="left",
+            va="top",
+            fontsize=7.5,
+        )
+
+
+def plot_weight_statistics(
+    statistics: Mapping[str, Mapping[tuple, Mapping[str, float]]],
+    *,
+    title: str,
+    minimum_norm: Mapping[str, Mapping[str, str]] | None = None,
+) -> Figure:
     """The weights an animator would get: largest |w|, share of frames outside [0, 1], sparsity and roughness of
     each basis under each solver; one row of four panels per data variant, bars grouped by basis, one bar per
     solver.
@@ -138,6 +160,9 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
         Data variant -> ((basis, solver) -> the weight statistics, ``max_abs``, ``outside_unit_share``,
         ``sparsity``, ``roughness``).
     title : str
+    minimum_norm : mapping, optional
+        Data variant -> (basis -> ``minimum-norm, rank r of n``) for the bases whose least-squares weights are
+        the minimum-norm choice of a rank-deficient basis: their names get a ``*`` and the row a note saying so.
 
     Returns
     -------
@@ -184,7 +209,7 @@ def plot_weight_statistics(statistics: Mapping[str, Mapping[tuple, Mapping[str, 
                 ax.set_yscale("log")
             if field == "max_abs":
                 ax.axhline(1.0, color="#444444", linewidth=0.8, linestyle=":")
-            ax.set_xticks(np.arange(len(bases)), bases, fontsize=8)
+            name_bases(ax, bases, (minimum_norm or {}).get(data) or {}, note=field == WEIGHT_PANELS[0][0])
             if data == variants[0]:
                 ax.set_title(label, fontsize=8.5, loc="left")
             if field == WEIGHT_PANELS[0][0]:

@@ -4,7 +4,9 @@ Left, the headline alpha of H, QE and PCA with least squares (PCA by projection)
 record's lead data variant) and, beside it, with the coverage rule, each level with the 95 % batch-means interval
 of its mean over the frames (:func:`workbench.stats.statistics.batch_means_interval`; mean-of-frames columns only).
 Right, the paper's two claims as paired differences on the same frames, QE - H and QE - PCA, with the intervals
-the report's comparisons table holds; a difference that holds by construction is marked so, not given an interval.
+the report's comparisons table holds; a difference that holds by construction (:mod:`workbench.stats.identities`)
+is drawn at its measured size with its interval too, as a diamond marked "by construction": its sign is no test
+verdict, its size is measured.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ CONTRASTS = ((("QE", "lstsq"), ("H", "lstsq")), (("QE", "lstsq"), ("PCA", "proje
 PER_FRAME = {"alpha_abs_mean": "absolute", "alpha_disp_mean": "displacement"}
 """Headline columns that are means over frames, and the per-frame array (``alpha_per_frame.npz``) behind each."""
 VARIANT_MARKERS = ("o", "s")
+IDENTITY_MARKER = "D"
+"""The marker of a paired difference that holds by construction (drawn at its measured size, not tested)."""
 
 
 def headline_variants(metrics: Mapping) -> list[str]:
@@ -138,7 +142,7 @@ def variant_label(levels: pd.DataFrame, data: str) -> str:
 
 def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, title: str) -> Figure:
     """The two panels: levels with their intervals per basis and variant (log scale), and the paired differences
-    QE - H and QE - PCA with theirs (an identity drawn as a marker without an interval, labelled so)."""
+    QE - H and QE - PCA with theirs (an identity as a diamond at its measured size, labelled so)."""
     figure = new_figure(9.0, 4.2)
     left, right = figure.subplots(1, 2, width_ratios=[1.1, 1.0])
     variants = list(dict.fromkeys(levels["data"]))
@@ -186,34 +190,12 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     for k, data in enumerate(variants):
         part = contrasts[contrasts["data"] == data] if len(contrasts) else contrasts
         for row in part.to_dict("records"):
-            y = names.index(row["contrast"]) - offsets[k]
-            shade = OKABE_ITO["black"]
-            if row["identity"]:
-                right.annotate(
-                    "<= 0 by construction",
-                    (0.0, y),
-                    xytext=(-8, 0),
-                    textcoords="offset points",
-                    ha="right",
-                    va="center",
-                    fontsize=8,
-                    color=shade,
-                )
-                right.plot([0.0], [y], VARIANT_MARKERS[k % 2], color=shade, mfc="white", ms=7, mew=1.5)
-                continue
-            bounds = np.array([[row["estimate"] - row["low"]], [row["high"] - row["estimate"]]])
-            right.errorbar(
-                row["estimate"],
-                y,
-                xerr=None if math.isnan(row["low"]) else bounds,
-                fmt=VARIANT_MARKERS[k % 2],
-                color=shade,
-                mfc=shade if k == 0 else "white",
-                mew=1.5,
-                ms=7,
-                capsize=4,
-                lw=1.5,
-            )
+            draw_contrast(right, row, names.index(row["contrast"]) - offsets[k], k)
+    if len(contrasts) and contrasts["identity"].astype(bool).any():
+        right.plot(
+            [], [], IDENTITY_MARKER, color=OKABE_ITO["black"], mfc="#999999", label="holds by construction, not tested"
+        )
+        right.legend(loc="best", fontsize=8, frameon=False, handletextpad=0.3)
     right.axvline(0.0, color=OKABE_ITO["black"], lw=0.8)
     right.set_yticks(range(len(names)), names)
     right.set_ylim(len(names) - 0.5, -0.5)
@@ -222,6 +204,41 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     right.grid(axis="x", alpha=0.3)
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
+
+
+def draw_contrast(ax, row: Mapping, y: float, k: int) -> None:
+    """One paired difference at its measured estimate with its 95 % interval; one that holds by construction
+    (``row["identity"]``) with a diamond and the words beside it, as an identity has a size too (only when the
+    run stored no interval for it is it named at 0 without a marker)."""
+    shade = OKABE_ITO["black"]
+    measured = not math.isnan(row["estimate"])
+    if row["identity"]:
+        ax.annotate(
+            "by construction" if measured else "<= 0 by construction (not measured)",
+            (row["estimate"] if measured else 0.0, y),
+            # outward from the other variant's marker of the same difference (the lead variant is drawn lower)
+            xytext=(0, -8 if k == 0 else 8),
+            textcoords="offset points",
+            ha="center" if measured else "right",
+            va="top" if k == 0 else "bottom",
+            fontsize=8,
+            color=shade,
+        )
+    if not measured:
+        return
+    bounds = np.array([[row["estimate"] - row["low"]], [row["high"] - row["estimate"]]])
+    ax.errorbar(
+        row["estimate"],
+        y,
+        xerr=None if math.isnan(row["low"]) else bounds,
+        fmt=IDENTITY_MARKER if row["identity"] else VARIANT_MARKERS[k % 2],
+        color=shade,
+        mfc=shade if k == 0 else "white",
+        mew=1.5,
+        ms=7,
+        capsize=4,
+        lw=1.5,
+    )
 
 
 def headline_spec(record, column: str, label: str) -> tuple:
@@ -249,6 +266,8 @@ def headline_spec(record, column: str, label: str) -> tuple:
         "regime m = n when the run has it) and with the coverage rule beside it (open); left: each level with "
         "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only); right: "
         "the paired differences QE - H and QE - PCA on the same frames with their 95 % intervals (the primary "
-        "contrasts; every number in the table 'Paired comparisons within the run')."
+        "contrasts; every number in the table 'Paired comparisons within the run'). A diamond marks a difference "
+        "that holds by construction (an identity such as QE spanning PCA's subspace): drawn at its measured size with "
+        "its interval, its sign is no test verdict."
     )
     return ("headline", "The paper's comparison, with intervals", caption, draw)
