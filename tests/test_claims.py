@@ -25,7 +25,7 @@ def test_claim_one_by_where_the_interval_of_h_over_qe_lies():
     above = claim_verdicts(ratio(2.1, 1.7, 2.6), ratio(0.95, 0.9, 1.0), False)
     assert above.h_over_qe_decision == REPRODUCED
     assert above.h_over_qe == (
-        "QE better than H: reproduced: H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log ratios, n = 5); "
+        "QE better than H: reproduced, H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log ratios, n = 5); "
         "the paper's 7.2 lies above it"
     )
     assert claim_verdicts(ratio(0.8, 0.7, 0.9), ratio(1, 0.9, 1.1), False).h_over_qe_decision == NOT_REPRODUCED
@@ -45,7 +45,7 @@ def test_claim_two_against_the_papers_bound_or_by_construction():
     assert decide(0.9, 1.16).qe_over_pca_decision == REPRODUCED  # at the bound counts
     assert decide(1.17, 1.4).qe_over_pca_decision == NOT_REPRODUCED
     assert decide(1.0, 1.3).qe_over_pca_decision == NOT_DECIDED
-    assert decide(0.9, 1.1).qe_over_pca.startswith("QE nearly as accurate as PCA (QE/PCA <= 1.16): reproduced: QE/PCA")
+    assert decide(0.9, 1.1).qe_over_pca.startswith("QE nearly as accurate as PCA (QE/PCA <= 1.16): reproduced, QE/PCA")
     built = claim_verdicts(ratio(2, 1.5, 3), ratio(0.95, 0.92, 0.97), True)
     assert built.qe_over_pca_decision == BY_CONSTRUCTION
     assert built.qe_over_pca == (

@@ -104,13 +104,13 @@ def claim_verdicts(h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_c
     Returns
     -------
     ClaimVerdicts
-        ``h_over_qe``: ``QE better than H: reproduced: H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log
+        ``h_over_qe``: ``QE better than H: reproduced, H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log
         ratios, n = 5); the paper's 7.2 lies above it``; ``qe_over_pca`` likewise against 1.16; and the two
         decisions (:data:`REPRODUCED`, :data:`NOT_REPRODUCED`, :data:`NOT_DECIDED`, :data:`BY_CONSTRUCTION`).
     """
     first = first_claim(h_over_qe)
     one = (
-        f"{CLAIM_1}: {first}: {ratio_interval_text(h_over_qe, 'H/QE')}; "
+        f"{CLAIM_1}: {first}, {ratio_interval_text(h_over_qe, 'H/QE')}; "
         f"{where_paper_lies(h_over_qe, PAPER_RATIOS['H/QE'])}"
     )
     size = ratio_interval_text(qe_over_pca, "QE/PCA")
@@ -119,5 +119,5 @@ def claim_verdicts(h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_c
         two = f"{CLAIM_2}: {second} (QE <= PCA in every run whatever the data), not tested; its size {size}"
     else:
         second = second_claim(qe_over_pca)
-        two = f"{CLAIM_2}: {second}: {size}"
+        two = f"{CLAIM_2}: {second}, {size}"
     return ClaimVerdicts(one, two, first, second)
