@@ -187,17 +187,24 @@ def test_alpha_table_exact_text(sweep, tmp_path):
     assert written["n_runs"] == 6 and written["n_incomplete"] == 1
     findings = (tmp_path / "out" / "findings.md").read_text().splitlines()
     assert findings[0].startswith(
-        "- **how to read**: levels are geometric means over the replicates; 'A < B': the "
-        "per-replicate ratio A/B (paired t on log ratios, n = 3) is below 1 at 95 %"
+        "- **how to read**: levels: geometric means over the replicates; 'A < B': A/B per replicate (paired t on "
+        "log ratios, n = 3) below 1 by its p_holm < 0.05, Holm within its family: the primary QE/H and QE/PCA "
+        "(`alpha_abs_mean`, lstsq, markers, each condition; 4 rows) or the others (2 rows)"
     )
+    # the four primary contrasts (two per coverage) are one Holm family: QE/H at 0.99 has p 0.0146, its interval
+    # excludes 1, and Holm over the four (0.0146 * 4 = 0.058) leaves it not distinguishable
     assert findings[2] == (
         "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq) `alpha_abs_mean`: PCA (n = 12) 0.182 ~ QE "
-        "0.288 < H 1.5; QE/H 0.192 [0.081, 0.457], QE/PCA 1.59 [0.945, 2.67]."
+        "0.288 ~ H 1.5; QE/H 0.192 [0.081, 0.457], Holm p 0.058, QE/PCA 1.59 [0.945, 2.67], Holm p 0.086."
     )
     # each number of the finding is a cell of the tables written beside it (QE/PCA: PCA/QE's row inverted)
     table = (tmp_path / "out" / "comparisons.md").read_text()
     assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in table
-    assert "|           0.99 | QE    | H      | 3 | 0.1923 |   0.08096 |     0.4567 | <" in table
+    assert (
+        "|           0.99 | QE    | H      | 3 | 0.1923 |   0.08096 |     0.4567 | not distinguishable | 0.01455 | 0.05819 | primary"
+        in table
+    )
+    assert "95 % interval, unadjusted; verdict by Holm" in table
 
 
 def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):

@@ -220,7 +220,6 @@ def sweep_sections(
         for name in [solver, *(other for other in solvers if other != solver)]
         for line in sweep_statements(summary, comparisons, swept, columns, name)
     ]
-    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     sections = [
         Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", findings]),
         Section(
@@ -233,17 +232,7 @@ def sweep_sections(
             ],
         ),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
-        Section(
-            "Paired comparisons",
-            [
-                f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
-                f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
-                "the smaller first; `p`: the p-value of the same test, `p_holm`: Holm's adjustment of it over every row "
-                "but the primary contrasts (QE/H and QE/PCA with lstsq on the first data variant, NaN); 'verdict' '<' "
-                "only where the primary contrast's interval excludes 1, or the other row's p_holm is below 0.05.",
-                compared,
-            ],
-        ),
+        Section("Paired comparisons", [comparisons_caption(comparisons, column), compared]),
         Section("Figures", figures),
         Section("Runs", [runs.astype(str)]),
         Section(
@@ -254,6 +243,25 @@ def sweep_sections(
         versions_section(first.metrics, report_versions()),
     ]
     return title, sections
+
+
+def comparisons_caption(comparisons: pd.DataFrame, column: str) -> str:
+    """The paragraph above a sweep's one comparisons table: what a row is, which interval is shown, and the
+    families its verdicts are decided in with their sizes (:func:`workbench.reporting.sweep_findings.holm_verdicts`)."""
+    from workbench.reporting.sweep_findings import IDENTITY, INTERVAL_NOTE, PRIMARY, SECONDARY, family_sizes, rows_text
+
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"])) if len(comparisons) else "-"
+    sizes = family_sizes(comparisons)
+    return (
+        f"Per condition, solver and pair of bases (PCA by projection), for each of {metrics}: the geometric mean "
+        f"of the per-seed ratio first / second ({method}); the smaller first; `ratio_low`, `ratio_high`: "
+        f"{INTERVAL_NOTE}. `p`: the p-value of the same test; `p_holm`: Holm's adjustment within the row's "
+        f"`family`: '{PRIMARY}' (QE/H and QE/PCA, lstsq, `{column}`, first data variant, every condition: "
+        f"{rows_text(sizes[PRIMARY])}), '{SECONDARY}' (every other tested row: {rows_text(sizes[SECONDARY])}), "
+        f"'{IDENTITY}' (holds by construction, its reason in `by_construction`: no test and no p-value, only its "
+        f"size: {rows_text(sizes[IDENTITY])}); 'verdict' '<' only where p_holm is below 0.05."
+    )
 
 
 def build_sweep_report(
