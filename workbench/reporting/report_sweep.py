@@ -13,7 +13,7 @@ from workbench.core.files import inside, write_atomic
 from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
-from workbench.reporting.report_bases import with_bases_section
+from workbench.reporting.report_bases import intuitiveness_comparisons, with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
 from workbench.reporting.report_figures import (
     FIGURE_FORMATS,
@@ -286,12 +286,19 @@ def build_sweep_report(
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
     column = headline_column(records[0].config)
-    comparisons = holm_verdicts(sweep_comparisons(per_run, [column, f"clean_{column}"], over), column)
+    # one table, one pair of Holm families: the bases' closeness and locality are rows beside alpha
+    compared = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
+    intuitiveness = intuitiveness_comparisons(records, per_run, over)
+    if len(intuitiveness):
+        compared = pd.concat([compared, intuitiveness], ignore_index=True)
+    comparisons = holm_verdicts(compared, column)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir, formats, {})
     title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
-    sections = fit_findings(with_bases_section(sections, records, figures_dir, formats, ordering=False))
+    sections = fit_findings(
+        with_bases_section(sections, records, figures_dir, formats, ordering=False, comparisons=comparisons)
+    )
     write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
     write_atomic(inside(out, "comparisons.csv"), comparisons.to_csv(index=False))
