@@ -45,6 +45,8 @@ def test_claim_two_against_the_papers_bound_or_by_construction():
     assert decide(0.9, 1.16).qe_over_pca_decision == REPRODUCED  # at the bound counts
     assert decide(1.17, 1.4).qe_over_pca_decision == NOT_REPRODUCED
     assert decide(1.0, 1.3).qe_over_pca_decision == NOT_DECIDED
+    tested = claim_verdicts(ratio(2, 1.5, 3), ratio(1.3, 1.2, 1.4, p_adjusted=0.01), False)
+    assert tested.qe_over_pca_decision == NOT_REPRODUCED and "Holm" not in tested.qe_over_pca
     assert decide(0.9, 1.1).qe_over_pca.startswith("QE nearly as accurate as PCA (QE/PCA <= 1.16): reproduced, QE/PCA")
     built = claim_verdicts(ratio(2, 1.5, 3), ratio(0.95, 0.92, 0.97), True)
     assert built.qe_over_pca_decision == BY_CONSTRUCTION
