@@ -312,3 +312,72 @@ def test_an_ordering_that_holds_by_construction_in_every_replicate_is_stated_not
     assert "by construction" not in tested, tested
     runs = pd.read_csv(tmp_path / "out" / "runs.csv")
     assert set(runs.loc[(runs["basis"] == "QE"), "never_worse_than"]) == {"PCA/projection", "-"}
+
+
+def summary_inputs(folder):
+    """The records of a sweep folder written by write_record, its runs table and its comparisons with families."""
+    from workbench.reporting.runs import runs_table, sweep_comparisons
+    from workbench.reporting.sweep_findings import holm_verdicts
+
+    records = [record.load_record(path) for path in sorted(folder.iterdir()) if (path / record.DONE).exists()]
+    runs = runs_table(records, folder)
+    comparisons = holm_verdicts(sweep_comparisons(runs, ["alpha_abs_mean"], ["dataset.seed"]), "alpha_abs_mean")
+    return records, runs, comparisons
+
+
+def test_sweep_summary_states_the_two_claims_where_every_run_kept_m_equal_n(tmp_path, monkeypatch):
+    from workbench.reporting.sweep_summary import sweep_summary
+    from workbench.stats.statistics import paired_ratio_interval
+
+    monkeypatch.setitem(M, 0.99, (18, 18, 18))  # at 0.99 every run keeps m = n = 18: the paper's regime
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(ALPHA):
+        write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}", coverage, seed, job)
+    records, runs, comparisons = summary_inputs(folder)
+    text = sweep_summary(records, runs, comparisons, ["basis.coverage"], ["dataset.seed"], "alpha_abs_mean")
+    assert len(text.split()) <= 200
+    assert "on markers, at basis.coverage = 0.99, where every run kept m = n = 18 (the paper's regime)." in text
+    # H/QE at 0.99 by hand: the per-seed ratios 1.5 / (0.2, 0.3, 0.4), a paired t on their logs with 2 degrees
+    h_qe = paired_ratio_interval([1.5, 1.5, 1.5], [0.2, 0.3, 0.4])
+    row = comparisons[
+        (comparisons["basis.coverage"] == 0.99) & (comparisons["first"] == "QE") & (comparisons["second"] == "H")
+    ].iloc[0]
+    assert row["family"] == "primary" and row["p_holm"] == pytest.approx(4 * row["p"])  # the smallest of 4
+    said = f"H/QE {h_qe.estimate:.3g} [{h_qe.low:.3g}, {h_qe.high:.3g}] (95 % interval, paired t on log ratios, n = 3"
+    assert said in text, text
+    decided = "reproduced" if row["p_holm"] < 0.05 else "not decided"
+    assert f"QE better than H: {decided}, H/QE" in text and "the paper's 7.2 lies " in text
+    qe_pca = paired_ratio_interval([0.2, 0.3, 0.4], [0.1, 0.2, 0.3])
+    second = "not reproduced" if qe_pca.low > 1.16 else "not decided"
+    assert f"QE nearly as accurate as PCA (QE/PCA <= 1.16): {second}, QE/PCA {qe_pca.estimate:.3g}" in text
+    assert "claim 1 is decided by Holm over the primary family (4 rows)" in text
+    assert text.endswith(
+        "Design: 3 runs (dataset.seed), 100 training and 100 evaluated frames each; paired t on log ratios over "
+        "the runs, 2 degrees of freedom; one metric, `alpha_abs_mean`, at a time."
+    )
+
+
+def test_sweep_summary_says_when_it_is_not_the_papers_regime_and_when_qe_below_pca_is_built_in(tmp_path):
+    from workbench.reporting.sweep_summary import summary_condition, sweep_summary
+
+    alpha = {key: (h, qe, qe * 1.1) for key, (h, qe, _) in ALPHA.items()}
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(alpha):
+        write_record(
+            folder / f"basis.coverage={coverage},dataset.seed={seed}",
+            coverage,
+            seed,
+            job,
+            alpha=alpha,
+            qe_rank=lambda m: m + 1,
+        )
+    records, runs, comparisons = summary_inputs(folder)
+    text = sweep_summary(records, runs, comparisons, ["basis.coverage"], ["dataset.seed"], "alpha_abs_mean")
+    assert "at the lead condition basis.coverage = 0.9, not the paper's regime m = n (m = 4-6, n = 18)" in text
+    assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction (QE <= PCA in every run" in text
+    assert "QE rank 5-7 of 18 (singular)" in text  # rank m + 1 of the 18 shapes, over the three runs
+    regime = runs.assign(data="markers m=n")
+    assert summary_condition(regime, ["basis.coverage"], "markers m=n") == (
+        {"basis.coverage": 0.9},
+        "at the paper's regime m = n (the variant markers m=n, basis.coverage = 0.9)",
+    )

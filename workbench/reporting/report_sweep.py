@@ -183,8 +183,10 @@ def sweep_sections(
     swept: Sequence[str],
     figures: list[FigureEntry],
     command: str,
+    over: Sequence[str] = (),
 ) -> tuple[str, list[Section]]:
     from workbench.reporting.sweep_findings import holm_text, replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_summary import sweep_summary
 
     first = records[0]
     column = headline_column(first.config)
@@ -220,7 +222,9 @@ def sweep_sections(
         for name in [solver, *(other for other in solvers if other != solver)]
         for line in sweep_statements(summary, comparisons, swept, columns, name)
     ]
+    summary_text = sweep_summary(records, per_run, comparisons, swept, over, column)
     sections = [
+        Section("Summary", [summary_text]),
         Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", findings]),
         Section(
             "About this report",
@@ -295,7 +299,7 @@ def build_sweep_report(
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir, formats, {})
-    title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
+    title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command, over)
     sections = fit_findings(
         with_bases_section(sections, records, figures_dir, formats, ordering=False, comparisons=comparisons)
     )
