@@ -205,7 +205,7 @@ def sweep_summary(
         primaries = family_sizes(comparisons)[PRIMARY]
         holm = f"; claim 1 is decided by Holm over the primary family ({rows_text(primaries)})" if primaries > 1 else ""
         claims = f"{verdicts.h_over_qe}. {verdicts.qe_over_pca}. Intervals are unadjusted{holm}."
-    n = sorted(set(per_run.loc[(per_run["data"] == lead) & (per_run["basis"] == "H"), "n"].dropna().astype(int)))
+    n = sorted({int(row["n"]) for row in (_lstsq_row(record, lead, "H") for record in runs) if row.get("n")})
     facts = [
         text
         for text in (
