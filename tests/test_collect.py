@@ -352,8 +352,8 @@ def test_sweep_summary_states_the_two_claims_where_every_run_kept_m_equal_n(tmp_
     assert f"QE nearly as accurate as PCA (QE/PCA <= 1.16): {second}, QE/PCA {qe_pca.estimate:.3g}" in text
     assert "claim 1 is decided by Holm over the primary family (4 rows)" in text
     assert text.endswith(
-        "Design: 3 runs (dataset.seed), 100 training and 100 evaluated frames each; paired t on log ratios over "
-        "the runs, 2 degrees of freedom; one metric, `alpha_abs_mean`, at a time."
+        "Design: 3 runs (dataset.seed), 100 training and 100 evaluated frames each; intervals over the runs, 2 "
+        "degrees of freedom; one metric, `alpha_abs_mean`, at a time."
     )
 
 
@@ -376,6 +376,10 @@ def test_sweep_summary_says_when_it_is_not_the_papers_regime_and_when_qe_below_p
     assert "at the lead condition basis.coverage = 0.9, not the paper's regime m = n (m = 4-6, n = 18)" in text
     assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction (QE <= PCA in every run" in text
     assert "QE rank 5-7 of 18 (singular)" in text  # rank m + 1 of the 18 shapes, over the three runs
+    # with many swept settings the summary names the condition by its place, to stay within 200 words
+    assert summary_condition(runs, ["basis.coverage"], "markers", values=False)[1] == (
+        "at the lead condition (the first row of the tables), not the paper's regime m = n (m = 4-6, n = 18)"
+    )
     regime = runs.assign(data="markers m=n")
     assert summary_condition(regime, ["basis.coverage"], "markers m=n") == (
         {"basis.coverage": 0.9},

@@ -42,7 +42,7 @@ def _range(values: Sequence[float], number: str = "{:.3g}") -> str:
     return low if low == high else f"{low}-{high}"
 
 
-def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str) -> tuple[dict, str]:
+def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str, values: bool = True) -> tuple[dict, str]:
     """The condition the summary speaks of, and where it stands to the paper's regime.
 
     Parameters
@@ -52,6 +52,9 @@ def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str) ->
     swept : sequence of str
     lead : str
         The lead data variant (that of the primary contrasts).
+    values : bool
+        Whether the text names the condition by its settings' values (else by its place: the first row of the
+        tables, or the condition where every run kept m = n), to keep the summary short with many swept settings.
 
     Returns
     -------
@@ -65,24 +68,29 @@ def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str) ->
     rows = per_run[per_run["data"] == lead]
     groups = list(rows.groupby(list(swept), sort=False, dropna=False)) if swept else [((), rows)]
     named = []
-    for values, part in groups:
-        values = values if isinstance(values, tuple) else (values,)
-        condition = dict(zip(swept, values))
+    for found, part in groups:
+        condition = dict(zip(swept, found if isinstance(found, tuple) else (found,)))
         hand = set(part.loc[part["basis"] == "H", "n"].dropna().astype(int))
-        named.append((condition, ", ".join(f"{key} = {_text(value)}" for key, value in condition.items()), part, hand))
+        label = ", ".join(f"{key} = {_text(value)}" for key, value in condition.items()) if values else ""
+        named.append((condition, label, part, hand))
     if is_paper_regime(lead):
         condition, label, _, _ = named[0]
         return condition, f"at the paper's regime m = n (the variant {lead}{', ' + label if label else ''})"
     for condition, label, part, hand in named:
         kept = set(part["m"].dropna().astype(int))
         if len(hand) == 1 and kept == hand:
-            return (
-                condition,
-                f"at {label + ', ' if label else ''}where every run kept m = n = {hand.pop()} (the paper's regime)",
-            )
+            place = label if label else "the condition" if swept else "the one condition"
+            return condition, f"at {place}, where every run kept m = n = {hand.pop()} (the paper's regime)"
     condition, label, part, hand = named[0]
+    place = (
+        f"the lead condition {label}"
+        if label
+        else "the lead condition (the first row of the tables)"
+        if swept
+        else "the one condition"
+    )
     return condition, (
-        f"at {'the lead condition ' + label if label else 'the one condition'}, not the paper's regime m = n "
+        f"at {place}, not the paper's regime m = n "
         f"(m = {_range(part['m'], '{:.0f}')}, n = {_range(sorted(hand), '{:.0f}')})"
     )
 
@@ -140,12 +148,12 @@ def coverage_text(records: Sequence[RunRecord], data: str, n: int) -> str:
         ratios = (((record.metrics.get("data") or {}).get(data) or {}).get("pca") or {}).get("explained_variance_ratio")
         if ratios is not None and len(ratios) >= n:
             reached.append(100.0 * float(np.sum(ratios[:n])))
-    return f"m = n = {n} eigenfaces cover {_range(reached, '{:.4g}')} % of the training variance" if reached else ""
+    return f"m = n = {n} eigenfaces cover {_range(reached, '{:.2f}')} % of the training variance" if reached else ""
 
 
 def design_text(records: Sequence[RunRecord], data: str, over: Sequence[str], column: str, interval) -> str:
-    """``5 runs (dataset.seed), 1000 training and 1000 evaluated frames each; paired t on log ratios over the runs,
-    4 degrees of freedom; one metric, `alpha_abs_mean`, at a time``."""
+    """``5 runs (dataset.seed), 1000 training and 1000 evaluated frames each; intervals over the runs, 4 degrees of
+    freedom; one metric, `alpha_abs_mean`, at a time`` (``interval``: one of the summary's, for its n)."""
     facts = [(record.metrics.get("data") or {}).get(data) or {} for record in records]
     training = _range([fact.get("n_train_frames", math.nan) for fact in facts], "{:.0f}")
     evaluated = _range([fact.get("n_eval_frames", math.nan) for fact in facts], "{:.0f}")
@@ -153,8 +161,7 @@ def design_text(records: Sequence[RunRecord], data: str, over: Sequence[str], co
     degrees = f", {interval.n - 1} degrees of freedom" if interval.n >= 2 else ""
     return (
         f"{runs} run{'s' if runs != 1 else ''} ({', '.join(over) or 'no replicate setting'}), {training} training "
-        f"and {evaluated} evaluated frames each; {interval.method or 'no interval'} over the runs{degrees}; one "
-        f"metric, `{column}`, at a time"
+        f"and {evaluated} evaluated frames each; intervals over the runs{degrees}; one metric, `{column}`, at a time"
     )
 
 
@@ -188,6 +195,24 @@ def sweep_summary(
     lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
     lead = lead if lead is not None else str(per_run["data"].iloc[0])
     condition, where = summary_condition(per_run, swept, lead)
+    text = _summary_text(records, per_run, comparisons, condition, where, lead, over, column)
+    if len(text.split()) > SUMMARY_WORDS and condition:  # many swept settings: the condition named by its place
+        condition, where = summary_condition(per_run, swept, lead, values=False)
+        text = _summary_text(records, per_run, comparisons, condition, where, lead, over, column)
+    return text
+
+
+def _summary_text(
+    records: Sequence[RunRecord],
+    per_run: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    condition: Mapping,
+    where: str,
+    lead: str,
+    over: Sequence[str],
+    column: str,
+) -> str:
+    """The summary's text at one condition (:func:`sweep_summary`)."""
     chosen = comparisons[(comparisons["data"] == lead) & (comparisons["metric"] == column)]
     chosen = chosen[chosen["solver"] == "lstsq"] if "solver" in chosen.columns else chosen
     for key, value in condition.items():
