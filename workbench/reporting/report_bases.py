@@ -204,10 +204,12 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
             f"Their paired comparisons over the replicates, `{column}` and closeness and locality alike, are rows of "
             "the table 'Paired comparisons' (Holm within its families there)."
         ]
+    from workbench.reporting.sweep_findings import INTERVAL_NOTE
+
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     return [
-        f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
-        f"interval ({method}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (the primary "
+        f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second ({method}; "
+        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (the primary "
         "contrasts QE/H and QE/PCA on the first data variant, or the other rows); '<' only where p_holm is below "
         "0.05.",
         comparisons.drop(columns=["study", "method"]),

@@ -71,7 +71,7 @@ def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str, va
     for found, part in groups:
         condition = dict(zip(swept, found if isinstance(found, tuple) else (found,)))
         hand = set(part.loc[part["basis"] == "H", "n"].dropna().astype(int))
-        label = ", ".join(f"{key} = {_text(value)}" for key, value in condition.items()) if values else ""
+        label = ", ".join(f"{key} = {value}" for key, value in condition.items()) if values else ""  # as the findings
         named.append((condition, label, part, hand))
     if is_paper_regime(lead):
         condition, label, _, _ = named[0]
@@ -95,12 +95,14 @@ def summary_condition(per_run: pd.DataFrame, swept: Sequence[str], lead: str, va
     )
 
 
-def _matching_records(records: Sequence[RunRecord], condition: Mapping) -> list[RunRecord]:
-    """The records whose config holds the condition's values (compared as text, as a sweep's settings are)."""
+def _matching_records(records: Sequence[RunRecord], condition: Mapping, data: str) -> list[RunRecord]:
+    """The records that scored the data variant ``data`` and whose config holds the condition's values (compared
+    as text, as a sweep's settings are); a sweep over ``dataset.train_on`` has runs without the variant."""
     found = []
     for record in records:
         flat = flatten(record.config)
-        if all(_text(flat.get(key)) == _text(value) for key, value in condition.items()):
+        scored = any(row.get("data") == data for row in record.metrics.get("rows") or [])
+        if scored and all(_text(flat.get(key)) == _text(value) for key, value in condition.items()):
             found.append(record)
     return found
 
@@ -218,7 +220,7 @@ def _summary_text(
     for key, value in condition.items():
         chosen = chosen[chosen[key].map(_text) == _text(value)]
     h_qe, qe_pca = comparison_interval(chosen, "H", "QE"), comparison_interval(chosen, "QE", "PCA")
-    runs = _matching_records(records, condition)
+    runs = _matching_records(records, condition, lead)
     opening = (
         f"The paper (least squares, m = n = 18): H/QE {PAPER_RATIOS['H/QE']:.2g}, QE/PCA "
         f"{PAPER_RATIOS['QE/PCA']:.3g}. Here `{column}`, least squares, on {lead}, {where}. "
