@@ -156,3 +156,14 @@ def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_sweep, tmp_pa
     assert "m = n = 18 eigenfaces cover " in summary and "H condition number " in summary
     assert "largest |w| " in summary and "5 runs (dataset.seed, basis.alternatives_seed)" in summary
     assert "4 degrees of freedom" in summary and "one metric, `alpha_abs_mean`, at a time" in summary
+
+
+def test_a_run_report_of_other_bases_keeps_one_comparison_table(bases_sweep, tmp_path):
+    """One run has nothing to pair over runs: its report shows only its paired per-frame comparisons."""
+    sweep, _, _ = bases_sweep
+    run = sorted(path for path in sweep.iterdir() if (path / "metrics.json").is_file())[0]
+    assert report_main([str(run), "--out", str(tmp_path / "run"), "--formats", "svg"]) == 0
+    readme = (tmp_path / "run" / "README.md").read_text()
+    section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
+    assert "Paired comparisons over the runs" not in section and "| first " not in section
+    assert "One run: nothing to pair over runs" in section and "## Paired comparisons within the run" in readme

@@ -197,8 +197,8 @@ def intuitiveness_table(summary: pd.DataFrame, column: str) -> pd.DataFrame:
 
 
 def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> list:
-    """What the section says of its paired comparisons: its own table (a run's report), or where the sweep's one
-    table holds them."""
+    """What the section says of its paired comparisons: its own table (a report of several runs without a sweep's
+    table), where the sweep's one table holds them, or, for one run, that there is nothing to pair over runs."""
     if not own:
         return [
             f"Their paired comparisons over the replicates, `{column}` and closeness and locality alike, are rows of "
@@ -206,6 +206,11 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
         ]
     from workbench.reporting.sweep_findings import INTERVAL_NOTE
 
+    if comparisons.empty or int(comparisons["n"].max()) < 2:  # one run: no interval, no test, so no second table
+        return [
+            "One run: nothing to pair over runs; the run's paired per-frame comparisons are in the table 'Paired "
+            "comparisons within the run'."
+        ]
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     return [
         f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second ({method}; "
