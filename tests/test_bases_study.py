@@ -100,15 +100,70 @@ def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     report = tmp_path / "bases_small"
     readme = (report / "README.md").read_text()
     section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
-    table, comparisons = section.split("Paired comparisons over the runs", 1)
-    rows = [line for line in table.splitlines() if line.startswith("| markers")]
+    rows = [line for line in section.splitlines() if line.startswith("| markers")]
     assert [line.split("|")[2].strip() for line in rows] == ["H", "QE", "QE-linear", "PCA", *ALTERNATIVES]
     assert "matched_abs_cosine" in section and "alpha_abs_mean_ci_low" in section
     sizes = {line.split("|")[2].strip(): line.split("|")[3].strip() for line in rows}
     assert sizes["H"] == "18" and sizes["PCA"] != "18"  # PCA's size is the m of each take, marked
     findings = readme.split("## Findings", 1)[1].split("\n## ", 1)[0]
     assert "bases of other sizes than the hand basis's n = 18: PCA n = " in findings
-    assert "| markers | alpha_abs_mean     |" in comparisons and "| markers | locality " in comparisons
     for suffix in ("png", "svg"):
         assert (report / "figures" / f"alpha_vs_intuitiveness.{suffix}").stat().st_size > 10_000
     assert 'src="figures/alpha_vs_intuitiveness.svg"' in (report / "index.html").read_text()  # shown as vector
+
+
+def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_sweep, tmp_path):
+    """Closeness and locality are rows of the sweep's one comparisons table beside alpha; QE <= PCA, which holds by
+    construction in every take, is an identity there (no p-value, no test), never re-tested in a second table."""
+    sweep, _, _ = bases_sweep
+    assert report_main([str(sweep), "--out", str(tmp_path / "one"), "--formats", "svg"]) == 0
+    readme = (tmp_path / "one" / "README.md").read_text()
+    section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
+    assert "Paired comparisons over the runs" not in section and "| first " not in section
+    assert "are rows of the table 'Paired comparisons'" in section
+    assert readme.count("| first ") == 1  # one comparison table in the whole report
+    table = pd.read_csv(tmp_path / "one" / "comparisons.csv")
+    assert set(table["metric"]) == {"alpha_abs_mean", "matched_abs_cosine", "locality"}
+    assert list(table.columns[list(table.columns).index("p") :][:3]) == ["p", "p_holm", "family"]
+    qe_pca = table[(table["first"] == "QE") & (table["second"] == "PCA") & (table["metric"] == "alpha_abs_mean")]
+    lstsq = qe_pca[qe_pca["solver"] == "lstsq"]
+    assert (
+        len(lstsq) == 1 and lstsq["family"].iloc[0] == "identity" and lstsq["verdict"].iloc[0] == "<= by construction"
+    )
+    assert lstsq[["p", "p_holm"]].isna().all(axis=None)
+    primary = table[table["family"] == "primary"]
+    assert set(zip(primary["first"], primary["second"])) == {("QE", "H")} and set(primary["solver"]) == {"lstsq"}
+    secondary = table[table["family"] == "secondary"]
+    assert secondary["p_holm"].notna().all() and (secondary["p_holm"] >= secondary["p"] - 1e-15).all()
+    # the closeness of a basis is not a solver's: one row per pair, solver '-'
+    closeness = table[table["metric"] == "matched_abs_cosine"]
+    assert set(closeness["solver"]) == {"-"} and not closeness.duplicated(["first", "second"]).any()
+    caption = readme.split("## Paired comparisons", 1)[1].split("\n\n", 2)[1]
+    assert "95 % interval, unadjusted; verdict by Holm" in caption
+    assert f"'secondary' (every other tested row: {len(secondary)} rows)" in caption
+
+
+def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_sweep, tmp_path):
+    sweep, _, _ = bases_sweep
+    assert report_main([str(sweep), "--out", str(tmp_path / "summary"), "--formats", "svg"]) == 0
+    readme = (tmp_path / "summary" / "README.md").read_text()
+    assert readme.split("\n## ", 2)[1].startswith("Summary\n")
+    summary = readme.split("## Summary\n\n", 1)[1].split("\n## ", 1)[0].strip()
+    assert len(summary.split()) <= 200, len(summary.split())
+    assert "QE better than H: " in summary and " the paper's 7.2 lies " in summary
+    assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction" in summary
+    assert "at the one condition, not the paper's regime m = n (m = " in summary
+    assert "m = n = 18 eigenfaces cover " in summary and "H condition number " in summary
+    assert "largest |w| " in summary and "5 runs (dataset.seed, basis.alternatives_seed)" in summary
+    assert "4 degrees of freedom" in summary and "one metric, `alpha_abs_mean`, at a time" in summary
+
+
+def test_a_run_report_of_other_bases_keeps_one_comparison_table(bases_sweep, tmp_path):
+    """One run has nothing to pair over runs: its report shows only its paired per-frame comparisons."""
+    sweep, _, _ = bases_sweep
+    run = sorted(path for path in sweep.iterdir() if (path / "metrics.json").is_file())[0]
+    assert report_main([str(run), "--out", str(tmp_path / "run"), "--formats", "svg"]) == 0
+    readme = (tmp_path / "run" / "README.md").read_text()
+    section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
+    assert "Paired comparisons over the runs" not in section and "| first " not in section
+    assert "One run: nothing to pair over runs" in section and "## Paired comparisons within the run" in readme

@@ -187,17 +187,24 @@ def test_alpha_table_exact_text(sweep, tmp_path):
     assert written["n_runs"] == 6 and written["n_incomplete"] == 1
     findings = (tmp_path / "out" / "findings.md").read_text().splitlines()
     assert findings[0].startswith(
-        "- **how to read**: levels are geometric means over the replicates; 'A < B': the "
-        "per-replicate ratio A/B (paired t on log ratios, n = 3) is below 1 at 95 %"
+        "- **how to read**: levels: geometric means over the replicates; 'A < B': A/B per replicate (paired t on "
+        "log ratios, n = 3) below 1 by its p_holm < 0.05, Holm within its family: the primary QE/H and QE/PCA "
+        "(`alpha_abs_mean`, lstsq, markers, each condition; 4 rows) or the others (2 rows)"
     )
+    # the four primary contrasts (two per coverage) are one Holm family: QE/H at 0.99 has p 0.0146, its interval
+    # excludes 1, and Holm over the four (0.0146 * 4 = 0.058) leaves it not distinguishable
     assert findings[2] == (
         "- basis.coverage = 0.99, **markers** (m = 12; 3 seeds, lstsq) `alpha_abs_mean`: PCA (n = 12) 0.182 ~ QE "
-        "0.288 < H 1.5; QE/H 0.192 [0.081, 0.457], QE/PCA 1.59 [0.945, 2.67]."
+        "0.288 ~ H 1.5; QE/H 0.192 [0.081, 0.457], Holm p 0.058, QE/PCA 1.59 [0.945, 2.67], Holm p 0.086."
     )
     # each number of the finding is a cell of the tables written beside it (QE/PCA: PCA/QE's row inverted)
     table = (tmp_path / "out" / "comparisons.md").read_text()
     assert "|           0.99 | PCA   | QE     | 3 |   0.63 |    0.3752 |      1.058 | not distinguishable |" in table
-    assert "|           0.99 | QE    | H      | 3 | 0.1923 |   0.08096 |     0.4567 | <" in table
+    assert (
+        "|           0.99 | QE    | H      | 3 | 0.1923 |   0.08096 |     0.4567 | not distinguishable | 0.01455 | 0.05819 | primary"
+        in table
+    )
+    assert "95 % interval, unadjusted; verdict by Holm" in table
 
 
 def test_csv_and_parquet_hold_the_same_tables(sweep, tmp_path):
@@ -305,3 +312,76 @@ def test_an_ordering_that_holds_by_construction_in_every_replicate_is_stated_not
     assert "by construction" not in tested, tested
     runs = pd.read_csv(tmp_path / "out" / "runs.csv")
     assert set(runs.loc[(runs["basis"] == "QE"), "never_worse_than"]) == {"PCA/projection", "-"}
+
+
+def summary_inputs(folder):
+    """The records of a sweep folder written by write_record, its runs table and its comparisons with families."""
+    from workbench.reporting.runs import runs_table, sweep_comparisons
+    from workbench.reporting.sweep_findings import holm_verdicts
+
+    records = [record.load_record(path) for path in sorted(folder.iterdir()) if (path / record.DONE).exists()]
+    runs = runs_table(records, folder)
+    comparisons = holm_verdicts(sweep_comparisons(runs, ["alpha_abs_mean"], ["dataset.seed"]), "alpha_abs_mean")
+    return records, runs, comparisons
+
+
+def test_sweep_summary_states_the_two_claims_where_every_run_kept_m_equal_n(tmp_path, monkeypatch):
+    from workbench.reporting.sweep_summary import sweep_summary
+    from workbench.stats.statistics import paired_ratio_interval
+
+    monkeypatch.setitem(M, 0.99, (18, 18, 18))  # at 0.99 every run keeps m = n = 18: the paper's regime
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(ALPHA):
+        write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}", coverage, seed, job)
+    records, runs, comparisons = summary_inputs(folder)
+    text = sweep_summary(records, runs, comparisons, ["basis.coverage"], ["dataset.seed"], "alpha_abs_mean")
+    assert len(text.split()) <= 200
+    assert "on markers, at basis.coverage = 0.99, where every run kept m = n = 18 (the paper's regime)." in text
+    # H/QE at 0.99 by hand: the per-seed ratios 1.5 / (0.2, 0.3, 0.4), a paired t on their logs with 2 degrees
+    h_qe = paired_ratio_interval([1.5, 1.5, 1.5], [0.2, 0.3, 0.4])
+    row = comparisons[
+        (comparisons["basis.coverage"] == 0.99) & (comparisons["first"] == "QE") & (comparisons["second"] == "H")
+    ].iloc[0]
+    assert row["family"] == "primary" and row["p_holm"] == pytest.approx(4 * row["p"])  # the smallest of 4
+    said = f"H/QE {h_qe.estimate:.3g} [{h_qe.low:.3g}, {h_qe.high:.3g}] (95 % interval, paired t on log ratios, n = 3"
+    assert said in text, text
+    decided = "reproduced" if row["p_holm"] < 0.05 else "not decided"
+    assert f"QE better than H: {decided}, H/QE" in text and "the paper's 7.2 lies " in text
+    qe_pca = paired_ratio_interval([0.2, 0.3, 0.4], [0.1, 0.2, 0.3])
+    second = "not reproduced" if qe_pca.low > 1.16 else "not decided"
+    assert f"QE nearly as accurate as PCA (QE/PCA <= 1.16): {second}, QE/PCA {qe_pca.estimate:.3g}" in text
+    assert "claim 1 is decided by Holm over the primary family (4 rows)" in text
+    assert text.endswith(
+        "Design: 3 runs (dataset.seed), 100 training and 100 evaluated frames each; intervals over the runs, 2 "
+        "degrees of freedom; one metric, `alpha_abs_mean`, at a time."
+    )
+
+
+def test_sweep_summary_says_when_it_is_not_the_papers_regime_and_when_qe_below_pca_is_built_in(tmp_path):
+    from workbench.reporting.sweep_summary import summary_condition, sweep_summary
+
+    alpha = {key: (h, qe, qe * 1.1) for key, (h, qe, _) in ALPHA.items()}
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(alpha):
+        write_record(
+            folder / f"basis.coverage={coverage},dataset.seed={seed}",
+            coverage,
+            seed,
+            job,
+            alpha=alpha,
+            qe_rank=lambda m: m + 1,
+        )
+    records, runs, comparisons = summary_inputs(folder)
+    text = sweep_summary(records, runs, comparisons, ["basis.coverage"], ["dataset.seed"], "alpha_abs_mean")
+    assert "at the lead condition basis.coverage = 0.9, not the paper's regime m = n (m = 4-6, n = 18)" in text
+    assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction (QE <= PCA in every run" in text
+    assert "QE rank 5-7 of 18 (singular)" in text  # rank m + 1 of the 18 shapes, over the three runs
+    # with many swept settings the summary names the condition by its place, to stay within 200 words
+    assert summary_condition(runs, ["basis.coverage"], "markers", values=False)[1] == (
+        "at the lead condition (the first row of the tables), not the paper's regime m = n (m = 4-6, n = 18)"
+    )
+    regime = runs.assign(data="markers m=n")
+    assert summary_condition(regime, ["basis.coverage"], "markers m=n") == (
+        {"basis.coverage": 0.9},
+        "at the paper's regime m = n (the variant markers m=n, basis.coverage = 0.9)",
+    )

@@ -1,5 +1,6 @@
 """The findings text is produced from the numbers: checked on a constructed alpha table with known answers."""
 
+import math
 import re
 
 import numpy as np
@@ -367,7 +368,7 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
     assert "QE 0.267 ~ H 0.32 ~" in finding and "QE/H 0.835 [0.00179, 389]" in finding
     assert "QE < H" not in finding and "H < QE" not in finding
-    assert "the per-replicate ratio A/B (paired t on log ratios, n = 2)" in printed  # the method, said once
+    assert "A/B per replicate (paired t on log ratios, n = 2)" in printed  # the method, said once
     # every interval printed, in the table and in the findings, lies above zero, and names its method and n
     bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
     # 7 cells of the table (QE at 0.995 is 0.16 on both seeds: no interval), the 2 primary contrasts at each coverage
@@ -452,11 +453,19 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     )
 
 
-def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
-    """Known p-values through the sweep path: QE/H and QE/PCA (lstsq, headline, first data variant) keep their own
-    95 %; the four others are one Holm family, p (0.01, 0.02, 0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only the
-    first stays '<' although every raw p is below 0.05 and every interval excludes 1."""
-    from workbench.reporting.sweep_findings import HOLM_COLUMN, holm_text, holm_verdicts, sweep_findings
+def test_sweep_comparisons_are_holm_adjusted_within_two_families_and_identities_are_not_tested():
+    """Known p-values through the sweep path: QE/H and QE/PCA (lstsq, headline, first data variant) are the primary
+    family, p (0.04, 0.03) -> (0.06, 0.06); the four other tested rows are the secondary family, p (0.01, 0.02,
+    0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only their first stays '<' although every raw p is below 0.05 and
+    every interval excludes 1; an ordering by construction is neither, with no p-value."""
+    from workbench.reporting.sweep_findings import (
+        FAMILY_COLUMN,
+        HOLM_COLUMN,
+        family_sizes,
+        holm_text,
+        holm_verdicts,
+        sweep_findings,
+    )
 
     summary = pd.DataFrame(
         {
@@ -475,6 +484,7 @@ def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
         ("mesh", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.02),
         ("mesh held-out tail", "QE", "QE-linear", 0.5, 0.4, 0.6, 0.03),
         ("mesh held-out tail", "QE-linear", "PCA", 0.67, 0.6, 0.75, 0.04),
+        ("mesh held-out tail", "QE", "PCA", 0.33, 0.3, 0.37, math.nan),
     ]
     comparisons = pd.DataFrame(
         [
@@ -489,31 +499,39 @@ def test_sweep_comparisons_are_holm_adjusted_but_the_primary_contrasts():
                 "ratio_low": low,
                 "ratio_high": high,
                 "method": method,
-                "verdict": "<",
+                "verdict": "<= by construction" if math.isnan(p) else "<",
                 "p": p,
+                "by_construction": "QE spans PCA's affine subspace" if math.isnan(p) else None,
             }
             for data, first, second, ratio, low, high, p in rows
         ]
     )
     adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
-    assert adjusted[HOLM_COLUMN].iloc[:2].isna().all()  # the primary contrasts: not in the family
-    assert adjusted[HOLM_COLUMN].iloc[2:].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
+    assert adjusted[FAMILY_COLUMN].tolist() == ["primary"] * 2 + ["secondary"] * 4 + ["identity"]
+    at = list(adjusted.columns).index("p")
+    assert list(adjusted.columns[at : at + 3]) == ["p", HOLM_COLUMN, FAMILY_COLUMN]
+    assert adjusted[HOLM_COLUMN].iloc[:2].tolist() == pytest.approx([0.06, 0.06])  # the primaries together
+    assert adjusted[HOLM_COLUMN].iloc[2:6].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
+    assert math.isnan(adjusted[HOLM_COLUMN].iloc[6])  # an identity spends no test
     assert adjusted["verdict"].tolist() == [
-        "<",
-        "<",
+        "not distinguishable",
+        "not distinguishable",
         "<",
         "not distinguishable",
         "not distinguishable",
         "not distinguishable",
+        "<= by construction",
     ]
-    assert comparisons["verdict"].tolist() == ["<"] * 6  # the input is left as it was
+    assert comparisons["verdict"].tolist()[:6] == ["<"] * 6  # the input is left as it was
+    assert family_sizes(adjusted) == {"primary": 2, "secondary": 4, "identity": 1}
     lines = sweep_findings(summary, adjusted, [], "alpha_abs_mean", "lstsq")
-    assert lines == [
+    assert lines[0] == (
         "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 < QE-linear 0.2 ~ PCA 0.3, H 0.4; QE/H 0.25 [0.2, 0.3], "
-        "QE/PCA 0.33 [0.3, 0.37].",
-        "**mesh held-out tail** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.2 ~ QE-linear 0.4 ~ PCA 0.6, H 0.8.",
-    ]
-    assert "the other 4 comparisons Holm-adjusted (p_holm < 0.05)" in holm_text(adjusted, "alpha_abs_mean")
+        "Holm p 0.06, QE/PCA 0.33 [0.3, 0.37], Holm p 0.06."
+    )
+    text = holm_text(adjusted, "alpha_abs_mean")
+    assert "each condition; 2 rows) or the others (4 rows)" in text, text
+    assert "intervals: 95 % interval, unadjusted; verdict by Holm" in text and "(1 row)" in text
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():

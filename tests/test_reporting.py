@@ -407,7 +407,20 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
         "not distinguishable",
         "<= by construction",
     }
-    assert comparisons["p_holm"].notna().sum() == 2 * 4  # QE/H and QE/PCA at each coverage are primary
+    # QE/H and QE/PCA at each coverage are the primary family, every other tested row the secondary, and an
+    # ordering by construction neither: it has no p-value
+    families = dict(
+        zip(zip(comparisons["basis.coverage"], comparisons["first"], comparisons["second"]), comparisons["family"])
+    )
+    for (coverage, first, second), family in families.items():
+        tested = family != "identity"
+        primary = {first, second} in ({"QE", "H"}, {"QE", "PCA"})
+        assert family == ("primary" if primary else "secondary") or not tested, (coverage, first, second, family)
+    tested = comparisons["family"] != "identity"
+    assert comparisons.loc[tested, "p_holm"].notna().all() and comparisons.loc[~tested, "p_holm"].isna().all()
+    assert (comparisons.loc[~tested, "verdict"] == "<= by construction").all()
+    assert readme.split("\n## ", 2)[1].startswith("Summary\n")  # the report opens with its summary
+    assert len(section_text("## Summary", readme).split()) <= 200
     joins = 0
     for row in comparisons.to_dict("records"):  # every pair a finding joins is a row of the comparisons table
         line = next(

@@ -315,7 +315,10 @@ def filtered(table: pd.DataFrame, where: Mapping[str, str] | None) -> pd.DataFra
 
 
 def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
-    """The paired comparisons as a Markdown table under a caption naming the method and replicates."""
+    """The paired comparisons as a Markdown table under a caption naming the method, the replicates, which
+    interval is shown and the families the verdicts are decided in."""
+    from workbench.reporting.sweep_findings import INTERVAL_NOTE
+
     shown = comparisons.drop(columns=["study", "method"])
     shown = shown.loc[
         :,
@@ -331,10 +334,11 @@ def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
     metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"]))
     return (
         f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
-        f"95 % interval ({method} over {', '.join(over) or 'no replicate key'}), the smaller first; '<' only "
-        "where the interval excludes 1 (p_holm below 0.05 where it is adjusted); '<= by construction': holds in "
-        "every replicate whatever the data, not tested (the reason in by_construction)\n\n"
-        + markdown_table(header, rows, numeric)
+        f"interval ({method} over {', '.join(over) or 'no replicate key'}; {INTERVAL_NOTE}), the smaller first; "
+        "'<' only where p_holm, Holm's adjustment within the row's family, is below 0.05: 'primary' (QE/H and "
+        "QE/PCA, lstsq, the headline alpha, the first data variant, every condition) or 'secondary' (every other "
+        "tested row); 'identity', '<= by construction': holds in every replicate whatever the data, not tested, no "
+        "p-value (the reason in by_construction)\n\n" + markdown_table(header, rows, numeric)
     )
 
 

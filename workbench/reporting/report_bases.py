@@ -12,10 +12,21 @@ from workbench.record.record import RunRecord
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column
 from workbench.reporting.report_figures import make_figures, minimum_norm_text
 from workbench.reporting.report_sections import Section, range_column
-from workbench.reporting.runs import interval_label, level_statistics, paired_comparisons
+from workbench.reporting.runs import (
+    config_columns,
+    flatten,
+    interval_label,
+    level_statistics,
+    paired_comparisons,
+    typed_columns,
+)
 from workbench.stats.statistics import GEOMETRIC
 
 INTUITIVENESS_COLUMNS = ("matched_abs_cosine", "locality", "usage")
+COMPARED_INTUITIVENESS = ("matched_abs_cosine", "locality")
+"""The measures of the bases compared pair by pair over the replicates (usage depends on the solver: not compared)."""
+NO_SOLVER = "-"
+"""The solver of a comparison of closeness or locality: a property of the basis, not of a solver's weights."""
 
 
 def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
@@ -136,60 +147,74 @@ def measure_notes(settings: Mapping, solver: str) -> list[str]:
     ]
 
 
-def with_bases_section(
-    sections: list, records: Sequence[RunRecord], figures_dir: Path, formats: Sequence[str], ordering: bool = True
-) -> list:
-    """The report's sections with one on the other bases inserted before its figures: the table of alpha,
-    closeness, locality and usage of every basis (geometric means over the runs), their paired comparisons and the
-    figure of alpha against each; the findings gain the sizes, closeness and locality (and, with ``ordering``,
-    the bases' ordering by alpha, which a sweep's own findings state already). Unchanged when no run scored other
-    bases."""
-    from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
-    from workbench.reporting.sweep_findings import bases_findings, holm_verdicts
+def intuitiveness_comparisons(records: Sequence[RunRecord], runs: pd.DataFrame, over: Sequence[str]) -> pd.DataFrame:
+    """The bases' closeness and locality compared pair by pair over the replicates, per condition and data variant
+    (:func:`workbench.reporting.runs.paired_comparisons`), in the layout of a sweep's comparisons table so that
+    they are rows of it (solver :data:`NO_SOLVER`). Orderings by construction are about errors, never these.
 
-    found = [(record, basis_intuitiveness_rows(record)) for record in records]
-    found = [(record, frame) for record, frame in found if not frame.empty]
-    if not found:
-        return sections
-    first = found[0][0]
-    column = headline_column(first.config)
-    solver, _ = figure_solver(first.config)
-    settings = next(
-        values["basis_intuitiveness"] for values in first.metrics["data"].values() if values.get("basis_intuitiveness")
-    )
-    energy, threshold = settings["locality_energy"], settings["usage_threshold"]
-    per_run = pd.concat(
-        [frame.assign(study=record.study, run=str(record.folder)) for record, frame in found], ignore_index=True
-    )
-    summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
-    comparisons = holm_verdicts(
-        pd.concat(
-            [
-                paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
-                for name in (column, "matched_abs_cosine", "locality")
-            ],
-            ignore_index=True,
-        ),
-        column,
-        solver,
-    )
-    several = int(summary["n_seeds"].max()) > 1
+    Parameters
+    ----------
+    records : sequence of RunRecord
+    runs : pandas.DataFrame
+        The sweep's runs table: its config columns are the conditions and replicates.
+    over : sequence of str
+        The replicate columns.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Empty when no run scored other bases.
+    """
+    keys = config_columns(runs)
+    frames = []
+    for record in records:
+        found = basis_intuitiveness_rows(record)
+        if found.empty:
+            continue
+        flat = flatten(record.config)
+        scored = {row["data"]: row for row in record.rows()}  # the points fitted on and scored, as the runs table
+        frames.append(
+            found.assign(
+                study=record.study,
+                train_on=[scored.get(data, {}).get("train_on", data) for data in found["data"]],
+                eval_on=[scored.get(data, {}).get("eval_on", data) for data in found["data"]],
+                solver=NO_SOLVER,
+                **{key: flat.get(key) for key in keys},
+            )
+        )
+    if not frames:
+        return pd.DataFrame()
+    frame = typed_columns(pd.concat(frames, ignore_index=True), keys)
+    return pd.concat([paired_comparisons(frame, name, over=over) for name in COMPARED_INTUITIVENESS], ignore_index=True)
+
+
+def bases_figure(record: RunRecord, summary: pd.DataFrame, figures_dir: Path, formats: Sequence[str]):
+    """The figure of alpha against closeness, locality and usage of every basis (geometric means over the runs)."""
+    from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
+
+    column = headline_column(record.config)
+    solver, _ = figure_solver(record.config)
+    settings = intuitiveness_settings(record)
     note = interval_label(summary, "runs")
     caption = (
         f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
         f"shapes, its locality and its usage"
-        + (f", geometric means over runs; error bars: {note}." if several else ".")
+        + (f", geometric means over runs; error bars: {note}." if int(summary["n_seeds"].max()) > 1 else ".")
         + minimum_norm_note(summary, solver)
     )
-    title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(first)}"
-    entry = make_figures(
+    title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(record)}"
+    return make_figures(
         [
             (
                 "alpha_vs_intuitiveness",
                 "Alpha against intuitiveness",
                 caption,
                 lambda _, options: plot_alpha_against_intuitiveness(
-                    summary, column, energy=energy, threshold=threshold, title=title
+                    summary,
+                    column,
+                    energy=settings["locality_energy"],
+                    threshold=settings["usage_threshold"],
+                    title=title,
                 ),
             )
         ],
@@ -198,6 +223,20 @@ def with_bases_section(
         formats,
         {},
     )[0]
+
+
+def intuitiveness_settings(record: RunRecord) -> Mapping:
+    """The settings the run measured its bases' intuitiveness with (``metrics.json``: locality energy, usage
+    threshold, point weights), from its first data variant that has them."""
+    return next(
+        values["basis_intuitiveness"] for values in record.metrics["data"].values() if values.get("basis_intuitiveness")
+    )
+
+
+def intuitiveness_table(summary: pd.DataFrame, column: str) -> pd.DataFrame:
+    """The section's table: per data variant and basis, its size n (a range over the runs), alpha with its
+    interval where there are several runs, closeness, locality and usage."""
+    several = int(summary["n_seeds"].max()) > 1
     shown = summary[
         [
             "data",
@@ -210,6 +249,70 @@ def with_bases_section(
         ]
     ]
     shown.insert(2, "n", range_column(summary, "n"))
+    return shown
+
+
+def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> list:
+    """What the section says of its paired comparisons: its own table (a report of several runs without a sweep's
+    table), where the sweep's one table holds them, or, for one run, that there is nothing to pair over runs."""
+    if not own:
+        return [
+            f"Their paired comparisons over the replicates, `{column}` and closeness and locality alike, are rows of "
+            "the table 'Paired comparisons' (Holm within its families there)."
+        ]
+    from workbench.reporting.sweep_findings import INTERVAL_NOTE
+
+    if comparisons.empty or int(comparisons["n"].max()) < 2:  # one run: no interval, no test, so no second table
+        return [
+            "One run: nothing to pair over runs; the run's paired per-frame comparisons are in the table 'Paired "
+            "comparisons within the run'."
+        ]
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    return [
+        f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second ({method}; "
+        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (the primary "
+        "contrasts QE/H and QE/PCA on the first data variant, or the other rows); '<' only where p_holm is below "
+        "0.05.",
+        comparisons.drop(columns=["study", "method"]),
+    ]
+
+
+def with_bases_section(
+    sections: list,
+    records: Sequence[RunRecord],
+    figures_dir: Path,
+    formats: Sequence[str],
+    ordering: bool = True,
+    comparisons: pd.DataFrame | None = None,
+) -> list:
+    """The report's sections with one on the other bases inserted before its figures: the table of alpha,
+    closeness, locality and usage of every basis (geometric means over the runs), the figure of alpha against
+    each, and their paired comparisons: with ``comparisons`` (a sweep's one table, closeness and locality among
+    its rows, :func:`intuitiveness_comparisons`) those, else a table of its own; the findings gain the sizes,
+    closeness and locality (and, with ``ordering``, the bases' ordering by alpha, which a sweep's own findings state
+    already). Unchanged when no run scored other bases."""
+    from workbench.reporting.sweep_findings import bases_findings, holm_verdicts
+
+    found = [(record, basis_intuitiveness_rows(record)) for record in records]
+    found = [(record, frame) for record, frame in found if not frame.empty]
+    if not found:
+        return sections
+    first = found[0][0]
+    column = headline_column(first.config)
+    solver, _ = figure_solver(first.config)
+    settings = intuitiveness_settings(first)
+    per_run = pd.concat(
+        [frame.assign(study=record.study, run=str(record.folder)) for record, frame in found], ignore_index=True
+    )
+    summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
+    own = comparisons is None
+    if own:
+        compared = [
+            paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
+            for name in (column, *COMPARED_INTUITIVENESS)
+        ]
+        comparisons = holm_verdicts(pd.concat(compared, ignore_index=True), column, solver)
+    several = int(summary["n_seeds"].max()) > 1
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons
         run_comparisons = (
@@ -224,15 +327,15 @@ def with_bases_section(
             f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
             f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
             "projection), "
-            + (f"geometric means over {int(summary['n_seeds'].max())} runs; {note}." if several else "one run."),
+            + (
+                f"geometric means over {int(summary['n_seeds'].max())} runs; {interval_label(summary, 'runs')}."
+                if several
+                else "one run."
+            ),
             measure_notes(settings, solver),
-            shown,
-            f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second and its 95 % "
-            f"interval ({comparisons['method'].iloc[0] if len(comparisons) else '-'}); the smaller first; `p_holm`: its "
-            "p-value Holm-adjusted over this table's rows but QE/H and QE/PCA on the first data variant; '<' only where "
-            "their interval excludes 1, or p_holm is below 0.05 for the others.",
-            comparisons.drop(columns=["study", "method"]),
-            entry,
+            intuitiveness_table(summary, column),
+            *comparisons_blocks(comparisons, own, column),
+            bases_figure(first, summary, figures_dir, formats),
         ],
     )
     headings = [item.heading for item in sections]

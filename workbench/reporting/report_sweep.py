@@ -13,7 +13,7 @@ from workbench.core.files import inside, write_atomic
 from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.findings import fit_findings
 from workbench.reporting.page import write_documents
-from workbench.reporting.report_bases import with_bases_section
+from workbench.reporting.report_bases import intuitiveness_comparisons, with_bases_section
 from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
 from workbench.reporting.report_figures import (
     FIGURE_FORMATS,
@@ -184,8 +184,10 @@ def sweep_sections(
     swept: Sequence[str],
     figures: list[FigureEntry],
     command: str,
+    over: Sequence[str] = (),
 ) -> tuple[str, list[Section]]:
     from workbench.reporting.sweep_findings import holm_text, replicate_caveat, sweep_statements
+    from workbench.reporting.sweep_summary import sweep_summary
 
     first = records[0]
     column = headline_column(first.config)
@@ -221,8 +223,9 @@ def sweep_sections(
         for name in [solver, *(other for other in solvers if other != solver)]
         for line in sweep_statements(summary, comparisons, swept, columns, name)
     ]
-    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    summary_text = sweep_summary(records, per_run, comparisons, swept, over, column)
     sections = [
+        Section("Summary", [summary_text]),
         Section("Findings", ["Generated from the tables below (each solver; PCA by projection).", findings]),
         Section(
             "About this report",
@@ -234,17 +237,7 @@ def sweep_sections(
             ],
         ),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
-        Section(
-            "Paired comparisons",
-            [
-                f"Per condition, solver and pair of bases (PCA by projection): the geometric mean of the "
-                f"per-seed ratio first / second of `{', '.join(columns)}` and its 95 % interval ({method}); "
-                "the smaller first; `p`: the p-value of the same test, `p_holm`: Holm's adjustment of it over every row "
-                "but the primary contrasts (QE/H and QE/PCA with lstsq on the first data variant, NaN); 'verdict' '<' "
-                "only where the primary contrast's interval excludes 1, or the other row's p_holm is below 0.05.",
-                compared,
-            ],
-        ),
+        Section("Paired comparisons", [comparisons_caption(comparisons, column), compared]),
         Section("Figures", figures),
         Section("Runs", [runs.astype(str)]),
         Section(
@@ -255,6 +248,25 @@ def sweep_sections(
         versions_section(first.metrics, report_versions()),
     ]
     return title, sections
+
+
+def comparisons_caption(comparisons: pd.DataFrame, column: str) -> str:
+    """The paragraph above a sweep's one comparisons table: what a row is, which interval is shown, and the
+    families its verdicts are decided in with their sizes (:func:`workbench.reporting.sweep_findings.holm_verdicts`)."""
+    from workbench.reporting.sweep_findings import IDENTITY, INTERVAL_NOTE, PRIMARY, SECONDARY, family_sizes, rows_text
+
+    method = comparisons["method"].iloc[0] if len(comparisons) else "-"
+    metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"])) if len(comparisons) else "-"
+    sizes = family_sizes(comparisons)
+    return (
+        f"Per condition, solver and pair of bases (PCA by projection), for each of {metrics}: the geometric mean "
+        f"of the per-seed ratio first / second ({method}); the smaller first; `ratio_low`, `ratio_high`: "
+        f"{INTERVAL_NOTE}. `p`: the p-value of the same test; `p_holm`: Holm's adjustment within the row's "
+        f"`family`: '{PRIMARY}' (QE/H and QE/PCA, lstsq, `{column}`, first data variant, every condition: "
+        f"{rows_text(sizes[PRIMARY])}), '{SECONDARY}' (every other tested row: {rows_text(sizes[SECONDARY])}), "
+        f"'{IDENTITY}' (holds by construction, its reason in `by_construction`: no test and no p-value, only its "
+        f"size: {rows_text(sizes[IDENTITY])}); 'verdict' '<' only where p_holm is below 0.05."
+    )
 
 
 def build_sweep_report(
@@ -279,12 +291,19 @@ def build_sweep_report(
     summary["paper_alpha"] = summary["basis"].map(paper)
     summary["n_hand"] = hand_basis_size(summary, swept)
     column = headline_column(records[0].config)
-    comparisons = holm_verdicts(sweep_comparisons(per_run, [column, f"clean_{column}"], over), column)
+    # one table, one pair of Holm families: the bases' closeness and locality are rows beside alpha
+    compared = sweep_comparisons(per_run, [column, f"clean_{column}"], over)
+    intuitiveness = intuitiveness_comparisons(records, per_run, over)
+    if len(intuitiveness):
+        compared = pd.concat([compared, intuitiveness], ignore_index=True)
+    comparisons = holm_verdicts(compared, column)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir, formats, {})
-    title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command)
-    sections = fit_findings(with_bases_section(sections, records, figures_dir, formats, ordering=False))
+    title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command, over)
+    sections = fit_findings(
+        with_bases_section(sections, records, figures_dir, formats, ordering=False, comparisons=comparisons)
+    )
     write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
     write_atomic(inside(out, "comparisons.csv"), comparisons.to_csv(index=False))

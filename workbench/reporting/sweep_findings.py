@@ -4,8 +4,9 @@
 geometric means over the replicates, each neighbouring pair "A < B" only where the paired per-replicate ratio's
 verdict allows it and "A ~ B" otherwise, and the primary contrasts (QE against H and against PCA) with their
 intervals; every other ratio, interval and p-value is a row of the sweep's comparisons table. :func:`holm_verdicts`
-decides the verdicts: the primary contrasts at their own 95 %, every other comparison of the table by its
-Holm-adjusted p-value over the table. :func:`bases_findings` adds the other bases' sizes, closeness and locality.
+decides the verdicts by Holm's adjustment within two families: the primary contrasts of every condition together,
+every other tested comparison of the table together; orderings that hold by construction are a third kind, not
+tested. :func:`bases_findings` adds the other bases' sizes, closeness and locality.
 The findings of one run are in :mod:`workbench.reporting.findings`.
 """
 
@@ -30,10 +31,17 @@ from workbench.stats.statistics import (
 from workbench.stats.statistics import ordering_text as stated_ordering
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
-"""The paper's claims, stated with their intervals and tested at their own 95 % in a sweep (least squares, the
-headline alpha, the lead data variant, every swept condition); every other comparison is Holm-adjusted."""
+"""The paper's claims: QE against H and against PCA (least squares, the headline alpha, the lead data variant) at
+every swept condition, one pre-declared Holm family; every other comparison is a second family."""
 HOLM_COLUMN = "p_holm"
-"""The comparisons table's column with the Holm-adjusted p-value (NaN for a primary contrast)."""
+"""The comparisons table's column with the p-value Holm-adjusted within its family (NaN for an identity)."""
+FAMILY_COLUMN = "family"
+"""The comparisons table's column naming each row's family: :data:`PRIMARY`, :data:`SECONDARY` or :data:`IDENTITY`."""
+PRIMARY, SECONDARY, IDENTITY = "primary", "secondary", "identity"
+"""The families: the primary contrasts (Holm over the conditions together), every other test (Holm within the
+report), and the orderings that hold by construction (no test, no p-value)."""
+INTERVAL_NOTE = "95 % interval, unadjusted; verdict by Holm"
+"""What the comparisons' intervals are, said beside them: their verdicts use the Holm-adjusted p-value."""
 
 
 def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq") -> bool:
@@ -47,12 +55,26 @@ def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq
     )
 
 
+def comparison_families(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> list[str]:
+    """Each row's family: :data:`IDENTITY` where it holds by construction (its ``by_construction`` reason),
+    :data:`PRIMARY` for a primary contrast (:func:`is_primary`, on the table's first data variant), else
+    :data:`SECONDARY`."""
+    lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
+    return [
+        IDENTITY
+        if isinstance(row.get("by_construction"), str) and row["by_construction"] not in ("", "-")
+        else PRIMARY
+        if is_primary(row, column, lead, solver)
+        else SECONDARY
+        for row in comparisons.to_dict("records")
+    ]
+
+
 def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> pd.DataFrame:
-    """A sweep's comparisons table with Holm's adjustment over its family: every row but the primary contrasts
-    (:func:`is_primary`, on the table's first data variant) and the orderings that hold by construction (their
-    ``by_construction`` reason; they are not tested) gets its Holm-adjusted p-value in :data:`HOLM_COLUMN`
-    (:func:`workbench.stats.statistics.holm` over all of them), and its ``verdict`` is ``<`` only where that is below
-    0.05; a primary contrast keeps the verdict of its own 95 % interval.
+    """A sweep's comparisons table with its families (:func:`comparison_families`) and Holm's adjustment within
+    each: the primary contrasts of every condition are one family, every other tested row the other; each row's
+    Holm-adjusted p-value goes into :data:`HOLM_COLUMN` (:func:`workbench.stats.statistics.holm`) and its
+    ``verdict`` is ``<`` only where that is below 0.05. An identity keeps its verdict, and has no p-value.
 
     Parameters
     ----------
@@ -66,50 +88,61 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     Returns
     -------
     pandas.DataFrame
-        A copy with :data:`HOLM_COLUMN` after ``p``.
+        A copy with :data:`HOLM_COLUMN` and :data:`FAMILY_COLUMN` after ``p``.
     """
     table = comparisons.copy()
     if table.empty or "p" not in table.columns:
-        return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float)})
-    lead = next(iter(table["data"].dropna()), None) if "data" in table.columns else None
-    primary = [
-        is_primary(row, column, lead, solver) or isinstance(row.get("by_construction"), str)
-        for row in table.to_dict("records")
-    ]
-    family = [k for k, flag in enumerate(primary) if not flag]  # an identity spends no test
+        return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float), FAMILY_COLUMN: pd.Series(dtype=str)})
+    families = comparison_families(table, column, solver)
     adjusted = pd.Series(math.nan, index=table.index)
-    adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
-    table[HOLM_COLUMN] = adjusted
-    for k in family:
-        interval = Interval(
-            float(table["ratio"].iloc[k]),
-            float(table["ratio_low"].iloc[k]),
-            float(table["ratio_high"].iloc[k]),
-            null=1.0,
-            p_adjusted=float(adjusted.iloc[k]),
-        )
-        table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+    for name in (PRIMARY, SECONDARY):
+        family = [k for k, found in enumerate(families) if found == name]
+        adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
+        for k in family:
+            interval = Interval(
+                float(table["ratio"].iloc[k]),
+                float(table["ratio_low"].iloc[k]),
+                float(table["ratio_high"].iloc[k]),
+                null=1.0,
+                p_adjusted=float(adjusted.iloc[k]),
+            )
+            table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+    at = table.columns.get_loc("p") + 1
+    table.insert(at, HOLM_COLUMN, adjusted)
+    table.insert(at + 1, FAMILY_COLUMN, families)
     return table
 
 
+def family_sizes(comparisons: pd.DataFrame) -> dict:
+    """Rows per family of a comparisons table (:data:`FAMILY_COLUMN`): ``{"primary": k, "secondary": k,
+    "identity": k}``, zero for a family without rows."""
+    found = comparisons[FAMILY_COLUMN].value_counts() if FAMILY_COLUMN in comparisons.columns else {}
+    return {name: int(found.get(name, 0)) for name in (PRIMARY, SECONDARY, IDENTITY)}
+
+
+def rows_text(count: int) -> str:
+    """``1 row``, ``3 rows``."""
+    return f"{count} row{'' if count == 1 else 's'}"
+
+
 def holm_text(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> str:
-    """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the primary
-    contrasts at their own 95 % and the size of the Holm family (:func:`holm_verdicts`)."""
+    """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the two
+    Holm families and their sizes, and the identities (:func:`holm_verdicts`)."""
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     n = int(comparisons["n"].max()) if len(comparisons) else 0
-    family = int(comparisons[HOLM_COLUMN].notna().sum()) if HOLM_COLUMN in comparisons.columns else 0
+    sizes = family_sizes(comparisons)
     lead = next(iter(comparisons["data"].dropna()), "-") if "data" in comparisons.columns else "-"
     return (
-        f"**how to read**: levels are geometric means over the replicates; 'A < B': the per-replicate ratio "
-        f"A/B ({method}, n = {n}) is below 1 at 95 %; '~': not distinguishable; '=': a tie; the primary "
-        f"contrasts QE/H and QE/PCA (`{column}`, {solver}, on {lead}; stated with their 95 % interval) at their "
-        f"own 95 %, the other {family} comparisons Holm-adjusted ({HOLM_COLUMN} < {1 - CONFIDENCE:.2g}); "
-        "'A <= B by construction': holds in every replicate whatever the data (its reason beside it), so it is "
-        "not tested and only its size is data; every ratio, interval and p-value is a row of comparisons.csv."
+        f"**how to read**: levels: geometric means over the replicates; 'A < B': A/B per replicate ({method}, "
+        f"n = {n}) below 1 by its {HOLM_COLUMN} < {1 - CONFIDENCE:.2g}, Holm within its family: the primary QE/H "
+        f"and QE/PCA (`{column}`, {solver}, {lead}, each condition; {rows_text(sizes[PRIMARY])}) or the others "
+        f"({rows_text(sizes[SECONDARY])}); intervals: {INTERVAL_NOTE}; '~': not distinguishable; '=': a tie; "
+        f"'A <= B by construction' ({rows_text(sizes[IDENTITY])}): holds in every replicate, not tested; each "
+        "number is a row of comparisons.csv."
     )
 
 
-def _comparison(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
+def comparison_interval(comparisons: pd.DataFrame, first: str, second: str) -> Interval:
     """The paired ratio ``first / second`` from a comparisons table (either orientation), as an interval."""
     for a, b, flip in ((first, second, False), (second, first, True)):
         found = comparisons[(comparisons["first"] == a) & (comparisons["second"] == b)]
@@ -133,7 +166,7 @@ def pair_text(comparisons: pd.DataFrame, first: str, second: str) -> str:
     """``QE < H (QE/H 0.521 [0.46, 0.58])``, or ``QE and H not distinguishable (...)`` when the comparison's verdict
     (its interval, or its Holm-adjusted p-value where there is one) does not exclude 1: the row of the comparisons
     table, in its orientation (the smaller first); its method is said once, above the findings."""
-    interval = _comparison(comparisons, first, second)
+    interval = comparison_interval(comparisons, first, second)
     if interval.estimate > 1.0:
         first, second, interval = second, first, reversed_interval(interval)
     detail = short_interval_text(interval, f"{first}/{second}", "{:.3g}")
@@ -188,7 +221,7 @@ def ordering_with_intervals(
         names[row[key]] = f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''}"
 
     def compare(first, second):
-        interval = _comparison(comparisons, first, second)
+        interval = comparison_interval(comparisons, first, second)
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
     values = {name: float(value) for name, value in zip(ranked[key], ranked[column])}
