@@ -745,8 +745,8 @@ def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words(
     assert len(text.split()) <= 200
     assert "On mesh (m = 10, n = 18: not the paper's regime (basis.n_components=18 gives it), coverage 0.9950)" in text
     assert (
-        "QE better than H: reproduced (H/QE 4 [3, 5]; the paper's 7.2 above it); QE within the paper's 1.16 of PCA: "
-        "not reproduced (QE/PCA 1.25 [1.2, 1.3])." in text
+        "QE better than H: reproduced, H/QE 4 [3, 5]; the paper's 7.2 lies above it; QE nearly as accurate as PCA "
+        "(QE/PCA <= 1.16): not reproduced, QE/PCA 1.25 [1.2, 1.3]." in text
     )
     assert "H condition number 30, largest |w| 2; QE condition number 5e+04, largest |w| 4.8e+03" in text
     assert "Intervals (95 %) rest on 100 frames of 2 takes, batches of 20 frames" in text

@@ -98,9 +98,9 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     assert list(metrics["data"]) == ["markers m=n", "markers"]
     summary = run_summary(table, "alpha_abs_mean", metrics)
     assert "On markers m=n (m = 18, n = 18: the paper's regime m = n, coverage 0.99" in summary
-    assert "QE better than H: " in summary and "QE within the paper's 1.16 of PCA: " in summary
+    assert "QE better than H: " in summary and "QE nearly as accurate as PCA (QE/PCA <= 1.16): " in summary
     assert "H condition number " in summary and "; QE condition number " in summary
-    assert "Beside it, the coverage rule on markers (m = " in summary and len(summary.split()) <= 200
+    assert len(summary.split()) <= 200  # the coverage rule's sentence gives way first (here it does)
     lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {}, metrics)
     assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
     assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1

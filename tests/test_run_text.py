@@ -39,10 +39,15 @@ def ratios(h_over_qe, qe_over_pca):
 @pytest.mark.parametrize(
     "h_over_qe, first, qe_over_pca, second",
     [
-        ((1.5, 2.5), "reproduced (H/QE 2 [1.5, 2.5]; the paper's 7.2 above it)", (1.0, 1.1), "reproduced"),
-        ((0.9, 3.1), "not decided (H/QE 2 [0.9, 3.1]; the paper's 7.2 above it)", (1.1, 1.3), "not decided"),
-        ((0.5, 0.9), "not reproduced (H/QE 0.7 [0.5, 0.9]; the paper's 7.2 above it)", (1.2, 1.4), "not reproduced"),
-        ((5.0, 9.0), "reproduced (H/QE 7 [5, 9]; the paper's 7.2 inside it)", (1.2, 1.4), "not reproduced"),
+        ((1.5, 2.5), "reproduced, H/QE 2 [1.5, 2.5]; the paper's 7.2 lies above it", (1.0, 1.1), "reproduced"),
+        ((0.9, 3.1), "not decided, H/QE 2 [0.9, 3.1]; the paper's 7.2 lies above it", (1.1, 1.3), "not decided"),
+        (
+            (0.5, 0.9),
+            "not reproduced, H/QE 0.7 [0.5, 0.9]; the paper's 7.2 lies above it",
+            (1.2, 1.4),
+            "not reproduced",
+        ),
+        ((5.0, 9.0), "reproduced, H/QE 7 [5, 9]; the paper's 7.2 lies within it", (1.2, 1.4), "not reproduced"),
     ],
 )
 def test_each_claim_is_decided_by_the_interval_of_its_ratio(h_over_qe, first, qe_over_pca, second):
@@ -50,7 +55,7 @@ def test_each_claim_is_decided_by_the_interval_of_its_ratio(h_over_qe, first, qe
     sentence = reproduced_sentence(results, PAPER, {"markers m=n": ratios(h_over_qe, qe_over_pca)})
     assert sentence.startswith(
         f"The paper's claims, on markers m=n (m = 18, lstsq, alpha_abs_mean): QE better than H: {first}; "
-        f"QE within the paper's 1.16 of PCA: {second} (QE/PCA "
+        f"QE nearly as accurate as PCA (QE/PCA <= 1.16): {second}, QE/PCA "
     )
 
 
@@ -60,7 +65,7 @@ def test_qe_within_pca_by_construction_is_not_tested_and_held_out_variants_are_l
     # no variant at m = n: the first one scored on its training frames; QE's rank 14 = m + 1 spans PCA's subspace
     sentence = reproduced_sentence([result("markers", 13, rank=14), held_out], PAPER, found)
     assert "on markers (m = 13," in sentence and "held-out" not in sentence
-    assert sentence.endswith("QE within the paper's 1.16 of PCA: QE <= PCA by construction.")
+    assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction" in sentence
     assert reproduced_sentence([result("markers", 13)], PAPER, {}) == ""
 
 

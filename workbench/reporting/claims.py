@@ -41,18 +41,17 @@ class ClaimVerdicts(NamedTuple):
     qe_over_pca_decision: str
 
 
-def ratio_interval_text(interval: Interval, name: str) -> str:
+def ratio_interval_text(interval: Interval, name: str, brief: bool = False) -> str:
     """``H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log ratios, n = 5)``, with ``Holm p`` where the interval
-    carries a Holm-adjusted p-value, and ``no interval`` where its bounds are not finite."""
+    carries a Holm-adjusted p-value, and ``no interval`` where its bounds are not finite; ``brief``: without the
+    parenthesis (for a text that says once how its intervals are made)."""
     estimate = "-" if math.isnan(interval.estimate) else f"{interval.estimate:.3g}"
     how = ", ".join(part for part in (interval.method, f"n = {interval.n}") if part)
     if not interval.defined:
-        return f"{name} {estimate} (no interval: {how})"
+        return f"{name} {estimate} (no interval" + ("" if brief else f": {how}") + ")"
     adjusted = f", Holm p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
-    return (
-        f"{name} {estimate} [{interval.low:.3g}, {interval.high:.3g}] "
-        f"({100 * interval.confidence:g} % interval, {how}{adjusted})"
-    )
+    bounds = f"{name} {estimate} [{interval.low:.3g}, {interval.high:.3g}]"
+    return bounds if brief else f"{bounds} ({100 * interval.confidence:g} % interval, {how}{adjusted})"
 
 
 def where_paper_lies(interval: Interval, paper: float) -> str:
@@ -87,7 +86,9 @@ def second_claim(qe_over_pca: Interval, bound: float = PAPER_RATIOS["QE/PCA"]) -
     return NOT_REPRODUCED if qe_over_pca.low > bound else NOT_DECIDED
 
 
-def claim_verdicts(h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_construction: bool) -> ClaimVerdicts:
+def claim_verdicts(
+    h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_construction: bool, brief: bool = False
+) -> ClaimVerdicts:
     """The verdicts on the paper's two claims, each as text with its interval.
 
     Parameters
@@ -100,6 +101,8 @@ def claim_verdicts(h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_c
     qe_below_pca_by_construction : bool
         Whether QE <= PCA holds by construction in every run the interval rests on: then claim 2 holds whatever
         the data, is not tested, and only the size of QE/PCA is stated.
+    brief : bool
+        Intervals without their method and n (:func:`ratio_interval_text`).
 
     Returns
     -------
@@ -110,11 +113,11 @@ def claim_verdicts(h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_c
     """
     first = first_claim(h_over_qe)
     one = (
-        f"{CLAIM_1}: {first}, {ratio_interval_text(h_over_qe, 'H/QE')}; "
+        f"{CLAIM_1}: {first}, {ratio_interval_text(h_over_qe, 'H/QE', brief)}; "
         f"{where_paper_lies(h_over_qe, PAPER_RATIOS['H/QE'])}"
     )
     # claim 2 is decided against 1.16 by the interval alone: a Holm p-value (a test against 1) is not its evidence
-    size = ratio_interval_text(replace(qe_over_pca, p_adjusted=math.nan), "QE/PCA")
+    size = ratio_interval_text(replace(qe_over_pca, p_adjusted=math.nan), "QE/PCA", brief)
     if qe_below_pca_by_construction:
         second = BY_CONSTRUCTION
         two = f"{CLAIM_2}: {second} (QE <= PCA in every run whatever the data), not tested; its size {size}"

@@ -161,7 +161,7 @@ def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Ma
             None,
         )
         parts.append(
-            f"on {result.data} (m = {result.eigenfaces.n_components_}, lstsq, {column}): {claims_text(found, spans)}"
+            f"on {result.data} (m = {result.eigenfaces.n_components_}, lstsq, {column}): {claims_text(found, spans is not None)}"
         )
     return f"The paper's claims, {'; '.join(parts)}." if parts else ""
 

@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.claims import PAPER_RATIOS, claim_verdicts, ratio_interval_text
 from workbench.reporting.findings import (
     PAPER_BASES,
     _alpha,
@@ -22,57 +23,41 @@ from workbench.reporting.findings import (
     primary_data,
 )
 from workbench.stats.identities import identity_lookup, run_identities
-from workbench.stats.ratios import claim_verdict, where_lies
 from workbench.stats.statistics import Interval
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
 SUMMARY_WORDS = 200
 """The summary's length limit in words."""
 
-PAPER_RATIOS = {"H/QE": 5.2 / 0.72, "QE/PCA": 0.72 / 0.62}
-"""The paper's ratios, from its absolute alpha (H 5.2, QE 0.72, PCA 0.62 %)."""
 
-
-def ratio_interval_text(name: str, interval: Interval) -> str:
-    """``H/QE 5.51 [4.54, 6.47]`` (no bounds: ``H/QE 5.51, no interval``)."""
-    bounds = f" [{interval.low:.3g}, {interval.high:.3g}]" if interval.defined else ", no interval"
-    return f"{name} {interval.estimate:.3g}{bounds}"
-
-
-def claims_text(ratios: Mapping[str, Mapping], qe_spans_pca: str | None = None) -> str:
-    """The two claims' verdicts with their ratios and intervals, e.g. ``QE better than H: reproduced (H/QE 5.51
-    [4.54, 6.47]; the paper's 7.2 above it); QE within the paper's 1.16 of PCA: not reproduced (...)``.
+def claims_text(ratios: Mapping[str, Mapping], qe_spans_pca: bool = False) -> str:
+    """The two claims' verdicts with their ratios and intervals (:func:`workbench.reporting.claims.claim_verdicts`,
+    brief), e.g. ``QE better than H: reproduced, H/QE 5.51 [4.54, 6.47]; the paper's 7.2 lies above it; QE nearly as
+    accurate as PCA (QE/PCA <= 1.16): not reproduced, QE/PCA 3.12 [2.33, 3.92]``.
 
     Parameters
     ----------
     ratios : mapping
         ``H/QE`` and ``QE/PCA`` -> stored :class:`Interval` fields (``metrics.json`` ``data.<variant>.ratios``).
-    qe_spans_pca : str, optional
-        The reason QE <= PCA holds by construction, when it does.
+    qe_spans_pca : bool
+        Whether QE <= PCA holds by construction.
 
     Returns
     -------
     str
-        Empty when neither ratio is there.
+        Empty unless both ratios are there.
     """
-    parts = []
-    if "H/QE" in ratios:
-        interval = Interval.from_dict(ratios["H/QE"])
-        paper = PAPER_RATIOS["H/QE"]
-        parts.append(
-            f"QE better than H: {claim_verdict(interval, 1.0, above=True)} ({ratio_interval_text('H/QE', interval)}; "
-            f"the paper's {paper:.2g} {where_lies(paper, interval)} it)"
-        )
-    if qe_spans_pca:
-        parts.append(f"QE within the paper's {PAPER_RATIOS['QE/PCA']:.3g} of PCA: QE <= PCA by construction")
-    elif "QE/PCA" in ratios:
-        interval = Interval.from_dict(ratios["QE/PCA"])
-        paper = PAPER_RATIOS["QE/PCA"]
-        parts.append(
-            f"QE within the paper's {paper:.3g} of PCA: {claim_verdict(interval, paper, above=False)} "
-            f"({ratio_interval_text('QE/PCA', interval)})"
-        )
-    return "; ".join(parts)
+    if not {"H/QE", "QE/PCA"} <= set(ratios):
+        return ""
+    found = claim_verdicts(
+        Interval.from_dict(ratios["H/QE"]), Interval.from_dict(ratios["QE/PCA"]), qe_spans_pca, brief=True
+    )
+    return f"{found.h_over_qe}; {found.qe_over_pca}"
+
+
+def ratios_text(ratios: Mapping[str, Mapping]) -> str:
+    """``H/QE 2.9 [2.1, 3.7]; QE/PCA 1.4 [0.9, 1.8]``: the ratios alone, with their intervals."""
+    return "; ".join(ratio_interval_text(Interval.from_dict(value), key, brief=True) for key, value in ratios.items())
 
 
 def design_text(facts: Mapping) -> str:
@@ -137,7 +122,7 @@ def held_out_regime_text(metrics: Mapping, data: str) -> str:
             continue
         ratios = facts.get("ratios") or {}
         if ratios:
-            shown = "; ".join(ratio_interval_text(key, Interval.from_dict(value)) for key, value in ratios.items())
+            shown = ratios_text(ratios)
             replicates = next(iter(ratios.values())).get("n")
             unit = "folds" if facts.get("folds") else "frames"
             parts.append(f"{name[len(base) + 1 : -len(PAPER_REGIME_SUFFIX) - 1]} ({replicates} {unit}): {shown}")
@@ -205,7 +190,7 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         f"Kim & Ko claim QE far better than H (H/QE {PAPER_RATIOS['H/QE']:.2g}) and nearly as accurate as PCA "
         f"(QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}) at m = n = 18.",
         f"On {data} (m = {m}, n = {n}: {regime}{reach}), `{column}` with least squares: "
-        f"{claims_text(ratios, spans.reason if spans else None)}.",
+        f"{claims_text(ratios, spans is not None)}.",
         held_out_regime_text(metrics, data),
         beside_regime_text(table, data, column, metrics).strip(),
         f"{conditioning_text(part, rows)}." if conditioning_text(part, rows) else "",

@@ -5,7 +5,8 @@ Within a run the ratio of two rows' alphas on the same frames gets the batch-mea
 :func:`workbench.stats.statistics.batch_means_interval` (delta method: the ratio of two means, or of two pooled
 alphas, linearised at the means). Across replicates (folds, seeds) the ratios get the paired t-interval on log
 ratios (:func:`workbench.stats.statistics.paired_ratio_interval`). A ratio's null value is 1; no p-value is
-computed, because the claims are read against the paper's ratios, not against 1 alone (:func:`claim_verdict`).
+computed, because the claims are read against the paper's ratios, not against 1 alone
+(``workbench.reporting.claims``).
 """
 
 from __future__ import annotations
@@ -96,39 +97,3 @@ def ratio_of_pooled(
             confidence=confidence,
         )
     )
-
-
-REPRODUCED, NOT_REPRODUCED, NOT_DECIDED = "reproduced", "not reproduced", "not decided"
-
-
-def claim_verdict(interval: Interval, threshold: float, above: bool) -> str:
-    """Whether a ratio's interval reproduces a claim that it lies above (``above``) or at most at ``threshold``.
-
-    Parameters
-    ----------
-    interval : Interval
-    threshold : float
-        1 for "QE better than H" (H/QE above 1); the paper's 1.16 for "QE nearly as accurate as PCA" (QE/PCA at
-        most 1.16).
-    above : bool
-
-    Returns
-    -------
-    str
-        :data:`REPRODUCED` when the whole interval lies on the claimed side, :data:`NOT_REPRODUCED` when it lies
-        wholly on the other, :data:`NOT_DECIDED` otherwise (or without bounds).
-    """
-    if not interval.defined:
-        return NOT_DECIDED
-    if (interval.low > threshold) if above else (interval.high <= threshold):
-        return REPRODUCED
-    if (interval.high <= threshold) if above else (interval.low > threshold):
-        return NOT_REPRODUCED
-    return NOT_DECIDED
-
-
-def where_lies(value: float, interval: Interval) -> str:
-    """``inside``, ``above`` or ``below`` the interval: where a paper's value lies relative to a measured one."""
-    if not interval.defined or interval.low <= value <= interval.high:
-        return "inside" if interval.defined else "beside"
-    return "above" if value > interval.high else "below"
