@@ -13,14 +13,16 @@ positive by construction). Two bases measured on the same replicates are compare
 (:func:`paired_difference_interval`) or log ratio (:func:`paired_ratio_interval`).
 
 Within one run the units are the frames, and frames are autocorrelated: the per-frame paired difference of two rows
-of the alpha table gets a batch-means interval (:func:`batch_means_interval`): the frames are cut into 3 to 30
-contiguous batches within takes (fewer when the series' persistence is long), the variance of the mean is taken from
-the batch means, inflated by what an AR(1) series of the measured persistence would leave out (neighbouring batches
-are still correlated), and the interval uses Student-t quantiles with (batches - 1) degrees of freedom. Its coverage
-is measured on AR(1) series by ``benchmarks/run.py coverage`` (docs/statistics.md): at nominal 95 %, at least 93 %
-for phi up to 0.99 at 800 and 4,000 frames, where the circular block bootstrap with the Politis-White block length
-(:mod:`workbench.block_bootstrap`, kept for comparison) covered 82 % (phi 0.96, 800 frames). Each interval carries the p-value of its
-t statistic, for :func:`holm`.
+of the alpha table gets an overlapping-batch-means interval (:func:`batch_means_interval`, Meketon & Schmeiser
+1984; the variance in :mod:`workbench.stats.time_series`): every run of ``L`` consecutive frames within a take is a
+batch, ``L`` six integrated autocorrelation times of a deliberately high estimate of the series' persistence (between
+n/30 and n/3 frames), the variance of the mean comes from the batch means' spread, made unbiased for an AR(1) of that
+persistence, and the interval uses Student-t quantiles with ``1.5 (n / L - 1)`` degrees of freedom (half as many
+again as non-overlapping batches of the same length; :attr:`Interval.degrees`). Its coverage and its width over the
+width a known variance would give are measured on AR(1) series by ``benchmarks/run.py coverage``
+(docs/statistics.md). Each interval carries the p-value of its t statistic, for :func:`holm`; :func:`holm_intervals`
+gives each member of a family the interval at the confidence of its Holm step, which excludes the null value exactly
+where Holm rejects it.
 
 Differences within ``TOL.tie_rel`` of the values compared are ties, never "A < B" (:func:`is_tie`).
 
@@ -30,13 +32,14 @@ Arrays in, an :class:`Interval` out; no pandas. Randomness comes only from a see
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.tolerances import TOL
+from workbench.stats.multiplicity import holm, holm_levels  # noqa: F401  (holm_levels: re-exported)
 from workbench.stats.time_series import (  # noqa: F401  (autocovariances: re-exported for callers)
     autocovariances,
     mean_variance,
@@ -49,7 +52,7 @@ GEOMETRIC = "geometric mean, t-interval on log values"
 PAIRED_T = "paired t"
 PAIRED_LOG_RATIO = "paired t on log ratios"
 BLOCK_BOOTSTRAP = "circular block bootstrap over time"
-BATCH_MEANS = "batch means over time, t-quantiles"
+BATCH_MEANS = "overlapping batch means over time, t-quantiles"
 IDENTICAL = "identical on every frame"
 SIGNED = "{:+.3g}"
 """The number format of a difference (its sign always shown)."""
@@ -150,53 +153,18 @@ class Interval:
 
     def as_dict(self) -> dict:
         """The fields by name (JSON-ready: a record's ``metrics.json`` stores its comparisons so)."""
-        return {
-            "estimate": self.estimate,
-            "low": self.low,
-            "high": self.high,
-            "n": self.n,
-            "method": self.method,
-            "confidence": self.confidence,
-            "null": self.null,
-            "block_frames": self.block_frames,
-            "block_seconds": self.block_seconds,
-            "p_value": self.p_value,
-            "scale": self.scale,
-            "p_adjusted": self.p_adjusted,
-            "degrees": self.degrees,
-            "adjusted_low": self.adjusted_low,
-            "adjusted_high": self.adjusted_high,
-            "adjusted_confidence": self.adjusted_confidence,
-        }
+        return asdict(self)
 
     @classmethod
     def from_dict(cls, values: Mapping) -> "Interval":
         """The interval of :meth:`as_dict`'s fields. A stored comparison without ``null`` is a difference (null 0),
-        and ``level`` is read as ``confidence`` (records written before the two were one type)."""
-        fields = {
-            key: values[key]
-            for key in (
-                "estimate",
-                "low",
-                "high",
-                "n",
-                "method",
-                "confidence",
-                "block_frames",
-                "block_seconds",
-                "p_value",
-                "scale",
-                "p_adjusted",
-                "degrees",
-                "adjusted_low",
-                "adjusted_high",
-                "adjusted_confidence",
-            )
-            if key in values
-        }
-        if "confidence" not in fields and "level" in values:
-            fields["confidence"] = values["level"]
-        return cls(**fields, null=values.get("null", 0.0))
+        ``level`` is read as ``confidence`` (records written before the two were one type), and fields a record
+        predates keep their defaults (NaN ``degrees``: not known)."""
+        names = {field.name for field in fields(cls)} - {"null"}
+        found = {key: values[key] for key in names if key in values}
+        if "confidence" not in found and "level" in values:
+            found["confidence"] = values["level"]
+        return cls(**found, null=values.get("null", 0.0))
 
 
 def interval_text(interval: Interval, name: str = "difference", number_format: str = "{:.3g}") -> str:
@@ -221,7 +189,7 @@ def interval_text(interval: Interval, name: str = "difference", number_format: s
         return f"{name} {estimate} (no interval: {why})"
     how = [interval.method] if interval.method else []
     if interval.block_frames:
-        unit = "batches" if interval.method == BATCH_MEANS else "blocks"
+        unit = "batches" if "batch means" in interval.method else "blocks"  # also a record of the earlier method
         how.append(
             f"{unit} of {interval.block_frames} frame{'s' if interval.block_frames > 1 else ''}"
             + (f" = {interval.block_seconds:.2g} s" if math.isfinite(interval.block_seconds) else "")
@@ -453,7 +421,7 @@ def batch_means_interval(
     The statistic is linearised at the means (delta method, central differences): the variance of the mean of each
     frame's influence ``grad . (x_t - mean)`` is that of overlapping batch means within takes
     (:func:`workbench.stats.time_series.mean_variance`: every run of ``L`` consecutive frames of a take is a batch,
-    ``L`` a few integrated autocorrelation times of the series' :func:`persistence`, the sum of squares made
+    ``L`` six integrated autocorrelation times of the series' :func:`persistence`, the sum of squares made
     unbiased for an AR(1) of that persistence), and the interval is ``estimate +- t_{(1+c)/2, d} sqrt(variance)``
     with ``d`` the overlapping batch means' degrees of freedom (``1.5 (n / L - 1)`` for one take); the p-value is
     that of the t statistic.
@@ -493,9 +461,7 @@ def batch_means_interval(
     spans = take_spans(takes, n)
     variance, degrees, length = mean_variance(influence, spans, persistence(influence, takes))
     step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
-    found = Interval(
-        estimate, math.nan, math.nan, n, BATCH_MEANS, confidence, 0.0, length, length * step, scale=scale
-    )
+    found = Interval(estimate, math.nan, math.nan, n, BATCH_MEANS, confidence, 0.0, length, length * step, scale=scale)
     if not degrees >= 1.0:
         return found
     found = replace(found, degrees=degrees)
@@ -620,59 +586,6 @@ def values_tie(first: float, second: float, tolerance: float | None = None) -> b
     """Whether two values differ by no more than ``TOL.tie_rel`` (or ``tolerance``) times the larger of them."""
     tolerance = TOL.tie_rel if tolerance is None else tolerance
     return abs(first - second) <= tolerance * max(abs(first), abs(second))
-
-
-def holm(p_values) -> np.ndarray:
-    """Holm's step-down adjustment of p-values for multiple comparisons (Holm 1979): with the ``m`` finite
-    p-values sorted, ``p_(k)`` becomes ``max_{j <= k} min(1, (m - j + 1) p_(j))``; an adjusted p-value below
-    ``1 - confidence`` rejects its null with the family-wise error rate held at that level.
-
-    Parameters
-    ----------
-    p_values : array_like of shape (m,)
-        NaN for a comparison without a p-value (left out of ``m``, NaN in the result).
-
-    Returns
-    -------
-    ndarray of shape (m,)
-        In the input order.
-    """
-    values = np.asarray(p_values, dtype=float).ravel()
-    adjusted = np.full(values.shape, math.nan)
-    finite = np.flatnonzero(np.isfinite(values))
-    order = finite[np.argsort(values[finite], kind="stable")]
-    steps = (len(order) - np.arange(len(order))) * values[order]
-    adjusted[order] = np.minimum(np.maximum.accumulate(steps), 1.0)
-    return adjusted
-
-
-def holm_levels(p_values, confidence: float = CONFIDENCE) -> np.ndarray:
-    """The confidence of each member's Holm step: with the ``k`` finite p-values sorted and ``j`` the first step
-    that fails (``p_(j) >= alpha / (k - j + 1)``, ``alpha = 1 - confidence``; ``k + 1`` when none fails), the member
-    of rank ``i`` gets ``1 - alpha / (k - min(i, j) + 1)``. A t interval at that confidence excludes the null value
-    exactly when the member's Holm-adjusted p-value is below ``alpha``.
-
-    Parameters
-    ----------
-    p_values : array_like of shape (m,)
-        NaN for a member without a p-value (NaN in the result, left out of ``k``).
-    confidence : float
-
-    Returns
-    -------
-    ndarray of shape (m,)
-        In the input order.
-    """
-    values = np.asarray(p_values, dtype=float).ravel()
-    levels = np.full(values.shape, math.nan)
-    finite = np.flatnonzero(np.isfinite(values))
-    order = finite[np.argsort(values[finite], kind="stable")]
-    alpha, k = 1.0 - confidence, len(order)
-    thresholds = alpha / (k - np.arange(k))  # step i (0-based) rejects when p_(i) < alpha / (k - i)
-    failed = np.flatnonzero(values[order] >= thresholds)
-    first = int(failed[0]) if failed.size else k
-    levels[order] = 1.0 - alpha / (k - np.minimum(np.arange(k), first))
-    return levels
 
 
 def holm_intervals(intervals: Sequence[Interval], confidence: float = CONFIDENCE) -> list[Interval]:
@@ -834,4 +747,3 @@ def comparison_lookup(comparisons: Sequence[Mapping]) -> Callable[[tuple, tuple]
         return None
 
     return compare
-

@@ -18,7 +18,7 @@ from workbench.core.errors import WorkbenchError
 
 MIN_BATCHES, MAX_BATCHES = 3, 30
 """A batch spans between ``n / MAX_BATCHES`` and ``n / MIN_BATCHES`` frames."""
-BATCH_TAUS = 3.0
+BATCH_TAUS = 6.0
 """A batch spans at least this many integrated autocorrelation times ``(1 + phi) / (1 - phi)``."""
 PERSISTENCE_SE = 2.0
 """The lag-1 estimate of :func:`persistence` is raised by this many standard errors."""
@@ -203,9 +203,7 @@ def overlapping_degrees(spans: Sequence[tuple[int, int]], length: int) -> float:
     return float(sum(per_take) - 1.0)
 
 
-def mean_variance(
-    influence: np.ndarray, spans: Sequence[tuple[int, int]], phi: float
-) -> tuple[float, float, int]:
+def mean_variance(influence: np.ndarray, spans: Sequence[tuple[int, int]], phi: float) -> tuple[float, float, int]:
     """The variance of the mean of a series by overlapping batch means within takes, unbiased for an AR(1) of
     persistence ``phi``, with its degrees of freedom and the batch length.
 
