@@ -1,8 +1,9 @@
 """The statistics of the reports, one interval type for both: across the replicates of a sweep, intervals that
 stay positive and paired comparisons (known answers computed by hand, and the coverage of the geometric interval on
-log-normal samples); within a run, the overlapping batch means within takes (their coverage on strongly autocorrelated AR(1)
-series), the circular block bootstrap they replaced, the intervals, ties and the orderings stated from them, on
-series whose answer is known; Holm's adjustment on a known set of p-values and the Holm-step intervals that agree with it."""
+log-normal samples); within a run, the overlapping batch means within takes (their coverage on strongly
+autocorrelated AR(1) series), the circular block bootstrap they replaced, the intervals, ties and the orderings
+stated from them, on series whose answer is known; Holm's adjustment on a known set of p-values and the Holm-step
+intervals that agree with it."""
 
 import math
 
