@@ -260,9 +260,12 @@ def test_batch_means_cover_a_strongly_autocorrelated_mean():
     held = [paired_mean_difference(row, np.zeros(800)) for row in series]
     assert np.mean([interval.low <= 0.0 <= interval.high for interval in held]) >= COVERAGE_FLOOR
     assert all(interval.method == BATCH_MEANS and 27 <= interval.block_frames <= 267 for interval in held)
-    # overlapping batches: 1.5 (n / L - 1) degrees of freedom, 3 when a batch is a third of the frames
-    assert all(interval.degrees == pytest.approx(1.5 * (800 / interval.block_frames - 1)) for interval in held)
-    assert min(interval.degrees for interval in held) == pytest.approx(3.0, abs=0.02)
+    # overlapping batches: about 1.5 (n / L - 1) degrees of freedom, 3 when a batch is a third of the frames
+    assert all(
+        interval.degrees == pytest.approx((1.5 - 0.5 / interval.block_frames) * (800 / interval.block_frames - 1))
+        for interval in held
+    )
+    assert min(interval.degrees for interval in held) == pytest.approx(3.0, abs=0.03)
 
 
 def test_batch_means_cover_a_strongly_autocorrelated_pooled_difference():
@@ -287,8 +290,9 @@ def test_batches_stay_within_takes_and_are_longer_when_memory_is_long():
     expected = 461 * 40 * (1 - mean) ** 2 + 661 * 40 * (-1 - mean) ** 2  # (500 - 40 + 1) and (700 - 40 + 1) batches
     assert time_series.overlapping_batch_sum(series, spans, 40) == pytest.approx(expected, rel=1e-12)
     # Meketon & Schmeiser's degrees of freedom for one take, batches - 1 when each take is one batch
-    assert time_series.overlapping_degrees([(0, 1200)], 40) == pytest.approx(1.5 * (30 - 1))
+    assert time_series.overlapping_degrees([(0, 1200)], 40) == pytest.approx((1.5 - 0.5 / 40) * (30 - 1))
     assert time_series.overlapping_degrees(spans, 800) == pytest.approx(1.0)
+    assert time_series.overlapping_degrees([(0, 50)], 1) == pytest.approx(49.0)  # the sample variance
 
 
 def test_the_overlapping_batch_sum_is_unbiased_for_white_noise_and_the_ar1_it_is_corrected_for():

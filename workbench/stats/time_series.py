@@ -196,10 +196,12 @@ def ar1_overlapping_bias(spans: Sequence[tuple[int, int]], length: int, phi: flo
 
 
 def overlapping_degrees(spans: Sequence[tuple[int, int]], length: int) -> float:
-    """Degrees of freedom of the overlapping batch means: ``1.5 n_k / L - 0.5`` per take of ``n_k >= L`` frames
-    (1 for a take that is one batch), less 1 for the mean; ``1.5 (n / L - 1)`` for one take (Meketon & Schmeiser
-    1984), ``batches - 1`` when every take is one batch."""
-    per_take = [OVERLAP_DEGREES * max(stop - start, length) / length - (OVERLAP_DEGREES - 1) for start, stop in spans]
+    """Degrees of freedom of the overlapping batch means: ``f n_k / L - (f - 1)`` per take of ``n_k >= L`` frames (1
+    for a take that is one batch), less 1 for the mean, with ``f = 1.5 - 0.5 / L``: ``1.5 (n / L - 1)`` for one take
+    and long batches (Meketon & Schmeiser 1984), ``n - 1`` for batches of one frame (the sample variance), and
+    ``batches - 1`` when every take is one batch."""
+    factor = OVERLAP_DEGREES - (OVERLAP_DEGREES - 1.0) / length
+    per_take = [factor * max(stop - start, length) / length - (factor - 1.0) for start, stop in spans]
     return float(sum(per_take) - 1.0)
 
 
