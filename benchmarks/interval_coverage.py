@@ -8,7 +8,7 @@ known-variance width ``2 z_0.975 sd`` (``sd`` the true standard deviation of the
 autocovariances) and the mean degrees of freedom of the t quantiles:
 
 - ``mean``: :func:`workbench.stats.statistics.paired_mean_difference` of a series against zeros (true value 0);
-- ``pooled s``: :func:`workbench.stats.statistics.paired_pooled_difference` of squared errors ``exp(s x_t)`` and
+- ``pooled, sigma s``: :func:`workbench.stats.statistics.paired_pooled_difference` of squared errors ``exp(s x_t)`` and
   ``exp(s y_t) / 4`` of two independent series over a constant reference of 100, log-normal of sigma ``s`` (0.5,
   and 1 as AnimFace's errors, whose p95/median is about 5); true value ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 =
   5 exp(s^2 / 4)``; its ``sd`` is that of the delta method's linearisation, exact for the lognormal's
@@ -38,7 +38,7 @@ from workbench.stats.time_series import ar1_sum_variance
 
 FRAMES = (800, 4000)
 PERSISTENCES = (0.0, 0.5, 0.9, 0.96, 0.99)
-SIGMAS = {"pooled": 0.5, "pooled_s1": 1.0}
+SIGMAS = {"pooled, sigma 0.5": 0.5, "pooled, sigma 1": 1.0}
 SEED_REPLICATES, SEED_FAMILIES = 5, 5000
 Z = float(stats.norm.ppf(0.975))
 
@@ -119,7 +119,7 @@ def seed_rows(rng: np.random.Generator, families: int = SEED_FAMILIES, size: int
     shapes = {
         "normal": lambda: rng.standard_normal((families, size)),
         "exponential": lambda: rng.exponential(1.0, (families, size)) - 1.0,
-        "lognormal s1": lambda: rng.lognormal(0.0, 1.0, (families, size)) - math.exp(0.5),
+        "lognormal sigma 1": lambda: rng.lognormal(0.0, 1.0, (families, size)) - math.exp(0.5),
     }
     rows = []
     for name, draw in shapes.items():

@@ -17,7 +17,7 @@ of the alpha table gets an overlapping-batch-means interval (:func:`batch_means_
 1984; the variance in :mod:`workbench.stats.time_series`): every run of ``L`` consecutive frames within a take is a
 batch, ``L`` six integrated autocorrelation times of a deliberately high estimate of the series' persistence (between
 n/30 and n/3 frames), the variance of the mean comes from the batch means' spread, made unbiased for an AR(1) of that
-persistence, and the interval uses Student-t quantiles with ``1.5 (n / L - 1)`` degrees of freedom (half as many
+persistence, and the interval uses Student-t quantiles with about ``1.5 (n / L - 1)`` degrees of freedom (half as many
 again as non-overlapping batches of the same length; :attr:`Interval.degrees`). Its coverage and its width over the
 width a known variance would give are measured on AR(1) series by ``benchmarks/run.py coverage``
 (docs/statistics.md). Each interval carries the p-value of its t statistic, for :func:`holm`; :func:`holm_intervals`
@@ -423,7 +423,7 @@ def batch_means_interval(
     (:func:`workbench.stats.time_series.mean_variance`: every run of ``L`` consecutive frames of a take is a batch,
     ``L`` six integrated autocorrelation times of the series' :func:`persistence`, the sum of squares made
     unbiased for an AR(1) of that persistence), and the interval is ``estimate +- t_{(1+c)/2, d} sqrt(variance)``
-    with ``d`` the overlapping batch means' degrees of freedom (``1.5 (n / L - 1)`` for one take); the p-value is
+    with ``d`` the overlapping batch means' degrees of freedom (about ``1.5 (n / L - 1)`` for one take); the p-value is
     that of the t statistic.
 
     Parameters
