@@ -125,7 +125,7 @@ def ar1_sum_variance(m, phi: float) -> np.ndarray:
     return (m * (1 + phi) / (1 - phi) - 2 * phi * (1 - phi**m) / (1 - phi) ** 2) / (1 - phi**2)
 
 
-def _take_batches(stop: int, start: int, length: int) -> tuple[np.ndarray, int]:
+def _take_batches(start: int, stop: int, length: int) -> tuple[np.ndarray, int]:
     """Starts of the overlapping batches of one take and their length (the whole take when it is shorter)."""
     size = min(length, stop - start)
     return np.arange(start, stop - size + 1), size
@@ -138,7 +138,7 @@ def _batch_deviations(
     mean of all frames) and ``L``; a take shorter than ``length`` is one batch of its own length."""
     mean, deviations = float(influence.mean()), []
     for start, stop in spans:
-        starts, size = _take_batches(stop, start, length)
+        starts, size = _take_batches(start, stop, length)
         cumulative = np.concatenate([[0.0], np.cumsum(influence[start:stop] - mean)])
         deviations.append((cumulative[starts - start + size] - cumulative[starts - start], size))
     return deviations
@@ -175,13 +175,14 @@ def ar1_overlapping_bias(spans: Sequence[tuple[int, int]], length: int, phi: flo
     Returns
     -------
     float
+        NaN when the batch sum has no spread to expect (a single frame).
     """
     sizes = np.array([stop - start for start, stop in spans], dtype=float)
     n = float(sizes.sum())
     variance_of_total = float(ar1_sum_variance(sizes, phi).sum())  # n^2 times the variance of the mean
     expected = 0.0
     for take_size in sizes.astype(int):
-        starts, size = _take_batches(take_size, 0, length)
+        starts, size = _take_batches(0, take_size, length)
         before, after = starts, take_size - size - starts
         # covariance of a batch sum with its take's sum (the other takes are independent of it)
         with_take = 0.5 * (
@@ -192,7 +193,7 @@ def ar1_overlapping_bias(spans: Sequence[tuple[int, int]], length: int, phi: flo
         )
         terms = ar1_sum_variance(size, phi) - 2.0 * size / n * with_take + size**2 * variance_of_total / n**2
         expected += float(np.sum(terms)) / size
-    return variance_of_total / n**2 / expected
+    return variance_of_total / n**2 / expected if expected > 0.0 else math.nan  # NaN: one frame, no spread
 
 
 def overlapping_degrees(spans: Sequence[tuple[int, int]], length: int) -> float:
