@@ -1,15 +1,24 @@
-"""Coverage of the within-run intervals on AR(1) series whose answer is known (``python benchmarks/run.py coverage``).
+"""Coverage and width of the reports' intervals on series whose answer is known (``python benchmarks/run.py
+coverage``).
 
-For each frame count n and persistence phi, ``--replications`` stationary AR(1) series (unit stationary variance,
-one ``numpy.random.Generator`` seeded by ``--seed``) are given to the interval of one run's comparisons, and the
-share of intervals holding the true value is printed with the intervals' mean width:
+Within a run, for each frame count n and persistence phi, ``--replications`` stationary AR(1) series (unit
+stationary variance, one ``numpy.random.Generator`` seeded by ``--seed``) are given to the interval of one run's
+comparisons; printed are the share of intervals holding the true value, their mean width, that width over the
+known-variance width ``2 z_0.975 sd`` (``sd`` the true standard deviation of the statistic, exact from the AR(1)'s
+autocovariances) and the mean degrees of freedom of the t quantiles:
 
 - ``mean``: :func:`workbench.stats.statistics.paired_mean_difference` of a series against zeros (true value 0);
-- ``pooled``: :func:`workbench.stats.statistics.paired_pooled_difference` of squared errors ``exp(x_t / 2)``
-  and ``exp(y_t / 2) / 4`` of two independent series over a constant reference of 100 (true value
-  ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 = 5 exp(1/16)`` with ``E exp(x / 2) = exp(1/8)``);
+- ``pooled, sigma s``: :func:`workbench.stats.statistics.paired_pooled_difference` of squared errors ``exp(s x_t)`` and
+  ``exp(s y_t) / 4`` of two independent series over a constant reference of 100, log-normal of sigma ``s`` (0.5,
+  and 1 as AnimFace's errors, whose p95/median is about 5); true value ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 =
+  5 exp(s^2 / 4)``; its ``sd`` is that of the delta method's linearisation, exact for the lognormal's
+  autocovariances ``exp(s^2) (exp(s^2 phi^h) - 1)``;
 - ``bootstrap`` (``--with-bootstrap``): the circular block bootstrap with the Politis-White block length that the
   batch means replaced (:func:`workbench.block_bootstrap.bootstrap_interval`), for the mean.
+
+Across replicates, ``seeds``: the paired t-interval on log ratios over 5 replicates
+(:func:`workbench.stats.statistics.paired_ratio_interval`) when the log ratios are normal, and when they are
+skewed (an exponential, shifted to mean 0, and a lognormal of sigma 1, shifted to mean 0), 5,000 families each.
 
 A binomial standard error of a coverage near 0.95 over R replications is ``sqrt(0.95 * 0.05 / R)`` (0.0069 at
 R = 1,000).
@@ -21,13 +30,17 @@ import math
 
 import block_bootstrap  # beside this file (benchmarks/ is on the path when run.py runs)
 import numpy as np
+from scipy import stats
 from scipy.signal import lfilter
 
 from workbench.stats import statistics
+from workbench.stats.time_series import ar1_sum_variance
 
 FRAMES = (800, 4000)
 PERSISTENCES = (0.0, 0.5, 0.9, 0.96, 0.99)
-POOLED_TRUTH = 5.0 * math.exp(1.0 / 16.0)
+SIGMAS = {"pooled, sigma 0.5": 0.5, "pooled, sigma 1": 1.0}
+SEED_REPLICATES, SEED_FAMILIES = 5, 5000
+Z = float(stats.norm.ppf(0.975))
 
 
 def ar1_series(rng: np.random.Generator, n: int, phi: float, count: int) -> np.ndarray:
@@ -42,53 +55,113 @@ def ar1_series(rng: np.random.Generator, n: int, phi: float, count: int) -> np.n
     return lfilter([1.0], [1.0, -phi], noise, axis=1)
 
 
+def mean_variance_of(covariance: np.ndarray) -> float:
+    """Variance of the mean of ``n`` values of a stationary series with autocovariances ``covariance[0..n-1]``."""
+    n = covariance.size
+    weights = n - np.arange(n, dtype=float)
+    weights[1:] *= 2.0
+    return float(weights @ covariance) / n**2
+
+
+def true_sd(kind: str, n: int, phi: float) -> float:
+    """The standard deviation of the statistic a cell's interval is about (the mean's exactly; the pooled
+    difference's by the delta method with the exact variance of the two means)."""
+    if kind in ("mean", "bootstrap"):
+        return math.sqrt((1.0 - phi**2) * float(ar1_sum_variance(n, phi))) / n
+    s = SIGMAS[kind]
+    lags = np.arange(n, dtype=float)
+    variance = mean_variance_of(math.exp(s**2) * (np.exp(s**2 * phi**lags) - 1.0))
+    mean = math.exp(s**2 / 2.0)
+    # 10 (sqrt(m_a) - sqrt(m_b)) with m_b a quarter of an independent copy: gradients 5 / sqrt(mean_k)
+    return math.sqrt(25.0 * variance / mean + 25.0 * (variance / 16.0) / (mean / 4.0))
+
+
+def one_interval(kind: str, n: int, first: np.ndarray, second: np.ndarray | None, k: int):
+    """The interval of one replication and the true value it should hold."""
+    if kind == "mean":
+        return statistics.paired_mean_difference(first, np.zeros(n)), 0.0
+    if kind == "bootstrap":
+        found = block_bootstrap.bootstrap_interval(
+            first[None, :], lambda t: t[..., 0] / n, block_series=first, n_resamples=500, seed=k
+        )
+        return found, 0.0
+    s = SIGMAS[kind]
+    found = statistics.paired_pooled_difference(np.exp(s * first), np.exp(s * second) / 4.0, np.full(n, 100.0))
+    return found, 5.0 * math.exp(s**2 / 4.0)
+
+
 def coverage_row(kind: str, n: int, phi: float, replications: int, rng: np.random.Generator) -> dict:
-    """Coverage and mean width of one interval on one (n, phi) cell."""
-    hits, widths = 0, []
+    """Coverage, mean width, width over the known-variance width and mean degrees of freedom of one cell."""
+    hits, widths, degrees = 0, [], []
     series = ar1_series(rng, n, phi, replications)
-    others = ar1_series(rng, n, phi, replications) if kind == "pooled" else None
+    others = ar1_series(rng, n, phi, replications) if kind.startswith("pooled") else [None] * replications
     for k in range(replications):
-        if kind == "mean":
-            interval, truth = statistics.paired_mean_difference(series[k], np.zeros(n)), 0.0
-        elif kind == "pooled":
-            interval = statistics.paired_pooled_difference(
-                np.exp(series[k] / 2.0), np.exp(others[k] / 2.0) / 4.0, np.full(n, 100.0)
-            )
-            truth = POOLED_TRUTH
-        else:
-            interval = block_bootstrap.bootstrap_interval(
-                series[k][None, :], lambda t: t[..., 0] / n, block_series=series[k], n_resamples=500, seed=k
-            )
-            truth = 0.0
+        interval, truth = one_interval(kind, n, series[k], others[k], k)
         hits += interval.low <= truth <= interval.high
         widths.append(interval.high - interval.low)
+        degrees.append(getattr(interval, "degrees", math.nan))
+    width = float(np.mean(widths))
     return {
         "interval": kind,
         "n": n,
         "phi": phi,
         "nominal": statistics.CONFIDENCE,
         "coverage": hits / replications,
-        "mean width": float(np.mean(widths)),
+        "mean width": width,
+        "width ratio": width / (2.0 * Z * true_sd(kind, n, phi)),
+        "degrees": float(np.nanmean(degrees)) if np.isfinite(degrees).any() else math.nan,
         "replications": replications,
     }
 
 
+def seed_rows(rng: np.random.Generator, families: int = SEED_FAMILIES, size: int = SEED_REPLICATES) -> list[dict]:
+    """Coverage of the paired t-interval on log ratios over ``size`` replicates, per shape of the log ratios."""
+    shapes = {
+        "normal": lambda: rng.standard_normal((families, size)),
+        "exponential": lambda: rng.exponential(1.0, (families, size)) - 1.0,
+        "lognormal sigma 1": lambda: rng.lognormal(0.0, 1.0, (families, size)) - math.exp(0.5),
+    }
+    rows = []
+    for name, draw in shapes.items():
+        logs = draw()  # true mean log ratio 0: true ratio 1
+        held = [statistics.paired_ratio_interval(np.exp(row), np.ones(size)) for row in logs]
+        rows.append(
+            {
+                "log ratios": name,
+                "replicates": size,
+                "coverage": float(np.mean([found.low <= 1.0 <= found.high for found in held])),
+                "families": families,
+            }
+        )
+    return rows
+
+
 def bench_coverage(args) -> None:
-    """Print the coverage table of the within-run intervals."""
+    """Print the coverage and width table of the within-run intervals, then the seeds' coverage."""
     rng = np.random.default_rng(args.seed)
-    kinds = ["mean", "pooled"] + (["bootstrap"] if args.with_bootstrap else [])
+    kinds = ["mean", *SIGMAS] + (["bootstrap"] if args.with_bootstrap else [])
     print(
         f"coverage of the within-run intervals on AR(1) series, seed {args.seed} "
-        f"(binomial standard error at 0.95: {math.sqrt(0.95 * 0.05 / args.replications):.4f})"
+        f"(binomial standard error at 0.95: {math.sqrt(0.95 * 0.05 / args.replications):.4f}); width ratio: mean "
+        f"width / (2 z_0.975 true sd)"
     )
-    print("| interval | n | phi | nominal | coverage | mean width | replications |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("| interval | n | phi | nominal | coverage | mean width | width ratio | t dof | replications |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for kind in kinds:
         for n in FRAMES:
             for phi in PERSISTENCES:
                 row = coverage_row(kind, n, phi, args.replications, rng)
                 print(
                     f"| {row['interval']} | {n} | {phi:g} | {row['nominal']:.2f} | {row['coverage']:.3f} | "
-                    f"{row['mean width']:.3g} | {row['replications']} |",
+                    f"{row['mean width']:.3g} | {row['width ratio']:.2f} | {row['degrees']:.3g} | "
+                    f"{row['replications']} |",
                     flush=True,
                 )
+    print(f"\ncoverage of the paired t-interval on log ratios across replicates, seed {args.seed}")
+    print("| log ratios | replicates | nominal | coverage | families |")
+    print("|---|---:|---:|---:|---:|")
+    for row in seed_rows(rng):
+        print(
+            f"| {row['log ratios']} | {row['replicates']} | {statistics.CONFIDENCE:.2f} | {row['coverage']:.3f} | "
+            f"{row['families']} |"
+        )

@@ -12,8 +12,10 @@ Run from the repository root (not part of the test suite):
     python benchmarks/run.py mapped       # PCA of RBF-interpolated mesh frames in marker space, lifted, vs direct
     python benchmarks/run.py cache        # the dataset cache (paths.cache_dir) against no cache: ict_livelink,
                                           #   animface and the synthetic actor (write, hit, sizes on disk)
-    python benchmarks/run.py coverage     # coverage of the within-run intervals on AR(1) series (--replications,
-                                          #   --seed, --with-bootstrap); not part of "all": it times nothing
+    python benchmarks/run.py coverage     # coverage and width (over the known-variance width) of the within-run
+                                          #   intervals on AR(1) series, and of the five-seed intervals on skewed
+                                          #   log ratios (--replications, --seed, --with-bootstrap); not part of
+                                          #   "all": it times nothing
     python benchmarks/run.py all
 
 The run starts by printing the BLAS library, its kernel and threads (threadpoolctl) and the OpenBLAS variables of

@@ -1,8 +1,9 @@
 """The statistics of the reports, one interval type for both: across the replicates of a sweep, intervals that
 stay positive and paired comparisons (known answers computed by hand, and the coverage of the geometric interval on
-log-normal samples); within a run, the batch means within takes (their coverage on strongly autocorrelated AR(1)
-series), the circular block bootstrap they replaced, the intervals, ties and the orderings stated from them, on
-series whose answer is known; Holm's adjustment on a known set of p-values."""
+log-normal samples); within a run, the overlapping batch means within takes (their coverage on strongly
+autocorrelated AR(1) series), the circular block bootstrap they replaced, the intervals, ties and the orderings
+stated from them, on series whose answer is known; Holm's adjustment on a known set of p-values and the Holm-step
+intervals that agree with it."""
 
 import math
 
@@ -12,7 +13,7 @@ import pytest
 from benchmarks import block_bootstrap
 from benchmarks.block_bootstrap import block_bootstrap_totals, optimal_block_length
 from workbench.core.errors import WorkbenchError
-from workbench.stats import statistics
+from workbench.stats import statistics, time_series
 from workbench.stats.statistics import (
     BATCH_MEANS,
     GEOMETRIC,
@@ -258,7 +259,13 @@ def test_batch_means_cover_a_strongly_autocorrelated_mean():
     series = stationary_ar1(np.random.default_rng(30), 800, 0.99, 200)
     held = [paired_mean_difference(row, np.zeros(800)) for row in series]
     assert np.mean([interval.low <= 0.0 <= interval.high for interval in held]) >= COVERAGE_FLOOR
-    assert all(interval.method == BATCH_MEANS and 2 <= 800 // interval.block_frames <= 30 for interval in held)
+    assert all(interval.method == BATCH_MEANS and 27 <= interval.block_frames <= 267 for interval in held)
+    # overlapping batches: about 1.5 (n / L - 1) degrees of freedom, 3 when a batch is a third of the frames
+    assert all(
+        interval.degrees == pytest.approx((1.5 - 0.5 / interval.block_frames) * (800 / interval.block_frames - 1))
+        for interval in held
+    )
+    assert min(interval.degrees for interval in held) == pytest.approx(3.0, abs=0.03)
 
 
 def test_batch_means_cover_a_strongly_autocorrelated_pooled_difference():
@@ -272,14 +279,67 @@ def test_batch_means_cover_a_strongly_autocorrelated_pooled_difference():
     assert np.mean([interval.low <= truth <= interval.high for interval in held]) >= COVERAGE_FLOOR
 
 
-def test_batches_stay_within_takes_and_are_fewer_when_memory_is_long():
+def test_batches_stay_within_takes_and_are_longer_when_memory_is_long():
     spans = [(0, 500), (500, 1200)]
-    edges = statistics.batch_edges(spans, 0.0)
-    assert all(any(start >= a and stop <= b for a, b in spans) for start, stop in edges)
-    assert len(edges) == 29  # 40-frame batches: 12 in the first take, 17 in the second
-    assert len(statistics.batch_edges(spans, 0.99)) == 2  # batches of 400 frames: one per take
-    assert statistics.ar1_batch_correction(statistics.batch_edges([(0, 800)], 0.99), [(0, 800)], 0.99) > 1.0
-    assert statistics.ar1_batch_correction(edges, spans, 0.0) == 1.0
+    assert time_series.batch_length(1200, 0.0) == 40  # n / 30 frames when the frames forget at once
+    assert time_series.batch_length(1200, 0.99) == 400  # at most n / 3
+    # +1 in take a, -1 in take b: a batch crossing the boundary would see the step; within takes every batch
+    # sum is L times its take's level, so the sum of squares is exactly that of the two levels
+    series = np.concatenate([np.ones(500), -np.ones(700)])
+    mean = series.mean()
+    expected = 461 * 40 * (1 - mean) ** 2 + 661 * 40 * (-1 - mean) ** 2  # (500 - 40 + 1) and (700 - 40 + 1) batches
+    assert time_series.overlapping_batch_sum(series, spans, 40) == pytest.approx(expected, rel=1e-12)
+    # Meketon & Schmeiser's degrees of freedom for one take, batches - 1 when each take is one batch
+    assert time_series.overlapping_degrees([(0, 1200)], 40) == pytest.approx((1.5 - 0.5 / 40) * (30 - 1))
+    assert time_series.overlapping_degrees(spans, 800) == pytest.approx(1.0)
+    assert time_series.overlapping_degrees([(0, 50)], 1) == pytest.approx(49.0)  # the sample variance
+
+
+def test_the_overlapping_batch_sum_is_unbiased_for_white_noise_and_the_ar1_it_is_corrected_for():
+    # the factor makes E[sum] x factor the true variance of the mean: by simulation, 4000 AR(1) series of 600
+    # frames in two takes, the mean of the corrected estimates within 3 % (about 4 Monte Carlo standard errors)
+    rng = np.random.default_rng(8)
+    spans = [(0, 250), (250, 600)]
+    for phi in (0.0, 0.8):
+        series = np.hstack([stationary_ar1(rng, 250, phi, 4000), stationary_ar1(rng, 350, phi, 4000)])
+        factor = time_series.ar1_overlapping_bias(spans, 60, phi)
+        estimates = [time_series.overlapping_batch_sum(row, spans, 60) * factor for row in series]
+        true = float(time_series.ar1_sum_variance(np.array([250, 350]), phi).sum()) * (1 - phi**2) / 600**2
+        assert np.mean(estimates) == pytest.approx(true, rel=0.03), phi
+
+
+def test_holm_intervals_exclude_the_null_exactly_where_holm_rejects():
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        size = int(rng.integers(1, 12))
+        intervals = []
+        for _ in range(size):
+            values = rng.normal(rng.choice([0.0, 0.5, 1.5]), 1.0, int(rng.integers(3, 12)))
+            intervals.append(
+                paired_difference_interval(values)
+                if rng.random() < 0.5
+                else paired_ratio_interval(np.exp(values), np.ones(values.size))
+            )
+        adjusted = statistics.holm_intervals(intervals)
+        rejects = statistics.holm([interval.p_value for interval in intervals]) < 0.05
+        for interval, found, reject in zip(intervals, adjusted, rejects):
+            shown = not found.adjusted_low <= found.null <= found.adjusted_high
+            assert shown == reject == found.excludes_null
+            assert found.adjusted_confidence >= 0.95 and (found.low, found.high) == (interval.low, interval.high)
+            assert found.adjusted_low <= found.low <= found.high <= found.adjusted_high
+
+
+def test_holm_levels_by_hand():
+    # sorted p 0.001, 0.03, 0.04 at k = 3: step 1 passes (0.001 < 0.05 / 3), step 2 fails (0.03 >= 0.05 / 2):
+    # ranks 1, 2, 3 get 1 - 0.05 / 3, 1 - 0.05 / 2, 1 - 0.05 / 2
+    np.testing.assert_allclose(
+        statistics.holm_levels([0.04, 0.001, 0.03, math.nan]), [0.975, 1 - 0.05 / 3, 0.975, math.nan]
+    )
+    # a t interval of 3 degrees of freedom at its step's level: the bounds of that quantile
+    interval = Interval(1.0, 1.0 - T_975_4, 1.0 + T_975_4, 5, PAIRED_T, null=0.0, p_value=0.01, degrees=4.0)
+    (found,) = statistics.holm_intervals([interval])
+    assert found.adjusted_confidence == 0.95 and found.adjusted_low == pytest.approx(interval.low)
+    assert Interval.from_dict(found.as_dict()) == found
 
 
 def test_a_difference_within_the_tie_tolerance_is_never_less_than():
@@ -348,6 +408,7 @@ def test_interval_text_and_round_trip():
         "QE - H +0.0231, 95 % interval [+0.0104, +0.0358] (m, blocks of 3 frames = 0.025 s, n = 10)"
     )
     assert Interval.from_dict(interval.as_dict()) == interval
+    assert math.isnan(Interval.from_dict({"estimate": 1.0, "low": 0.0, "high": 2.0}).degrees)  # an old record
     # a comparison stored before the two interval types were one: its level is the confidence, its null 0
     stored = {"estimate": 0.0231, "low": 0.0104, "high": 0.0358, "level": 0.9, "method": "m", "n": 10}
     assert Interval.from_dict(stored) == Interval(0.0231, 0.0104, 0.0358, 10, "m", 0.9, 0.0)

@@ -775,9 +775,10 @@ def comparison_method_text(metrics: Mapping) -> str:
     return (
         "Every '<' of the findings and of the printed headline is a row here. The difference is that of the "
         "headline alpha between two rows of the alpha table on the same evaluated frames; its 95 % interval "
-        "comes from batch means over time: contiguous batches within takes, 3 to 30 of them, each at least six "
-        "autocorrelation times long, the variance corrected for the batches' remaining correlation, Student-t "
-        "quantiles (coverage measured on AR(1) series in docs/statistics.md). H vs QE and QE vs PCA with lstsq "
+        "comes from overlapping batch means over time: every run of six autocorrelation times of frames within a "
+        "take is a batch, the variance made unbiased for an AR(1) of the series' persistence, Student-t quantiles "
+        "with 1.5 (n / L - 1) degrees of freedom (coverage and width measured on AR(1) series in "
+        "docs/statistics.md). H vs QE and QE vs PCA with lstsq "
         f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
         "Holm-adjusted p-value over the run (p (Holm) < 0.05). Orderings that hold by construction are "
         "marked so and not tested; differences within the tie tolerance are equal."

@@ -13,14 +13,16 @@ positive by construction). Two bases measured on the same replicates are compare
 (:func:`paired_difference_interval`) or log ratio (:func:`paired_ratio_interval`).
 
 Within one run the units are the frames, and frames are autocorrelated: the per-frame paired difference of two rows
-of the alpha table gets a batch-means interval (:func:`batch_means_interval`): the frames are cut into 3 to 30
-contiguous batches within takes (fewer when the series' persistence is long), the variance of the mean is taken from
-the batch means, inflated by what an AR(1) series of the measured persistence would leave out (neighbouring batches
-are still correlated), and the interval uses Student-t quantiles with (batches - 1) degrees of freedom. Its coverage
-is measured on AR(1) series by ``benchmarks/run.py coverage`` (docs/statistics.md): at nominal 95 %, at least 93 %
-for phi up to 0.99 at 800 and 4,000 frames, where the circular block bootstrap with the Politis-White block length
-(:mod:`workbench.block_bootstrap`, kept for comparison) covered 82 % (phi 0.96, 800 frames). Each interval carries the p-value of its
-t statistic, for :func:`holm`.
+of the alpha table gets an overlapping-batch-means interval (:func:`batch_means_interval`, Meketon & Schmeiser
+1984; the variance in :mod:`workbench.stats.time_series`): every run of ``L`` consecutive frames within a take is a
+batch, ``L`` six integrated autocorrelation times of a deliberately high estimate of the series' persistence (between
+n/30 and n/3 frames), the variance of the mean comes from the batch means' spread, made unbiased for an AR(1) of that
+persistence, and the interval uses Student-t quantiles with about ``1.5 (n / L - 1)`` degrees of freedom (half as many
+again as non-overlapping batches of the same length; :attr:`Interval.degrees`). Its coverage and its width over the
+width a known variance would give are measured on AR(1) series by ``benchmarks/run.py coverage``
+(docs/statistics.md). Each interval carries the p-value of its t statistic, for :func:`holm`; :func:`holm_intervals`
+gives each member of a family the interval at the confidence of its Holm step, which excludes the null value exactly
+where Holm rejects it.
 
 Differences within ``TOL.tie_rel`` of the values compared are ties, never "A < B" (:func:`is_tie`).
 
@@ -30,20 +32,27 @@ Arrays in, an :class:`Interval` out; no pandas. Randomness comes only from a see
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.tolerances import TOL
+from workbench.stats.multiplicity import holm, holm_levels  # noqa: F401  (holm_levels: re-exported)
+from workbench.stats.time_series import (  # noqa: F401  (autocovariances: re-exported for callers)
+    autocovariances,
+    mean_variance,
+    persistence,
+    take_spans,
+)
 
 CONFIDENCE = 0.95
 GEOMETRIC = "geometric mean, t-interval on log values"
 PAIRED_T = "paired t"
 PAIRED_LOG_RATIO = "paired t on log ratios"
 BLOCK_BOOTSTRAP = "circular block bootstrap over time"
-BATCH_MEANS = "batch means over time, t-quantiles"
+BATCH_MEANS = "overlapping batch means over time, t-quantiles"
 IDENTICAL = "identical on every frame"
 SIGNED = "{:+.3g}"
 """The number format of a difference (its sign always shown)."""
@@ -83,6 +92,13 @@ class Interval:
     p_adjusted : float
         The p-value after Holm's adjustment over a family of comparisons (:func:`holm`); when finite, the null is
         excluded only where it is below ``1 - confidence``. NaN: a primary contrast, or not adjusted.
+    degrees : float
+        The degrees of freedom of the Student-t quantiles the bounds rest on (``n - 1`` across replicates, those of
+        the overlapping batch means within a run). NaN: not a t interval (or a record written before it was kept).
+    adjusted_low, adjusted_high, adjusted_confidence : float
+        The interval at the confidence of its Holm step (:func:`holm_intervals`): it excludes the null value exactly
+        where the Holm-adjusted p-value is below ``1 - confidence``; ``low``/``high`` stay the unadjusted interval.
+        NaN: not adjusted (or not a t interval).
     """
 
     estimate: float
@@ -97,6 +113,10 @@ class Interval:
     p_value: float = math.nan
     scale: float = math.nan
     p_adjusted: float = math.nan
+    degrees: float = math.nan
+    adjusted_low: float = math.nan
+    adjusted_high: float = math.nan
+    adjusted_confidence: float = math.nan
 
     @property
     def defined(self) -> bool:
@@ -133,45 +153,18 @@ class Interval:
 
     def as_dict(self) -> dict:
         """The fields by name (JSON-ready: a record's ``metrics.json`` stores its comparisons so)."""
-        return {
-            "estimate": self.estimate,
-            "low": self.low,
-            "high": self.high,
-            "n": self.n,
-            "method": self.method,
-            "confidence": self.confidence,
-            "null": self.null,
-            "block_frames": self.block_frames,
-            "block_seconds": self.block_seconds,
-            "p_value": self.p_value,
-            "scale": self.scale,
-            "p_adjusted": self.p_adjusted,
-        }
+        return asdict(self)
 
     @classmethod
     def from_dict(cls, values: Mapping) -> "Interval":
         """The interval of :meth:`as_dict`'s fields. A stored comparison without ``null`` is a difference (null 0),
-        and ``level`` is read as ``confidence`` (records written before the two were one type)."""
-        fields = {
-            key: values[key]
-            for key in (
-                "estimate",
-                "low",
-                "high",
-                "n",
-                "method",
-                "confidence",
-                "block_frames",
-                "block_seconds",
-                "p_value",
-                "scale",
-                "p_adjusted",
-            )
-            if key in values
-        }
-        if "confidence" not in fields and "level" in values:
-            fields["confidence"] = values["level"]
-        return cls(**fields, null=values.get("null", 0.0))
+        ``level`` is read as ``confidence`` (records written before the two were one type), and fields a record
+        predates keep their defaults (NaN ``degrees``: not known)."""
+        names = {field.name for field in fields(cls)} - {"null"}
+        found = {key: values[key] for key in names if key in values}
+        if "confidence" not in found and "level" in values:
+            found["confidence"] = values["level"]
+        return cls(**found, null=values.get("null", 0.0))
 
 
 def interval_text(interval: Interval, name: str = "difference", number_format: str = "{:.3g}") -> str:
@@ -196,12 +189,13 @@ def interval_text(interval: Interval, name: str = "difference", number_format: s
         return f"{name} {estimate} (no interval: {why})"
     how = [interval.method] if interval.method else []
     if interval.block_frames:
-        unit = "batches" if interval.method == BATCH_MEANS else "blocks"
+        unit = "batches" if "batch means" in interval.method else "blocks"  # also a record of the earlier method
         how.append(
             f"{unit} of {interval.block_frames} frame{'s' if interval.block_frames > 1 else ''}"
             + (f" = {interval.block_seconds:.2g} s" if math.isfinite(interval.block_seconds) else "")
         )
     adjusted = f", Holm-adjusted p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
+    adjusted += _holm_bounds_text(interval, number_format)
     return (
         f"{name} {estimate}, {100 * interval.confidence:g} % interval [{number_format.format(interval.low)}, "
         f"{number_format.format(interval.high)}] ({', '.join([*how, f'n = {interval.n}'])}){adjusted}"
@@ -215,7 +209,18 @@ def short_interval_text(interval: Interval, name: str = "difference", number_for
     if not interval.defined:
         return f"{name} {estimate} (no interval)"
     adjusted = f", Holm p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
+    adjusted += _holm_bounds_text(interval, number_format)
     return f"{name} {estimate} [{number_format.format(interval.low)}, {number_format.format(interval.high)}]{adjusted}"
+
+
+def _holm_bounds_text(interval: Interval, number_format: str) -> str:
+    """``, Holm 99.6 % interval [a, b]``: the interval at its Holm step's confidence, when there is one."""
+    if not (math.isfinite(interval.adjusted_low) and math.isfinite(interval.adjusted_high)):
+        return ""
+    return (
+        f", Holm {100 * interval.adjusted_confidence:.3g} % interval [{number_format.format(interval.adjusted_low)}, "
+        f"{number_format.format(interval.adjusted_high)}]"
+    )
 
 
 def comparison_name(first: str, second: str, interval: Interval) -> str:
@@ -237,9 +242,23 @@ def reversed_interval(interval: Interval) -> Interval:
     Interval
     """
     if interval.null == 0.0:
-        return replace(interval, estimate=-interval.estimate, low=-interval.high, high=-interval.low)
+        return replace(
+            interval,
+            estimate=-interval.estimate,
+            low=-interval.high,
+            high=-interval.low,
+            adjusted_low=-interval.adjusted_high,
+            adjusted_high=-interval.adjusted_low,
+        )
     if interval.null == 1.0:
-        return replace(interval, estimate=1.0 / interval.estimate, low=1.0 / interval.high, high=1.0 / interval.low)
+        return replace(
+            interval,
+            estimate=1.0 / interval.estimate,
+            low=1.0 / interval.high,
+            high=1.0 / interval.low,
+            adjusted_low=1.0 / interval.adjusted_high,
+            adjusted_high=1.0 / interval.adjusted_low,
+        )
     raise ValueError(f"only a difference (null 0) or a ratio (null 1) can be reversed, got null {interval.null}")
 
 
@@ -253,7 +272,7 @@ def _finite(values) -> np.ndarray:
     return values[np.isfinite(values)]
 
 
-def _t_quantile(confidence: float, degrees: int) -> float:
+def _t_quantile(confidence: float, degrees: float) -> float:
     from scipy import stats
 
     return float(stats.t.ppf(0.5 + confidence / 2.0, degrees))
@@ -288,7 +307,7 @@ def t_interval(
     error = float(values.std(ddof=1)) / math.sqrt(n)
     half = _t_quantile(confidence, n - 1) * error
     p_value = math.nan if null is None else _t_p_value((mean - null) / error, n - 1)
-    return Interval(mean, mean - half, mean + half, n, method, confidence, null, p_value=p_value)
+    return Interval(mean, mean - half, mean + half, n, method, confidence, null, p_value=p_value, degrees=n - 1.0)
 
 
 def _t_p_value(statistic: float, degrees: float) -> float:
@@ -328,6 +347,7 @@ def geometric_interval(values, confidence: float = CONFIDENCE) -> Interval:
         logs.n,
         GEOMETRIC,
         confidence,
+        degrees=logs.degrees,
     )
 
 
@@ -378,153 +398,13 @@ def paired_ratio_interval(first, second, confidence: float = CONFIDENCE) -> Inte
         confidence,
         1.0,
         p_value=logs.p_value,
+        degrees=logs.degrees,
     )
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Within a run (the frames)
 # ---------------------------------------------------------------------------------------------------------------
-
-
-def take_spans(takes: Sequence | None, n: int) -> list[tuple[int, int]]:
-    """(start, stop) of each run of consecutive frames of one take; one span when ``takes`` is None."""
-    if takes is None:
-        return [(0, n)]
-    takes = np.asarray(takes)
-    if takes.shape != (n,):
-        raise WorkbenchError(f"takes must name the take of each of the {n} frames, got shape {takes.shape}")
-    edges = [0, *(np.flatnonzero(takes[1:] != takes[:-1]) + 1).tolist(), n]
-    return list(zip(edges[:-1], edges[1:]))
-
-
-def autocovariances(series: np.ndarray, spans: Sequence[tuple[int, int]], max_lag: int) -> np.ndarray:
-    """Autocovariances at lags ``0..max_lag`` of a series made of several takes, never pairing frames of two takes.
-
-    Parameters
-    ----------
-    series : ndarray of shape (n,)
-    spans : sequence of (start, stop)
-        The takes (:func:`take_spans`).
-    max_lag : int
-
-    Returns
-    -------
-    ndarray of shape (max_lag + 1,)
-        ``sum over takes and t of (x_t - mean)(x_{t+k} - mean) / n`` (the usual biased estimate).
-    """
-    centred = series - series.mean()
-    values = np.zeros(max_lag + 1)
-    for start, stop in spans:
-        part = centred[start:stop]
-        size = 1 << int(2 * len(part) - 1).bit_length()  # zero padding: the circular products become linear ones
-        spectrum = np.fft.rfft(part, size)
-        lags = min(max_lag, len(part) - 1) + 1
-        values[:lags] += np.fft.irfft(spectrum * spectrum.conj(), size)[:lags]
-    return values / len(series)
-
-
-MIN_BATCHES, MAX_BATCHES = 3, 30
-"""The batch count's range: 30 batches when the frames forget quickly, down to 3 when they remember long."""
-BATCH_TAUS = 6.0
-"""A batch spans at least this many integrated autocorrelation times ``(1 + phi) / (1 - phi)``."""
-PERSISTENCE_SE = 2.0
-"""The lag-1 estimate of :func:`persistence` is raised by this many standard errors."""
-PERSISTENCE_MAX = 0.999
-"""The persistence used for the batches and their correction is at most this (a unit root has no mean)."""
-
-
-def persistence(series: np.ndarray, takes: Sequence | None = None) -> float:
-    """A deliberately high estimate of the series' persistence, as the lag-1 coefficient ``phi`` of an AR(1).
-
-    The larger of (a) the lag-1 autocorrelation within takes, corrected for its bias (Kendall 1954,
-    ``+ (1 + 3 phi) / n``) and raised by :data:`PERSISTENCE_SE` standard errors ``sqrt((1 - phi^2) / n)``, and (b) the ``phi`` of an
-    AR(1) with the integrated autocorrelation time ``tau`` of Geyer's initial positive sequence (1992),
-    ``(tau - 1) / (tau + 1)``, which catches memory longer than lag 1 says. Erring high costs width; erring low
-    costs coverage, which is what the batch means must keep.
-
-    Parameters
-    ----------
-    series : ndarray of shape (n,)
-    takes : sequence of shape (n,), optional
-
-    Returns
-    -------
-    float
-        In ``[0, PERSISTENCE_MAX]``.
-    """
-    series = np.asarray(series, dtype=float)
-    n = series.size
-    if n < 4:
-        return 0.0
-    acv = autocovariances(series, take_spans(takes, n), n - 1)
-    if acv[0] <= 0.0:
-        return 0.0
-    rho = acv / acv[0]
-    lag1 = float(rho[1]) + (1.0 + 3.0 * float(rho[1])) / n
-    lag1 += PERSISTENCE_SE * math.sqrt(max(1.0 - lag1**2, 0.0) / n)
-    pairs = rho[1 : (n - 1) // 2 * 2 + 1].reshape(-1, 2).sum(axis=1)
-    positive = pairs[: int(np.argmax(pairs <= 0.0))] if np.any(pairs <= 0.0) else pairs
-    tau = 1.0 + 2.0 * float(positive.sum())
-    return float(min(max(lag1, (tau - 1.0) / (tau + 1.0), 0.0), PERSISTENCE_MAX))
-
-
-def batch_edges(spans: Sequence[tuple[int, int]], phi: float) -> list[tuple[int, int]]:
-    """Contiguous batches within takes: (start, stop) of each.
-
-    A batch spans ``max(BATCH_TAUS tau, n / MAX_BATCHES)`` frames with ``tau = (1 + phi) / (1 - phi)``, and
-    at most ``n / MIN_BATCHES``; each take is cut into as many whole batches of about that length as it holds
-    (at least one).
-    """
-    n = sum(stop - start for start, stop in spans)
-    tau = (1.0 + phi) / (1.0 - phi)
-    length = min(max(BATCH_TAUS * tau, n / MAX_BATCHES), n / MIN_BATCHES)
-    edges = []
-    for start, stop in spans:
-        count = max(1, int(math.floor((stop - start) / max(length, 1.0) + 1e-9)))
-        cuts = np.round(np.linspace(start, stop, count + 1)).astype(int)
-        edges += list(zip(cuts[:-1].tolist(), cuts[1:].tolist()))
-    return edges
-
-
-def _ar1_sum_variance(m, phi: float) -> np.ndarray:
-    """Variance of the sum of ``m`` consecutive values of a unit-innovation AR(1) with coefficient ``phi``."""
-    m = np.maximum(np.asarray(m, dtype=float), 0.0)  # pairs that overlap (the diagonal) are set apart
-    return (m * (1 + phi) / (1 - phi) - 2 * phi * (1 - phi**m) / (1 - phi) ** 2) / (1 - phi**2)
-
-
-def ar1_batch_correction(edges: Sequence[tuple[int, int]], spans: Sequence[tuple[int, int]], phi: float) -> float:
-    """How much the batch-means variance of the mean falls short for an AR(1) of coefficient ``phi``: the true
-    variance of the mean over the expected batch-means estimate, exact for the batches and takes given (takes
-    independent), at least 1.
-
-    Parameters
-    ----------
-    edges : sequence of (start, stop)
-        The batches (:func:`batch_edges`).
-    spans : sequence of (start, stop)
-        The takes.
-    phi : float
-    """
-    if phi <= 0.0 or len(edges) < 2:
-        return 1.0
-    starts, stops = np.array(edges).T
-    take = np.searchsorted(np.array([start for start, _ in spans]), starts, side="right")
-    a, b = np.meshgrid(starts, starts, indexing="ij"), np.meshgrid(stops, stops, indexing="ij")
-    first, last = np.minimum(a[0], a[1]), np.maximum(b[0], b[1])
-    low_stop, high_start = np.minimum(b[0], b[1]), np.maximum(a[0], a[1])
-    # covariance of two batch sums: 1/2 (V(span) + V(gap) - V(first to the later start) - V(earlier stop to end))
-    cross = 0.5 * (
-        _ar1_sum_variance(last - first, phi)
-        + _ar1_sum_variance(high_start - low_stop, phi)
-        - _ar1_sum_variance(high_start - first, phi)
-        - _ar1_sum_variance(last - low_stop, phi)
-    )
-    covariance = np.where(take[:, None] == take[None, :], cross, 0.0)
-    np.fill_diagonal(covariance, _ar1_sum_variance(stops - starts, phi))
-    n, count = float((stops - starts).sum()), len(edges)
-    centring = np.eye(count) - np.outer((stops - starts) / n, np.ones(count))
-    expected = count / (count - 1) * np.trace(centring @ covariance @ centring.T)
-    return float(max(covariance.sum() / expected, 1.0))
 
 
 def batch_means_interval(
@@ -536,13 +416,15 @@ def batch_means_interval(
     confidence: float = CONFIDENCE,
     scale: float = math.nan,
 ) -> Interval:
-    """A statistic of per-frame means with its batch-means interval over time; null 0 (a difference).
+    """A statistic of per-frame means with its overlapping-batch-means interval over time; null 0 (a difference).
 
-    The statistic is linearised at the means (delta method, central differences): each frame's influence
-    ``grad . (x_t - mean)`` is cut into contiguous batches within takes (:func:`batch_edges`, their length from
-    :func:`persistence`), the variance of its mean is ``b / (b - 1) sum_k (S_k - L_k zbar)^2 / n^2`` over the ``b``
-    batch sums ``S_k`` of ``L_k`` frames, multiplied by :func:`ar1_batch_correction`, and the interval is
-    ``estimate +- t_{(1+c)/2, b-1} sqrt(variance)``; the p-value is that of the t statistic.
+    The statistic is linearised at the means (delta method, central differences): the variance of the mean of each
+    frame's influence ``grad . (x_t - mean)`` is that of overlapping batch means within takes
+    (:func:`workbench.stats.time_series.mean_variance`: every run of ``L`` consecutive frames of a take is a batch,
+    ``L`` six integrated autocorrelation times of the series' :func:`persistence`, the sum of squares made
+    unbiased for an AR(1) of that persistence), and the interval is ``estimate +- t_{(1+c)/2, d} sqrt(variance)``
+    with ``d`` the overlapping batch means' degrees of freedom (about ``1.5 (n / L - 1)`` for one take); the p-value is
+    that of the t statistic.
 
     Parameters
     ----------
@@ -559,8 +441,8 @@ def batch_means_interval(
     Returns
     -------
     Interval
-        Method :data:`BATCH_MEANS`, ``n`` the frames, ``block_frames`` the median batch length; bounds NaN with
-        fewer than two batches.
+        Method :data:`BATCH_MEANS`, ``n`` the frames, ``block_frames`` the batch length, ``degrees`` the t
+        quantiles' degrees of freedom; bounds NaN with less than one degree of freedom.
     """
     if not 0.0 < confidence < 1.0:
         raise WorkbenchError(f"the confidence level must be in (0, 1), got {confidence!r}")
@@ -576,34 +458,18 @@ def batch_means_interval(
         ]
     )
     influence = gradient @ (series - means[:, None])
-    spans, phi = take_spans(takes, n), persistence(influence, takes)
-    edges = batch_edges(spans, phi)
-    lengths = np.array([stop - start for start, stop in edges])
+    spans = take_spans(takes, n)
+    variance, degrees, length = mean_variance(influence, spans, persistence(influence, takes))
     step = float(np.median(np.diff(np.asarray(seconds, dtype=float)))) if seconds is not None and n > 1 else math.nan
-    found = Interval(
-        estimate,
-        math.nan,
-        math.nan,
-        n,
-        BATCH_MEANS,
-        confidence,
-        0.0,
-        int(np.median(lengths)),
-        float(np.median(lengths)) * step,
-        scale=scale,
-    )
-    if len(edges) < 2:
+    found = Interval(estimate, math.nan, math.nan, n, BATCH_MEANS, confidence, 0.0, length, length * step, scale=scale)
+    if not degrees >= 1.0:
         return found
-    sums = np.array([influence[start:stop].sum() for start, stop in edges])
-    variance = len(edges) / (len(edges) - 1) * float(np.sum((sums - lengths * influence.mean()) ** 2)) / n**2
-    variance *= ar1_batch_correction(edges, spans, phi)
-    if variance <= 0.0:  # the same in every batch: the estimate is exact (as a bootstrap would find it)
+    found = replace(found, degrees=degrees)
+    if variance <= 0.0:  # the same in every batch: the estimate is exact
         return replace(found, low=estimate, high=estimate, p_value=0.0 if estimate else 1.0)
     error = math.sqrt(variance)
-    half = _t_quantile(confidence, len(edges) - 1) * error
-    return replace(
-        found, low=estimate - half, high=estimate + half, p_value=_t_p_value(estimate / error, len(edges) - 1)
-    )
+    half = _t_quantile(confidence, degrees) * error
+    return replace(found, low=estimate - half, high=estimate + half, p_value=_t_p_value(estimate / error, degrees))
 
 
 def paired_mean_difference(
@@ -722,28 +588,53 @@ def values_tie(first: float, second: float, tolerance: float | None = None) -> b
     return abs(first - second) <= tolerance * max(abs(first), abs(second))
 
 
-def holm(p_values) -> np.ndarray:
-    """Holm's step-down adjustment of p-values for multiple comparisons (Holm 1979): with the ``m`` finite
-    p-values sorted, ``p_(k)`` becomes ``max_{j <= k} min(1, (m - j + 1) p_(j))``; an adjusted p-value below
-    ``1 - confidence`` rejects its null with the family-wise error rate held at that level.
+def holm_intervals(intervals: Sequence[Interval], confidence: float = CONFIDENCE) -> list[Interval]:
+    """A family's intervals with Holm's adjustment: each with its Holm-adjusted p-value (:func:`holm`) and its
+    interval at the confidence of its Holm step (:func:`holm_levels`) in ``adjusted_low``/``adjusted_high``, which
+    excludes the null value exactly where Holm rejects it; the unadjusted bounds are kept.
+
+    The bounds are those of the same t statistic at the new quantile: ``estimate +- t_{(1+c')/2, d} error`` with
+    ``error`` from the unadjusted bounds (on the log scale for a ratio), so an interval needs ``degrees`` (a t
+    interval) and defined bounds to get adjusted ones.
 
     Parameters
     ----------
-    p_values : array_like of shape (m,)
-        NaN for a comparison without a p-value (left out of ``m``, NaN in the result).
+    intervals : sequence of Interval
+        Of differences (null 0) or ratios (null 1), with their ``p_value`` (NaN: left out of the family).
+    confidence : float
+        The family-wise confidence.
 
     Returns
     -------
-    ndarray of shape (m,)
+    list of Interval
         In the input order.
     """
-    values = np.asarray(p_values, dtype=float).ravel()
-    adjusted = np.full(values.shape, math.nan)
-    finite = np.flatnonzero(np.isfinite(values))
-    order = finite[np.argsort(values[finite], kind="stable")]
-    steps = (len(order) - np.arange(len(order))) * values[order]
-    adjusted[order] = np.minimum(np.maximum.accumulate(steps), 1.0)
-    return adjusted
+    adjusted = holm([interval.p_value for interval in intervals])
+    levels = holm_levels([interval.p_value for interval in intervals], confidence)
+    found = []
+    for interval, p_adjusted, level in zip(intervals, adjusted, levels):
+        interval = replace(interval, p_adjusted=float(p_adjusted))
+        if math.isfinite(level) and interval.defined and math.isfinite(interval.degrees):
+            interval = _at_confidence(interval, float(level))
+        found.append(interval)
+    return found
+
+
+def _at_confidence(interval: Interval, level: float) -> Interval:
+    """``interval`` with ``adjusted_low``/``adjusted_high`` its t interval at confidence ``level``."""
+    if level == interval.confidence:
+        return replace(interval, adjusted_low=interval.low, adjusted_high=interval.high, adjusted_confidence=level)
+    ratio = interval.null == 1.0
+    forward, back = (np.log, np.exp) if ratio else (float, float)
+    centre, low, high = (float(forward(value)) for value in (interval.estimate, interval.low, interval.high))
+    scale = (high - low) / (2.0 * _t_quantile(interval.confidence, interval.degrees))
+    half = _t_quantile(level, interval.degrees) * scale
+    return replace(
+        interval,
+        adjusted_low=float(back(centre - half)),
+        adjusted_high=float(back(centre + half)),
+        adjusted_confidence=level,
+    )
 
 
 def ordering_text(
@@ -823,13 +714,22 @@ def holm_adjusted(comparisons: Mapping[str, Sequence[Mapping]], primary: Callabl
     Returns
     -------
     dict
-        The same entries (copies), each non-primary one with ``p_adjusted`` (NaN where it had no p-value) and
-        ``holm_family`` (the family's size); the family is every non-primary comparison of every data variant.
+        The same entries (copies), each non-primary one with ``p_adjusted`` (NaN where it had no p-value),
+        ``holm_family`` (the family's size) and, for a t interval, ``adjusted_low``, ``adjusted_high`` and
+        ``adjusted_confidence`` (:func:`holm_intervals`); the family is every non-primary comparison of every data
+        variant.
     """
     adjusted = {data: [dict(entry) for entry in entries] for data, entries in comparisons.items()}
     family = [entry for data, entries in adjusted.items() for entry in entries if not primary(data, entry)]
     for entry, value in zip(family, holm([entry.get("p_value", math.nan) for entry in family])):
         entry["p_adjusted"], entry["holm_family"] = float(value), len(family)
+    complete = [entry for entry in family if {"estimate", "low", "high"} <= entry.keys()]
+    for entry, interval in zip(complete, holm_intervals([Interval.from_dict(entry) for entry in complete])):
+        entry.update(
+            adjusted_low=interval.adjusted_low,
+            adjusted_high=interval.adjusted_high,
+            adjusted_confidence=interval.adjusted_confidence,
+        )
     return adjusted
 
 
