@@ -730,7 +730,7 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
     Returns
     -------
     pandas.DataFrame
-        One row per comparison: ``data``, ``a``, ``b``, ``a - b``, ``ci95_low``, ``ci95_high``, ``p``,
+        One row per comparison: ``data``, ``a``, ``b``, ``a - b``, ``low``, ``high``, ``confidence`` (:func:`shown_interval`), ``p``,
         ``p (Holm)`` (NaN for a primary contrast; both NaN for an identity or a tie, which are not tested), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
     """
     records = []
@@ -756,8 +756,7 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                     "a": " ".join(a),
                     "b": " ".join(b),
                     "a - b": interval.estimate,
-                    "ci95_low": interval.low,
-                    "ci95_high": interval.high,
+                    **shown_interval(interval, tested),
                     "p": interval.p_value if tested else math.nan,
                     "p (Holm)": interval.p_adjusted if tested else math.nan,
                     "frames": interval.n,
@@ -767,6 +766,25 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                 }
             )
     return pd.DataFrame.from_records(records)
+
+
+def shown_interval(interval: Interval, tested: bool) -> dict:
+    """The interval a comparison row shows, the one its verdict rests on: at its Holm step's confidence for a member
+    of the Holm family (it excludes 0 exactly when the adjusted p-value is below 0.05), else at 95 % (a primary
+    contrast; an identity's or a tie's size).
+
+    Returns
+    -------
+    dict
+        ``low``, ``high`` and ``confidence`` (in %).
+    """
+    if tested and math.isfinite(interval.adjusted_low) and math.isfinite(interval.adjusted_high):
+        return {
+            "low": interval.adjusted_low,
+            "high": interval.adjusted_high,
+            "confidence": 100 * interval.adjusted_confidence,
+        }
+    return {"low": interval.low, "high": interval.high, "confidence": 100 * interval.confidence}
 
 
 def comparison_method_text(metrics: Mapping) -> str:
@@ -780,6 +798,8 @@ def comparison_method_text(metrics: Mapping) -> str:
         "with 1.5 (n / L - 1) degrees of freedom (coverage and width measured on AR(1) series in "
         "docs/statistics.md). H vs QE and QE vs PCA with lstsq "
         f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
-        "Holm-adjusted p-value over the run (p (Holm) < 0.05). Orderings that hold by construction are "
-        "marked so and not tested; differences within the tie tolerance are equal."
+        "Holm-adjusted p-value over the run (p (Holm) < 0.05), and its interval (low, high) is shown at its "
+        "Holm step's confidence, so that it excludes 0 exactly when the verdict says '<'. Orderings that hold by "
+        "construction are marked so and not tested (no p-value; the interval is their size, at 95 %); "
+        "differences within the tie tolerance are equal."
     )
