@@ -36,7 +36,7 @@ TINY = [
     "save_inputs=true",
 ]
 # The committed reference reports and the overrides of the runs they were built from. All are reduced in size so
-# that this test can redo each run in about half a minute: the synthetic actor at 4,000 frames instead of the
+# that this test can redo each run in a few minutes (most of it the folds of kfold): the synthetic actor at 4,000 frames instead of the
 # paper's 35,000 (its mesh variant at paper scale is 3.5 GB of frames), the real takes at every 4th frame.
 REFERENCES = {
     "paper": [
