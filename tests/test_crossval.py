@@ -8,6 +8,7 @@ from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Timeline
 from workbench.settings.config import compose
 from workbench.study.crossval import fold_indices
+from workbench.study.regime import is_paper_regime
 
 
 def two_takes() -> Timeline:
@@ -76,7 +77,9 @@ def test_kfold_scores_every_basis_on_the_same_frames_and_keeps_per_fold_values()
             ],
         )
     )
-    trained, held = results
+    # the coverage rule keeps m = n on these training frames, not in every fold: the folds' m = n variant is added
+    assert [result.data for result in results] == ["markers", "markers held-out kfold m=n", "markers held-out kfold"]
+    trained, held = results[0], results[-1]
     assert held.data == "markers held-out kfold" and held.folds["n_folds"] == 4
     assert len(held.capture.eval) == 500 and len(held.folds["m"]) == 4
     assert sum(held.folds["n_eval_frames"]) == 500
@@ -113,3 +116,50 @@ def test_animface_take_out_gives_a_fold_per_take(shared_data):
     held, trained = by_name["markers held-out take_out"], by_name["markers"]
     assert held.folds["n_folds"] == 3
     assert len(held.capture.eval) == len(trained.capture.eval) == sum(held.folds["n_eval_frames"])
+
+
+def test_held_out_protocols_have_the_paper_regime_at_m_equal_n_scored_on_the_same_frames():
+    """basis.paper_regime: every held-out protocol also fitted at m = n (in each fold), first, on the same frames."""
+    results = run_study(
+        compose(
+            "paper",
+            ["dataset.n_frames=600", "solver=lstsq", "dataset.held_out=[tail,kfold]", "dataset.folds=3"],
+        )
+    )
+    by_name = {result.data: result for result in results}
+    assert list(by_name) == [
+        "markers m=n",
+        "markers",
+        "markers held-out tail m=n",
+        "markers held-out tail",
+        "markers held-out kfold m=n",
+        "markers held-out kfold",
+    ]
+    n = 18
+    for protocol in ("tail", "kfold"):
+        regime, rule = by_name[f"markers held-out {protocol} m=n"], by_name[f"markers held-out {protocol}"]
+        assert is_paper_regime(regime.data) and not is_paper_regime(rule.data)
+        assert regime.protocol == rule.protocol != "training frames"
+        assert regime.train_on == regime.eval_on == "markers m=n"  # compared with the training frames' m = n
+        assert rule.train_on == "markers"
+        assert any(
+            note.startswith("the paper's regime on held-out frames: m = n = 18") for note in regime.capture.notes
+        )
+        # the same held-out frames, the same frames in each fold
+        np.testing.assert_array_equal(np.asarray(regime.capture.eval), np.asarray(rule.capture.eval))
+        np.testing.assert_array_equal(regime.capture.eval_timeline.frame, rule.capture.eval_timeline.frame)
+        # H is not fitted: on the same frames its per-frame errors are the same
+        h_regime, h_rule = (next(row for row in result.rows if row.basis == "H") for result in (regime, rule))
+        np.testing.assert_allclose(h_regime.alpha.error_sq, h_rule.alpha.error_sq, rtol=1e-12, atol=0.0)
+    tail, tail_rule = by_name["markers held-out tail m=n"], by_name["markers held-out tail"]
+    assert tail.eigenfaces.n_components_ == n != tail_rule.eigenfaces.n_components_
+    np.testing.assert_array_equal(np.asarray(tail.capture.train), np.asarray(tail_rule.capture.train))
+    kfold, kfold_rule = by_name["markers held-out kfold m=n"], by_name["markers held-out kfold"]
+    assert kfold.folds["m"] == [n] * 3 and kfold_rule.folds["m"] != [n] * 3
+    for key in ("n_train_frames", "n_eval_frames"):
+        assert kfold.folds[key] == kfold_rule.folds[key]
+    assert "m = n in each fold (m = [18, 18, 18])" in kfold.capture.notes[-1]
+    from workbench.study.summary import data_metrics
+
+    comparisons = data_metrics(kfold)["fold_comparisons"]
+    assert comparisons and all(c["n"] == 3 for c in comparisons)  # paired over its own folds

@@ -105,3 +105,51 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     assert next(line for line in lines if line.startswith("**markers")).startswith("**markers m=n**")
     assert sum(1 for line in lines if line.startswith("**markers** (the coverage rule, beside markers m=n)")) == 1
     assert sum(len(line.split()) for line in lines) <= 800
+
+
+@pytest.mark.parametrize("setting", ["basis.paper_regime=false", "basis.n_components=12"])
+def test_no_held_out_m_equal_n_variant_when_the_regime_is_off_or_m_is_fixed(setting):
+    results = run_study(compose("paper", [*SMALL, setting, "solver=lstsq", "dataset.held_out=[tail,kfold]"]))
+    assert [result.data for result in results] == ["markers", "markers held-out tail", "markers held-out kfold"]
+
+
+def test_held_out_folds_get_the_no_extra_fit_notes(regime_run):
+    cfg, results = regime_run
+    from workbench.settings.typed import study_settings
+
+    capture, basis = results[1].capture, study_settings(cfg).basis
+    same, fitted, note = paper_regime_fit(capture, basis, [18, 18, 18], [400, 400, 400], held_out=True)
+    assert fitted is None and same is capture
+    assert note.startswith("the paper's regime on held-out frames: the coverage rule already keeps m = n = 18")
+    assert "in every fold" in note
+    _, fitted, note = paper_regime_fit(capture, basis, [5, 6, 7], [400, 12, 400], held_out=True)
+    assert fitted is None and "the training frames of the smallest fold have at most 11: no m = n fit" in note
+    regime, fitted, note = paper_regime_fit(capture, basis, [5, 6, 7], [400, 400, 400], held_out=True)
+    assert note is None and fitted.n_components == 18
+    assert regime.notes[-1].startswith("the paper's regime on held-out frames: m = n = 18 eigenfaces")
+    assert "coverage rule's m = [5, 6, 7] (per fold), scored on the same held-out frames" in regime.notes[-1]
+
+
+def test_a_record_shows_the_held_out_m_equal_n_beside_the_training_frames(tmp_path):
+    import json
+
+    from workbench.api import run
+    from workbench.reporting.findings import run_findings
+
+    text = run(compose("paper", [*SMALL, "solver=lstsq", "dataset.held_out=tail"]), tmp_path)
+    header = text.splitlines()
+    at = header.index("  the paper's regime m = n on held-out frames (dataset.held_out; folds pooled):")
+    assert header[at + 1].startswith("    markers held-out tail m=n (m = 18, n = 18): H/QE ")
+    table = pd.read_csv(tmp_path / "alpha_table.csv")
+    names = ["markers m=n", "markers", "markers held-out tail m=n", "markers held-out tail"]
+    assert list(table["data"].unique()) == names
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert list(metrics["data"]) == names and metrics["data"]["markers held-out tail m=n"]["comparisons"]
+    rows = [row for row in metrics["rows"] if row["data"] == "markers held-out tail m=n"]
+    assert rows and all(row["train_on"] == "markers m=n" for row in rows)
+    lines = run_findings(table, "alpha_abs_mean", {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, {}, metrics)
+    assert (
+        sum(1 for line in lines if line.startswith("**markers held-out tail m=n** (m = 18; training frames: m = 18)"))
+        == 1
+    )
+    assert sum(1 for line in lines if line.startswith("**markers held-out tail** (m = ")) == 1  # its own held-out line

@@ -529,7 +529,8 @@ def run_findings(
         facts = data_facts.get(data) or {}
         compare = comparison_lookup(adjusted[data]) if adjusted.get(data) else None
         bases = [basis for basis in RUN_BASES if (part["basis"] == basis).any()]
-        if paper_regime_name(data) in parts and "lstsq" in solvers:  # beside the paper's regime: its ratios and m
+        trained_here = facts.get("protocol", "training frames") == "training frames"  # held out: its own line
+        if paper_regime_name(data) in parts and "lstsq" in solvers and trained_here:  # beside the paper's regime
             lines.append(
                 f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
                 f"{_ratios(part, paper, column, False, said)}; {m_text(part, paper)}."

@@ -228,11 +228,16 @@ def fold_lines(result) -> list[str]:
     """The header lines of a cross-validated variant (``dataset.held_out`` kfold or take_out): the folds, each
     fold's m, every row's pooled held-out alpha with its per-fold values, and the paired ratios over folds."""
     from workbench.stats.statistics import paired_ratio_interval
+    from workbench.study.regime import is_paper_regime
 
     folds = result.folds
+    chosen = (
+        "m = n in each fold (basis.paper_regime)"
+        if is_paper_regime(result.data)
+        else "m chosen in each fold by the coverage rule on its training frames"
+    )
     lines = [
-        f"  {folds['n_folds']} folds; m chosen in each fold by the coverage rule on its training frames: "
-        f"m = {folds['m']}, held-out frames per fold {folds['n_eval_frames']}",
+        f"  {folds['n_folds']} folds; {chosen}: m = {folds['m']}, held-out frames per fold {folds['n_eval_frames']}",
         "  held-out alpha_abs_pooled over all folds' held-out frames [per fold]:",
     ]
     rows = folds["rows"]
@@ -303,12 +308,28 @@ def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
     lines = [head] + (regime or ["    none in this run (basis.n_components fixes m, or paper_regime is off)"])
     if rule:
         lines += ["  beside it, the coverage rule's m:"] + rule
+    held = held_out_regime_lines(results, field)
+    if held:
+        lines += ["  the paper's regime m = n on held-out frames (dataset.held_out; folds pooled):"] + held
     return lines
 
 
-def regime_text(result, field: str) -> str:
+def held_out_regime_lines(results: Sequence, field: str) -> list[str]:
+    """H/QE and QE/PCA with least squares of the variants scored on held-out frames at m = n (in every fold), one
+    line each (their conditioning is that of each fold's fit: in the run's tables)."""
+    lines = []
+    for result in results:
+        folds, n = result.folds or {}, len(result.capture.hand_names)
+        m = folds.get("m", result.eigenfaces.n_components_)
+        text = regime_text(result, field, conditioning=False)
+        if result.protocol != "training frames" and text and all(value == n for value in (m if folds else [m])):
+            lines.append(f"    {result.data} (m = {m}, n = {n}): {text}")
+    return lines
+
+
+def regime_text(result, field: str, conditioning: bool = True) -> str:
     """H/QE and QE/PCA of one variant (least squares, alpha ``field``), with H's and QE's conditioning and largest
-    |w|; empty when H, QE or PCA is missing."""
+    |w| (unless ``conditioning`` is false); empty when H, QE or PCA is missing."""
     rows = {(row.basis, row.solver): row for row in result.rows}
     found = {
         basis: rows.get((basis, solver)) for basis, solver in (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
@@ -317,7 +338,7 @@ def regime_text(result, field: str) -> str:
         return ""
     alpha = {basis: getattr(row.alpha, field) for basis, row in found.items()}
 
-    def conditioning(basis: str) -> str:
+    def basis_conditioning(basis: str) -> str:
         report, row = found[basis].conditioning, found[basis]
         cond = (
             "?"
@@ -328,10 +349,11 @@ def regime_text(result, field: str) -> str:
         )
         return f"{basis} {cond}, max |w| {row.max_abs_weight:.3g}"
 
-    return (
+    ratios = (
         f"H/QE {alpha['H'] / alpha['QE']:.3g}, QE/PCA {alpha['QE'] / alpha['PCA']:.3g} (H {alpha['H']:.3g}, "
-        f"QE {alpha['QE']:.3g}, PCA {alpha['PCA']:.3g}); {conditioning('QE')}; {conditioning('H')}"
+        f"QE {alpha['QE']:.3g}, PCA {alpha['PCA']:.3g})"
     )
+    return f"{ratios}; {basis_conditioning('QE')}; {basis_conditioning('H')}" if conditioning else ratios
 
 
 ILL_CONDITIONED = 1e6

@@ -20,6 +20,7 @@ from workbench.dataset.capture import Capture, Timeline
 from workbench.numerics.metrics import error_distribution, summarise_squares
 from workbench.settings.rules import checked, integer, number_setting
 from workbench.stats.statistics import paired_ratio_interval
+from workbench.study.regime import is_paper_regime
 
 FOLDED = {"kfold": "held-out blocked k-fold", "take_out": "held-out leave-one-take-out"}
 """``dataset.held_out`` protocols scored by cross-validation -> how their frames are described."""
@@ -99,10 +100,15 @@ def fold_capture(capture: Capture, train: np.ndarray, held: np.ndarray, note: st
 
 
 def cross_validated(
-    data: str, capture: Capture, protocol: str, dataset, fit_and_score: Callable[[str, Capture], object]
+    data: str,
+    capture: Capture,
+    protocol: str,
+    dataset,
+    fit_and_score: Callable[[str, Capture], object],
+    name: str | None = None,
 ):
-    """One data variant cross-validated: every fold fitted (m by the coverage rule on its training frames) and
-    scored on its held-out frames, pooled into one result.
+    """One data variant cross-validated: every fold fitted (m by the coverage rule on its training frames, or m = n
+    for the paper's regime) and scored on its held-out frames, pooled into one result.
 
     Parameters
     ----------
@@ -114,6 +120,9 @@ def cross_validated(
         ``folds`` and ``fold_gap_s`` are read from it (:func:`workbench.settings.typed.dataset_settings`).
     fit_and_score : callable
         ``(name, capture) -> StudyResult`` (the run's method on one capture).
+    name : str, optional
+        The pooled result's name (``<data> held-out <protocol>`` when not given); a paper-regime name
+        (:func:`workbench.study.regime.is_paper_regime`) says m = n in each fold instead of the coverage rule.
 
     Returns
     -------
@@ -130,7 +139,7 @@ def cross_validated(
         )
     gap_s = dataset.fold_gap_s
     folds = fold_indices(capture.timeline(), protocol, dataset.folds, gap_s)
-    name = f"{data} held-out {protocol}"
+    name = name or f"{data} held-out {protocol}"
     parts = []
     for k, (train, held) in enumerate(folds):
         note = f"fold {k + 1} of {len(folds)}: {len(train)} training frames, {len(held)} evaluated"
@@ -143,7 +152,8 @@ def cross_validated(
     )
     note = (
         f"held out by cross-validation, {len(folds)} folds ({how}); every basis scored on the same held-out "
-        f"frames, m chosen in each fold (m = {[part.eigenfaces.n_components_ for part in parts]}); alpha pooled "
+        f"frames, {'m = n' if is_paper_regime(name) else 'm chosen'} in each fold "
+        f"(m = {[part.eigenfaces.n_components_ for part in parts]}); alpha pooled "
         "over all held-out frames, weight statistics per fold not pooled"
     )
     pooled = fold_capture(capture, np.arange(len(capture.train)), held_all, note)

@@ -7,7 +7,7 @@ per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -80,57 +80,107 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
         capture, fitted = with_clean_m(
             subset_hand_shapes(capture, basis), basis, clean[data] if basis.coverage_on == "clean" else None
         )
-        truth = clean_frames(capture, clean[data]) if score_clean else None
-        results += with_paper_regime(
-            run_on_capture(data, capture, fitted, solvers, timings, truth=truth), fitted, solvers, timings, truth
-        )
+        score = scorer(solvers, timings, clean[data] if score_clean else None)
+        trained = with_paper_regime(score(data, capture, fitted), fitted, score)
+        results += trained
         for protocol in held_out_protocols(dataset):
-            if protocol in FOLDED:
-                results.append(
-                    cross_validated(
-                        data,
-                        capture,
-                        protocol,
-                        dataset,
-                        lambda name, part: run_on_capture(
-                            name,
-                            part,
-                            fitted,
-                            solvers,
-                            timings,
-                            truth=clean_frames(part, clean[data]) if score_clean else None,
-                        ),
-                    )
-                )
-                continue
-            part = held_out_capture(capture, protocol, dataset.eval_fraction)
-            truth = clean_frames(part, clean[data]) if score_clean else None
-            results.append(
-                replace(
-                    run_on_capture(f"{data} held-out {protocol}", part, fitted, solvers, timings, truth=truth),
-                    train_on=data,
-                    eval_on=data,
-                    protocol=HELD_OUT[protocol],
-                )
-            )
+            results += held_out_results(data, capture, protocol, dataset, fitted, score, len(trained) > 1)
     return results
 
 
+Score = Callable[[str, Capture, BasisSchema], StudyResult]
+"""``(name, capture, basis) -> StudyResult``: the run's method on one capture (:func:`scorer`)."""
+
+
+def scorer(solvers: Mapping[str, Mapping], timings: Timings, clean: Capture | None) -> Score:
+    """:func:`run_on_capture` with the run's solvers and timings, every row also scored against the clean frames
+    of ``clean`` (``metric.score_clean``) when given."""
+
+    def score(name: str, capture: Capture, basis: BasisSchema) -> StudyResult:
+        truth = clean_frames(capture, clean) if clean is not None else None
+        return run_on_capture(name, capture, basis, solvers, timings, truth=truth)
+
+    return score
+
+
+def held_out_results(
+    data: str, capture: Capture, protocol: str, dataset, basis: BasisSchema, score: Score, trained_regime: bool
+) -> list[StudyResult]:
+    """One ``dataset.held_out`` protocol of a data variant: the coverage rule's result, named
+    ``<data> held-out <protocol>``, after its m = n variant (:func:`with_paper_regime`) fitted on the same training
+    frames (each fold's) and scored on the same held-out frames.
+
+    Parameters
+    ----------
+    data : str
+    capture : Capture
+        Trained and evaluated on the same frames (split 'same').
+    protocol : str
+        Of :data:`workbench.study.protocols.HELD_OUT`.
+    dataset : typed dataset settings
+    basis : BasisSchema
+        The settings the coverage rule's bases are fitted with.
+    score : Score
+    trained_regime : bool
+        Whether the run has the variant ``<data> m=n`` on the training frames: the m = n variant's held-out frames
+        are then compared with that variant's (its ``train_on``), else with ``data``'s.
+    """
+    if protocol in FOLDED:
+        source = capture
+
+        def fit(name: str, part: Capture, fit_basis: BasisSchema) -> StudyResult:
+            return cross_validated(
+                data, part, protocol, dataset, lambda fold, frames: score(fold, frames, fit_basis), name=name
+            )
+
+    else:
+        source = held_out_capture(capture, protocol, dataset.eval_fraction)
+
+        def fit(name: str, part: Capture, fit_basis: BasisSchema) -> StudyResult:
+            return replace(score(name, part, fit_basis), train_on=data, eval_on=data, protocol=HELD_OUT[protocol])
+
+    base = paper_regime_name(data) if trained_regime else data
+    return with_paper_regime(
+        fit(f"{data} held-out {protocol}", source, basis),
+        basis,
+        lambda name, part, fit_basis: replace(fit(name, part, fit_basis), train_on=base, eval_on=base),
+        source,
+    )
+
+
 def with_paper_regime(
-    result: StudyResult, basis: BasisSchema, solvers: Mapping[str, Mapping], timings: Timings, truth: np.ndarray | None
+    result: StudyResult, basis: BasisSchema, refit: Score, source: Capture | None = None
 ) -> list[StudyResult]:
     """``basis.paper_regime``: the variant fitted at m = n (:func:`workbench.study.regime.paper_regime_fit`), named
     ``<data> m=n``, first, then the coverage rule's ``result``; only ``result`` (with a note saying why) when there
-    is no separate m = n fit."""
-    capture, regime_basis, note = paper_regime_fit(result.capture, basis, result.eigenfaces.n_components_)
+    is no separate m = n fit.
+
+    Parameters
+    ----------
+    result : StudyResult
+        The coverage rule's, on training frames or on held-out frames (cross-validated: its ``folds`` give each
+        fold's m and training frames).
+    basis : BasisSchema
+        The settings ``result`` was fitted with.
+    refit : Score
+        Fits and scores the m = n variant as ``result`` was: ``(name, capture, basis)``.
+    source : Capture, optional
+        The capture ``refit`` takes (``result.capture`` when not given; a cross-validated variant's folds are cut
+        from the capture before pooling).
+    """
+    folds = result.folds or {}
+    capture, regime_basis, note = paper_regime_fit(
+        result.capture if source is None else source,
+        basis,
+        folds.get("m", result.eigenfaces.n_components_),
+        folds.get("n_train_frames"),
+        held_out=result.protocol != "training frames",
+    )
     if regime_basis is None:
         return [
             replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
         ]
-    return [
-        run_on_capture(paper_regime_name(result.data), capture, regime_basis, solvers, timings, truth=truth),
-        result,
-    ]
+    return [refit(paper_regime_name(result.data), capture, regime_basis), result]
 
 
 def carried_results(
