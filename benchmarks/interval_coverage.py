@@ -13,6 +13,10 @@ autocovariances) and the mean degrees of freedom of the t quantiles:
   and 1 as AnimFace's errors, whose p95/median is about 5); true value ``100 (sqrt(E e_a) - sqrt(E e_b)) / 10 =
   5 exp(s^2 / 4)``; its ``sd`` is that of the delta method's linearisation, exact for the lognormal's
   autocovariances ``exp(s^2) (exp(s^2 phi^h) - 1)``;
+- ``ratio, sigma s``: :func:`workbench.stats.ratios.ratio_of_means` of per-frame alphas ``exp(s x_t)`` and
+  ``exp(s y_t) / 4`` of two independent series (the interval of the paper's two claims, H/QE and QE/PCA); true
+  value 4; its width is taken on the log ratio, where the interval is made, against the delta method's ``sd`` of
+  ``log(mean_a / mean_b)``;
 - ``bootstrap`` (``--with-bootstrap``): the circular block bootstrap with the Politis-White block length that the
   batch means replaced (:func:`workbench.block_bootstrap.bootstrap_interval`), for the mean.
 
@@ -34,11 +38,12 @@ from scipy import stats
 from scipy.signal import lfilter
 
 from workbench.stats import statistics
+from workbench.stats.ratios import ratio_of_means
 from workbench.stats.time_series import ar1_sum_variance
 
 FRAMES = (800, 4000)
 PERSISTENCES = (0.0, 0.5, 0.9, 0.96, 0.99)
-SIGMAS = {"pooled, sigma 0.5": 0.5, "pooled, sigma 1": 1.0}
+SIGMAS = {"pooled, sigma 0.5": 0.5, "pooled, sigma 1": 1.0, "ratio, sigma 0.5": 0.5, "ratio, sigma 1": 1.0}
 SEED_REPLICATES, SEED_FAMILIES = 5, 5000
 Z = float(stats.norm.ppf(0.975))
 
@@ -72,6 +77,8 @@ def true_sd(kind: str, n: int, phi: float) -> float:
     lags = np.arange(n, dtype=float)
     variance = mean_variance_of(math.exp(s**2) * (np.exp(s**2 * phi**lags) - 1.0))
     mean = math.exp(s**2 / 2.0)
+    if kind.startswith("ratio"):  # log(mean_a / mean_b) of two independent copies: each log mean's variance
+        return math.sqrt(2.0 * variance / mean**2)
     # 10 (sqrt(m_a) - sqrt(m_b)) with m_b a quarter of an independent copy: gradients 5 / sqrt(mean_k)
     return math.sqrt(25.0 * variance / mean + 25.0 * (variance / 16.0) / (mean / 4.0))
 
@@ -86,6 +93,8 @@ def one_interval(kind: str, n: int, first: np.ndarray, second: np.ndarray | None
         )
         return found, 0.0
     s = SIGMAS[kind]
+    if kind.startswith("ratio"):
+        return ratio_of_means(np.exp(s * first), np.exp(s * second) / 4.0), 4.0
     found = statistics.paired_pooled_difference(np.exp(s * first), np.exp(s * second) / 4.0, np.full(n, 100.0))
     return found, 5.0 * math.exp(s**2 / 4.0)
 
@@ -94,11 +103,14 @@ def coverage_row(kind: str, n: int, phi: float, replications: int, rng: np.rando
     """Coverage, mean width, width over the known-variance width and mean degrees of freedom of one cell."""
     hits, widths, degrees = 0, [], []
     series = ar1_series(rng, n, phi, replications)
-    others = ar1_series(rng, n, phi, replications) if kind.startswith("pooled") else [None] * replications
+    others = ar1_series(rng, n, phi, replications) if kind.startswith(("pooled", "ratio")) else [None] * replications
     for k in range(replications):
         interval, truth = one_interval(kind, n, series[k], others[k], k)
         hits += interval.low <= truth <= interval.high
-        widths.append(interval.high - interval.low)
+        # a ratio's interval is made on the log ratio: its width there
+        widths.append(
+            math.log(interval.high / interval.low) if kind.startswith("ratio") else interval.high - interval.low
+        )
         degrees.append(getattr(interval, "degrees", math.nan))
     width = float(np.mean(widths))
     return {

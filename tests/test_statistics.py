@@ -414,3 +414,22 @@ def test_interval_text_and_round_trip():
     assert Interval.from_dict(stored) == Interval(0.0231, 0.0104, 0.0358, 10, "m", 0.9, 0.0)
     back = reversed_interval(interval)
     assert (back.estimate, back.low, back.high, back.sign) == (-0.0231, -0.0358, -0.0104, -1)
+
+
+def test_ratio_intervals_are_made_on_the_log_ratio_and_have_positive_bounds():
+    from workbench.stats.ratios import ratio_of_means, ratio_of_pooled
+
+    rng = np.random.default_rng(3)
+    a, b = rng.lognormal(0.0, 1.0, 400), rng.lognormal(0.0, 1.0, 400) / 4.0
+    found = ratio_of_means(a, b)
+    assert found.estimate == pytest.approx(a.mean() / b.mean(), rel=1e-12)
+    assert 0.0 < found.low < found.estimate < found.high and found.null == 1.0 and math.isnan(found.p_value)
+    # symmetric on the log scale, and a pooled ratio is the square root of the ratio of the summed squares
+    assert math.log(found.high / found.estimate) == pytest.approx(math.log(found.estimate / found.low), rel=1e-9)
+    pooled = ratio_of_pooled(a**2, b**2)
+    assert pooled.estimate == pytest.approx(math.sqrt((a**2).sum() / (b**2).sum()), rel=1e-12)
+    # a numerator that is zero on every frame: the value, no interval; a zero denominator has no ratio
+    zero = ratio_of_means(np.zeros(400), b)
+    assert zero.estimate == 0.0 and math.isnan(zero.low)
+    with pytest.raises(WorkbenchError, match="the second is not 0"):
+        ratio_of_means(a, np.zeros(400))

@@ -70,9 +70,9 @@ def design_text(facts: Mapping) -> str:
     degrees = getattr(interval, "degrees", math.nan)
     if interval.block_frames:
         batches = f"batches of {interval.block_frames} frames" + (
-            f", {degrees:g} degrees of freedom" if math.isfinite(degrees) else ""
+            f", {degrees:.2g} degrees of freedom" if math.isfinite(degrees) else ""
         )
-        text += f", {batches} (batch means over time)"
+        text += f", {batches}"
     takes_said = interval_by_take(facts)
     return text + (f"; {takes_said}" if takes_said else "")
 
@@ -110,7 +110,7 @@ def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
             else f"condition number {conditioning['condition_number']:.3g}"
         )
         found.append(f"{basis} {cond}, largest |w| {largest:.3g}")
-    return "; ".join(found) + " (least squares: the weights an animator would get)"
+    return "; ".join(found) + " (least squares: what an animator would get)"
 
 
 def held_out_regime_text(metrics: Mapping, data: str) -> str:
@@ -125,7 +125,8 @@ def held_out_regime_text(metrics: Mapping, data: str) -> str:
             shown = ratios_text(ratios)
             replicates = next(iter(ratios.values())).get("n")
             unit = "folds" if facts.get("folds") else "frames"
-            parts.append(f"{name[len(base) + 1 : -len(PAPER_REGIME_SUFFIX) - 1]} ({replicates} {unit}): {shown}")
+            protocol = name[len(f"{base} held-out ") : -len(PAPER_REGIME_SUFFIX) - 1]
+            parts.append(f"{protocol} ({replicates} {unit}) {shown.replace('; ', ', ')}")
     return "Held out at m = n: " + "; ".join(parts) + "." if parts else ""
 
 
@@ -197,6 +198,9 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         f"Intervals (95 %) rest on {design_text(facts)}." if design_text(facts) else "",
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS:  # the coverage rule's sentence is the one to spare
+    # within the budget: the coverage rule's sentence goes first, then the caveat's last clause
+    if len(" ".join(sentences).split()) > SUMMARY_WORDS:
         sentences[3] = ""
+    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
+        sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
     return " ".join(sentence for sentence in sentences if sentence)

@@ -2,8 +2,9 @@
 each compares with the ratio Kim & Ko report.
 
 Within a run the ratio of two rows' alphas on the same frames gets the batch-means interval over time of
-:func:`workbench.stats.statistics.batch_means_interval` (delta method: the ratio of two means, or of two pooled
-alphas, linearised at the means). Across replicates (folds, seeds) the ratios get the paired t-interval on log
+:func:`workbench.stats.statistics.batch_means_interval` on the log ratio (delta method: the log of the ratio of two
+means, or of two pooled alphas, linearised at the means), taken back, so that the bounds are positive as the ratio
+is. Across replicates (folds, seeds) the ratios get the paired t-interval on log
 ratios (:func:`workbench.stats.statistics.paired_ratio_interval`). A ratio's null value is 1; no p-value is
 computed, because the claims are read against the paper's ratios, not against 1 alone
 (``workbench.reporting.claims``).
@@ -21,8 +22,23 @@ from workbench.core.errors import WorkbenchError
 from workbench.stats.statistics import CONFIDENCE, Interval, batch_means_interval
 
 
-def _ratio(interval: Interval) -> Interval:
-    return replace(interval, null=1.0, p_value=math.nan, scale=math.nan)
+def _ratio(log_interval: Interval) -> Interval:
+    """The interval of a log ratio taken back to the ratio (positive bounds, as a ratio of alphas is)."""
+    return replace(
+        log_interval,
+        estimate=math.exp(log_interval.estimate),
+        low=math.exp(log_interval.low),
+        high=math.exp(log_interval.high),
+        null=1.0,
+        p_value=math.nan,
+        scale=math.nan,
+    )
+
+
+def _without_interval(sizes: np.ndarray, n: int, confidence: float) -> Interval:
+    """A ratio with a zero (or negative) side: its value, and no interval (the log ratio is not defined)."""
+    estimate = float(sizes[0] / sizes[1]) if sizes[1] > 0 else math.inf
+    return Interval(estimate, math.nan, math.nan, n=n, confidence=confidence, null=1.0)
 
 
 def ratio_of_means(
@@ -54,8 +70,12 @@ def ratio_of_means(
     if not valid.any() or not np.any(b[valid]):
         raise WorkbenchError("a ratio of means needs frames where both values are defined and the second is not 0")
     series = np.vstack([np.where(valid, a, 0.0), np.where(valid, b, 0.0)])
+    if not np.all(series.sum(axis=1) > 0):
+        return _without_interval(series.sum(axis=1), len(a), confidence)
     return _ratio(
-        batch_means_interval(series, lambda m: m[0] / m[1], takes=takes, seconds=seconds, confidence=confidence)
+        batch_means_interval(
+            series, lambda m: math.log(m[0] / m[1]), takes=takes, seconds=seconds, confidence=confidence
+        )
     )
 
 
@@ -88,10 +108,12 @@ def ratio_of_pooled(
             f"a ratio of pooled alphas needs two 1-D arrays of squared errors of one length, the second not all 0, "
             f"got shapes {error_a.shape} and {error_b.shape}"
         )
+    if not (error_a.sum() > 0 and error_b.sum() > 0):
+        return _without_interval(np.sqrt([error_a.sum(), error_b.sum()]), error_a.size, confidence)
     return _ratio(
         batch_means_interval(
             np.vstack([error_a, error_b]),
-            lambda m: math.sqrt(max(m[0], 0.0) / m[1]),
+            lambda m: 0.5 * math.log(m[0] / m[1]),
             takes=takes,
             seconds=seconds,
             confidence=confidence,
