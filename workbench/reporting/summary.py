@@ -24,6 +24,7 @@ from workbench.reporting.findings import (
 )
 from workbench.stats.identities import identity_lookup, run_identities
 from workbench.stats.statistics import Interval
+from workbench.study.protocols import HELD_OUT
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
 SUMMARY_WORDS = 200
@@ -126,6 +127,7 @@ def held_out_regime_text(metrics: Mapping, data: str) -> str:
             replicates = next(iter(ratios.values())).get("n")
             unit = "folds" if facts.get("folds") else "frames"
             protocol = name[len(f"{base} held-out ") : -len(PAPER_REGIME_SUFFIX) - 1]
+            protocol = HELD_OUT.get(protocol, protocol).removeprefix("held-out ")
             parts.append(f"{protocol} ({replicates} {unit}) {shown.replace('; ', ', ')}")
     return "Held out at m = n: " + "; ".join(parts) + "." if parts else ""
 
