@@ -51,7 +51,8 @@ def solver_costs(n_frames: int, n_dims: int, n_eigen: int, n_power_iter: int = 6
     Exact: the covariance or frame Gram product, ``min^2 max``, and its symmetric eigen-decomposition,
     ``EIGH_COST * min^3`` (``min``, ``max`` of ``n_frames``, ``n_dims``). Randomised: ``2 + 2 n_power_iter``
     products of the capture with ``n_eigen + oversample`` columns (its most, when the iteration does not stop
-    early), plus one pass for the mean and the total variance, weighed as one such product.
+    early), plus one pass for the mean and the total variance, weighed as one such product, each multiply-add
+    weighed ``SKINNY_COST``.
 
     Returns
     -------
@@ -60,13 +61,19 @@ def solver_costs(n_frames: int, n_dims: int, n_eigen: int, n_power_iter: int = 6
     small, large = min(n_frames, n_dims), max(n_frames, n_dims)
     width = min(n_eigen + oversample, small)
     exact = float(small) ** 2 * large + EIGH_COST * float(small) ** 3
-    randomized = (3.0 + 2.0 * n_power_iter) * float(n_frames) * n_dims * width
+    randomized = SKINNY_COST * (3.0 + 2.0 * n_power_iter) * float(n_frames) * n_dims * width
     return exact, randomized
 
 
 EIGH_COST = 4.0
 """Multiply-adds of a dense symmetric eigen-decomposition with eigenvectors, over ``n^3`` (LAPACK's divide and
 conquer: reduction to tridiagonal form and back-transformation; calibrated by ``benchmarks/run.py pca_switch``)."""
+
+SKINNY_COST = 1.25
+"""Weight of a multiply-add of the randomised path against one of the exact path's Gram product: products with a few
+dozen columns, their orthonormalisations and the mean corrections run at a lower rate than one square product
+(``benchmarks/run.py pca_switch``: the two paths cross between 800 and 1,100 ICT mesh frames, where their times
+vary by 30 % from run to run on a shared machine)."""
 
 
 def auto_solver(n_frames: int, n_dims: int, n_components: int | None, floor: int) -> str:
