@@ -12,6 +12,8 @@ Run from the repository root (not part of the test suite):
     python benchmarks/run.py mapped       # PCA of RBF-interpolated mesh frames in marker space, lifted, vs direct
     python benchmarks/run.py cache        # the dataset cache (paths.cache_dir) against no cache: ict_livelink,
                                           #   animface and the synthetic actor (write, hit, sizes on disk)
+    python benchmarks/run.py pca_switch   # both PCA paths on the ICT mesh at 700-5,000 frames (--switch-frames):
+                                          #   times, the path svd_solver="auto" takes, their agreement
     python benchmarks/run.py coverage     # coverage and width (over the known-variance width) of the within-run
                                           #   intervals on AR(1) series, and of the five-seed intervals on skewed
                                           #   log ratios (--replications, --seed, --with-bootstrap); not part of
@@ -250,15 +252,22 @@ def bench_mesh(args) -> None:
         f"dataset build: {build_seconds:.1f} s; capture {size / 2**30:.2f} GiB ({type(capture.train).__name__}); "
         f"peak so far {peak_mb():.0f} MB"
     )
+    cpu_start = time.process_time()
     one_pass = streaming_pass(capture.eval)
-    print(f"one streaming pass over the capture: {one_pass:.2f} s")
+    pass_cpu = time.process_time() - cpu_start
+    print(f"one streaming pass over the capture: {one_pass:.2f} s (CPU {pass_cpu:.2f} s)")
+    cpu_start = time.process_time()
     results, study_seconds = timed(run_study, cfg)  # the dataset comes from the cache
+    study_cpu = time.process_time() - cpu_start
     result = results[0]
     stages = ", ".join(f"{name} {seconds:.1f} s" for name, seconds in result.timings.seconds.items())
+    pca = result.timings.seconds.get("pca", 0.0)
     print(
         f"whole paper study (solver=all, affine and linear QE, every alpha; dataset cached): {study_seconds:.1f} s "
-        f"= x{study_seconds / one_pass:.1f} one pass ({stages}); m = {result.eigenfaces.n_components_} "
-        f"({result.eigenfaces.method_}); peak {peak_mb():.0f} MB"
+        f"= x{study_seconds / one_pass:.1f} one pass, PCA {pca:.1f} s = x{pca / one_pass:.1f} one pass (CPU: study "
+        f"{study_cpu:.1f} s = x{study_cpu / pass_cpu:.1f} the pass's) ({stages}); "
+        + "; ".join(f"{r.data}: m = {r.eigenfaces.n_components_} ({r.eigenfaces.method_})" for r in results)
+        + f"; peak {peak_mb():.0f} MB"
     )
     if args.baseline_frames:
         # the scoring of before the shared pass (each basis and solver solved on the frames and scored on its
@@ -297,6 +306,57 @@ def bench_mesh(args) -> None:
             f"(x{exact_seconds / randomized_seconds:.1f}); same m: {exact.n_components_ == fast.n_components_}; "
             f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB"
         )
+
+
+def subspace_angle(first: np.ndarray, second: np.ndarray) -> float:
+    """Largest principal angle in radians between the span of the smaller of two sets of orthonormal rows and the
+    other's span, from its sine (the norm of what the other's projection leaves), exact to round-off near zero
+    where an arc cosine of the cosines would not resolve angles under 1e-8."""
+    if first.shape[0] > second.shape[0]:
+        first, second = second, first
+    left = first - (first @ second.T) @ second
+    return float(np.arcsin(min(1.0, np.linalg.norm(left, 2))))
+
+
+def bench_pca_switch(args) -> None:
+    """Both PCA paths on the ICT mesh frames at frame counts across the switch of ``svd_solver="auto"``: their
+    times, which one ``auto`` takes (and the cost model's ratio), and their agreement (m, coverage, angle)."""
+    from workbench.numerics.bases import auto_solver, solver_costs
+    from workbench.settings.config import compose, resolved_without_hydra
+
+    cfg = resolved_without_hydra(compose("paper", ["dataset=ict_livelink", "dataset.train_on=mesh"]))
+    take = np.asarray(build_captures(cfg["dataset"])["mesh"].train, dtype=np.float64)
+    frames = np.concatenate([take, take[::-1]])  # the take forwards, then backwards (a frame count past its own)
+    del take
+    print(
+        f"== PCA switch: ICT mesh (ict_livelink, train_on=mesh) frames, {frames.shape[1]:,} columns: the first k "
+        f"of the take's {len(frames) // 2:,} frames followed by the same frames in reverse order; coverage 0.995; "
+        f"wall seconds (CPU seconds of this process in brackets), medians of 3 below 2,000 frames"
+    )
+    for n_frames in args.switch_frames:
+        capture = np.ascontiguousarray(frames[:n_frames])
+        chosen = auto_solver(*capture.shape, None, Eigenfaces.RANDOMIZED_ABOVE)
+        exact_cost, randomized_cost = solver_costs(*capture.shape, 32)
+        fits, seconds, cpu = {}, {}, {}
+        repeats = 3 if n_frames < 2000 else 1  # sub-second fits near the switch: the median of three
+        for solver in ("exact", "randomized"):
+            runs = []
+            for _ in range(repeats):
+                start = time.process_time()
+                fits[solver], wall = timed(Eigenfaces(coverage=0.995, svd_solver=solver).fit, capture)
+                runs.append((wall, time.process_time() - start))
+            seconds[solver], cpu[solver] = (float(np.median(column)) for column in zip(*runs))
+        other = "exact" if chosen == "randomized" else "randomized"
+        exact, fast = fits["exact"], fits["randomized"]
+        print(
+            f"{n_frames} frames: exact ({exact.method_}) {seconds['exact']:.2f} s ({cpu['exact']:.1f}), randomised "
+            f"{seconds['randomized']:.2f} s ({cpu['randomized']:.1f}); auto takes {chosen} (model exact/randomised "
+            f"{exact_cost / randomized_cost:.2f}): x{seconds[chosen] / seconds[other]:.2f} the other path "
+            f"(CPU x{cpu[chosen] / cpu[other]:.2f}); m {exact.n_components_} vs {fast.n_components_}; coverage "
+            f"{exact.coverage_:.10f} vs {fast.coverage_:.10f}; largest subspace angle "
+            f"{subspace_angle(exact.components_, fast.components_):.1e} rad"
+        )
+    print(f"peak memory {peak_mb():.0f} MB")
 
 
 def per_frame_masked(solver, shapes, frames, visible):
@@ -567,7 +627,9 @@ def bench_cache(args) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "coverage", "all"])
+    parser.add_argument(
+        "scenario", choices=["markers", "mesh", "sweep", "gaps", "mapped", "cache", "coverage", "pca_switch", "all"]
+    )
     parser.add_argument(
         "--mapped-dataset",
         choices=["animface", "synthetic"],
@@ -610,6 +672,13 @@ def main() -> None:
         default=["ict_livelink", "animface", "synthetic"],
         help="datasets of the cache scenario",
     )
+    parser.add_argument(
+        "--switch-frames",
+        type=int,
+        nargs="+",
+        default=[700, 800, 850, 900, 950, 1000, 1100, 1250, 3000, 3500, 3999, 4001, 4500, 5000],
+        help="frame counts of the pca_switch scenario (at most twice the ICT take's 4,030)",
+    )
     parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
     parser.add_argument("--replications", type=int, default=1000, help="AR(1) series per cell of the coverage table")
     parser.add_argument("--seed", type=int, default=0, help="seed of the coverage scenario's series")
@@ -637,6 +706,8 @@ def main() -> None:
         bench_mesh(args)
     if args.scenario in ("cache", "all"):
         bench_cache(args)
+    if args.scenario in ("pca_switch", "all"):
+        bench_pca_switch(args)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import scipy.sparse
 
 import workbench
 from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
+from workbench.numerics import bases
 from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.metrics import alpha_per_frame
 from workbench.settings.config import REPO_ROOT
@@ -198,12 +199,12 @@ def test_both_svd_solvers_give_the_same_fit_with_the_same_attributes(monkeypatch
     assert {name for name in vars(full) if name.endswith("_")} == {
         name for name in vars(randomized) if name.endswith("_")
     }
-    # the same random_state, the same fit; "auto" switches to the randomised path above the run's size
+    # the same random_state, the same fit; "auto" takes the randomised path where its cost model says so
     again = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, svd_solver="randomized", random_state=7).fit(frames)
     assert np.array_equal(again.eigenfaces_, randomized.eigenfaces_)
     auto = QuasiEigenFaces(hand_shapes=hand, coverage=0.99, random_state=7)
     assert np.array_equal(auto.fit(frames).eigenfaces_, full.eigenfaces_)
-    monkeypatch.setattr(Eigenfaces, "RANDOMIZED_ABOVE", 50)
+    monkeypatch.setattr(bases, "auto_solver", lambda *shape_and_floor: "randomized")
     assert np.array_equal(auto.fit(frames).eigenfaces_, randomized.eigenfaces_)
     assert auto.explained_variance_.shape == full.explained_variance_.shape == (3,)
     # a Generator is used as given

@@ -221,3 +221,61 @@ def test_randomized_solver_is_deterministic_and_rejects_unknown_solver():
     assert np.array_equal(first, second)
     with pytest.raises(WorkbenchError, match="svd_solver must be"):
         Eigenfaces(svd_solver="arpack").fit(capture)
+
+
+@pytest.mark.parametrize("solver", ["exact", "randomized"])
+def test_with_n_components_equals_a_fresh_fit_at_that_m(solver):
+    """The paper's m = n from the coverage rule's decomposition: the same eigenfaces as decomposing again."""
+    capture = decaying_capture(np.random.default_rng(6), rank=24)  # 24 separated axes above the noise
+    rule = Eigenfaces(coverage=0.9, svd_solver=solver, n_reusable=18).fit(capture)
+    assert rule.n_components_ < 18
+    truncated, fresh = rule.with_n_components(18), Eigenfaces(n_components=18, svd_solver=solver).fit(capture)
+    assert truncated.n_components_ == fresh.n_components_ == 18 and truncated.method_ == fresh.method_
+    assert truncated.explained_variance_.shape == fresh.explained_variance_.shape
+    if solver == "exact":  # every eigenpair was found: the very same arrays
+        np.testing.assert_array_equal(truncated.components_, fresh.components_)
+        np.testing.assert_array_equal(truncated.explained_variance_ratio_, fresh.explained_variance_ratio_)
+    # the randomised-vs-exact tolerances of test_randomized_solver_matches_exact
+    np.testing.assert_allclose(truncated.components_, fresh.components_, atol=1e-7)
+    np.testing.assert_allclose(truncated.explained_variance_, fresh.explained_variance_, rtol=1e-9)
+    assert truncated.coverage_ == pytest.approx(fresh.coverage_, rel=1e-9)
+    np.testing.assert_array_equal(truncated.mean_, rule.mean_)
+    assert rule.n_components_ < 18 and rule.components_.shape[0] == rule.n_components_  # the fit is unchanged
+    with pytest.raises(WorkbenchError, match="n_components must be between 1 and the"):
+        Eigenfaces(n_components=3, svd_solver="randomized").fit(capture).with_n_components(4)
+    if solver == "randomized":  # beyond its m, only the n_reusable pairs it brought to convergence
+        with pytest.raises(WorkbenchError, match=f"the {rule.n_components_} eigenpairs this fit can give"):
+            Eigenfaces(coverage=0.9, svd_solver=solver).fit(capture).with_n_components(18)
+
+
+def test_auto_takes_the_path_the_cost_model_puts_cheaper():
+    from workbench.numerics.randomized_pca import EIGH_COST, SKINNY_COST, auto_solver, solver_costs
+
+    # ICT mesh columns: exact n^2 d + EIGH_COST n^3 against (3 + 2 * 6) n d (32 + 20) weighed multiply-adds
+    d = 28227
+    assert solver_costs(1000, d, 32) == (1000**2 * d + EIGH_COST * 1000**3, SKINNY_COST * 15 * 1000 * d * 52)
+    crossover = next(n for n in range(501, 5000) if auto_solver(n, d, None, 500) == "randomized")
+    exact, randomized = solver_costs(crossover, d, 32)
+    assert randomized < exact and np.greater_equal(*solver_costs(crossover - 1, d, 32)[::-1])
+    assert 850 < crossover < 950
+    assert all(auto_solver(n, d, None, 500) == "randomized" for n in (3000, 3999, 4001, 5000))
+    assert auto_solver(35000, 198, None, 500) == "exact"  # markers: the 198 x 198 covariance
+    assert auto_solver(1000, 1000, 400, 500) == "exact"  # 420 columns per product: the eigen-decomposition wins
+    assert auto_solver(2000, 2000, None, 2000) == "exact"  # the floor
+    capture = decaying_capture(np.random.default_rng(3), n_frames=900, n_dims=600)
+    assert auto_solver(900, 600, None, 500) == "randomized"
+    assert Eigenfaces(coverage=0.99).fit(capture).method_ == "randomized"
+    assert Eigenfaces(coverage=0.99).fit(capture[:, :500]).method_ == "covariance"
+
+
+def test_randomized_solver_stops_early_on_a_fast_decay_and_not_on_a_flat_spectrum():
+    from workbench.numerics.bases import randomized_covariance_eigen
+
+    capture = decaying_capture(np.random.default_rng(3), noise=0.0)  # rank 12: converged after one iteration
+    mean = capture.mean(axis=0)
+    values, _, n_passes = randomized_covariance_eigen(capture, mean, 12, np.random.default_rng(0))
+    assert n_passes == 4
+    exact = Eigenfaces(n_components=12, svd_solver="exact").fit(capture)
+    np.testing.assert_allclose(values, exact.explained_variance_[:12], rtol=1e-9)
+    flat = np.random.default_rng(4).standard_normal((500, 120)) * np.linspace(1.0, 0.9, 120)
+    assert randomized_covariance_eigen(flat, flat.mean(axis=0), 32, np.random.default_rng(0))[2] == 14

@@ -1,13 +1,18 @@
 """The paper's regime (basis.paper_regime): eigenfaces also fitted at m = n beside the coverage rule, leading the
 printed header and the summary."""
 
+from dataclasses import replace
+
+import numpy as np
 import pandas as pd
 import pytest
 
 from workbench.api import run_study
+from workbench.numerics.bases import Eigenfaces
 from workbench.reporting.run_text import study_header
 from workbench.reporting.summary import beside_regime_text
 from workbench.settings.config import compose
+from workbench.study.fitting import fit_eigenfaces
 from workbench.study.regime import paper_regime_fit
 
 SMALL = ["dataset.n_frames=600"]  # the synthetic actor's coverage rule keeps m < 18 here
@@ -32,6 +37,19 @@ def test_the_m_equal_n_variant_comes_first_with_every_basis_and_solver(regime_ru
     expected = {(basis, solver) for basis in ("H", "QE", "QE-linear") for solver in solvers} | {("PCA", "projection")}
     assert scored == expected
     assert any("the paper's regime: m = n = 18" in note for note in regime.capture.notes)
+
+
+def test_the_m_equal_n_variant_reuses_the_coverage_rule_s_decomposition(regime_run):
+    """Decomposed once: the m = n eigenfaces come from the coverage rule's fit, equal to decomposing again."""
+    _, results = regime_run
+    regime, rule = results
+    assert regime.eigenfaces.mean_ is rule.eigenfaces.mean_  # no second fit
+    fresh = Eigenfaces(n_components=18).fit(rule.capture.train)
+    np.testing.assert_array_equal(regime.eigenfaces.components_, fresh.components_)  # exact path: every eigenpair
+    np.testing.assert_array_equal(regime.eigenfaces.explained_variance_ratio_, fresh.explained_variance_ratio_)
+    assert regime.eigenfaces.method_ == fresh.method_ == "covariance"
+    copy = replace(rule.capture, train=rule.capture.train.copy())  # other frames (equal values): a fit of its own
+    assert fit_eigenfaces(copy, 0.995, 18).mean_ is not rule.eigenfaces.mean_
 
 
 def test_the_header_leads_with_the_m_equal_n_comparison(regime_run):

@@ -9,11 +9,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.tolerances import TOL, Tolerances
 from workbench.numerics.frames import frame_chunks, is_stored_frames
+from workbench.numerics.randomized_pca import (  # noqa: F401  (re-exported: the randomised path's names)
+    FIRST_EIGEN,
+    RESIDUAL_RTOL,
+    auto_solver,
+    centred_statistics,
+    flip_signs,
+    frames_normal_times,
+    frames_times,
+    frames_transposed_times,
+    randomized_covariance_eigen,
+    solver_costs,
+)
 from workbench.numerics.validation import CAPTURE, check_matrix
 
 PROJECTIONS = ("affine", "linear")
@@ -90,24 +101,6 @@ def check_hand_basis(hand: np.ndarray, names, *, tol: Tolerances = TOL) -> None:
             f"{int((~dependent).sum())} dimensions (shapes {involved} are linearly dependent); "
             "every hand shape must add a direction the others lack"
         )
-
-
-def flip_signs(components: np.ndarray) -> np.ndarray:
-    """Make eigenvector signs deterministic: the largest-magnitude entry of each row is positive.
-
-    Parameters
-    ----------
-    components : ndarray of shape (m, n_dims)
-
-    Returns
-    -------
-    ndarray of shape (m, n_dims)
-        The same rows, some multiplied by -1 (scikit-learn's ``svd_flip`` convention).
-    """
-    pivots = np.argmax(np.abs(components), axis=1)
-    signs = np.sign(components[np.arange(components.shape[0]), pivots])
-    signs[signs == 0] = 1.0
-    return components * signs[:, None]
 
 
 def covariance_eigen(centred: np.ndarray, *, tol: Tolerances = TOL) -> tuple[np.ndarray, np.ndarray, str]:
@@ -195,115 +188,6 @@ def frames_covariance(capture, mean: np.ndarray, chunk_size: int = 4096) -> np.n
     return covariance / capture.shape[0]
 
 
-def randomized_covariance_eigen(
-    capture: np.ndarray,
-    mean: np.ndarray,
-    n_eigen: int,
-    rng: np.random.Generator,
-    *,
-    n_power_iter: int = 6,
-    oversample: int = 20,
-    iteration_dtype=np.float64,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Leading eigenpairs of the covariance by randomised subspace iteration (Halko, Martinsson & Tropp 2011).
-
-    The centred capture is never formed: products with ``D~ = D - 1 mu^T`` are corrected by the mean, so memory
-    stays at the capture plus ``(n_frames + n_dims) x (n_eigen + oversample)``. Each subspace iteration but the
-    first and the last multiplies by ``D~^T D~`` in one pass over the frames (:func:`frames_normal_times`): the
-    span is the same as orthonormalising in frame space between the two products, at half the passes.
-
-    Parameters
-    ----------
-    capture : ndarray of shape (n_frames, n_dims) or FramesOnDisk
-        The capture, not centred; float32 and on-disk captures are read a chunk of frames at a time
-        (:func:`frames_times`).
-    mean : ndarray of shape (n_dims,)
-    n_eigen : int
-        Number of eigenpairs wanted.
-    rng : numpy.random.Generator
-        Draws the random test matrix.
-    n_power_iter : int
-        Subspace iterations; each sharpens the decay by a power of the eigenvalue ratios.
-    oversample : int
-        Extra test vectors beyond ``n_eigen``.
-    iteration_dtype : numpy dtype
-        Arithmetic of every product but the last two (which fix the result's accuracy and are always float64):
-        float32 for a float32 capture halves their cost; an error there only perturbs the subspace the later
-        iterations refine.
-
-    Returns
-    -------
-    eigenvalues : ndarray of shape (n_eigen,)
-        Descending.
-    eigenvectors : ndarray of shape (n_eigen, n_dims)
-        Unit eigenfaces as rows, with deterministic signs.
-    """
-    n_frames, n_dims = capture.shape
-    width = min(n_eigen + oversample, n_frames, n_dims)
-
-    def times(matrix, dtype=np.float64):  # D~ @ matrix, (n_frames, width)
-        return frames_times(capture, matrix, dtype) - (mean @ matrix)[None, :]
-
-    def transposed_times(matrix, dtype=np.float64):  # D~^T @ matrix, (n_dims, width)
-        return frames_transposed_times(capture, matrix, dtype) - np.outer(mean, matrix.sum(axis=0))
-
-    basis = _orthonormal(times(rng.standard_normal((n_dims, width)), iteration_dtype))
-    if n_power_iter:
-        basis = _orthonormal(transposed_times(basis, iteration_dtype))
-        for _ in range(n_power_iter - 1):
-            basis = _orthonormal(frames_normal_times(capture, basis, mean, iteration_dtype))
-        basis = _orthonormal(times(basis))
-    _, singular, vt = np.linalg.svd(transposed_times(basis).T, full_matrices=False)
-    return singular[:n_eigen] ** 2 / n_frames, flip_signs(vt[:n_eigen])
-
-
-def _orthonormal(matrix: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of the columns' span (thin QR), shape of ``matrix``."""
-    return scipy.linalg.qr(matrix, mode="economic", check_finite=False)[0]
-
-
-def frames_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``capture @ matrix``, shape (n_frames, k): at once for a float64 array in float64, else one chunk of frames
-    at a time in ``dtype`` (:func:`workbench.numerics.frames.frame_chunks`)."""
-    if not is_stored_frames(capture) and dtype == np.float64:
-        return capture @ matrix
-    out = np.empty((capture.shape[0], matrix.shape[1]))
-    factor = matrix.astype(dtype)
-    for rows, chunk in frame_chunks(capture, dtype=dtype):
-        out[rows] = chunk @ factor
-    return out
-
-
-def frames_transposed_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``capture.T @ matrix``, shape (n_dims, k), as :func:`frames_times` (a float64 sum over chunks)."""
-    if not is_stored_frames(capture) and dtype == np.float64:
-        return capture.T @ matrix
-    out = np.zeros((capture.shape[1], matrix.shape[1]))
-    factor = matrix.astype(dtype)
-    for rows, chunk in frame_chunks(capture, dtype=dtype):
-        out += chunk.T @ factor[rows]
-    return out
-
-
-def frames_normal_times(capture, matrix: np.ndarray, mean: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``D~^T (D~ matrix)`` with ``D~ = capture - 1 mean^T``, shape (n_dims, k), in one pass over the frames.
-
-    ``D~^T A = D^T A - mean (1^T A)`` for ``A = D matrix - 1 (mean^T matrix)``, so each chunk of frames is read
-    once for both products (in ``dtype``; sums over chunks in float64).
-    """
-    shift = mean @ matrix
-    if not is_stored_frames(capture) and dtype == np.float64:
-        product = capture @ matrix - shift
-        return capture.T @ product - np.outer(mean, product.sum(axis=0))
-    out, column_sums = np.zeros((capture.shape[1], matrix.shape[1])), np.zeros(matrix.shape[1])
-    factor, shift = matrix.astype(dtype), shift.astype(dtype)
-    for _, chunk in frame_chunks(capture, dtype=dtype):
-        product = chunk @ factor - shift
-        out += chunk.T @ product
-        column_sums += product.sum(axis=0, dtype=np.float64)
-    return out - np.outer(mean, column_sums)
-
-
 def frames_statistics(name: str, capture) -> tuple[np.ndarray, float]:
     """Mean frame, shape (n_dims,), and total variance ``sum |y - mean|^2 / n_frames`` of a float32 or on-disk
     capture, in one float64 pass over chunks; a :class:`WorkbenchError` naming ``name`` for NaN or Inf."""
@@ -352,10 +236,14 @@ class Eigenfaces:
         ``exact`` decomposes the covariance or the frame Gram matrix, whichever is smaller, and finds every
         eigenvalue. ``randomized`` finds only the leading ones by :func:`randomized_covariance_eigen`, enough
         to reach the coverage (doubling their number until it does); ratios are then taken against the total
-        variance (the trace). ``auto`` is ``exact`` unless both dimensions exceed ``RANDOMIZED_ABOVE``.
+        variance (the trace). ``auto`` is the one :func:`auto_solver` puts cheaper (:func:`solver_costs`), and
+        ``exact`` while either dimension is at most ``RANDOMIZED_ABOVE``.
     seed : int
         Seed of the randomised solver's test matrix.
     tol : Tolerances
+    n_reusable : int or None
+        Leading eigenpairs the randomised solver also brings to convergence beyond the kept m, so that
+        :meth:`with_n_components` up to that many takes them from this fit (the exact paths find them all).
 
     Attributes
     ----------
@@ -375,7 +263,9 @@ class Eigenfaces:
         How it was decomposed (``"covariance"``, ``"gram"`` or ``"randomized"``).
     """
 
-    RANDOMIZED_ABOVE = 4000
+    RANDOMIZED_ABOVE = 500
+    """``auto`` runs the exact path while either dimension is at most this (both take milliseconds there), else the
+    path :func:`auto_solver`'s cost model puts cheaper."""
 
     def __init__(
         self,
@@ -385,12 +275,14 @@ class Eigenfaces:
         svd_solver: str = "auto",
         seed: int = 0,
         tol: Tolerances = TOL,
+        n_reusable: int | None = None,
     ):
         self.coverage = coverage
         self.n_components = n_components
         self.svd_solver = svd_solver
         self.seed = seed
         self.tol = tol
+        self.n_reusable = n_reusable
 
     def fit(self, capture) -> "Eigenfaces":
         """Fit on a capture.
@@ -421,17 +313,19 @@ class Eigenfaces:
         coverage = check_coverage(self.coverage) if n_components is None else None
         if self.svd_solver not in ("auto", "exact", "randomized"):
             raise WorkbenchError(f"svd_solver must be auto, exact or randomized, got {self.svd_solver!r}")
-        mean, total = frames_statistics("capture", capture) if stored else (capture.mean(axis=0), None)
-        randomized = self.svd_solver == "randomized" or (
-            self.svd_solver == "auto" and min(capture.shape) > self.RANDOMIZED_ABOVE
-        )
-        if randomized:
-            values, vectors, total = self._randomized(capture, mean, n_components, coverage, total)
+        solver = self.svd_solver
+        if solver == "auto":
+            solver = auto_solver(*capture.shape, n_components, self.RANDOMIZED_ABOVE)
+        if solver == "randomized":
+            mean, total = frames_statistics("capture", capture) if stored else centred_statistics(capture)
+            values, vectors = self._randomized(capture, mean, n_components, coverage, total)
             method = "randomized"
         elif capture.shape[1] <= capture.shape[0]:  # the covariance is the smaller matrix: one pass over chunks
+            mean = frames_statistics("capture", capture)[0] if stored else capture.mean(axis=0)
             values, vectors = eigen_of_covariance(frames_covariance(capture, mean), tol=self.tol)
             method, total = "covariance", values.sum()
         else:  # few frames: the frame Gram matrix needs the whole centred capture
+            mean = frames_statistics("capture", capture)[0] if stored else capture.mean(axis=0)
             values, vectors, method = covariance_eigen(np.asarray(capture, dtype=np.float64) - mean, tol=self.tol)
             total = values.sum()
         return self._keep(mean, values, vectors, total, method, n_components, coverage)
@@ -486,6 +380,9 @@ class Eigenfaces:
                     f"basis.n_components must be between 1 and the capture's rank {values.size}, got "
                     f"{self.n_components}"
                 )
+        # for with_n_components: every eigenpair of an exact path, the converged ones of the randomised path
+        reusable = vectors.shape[0] if method != "randomized" else min(vectors.shape[0], max(m, self.n_reusable or 0))
+        self._eigenvectors, self._total = vectors[: max(m, reusable)], total
         self.mean_ = mean
         self.components_ = vectors[:m]
         self.explained_variance_ = values
@@ -495,31 +392,62 @@ class Eigenfaces:
         self.method_ = method
         return self
 
-    def _randomized(
-        self,
-        capture: np.ndarray,
-        mean: np.ndarray,
-        n_components: int | None,
-        coverage: float | None,
-        total: float | None = None,
-    ):
-        """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs; and the
-        total variance (given, or computed here)."""
+    def _randomized(self, capture, mean: np.ndarray, n_components: int | None, coverage: float | None, total: float):
+        """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs: at least
+        :data:`FIRST_EIGEN` for the coverage rule (so that a later :meth:`with_n_components` up to that many finds
+        them converged), doubled until the coverage is reached."""
         rng = np.random.default_rng(self.seed)
-        n_frames = capture.shape[0]
-        if total is None:  # sum of squares of the centred capture, a chunk of frames at a time (no centred copy)
-            total = sum(float(np.sum((chunk - mean) ** 2)) for _, chunk in frame_chunks(capture, 4096)) / n_frames
         dtype = np.float32 if capture.dtype == np.float32 else np.float64
         limit = min(capture.shape) - 1
-        n_eigen = min(n_components or 32, limit)
+        n_eigen = min(max(n_components or FIRST_EIGEN, self.n_reusable or 0), limit)
+
+        def checked(values):  # the pairs this fit delivers (m on the current estimate) and those kept for reuse
+            m = n_components or n_components_for_coverage(values / total, coverage)
+            return max(m, self.n_reusable or 0)
+
         while True:
-            values, vectors = randomized_covariance_eigen(capture, mean, n_eigen, rng, iteration_dtype=dtype)
+            values, vectors, _ = randomized_covariance_eigen(
+                capture, mean, n_eigen, rng, iteration_dtype=dtype, n_checked=checked
+            )
             keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
             values, vectors = values[keep], vectors[keep]
             enough = n_components is not None or values.size < n_eigen or values.sum() >= (coverage - 1e-12) * total
             if enough or n_eigen >= limit:
-                return values, vectors, total
+                return values, vectors
             n_eigen = min(2 * n_eigen, limit)
+
+    def with_n_components(self, n_components) -> "Eigenfaces":
+        """A copy of this fit keeping the leading ``n_components`` eigenfaces of the same decomposition: what
+        :meth:`fit` with that ``n_components`` gives, without decomposing the capture again (the paper's m = n
+        beside the coverage rule's m). The same arrays for the exact and mapped paths, which find every
+        eigenpair; for the randomised one, up to its m or ``n_reusable``, whichever is larger (the pairs its
+        convergence test checked, :func:`randomized_covariance_eigen`), of which a fresh fit would keep
+        ``n_components``.
+
+        Raises
+        ------
+        WorkbenchError
+            Unfitted, or ``n_components`` not a positive integer or beyond the eigenpairs this fit found.
+        """
+        self._check_fitted()
+        m = check_n_components(n_components)
+        values, vectors = self.explained_variance_, self._eigenvectors
+        if m is None or m > vectors.shape[0]:
+            raise WorkbenchError(
+                f"n_components must be between 1 and the {vectors.shape[0]} eigenpairs this fit can give (its m, or "
+                f"n_reusable), got {n_components}"
+            )
+        if self.method_ == "randomized":  # a fresh randomised fit at n_components finds only that many
+            values, vectors = values[:m], vectors[:m]
+        copy = Eigenfaces(
+            coverage=self.coverage,
+            n_components=m,
+            svd_solver=self.svd_solver,
+            seed=self.seed,
+            tol=self.tol,
+            n_reusable=self.n_reusable,
+        )
+        return copy._keep(self.mean_, values, vectors, self._total, self.method_, m, None)
 
     def _check_fitted(self):
         if not hasattr(self, "components_"):
