@@ -630,8 +630,10 @@ def assert_reference_is_small_and_clean(reference, readme: str) -> None:
 # bytes, every file under reports/: half of the 13 MB that reports/ held before its figures were made smaller (PNG
 # renders, plotly.js beside them, figure 1 in every report), with the held-out protocols, paired comparisons and the
 # figures of the weights and errors added since; then 7.40 MB once the three paper reports gained the paper's regime
-# m = n as a data variant of its own beside each coverage-rule variant (its lines in every plot and table).
-REPORTS_BUDGET = 7_500_000
+# m = n as a data variant of its own beside each coverage-rule variant (its lines in every plot and table); then
+# 9.0 MB once every held-out protocol got its m = n variant and the paper and ICT runs blocked k-fold beside the tail
+# (AnimFace: k-fold and leave-one-take-out in place of its last take): 8.80 MB measured at that rebuild.
+REPORTS_BUDGET = 9_000_000
 
 
 def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_show():

@@ -111,7 +111,7 @@ def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
             else f"condition number {conditioning['condition_number']:.3g}"
         )
         found.append(f"{basis} {cond}, largest |w| {largest:.3g}")
-    return "; ".join(found) + " (least squares: what an animator would get)"
+    return "; ".join(found) + " (the least-squares weights an animator gets)"
 
 
 def held_out_regime_text(metrics: Mapping, data: str) -> str:
@@ -200,9 +200,11 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         f"Intervals (95 %) rest on {design_text(facts)}." if design_text(facts) else "",
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
-    # within the budget: the coverage rule's sentence goes first, then the caveat's last clause
+    # within the budget: the coverage rule's sentence goes first, then the caveat's last clause, then its reason
     if len(" ".join(sentences).split()) > SUMMARY_WORDS:
         sentences[3] = ""
     if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
         sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
+    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:  # what the data are, without why it matters
+        sentences[-1] = f"Caveat: {caveats[0].split(': ', 1)[0]}."
     return " ".join(sentence for sentence in sentences if sentence)
