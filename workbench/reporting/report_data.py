@@ -119,9 +119,15 @@ def short_label(record: RunRecord) -> str:
 
 
 def headline_column(config: Mapping) -> str:
+    from workbench.study.summary import headline_alpha_column
+
     metric = config.get("metric", {})
-    short = {"absolute": "abs", "displacement": "disp"}[metric.get("headline_normalisation", "absolute")]
-    return f"alpha_{short}_{metric.get('headline_aggregate', 'mean')}"
+    return headline_alpha_column(
+        {
+            "headline_normalisation": metric.get("headline_normalisation", "absolute"),
+            "headline_aggregate": metric.get("headline_aggregate", "mean"),
+        }
+    )
 
 
 def record_inputs(record: RunRecord, data: str, cache: dict) -> dict | None:

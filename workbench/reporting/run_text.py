@@ -472,14 +472,15 @@ def headline(
     -------
     str
     """
-    short = {"absolute": "abs", "displacement": "disp"}
+    from workbench.study.summary import headline_alpha_column
+
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
-    if normalisation not in short or aggregate not in ("mean", "pooled"):
+    if normalisation not in ("absolute", "displacement") or aggregate not in ("mean", "pooled"):
         raise WorkbenchError(
             f"metric.headline_normalisation must be absolute|displacement and headline_aggregate "
             f"mean|pooled, got {normalisation!r}, {aggregate!r}"
         )
-    column = f"alpha_{short[normalisation]}_{aggregate}"
+    column = headline_alpha_column(metric)
     lines = []
     several = table["data"].nunique() > 1
     for data, part in table.groupby("data", sort=False):

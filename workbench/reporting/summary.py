@@ -189,6 +189,7 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
     coverage = (facts.get("pca") or {}).get("coverage_reached")
     reach = f", coverage {coverage:.4f}" if coverage is not None else ""
     caveats = caveat_texts(metrics)
+    conditioning, design = conditioning_text(part, rows), design_text(facts)
     sentences = [
         f"Kim & Ko claim QE far better than H (H/QE {PAPER_RATIOS['H/QE']:.2g}) and nearly as accurate as PCA "
         f"(QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}) at m = n = 18.",
@@ -196,8 +197,8 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         f"{claims_text(ratios, spans is not None)}.",
         held_out_regime_text(metrics, data),
         beside_regime_text(table, data, column, metrics).strip(),
-        f"{conditioning_text(part, rows)}." if conditioning_text(part, rows) else "",
-        f"Intervals (95 %) rest on {design_text(facts)}." if design_text(facts) else "",
+        f"{conditioning}." if conditioning else "",
+        f"Intervals (95 %) rest on {design}." if design else "",
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
     # within the budget: the coverage rule's sentence goes first, then the caveat's last clause, then its reason

@@ -8,6 +8,14 @@ import math
 import numpy as np
 
 
+def _ascending(p_values) -> tuple[np.ndarray, np.ndarray]:
+    """The p-values as a flat float array, and the indices of its finite ones from smallest to largest (ties in
+    input order): the order both Holm's adjustment and its step levels walk."""
+    values = np.asarray(p_values, dtype=float).ravel()
+    finite = np.flatnonzero(np.isfinite(values))
+    return values, finite[np.argsort(values[finite], kind="stable")]
+
+
 def holm(p_values) -> np.ndarray:
     """Holm's step-down adjustment of p-values for multiple comparisons (Holm 1979): with the ``m`` finite
     p-values sorted, ``p_(k)`` becomes ``max_{j <= k} min(1, (m - j + 1) p_(j))``; an adjusted p-value below
@@ -23,10 +31,8 @@ def holm(p_values) -> np.ndarray:
     ndarray of shape (m,)
         In the input order.
     """
-    values = np.asarray(p_values, dtype=float).ravel()
+    values, order = _ascending(p_values)
     adjusted = np.full(values.shape, math.nan)
-    finite = np.flatnonzero(np.isfinite(values))
-    order = finite[np.argsort(values[finite], kind="stable")]
     steps = (len(order) - np.arange(len(order))) * values[order]
     adjusted[order] = np.minimum(np.maximum.accumulate(steps), 1.0)
     return adjusted
@@ -49,10 +55,8 @@ def holm_levels(p_values, confidence: float = 0.95) -> np.ndarray:
     ndarray of shape (m,)
         In the input order.
     """
-    values = np.asarray(p_values, dtype=float).ravel()
+    values, order = _ascending(p_values)
     levels = np.full(values.shape, math.nan)
-    finite = np.flatnonzero(np.isfinite(values))
-    order = finite[np.argsort(values[finite], kind="stable")]
     alpha, k = 1.0 - confidence, len(order)
     thresholds = alpha / (k - np.arange(k))  # step i (0-based) rejects when p_(i) < alpha / (k - i)
     failed = np.flatnonzero(values[order] >= thresholds)

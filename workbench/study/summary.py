@@ -78,6 +78,20 @@ def comparison_pairs(rows: Sequence) -> list[tuple[int, int]]:
     return list(dict.fromkeys(pairs))
 
 
+def headline_alpha_column(metric: Mapping, aggregate: str | None = None) -> str:
+    """The alpha table's column of the run's headline alpha (``alpha_abs_mean``, ...): the ``metric`` group's
+    normalisation with its aggregate (or ``aggregate``)."""
+    normalisation = "abs" if metric["headline_normalisation"] == "absolute" else "disp"
+    return f"alpha_{normalisation}_{aggregate or metric['headline_aggregate']}"
+
+
+def timeline_batches(result) -> dict:
+    """The ``takes`` (as integer codes, compared once here) and ``seconds`` of a result's evaluated frames, as the
+    batch-means intervals take them."""
+    timeline = result.capture.timeline()
+    return {"takes": np.unique(timeline.take, return_inverse=True)[1], "seconds": timeline.seconds}
+
+
 def frame_comparisons(result, metric: Mapping) -> list[dict]:
     """Paired comparisons of a result's rows on the evaluated frames, in the run's headline alpha: for every pair
     of :func:`comparison_pairs`, the difference ``a - b`` with its batch-means interval over time
@@ -95,20 +109,17 @@ def frame_comparisons(result, metric: Mapping) -> list[dict]:
         ``a`` and ``b`` as ``[basis, solver]``, ``column``, and the :class:`Interval`'s fields.
     """
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
-    column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
-    timeline = result.capture.timeline()
-    takes = np.unique(timeline.take, return_inverse=True)[1]  # compared once here, not per comparison
+    column = headline_alpha_column(metric)
+    where = timeline_batches(result)
     found = []
     for a, b in comparison_pairs(result.rows):
         first, second = result.rows[a].alpha, result.rows[b].alpha
         if aggregate == "mean":
             values = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
-            interval = paired_mean_difference(*values, takes=takes, seconds=timeline.seconds)
+            interval = paired_mean_difference(*values, **where)
         else:
             reference = first.position_sq if normalisation == "absolute" else first.displacement_sq
-            interval = paired_pooled_difference(
-                first.error_sq, second.error_sq, reference, takes=takes, seconds=timeline.seconds
-            )
+            interval = paired_pooled_difference(first.error_sq, second.error_sq, reference, **where)
         found.append(
             {
                 "a": [result.rows[a].basis, result.rows[a].solver],
@@ -143,34 +154,32 @@ def claim_ratios(result, metric: Mapping) -> dict:
     """
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
     index = {(row.basis, row.solver): i for i, row in enumerate(result.rows)}
+    where = None if result.folds else timeline_batches(result)
     found = {}
     for claim, (a, b) in CLAIM_ROWS.items():
         if a not in index or b not in index:
             continue
         first, second = result.rows[index[a]].alpha, result.rows[index[b]].alpha
         if result.folds:
-            column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_pooled"
+            column = headline_alpha_column(metric, "pooled")
             fold_rows = [(basis, solver) for basis, _, solver in result.folds["rows"]]
             values = result.folds[column]
-            interval = paired_ratio_interval(values[fold_rows.index(a)], values[fold_rows.index(b)])
+            found[claim] = {
+                "column": column,
+                **paired_ratio_interval(values[fold_rows.index(a)], values[fold_rows.index(b)]).as_dict(),
+            }
+        elif aggregate == "mean":
+            per_frame = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
+            found[claim] = {
+                "column": headline_alpha_column(metric),
+                **ratio_of_means(*per_frame, **where).as_dict(),
+                "per_take": take_ratios(*per_frame, result.capture.timeline().take),
+            }
         else:
-            column = f"alpha_{'abs' if normalisation == 'absolute' else 'disp'}_{aggregate}"
-            timeline = result.capture.timeline()
-            where = {"takes": np.unique(timeline.take, return_inverse=True)[1], "seconds": timeline.seconds}
-            interval = (
-                ratio_of_means(
-                    getattr(first, f"{normalisation}_per_frame"), getattr(second, f"{normalisation}_per_frame"), **where
-                )
-                if aggregate == "mean"
-                else ratio_of_pooled(first.error_sq, second.error_sq, **where)
-            )
-        found[claim] = {"column": column, **interval.as_dict()}
-        if not result.folds and aggregate == "mean":
-            found[claim]["per_take"] = take_ratios(
-                getattr(first, f"{normalisation}_per_frame"),
-                getattr(second, f"{normalisation}_per_frame"),
-                result.capture.timeline().take,
-            )
+            found[claim] = {
+                "column": headline_alpha_column(metric),
+                **ratio_of_pooled(first.error_sq, second.error_sq, **where).as_dict(),
+            }
     return found
 
 
