@@ -48,6 +48,11 @@ def variant_names(cfg: Mapping, key: str) -> list[str] | None:
     return names
 
 
+SCORING_ONLY = ("held_out", "folds", "fold_gap_s")
+"""Dataset settings that choose which built frames are held out and scored, not what is built: left out of the
+build and of its cache key, so the same data are built once whatever is held out of them."""
+
+
 def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capture]:
     """Build the captures a dataset config describes, one per ``dataset.train_on`` name.
 
@@ -72,7 +77,7 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     dataset = dataset_settings(cfg)
     storage = frame_storage(dataset, cache_dir)
     # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
-    keyed = without_settings(dataset, ("hand_basis",))
+    keyed = without_settings(dataset, ("hand_basis", *SCORING_ONLY))
 
     def build(plain: Mapping):
         captures = BUILDERS[keyed.kind](keyed, storage)

@@ -12,7 +12,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset import build_captures
+from workbench.dataset import SCORING_ONLY, build_captures
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
@@ -63,7 +63,7 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     train_names, eval_names = data_variants(dataset)
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
     # the same built data whatever is held out of it
-    built = without_settings(dataset, ("held_out", "folds", "fold_gap_s"))
+    built = without_settings(dataset, SCORING_ONLY)
     built = changed_dataset(built, train_on=build_names) if eval_names else built
     score_clean = settings.metric.score_clean is True
     with timings.stage("dataset"):
