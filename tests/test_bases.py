@@ -251,13 +251,13 @@ def test_with_n_components_equals_a_fresh_fit_at_that_m(solver):
 def test_auto_takes_the_path_the_cost_model_puts_cheaper():
     from workbench.numerics.randomized_pca import EIGH_COST, SKINNY_COST, auto_solver, solver_costs
 
-    # ICT mesh columns: exact n^2 d + EIGH_COST n^3 against (3 + 2 * 6) n d (32 + 20) weighed multiply-adds
+    # ICT mesh columns: exact n^2 d + EIGH_COST n^3 against 2 * 4 products of n d (24 + 8) weighed multiply-adds
     d = 28227
-    assert solver_costs(1000, d, 32) == (1000**2 * d + EIGH_COST * 1000**3, SKINNY_COST * 15 * 1000 * d * 52)
+    assert solver_costs(1000, d, 24) == (1000**2 * d + EIGH_COST * 1000**3, SKINNY_COST * 8 * 1000 * d * 32)
     crossover = next(n for n in range(501, 5000) if auto_solver(n, d, None, 500) == "randomized")
-    exact, randomized = solver_costs(crossover, d, 32)
-    assert randomized < exact and np.greater_equal(*solver_costs(crossover - 1, d, 32)[::-1])
-    assert 850 < crossover < 950
+    exact, randomized = solver_costs(crossover, d, 24)
+    assert randomized < exact and np.greater_equal(*solver_costs(crossover - 1, d, 24)[::-1])
+    assert 1000 < crossover < 1150
     assert all(auto_solver(n, d, None, 500) == "randomized" for n in (3000, 3999, 4001, 5000))
     assert auto_solver(35000, 198, None, 500) == "exact"  # markers: the 198 x 198 covariance
     assert auto_solver(1000, 1000, 400, 500) == "exact"  # 420 columns per product: the eigen-decomposition wins
@@ -268,14 +268,37 @@ def test_auto_takes_the_path_the_cost_model_puts_cheaper():
     assert Eigenfaces(coverage=0.99).fit(capture[:, :500]).method_ == "covariance"
 
 
-def test_randomized_solver_stops_early_on_a_fast_decay_and_not_on_a_flat_spectrum():
+def test_randomized_solver_stops_once_converged_or_once_the_space_holds_every_direction():
     from workbench.numerics.bases import randomized_covariance_eigen
 
-    capture = decaying_capture(np.random.default_rng(3), noise=0.0)  # rank 12: converged after one iteration
-    mean = capture.mean(axis=0)
-    values, _, n_passes = randomized_covariance_eigen(capture, mean, 12, np.random.default_rng(0))
-    assert n_passes == 4
+    capture = decaying_capture(np.random.default_rng(3), noise=0.0)  # rank 12: converged once C times the start
+    mean, total, values, _, n_passes = randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
+    assert n_passes == 4  # the first pass (with the mean and total variance) and one more
     exact = Eigenfaces(n_components=12, svd_solver="exact").fit(capture)
     np.testing.assert_allclose(values, exact.explained_variance_[:12], rtol=1e-9)
+    np.testing.assert_allclose(mean, capture.mean(axis=0), rtol=1e-12)
+    assert total == pytest.approx(capture.var(axis=0).sum(), rel=1e-12)
     flat = np.random.default_rng(4).standard_normal((500, 120)) * np.linspace(1.0, 0.9, 120)
-    assert randomized_covariance_eigen(flat, flat.mean(axis=0), 32, np.random.default_rng(0))[2] == 14
+    _, _, values, _, n_passes = randomized_covariance_eigen(flat, 32, np.random.default_rng(0))
+    assert n_passes == 6  # blocks of 40: the third holds the last of the 120 directions, exactly
+    exact = Eigenfaces(n_components=32, svd_solver="exact").fit(flat)
+    np.testing.assert_allclose(values, exact.explained_variance_[:32], rtol=1e-9)
+
+
+def test_randomized_solver_far_from_the_origin_and_its_refusal_of_nan():
+    """A capture whose mean is far larger than its spread starts the Krylov space one pass later (the first pass's
+    uncentred product would cancel), with the same eigenpairs; NaN is found by the first pass and located."""
+    from workbench.numerics.bases import randomized_covariance_eigen
+
+    capture = decaying_capture(np.random.default_rng(3))
+    exact = Eigenfaces(n_components=12, svd_solver="exact").fit(capture)
+    near = randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
+    far = randomized_covariance_eigen(capture + 1e4, 12, np.random.default_rng(0))
+    assert near[4] <= far[4] <= near[4] + 2
+    for _, _, values, vectors, _ in (near, far):
+        np.testing.assert_allclose(values, exact.explained_variance_[:12], rtol=1e-9)
+        np.testing.assert_allclose(vectors, exact.components_, atol=1e-7)
+    broken = capture.copy()
+    broken[321, 7] = np.nan
+    with pytest.raises(WorkbenchError, match=r"capture holds NaN or Inf values \(in frames 0-599\)"):
+        Eigenfaces(n_components=3, svd_solver="randomized").fit(broken)

@@ -17,15 +17,12 @@ from workbench.numerics.randomized_pca import (  # noqa: F401  (re-exported: the
     FIRST_EIGEN,
     RESIDUAL_RTOL,
     auto_solver,
-    centred_statistics,
     flip_signs,
     frames_normal_times,
-    frames_times,
-    frames_transposed_times,
     randomized_covariance_eigen,
     solver_costs,
 )
-from workbench.numerics.validation import CAPTURE, check_matrix
+from workbench.numerics.validation import CAPTURE, check_finite, check_matrix
 
 PROJECTIONS = ("affine", "linear")
 EMPTY_AXIS_SCALES = ("axis_std", "absolute")
@@ -306,7 +303,8 @@ class Eigenfaces:
         stored = is_stored_frames(capture)
         if stored and (capture.ndim != 2 or 0 in capture.shape):
             raise WorkbenchError(f"capture must be a non-empty 2-D array (rows x dims), got shape {capture.shape}")
-        capture = capture if stored else check_matrix("capture", capture, CAPTURE)
+        # NaN and Inf: found by the randomised path's first pass, which sums the frames anyway
+        capture = capture if stored else check_matrix("capture", capture, CAPTURE, finite=False)
         if capture.shape[0] < 2:
             raise WorkbenchError(f"capture needs at least 2 frames for PCA, got {capture.shape[0]}")
         n_components = check_n_components(self.n_components)
@@ -317,10 +315,11 @@ class Eigenfaces:
         if solver == "auto":
             solver = auto_solver(*capture.shape, n_components, self.RANDOMIZED_ABOVE)
         if solver == "randomized":
-            mean, total = frames_statistics("capture", capture) if stored else centred_statistics(capture)
-            values, vectors = self._randomized(capture, mean, n_components, coverage, total)
-            method = "randomized"
-        elif capture.shape[1] <= capture.shape[0]:  # the covariance is the smaller matrix: one pass over chunks
+            mean, total, values, vectors = self._randomized(capture, n_components, coverage)
+            return self._keep(mean, values, vectors, total, "randomized", n_components, coverage)
+        if not stored:
+            check_finite("capture", capture, CAPTURE)
+        if capture.shape[1] <= capture.shape[0]:  # the covariance is the smaller matrix: one pass over chunks
             mean = frames_statistics("capture", capture)[0] if stored else capture.mean(axis=0)
             values, vectors = eigen_of_covariance(frames_covariance(capture, mean), tol=self.tol)
             method, total = "covariance", values.sum()
@@ -392,28 +391,25 @@ class Eigenfaces:
         self.method_ = method
         return self
 
-    def _randomized(self, capture, mean: np.ndarray, n_components: int | None, coverage: float | None, total: float):
-        """Leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever is not None) needs: at least
-        :data:`FIRST_EIGEN` for the coverage rule (so that a later :meth:`with_n_components` up to that many finds
-        them converged), doubled until the coverage is reached."""
+    def _randomized(self, capture, n_components: int | None, coverage: float | None):
+        """Mean, total variance and the leading eigenpairs, as many as ``coverage`` or ``n_components`` (whichever
+        is not None) needs: at least :data:`FIRST_EIGEN` for the coverage rule (so that a later
+        :meth:`with_n_components` up to that many finds them converged), doubled until the coverage is reached."""
         rng = np.random.default_rng(self.seed)
-        dtype = np.float32 if capture.dtype == np.float32 else np.float64
         limit = min(capture.shape) - 1
         n_eigen = min(max(n_components or FIRST_EIGEN, self.n_reusable or 0), limit)
 
-        def checked(values):  # the pairs this fit delivers (m on the current estimate) and those kept for reuse
-            m = n_components or n_components_for_coverage(values / total, coverage)
+        def checked(ratios):  # the pairs this fit delivers (m on the current estimate) and those kept for reuse
+            m = n_components or n_components_for_coverage(ratios, coverage)
             return max(m, self.n_reusable or 0)
 
         while True:
-            values, vectors, _ = randomized_covariance_eigen(
-                capture, mean, n_eigen, rng, iteration_dtype=dtype, n_checked=checked
-            )
+            mean, total, values, vectors, _ = randomized_covariance_eigen(capture, n_eigen, rng, n_checked=checked)
             keep = values > self.tol.eigen_rel * values[0] if values[0] > 0 else np.zeros(values.shape, bool)
             values, vectors = values[keep], vectors[keep]
             enough = n_components is not None or values.size < n_eigen or values.sum() >= (coverage - 1e-12) * total
             if enough or n_eigen >= limit:
-                return values, vectors
+                return mean, total, values, vectors
             n_eigen = min(2 * n_eigen, limit)
 
     def with_n_components(self, n_components) -> "Eigenfaces":

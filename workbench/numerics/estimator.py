@@ -85,8 +85,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
     svd_solver : {"auto", "full", "randomized"}, default "auto"
         How the eigenfaces are found, as scikit-learn's ``PCA`` names it: ``"full"`` decomposes the covariance (or
         the frames' Gram matrix, whichever is smaller) and finds every eigenvalue; ``"randomized"`` finds the
-        leading ones by randomised subspace iteration, as many as the coverage needs; ``"auto"`` is ``"full"``
-        unless both the frames and the columns number more than 4,000, as a run decides.
+        leading ones in a randomised block Krylov space, as many as the coverage needs; ``"auto"`` takes the one
+        the cost model puts cheaper (:func:`workbench.numerics.randomized_pca.auto_solver`), as a run does.
     random_state : int, numpy.random.Generator or None, default None
         Seed of the randomised solver's test matrix; None is the seed a run uses (0), so that the default
         reproduces a run (unlike scikit-learn, where None draws a new seed). Unused by ``"full"``.

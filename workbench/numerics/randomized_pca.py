@@ -1,6 +1,6 @@
-"""The randomised PCA path: subspace iteration on the covariance with the capture streamed a chunk of frames at a
-time, its convergence test, the products with a capture it streams, and the cost model by which
-``Eigenfaces(svd_solver="auto")`` chooses between it and the exact decomposition.
+"""The randomised PCA path: a block Krylov space of the covariance grown a pass over the frames at a time (the
+capture streamed a chunk of frames at a time), its convergence test, the products with a capture it streams, and the
+cost model by which ``Eigenfaces(svd_solver="auto")`` chooses between it and the exact decomposition.
 
 Frames are rows: a capture is an array of shape ``(n_frames, n_dims)``, in memory or on disk (``FramesOnDisk``).
 """
@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from workbench.numerics.frames import frame_chunks, is_stored_frames
+from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import frame_chunks
 
 
 def flip_signs(components: np.ndarray) -> np.ndarray:
@@ -31,28 +32,13 @@ def flip_signs(components: np.ndarray) -> np.ndarray:
     return components * signs[:, None]
 
 
-def centred_statistics(capture: np.ndarray, chunk_size: int = 8) -> tuple[np.ndarray, float]:
-    """Mean frame, shape (n_dims,), and total variance ``sum |y - mean|^2 / n_frames`` of a capture in memory, in one
-    pass over chunks small enough to stay in cache while both sums read them (as ``frames_statistics`` sums a
-    stored capture: the squares less ``n |mean|^2``, which loses ``eps |mean|^2 / variance`` relative digits).
-
-    The centred chunk is never formed: subtracting the mean is a pass of its own (it cost twice the sums)."""
-    sums, squares, ones = np.zeros(capture.shape[1]), 0.0, np.ones(chunk_size)
-    for _, chunk in frame_chunks(capture, chunk_size):
-        sums += ones[: chunk.shape[0]] @ chunk
-        squares += float(np.einsum("ij,ij->i", chunk, chunk).sum())
-    mean = sums / capture.shape[0]
-    return mean, max(squares / capture.shape[0] - float(mean @ mean), 0.0)
-
-
-def solver_costs(n_frames: int, n_dims: int, n_eigen: int, n_power_iter: int = 6, oversample: int = 20):
+def solver_costs(n_frames: int, n_dims: int, n_eigen: int, n_blocks: int = 4, oversample: int = 8):
     """Multiply-adds of the two PCA paths on a capture of this shape, the model ``svd_solver="auto"`` decides by.
 
     Exact: the covariance or frame Gram product, ``min^2 max``, and its symmetric eigen-decomposition,
-    ``EIGH_COST * min^3`` (``min``, ``max`` of ``n_frames``, ``n_dims``). Randomised: ``2 + 2 n_power_iter``
-    products of the capture with ``n_eigen + oversample`` columns (its most, when the iteration does not stop
-    early), plus one pass for the mean and the total variance, weighed as one such product, each multiply-add
-    weighed ``SKINNY_COST``.
+    ``EIGH_COST * min^3`` (``min``, ``max`` of ``n_frames``, ``n_dims``). Randomised: ``2 n_blocks`` products of
+    the capture with ``n_eigen + oversample`` columns (the passes a capture with a fast-decaying spectrum takes,
+    the mean and total variance among them), each multiply-add weighed ``SKINNY_COST``.
 
     Returns
     -------
@@ -61,7 +47,7 @@ def solver_costs(n_frames: int, n_dims: int, n_eigen: int, n_power_iter: int = 6
     small, large = min(n_frames, n_dims), max(n_frames, n_dims)
     width = min(n_eigen + oversample, small)
     exact = float(small) ** 2 * large + EIGH_COST * float(small) ** 3
-    randomized = SKINNY_COST * (3.0 + 2.0 * n_power_iter) * float(n_frames) * n_dims * width
+    randomized = SKINNY_COST * 2.0 * n_blocks * float(n_frames) * n_dims * width
     return exact, randomized
 
 
@@ -69,11 +55,11 @@ EIGH_COST = 4.0
 """Multiply-adds of a dense symmetric eigen-decomposition with eigenvectors, over ``n^3`` (LAPACK's divide and
 conquer: reduction to tridiagonal form and back-transformation; calibrated by ``benchmarks/run.py pca_switch``)."""
 
-SKINNY_COST = 1.25
+SKINNY_COST = 4.8
 """Weight of a multiply-add of the randomised path against one of the exact path's Gram product: products with a few
-dozen columns, their orthonormalisations and the mean corrections run at a lower rate than one square product
-(``benchmarks/run.py pca_switch``: the two paths cross between 800 and 1,100 ICT mesh frames, where their times
-vary by 30 % from run to run on a shared machine)."""
+dozen columns on chunks of frames, the orthonormalisations and the Rayleigh-Ritz steps run at a far lower rate than
+one square product (``benchmarks/run.py pca_switch``: the two paths cross between 1,000 and 1,200 ICT mesh frames,
+where their times differ by less than 30 %, within their spread from run to run on a shared machine)."""
 
 
 def auto_solver(n_frames: int, n_dims: int, n_components: int | None, floor: int) -> str:
@@ -86,120 +72,158 @@ def auto_solver(n_frames: int, n_dims: int, n_components: int | None, floor: int
     return "randomized" if randomized < exact else "exact"
 
 
-FIRST_EIGEN = 32
+FIRST_EIGEN = 24
 """Eigenpairs the randomised solver first computes for the coverage rule (doubled until the coverage is reached)."""
 
 
 RESIDUAL_RTOL = 1e-10
-"""Convergence test of the randomised solver's subspace iteration: it stops once every eigenpair it must deliver has
-a Ritz residual ``|C v - theta v|`` at most this times the largest Ritz value. The angle between a delivered
-subspace and the exact one is at most that residual over the eigenvalue gap (Davis-Kahan), so 1e-10 keeps the
-eigenfaces of well-separated axes to about 1e-9 of their norm and the eigenvalues (errors quadratic in the
-residual) to round-off; a capture whose spectrum decays too slowly for it runs the full ``n_power_iter``."""
+"""Convergence test of the randomised solver: it stops once every eigenpair it must deliver has a Ritz residual
+``|C v - theta v|`` at most this times the largest Ritz value. The angle between a delivered subspace and the exact
+one is at most that residual over the eigenvalue gap (Davis-Kahan), so 1e-10 keeps the eigenfaces of well-separated
+axes to about 1e-9 of their norm and the eigenvalues (errors quadratic in the residual) to round-off; a capture whose
+spectrum decays too slowly for it runs all :data:`MAX_BLOCKS`."""
+
+MAX_BLOCKS = 8
+"""At most this many blocks of the Krylov space, each one product ``D~^T D~ Q`` (one pass over the frames)."""
+
+OVERSAMPLE = 8
+"""Columns of a block beyond the eigenpairs wanted."""
+
+CANCELLATION = 1e4
+"""The first pass multiplies by the uncentred ``D^T D`` and subtracts ``n mu mu^T``; its product enters the Krylov
+space only while ``|mu|^2`` is at most this times the total variance (a relative error of about ``eps |mu|^2 /
+lambda``); a capture further from the origin starts the space from that product instead, one pass later."""
+
+CHUNK_BYTES = 1 << 24
+"""Bytes of float64 frames per chunk of a product pass (16 MB): small enough to stay in cache while both products
+read it, large enough for the matrix products to run at speed."""
 
 
 def randomized_covariance_eigen(
     capture: np.ndarray,
-    mean: np.ndarray,
     n_eigen: int,
     rng: np.random.Generator,
     *,
-    n_power_iter: int = 6,
-    oversample: int = 20,
-    iteration_dtype=np.float64,
+    max_blocks: int = MAX_BLOCKS,
+    oversample: int = OVERSAMPLE,
     n_checked=None,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Leading eigenpairs of the covariance by randomised subspace iteration (Halko, Martinsson & Tropp 2011).
+    name: str = "capture",
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+    """Mean, total variance and leading eigenpairs of the covariance by randomised block Krylov iteration (block
+    Lanczos with full reorthogonalisation: Musco & Musco 2015; Halko, Martinsson & Tropp 2011).
 
-    The centred capture is never formed: products with ``D~ = D - 1 mu^T`` are corrected by the mean, so memory
-    stays at the capture plus ``(n_frames + n_dims) x (n_eigen + oversample)``. Each subspace iteration multiplies
-    by ``D~^T D~`` in one pass over the frames (:func:`frames_normal_times`), which also yields ``D~ B``; the
-    eigenpairs come from that last pass, ``D~^T`` times an orthonormal basis of ``D~ B`` (a randomised SVD of
-    ``D~`` with the range ``D~ B``), without a further pass. Float64 iterations stop early once the Ritz pairs of
-    the current basis pass :data:`RESIDUAL_RTOL` (a test that costs no pass: it uses the same two products).
+    The Krylov space ``[Q, C Q, C^2 Q, ...]`` of ``C = D~^T D~`` (``D~`` the centred capture, never formed) grows a
+    block per pass over the frames: each pass multiplies one orthonormal block by ``C`` (both products on a chunk
+    of frames while it is in cache). The Ritz pairs of ``C`` on the space come from the products already made
+    (``V^T C V`` with ``C V`` kept), so the test of convergence and the eigenpairs cost no further pass; the space
+    converges far faster than subspace iteration for the same passes (it keeps every block, not the last). The
+    first pass also sums the frames and their squares: the mean, the total variance and the check for NaN or Inf
+    cost no pass of their own.
 
     Parameters
     ----------
     capture : ndarray of shape (n_frames, n_dims) or FramesOnDisk
-        The capture, not centred; float32 and on-disk captures are read a chunk of frames at a time
-        (:func:`frames_times`).
-    mean : ndarray of shape (n_dims,)
+        The capture, not centred; float32 and on-disk captures are read a chunk of frames at a time as float64.
     n_eigen : int
         Number of eigenpairs wanted.
     rng : numpy.random.Generator
-        Draws the random test matrix.
-    n_power_iter : int
-        At most this many passes by ``D~^T D~``; each sharpens the decay by a power of the eigenvalue ratios.
+        Draws the random first block.
+    max_blocks : int
+        At most this many passes that grow the space.
     oversample : int
-        Extra test vectors beyond ``n_eigen``.
-    iteration_dtype : numpy dtype
-        Arithmetic of every product but the last pass (which fixes the result's accuracy and is always float64):
-        float32 for a float32 capture halves their cost (and runs every iteration: its residuals cannot pass the
-        float64 test); an error there only perturbs the subspace the later iterations refine.
+        Columns of a block beyond ``n_eigen``.
     n_checked : int or callable, optional
         How many leading pairs the convergence test checks (default ``n_eigen``); a callable is given the current
-        Ritz eigenvalues of the covariance, descending, and returns it (the coverage rule's m on that estimate).
+        Ritz eigenvalues as shares of the total variance, descending, and returns it (the coverage rule's m on that
+        estimate).
+    name : str
+        The capture as a refusal names it.
+
     Returns
     -------
+    mean : ndarray of shape (n_dims,)
+    total : float
+        ``sum |y - mean|^2 / n_frames``.
     eigenvalues : ndarray of shape (n_eigen,)
-        Descending.
+        Descending (zeros past the capture's rank).
     eigenvectors : ndarray of shape (n_eigen, n_dims)
         Unit eigenfaces as rows, with deterministic signs.
     n_passes : int
-        Products with the whole capture it made (a ``D~^T D~`` pass counts two).
+        Products with the whole capture it made (each pass by ``D~^T D~`` counts two).
+
+    Raises
+    ------
+    WorkbenchError
+        NaN or Inf in the capture, naming ``name`` and the frames.
     """
     n_frames, n_dims = capture.shape
     width = min(n_eigen + oversample, n_frames, n_dims)
-
-    def times(matrix, dtype=np.float64):  # D~ @ matrix, (n_frames, width)
-        return frames_times(capture, matrix, dtype) - (mean @ matrix)[None, :]
-
-    def transposed_times(matrix, dtype=np.float64):  # D~^T @ matrix, (n_dims, width)
-        return frames_transposed_times(capture, matrix, dtype) - np.outer(mean, matrix.sum(axis=0))
-
-    sketch = times(rng.standard_normal((n_dims, width)), iteration_dtype)
-    basis = _orthonormal(transposed_times(_orthonormal(sketch), iteration_dtype))
-    n_passes = 2
-    for iteration in range(max(1, n_power_iter)):
-        last = iteration == max(1, n_power_iter) - 1
-        dtype = np.float64 if last else iteration_dtype
-        product, normal = frames_normal_times(capture, basis, mean, dtype, with_product=True)
-        n_passes += 2
-        if last or (dtype == np.float64 and _ritz_converged(basis, normal, n_checked or n_eigen, n_frames)):
+    start = _orthonormal(rng.standard_normal((n_dims, width)))
+    mean, total, uncentred = statistics_and_normal_times(capture, start, name)
+    normal = uncentred - n_frames * np.outer(mean, mean @ start)
+    basis, normals = ([start], [normal]) if mean @ mean <= CANCELLATION * total else ([], [])
+    n_passes, grow, checked = 2, normal, n_checked or n_eigen
+    while len(basis) < max_blocks and not (basis and _ritz_converged(basis, normals, checked, n_frames * total)):
+        block = _orthonormal_against(grow, basis)
+        if block.shape[1] == 0:  # the space already holds every direction the capture varies in
             break
-        basis = _orthonormal(normal)
-    values, vectors = _eigen_from_range(product, normal, n_eigen)
-    return values / n_frames, vectors, n_passes
+        grow = frames_normal_times(capture, block, mean)
+        basis.append(block)
+        normals.append(grow)
+        n_passes += 2
+    if not basis:
+        return mean, total, np.zeros(n_eigen), np.zeros((n_eigen, n_dims)), n_passes
+    theta, rotation = _rayleigh_ritz(basis, normals)
+    count = min(n_eigen, theta.size)
+    vectors = (np.hstack(basis) @ rotation[:, :count]).T
+    values = np.maximum(theta[:count], 0.0) / n_frames
+    values = np.concatenate([values, np.zeros(n_eigen - count)])
+    vectors = np.vstack([flip_signs(vectors), np.zeros((n_eigen - count, n_dims))])
+    return mean, total, values, vectors, n_passes
 
 
-def _ritz_converged(basis: np.ndarray, normal: np.ndarray, n_checked, n_frames: int) -> bool:
-    """Whether the leading ``n_checked`` Ritz pairs of ``D~^T D~`` on the span of ``basis`` (orthonormal, shape
-    (n_dims, width)), given ``normal = D~^T D~ basis``, have residuals within :data:`RESIDUAL_RTOL` of the largest
-    Ritz value (``n_checked``: an int, or a function of the Ritz eigenvalues of the covariance)."""
-    theta, rotation = np.linalg.eigh(basis.T @ normal)
-    theta, rotation = theta[::-1], rotation[:, ::-1]
-    if theta[0] <= 0:
+def _rayleigh_ritz(basis: list, normals: list) -> tuple[np.ndarray, np.ndarray]:
+    """Ritz values (descending) and their coordinates on the orthonormal ``basis`` (blocks of shape (n_dims, k)),
+    given ``normals``, the blocks times ``D~^T D~``."""
+    projected = np.hstack(basis).T @ np.hstack(normals)
+    theta, rotation = np.linalg.eigh((projected + projected.T) / 2.0)
+    return theta[::-1], rotation[:, ::-1]
+
+
+def _ritz_converged(basis: list, normals: list, n_checked, trace: float) -> bool:
+    """Whether the leading ``n_checked`` Ritz pairs of ``C`` on the span of ``basis`` (orthonormal blocks of shape
+    (n_dims, k), with ``normals`` = ``C`` times each) have residuals ``|C V y - theta V y|`` within
+    :data:`RESIDUAL_RTOL` of the largest Ritz value (``n_checked``: an int, or a function of the Ritz values as
+    shares of ``trace``, the trace of ``C``)."""
+    theta, rotation = _rayleigh_ritz(basis, normals)
+    if theta[0] <= 0 or trace <= 0:
         return True
-    count = n_checked(np.maximum(theta, 0.0) / n_frames) if callable(n_checked) else n_checked
+    count = n_checked(np.maximum(theta, 0.0) / trace) if callable(n_checked) else n_checked
     count = max(1, min(int(count), theta.size))
-    residual = normal @ rotation[:, :count] - (basis @ rotation[:, :count]) * theta[:count]
+    leading = rotation[:, :count]
+    residual = np.hstack(normals) @ leading - (np.hstack(basis) @ leading) * theta[:count]
     return bool(np.linalg.norm(residual, axis=0).max() <= RESIDUAL_RTOL * theta[0])
 
 
-def _eigen_from_range(product: np.ndarray, normal: np.ndarray, n_eigen: int) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenpairs of ``D~^T P D~`` (``P`` the projection on the span of ``product = D~ B``), from ``product`` and
-    ``normal = D~^T product``: with the SVD ``product = U s V^T``, ``D~^T U = normal V / s``, whose SVD gives the
-    eigenvalues (squared singular values, times ``n_frames``) and eigenfaces. Directions of ``product`` below
-    ``1e-6`` of its largest singular value (rank-deficient captures) are left out: their eigenvalues are under
-    ``1e-12`` of the largest (``TOL.eigen_rel``'s zero), and dividing by their singular values would amplify the
-    round-off of ``normal`` (about ``eps s_1^2``) past ``1e-10`` of the largest."""
-    _, singular, right_t = np.linalg.svd(product, full_matrices=False)
-    kept = singular > 1e-6 * singular[0] if singular[0] > 0 else np.zeros(singular.shape, bool)
-    lifted = (normal @ right_t[kept].T) / singular[kept]
-    _, values, vt = np.linalg.svd(lifted.T, full_matrices=False)
-    values = np.concatenate([values, np.zeros(max(0, n_eigen - values.size))])[:n_eigen]
-    vt = np.vstack([vt, np.zeros((max(0, n_eigen - vt.shape[0]), vt.shape[1]))])[:n_eigen]
-    return values**2, flip_signs(vt)
+def _orthonormal_against(block: np.ndarray, basis: list) -> np.ndarray:
+    """An orthonormal basis, shape (n_dims, j) with ``j <= k``, of what ``block`` (shape (n_dims, k)) adds to the
+    span of ``basis``: its part in that span removed twice, the directions left below :data:`NEW_DIRECTION` of the
+    block's largest column dropped (the space is exhausted there), and the span removed once more from the rest,
+    whose normalisation magnifies what round-off left of it."""
+    scale = float(np.linalg.norm(block, axis=0).max()) if block.size else 0.0
+    spanned = np.hstack(basis) if basis else None
+    for _ in range(2 if basis else 0):
+        block = block - spanned @ (spanned.T @ block)
+    directions, sizes, _ = np.linalg.svd(block, full_matrices=False)
+    directions = directions[:, sizes > NEW_DIRECTION * scale] if scale > 0 else directions[:, :0]
+    if basis and directions.shape[1]:
+        directions = _orthonormal(directions - spanned @ (spanned.T @ directions))
+    return directions
+
+
+NEW_DIRECTION = 1e-9
+"""A block's direction is new to the Krylov space when its part outside the space is at least this share of the
+block's largest column (below it the part is round-off of the space's own directions)."""
 
 
 def _orthonormal(matrix: np.ndarray) -> np.ndarray:
@@ -207,49 +231,56 @@ def _orthonormal(matrix: np.ndarray) -> np.ndarray:
     return scipy.linalg.qr(matrix, mode="economic", check_finite=False)[0]
 
 
-def frames_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``capture @ matrix``, shape (n_frames, k): at once for a float64 array in float64, else one chunk of frames
-    at a time in ``dtype`` (:func:`workbench.numerics.frames.frame_chunks`)."""
-    if not is_stored_frames(capture) and dtype == np.float64:
-        return capture @ matrix
-    out = np.empty((capture.shape[0], matrix.shape[1]))
-    factor = matrix.astype(dtype)
-    for rows, chunk in frame_chunks(capture, dtype=dtype):
-        out[rows] = chunk @ factor
-    return out
+def product_chunks(capture):
+    """The frames in chunks of :data:`CHUNK_BYTES` as float64, for a pass that multiplies each chunk twice."""
+    return frame_chunks(capture, max(1, CHUNK_BYTES // (8 * capture.shape[1])))
 
 
-def frames_transposed_times(capture, matrix: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``capture.T @ matrix``, shape (n_dims, k), as :func:`frames_times` (a float64 sum over chunks)."""
-    if not is_stored_frames(capture) and dtype == np.float64:
-        return capture.T @ matrix
-    out = np.zeros((capture.shape[1], matrix.shape[1]))
-    factor = matrix.astype(dtype)
-    for rows, chunk in frame_chunks(capture, dtype=dtype):
-        out += chunk.T @ factor[rows]
-    return out
+def statistics_and_normal_times(capture, matrix: np.ndarray, name: str = "capture"):
+    """Mean frame, total variance and ``D^T (D matrix)`` of the uncentred capture ``D``, in one pass.
+
+    Returns
+    -------
+    mean : ndarray of shape (n_dims,)
+    total : float
+        ``sum |y - mean|^2 / n_frames`` (the squares less ``n |mean|^2``).
+    normal : ndarray of shape (n_dims, k)
+
+    Raises
+    ------
+    WorkbenchError
+        NaN or Inf in the capture (found by the sums, then located), naming ``name``.
+    """
+    sums, squares = np.zeros(capture.shape[1]), 0.0
+    normal = np.zeros((capture.shape[1], matrix.shape[1]))
+    for _, chunk in product_chunks(capture):
+        sums += chunk.sum(axis=0)
+        squares += float(np.einsum("ij,ij->", chunk, chunk))
+        normal += chunk.T @ (chunk @ matrix)
+    if not (np.isfinite(squares) and np.isfinite(sums).all()):
+        _refuse_non_finite(capture, name)
+    mean = sums / capture.shape[0]
+    return mean, max(squares / capture.shape[0] - float(mean @ mean), 0.0), normal
 
 
-def frames_normal_times(capture, matrix: np.ndarray, mean: np.ndarray, dtype=np.float64, *, with_product=False):
+def _refuse_non_finite(capture, name: str) -> None:
+    """A :class:`WorkbenchError` naming the first frames that hold NaN or Inf (sums overflowing from finite frames
+    raise nothing)."""
+    for rows, chunk in frame_chunks(capture):
+        if not np.isfinite(chunk).all():
+            raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
+
+
+def frames_normal_times(capture, matrix: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """``D~^T (D~ matrix)`` with ``D~ = capture - 1 mean^T``, shape (n_dims, k), in one pass over the frames.
 
     ``D~^T A = D^T A - mean (1^T A)`` for ``A = D matrix - 1 (mean^T matrix)``, so each chunk of frames is read
-    once for both products (in ``dtype``; sums over chunks in float64). With ``with_product``, also ``A``, shape
-    (n_frames, k), first.
+    once for both products (float64 arithmetic; a float32 or stored chunk is converted in cache).
     """
     shift = mean @ matrix
-    if not is_stored_frames(capture) and dtype == np.float64:
-        product = capture @ matrix - shift
-        normal = capture.T @ product - np.outer(mean, product.sum(axis=0))
-        return (product, normal) if with_product else normal
     out, column_sums = np.zeros((capture.shape[1], matrix.shape[1])), np.zeros(matrix.shape[1])
-    products = np.empty((capture.shape[0], matrix.shape[1])) if with_product else None
-    factor, shift = matrix.astype(dtype), shift.astype(dtype)
-    for rows, chunk in frame_chunks(capture, dtype=dtype):
-        product = chunk @ factor - shift
+    for _, chunk in product_chunks(capture):
+        product = chunk @ matrix - shift
         out += chunk.T @ product
-        column_sums += product.sum(axis=0, dtype=np.float64)
-        if with_product:
-            products[rows] = product
-    normal = out - np.outer(mean, column_sums)
-    return (products, normal) if with_product else normal
+        column_sums += product.sum(axis=0)
+    return out - np.outer(mean, column_sums)

@@ -106,6 +106,12 @@ def check_matrix(
         raise WorkbenchError(wording.columns.format(name=name, n_columns=n_columns, got=array.shape[1]))
     if points and array.shape[1] % 3:
         raise WorkbenchError(wording.not_points.format(name=name, got=array.shape[1]))
-    if finite and not np.isfinite(array).all():
-        raise WorkbenchError(wording.not_finite.format(name=name, bad=int(np.count_nonzero(~np.isfinite(array)))))
+    if finite:
+        check_finite(name, array, wording)
     return array
+
+
+def check_finite(name: str, array: np.ndarray, wording: MatrixWording) -> None:
+    """A :class:`WorkbenchError` naming ``name`` and the count of NaN and Inf entries when ``array`` holds any."""
+    if not np.isfinite(array).all():
+        raise WorkbenchError(wording.not_finite.format(name=name, bad=int(np.count_nonzero(~np.isfinite(array)))))
