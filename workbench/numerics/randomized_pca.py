@@ -214,8 +214,9 @@ def _orthonormal_against(block: np.ndarray, basis: list) -> np.ndarray:
     spanned = np.hstack(basis) if basis else None
     for _ in range(2 if basis else 0):
         block = block - spanned @ (spanned.T @ block)
-    directions, sizes, _ = np.linalg.svd(block, full_matrices=False)
-    directions = directions[:, sizes > NEW_DIRECTION * scale] if scale > 0 else directions[:, :0]
+    orthonormal, triangle = scipy.linalg.qr(block, mode="economic", check_finite=False)
+    rotation, sizes, _ = np.linalg.svd(triangle)  # the SVD of the block, from that of its small triangle
+    directions = orthonormal @ rotation[:, sizes > NEW_DIRECTION * scale] if scale > 0 else block[:, :0]
     if basis and directions.shape[1]:
         directions = _orthonormal(directions - spanned @ (spanned.T @ directions))
     return directions
@@ -254,8 +255,8 @@ def statistics_and_normal_times(capture, matrix: np.ndarray, name: str = "captur
     sums, squares = np.zeros(capture.shape[1]), 0.0
     normal = np.zeros((capture.shape[1], matrix.shape[1]))
     for _, chunk in product_chunks(capture):
-        sums += chunk.sum(axis=0)
-        squares += float(np.einsum("ij,ij->", chunk, chunk))
+        sums += np.ones(chunk.shape[0]) @ chunk
+        squares += float(np.vdot(chunk, chunk))
         normal += chunk.T @ (chunk @ matrix)
     if not (np.isfinite(squares) and np.isfinite(sums).all()):
         _refuse_non_finite(capture, name)

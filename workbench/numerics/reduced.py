@@ -23,6 +23,51 @@ from workbench.numerics.frames import frame_chunks
 EXPLICIT_BELOW = 1e-4
 """Frames whose squared distance is below this fraction of ``|y|^2 + |offset|^2`` get the explicit residual."""
 
+SPAN_RTOL = 1e-13
+"""A direction of the columns a pass multiplies by counts when its singular value (columns scaled to unit norm) is at
+least this share of the largest: the quasi-eigen faces lie in the span of the eigenfaces and the mean, so their
+columns add directions of round-off size only (about 1e-16), which this leaves out."""
+
+
+SHARED_SPAN_DIMS = 1000
+"""Frames of at least this many values (meshes, not markers) are multiplied through the shared span."""
+
+
+@dataclass(frozen=True)
+class SharedSpan:
+    """Columns multiplied through an orthonormal basis of their span: ``columns = basis @ coefficients`` (to
+    :data:`SPAN_RTOL`), so a chunk of frames times the columns costs a product with the ``r`` basis vectors rather
+    than with the ``k`` columns (the bases of one study share most of their span).
+
+    Attributes
+    ----------
+    basis : ndarray of shape (n_dims, r) or None
+        None when the columns have no fewer directions than columns (then they are multiplied as they are).
+    coefficients : ndarray of shape (r, k) or the columns, shape (n_dims, k)
+    """
+
+    basis: np.ndarray | None
+    coefficients: np.ndarray
+
+    @classmethod
+    def of(cls, columns: np.ndarray) -> "SharedSpan":
+        """The shared span of ``columns`` (shape (n_dims, k)), through a basis when the frames are dense (at least
+        :data:`SHARED_SPAN_DIMS` values) and it saves a fifth of the work; markers' passes are cheap, and their
+        products are then those of the columns themselves, rounded once."""
+        if columns.shape[0] < SHARED_SPAN_DIMS:
+            return cls(None, columns)
+        norms = np.linalg.norm(columns, axis=0)
+        directions, sizes, _ = np.linalg.svd(columns / np.where(norms > 0, norms, 1.0), full_matrices=False)
+        rank = int(np.count_nonzero(sizes > SPAN_RTOL * sizes[0])) if sizes.size and sizes[0] > 0 else 0
+        if rank > 0.8 * columns.shape[1]:
+            return cls(None, columns)
+        basis = directions[:, :rank]
+        return cls(basis, basis.T @ columns)
+
+    def times(self, chunk: np.ndarray) -> np.ndarray:
+        """``chunk @ columns``, shape (n_rows, k), for ``chunk`` of shape (n_rows, n_dims)."""
+        return chunk @ self.coefficients if self.basis is None else (chunk @ self.basis) @ self.coefficients
+
 
 @dataclass(frozen=True)
 class Subspace:
@@ -94,6 +139,7 @@ def project_frames(
     widths = [subspaces[label].columns.shape[1] for label in labels]
     stops = np.cumsum(widths)
     together = np.hstack([subspaces[label].columns for label in labels] + [np.column_stack(offsets + [neutral])])
+    shared = SharedSpan.of(together)
     offset_coordinates = [offset @ subspaces[label].columns for label, offset in zip(labels, offsets)]
     offset_sq = [float(offset @ offset) for offset in offsets]
     coordinates = {label: np.empty((n_frames, width)) for label, width in zip(labels, widths)}
@@ -101,7 +147,7 @@ def project_frames(
     displacement_sq, neutral_dot = np.empty(n_frames), np.empty(n_frames)
     n_explicit = 0
     for rows, chunk in frame_chunks(frames, chunk_size):
-        products = chunk @ together
+        products = shared.times(chunk)
         squares = np.einsum("ij,ij->i", chunk, chunk)
         displacement_sq[rows], neutral_dot[rows] = squares, products[:, -1]
         for index, label in enumerate(labels):
