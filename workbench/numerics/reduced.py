@@ -35,38 +35,46 @@ SHARED_SPAN_DIMS = 1000
 
 @dataclass(frozen=True)
 class SharedSpan:
-    """Columns multiplied through an orthonormal basis of their span: ``columns = basis @ coefficients`` (to
-    :data:`SPAN_RTOL`), so a chunk of frames times the columns costs a product with the ``r`` basis vectors rather
-    than with the ``k`` columns (the bases of one study share most of their span).
+    """Columns multiplied through an orthonormal basis of their span, but for the first few: ``columns[:, kept:] =
+    basis @ coefficients`` (to :data:`SPAN_RTOL`), so a chunk of frames times the columns costs a product with the
+    ``kept`` columns and the ``r`` basis vectors rather than with every column (the bases of one study share most of
+    their span). The first columns (the hand basis's) are multiplied as they are, so their products do not depend on
+    which other columns share the pass: H scores the same beside any other bases.
 
     Attributes
     ----------
+    kept : ndarray of shape (n_dims, j)
+        The columns multiplied as they are.
     basis : ndarray of shape (n_dims, r) or None
-        None when the columns have no fewer directions than columns (then they are multiplied as they are).
-    coefficients : ndarray of shape (r, k) or the columns, shape (n_dims, k)
+        None when the other columns have no fewer directions than columns (then ``kept`` holds every column).
+    coefficients : ndarray of shape (r, k - j) or None
     """
 
-    basis: np.ndarray | None
-    coefficients: np.ndarray
+    kept: np.ndarray
+    basis: np.ndarray | None = None
+    coefficients: np.ndarray | None = None
 
     @classmethod
-    def of(cls, columns: np.ndarray) -> "SharedSpan":
-        """The shared span of ``columns`` (shape (n_dims, k)), through a basis when the frames are dense (at least
-        :data:`SHARED_SPAN_DIMS` values) and it saves a fifth of the work; markers' passes are cheap, and their
-        products are then those of the columns themselves, rounded once."""
-        if columns.shape[0] < SHARED_SPAN_DIMS:
-            return cls(None, columns)
-        norms = np.linalg.norm(columns, axis=0)
-        directions, sizes, _ = np.linalg.svd(columns / np.where(norms > 0, norms, 1.0), full_matrices=False)
-        rank = int(np.count_nonzero(sizes > SPAN_RTOL * sizes[0])) if sizes.size and sizes[0] > 0 else 0
-        if rank > 0.8 * columns.shape[1]:
-            return cls(None, columns)
+    def of(cls, columns: np.ndarray, kept: int = 0) -> "SharedSpan":
+        """The shared span of ``columns[:, kept:]`` (``columns`` of shape (n_dims, k)), taken when the frames are
+        dense (at least :data:`SHARED_SPAN_DIMS` values) and it saves a fifth of those columns' work; markers'
+        passes are cheap, and their products are then those of the columns themselves, rounded once."""
+        rest = columns[:, kept:]
+        if columns.shape[0] < SHARED_SPAN_DIMS or rest.shape[1] == 0:
+            return cls(columns)
+        norms = np.linalg.norm(rest, axis=0)
+        directions, sizes, _ = np.linalg.svd(rest / np.where(norms > 0, norms, 1.0), full_matrices=False)
+        rank = int(np.count_nonzero(sizes > SPAN_RTOL * sizes[0])) if sizes[0] > 0 else 0
+        if rank > 0.8 * rest.shape[1]:
+            return cls(columns)
         basis = directions[:, :rank]
-        return cls(basis, basis.T @ columns)
+        return cls(columns[:, :kept], basis, basis.T @ rest)
 
     def times(self, chunk: np.ndarray) -> np.ndarray:
         """``chunk @ columns``, shape (n_rows, k), for ``chunk`` of shape (n_rows, n_dims)."""
-        return chunk @ self.coefficients if self.basis is None else (chunk @ self.basis) @ self.coefficients
+        if self.basis is None:
+            return chunk @ self.kept
+        return np.hstack([chunk @ self.kept, (chunk @ self.basis) @ self.coefficients])
 
 
 @dataclass(frozen=True)
@@ -139,7 +147,7 @@ def project_frames(
     widths = [subspaces[label].columns.shape[1] for label in labels]
     stops = np.cumsum(widths)
     together = np.hstack([subspaces[label].columns for label in labels] + [np.column_stack(offsets + [neutral])])
-    shared = SharedSpan.of(together)
+    shared = SharedSpan.of(together, kept=widths[0] if labels else 0)  # the first basis (H) as it is
     offset_coordinates = [offset @ subspaces[label].columns for label, offset in zip(labels, offsets)]
     offset_sq = [float(offset @ offset) for offset in offsets]
     coordinates = {label: np.empty((n_frames, width)) for label, width in zip(labels, widths)}

@@ -387,7 +387,8 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
                 float(restricted @ restricted),
             )
         parts[key] = (*blocks[basis], weights, basis)
-    together = SharedSpan.of(np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T)
+    first = len(next(iter(blocks.values()))[0]) + 1 if blocks else 0  # the first basis (H) as it is
+    together = SharedSpan.of(np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T, first)
     errors = {key: np.empty(frames.shape[0]) for key in fits}
     for rows, chunk in frame_chunks(frames):
         chunk = chunk[:, dims]
