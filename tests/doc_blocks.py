@@ -297,8 +297,8 @@ def covers(made: str, path: str) -> bool:
 
 
 def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Command]:
-    """Commands of other documents that make what a command of ``doc`` reads before anything in ``doc`` made it,
-    each after its own prerequisites, in document order."""
+    """Commands of other documents that make what a command of ``doc`` the test runs reads before anything in
+    ``doc`` made it, each after its own prerequisites, in document order."""
     order: list[Command] = []
 
     def provide(path: str, exclude: str) -> None:
@@ -316,6 +316,8 @@ def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Comman
 
     made: set[str] = set()
     for command in documented[doc]:
+        if not_run_reason(command):  # a command the test does not run needs nothing made for it
+            continue
         for path in sorted(reads(command)):
             if not any(covers(folder, path) for folder in made):
                 provide(path, doc)
