@@ -570,7 +570,7 @@ class Reuse:
         shutil.copytree(entry / "files", scratch.root, symlinks=True, dirs_exist_ok=True)
         for name in named:
             file = scratch.root / name
-            file.write_text(file.read_text().replace(origin, str(scratch.folder)))
+            file.write_bytes(file.read_bytes().replace(origin.encode(), str(scratch.folder).encode()))
         note = f"not run again: ran for {where} in this test run" + (", its output copied" if made else "")
         return Outcome(command, "ok", time.perf_counter() - started, load=os.getloadavg()[0], note=note)
 
