@@ -8,7 +8,8 @@ x<TAB>  # a b`` checks that bash completes ``x`` to ``a b``), ``/tmp/`` becomes 
 commands check that what they install is there, and a few commands are not run (:data:`NOT_RUN`). Commands that
 take a minute or more (measured, in ``docs/commands.md``) are not run either, unless a later command reads what
 they write: then a study's small preset (``<study>_small``) writes the same folder instead, and any other command
-runs as written.
+runs as written. A command that ran before in the same test run (in another document's test, or earlier in the same
+one) has what it wrote copied instead, where that is safe (:class:`Reuse`).
 
 ``python tests/doc_blocks.py measure [DOC ...]`` runs the commands of the documents (default: all) for real,
 long ones included, and rewrites their rows in ``docs/commands.md`` with the wall time and peak memory measured.
@@ -16,7 +17,9 @@ long ones included, and rewrites their rows in ``docs/commands.md`` with the wal
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
+import json
 import os
 import re
 import shlex
@@ -297,8 +300,8 @@ def covers(made: str, path: str) -> bool:
 
 
 def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Command]:
-    """Commands of other documents that make what a command of ``doc`` reads before anything in ``doc`` made it,
-    each after its own prerequisites, in document order."""
+    """Commands of other documents that make what a command of ``doc`` the test runs reads before anything in
+    ``doc`` made it, each after its own prerequisites, in document order."""
     order: list[Command] = []
 
     def provide(path: str, exclude: str) -> None:
@@ -316,6 +319,8 @@ def prerequisites(doc: str, documented: dict[str, list[Command]]) -> list[Comman
 
     made: set[str] = set()
     for command in documented[doc]:
+        if not_run_reason(command):  # a command the test does not run needs nothing made for it
+            continue
         for path in sorted(reads(command)):
             if not any(covers(folder, path) for folder in made):
                 provide(path, doc)
@@ -466,6 +471,134 @@ class Scratch:
         return Outcome(command, status, seconds, cpu, peak, os.getloadavg()[0], note, output=output)
 
 
+def checkout_files(root: Path) -> dict[str, tuple[int, int]]:
+    """Size and modification time of every file in a scratch checkout, by path (git's folder, the linked
+    environment and validator, and Python's and numba's caches aside)."""
+    found = {}
+    for folder, names, files in os.walk(root):
+        names[:] = [name for name in names if name not in (".git", "__pycache__")]
+        for name in files:
+            stat = os.lstat(os.path.join(folder, name))
+            found[os.path.relpath(os.path.join(folder, name), root)] = (stat.st_size, stat.st_mtime_ns)
+    return found
+
+
+UNSET = re.compile(r"^env((?:\s+-u\s+\w+)+)\s+")
+
+
+def identity(text: str, environment: dict, heredoc: bool = False) -> str:
+    """What makes two commands the same command: the text without comments (a here-document's included) and without
+    an ``env -u`` of variables the environment does not set, white space normalised."""
+    if not heredoc:
+        text = "\n".join(strip_comment(line) for line in text.split("\n"))
+    unset = UNSET.match(text)
+    if unset and not any(name in environment for name in unset.group(1).split()[1::2]):
+        text = text[unset.end() :]
+    return normalised(text)
+
+
+def repeated_commands(documented: dict[str, list[Command]], environment: dict) -> set[str]:
+    """The commands (:func:`identity`) that the tests of the documents run twice or more, prerequisites included."""
+    seen: dict[str, int] = {}
+    for doc, listed in documented.items():
+        for command in [*prerequisites(doc, documented), *listed]:
+            if not not_run_reason(command):
+                same = identity(command.text, environment, bool(command.heredoc))
+                seen[same] = seen.get(same, 0) + 1
+    return {text for text, count in seen.items() if count > 1}
+
+
+class Reuse:
+    """What a command wrote in a scratch copy, kept for a later run of the same command (:func:`identity`) in this
+    test run: copied into the later scratch copy (its absolute paths in text files changed to the new copy's)
+    instead of running the command again. The first run is checked as before.
+
+    Kept only for a command that runs twice or more in the documents' tests, reads no output folder, has no ``cd``,
+    ``source`` or ``export`` before it in its block, writes nothing or only folders its scratch copy does not hold
+    yet and, when it ran, left nothing else in the checkout: the same text then writes the same folders.
+    ``folder`` is shared by the run's test processes (pytest-xdist): an entry appears whole (a rename), and a lock
+    per command makes a process that reaches a command another one is running wait for it rather than run it beside
+    it."""
+
+    def __init__(self, folder: Path, root: Path = REPO_ROOT):
+        self.folder = folder
+        folder.mkdir(parents=True, exist_ok=True)
+        self.repeated = repeated_commands(all_commands(root), os.environ)
+
+    def run(self, scratch: Scratch, command: Command, text: str, state: list[str], timeout: float) -> Outcome:
+        made = sorted(writes(command))
+        fresh = not any((scratch.root / path).exists() for path in made)
+        repeated = identity(command.text, scratch.env, bool(command.heredoc)) in self.repeated
+        kept = repeated and fresh and not reads(command)
+        if not kept or state or str(scratch.folder) in text:
+            return scratch.run(command, text, state, timeout)
+        same = identity(text, scratch.env, bool(command.heredoc))
+        entry = self.folder / hashlib.sha1(same.encode()).hexdigest()[:16]
+        with open(f"{entry}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if entry.is_dir():
+                return self.take(entry, scratch, command, made)
+            before = checkout_files(scratch.root)
+            outcome = scratch.run(command, text, state, timeout)
+            after = checkout_files(scratch.root)
+            changed = {path for path in before.keys() | after.keys() if before.get(path) != after.get(path)}
+            if outcome.status == "ok" and all(any(covers(m, path) for m in made) for path in changed):
+                self.keep(entry, scratch, command, made)
+            return outcome
+
+    def keep(self, entry: Path, scratch: Scratch, command: Command, made: list[str]) -> None:
+        """Keep what the command wrote, unless a file that names the scratch copy's folder cannot have it changed
+        to a later copy's: not text, or checked by its run record (a ``done`` file's SHA-256)."""
+        named = naming(scratch.folder, scratch.root, made)
+        if any(not text or checked for text, checked in named.values()):
+            return
+        part = entry.with_name(f".{entry.name}.{os.getpid()}")
+        (part / "files").mkdir(parents=True)
+        for path in made:
+            source, target = scratch.root / path, part / "files" / path
+            target.parent.mkdir(parents=True, exist_ok=True)
+            if source.is_dir():
+                shutil.copytree(source, target, symlinks=True)
+            elif source.is_file():
+                shutil.copy2(source, target)
+        (part / "origin").write_text("\n".join([f"{command.doc}:{command.line}", str(scratch.folder), *named]))
+        os.rename(part, entry)
+
+    def take(self, entry: Path, scratch: Scratch, command: Command, made: list[str]) -> Outcome:
+        started = time.perf_counter()
+        where, origin, *named = (entry / "origin").read_text().split("\n")
+        shutil.copytree(entry / "files", scratch.root, symlinks=True, dirs_exist_ok=True)
+        for name in named:
+            file = scratch.root / name
+            file.write_bytes(file.read_bytes().replace(origin.encode(), str(scratch.folder).encode()))
+        note = f"not run again: ran for {where} in this test run" + (", its output copied" if made else "")
+        return Outcome(command, "ok", time.perf_counter() - started, load=os.getloadavg()[0], note=note)
+
+
+def naming(folder: Path, root: Path, made: list[str]) -> dict[str, tuple[bool, bool]]:
+    """The files under ``made`` (paths in ``root``) that name ``folder``, by path: whether each is UTF-8 text, and
+    whether a run record's ``done`` file beside it checks its SHA-256."""
+    files = [file for path in made for file in ([root / path] if (root / path).is_file() else (root / path).rglob("*"))]
+    files = [file for file in files if file.is_file() and not file.is_symlink()]
+    checked = set()
+    for done in (file for file in files if file.name == "done"):
+        try:
+            checked |= {done.parent / name for name in json.loads(done.read_text()).get("sha256", {})}
+        except (ValueError, AttributeError, UnicodeDecodeError):
+            checked.add(done)  # not a record's: kept only if it does not name the folder
+    named = {}
+    for file in files:
+        data = file.read_bytes()
+        if str(folder).encode() in data:
+            try:
+                data.decode()
+                text = True
+            except UnicodeDecodeError:
+                text = False
+            named[file.relative_to(root).as_posix()] = (text, file in checked or file.name == "done")
+    return named
+
+
 def table_rows(root: Path = REPO_ROOT) -> dict[str, list[str]]:
     """The measured rows of docs/commands.md by command key: the cells page:line, command, wall time, CPU time,
     peak memory, doc test, measured, key."""
@@ -487,11 +620,19 @@ def measured_times(root: Path = REPO_ROOT) -> dict[str, float]:
 
 
 def run_document(
-    doc: str, scratch: Scratch, *, measure: bool = False, timeout: float = 900.0, report=print
+    doc: str,
+    scratch: Scratch,
+    *,
+    measure: bool = False,
+    timeout: float = 900.0,
+    report=print,
+    reuse: Reuse | None = None,
 ) -> list[Outcome]:
     """Run a document's commands (after their prerequisites from other documents) in ``scratch``. Without
     ``measure``, commands measured at a minute or more are not run (a small preset stands in for a long study whose
-    folder a later command reads); with it, everything runs."""
+    folder a later command reads); with it, everything runs. With ``reuse``, a command another document ran in
+    this test run may have its output copied instead (:class:`Reuse`)."""
+    run = scratch.run if reuse is None else lambda *args: reuse.run(scratch, *args)
     documented = all_commands(scratch.root)
     times = measured_times(scratch.root)
     outcomes: list[Outcome] = []
@@ -518,15 +659,16 @@ def run_document(
         elif long and not needed:
             outcome = Outcome(command, "long", note=f"{slowest[command.code]:.0f} CPU s measured")
         elif instead is not None:
-            outcome = scratch.run(
+            outcome = run(
                 command,
                 runnable(Command(command.doc, command.line, command.block, instead), scratch.tmp),
                 lines,
                 timeout,
             )
-            outcome.note = f"{slowest[command.code]:.0f} CPU s measured; ran {instead}"
+            copied = f" ({outcome.note})" if outcome.note else ""
+            outcome.note = f"{slowest[command.code]:.0f} CPU s measured; ran {instead}{copied}"
         else:
-            outcome = scratch.run(command, runnable(command, scratch.tmp), lines, timeout)
+            outcome = run(command, runnable(command, scratch.tmp), lines, timeout)
         outcome.prerequisite = prerequisite
         if outcome.status == "skipped" and outcome.note.startswith("a tool"):
             skip_block.add(block)

@@ -1,6 +1,8 @@
 """The documentation runs as written: every command of every shell block of README.md and docs/ (how they are read,
 filled in and run: tests/doc_blocks.py and docs/commands.md)."""
 
+import json
+import os
 import re
 
 import pytest
@@ -8,12 +10,17 @@ from doc_blocks import (
     LONG_SECONDS,
     REPO_ROOT,
     TIMES_DOC,
+    Command,
+    Reuse,
     Scratch,
     all_commands,
     documents,
+    identity,
     measured_times,
+    naming,
     prerequisites,
     reads,
+    repeated_commands,
     run_document,
     runnable,
     table_rows,
@@ -51,6 +58,8 @@ def test_prerequisites_come_from_the_pages_that_write_what_a_page_reads():
     assert [command.summary for command in found] == [".venv/bin/workbench --config-name coverage"]
     assert "outputs/coverage/default" in reads(DOCUMENTED["docs/reports.md"][3])
     assert prerequisites("docs/export.md", DOCUMENTED) == []  # export.md makes its own runs first
+    # the only outputs/coverage/default of tracking.md is in a command the test does not run (a lab's server)
+    assert prerequisites("docs/tracking.md", DOCUMENTED) == []
 
 
 def test_commands_are_made_runnable_without_installing_anything(tmp_path):
@@ -72,6 +81,45 @@ def test_measured_rows_are_documented_commands():
         assert cells[5] == ("long: not run" if float(cells[3].removesuffix(" s")) >= LONG_SECONDS else "run")
 
 
+def test_the_same_command_is_its_text_without_comments_and_unset_variables_the_environment_lacks():
+    assert identity("env -u A_B -u C .venv/bin/x  run  # a note", {}) == ".venv/bin/x run"
+    assert identity("env -u A_B -u C .venv/bin/x run", {"C": "1"}) == "env -u A_B -u C .venv/bin/x run"
+    repeated = repeated_commands(DOCUMENTED, {})
+    assert ".venv/bin/workbench --config-name coverage" in repeated  # README, reports.md (prerequisite), studies.md
+    assert ".venv/bin/python benchmarks/run.py markers" in repeated  # twice in performance.md, once with env -u
+
+
+def test_a_command_run_again_has_its_output_copied_into_the_new_scratch_copy(tmp_path):
+    text = (
+        ".venv/bin/python - <<'PY'\nimport os, pathlib\npathlib.Path('outputs').mkdir()\n"
+        "pathlib.Path('outputs/where.txt').write_text(os.getcwd())\nPY"
+    )
+    command = Command("docs/x.md", 1, 1, text)
+    reuse = Reuse(tmp_path / "kept")
+    reuse.repeated = {identity(command.text, {}, heredoc=True)}
+    first, second = Scratch(tmp_path / "first"), Scratch(tmp_path / "second")
+    ran = reuse.run(first, command, runnable(command, first.tmp), [], 60)
+    copied = reuse.run(second, command, runnable(command, second.tmp), [], 60)
+    assert ran.status == copied.status == "ok" and ran.cpu_seconds > 0, ran.output
+    assert "not run again" not in ran.note and copied.note.startswith("not run again: ran for docs/x.md:1")
+    assert (second.root / "outputs" / "where.txt").read_text() == str(second.root)  # its path, not the first's
+    again = reuse.run(second, command, runnable(command, second.tmp), [], 60)  # its folder is there: it runs
+    assert again.status == "failed" and "FileExistsError" in again.output
+
+
+def test_a_file_that_names_the_scratch_folder_is_rewritten_unless_its_record_checks_it(tmp_path):
+    run = tmp_path / "checkout" / "outputs" / "run"
+    run.mkdir(parents=True)
+    (run / "metrics.json").write_text(json.dumps({"data": f"{tmp_path}/shared/data"}))
+    (run / "workbench.log").write_text(f"ran in {tmp_path}/checkout")
+    (run / "alpha_table.csv").write_text("alpha\n0.1\n")
+    (run / "done").write_text(json.dumps({"sha256": {"metrics.json": "0", "alpha_table.csv": "1"}}))
+    assert naming(tmp_path, tmp_path / "checkout", ["outputs/run"]) == {
+        "outputs/run/metrics.json": (True, True),  # Reuse keeps no copy of this run
+        "outputs/run/workbench.log": (True, False),
+    }
+
+
 @pytest.fixture(scope="session")
 def compiled_solvers():
     """A small run in this process first: numba compiles the solvers and the synthetic actor into its cache beside
@@ -82,13 +130,22 @@ def compiled_solvers():
     run_study(compose("paper", ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=all"]))
 
 
-def check_documented_commands(doc: str, tmp_path) -> None:
-    """Every command of ``doc`` runs in a scratch copy of the checkout, none unmeasured takes a CPU-minute, and
-    none leaves a file in the checkout."""
+@pytest.fixture(scope="session")
+def reused_outputs(tmp_path_factory):
+    """The outputs of commands that several documents run, kept from their first run in this test run
+    (tests/doc_blocks.py, Reuse): in a folder every test process sees, beside the processes' own temporary folders
+    under pytest-xdist."""
+    base = tmp_path_factory.getbasetemp()
+    return Reuse((base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "doc-command-outputs")
+
+
+def check_documented_commands(doc: str, tmp_path, reuse: Reuse) -> None:
+    """Every command of ``doc`` runs in a scratch copy of the checkout (or, run by another document's test before,
+    has its output copied there), none unmeasured takes a CPU-minute, and none leaves a file in the checkout."""
     scratch = Scratch(tmp_path)
     times = measured_times()
     lines = []
-    outcomes = run_document(doc, scratch, report=lines.append)
+    outcomes = run_document(doc, scratch, report=lines.append, reuse=reuse)
     print("\n".join(lines))
     failed = [outcome for outcome in outcomes if outcome.status == "failed"]
     assert not failed, (
@@ -114,8 +171,8 @@ def commands_test_class(doc: str) -> type:
 
     @pytest.mark.slow
     class TestDocumentedCommands:
-        def test_commands_run(self, shared_data, tmp_path, compiled_solvers):
-            check_documented_commands(doc, tmp_path)
+        def test_commands_run(self, shared_data, tmp_path, compiled_solvers, reused_outputs):
+            check_documented_commands(doc, tmp_path, reused_outputs)
 
     name = "TestCommandsOf_" + re.sub(r"\W", "_", doc)
     TestDocumentedCommands.__name__ = TestDocumentedCommands.__qualname__ = name
