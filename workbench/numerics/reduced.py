@@ -23,59 +23,6 @@ from workbench.numerics.frames import frame_chunks
 EXPLICIT_BELOW = 1e-4
 """Frames whose squared distance is below this fraction of ``|y|^2 + |offset|^2`` get the explicit residual."""
 
-SPAN_RTOL = 1e-13
-"""A direction of the columns a pass multiplies by counts when its singular value (columns scaled to unit norm) is at
-least this share of the largest: the quasi-eigen faces lie in the span of the eigenfaces and the mean, so their
-columns add directions of round-off size only (about 1e-16), which this leaves out."""
-
-
-SHARED_SPAN_DIMS = 1000
-"""Frames of at least this many values (meshes, not markers) are multiplied through the shared span."""
-
-
-@dataclass(frozen=True)
-class SharedSpan:
-    """Columns multiplied through an orthonormal basis of their span, but for the first few: ``columns[:, kept:] =
-    basis @ coefficients`` (to :data:`SPAN_RTOL`), so a chunk of frames times the columns costs a product with the
-    ``kept`` columns and the ``r`` basis vectors rather than with every column (the bases of one study share most of
-    their span). The first columns (the hand basis's) are multiplied as they are, so their products do not depend on
-    which other columns share the pass: H scores the same beside any other bases.
-
-    Attributes
-    ----------
-    kept : ndarray of shape (n_dims, j)
-        The columns multiplied as they are.
-    basis : ndarray of shape (n_dims, r) or None
-        None when the other columns have no fewer directions than columns (then ``kept`` holds every column).
-    coefficients : ndarray of shape (r, k - j) or None
-    """
-
-    kept: np.ndarray
-    basis: np.ndarray | None = None
-    coefficients: np.ndarray | None = None
-
-    @classmethod
-    def of(cls, columns: np.ndarray, kept: int = 0) -> "SharedSpan":
-        """The shared span of ``columns[:, kept:]`` (``columns`` of shape (n_dims, k)), taken when the frames are
-        dense (at least :data:`SHARED_SPAN_DIMS` values) and it saves a fifth of those columns' work; markers'
-        passes are cheap, and their products are then those of the columns themselves, rounded once."""
-        rest = columns[:, kept:]
-        if columns.shape[0] < SHARED_SPAN_DIMS or rest.shape[1] == 0:
-            return cls(columns)
-        norms = np.linalg.norm(rest, axis=0)
-        directions, sizes, _ = np.linalg.svd(rest / np.where(norms > 0, norms, 1.0), full_matrices=False)
-        rank = int(np.count_nonzero(sizes > SPAN_RTOL * sizes[0])) if sizes[0] > 0 else 0
-        if rank > 0.8 * rest.shape[1]:
-            return cls(columns)
-        basis = directions[:, :rank]
-        return cls(columns[:, :kept], basis, basis.T @ rest)
-
-    def times(self, chunk: np.ndarray) -> np.ndarray:
-        """``chunk @ columns``, shape (n_rows, k), for ``chunk`` of shape (n_rows, n_dims)."""
-        if self.basis is None:
-            return chunk @ self.kept
-        return np.hstack([chunk @ self.kept, (chunk @ self.basis) @ self.coefficients])
-
 
 @dataclass(frozen=True)
 class Subspace:
@@ -147,7 +94,6 @@ def project_frames(
     widths = [subspaces[label].columns.shape[1] for label in labels]
     stops = np.cumsum(widths)
     together = np.hstack([subspaces[label].columns for label in labels] + [np.column_stack(offsets + [neutral])])
-    shared = SharedSpan.of(together, kept=widths[0] if labels else 0)  # the first basis (H) as it is
     offset_coordinates = [offset @ subspaces[label].columns for label, offset in zip(labels, offsets)]
     offset_sq = [float(offset @ offset) for offset in offsets]
     coordinates = {label: np.empty((n_frames, width)) for label, width in zip(labels, widths)}
@@ -155,7 +101,7 @@ def project_frames(
     displacement_sq, neutral_dot = np.empty(n_frames), np.empty(n_frames)
     n_explicit = 0
     for rows, chunk in frame_chunks(frames, chunk_size):
-        products = shared.times(chunk)
+        products = chunk @ together
         squares = np.einsum("ij,ij->i", chunk, chunk)
         displacement_sq[rows], neutral_dot[rows] = squares, products[:, -1]
         for index, label in enumerate(labels):

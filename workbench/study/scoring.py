@@ -22,7 +22,7 @@ from workbench.numerics.metrics import (
     summarise_squares,
     weight_statistics,
 )
-from workbench.numerics.reduced import FrameProjections, SharedSpan, Subspace, project_frames
+from workbench.numerics.reduced import FrameProjections, Subspace, project_frames
 from workbench.numerics.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.settings.schema import IntuitivenessSchema
 from workbench.study.results import QE_LABELS, Row, Timings
@@ -387,8 +387,7 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
                 float(restricted @ restricted),
             )
         parts[key] = (*blocks[basis], weights, basis)
-    first = len(next(iter(blocks.values()))[0]) + 1 if blocks else 0  # the first basis (H) as it is
-    together = SharedSpan.of(np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T, first)
+    together = np.vstack([np.vstack([shapes, offset]) for shapes, offset in blocks.values()]).T
     errors = {key: np.empty(frames.shape[0]) for key in fits}
     for rows, chunk in frame_chunks(frames):
         chunk = chunk[:, dims]
@@ -398,7 +397,7 @@ def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarr
                 difference = np.where(seen, chunk - weights[rows] @ shapes - offset, 0.0)
                 errors[key][rows] = np.einsum("ij,ij->i", difference, difference)
             continue
-        products, squares = together.times(chunk), np.einsum("ij,ij->i", chunk, chunk)
+        products, squares = chunk @ together, np.einsum("ij,ij->i", chunk, chunk)
         for key, (shapes, offset, weights, basis) in parts.items():
             gram, shapes_offset, offset_sq = quadratic[basis]
             k, w, first = shapes.shape[0], weights[rows], where[basis]
