@@ -607,10 +607,12 @@ def test_ctrl_c_while_a_new_store_is_set_up_leaves_one_the_same_command_complete
         time.sleep(delay)
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=120)
-        outcomes.append(process.returncode)
         assert "Exception ignored" not in err and "Traceback" not in err, err
-        if process.returncode == 130:
+        interrupted = "interrupted" in err
+        outcomes.append(130 if interrupted else process.returncode)
+        if interrupted:  # exit 130, or killed by the SIGINT on the way out, which a shell reports as 130 too
             assert err.strip().splitlines() == ["workbench mlflow: interrupted; rerun the same command to resume"]
+            assert process.returncode in (130, -signal.SIGINT), process.returncode
         else:  # the import ended first (its last steps ignore Ctrl-C, or Python no longer handles it)
             assert process.returncode in (0, -signal.SIGINT) and out.startswith("mlflow: 4 runs added"), (out, err)
         again = subprocess.run(command, cwd=tmp_path, env=ENV, capture_output=True, text=True, timeout=600)
