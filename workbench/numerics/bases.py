@@ -12,7 +12,7 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.tolerances import TOL, Tolerances
-from workbench.numerics.frames import frame_chunks, is_stored_frames
+from workbench.numerics.frames import check_finite_chunk, frame_chunks, is_stored_frames
 from workbench.numerics.randomized_pca import (  # noqa: F401  (re-exported: the randomised path's names)
     FIRST_EIGEN,
     RESIDUAL_RTOL,
@@ -190,8 +190,7 @@ def frames_statistics(name: str, capture) -> tuple[np.ndarray, float]:
     capture, in one float64 pass over chunks; a :class:`WorkbenchError` naming ``name`` for NaN or Inf."""
     sums, squares = np.zeros(capture.shape[1]), 0.0
     for rows, chunk in frame_chunks(capture):
-        if not np.all(np.isfinite(chunk)):
-            raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
+        check_finite_chunk(name, rows, chunk)
         sums += chunk.sum(axis=0)
         squares += float(np.einsum("ij,ij->", chunk, chunk))
     mean = sums / capture.shape[0]

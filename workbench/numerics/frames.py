@@ -154,6 +154,13 @@ def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[
         yield rows, np.asarray(chunk, dtype=dtype)
 
 
+def check_finite_chunk(name: str, rows: slice, chunk: np.ndarray) -> None:
+    """A :class:`WorkbenchError` naming ``name`` and the chunk's frames when ``chunk`` (of :func:`frame_chunks`)
+    holds NaN or Inf."""
+    if not np.isfinite(chunk).all():
+        raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
+
+
 def checksum_path(path: Path) -> Path:
     """The file beside a frames file written by :class:`FrameWriter` that holds its SHA-256 (hex)."""
     return path.with_name(path.name + ".sha256")

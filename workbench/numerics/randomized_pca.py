@@ -10,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from workbench.core.errors import WorkbenchError
-from workbench.numerics.frames import frame_chunks
+from workbench.numerics.frames import check_finite_chunk, frame_chunks
 
 
 def flip_signs(components: np.ndarray) -> np.ndarray:
@@ -163,7 +162,11 @@ def randomized_covariance_eigen(
     normal = uncentred - n_frames * np.outer(mean, mean @ start)
     basis, normals = ([start], [normal]) if mean @ mean <= CANCELLATION * total else ([], [])
     n_passes, grow, checked = 2, normal, n_checked or n_eigen
-    while len(basis) < max_blocks and not (basis and _ritz_converged(basis, normals, checked, n_frames * total)):
+    while True:
+        if basis:
+            theta, rotation = _rayleigh_ritz(basis, normals)
+            if len(basis) >= max_blocks or _ritz_converged(theta, rotation, basis, normals, checked, n_frames * total):
+                break
         block = _orthonormal_against(grow, basis)
         if block.shape[1] == 0:  # the space already holds every direction the capture varies in
             break
@@ -173,7 +176,6 @@ def randomized_covariance_eigen(
         n_passes += 2
     if not basis:
         return mean, total, np.zeros(n_eigen), np.zeros((n_eigen, n_dims)), n_passes
-    theta, rotation = _rayleigh_ritz(basis, normals)
     count = min(n_eigen, theta.size)
     vectors = (np.hstack(basis) @ rotation[:, :count]).T
     values = np.maximum(theta[:count], 0.0) / n_frames
@@ -190,12 +192,11 @@ def _rayleigh_ritz(basis: list, normals: list) -> tuple[np.ndarray, np.ndarray]:
     return theta[::-1], rotation[:, ::-1]
 
 
-def _ritz_converged(basis: list, normals: list, n_checked, trace: float) -> bool:
-    """Whether the leading ``n_checked`` Ritz pairs of ``C`` on the span of ``basis`` (orthonormal blocks of shape
-    (n_dims, k), with ``normals`` = ``C`` times each) have residuals ``|C V y - theta V y|`` within
-    :data:`RESIDUAL_RTOL` of the largest Ritz value (``n_checked``: an int, or a function of the Ritz values as
-    shares of ``trace``, the trace of ``C``)."""
-    theta, rotation = _rayleigh_ritz(basis, normals)
+def _ritz_converged(theta, rotation, basis: list, normals: list, n_checked, trace: float) -> bool:
+    """Whether the leading ``n_checked`` Ritz pairs (``theta``, ``rotation``: :func:`_rayleigh_ritz` of ``basis``,
+    orthonormal blocks of shape (n_dims, k), with ``normals`` = ``C`` times each) have residuals
+    ``|C V y - theta V y|`` within :data:`RESIDUAL_RTOL` of the largest Ritz value (``n_checked``: an int, or a
+    function of the Ritz values as shares of ``trace``, the trace of ``C``)."""
     if theta[0] <= 0 or trace <= 0:
         return True
     count = n_checked(np.maximum(theta, 0.0) / trace) if callable(n_checked) else n_checked
@@ -258,18 +259,11 @@ def statistics_and_normal_times(capture, matrix: np.ndarray, name: str = "captur
         sums += np.ones(chunk.shape[0]) @ chunk
         squares += float(np.vdot(chunk, chunk))
         normal += chunk.T @ (chunk @ matrix)
-    if not (np.isfinite(squares) and np.isfinite(sums).all()):
-        _refuse_non_finite(capture, name)
+    if not (np.isfinite(squares) and np.isfinite(sums).all()):  # located, unless finite frames overflowed the sums
+        for rows, chunk in frame_chunks(capture):
+            check_finite_chunk(name, rows, chunk)
     mean = sums / capture.shape[0]
     return mean, max(squares / capture.shape[0] - float(mean @ mean), 0.0), normal
-
-
-def _refuse_non_finite(capture, name: str) -> None:
-    """A :class:`WorkbenchError` naming the first frames that hold NaN or Inf (sums overflowing from finite frames
-    raise nothing)."""
-    for rows, chunk in frame_chunks(capture):
-        if not np.isfinite(chunk).all():
-            raise WorkbenchError(f"{name} holds NaN or Inf values (in frames {rows.start}-{rows.stop - 1})")
 
 
 def frames_normal_times(capture, matrix: np.ndarray, mean: np.ndarray) -> np.ndarray:
