@@ -159,7 +159,7 @@ def test_study_reads_a_cached_dataset_from_disk(tmp_path, monkeypatch):
     def no_build(_cfg):
         raise AssertionError("the dataset was rebuilt although it is in the disk cache")
 
-    monkeypatch.setitem(pipeline.build_captures.__globals__["BUILDERS"], "synthetic", no_build)
+    monkeypatch.setitem(pipeline.build_from_settings.__globals__["BUILDERS"], "synthetic", no_build)
     second = pipeline.run_study(study_settings(cfg))
     assert [row.alpha.absolute_mean for row in first[0].rows] == [row.alpha.absolute_mean for row in second[0].rows]
 

@@ -62,8 +62,8 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
     Parameters
     ----------
     cfg : typed dataset settings or mapping
-        The ``dataset`` group (:func:`workbench.settings.typed.dataset_settings`, which checks a mapping); ``kind``
-        selects the builder.
+        The ``dataset`` group (:func:`workbench.settings.typed.dataset_settings` types a mapping; the API's
+        :func:`workbench.api.build_captures` checks it first); ``kind`` selects the builder.
     cache_dir : str, optional
         Folder of the disk cache (``paths.cache_dir``); memory only when None. Frames stored on disk
         (``dataset.storage: disk``) are kept in its ``frames`` folder.
@@ -74,7 +74,12 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
         ``train_on`` name -> :class:`Capture`, in the configured order; with ``dataset.hand_basis`` set, their
         hand shapes read from that file (:mod:`workbench.dataset.hand_basis`).
     """
-    dataset = dataset_settings(cfg)
+    return build_from_settings(dataset_settings(cfg), cache_dir)
+
+
+def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capture]:
+    """:func:`build_captures` of typed dataset settings (:func:`workbench.settings.typed.dataset_settings`), as the
+    study passes them: taken as they are, neither typed nor checked again."""
     storage = frame_storage(dataset, cache_dir)
     # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
     keyed = without_settings(dataset, ("hand_basis", *SCORING_ONLY))

@@ -10,7 +10,7 @@ dataset cache keys its captures by it, both as before.
 from __future__ import annotations
 
 from dataclasses import MISSING as NO_DEFAULT
-from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, replace
 from typing import Any, Mapping, Optional, Sequence
 
 from omegaconf import MISSING
@@ -38,11 +38,16 @@ def typed(schema: type, values: Mapping):
         if spec.name in values:
             value, nested = values[spec.name], nested_schema(spec)
             given[spec.name] = typed(nested, value) if nested is not None and isinstance(value, Mapping) else value
-        elif spec.default_factory is not NO_DEFAULT:
-            given[spec.name] = spec.default_factory()
-        elif spec.default is NO_DEFAULT or spec.default == MISSING:
-            given[spec.name] = None
+        else:
+            given[spec.name] = default_value(spec)
     return schema(**given)
+
+
+def default_value(spec):
+    """A typed field's value when its setting is left out: the schema default (None where it has none)."""
+    if spec.default_factory is not NO_DEFAULT:
+        return spec.default_factory()
+    return None if spec.default is NO_DEFAULT or spec.default == MISSING else spec.default
 
 
 def _dataset_class(kind: str) -> type:
@@ -92,13 +97,17 @@ def dataset_settings(values, *, check: bool = False) -> Any:
 
 
 def changed_dataset(settings, **changes) -> Any:
-    """The typed dataset settings with some settings changed, in ``plain`` too (what the cache keys by)."""
-    return dataset_settings({**settings.plain, **changes}, check=False)
+    """The typed dataset settings with some plain values changed (a name, a number, a list), in ``plain`` too (what
+    the cache keys by). The settings are not typed or checked again: the changes are the study's own."""
+    return replace(settings, **changes, plain={**settings.plain, **changes})
 
 
 def without_settings(settings, names: Sequence[str]) -> Any:
     """The typed dataset settings without ``names`` (back at their defaults), left out of ``plain`` too."""
-    return dataset_settings({key: value for key, value in settings.plain.items() if key not in names}, check=False)
+    defaults = {spec.name: default_value(spec) for spec in fields(settings) if spec.name in names}
+    return replace(
+        settings, **defaults, plain={key: value for key, value in settings.plain.items() if key not in names}
+    )
 
 
 def solver_options(solver: SolverSchema) -> dict:

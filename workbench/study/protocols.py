@@ -12,7 +12,6 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import variant_names
 from workbench.dataset.capture import Capture
-from workbench.settings.rules import number_setting, seed_setting
 from workbench.settings.schema import BasisSchema
 from workbench.settings.typed import changed_dataset
 from workbench.study.fitting import fit_eigenfaces
@@ -68,12 +67,7 @@ def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> C
             f"{len(spans) - 1} takes"
         )
     else:
-        fraction = number_setting(
-            eval_fraction,
-            "dataset.eval_fraction",
-            "in (0, 1) for dataset.held_out 'tail'",
-            lambda value: 0.0 < value < 1.0,
-        )
+        fraction = eval_fraction  # in (0, 1): the schema checked it (dataset.eval_fraction)
         counts = [int(round(fraction * (stop - start))) for start, stop in spans]
         if any(count < 1 or count > stop - start - 2 for count, (start, stop) in zip(counts, spans)):
             raise WorkbenchError(
@@ -250,9 +244,7 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
         k = int(match.group(1))
         if not 1 <= k <= len(names):
             raise WorkbenchError(f"basis.hand_subset=random{k} needs 1 <= k <= {len(names)} (the hand shapes)")
-        return np.sort(
-            np.random.default_rng(seed_setting(seed, "basis.subset_seed")).choice(len(names), size=k, replace=False)
-        )
+        return np.sort(np.random.default_rng(seed).choice(len(names), size=k, replace=False))
     unknown = [name for name in spec if name not in names]
     if unknown or not spec or len(set(spec)) != len(spec):
         raise WorkbenchError(f"basis.hand_subset as a list must name distinct hand shapes of {names}; got {list(spec)}")

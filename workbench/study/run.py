@@ -12,7 +12,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset import build_captures
+from workbench.dataset import build_from_settings
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
@@ -66,9 +66,9 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     built = changed_dataset(dataset, train_on=build_names) if eval_names else dataset
     score_clean = settings.metric.score_clean is True
     with timings.stage("dataset"):
-        captures = build_captures(built, cache_dir=settings.paths.cache_dir)
+        captures = build_from_settings(built, cache_dir=settings.paths.cache_dir)
         clean = (
-            build_captures(clean_dataset_config(built), cache_dir=settings.paths.cache_dir)
+            build_from_settings(clean_dataset_config(built), cache_dir=settings.paths.cache_dir)
             if basis.coverage_on == "clean" or score_clean
             else None
         )
