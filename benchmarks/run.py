@@ -111,7 +111,7 @@ def paper_method(capture, *, kind="box", lower=0.0, upper=1.0, svd_solver="auto"
     the weights and alpha of every basis from one shared pass over the frames (the pipeline's path)."""
     eigenfaces = Eigenfaces(coverage=0.995, svd_solver=svd_solver).fit(capture.train)
     qe = build_quasi_eigen_basis(capture.hand, capture.hand_names, eigenfaces, projection="affine")
-    rows, _, projections = projected_rows(
+    rows, _, projections, _ = projected_rows(
         capture,
         [("H", "-", capture.hand), ("QE", "affine", qe.shapes)],
         {kind: {"kind": kind, "lower": lower, "upper": upper}},

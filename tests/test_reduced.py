@@ -14,8 +14,8 @@ from workbench.numerics.frames import (
     written_intact,
 )
 from workbench.numerics.metrics import reference_squares, summarise_alpha, summarise_squares
-from workbench.numerics.reduced import Subspace, project_frames
-from workbench.numerics.solve import in_span_error_sq, reduce_basis, solve_projected, solve_weights
+from workbench.numerics.reduced import Subspace, project_frames, region_error_sq
+from workbench.numerics.solve import in_span_difference, in_span_error_sq, reduce_basis, solve_projected, solve_weights
 
 
 def problem(seed=0, n_frames=300, n_dims=60, n_shapes=7):
@@ -59,6 +59,32 @@ def test_alpha_from_projections_equals_alpha_of_the_reconstruction(kind, bounds)
     slow = summarise_alpha(neutral, frames, solution.weights @ shapes)
     for field in ("absolute_mean", "absolute_pooled", "displacement_mean", "displacement_pooled", "rms_mm"):
         assert getattr(fast, field) == pytest.approx(getattr(slow, field), rel=1e-11)
+
+
+@pytest.mark.parametrize("kind, bounds", [("lstsq", {}), ("nnls", {}), ("box", {"lower": 0.0, "upper": 1.0})])
+def test_region_error_from_the_projection_pass_equals_the_explicit_residual_over_the_region(kind, bounds):
+    shapes, frames, neutral = problem(seed=3)
+    frames[5:8] = 0.0  # at rest: zero error everywhere
+    region = np.zeros(frames.shape[1], dtype=bool)
+    region[:30] = True
+    reduction = reduce_basis(shapes)
+    mean = frames.mean(axis=0)
+    pca = np.linalg.svd((frames - mean).T, full_matrices=False)[0][:, :4]
+    spaces = {"B": Subspace(reduction.u), "PCA": Subspace(pca, mean)}
+    out = project_frames(frames, spaces, neutral, chunk_size=16, region=region)
+    plain = project_frames(frames, spaces, neutral, chunk_size=16)
+    for label in spaces:  # the region's terms leave the rest of the pass as it was
+        np.testing.assert_array_equal(out.distance_sq[label], plain.distance_sq[label])
+        np.testing.assert_array_equal(out.coordinates[label], plain.coordinates[label])
+    weights = solve_projected(reduction, out.coordinates["B"], kind=kind, **bounds).weights
+    fitted = region_error_sq(out.region, "B", in_span_difference(reduction, out.coordinates["B"], weights))
+    residual = (frames - weights @ shapes)[:, region]
+    np.testing.assert_allclose(fitted, np.sum(residual**2, axis=1), rtol=1e-10, atol=1e-24)
+    projected = (frames - mean) - ((frames - mean) @ pca) @ pca.T
+    np.testing.assert_allclose(
+        region_error_sq(out.region, "PCA"), np.sum(projected[:, region] ** 2, axis=1), rtol=1e-10, atol=1e-24
+    )
+    assert np.all(fitted[5:8] == 0.0) and out.n_explicit >= 8  # in the span (5) and at rest (3): explicit residuals
 
 
 @pytest.mark.parametrize("dtype", ["float32", "float64"])

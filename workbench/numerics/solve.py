@@ -301,8 +301,24 @@ def in_span_error_sq(reduction: BasisReduction, projected: np.ndarray, weights: 
     -------
     ndarray of shape (n_frames,)
     """
-    difference = projected - (weights @ reduction.vt.T) * reduction.singular
+    difference = in_span_difference(reduction, projected, weights)
     return np.einsum("ij,ij->i", difference, difference)
+
+
+def in_span_difference(reduction: BasisReduction, projected: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``u^T d* - diag(s) vt w`` per frame: the frame's coordinates in the basis's span less its reconstruction's.
+
+    Parameters
+    ----------
+    reduction : BasisReduction
+    projected : ndarray of shape (n_frames, k)
+    weights : ndarray of shape (n_frames, n_shapes)
+
+    Returns
+    -------
+    ndarray of shape (n_frames, k)
+    """
+    return projected - (weights @ reduction.vt.T) * reduction.singular
 
 
 def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> WeightSolution:

@@ -22,8 +22,8 @@ from workbench.numerics.metrics import (
     summarise_squares,
     weight_statistics,
 )
-from workbench.numerics.reduced import FrameProjections, Subspace, project_frames
-from workbench.numerics.solve import in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
+from workbench.numerics.reduced import FrameProjections, Subspace, project_frames, region_error_sq
+from workbench.numerics.solve import in_span_difference, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.settings.schema import IntuitivenessSchema
 from workbench.study.results import QE_LABELS, Row, Timings
 
@@ -109,10 +109,15 @@ def score_bases(
     ]
     with timings.stage("metrics"):
         conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
+    region_errors = None
     if capture.eval_visible is None:
         offset, _ = outside_offset(pca)
         extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
-        rows, weights, projections = projected_rows(capture, bases, solvers, timings, conditioning, extra)
+        rows, weights, projections, region_errors = projected_rows(
+            capture, bases, solvers, timings, conditioning, extra, region=True
+        )
+        if region_errors is not None:
+            region_errors[("PCA", "projection")] = region_error_sq(projections.region, "PCA")
         with timings.stage("pca_reconstruction"):
             summary = summarise_squares(
                 projections.distance_sq["PCA"],
@@ -146,7 +151,7 @@ def score_bases(
     rows.append(Row(basis="PCA", projection="-", solver="projection", n_shapes=eigenfaces.n_components_, alpha=summary))
     basis_shapes = {label: shapes for label, _, shapes in bases}
     with timings.stage("frame_measures"):
-        rows = frame_measures(capture, rows, weights, basis_shapes, pca_fit)
+        rows = frame_measures(capture, rows, weights, basis_shapes, pca_fit, region_errors)
     if truth is not None:
         directions, coefficients, mean = pca_fit
         with timings.stage("metrics"):
@@ -283,6 +288,7 @@ def frame_measures(
     weights: Mapping,
     shapes: Mapping[str, np.ndarray],
     pca_fit: tuple | None = None,
+    region_errors: Mapping | None = None,
 ) -> list[Row]:
     """The rows with their per-frame error in millimetres over the face region (and its distribution) and the
     statistics of their weights.
@@ -298,6 +304,9 @@ def frame_measures(
     pca_fit : tuple, optional
         PCA's reconstruction ``offset + coefficients @ directions`` as ``(directions (k, n_dims), coefficients
         (n_eval_frames, k), offset (n_dims,))``, for its row.
+    region_errors : mapping, optional
+        ``(basis, solver)`` -> squared error of each frame over the face region, taken in the projection pass
+        (:func:`projected_rows` with ``region``); a pass over the frames computes them when None.
 
     Returns
     -------
@@ -308,14 +317,19 @@ def frame_measures(
     points = np.ones(capture.n_points, dtype=bool) if region.points is None else region.points
     visible = capture.eval_visible
     counts = visible[:, points].sum(axis=1) if visible is not None else int(points.sum())
-    fits = {}
-    for row in rows:
-        key = (row.basis, row.solver)
-        if key in weights:
-            fits[key] = (shapes[row.basis], weights[key], None)
-        elif row.basis == "PCA" and pca_fit is not None:
-            fits[key] = pca_fit
-    explicit = region_error_sq(capture.eval, points, fits, visible) if region.points is not None else {}
+    if region.points is None:
+        explicit = {}
+    elif region_errors is not None:
+        explicit = region_errors
+    else:
+        fits = {}
+        for row in rows:
+            key = (row.basis, row.solver)
+            if key in weights:
+                fits[key] = (shapes[row.basis], weights[key], None)
+            elif row.basis == "PCA" and pca_fit is not None:
+                fits[key] = pca_fit
+        explicit = region_pass_error_sq(capture.eval, points, fits, visible)
     measured = []
     for row in rows:
         key = (row.basis, row.solver)
@@ -347,7 +361,7 @@ def with_needs_negative_share(rows: Sequence[Row]) -> list[Row]:
     return measured
 
 
-def region_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarray | None = None) -> dict:
+def region_pass_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.ndarray | None = None) -> dict:
     """Squared reconstruction error of each frame over some points only, one pass over the frames for every fit.
 
     Each fit's error is ``|x - o|^2 - 2 w.(S (x - o)) + w^T S S^T w`` over the points' coordinates, from one
@@ -425,7 +439,8 @@ def projected_rows(
     timings: Timings,
     conditioning: Mapping | None = None,
     subspaces: Mapping[str, Subspace] | None = None,
-) -> tuple[list, dict, FrameProjections]:
+    region: bool = False,
+) -> tuple[list, dict, FrameProjections, dict | None]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
     The pass (:func:`workbench.numerics.reduced.project_frames`) takes the frames' coordinates in every basis's span and
@@ -444,6 +459,9 @@ def projected_rows(
         Label -> :class:`Conditioning`, kept in the rows with each basis's largest weight; None: neither.
     subspaces : mapping, optional
         More affine subspaces to take in the same pass (label -> :class:`Subspace`), e.g. PCA's.
+    region : bool
+        Also take the error over the capture's face region (:func:`face_region`) in the same pass, when that region
+        is a part of the points.
 
     Returns
     -------
@@ -452,27 +470,36 @@ def projected_rows(
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
     projections : FrameProjections
+    region_errors : dict or None
+        ``(basis, solver)`` -> squared error of each frame over the face region; None unless ``region`` is set and
+        the region is a part of the points.
     """
+    points = face_region(capture).points if region else None
     with timings.stage("projection"):
         reductions = {label: reduce_basis(shapes) for label, _, shapes in bases}
         projections = project_frames(
             capture.eval,
             {**{label: Subspace(r.u) for label, r in reductions.items()}, **(subspaces or {})},
             capture.neutral,
+            region=None if points is None else np.repeat(points, 3),
         )
     n_compared = len(capture.eval) * capture.n_points
     rows, weights = [], {}
+    region_errors = None if projections.region is None else {}
     for solver_name, solver in solvers.items():
         for label, projection, shapes in bases:
             reduction, coordinates = reductions[label], projections.coordinates[label]
             with timings.stage(f"solve_{solver_name}"):
                 solution = solve_projected(reduction, coordinates, **solver)
             with timings.stage("metrics"):
-                error_sq = projections.distance_sq[label] + in_span_error_sq(reduction, coordinates, solution.weights)
+                difference = in_span_difference(reduction, coordinates, solution.weights)
+                error_sq = projections.distance_sq[label] + np.einsum("ij,ij->i", difference, difference)
                 summary = summarise_squares(error_sq, projections.displacement_sq, projections.position_sq, n_compared)
+                if projections.region is not None:
+                    region_errors[(label, solver_name)] = region_error_sq(projections.region, label, difference)
             weights[(label, solver_name)] = solution.weights
             rows.append(solved_row(label, projection, solver_name, shapes, summary, solution, conditioning))
-    return rows, weights, projections
+    return rows, weights, projections, region_errors
 
 
 def masked_rows(
@@ -550,13 +577,13 @@ def score_alternative_bases(
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
     """
-    listed = [(label, "-", shapes) for label, shapes in bases.items()]
+    listed, region_errors = [(label, "-", shapes) for label, shapes in bases.items()], None
     if getattr(capture, "eval_visible", None) is not None:  # frames with capture gaps: visible points only
         rows, weights = masked_rows(capture, listed, solvers, timings)
     else:
-        rows, weights, _ = projected_rows(capture, listed, solvers, timings)
+        rows, weights, _, region_errors = projected_rows(capture, listed, solvers, timings, region=True)
     with timings.stage("frame_measures"):
-        rows = frame_measures(capture, rows, weights, bases)
+        rows = frame_measures(capture, rows, weights, bases, region_errors=region_errors)
     if truth is not None:
         rows = clean_scores(capture, truth, rows, dict(bases), weights)
     return rows, weights
