@@ -658,3 +658,19 @@ def test_weight_statistics_mark_minimum_norm_weights_of_a_rank_deficient_basis()
     notes = [text.get_text() for text in markers.texts if text.get_text().startswith("*")]
     assert notes == ["* lstsq weights:\nQE minimum-norm, rank 11 of 18"]
     assert not any(text.get_text().startswith("*") for text in mesh.texts)
+
+
+def test_vertex_rms_carried_by_a_linear_map_equals_the_rms_of_every_frame_carried():
+    from workbench.dataset.transfer import apply_point_operator
+    from workbench.reporting.report_data import vertex_rms
+
+    rng = np.random.default_rng(5)
+    frames, fitted = rng.standard_normal((700, 3 * 12)), rng.standard_normal((700, 3 * 12))
+    operator = rng.standard_normal((40, 12))
+    carried = apply_point_operator(operator, (fitted - frames).reshape(700, 12, 3))
+    expected = np.sqrt((carried**2).sum(axis=(0, 2)) / 700)
+    rms = vertex_rms(frames, lambda rows: fitted[rows], chunk=256, operator=operator)
+    np.testing.assert_allclose(rms, expected, rtol=1e-12)
+    plain = vertex_rms(frames, lambda rows: fitted[rows], chunk=256)
+    np.testing.assert_allclose(plain, np.sqrt(((fitted - frames).reshape(700, 12, 3) ** 2).sum(axis=(0, 2)) / 700))
+    assert vertex_rms(frames[:0], lambda rows: fitted[:0], operator=operator).shape == (40,)

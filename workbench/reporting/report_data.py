@@ -283,6 +283,12 @@ class FaceData:
             f"the weights are solved on the markers, as the run solved them; {numbers}."
         )
 
+    @property
+    def operator(self) -> np.ndarray | None:
+        """The linear map :meth:`carry` applies to each coordinate, shape (n_vertices, n_points); None when the
+        faces are not carried or the map leaves them as they are."""
+        return None if self.transfer is None else self.transfer.operator
+
     def carry(self, fields: np.ndarray) -> np.ndarray:
         """Displacement fields on ``data``'s points, shape (n_fields, 3 * n_points), onto the mesh, shape
         (n_fields, 3 * n_vertices) (unchanged for a mesh variant)."""
@@ -462,9 +468,14 @@ def vertex_rms(
     frames: np.ndarray,
     reconstruct: Callable[[slice], np.ndarray],
     chunk: int = 256,
-    carry: Callable[[np.ndarray], np.ndarray] | None = None,
+    operator: np.ndarray | None = None,
 ) -> np.ndarray:
     """RMS over frames of the 3-D error at every point, in chunks of frames.
+
+    Carried onto other points by a linear ``operator`` (:class:`workbench.dataset.transfer.PointTransfer`), the
+    error at target ``v`` of frame ``f``, coordinate ``c`` is ``sum_s T[v, s] e[f, s, c]``, so its sum of squares
+    over frames and coordinates is ``(T C T^T)[v, v]`` with ``C = sum_f,c e[f, :, c] e[f, :, c]^T`` over the source
+    points: no frame is carried.
 
     Parameters
     ----------
@@ -472,24 +483,26 @@ def vertex_rms(
     reconstruct : callable
         Rows (a slice) -> their reconstructions, ndarray of shape (n_rows, 3 * n_points).
     chunk : int
-    carry : callable, optional
-        Errors of shape (n_rows, 3 * n_points) -> the same carried onto other points, (n_rows, 3 * n_targets)
-        (:meth:`FaceData.carry`); the RMS is then at those points.
+    operator : ndarray of shape (n_targets, n_points), optional
+        Values at the points -> values at other points (:meth:`FaceData.carry`'s map); the RMS is then at those.
 
     Returns
     -------
-    ndarray of shape (n_points,), or (n_targets,) with ``carry``
+    ndarray of shape (n_points,), or (n_targets,) with ``operator``
     """
-    total = None
+    n_points = frames.shape[1] // 3
+    total = np.zeros(n_points if operator is None else (n_points, n_points))
     for start in range(0, len(frames), chunk):
         rows = slice(start, start + chunk)
-        error = reconstruct(rows) - frames[rows]
-        error = (error if carry is None else carry(error)).reshape(len(error), -1, 3)
-        total = (0.0 if total is None else total) + (error**2).sum(axis=(0, 2))
-    if total is None:
-        n_points = frames.shape[1] // 3 if carry is None else carry(np.zeros((1, frames.shape[1]))).shape[1] // 3
-        return np.zeros(n_points)
-    return np.sqrt(total / len(frames))
+        error = (reconstruct(rows) - frames[rows]).reshape(-1, n_points, 3)
+        if operator is None:
+            total += (error**2).sum(axis=(0, 2))
+        else:
+            by_point = np.transpose(error, (1, 0, 2)).reshape(n_points, -1)
+            total += by_point @ by_point.T
+    if operator is not None:
+        total = np.maximum(np.einsum("vs,vs->v", operator @ total, operator), 0.0)
+    return np.sqrt(total / len(frames)) if len(frames) else np.zeros(len(total))
 
 
 def moving_stretch(inputs: Mapping, timeline: Timeline, n_frames: int) -> np.ndarray:

@@ -248,17 +248,19 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
         return needs(face, cache)
     data, inputs = face.data, face.inputs
     solver_name, _ = figure_solver(record.config)
-    carry = face.carry if face.carried else None
+    operator = face.operator if face.carried else None
     rms = {}
     for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
         weights, complete = frame_weights(record, data, label, cache)
-        rms[label] = vertex_rms(inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e, carry=carry)
+        rms[label] = vertex_rms(
+            inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e, operator=operator
+        )
     complete = np.isfinite(inputs["eval"]).all(axis=1)
     mean, components = inputs["mean"], inputs["components"]
     rms["PCA"] = vertex_rms(
         inputs["eval"][complete],
         lambda rows: mean + ((inputs["eval"][complete][rows] - mean) @ components.T) @ components,
-        carry=carry,
+        operator=operator,
     )
     figure = figure_vertex_rms(
         face.neutral,

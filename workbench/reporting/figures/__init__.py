@@ -169,7 +169,7 @@ def save_figure(figure: Figure, folder: Path, stem: str, formats: Sequence[str] 
         path = inside(folder, f"{stem}.{fmt}")
         if fmt in ("png", "webp"):
             dpi = RENDER_DPI if raster else PNG_DPI
-            rendered = rendered or raster_bytes(figure, "png", dpi=dpi)  # drawn once: copies have the same pixels
+            rendered = rendered or drawn_png(figure, dpi)  # drawn once: copies have the same pixels
             data = lossless_bytes(rendered, fmt, dpi)
         else:
             buffer = io.BytesIO()
@@ -246,9 +246,15 @@ def shown_as_pixels(figure: Figure) -> Figure:
 
 def raster_bytes(figure: Figure, fmt: str = "png", *, dpi: int = PNG_DPI) -> bytes:
     """A full-colour, lossless PNG or WebP of a figure, without metadata that changes between rebuilds."""
+    return lossless_bytes(drawn_png(figure, dpi), fmt, dpi)
+
+
+def drawn_png(figure: Figure, dpi: int) -> bytes:
+    """The figure drawn as matplotlib writes a PNG (not yet compressed further: :func:`lossless_bytes`), without
+    metadata that changes between rebuilds."""
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    return lossless_bytes(buffer.getvalue(), fmt, dpi)
+    return buffer.getvalue()
 
 
 def lossless_bytes(png: bytes, fmt: str, dpi: int) -> bytes:
