@@ -256,11 +256,9 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
             inputs["eval"][complete], lambda rows, w=weights, e=shapes: w[rows] @ e, operator=operator
         )
     complete = np.isfinite(inputs["eval"]).all(axis=1)
-    mean, components = inputs["mean"], inputs["components"]
+    mean, components, evaluated = inputs["mean"], inputs["components"], inputs["eval"][complete]
     rms["PCA"] = vertex_rms(
-        inputs["eval"][complete],
-        lambda rows: mean + ((inputs["eval"][complete][rows] - mean) @ components.T) @ components,
-        operator=operator,
+        evaluated, lambda rows: mean + ((evaluated[rows] - mean) @ components.T) @ components, operator=operator
     )
     figure = figure_vertex_rms(
         face.neutral,
