@@ -280,7 +280,7 @@ def bench_mesh(args) -> None:
         ]
         small = replace(capture, train=frames, eval=frames, eval_timeline=None)
         solvers = {name: spec for name, spec in cfg["solver"].items()}
-        (_, _, _), fast = timed(
+        (_, _, _, _), fast = timed(
             projected_rows, small, bases, solvers, Timings(), subspaces={"PCA": pca_subspace(result.eigenfaces)}
         )
 

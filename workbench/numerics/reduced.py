@@ -176,7 +176,7 @@ def project_frames(
         products = chunk @ together
         squares = np.einsum("ij,ij->i", chunk, chunk)
         if region is not None:
-            region_squares = np.square(chunk) @ inside_weight
+            region_squares = np.einsum("ij,ij,j->i", chunk, chunk, inside_weight)
         displacement_sq[rows], neutral_dot[rows] = squares, products[:, stops[-1] + len(labels)]
         for index, label in enumerate(labels):
             q = products[:, stops[index] - widths[index] : stops[index]] - offset_coordinates[index]
