@@ -163,3 +163,32 @@ def test_run_refuses_to_overwrite_a_complete_record(tmp_path):
     with pytest.raises(WorkbenchError, match="never overwritten"):
         run(cfg, tmp_path)
     assert snapshot(tmp_path) == before
+
+
+def test_a_sweep_composes_each_run_once_and_the_runs_get_the_config_they_would_have_alone(tmp_path, monkeypatch):
+    # The sweep's check, Hydra's basic sweeper and its basic launcher each ask for every run's config: one
+    # composition per run serves all three (record.tracking.compose_each_run_once), each a copy of its own.
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    from tests.in_process import run_workbench
+    from workbench.settings.config import compose
+
+    composed = []
+    load_sweep_config = ConfigLoaderImpl.load_sweep_config
+
+    def counted(self, master_config, sweep_overrides):
+        composed.append(tuple(sweep_overrides))
+        return load_sweep_config(self, master_config, sweep_overrides)
+
+    monkeypatch.setattr(ConfigLoaderImpl, "load_sweep_config", counted)
+    sweep = ["dataset.n_frames=400", "solver=lstsq", "dataset.seed=0,1,2", "paths.output_root=out", "-m"]
+    done = run_workbench(*sweep, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert len(composed) == 3 and len(set(composed)) == 3
+    folder = tmp_path / "out" / "paper-multirun" / "default"
+    for seed in (0, 1, 2):
+        run_folder = folder / f"dataset.n_frames=400,dataset.seed={seed},solver=lstsq"
+        alone = tmp_path / f"alone{seed}"
+        run(compose("paper", ["dataset.n_frames=400", "solver=lstsq", f"dataset.seed={seed}"]), alone)
+        assert (run_folder / "alpha_table.csv").read_text() == (alone / "alpha_table.csv").read_text()
+        assert f"  seed: {seed}\n" in (run_folder / "config.yaml").read_text()
