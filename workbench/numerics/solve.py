@@ -289,18 +289,8 @@ def solve_projected(
 
 
 def in_span_error_sq(reduction: BasisReduction, projected: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """``|u^T d* - diag(s) vt w|^2`` per frame: the part of eq. 5's error inside the basis's span.
-
-    Parameters
-    ----------
-    reduction : BasisReduction
-    projected : ndarray of shape (n_frames, k)
-    weights : ndarray of shape (n_frames, n_shapes)
-
-    Returns
-    -------
-    ndarray of shape (n_frames,)
-    """
+    """``|u^T d* - diag(s) vt w|^2`` per frame, shape (n_frames,): the part of eq. 5's error inside the basis's
+    span (the squared length of :func:`in_span_difference`, which takes the same arguments)."""
     difference = in_span_difference(reduction, projected, weights)
     return np.einsum("ij,ij->i", difference, difference)
 
