@@ -159,7 +159,8 @@ def project_frames(
         masked_offsets = [np.where(inside, offset, 0.0) for offset in offsets]
         blocks += masked + [np.column_stack(masked_offsets)]
         first_masked = int(stops[-1]) + len(labels) + 1
-        region_gram = [basis[inside].T @ basis[inside] for basis in columns]
+        region_columns = [basis[inside] for basis in columns]
+        region_gram = [basis.T @ basis for basis in region_columns]
         region_offset_coordinates = [offset @ basis for offset, basis in zip(masked_offsets, masked)]
         region_offset_sq = [float(offset @ offset) for offset in masked_offsets]
         inside_weight = inside.astype(float)
@@ -206,7 +207,7 @@ def project_frames(
                 if region is not None:
                     residual = residual[:, inside]
                     part[explicit] = np.einsum("ij,ij->i", residual, residual)
-                    cross[explicit] = residual @ columns[index][inside]
+                    cross[explicit] = residual @ region_columns[index]
             coordinates[label][rows], distance_sq[label][rows] = q, np.maximum(distance, 0.0)
             if region is not None:
                 region_distance[label][rows], region_cross[label][rows] = np.maximum(part, 0.0), cross

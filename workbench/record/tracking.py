@@ -401,7 +401,7 @@ def compose_each_run_once(loader, master_config) -> None:
 
     def load_sweep_config(master_config, sweep_overrides):
         key = (id(master_config), tuple(sweep_overrides))
-        if key not in composed:
+        if key not in composed:  # the master config is kept with it, so its id is not reused by another
             composed[key] = (master_config, compose(master_config=master_config, sweep_overrides=list(sweep_overrides)))
         return copy.deepcopy(composed[key][1])
 

@@ -248,7 +248,7 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
         return needs(face, cache)
     data, inputs = face.data, face.inputs
     solver_name, _ = figure_solver(record.config)
-    operator = face.operator if face.carried else None
+    operator = face.operator
     rms = {}
     for label, shapes in figure_bases(record, data, inputs, cache, every=True).items():
         weights, complete = frame_weights(record, data, label, cache)

@@ -67,17 +67,16 @@ def held_out_capture(capture: Capture, protocol: str, eval_fraction: float) -> C
             f"{len(spans) - 1} takes"
         )
     else:
-        fraction = eval_fraction  # in (0, 1): the schema checked it (dataset.eval_fraction)
-        counts = [int(round(fraction * (stop - start))) for start, stop in spans]
+        counts = [int(round(eval_fraction * (stop - start))) for start, stop in spans]
         if any(count < 1 or count > stop - start - 2 for count, (start, stop) in zip(counts, spans)):
             raise WorkbenchError(
-                f"dataset.eval_fraction {fraction} holds out {counts} frames of takes of "
+                f"dataset.eval_fraction {eval_fraction} holds out {counts} frames of takes of "
                 f"{[stop - start for start, stop in spans]}; each take needs at least 1 held out "
                 "and 2 for training"
             )
         held = np.concatenate([np.arange(stop - count, stop) for count, (_, stop) in zip(counts, spans)])
         described = (
-            f"held out: the last {100 * fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
+            f"held out: the last {100 * eval_fraction:g} % of {'every' if len(spans) > 1 else 'the'} take, "
             "scored with bases fitted on the rest"
         )
     kept = np.setdiff1d(np.arange(len(capture.eval)), held)

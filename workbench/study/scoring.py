@@ -114,7 +114,7 @@ def score_bases(
         offset, _ = outside_offset(pca)
         extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
         rows, weights, projections, region_errors = projected_rows(
-            capture, bases, solvers, timings, conditioning, extra, region=True
+            capture, bases, solvers, timings, conditioning, extra
         )
         if region_errors is not None:
             region_errors[("PCA", "projection")] = region_error_sq(projections.region, "PCA")
@@ -439,7 +439,6 @@ def projected_rows(
     timings: Timings,
     conditioning: Mapping | None = None,
     subspaces: Mapping[str, Subspace] | None = None,
-    region: bool = False,
 ) -> tuple[list, dict, FrameProjections, dict | None]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
@@ -459,9 +458,6 @@ def projected_rows(
         Label -> :class:`Conditioning`, kept in the rows with each basis's largest weight; None: neither.
     subspaces : mapping, optional
         More affine subspaces to take in the same pass (label -> :class:`Subspace`), e.g. PCA's.
-    region : bool
-        Also take the error over the capture's face region (:func:`face_region`) in the same pass, when that region
-        is a part of the points.
 
     Returns
     -------
@@ -471,10 +467,10 @@ def projected_rows(
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
     projections : FrameProjections
     region_errors : dict or None
-        ``(basis, solver)`` -> squared error of each frame over the face region; None unless ``region`` is set and
-        the region is a part of the points.
+        ``(basis, solver)`` -> squared error of each frame over the capture's face region (:func:`face_region`), taken
+        in the same pass; None where the region is every point.
     """
-    points = face_region(capture).points if region else None
+    points = face_region(capture).points
     with timings.stage("projection"):
         reductions = {label: reduce_basis(shapes) for label, _, shapes in bases}
         projections = project_frames(
@@ -577,11 +573,11 @@ def score_alternative_bases(
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n).
     """
-    listed, region_errors = [(label, "-", shapes) for label, shapes in bases.items()], None
+    listed = [(label, "-", shapes) for label, shapes in bases.items()]
     if getattr(capture, "eval_visible", None) is not None:  # frames with capture gaps: visible points only
-        rows, weights = masked_rows(capture, listed, solvers, timings)
+        (rows, weights), region_errors = masked_rows(capture, listed, solvers, timings), None
     else:
-        rows, weights, _, region_errors = projected_rows(capture, listed, solvers, timings, region=True)
+        rows, weights, _, region_errors = projected_rows(capture, listed, solvers, timings)
     with timings.stage("frame_measures"):
         rows = frame_measures(capture, rows, weights, bases, region_errors=region_errors)
     if truth is not None:
