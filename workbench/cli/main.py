@@ -272,11 +272,11 @@ def main() -> None:
     # one line (unless the user asked for Hydra's full error or --verbose).
     full_error = os.environ.get("HYDRA_FULL_ERROR") == "1"
     os.environ["HYDRA_FULL_ERROR"] = "1"
-    raise_from_now_on()  # an interrupted run removes what it wrote
     from workbench.cli import sweep_failures
 
     sweep_failures.MAIN_PROCESS = os.getpid()
     sweep_failures.FAILED.clear()  # this command's sweep only (main may be called again in one process)
+    raise_from_now_on()  # an interrupted run removes what it wrote; from here a Ctrl-C is caught below
     try:
         with one_line_usage_errors("workbench"):  # Hydra's argument parser: one line, not its usage block
             if not (HELP_FLAGS & set(sys.argv[1:]) and print_help(sys.argv[1:])):
