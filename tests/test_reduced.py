@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from workbench.core.errors import WorkbenchError
+from workbench.numerics import reduced
 from workbench.numerics.frames import (
     FramesOnDisk,
     FrameWriter,
@@ -14,7 +15,14 @@ from workbench.numerics.frames import (
     written_intact,
 )
 from workbench.numerics.metrics import reference_squares, summarise_alpha, summarise_squares
-from workbench.numerics.reduced import Subspace, project_frames, region_error_sq
+from workbench.numerics.reduced import (
+    Subspace,
+    joint_span,
+    project_frames,
+    project_onto_each,
+    project_through_span,
+    region_error_sq,
+)
 from workbench.numerics.solve import in_span_difference, in_span_error_sq, reduce_basis, solve_projected, solve_weights
 
 
@@ -215,3 +223,105 @@ def test_exact_pca_of_stored_frames_streams_the_covariance_and_equals_the_in_mem
     assert from_disk.method_ == in_memory.method_ == "covariance" and from_disk.n_components_ == 6
     np.testing.assert_allclose(from_disk.explained_variance_, in_memory.explained_variance_, rtol=1e-12)
     np.testing.assert_allclose(from_disk.components_, in_memory.components_, rtol=0, atol=1e-10)
+
+
+def test_subspaces_sharing_a_span_are_taken_through_it_with_the_explicit_answers(monkeypatch):
+    """Quasi-eigen-like subspaces inside span(PCA, mean): the pass goes through the joint span (fewer columns than
+    the subspaces together) and every term equals the explicit residual's, as the pass over each subspace's own
+    columns gives it."""
+    shapes, frames, neutral = problem(seed=4)
+    frames[5:8] = 0.0  # at rest
+    mean = frames.mean(axis=0)
+    pca = np.linalg.svd((frames - mean).T, full_matrices=False)[0][:, :4]
+    frames[8:11] = mean + np.random.default_rng(5).standard_normal((3, 4)) @ pca.T  # on PCA's hyperplane
+    on_plane = mean + (shapes - mean) @ pca @ pca.T  # hand shapes projected onto it: rank 5 of 7
+    spaces = {
+        "B": Subspace(reduce_basis(shapes).u),
+        "QE": Subspace(reduce_basis(on_plane).u),
+        "PCA": Subspace(pca, mean),
+    }
+    region = np.zeros(frames.shape[1], dtype=bool)
+    region[10:40] = True
+    span = joint_span(spaces)
+    assert span is not None and span.shape[1] < 7 + 7 + 4
+    out = project_through_span(frames, spaces, neutral, span, chunk_size=16, region=region)
+    each = project_onto_each(frames, spaces, neutral, chunk_size=16, region=region)
+    for label, subspace in spaces.items():
+        offset = 0.0 if subspace.offset is None else subspace.offset
+        coordinates = (frames - offset) @ subspace.columns
+        residual = frames - offset - coordinates @ subspace.columns.T
+        np.testing.assert_allclose(out.coordinates[label], coordinates, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(out.distance_sq[label], np.sum(residual**2, axis=1), rtol=1e-10, atol=1e-20)
+        np.testing.assert_allclose(out.distance_sq[label], each.distance_sq[label], rtol=1e-10, atol=1e-20)
+        in_region = region_error_sq(out.region, label)
+        np.testing.assert_allclose(in_region, np.sum(residual[:, region] ** 2, axis=1), rtol=1e-10, atol=1e-20)
+        difference = np.random.default_rng(6).standard_normal(coordinates.shape)
+        np.testing.assert_allclose(
+            region_error_sq(out.region, label, difference),
+            region_error_sq(each.region, label, difference),
+            rtol=1e-10,
+        )
+    assert np.all(out.distance_sq["PCA"][8:11] < 1e-20) and np.all(out.distance_sq["B"][5:8] == 0.0)
+    assert out.n_explicit >= 6  # on the hyperplane (3) and at rest (3)
+    np.testing.assert_allclose(out.position_sq, each.position_sq, rtol=1e-13)
+    np.testing.assert_array_equal(out.displacement_sq, each.displacement_sq)
+    monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", frames.size)  # project_frames takes this route from here
+    plain = project_frames(frames, spaces, neutral, chunk_size=16)
+    assert plain.n_explicit >= 6
+    for label in spaces:  # the region's terms leave the rest of the pass as it was
+        np.testing.assert_array_equal(out.distance_sq[label], plain.distance_sq[label])
+        np.testing.assert_array_equal(out.coordinates[label], plain.coordinates[label])
+
+
+def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeypatch):
+    """The m = n variant's case: its eigenfaces were taken into the first pass's span (also_span), so a second
+    call over the same frames takes its terms from the kept pass, with the answers of a pass of its own."""
+    shapes, frames, neutral = problem(seed=7)
+    mean = frames.mean(axis=0)
+    eigen = np.linalg.svd((frames - mean).T, full_matrices=False)[0]
+    frames[:4] = mean + np.random.default_rng(8).standard_normal((4, 6)) @ eigen[:, :6].T  # on the wider plane
+    monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", 0)
+    region = np.zeros(frames.shape[1], dtype=bool)
+    region[::3] = True
+    first = {
+        "B": Subspace(reduce_basis(shapes).u),
+        "QE": Subspace(reduce_basis(mean + (shapes - mean) @ eigen[:, :6] @ eigen[:, :6].T).u),
+        "PCA": Subspace(eigen[:, :3], mean),
+    }
+    before = project_frames(frames, first, neutral, chunk_size=32, region=region, also_span=eigen[:, :6])
+    kept = reduced._LAST_PASS[1]
+    assert before.n_explicit >= 4  # the frames on the plane, close to the first QE's span
+    on_plane = mean + (shapes - mean) @ eigen[:, :6] @ eigen[:, :6].T
+    second = {"B": first["B"], "QE": Subspace(reduce_basis(on_plane).u), "PCA": Subspace(eigen[:, :6], mean)}
+    out = project_frames(frames, second, neutral, chunk_size=32, region=region)
+    assert reduced._LAST_PASS[1] is kept  # no new pass
+    each = project_onto_each(frames, second, neutral, chunk_size=32, region=region)
+    for label in second:
+        np.testing.assert_allclose(out.coordinates[label], each.coordinates[label], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(out.distance_sq[label], each.distance_sq[label], rtol=1e-10, atol=1e-20)
+        np.testing.assert_allclose(
+            out.region.distance_sq[label], each.region.distance_sq[label], rtol=1e-10, atol=1e-20
+        )
+        np.testing.assert_allclose(out.region.cross[label], each.region.cross[label], rtol=1e-9, atol=1e-10)
+    assert np.all(out.distance_sq["PCA"][:4] < 1e-20)
+    other = np.random.default_rng(9).standard_normal((frames.shape[1], 2))
+    other = np.linalg.qr(other)[0]
+    project_frames(frames, {"C": Subspace(other), "D": Subspace(other[:, :1])}, neutral, region=region)
+    assert reduced._LAST_PASS[1] is not kept  # outside the kept span: a pass of its own
+
+
+def test_the_study_scores_alike_through_the_joint_span_and_through_each_basis(monkeypatch):
+    """Both routes of the scoring pass on the paper's run (mesh, both variants, every solver): alpha to 1e-10.
+    The weights of the rank-deficient quasi-eigen basis are not unique and are not compared."""
+    from workbench.api import run_study
+    from workbench.settings.config import compose, resolved_without_hydra
+
+    config = resolved_without_hydra(compose("paper", ["dataset.n_frames=800", "dataset.train_on=mesh", "solver=all"]))
+    alphas = []
+    for threshold in (1 << 62, 0):
+        monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", threshold)
+        results = run_study(config)
+        assert [result.data for result in results] == ["mesh m=n", "mesh"]
+        alphas.append([(r.data, row.basis, row.solver, row.alpha.absolute_mean) for r in results for row in r.rows])
+    assert [row[:3] for row in alphas[0]] == [row[:3] for row in alphas[1]]
+    np.testing.assert_allclose([row[3] for row in alphas[1]], [row[3] for row in alphas[0]], rtol=1e-10)

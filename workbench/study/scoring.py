@@ -8,6 +8,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.frames import frame_chunks
@@ -114,7 +115,7 @@ def score_bases(
         offset, _ = outside_offset(pca)
         extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
         rows, weights, projections, region_errors = projected_rows(
-            capture, bases, solvers, timings, conditioning, extra
+            capture, bases, solvers, timings, conditioning, extra, also_span=reusable_eigenfaces(eigenfaces, pca)
         )
         if region_errors is not None:
             region_errors[("PCA", "projection")] = region_error_sq(projections.region, "PCA")
@@ -432,6 +433,19 @@ def region_pass_error_sq(frames, points: np.ndarray, fits: Mapping, visible: np.
     return errors
 
 
+def reusable_eigenfaces(eigenfaces: Eigenfaces, pca: Subspace) -> np.ndarray | None:
+    """The eigenfaces beyond PCA's m that a later fit at m = n of the same frames reuses (``n_reusable``), as
+    columns of shape (n_dims, n_reusable): the scoring pass takes them into its span, so the m = n variant's bases
+    read no frame again. None when there are none, or when PCA's subspace was carried onto other points."""
+    wanted = eigenfaces.n_reusable or 0
+    if wanted <= eigenfaces.n_components_ or pca.columns.shape[0] != eigenfaces.components_.shape[1]:
+        return None
+    try:
+        return eigenfaces.with_n_components(wanted).components_.T
+    except WorkbenchError:  # fewer pairs found than n
+        return None
+
+
 def projected_rows(
     capture: Capture,
     bases: Sequence[tuple],
@@ -439,6 +453,7 @@ def projected_rows(
     timings: Timings,
     conditioning: Mapping | None = None,
     subspaces: Mapping[str, Subspace] | None = None,
+    also_span: np.ndarray | None = None,
 ) -> tuple[list, dict, FrameProjections, dict | None]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
@@ -458,6 +473,8 @@ def projected_rows(
         Label -> :class:`Conditioning`, kept in the rows with each basis's largest weight; None: neither.
     subspaces : mapping, optional
         More affine subspaces to take in the same pass (label -> :class:`Subspace`), e.g. PCA's.
+    also_span : ndarray of shape (n_dims, j), optional
+        Directions a later pass over the same frames will need (:func:`workbench.numerics.reduced.project_frames`).
 
     Returns
     -------
@@ -478,6 +495,7 @@ def projected_rows(
             {**{label: Subspace(r.u) for label, r in reductions.items()}, **(subspaces or {})},
             capture.neutral,
             region=None if points is None else np.repeat(points, 3),
+            also_span=also_span,
         )
     n_compared = len(capture.eval) * capture.n_points
     rows, weights = [], {}
