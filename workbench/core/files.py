@@ -74,9 +74,10 @@ def json_text(value) -> str:
     return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
 
 
-def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
+def npz_bytes(arrays: Mapping[str, np.ndarray], compressed: bool = True) -> bytes:
+    """The bytes of an ``.npz`` file of ``arrays``, deflated unless ``compressed`` is False."""
     buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
+    (np.savez_compressed if compressed else np.savez)(buffer, **arrays)
     return buffer.getvalue()
 
 

@@ -237,10 +237,11 @@ def write_record(
     write(TEXT_FILE, text)
     write(METRICS_FILE, json_text(dict(metrics)))
     write(TIMINGS_FILE, json_text(dict(timings)))
+    # Inputs are stored, not deflated: float frames shrink by about 5 % (ICT mesh, every 4th frame: 441.5 MB against
+    # 462.5 MB) and deflating took 13 s a file; np.load reads both kinds.
     for data, arrays in (inputs or {}).items():
-        write(
-            INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz", npz_bytes(arrays)
-        )
+        name = INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz"
+        write(name, npz_bytes(arrays, compressed=False))
     if alpha_per_frame is not None:
         write(ALPHA_PER_FRAME_FILE, npz_bytes(alpha_per_frame))
     write_atomic(folder / DONE, json_text({"sha256": checksums}))
