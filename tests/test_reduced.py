@@ -308,6 +308,8 @@ def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeyp
     other = np.linalg.qr(other)[0]
     project_frames(frames, {"C": Subspace(other), "D": Subspace(other[:, :1])}, neutral, region=region)
     assert reduced._LAST_PASS[1] is not kept  # outside the kept span: a pass of its own
+    del frames
+    assert not reduced._LAST_PASS  # forgotten with its frames
 
 
 def test_the_study_scores_alike_through_the_joint_span_and_through_each_basis(monkeypatch):

@@ -229,15 +229,23 @@ def project_through_span(
     """
     kept = _kept_pass(frames, neutral, region, subspaces)
     if kept is None:
-        kept = SpanPass.of(frames, neutral, span, region)
+        kept = SpanPass.of(frames, neutral, span, region, chunk_size)
+        _LAST_PASS[:] = [weakref.ref(frames), kept]
+        weakref.finalize(frames, _forget, kept)
     terms = {label: subspace_in_span(subspace, kept.span) for label, subspace in subspaces.items()}
     n_explicit = kept.take(frames, terms, chunk_size)
-    _LAST_PASS[:] = [weakref.ref(frames), kept]
     return kept.projections(terms, n_explicit)
 
 
 _LAST_PASS: list = []
-"""``[weak reference to the frames, SpanPass]`` of the last :func:`project_through_span`."""
+"""``[weak reference to the frames, SpanPass]`` of the last :func:`project_through_span`, forgotten when its
+frames are (the study must not change frames in place, and never does: a capture's arrays are shared, never
+written, once built)."""
+
+
+def _forget(kept: "SpanPass") -> None:
+    if _LAST_PASS and _LAST_PASS[1] is kept:
+        _LAST_PASS.clear()
 
 
 def _kept_pass(frames, neutral: np.ndarray, region, subspaces: Mapping[str, Subspace]) -> "SpanPass | None":
