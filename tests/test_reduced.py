@@ -327,3 +327,15 @@ def test_the_study_scores_alike_through_the_joint_span_and_through_each_basis(mo
         alphas.append([(r.data, row.basis, row.solver, row.alpha.absolute_mean) for r in results for row in r.rows])
     assert [row[:3] for row in alphas[0]] == [row[:3] for row in alphas[1]]
     np.testing.assert_allclose([row[3] for row in alphas[1]], [row[3] for row in alphas[0]], rtol=1e-10)
+
+
+def test_frame_chunks_yield_only_the_chunks_holding_a_wanted_frame(tmp_path):
+    frames = np.random.default_rng(10).standard_normal((25, 4))
+    np.save(tmp_path / "frames.npy", frames)
+    wanted = np.zeros(25, dtype=bool)
+    wanted[[3, 4, 21]] = True
+    for source in (frames, FramesOnDisk(tmp_path / "frames.npy")):
+        chunks = list(frame_chunks(source, 5, wanted=wanted))
+        assert [rows for rows, _ in chunks] == [slice(0, 5), slice(20, 25)]
+        for rows, chunk in chunks:
+            np.testing.assert_array_equal(chunk, frames[rows])

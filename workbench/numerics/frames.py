@@ -128,7 +128,9 @@ def is_stored_frames(frames) -> bool:
     return isinstance(frames, FramesOnDisk) or (isinstance(frames, np.ndarray) and frames.dtype == np.float32)
 
 
-def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[tuple[slice, np.ndarray]]:
+def frame_chunks(
+    frames, size: int | None = None, dtype=np.float64, wanted: np.ndarray | None = None
+) -> Iterator[tuple[slice, np.ndarray]]:
     """Consecutive chunks of frames as float64 arrays (or ``dtype``).
 
     Parameters
@@ -138,6 +140,8 @@ def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[
         Frames per chunk; :func:`chunk_frames` of ``n_dims`` when None.
     dtype : numpy dtype
         Type of the chunks (float32 only where the caller's arithmetic is meant to be float32).
+    wanted : ndarray of shape (n_frames,) of bool, optional
+        Only the chunks holding a wanted frame are read and yielded (all when None).
 
     Yields
     ------
@@ -150,6 +154,8 @@ def frame_chunks(frames, size: int | None = None, dtype=np.float64) -> Iterator[
     size = size or chunk_frames(n_dims)
     for start in range(0, n_frames, size):
         rows = slice(start, min(start + size, n_frames))
+        if wanted is not None and not wanted[rows].any():
+            continue
         chunk = frames.read(rows.start, rows.stop, dtype) if isinstance(frames, FramesOnDisk) else frames[rows]
         yield rows, np.asarray(chunk, dtype=dtype)
 

@@ -346,10 +346,8 @@ class SpanPass:
         needed = close | close_in_region
         if not needed.any():
             return 0
-        for rows, chunk in frame_chunks(frames, chunk_size):
+        for rows, chunk in frame_chunks(frames, chunk_size, wanted=needed):  # on disk, only the chunks needed
             explicit = np.flatnonzero(needed[rows])
-            if not explicit.size:
-                continue
             at = rows.start + explicit
             residual = chunk[explicit]
             residual -= self.inside_span[at] @ self.span.T
