@@ -302,3 +302,22 @@ def test_randomized_solver_far_from_the_origin_and_its_refusal_of_nan():
     broken[321, 7] = np.nan
     with pytest.raises(WorkbenchError, match=r"capture holds NaN or Inf values \(in frames 0-599\)"):
         Eigenfaces(n_components=3, svd_solver="randomized").fit(broken)
+
+
+def test_randomized_solver_on_a_large_capture_reads_larger_chunks_to_the_same_eigenpairs(monkeypatch):
+    """From LARGE_CAPTURE values on, each pass reads chunks of LARGE_CHUNK_BYTES (the threshold lowered here so that
+    a small capture crosses it): fewer, longer chunks, and the eigenpairs of the smaller chunks to round-off."""
+    from workbench.numerics import randomized_pca
+
+    capture = decaying_capture(np.random.default_rng(3), n_frames=2000, n_dims=600)
+    monkeypatch.setattr(randomized_pca, "CHUNK_BYTES", 8 * 600 * 50)
+    monkeypatch.setattr(randomized_pca, "LARGE_CHUNK_BYTES", 8 * 600 * 400)
+    small = randomized_pca.randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
+    assert [rows.stop - rows.start for rows, _ in randomized_pca.product_chunks(capture)][:2] == [50, 50]
+    monkeypatch.setattr(randomized_pca, "LARGE_CAPTURE", capture.size)
+    large = randomized_pca.randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
+    assert [rows.stop - rows.start for rows, _ in randomized_pca.product_chunks(capture)] == [400] * 5
+    assert large[4] == small[4]
+    np.testing.assert_allclose(large[0], small[0], rtol=1e-13)
+    np.testing.assert_allclose(large[2], small[2], rtol=1e-12)
+    np.testing.assert_allclose(np.abs(large[3] @ small[3].T), np.eye(12), atol=1e-9)
