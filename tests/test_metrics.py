@@ -6,7 +6,7 @@ import pytest
 
 from workbench.core.errors import WorkbenchError
 from workbench.numerics.intuitiveness import intuitiveness
-from workbench.numerics.metrics import alpha_per_frame, alpha_pooled, rms_point_error, summarise_alpha
+from workbench.numerics.metrics import alpha_per_frame, alpha_pooled, point_norms, rms_point_error, summarise_alpha
 
 
 def test_perfect_reconstruction_has_zero_alpha():
@@ -176,3 +176,15 @@ def test_a_rank_deficient_basis_whose_nnls_equals_lstsq_needs_no_negative_weight
     lstsq, nnls = (solve_weights(basis, target, kind=kind) for kind in ("lstsq", "nnls"))
     errors = [np.sum((target - solution.weights @ basis) ** 2, axis=1) for solution in (lstsq, nnls)]
     assert needs_negative_share(*errors, np.sum(target**2, axis=1)) == 1 / 51
+
+
+def test_point_norms_are_numpys_norms_bit_for_bit():
+    """The lengths written out over the three coordinates add the squares in NumPy's order: the same numbers, for one
+    point set, a stack of frames, and a strided view."""
+    rng = np.random.default_rng(7)
+    for flat in (rng.standard_normal(3 * 11), rng.standard_normal((40, 3 * 25)) * 1e3, rng.standard_normal((5, 8, 60))):
+        expected = np.linalg.norm(flat.reshape(*flat.shape[:-1], -1, 3), axis=-1)
+        assert np.array_equal(point_norms(flat), expected)
+    frames = rng.standard_normal((30, 3 * 20))[::2]
+    assert np.array_equal(point_norms(frames), np.linalg.norm(frames.reshape(15, 20, 3), axis=-1))
+    assert point_norms(np.array([3.0, 4.0, 12.0, 0.0, 0.0, 0.0])).tolist() == [13.0, 0.0]

@@ -13,6 +13,7 @@ from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.numerics.frames import FramesOnDisk, frame_chunks
+from workbench.numerics.metrics import point_norms
 from workbench.settings.rules import GAP_FIT_ON, checked, number_setting, one_of
 
 SPLITS = ("same", "tail")
@@ -107,7 +108,7 @@ def largest_point_norm(frames) -> float:
     """
     largest = 0.0
     for _, chunk in frame_chunks(frames):
-        largest = max(largest, float(np.linalg.norm(chunk.reshape(len(chunk), -1, 3), axis=2).max(initial=0.0)))
+        largest = max(largest, float(point_norms(chunk).max(initial=0.0)))
     return largest
 
 

@@ -82,6 +82,26 @@ def alpha_pooled(reference: np.ndarray, reconstruction: np.ndarray) -> float:
     return float(100.0 * np.linalg.norm(reference - reconstruction) / norm)
 
 
+def point_norms(flat: np.ndarray) -> np.ndarray:
+    """Length of each 3-D point of flattened point sets ``[x0, y0, z0, x1, ...]``.
+
+    The squares added as ``(x^2 + y^2) + z^2``, in the order ``np.linalg.norm(..., axis=-1)`` adds them, so the
+    numbers are the same; written out over the three coordinates it runs several times faster on frames than the
+    generic reduction over an axis of length 3.
+
+    Parameters
+    ----------
+    flat : ndarray of shape (..., 3 * n_points)
+
+    Returns
+    -------
+    ndarray of shape (..., n_points)
+    """
+    flat = np.asarray(flat)
+    x, y, z = (flat[..., axis::3] for axis in range(3))
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def rms_point_error(reference: np.ndarray, reconstruction: np.ndarray) -> float:
     """Root-mean-square 3-D point error over all points and frames, in data units (millimetres).
 

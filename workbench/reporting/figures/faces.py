@@ -19,6 +19,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
+from workbench.numerics.metrics import point_norms
 from workbench.reporting.figures import OKABE_ITO, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.figures.render import MeshView, crop_background, render_meshes, support_weight
 
@@ -26,21 +27,6 @@ DISPLACEMENT_CMAP = "YlGnBu"
 NORMAL_CMAP = "RdBu_r"  # diverging, white at zero: red out of the face, blue into it
 ERROR_CMAP = "YlOrRd"
 CAPTURED_RED, RECONSTRUCTED_BLUE = OKABE_ITO["vermillion"], OKABE_ITO["blue"]  # the plots' one palette
-
-
-def point_norms(flat: np.ndarray) -> np.ndarray:
-    """Length of each 3-D point of flattened point sets.
-
-    Parameters
-    ----------
-    flat : ndarray of shape (..., 3 * n_points)
-
-    Returns
-    -------
-    ndarray of shape (..., n_points)
-    """
-    flat = np.asarray(flat)
-    return np.linalg.norm(flat.reshape(*flat.shape[:-1], -1, 3), axis=-1)
 
 
 def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
