@@ -8,7 +8,8 @@ x<TAB>  # a b`` checks that bash completes ``x`` to ``a b``), ``/tmp/`` becomes 
 commands check that what they install is there, and a few commands are not run (:data:`NOT_RUN`). Commands that
 take a minute or more (measured, in ``docs/commands.md``) are not run either, unless a later command reads what
 they write: then a study's small preset (``<study>_small``) writes the same folder instead, and any other command
-runs as written. A command that ran before in the same test run (in another document's test, or earlier in the same
+runs as written; a later run of that study in the same document (more seeds into another folder, to be collected
+with the first) runs as its small preset too. A command that ran before in the same test run (in another document's test, or earlier in the same
 one) has what it wrote copied instead, where that is safe (:class:`Reuse`).
 
 ``python tests/doc_blocks.py measure [DOC ...]`` runs the commands of the documents (default: all) for real,
@@ -360,15 +361,24 @@ def runnable(command: Command, scratch_tmp: Path) -> str:
     return re.sub(r"(?<![\w./])/tmp/", f"{scratch_tmp}/", text)
 
 
+STUDY = re.compile(r"(--config-name|-cn)([= ])(\w+)")
+
+
 def stand_in(command: Command, needed: bool, root: Path) -> str | None:
     """For a long study run whose folder a later command reads: its small preset writing the same folder."""
-    study = re.search(r"(--config-name|-cn)([= ])(\w+)", command.code)
+    study = STUDY.search(command.code)
     if not needed or study is None or not (root / "studies" / f"{study.group(3)}_small.yaml").is_file():
         return None
     text = command.code.replace(study.group(0), f"{study.group(1)}{study.group(2)}{study.group(3)}_small", 1)
     if "hydra.sweep.dir=" not in text:
         text = text.rstrip() + f" hydra.sweep.dir=outputs/{study.group(3)}/default"
     return text
+
+
+def study_of(command: Command) -> str | None:
+    """The study a command runs (``--config-name <study>``), if any."""
+    study = STUDY.search(command.code)
+    return study.group(3) if study else None
 
 
 def run_measured(script: str, cwd: Path, env: dict, timeout: float) -> tuple[int, float, float, float, str]:
@@ -645,6 +655,7 @@ def run_document(
         slowest[command.code] = max(slowest.get(command.code, 0.0), times.get(command.key, 0.0))
     state: dict[tuple[str, int], list[str]] = {}
     skip_block: set[tuple[str, int]] = set()
+    small: set[str] = set()  # studies that ran as their small preset: later runs of them do too
     for index, (command, prerequisite) in enumerate(planned):
         block = (command.doc, command.block)
         lines = state.setdefault(block, [])
@@ -654,6 +665,9 @@ def run_document(
         # a long command runs only where a later one reads what it makes: a study as its small preset
         long = (prerequisite or not measure) and slowest[command.code] >= LONG_SECONDS
         instead = stand_in(command, needed, scratch.root) if long else None
+        follows = instead is None and not long and study_of(command) in small
+        if follows:
+            instead = stand_in(command, True, scratch.root)
         if block in skip_block or why:
             outcome = Outcome(command, "skipped", note=why or "a tool of its block is not installed")
         elif long and not needed:
@@ -666,7 +680,11 @@ def run_document(
                 timeout,
             )
             copied = f" ({outcome.note})" if outcome.note else ""
-            outcome.note = f"{slowest[command.code]:.0f} CPU s measured; ran {instead}{copied}"
+            reason = (
+                "its study ran as its small preset above" if follows else f"{slowest[command.code]:.0f} CPU s measured"
+            )
+            outcome.note = f"{reason}; ran {instead}{copied}"
+            small.add(study_of(command))
         else:
             outcome = run(command, runnable(command, scratch.tmp), lines, timeout)
         outcome.prerequisite = prerequisite
