@@ -674,3 +674,31 @@ def test_vertex_rms_carried_by_a_linear_map_equals_the_rms_of_every_frame_carrie
     plain = vertex_rms(frames, lambda rows: fitted[rows], chunk=256)
     np.testing.assert_allclose(plain, np.sqrt(((fitted - frames).reshape(700, 12, 3) ** 2).sum(axis=(0, 2)) / 700))
     assert vertex_rms(frames[:0], lambda rows: fitted[:0], operator=operator).shape == (40,)
+
+
+def test_wrapping_measures_only_near_the_width_and_wraps_as_measuring_every_line():
+    """wrap_to_width skips measuring a line whose quick estimate is well inside the width: the lines are those of
+    measuring every candidate line, on the error CDF's legend title and on texts of mixed words and sizes."""
+    import random
+
+    from workbench.reporting.figures import text_width, wrap_to_width
+    from workbench.reporting.figures.distributions import CDF_LEGEND_TITLE
+
+    def measured_wrap(text: str, width: float, fontsize: float) -> str:
+        lines, line = [], ""
+        for word in text.split(" "):
+            candidate = f"{line} {word}" if line else word
+            if line and text_width(candidate, fontsize) > width:
+                lines, line = lines + [line], word
+            else:
+                line = candidate
+        return "\n".join(lines + [line])
+
+    rng = random.Random(5)
+    words = (CDF_LEGEND_TITLE + " alpha (QE) m=n 0.0123 mm [1.2, 3.4] quasi-eigen held-out Wj ffi").split()
+    texts = [(CDF_LEGEND_TITLE, 4.2, 8)] + [
+        (" ".join(rng.choice(words) for _ in range(25)), rng.uniform(1.5, 5.0), rng.choice([7, 9, 11]))
+        for _ in range(4)
+    ]
+    for text, width, fontsize in texts:
+        assert wrap_to_width(text, width, fontsize) == measured_wrap(text, width, fontsize)

@@ -89,6 +89,31 @@ def text_width(text: str, fontsize: float) -> float:
     return TextPath((0, 0), text, size=fontsize, prop=FontProperties(family="DejaVu Sans")).get_extents().x1 / 72
 
 
+MEASURE_SLACK_EM = 2.0
+"""How far (in ems of the font size) a line's quick width estimate (:func:`estimated_width`) must stay below a width
+for :func:`wider_than` to take it as narrower without measuring it. The estimate, the FreeType layout's box, came
+within 0.55 em of the measured ink width on every string of the reports' words tried, above or below."""
+
+
+def estimated_width(text: str, fontsize: float) -> float:
+    """The width in inches of one line of text in the figures' font by FreeType's layout box: tens of times faster
+    than :func:`text_width`'s outlines, and not the ink's extent."""
+    from matplotlib.font_manager import FontProperties, findfont, get_font
+
+    font = get_font(findfont(FontProperties(family="DejaVu Sans")))
+    font.set_size(fontsize, 72)
+    font.set_text(text, 0.0)
+    return font.get_width_height()[0] / 64 / 72
+
+
+def wider_than(text: str, width_inches: float, fontsize: float) -> bool:
+    """``text_width(text, fontsize) > width_inches``, measured only where the quick estimate comes within
+    :data:`MEASURE_SLACK_EM` of that width (a line well inside it needs no measuring)."""
+    if estimated_width(text, fontsize) < width_inches - MEASURE_SLACK_EM * fontsize / 72:
+        return False
+    return text_width(text, fontsize) > width_inches
+
+
 def wrap_to_width(text: str, width_inches: float, fontsize: float) -> str:
     """Wrap each line of ``text`` at word boundaries so that no line is wider than ``width_inches`` when drawn at
     ``fontsize`` (measured in the figures' font, not estimated); a single word wider than that stays whole."""
@@ -97,7 +122,7 @@ def wrap_to_width(text: str, width_inches: float, fontsize: float) -> str:
         line = ""
         for word in paragraph.split(" "):
             candidate = f"{line} {word}" if line else word
-            if line and text_width(candidate, fontsize) > width_inches:
+            if line and wider_than(candidate, width_inches, fontsize):
                 lines.append(line)
                 line = word
             else:
