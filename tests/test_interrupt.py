@@ -68,7 +68,7 @@ def check_interrupted(process, folder=None):
 
 @pytest.mark.slow
 def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_here):
-    outcomes = []
+    outcomes, signalled = [], 0
     for pair in range(0, len(DELAYS), 2):  # two at a time: the machine has two cores
         runs = []
         for delay in DELAYS[pair : pair + 2]:
@@ -76,9 +76,11 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_
             runs.append((start([*RUN, f"hydra.run.dir={folder}"], tmp_path), folder, time.monotonic() + delay))
         for process, folder, due in runs:
             time.sleep(max(0.0, due - time.monotonic()))
+            signalled += process.poll() is None  # a run already ended (fast, its dataset cached) tests nothing
             process.send_signal(signal.SIGINT)
         outcomes += [check_interrupted(process, folder) for process, folder, _ in runs]
-    assert outcomes.count("interrupted") >= len(DELAYS) - 2, outcomes
+    # of the runs still going when the signal came, all but two (Python's own start-up) end with the one line
+    assert outcomes.count("interrupted") >= signalled - 2 and signalled >= len(DELAYS) - 1, outcomes
 
 
 def test_ctrl_c_while_the_run_writes_into_its_folder_leaves_no_partial_record(tmp_path, sigint_ignored_here):
