@@ -7,6 +7,7 @@ Python then keeps ignoring Ctrl-C there, as it should for a real user's command.
 """
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -45,6 +46,18 @@ def sigint_ignored_here():
     signal.signal(signal.SIGINT, previous)
 
 
+STARTING = re.compile(r'workbench[/\\](__init__|core[/\\]interrupt)\.py", line \d+, in <module>$')
+"""A traceback frame of the package's first lines: ``workbench/__init__.py`` importing ``core/interrupt.py``, which
+installs the start-up handler once it has loaded. An interrupt there finds Python's own handler still in place."""
+
+
+def before_the_handler(err):
+    """Whether ``err`` is Python's report of an interrupt that came before the workbench's start-up handler was
+    installed: no frame of the workbench's, or only frames of the package's first lines."""
+    frames = [line for line in err.splitlines() if str(REPO_ROOT / "workbench") in line]
+    return all(STARTING.search(line.strip()) for line in frames)
+
+
 def check_interrupted(process, folder=None):
     out, err = process.communicate(timeout=300)
     lines = [line for line in err.splitlines() if line.strip()]
@@ -54,9 +67,10 @@ def check_interrupted(process, folder=None):
         assert process.returncode in (0, INTERRUPTED, -signal.SIGINT), err
         assert folder is None or load_record(folder).study == "paper"
         return "finished"
-    if process.returncode != INTERRUPTED and str(REPO_ROOT / "workbench") not in err:
-        # while Python itself starts (its own imports, runpy for -m), before any code of the workbench runs: Python
-        # prints its own traceback or dies of the signal (a shell reports 130); out of the workbench's reach
+    if process.returncode != INTERRUPTED and before_the_handler(err):
+        # while Python itself starts (its own imports, runpy for -m), or imports the module that installs the
+        # workbench's handler, before that handler is in place: Python prints its own traceback or dies of the
+        # signal (a shell reports 130); out of the workbench's reach
         assert out == "" and (folder is None or not folder.exists()), err
         return "before the workbench started"
     assert process.returncode == INTERRUPTED, err
