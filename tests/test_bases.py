@@ -305,7 +305,7 @@ def test_randomized_solver_far_from_the_origin_and_its_refusal_of_nan():
 
 
 def test_randomized_solver_on_a_large_capture_reads_larger_chunks_to_the_same_eigenpairs(monkeypatch):
-    """From LARGE_CAPTURE values on, each pass reads chunks of LARGE_CHUNK_BYTES (the threshold lowered here so that
+    """From LARGE_FRAMES values on, each pass reads chunks of LARGE_CHUNK_BYTES (the threshold lowered here so that
     a small capture crosses it): fewer, longer chunks, and the eigenpairs of the smaller chunks to round-off."""
     from workbench.numerics import randomized_pca
 
@@ -314,7 +314,7 @@ def test_randomized_solver_on_a_large_capture_reads_larger_chunks_to_the_same_ei
     monkeypatch.setattr(randomized_pca, "LARGE_CHUNK_BYTES", 8 * 600 * 400)
     small = randomized_pca.randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
     assert [rows.stop - rows.start for rows, _ in randomized_pca.product_chunks(capture)][:2] == [50, 50]
-    monkeypatch.setattr(randomized_pca, "LARGE_CAPTURE", capture.size)
+    monkeypatch.setattr(randomized_pca, "LARGE_FRAMES", capture.size)
     large = randomized_pca.randomized_covariance_eigen(capture, 12, np.random.default_rng(0))
     assert [rows.stop - rows.start for rows, _ in randomized_pca.product_chunks(capture)] == [400] * 5
     assert large[4] == small[4]

@@ -265,7 +265,7 @@ def test_subspaces_sharing_a_span_are_taken_through_it_with_the_explicit_answers
     assert out.n_explicit >= 6  # on the hyperplane (3) and at rest (3)
     np.testing.assert_allclose(out.position_sq, each.position_sq, rtol=1e-13)
     np.testing.assert_array_equal(out.displacement_sq, each.displacement_sq)
-    monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", frames.size)  # project_frames takes this route from here
+    monkeypatch.setattr(reduced, "LARGE_FRAMES", frames.size)  # project_frames takes this route from here
     plain = project_frames(frames, spaces, neutral, chunk_size=16)
     assert plain.n_explicit >= 6
     for label in spaces:  # the region's terms leave the rest of the pass as it was
@@ -280,7 +280,7 @@ def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeyp
     mean = frames.mean(axis=0)
     eigen = np.linalg.svd((frames - mean).T, full_matrices=False)[0]
     frames[:4] = mean + np.random.default_rng(8).standard_normal((4, 6)) @ eigen[:, :6].T  # on the wider plane
-    monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", 0)
+    monkeypatch.setattr(reduced, "LARGE_FRAMES", 0)
     region = np.zeros(frames.shape[1], dtype=bool)
     region[::3] = True
     first = {
@@ -321,7 +321,7 @@ def test_the_study_scores_alike_through_the_joint_span_and_through_each_basis(mo
     config = resolved_without_hydra(compose("paper", ["dataset.n_frames=800", "dataset.train_on=mesh", "solver=all"]))
     alphas = []
     for threshold in (1 << 62, 0):
-        monkeypatch.setattr(reduced, "JOINT_SPAN_MIN_ENTRIES", threshold)
+        monkeypatch.setattr(reduced, "LARGE_FRAMES", threshold)
         results = run_study(config)
         assert [result.data for result in results] == ["mesh m=n", "mesh"]
         alphas.append([(r.data, row.basis, row.solver, row.alpha.absolute_mean) for r in results for row in r.rows])

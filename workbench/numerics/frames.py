@@ -23,6 +23,14 @@ from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, naming, sha256_of_
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
 
+LARGE_FRAMES = 1 << 28
+"""Values (frames x coordinates) from which frames count as large, 2 GiB as float64: from here on a pass over them
+takes seconds, and the passes take the faster routes whose sums run in another order (the randomised PCA's larger
+chunks, the scoring through the bases' joint span). Below it a pass takes a second or less, and the routes stay as
+they were: the weights of a rank-deficient basis are not unique and move by round-off with the order of the sums
+(up to 3e-7 in the paper's reference run, ``w_max_abs``), so the smaller runs, and the reference reports, keep the
+numbers they had."""
+
 DTYPES = {"float64": np.float64, "float32": np.float32}
 
 

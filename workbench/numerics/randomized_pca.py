@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from workbench.numerics.frames import check_finite_chunk, frame_chunks
+from workbench.numerics.frames import LARGE_FRAMES, check_finite_chunk, frame_chunks
 
 
 def flip_signs(components: np.ndarray) -> np.ndarray:
@@ -94,19 +94,14 @@ space only while ``|mu|^2`` is at most this times the total variance (a relative
 lambda``); a capture further from the origin starts the space from that product instead, one pass later."""
 
 CHUNK_BYTES = 1 << 24
-"""Bytes of float64 frames per chunk of a product pass (16 MB) on a capture below :data:`LARGE_CAPTURE` values."""
+"""Bytes of float64 frames per chunk of a product pass (16 MB) on a capture below
+:data:`~workbench.numerics.frames.LARGE_FRAMES` values."""
 
 LARGE_CHUNK_BYTES = 1 << 26
-"""Bytes of float64 frames per chunk of a product pass on a capture of at least :data:`LARGE_CAPTURE` values (64 MB,
-about 300 frames of a 9,409-vertex mesh). The second product of a chunk, ``A^T D`` with ``A = D Q``, adds into a
+"""Bytes of float64 frames per chunk of a product pass on a capture of at least
+:data:`~workbench.numerics.frames.LARGE_FRAMES` values (64 MB, about 300 frames of a 9,409-vertex mesh). The second product of a chunk, ``A^T D`` with ``A = D Q``, adds into a
 block as wide as a frame, read and written once per chunk: at mesh scale (35,000 frames x 28,227) a pass with 16 MB
 chunks took 12-18 % longer; 128 MB was no faster, 256 MB slower."""
-
-LARGE_CAPTURE = 1 << 28
-"""Values (frames x coordinates) from which a capture's passes use :data:`LARGE_CHUNK_BYTES`, 2 GiB as float64.
-Below it a pass takes a fraction of a second either way, and the chunks stay as they were: the sums they add up in
-another order move a rank-deficient basis's weights (not unique) by round-off, and the reference reports keep their
-numbers to 1e-9."""
 
 
 def randomized_covariance_eigen(
@@ -246,9 +241,10 @@ def _orthonormal(matrix: np.ndarray) -> np.ndarray:
 
 def product_chunks(capture):
     """The frames in chunks of :data:`CHUNK_BYTES` (:data:`LARGE_CHUNK_BYTES` on a capture of at least
-    :data:`LARGE_CAPTURE` values) as float64, for a pass that multiplies each chunk twice."""
+    :data:`~workbench.numerics.frames.LARGE_FRAMES` values) as float64, for a pass that multiplies each chunk
+    twice."""
     n_frames, n_dims = capture.shape
-    size = LARGE_CHUNK_BYTES if n_frames * n_dims >= LARGE_CAPTURE else CHUNK_BYTES
+    size = LARGE_CHUNK_BYTES if n_frames * n_dims >= LARGE_FRAMES else CHUNK_BYTES
     return frame_chunks(capture, max(1, size // (8 * n_dims)))
 
 

@@ -31,7 +31,7 @@ from typing import Mapping
 
 import numpy as np
 
-from workbench.numerics.frames import frame_chunks
+from workbench.numerics.frames import LARGE_FRAMES, frame_chunks
 
 EXPLICIT_BELOW = 1e-4
 """Frames whose squared distance is below this fraction of ``|y|^2 + |offset|^2`` get the explicit residual."""
@@ -39,12 +39,6 @@ EXPLICIT_BELOW = 1e-4
 JOINT_SPAN_RTOL = 1e-12
 """A direction belongs to the subspaces' joint span when its singular value among their columns and unit offsets
 exceeds this (every column has norm 1); a quasi-eigen face lies in its eigenfaces' span to about 1e-15."""
-
-JOINT_SPAN_MIN_ENTRIES = 1 << 28
-"""Frames of at least this many values (2 GiB as float64) are taken through the joint span. Below it a pass costs
-about a second or less, and each subspace keeps the product by its own columns: the coordinates of the two routes
-agree to round-off, but the weights of a rank-deficient basis are not unique, and its largest weight moves by up to
-3e-7 between them (the paper's reference run, ``w_max_abs``), so the smaller runs keep the numbers they had."""
 
 
 @dataclass(frozen=True)
@@ -141,9 +135,9 @@ def project_frames(
     region: np.ndarray | None = None,
     also_span: np.ndarray | None = None,
 ) -> FrameProjections:
-    """Coordinates of every frame in every subspace, and its squared distance to each, in one pass (at least
-    ``JOINT_SPAN_MIN_ENTRIES`` values of frames go through the subspaces' joint span when it has fewer columns than
-    they have together: :func:`joint_span`, :func:`project_through_span`).
+    """Coordinates of every frame in every subspace, and its squared distance to each, in one pass (frames of at
+    least :data:`~workbench.numerics.frames.LARGE_FRAMES` values go through the subspaces' joint span when it has
+    fewer columns than they have together: :func:`joint_span`, :func:`project_through_span`).
 
     Parameters
     ----------
@@ -165,7 +159,7 @@ def project_frames(
     -------
     FrameProjections
     """
-    span = joint_span(subspaces, also_span) if frames.shape[0] * frames.shape[1] >= JOINT_SPAN_MIN_ENTRIES else None
+    span = joint_span(subspaces, also_span) if frames.shape[0] * frames.shape[1] >= LARGE_FRAMES else None
     if span is None:
         return project_onto_each(frames, subspaces, neutral, chunk_size=chunk_size, region=region)
     return project_through_span(frames, subspaces, neutral, span, chunk_size=chunk_size, region=region)

@@ -17,6 +17,8 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from workbench.numerics import metrics
+
 OTHER_SIDE_MARGIN = 1.1
 """A face moves the other side of the face most when its largest displacement there exceeds the largest on its own
 side by this factor (closer than that, the face is about as large on both sides: symmetric, not crossed)."""
@@ -66,7 +68,7 @@ def side_pairs(names: Sequence[str]) -> list[tuple[str, int, int]]:
 
 def point_norms(shape: np.ndarray, support: np.ndarray | None = None) -> np.ndarray:
     """Displacement length at every point of a flattened shape, 0 outside ``support``."""
-    norms = np.linalg.norm(np.asarray(shape).reshape(-1, 3), axis=1)
+    norms = metrics.point_norms(shape)
     return norms if support is None else np.where(support, norms, 0.0)
 
 
