@@ -99,9 +99,10 @@ CHUNK_BYTES = 1 << 24
 
 LARGE_CHUNK_BYTES = 1 << 26
 """Bytes of float64 frames per chunk of a product pass on a capture of at least
-:data:`~workbench.numerics.frames.LARGE_FRAMES` values (64 MB, about 300 frames of a 9,409-vertex mesh). The second product of a chunk, ``A^T D`` with ``A = D Q``, adds into a
-block as wide as a frame, read and written once per chunk: at mesh scale (35,000 frames x 28,227) a pass with 16 MB
-chunks took 12-18 % longer; 128 MB was no faster, 256 MB slower."""
+:data:`~workbench.numerics.frames.LARGE_FRAMES` values (64 MB, about 300 frames of a 9,409-vertex mesh). The second
+product of a chunk, ``A^T D`` with ``A = D Q``, adds into a block as wide as a frame, read and written once per
+chunk: at mesh scale (35,000 frames x 28,227) a pass with 16 MB chunks took 12-18 % longer; 128 MB was no faster,
+256 MB slower."""
 
 
 def randomized_covariance_eigen(
