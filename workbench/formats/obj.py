@@ -10,7 +10,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -95,8 +94,14 @@ def _parse_polygons(lines: list[bytes], vertices_before, n_vertices: int, path: 
     return sizes, index
 
 
-VERTEX_LINE = re.compile(rb"^v[ \t][^\r\n]*", re.MULTILINE)
-FACE_LINE = re.compile(rb"^f[ \t][^\r\n]*", re.MULTILINE)
+VERTEX_START = (b"v ", b"v\t")
+FACE_START = (b"f ", b"f\t")
+
+
+def _lines_of(data: bytes, start: tuple[bytes, ...]) -> list[bytes]:
+    """The lines of an OBJ file's text that begin with one of ``start`` (a keyword and its blank), line ends
+    (``\\n``, ``\\r\\n`` or ``\\r``) left out. A C-level split and prefix test: about half the time of a multiline regex on the ICT meshes."""
+    return [line for line in data.splitlines() if line.startswith(start)]
 
 
 @dataclass(frozen=True)
@@ -112,7 +117,7 @@ class _ObjLines:
 def _split_obj(path_text: str, stamp: tuple[int, ...], size: int) -> _ObjLines:
     path = Path(path_text)
     data = path.read_bytes()
-    vertex_lines, face_lines = VERTEX_LINE.findall(data), FACE_LINE.findall(data)
+    vertex_lines, face_lines = _lines_of(data, VERTEX_START), _lines_of(data, FACE_START)
     if not vertex_lines:
         raise WorkbenchError(f"{path}: no vertices ('v' lines); is this a Wavefront OBJ file?")
     # A digest of the face lines recognises a target with the neutral's exact polygons without parsing them.
@@ -123,10 +128,10 @@ def _split_obj(path_text: str, stamp: tuple[int, ...], size: int) -> _ObjLines:
 
 def _vertices_before_faces(path: Path) -> np.ndarray:
     """How many vertices each face line follows (for relative, negative vertex references)."""
-    data = path.read_bytes()
-    vertex_starts = np.array([match.start() for match in VERTEX_LINE.finditer(data)], dtype=np.int64)
-    face_starts = np.array([match.start() for match in FACE_LINE.finditer(data)], dtype=np.int64)
-    return np.searchsorted(vertex_starts, face_starts)
+    lines = path.read_bytes().splitlines()
+    vertex = np.fromiter((line.startswith(VERTEX_START) for line in lines), dtype=bool, count=len(lines))
+    face = np.fromiter((line.startswith(FACE_START) for line in lines), dtype=bool, count=len(lines))
+    return np.cumsum(vertex)[face]
 
 
 def _file_key(path: Path) -> tuple[str, tuple[int, ...], int]:
