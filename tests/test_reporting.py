@@ -594,22 +594,97 @@ def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_
     shutil.rmtree(record)  # the saved inputs are hundreds of megabytes; the test tree is kept after the session
     fresh = tmp_path / "reports" / name
     expected, got = pd.read_csv(reference / "alpha_table.csv"), pd.read_csv(fresh / "alpha_table.csv")
-    pd.testing.assert_frame_equal(got, expected, rtol=1e-9, atol=1e-12)
+    assert_same_alpha_table(got, expected)
     committed_readme, fresh_readme = (reference / "README.md").read_text(), (fresh / "README.md").read_text()
-    for heading in ("## Alpha beside the paper", "## Full alpha table", "## Run facts", "## Left and right"):
+    for heading in ("## Alpha beside the paper", "## Run facts", "## Left and right"):
         assert table_after(heading, fresh_readme) == table_after(heading, committed_readme), heading
     if name != "paper":  # the data the committed report was made from are the data here (checksums)
         marker = "The data the run read"
         assert table_after(marker, fresh_readme) == table_after(marker, committed_readme)
     # the findings come from the record (and the saved inputs: the left/right finding): the same text
     assert section_text("## Findings", fresh_readme) == section_text("## Findings", committed_readme)
-    for heading in ("## Paired comparisons within the run", "## Error in millimetres and the weights"):
-        assert table_after(heading, fresh_readme) == table_after(heading, committed_readme), heading
+    deficient = set(expected.loc[rank_deficient_by_construction(expected), KEY_COLUMNS].itertuples(index=False))
+    for heading in (
+        "## Full alpha table",
+        "## Paired comparisons within the run",
+        "## Error in millimetres and the weights",
+    ):
+        assert_same_markdown_table(
+            table_after(heading, fresh_readme), table_after(heading, committed_readme), deficient
+        )
     # the animation shows the same stretch of the same take
     assert section_text("## Faces you can turn", fresh_readme) == section_text(
         "## Faces you can turn", committed_readme
     )
     assert_reference_is_small_and_clean(reference, committed_readme)
+
+
+KEY_COLUMNS = ["data", "basis", "projection", "solver"]
+WEIGHT_COLUMNS = ["w_max_abs", "w_outside_01", "w_sparsity", "w_roughness"]
+
+
+def rank_deficient_by_construction(table: pd.DataFrame) -> pd.Series:
+    """Rows of a basis with fewer independent shapes than shapes, by construction: the n affine quasi-eigen faces
+    lie in mu + span(eigenfaces), of rank at most m + 1, the linear ones in the span, of rank at most m."""
+    affine, linear = table["basis"] == "QE", table["basis"] == "QE-linear"
+    return (affine & (table["m"] + 1 < table["n"])) | (linear & (table["m"] < table["n"]))
+
+
+def assert_same_alpha_table(got: pd.DataFrame, expected: pd.DataFrame) -> None:
+    """A fresh alpha table equals the committed one to 1e-9, save the weight statistics of a rank-deficient basis.
+
+    Those weights are one choice among many of the same error (nnls, box) or the minimum-norm solution of a system
+    whose condition is unbounded (lstsq), and round-off makes the choice: another count of BLAS threads or another
+    BLAS kernel than the committed run's moves it (measured here with one OpenBLAS thread against the committed two:
+    w_max_abs 5.7e-6 and w_sparsity 6.5e-9 apart, relatively, every alpha equal to 1e-9). They are compared to 1e-3,
+    and the share of frames with a weight outside [0, 1] to a few frames."""
+    deficient = rank_deficient_by_construction(expected)
+    pd.testing.assert_frame_equal(
+        got.drop(columns=WEIGHT_COLUMNS), expected.drop(columns=WEIGHT_COLUMNS), rtol=1e-9, atol=1e-12
+    )
+    pd.testing.assert_frame_equal(
+        got.loc[~deficient, WEIGHT_COLUMNS], expected.loc[~deficient, WEIGHT_COLUMNS], rtol=1e-9, atol=1e-12
+    )
+    pd.testing.assert_frame_equal(
+        got.loc[deficient, WEIGHT_COLUMNS], expected.loc[deficient, WEIGHT_COLUMNS], rtol=1e-3, atol=1e-3
+    )
+
+
+def assert_same_markdown_table(fresh: str, committed: str, deficient: set = frozenset()) -> None:
+    """Two Markdown tables of a report equal cell by cell, save two kinds of number that round-off makes. A paired
+    comparison whose verdict holds by construction compares a difference that is zero but for round-off (it prints
+    as 1e-18 or so, or as exactly 0): its numbers, the batch length chosen from that noise's correlation included,
+    are round-off's, and only its text is compared. The weight statistics of the rows in ``deficient`` (keys of :data:`KEY_COLUMNS`;
+    :func:`assert_same_alpha_table` says why) may differ in their last printed digit (three significant digits: 1.1 %
+    apart at most)."""
+    rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in fresh.splitlines()]
+    theirs = [[cell.strip() for cell in line.strip("|").split("|")] for line in committed.splitlines()]
+    assert len(rows) == len(theirs) and rows[0] == theirs[0], (fresh, committed)
+    header = rows[0]
+    keyed = all(column in header for column in KEY_COLUMNS)
+    loose = {header.index(column) for column in WEIGHT_COLUMNS if column in header}
+    for ours, committed_row in zip(rows, theirs):
+        weights = keyed and tuple(ours[header.index(column)] for column in KEY_COLUMNS) in deficient
+        identity = "by construction" in committed_row[-1]
+        for index, (cell, committed_cell) in enumerate(zip(ours, committed_row)):
+            if cell == committed_cell:
+                continue
+            if identity:
+                # numbers (or none, '-', for a difference of exactly 0) of round-off: only the text is compared
+                assert "-" in (cell, committed_cell) or (number(cell), number(committed_cell)), header[index]
+            else:
+                close = pytest.approx(number(committed_cell), rel=0.011 if weights and index in loose else 0)
+                assert number(cell) == close, (header[index], ours, committed_row)
+            ours[index] = committed_cell
+        assert ours == committed_row
+
+
+def number(cell: str) -> float:
+    """A table cell as a number (the message names the cell when it is none)."""
+    try:
+        return float(cell)
+    except ValueError:
+        raise AssertionError(f"cells differ and {cell!r} is no number") from None
 
 
 def section_text(heading: str, text: str) -> str:
