@@ -130,6 +130,19 @@ def test_hoyer_sparsity_ends():
     assert np.isnan(values[2])
 
 
+def test_hoyer_sparsity_leaves_out_a_frame_still_but_for_round_off():
+    from workbench.numerics.metrics import STILL_WEIGHTS, hoyer_sparsity
+
+    rng = np.random.default_rng(0)
+    moving = rng.normal(size=(3, 4))
+    still = 1e-15 * rng.normal(size=(1, 4))  # a neutral frame's weights: round-off of no motion
+    slight = 1e3 * STILL_WEIGHTS * moving[:1]  # a frame moving 1.5e-5 as far as the first one: kept
+    values = hoyer_sparsity(np.vstack([moving, still, slight, np.full((1, 4), np.nan)]))
+    np.testing.assert_array_equal(values[:3], hoyer_sparsity(moving))
+    assert np.isnan(values[3]) and np.isnan(values[5])
+    assert values[4] == pytest.approx(values[0], rel=1e-12)
+
+
 def test_second_derivative_uses_the_frame_times_and_never_spans_two_takes():
     from workbench.numerics.metrics import second_derivative
 

@@ -478,7 +478,8 @@ class WeightStatistics:
         Share of frames with at least one weight below 0 (same tolerance).
     sparsity : float
         Hoyer's sparsity, ``(sqrt(n) - |w|_1 / |w|_2) / (sqrt(n) - 1)``, mean over frames: 1 when one shape
-        alone moves the face, 0 when every shape has the same ``|w|``; frames with all weights zero left out.
+        alone moves the face, 0 when every shape has the same ``|w|``; frames with all weights zero (or zero but
+        for round-off: :data:`STILL_WEIGHTS`) left out.
     roughness : float
         Mean over shapes and frames of the squared second time derivative of the weights, in 1/s^4: second
         differences over the frames' times, within each take (frames at a take's ends have none).
@@ -552,9 +553,18 @@ def needs_negative_share(
     return float(np.mean(nnls - lstsq > tol.tie_rel * scale))
 
 
+STILL_WEIGHTS = math.sqrt(np.finfo(float).eps)
+"""A frame whose weights' norm is at most this share of the largest frame's has no motion but round-off (a take's
+neutral frame: the AnimFace take's displacement there is 6e-14 mm, its largest 94 mm). Its weights are round-off
+too, and their sparsity, 0/0 in exact arithmetic, is whatever the round-off makes it (one frame of 3,991 moved
+the AnimFace mean by 3e-4 under another BLAS kernel): it is left out, as that of weights all zero. A frame moving
+1.5e-8 of the largest frame (nanometres) is one no capture resolves."""
+
+
 def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:
     """Hoyer's sparsity of each frame's weights (Hoyer 2004, *Non-negative matrix factorization with sparseness
-    constraints*), ``(sqrt(n) - |w|_1 / |w|_2) / (sqrt(n) - 1)``.
+    constraints*), ``(sqrt(n) - |w|_1 / |w|_2) / (sqrt(n) - 1)``; none for a frame without motion
+    (:data:`STILL_WEIGHTS`).
 
     Parameters
     ----------
@@ -564,13 +574,14 @@ def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray of shape (n_frames,)
-        In [0, 1]; NaN for a frame whose weights are all zero.
+        In [0, 1]; NaN for a frame whose weights are all zero, or zero but for round-off.
     """
     weights = np.asarray(weights, dtype=float)
     root = math.sqrt(weights.shape[1])
     l1, l2 = np.abs(weights).sum(axis=1), np.linalg.norm(weights, axis=1)
+    largest = np.max(l2, where=np.isfinite(l2), initial=0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(l2 > 0, (root - l1 / l2) / (root - 1.0), np.nan)
+        return np.where((l2 > 0) & (l2 > STILL_WEIGHTS * largest), (root - l1 / l2) / (root - 1.0), np.nan)
 
 
 def second_derivative(values: np.ndarray, seconds: np.ndarray, takes=None) -> np.ndarray:
