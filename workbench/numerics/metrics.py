@@ -555,10 +555,10 @@ def needs_negative_share(
 
 STILL_WEIGHTS = math.sqrt(np.finfo(float).eps)
 """A frame whose weights' norm is at most this share of the largest frame's has no motion but round-off (a take's
-neutral frame: the AnimFace take's displacement there is 6e-14 mm, its largest 94 mm). Its weights are round-off
-too, and their sparsity, 0/0 in exact arithmetic, is whatever the round-off makes it (one frame of 3,991 moved
-the AnimFace mean by 3e-4 under another BLAS kernel): it is left out, as that of weights all zero. A frame moving
-1.5e-8 of the largest frame (nanometres) is one no capture resolves."""
+neutral frame: AnimFace's displacement there is 6e-14 mm, its largest 94 mm). Its weights are round-off too, and
+their sparsity, 0/0 in exact arithmetic, is whatever the round-off makes it (that one frame moved the AnimFace
+reference report's mean sparsity by 3e-4 to 6e-3, relative, under another BLAS kernel): it is left out, as that of
+weights all zero. A frame moving 1.5e-8 of the largest frame (nanometres) is one no capture resolves."""
 
 
 def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:
