@@ -655,9 +655,9 @@ def assert_same_markdown_table(fresh: str, committed: str, deficient: set = froz
     """Two Markdown tables of a report equal cell by cell, save two kinds of number that round-off makes. A paired
     comparison whose verdict holds by construction compares a difference that is zero but for round-off (it prints
     as 1e-18 or so, or as exactly 0): its numbers, the batch length chosen from that noise's correlation included,
-    are round-off's, and only its text is compared. The weight statistics of the rows in ``deficient`` (keys of :data:`KEY_COLUMNS`;
-    :func:`assert_same_alpha_table` says why) may differ in their last printed digit (three significant digits: 1.1 %
-    apart at most)."""
+    are round-off's, and only its text is compared. The weight statistics of the rows in ``deficient`` (keys of
+    :data:`KEY_COLUMNS`; :func:`assert_same_alpha_table` says why) may differ in their last printed digit (three
+    significant digits: 1.1 % apart at most)."""
     rows = [[cell.strip() for cell in line.strip("|").split("|")] for line in fresh.splitlines()]
     theirs = [[cell.strip() for cell in line.strip("|").split("|")] for line in committed.splitlines()]
     assert len(rows) == len(theirs) and rows[0] == theirs[0], (fresh, committed)
@@ -665,19 +665,17 @@ def assert_same_markdown_table(fresh: str, committed: str, deficient: set = froz
     keyed = all(column in header for column in KEY_COLUMNS)
     loose = {header.index(column) for column in WEIGHT_COLUMNS if column in header}
     for ours, committed_row in zip(rows, theirs):
+        assert len(ours) == len(committed_row), (ours, committed_row)
         weights = keyed and tuple(ours[header.index(column)] for column in KEY_COLUMNS) in deficient
         identity = "by construction" in committed_row[-1]
         for index, (cell, committed_cell) in enumerate(zip(ours, committed_row)):
             if cell == committed_cell:
                 continue
-            if identity:
-                # numbers (or none, '-', for a difference of exactly 0) of round-off: only the text is compared
-                assert "-" in (cell, committed_cell) or (number(cell), number(committed_cell)), header[index]
+            if identity:  # numbers of round-off (or '-' where the difference is exactly 0): only the text is compared
+                assert is_number_or_dash(cell) and is_number_or_dash(committed_cell), (header[index], ours)
             else:
                 close = pytest.approx(number(committed_cell), rel=0.011 if weights and index in loose else 0)
                 assert number(cell) == close, (header[index], ours, committed_row)
-            ours[index] = committed_cell
-        assert ours == committed_row
 
 
 def number(cell: str) -> float:
@@ -686,6 +684,17 @@ def number(cell: str) -> float:
         return float(cell)
     except ValueError:
         raise AssertionError(f"cells differ and {cell!r} is no number") from None
+
+
+def is_number_or_dash(cell: str) -> bool:
+    """Whether a table cell is a number, or '-' (a value the report leaves out)."""
+    if cell == "-":
+        return True
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def section_text(heading: str, text: str) -> str:

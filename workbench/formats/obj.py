@@ -100,7 +100,8 @@ FACE_START = (b"f ", b"f\t")
 
 def _lines_of(data: bytes, start: tuple[bytes, ...]) -> list[bytes]:
     """The lines of an OBJ file's text that begin with one of ``start`` (a keyword and its blank), line ends
-    (``\\n``, ``\\r\\n`` or ``\\r``) left out. A C-level split and prefix test: about half the time of a multiline regex on the ICT meshes."""
+    (``\\n``, ``\\r\\n`` or ``\\r``) left out. A C-level split and prefix test: about half the time of a multiline
+    regex on the ICT meshes."""
     return [line for line in data.splitlines() if line.startswith(start)]
 
 

@@ -581,7 +581,7 @@ def hoyer_sparsity(weights: np.ndarray) -> np.ndarray:
     l1, l2 = np.abs(weights).sum(axis=1), np.linalg.norm(weights, axis=1)
     largest = np.max(l2, where=np.isfinite(l2), initial=0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where((l2 > 0) & (l2 > STILL_WEIGHTS * largest), (root - l1 / l2) / (root - 1.0), np.nan)
+        return np.where(l2 > STILL_WEIGHTS * largest, (root - l1 / l2) / (root - 1.0), np.nan)  # 0 when all are 0
 
 
 def second_derivative(values: np.ndarray, seconds: np.ndarray, takes=None) -> np.ndarray:
