@@ -54,7 +54,6 @@ def test_take_out_holds_out_each_take_once():
     "protocol, options, message",
     [
         ("take_out", {}, "has one take"),
-        ("kfold", {"folds": 1}, "dataset.folds must be an integer >= 2"),
         ("kfold", {"folds": 11}, "at least 11 frames"),
         ("kfold", {"folds": 2, "gap_s": 10.0}, "fewer than 2 training frames"),
     ],

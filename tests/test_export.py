@@ -284,7 +284,7 @@ def test_hand_basis_bad_input(record, mesh_export, tmp_path):
     out, _ = mesh_export
 
     def build(**spec):
-        from workbench.dataset import build_captures
+        from workbench.api import build_captures  # checks the settings, as a study does
 
         cfg = compose("paper", RUN[:-1] + ["dataset.train_on=mesh"]).dataset
         return build_captures(dict(cfg, hand_basis=spec))
@@ -293,8 +293,16 @@ def test_hand_basis_bad_input(record, mesh_export, tmp_path):
         build(path=str(tmp_path / "nowhere"))
     with pytest.raises(WorkbenchError, match=r"its neutral lies up to .* mm from the data's .*other units \(unit_mm\)"):
         build(path=str(out / "H_obj"), unit_mm=10.0)
-    with pytest.raises(WorkbenchError, match=r"dataset.hand_basis has unknown key\(s\) \['unit'\]"):
+    with pytest.raises(WorkbenchError, match=r"setting dataset.hand_basis.unit does not exist; dataset.hand_basis has"):
         build(path=str(out / "H_obj"), unit=10.0)
+    with pytest.raises(
+        WorkbenchError, match=r"dataset.hand_basis.region_vertices must be an integer >= 3 or null, got 2.5"
+    ):
+        build(path=str(out / "H_obj"), region_vertices=2.5)
+    with pytest.raises(WorkbenchError, match=r"dataset.hand_basis.unit_mm must be a positive, finite number or null"):
+        build(path=str(out / "H_obj"), unit_mm=-1)
+    with pytest.raises(WorkbenchError, match=r"dataset.hand_basis must be a mapping with a 'path' \(an OBJ"):
+        build(shapes=["jaw_open"])
     with pytest.raises(
         WorkbenchError,
         match=r"dataset.hand_basis: needs distinct shape names of the file's .*"

@@ -12,7 +12,7 @@ from typing import Mapping
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS
 from workbench.dataset.animface import build_animface
-from workbench.dataset.cache import cached_captures, dataset_key
+from workbench.dataset.cache import cached_captures, dataset_key, without_settings
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS
@@ -21,7 +21,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import TRAIN_ON, build_synthetic
-from workbench.settings.typed import dataset_settings, without_settings
+from workbench.settings.typed import dataset_settings
 
 BUILDERS = {
     "synthetic": build_synthetic,

@@ -29,9 +29,10 @@ import sys
 import time
 import zipfile
 from collections import OrderedDict
+from dataclasses import fields, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -40,6 +41,7 @@ from workbench.core.files import sha256_of_file, write_atomic
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.numerics.frames import DTYPES, FramesOnDisk
+from workbench.settings.typed import default_value
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0
@@ -86,6 +88,22 @@ def dataset_key(cfg: Mapping) -> str:
     """Content hash of a dataset config (order of keys does not matter), of the dataset code and of the content of
     every source file the config names (:func:`key_inputs`)."""
     return _sha256(_canonical(key_inputs(cfg)).encode())[:24]
+
+
+def changed_dataset(settings, **changes) -> Any:
+    """The typed dataset settings with some plain values changed (a name, a number, a list), in ``plain`` too (what
+    the cache keys by: :func:`dataset_key`). The settings are not typed or checked again: the changes are the
+    study's own."""
+    return replace(settings, **changes, plain={**settings.plain, **changes})
+
+
+def without_settings(settings, names: Sequence[str]) -> Any:
+    """The typed dataset settings without ``names`` (back at their schema defaults), left out of ``plain`` too (what
+    the cache keys by: :func:`dataset_key`)."""
+    defaults = {spec.name: default_value(spec) for spec in fields(settings) if spec.name in names}
+    return replace(
+        settings, **defaults, plain={key: value for key, value in settings.plain.items() if key not in names}
+    )
 
 
 def source_files(cfg: Mapping) -> list[Path]:

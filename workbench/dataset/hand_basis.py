@@ -17,22 +17,22 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.formats.obj import Blendshapes, expression_names, load_blendshapes
+from workbench.settings.schema import HandBasisSchema
 
 NEUTRAL_MISMATCH = 0.1
 """A hand basis whose neutral lies further than this fraction of the capture's extent from the capture's neutral is
 refused (a wrong file, or wrong units)."""
-KEYS = ("path", "neutral", "unit_mm", "mesh", "shapes", "region_vertices")
 
 
-def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
+def read_shape_file(spec: HandBasisSchema, key: str, path: Path) -> Blendshapes:
     """Shapes of an OBJ blendshape folder or of a ``.glb`` file's morph targets, in millimetres.
 
     Parameters
     ----------
-    spec : mapping
-        ``neutral`` (folder: the neutral OBJ's name, default ``neutral.obj``), ``unit_mm`` (folder: mm per OBJ
-        unit; default the folder's ``manifest.json`` ``unit_mm`` where it has one, as an export writes, else 1),
-        ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
+    spec : HandBasisSchema
+        Checked settings: ``neutral`` (folder: the neutral OBJ's name, default ``neutral.obj``), ``unit_mm``
+        (folder: mm per OBJ unit; default the folder's ``manifest.json`` ``unit_mm`` where it has one, as an export
+        writes, else 1), ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
         first vertices only).
     key : str
         Config key of ``spec`` for messages, e.g. ``"dataset.hand_basis"``.
@@ -45,20 +45,11 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
         Every shape of the file.
     """
     from workbench.formats.gltf import read_morph_mesh
-    from workbench.settings.rules import integer_setting, positive_setting
 
-    unknown = sorted(set(spec) - set(KEYS))
-    if unknown:
-        raise WorkbenchError(f"{key} has unknown key(s) {unknown}; known: {list(KEYS)}")
-    region = spec.get("region_vertices")
-    region = None if region is None else integer_setting(region, f"{key}.region_vertices", minimum=3)
+    region = None if spec.region_vertices is None else int(spec.region_vertices)
     if path.is_dir():
-        neutral = spec.get("neutral") or "neutral.obj"
-        unit_mm = (
-            positive_setting(spec["unit_mm"], f"{key}.unit_mm")
-            if spec.get("unit_mm") is not None
-            else folder_unit_mm(path)
-        )
+        neutral = spec.neutral or "neutral.obj"
+        unit_mm = float(spec.unit_mm) if spec.unit_mm is not None else folder_unit_mm(path)
         return load_blendshapes(
             path, neutral_file=neutral, names=expression_names(path, neutral), region_vertices=region, unit_mm=unit_mm
         )
@@ -66,7 +57,7 @@ def read_shape_file(spec: Mapping, key: str, path: Path) -> Blendshapes:
         raise WorkbenchError(
             f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) or a .glb file"
         )
-    mesh = read_morph_mesh(path, mesh_name=spec.get("mesh"))
+    mesh = read_morph_mesh(path, mesh_name=spec.mesh)
     n_kept = len(mesh.neutral) if region is None else region
     if n_kept > len(mesh.neutral):
         raise WorkbenchError(f"{key}.region_vertices {region} exceeds the {len(mesh.neutral)} vertices of {path}")
@@ -149,16 +140,17 @@ def check_same_points(points: np.ndarray, neutral: np.ndarray, key: str, path: P
     return float(np.sqrt(np.mean(distance**2)))
 
 
-def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str, Capture]:
+def apply_hand_basis(captures: Mapping[str, Capture], cfg) -> dict[str, Capture]:
     """The captures with their hand basis read from ``dataset.hand_basis`` (unchanged when it is not set).
 
     Parameters
     ----------
     captures : mapping
         Data variant -> :class:`Capture`.
-    cfg : mapping
-        The ``dataset`` config group; ``hand_basis`` has ``path`` (relative to the data root unless absolute) and
-        optionally ``shapes`` (default: the capture's hand shape names), plus the keys of :func:`read_shape_file`.
+    cfg : typed dataset settings
+        Its ``hand_basis`` (:class:`~workbench.settings.schema.HandBasisSchema`, checked with the study) has ``path``
+        (relative to the data root unless absolute) and optionally ``shapes`` (default: the capture's hand shape
+        names), plus the settings :func:`read_shape_file` reads.
 
     Returns
     -------
@@ -167,18 +159,16 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg: Mapping) -> dict[str,
     from workbench.dataset.real import data_path
 
     spec = cfg.hand_basis
-    if not spec:
+    if spec is None or spec.path is None:  # the schema asks for a path in every group that is set
         return dict(captures)
     key = "dataset.hand_basis"
-    if not isinstance(spec, Mapping) or not spec.get("path"):
-        raise WorkbenchError(f"{key} must be a mapping with a 'path' (an OBJ blendshape folder or a .glb file)")
-    path = data_path(cfg, spec["path"], "hand_basis.path")
+    path = data_path(cfg, spec.path, "hand_basis.path")
     if not path.exists():
         raise WorkbenchError(f"{key}.path {path}: not found")
     basis = read_shape_file(spec, key, path)
     replaced = {}
     for name, capture in captures.items():
-        names, shapes = shape_subset(basis, spec.get("shapes") or capture.hand_names, key)
+        names, shapes = shape_subset(basis, spec.shapes or capture.hand_names, key)
         check_hand_shapes(shapes.reshape(len(names), -1), names, f"{key}.path {path}")
         rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
         note = f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)"

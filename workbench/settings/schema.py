@@ -29,6 +29,7 @@ from workbench.settings.rules import (
     COVERAGE_ON,
     GAP_FIT_ON,
     GAP_POLICIES,
+    POSITIVE,
     RBF_METRICS,
     SEED,
     _integer,
@@ -366,6 +367,37 @@ DATASET_EXTRAS = {
 }
 """Dataset settings added with ``+`` (not in the kind's schema, so that configs without them hash as before) ->
 the kinds that read them (docs/formats.md, docs/studies.md)."""
+
+
+@dataclass
+class HandBasisSchema:
+    """``+dataset.hand_basis``: a hand basis read from a file in place of the dataset's own
+    (:mod:`workbench.dataset.hand_basis`): an OBJ blendshape folder or a ``.glb`` file's morph targets."""
+
+    path: str = meta(MISSING, TEXT)
+    shapes: Optional[List[str]] = meta(
+        None,
+        rule(
+            lambda value: (
+                isinstance(value, (list, tuple))
+                and all(isinstance(name, str) for name in value)
+                and len(set(value)) == len(value)
+            ),
+            "a list of distinct shape names",
+            optional=True,
+        ),
+    )
+    neutral: Optional[str] = meta(None, OPTIONAL_TEXT)
+    unit_mm: Optional[float] = meta(None, rule(POSITIVE["check"], POSITIVE["rule"], optional=True))
+    mesh: Optional[str] = meta(None, OPTIONAL_TEXT)
+    region_vertices: Optional[int] = meta(None, integer(3, optional=True, whole_floats=True))
+
+
+DATASET_EXTRA_SCHEMAS = {
+    "hand_basis": (HandBasisSchema, "a mapping with a 'path' (an OBJ blendshape folder or a .glb file)")
+}
+"""The dataset settings added with ``+`` that are groups of settings -> their schema and what the group must be
+(a missing or null group is not set)."""
 DATASET_EXTRA_RULES = {
     "weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
     "weight_curves": OPTIONAL_TEXT,
@@ -582,6 +614,8 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
         spec = DATASET_EXTRA_RULES.get(key)
         if spec is not None:
             checked(values[key], prefix + key, spec)
+        if key in DATASET_EXTRA_SCHEMAS and values[key]:
+            _check_group(values[key], *DATASET_EXTRA_SCHEMAS[key], prefix + key)
     for spec in fields(schema):
         key = prefix + spec.name
         if spec.name not in values:
@@ -594,6 +628,15 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
             _check_solvers(value)
         elif "check" in spec.metadata:
             checked(value, key, spec.metadata)
+
+
+def _check_group(values, schema, rule_text: str, key: str) -> None:
+    """A group of settings added with ``+`` (:data:`DATASET_EXTRA_SCHEMAS`): a mapping (``rule_text`` says what
+    it must be) that gives every setting its schema has no default for, each setting meeting its rule."""
+    required = [spec.name for spec in fields(schema) if spec.default is MISSING]
+    if not isinstance(values, Mapping) or any(values.get(name) is None for name in required):
+        raise WorkbenchError(f"{key} must be {rule_text}, got {values!r:.60}")
+    _check_node(values, schema, key + ".")
 
 
 def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:

@@ -10,13 +10,14 @@ dataset cache keys its captures by it, both as before.
 from __future__ import annotations
 
 from dataclasses import MISSING as NO_DEFAULT
-from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass, replace
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from typing import Any, Mapping, Optional, Sequence
 
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError
 from workbench.settings.schema import (
+    DATASET_EXTRA_SCHEMAS,
     DATASET_EXTRAS,
     DATASET_SCHEMAS,
     BasisSchema,
@@ -52,12 +53,13 @@ def default_value(spec):
 
 def _dataset_class(kind: str) -> type:
     """The typed settings of a dataset kind: its schema, then the settings only added with ``+``
-    (:data:`~workbench.settings.schema.DATASET_EXTRAS`, None when not given) and the group as given (``plain``)."""
+    (:data:`~workbench.settings.schema.DATASET_EXTRAS`, None when not given; a group of them typed by its schema,
+    :data:`~workbench.settings.schema.DATASET_EXTRA_SCHEMAS`) and the group as given (``plain``)."""
     extras = [name for name, kinds in DATASET_EXTRAS.items() if kind in kinds]
     return make_dataclass(
         f"{DATASET_SCHEMAS[kind].__name__.removesuffix('Schema')}Settings",
         [
-            *((name, Any, field(default=None)) for name in extras),
+            *((name, DATASET_EXTRA_SCHEMAS.get(name, (Any,))[0], field(default=None)) for name in extras),
             ("plain", dict, field(default_factory=dict, repr=False, compare=False)),
         ],
         bases=(DATASET_SCHEMAS[kind],),
@@ -94,20 +96,6 @@ def dataset_settings(values, *, check: bool = False) -> Any:
     settings = typed(DATASET_SETTINGS[kind], {key: value for key, value in values.items() if key != "plain"})
     settings.plain = dict(values)
     return settings
-
-
-def changed_dataset(settings, **changes) -> Any:
-    """The typed dataset settings with some plain values changed (a name, a number, a list), in ``plain`` too (what
-    the cache keys by). The settings are not typed or checked again: the changes are the study's own."""
-    return replace(settings, **changes, plain={**settings.plain, **changes})
-
-
-def without_settings(settings, names: Sequence[str]) -> Any:
-    """The typed dataset settings without ``names`` (back at their defaults), left out of ``plain`` too."""
-    defaults = {spec.name: default_value(spec) for spec in fields(settings) if spec.name in names}
-    return replace(
-        settings, **defaults, plain={key: value for key, value in settings.plain.items() if key not in names}
-    )
 
 
 def solver_options(solver: SolverSchema) -> dict:

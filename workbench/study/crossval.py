@@ -18,7 +18,6 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture, Timeline
 from workbench.numerics.metrics import error_distribution, summarise_squares
-from workbench.settings.rules import checked, integer, number_setting
 from workbench.stats.statistics import paired_ratio_interval
 from workbench.study.regime import is_paper_regime
 
@@ -37,9 +36,10 @@ def fold_indices(
         Of the capture's frames (``n_frames``), takes in contiguous runs.
     protocol : {"kfold", "take_out"}
     folds : int
-        Blocks per take (``kfold``).
+        Blocks per take (``kfold``), at least 2 (``dataset.folds``, checked with the study's settings).
     gap_s : float
-        Seconds left out of training on each side of a held-out block (``kfold``; within the block's take).
+        Seconds left out of training on each side of a held-out block (``kfold``; within the block's take), at
+        least 0 (``dataset.fold_gap_s``).
 
     Returns
     -------
@@ -56,8 +56,6 @@ def fold_indices(
         return [(np.setdiff1d(everything, np.arange(start, stop)), np.arange(start, stop)) for start, stop in spans]
     if protocol != "kfold":
         raise WorkbenchError(f"dataset.held_out: {protocol!r} is not cross-validated ({list(FOLDED)})")
-    checked(folds, "dataset.folds", integer(2))
-    number_setting(gap_s, "dataset.fold_gap_s", "a number >= 0 (seconds)", lambda seconds: seconds >= 0)
     if any(stop - start < folds for start, stop in spans):
         raise WorkbenchError(
             f"dataset.folds {folds} needs every take to have at least {folds} frames, got takes of "

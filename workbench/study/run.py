@@ -13,10 +13,11 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_from_settings
+from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
-from workbench.settings.typed import StudySettings, changed_dataset, solver_options
+from workbench.settings.typed import StudySettings, solver_options
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (
