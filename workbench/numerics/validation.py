@@ -6,10 +6,10 @@ metrics (:data:`FRAMES`), the captures and bases (:data:`CAPTURE`) and the solve
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse
 
 from workbench.core.errors import WorkbenchError
 
@@ -88,7 +88,8 @@ def check_matrix(
     """
     if np.ma.isMaskedArray(value):
         raise WorkbenchError(wording.masked.format(name=name))
-    if scipy.sparse.issparse(value):
+    sparse = sys.modules.get("scipy.sparse")  # a sparse matrix means SciPy's sparse module is loaded already
+    if sparse is not None and sparse.issparse(value):
         raise WorkbenchError(wording.sparse.format(name=name))
     try:
         given = np.asarray(value)

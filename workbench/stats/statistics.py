@@ -273,9 +273,10 @@ def _finite(values) -> np.ndarray:
 
 
 def _t_quantile(confidence: float, degrees: float) -> float:
-    from scipy import stats
+    # scipy.stats.t.ppf is this function (t_gen._ppf), without importing scipy.stats (0.4 s at every start-up)
+    from scipy.special import stdtrit
 
-    return float(stats.t.ppf(0.5 + confidence / 2.0, degrees))
+    return float(stdtrit(degrees, 0.5 + confidence / 2.0))
 
 
 def t_interval(
@@ -312,9 +313,9 @@ def t_interval(
 
 def _t_p_value(statistic: float, degrees: float) -> float:
     """Two-sided p-value of a Student-t statistic."""
-    from scipy import stats
+    from scipy.special import stdtr  # scipy.stats.t.sf(x, df) is stdtr(df, -x) (t_gen._sf)
 
-    return float(2.0 * stats.t.sf(abs(statistic), degrees))
+    return float(2.0 * stdtr(degrees, -abs(statistic)))
 
 
 def geometric_interval(values, confidence: float = CONFIDENCE) -> Interval:
