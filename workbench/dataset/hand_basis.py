@@ -17,27 +17,40 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.formats.obj import Blendshapes, expression_names, load_blendshapes
-from workbench.settings.schema import HandBasisSchema
 
 NEUTRAL_MISMATCH = 0.1
 """A hand basis whose neutral lies further than this fraction of the capture's extent from the capture's neutral is
 refused (a wrong file, or wrong units)."""
 
 
-def read_shape_file(spec: HandBasisSchema, key: str, path: Path) -> Blendshapes:
+def read_shape_file(
+    path: Path,
+    key: str,
+    *,
+    neutral: str | None = None,
+    unit_mm: float | None = None,
+    mesh: str | None = None,
+    region_vertices: int | None = None,
+) -> Blendshapes:
     """Shapes of an OBJ blendshape folder or of a ``.glb`` file's morph targets, in millimetres.
 
     Parameters
     ----------
-    spec : HandBasisSchema
-        Checked settings: ``neutral`` (folder: the neutral OBJ's name, default ``neutral.obj``), ``unit_mm``
-        (folder: mm per OBJ unit; default the folder's ``manifest.json`` ``unit_mm`` where it has one, as an export
-        writes, else 1), ``mesh`` (glb: the mesh's name when the file has several), ``region_vertices`` (keep the
-        first vertices only).
-    key : str
-        Config key of ``spec`` for messages, e.g. ``"dataset.hand_basis"``.
     path : pathlib.Path
         A folder or a ``.glb`` file.
+    key : str
+        Config key of the settings for messages, e.g. ``"dataset.hand_basis"``.
+    neutral : str, optional
+        Folder: the neutral OBJ's name (default ``neutral.obj``).
+    unit_mm : float, optional
+        Folder: mm per OBJ unit (default the folder's ``manifest.json`` ``unit_mm`` where it has one, as an export
+        writes, else 1).
+    mesh : str, optional
+        glb: the mesh's name when the file has several.
+    region_vertices : int, optional
+        Keep the first vertices only.
+
+    The settings come checked (:class:`~workbench.settings.schema.HandBasisSchema`, ``dataset.blendshapes``).
 
     Returns
     -------
@@ -46,10 +59,10 @@ def read_shape_file(spec: HandBasisSchema, key: str, path: Path) -> Blendshapes:
     """
     from workbench.formats.gltf import read_morph_mesh
 
-    region = None if spec.region_vertices is None else int(spec.region_vertices)
+    region = None if region_vertices is None else int(region_vertices)
     if path.is_dir():
-        neutral = spec.neutral or "neutral.obj"
-        unit_mm = float(spec.unit_mm) if spec.unit_mm is not None else folder_unit_mm(path)
+        neutral = neutral or "neutral.obj"
+        unit_mm = float(unit_mm) if unit_mm is not None else folder_unit_mm(path)
         return load_blendshapes(
             path, neutral_file=neutral, names=expression_names(path, neutral), region_vertices=region, unit_mm=unit_mm
         )
@@ -57,18 +70,18 @@ def read_shape_file(spec: HandBasisSchema, key: str, path: Path) -> Blendshapes:
         raise WorkbenchError(
             f"{key}.path {path}: must be a blendshape folder (neutral OBJ plus one OBJ per shape) or a .glb file"
         )
-    mesh = read_morph_mesh(path, mesh_name=spec.mesh)
-    n_kept = len(mesh.neutral) if region is None else region
-    if n_kept > len(mesh.neutral):
-        raise WorkbenchError(f"{key}.region_vertices {region} exceeds the {len(mesh.neutral)} vertices of {path}")
-    kept_triangles = mesh.triangles[np.all(mesh.triangles < n_kept, axis=1)]
+    morph = read_morph_mesh(path, mesh_name=mesh)
+    n_kept = len(morph.neutral) if region is None else region
+    if n_kept > len(morph.neutral):
+        raise WorkbenchError(f"{key}.region_vertices {region} exceeds the {len(morph.neutral)} vertices of {path}")
+    kept_triangles = morph.triangles[np.all(morph.triangles < n_kept, axis=1)]
     return Blendshapes(
-        neutral=mesh.neutral[:n_kept],
-        names=mesh.names,
-        deltas=mesh.deltas[:, :n_kept],
+        neutral=morph.neutral[:n_kept],
+        names=morph.names,
+        deltas=morph.deltas[:, :n_kept],
         triangles=kept_triangles,
         n_polygons=len(kept_triangles),
-        n_vertices_in_file=len(mesh.neutral),
+        n_vertices_in_file=len(morph.neutral),
         unit_mm=1000.0,
         files={"glb": str(path)},
     )
@@ -165,7 +178,9 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg) -> dict[str, Capture]
     path = data_path(cfg, spec.path, "hand_basis.path")
     if not path.exists():
         raise WorkbenchError(f"{key}.path {path}: not found")
-    basis = read_shape_file(spec, key, path)
+    basis = read_shape_file(
+        path, key, neutral=spec.neutral, unit_mm=spec.unit_mm, mesh=spec.mesh, region_vertices=spec.region_vertices
+    )
     replaced = {}
     for name, capture in captures.items():
         names, shapes = shape_subset(basis, spec.shapes or capture.hand_names, key)

@@ -13,7 +13,6 @@ read whole.
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 from typing import Mapping
 
@@ -86,16 +85,22 @@ def _mesh_sequence_capture(
         neutral = sequence.frames(frame, frame + 1)[0] * unit_mm
         neutral_text = f"neutral: frame {frame} of the sequence"
 
-    spec = asdict(cfg.blendshapes) if cfg.blendshapes is not None else {}
-    if not spec.get("path"):
+    spec = cfg.blendshapes
+    if spec is None or not spec.path:
         raise WorkbenchError(
             "dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
             "(a blendshape folder or a .glb)"
         )
-    basis_path = data_path(cfg, spec["path"], "blendshapes.path")
+    basis_path = data_path(cfg, spec.path, "blendshapes.path")
     if not basis_path.exists():
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
-    basis = read_shape_file(spec, "dataset.blendshapes", basis_path)
+    basis = read_shape_file(
+        basis_path,
+        "dataset.blendshapes",
+        neutral=spec.neutral,
+        unit_mm=spec.unit_mm,
+        region_vertices=spec.region_vertices,
+    )
     rms = check_same_points(neutral, basis.neutral, "dataset.blendshapes", basis_path, f"the sequence {path.name}")
     warnings += settle(face_size_problems(neutral, str(path), "dataset.unit_mm", unit_mm), cfg.plausibility)
     hand_names, hand = shape_subset(basis, cfg.hand_shapes, "dataset.hand_shapes")
@@ -121,7 +126,7 @@ def _mesh_sequence_capture(
     provenance = {
         "kind": "mesh_sequence",
         "data_root": str(cfg.data_root),
-        "files": {"sequence": str(cfg.sequence), "blendshapes": str(spec["path"])},
+        "files": {"sequence": str(cfg.sequence), "blendshapes": str(spec.path)},
         "unit_mm": unit_mm,
         "n_frames_in_file": n_frames,
         "frames_used": len(index),
