@@ -393,12 +393,14 @@ class HandBasisSchema:
     region_vertices: Optional[int] = meta(None, integer(3, optional=True, whole_floats=True))
 
 
-DATASET_EXTRA_SCHEMAS = {
-    "hand_basis": (HandBasisSchema, "a mapping with a 'path' (an OBJ blendshape folder or a .glb file)")
-}
-"""The dataset settings added with ``+`` that are groups of settings -> their schema and what the group must be
-(a missing or null group is not set)."""
+DATASET_EXTRA_SCHEMAS = {"hand_basis": HandBasisSchema}
+"""The dataset settings added with ``+`` that are groups of settings -> the schema each setting of the group is
+checked against (a missing, null or empty group is not set)."""
 DATASET_EXTRA_RULES = {
+    "hand_basis": rule(
+        lambda value: not value or (isinstance(value, Mapping) and value.get("path") is not None),
+        "a mapping with a 'path' (an OBJ blendshape folder or a .glb file)",
+    ),
     "weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
     "weight_curves": OPTIONAL_TEXT,
 }
@@ -615,7 +617,7 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
         if spec is not None:
             checked(values[key], prefix + key, spec)
         if key in DATASET_EXTRA_SCHEMAS and values[key]:
-            _check_group(values[key], *DATASET_EXTRA_SCHEMAS[key], prefix + key)
+            _check_node(values[key], DATASET_EXTRA_SCHEMAS[key], prefix + key + ".")
     for spec in fields(schema):
         key = prefix + spec.name
         if spec.name not in values:
@@ -628,15 +630,6 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
             _check_solvers(value)
         elif "check" in spec.metadata:
             checked(value, key, spec.metadata)
-
-
-def _check_group(values, schema, rule_text: str, key: str) -> None:
-    """A group of settings added with ``+`` (:data:`DATASET_EXTRA_SCHEMAS`): a mapping (``rule_text`` says what
-    it must be) that gives every setting its schema has no default for, each setting meeting its rule."""
-    required = [spec.name for spec in fields(schema) if spec.default is MISSING]
-    if not isinstance(values, Mapping) or any(values.get(name) is None for name in required):
-        raise WorkbenchError(f"{key} must be {rule_text}, got {values!r:.60}")
-    _check_node(values, schema, key + ".")
 
 
 def _check_known(values: Mapping, schema, prefix: str, extras: set) -> None:

@@ -59,7 +59,7 @@ def _dataset_class(kind: str) -> type:
     return make_dataclass(
         f"{DATASET_SCHEMAS[kind].__name__.removesuffix('Schema')}Settings",
         [
-            *((name, DATASET_EXTRA_SCHEMAS.get(name, (Any,))[0], field(default=None)) for name in extras),
+            *((name, DATASET_EXTRA_SCHEMAS.get(name, Any), field(default=None)) for name in extras),
             ("plain", dict, field(default_factory=dict, repr=False, compare=False)),
         ],
         bases=(DATASET_SCHEMAS[kind],),
