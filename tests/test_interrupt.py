@@ -6,6 +6,7 @@ with SIGINT ignored (``nohup``, a background job of a non-interactive shell) pas
 Python then keeps ignoring Ctrl-C there, as it should for a real user's command.
 """
 
+import ctypes
 import os
 import re
 import signal
@@ -16,6 +17,7 @@ import time
 
 import pytest
 
+from workbench.core import interrupt
 from workbench.core.interrupt import INTERRUPTED, MESSAGE, caused_by_interrupt, interrupts_deferred
 from workbench.record.record import DONE, load_record
 from workbench.settings.config import REPO_ROOT
@@ -161,6 +163,48 @@ def test_an_error_raised_because_of_ctrl_c_counts_as_ctrl_c():
         compiled_call()
     assert caused_by_interrupt(caught.value)
     assert not caused_by_interrupt(ValueError("x"))
+
+
+FLAGGED_CHILD = textwrap.dedent("""
+    import ctypes
+    import sys
+
+    from workbench.core import errors
+
+    if sys.argv[1:] == ["--keep-the-flag"]:  # what the workbench did before: the test must be able to fail
+        errors.forget_handled_interrupt = lambda: None
+    # a KeyboardInterrupt ends code CPython runs itself, as in a few runs interrupted in their first seconds (CPython
+    # prints its traceback here); the command then handles a Ctrl-C and exits with 130
+    ctypes.pythonapi.PyRun_SimpleString(b"raise KeyboardInterrupt")
+    errors.exit_on_error("workbench", KeyboardInterrupt())
+""")
+
+
+@pytest.mark.skipif(
+    not hasattr(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt"), reason="CPython 3.8-3.12 only have the flag"
+)
+def test_a_handled_ctrl_c_exits_130_even_where_cpython_flagged_an_unhandled_one(tmp_path):
+    """Started with ``-m``, as the command is: CPython kills itself with SIGINT at exit when its flag is set."""
+    (tmp_path / "flagged_child.py").write_text(FLAGGED_CHILD)
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    for argument, status in (("--keep-the-flag", -signal.SIGINT), ("--as-the-command-does", INTERRUPTED)):
+        process = subprocess.run(
+            [sys.executable, "-m", "flagged_child", argument], cwd=tmp_path, env=env, capture_output=True, text=True
+        )
+        assert process.returncode == status, process.stderr
+        assert process.stderr.strip().endswith(MESSAGE), process.stderr
+
+
+def test_after_the_commands_ctrl_c_any_error_counts_as_ctrl_c(monkeypatch):
+    """A library may make something else of the interrupt: a Ctrl-C while numba's C extension loads (inside Hydra's
+    import of a config target) came back as ``ImportError('numba._devicearray failed to import')``, its cause
+    chain without the ``KeyboardInterrupt``."""
+    monkeypatch.setattr(interrupt, "_interrupt_came", False)
+    lost = ImportError("Error loading 'workbench.record.tracking.RunFolders': ImportError('numba._devicearray')")
+    assert not caused_by_interrupt(lost)
+    with pytest.raises(KeyboardInterrupt):
+        interrupt.raise_keyboard_interrupt(signal.SIGINT, None)
+    assert caused_by_interrupt(lost)
 
 
 def test_ctrl_c_held_back_is_acted_on_once_the_step_ends_and_an_ignored_one_stays_ignored():

@@ -10,7 +10,12 @@ import sys
 import traceback
 
 from workbench.core.extras import missing_extra
-from workbench.core.interrupt import INTERRUPTED, caused_by_interrupt, ignore_further_interrupts
+from workbench.core.interrupt import (
+    INTERRUPTED,
+    caused_by_interrupt,
+    forget_handled_interrupt,
+    ignore_further_interrupts,
+)
 from workbench.core.interrupt import MESSAGE as INTERRUPTED_MESSAGE
 
 VERBOSE_FLAG = "--verbose"
@@ -52,6 +57,7 @@ def exit_on_error(program: str, error: BaseException) -> None:
     if caused_by_interrupt(error):
         ignore_further_interrupts()  # a signal still pending (a compiled loop's) must not cut the exit short
         print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
+        forget_handled_interrupt()
         sys.exit(INTERRUPTED)
     fault = environment_fault(error)
     if fault is not None:

@@ -38,10 +38,24 @@ def exit_at_once_while_starting() -> None:
         signal.signal(signal.SIGINT, exit_at_once)
 
 
+_interrupt_came = False
+"""Whether :func:`raise_keyboard_interrupt` has run in this process."""
+
+
+def raise_keyboard_interrupt(signum, frame) -> None:
+    """SIGINT handler once the command's handlers are in place: Python's ``KeyboardInterrupt``, remembered, so that
+    an error a library makes of the interrupt is still reported as the interrupt (:func:`caused_by_interrupt`).
+    Seen: a Ctrl-C while numba's C extension loads becomes ``ImportError('numba._devicearray failed to import')``,
+    which Hydra reports as a config target it could not locate."""
+    global _interrupt_came
+    _interrupt_came = True
+    raise KeyboardInterrupt
+
+
 def raise_from_now_on() -> None:
     """Ctrl-C raises ``KeyboardInterrupt`` again (the command's handlers are in place)."""
     if signal.getsignal(signal.SIGINT) is exit_at_once:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, raise_keyboard_interrupt)
 
 
 def ignore_further_interrupts() -> None:
@@ -54,10 +68,30 @@ def ignore_further_interrupts() -> None:
         pass
 
 
+def forget_handled_interrupt() -> None:
+    """Keep exit status 130 after a Ctrl-C the command has handled.
+
+    CPython (3.8-3.12) sets a private flag when a ``KeyboardInterrupt`` ends code it runs through its ``PyRun_*``
+    functions, and a program started with ``-m`` (as the command is) then kills itself with SIGINT at exit, whatever
+    status it exits with: its caller sees "killed by SIGINT" (a shell reports 130 for both). Seen in a few runs
+    interrupted in their first seconds, after the command had caught the interrupt. Where the flag is not exported
+    (other versions, other implementations) nothing changes.
+    """
+    try:
+        import ctypes
+
+        ctypes.c_int.in_dll(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt").value = 0
+    except (ImportError, AttributeError, ValueError, OSError):
+        pass
+
+
 def caused_by_interrupt(error: BaseException) -> bool:
     """Whether ``error`` is a ``KeyboardInterrupt`` or was raised because of one: a compiled function (numba)
     interrupted by Ctrl-C returns with the interrupt pending, which Python reports as a ``SystemError`` whose
-    cause is the ``KeyboardInterrupt``."""
+    cause is the ``KeyboardInterrupt``. Once the command's Ctrl-C has come (:func:`raise_keyboard_interrupt`), any
+    error is its consequence, whatever a library made of it."""
+    if _interrupt_came:
+        return True
     seen = set()
     while error is not None and id(error) not in seen:
         if isinstance(error, KeyboardInterrupt):
@@ -69,10 +103,11 @@ def caused_by_interrupt(error: BaseException) -> bool:
 
 @contextmanager
 def interrupts_deferred():
-    """Hold Ctrl-C back while a step that must not be cut in two runs (a store's schema being set up), then act on
-    it: a SIGINT that came meanwhile is handed to the handler that was in place (``KeyboardInterrupt``, or the
-    start-up's :func:`exit_at_once`) as the step ends, so it is never lost, nor raised where a library would only
-    print it as ignored. A SIGINT that is ignored stays ignored; outside the main thread nothing is held back."""
+    """Hold Ctrl-C back while a step that must not be cut in two runs (a store's schema being set up, a compiled
+    function's results being handed back to Python), then act on it: a SIGINT that came meanwhile is handed to the
+    handler that was in place (``KeyboardInterrupt``, or the start-up's :func:`exit_at_once`) as the step ends, so
+    it is never lost, nor raised where a library would only print it as ignored. A SIGINT that is ignored stays
+    ignored; outside the main thread nothing is held back."""
     came = []
     previous = signal.getsignal(signal.SIGINT)
     held = previous is not signal.SIG_IGN

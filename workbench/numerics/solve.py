@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.interrupt import interrupts_deferred
 from workbench.core.tolerances import TOL, Tolerances
 from workbench.numerics.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
 from workbench.numerics.bounded import (
@@ -606,19 +607,23 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
         if work.ndim == 2:  # one gram for every frame: compiled, frame by frame
             penalty = ADMM_RHO * positive(np.diagonal(work).copy())
             inverse = np.linalg.inv(work + np.diag(penalty))
-            found, status, iterations = primal_active_set_frames(
-                np.ascontiguousarray(work),
-                np.ascontiguousarray(c),
-                lo,
-                hi,
-                start[pending],
-                tol.active_set_max_iter,
-                _FREE_FRACTION * tol.kkt,
-                inverse,
-                penalty[:, None] * inverse,
-                _ADMM_STEPS,
-                ADMM_RELAX,
-            )
+            # Ctrl-C is held back until the compiled call has returned: numba boxes the tuple it returns without
+            # checking its items, and an interrupt raised while it boxed them left a null item that unpacking the
+            # tuple then dereferenced (the process died of SIGSEGV, not with the one line and exit status 130).
+            with interrupts_deferred():
+                found, status, iterations = primal_active_set_frames(
+                    np.ascontiguousarray(work),
+                    np.ascontiguousarray(c),
+                    lo,
+                    hi,
+                    start[pending],
+                    tol.active_set_max_iter,
+                    _FREE_FRACTION * tol.kkt,
+                    inverse,
+                    penalty[:, None] * inverse,
+                    _ADMM_STEPS,
+                    ADMM_RELAX,
+                )
             weights[pending], done[pending], n_iter = found, status == FINISHED, int(iterations.max())
         else:
             guess = admm(work, c, lo, hi, start[pending], _ADMM_STEPS)
