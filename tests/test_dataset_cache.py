@@ -18,7 +18,7 @@ import workbench.dataset.cache as cache
 import workbench.settings.config
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
-from workbench.dataset.cache import cached_captures, clear_memory, dataset_key
+from workbench.dataset.cache import cached_captures, clear_memory, dataset_key, kept_in_memory
 from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.numerics.frames import FramesOnDisk
 from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
@@ -434,3 +434,28 @@ def test_a_hit_in_another_process_writes_the_same_alpha_table(tmp_path):
     assert table("miss", f"paths.cache_dir={tmp_path / 'cache'}") == built
     assert table("hit", f"paths.cache_dir={tmp_path / 'cache'}") == built
     assert len(list((tmp_path / "cache").glob("*.json"))) == 1
+
+
+def test_results_kept_in_memory_are_the_last_slots_and_beyond_the_last_always_only_within_the_bytes():
+    calls = []
+
+    @kept_in_memory(slots=3, always=1, max_bytes=2000)
+    def make(n_values):
+        calls.append(n_values)
+        return np.zeros(n_values)  # 8 bytes a value
+
+    first = make(100)
+    assert make(100) is first and calls == [100]
+    make(50), make(10)  # 800 + 400 + 80 bytes: three kept
+    make(100), make(50), make(10)
+    assert calls == [100, 50, 10]
+    make(20)  # a fourth: the least recently used (100) goes
+    make(10), make(50), make(20)
+    assert calls == [100, 50, 10, 20]
+    make(300)  # 2,400 bytes: over the budget, so only the last one (always=1) stays
+    make(300)
+    make(20)
+    assert calls == [100, 50, 10, 20, 300, 20]
+    make.cache_clear()
+    make(20)
+    assert calls[-1] == 20 and len(calls) == 7

@@ -63,6 +63,41 @@ _memory: "OrderedDict[str, dict[str, Capture]]" = OrderedDict()
 _digests: dict[str, tuple[tuple, str]] = {}
 
 
+def kept_in_memory(slots: int, always: int, max_bytes: int) -> Callable:
+    """Decorator: keep the results of a deterministic function of hashable arguments for its next calls in this
+    process, as ``functools.lru_cache`` does: the last ``slots`` results, but beyond the last ``always`` only
+    while their arrays take at most ``max_bytes`` together (the least recently used go first). ``cache_clear()``
+    forgets them."""
+
+    def decorate(function: Callable) -> Callable:
+        kept: OrderedDict = OrderedDict()
+
+        def cached(*args):
+            if args in kept:
+                kept.move_to_end(args)
+                return kept[args][0]
+            result = function(*args)
+            kept[args] = (result, array_bytes(result))
+            while len(kept) > slots or (len(kept) > always and sum(size for _, size in kept.values()) > max_bytes):
+                kept.popitem(last=False)
+            return result
+
+        cached.cache_clear = kept.clear
+        cached.__doc__, cached.__name__, cached.__wrapped__ = function.__doc__, function.__name__, function
+        return cached
+
+    return decorate
+
+
+def array_bytes(value, depth: int = 2) -> int:
+    """Bytes of the NumPy arrays ``value`` holds as attributes (and their attributes, ``depth`` levels down)."""
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if depth == 0 or not hasattr(value, "__dict__"):
+        return 0
+    return sum(array_bytes(item, depth - 1) for item in vars(value).values())
+
+
 class EntryMismatch(Exception):
     """A cache entry that reads but does not hold what its key says (the message says why)."""
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.resources import require_memory
-from workbench.dataset.cache import code_fingerprint, on_forget
+from workbench.dataset.cache import code_fingerprint, kept_in_memory, on_forget
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.common import (
     SPLITS,
@@ -32,9 +32,8 @@ from workbench.settings.rules import bool_setting, number_setting, seed_setting
 from workbench.settings.typed import dataset_settings
 
 TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
-
-
-TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
+KEPT_BYTES = 1 << 30
+"""Takes kept in memory beyond the last two, and face markers at all, only while each kind holds at most 1 GiB."""
 
 
 def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
@@ -72,10 +71,14 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
         "the synthetic dataset",
         "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on",
     )
-    takes = [_synthetic_take(_take_key(cfg, seed)) for seed in seeds]
+    keys = [_take_key(cfg, seed) for seed in seeds]
+    takes = [_synthetic_take(key) for key in keys]
     decimation = _mesh_decimation(int(cfg.mesh_rows), int(cfg.mesh_cols), cfg.mesh_fraction)
     hand_mesh = takes[0].hand_shapes_mesh()
-    markers = [_face_marker_frames(take, cfg) for take in takes] if {"markers", "mesh_rbf"} & set(names) else None
+    marker_settings = MarkerSettings(
+        cfg.gap_rate, cfg.gap_policy, cfg.gap_max_fill_frames, cfg.gap_mean_frames, cfg.stabilise
+    )
+    markers = [_marker_frames(key, marker_settings) for key in keys] if {"markers", "mesh_rbf"} & set(names) else None
     return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg, storage) for name in names}
 
 
@@ -108,10 +111,13 @@ def _take_key(cfg: Mapping, seed: int) -> tuple:
     )
 
 
-@lru_cache(maxsize=2)
+@kept_in_memory(slots=4, always=2, max_bytes=KEPT_BYTES)
 def _synthetic_take(key: tuple):
-    """The take of these parameters; kept for the next run of a sweep in the same process (its arrays are
-    read-only, and the take is a deterministic function of its parameters)."""
+    """The take of these parameters; kept for the next runs of a sweep in the same process (its arrays are
+    read-only, and the take is a deterministic function of its parameters). Four while small: a sweep over seeds
+    with ``split: other_take`` at two sizes (the ``generalisation`` study) reads takes seed and seed + 1 at each
+    size, and two kept made it generate 20 takes for its 30 runs, against the 12 it has (a take of 35,000 frames
+    holds 70 MB)."""
     from workbench.dataset.synthetic import make_synthetic_take
 
     return make_synthetic_take(**dict(key))
@@ -209,7 +215,29 @@ def _eval_seed(cfg: Mapping) -> int:
     return seed_setting(cfg.seed, "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")
 
 
-def _face_marker_frames(take, cfg: Mapping) -> "MarkerFrames":
+@dataclass(frozen=True)
+class MarkerSettings:
+    """The dataset settings the face markers of a take depend on (the cache key of :func:`_marker_frames`)."""
+
+    gap_rate: float
+    gap_policy: str
+    gap_max_fill_frames: int | None
+    gap_mean_frames: float
+    stabilise: bool
+
+
+@kept_in_memory(slots=4, always=0, max_bytes=KEPT_BYTES)
+def _marker_frames(key: tuple, settings: MarkerSettings) -> "MarkerFrames":
+    """:func:`_face_marker_frames` of the take of ``key``, kept for the next run of a sweep in the same process
+    (read-only, as the take's): the runs of a sweep over other settings, such as ``dataset.split``, share them."""
+    found = _face_marker_frames(_synthetic_take(key), settings)
+    for array in (found.frames, found.kept, found.visible):
+        if array is not None:
+            array.flags.writeable = False
+    return found
+
+
+def _face_marker_frames(take, cfg) -> "MarkerFrames":
     """Stabilised face markers of one take as displacements from rest, after the gap policy.
 
     With ``drop`` and ``linear`` the policy acts on all markers before head-motion removal (gaps filled or frames
