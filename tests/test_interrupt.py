@@ -66,17 +66,17 @@ def check_interrupted(process, folder=None):
     if process.returncode == 0 or (folder is not None and (folder / DONE).exists()):
         # the run ended before the signal, or the signal came as the process exited (Python then no longer handles
         # it; a shell reports 130): a complete record either way
-        assert process.returncode in (0, INTERRUPTED, -signal.SIGINT), err
+        assert process.returncode in (0, INTERRUPTED, -signal.SIGINT), (process.returncode, err)
         assert folder is None or load_record(folder).study == "paper"
         return "finished"
     if process.returncode != INTERRUPTED and before_the_handler(err):
         # while Python itself starts (its own imports, runpy for -m), or imports the module that installs the
         # workbench's handler, before that handler is in place: Python prints its own traceback or dies of the
         # signal (a shell reports 130); out of the workbench's reach
-        assert out == "" and (folder is None or not folder.exists()), err
+        assert out == "" and (folder is None or not folder.exists()), (process.returncode, err)
         return "before the workbench started"
-    assert process.returncode == INTERRUPTED, err
-    assert lines == [MESSAGE], err
+    assert process.returncode == INTERRUPTED, (process.returncode, err)
+    assert lines == [MESSAGE], (process.returncode, err)
     if folder is not None:
         assert not folder.exists() or (folder / DONE).exists(), sorted(path.name for path in folder.iterdir())
     return "interrupted"
