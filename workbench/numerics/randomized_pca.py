@@ -54,11 +54,13 @@ EIGH_COST = 4.0
 """Multiply-adds of a dense symmetric eigen-decomposition with eigenvectors, over ``n^3`` (LAPACK's divide and
 conquer: reduction to tridiagonal form and back-transformation; calibrated by ``benchmarks/run.py pca_switch``)."""
 
-SKINNY_COST = 4.8
+SKINNY_COST = 4.3
 """Weight of a multiply-add of the randomised path against one of the exact path's Gram product: products with a few
 dozen columns on chunks of frames, the orthonormalisations and the Rayleigh-Ritz steps run at a far lower rate than
-one square product (``benchmarks/run.py pca_switch``: the two paths cross between 1,000 and 1,200 ICT mesh frames,
-where their times differ by less than 30 %, within their spread from run to run on a shared machine)."""
+one square product. Calibrated by ``benchmarks/run.py pca_switch`` on the ICT mesh (28,227 columns): the model switches
+at 969 frames; from 700 to 1,250 frames the path it took was at most 16 % slower than the other (one run; each path's
+time moves by about that from run to run, and the randomised one with the frames' spectrum). 4.8 switched at 1,068
+frames, and at 1,000-1,050 frames the exact path it took was 1.3-1.9 times the randomised one's time."""
 
 
 def auto_solver(n_frames: int, n_dims: int, n_components: int | None, floor: int) -> str:
