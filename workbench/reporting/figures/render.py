@@ -156,11 +156,14 @@ def render_meshes(
             mesh.point_data["colour"] = vertex_colours(
                 None if scalars is None else scalars[k], view, weight, n_points=len(points)
             )
+            # render=False: each addition and removal would render the scene again (172 renders for the 95 images
+            # of a synthetic run's report); an image needs the one render below
             for actor in actors:
-                plotter.remove_actor(actor)  # not plotter.clear(): that also removes the lights
+                plotter.remove_actor(actor, render=False)  # not plotter.clear(): that also removes the lights
             actors = [
                 plotter.add_mesh(
                     mesh,
+                    render=False,
                     scalars="colour",
                     rgb=True,
                     show_scalar_bar=False,
@@ -173,13 +176,14 @@ def render_meshes(
             if loops:
                 centres = np.array([points[loop].mean(axis=0) for loop in loops])
                 caps = pyvista.PolyData(np.vstack([points, centres]), cap_cells)
-                actors.append(plotter.add_mesh(caps, color=CAP_COLOUR, smooth_shading=False, ambient=0.3))
+                actors.append(plotter.add_mesh(caps, color=CAP_COLOUR, smooth_shading=False, ambient=0.3, render=False))
             if camera is None:
                 plotter.view_vector(view.view, viewup=VIEW_UP)
                 plotter.camera.zoom(1.35)
                 camera = plotter.camera_position
             else:
                 plotter.camera_position = camera
+            plotter.render()  # the scene as it now is (before the first screenshot, which renders itself, a no-op)
             images.append(np.asarray(plotter.screenshot(None, return_img=True))[..., :3].copy())
         return images
     finally:
