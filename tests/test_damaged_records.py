@@ -9,6 +9,7 @@ between a malformed file and the tables.
 import json
 import shutil
 import sys
+import zipfile
 
 import pytest
 from in_process import run_workbench
@@ -16,7 +17,7 @@ from in_process import run_workbench
 from workbench.api import read_record, run
 from workbench.cli import main as cli
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import inside
+from workbench.core.files import inside, mapped_npz, npz_bytes
 from workbench.core.files import sha256_of_file as file_checksum
 from workbench.record.record import DONE, is_record_file
 from workbench.settings.config import compose
@@ -192,6 +193,40 @@ def test_inside_refuses_paths_leaving_the_folder(tmp_path):
     for escaping in (["..", "x"], ["figures/../../x"], ["/etc/passwd"]):
         with pytest.raises(ValueError, match="is not inside the output folder"):
             inside(tmp_path, *escaping)
+
+
+def test_an_uncompressed_archive_is_mapped_read_only_with_the_arrays_numpy_reads(tmp_path):
+    """mapped_npz gives numpy.load's arrays: mapped read-only from an archive that stores them (any dtype, shape
+    and order, empty ones too), read whole from a compressed one; object arrays and a cut archive are refused."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    arrays = {
+        "frames": rng.standard_normal((7, 5)),
+        "fortran": np.asfortranarray(rng.standard_normal((4, 3))),
+        "names": np.array(["jawOpen", "browInnerUp"]),
+        "index": np.arange(6, dtype=np.int32).reshape(2, 3),
+        "empty": np.zeros((0, 3)),
+        "scalar": np.array(2.5),
+    }
+    for compressed in (False, True):
+        path = tmp_path / f"arrays{compressed}.npz"
+        path.write_bytes(npz_bytes(arrays, compressed=compressed))
+        found = mapped_npz(path)
+        assert found.keys() == arrays.keys()
+        for name, expected in arrays.items():
+            assert found[name].dtype == expected.dtype and found[name].shape == expected.shape, name
+            np.testing.assert_array_equal(found[name], expected)
+        assert found["fortran"].flags.f_contiguous
+        assert found["frames"].flags.writeable is compressed  # mapped from the file where stored
+    objects = tmp_path / "objects.npz"
+    np.savez(objects, ragged=np.array([[1], [1, 2]], dtype=object))
+    with pytest.raises(ValueError, match="Python objects"):
+        mapped_npz(objects)
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes((tmp_path / "arraysFalse.npz").read_bytes()[:300])
+    with pytest.raises((ValueError, OSError, EOFError, zipfile.BadZipFile)):
+        mapped_npz(cut)
 
 
 def edit_bytes(name, change):

@@ -26,6 +26,7 @@ import platform
 import re
 import subprocess
 import sys
+import zipfile
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -34,7 +35,15 @@ from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import TEMPORARY_SUFFIX, json_text, npz_bytes, plain_name, sha256_of_file, write_atomic
+from workbench.core.files import (
+    TEMPORARY_SUFFIX,
+    json_text,
+    mapped_npz,
+    npz_bytes,
+    plain_name,
+    sha256_of_file,
+    write_atomic,
+)
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 if TYPE_CHECKING:
@@ -311,7 +320,8 @@ class RunRecord:
         return single if len(self.data_variants) == 1 else self.folder / f"inputs_{data}.npz"
 
     def load_inputs(self, data: str) -> dict | None:
-        """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them."""
+        """The arrays of ``inputs[_<data>].npz`` (``save_inputs=true``), or None when the run did not save them.
+        They are read-only, mapped from the file (:func:`~workbench.core.files.mapped_npz`): copy one to change it."""
         return self._load_arrays(self.inputs_path(data))
 
     def load_alpha_per_frame(self) -> dict | None:
@@ -330,9 +340,8 @@ def _load_arrays(path: Path) -> dict | None:
     if not path.is_file():
         return None
     try:
-        with np.load(path, allow_pickle=False) as arrays:
-            return {key: arrays[key] for key in arrays.files}
-    except (OSError, ValueError, EOFError) as error:
+        return mapped_npz(path)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
         raise WorkbenchError(f"{path}: not a readable NumPy archive ({error})") from None
 
 
