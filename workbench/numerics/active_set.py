@@ -12,12 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.core.interrupt import interrupts_deferred
-
-# Ctrl-C is held back until numba has loaded: its C extension turns an interrupt during its import into an
-# ImportError and prints a traceback (seen: 'numba._devicearray failed to import'), instead of the one line.
-with interrupts_deferred():
-    from numba import njit, prange
+from workbench.numerics.compiled import njit, prange
 
 _BLOCKS = 64
 """Blocks of frames the parallel loop hands out (each allocates its work space once)."""

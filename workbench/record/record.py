@@ -247,7 +247,7 @@ def write_record(
     write(METRICS_FILE, json_text(dict(metrics)))
     write(TIMINGS_FILE, json_text(dict(timings)))
     # Inputs are stored, not deflated: float frames shrink by about 5 % (ICT mesh, every 4th frame: 441.5 MB against
-    # 462.5 MB) and deflating took 13 s a file; np.load reads both kinds.
+    # 462.5 MB) and deflating took 13 s a file. Readers map stored arrays and read deflated ones whole (mapped_npz).
     for data, arrays in (inputs or {}).items():
         name = INPUTS_FILE if len(metrics["data"]) == 1 else f"inputs_{data.replace('->', '_to_')}.npz"
         write(name, npz_bytes(arrays, compressed=False))

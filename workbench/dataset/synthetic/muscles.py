@@ -25,13 +25,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.interrupt import interrupts_deferred
 from workbench.dataset.synthetic.face_mesh import skin_point
-
-# Ctrl-C is held back until numba has loaded: its C extension turns an interrupt during its import into an
-# ImportError and prints a traceback (seen: 'numba._devicearray failed to import'), instead of the one line.
-with interrupts_deferred():
-    from numba import njit, prange
+from workbench.numerics.compiled import njit, prange
 
 UPPER_FACE: tuple[str, ...] = (
     "frontalis_inner_L",
