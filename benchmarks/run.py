@@ -284,6 +284,8 @@ def bench_mesh(args) -> None:
         + "; ".join(f"{r.data}: m = {r.eigenfaces.n_components_} ({r.eigenfaces.method_})" for r in results)
         + f"; peak {peak_mb():.0f} MB"
     )
+    if any(r.eigenfaces.method_ == "randomized" for r in results):
+        product_pass(capture, one_pass, pca)
     if args.baseline_frames:
         # the scoring of before the shared pass (each basis and solver solved on the frames and scored on its
         # reconstruction) on a subset of frames, extrapolated, against the shared pass on the same subset
@@ -324,6 +326,28 @@ def bench_mesh(args) -> None:
             f"(x{exact_seconds / randomized_seconds:.1f}); same m: {exact.n_components_ == fast.n_components_}; "
             f"coverage {fast.coverage_:.10f} vs {exact.coverage_:.10f}; peak {peak_mb():.0f} MB"
         )
+
+
+def product_pass(capture, one_pass: float, pca: float) -> None:
+    """Time one pass of the randomised PCA's products, ``D~^T (D~ Q)`` with ``Q`` as wide as the study's block,
+    and the machine's DGEMM rate on a square product: a pass is arithmetic, not a read, when its multiply-adds
+    outrun the memory (the PCA's time over this pass's is about the passes it made)."""
+    from workbench.numerics.randomized_pca import FIRST_EIGEN, OVERSAMPLE, frames_normal_times
+
+    frames = capture.train
+    width = min(max(FIRST_EIGEN, capture.hand.shape[0]) + OVERSAMPLE, min(frames.shape))  # as Eigenfaces fits it
+    rng = np.random.default_rng(0)
+    block, mean = rng.standard_normal((frames.shape[1], width)), np.zeros(frames.shape[1])
+    seconds = min(timed(frames_normal_times, frames, block, mean)[1] for _ in range(2))
+    square = rng.standard_normal((3000, 3000))
+    square_seconds = min(timed(np.matmul, square, square)[1] for _ in range(3))
+    gflop = 4.0 * frames.shape[0] * frames.shape[1] * width / 1e9
+    print(
+        f"one product pass of the randomised PCA (D~^T D~ Q, Q {width} columns wide: {gflop:.0f} GFLOP, every frame "
+        f"read once): {seconds:.2f} s = x{seconds / one_pass:.1f} one streaming pass, {gflop / seconds:.0f} GFLOP/s "
+        f"(a square 3,000 x 3,000 product here: {2 * 27 / square_seconds:.0f} GFLOP/s); the PCA took "
+        f"{pca / seconds:.1f} product passes' time"
+    )
 
 
 def reference_pca(fitted, frames, one_pass: float) -> None:
