@@ -8,12 +8,14 @@ import os
 import shutil
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
 from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.interrupt import MESSAGE
 from workbench.record.record import DONE
 from workbench.record.tracking import LOCK_FILE, check_run_dir, clear_partial, discard_failed_run
 from workbench.settings.config import REPO_ROOT
@@ -162,6 +164,21 @@ def test_a_run_failing_before_it_claims_its_folder_leaves_no_empty_folder(tmp_pa
     result = workbench(*SMALL, cwd=tmp_path)
     assert result.returncode == 3 and "broken before the run" in result.stderr, result.stderr
     assert not (tmp_path / "outputs").exists(), "Hydra made outputs/paper/<date and time>; the failed run removes it"
+
+
+def test_ctrl_c_while_the_study_loads_leaves_no_empty_folder(tmp_path, monkeypatch):
+    """Ctrl-C after Hydra made the run folder, while the run imports the study's modules (about a second at start):
+    exit 130 in one line, and the folder and the parents made for it are gone."""
+
+    def interrupted(name):
+        raise KeyboardInterrupt
+
+    loading = types.ModuleType("workbench.api")
+    loading.__getattr__ = interrupted  # the import of run_owned is where the Ctrl-C lands
+    monkeypatch.setitem(sys.modules, "workbench.api", loading)
+    result = workbench(*SMALL, cwd=tmp_path)
+    assert result.returncode == 130 and result.stderr.strip() == MESSAGE, result.stderr
+    assert not (tmp_path / "outputs").exists(), "the run removes the outputs/paper/<date-time> Hydra made"
 
 
 def test_clean_up_removes_record_files_only(tmp_path):

@@ -110,14 +110,16 @@ def _hydra_main(cfg: DictConfig) -> None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
-    from workbench.api import run_owned
-    from workbench.record.record import config_hash
+    from workbench.record.record import config_hash  # loaded already, with the folder callback (tracking)
     from workbench.record.tracking import FolderBusy, as_typed
 
     hydra_cfg = HydraConfig.get()
     output_dir = Path(hydra_cfg.runtime.output_dir)
     multirun = hydra_cfg.mode == RunMode.MULTIRUN
     try:
+        # inside: a Ctrl-C while the study's modules load (a second or so) ends below, without the folder Hydra made
+        from workbench.api import run_owned
+
         if multirun:  # a plain run's config was checked before Hydra made its folder (tracking.RunFolders)
             from workbench.settings.schema import check_study_config
 
