@@ -20,7 +20,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.collect import collect_and_write
+from workbench.reporting.collect.sweep import collect_and_write
 from workbench.settings.config import compose
 
 PAGE = Path(__file__).with_name("studies.md")

@@ -9,7 +9,7 @@ from in_process import run_workbench
 
 from workbench.api import run_study
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.pages import main as report_main
+from workbench.reporting.report.command import main as report_main
 from workbench.settings.config import STUDIES_DIR, compose, resolved_without_hydra
 
 ALTERNATIVES = ["SPCA", "ICA", "NMF", "SPLOCS", "H-fit"]

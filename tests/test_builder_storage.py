@@ -12,7 +12,7 @@ from workbench.dataset import build_captures
 from workbench.dataset.cache import clear_memory
 from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.numerics.frames import FramesOnDisk
-from workbench.reporting.export import obj_text
+from workbench.reporting.export.run import obj_text
 from workbench.settings.config import compose
 
 STORAGES = {

@@ -1,8 +1,8 @@
-"""The verdicts on the paper's two claims (workbench.reporting.claims): decided by where the intervals lie."""
+"""The verdicts on the paper's two claims (workbench.reporting.findings.claims): decided by where the intervals lie."""
 
 import math
 
-from workbench.reporting.claims import (
+from workbench.reporting.findings.claims import (
     BY_CONSTRUCTION,
     NOT_DECIDED,
     NOT_REPRODUCED,

@@ -8,9 +8,9 @@ import yaml
 
 from workbench.core.errors import WorkbenchError
 from workbench.record import record
-from workbench.reporting.collect import collect_and_write, format_estimate, format_range, main
-from workbench.reporting.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
-from workbench.reporting.tables import latex_table, markdown_table
+from workbench.reporting.collect.sweep import collect_and_write, format_estimate, format_range, main
+from workbench.reporting.tables.cells import latex_table, markdown_table
+from workbench.reporting.tables.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
 
 ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
     (0.9, 0): (1.0, 0.5, 0.4),
@@ -222,7 +222,7 @@ def test_without_pyarrow_the_csv_files_are_written_and_the_notice_waits_for_verb
     """No parquet copies without pyarrow; the line saying so is a debug note (``--verbose``), not on every call."""
     import logging
 
-    monkeypatch.setattr("workbench.reporting.collect.has_module", lambda name: False)
+    monkeypatch.setattr("workbench.reporting.collect.sweep.has_module", lambda name: False)
     with caplog.at_level(logging.INFO, logger="workbench"):
         collect_and_write([sweep], tmp_path / "quiet")
     assert not caplog.records and not list((tmp_path / "quiet").glob("*.parquet"))
@@ -316,8 +316,8 @@ def test_an_ordering_that_holds_by_construction_in_every_replicate_is_stated_not
 
 def summary_inputs(folder):
     """The records of a sweep folder written by write_record, its runs table and its comparisons with families."""
-    from workbench.reporting.runs import runs_table, sweep_comparisons
-    from workbench.reporting.sweep_findings import holm_verdicts
+    from workbench.reporting.findings.sweep import holm_verdicts
+    from workbench.reporting.tables.runs import runs_table, sweep_comparisons
 
     records = [record.load_record(path) for path in sorted(folder.iterdir()) if (path / record.DONE).exists()]
     runs = runs_table(records, folder)
@@ -326,7 +326,7 @@ def summary_inputs(folder):
 
 
 def test_sweep_summary_states_the_two_claims_where_every_run_kept_m_equal_n(tmp_path, monkeypatch):
-    from workbench.reporting.sweep_summary import sweep_summary
+    from workbench.reporting.findings.sweep_summary import sweep_summary
     from workbench.stats.statistics import paired_ratio_interval
 
     monkeypatch.setitem(M, 0.99, (18, 18, 18))  # at 0.99 every run keeps m = n = 18: the paper's regime
@@ -358,7 +358,7 @@ def test_sweep_summary_states_the_two_claims_where_every_run_kept_m_equal_n(tmp_
 
 
 def test_sweep_summary_says_when_it_is_not_the_papers_regime_and_when_qe_below_pca_is_built_in(tmp_path):
-    from workbench.reporting.sweep_summary import summary_condition, sweep_summary
+    from workbench.reporting.findings.sweep_summary import summary_condition, sweep_summary
 
     alpha = {key: (h, qe, qe * 1.1) for key, (h, qe, _) in ALPHA.items()}
     folder = tmp_path / "sweep"

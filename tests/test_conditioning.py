@@ -6,7 +6,7 @@ import pytest
 
 from workbench.api import run_study
 from workbench.numerics.metrics import basis_conditioning
-from workbench.reporting.run_text import conditioning_lines, study_header
+from workbench.reporting.text.run import conditioning_lines, study_header
 from workbench.settings.config import compose, resolved_without_hydra
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.reporting.pages import main
+from workbench.reporting.report.command import main
 
 # the default study at a small size (a coarse mesh draws faster): markers only, no save_inputs
 DEFAULT_SMALL = ["dataset.n_frames=1000", "dataset.mesh_rows=35", "dataset.mesh_cols=30"]
@@ -63,7 +63,7 @@ def captured_arguments(monkeypatch, name):
 @pytest.fixture(scope="module")
 def carried(default_run):
     from workbench.record.record import load_record
-    from workbench.reporting.report_data import face_data
+    from workbench.reporting.report.data import face_data
 
     record, cache = load_record(default_run), {}
     face = face_data(record, cache)
@@ -92,8 +92,8 @@ def test_the_carried_map_is_the_datasets_marker_to_mesh_rbf(carried):
 
 
 def test_figure_3_carries_the_markers_reconstruction_and_does_not_solve_on_the_mesh(carried, monkeypatch):
-    from workbench.reporting.report_data import figure3_frames, figure_bases, figure_solver, reconstruct_frames
-    from workbench.reporting.report_figures import draw_reconstructions
+    from workbench.reporting.report.data import figure3_frames, figure_bases, figure_solver, reconstruct_frames
+    from workbench.reporting.report.run_figures import draw_reconstructions
 
     record, cache, face = carried
     seen = captured_arguments(monkeypatch, "figure_reconstructions")
@@ -120,7 +120,7 @@ def test_figure_3_carries_the_markers_reconstruction_and_does_not_solve_on_the_m
 
 
 def test_figure_2_hand_shapes_carried_onto_the_mesh_keep_their_marker_displacements(carried, monkeypatch):
-    from workbench.reporting.report_figures import draw_hand_vs_quasi_eigen
+    from workbench.reporting.report.run_figures import draw_hand_vs_quasi_eigen
 
     record, cache, face = carried
     seen = captured_arguments(monkeypatch, "figure_hand_vs_quasi_eigen")
@@ -141,7 +141,7 @@ def test_figure_2_hand_shapes_carried_onto_the_mesh_keep_their_marker_displaceme
 
 def test_frames_missing_a_marker_are_not_picked_for_the_faces():
     from workbench.dataset.capture import Timeline
-    from workbench.reporting.report_data import moving_stretch, seen_frames
+    from workbench.reporting.report.data import moving_stretch, seen_frames
 
     frames = np.zeros((6, 6))
     frames[2] = 5.0  # the most displaced frame, but it missed a marker (gap_policy=masked)

@@ -662,7 +662,7 @@ def test_weight_statistics_mark_minimum_norm_weights_of_a_rank_deficient_basis()
 
 def test_vertex_rms_carried_by_a_linear_map_equals_the_rms_of_every_frame_carried():
     from workbench.dataset.transfer import apply_point_operator
-    from workbench.reporting.report_data import vertex_rms
+    from workbench.reporting.report.data import vertex_rms
 
     rng = np.random.default_rng(5)
     frames, fitted = rng.standard_normal((700, 3 * 12)), rng.standard_normal((700, 3 * 12))

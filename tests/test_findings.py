@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.findings import facts_frame, run_findings, shared_notes
+from workbench.reporting.findings.run import facts_frame, run_findings, shared_notes
 
 PAPER = {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}
 ALPHA = {
@@ -354,9 +354,9 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
 
     from scipy import stats
 
-    from workbench.reporting.collect import main
+    from workbench.reporting.collect.sweep import main
     from workbench.reporting.figures.studies import plot_alpha_against, plot_marker_vs_mesh
-    from workbench.reporting.runs import collect_runs, summarise, wide
+    from workbench.reporting.tables.runs import collect_runs, summarise, wide
 
     sweep = write_disagreeing_sweep(tmp_path / "sweep")
     qe = SEEDS[0.95]["QE"]
@@ -414,7 +414,7 @@ def known_comparisons(rows):
 
 
 def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
-    from workbench.reporting.sweep_findings import sweep_findings
+    from workbench.reporting.findings.sweep import sweep_findings
 
     summary = pd.DataFrame(
         {
@@ -458,7 +458,7 @@ def test_sweep_comparisons_are_holm_adjusted_within_two_families_and_identities_
     family, p (0.04, 0.03) -> (0.06, 0.06); the four other tested rows are the secondary family, p (0.01, 0.02,
     0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only their first stays '<' although every raw p is below 0.05 and
     every interval excludes 1; an ordering by construction is neither, with no p-value."""
-    from workbench.reporting.sweep_findings import (
+    from workbench.reporting.findings.sweep import (
         FAMILY_COLUMN,
         HOLM_COLUMN,
         family_sizes,
@@ -535,7 +535,7 @@ def test_sweep_comparisons_are_holm_adjusted_within_two_families_and_identities_
 
 
 def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_allows():
-    from workbench.reporting.sweep_findings import bases_findings
+    from workbench.reporting.findings.sweep import bases_findings
 
     summary = pd.DataFrame(
         {
@@ -573,8 +573,8 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
 
 
 def test_bases_findings_of_one_run_order_by_its_paired_comparisons():
-    from workbench.reporting.runs import COMPARISON_COLUMNS
-    from workbench.reporting.sweep_findings import bases_findings
+    from workbench.reporting.findings.sweep import bases_findings
+    from workbench.reporting.tables.runs import COMPARISON_COLUMNS
 
     summary = pd.DataFrame(
         {
@@ -698,7 +698,7 @@ def test_other_comparisons_are_holm_adjusted_and_the_primary_ones_are_not():
 
 
 def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
-    from workbench.reporting.findings import weights_text
+    from workbench.reporting.findings.run import weights_text
 
     rows = [
         {
@@ -722,7 +722,7 @@ def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
 
 
 def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words():
-    from workbench.reporting.summary import run_summary
+    from workbench.reporting.findings.run_summary import run_summary
 
     metrics = known_metrics()
     facts = metrics["data"]["mesh"]
@@ -758,8 +758,8 @@ def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words(
 
 
 def test_findings_over_their_words_leave_out_details_first_and_say_where_they_are():
-    from workbench.reporting.findings import Detail, fit_findings, words
-    from workbench.reporting.report_sections import Section
+    from workbench.reporting.findings.run import Detail, fit_findings, words
+    from workbench.reporting.report.sections import Section
 
     kept = ["**how to read**: " + "word " * 100, "**caveat**: " + "word " * 100]
     details = [
@@ -781,9 +781,9 @@ def test_findings_over_their_words_leave_out_details_first_and_say_where_they_ar
 
 
 def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
-    from workbench.reporting.findings import fit_findings, words
-    from workbench.reporting.report_sections import Section
-    from workbench.reporting.sweep_findings import holm_text, holm_verdicts, sweep_statements
+    from workbench.reporting.findings.run import fit_findings, words
+    from workbench.reporting.findings.sweep import holm_text, holm_verdicts, sweep_statements
+    from workbench.reporting.report.sections import Section
 
     coverages = [0.9, 0.92, 0.94, 0.95, 0.96, 0.98, 0.99, 0.995, 0.998, 0.999]
     bases = ["H", "QE", "QE-linear", "PCA"]
@@ -964,8 +964,8 @@ def test_identities_of_qe_linear_carried_bases_ica_and_h_fit():
 def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown():
     from types import SimpleNamespace
 
-    from workbench.reporting.report_bases import basis_intuitiveness_rows, usage_weights_text
-    from workbench.reporting.report_run import weights_labels
+    from workbench.reporting.report.bases import basis_intuitiveness_rows, usage_weights_text
+    from workbench.reporting.report.run import weights_labels
 
     rows = [
         {"data": "markers", "basis": basis, "solver": solver, "basis_conditioning": {"rank": rank, "n_shapes": 18}}
@@ -1003,7 +1003,7 @@ def test_minimum_norm_weights_are_labelled_with_their_rank_where_they_are_shown(
 
 
 def test_caveats_say_that_h_and_qe_are_both_built_from_the_hand_shapes_the_data_are_made_of():
-    from workbench.reporting.findings import caveat_texts
+    from workbench.reporting.findings.run import caveat_texts
 
     synthetic = caveat_texts({"dataset": {"provenance": {"kind": "synthetic"}}})[0]
     assert "H and QE are both scored on motion built from H's own shapes" in synthetic
@@ -1014,7 +1014,7 @@ def test_caveats_say_that_h_and_qe_are_both_built_from_the_hand_shapes_the_data_
 def test_the_glossary_the_reports_point_to_defines_every_term_they_use():
     from pathlib import Path
 
-    from workbench.reporting.report_sections import GLOSSARY_NOTE
+    from workbench.reporting.report.sections import GLOSSARY_NOTE
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "reports.md").read_text(encoding="utf-8")
     assert "docs/reports.md" in GLOSSARY_NOTE and "glossary" in GLOSSARY_NOTE

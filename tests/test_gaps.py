@@ -254,7 +254,7 @@ def test_masked_policy_can_fit_on_the_complete_frames_only():
 @pytest.mark.slow
 def test_report_of_a_masked_run_draws_the_marker_figure_on_a_complete_frame(tmp_path):
     from workbench.api import run
-    from workbench.reporting.pages import main
+    from workbench.reporting.report.command import main
 
     record = tmp_path / "run"
     run(

@@ -9,7 +9,7 @@ import pytest
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures
-from workbench.reporting.export import obj_text
+from workbench.reporting.export.run import obj_text
 from workbench.settings.config import compose
 
 SHAPES = ["side", "up"]  # sorted, as a folder lists them

@@ -11,7 +11,7 @@ from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import OUTPUT_MARKER, check_output_folder, output_folder, write_atomic
-from workbench.reporting.pages import REPORT_FILES
+from workbench.reporting.report.command import REPORT_FILES
 
 USER_FILES = {
     "README.md": "# my project\n",
@@ -177,7 +177,7 @@ def test_two_processes_replacing_one_output_folder_take_turns(tmp_path):
 def test_the_committed_reference_reports_can_be_rebuilt_in_place():
     """``report --reference`` rewrites reports/<name>, made before folders were marked: each holds only what a
     report of a run (or of a sweep, reports/bases) writes."""
-    from workbench.reporting.pages import SWEEP_REPORT_FILES
+    from workbench.reporting.report.command import SWEEP_REPORT_FILES
     from workbench.settings.config import REPO_ROOT
 
     reports = sorted(path.parent for path in (REPO_ROOT / "reports").glob("*/index.html"))

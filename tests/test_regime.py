@@ -9,8 +9,8 @@ import pytest
 
 from workbench.api import run_study
 from workbench.numerics.bases import Eigenfaces
-from workbench.reporting.run_text import study_header
-from workbench.reporting.summary import beside_regime_text
+from workbench.reporting.findings.run_summary import beside_regime_text
+from workbench.reporting.text.run import study_header
 from workbench.settings.config import compose
 from workbench.study.fitting import fit_eigenfaces
 from workbench.study.regime import paper_regime_fit
@@ -103,8 +103,8 @@ def test_a_record_of_the_default_study_leads_with_the_paper_s_regime(tmp_path):
     import json
 
     from workbench.api import run
-    from workbench.reporting.findings import run_findings
-    from workbench.reporting.summary import run_summary
+    from workbench.reporting.findings.run import run_findings
+    from workbench.reporting.findings.run_summary import run_summary
 
     text = run(compose("paper", [*SMALL, "solver=lstsq"]), tmp_path)
     lines = text.splitlines()
@@ -152,7 +152,7 @@ def test_a_record_shows_the_held_out_m_equal_n_beside_the_training_frames(tmp_pa
     import json
 
     from workbench.api import run
-    from workbench.reporting.findings import run_findings
+    from workbench.reporting.findings.run import run_findings
 
     text = run(compose("paper", [*SMALL, "solver=lstsq", "dataset.held_out=tail"]), tmp_path)
     header = text.splitlines()

@@ -5,8 +5,8 @@ import math
 import numpy as np
 
 from workbench.numerics.metrics import AlphaSummary
-from workbench.reporting.run_text import headline, printed_tables
-from workbench.reporting.tables import markdown_frame as markdown_table
+from workbench.reporting.tables.cells import markdown_frame as markdown_table
+from workbench.reporting.text.run import headline, printed_tables
 from workbench.study.results import Row
 from workbench.study.table import FRAME_COLUMNS, alpha_table
 

@@ -5,8 +5,8 @@ import pytest
 from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
-from workbench.reporting.pages import main, report_folder
-from workbench.reporting.report_sections import commit_text, versions_section
+from workbench.reporting.report.command import main, report_folder
+from workbench.reporting.report.sections import commit_text, versions_section
 from workbench.settings.config import REPO_ROOT
 
 CONFIG = {"study": "paper", "dataset": {"kind": "synthetic"}}
@@ -133,7 +133,7 @@ def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(
 
 def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs):
     from workbench.record.record import load_record
-    from workbench.reporting.report_data import rebuilt_arrays
+    from workbench.reporting.report.data import rebuilt_arrays
 
     record = load_record(run_without_inputs)
     record.table.loc[0, "alpha_abs_mean"] *= 1.001  # as if the data read again were not those of the run
@@ -144,9 +144,9 @@ def test_rebuilt_data_that_differ_from_the_record_are_refused(run_without_inputs
 def test_the_html_page_escapes_every_text_and_the_markdown_keeps_it_as_written():
     import pandas as pd
 
-    from workbench.reporting.page import render_html, render_markdown
-    from workbench.reporting.report_figures import FigureEntry
-    from workbench.reporting.report_sections import Section
+    from workbench.reporting.report.page import render_html, render_markdown
+    from workbench.reporting.report.run_figures import FigureEntry
+    from workbench.reporting.report.sections import Section
 
     sections = [
         Section(

@@ -18,12 +18,12 @@ from workbench.api import run
 from workbench.cli.main import COMMANDS
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import find_records, load_record
-from workbench.reporting.pages import main
-from workbench.reporting.report_data import figure_solver, frame_alpha, quasi_eigen_shapes, reconstruct_frames
-from workbench.reporting.report_figures import RUN_FIGURES
-from workbench.reporting.report_sections import headline_table
-from workbench.reporting.runs import flatten, summarise, varying_keys, wide
-from workbench.reporting.tables import markdown_frame
+from workbench.reporting.report.command import main
+from workbench.reporting.report.data import figure_solver, frame_alpha, quasi_eigen_shapes, reconstruct_frames
+from workbench.reporting.report.run_figures import RUN_FIGURES
+from workbench.reporting.report.sections import headline_table
+from workbench.reporting.tables.cells import markdown_frame
+from workbench.reporting.tables.runs import flatten, summarise, varying_keys, wide
 from workbench.settings.config import REPO_ROOT, compose
 from workbench.settings.schema import RETIRED_SETTINGS
 
@@ -466,7 +466,7 @@ def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
 
 
 def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():
-    from workbench.reporting.report_sweep import by_m
+    from workbench.reporting.report.sweep import by_m
 
     # seed 0 keeps m = 3 at 0.9 and 4 at 0.99; seed 1 keeps 4 at both thresholds (the same run twice)
     per_run = pd.DataFrame(
@@ -491,7 +491,7 @@ def test_alpha_against_m_groups_runs_by_m_and_counts_a_run_once():
 
 
 def test_collect_and_report_give_the_same_numbers_for_one_sweep(tmp_path):
-    from workbench.reporting.collect import collect_and_write
+    from workbench.reporting.collect.sweep import collect_and_write
     from workbench.study.table import ALPHA_COLUMNS
 
     root = make_sweep(tmp_path / "sweep", coverages=(0.99, 0.995))
@@ -556,7 +556,7 @@ def test_varying_keys_leave_out_paths_and_identical_settings():
 
 
 def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
-    assert COMMANDS["report"] == "workbench.reporting.pages:main"
+    assert COMMANDS["report"] == "workbench.reporting.report.command:main"
     with pytest.raises(WorkbenchError, match="not a folder"):
         main([str(tmp_path / "missing")])
     with pytest.raises(WorkbenchError, match="no complete run record"):
@@ -831,14 +831,14 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
     from workbench.core.files import sha256_of_file as file_sha256
     from workbench.dataset.capture import Timeline
     from workbench.formats.c3d import read_c3d_markers
-    from workbench.reporting.report_data import (
+    from workbench.reporting.report.data import (
         figure3_frames,
         marker_variant,
         mesh_variant,
         most_displaced,
         record_timeline,
     )
-    from workbench.reporting.report_figures import figure4_frame
+    from workbench.reporting.report.run_figures import figure4_frame
 
     record_dir, out = animface_run
     record, cache = load_record(record_dir), {}
@@ -937,7 +937,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     whole, eye and mouth openings closed; where the capture has no data (beyond the markers' reach) a coloured map
     shows the plain shaded geometry, not a mask: the same pixels as a plain render of the same face."""
     from workbench.reporting.figures.render import MeshView, render_meshes, support_weight
-    from workbench.reporting.report_figures import draw_hand_vs_quasi_eigen, draw_reconstructions, draw_vertex_rms
+    from workbench.reporting.report.run_figures import draw_hand_vs_quasi_eigen, draw_reconstructions, draw_vertex_rms
 
     record_dir, out = animface_run
     record, cache = load_record(record_dir), {}
@@ -969,7 +969,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     import zlib
 
     from workbench.dataset.decimate import decimate
-    from workbench.reporting.report_faces import VIEW_VERTICES
+    from workbench.reporting.report.faces import VIEW_VERTICES
 
     text = (out / "figures" / "view3d.js").read_text()
     payload = json.loads(text[text.index("{") : text.rindex("}") + 1])
@@ -1002,7 +1002,7 @@ def test_rebuilding_reports_does_not_mark_the_code_as_changed(tmp_path):
 
 def test_the_animation_shows_the_stretch_of_one_take_where_the_face_moves_most():
     from workbench.dataset.capture import Timeline
-    from workbench.reporting.report_data import moving_stretch
+    from workbench.reporting.report.data import moving_stretch
 
     timeline = Timeline.concatenate(
         [Timeline.uniform("a", np.arange(10), 10.0), Timeline.uniform("b", np.arange(6), 10.0)]

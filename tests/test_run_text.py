@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import pytest
 from in_process import run_workbench
 
-from workbench.reporting.run_text import PRINT_WIDTH, fit_width, reproduced_sentence
+from workbench.reporting.text.run import PRINT_WIDTH, fit_width, reproduced_sentence
 
 PAPER = {"paper": {"alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, "metric": {}}
 

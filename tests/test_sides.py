@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from workbench.numerics.bases import pca_to_qe_weights, quasi_eigen_faces
-from workbench.reporting.sides import left_side, pair_sides, shared_term, side_pairs, sides_finding, sides_frame
+from workbench.reporting.report.sides import left_side, pair_sides, shared_term, side_pairs, sides_finding, sides_frame
 
 
 def face() -> np.ndarray:

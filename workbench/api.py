@@ -491,7 +491,7 @@ def run(
     wide : bool, default True
         Return the full text, as the record's ``alpha_table.md`` holds it (``workbench --wide``); False: the text
         the command prints by default, within 120 columns
-        (:data:`workbench.reporting.run_text.PRINT_WIDTH`).
+        (:data:`workbench.reporting.text.run.PRINT_WIDTH`).
 
     Returns
     -------
@@ -502,7 +502,7 @@ def run(
     from omegaconf import OmegaConf
 
     from workbench.record.record import DONE, record_state, run_metrics, write_record
-    from workbench.reporting.run_text import (
+    from workbench.reporting.text.run import (
         compact_tables,
         fit_width,
         headline,

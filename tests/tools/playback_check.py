@@ -1,6 +1,6 @@
 """How far Blender's playback of exported .glb files lies from the workbench's reconstruction.
 
-Exports a run (``workbench.reporting.export.export_run``) under each solver, plays every .glb back in Blender (background
+Exports a run (``workbench.reporting.export.run.export_run``) under each solver, plays every .glb back in Blender (background
 mode, the stock glTF importer, the recipe of docs/export.md: ``blender_playback.py``) at keys spread over each take,
 and compares every vertex of Blender's evaluated mesh with the reconstruction the workbench computes from the same
 weights (float64, mm).
@@ -87,7 +87,7 @@ def playback_differences(
         The export folder.
     manifest : dict
         Its manifest.
-    bases : list of workbench.reporting.export.ExportedBasis
+    bases : list of workbench.reporting.export.run.ExportedBasis
         The exported bases, raw shapes (mm) and weights.
     neutral : ndarray of shape (n_vertices, 3)
         The capture's neutral, mm.
@@ -132,7 +132,7 @@ def playback_differences(
 def measure(run: Path, solvers: list[str] | None, data: str | None, per_take: int) -> list[tuple]:
     """(basis, solver, max abs mm, keys) for every basis of a run exported under each solver (PCA once)."""
     from workbench.record.replay import replay
-    from workbench.reporting.export import export_run, exported_bases, read_run_record
+    from workbench.reporting.export.run import export_run, exported_bases, read_run_record
 
     record = read_run_record(run)
     solvers = solvers or list(record.config.get("solver") or {})

@@ -50,10 +50,10 @@ _wide = False
 # Subcommands other than running a study: name -> "module:function", the function taking the remaining
 # arguments (a list of str) and returning an exit code. Imported only when used.
 COMMANDS: dict[str, str] = {
-    "report": "workbench.reporting.pages:main",
-    "collect": "workbench.reporting.collect:main",
+    "report": "workbench.reporting.report.command:main",
+    "collect": "workbench.reporting.collect.sweep:main",
     "mlflow": "workbench.record.mlflow:main",
-    "export": "workbench.reporting.export:main",
+    "export": "workbench.reporting.export.run:main",
 }
 
 

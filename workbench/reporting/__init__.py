@@ -1,1 +1,2 @@
-"""The report side: the tidy runs table (runs), ``workbench collect``, ``workbench report`` (pages) and figures."""
+"""Everything read from records, in rooms from the ground up: tables, findings, then text | figures | collect, then
+report | export. The layers contract in pyproject.toml names them."""

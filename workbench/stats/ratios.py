@@ -7,7 +7,7 @@ means, or of two pooled alphas, linearised at the means), taken back, so that th
 is. Across replicates (folds, seeds) the ratios get the paired t-interval on log
 ratios (:func:`workbench.stats.statistics.paired_ratio_interval`). A ratio's null value is 1; no p-value is
 computed, because the claims are read against the paper's ratios, not against 1 alone
-(``workbench.reporting.claims``).
+(``workbench.reporting.findings.claims``).
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ IDENTICAL = "identical on every frame"
 SIGNED = "{:+.3g}"
 """The number format of a difference (its sign always shown)."""
 RATIO_FORMAT = "{:.4g}"
-"""The number format of a ratio (as the comparisons table's cells, :func:`workbench.reporting.tables.cell_text`)."""
+"""The number format of a ratio (as the comparisons table's cells, :func:`workbench.reporting.tables.cells.cell_text`)."""
 
 
 @dataclass(frozen=True)

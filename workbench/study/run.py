@@ -2,7 +2,7 @@
 
 ``run_study`` takes a study's checked, typed settings (:mod:`workbench.settings.typed`) and returns one :class:`~workbench.study.results.StudyResult`
 per data variant (``dataset.train_on``: markers, mesh, ...); writing files is ``workbench.record.record``'s job and printing is
-``workbench.reporting.run_text``'s."""
+``workbench.reporting.text.run``'s."""
 
 from __future__ import annotations
 

@@ -243,7 +243,7 @@ def draw_contrast(ax, row: Mapping, y: float, k: int) -> None:
 
 def headline_spec(record, column: str, label: str) -> tuple:
     """The figure spec (stem, title, caption, draw) of a run report's headline figure, for
-    :func:`workbench.reporting.report_figures.make_figures`; ``draw`` returns the reason when the run lacks H, QE
+    :func:`workbench.reporting.report.run_figures.make_figures`; ``draw`` returns the reason when the run lacks H, QE
     or PCA with least squares.
 
     Parameters

@@ -4,7 +4,7 @@ report, and a short animation of captured | H | QE over a stretch of the take.
 The view is a small WebGL viewer of the workbench's own (no library): the captured frame and its reconstruction side by side
 under one camera (drag to turn both, scroll to zoom), a frame and a basis picked from menus, plain shaded or
 coloured by displacement and error with colour bars. Everything it needs is in the report folder: the viewer's
-script (``workbench/reporting/static/view3d.js``, with the markup of ``templates/view3d.html``) inline in
+script (``workbench/reporting/report/static/view3d.js``, with the markup of ``templates/view3d.html``) inline in
 ``index.html`` and the mesh data in ``figures/view3d.js``, a classic script, so the page works
 from ``file://`` after the folder is copied anywhere, with no network. The data: vertex displacements quantised
 to 0.05 mm (invisible at face scale), a reconstruction stored as its offset from the captured frame, their bytes

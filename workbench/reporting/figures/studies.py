@@ -32,7 +32,7 @@ from matplotlib.figure import Figure
 
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
-from workbench.reporting.runs import interval_label
+from workbench.reporting.tables.runs import interval_label
 from workbench.settings.bases import ALTERNATIVE_BASES
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")

@@ -34,7 +34,7 @@ def headline_table(table: pd.DataFrame, column: str) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        An alpha table (``workbench.reporting.run_text.TABLE_COLUMNS``).
+        An alpha table (``workbench.reporting.text.run.TABLE_COLUMNS``).
     column : str
         The measured alpha column.
 

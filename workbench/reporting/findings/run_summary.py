@@ -15,8 +15,8 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.reporting.claims import PAPER_RATIOS, claim_verdicts, ratio_interval_text
-from workbench.reporting.findings import (
+from workbench.reporting.findings.claims import PAPER_RATIOS, claim_verdicts, ratio_interval_text
+from workbench.reporting.findings.run import (
     PAPER_BASES,
     _alpha,
     caveat_texts,
@@ -32,7 +32,7 @@ SUMMARY_WORDS = 200
 
 
 def claims_text(ratios: Mapping[str, Mapping], qe_spans_pca: bool = False) -> str:
-    """The two claims' verdicts with their ratios and intervals (:func:`workbench.reporting.claims.claim_verdicts`,
+    """The two claims' verdicts with their ratios and intervals (:func:`workbench.reporting.findings.claims.claim_verdicts`,
     brief), e.g. ``QE better than H: reproduced, H/QE 5.51 [4.54, 6.47]; the paper's 7.2 lies above it; QE nearly as
     accurate as PCA (QE/PCA <= 1.16): not reproduced, QE/PCA 3.12 [2.33, 3.92]``.
 

@@ -1,6 +1,6 @@
 """The findings of a run or a sweep, stated in sentences generated from its numbers (never written by hand).
 
-:func:`run_findings` reads an alpha table (the columns of :data:`workbench.reporting.run_text.TABLE_COLUMNS`), the per-shape
+:func:`run_findings` reads an alpha table (the columns of :data:`workbench.reporting.text.run.TABLE_COLUMNS`), the per-shape
 intuitiveness and the facts the run recorded (``metrics.json``: paired comparisons, the offset of the affine
 projection, the face region, the dataset's provenance), and says per data variant: the ordering of H, QE,
 QE-linear and PCA under each solver, where every ``<`` is a paired per-frame difference whose 95 % interval
@@ -10,7 +10,7 @@ the offset numbers; the weights an animator would face; the error in millimetres
 shapes the projection changes most; and the caveats that apply to the data. :func:`fit_findings` keeps a report's
 findings within :data:`FINDINGS_WORDS` words, leaving out :class:`Detail` lines first.
 
-The findings of a sweep and of the other bases are in :mod:`workbench.reporting.sweep_findings`.
+The findings of a sweep and of the other bases are in :mod:`workbench.reporting.findings.sweep`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ intervals; every other ratio, interval and p-value is a row of the sweep's compa
 decides the verdicts by Holm's adjustment within two families: the primary contrasts of every condition together,
 every other tested comparison of the table together; orderings that hold by construction are a third kind, not
 tested. :func:`bases_findings` adds the other bases' sizes, closeness and locality.
-The findings of one run are in :mod:`workbench.reporting.findings`.
+The findings of one run are in :mod:`workbench.reporting.findings.run`.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.reporting.findings import Detail
-from workbench.reporting.runs import NOT_DISTINGUISHABLE
-from workbench.reporting.tables import cell_text
+from workbench.reporting.findings.run import Detail
+from workbench.reporting.tables.cells import cell_text
+from workbench.reporting.tables.runs import NOT_DISTINGUISHABLE
 from workbench.stats.statistics import (
     CONFIDENCE,
     Interval,
@@ -79,7 +79,7 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     Parameters
     ----------
     comparisons : pandas.DataFrame
-        :func:`workbench.reporting.runs.sweep_comparisons`: ``first``, ``second``, ``metric``, ``ratio``,
+        :func:`workbench.reporting.tables.runs.sweep_comparisons`: ``first``, ``second``, ``metric``, ``ratio``,
         ``ratio_low``, ``ratio_high``, ``verdict``, ``p`` and, per row, its condition, ``data`` and ``solver``.
     column : str
         The headline alpha column (that of the primary contrasts).
@@ -203,7 +203,7 @@ def ordering_with_intervals(
         over the replicates) and optionally ``n_min``/``n_max`` (basis sizes; a basis whose size differs from
         the hand basis's is marked with it).
     comparisons : pandas.DataFrame
-        The paired comparisons of the same condition (:func:`workbench.reporting.runs.paired_comparisons`, with
+        The paired comparisons of the same condition (:func:`workbench.reporting.tables.runs.paired_comparisons`, with
         :func:`holm_verdicts`' adjusted p-values where it was applied).
     column : str
     key : str
@@ -287,16 +287,16 @@ def sweep_findings(
     worst by their geometric mean over the replicates, each neighbouring pair joined by its verdict in the
     comparisons table (:func:`ordering_with_intervals`), and on the lead (first) data variant, with least squares
     and the headline column, the primary contrasts with their intervals. Every number is a cell of the summary or
-    of the comparisons table; each line a :class:`workbench.reporting.findings.Detail` (those of another solver or
+    of the comparisons table; each line a :class:`workbench.reporting.findings.run.Detail` (those of another solver or
     column go first when the findings run over their words).
 
     Parameters
     ----------
     summary : pandas.DataFrame
-        Wide summary (:func:`workbench.reporting.runs.wide`): the swept keys, ``data``, ``basis``, ``solver``,
+        Wide summary (:func:`workbench.reporting.tables.runs.wide`): the swept keys, ``data``, ``basis``, ``solver``,
         ``n_seeds``, ``column``, and ``m_min``/``m_max``, ``n_min``/``n_max`` where present.
     comparisons : pandas.DataFrame
-        :func:`workbench.reporting.runs.paired_comparisons` of ``column`` (PCA beside every solver).
+        :func:`workbench.reporting.tables.runs.paired_comparisons` of ``column`` (PCA beside every solver).
     swept : sequence of str
         The condition keys (none: one finding per data variant).
     column : str
@@ -344,7 +344,7 @@ def training_findings(
     summary : pandas.DataFrame
         Wide summary with ``train_on``, ``eval_on``, ``basis``, ``solver``, ``n_seeds`` and ``column``.
     comparisons : pandas.DataFrame
-        :func:`workbench.reporting.runs.paired_comparisons` with ``between="train_on"``.
+        :func:`workbench.reporting.tables.runs.paired_comparisons` with ``between="train_on"``.
     swept : sequence of str
         The condition keys other than the data variant fitted on.
     column : str
@@ -394,7 +394,7 @@ def bases_findings(
         ``matched_abs_cosine`` and ``locality`` (geometric means over the runs).
     comparisons : pandas.DataFrame
         Paired comparisons over the runs with ``data``, ``metric`` (``column``, ``matched_abs_cosine``,
-        ``locality``) and :data:`workbench.reporting.runs.COMPARISON_COLUMNS`.
+        ``locality``) and :data:`workbench.reporting.tables.runs.COMPARISON_COLUMNS`.
     column : str
     ordering : bool
         Whether to state the ordering by ``column`` (a sweep's findings state it already).
@@ -489,7 +489,7 @@ def sweep_statements(
     ----------
     summary : pandas.DataFrame
     comparisons : pandas.DataFrame
-        :func:`workbench.reporting.runs.sweep_comparisons`.
+        :func:`workbench.reporting.tables.runs.sweep_comparisons`.
     swept : sequence of str
     columns : sequence of str
     solver : str

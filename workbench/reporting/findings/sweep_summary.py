@@ -1,5 +1,5 @@
 """The summary a sweep's report opens with (at most 200 words): the paper's two claims on one condition, decided
-by :func:`workbench.reporting.claims.claim_verdicts` from the rows of the sweep's comparisons table, the coverage
+by :func:`workbench.reporting.findings.claims.claim_verdicts` from the rows of the sweep's comparisons table, the coverage
 m = n reaches, how well H and QE determine their weights, and what the design rests on.
 
 The condition is the paper's regime m = n where the sweep has it (a data variant fitted at m = n, or a condition
@@ -15,15 +15,15 @@ import numpy as np
 import pandas as pd
 
 from workbench.record.record import RunRecord
-from workbench.reporting.claims import PAPER_RATIOS, claim_verdicts
-from workbench.reporting.runs import flatten
-from workbench.reporting.sweep_findings import (
+from workbench.reporting.findings.claims import PAPER_RATIOS, claim_verdicts
+from workbench.reporting.findings.sweep import (
     PRIMARY,
     comparison_interval,
     construction,
     family_sizes,
     rows_text,
 )
+from workbench.reporting.tables.runs import flatten
 from workbench.study.regime import is_paper_regime
 
 SUMMARY_WORDS = 200
@@ -184,7 +184,7 @@ def sweep_summary(
         The runs table.
     comparisons : pandas.DataFrame
         The sweep's one comparisons table, with its families
-        (:func:`workbench.reporting.sweep_findings.holm_verdicts`).
+        (:func:`workbench.reporting.findings.sweep.holm_verdicts`).
     swept, over : sequence of str
         The condition keys and the replicate keys.
     column : str

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.record.record import RunRecord
-from workbench.reporting.report_data import (
+from workbench.reporting.report.data import (
     FaceData,
     face_data,
     figure3_frames,
@@ -23,7 +23,7 @@ from workbench.reporting.report_data import (
     record_timeline,
     short_label,
 )
-from workbench.reporting.report_figures import needs
+from workbench.reporting.report.run_figures import needs
 
 VIEW_CAPTION = (
     "Figure 3's frames you can turn (drag; scroll to zoom): the captured frame (left) beside its "

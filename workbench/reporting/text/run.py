@@ -26,7 +26,7 @@ def printed_tables(table: pd.DataFrame) -> str:
     str
         Markdown tables, each after the first under a line naming its columns.
     """
-    from workbench.reporting.tables import markdown_frame
+    from workbench.reporting.tables.cells import markdown_frame
 
     names = [column for column in ROW_NAME_COLUMNS if column in table.columns]
     text = markdown_frame(table[[*names, *[c for c in ALPHA_TABLE_COLUMNS if c in table.columns]]])
@@ -76,7 +76,7 @@ def compact_tables(table: pd.DataFrame) -> str:
     str
         A line saying what the short headers are and where the rest is, then the Markdown table.
     """
-    from workbench.reporting.tables import frame_cells, markdown_table
+    from workbench.reporting.tables.cells import frame_cells, markdown_table
 
     names = [column for column in ("data", "basis", "solver") if column in table.columns]
     columns = [column for column in ("m", *COMPACT_NAMES) if column in table.columns]
@@ -120,7 +120,7 @@ def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
 
 def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Mapping]) -> str:
     """One sentence on the paper's two claims, first in what a run prints, each decided by the interval of its
-    ratio (:func:`workbench.reporting.summary.claims_text`): QE better than H (H/QE above 1) and QE within the
+    ratio (:func:`workbench.reporting.findings.run_summary.claims_text`): QE better than H (H/QE above 1) and QE within the
     paper's 1.16 of PCA (QE/PCA at most 1.16).
 
     Taken on the variants at the paper's regime m = n scored on their training frames (those of
@@ -140,8 +140,8 @@ def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Ma
     str
         One line (empty when no chosen variant has both ratios).
     """
-    from workbench.reporting.report_data import headline_column
-    from workbench.reporting.summary import claims_text
+    from workbench.reporting.findings.run_summary import claims_text
+    from workbench.reporting.report.data import headline_column
 
     column = headline_column(cfg)
     trained = [result for result in results if result.protocol == "training frames"]

@@ -11,18 +11,19 @@ import pandas as pd
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import inside, write_atomic
 from workbench.record.record import DONE, RunRecord, find_records, load_record
-from workbench.reporting.findings import fit_findings
-from workbench.reporting.page import write_documents
-from workbench.reporting.report_bases import intuitiveness_comparisons, with_bases_section
-from workbench.reporting.report_data import dataset_label, figure_solver, headline_column, training_variants
-from workbench.reporting.report_figures import (
+from workbench.reporting.findings.run import fit_findings
+from workbench.reporting.findings.sweep import holm_verdicts
+from workbench.reporting.report.bases import intuitiveness_comparisons, with_bases_section
+from workbench.reporting.report.data import dataset_label, figure_solver, headline_column, training_variants
+from workbench.reporting.report.page import write_documents
+from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
     FigureEntry,
     clear_figures,
     draw_coverage_curve,
     make_figures,
 )
-from workbench.reporting.report_sections import (
+from workbench.reporting.report.sections import (
     GLOSSARY_NOTE,
     Section,
     choices_rows,
@@ -31,7 +32,7 @@ from workbench.reporting.report_sections import (
     report_versions,
     versions_section,
 )
-from workbench.reporting.runs import (
+from workbench.reporting.tables.runs import (
     interval_label,
     is_replicate_key,
     runs_table,
@@ -40,7 +41,6 @@ from workbench.reporting.runs import (
     varying_keys,
     wide,
 )
-from workbench.reporting.sweep_findings import holm_verdicts
 from workbench.study.regime import is_paper_regime
 
 
@@ -70,7 +70,7 @@ def by_m(per_run: pd.DataFrame, swept: Sequence[str], over: Sequence[str]) -> pd
     Returns
     -------
     pandas.DataFrame
-        As :func:`workbench.reporting.runs.wide`, with the condition column ``m`` (an integer).
+        As :func:`workbench.reporting.tables.runs.wide`, with the condition column ``m`` (an integer).
     """
     others = [key for key in swept if key != "basis.coverage"]
     rows = per_run.drop(columns=["basis.coverage"]).assign(**{"pca.m": per_run["m"].astype(int)})
@@ -186,8 +186,8 @@ def sweep_sections(
     command: str,
     over: Sequence[str] = (),
 ) -> tuple[str, list[Section]]:
-    from workbench.reporting.sweep_findings import holm_text, replicate_caveat, sweep_statements
-    from workbench.reporting.sweep_summary import sweep_summary
+    from workbench.reporting.findings.sweep import holm_text, replicate_caveat, sweep_statements
+    from workbench.reporting.findings.sweep_summary import sweep_summary
 
     first = records[0]
     column = headline_column(first.config)
@@ -252,8 +252,8 @@ def sweep_sections(
 
 def comparisons_caption(comparisons: pd.DataFrame, column: str) -> str:
     """The paragraph above a sweep's one comparisons table: what a row is, which interval is shown, and the
-    families its verdicts are decided in with their sizes (:func:`workbench.reporting.sweep_findings.holm_verdicts`)."""
-    from workbench.reporting.sweep_findings import IDENTITY, INTERVAL_NOTE, PRIMARY, SECONDARY, family_sizes, rows_text
+    families its verdicts are decided in with their sizes (:func:`workbench.reporting.findings.sweep.holm_verdicts`)."""
+    from workbench.reporting.findings.sweep import IDENTITY, INTERVAL_NOTE, PRIMARY, SECONDARY, family_sizes, rows_text
 
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"])) if len(comparisons) else "-"

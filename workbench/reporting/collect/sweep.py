@@ -2,7 +2,7 @@
 tables and findings.
 
 Reads only complete records of one or many sweeps (through :mod:`workbench.record.record`), never recomputes; the tables
-come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, and the intervals from
+come from :mod:`workbench.reporting.tables.runs`, as those of ``workbench report`` do, and the intervals from
 :mod:`workbench.stats.statistics`. Writes into the output folder:
 
 - ``runs.csv`` / ``runs.parquet``: one row per run and alpha-table row (data, basis, projection, solver), with
@@ -13,7 +13,7 @@ come from :mod:`workbench.reporting.runs`, as those of ``workbench report`` do, 
   per-seed ratio with its 95 % interval and the verdict it allows (``<``, ``>`` or not distinguishable);
 - ``alpha_table.md`` / ``alpha_table.tex``: one metric as ``geometric mean [95 % interval]`` with conditions as
   rows and bases as columns;
-- ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.sweep_findings.sweep_findings`).
+- ``findings.md``: the findings stated from those tables (:func:`workbench.reporting.findings.sweep.sweep_findings`).
 
 The parquet copies need pyarrow (the parquet extra); without it they are left out, said in one line with
 ``--verbose`` only (the CSV files hold the same tables).
@@ -35,7 +35,8 @@ from workbench.core.errors import WorkbenchError
 from workbench.core.extras import has_module, install_hint
 from workbench.core.files import check_output_folder, inside, output_folder, write_atomic
 from workbench.record.record import DONE
-from workbench.reporting.runs import (
+from workbench.reporting.tables.cells import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
+from workbench.reporting.tables.runs import (
     PCA_SOLVER,
     STATISTICS,
     collect_runs,
@@ -44,7 +45,6 @@ from workbench.reporting.runs import (
     sweep_comparisons,
     wide,
 )
-from workbench.reporting.tables import FLOAT_FORMATS, frame_cells, is_missing, latex_table, markdown_table
 from workbench.stats.statistics import GEOMETRIC
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
@@ -258,7 +258,7 @@ def collect_and_write(
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.sweep_findings import holm_text, holm_verdicts, replicate_caveat, sweep_statements
+    from workbench.reporting.findings.sweep import holm_text, holm_verdicts, replicate_caveat, sweep_statements
 
     paths = [Path(path) for path in paths]
     runs, incomplete = collect_runs(paths)
@@ -317,7 +317,7 @@ def filtered(table: pd.DataFrame, where: Mapping[str, str] | None) -> pd.DataFra
 def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
     """The paired comparisons as a Markdown table under a caption naming the method, the replicates, which
     interval is shown and the families the verdicts are decided in."""
-    from workbench.reporting.sweep_findings import INTERVAL_NOTE
+    from workbench.reporting.findings.sweep import INTERVAL_NOTE
 
     shown = comparisons.drop(columns=["study", "method"])
     shown = shown.loc[

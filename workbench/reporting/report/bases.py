@@ -9,10 +9,10 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.record.record import RunRecord
-from workbench.reporting.report_data import dataset_label, figure_solver, headline_column
-from workbench.reporting.report_figures import make_figures, minimum_norm_text
-from workbench.reporting.report_sections import Section, range_column
-from workbench.reporting.runs import (
+from workbench.reporting.report.data import dataset_label, figure_solver, headline_column
+from workbench.reporting.report.run_figures import make_figures, minimum_norm_text
+from workbench.reporting.report.sections import Section, range_column
+from workbench.reporting.tables.runs import (
     config_columns,
     flatten,
     interval_label,
@@ -65,7 +65,7 @@ def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
 
 def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
     """Geometric mean and its 95 % interval over runs (seeds) per data variant and basis
-    (:func:`workbench.reporting.runs.level_statistics`).
+    (:func:`workbench.reporting.tables.runs.level_statistics`).
 
     Returns
     -------
@@ -100,7 +100,7 @@ def summarise_intuitiveness(per_run: pd.DataFrame, columns: Sequence[str]) -> pd
 
 def usage_rank(row: Mapping) -> dict:
     """``usage_rank`` and ``usage_n_shapes`` of a ``metrics.json`` row whose weights are the minimum-norm choice of a
-    rank-deficient basis (:func:`workbench.reporting.report_figures.minimum_norm_text` decides), else NaN."""
+    rank-deficient basis (:func:`workbench.reporting.report.run_figures.minimum_norm_text` decides), else NaN."""
     if not minimum_norm_text(row):
         return {"usage_rank": math.nan, "usage_n_shapes": math.nan}
     conditioning = row["basis_conditioning"]
@@ -149,7 +149,7 @@ def measure_notes(settings: Mapping, solver: str) -> list[str]:
 
 def intuitiveness_comparisons(records: Sequence[RunRecord], runs: pd.DataFrame, over: Sequence[str]) -> pd.DataFrame:
     """The bases' closeness and locality compared pair by pair over the replicates, per condition and data variant
-    (:func:`workbench.reporting.runs.paired_comparisons`), in the layout of a sweep's comparisons table so that
+    (:func:`workbench.reporting.tables.runs.paired_comparisons`), in the layout of a sweep's comparisons table so that
     they are rows of it (solver :data:`NO_SOLVER`). Orderings by construction are about errors, never these.
 
     Parameters
@@ -260,7 +260,7 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
             f"Their paired comparisons over the replicates, `{column}` and closeness and locality alike, are rows of "
             "the table 'Paired comparisons' (Holm within its families there)."
         ]
-    from workbench.reporting.sweep_findings import INTERVAL_NOTE
+    from workbench.reporting.findings.sweep import INTERVAL_NOTE
 
     if comparisons.empty or int(comparisons["n"].max()) < 2:  # one run: no interval, no test, so no second table
         return [
@@ -291,7 +291,7 @@ def with_bases_section(
     its rows, :func:`intuitiveness_comparisons`) those, else a table of its own; the findings gain the sizes,
     closeness and locality (and, with ``ordering``, the bases' ordering by alpha, which a sweep's own findings state
     already). Unchanged when no run scored other bases."""
-    from workbench.reporting.sweep_findings import bases_findings, holm_verdicts
+    from workbench.reporting.findings.sweep import bases_findings, holm_verdicts
 
     found = [(record, basis_intuitiveness_rows(record)) for record in records]
     found = [(record, frame) for record, frame in found if not frame.empty]

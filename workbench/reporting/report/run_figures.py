@@ -1,4 +1,4 @@
-"""The figures of a run's report: each drawn from the record (and the inputs :mod:`workbench.reporting.report_data`
+"""The figures of a run's report: each drawn from the record (and the inputs :mod:`workbench.reporting.report.data`
 gives), saved in the report's ``figures/``, or listed with the reason it could not be drawn."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Timeline
 from workbench.record.record import RunRecord
-from workbench.reporting.report_data import (
+from workbench.reporting.report.data import (
     QE_PROJECTIONS,
     FaceData,
     face_data,
@@ -310,8 +310,8 @@ def draw_error_cdf(record: RunRecord, cache: dict | None = None):
 
 def minimum_norm_text(row: Mapping) -> str:
     """``minimum-norm, rank r of n`` for a ``metrics.json`` row whose least-squares weights are the minimum-norm
-    choice of a rank-deficient basis (:func:`workbench.reporting.findings.minimum_norm_label`), else empty."""
-    from workbench.reporting.findings import minimum_norm_label
+    choice of a rank-deficient basis (:func:`workbench.reporting.findings.run.minimum_norm_label`), else empty."""
+    from workbench.reporting.findings.run import minimum_norm_label
 
     return minimum_norm_label(row, row.get("solver", "")).strip().removeprefix("(").removesuffix(")")
 
@@ -340,7 +340,7 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
     """w_i(t) of H and the quasi-eigen basis around each of figure 3's frames (marked), for the hand shapes that
     contribute most there (and their left/right partners)."""
     from workbench.reporting.figures.studies import plot_weight_curves
-    from workbench.reporting.sides import side_pairs
+    from workbench.reporting.report.sides import side_pairs
 
     found = mesh_variant(record, cache) or marker_variant(record, cache)
     if found is None:

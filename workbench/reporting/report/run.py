@@ -12,12 +12,12 @@ import pandas as pd
 from workbench.core.files import inside, write_atomic
 from workbench.record.record import RunRecord
 from workbench.reporting.figures.headline import headline_spec
-from workbench.reporting.findings import fit_findings
-from workbench.reporting.page import write_documents
-from workbench.reporting.report_bases import with_bases_section
-from workbench.reporting.report_data import dataset_label, figure_bases, headline_column, qe_label, record_inputs
-from workbench.reporting.report_faces import FacesBlock, build_faces
-from workbench.reporting.report_figures import (
+from workbench.reporting.findings.run import fit_findings
+from workbench.reporting.report.bases import with_bases_section
+from workbench.reporting.report.data import dataset_label, figure_bases, headline_column, qe_label, record_inputs
+from workbench.reporting.report.faces import FacesBlock, build_faces
+from workbench.reporting.report.page import write_documents
+from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
     RUN_FIGURES,
     FigureEntry,
@@ -25,7 +25,7 @@ from workbench.reporting.report_figures import (
     make_figures,
     minimum_norm_text,
 )
-from workbench.reporting.report_sections import (
+from workbench.reporting.report.sections import (
     GLOSSARY_NOTE,
     Section,
     choices_rows,
@@ -39,7 +39,7 @@ from workbench.reporting.report_sections import (
 def run_facts(record: RunRecord) -> list:
     """The run's facts once: a table with a row per data variant, the notes all variants share, then each
     variant's own notes, and the paper's values."""
-    from workbench.reporting.findings import facts_frame, shared_notes
+    from workbench.reporting.findings.run import facts_frame, shared_notes
 
     shared, own = shared_notes(record.metrics)
     lines = [*shared, *[f"{data} only: {note}" for data, notes in own.items() for note in notes]]
@@ -55,7 +55,7 @@ def run_facts(record: RunRecord) -> list:
 
 @dataclass
 class LeftRight:
-    """Where the left/right pairs of hand shapes and their quasi-eigen faces act (:mod:`workbench.reporting.sides`):
+    """Where the left/right pairs of hand shapes and their quasi-eigen faces act (:mod:`workbench.reporting.report.sides`):
     one finding per data variant and the table behind them."""
 
     findings: list = field(default_factory=list)
@@ -64,7 +64,7 @@ class LeftRight:
 
 def left_right(record: RunRecord, cache: dict) -> LeftRight:
     """The left/right pairs of every data variant whose inputs the run saved."""
-    from workbench.reporting.sides import pair_sides, shared_term, sides_finding, sides_frame
+    from workbench.reporting.report.sides import pair_sides, shared_term, sides_finding, sides_frame
 
     found, frames = LeftRight(), []
     for data in record.data_variants:
@@ -116,8 +116,8 @@ def run_sections(
     faces: "FacesBlock | None" = None,
     sides: LeftRight | None = None,
 ) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings import run_findings
-    from workbench.reporting.summary import run_summary
+    from workbench.reporting.findings.run import run_findings
+    from workbench.reporting.findings.run_summary import run_summary
 
     column = headline_column(record.config)
     title = f"Study '{record.config['study']}' on the {dataset_label(record)}"
@@ -215,7 +215,7 @@ def error_and_weight_sections(record: RunRecord) -> list[Section]:
 
 def weights_labels(record: RunRecord) -> list[str]:
     """Per alpha-table row, ``minimum-norm, rank r of n`` for least-squares weights of a rank-deficient basis
-    (:func:`workbench.reporting.report_figures.minimum_norm_text`, from the row's ``basis_conditioning`` in
+    (:func:`workbench.reporting.report.run_figures.minimum_norm_text`, from the row's ``basis_conditioning`` in
     ``metrics.json``), else ``-``."""
     found = {(row["data"], row["basis"], row["solver"]): row for row in record.rows()}
     return [
@@ -226,8 +226,8 @@ def weights_labels(record: RunRecord) -> list[str]:
 
 def comparison_sections(record: RunRecord) -> list[Section]:
     """The table every ``<`` of the findings comes from, with how its intervals, identities, ties and adjustment
-    are made (:func:`workbench.reporting.findings.comparison_table`)."""
-    from workbench.reporting.findings import comparison_method_text, comparison_table
+    are made (:func:`workbench.reporting.findings.run.comparison_table`)."""
+    from workbench.reporting.findings.run import comparison_method_text, comparison_table
 
     frame = comparison_table(record.metrics)
     if frame.empty:

@@ -16,7 +16,7 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE, RunRecord, find_records, load_record
-from workbench.reporting.tables import is_missing
+from workbench.reporting.tables.cells import is_missing
 from workbench.stats.identities import run_identities
 from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS

@@ -1,10 +1,10 @@
 """A report's two documents from its sections: ``index.html`` and ``README.md``, rendered by the Jinja2 templates
-of ``workbench/reporting/templates`` (autoescaped HTML; Markdown as written), with the page's style sheet and
-scripts read from ``workbench/reporting/static`` and inlined, so that the page needs nothing beside its folder.
+of ``workbench/reporting/report/templates`` (autoescaped HTML; Markdown as written), with the page's style sheet and
+scripts read from ``workbench/reporting/report/static`` and inlined, so that the page needs nothing beside its folder.
 
 A section's blocks are paragraphs (Markdown's `code` and **bold** become tags in the HTML), bullet lists, tables
-(pandas DataFrames), figures (:class:`~workbench.reporting.report_figures.FigureEntry`) and the faces you can turn
-(:class:`~workbench.reporting.report_faces.FacesBlock`).
+(pandas DataFrames), figures (:class:`~workbench.reporting.report.run_figures.FigureEntry`) and the faces you can turn
+(:class:`~workbench.reporting.report.faces.FacesBlock`).
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from typing import Sequence
 import pandas as pd
 
 from workbench.core.files import inside, write_atomic
-from workbench.reporting.report_faces import FacesBlock
-from workbench.reporting.report_figures import FigureEntry
-from workbench.reporting.report_sections import Section
-from workbench.reporting.tables import frame_cells, markdown_frame
+from workbench.reporting.report.faces import FacesBlock
+from workbench.reporting.report.run_figures import FigureEntry
+from workbench.reporting.report.sections import Section
+from workbench.reporting.tables.cells import frame_cells, markdown_frame
 
 STRONG = re.compile(r"\*\*([^*]+)\*\*")
 CODE = re.compile(r"`([^`]+)`")
@@ -59,7 +59,7 @@ def environment():
     from jinja2 import Environment, PackageLoader, StrictUndefined, select_autoescape
 
     env = Environment(
-        loader=PackageLoader("workbench.reporting", "templates"),
+        loader=PackageLoader("workbench.reporting.report", "templates"),
         autoescape=select_autoescape(enabled_extensions=("html",), default_for_string=True, default=False),
         trim_blocks=True,
         lstrip_blocks=True,
@@ -71,11 +71,11 @@ def environment():
 
 
 def static_text(name: str):
-    """A file of ``workbench/reporting/static`` (the package's own style sheets and scripts), marked safe to
+    """A file of ``workbench/reporting/report/static`` (the package's own style sheets and scripts), marked safe to
     inline."""
     from markupsafe import Markup
 
-    return Markup(resources.files("workbench.reporting").joinpath("static", name).read_text(encoding="utf-8"))
+    return Markup(resources.files("workbench.reporting.report").joinpath("static", name).read_text(encoding="utf-8"))
 
 
 def _table_block(frame: pd.DataFrame, markdown: bool) -> dict:

@@ -9,10 +9,10 @@ seeds and alpha against every swept setting. Both state the dataset's provenance
 made, and the versions and commit that made it.
 
 This module is the command: its arguments, where the report goes, and which report it builds. The report of a run
-is :mod:`workbench.reporting.report_run`, of a sweep :mod:`workbench.reporting.report_sweep`; their figures
-:mod:`workbench.reporting.report_figures` and :mod:`workbench.reporting.report_faces`, the arrays recomputed for
-them :mod:`workbench.reporting.report_data`, and the documents :mod:`workbench.reporting.page` renders from the
-templates in ``workbench/reporting/templates``.
+is :mod:`workbench.reporting.report.run`, of a sweep :mod:`workbench.reporting.report.sweep`; their figures
+:mod:`workbench.reporting.report.run_figures` and :mod:`workbench.reporting.report.faces`, the arrays recomputed for
+them :mod:`workbench.reporting.report.data`, and the documents :mod:`workbench.reporting.report.page` renders from the
+templates in ``workbench/reporting/report/templates``.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from typing import Mapping, Sequence
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import check_output_folder, inside, output_folder, plain_name
 from workbench.record.record import DONE, RunRecord, is_complete, load_record
-from workbench.reporting.report_figures import FIGURE_FORMATS
-from workbench.reporting.report_run import build_run_report
-from workbench.reporting.report_sweep import build_sweep_report, sweep_records
+from workbench.reporting.report.run import build_run_report
+from workbench.reporting.report.run_figures import FIGURE_FORMATS
+from workbench.reporting.report.sweep import build_sweep_report, sweep_records
 
 
 def default_report_name(config: Mapping) -> str:

@@ -1,0 +1,1 @@
+"""``workbench collect``: a sweep's records gathered into the collected tables, their figures and findings (sweep)."""
