@@ -85,6 +85,18 @@ def headline_alpha_column(metric: Mapping, aggregate: str | None = None) -> str:
     return f"alpha_{normalisation}_{aggregate or metric['headline_aggregate']}"
 
 
+def headline_column(config: Mapping) -> str:
+    """The alpha table's column of a run's headline alpha, from its whole config (:func:`headline_alpha_column`; a
+    config without a ``metric`` group takes the defaults, absolute normalisation and the mean)."""
+    metric = config.get("metric", {})
+    return headline_alpha_column(
+        {
+            "headline_normalisation": metric.get("headline_normalisation", "absolute"),
+            "headline_aggregate": metric.get("headline_aggregate", "mean"),
+        }
+    )
+
+
 def timeline_batches(result) -> dict:
     """The ``takes`` (as integer codes, compared once here) and ``seconds`` of a result's evaluated frames, as the
     batch-means intervals take them."""

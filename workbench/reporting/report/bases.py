@@ -9,7 +9,7 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.record.record import RunRecord
-from workbench.reporting.report.data import dataset_label, figure_solver, headline_column
+from workbench.reporting.report.data import dataset_label, figure_solver
 from workbench.reporting.report.run_figures import make_figures, minimum_norm_text
 from workbench.reporting.report.sections import Section, range_column
 from workbench.reporting.tables.runs import (
@@ -21,6 +21,7 @@ from workbench.reporting.tables.runs import (
     typed_columns,
 )
 from workbench.stats.statistics import GEOMETRIC
+from workbench.study.summary import headline_column
 
 INTUITIVENESS_COLUMNS = ("matched_abs_cosine", "locality", "usage")
 COMPARED_INTUITIVENESS = ("matched_abs_cosine", "locality")

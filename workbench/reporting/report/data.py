@@ -118,18 +118,6 @@ def short_label(record: RunRecord) -> str:
     return SHORT_DATASET_LABELS.get(kind, record.metrics["dataset"]["name"])
 
 
-def headline_column(config: Mapping) -> str:
-    from workbench.study.summary import headline_alpha_column
-
-    metric = config.get("metric", {})
-    return headline_alpha_column(
-        {
-            "headline_normalisation": metric.get("headline_normalisation", "absolute"),
-            "headline_aggregate": metric.get("headline_aggregate", "mean"),
-        }
-    )
-
-
 def record_inputs(record: RunRecord, data: str, cache: dict) -> dict | None:
     """The arrays of a data variant's ``inputs.npz``: saved by the run (``save_inputs=true``), or, when the run
     saved none, rebuilt from its config (:func:`rebuilt_arrays`); None for a variant that has none (bases carried

@@ -14,7 +14,7 @@ from workbench.record.record import RunRecord
 from workbench.reporting.figures.headline import headline_spec
 from workbench.reporting.findings.run import fit_findings
 from workbench.reporting.report.bases import with_bases_section
-from workbench.reporting.report.data import dataset_label, figure_bases, headline_column, qe_label, record_inputs
+from workbench.reporting.report.data import dataset_label, figure_bases, qe_label, record_inputs
 from workbench.reporting.report.faces import FacesBlock, build_faces
 from workbench.reporting.report.page import write_documents
 from workbench.reporting.report.run_figures import (
@@ -34,6 +34,7 @@ from workbench.reporting.report.sections import (
     report_versions,
     versions_section,
 )
+from workbench.study.summary import headline_column
 
 
 def run_facts(record: RunRecord) -> list:

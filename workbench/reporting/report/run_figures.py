@@ -23,7 +23,6 @@ from workbench.reporting.report.data import (
     frame_alpha,
     frame_caption,
     frame_weights,
-    headline_column,
     marker_variant,
     mesh_variant,
     missing_reason,
@@ -38,6 +37,7 @@ from workbench.reporting.report.data import (
     training_variants,
     vertex_rms,
 )
+from workbench.study.summary import headline_column
 
 ANALOGY_SEED = 1
 FIGURE_FORMATS: tuple[str, ...] = ()

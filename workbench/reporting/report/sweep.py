@@ -14,7 +14,7 @@ from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.findings.run import fit_findings
 from workbench.reporting.findings.sweep import holm_verdicts
 from workbench.reporting.report.bases import intuitiveness_comparisons, with_bases_section
-from workbench.reporting.report.data import dataset_label, figure_solver, headline_column, training_variants
+from workbench.reporting.report.data import dataset_label, figure_solver, training_variants
 from workbench.reporting.report.page import write_documents
 from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
@@ -42,6 +42,7 @@ from workbench.reporting.tables.runs import (
     wide,
 )
 from workbench.study.regime import is_paper_regime
+from workbench.study.summary import headline_column
 
 
 def hand_basis_size(summary: pd.DataFrame, by: Sequence[str]) -> pd.Series:

@@ -141,7 +141,7 @@ def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Ma
         One line (empty when no chosen variant has both ratios).
     """
     from workbench.reporting.findings.run_summary import claims_text
-    from workbench.reporting.report.data import headline_column
+    from workbench.study.summary import headline_column
 
     column = headline_column(cfg)
     trained = [result for result in results if result.protocol == "training frames"]
