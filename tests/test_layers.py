@@ -29,9 +29,14 @@ def lint_imports(folder: Path) -> subprocess.CompletedProcess:
     )
 
 
-def contract_layers() -> list[list[str]]:
+def layers_contracts() -> list[dict]:
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
-    (contract,) = [contract for contract in config["contracts"] if contract["type"] == "layers"]
+    return [contract for contract in config["contracts"] if contract["type"] == "layers"]
+
+
+def contract_layers(container: str | None = None) -> list[list[str]]:
+    """The layers of the contract over ``container`` (None: the package-wide one), each a list of its names."""
+    (contract,) = [item for item in layers_contracts() if item.get("containers", [None]) == [container]]
     return [[name.strip() for name in layer.replace("|", ":").split(":")] for layer in contract["layers"]]
 
 
@@ -52,6 +57,17 @@ def test_every_module_is_in_a_layer():
     found |= {f"workbench.{path.parent.name}" for path in package.glob("*/__init__.py")}
     assert found - listed == set(), "modules in no layer of the contract"
     assert listed - found == set(), "layers naming no module"
+
+
+def test_the_reporting_wing_is_folders_each_a_layer():
+    """The reporting wing's rooms: every module of ``workbench/reporting`` is inside a folder its contract names, and
+    the contract is exhaustive, so a new module outside them fails :func:`test_imports_only_go_down_the_layers`."""
+    (contract,) = [item for item in layers_contracts() if item.get("containers") == ["workbench.reporting"]]
+    assert contract.get("exhaustive") is True
+    listed = {name for layer in contract_layers("workbench.reporting") for name in layer}
+    wing = ROOT / "workbench" / "reporting"
+    assert {path.stem for path in wing.glob("*.py")} == {"__init__"}, "modules loose in workbench/reporting"
+    assert {path.parent.name for path in wing.glob("*/__init__.py")} == listed
 
 
 def test_an_upward_import_in_a_function_breaks_the_contract(tmp_path):
