@@ -20,18 +20,10 @@ from in_process import run_workbench
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
 from workbench.numerics.metrics import summarise_alpha
-from workbench.reporting.export.run import (
-    ExportedBasis,
-    check_plan,
-    export_path,
-    export_run,
-    file_plan,
-    livelink_channels,
-    livelink_csv,
-    main,
-    playback_targets,
-    timecode,
-)
+from workbench.reporting.export.bases import ExportedBasis, playback_targets
+from workbench.reporting.export.command import main
+from workbench.reporting.export.run import check_plan, export_path, export_run, file_plan
+from workbench.reporting.export.takes import livelink_channels, livelink_csv, timecode
 from workbench.settings.config import REPO_ROOT, compose
 
 sys.path.insert(0, str(REPO_ROOT / "tests" / "tools"))
@@ -388,7 +380,8 @@ def validate(path: Path) -> dict:
 def every_solver(tmp_path_factory):
     """A synthetic mesh run under every solver, exported under each: (solver, folder, manifest, raw bases)."""
     from workbench.record.replay import replay
-    from workbench.reporting.export.run import exported_bases, read_run_record
+    from workbench.reporting.export.bases import exported_bases
+    from workbench.reporting.export.run import read_run_record
 
     folder = tmp_path_factory.mktemp("solvers") / "run"
     run(
@@ -443,7 +436,8 @@ def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(e
 @pytest.fixture(scope="module")
 def animface_export(shared_data, tmp_path_factory):
     from workbench.record.replay import replay
-    from workbench.reporting.export.run import exported_bases, read_run_record
+    from workbench.reporting.export.bases import exported_bases
+    from workbench.reporting.export.run import read_run_record
 
     folder = tmp_path_factory.mktemp("animface") / "run"
     run(
@@ -594,7 +588,7 @@ def test_names_that_would_leave_the_export_folder_are_refused(tmp_path, name):
 )
 def test_every_file_name_is_checked_before_anything_is_written(tmp_path, names, message):
     from workbench.dataset.capture import Capture
-    from workbench.reporting.export.run import export_takes
+    from workbench.reporting.export.takes import export_takes
 
     capture = Capture(
         name="x",

@@ -87,7 +87,7 @@ def playback_differences(
         The export folder.
     manifest : dict
         Its manifest.
-    bases : list of workbench.reporting.export.run.ExportedBasis
+    bases : list of workbench.reporting.export.bases.ExportedBasis
         The exported bases, raw shapes (mm) and weights.
     neutral : ndarray of shape (n_vertices, 3)
         The capture's neutral, mm.
@@ -132,7 +132,8 @@ def playback_differences(
 def measure(run: Path, solvers: list[str] | None, data: str | None, per_take: int) -> list[tuple]:
     """(basis, solver, max abs mm, keys) for every basis of a run exported under each solver (PCA once)."""
     from workbench.record.replay import replay
-    from workbench.reporting.export.run import export_run, exported_bases, read_run_record
+    from workbench.reporting.export.bases import exported_bases
+    from workbench.reporting.export.run import export_run, read_run_record
 
     record = read_run_record(run)
     solvers = solvers or list(record.config.get("solver") or {})

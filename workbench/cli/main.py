@@ -53,7 +53,7 @@ COMMANDS: dict[str, str] = {
     "report": "workbench.reporting.report.command:main",
     "collect": "workbench.reporting.collect.sweep:main",
     "mlflow": "workbench.record.mlflow:main",
-    "export": "workbench.reporting.export.run:main",
+    "export": "workbench.reporting.export.command:main",
 }
 
 
