@@ -20,13 +20,17 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.findings.comparisons import (
+    adjusted_comparisons,
+    finite_value,
+    multiplicity_text,
+    primary_data,
+)
 from workbench.stats.identities import identity_lookup, run_identities, scored_on_training_frames
 from workbench.stats.statistics import (
     SIGNED,
-    Interval,
     comparison_lookup,
     comparison_name,
-    holm_adjusted,
     short_interval_text,
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
@@ -267,7 +271,7 @@ def offset_text(
     if not offset or not qe0.get("weights") or not qe1.get("weights"):
         return ""
     share0, share1 = qe0.get("offset_error_share", math.nan), qe1.get("offset_error_share", math.nan)
-    verb = "need" if _finite_value(qe0["weights"].get("needs_negative_share")) else "have"
+    verb = "need" if finite_value(qe0["weights"].get("needs_negative_share")) else "have"
     text = (
         f"every affine QE shape carries (I-P) mu, the capture mean's part outside the eigenfaces' span "
         f"({offset['norm']:.3g} mm"
@@ -284,7 +288,7 @@ def offset_text(
     if lin0.get("weights") and lin1.get("weights"):
         l0, l1 = _alpha(part, "QE-linear", "lstsq", column), _alpha(part, "QE-linear", solver, column)
         q0, q1 = _alpha(part, "QE", "lstsq", column), _alpha(part, "QE", solver, column)
-        verb = "need" if _finite_value(lin0["weights"].get("needs_negative_share")) else "have"
+        verb = "need" if finite_value(lin0["weights"].get("needs_negative_share")) else "have"
         text += (
             f". QE-linear (no offset): {_percent(needs_negative(lin0['weights']))} of frames {verb} a negative "
             f"weight, alpha x{l1 / l0:.2f} against QE's x{q1 / q0:.2f}"
@@ -314,15 +318,11 @@ def minimum_norm_label(row: Mapping, solver: str) -> str:
     return f" (minimum-norm, rank {rank} of {size})"
 
 
-def _finite_value(value) -> bool:
-    return value is not None and math.isfinite(value)
-
-
 def needs_negative(weights: Mapping) -> float:
     """The share of frames needing a negative weight (nnls error above lstsq's beyond the tie tolerance), or, for
     records without it, the share with a negative least-squares weight."""
     value = weights.get("needs_negative_share")
-    return value if _finite_value(value) else weights["negative_share"]
+    return value if finite_value(value) else weights["negative_share"]
 
 
 def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> str:
@@ -348,7 +348,7 @@ def weights_text(data: str, solvers: Sequence[str], rows: Sequence[Mapping]) -> 
             needing = [
                 f"{basis} {_percent(row['weights']['needs_negative_share'])}"
                 for basis, row in found
-                if _finite_value(row["weights"].get("needs_negative_share"))
+                if finite_value(row["weights"].get("needs_negative_share"))
             ]
     if not parts:
         return ""
@@ -615,63 +615,6 @@ def _detail_lines(
     return lines
 
 
-PRIMARY_CONTRASTS = (frozenset({("H", "lstsq"), ("QE", "lstsq")}), frozenset({("QE", "lstsq"), ("PCA", "projection")}))
-"""The paper's two claims, with least squares: H against QE and QE against PCA (on the record's first data variant)."""
-
-
-def primary_data(metrics: Mapping) -> str | None:
-    """The data variant a record leads with (its first): where the primary contrasts are stated."""
-    return next(iter(metrics.get("data") or {}), None)
-
-
-def adjusted_comparisons(metrics: Mapping) -> dict:
-    """Data variant -> its stored comparisons, every one but the primary contrasts (:data:`PRIMARY_CONTRASTS` on
-    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.stats.statistics.holm_adjusted`)
-    over the run's family; comparisons of records without p-values keep their unadjusted interval."""
-    lead = primary_data(metrics)
-    data_facts = metrics.get("data") or {}
-    stored = {data: list(facts.get("comparisons") or []) for data, facts in data_facts.items()}
-    identities = {
-        data: run_identities(
-            [row for row in metrics.get("rows") or [] if row.get("data") == data], data_facts.get(data) or {}
-        )
-        for data in stored
-    }
-
-    def untested(data: str, entry: Mapping) -> bool:
-        """A primary contrast (its own 95 %), an identity or a tie (no test at all): outside Holm's family."""
-        a, b = tuple(entry["a"]), tuple(entry["b"])
-        lookup = identity_lookup(identities[data], entry.get("column", ""))
-        return (
-            (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS)
-            or lookup(a, b) is not None
-            or lookup(b, a) is not None
-            or Interval.from_dict(entry).tied
-        )
-
-    return holm_adjusted(stored, untested) if any(stored.values()) else {}
-
-
-def multiplicity_text(metrics: Mapping) -> str:
-    """The sentence that says how the run's orderings are decided, once, above them."""
-    adjusted = adjusted_comparisons(metrics)
-    family = sum(1 for entries in adjusted.values() for entry in entries if "holm_family" in entry)
-    without = sum(
-        1
-        for entries in adjusted.values()
-        for entry in entries
-        if "holm_family" in entry and not _finite_value(entry.get("p_value"))
-    )
-    text = (
-        f"**how to read**: '<': the paired 95 % interval (batch means over time, docs/statistics.md) excludes "
-        f"0; primary contrasts (H vs QE, QE vs PCA, lstsq, on {primary_data(metrics)}) at their own 95 %, the "
-        f"other {family} Holm-adjusted; '=': a tie within tolerance; '<= by construction': an identity, not tested"
-    )
-    if without:
-        text += f" ({without} comparisons of this record carry no p-value and keep their unadjusted interval)"
-    return text + "."
-
-
 def facts_frame(metrics: Mapping) -> pd.DataFrame:
     """The run's facts in one table, a row per data variant: points, frames, m, coverage, empty axes.
 
@@ -714,93 +657,3 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     first = next(iter(notes.values()), [])
     shared = [note for note in first if all(note in other for other in notes.values())]
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}
-
-
-def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:
-    """The run's paired comparisons as the report's table 'Paired comparisons within the run', with what decides
-    each verdict: an identity (``a <= b by construction``, no test), a tie (``a = b``), or the interval, at its
-    own 95 % for a primary contrast and Holm-adjusted otherwise (``p (Holm)``).
-
-    Parameters
-    ----------
-    metrics : mapping
-        The run's ``metrics.json``.
-    column : str, optional
-        The alpha column compared (the comparisons' own ``column`` when not given).
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per comparison: ``data``, ``a``, ``b``, ``a - b``, ``low``, ``high``, ``confidence`` (:func:`shown_interval`), ``p``,
-        ``p (Holm)`` (NaN for a primary contrast; both NaN for an identity or a tie, which are not tested), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
-    """
-    records = []
-    for data, entries in adjusted_comparisons(metrics).items():
-        facts = (metrics.get("data") or {}).get(data) or {}
-        rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
-        identities = run_identities(rows, facts)
-        for entry in entries:
-            interval = Interval.from_dict(entry)
-            a, b = tuple(entry["a"]), tuple(entry["b"])
-            lookup = identity_lookup(identities, column or entry.get("column", ""))
-            found = lookup(a, b) or lookup(b, a)
-            tested = found is None and not interval.tied
-            if found is not None:
-                verdict = f"{'a <= b' if lookup(a, b) else 'b <= a'} by construction ({found.reason})"
-            elif interval.tied:
-                verdict = "a = b (within the tie tolerance)"
-            else:
-                verdict = {-1: "a < b", 1: "a > b", 0: "not distinguishable"}[interval.sign]
-            records.append(
-                {
-                    "data": data,
-                    "a": " ".join(a),
-                    "b": " ".join(b),
-                    "a - b": interval.estimate,
-                    **shown_interval(interval, tested),
-                    "p": interval.p_value if tested else math.nan,
-                    "p (Holm)": interval.p_adjusted if tested else math.nan,
-                    "frames": interval.n,
-                    "batch (frames)": interval.block_frames,
-                    "batch (s)": interval.block_seconds,
-                    "verdict": verdict,
-                }
-            )
-    return pd.DataFrame.from_records(records)
-
-
-def shown_interval(interval: Interval, tested: bool) -> dict:
-    """The interval a comparison row shows, the one its verdict rests on: at its Holm step's confidence for a member
-    of the Holm family (it excludes 0 exactly when the adjusted p-value is below 0.05), else at 95 % (a primary
-    contrast; an identity's or a tie's size).
-
-    Returns
-    -------
-    dict
-        ``low``, ``high`` and ``confidence`` (in %).
-    """
-    if tested and math.isfinite(interval.adjusted_low) and math.isfinite(interval.adjusted_high):
-        return {
-            "low": interval.adjusted_low,
-            "high": interval.adjusted_high,
-            "confidence": 100 * interval.adjusted_confidence,
-        }
-    return {"low": interval.low, "high": interval.high, "confidence": 100 * interval.confidence}
-
-
-def comparison_method_text(metrics: Mapping) -> str:
-    """The paragraph above :func:`comparison_table`: how its intervals, identities, ties and adjustment are made."""
-    lead = primary_data(metrics)
-    return (
-        "Every '<' of the findings and of the printed headline is a row here. The difference is that of the "
-        "headline alpha between two rows of the alpha table on the same evaluated frames; its 95 % interval "
-        "comes from overlapping batch means over time: every run of six autocorrelation times of frames within a "
-        "take is a batch, the variance made unbiased for an AR(1) of the series' persistence, Student-t quantiles "
-        "with 1.5 (n / L - 1) degrees of freedom (coverage and width measured on AR(1) series in "
-        "docs/statistics.md). H vs QE and QE vs PCA with lstsq "
-        f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
-        "Holm-adjusted p-value over the run (p (Holm) < 0.05), and its interval (low, high) is shown at its "
-        "Holm step's confidence, so that it excludes 0 exactly when the verdict says '<'. Orderings that hold by "
-        "construction are marked so and not tested (no p-value; the interval is their size, at 95 %); "
-        "differences within the tie tolerance are equal."
-    )

@@ -16,12 +16,8 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.reporting.findings.claims import PAPER_RATIOS, claim_verdicts, ratio_interval_text
-from workbench.reporting.findings.run import (
-    PAPER_BASES,
-    _alpha,
-    caveat_texts,
-    primary_data,
-)
+from workbench.reporting.findings.comparisons import primary_data
+from workbench.reporting.findings.run import PAPER_BASES, _alpha, caveat_texts
 from workbench.stats.identities import identity_lookup, run_identities
 from workbench.stats.statistics import Interval
 from workbench.study.protocols import HELD_OUT

@@ -227,8 +227,8 @@ def weights_labels(record: RunRecord) -> list[str]:
 
 def comparison_sections(record: RunRecord) -> list[Section]:
     """The table every ``<`` of the findings comes from, with how its intervals, identities, ties and adjustment
-    are made (:func:`workbench.reporting.findings.run.comparison_table`)."""
-    from workbench.reporting.findings.run import comparison_method_text, comparison_table
+    are made (:func:`workbench.reporting.findings.comparisons.comparison_table`)."""
+    from workbench.reporting.findings.comparisons import comparison_method_text, comparison_table
 
     frame = comparison_table(record.metrics)
     if frame.empty:
