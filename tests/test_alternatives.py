@@ -223,7 +223,7 @@ def test_every_basis_of_the_table_has_its_fit_its_settings_and_their_defaults():
     import yaml
 
     from workbench.numerics.alternatives import FITS
-    from workbench.reporting.figures.studies import BASIS_MARKERS, OTHER_BASIS_COLOURS
+    from workbench.reporting.figures.bases import BASIS_MARKERS, OTHER_BASIS_COLOURS
     from workbench.settings.bases import ALTERNATIVE_BASES
     from workbench.settings.config import CONF_DIR
     from workbench.settings.schema import ALTERNATIVE_NAMES, BasisSchema

@@ -15,6 +15,7 @@ from PIL import Image
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import compact_svg, fixed_decimals, raster_bytes, save_figure, shorter_numbers
 from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
+from workbench.reporting.figures.bases import place_labels
 from workbench.reporting.figures.faces import (
     colour_range,
     face_regions,
@@ -32,14 +33,13 @@ from workbench.reporting.figures.render import (
     support_weight,
     vertex_colours,
 )
+from workbench.reporting.figures.shapes import plot_weight_curves
 from workbench.reporting.figures.studies import (
     ci_columns,
-    place_labels,
     plot_alpha_against,
     plot_alpha_over_time,
     plot_coverage_curve,
     plot_marker_vs_mesh,
-    plot_weight_curves,
 )
 
 

@@ -9,7 +9,9 @@ Modules:
 - :mod:`workbench.reporting.figures.headline`: the figure under a run report's summary, the paper's comparison (H, QE
   and PCA at m = n and with the coverage rule) with its intervals.
 - :mod:`workbench.reporting.figures.studies`: coverage curve, alpha against a swept setting with confidence bands, marker
-  versus mesh, alpha per frame over time.
+  versus mesh, alpha per frame over time, alpha per solver.
+- :mod:`workbench.reporting.figures.shapes`: a run's weight curves and how far each hand shape moves when projected.
+- :mod:`workbench.reporting.figures.bases`: the other bases, alpha against each intuitiveness measure.
 
 Every figure is a :class:`matplotlib.figure.Figure` built without pyplot (no display, no global figure state)
 and written by :func:`save_figure`: a figure of rendered faces as a lossless WebP, a line plot as SVG (vector,

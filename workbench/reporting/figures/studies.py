@@ -33,7 +33,6 @@ from matplotlib.figure import Figure
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.tables.runs import interval_label
-from workbench.settings.bases import ALTERNATIVE_BASES
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 AXIS_LABELS = {
@@ -79,7 +78,8 @@ def check_positive_intervals(table: pd.DataFrame, y: str, ci: tuple[str, str] | 
         )
 
 
-def _check_columns(table: pd.DataFrame, columns) -> None:
+def check_columns(table: pd.DataFrame, columns) -> None:
+    """Refuse a table that lacks any of ``columns``, naming them and the columns it has."""
     missing = [column for column in columns if column not in table.columns]
     if missing:
         raise WorkbenchError(f"the table has no column(s) {missing}; it has {list(table.columns)}")
@@ -90,7 +90,8 @@ def _solver_rows(table: pd.DataFrame, solver: str) -> pd.DataFrame:
     return table[(table["solver"] == solver) | (table["basis"] == "PCA")]
 
 
-def _ordered_bases(bases) -> list[str]:
+def ordered_bases(bases) -> list[str]:
+    """The bases present, the paper's in their order (:data:`BASIS_ORDER`) first, then the others as they come."""
     present = list(dict.fromkeys(bases))
     return [b for b in BASIS_ORDER if b in present] + [b for b in present if b not in BASIS_ORDER]
 
@@ -225,7 +226,7 @@ def plot_alpha_against(
     matplotlib.figure.Figure
     """
     panels = list(panels)
-    _check_columns(table, ["data", "basis", "solver", x, y, *by, *panels])
+    check_columns(table, ["data", "basis", "solver", x, y, *by, *panels])
     rows = _solver_rows(table, solver)
     if rows.empty:
         raise WorkbenchError(f"the table has no rows for solver {solver!r}")
@@ -252,7 +253,7 @@ def plot_alpha_against(
             values = values if isinstance(values, tuple) else (values,)
             setting = ", ".join(f"{key.split('.')[-1]}={value}" for key, value in zip(by, values))
             part = group[in_panel(group, panel)]
-            for b, basis in enumerate(_ordered_bases(part["basis"])):
+            for b, basis in enumerate(ordered_bases(part["basis"])):
                 line = part[part["basis"] == basis].sort_values(x, kind="stable")
                 label = f"{basis} ({setting})" if setting else basis_label(basis)
                 mine = None
@@ -377,14 +378,14 @@ def plot_marker_vs_mesh(
         One panel per measure and evaluation set.
     """
     measures = [y] if isinstance(y, str) else list(y)
-    _check_columns(table, ["data", "basis", "solver", *measures])
+    check_columns(table, ["data", "basis", "solver", *measures])
     rows = _solver_rows(table, solver)
     if "eval_on" not in rows.columns:
         parts = rows["data"].astype(str).str.split("->")
         rows = rows.assign(train_on=parts.str[0], eval_on=parts.str[-1])
     evaluated = list(dict.fromkeys(rows["eval_on"]))
     trained = list(dict.fromkeys(rows["train_on"]))
-    bases = _ordered_bases(rows["basis"])
+    bases = ordered_bases(rows["basis"])
     figure_width = max(6.8, 5.0 * len(evaluated))
     figure = new_figure(figure_width, 3.9 * len(measures) + 1.2)
     grid = figure.subplots(len(measures), len(evaluated), squeeze=False)
@@ -516,7 +517,7 @@ def plot_alpha_over_time(
                     color="0.3",
                     va="top",
                 )
-        for basis in _ordered_bases(per_basis):
+        for basis in ordered_bases(per_basis):
             values = np.asarray(per_basis[basis], dtype=float)
             ax.plot(
                 *envelope(seconds, values),
@@ -533,155 +534,6 @@ def plot_alpha_over_time(
     axes[-1].set_xlabel("time in the take (s)" if len(takes) < 2 else "time through the takes, one after another (s)")
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
-
-
-# Colours and markers of the bases beyond the paper's come from their table (the paper's keep theirs from
-# workbench.reporting.figures).
-OTHER_BASIS_COLOURS = {label: basis.colour for label, basis in ALTERNATIVE_BASES.items()}
-BASIS_MARKERS = {
-    "H": "s",
-    "QE": "o",
-    "QE-linear": "o",
-    "PCA": "D",
-    **{label: basis.marker for label, basis in ALTERNATIVE_BASES.items()},
-}
-HOLLOW_MARKERS = {"QE-linear", *(label for label, basis in ALTERNATIVE_BASES.items() if basis.hollow)}
-INTUITIVENESS_AXES = (
-    ("matched_abs_cosine", "closeness to the hand shapes:\nmean matched |cos| (higher: closer)"),
-    (
-        "locality",
-        "locality: area holding {energy_percent:g} % of an\nelement's squared displacement (lower: more local)",
-    ),
-    ("usage", "usage: elements a frame uses\n(contribution > {threshold:g} x largest; lower: fewer)"),
-)
-
-
-def plot_alpha_against_intuitiveness(
-    table: pd.DataFrame, y: str = "alpha_abs_mean", *, title: str, energy: float = 0.9, threshold: float = 0.1
-) -> Figure:
-    """Alpha against each measure of intuitiveness, one point per basis: the trade-off in one picture.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        One row per data variant and basis: ``data``, ``basis``, ``y``, ``matched_abs_cosine``, ``locality``,
-        ``usage``, each optionally with ``<column>_ci_low`` and ``<column>_ci_high`` (95 % interval over seeds,
-        drawn as error bars).
-    y : str
-        Alpha column.
-    title : str
-    energy, threshold : float
-        The locality energy and usage threshold the measures used (for the axis labels).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One row of three panels (closeness, locality, usage) per data variant, sharing the alpha axis.
-    """
-    _check_columns(table, ["data", "basis", y, *(column for column, _ in INTUITIVENESS_AXES)])
-    data_variants = list(dict.fromkeys(table["data"]))
-    width = 12.0
-    figure = new_figure(width, 3.8 * len(data_variants) + 1.2)
-    grid = figure.subplots(len(data_variants), len(INTUITIVENESS_AXES), squeeze=False, sharey="row")
-    bases = _ordered_bases(table["basis"])
-    labelled = []
-    for row, data in zip(grid, data_variants):
-        part = table[table["data"] == data].set_index("basis")
-        for ax, (column, label) in zip(row, INTUITIVENESS_AXES):
-            for basis in bases:
-                if basis not in part.index or pd.isna(part.loc[basis, column]):
-                    continue
-                values = part.loc[basis]
-                errors = {}
-                for axis, name in (("xerr", column), ("yerr", y)):
-                    low, high = f"{name}_ci_low", f"{name}_ci_high"
-                    if low in part.columns and pd.notna(values[low]) and values[high] > values[low]:
-                        errors[axis] = [[values[name] - values[low]], [values[high] - values[name]]]
-                colour = OTHER_BASIS_COLOURS.get(basis, basis_colour(basis))
-                ax.errorbar(
-                    values[column],
-                    values[y],
-                    **errors,
-                    color=colour,
-                    marker=BASIS_MARKERS.get(basis, "o"),
-                    markersize=8,
-                    linestyle="none",
-                    capsize=3,
-                    markerfacecolor="none" if basis in HOLLOW_MARKERS else colour,
-                    label=basis,
-                )
-                labelled.append((ax, values[column], values[y], basis, colour))
-            ax.set_xlabel(label.format(energy_percent=energy * 100, threshold=threshold), fontsize=9)
-            ax.grid(alpha=0.3)
-            ax.margins(x=0.15, y=0.12)
-        values = part[y].dropna()
-        log_y = len(values) and values.min() > 0 and values.max() / values.min() > 5
-        if log_y:  # a few bases far above the rest (the hand basis): a log axis keeps the rest apart
-            from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
-
-            row[0].set_yscale("log")
-            row[0].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-            row[0].yaxis.set_major_formatter(FormatStrFormatter("%g"))
-            row[0].yaxis.set_minor_formatter(NullFormatter())
-        row[0].set_ylabel(f"{axis_label(y)}{', log scale' if log_y else ''}\n(lower: more accurate)", fontsize=9)
-        row[0].set_title(f"data: {data}", fontsize=10, loc="left")
-    handles, labels = grid[0, 0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 9), fontsize=9, frameon=False)
-    figure.suptitle(wrap_title(title, width), fontsize=11)
-    figure.draw_without_rendering()  # the final layout, so labels are placed where the points are drawn
-    for ax in grid.ravel():
-        place_labels(ax, [(x, y_value, text, colour) for owner, x, y_value, text, colour in labelled if owner is ax])
-    return figure
-
-
-# Where a point's label may go, in points from the point: right above, right below, left above, left below, above,
-# below (text anchor given by the sign).
-LABEL_OFFSETS = ((6, 4), (6, -4), (-6, 4), (-6, -4), (0, 9), (0, -9), (12, 12), (-12, -12))
-
-
-def place_labels(ax, points, fontsize: float = 8) -> None:
-    """Name points of a scatter plot with labels that overlap neither each other nor the points: each label takes
-    the first place of :data:`LABEL_OFFSETS` (beside its point) that is free, else the least crowded one.
-
-    Parameters
-    ----------
-    ax : matplotlib.axes.Axes
-        Laid out already (its data-to-display transform is final).
-    points : sequence of (x, y, text, colour)
-    fontsize : float
-    """
-    scale = ax.figure.dpi / 72.0  # display pixels per point
-    centres = [ax.transData.transform((x, y)) for x, y, _, _ in points]
-    marker = 5.0 * scale
-    taken = [(cx - marker, cy - marker, cx + marker, cy + marker) for cx, cy in centres]
-
-    def overlap(a, b) -> float:
-        return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-
-    for (x, y, text, colour), (cx, cy) in zip(points, centres):
-        width, height = 0.6 * fontsize * len(text) * scale, fontsize * scale
-        best = None
-        for dx, dy in LABEL_OFFSETS:
-            left = cx + dx * scale - (width if dx < 0 else width / 2 if dx == 0 else 0.0)
-            bottom = cy + dy * scale - (height if dy < 0 else 0.0)
-            box = (left, bottom, left + width, bottom + height)
-            crowding = sum(overlap(box, other) for other in taken)
-            if best is None or crowding < best[0]:
-                best = (crowding, (dx, dy), box)
-            if crowding == 0:
-                break
-        _, (dx, dy), box = best
-        taken.append(box)
-        ax.annotate(
-            text,
-            (x, y),
-            textcoords="offset points",
-            xytext=(dx, dy),
-            fontsize=fontsize,
-            color=colour,
-            ha="right" if dx < 0 else "center" if dx == 0 else "left",
-            va="top" if dy < 0 else "bottom",
-        )
 
 
 def plot_alpha_per_solver(
@@ -704,7 +556,7 @@ def plot_alpha_per_solver(
     -------
     matplotlib.figure.Figure
     """
-    _check_columns(table, ["data", "basis", "solver", y])
+    check_columns(table, ["data", "basis", "solver", y])
     data_variants = list(dict.fromkeys(table["data"]))
     solvers = [s for s in dict.fromkeys(table["solver"]) if s != "projection"]
     width = max(6.0, 4.8 * len(data_variants))
@@ -714,7 +566,7 @@ def plot_alpha_per_solver(
     decimals = fixed_decimals(table[y].to_numpy(dtype=float), significant=3)
     for ax, data in zip(axes, data_variants):
         part = table[table["data"] == data]
-        bases = [b for b in _ordered_bases(part["basis"]) if b != "PCA"]
+        bases = [b for b in ordered_bases(part["basis"]) if b != "PCA"]
         step = 0.8 / len(solvers)
         for k, solver in enumerate(solvers):
             values = part[part["solver"] == solver].set_index("basis").reindex(bases)[y]
@@ -759,141 +611,4 @@ def plot_alpha_per_solver(
         title_fontsize=8,
     )
     figure.suptitle(wrap_title(title, width), fontsize=11)
-    return figure
-
-
-WEIGHT_POINTS = 150
-"""Most points of a weight curve in one window (a few seconds): more would not show at a panel's width."""
-PAIR_STYLES = {"_L": "-", "_R": "--"}
-"""Line style of a left and a right shape; the two shapes of a pair share a colour."""
-
-
-def shape_styles(names: Sequence[str]) -> dict[str, tuple[str, str]]:
-    """Colour and line style of each shape: one colour per left/right pair (or unpaired shape), solid for ``_L``
-    and unpaired shapes, dashed for ``_R``."""
-    stems = list(dict.fromkeys(name[:-2] if name[-2:] in PAIR_STYLES else name for name in names))
-    colours = {stem: f"C{k % 10}" for k, stem in enumerate(stems)}
-    return {
-        name: (colours[name[:-2] if name[-2:] in PAIR_STYLES else name], PAIR_STYLES.get(name[-2:], "-"))
-        for name in names
-    }
-
-
-def plot_weight_curves(windows: Sequence[Mapping], names: Sequence[str], shown: Sequence[int], *, title: str) -> Figure:
-    """Weight curves w_i(t) of several bases around marked frames: one column per frame, one row per basis; the
-    two shapes of a left/right pair share a colour (``_L`` solid, ``_R`` dashed).
-
-    Parameters
-    ----------
-    windows : sequence of mapping
-        One per marked frame: ``label`` (its name), ``take``, ``seconds`` (ndarray of shape (n_frames,), time in
-        the take), ``marked`` (the frame's time) and ``weights`` (basis label -> ndarray of shape
-        (n_frames, n_shapes)).
-    names : sequence of str
-        One per shape.
-    shown : sequence of int
-        The shapes drawn.
-    title : str
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    labels = list(windows[0]["weights"])
-    styles = shape_styles([names[k] for k in shown])
-    width = max(9.0, 3.6 * len(windows) + 0.8)
-    figure = new_figure(width, 2.4 * len(labels) + 2.4)
-    axes = figure.subplots(len(labels), len(windows), squeeze=False, sharey="row")
-    for column, window in enumerate(windows):
-        for row, label in enumerate(labels):
-            ax = axes[row, column]
-            values = np.asarray(window["weights"][label])
-            step = max(1, -(-len(values) // WEIGHT_POINTS))  # a 120 Hz capture: every 5th frame still draws smooth
-            for index in shown:
-                colour, style = styles[names[index]]
-                ax.plot(
-                    window["seconds"][::step],
-                    values[::step, index],
-                    color=colour,
-                    linestyle=style,
-                    linewidth=1.2,
-                    label=names[index],
-                )
-            ax.axvline(window["marked"], color="0.15", linewidth=1.0, linestyle=":")
-            ax.axhline(0.0, color="0.3", linewidth=0.8)
-            ax.axhline(1.0, color="0.6", linewidth=0.8, linestyle=":")
-            ax.grid(alpha=0.3)
-            if column == 0:
-                ax.set_ylabel(f"w_i, {label}", fontsize=9, color=basis_colour(label))
-        axes[0, column].set_title(wrap_title(window["label"], width / len(windows), 9), fontsize=9)
-        axes[-1, column].set_xlabel(f"time in {window['take']} (s)", fontsize=9)
-    handles, legend = axes[0, 0].get_legend_handles_labels()
-    figure.legend(
-        handles,
-        legend,
-        loc="outside lower center",
-        ncols=max(1, -(-len(legend) // 2)),
-        fontsize=8.5,
-        frameon=False,
-        title="hand shape (pairs: _L solid, _R dashed); dotted vertical: the frame of figure 3",
-        title_fontsize=8.5,
-    )
-    figure.suptitle(wrap_title(title, width), fontsize=11)
-    return figure
-
-
-def plot_intuitiveness_bars(
-    names: Sequence[str],
-    cosine: Mapping[str, Sequence[float]],
-    relative_distance: Mapping[str, Sequence[float]],
-    *,
-    title: str,
-) -> Figure:
-    """How far each hand shape moved when projected: cosine and relative distance to its quasi-eigen face, bars
-    per shape, one bar per projection.
-
-    Parameters
-    ----------
-    names : sequence of str
-        Hand shapes.
-    cosine, relative_distance : mapping
-        Projection (``affine``, ``linear``) -> one value per shape.
-    title : str
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    projections = list(cosine)
-    height = 0.26 * len(names) + 1.8
-    figure = new_figure(9.0, height)
-    left, right = figure.subplots(1, 2, sharey=True)
-    step = 0.8 / len(projections)
-    colours = {"affine": basis_colour("QE"), "linear": basis_colour("QE-linear")}
-    rows = np.arange(len(names))
-    for k, projection in enumerate(projections):
-        offset = (k - (len(projections) - 1) / 2) * step
-        left.barh(
-            rows + offset,
-            cosine[projection],
-            height=step * 0.9,
-            color=colours.get(projection, f"C{k}"),
-            label=projection,
-        )
-        right.barh(
-            rows + offset,
-            relative_distance[projection],
-            height=step * 0.9,
-            color=colours.get(projection, f"C{k}"),
-            label=projection,
-        )
-    left.set_yticks(rows, names, fontsize=8)
-    left.invert_yaxis()
-    left.set_xlim(min(0.0, float(np.min([np.min(v) for v in cosine.values()]))), 1.0)
-    left.set_xlabel("cosine to its quasi-eigen face\n(1: same direction)")
-    right.set_xlabel("relative distance |e^QE - e^H| / |e^H|\n(0: unchanged)")
-    for ax in (left, right):
-        ax.grid(axis="x", alpha=0.3)
-    left.legend(fontsize=8, title="projection", title_fontsize=8)
-    figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure

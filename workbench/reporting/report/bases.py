@@ -191,7 +191,7 @@ def intuitiveness_comparisons(records: Sequence[RunRecord], runs: pd.DataFrame, 
 
 def bases_figure(record: RunRecord, summary: pd.DataFrame, figures_dir: Path, formats: Sequence[str]):
     """The figure of alpha against closeness, locality and usage of every basis (geometric means over the runs)."""
-    from workbench.reporting.figures.studies import plot_alpha_against_intuitiveness
+    from workbench.reporting.figures.bases import plot_alpha_against_intuitiveness
 
     column = headline_column(record.config)
     solver, _ = figure_solver(record.config)

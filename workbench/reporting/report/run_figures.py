@@ -339,7 +339,7 @@ def draw_weight_statistics(record: RunRecord, cache: dict | None = None):
 def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3.0, per_frame: int = 3):
     """w_i(t) of H and the quasi-eigen basis around each of figure 3's frames (marked), for the hand shapes that
     contribute most there (and their left/right partners)."""
-    from workbench.reporting.figures.studies import plot_weight_curves
+    from workbench.reporting.figures.shapes import plot_weight_curves
     from workbench.reporting.report.sides import side_pairs
 
     found = mesh_variant(record, cache) or marker_variant(record, cache)
@@ -394,7 +394,7 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
 
 
 def draw_intuitiveness_bars(record: RunRecord, cache: dict):
-    from workbench.reporting.figures.studies import plot_intuitiveness_bars
+    from workbench.reporting.figures.shapes import plot_intuitiveness_bars
 
     data = next((d for d in sorted(record.data_variants, key=lambda d: d != "mesh")), None)
     rows = record.metrics["data"][data]["intuitiveness"]
