@@ -26,19 +26,8 @@ from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 mlflow = pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
-from workbench.record.mlflow import (  # noqa: E402
-    Store,
-    create_database,
-    finished_ms,
-    log_records,
-    metric_key,
-    open_store,
-    param_text,
-    record_metrics,
-    resolve_store,
-    started_ms,
-    store_uris,
-)
+from workbench.record.mlflow import finished_ms, log_records, metric_key, param_text, record_metrics, started_ms  # noqa: E402
+from workbench.record.mlflow_store import Store, create_database, open_store, resolve_store, store_uris  # noqa: E402
 
 SWEEP = [
     "--config-name",

@@ -33,23 +33,21 @@ database), so concurrent imports and concurrent jobs are safe.
 from __future__ import annotations
 
 import argparse
-import glob
 import logging
 import math
 import os
 import re
-import shlex
-import tempfile
 import time
-from contextlib import contextmanager
-from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import TEMPORARY_SUFFIX, lock_file, unlock_file
-from workbench.core.interrupt import interrupts_deferred
+from workbench.record.mlflow_store import (
+    Store,
+    open_store,
+    resolve_store,
+)
 from workbench.record.record import (
     ALPHA_PER_FRAME_FILE,
     CONFIG_FILE,
@@ -62,17 +60,12 @@ from workbench.record.record import (
     is_complete,
     load_record,
 )
-from workbench.settings.config import REPO_ROOT
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 log = logging.getLogger("workbench.sweep")
 """The callback's lines: to the console only (``conf/hydra/job_logging/workbench.yaml``), never into a record's
 ``workbench.log`` (the job that wrote it has ended)."""
 
-STORE_FOLDER = ".mlflow"
-"""Hidden, so that the copies of records among its artifacts are never taken for runs by collect, report or this."""
-DATABASE_FILE = "mlflow.db"
-ARTIFACTS_FOLDER = "artifacts"
 ARTIFACT_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, ALPHA_PER_FRAME_FILE, METRICS_FILE, TIMINGS_FILE, "workbench.log")
 REPORT_FOLDER = "report"
 COLLECTED_FOLDER = "collected"
@@ -80,240 +73,6 @@ KIND_TAG, RUN_KIND, SWEEP_KIND = "kind", "run", "sweep"
 RECORD_TAG, SWEEP_TAG, LOGGED_BY_TAG = "record", "sweep", "logged_by"
 BATCH_LIMITS = {"metrics": 1000, "params": 100}
 """The most metrics and params one MLflow ``log-batch`` request takes."""
-KEEP_OUT = ("workbench", "conf", "studies", "tests", "reports", "benchmarks")
-"""Folders of the source tree a store must never be written into."""
-
-
-def import_mlflow():
-    """The ``mlflow`` module (its usage telemetry off, its own INFO lines quiet: :func:`quiet_mlflow`), or a
-    one-line error saying how to install it."""
-    # MLflow's usage telemetry writes an id into the user's configuration folder and sends events out: a run writes
-    # only into the folders its user named (MLFLOW_DISABLE_TELEMETRY=false in the environment turns it back on)
-    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-    try:
-        import mlflow
-    except ImportError as error:
-        from workbench.core.extras import install_hint
-
-        raise WorkbenchError(f"the MLflow store needs the mlflow extra: {install_hint('mlflow')} ({error})") from None
-    quiet_mlflow()
-    return mlflow
-
-
-QUIET_LOGGERS = ("mlflow", "alembic")
-"""MLflow's loggers (its own and its database migrations'), whose INFO lines (``Creating initial MLflow database
-tables...``) stay off the console."""
-
-
-def quiet_mlflow() -> None:
-    """Keep MLflow's own INFO lines off the console: its loggers at WARNING, unless ``MLFLOW_LOGGING_LEVEL`` is set
-    (``--verbose`` sets it to INFO; a level the user set is kept)."""
-    if os.environ.get("MLFLOW_LOGGING_LEVEL"):
-        return
-    for name in QUIET_LOGGERS:
-        logger = logging.getLogger(name)
-        if logger.getEffectiveLevel() < logging.WARNING:
-            logger.setLevel(logging.WARNING)
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Which store
-# ---------------------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Store:
-    """Where runs are logged.
-
-    Attributes
-    ----------
-    tracking_uri : str
-    artifact_root : str or None
-        The embedded store's artifact folder (a file URI); None: the store decides (a server's own root).
-    lock_file : pathlib.Path or None
-        For a SQLite store: the file its writers lock in turn (the first of them also creates the tables).
-    """
-
-    tracking_uri: str
-    artifact_root: str | None = None
-    lock_file: Path | None = None
-
-    def browse_hint(self, experiment_ids: Sequence[str] = ()) -> str:
-        """How to look at the runs: the server's page, or the ``mlflow ui`` command of a database."""
-        uri = self.tracking_uri
-        if uri.startswith(("http://", "https://")):
-            page = f"/#/experiments/{experiment_ids[0]}" if len(experiment_ids) == 1 else ""
-            return f"browse: {uri.rstrip('/')}{page}"
-        if uri.startswith("databricks"):
-            return "browse in your Databricks workspace"
-        return f"browse with: mlflow ui --backend-store-uri {shlex.quote(uri)}"
-
-
-def default_store(output_root: Path) -> Path:
-    """The folder of the embedded store: ``<output_root>/.mlflow`` (holding ``mlflow.db`` and ``artifacts/``)."""
-    return Path(output_root) / STORE_FOLDER
-
-
-def store_uris(store: Path) -> tuple[str, str]:
-    """The tracking URI (SQLite) and artifact location of the embedded store in ``store``.
-
-    Raises
-    ------
-    WorkbenchError
-        When ``store`` lies in a folder of the source tree (the package, configs, tests or committed reports).
-    """
-    store = Path(store).expanduser().resolve()
-    for name in KEEP_OUT:
-        if store.is_relative_to(REPO_ROOT / name):
-            raise WorkbenchError(
-                f"MLflow store {store} is inside the source tree ({REPO_ROOT / name}); "
-                "put it under the output root (--store)"
-            )
-    return f"sqlite:///{store / DATABASE_FILE}", (store / ARTIFACTS_FOLDER).as_uri()
-
-
-def resolve_store(
-    *,
-    store: Path | None = None,
-    tracking_uri: str | None = None,
-    output_root: Path | str = "outputs",
-    artifact_location: str | None = None,
-) -> Store:
-    """The store to log into: ``tracking_uri`` if given, else the embedded store in ``store`` if given, else
-    ``$MLFLOW_TRACKING_URI`` if set, else the embedded store of ``output_root``.
-
-    A new experiment keeps its artifacts under the store named: the embedded store's ``artifacts/``; beside the
-    database of a SQLite URI (``sqlite:///<folder>/t.db``: ``<folder>/t.artifacts``), never in MLflow's default
-    ``./mlruns`` of the current folder; where a server puts them. ``artifact_location`` (a folder or URI) names
-    another place.
-    """
-    tracking_uri = tracking_uri or (None if store is not None else os.environ.get("MLFLOW_TRACKING_URI") or None)
-    chosen = None if not artifact_location else artifact_uri(artifact_location)
-    if tracking_uri is None:
-        folder = default_store(output_root) if store is None else Path(store)
-        uri, artifacts = store_uris(folder)
-        return Store(uri, chosen or artifacts, folder.expanduser().resolve() / f"{DATABASE_FILE}.lock")
-    database_file = sqlite_database(tracking_uri)
-    if database_file is None:
-        return Store(tracking_uri, chosen, None)
-    lock = database_file.with_name(database_file.name + ".lock")
-    database_file = database_file.expanduser().resolve()
-    beside = (
-        database_file.parent / ARTIFACTS_FOLDER
-        if database_file.name == DATABASE_FILE  # the embedded layout
-        else database_file.with_suffix(ARTIFACTS_SUFFIX)
-    )
-    return Store(tracking_uri, chosen or beside.as_uri(), lock)
-
-
-def sqlite_database(tracking_uri: str) -> Path | None:
-    """The database file of a SQLite tracking URI (``sqlite:///<path>[?options]``), or None for any other store."""
-    database = re.match(r"sqlite:///(.+)$", tracking_uri)
-    return Path(database.group(1).split("?")[0]) if database else None
-
-
-def create_database(target: Store) -> None:
-    """Set up a new SQLite store whole or not at all: its schema is made in a temporary file beside the database
-    (MLflow's migrations take seconds) and the file is moved into place once complete, so a kill leaves no store
-    that every later command refuses (tables half made), only a temporary file, which the next set-up removes.
-    Ctrl-C is held back until the schema is set up (:func:`workbench.core.interrupt.interrupts_deferred`), then
-    acted on. Call it with the store's lock held; a store that exists, or any other kind of store, is left as it
-    is."""
-    from mlflow.store.tracking.sqlalchemy_store import SqlAlchemyStore
-
-    database = sqlite_database(target.tracking_uri)
-    if database is None or database.expanduser().exists():
-        return
-    database = Path(os.path.abspath(database.expanduser()))
-    database.parent.mkdir(parents=True, exist_ok=True)
-    for leftover in database.parent.glob(f".{glob.escape(database.name)}.*{TEMPORARY_SUFFIX}*"):  # a killed set-up's
-        leftover.unlink(missing_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=database.parent, prefix=f".{database.name}.", suffix=TEMPORARY_SUFFIX)
-    os.close(handle)
-    options = target.tracking_uri.partition("?")[2]
-    try:
-        with interrupts_deferred():
-            made = SqlAlchemyStore(f"sqlite:///{temporary}" + (f"?{options}" if options else ""), target.artifact_root)
-            made.engine.dispose()  # every connection closed: the file is complete
-            os.replace(temporary, database)
-    finally:
-        for leftover in ("", "-journal", "-wal", "-shm"):
-            Path(temporary + leftover).unlink(missing_ok=True)
-
-
-ARTIFACTS_SUFFIX = ".artifacts"
-"""The artifact folder of a SQLite store named by a URI sits beside its database: ``t.db`` -> ``t.artifacts``
-(``mlflow.db`` -> ``artifacts``, as in the embedded store)."""
-
-
-def artifact_uri(location: str) -> str:
-    """An artifact location as MLflow takes it: a URI as is, a folder as its absolute ``file://`` URI."""
-    if re.match(r"^[A-Za-z][A-Za-z0-9+.\-]*://", str(location)):
-        return str(location).rstrip("/")
-    return Path(location).expanduser().resolve().as_uri()
-
-
-@contextmanager
-def open_store(target: Store) -> Iterator:
-    """An ``MlflowClient`` of the store, with the store's lock held (SQLite); errors of the store as one line.
-
-    Raises
-    ------
-    WorkbenchError
-        When the store refuses a request or cannot be reached, naming the store.
-    """
-    mlflow = import_mlflow()
-    from mlflow.exceptions import MlflowException
-
-    check_reachable(target)
-    handle = None
-    if target.lock_file is not None:
-        target.lock_file.parent.mkdir(parents=True, exist_ok=True)
-        handle = lock_file(target.lock_file)
-    try:
-        create_database(target)
-        yield mlflow.MlflowClient(tracking_uri=target.tracking_uri)
-    except MlflowException as error:
-        raise WorkbenchError(store_error(target, error)) from None
-    except Exception as error:  # noqa: BLE001 - the database driver's own errors (a full disk, a locked file)
-        if type(error).__module__.split(".")[0] not in ("sqlalchemy", "sqlite3", "alembic"):
-            raise
-        raise WorkbenchError(store_error(target, error)) from None
-    finally:
-        if handle is not None:
-            unlock_file(handle)
-
-
-def check_reachable(target: Store, timeout: float = 10.0) -> None:
-    """Refuse a server that does not answer at all, at once (MLflow's client would retry each request for minutes).
-
-    Raises
-    ------
-    WorkbenchError
-    """
-    import urllib.error
-    import urllib.request
-
-    if not target.tracking_uri.startswith(("http://", "https://")):
-        return
-    try:
-        urllib.request.urlopen(f"{target.tracking_uri.rstrip('/')}/health", timeout=timeout).close()
-    except urllib.error.HTTPError:
-        return  # it answers (a proxy asking for credentials, say): the client's requests will tell
-    except (OSError, ValueError) as error:
-        reason = getattr(error, "reason", error)
-        raise WorkbenchError(f"MLflow server {target.tracking_uri} cannot be reached ({reason})") from None
-
-
-def store_error(target: Store, error: Exception) -> str:
-    """One line for an error of the store: its first line, a full disk named as such."""
-    text = " ".join(str(error).split("\n")[0].split()) or type(error).__name__
-    if "disk is full" in text or "No space left" in text:
-        text = f"the disk is full ({text})"
-    return (
-        f"MLflow store {target.tracking_uri}: {text[:300]}; records already logged are kept: rerun the same "
-        "command to log the rest"
-    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
