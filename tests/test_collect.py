@@ -8,7 +8,8 @@ import yaml
 
 from workbench.core.errors import WorkbenchError
 from workbench.record import record
-from workbench.reporting.collect.sweep import collect_and_write, format_estimate, format_range, main
+from workbench.reporting.collect.command import main
+from workbench.reporting.collect.sweep import collect_and_write, format_estimate, format_range
 from workbench.reporting.tables.cells import latex_table, markdown_table
 from workbench.reporting.tables.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
 

@@ -354,7 +354,7 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
 
     from scipy import stats
 
-    from workbench.reporting.collect.sweep import main
+    from workbench.reporting.collect.command import main
     from workbench.reporting.figures.studies import plot_alpha_against, plot_marker_vs_mesh
     from workbench.reporting.tables.runs import collect_runs, summarise, wide
 

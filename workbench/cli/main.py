@@ -51,7 +51,7 @@ _wide = False
 # arguments (a list of str) and returning an exit code. Imported only when used.
 COMMANDS: dict[str, str] = {
     "report": "workbench.reporting.report.command:main",
-    "collect": "workbench.reporting.collect.sweep:main",
+    "collect": "workbench.reporting.collect.command:main",
     "mlflow": "workbench.record.mlflow:main",
     "export": "workbench.reporting.export.command:main",
 }
