@@ -168,3 +168,25 @@ def test_the_html_page_escapes_every_text_and_the_markdown_keeps_it_as_written()
     readme = render_markdown("T <script>", sections)
     assert readme.startswith("# T <script>\n\n## A <b> & c\n\n`x<y` and **bold <i>** end\n\n- item <z>\n\n")
     assert "**Fig <1>**: not drawn (needs <mesh>).\n" in readme and readme.endswith(").\n")
+
+
+def test_each_figure_goes_in_the_section_its_row_names(tmp_path):
+    """The run's headline, its figures and the other bases' figure come through one list of rows; each row's last
+    column is the section that shows it."""
+    from workbench.reporting.report.run_figures import FIGURES_SECTION, make_figures, placed
+
+    rows = [
+        ("first", "First", "one", lambda _, options: "needs markers", FIGURES_SECTION),
+        ("lead", "Lead", "two", lambda _, options: "needs a mesh", "Summary"),
+        ("dropped", "Dropped", "none", lambda _, options: None, "Summary"),
+        ("second", "Second", "three", lambda _, options: "needs takes", FIGURES_SECTION),
+    ]
+    entries = make_figures(rows, None, tmp_path / "figures", (), {})
+    assert [(entry.stem, entry.section) for entry in entries] == [
+        ("first", FIGURES_SECTION),
+        ("lead", "Summary"),
+        ("second", FIGURES_SECTION),
+    ]
+    assert [entry.stem for entry in placed(entries, FIGURES_SECTION)] == ["first", "second"]
+    assert [entry.missing for entry in placed(entries, "Summary")] == ["needs a mesh"]
+    assert placed(entries, "Other bases: alpha against intuitiveness") == []

@@ -242,9 +242,9 @@ def draw_contrast(ax, row: Mapping, y: float, k: int) -> None:
 
 
 def headline_spec(record, column: str, label: str) -> tuple:
-    """The figure spec (stem, title, caption, draw) of a run report's headline figure, for
-    :func:`workbench.reporting.report.run_figures.make_figures`; ``draw`` returns the reason when the run lacks H, QE
-    or PCA with least squares.
+    """The figure spec (stem, title, caption, draw) of a run report's headline figure, a row of
+    :func:`workbench.reporting.report.run_figures.make_figures` once the report adds its section; ``draw`` returns the
+    reason when the run lacks H, QE or PCA with least squares.
 
     Parameters
     ----------

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import pandas as pd
 
 from workbench.record.record import RunRecord
 from workbench.reporting.report.data import dataset_label, figure_solver
-from workbench.reporting.report.run_figures import make_figures, minimum_norm_text
+from workbench.reporting.report.run_figures import FigureEntry, minimum_norm_text, placed
 from workbench.reporting.report.sections import Section, range_column
 from workbench.reporting.tables.runs import (
     config_columns,
@@ -28,6 +28,8 @@ COMPARED_INTUITIVENESS = ("matched_abs_cosine", "locality")
 """The measures of the bases compared pair by pair over the replicates (usage depends on the solver: not compared)."""
 NO_SOLVER = "-"
 """The solver of a comparison of closeness or locality: a property of the basis, not of a solver's weights."""
+BASES_SECTION = "Other bases: alpha against intuitiveness"
+"""The report section of the other bases, and of their figure."""
 
 
 def basis_intuitiveness_rows(record: RunRecord) -> pd.DataFrame:
@@ -189,10 +191,40 @@ def intuitiveness_comparisons(records: Sequence[RunRecord], runs: pd.DataFrame, 
     return pd.concat([paired_comparisons(frame, name, over=over) for name in COMPARED_INTUITIVENESS], ignore_index=True)
 
 
-def bases_figure(record: RunRecord, summary: pd.DataFrame, figures_dir: Path, formats: Sequence[str]):
-    """The figure of alpha against closeness, locality and usage of every basis (geometric means over the runs)."""
+@dataclass
+class OtherBases:
+    """The other bases the runs of a report scored: the first run that did, each such run with its rows
+    (:func:`basis_intuitiveness_rows`), those rows of every run in one table, and their summary over the runs
+    (geometric means, :func:`summarise_intuitiveness`)."""
+
+    first: RunRecord
+    found: list
+    per_run: pd.DataFrame
+    summary: pd.DataFrame
+
+
+def other_bases(records: Sequence[RunRecord]) -> OtherBases | None:
+    """The other bases of ``records``, or None when no run scored any."""
+    found = [(record, basis_intuitiveness_rows(record)) for record in records]
+    found = [(record, frame) for record, frame in found if not frame.empty]
+    if not found:
+        return None
+    first = found[0][0]
+    column = headline_column(first.config)
+    per_run = pd.concat(
+        [frame.assign(study=record.study, run=str(record.folder)) for record, frame in found], ignore_index=True
+    )
+    return OtherBases(first, found, per_run, summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS]))
+
+
+def bases_figure_rows(bases: OtherBases | None) -> list[tuple]:
+    """The figure row (stem, title, caption, draw, section) of alpha against closeness, locality and usage of every
+    basis (geometric means over the runs), in the section :data:`BASES_SECTION`; none without other bases."""
     from workbench.reporting.figures.bases import plot_alpha_against_intuitiveness
 
+    if bases is None:
+        return []
+    record, summary = bases.first, bases.summary
     column = headline_column(record.config)
     solver, _ = figure_solver(record.config)
     settings = intuitiveness_settings(record)
@@ -204,26 +236,21 @@ def bases_figure(record: RunRecord, summary: pd.DataFrame, figures_dir: Path, fo
         + minimum_norm_note(summary, solver)
     )
     title = f"Alpha against intuitiveness, every basis at its size n\n{dataset_label(record)}"
-    return make_figures(
-        [
-            (
-                "alpha_vs_intuitiveness",
-                "Alpha against intuitiveness",
-                caption,
-                lambda _, options: plot_alpha_against_intuitiveness(
-                    summary,
-                    column,
-                    energy=settings["locality_energy"],
-                    threshold=settings["usage_threshold"],
-                    title=title,
-                ),
-            )
-        ],
-        None,
-        figures_dir,
-        formats,
-        {},
-    )[0]
+    return [
+        (
+            "alpha_vs_intuitiveness",
+            "Alpha against intuitiveness",
+            caption,
+            lambda _, options: plot_alpha_against_intuitiveness(
+                summary,
+                column,
+                energy=settings["locality_energy"],
+                threshold=settings["usage_threshold"],
+                title=title,
+            ),
+            BASES_SECTION,
+        )
+    ]
 
 
 def intuitiveness_settings(record: RunRecord) -> Mapping:
@@ -280,9 +307,8 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
 
 def with_bases_section(
     sections: list,
-    records: Sequence[RunRecord],
-    figures_dir: Path,
-    formats: Sequence[str],
+    bases: OtherBases | None,
+    figures: Sequence[FigureEntry],
     ordering: bool = True,
     comparisons: pd.DataFrame | None = None,
 ) -> list:
@@ -291,21 +317,16 @@ def with_bases_section(
     each, and their paired comparisons: with ``comparisons`` (a sweep's one table, closeness and locality among
     its rows, :func:`intuitiveness_comparisons`) those, else a table of its own; the findings gain the sizes,
     closeness and locality (and, with ``ordering``, the bases' ordering by alpha, which a sweep's own findings state
-    already). Unchanged when no run scored other bases."""
+    already). The figure is the report's figure in :data:`BASES_SECTION` (:func:`bases_figure_rows`). Unchanged
+    when no run scored other bases."""
     from workbench.reporting.findings.sweep import bases_findings, holm_verdicts
 
-    found = [(record, basis_intuitiveness_rows(record)) for record in records]
-    found = [(record, frame) for record, frame in found if not frame.empty]
-    if not found:
+    if bases is None:
         return sections
-    first = found[0][0]
+    first, found, per_run, summary = bases.first, bases.found, bases.per_run, bases.summary
     column = headline_column(first.config)
     solver, _ = figure_solver(first.config)
     settings = intuitiveness_settings(first)
-    per_run = pd.concat(
-        [frame.assign(study=record.study, run=str(record.folder)) for record, frame in found], ignore_index=True
-    )
-    summary = summarise_intuitiveness(per_run, [column, *INTUITIVENESS_COLUMNS])
     own = comparisons is None
     if own:
         compared = [
@@ -323,7 +344,7 @@ def with_bases_section(
         )
         findings.blocks.append(bases_findings(summary, comparisons, column, ordering, run_comparisons, solver))
     section = Section(
-        "Other bases: alpha against intuitiveness",
+        BASES_SECTION,
         [
             f"Every basis of the table at its size n (a range where it differs between runs: PCA keeps the m of each "
             f"take), fitted on the training frames and scored alike; `{column}` with solver {solver} (PCA: "
@@ -336,7 +357,7 @@ def with_bases_section(
             measure_notes(settings, solver),
             intuitiveness_table(summary, column),
             *comparisons_blocks(comparisons, own, column),
-            bases_figure(first, summary, figures_dir, formats),
+            *placed(figures, BASES_SECTION),
         ],
     )
     headings = [item.heading for item in sections]

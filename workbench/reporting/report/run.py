@@ -13,17 +13,19 @@ from workbench.core.files import inside, write_atomic
 from workbench.record.record import RunRecord
 from workbench.reporting.figures.headline import headline_spec
 from workbench.reporting.findings.run import fit_findings
-from workbench.reporting.report.bases import with_bases_section
+from workbench.reporting.report.bases import bases_figure_rows, other_bases, with_bases_section
 from workbench.reporting.report.data import dataset_label, figure_bases, qe_label, record_inputs
 from workbench.reporting.report.faces import FacesBlock, build_faces
 from workbench.reporting.report.page import write_documents
 from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
+    FIGURES_SECTION,
     RUN_FIGURES,
     FigureEntry,
     clear_figures,
     make_figures,
     minimum_norm_text,
+    placed,
 )
 from workbench.reporting.report.sections import (
     GLOSSARY_NOTE,
@@ -110,6 +112,10 @@ def left_right_section(found: LeftRight) -> Section:
     )
 
 
+SUMMARY_SECTION = "Summary"
+"""The section a run's report opens with, and the section of its headline figure."""
+
+
 def run_sections(
     record: RunRecord,
     figures: list[FigureEntry],
@@ -126,7 +132,7 @@ def run_sections(
     has_sides = sides is not None and sides.table is not None
     summary = run_summary(record.table, column, record.metrics)
     sections = [
-        *([Section("Summary", [summary])] if summary else []),
+        *([Section(SUMMARY_SECTION, [summary, *placed(figures, SUMMARY_SECTION)])] if summary else []),
         Section(
             "Findings",
             [
@@ -154,7 +160,7 @@ def run_sections(
         ),
         *protocol_sections(record, column),
         *([Section("Faces you can turn", [faces])] if faces is not None else []),
-        Section("Figures", figures),
+        Section(FIGURES_SECTION, placed(figures, FIGURES_SECTION)),
         *([left_right_section(sides)] if has_sides else []),
         Section("Full alpha table", [alpha_columns(record.table)]),
         *error_and_weight_sections(record),
@@ -316,15 +322,13 @@ def build_run_report(
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     cache: dict = {}
-    entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
+    bases = other_bases([record])
+    headline = (*headline_spec(record, headline_column(record.config), dataset_label(record)), SUMMARY_SECTION)
+    rows = [*RUN_FIGURES, headline, *bases_figure_rows(bases)]
+    entries = make_figures(rows, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
-    headline = make_figures(
-        [headline_spec(record, headline_column(record.config), dataset_label(record))], record, figures_dir, formats, {}
-    )
-    if sections and sections[0].heading == "Summary":  # the summary, then its figure
-        sections[0].blocks += headline
-    sections = fit_findings(with_bases_section(sections, [record], figures_dir, formats))
+    sections = fit_findings(with_bases_section(sections, bases, entries))
     write_documents(out, title, sections)
     write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
     write_atomic(inside(out, "run_config.yaml"), (record.folder / "config.yaml").read_bytes())

@@ -62,15 +62,25 @@ def carried_title(face: FaceData, numbers: str) -> str:
     return f"\n{face.note}\n({numbers} the markers' own)" if face.carried else ""
 
 
+FIGURES_SECTION = "Figures"
+"""The report section a figure goes in unless its row names another (the row's last column)."""
+
+
 @dataclass
 class FigureEntry:
-    """One figure of a report: where it is, what it shows, or why it could not be drawn."""
+    """One figure of a report: where it is, what it shows, or why it could not be drawn, and the section it goes in."""
 
     stem: str
     title: str
     caption: str
     files: list = field(default_factory=list)
     missing: str = ""
+    section: str = FIGURES_SECTION
+
+
+def placed(entries: Sequence[FigureEntry], section: str) -> list[FigureEntry]:
+    """The figures of ``entries`` that go in the section ``section``, in their order."""
+    return [entry for entry in entries if entry.section == section]
 
 
 def draw_analogy():
@@ -476,13 +486,14 @@ def draw_marker_vs_mesh(record: RunRecord):
     )
 
 
-RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
+RUN_FIGURES: tuple[tuple[str, str, str, Callable, str], ...] = (
     (
         "fig1_analogy",
         "Figure 1: the analogical drawing",
         "A seeded cloud of 300 points near a plane; PCA axes (red) from Eigenfaces, hand vectors (blue) off the "
         "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
         lambda record, options: draw_analogy(),
+        FIGURES_SECTION,
     ),
     (
         "fig2_hand_vs_quasi_eigen",
@@ -494,6 +505,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "--shapes names them. Where the capture has no data (beyond the markers' reach) the quasi-eigen maps fade "
         "into the plain shade.",
         lambda record, options: draw_hand_vs_quasi_eigen(record, options.get("shapes"), options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "fig3_reconstructions",
@@ -505,6 +517,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "go beyond it). Eyes and mouth are closed by dark caps; where the capture has no data the error maps fade "
         "into the plain shade and stay out of the scale.",
         lambda record, options: draw_reconstructions(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "fig4_marker_errors",
@@ -513,6 +526,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "and side views; "
         "the offsets are magnified by the stated factor so that sub-millimetre errors show.",
         lambda record, options: draw_marker_errors(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "vertex_rms",
@@ -521,6 +535,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "and PCA, on one shared colour bar (an arrow: a few vertices go beyond it), with the RMS over the face and "
         "the largest vertex.",
         lambda record, options: draw_vertex_rms(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "alpha_per_solver",
@@ -529,6 +544,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "dashed line), with the share of frames whose least-squares weights include a negative one (from the "
         "record). That share alone does not say what a constraint costs: the findings give the numbers that do.",
         lambda record, options: draw_alpha_per_solver(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "error_cdf",
@@ -537,6 +553,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "at most that (the cumulative distribution over frames), for every basis and solver; the median and the "
         "95th percentile are the grey lines. From the error quantiles the run recorded.",
         lambda record, options: draw_error_cdf(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "weight_statistics",
@@ -548,6 +565,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "have rank r < n on the scored points (the note under its row gives r): its least-squares weights are the "
         "minimum-norm choice among many with the same error, so their bars describe that choice, not the basis.",
         lambda record, options: draw_weight_statistics(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "weight_curves",
@@ -556,6 +574,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "quasi-eigen basis: the hand shapes that contribute most at those frames, with their left/right partners "
         "(a pair shares a colour, _L solid, _R dashed); dotted horizontal: w = 1, a shape fully on.",
         lambda record, options: draw_weight_curves(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "intuitiveness",
@@ -563,6 +582,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "Cosine (1: same direction) and relative distance |e^QE - e^H| / |e^H| (0: unchanged) between each hand "
         "shape and its quasi-eigen face, per projection.",
         lambda record, options: draw_intuitiveness_bars(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "coverage_curve",
@@ -571,6 +591,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "record), with the coverage threshold, the chosen m of each data variant, the paper's m = 18 and the hand "
         "basis size n.",
         lambda record, options: draw_coverage_curve(record),
+        FIGURES_SECTION,
     ),
     (
         "alpha_over_time",
@@ -578,6 +599,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "Per-frame alpha (the headline normalisation) of each basis over the take; takes concatenated in time are "
         "drawn one after another with their boundaries named.",
         lambda record, options: draw_alpha_over_time(record, options["cache"]),
+        FIGURES_SECTION,
     ),
     (
         "marker_vs_mesh",
@@ -585,6 +607,7 @@ RUN_FIGURES: tuple[tuple[str, str, str, Callable], ...] = (
         "RMS error (mm) and pooled displacement alpha of each basis when the method runs on the markers and on the "
         "dense mesh, one panel per evaluated point set (values compare within a panel only).",
         lambda record, options: draw_marker_vs_mesh(record),
+        FIGURES_SECTION,
     ),
 )
 
@@ -595,16 +618,17 @@ copy (``reports/shared/``); any other report holds its own."""
 
 
 def make_figures(specs, argument, folder: Path, formats: Sequence[str], options: Mapping) -> list[FigureEntry]:
-    """Draw and save each figure of ``specs`` in ``folder`` (the report's ``figures/``), or the figures of
-    :data:`SHARED_FIGURES` in ``options["shared"]`` when given; a figure that cannot be drawn is listed with the
-    reason; a figure that is none of the run's (a draw returning None) is left out. A draw may return a
+    """Draw and save each figure of ``specs`` (rows of stem, title, caption, draw and the report section it goes in)
+    in ``folder`` (the report's ``figures/``), or the figures of :data:`SHARED_FIGURES` in ``options["shared"]``
+    when given; a figure that cannot be drawn is listed with the reason; a figure that is none of the run's (a draw
+    returning None) is left out. A draw may return a
     (figure, text) pair: the text is added to the caption (:func:`with_caption`). Files are named relative to the
     report folder (``folder``'s parent)."""
     from workbench.reporting.figures import save_figure
 
     entries = []
-    for stem, title, caption, draw in specs:
-        entry = FigureEntry(stem=stem, title=title, caption=caption)
+    for stem, title, caption, draw, section in specs:
+        entry = FigureEntry(stem=stem, title=title, caption=caption, section=section)
         result = draw(argument, options)
         if result is None:
             continue

@@ -13,15 +13,22 @@ from workbench.core.files import inside, write_atomic
 from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.findings.run import fit_findings
 from workbench.reporting.findings.sweep import holm_verdicts
-from workbench.reporting.report.bases import intuitiveness_comparisons, with_bases_section
+from workbench.reporting.report.bases import (
+    bases_figure_rows,
+    intuitiveness_comparisons,
+    other_bases,
+    with_bases_section,
+)
 from workbench.reporting.report.data import dataset_label, figure_solver, training_variants
 from workbench.reporting.report.page import write_documents
 from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
+    FIGURES_SECTION,
     FigureEntry,
     clear_figures,
     draw_coverage_curve,
     make_figures,
+    placed,
 )
 from workbench.reporting.report.sections import (
     GLOSSARY_NOTE,
@@ -107,6 +114,7 @@ def sweep_figures(
             "Coverage curve (first run)",
             f"Cumulative explained variance against m for the run {first.folder.name}.",
             lambda _, options: draw_coverage_curve(first),
+            FIGURES_SECTION,
         )
     ]
     # (x, the swept setting it stands for): m stands for the coverage, the hand-basis size for the subset.
@@ -144,6 +152,7 @@ def sweep_figures(
                         title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
                         f"{axis_label(x)}\n{label}",
                     ),
+                    FIGURES_SECTION,
                 )
             )
     # held-out frames are no data variant, and a paper-regime variant (m = n) differs in m, not in the points
@@ -167,6 +176,7 @@ def sweep_figures(
                         solver=solver,
                         title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}",
                     ),
+                    FIGURES_SECTION,
                 )
             )
     return specs
@@ -239,7 +249,7 @@ def sweep_sections(
         ),
         Section(f"{column} over seeds", [f"Geometric means; {interval_label(summary)}.", shown]),
         Section("Paired comparisons", [comparisons_caption(comparisons, column), compared]),
-        Section("Figures", figures),
+        Section(FIGURES_SECTION, placed(figures, FIGURES_SECTION)),
         Section("Runs", [runs.astype(str)]),
         Section(
             "Choices the runs made (first run)",
@@ -300,11 +310,11 @@ def build_sweep_report(
     comparisons = holm_verdicts(compared, column)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
-    entries = make_figures(sweep_figures(records, summary, swept, per_run, over), None, figures_dir, formats, {})
+    bases = other_bases(records)
+    rows = [*sweep_figures(records, summary, swept, per_run, over), *bases_figure_rows(bases)]
+    entries = make_figures(rows, None, figures_dir, formats, {})
     title, sections = sweep_sections(root, records, per_run, summary, comparisons, swept, entries, command, over)
-    sections = fit_findings(
-        with_bases_section(sections, records, figures_dir, formats, ordering=False, comparisons=comparisons)
-    )
+    sections = fit_findings(with_bases_section(sections, bases, entries, ordering=False, comparisons=comparisons))
     write_documents(out, title, sections)
     write_atomic(inside(out, "summary.csv"), summary.to_csv(index=False))
     write_atomic(inside(out, "comparisons.csv"), comparisons.to_csv(index=False))
