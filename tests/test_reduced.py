@@ -273,9 +273,9 @@ def test_subspaces_sharing_a_span_are_taken_through_it_with_the_explicit_answers
         np.testing.assert_array_equal(out.coordinates[label], plain.coordinates[label])
 
 
-def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeypatch):
+def test_a_later_pass_handed_the_kept_span_reads_only_the_frames_it_must(monkeypatch):
     """The m = n variant's case: its eigenfaces were taken into the first pass's span (also_span), so a second
-    call over the same frames takes its terms from the kept pass, with the answers of a pass of its own."""
+    call over the same frames handed that pass takes its terms from it, with the answers of a pass of its own."""
     shapes, frames, neutral = problem(seed=7)
     mean = frames.mean(axis=0)
     eigen = np.linalg.svd((frames - mean).T, full_matrices=False)[0]
@@ -289,12 +289,16 @@ def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeyp
         "PCA": Subspace(eigen[:, :3], mean),
     }
     before = project_frames(frames, first, neutral, chunk_size=32, region=region, also_span=eigen[:, :6])
-    kept = reduced._LAST_PASS[1]
+    kept = before.span_pass
+    assert kept is not None and kept.span.shape[1] < frames.shape[1]
     assert before.n_explicit >= 4  # the frames on the plane, close to the first QE's span
     on_plane = mean + (shapes - mean) @ eigen[:, :6] @ eigen[:, :6].T
     second = {"B": first["B"], "QE": Subspace(reduce_basis(on_plane).u), "PCA": Subspace(eigen[:, :6], mean)}
-    out = project_frames(frames, second, neutral, chunk_size=32, region=region)
-    assert reduced._LAST_PASS[1] is kept  # no new pass
+    read, real_of = [], reduced.SpanPass.of
+    monkeypatch.setattr(reduced.SpanPass, "of", lambda *args, **kw: read.append(args) or real_of(*args, **kw))
+    out = project_frames(frames, second, neutral, chunk_size=32, region=region, kept=kept)
+    assert out.span_pass is kept and not read  # no new pass
+    assert out.n_explicit < len(frames)  # only the frames that now need their explicit residual
     each = project_onto_each(frames, second, neutral, chunk_size=32, region=region)
     for label in second:
         np.testing.assert_allclose(out.coordinates[label], each.coordinates[label], rtol=1e-12, atol=1e-12)
@@ -304,12 +308,18 @@ def test_a_later_pass_inside_the_kept_span_reads_only_the_frames_it_must(monkeyp
         )
         np.testing.assert_allclose(out.region.cross[label], each.region.cross[label], rtol=1e-9, atol=1e-10)
     assert np.all(out.distance_sq["PCA"][:4] < 1e-20)
-    other = np.random.default_rng(9).standard_normal((frames.shape[1], 2))
-    other = np.linalg.qr(other)[0]
-    project_frames(frames, {"C": Subspace(other), "D": Subspace(other[:, :1])}, neutral, region=region)
-    assert reduced._LAST_PASS[1] is not kept  # outside the kept span: a pass of its own
-    del frames
-    assert not reduced._LAST_PASS  # forgotten with its frames
+    fresh = project_frames(frames, second, neutral, chunk_size=32, region=region)  # nothing handed: a pass of its own
+    assert fresh.span_pass is not kept and len(read) == 1
+    other = np.linalg.qr(np.random.default_rng(9).standard_normal((frames.shape[1], 2)))[0]
+    beside = project_frames(
+        frames, {"C": Subspace(other), "D": Subspace(other[:, :1])}, neutral, region=region, kept=kept
+    )
+    assert beside.span_pass is not kept  # outside the kept span: a pass of its own
+    elsewhere = project_frames(frames, second, neutral, chunk_size=32, region=~region, kept=kept)
+    assert elsewhere.span_pass is not kept  # another region
+    assert not kept.serves(len(frames) - 1, neutral, region, second)  # other frames
+    assert not kept.serves(len(frames), neutral + 1.0, region, second)  # another neutral
+    assert kept.serves(len(frames), neutral, region, second)
 
 
 def test_the_study_scores_alike_through_the_joint_span_and_through_each_basis(monkeypatch):

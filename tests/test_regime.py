@@ -48,8 +48,9 @@ def test_the_m_equal_n_variant_reuses_the_coverage_rule_s_decomposition(regime_r
     np.testing.assert_array_equal(regime.eigenfaces.components_, fresh.components_)  # exact path: every eigenpair
     np.testing.assert_array_equal(regime.eigenfaces.explained_variance_ratio_, fresh.explained_variance_ratio_)
     assert regime.eigenfaces.method_ == fresh.method_ == "covariance"
-    copy = replace(rule.capture, train=rule.capture.train.copy())  # other frames (equal values): a fit of its own
-    assert fit_eigenfaces(copy, 0.995, 18).mean_ is not rule.eigenfaces.mean_
+    assert fit_eigenfaces(rule.capture, 0.995, 18, previous=rule.eigenfaces).mean_ is rule.eigenfaces.mean_
+    assert fit_eigenfaces(rule.capture, 0.995, 18).mean_ is not rule.eigenfaces.mean_  # nothing handed on
+    assert regime.span_pass is None and rule.span_pass is None  # handed on to the refit, not kept in the results
 
 
 def test_the_header_leads_with_the_m_equal_n_comparison(regime_run):
@@ -73,8 +74,6 @@ def test_no_extra_fit_when_m_is_fixed():
 
 def test_no_extra_fit_when_the_coverage_rule_already_gives_m_equal_n(regime_run):
     cfg, results = regime_run
-    from dataclasses import replace
-
     from workbench.settings.typed import study_settings
 
     capture, basis = results[1].capture, study_settings(cfg).basis

@@ -25,8 +25,7 @@ the residual ``d = d_W + W c`` with ``c = p - b - A q``, so ``|d|^2 = |d_W|^2 + 
 
 from __future__ import annotations
 
-import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
@@ -74,6 +73,9 @@ class FrameProjections:
         Frame-subspace pairs whose distance was recomputed from the explicit residual.
     region : RegionProjections or None
         The part of the points ``project_frames`` was given (None when it was given none).
+    span_pass : SpanPass or None
+        The pass through the subspaces' joint span (:func:`project_through_span`), which a later call over the same
+        frames can be handed (``kept``); None when the pass went over each subspace.
     """
 
     coordinates: dict
@@ -82,6 +84,7 @@ class FrameProjections:
     position_sq: np.ndarray
     n_explicit: int
     region: "RegionProjections | None" = None
+    span_pass: "SpanPass | None" = None
 
 
 @dataclass(frozen=True)
@@ -134,6 +137,7 @@ def project_frames(
     chunk_size: int | None = None,
     region: np.ndarray | None = None,
     also_span: np.ndarray | None = None,
+    kept: "SpanPass | None" = None,
 ) -> FrameProjections:
     """Coordinates of every frame in every subspace, and its squared distance to each, in one pass (frames of at
     least :data:`~workbench.numerics.frames.LARGE_FRAMES` values go through the subspaces' joint span when it has
@@ -154,6 +158,9 @@ def project_frames(
     also_span : ndarray of shape (n_dims, j), optional
         More directions for the joint span, so that a later call over the same frames whose subspaces lie in them
         reads no frame again (:func:`project_through_span`); ignored by the pass over each subspace.
+    kept : SpanPass, optional
+        The ``span_pass`` of an earlier call over these very frames (:func:`project_through_span`); ignored by the
+        pass over each subspace.
 
     Returns
     -------
@@ -162,7 +169,7 @@ def project_frames(
     span = joint_span(subspaces, also_span) if frames.shape[0] * frames.shape[1] >= LARGE_FRAMES else None
     if span is None:
         return project_onto_each(frames, subspaces, neutral, chunk_size=chunk_size, region=region)
-    return project_through_span(frames, subspaces, neutral, span, chunk_size=chunk_size, region=region)
+    return project_through_span(frames, subspaces, neutral, span, chunk_size=chunk_size, region=region, kept=kept)
 
 
 def joint_span(subspaces: Mapping[str, Subspace], also_span: np.ndarray | None = None) -> np.ndarray | None:
@@ -197,6 +204,7 @@ def project_through_span(
     *,
     chunk_size: int | None = None,
     region: np.ndarray | None = None,
+    kept: "SpanPass | None" = None,
 ) -> FrameProjections:
     """:func:`project_frames` with one product by the subspaces' joint span ``W`` per chunk.
 
@@ -205,9 +213,10 @@ def project_through_span(
     where any subspace's distance (or its region's part) is below ``EXPLICIT_BELOW`` of its terms' size, the
     frames whose distances the difference would cancel.
 
-    The last pass is kept (for as long as its frames are alive): subspaces that lie in its span, over the same
-    frames, neutral and region (the paper's m = n variant, whose bases lie in the span of the same eigenfaces),
-    take their terms from it, reading again only the frames that now need their explicit residual.
+    A pass handed on (``kept``, an earlier call's ``span_pass`` over the same frames) serves subspaces that lie in
+    its span, over the same neutral and region (the paper's m = n variant, whose bases lie in the span of the same
+    eigenfaces): they take their terms from it, reading again only the frames that now need their explicit
+    residual.
 
     Parameters
     ----------
@@ -215,52 +224,21 @@ def project_through_span(
         As :func:`project_frames`.
     span : ndarray of shape (n_dims, w)
         ``W``: orthonormal, holding every subspace's columns and offset (:func:`joint_span`).
+    kept : SpanPass, optional
+        An earlier pass over these very frames (the caller's promise: the frames are not compared, and must not
+        have changed in place); a pass of their own when it does not serve them (:meth:`SpanPass.serves`).
 
     Returns
     -------
     FrameProjections
-        ``n_explicit`` counts the frames given their explicit residual by this call.
+        ``n_explicit`` counts the frames given their explicit residual by this call; ``span_pass`` is the pass
+        taken, ``kept`` or a new one.
     """
-    kept = _kept_pass(frames, neutral, region, subspaces)
-    if kept is None:
+    if kept is None or not kept.serves(len(frames), neutral, region, subspaces):
         kept = SpanPass.of(frames, neutral, span, region, chunk_size)
-        _LAST_PASS[:] = [weakref.ref(frames), kept]
-        weakref.finalize(frames, _forget, kept)
     terms = {label: subspace_in_span(subspace, kept.span) for label, subspace in subspaces.items()}
     n_explicit = kept.take(frames, terms, chunk_size)
-    return kept.projections(terms, n_explicit)
-
-
-_LAST_PASS: list = []
-"""``[weak reference to the frames, SpanPass]`` of the last :func:`project_through_span`, forgotten when its
-frames are (the study must not change frames in place, and never does: a capture's arrays are shared, never
-written, once built)."""
-
-
-def _forget(kept: "SpanPass") -> None:
-    if _LAST_PASS and _LAST_PASS[1] is kept:
-        _LAST_PASS.clear()
-
-
-def _kept_pass(frames, neutral: np.ndarray, region, subspaces: Mapping[str, Subspace]) -> "SpanPass | None":
-    """The last pass when it was over these frames, neutral and region and its span holds every subspace."""
-    if not _LAST_PASS or _LAST_PASS[0]() is not frames:
-        return None
-    kept = _LAST_PASS[1]
-    same_region = (region is None) == (kept.inside is None) and (
-        region is None or np.array_equal(np.asarray(region, dtype=bool), kept.inside)
-    )
-    if not (same_region and np.array_equal(neutral, kept.neutral)):
-        return None
-    for subspace in subspaces.values():
-        outside = subspace.columns - kept.span @ (kept.span.T @ subspace.columns)
-        if np.abs(outside).max(initial=0.0) > JOINT_SPAN_RTOL:
-            return None
-        if subspace.offset is not None and np.any(subspace.offset):
-            offset = np.asarray(subspace.offset, dtype=float)
-            if np.abs(offset - kept.span @ (kept.span.T @ offset)).max() > JOINT_SPAN_RTOL * np.abs(offset).max():
-                return None
-    return kept
+    return replace(kept.projections(terms, n_explicit), span_pass=kept)
 
 
 @dataclass
@@ -321,6 +299,25 @@ class SpanPass:
                     + np.einsum("ij,ij->i", p @ kept.gram, p)
                 )
         return kept
+
+    def serves(self, n_frames: int, neutral: np.ndarray, region, subspaces: Mapping[str, Subspace]) -> bool:
+        """Whether this pass can give the terms of ``subspaces`` over ``n_frames`` frames (taken to be the pass's
+        own), ``neutral`` and ``region``: the same neutral and region, and every subspace in its span."""
+        if n_frames != len(self.gap) or not np.array_equal(neutral, self.neutral):
+            return False
+        if (region is None) != (self.inside is None) or (
+            region is not None and not np.array_equal(np.asarray(region, dtype=bool), self.inside)
+        ):
+            return False
+        for subspace in subspaces.values():
+            outside = subspace.columns - self.span @ (self.span.T @ subspace.columns)
+            if np.abs(outside).max(initial=0.0) > JOINT_SPAN_RTOL:
+                return False
+            if subspace.offset is not None and np.any(subspace.offset):
+                offset = np.asarray(subspace.offset, dtype=float)
+                if np.abs(offset - self.span @ (self.span.T @ offset)).max() > JOINT_SPAN_RTOL * np.abs(offset).max():
+                    return False
+        return True
 
     def take(self, frames, terms: Mapping[str, tuple], chunk_size: int | None = None) -> int:
         """Give the explicit residual to every frame whose distance to a subspace of ``terms``

@@ -15,6 +15,9 @@ which the paper solves by quadratic programming.  Three kinds are offered:
 ``"box"``
     ``lower <= w <= upper`` with scalar or per-shape bounds, either side possibly infinite.
 
+The kinds, with the bounds each takes or fixes, are the table :data:`workbench.core.solvers.SOLVER_KINDS`; each
+kind's solve is registered under its name in :data:`SOLVES`.
+
 The constrained kinds are reduced once to the ``n_shapes x n_shapes`` problem
 
     min_w 0.5 w^T G w - c^T w   subject to the bounds,   G = B B^T,  c = B d*,
@@ -66,11 +69,14 @@ this convex problem is a minimiser), and weights that are not optimal fail it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
+from typing import Callable
 
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.interrupt import interrupts_deferred
+from workbench.core.solvers import SOLVER_KINDS
 from workbench.core.tolerances import TOL, Tolerances
 from workbench.numerics.active_set import FINISHED, kkt_violation_frames, primal_active_set_frames
 from workbench.numerics.bounded import (
@@ -85,7 +91,9 @@ from workbench.numerics.bounded import (
 )
 from workbench.numerics.validation import SOLVER, check_matrix
 
-KINDS = ("lstsq", "nnls", "box")
+KINDS = tuple(SOLVER_KINDS)
+"""The kinds of :data:`workbench.core.solvers.SOLVER_KINDS` as the package defines them (:data:`SOLVES` has each
+kind's solve)."""
 
 # ADMM warm start: iterations (its penalty and over-relaxation: ``workbench.numerics.bounded``).
 _ADMM_STEPS = 10
@@ -127,6 +135,58 @@ class WeightSolution:
     n_iterations: int
     n_fallback_frames: int
     max_kkt_violation: float
+
+
+@dataclass(frozen=True)
+class WeightProblem:
+    """One basis's problem of eq. 5 for every frame, as each kind's solve (:data:`SOLVES`) takes it.
+
+    Attributes
+    ----------
+    start : ndarray of shape (n_frames, n_shapes)
+        The minimum-norm unconstrained weights.
+    lo, hi : ndarray of shape (n_shapes,) or None
+        The bounds of every shape (None for a kind without bounds).
+    tol : Tolerances
+    terms : callable
+        ``() -> (gram, rhs, ridge)``, computed when a solve asks: the gram ``G`` of shape (n_shapes, n_shapes), or
+        (n_frames, n_shapes, n_shapes) under capture gaps, ``c`` of shape (n_frames, n_shapes) and the ridge added
+        to ``G`` (see the module's notes).
+    per_frame : callable
+        ``(frames, solve_one) -> ndarray of shape (len(frames), n_shapes)``: SciPy's solver ``solve_one(design,
+        target, lo, hi)`` (:func:`_nnls_one`, :func:`_bvls_one`) on the given frames' problems, one at a time.
+    """
+
+    start: np.ndarray
+    lo: np.ndarray | None
+    hi: np.ndarray | None
+    tol: Tolerances
+    terms: Callable[[], tuple]
+    per_frame: Callable[[np.ndarray, Callable], np.ndarray]
+
+
+def _least_squares(problem: WeightProblem) -> tuple[np.ndarray, int, int, float]:
+    return problem.start, 0, 0, 0.0
+
+
+def _bounded(problem: WeightProblem, solve_one: Callable) -> tuple[np.ndarray, int, int, float]:
+    gram, rhs, ridge = problem.terms()
+    fallback = lambda frames: problem.per_frame(frames, solve_one)  # noqa: E731
+    return _solve_bounded(gram, rhs, problem.lo, problem.hi, problem.start, ridge, fallback, problem.tol)
+
+
+SOLVES: dict[str, Callable[[WeightProblem], tuple]] = {
+    "lstsq": _least_squares,
+    "nnls": lambda problem: _bounded(problem, _nnls_one),
+    "box": lambda problem: _bounded(problem, _bvls_one),
+}
+"""Kind (:data:`workbench.core.solvers.SOLVER_KINDS`) -> its solve: a :class:`WeightProblem` -> ``(weights,
+n_iterations, n_fallback_frames, max_kkt_violation)`` as :class:`WeightSolution` keeps them."""
+
+
+def _solution(kind: str, problem: WeightProblem, lower, upper) -> WeightSolution:
+    weights, n_iterations, n_fallback, violation = SOLVES[kind](problem)
+    return WeightSolution(weights, kind, lower, upper, n_iterations, n_fallback, violation)
 
 
 @dataclass(frozen=True)
@@ -275,17 +335,16 @@ def solve_projected(
     kind = _check_kind(kind)
     lo, hi, lower_out, upper_out = _bounds(kind, lower, upper, basis.shape[0])
     reduced = _Reduction(n_dims=basis.shape[1], singular=reduction.singular, vt=reduction.vt, projected=projected)
-    start = _unconstrained(reduced)
-    if kind == "lstsq":
-        return WeightSolution(start, kind, None, None, 0, 0, 0.0)
-    gram = basis @ basis.T
-    if rhs is None:
-        rhs = (projected * reduction.singular) @ reduction.vt  # = targets @ basis.T
-    ridge = _ridge(reduction.singular, gram.shape[0], tol.gram_ridge)
-    weights, n_iter, n_fallback, violation = _solve_bounded(
-        gram, rhs, lo, hi, start, ridge, lambda frames: _per_frame(reduced, lo, hi, frames, kind, ridge), tol
-    )
-    return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
+    ridge = _ridge(reduction.singular, basis.shape[0], tol.gram_ridge)
+
+    def terms():
+        gram = basis @ basis.T
+        return gram, (projected * reduction.singular) @ reduction.vt if rhs is None else rhs, ridge  # targets @ B^T
+
+    def per_frame(frames, solve_one):
+        return _per_frame(reduced, lo, hi, frames, solve_one, ridge)
+
+    return _solution(kind, WeightProblem(_unconstrained(reduced), lo, hi, tol, terms, per_frame), lower_out, upper_out)
 
 
 def in_span_error_sq(reduction: BasisReduction, projected: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -346,21 +405,20 @@ def _solve_masked(basis, targets, visible, *, kind, lower, upper, tol) -> Weight
         reduced_gram = masked_grams(u.T, visible) + tol.gram_ridge * np.eye(rank)
         y = np.linalg.solve(reduced_gram, (observed @ u)[:, :, None])[:, :, 0]
         start = (y / singular) @ vt
-    if kind == "lstsq":
-        return WeightSolution(start, kind, None, None, 0, 0, 0.0)
-    gram = masked_grams(basis, visible)
-    rhs = observed @ basis.T
-    largest = float(singular.max(initial=0.0)) ** 2
-    ridge = tol.gram_ridge * largest if largest > 0 else 1.0
 
-    def fallback(frames):
+    @cache
+    def terms():
+        largest = float(singular.max(initial=0.0)) ** 2
+        return masked_grams(basis, visible), observed @ basis.T, tol.gram_ridge * largest if largest > 0 else 1.0
+
+    def per_frame(frames, solve_one):
         # |L^T w - L^-1 c|^2 = w^T (G + r I) w - 2 c^T w + const, with G + r I = L L^T
+        gram, rhs, ridge = terms()
         factor = np.linalg.cholesky(gram[frames] + ridge * np.eye(gram.shape[-1]))
         projected = np.linalg.solve(factor, rhs[frames][:, :, None])[:, :, 0]
-        return _per_frame_designs(np.swapaxes(factor, 1, 2), projected, lo, hi, kind, np.zeros(len(frames)))
+        return _per_frame_designs(np.swapaxes(factor, 1, 2), projected, lo, hi, solve_one, np.zeros(len(frames)))
 
-    weights, n_iter, n_fallback, violation = _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol)
-    return WeightSolution(weights, kind, lower_out, upper_out, n_iter, n_fallback, violation)
+    return _solution(kind, WeightProblem(start, lo, hi, tol, terms, per_frame), lower_out, upper_out)
 
 
 def masked_grams(basis: np.ndarray, visible: np.ndarray) -> np.ndarray:
@@ -504,27 +562,49 @@ def _check_columns(basis: np.ndarray, targets: np.ndarray) -> None:
 
 
 def _check_kind(kind) -> str:
-    if kind not in KINDS:
-        raise WorkbenchError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
+    if kind not in SOLVER_KINDS or kind not in SOLVES:
+        raise WorkbenchError(f"kind must be one of {', '.join(k for k in SOLVER_KINDS if k in SOLVES)}; got {kind!r}")
     return kind
 
 
 def _bounds(kind: str, lower, upper, n: int):
-    """Per-shape bound vectors ``lo, hi`` (shape (n,)) and the bounds to record in the solution."""
-    if kind == "lstsq":
+    """Per-shape bound vectors ``lo, hi`` (shape (n,)) and the bounds to record in the solution, by the kind's
+    entry in :data:`workbench.core.solvers.SOLVER_KINDS`."""
+    entry = SOLVER_KINDS[kind]
+    if not entry.constrained:
         if lower is not None or upper is not None:
-            raise WorkbenchError("lower and upper must be None for kind 'lstsq' (use kind 'nnls' or 'box')")
+            raise WorkbenchError(f"lower and upper must be None for kind '{kind}' (use kind 'nnls' or 'box')")
         return None, None, None, None
-    if kind == "nnls":
-        if upper is not None or (lower is not None and not _is_zero_scalar(lower)):
-            raise WorkbenchError("kind 'nnls' fixes lower=0 and upper=None; use kind 'box' for other bounds")
-        return np.zeros(n), np.full(n, np.inf), 0.0, None
+    if not entry.options:  # bounds of its own: a setting may only repeat them
+        if not (_is_fixed(lower, entry.lower) and _is_fixed(upper, entry.upper)):
+            raise WorkbenchError(
+                f"kind '{kind}' fixes lower={_bound_text(entry.lower)} and upper={_bound_text(entry.upper)}; "
+                "use kind 'box' for other bounds"
+            )
+        lower, upper = entry.lower, entry.upper
+        return (
+            np.full(n, -np.inf if lower is None else lower),
+            np.full(n, np.inf if upper is None else upper),
+            lower,
+            upper,
+        )
     if lower is None and upper is None:
-        raise WorkbenchError("kind 'box' needs lower or upper (or both); got neither")
+        raise WorkbenchError(f"kind '{kind}' needs lower or upper (or both); got neither")
     lo, lower_out = _bound_vector("lower", lower, n, -np.inf)
     hi, upper_out = _bound_vector("upper", upper, n, np.inf)
     _check_order(lo, hi, np.ndim(lower_out) == 0 and np.ndim(upper_out) == 0)
     return lo, hi, lower_out, upper_out
+
+
+def _is_fixed(value, fixed: float | None) -> bool:
+    """Whether a given bound is absent or the kind's own scalar ``fixed``."""
+    return value is None or (
+        fixed is not None and np.ndim(value) == 0 and np.isreal(value) and float(value) == float(fixed)
+    )
+
+
+def _bound_text(value: float | None) -> str:
+    return "None" if value is None else f"{value:g}"
 
 
 def _bound_vector(name: str, value, n: int, open_side: float):
@@ -553,10 +633,6 @@ def _check_order(lo: np.ndarray, hi: np.ndarray, scalar: bool) -> None:
     if scalar:
         raise WorkbenchError(f"lower ({lo[i]:g}) must not exceed upper ({hi[i]:g})")
     raise WorkbenchError(f"lower[{i}] ({lo[i]:g}) must not exceed upper[{i}] ({hi[i]:g})")
-
-
-def _is_zero_scalar(value) -> bool:
-    return np.ndim(value) == 0 and np.isreal(value) and float(value) == 0.0
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -641,7 +717,7 @@ def _solve_bounded(gram, rhs, lo, hi, start, ridge, fallback, tol):
     return weights, n_iter, int(redo.size), float(violation.max())
 
 
-def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, kind: str, ridge: float) -> np.ndarray:
+def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, solve_one: Callable, ridge: float) -> np.ndarray:
     """SciPy's per-frame solver on the reduced problem ``|diag(s) Vt w - (U^T d*)_f|^2`` for ``frames``."""
     design = reduction.singular[:, None] * reduction.vt
     return _per_frame_designs(
@@ -649,12 +725,12 @@ def _per_frame(reduction: _Reduction, lo, hi, frames: np.ndarray, kind: str, rid
         reduction.projected[frames],
         lo,
         hi,
-        kind,
+        solve_one,
         np.full(len(frames), ridge),
     )
 
 
-def _per_frame_designs(designs, projected, lo, hi, kind: str, ridges) -> np.ndarray:
+def _per_frame_designs(designs, projected, lo, hi, solve_one: Callable, ridges) -> np.ndarray:
     """SciPy's per-frame solver on ``|design_f w - projected_f|^2``, one frame at a time.
 
     With a ridge the design gets ``sqrt(ridge) * I`` rows (zero targets), matching the batched solver.
@@ -666,7 +742,8 @@ def _per_frame_designs(designs, projected, lo, hi, kind: str, ridges) -> np.ndar
     designs : ndarray of shape (n_frames, k, n)
     projected : ndarray of shape (n_frames, k)
     lo, hi : ndarray of shape (n,)
-    kind : {"nnls", "box"}
+    solve_one : callable
+        ``(design, target, lo, hi) -> weights`` of one frame: :func:`_nnls_one` or :func:`_bvls_one`.
     ridges : ndarray of shape (n_frames,)
     """
     n = designs.shape[2]
@@ -675,7 +752,6 @@ def _per_frame_designs(designs, projected, lo, hi, kind: str, ridges) -> np.ndar
     weights = np.tile(np.where(fixed, lo, 0.0), (len(designs), 1))
     if fixed.all():
         return weights
-    solve_one = _nnls_one if kind == "nnls" else _bvls_one
     for f, (design, target, ridge) in enumerate(zip(designs, projected, ridges)):
         if ridge > 0.0:
             design = np.vstack([design, np.sqrt(ridge) * np.eye(n)])

@@ -91,6 +91,12 @@ def one_of(*choices: str) -> dict:
     return rule(lambda value: isinstance(value, str) and value in choices, f"one of {choices}")
 
 
+def key_of(table: Mapping) -> dict:
+    """One of the keys of ``table``, as it holds them when a value is checked (a table that can grow: the solver
+    kinds, :data:`workbench.core.solvers.SOLVER_KINDS`); stated as :func:`one_of` states its choices."""
+    return {"check": lambda value: isinstance(value, str) and value in table, "rule": lambda: f"one of {tuple(table)}"}
+
+
 BOOLEAN = rule(_boolean, "true or false")
 """A true/false setting: ``maybe``, 1 or ``"true"`` is not taken as true."""
 SEED = rule(lambda value: _integer(value) and value >= 0, "a non-negative integer")
@@ -122,10 +128,12 @@ def checked(value, key: str, spec: dict):
     key : str
         Its config key for the message, e.g. ``"dataset.frame_step"``.
     spec : dict
-        A rule (:func:`rule`, :func:`interval`, :func:`integer`, :func:`one_of`, ...).
+        A rule (:func:`rule`, :func:`interval`, :func:`integer`, :func:`one_of`, ...); its words may be a callable
+        that states them when called (:func:`key_of`).
     """
     if not spec["check"](value):
-        raise WorkbenchError(f"{key} must be {spec['rule']}, got {value!r}")
+        words = spec["rule"]() if callable(spec["rule"]) else spec["rule"]
+        raise WorkbenchError(f"{key} must be {words}, got {value!r}")
     return value
 
 

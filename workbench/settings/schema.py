@@ -23,6 +23,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError, check_utf8
+from workbench.core.solvers import SOLVER_KINDS
 from workbench.settings.bases import ALTERNATIVE_BASES
 from workbench.settings.ineffective import (
     _alternatives,
@@ -43,6 +44,7 @@ from workbench.settings.rules import (
     coverage_on_setting,
     integer,
     interval,
+    key_of,
     meta,
     one_of,
     rule,
@@ -163,7 +165,7 @@ of ``conf/basis/default.yaml``."""
 
 @dataclass
 class SolverSchema:
-    kind: str = meta(MISSING, one_of("lstsq", "nnls", "box"))
+    kind: str = meta(MISSING, key_of(SOLVER_KINDS))
     lower: Optional[float] = meta(None, interval(optional=True))
     upper: Optional[float] = meta(None, interval(optional=True))
 
@@ -659,13 +661,14 @@ def nested_schema(spec):
 
 def _check_solvers(solvers) -> None:
     if not isinstance(solvers, Mapping) or not solvers:
-        raise WorkbenchError("the solver group is empty: choose one of solver=lstsq|nnls|box|all")
+        raise WorkbenchError(f"the solver group is empty: choose one of solver={'|'.join(SOLVER_KINDS)}|all")
     for name, spec in solvers.items():
         _check_node(spec, SolverSchema, f"solver.{name}.")
         lower, upper = spec.get("lower"), spec.get("upper")
-        if spec["kind"] == "box" and lower is None and upper is None:
-            raise WorkbenchError(f"solver.{name} is a box solver without bounds: set lower and/or upper")
-        if spec["kind"] == "box" and lower is not None and upper is not None and lower > upper:
+        given = bool(SOLVER_KINDS[spec["kind"]].options)  # a kind that takes its bounds from the settings
+        if given and lower is None and upper is None:
+            raise WorkbenchError(f"solver.{name} is a {spec['kind']} solver without bounds: set lower and/or upper")
+        if given and lower is not None and upper is not None and lower > upper:
             raise WorkbenchError(f"solver.{name}.lower ({lower}) must not exceed solver.{name}.upper ({upper})")
 
 

@@ -16,6 +16,7 @@ from typing import Any, Mapping, Optional, Sequence
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.solvers import BOUNDS, SOLVER_KINDS
 from workbench.settings.schema import (
     DATASET_EXTRA_SCHEMAS,
     DATASET_EXTRAS,
@@ -99,11 +100,11 @@ def dataset_settings(values, *, check: bool = False) -> Any:
 
 
 def solver_options(solver: SolverSchema) -> dict:
-    """One ``solver`` entry as the keyword arguments of :func:`workbench.numerics.solve.solve_weights`
-    (least squares takes no bounds)."""
-    if solver.kind == "lstsq":
-        return {"kind": "lstsq", "lower": None, "upper": None}
-    return {"kind": solver.kind, "lower": solver.lower, "upper": solver.upper}
+    """One ``solver`` entry as the keyword arguments of :func:`workbench.numerics.solve.solve_weights`: a kind that
+    does not bound the weights (least squares) takes no bounds (:data:`workbench.core.solvers.SOLVER_KINDS`)."""
+    entry = SOLVER_KINDS.get(solver.kind)  # a kind of none (a bare typed entry): its bounds, for the solve to judge
+    bounded = entry is None or entry.constrained
+    return {"kind": solver.kind, **{bound: getattr(solver, bound) if bounded else None for bound in BOUNDS}}
 
 
 @dataclass

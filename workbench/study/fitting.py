@@ -3,7 +3,6 @@ alternative bases (``basis.alternatives``)."""
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import asdict
 
 import numpy as np
@@ -17,8 +16,18 @@ from workbench.settings.schema import BasisSchema
 from workbench.study.results import Timings
 
 
-def fit_bases(capture: Capture, basis: BasisSchema, timings: Timings) -> tuple[Eigenfaces, dict]:
+def fit_bases(
+    capture: Capture, basis: BasisSchema, timings: Timings, previous: Eigenfaces | None = None
+) -> tuple[Eigenfaces, dict]:
     """Eigenfaces (eq. 2) of the training frames and the quasi-eigen faces (eq. 3-4) of each projection.
+
+    Parameters
+    ----------
+    capture : Capture
+    basis : BasisSchema
+    timings : Timings
+    previous : Eigenfaces, optional
+        A fit of the very same training frames, whose decomposition a fixed m reuses (:func:`fit_eigenfaces`).
 
     Returns
     -------
@@ -29,7 +38,7 @@ def fit_bases(capture: Capture, basis: BasisSchema, timings: Timings) -> tuple[E
     # the paper's m = n variant (basis.paper_regime) takes its eigenfaces from this fit: keep n of them converged
     reusable = len(capture.hand_names) if basis.paper_regime is True and basis.n_components is None else None
     with timings.stage("pca"):
-        eigenfaces = fit_eigenfaces(capture, basis.coverage, basis.n_components, n_reusable=reusable)
+        eigenfaces = fit_eigenfaces(capture, basis.coverage, basis.n_components, n_reusable=reusable, previous=previous)
     with timings.stage("quasi_eigen"):
         quasi_eigen = {
             projection: build_quasi_eigen_basis(
@@ -47,40 +56,29 @@ def fit_bases(capture: Capture, basis: BasisSchema, timings: Timings) -> tuple[E
 
 
 def fit_eigenfaces(
-    capture: Capture, coverage: float, n_components: int | None = None, *, n_reusable: int | None = None
+    capture: Capture,
+    coverage: float,
+    n_components: int | None = None,
+    *,
+    n_reusable: int | None = None,
+    previous: Eigenfaces | None = None,
 ) -> Eigenfaces:
     """Eigenfaces (eq. 2) of a capture's training frames, m by the coverage rule or fixed (``n_reusable``: see
     :class:`Eigenfaces`).
 
-    A fixed m on the very training frames of the previous fit (the paper's m = n beside the coverage rule's m,
-    ``basis.paper_regime``) reuses that fit's decomposition (:meth:`Eigenfaces.with_n_components`) instead of
-    decomposing them again, when it found that many eigenpairs.
+    A fixed m given ``previous``, a fit of the very same training frames (the coverage rule's fit beside the paper's
+    m = n, ``basis.paper_regime``), reuses that fit's decomposition (:meth:`Eigenfaces.with_n_components`) instead
+    of decomposing them again, when it found that many eigenpairs. The frames are not compared: the caller hands
+    on only a fit of these frames.
     """
-    frames = _training_frames(capture)
-    if n_components is not None and _LAST_FIT and all(ref() is array for ref, array in zip(_LAST_FIT[0], frames)):
-        previous = _LAST_FIT[1]
-        if previous._eigenvectors.shape[0] >= n_components:
-            return previous.with_n_components(n_components)
+    if n_components is not None and previous is not None and previous._eigenvectors.shape[0] >= n_components:
+        return previous.with_n_components(n_components)
     eigenfaces = Eigenfaces(coverage=coverage, n_components=n_components, n_reusable=n_reusable)
     if capture.train_source is not None:  # frames interpolated from markers: PCA in marker space, lifted
         eigenfaces.fit_mapped(capture.train_source, capture.train_operator)
     else:
         eigenfaces.fit(capture.train)
-    _LAST_FIT[:] = [tuple(weakref.ref(array) for array in frames), eigenfaces]
     return eigenfaces
-
-
-_LAST_FIT: list = []
-"""Weak references to the training frames of the last :func:`fit_eigenfaces` and its fit, as ``[refs, fit]``: a
-reference only says the same array object is still alive, so the study must not change training frames in place
-(it never does: a capture is frozen and its arrays are shared, never written, once built)."""
-
-
-def _training_frames(capture: Capture) -> tuple:
-    """The arrays the eigenfaces of a capture are fitted on: the marker frames and their map, or the frames."""
-    if capture.train_source is not None:
-        return (capture.train_source, capture.train_operator)
-    return (capture.train,)
 
 
 def pca_subspace(eigenfaces: Eigenfaces, transfer: PointTransfer | None = None) -> Subspace:

@@ -11,6 +11,7 @@ import numpy as np
 from workbench.dataset.capture import Capture
 from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.metrics import AlphaSummary, Conditioning, ErrorDistribution, WeightStatistics
+from workbench.numerics.reduced import SpanPass
 
 QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
 
@@ -97,6 +98,9 @@ class StudyResult:
     folds : dict
         Cross-validated held-out frames (``dataset.held_out`` kfold or take_out): each fold's m, frames and alphas
         (``workbench.study.crossval.fold_values``); empty otherwise.
+    span_pass : SpanPass or None
+        The scoring pass over the evaluated frames through the bases' joint span (large frames only), handed on to
+        this variant's m = n refit (:func:`workbench.study.run.with_paper_regime`), which drops it; None otherwise.
     """
 
     data: str
@@ -114,6 +118,7 @@ class StudyResult:
     offset: dict = field(default_factory=dict)
     protocol: str = "training frames"
     folds: dict = field(default_factory=dict)
+    span_pass: SpanPass | None = field(default=None, compare=False)
 
     @property
     def name(self) -> str:

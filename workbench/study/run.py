@@ -88,17 +88,18 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     return results
 
 
-Score = Callable[[str, Capture, BasisSchema], StudyResult]
-"""``(name, capture, basis) -> StudyResult``: the run's method on one capture (:func:`scorer`)."""
+Score = Callable[[str, Capture, BasisSchema, "StudyResult | None"], StudyResult]
+"""``(name, capture, basis, previous) -> StudyResult``: the run's method on one capture (:func:`scorer`), taking
+what it can from ``previous``, the result of a fit of the very same frames (or None)."""
 
 
 def scorer(solvers: Mapping[str, Mapping], timings: Timings, clean: Capture | None) -> Score:
     """:func:`run_on_capture` with the run's solvers and timings, every row also scored against the clean frames
     of ``clean`` (``metric.score_clean``) when given."""
 
-    def score(name: str, capture: Capture, basis: BasisSchema) -> StudyResult:
+    def score(name: str, capture: Capture, basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
         truth = clean_frames(capture, clean) if clean is not None else None
-        return run_on_capture(name, capture, basis, solvers, timings, truth=truth)
+        return run_on_capture(name, capture, basis, solvers, timings, truth=truth, previous=previous)
 
     return score
 
@@ -128,7 +129,8 @@ def held_out_results(
     if protocol in FOLDED:
         source = capture
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema) -> StudyResult:
+        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
+            # each fold is fitted on frames of its own: nothing of ``previous`` (the pooled folds) serves them
             return cross_validated(
                 data, part, protocol, dataset, lambda fold, frames: score(fold, frames, fit_basis), name=name
             )
@@ -136,14 +138,18 @@ def held_out_results(
     else:
         source = held_out_capture(capture, protocol, dataset.eval_fraction)
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema) -> StudyResult:
-            return replace(score(name, part, fit_basis), train_on=data, eval_on=data, protocol=HELD_OUT[protocol])
+        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
+            return replace(
+                score(name, part, fit_basis, previous), train_on=data, eval_on=data, protocol=HELD_OUT[protocol]
+            )
 
     base = paper_regime_name(data) if trained_regime else data
     return with_paper_regime(
         fit(f"{data} held-out {protocol}", source, basis),
         basis,
-        lambda name, part, fit_basis: replace(fit(name, part, fit_basis), train_on=base, eval_on=base),
+        lambda name, part, fit_basis, previous: replace(
+            fit(name, part, fit_basis, previous), train_on=base, eval_on=base
+        ),
         source,
     )
 
@@ -163,12 +169,15 @@ def with_paper_regime(
     basis : BasisSchema
         The settings ``result`` was fitted with.
     refit : Score
-        Fits and scores the m = n variant as ``result`` was: ``(name, capture, basis)``.
+        Fits and scores the m = n variant as ``result`` was: ``(name, capture, basis, previous)``, handed
+        ``result`` as ``previous`` (the same training and evaluated frames: its fit's decomposition and its scoring
+        pass serve the m = n fit).
     source : Capture, optional
         The capture ``refit`` takes (``result.capture`` when not given; a cross-validated variant's folds are cut
         from the capture before pooling).
     """
     folds = result.folds or {}
+    handed, result = result, replace(result, span_pass=None)  # the pass serves the refit only
     capture, regime_basis, note = paper_regime_fit(
         result.capture if source is None else source,
         basis,
@@ -180,7 +189,8 @@ def with_paper_regime(
         return [
             replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
         ]
-    return [refit(paper_regime_name(result.data), capture, regime_basis), result]
+    regime = refit(paper_regime_name(result.data), capture, regime_basis, handed)
+    return [replace(regime, span_pass=None), result]
 
 
 def carried_results(
@@ -224,7 +234,7 @@ def carried_results(
                 projection: replace(qe, shapes=transfer.apply(qe.shapes)) for projection, qe in quasi_eigen.items()
             }
             carried_pca = pca_subspace(eigenfaces, transfer)
-            rows, weights = score_bases(
+            rows, weights, _ = score_bases(
                 target,
                 eigenfaces,
                 carried,
@@ -259,6 +269,7 @@ def run_on_capture(
     solvers: Mapping[str, Mapping],
     timings: Timings,
     truth: np.ndarray | None = None,
+    previous: StudyResult | None = None,
 ) -> StudyResult:
     """The paper's method on one capture: eigenfaces, quasi-eigen faces, weights of every basis and solver, alpha.
 
@@ -276,14 +287,26 @@ def run_on_capture(
         Stage times are added to it.
     truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
         The clean frames; every row is also scored against them (``metric.score_clean``).
+    previous : StudyResult, optional
+        A result fitted on the very same training frames and scored on the very same evaluated frames (the
+        coverage rule's, for the m = n variant): its eigenfaces' decomposition and its scoring pass are reused
+        where they serve.
 
     Returns
     -------
     StudyResult
+        With the scoring pass (``span_pass``) that a later scoring of the same frames can be handed.
     """
-    eigenfaces, quasi_eigen = fit_bases(capture, basis, timings)
-    rows, weights = score_bases(
-        capture, eigenfaces, quasi_eigen, pca_subspace(eigenfaces), solvers, timings, truth=truth
+    eigenfaces, quasi_eigen = fit_bases(capture, basis, timings, None if previous is None else previous.eigenfaces)
+    rows, weights, span_pass = score_bases(
+        capture,
+        eigenfaces,
+        quasi_eigen,
+        pca_subspace(eigenfaces),
+        solvers,
+        timings,
+        truth=truth,
+        kept_pass=None if previous is None else previous.span_pass,
     )
     alternatives = fit_alternative_bases(capture, basis, timings)
     measured = {}
@@ -305,4 +328,5 @@ def run_on_capture(
         basis_intuitiveness=measured,
         face_region=face_region(capture).description,
         offset=offset_facts(pca_subspace(eigenfaces), rows),
+        span_pass=span_pass,
     )

@@ -23,7 +23,7 @@ from workbench.numerics.metrics import (
     summarise_squares,
     weight_statistics,
 )
-from workbench.numerics.reduced import FrameProjections, Subspace, project_frames, region_error_sq
+from workbench.numerics.reduced import FrameProjections, SpanPass, Subspace, project_frames, region_error_sq
 from workbench.numerics.solve import in_span_difference, reconstruct, reduce_basis, solve_projected, solve_weights
 from workbench.settings.schema import IntuitivenessSchema
 from workbench.study.results import QE_LABELS, Row, Timings
@@ -81,7 +81,8 @@ def score_bases(
     solvers: Mapping[str, Mapping],
     timings: Timings,
     truth: np.ndarray | None = None,
-) -> tuple[list, dict]:
+    kept_pass: SpanPass | None = None,
+) -> tuple[list, dict, SpanPass | None]:
     """Weights (eq. 5) and alpha (eq. 6) of H and every quasi-eigen basis with every solver, then PCA.
 
     Parameters
@@ -98,25 +99,39 @@ def score_bases(
     timings : Timings
     truth : ndarray of shape (n_eval_frames, 3 * n_points), optional
         The clean frames: every row is also scored against them (:func:`clean_scores`).
+    kept_pass : SpanPass, optional
+        The pass of an earlier scoring of these very evaluated frames (its ``span_pass``), which serves this one
+        when its span holds these bases (:func:`workbench.numerics.reduced.project_through_span`).
 
     Returns
     -------
     rows : list of Row
     weights : dict
         ``(basis, solver)`` -> ndarray of shape (n_eval_frames, n_shapes).
+    span_pass : SpanPass or None
+        The pass through the bases' joint span that scored them, for a later scoring of the same frames; None
+        when the pass went over each basis.
     """
     bases = [("H", "-", capture.hand)] + [
         (QE_LABELS[projection], projection, qe.shapes) for projection, qe in quasi_eigen.items()
     ]
     with timings.stage("metrics"):
         conditioning = {label: basis_conditioning(shapes) for label, _, shapes in bases}
-    region_errors = None
+    region_errors, span_pass = None, None
     if capture.eval_visible is None:
         offset, _ = outside_offset(pca)
         extra = {"PCA": pca, **({OFFSET: Subspace(offset[:, None])} if offset is not None else {})}
         rows, weights, projections, region_errors = projected_rows(
-            capture, bases, solvers, timings, conditioning, extra, also_span=reusable_eigenfaces(eigenfaces, pca)
+            capture,
+            bases,
+            solvers,
+            timings,
+            conditioning,
+            extra,
+            also_span=reusable_eigenfaces(eigenfaces, pca),
+            kept_pass=kept_pass,
         )
+        span_pass = projections.span_pass
         if region_errors is not None:
             region_errors[("PCA", "projection")] = region_error_sq(projections.region, "PCA")
         with timings.stage("pca_reconstruction"):
@@ -164,7 +179,7 @@ def score_bases(
                 weights,
                 lambda frames: mean + reconstruct(directions, coefficients[frames]),
             )
-    return rows, weights
+    return rows, weights, span_pass
 
 
 OFFSET = "(I-P) mu"
@@ -454,6 +469,7 @@ def projected_rows(
     conditioning: Mapping | None = None,
     subspaces: Mapping[str, Subspace] | None = None,
     also_span: np.ndarray | None = None,
+    kept_pass: SpanPass | None = None,
 ) -> tuple[list, dict, FrameProjections, dict | None]:
     """Weights (eq. 5) and alpha (eq. 6) of each basis with every solver, from one pass over the evaluated frames.
 
@@ -475,6 +491,8 @@ def projected_rows(
         More affine subspaces to take in the same pass (label -> :class:`Subspace`), e.g. PCA's.
     also_span : ndarray of shape (n_dims, j), optional
         Directions a later pass over the same frames will need (:func:`workbench.numerics.reduced.project_frames`).
+    kept_pass : SpanPass, optional
+        An earlier pass over these very frames, handed to :func:`workbench.numerics.reduced.project_frames`.
 
     Returns
     -------
@@ -496,6 +514,7 @@ def projected_rows(
             capture.neutral,
             region=None if points is None else np.repeat(points, 3),
             also_span=also_span,
+            kept=kept_pass,
         )
     n_compared = len(capture.eval) * capture.n_points
     rows, weights = [], {}

@@ -13,9 +13,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
+from workbench.core.solvers import solver_line_style
 from workbench.reporting.figures import basis_colour, new_figure, shown_as_pixels, wrap_title, wrap_to_width
 
-SOLVER_STYLES = {"lstsq": "-", "nnls": "--", "box": ":", "projection": "-"}
 WEIGHT_PANELS = (
     ("max_abs", "largest |w|", True),
     ("outside_unit_share", "frames with a weight outside [0, 1]", False),
@@ -47,6 +47,7 @@ def plot_error_cdf(
     *,
     title: str,
     regions: Mapping[str, str] | None = None,
+    settings: Mapping | None = None,
 ) -> Figure:
     """Cumulative per-frame error curves: for each error in millimetres, the share of frames reconstructed at least
     that well; one panel per data variant, one line per basis (colour) and solver (line style).
@@ -60,6 +61,8 @@ def plot_error_cdf(
     title : str
     regions : mapping, optional
         Data variant -> the face region the errors are taken over (shown under each panel's title).
+    settings : mapping, optional
+        The run's ``solver`` settings: each solver's kind, whose line style draws it (its name's kind without).
 
     Returns
     -------
@@ -82,7 +85,7 @@ def plot_error_cdf(
                 quantiles[shown],
                 probabilities[shown],
                 color=basis_colour(basis),
-                linestyle=SOLVER_STYLES.get(solver, "-."),
+                linestyle="-" if solver == "projection" else solver_line_style(solver, settings),
                 linewidth=1.4,
                 label=f"{basis} {solver}" if solver != "projection" else basis,
             )

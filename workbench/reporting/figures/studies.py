@@ -31,6 +31,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from workbench.core.errors import WorkbenchError
+from workbench.core.solvers import solver_hatch
 from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.tables.runs import interval_label
 
@@ -537,7 +538,7 @@ def plot_alpha_over_time(
 
 
 def plot_alpha_per_solver(
-    table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *, title: str
+    table: pd.DataFrame, y: str, negative_share: Mapping[str, Mapping[str, float]], *, title: str, settings=None
 ) -> Figure:
     """Alpha of each basis under each solver (bars), one panel per data variant, with the share of frames whose
     unconstrained weights go negative: the frames a non-negative or box constraint must change.
@@ -551,6 +552,8 @@ def plot_alpha_per_solver(
     negative_share : mapping
         Data variant -> (basis -> fraction of evaluated frames with at least one negative least-squares weight).
     title : str
+    settings : mapping, optional
+        The run's ``solver`` settings: each solver's kind, whose hatch draws it (its name's kind without).
 
     Returns
     -------
@@ -562,7 +565,6 @@ def plot_alpha_per_solver(
     width = max(6.0, 4.8 * len(data_variants))
     figure = new_figure(width, 4.6)
     axes = figure.subplots(1, len(data_variants), squeeze=False)[0]
-    hatches = {"lstsq": "", "nnls": "//", "box": "xx"}  # line hatches: a dotted one is 70 kB of SVG per colour
     decimals = fixed_decimals(table[y].to_numpy(dtype=float), significant=3)
     for ax, data in zip(axes, data_variants):
         part = table[table["data"] == data]
@@ -577,7 +579,7 @@ def plot_alpha_per_solver(
                 width=step * 0.92,
                 color=[basis_colour(b) for b in bases],
                 alpha=1.0 - 0.25 * k,
-                hatch=hatches.get(solver, ""),
+                hatch=solver_hatch(solver, settings),
                 edgecolor="white",
                 label=solver,
             )

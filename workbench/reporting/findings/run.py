@@ -20,6 +20,7 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.core.solvers import constrained_solvers, solver_text
 from workbench.reporting.findings.comparisons import (
     adjusted_comparisons,
     finite_value,
@@ -39,8 +40,6 @@ from workbench.study.regime import is_paper_regime, paper_regime_name
 PAPER_BASES = ("H", "QE", "PCA")
 RUN_BASES = ("H", "QE", "QE-linear", "PCA")
 QE_BASES = ("QE", "QE-linear")
-CONSTRAINED = ("nnls", "box")
-SOLVER_NAMES = {"lstsq": "least squares", "nnls": "non-negative weights", "box": "box [0, 1] weights"}
 ALPHA_VARIANTS = {
     "alpha_abs_mean": "abs mean",
     "alpha_abs_pooled": "abs pooled",
@@ -168,6 +167,7 @@ def ratio_text(
     spread: bool = True,
     paper_shown: bool = True,
     error: str = "",
+    settings: Mapping | None = None,
 ) -> str:
     """H/QE and QE/PCA of one data variant in the headline column (with ``paper_shown``, beside the paper's), then
     ``error`` (:func:`error_text`), and (with ``spread``) how far the four alpha variants move H/QE (every variant's value is in the table 'Alpha beside
@@ -193,7 +193,7 @@ def ratio_text(
         if spread and len(columns) > 1 and all(map(math.isfinite, ratios))
         else ""
     )
-    return f"with {SOLVER_NAMES.get(solver, solver)}, " + ", ".join(texts) + (f"; {error}" if error else "") + spread
+    return f"with {solver_text(solver, settings)}, " + ", ".join(texts) + (f"; {error}" if error else "") + spread
 
 
 def m_text(part: pd.DataFrame, paper: Mapping) -> str:
@@ -223,7 +223,7 @@ def _verdict(compare, a: tuple, b: tuple, worse: str, better: str) -> str:
     return f"{worse if interval.sign > 0 else better} {b[0]} ({detail})"
 
 
-def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None) -> str:
+def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None, settings: Mapping | None = None) -> str:
     """What a constrained solver does to QE and QE-linear against H, relative to least squares, with the paired
     comparison of each against H under that solver."""
     h0, h1 = _alpha(part, "H", "lstsq", column), _alpha(part, "H", solver, column)
@@ -237,9 +237,7 @@ def constraint_text(part: pd.DataFrame, column: str, solver: str, compare=None) 
         verdicts.append(
             f"{basis} is {verdict}" if verdict else f"{basis} {_fmt(q1)} against H {_fmt(h1)} (no paired interval)"
         )
-    return (
-        f"with {SOLVER_NAMES.get(solver, solver)} " + ", ".join(moves) + f", H's x{h1 / h0:.2f}; " + ", ".join(verdicts)
-    )
+    return f"with {solver_text(solver, settings)} " + ", ".join(moves) + f", H's x{h1 / h0:.2f}; " + ", ".join(verdicts)
 
 
 def _row(rows: Sequence[Mapping], data: str, basis: str, solver: str) -> Mapping:
@@ -259,7 +257,7 @@ fraction of QE's (``x1.8`` against ``x7.1``: yes; ``x1.54`` against ``x1.62``: n
 
 
 def offset_text(
-    data: str, part: pd.DataFrame, column: str, solver: str, facts: Mapping, rows: Sequence[Mapping]
+    data: str, part: pd.DataFrame, column: str, solver: str, facts: Mapping, rows: Sequence[Mapping], settings=None
 ) -> str:
     """Why a constraint on the weights costs affine QE more than QE-linear, from the numbers the run kept: the
     offset ``(I - P) mu`` that every affine QE shape carries, what the weights' sum does to it under least squares
@@ -282,7 +280,7 @@ def offset_text(
         )
         + f"); QE's least-squares weights sum to {qe0['weights']['sum_median']:.2f} (median), "
         f"{_percent(needs_negative(qe0['weights']))} of frames {verb} a negative weight; with "
-        f"{SOLVER_NAMES.get(solver, solver)} the sum is {qe1['weights']['sum_median']:.2f} and "
+        f"{solver_text(solver, settings)} the sum is {qe1['weights']['sum_median']:.2f} and "
         f"{_percent(share1)} of QE's squared error lies along (I-P) mu (least squares: {_percent(share0)})"
     )
     if lin0.get("weights") and lin1.get("weights"):
@@ -517,6 +515,7 @@ def run_findings(
         then the caveats.
     """
     metrics, config = metrics or {}, config or {}
+    settings = config.get("solver")  # each solver's kind and bounds
     data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     parts = dict(list(table.groupby("data", sort=False)))
@@ -533,7 +532,7 @@ def run_findings(
         if paper_regime_name(data) in parts and "lstsq" in solvers and trained_here:  # beside the paper's regime
             lines.append(
                 f"**{data}** (the coverage rule, beside {paper_regime_name(data)}): "
-                f"{_ratios(part, paper, column, False, said)}; {m_text(part, paper)}."
+                f"{_ratios(part, paper, column, False, said, settings=settings)}; {m_text(part, paper)}."
             )
             continue
         identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
@@ -558,22 +557,25 @@ def run_findings(
             continue  # its error in mm: the table 'Training frames and held-out frames'
         lines.append(f"**{data}**: `{column}` from best to worst{claim}, {ordering}.")
         if "lstsq" in solvers:
-            ratios = _ratios(part, paper, column, lead, said, error_text(part, "lstsq", facts) if lead else "")
+            ratios = _ratios(
+                part, paper, column, lead, said, error_text(part, "lstsq", facts) if lead else "", settings
+            )
             if ratios:
                 lines.append(f"**{data}**: {ratios}.")
         if not lead:  # the lead variant's details stand for the others' (m: table 'Run facts'; mm: the tables)
             continue
         if not is_paper_regime(data):  # at m = n by construction
             lines.append(f"**{data}**: {m_text(part, paper)}.")
-        lines += _detail_lines(data, part, column, solvers, compare, facts, rows, intuitiveness.get(data, []))
+        lines += _detail_lines(data, part, column, solvers, compare, facts, rows, intuitiveness.get(data, []), settings)
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
 
 
-def _ratios(part: pd.DataFrame, paper: Mapping, column: str, spread: bool, said: dict, error: str = "") -> str:
+def _ratios(part: pd.DataFrame, paper: Mapping, column: str, spread: bool, said: dict, error="", settings=None) -> str:
     """:func:`ratio_text` with least squares, the paper's ratios beside the first that is said only."""
+    shown = not said["paper"]
     text = ratio_text(
-        part, paper.get("alpha", {}), column=column, spread=spread, paper_shown=not said["paper"], error=error
+        part, paper.get("alpha", {}), column=column, spread=spread, paper_shown=shown, error=error, settings=settings
     )
     said["paper"] = said["paper"] or bool(text)
     return text
@@ -588,22 +590,23 @@ def _detail_lines(
     facts: Mapping,
     rows: Sequence[Mapping],
     intuitiveness: Sequence[Mapping],
+    settings: Mapping | None = None,
 ) -> list[str]:
     """The findings said for the lead data variant only: what the constrained solvers do and why, the weights
     and the shapes the projection changes most (see :func:`run_findings`); each a :class:`Detail` that
     :func:`fit_findings` may leave out."""
     lines = []
     # the first constrained solver (nnls) said; the others' alpha is in the table 'Alpha beside the paper'
-    constrained = [s for s in CONSTRAINED if s in solvers and "lstsq" in solvers][:1]
+    constrained = constrained_solvers(solvers, settings)[:1] if "lstsq" in solvers else []
     for k, solver in enumerate(constrained):
         lines.append(
             Detail(
-                f"**{data}**: " + constraint_text(part, column, solver, compare) + ".",
+                f"**{data}**: " + constraint_text(part, column, solver, compare, settings) + ".",
                 2,
                 "the tables 'Alpha beside the paper' and 'Paired comparisons within the run'",
             )
         )
-        why = offset_text(data, part, column, solver, facts, rows) if k == 0 else ""
+        why = offset_text(data, part, column, solver, facts, rows, settings) if k == 0 else ""
         if why:
             lines.append(Detail(f"**{data}**: why: {why}.", 3, "the run record (metrics.json: offset)"))
     weights = weights_text(data, solvers, rows)

@@ -295,6 +295,7 @@ def draw_alpha_per_solver(record: RunRecord, cache: dict):
             "Alpha per solver: constraints on the weights, and how many frames have a negative weight "
             f"without them\n{short_label(record)}"
         ),
+        settings=record.config.get("solver"),
     )
 
 
@@ -314,6 +315,7 @@ def draw_error_cdf(record: RunRecord, cache: dict | None = None):
         curves,
         ERROR_QUANTILES,
         regions=regions,
+        settings=record.config.get("solver"),
         title=f"Per-frame error in millimetres, cumulative, every basis and solver\n{short_label(record)}",
     )
 
