@@ -438,6 +438,7 @@ def test_the_public_names_are_listed_and_load_lazily():
         "read_obj",
         "read_gltf",
         "read_mesh_sequence",
+        "read_obj_sequence",
         "read_blendshapes",
         "build_captures",
         "compose_config",
