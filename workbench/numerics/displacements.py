@@ -71,22 +71,31 @@ def shape_over_motion(mean_frame: np.ndarray, motion: float) -> float:
     return spread / motion if motion > 0 else 0.0
 
 
-def check_displacements(name: str, mean_frame: np.ndarray, motion: float, remedy: str) -> None:
-    """A one-line :class:`WorkbenchError` naming ``name`` when frames with this mean look like positions.
+def positions_problem(name: str, mean_frame: np.ndarray, motion: float, remedy: str) -> str | None:
+    """What :func:`check_displacements` refuses, as one line naming ``name``, or None when the frames pass.
 
     Parameters
     ----------
     name : str
-        The frames as the error names them.
+        The frames as the line names them.
     mean_frame : ndarray of shape (3 * n_points,)
     motion : float
         The RMS motion of a point in the frames (or in the capture a fit was made on).
     remedy : str
-        How the caller's user says what the frames are: subtract ``neutral``, or state they are displacements.
+        How the caller's user says what the frames are, or makes them displacements.
     """
     ratio = shape_over_motion(mean_frame, motion)
-    if ratio > POSITIONS_ABOVE:
-        raise WorkbenchError(
-            f"{name} look like positions, not displacements from the neutral face: their mean face spreads "
-            f"{ratio:.1f} times their motion (displacements stay below {POSITIONS_ABOVE:g}); {remedy}"
-        )
+    if ratio <= POSITIONS_ABOVE:
+        return None
+    return (
+        f"{name} look like positions, not displacements from the neutral face: their mean face spreads "
+        f"{ratio:.1f} times their motion (displacements stay below {POSITIONS_ABOVE:g}); {remedy}"
+    )
+
+
+def check_displacements(name: str, mean_frame: np.ndarray, motion: float, remedy: str) -> None:
+    """A one-line :class:`WorkbenchError` (:func:`positions_problem`'s line) when frames with this mean and motion
+    look like positions; the arguments are :func:`positions_problem`'s."""
+    problem = positions_problem(name, mean_frame, motion, remedy)
+    if problem:
+        raise WorkbenchError(problem)
