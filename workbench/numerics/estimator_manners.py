@@ -44,6 +44,15 @@ def column_names(frames) -> np.ndarray | None:
     return names
 
 
+def _outside_the_estimator() -> int:
+    """The ``stacklevel`` of a warning that points at the first caller outside :mod:`workbench.numerics` (the
+    estimator's methods call each other to different depths)."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("workbench.numerics"):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 class ScikitLearnManners:
     """The column-name checks, output names and containers and the versioned pickles of an estimator whose
     ``transform`` gives one column per name of :meth:`get_feature_names_out`."""
@@ -70,7 +79,7 @@ class ScikitLearnManners:
                 f"frames {'have' if fitted is None else 'do not have'} column names, but {type(self).__name__} was "
                 f"fitted {'without' if fitted is None else 'with'} them: the columns are taken by position",
                 UserWarning,
-                stacklevel=3,
+                stacklevel=_outside_the_estimator(),
             )
             return
         if len(given) == len(fitted) and np.array_equal(given, fitted):
