@@ -251,7 +251,8 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         frames : array-like of shape (n_frames, n_dims)
             Training frames as displacements from the neutral face, ``n_dims = 3 * n_points``; at least 2, not all
             the same. Real numbers only: complex values and NumPy masked arrays are refused (the estimator has no
-            gap policy; drop or fill masked frames first).
+            gap policy; drop or fill masked frames first). Positions instead for ``frames_as="positions"``;
+            a DataFrame's column names become ``feature_names_in_``.
         y : None
             Ignored (scikit-learn's convention); the hand shapes are the parameter ``hand_shapes`` (without it, a 2-D
             ``y``, the hand shapes given here as earlier versions took them, is refused saying so).
@@ -263,7 +264,8 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         Raises
         ------
         WorkbenchError
-            Naming the argument or parameter and the rule it broke.
+            Naming the argument or parameter and the rule it broke; for ``frames_as="auto"``, frames that look like
+            positions (:mod:`workbench.numerics.displacements`), naming ``neutral`` and ``frames_as``.
 
         Warns
         -----
@@ -364,7 +366,7 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``), in the columns fitted on.
         solver : {"lstsq", "nnls", "box"}, optional
             Overrides the estimator's ``solver`` for this call (``"box"`` uses ``bounds``). With a rank-deficient
             basis (more quasi-eigen faces than eigenfaces) the weights are not unique: ``lstsq`` gives the
@@ -435,7 +437,7 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral ``d*``.
+            Displacements from neutral ``d*`` (positions ``v*`` for ``frames_as="positions"``).
         solver : {"lstsq", "nnls", "box"}, optional
             Overrides ``solver``; must be None for ``basis="PCA"``, whose reconstruction is the mean plus the
             orthogonal projection onto the eigenfaces.
@@ -479,7 +481,7 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``).
         y : None
             Ignored (scikit-learn's convention).
 
@@ -496,7 +498,7 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``).
         solver : {"lstsq", "nnls", "box"}, optional
             The solver of eq. 5 for ``QE`` and ``H`` (the estimator's ``solver`` when None); PCA takes none.
         basis : str or sequence of str, default ("QE", "H", "PCA")
