@@ -118,6 +118,19 @@ def test_a_pipeline_with_pandas_output_names_the_weights_by_shape():
     assert isinstance(QuasiEigenFaces(hand_shapes=hand).fit_transform(frames), np.ndarray)
 
 
+def test_polars_frames_in_and_out():
+    polars = pytest.importorskip("polars")
+    hand, neutral, frames = capture()
+    columns = [f"{axis}{point}" for point in range(N_POINTS) for axis in "xyz"]
+    table = polars.DataFrame(frames, schema=columns, orient="row")
+    pipeline = make_pipeline(QuasiEigenFaces(hand_shapes=hand)).set_output(transform="polars")
+    weights = pipeline.fit_transform(table)
+    assert isinstance(weights, polars.DataFrame) and weights.columns == [f"shape_{i + 1}" for i in range(N_SHAPES)]
+    assert list(pipeline[0].feature_names_in_) == columns
+    with pytest.raises(ValueError, match="reordered: column 0 is 'z19', fitted on 'x0'"):
+        pipeline.transform(table.select(columns[::-1]))
+
+
 def fold_scores(estimator, frames, cv):
     """The score of each fold by hand: fit on its training frames, score its test frames."""
     return [clone(estimator).fit(frames[train]).score(frames[test]) for train, test in cv.split(frames)]
