@@ -15,6 +15,7 @@ import workbench
 from workbench import NotFittedError, QuasiEigenFaces, WorkbenchError
 from workbench.numerics import bases
 from workbench.numerics.bases import Eigenfaces
+from workbench.numerics.estimator_manners import ScikitLearnManners
 from workbench.numerics.metrics import alpha_per_frame
 from workbench.settings.config import REPO_ROOT
 
@@ -32,6 +33,7 @@ PARAMETERS = {
     "empty_axis_eps": 0.05,
     "empty_axis_scale": "axis_std",
     "append_empty_axes": False,
+    "frames_as": "auto",
 }
 
 
@@ -74,6 +76,7 @@ def test_parameters_are_keyword_only_and_stored_untouched():
         "empty_axis_eps": -1.0,
         "empty_axis_scale": None,
         "append_empty_axes": "yes",
+        "frames_as": "both",
     }
     estimator = QuasiEigenFaces(**odd)  # checked by fit, not by __init__
     assert vars(estimator) == odd and estimator.get_params() == odd
@@ -137,7 +140,7 @@ def test_the_estimator_needs_no_scikit_learn(monkeypatch):
     spec = importlib.util.spec_from_file_location("estimator_without_scikit_learn", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    assert module.ESTIMATOR_BASES == () and module.QuasiEigenFaces.__mro__[1:] == (object,)
+    assert module.ESTIMATOR_BASES == () and module.QuasiEigenFaces.__mro__[1:] == (ScikitLearnManners, object)
     assert issubclass(module.NotFittedError, WorkbenchError) and issubclass(module.NotFittedError, AttributeError)
     frames, _, _ = low_rank()
     hand = np.random.default_rng(1).standard_normal((3, frames.shape[1]))
@@ -381,8 +384,10 @@ def test_identical_or_numerically_constant_frames_are_refused():
     jitter = copies * (1 + 1e-15 * np.random.default_rng(9).standard_normal(copies.shape))  # round-off apart
     with pytest.raises(WorkbenchError, match=r"^frames are numerically constant: their spread [0-9.e+-]+ is at most"):
         estimator.fit(jitter)
-    moving = frames[0] * 1e3 + 1e-6 * frames  # a relative spread of about 1e-9: a capture, fitted
-    assert estimator.fit(moving).m_ == 1
+    moving = frames[0] * 1e3 + 1e-6 * frames  # a relative spread of about 1e-9: a capture, fitted ...
+    with pytest.raises(WorkbenchError, match="^frames look like positions"):  # ... once said to be displacements
+        estimator.fit(moving)
+    assert estimator.set_params(frames_as="displacements").fit(moving).m_ == 1
 
 
 @pytest.mark.parametrize("scale", [1e100, 1e-100, 2.0**-60])
@@ -433,6 +438,7 @@ def test_the_public_names_are_listed_and_load_lazily():
         "read_obj",
         "read_gltf",
         "read_mesh_sequence",
+        "read_obj_sequence",
         "read_blendshapes",
         "build_captures",
         "compose_config",
@@ -569,10 +575,16 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     assert [result.name for result in results] == [
         f"{results[0].capture.name} [{data}]" for data in ("markers m=n", "markers")
     ]
-    assert (
-        repr(results[1])
-        == f"StudyResult(name={results[1].name!r}, m={results[1].eigenfaces.n_components_}, frames={len(results[1].capture.eval)}, rows={len(results[1].rows)})"
+    result = results[1]  # every field its repr prints is an attribute of that name
+    assert (result.m, result.n_frames, result.n_rows) == (
+        result.eigenfaces.n_components_,
+        len(result.capture.eval),
+        len(result.rows),
     )
+    assert repr(result) == (
+        f"StudyResult(name={result.name!r}, m={result.m}, n_frames={result.n_frames}, n_rows={result.n_rows})"
+    )
+    assert results[0].m == len(results[0].capture.hand_names)  # the paper's regime: m = n
     markers = next(result for result in results if result.data == "markers")
     qe = next(r for r in markers.rows if r.basis == "QE" and r.solver == "nnls")
     assert qe.alpha.absolute_mean == row["alpha_abs_mean"]
@@ -628,6 +640,9 @@ RETIRED_LINE = (
         ("paper", ["+metric.bootstrap_resamples=5"], re.escape(RETIRED_LINE.format("resamples"))),
         ("paper", ["++metric.bootstrap_seed=5"], re.escape(RETIRED_LINE.format("seed"))),
         ("paper", ["metric.bootstrap_seed=1"], re.escape(RETIRED_LINE.format("seed"))),
+        ("paper", ["=1"], r"^overrides: the override '=1' names no setting before its '=': write key=value"),
+        ("paper", ["solver=nnls", "+=x"], r"^overrides: the override '\+=x' names no setting before its '='"),
+        ("paper", ["~"], r"^overrides: the override '~' names no setting"),
     ],
 )
 def test_compose_config_refuses_in_one_line_as_the_command_line(study, overrides, message):
@@ -680,3 +695,153 @@ def test_the_api_refuses_a_wrong_argument_naming_it(tmp_path, call, message):
         call(config, tmp_path)
     assert "\n" not in str(refused.value)
     assert not (tmp_path / "run").exists()
+
+
+# --- the estimator as strict as scikit-learn: frames as positions, columns, pickles, parameters set after fit ---------
+
+
+def face_capture(n_frames=300, n_points=30, seed=3):
+    """A face-like capture in mm: neutral positions spread over a face (about 60 mm), hand shapes moving a few points
+    by a few mm, frames they drive with noise off their span, as displacements."""
+    rng = np.random.default_rng(seed)
+    neutral = rng.uniform(-60, 60, (n_points, 3)).ravel() + 400.0  # the origin far from the face, as a camera's
+    hand = rng.standard_normal((5, 3 * n_points)) * rng.uniform(0, 4, 3 * n_points)
+    frames = rng.uniform(0, 1, (n_frames, 5)) @ hand + 0.1 * rng.standard_normal((n_frames, 3 * n_points))
+    return hand, neutral, frames
+
+
+def test_frames_given_as_positions_are_refused_in_one_line_naming_neutral():
+    hand, neutral, frames = face_capture()
+    positions = neutral + frames
+    with pytest.raises(WorkbenchError, match=r"^frames look like positions, .* spreads [0-9.]+ times") as refused:
+        QuasiEigenFaces(hand_shapes=hand, neutral=neutral).fit(positions)
+    assert "\n" not in str(refused.value) and "neutral=v0, frames_as='positions'" in str(refused.value)
+    fitted = QuasiEigenFaces(hand_shapes=hand, neutral=neutral).fit(frames)  # displacements pass
+    for use in (fitted.transform, fitted.alpha, fitted.score, fitted.alpha_summary):
+        with pytest.raises(WorkbenchError, match="^frames look like positions"):
+            use(positions)
+    with pytest.raises(WorkbenchError, match="^frames look like positions"):
+        fitted.transform(positions[:1])  # one frame, against the motion fitted on
+    fitted.transform(frames[np.argmax(np.abs(frames).sum(axis=1))][None])  # the most extreme frame passes
+
+
+def test_frames_said_to_be_positions_are_fitted_as_their_displacements():
+    hand, neutral, frames = face_capture()
+    positions = neutral + frames
+    given = QuasiEigenFaces(hand_shapes=hand, neutral=neutral, frames_as="positions").fit(positions)
+    direct = QuasiEigenFaces(hand_shapes=hand, neutral=neutral).fit(frames)
+    np.testing.assert_allclose(given.shapes_, direct.shapes_, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(given.transform(positions), direct.transform(frames), rtol=0, atol=1e-9)
+    assert given.alpha(positions) == pytest.approx(direct.alpha(frames), rel=1e-9)
+    weights = given.transform(positions)
+    np.testing.assert_allclose(given.inverse_transform(weights), direct.inverse_transform(weights) + neutral, atol=1e-9)
+    assert given.point_motion_ == pytest.approx(direct.point_motion_, rel=1e-12) and direct.point_motion_ > 0
+    with pytest.raises(WorkbenchError, match=r"^frames_as='positions' needs neutral=v0"):
+        QuasiEigenFaces(hand_shapes=hand, frames_as="positions").fit(positions)
+    # said to be displacements: fitted as given, unchecked (a capture whose mean face is large on purpose)
+    as_given = QuasiEigenFaces(hand_shapes=hand, frames_as="displacements").fit(positions)
+    np.testing.assert_allclose(as_given.mean_, positions.mean(axis=0), rtol=1e-12)
+    with pytest.raises(WorkbenchError, match=r"^frames_as must be one of 'auto', 'displacements', 'positions'"):
+        QuasiEigenFaces(hand_shapes=hand, frames_as="absolute").fit(frames)
+
+
+def test_parameters_set_after_fit_are_refused_in_their_own_words(fitted):
+    estimator, frames = fitted
+    estimator.set_params(bounds=(float("nan"), 1.0))
+    for use in (
+        lambda: estimator.transform(frames, solver="box"),
+        lambda: estimator.alpha(frames, solver="box"),
+        lambda: estimator.set_params(solver="box").score(frames),
+    ):
+        with pytest.raises(WorkbenchError, match=r"^bounds must be a pair \(lower, upper\) of numbers or None"):
+            use()
+    estimator.set_params(bounds=(1.0, 0.0))
+    with pytest.raises(WorkbenchError, match=r"^bounds must have lower <= upper, got \(1.0, 0.0\)"):
+        estimator.transform(frames)
+    estimator.set_params(solver="qp", bounds=(0.0, 1.0))
+    with pytest.raises(WorkbenchError, match="^solver must be one of 'lstsq', 'nnls', 'box'; got 'qp'"):
+        estimator.transform(frames)
+    estimator.set_params(solver="lstsq", frames_as="position")
+    with pytest.raises(WorkbenchError, match="^frames_as must be one of"):
+        estimator.alpha(frames)
+
+
+def test_dataframe_columns_are_remembered_and_must_come_back_the_same():
+    import pandas as pd
+
+    hand, neutral, frames = face_capture()
+    columns = [f"{axis}{point}" for point in range(frames.shape[1] // 3) for axis in "xyz"]
+    table = pd.DataFrame(frames, columns=columns)
+    estimator = QuasiEigenFaces(hand_shapes=hand, neutral=neutral).fit(table)
+    assert list(estimator.feature_names_in_) == columns and estimator.feature_names_in_.dtype == object
+    reordered = table[columns[3:] + columns[:3]]
+    with pytest.raises(WorkbenchError, match=r"^frames' columns must be those .* reordered: column 0 is 'x1'"):
+        estimator.transform(reordered)
+    with pytest.raises(WorkbenchError, match=r"but column 'X0' was not among the columns fitted on; select them as"):
+        estimator.alpha(table.rename(columns={"x0": "X0"}))
+    with pytest.raises(WorkbenchError, match=r"column 'z29' fitted on is missing"):
+        estimator.transform(table.iloc[:, :-1])
+    np.testing.assert_array_equal(
+        estimator.transform(reordered[estimator.feature_names_in_]), estimator.transform(table)
+    )
+    with pytest.warns(
+        UserWarning, match="frames do not have column names, but QuasiEigenFaces was fitted with them"
+    ) as warned:
+        assert estimator.alpha(frames) == pytest.approx(estimator.alpha(table), rel=1e-12)  # taken by position
+    assert warned[0].filename == __file__  # the warning points at the caller, not the estimator
+    assert not hasattr(estimator.fit(frames), "feature_names_in_")  # an array forgets them
+    with pytest.warns(UserWarning, match="frames have column names, but QuasiEigenFaces was fitted without them"):
+        estimator.transform(table)
+    with pytest.raises(WorkbenchError, match="^frames' columns must all be named by strings or none of them"):
+        estimator.fit(pd.DataFrame(frames, columns=columns[:-1] + [7]))
+
+
+def test_a_pickle_carries_the_version_and_an_older_one_is_refused_with_refit(fitted):
+    import copyreg
+    import pickle
+
+    estimator, frames = fitted
+    copy = pickle.loads(pickle.dumps(estimator))
+    np.testing.assert_array_equal(copy.transform(frames), estimator.transform(frames))
+    assert repr(copy) == repr(estimator) and "_workbench_version" not in vars(copy)
+
+    class Pickled:
+        """Pickles as the estimator with the given state, as an older workbench wrote it."""
+
+        def __init__(self, state):
+            self.state = state
+
+        def __reduce__(self):
+            return copyreg._reconstructor, (QuasiEigenFaces, object, None), self.state
+
+    current = estimator.__getstate__()
+    older = {key: value for key, value in current.items() if key not in ("_workbench_version", "frames_as")}
+    for state, written in [
+        (older, "an older workbench"),
+        ({**current, "_workbench_version": "0.0.9"}, "workbench 0.0.9"),
+        ({**older, "_workbench_version": workbench.__version__}, f"workbench {workbench.__version__}, without para"),
+    ]:
+        with pytest.raises(WorkbenchError, match=f"^This pickled QuasiEigenFaces was written by {written}") as refused:
+            pickle.loads(pickle.dumps(Pickled(state)))
+        assert "refit the estimator" in str(refused.value) and "\n" not in str(refused.value)
+
+
+def test_feature_names_out_are_the_shape_names_and_set_output_gives_them(fitted):
+    import pandas as pd
+
+    estimator, frames = fitted
+    assert list(estimator.get_feature_names_out()) == list(estimator.shape_names_)
+    with pytest.raises(WorkbenchError, match="^input_features must hold 12 names"):
+        estimator.get_feature_names_out(["a", "b"])
+    with pytest.raises(NotFittedError):
+        QuasiEigenFaces().get_feature_names_out()
+    table = pd.DataFrame(frames, index=pd.RangeIndex(100, 100 + len(frames)))
+    weights = estimator.set_output(transform="pandas").transform(table)
+    assert isinstance(weights, pd.DataFrame) and list(weights.columns) == list(estimator.shape_names_)
+    assert list(weights.index) == list(table.index)
+    np.testing.assert_array_equal(weights.to_numpy(), estimator.set_output(transform="default").transform(frames))
+    hand = estimator.set_output(transform="pandas").transform(frames, basis="H")
+    assert list(hand.columns) == list(estimator.shape_names_[:4])
+    assert list(estimator.transform(frames, basis="PCA").columns) == ["pca_1", "pca_2", "pca_3"]
+    with pytest.raises(WorkbenchError, match="^set_output's transform must be one of 'default', 'pandas', 'polars'"):
+        estimator.set_output(transform="arrow")

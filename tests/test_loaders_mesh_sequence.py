@@ -234,3 +234,22 @@ def test_a_faces_key_the_file_lacks_is_refused_naming_its_arrays(scan):
         assert read_mesh_sequence(path, faces_key=None)[1] is None
     np.savez(tmp_path / "positions.npz", vertices=frames)
     assert read_mesh_sequence(tmp_path / "positions.npz")[1] is None  # the default name may be absent
+
+
+def test_a_neutral_in_other_units_than_the_sequence_leaves_positions_and_is_named(scan):
+    """A sequence saved in centimetres beside a neutral OBJ in metres (dataset.unit_mm fits the OBJ): its frames
+    minus the neutral are still positions, refused in one line naming dataset.neutral; kept with a warning."""
+    tmp_path, frames, triangles, basis, _ = scan
+    np.savez(tmp_path / "seq_cm.npz", vertices=frames * 100.0, faces=triangles)
+    (tmp_path / "neutral_m.obj").write_text(obj_text(frames[0], triangles))
+    given = [f"dataset.neutral={tmp_path / 'neutral_m.obj'}"]
+    with pytest.raises(
+        WorkbenchError, match=r"^dataset\.sequence seq_cm\.npz: its frames minus the neutral look like"
+    ) as refused:
+        build_captures(config(tmp_path, tmp_path / "seq_cm.npz", basis, *given))
+    assert "dataset.neutral" in str(refused.value) and "\n" not in str(refused.value)
+    warned = build_captures(config(tmp_path, tmp_path / "seq_cm.npz", basis, *given, "dataset.plausibility=warn"))
+    assert any("look like positions" in note for note in warned["mesh"].notes)
+    np.savez(tmp_path / "seq_m.npz", vertices=frames, faces=triangles)  # the same units: displacements, no warning
+    fine = build_captures(config(tmp_path, tmp_path / "seq_m.npz", basis, *given))["mesh"]
+    assert not any(note.startswith("WARNING") for note in fine.notes)

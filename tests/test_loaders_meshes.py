@@ -155,3 +155,79 @@ def test_an_obj_edited_in_place_with_its_size_and_time_kept_is_read_afresh(tmp_p
     os.utime(path, ns=(status.st_atime_ns, status.st_mtime_ns))
     assert path.stat().st_size == status.st_size and path.stat().st_mtime_ns == status.st_mtime_ns
     assert read_obj(path).vertices[2, 2] == 8.0 and first[2, 2] == 9.0
+
+
+# --- a capture as one OBJ file per frame ------------------------------------------------------------------------
+
+
+def frames_of(n_frames, seed=0):
+    """Frames of the test mesh: the neutral with each vertex moved by up to 0.1 (positions)."""
+    rng = np.random.default_rng(seed)
+    return NEUTRAL + rng.uniform(-0.1, 0.1, (n_frames, *NEUTRAL.shape))
+
+
+def test_an_obj_folder_is_read_as_one_sequence_in_natural_order(tmp_path):
+    from workbench.formats.obj_sequence import read_obj_sequence
+
+    frames = frames_of(12)
+    for index, frame in enumerate(frames):  # frame_2 must come before frame_10, unlike a plain sort
+        write_obj(tmp_path / f"frame_{index}.OBJ" if index == 3 else tmp_path / f"frame_{index}.obj", frame)
+    (tmp_path / "notes.txt").write_text("not a frame")
+    (tmp_path / "sub.obj").mkdir()  # a folder named like a frame is no frame
+    sequence = read_obj_sequence(tmp_path)
+    assert [path.name for path in sequence.paths][:4] == ["frame_0.obj", "frame_1.obj", "frame_2.obj", "frame_3.OBJ"]
+    assert sequence.paths[-1].name == "frame_11.obj" and sequence.n_frames == 12
+    np.testing.assert_allclose(sequence.vertices, frames, rtol=0, atol=5e-7)  # the files hold 6 decimals
+    np.testing.assert_array_equal(
+        sequence.faces, triangulate(np.array([4, 4, 3]), read_obj(sequence.paths[0]).polygon_vertices)
+    )
+    listed = read_obj_sequence([sequence.paths[5], str(sequence.paths[0])])  # a list keeps its order
+    np.testing.assert_array_equal(listed.vertices, sequence.vertices[[5, 0]])
+
+
+def test_an_obj_sequence_names_the_first_file_whose_topology_differs(tmp_path):
+    from workbench.formats.obj_sequence import read_obj_sequence
+
+    frames = frames_of(4)
+    write_obj(tmp_path / "f1.obj", frames[0])
+    write_obj(tmp_path / "f2.obj", frames[1], faces="f 1 2 3 4\nf 2 5 6 3\nf 5 7 6\n")  # the same polygons, as written
+    write_obj(tmp_path / "f3.obj", frames[2][:-1], faces="f 1 2 3 4\nf 2 5 6 3\n")
+    write_obj(tmp_path / "f10.obj", frames[3], faces="f 1 2 3 4\nf 2 5 6 3\nf 5 6 7\n")
+    with pytest.raises(WorkbenchError, match=r"f3\.obj: 6 vertices, but the first file f1\.obj has 7; every frame of"):
+        read_obj_sequence(tmp_path)
+    (tmp_path / "f3.obj").unlink()
+    with pytest.raises(WorkbenchError, match=r"f10\.obj: its polygons \(3\) differ from those of the first file f1"):
+        read_obj_sequence(tmp_path)
+    assert read_obj_sequence([tmp_path / "f1.obj", tmp_path / "f2.obj"]).n_frames == 2
+    far = frames[1].copy()
+    far[2] = 1e6
+    write_obj(tmp_path / "f10.obj", far)
+    with pytest.raises(WorkbenchError, match=r"f10\.obj"):
+        read_obj_sequence(tmp_path)
+
+
+def test_an_obj_sequence_refuses_too_few_frames_or_other_files_naming_them(tmp_path):
+    from workbench.formats.obj_sequence import read_obj_sequence
+
+    write_obj(tmp_path / "only.obj", NEUTRAL)
+    with pytest.raises(WorkbenchError, match=r": holds 1 OBJ file; an OBJ sequence needs at least 2 frames$"):
+        read_obj_sequence(tmp_path)
+    with pytest.raises(WorkbenchError, match=r"notes\.txt: not an OBJ file; every file of an OBJ sequence"):
+        (tmp_path / "notes.txt").write_text("x")
+        read_obj_sequence([tmp_path / "only.obj", tmp_path / "notes.txt"])
+    with pytest.raises(WorkbenchError, match=r"^source must be a folder of OBJ files, a list of OBJ paths or a mesh"):
+        read_obj_sequence(3)
+    with pytest.raises(WorkbenchError, match=r"only\.obj: is a file, not a folder \(folder of OBJ files or mesh seq"):
+        read_obj_sequence(tmp_path / "only.obj")
+    with pytest.raises(WorkbenchError, match=r"missing\.obj: OBJ file not found"):
+        read_obj_sequence([tmp_path / "only.obj", tmp_path / "missing.obj"])
+
+
+def test_an_obj_sequence_reader_takes_the_mesh_sequence_files_too(tmp_path):
+    import workbench
+
+    frames = frames_of(5)
+    np.save(tmp_path / "take.npy", frames)
+    sequence = workbench.read_obj_sequence(tmp_path / "take.npy")
+    np.testing.assert_array_equal(sequence.vertices, frames)
+    assert sequence.faces is None and sequence.paths == (tmp_path / "take.npy",)

@@ -154,3 +154,57 @@ def test_the_real_data_functions_refuse_bad_arguments_in_one_line(call, message)
     with pytest.raises(workbench.WorkbenchError, match=message) as error:
         call()
     assert "\n" not in str(error.value)
+
+
+# --- a researcher's own data: positions given where displacements are expected ------------------------------------
+
+CAPTURES = {
+    "synthetic": ["dataset=synthetic", "dataset.n_frames=2000"],
+    "ict_livelink": ["dataset=ict_livelink", f"dataset.frame_step={STEP}", "dataset.train_on=[markers,mesh]"],
+    "animface": ["dataset=animface", f"dataset.frame_step={STEP // 2}", "dataset.train_on=markers"],
+}
+
+
+@pytest.mark.filterwarnings("ignore:QuasiEigenFaces. the quasi-eigen basis is rank-deficient")  # m < 18, as in a run
+@pytest.mark.parametrize("dataset", list(CAPTURES))
+def test_the_positions_rule_tells_every_shared_capture_from_its_positions(shared_data, tmp_path, dataset):
+    """The rule of QuasiEigenFaces(frames_as="auto") on real frames: displacements well below its threshold, the
+    same frames as positions well above it (docs/api.md gives the measured figures)."""
+    from workbench.numerics.displacements import POSITIONS_ABOVE, frames_mean_and_motion, shape_over_motion
+
+    overrides = [*CAPTURES[dataset], f"paths.data_root={shared_data}"]
+    captures = workbench.build_captures(workbench.compose_config("paper", overrides), cache_dir=str(tmp_path))
+    for capture in captures.values():
+        mean, motion = frames_mean_and_motion(capture.train)
+        assert shape_over_motion(mean, motion) < POSITIONS_ABOVE / 4
+        assert shape_over_motion(mean + capture.neutral, motion) > 2 * POSITIONS_ABOVE
+        extreme = capture.train[np.argmax(np.abs(capture.train).sum(axis=1))]  # a single frame at transform
+        assert shape_over_motion(extreme, motion) < POSITIONS_ABOVE / 1.5
+    capture = next(iter(captures.values()))
+    positions = capture.train + capture.neutral
+    with pytest.raises(workbench.WorkbenchError, match="^frames look like positions.*frames_as='positions'"):
+        workbench.QuasiEigenFaces(hand_shapes=capture.hand, neutral=capture.neutral).fit(positions)
+    said = workbench.QuasiEigenFaces(hand_shapes=capture.hand, neutral=capture.neutral, frames_as="positions")
+    direct = workbench.QuasiEigenFaces(hand_shapes=capture.hand, neutral=capture.neutral).fit(capture.train)
+    assert said.fit(positions).alpha(positions) == pytest.approx(direct.alpha(capture.train), rel=1e-9)
+
+
+def test_an_obj_sequence_of_ict_meshes_is_fitted_once_its_neutral_is_subtracted(shared_data, tmp_path):
+    """A capture exported as one OBJ per frame (here ICT FaceKit's expressions linked as frames): read as positions,
+    refused as displacements, fitted once the neutral is said and subtracted."""
+    folder = shared_data / "ict-facekit" / "FaceXModel"
+    names = ["generic_neutral_mesh", "jawOpen", "mouthSmile_L", "mouthSmile_R", "browInnerUp_L", "mouthPucker"]
+    for index, name in enumerate(names):
+        (tmp_path / f"take_{index + 1}.obj").symlink_to(folder / f"{name}.obj")
+    sequence = workbench.read_obj_sequence(tmp_path)
+    assert [path.name for path in sequence.paths] == [f"take_{index + 1}.obj" for index in range(len(names))]
+    np.testing.assert_array_equal(sequence.vertices[1], workbench.read_obj(folder / "jawOpen.obj").vertices)
+    frames = sequence.vertices.reshape(len(names), -1) * 10.0  # centimetres to millimetres
+    neutral = frames[0]
+    hand = frames[1:4] - neutral
+    with pytest.raises(workbench.WorkbenchError, match="^frames look like positions.*neutral=v0"):
+        workbench.QuasiEigenFaces(hand_shapes=hand, neutral=neutral).fit(frames)
+    fitted = workbench.QuasiEigenFaces(hand_shapes=hand, neutral=neutral, frames_as="positions").fit(frames)
+    # frames 2 to 4 are the neutral plus one hand shape each: their hand-shape weights are the identity
+    np.testing.assert_allclose(fitted.transform(frames, basis="H")[1:4], np.eye(3), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fitted.inverse_transform(np.eye(3), basis="H"), frames[1:4], rtol=0, atol=1e-9)

@@ -95,6 +95,42 @@ def test_a_pipeline_fits_transforms_and_displays():
     assert make_pipeline(QuasiEigenFaces(hand_shapes=hand)).fit_transform(frames).shape == (len(frames), N_SHAPES)
 
 
+def test_a_pipeline_with_pandas_output_names_the_weights_by_shape():
+    """set_output on the pipeline reaches the estimator; its columns are the shape names, which the next step keeps."""
+    import pandas as pd
+
+    hand, neutral, frames = capture()
+    names = [f"shape {chr(97 + i)}" for i in range(N_SHAPES)]
+    pipeline = Pipeline(
+        [("qe", QuasiEigenFaces(hand_shapes=hand, neutral=neutral, names=names)), ("scale", StandardScaler())]
+    ).set_output(transform="pandas")
+    table = pd.DataFrame(frames, columns=[f"{axis}{point}" for point in range(N_POINTS) for axis in "xyz"])
+    weights = pipeline.fit_transform(table)
+    assert isinstance(weights, pd.DataFrame) and list(weights.columns) == names
+    assert list(pipeline.get_feature_names_out()) == names
+    np.testing.assert_array_equal(pipeline[0].feature_names_in_, table.columns)
+    direct = QuasiEigenFaces(hand_shapes=hand, neutral=neutral, names=names).fit(frames).transform(frames)
+    np.testing.assert_allclose(weights.to_numpy(), StandardScaler().fit_transform(direct), rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="reordered"):  # scikit-learn's rule: reordered columns are refused
+        pipeline.transform(table[table.columns[::-1]])
+    with sklearn.config_context(transform_output="pandas"):  # the global setting, as scikit-learn's own estimators
+        assert isinstance(QuasiEigenFaces(hand_shapes=hand).fit_transform(frames), pd.DataFrame)
+    assert isinstance(QuasiEigenFaces(hand_shapes=hand).fit_transform(frames), np.ndarray)
+
+
+def test_polars_frames_in_and_out():
+    polars = pytest.importorskip("polars")
+    hand, neutral, frames = capture()
+    columns = [f"{axis}{point}" for point in range(N_POINTS) for axis in "xyz"]
+    table = polars.DataFrame(frames, schema=columns, orient="row")
+    pipeline = make_pipeline(QuasiEigenFaces(hand_shapes=hand)).set_output(transform="polars")
+    weights = pipeline.fit_transform(table)
+    assert isinstance(weights, polars.DataFrame) and weights.columns == [f"shape_{i + 1}" for i in range(N_SHAPES)]
+    assert list(pipeline[0].feature_names_in_) == columns
+    with pytest.raises(ValueError, match="reordered: column 0 is 'z19', fitted on 'x0'"):
+        pipeline.transform(table.select(columns[::-1]))
+
+
 def fold_scores(estimator, frames, cv):
     """The score of each fold by hand: fit on its training frames, score its test frames."""
     return [clone(estimator).fit(frames[train]).score(frames[test]) for train, test in cv.split(frames)]

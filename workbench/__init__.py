@@ -35,6 +35,7 @@ _PUBLIC = {
     "read_blendshapes": "workbench.api",
     "read_gltf": "workbench.api",
     "read_mesh_sequence": "workbench.api",
+    "read_obj_sequence": "workbench.api",
     "arkit_mapping": "workbench.api",
     "rest_frame": "workbench.api",
     "stabilise_markers": "workbench.api",

@@ -32,6 +32,7 @@ from workbench.formats.plausibility import (
     settle,
     with_warnings,
 )
+from workbench.numerics.displacements import frames_mean_and_motion, positions_problem
 from workbench.settings.rules import integer_setting, positive_setting
 from workbench.settings.typed import dataset_settings
 
@@ -116,6 +117,7 @@ def _mesh_sequence_capture(
 
     key = (sequence.digest, array_digest(neutral), float(unit_mm), array_digest(index), code_fingerprint())
     displacements = storage.build("mesh_sequence", key, len(index), 3 * n_vertices, chunk_of)
+    warnings += settle(_positions_problems(displacements, path), cfg.plausibility)
     train, evaluate = split_frames(displacements, cfg.split, cfg.eval_fraction)
     notes = (
         f"mesh sequence {path.name}: {len(index)} of {n_frames} frames (every {step}), "
@@ -149,3 +151,17 @@ def _mesh_sequence_capture(
             faces=np.asarray(faces, dtype=np.int64),
         )
     }
+
+
+def _positions_problems(displacements, path: Path) -> list[str]:
+    """The sequence's frames minus its neutral, when they still look like positions: the neutral is not the
+    sequence's face in its units (:mod:`workbench.numerics.displacements`)."""
+    mean, motion = frames_mean_and_motion(displacements)
+    problem = positions_problem(
+        f"dataset.sequence {path.name}: its frames minus the neutral",
+        mean,
+        motion,
+        "the neutral (dataset.neutral, or dataset.neutral_frame) must be the sequence's own face in the sequence's "
+        "units (dataset.unit_mm scales both)",
+    )
+    return [problem] if problem else []

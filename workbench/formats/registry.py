@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Callable
 
 from workbench.core.errors import WorkbenchError
-from workbench.formats import c3d, gltf, livelink, mesh_sequence, obj, weight_curves
+from workbench.formats import c3d, gltf, livelink, mesh_sequence, obj, obj_sequence, weight_curves
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,7 @@ class FileFormat:
         What its files hold: ``marker take``, ``weight curves``, ``mesh``, ``blendshapes``, ``morph mesh`` or
         ``mesh sequence``; a dataset asks for a reader of what it needs.
     suffixes : tuple of str
-        The file suffixes it reads (lower case; empty for a folder).
+        The file suffixes it reads (lower case; empty for a folder, or a folder or list of files).
     read : callable
         The reader: a path first, then keyword options.
     public_name : str
@@ -63,6 +63,7 @@ FORMATS: dict[str, FileFormat] = {
             mesh_sequence.read_mesh_sequence,
             "read_mesh_sequence",
         ),
+        FileFormat("obj_sequence", "mesh sequence", (), obj_sequence.read_obj_sequence, "read_obj_sequence"),
     )
 }
 """Format name -> :class:`FileFormat`."""

@@ -20,6 +20,8 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.numerics.bases import Eigenfaces, build_quasi_eigen_basis
+from workbench.numerics.displacements import check_displacements, frames_mean_and_motion
+from workbench.numerics.estimator_manners import ScikitLearnManners
 from workbench.numerics.metrics import AlphaSummary, basis_conditioning, summarise_squares
 from workbench.numerics.reduced import Subspace, project_frames
 from workbench.numerics.solve import KINDS, in_span_error_sq, reconstruct, reduce_basis, solve_projected, solve_weights
@@ -33,6 +35,12 @@ THROUGH = {"mean": "affine", "neutral": "linear"}
 BASES = ("QE", "H", "PCA")
 NORMALISATIONS = ("absolute", "displacement")
 AGGREGATES = ("mean", "pooled", "per_frame")
+FRAMES_AS = ("auto", "displacements", "positions")
+"""``frames_as``: displacements refused when they look like positions, displacements as given, or positions."""
+POSITIONS_REMEDY = (
+    "if they are positions, give the neutral face and say so, QuasiEigenFaces(neutral=v0, frames_as='positions'), "
+    "which subtracts it; if they are displacements, frames_as='displacements'"
+)
 CONSTANT_REL = 1e-10
 """Frames whose spread ``sqrt(total variance)`` is at most this times their root-mean-square norm are numerically
 constant (round-off of the mean, not motion)."""
@@ -55,11 +63,13 @@ except ImportError:  # the core without the bases extra
         installed)."""
 
     ESTIMATOR_BASES: tuple = ()
+    ESTIMATOR_OPTIONS: dict = {}
 else:
     ESTIMATOR_BASES = (TransformerMixin, BaseEstimator)
+    ESTIMATOR_OPTIONS = {"auto_wrap_output_keys": None}  # set_output is ScikitLearnManners', for every basis=
 
 
-class QuasiEigenFaces(*ESTIMATOR_BASES):
+class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS):
     """Quasi-eigen faces (Kim & Ko, eq. 2-6): eigenfaces of a capture, the hand shapes projected onto their
     hyperplane, weights of frames in that basis and the reconstruction error alpha.
 
@@ -106,6 +116,11 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         ``epsilon`` as a fraction of each axis's standard deviation in the frames, or in data units.
     append_empty_axes : bool, default False
         Append the eigenface of each empty axis to ``shapes_`` (the paper's simplest remedy).
+    frames_as : {"auto", "displacements", "positions"}, default "auto"
+        What every method's ``frames`` are. ``"auto"``: displacements, refused in one line when they look like
+        positions (:mod:`workbench.numerics.displacements`: the spread of their mean face over their motion above
+        5); ``"displacements"``: displacements, not checked; ``"positions"``: positions ``v*``, from which
+        ``neutral`` (then required) is subtracted (and :meth:`inverse_transform` gives positions back).
 
     The defaults are the run's (``conf/basis/default.yaml``, ``conf/solver``).
 
@@ -113,6 +128,12 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
     ----------
     n_features_in_ : int
         ``n_dims`` of the frames fitted on.
+    feature_names_in_ : ndarray of shape (n_dims,)
+        The column names of a DataFrame fitted on (absent for an array); every later use of frames with names
+        requires the same columns in the same order.
+    point_motion_ : float
+        The RMS motion of a point in the frames fitted on (``sqrt`` of their covariance trace over ``n_points``):
+        the scale that ``frames_as="auto"`` measures later frames' mean face against.
     mean_ : ndarray of shape (n_dims,)
         The mean ``mu`` of the frames (a mean displacement from neutral).
     eigenfaces_ : ndarray of shape (m, n_dims)
@@ -169,6 +190,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         empty_axis_eps: float = 0.05,
         empty_axis_scale: str = "axis_std",
         append_empty_axes: bool = False,
+        frames_as: str = "auto",
     ):
         self.hand_shapes = hand_shapes
         self.neutral = neutral
@@ -183,6 +205,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         self.empty_axis_eps = empty_axis_eps
         self.empty_axis_scale = empty_axis_scale
         self.append_empty_axes = append_empty_axes
+        self.frames_as = frames_as
 
     # -- scikit-learn's parameter protocol -------------------------------------------------------------------
 
@@ -228,7 +251,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         frames : array-like of shape (n_frames, n_dims)
             Training frames as displacements from the neutral face, ``n_dims = 3 * n_points``; at least 2, not all
             the same. Real numbers only: complex values and NumPy masked arrays are refused (the estimator has no
-            gap policy; drop or fill masked frames first).
+            gap policy; drop or fill masked frames first). Positions instead for ``frames_as="positions"``;
+            a DataFrame's column names become ``feature_names_in_``.
         y : None
             Ignored (scikit-learn's convention); the hand shapes are the parameter ``hand_shapes`` (without it, a 2-D
             ``y``, the hand shapes given here as earlier versions took them, is refused saying so).
@@ -240,7 +264,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Raises
         ------
         WorkbenchError
-            Naming the argument or parameter and the rule it broke.
+            Naming the argument or parameter and the rule it broke; for ``frames_as="auto"``, frames that look like
+            positions (:mod:`workbench.numerics.displacements`), naming ``neutral`` and ``frames_as``.
 
         Warns
         -----
@@ -255,6 +280,8 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             )
         svd_solver = SVD_SOLVERS[_check_choice("svd_solver", self.svd_solver, tuple(SVD_SOLVERS))]
         seed = _check_random_state(self.random_state)
+        frames_as = _check_choice("frames_as", self.frames_as, FRAMES_AS)
+        self._remember_columns(frames)
         frames = check_matrix("frames", frames, CAPTURE)
         if frames.shape[1] % 3:
             raise WorkbenchError(f"frames must have 3 * n_points columns (x, y, z per point), got {frames.shape[1]}")
@@ -266,6 +293,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         hand = check_matrix("hand_shapes", self.hand_shapes, CAPTURE, n_columns=frames.shape[1])
         _check_scale("hand_shapes", hand)
         neutral = None if self.neutral is None else _check_vector("neutral", self.neutral, frames.shape[1])
+        frames = _training_displacements(frames, frames_as, neutral)
         largest = _largest(frames)
         scale = float(2.0 ** np.round(np.log2(largest))) if 0 < largest < WORKING_SCALE_BELOW else 1.0
         if scale != 1.0:  # a power of two: exact
@@ -285,6 +313,9 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             coverage=self.coverage, n_components=self.n_components, svd_solver=svd_solver, seed=seed
         ).fit(frames)
         _check_not_constant(eigenfaces)
+        mean, motion = frames_mean_and_motion(frames)
+        if frames_as == "auto":  # after the constant frames' own refusal: their motion is round-off
+            check_displacements("frames", mean, motion, POSITIONS_REMEDY)
         epsilon = self.empty_axis_eps
         if self.empty_axis_scale == "absolute" and _is_number(epsilon):  # in data units
             epsilon = epsilon / scale
@@ -298,6 +329,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             append_empty_axes=self.append_empty_axes,
         )
         self.n_features_in_ = frames.shape[1]
+        self.point_motion_ = motion * scale
         self.scale_ = scale
         self.mean_ = eigenfaces.mean_ * scale
         self.eigenfaces_ = eigenfaces.components_
@@ -334,7 +366,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``), in the columns fitted on.
         solver : {"lstsq", "nnls", "box"}, optional
             Overrides the estimator's ``solver`` for this call (``"box"`` uses ``bounds``). With a rank-deficient
             basis (more quasi-eigen faces than eigenfaces) the weights are not unique: ``lstsq`` gives the
@@ -346,16 +378,20 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Returns
         -------
         ndarray of shape (n_frames, n_shapes)
-            ``n_shapes`` is ``len(shapes_)``, ``len(hand_shapes_)`` or ``m_``.
+            ``n_shapes`` is ``len(shapes_)``, ``len(hand_shapes_)`` or ``m_``; a DataFrame whose columns are the
+            shape names (``pca_<j>`` for PCA) after ``set_output(transform="pandas")``.
         """
         self._check_fitted()
-        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
+        given, frames = frames, self._displacements(frames)
         basis = _check_choice("basis", basis, BASES)
         if basis == "PCA":
             _no_solver_for_pca(solver)
-            return (frames - self.mean_) @ self.eigenfaces_.T
+            names = [f"pca_{j + 1}" for j in range(self.m_)]
+            return self._in_container((frames - self.mean_) @ self.eigenfaces_.T, given, names)
         shapes, frames = self._working(self._shapes(basis)), self._working(frames)
-        return solve_weights(shapes, frames, **self._solver_arguments(solver)).weights
+        weights = solve_weights(shapes, frames, **self._solver_arguments(solver)).weights
+        names = self.shape_names_ if basis == "QE" else self.shape_names_[: len(self.hand_shapes_)]
+        return self._in_container(weights, given, names)
 
     def inverse_transform(self, weights, *, basis: str = "QE") -> np.ndarray:
         """Reconstructed displacements from weights: ``weights @ shapes`` (eq. 1 without ``v0``), for PCA
@@ -370,12 +406,17 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Returns
         -------
         ndarray of shape (n_frames, n_dims)
+            Displacements, or positions (``neutral_`` added) for ``frames_as="positions"``.
         """
         self._check_fitted()
         basis = _check_choice("basis", basis, BASES)
         if basis == "PCA":
-            return self.mean_ + reconstruct(self.eigenfaces_, weights)
-        return reconstruct(self._shapes(basis), weights)
+            displacements = self.mean_ + reconstruct(self.eigenfaces_, weights)
+        else:
+            displacements = reconstruct(self._shapes(basis), weights)
+        if _check_choice("frames_as", self.frames_as, FRAMES_AS) == "positions":
+            return displacements + self._neutral_for_positions()
+        return displacements
 
     def alpha(
         self,
@@ -396,7 +437,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral ``d*``.
+            Displacements from neutral ``d*`` (positions ``v*`` for ``frames_as="positions"``).
         solver : {"lstsq", "nnls", "box"}, optional
             Overrides ``solver``; must be None for ``basis="PCA"``, whose reconstruction is the mean plus the
             orthogonal projection onto the eigenfaces.
@@ -440,7 +481,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``).
         y : None
             Ignored (scikit-learn's convention).
 
@@ -457,7 +498,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         Parameters
         ----------
         frames : array-like of shape (n_frames, n_dims)
-            Displacements from neutral.
+            Displacements from neutral (positions for ``frames_as="positions"``).
         solver : {"lstsq", "nnls", "box"}, optional
             The solver of eq. 5 for ``QE`` and ``H`` (the estimator's ``solver`` when None); PCA takes none.
         basis : str or sequence of str, default ("QE", "H", "PCA")
@@ -495,7 +536,7 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
         """Every variant of eq. 6, per frame too, and the RMS point error of one basis's reconstruction
         (:class:`workbench.numerics.metrics.AlphaSummary`, what a run's table row holds)."""
         self._check_fitted()
-        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
+        frames = self._displacements(frames)
         basis = _check_choice("basis", basis, BASES)
         neutral = self.neutral_ if self.neutral_ is not None else np.zeros(self.n_features_in_)
         frames, neutral = self._working(frames), self._working(neutral)
@@ -553,10 +594,43 @@ class QuasiEigenFaces(*ESTIMATOR_BASES):
             return {"kind": kind}
         if kind == "nnls":
             return {"kind": kind, "lower": 0.0}
-        bounds = self.bounds
-        if isinstance(bounds, (str, bytes)) or not hasattr(bounds, "__len__") or len(bounds) != 2:
-            raise WorkbenchError(f"bounds must be a pair (lower, upper) for solver 'box', got {bounds!r}")
-        return {"kind": kind, "lower": bounds[0], "upper": bounds[1]}
+        _check_bounds(self.bounds)  # set_params after fit: named in its own words, not the solver's
+        return {"kind": kind, "lower": self.bounds[0], "upper": self.bounds[1]}
+
+    def _displacements(self, frames) -> np.ndarray:
+        """Frames given to a method after :meth:`fit`, checked (their columns, shape and values) and as
+        displacements: ``neutral_`` subtracted for ``frames_as="positions"``, refused for ``"auto"`` when they look
+        like positions against the fitted motion ``point_motion_``.
+
+        Returns
+        -------
+        ndarray of shape (n_frames, n_dims)
+        """
+        self._check_columns(frames)
+        frames = check_matrix("frames", frames, CAPTURE, n_columns=self.n_features_in_)
+        frames_as = _check_choice("frames_as", self.frames_as, FRAMES_AS)
+        if frames_as == "positions":
+            return frames - self._neutral_for_positions()
+        if frames_as == "auto":
+            check_displacements("frames", frames.mean(axis=0), self.point_motion_, POSITIONS_REMEDY)
+        return frames
+
+    def _neutral_for_positions(self) -> np.ndarray:
+        if self.neutral_ is None:
+            raise WorkbenchError(
+                "frames_as='positions' needs the neutral face the estimator was fitted with: refit with neutral=v0"
+            )
+        return self.neutral_
+
+
+def _training_displacements(frames: np.ndarray, frames_as: str, neutral: np.ndarray | None) -> np.ndarray:
+    """The frames :meth:`QuasiEigenFaces.fit` is given as displacements: ``frames - neutral`` for
+    ``frames_as="positions"`` (a one-line error without ``neutral``), else ``frames``, shape (n_frames, n_dims)."""
+    if frames_as != "positions":
+        return frames
+    if neutral is None:
+        raise WorkbenchError("frames_as='positions' needs neutral=v0, the neutral positions subtracted from them")
+    return frames - neutral
 
 
 def _check_bounds(bounds) -> None:

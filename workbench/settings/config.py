@@ -74,6 +74,7 @@ def compose(study: str = DEFAULT_STUDY, overrides: Sequence[str] = ()):
     if not isinstance(study, str) or study not in study_names():
         raise WorkbenchError(f"study must be one of {', '.join(study_names())} (studies/), got {study!r}")
     overrides = override_list(overrides, "overrides")
+    check_override_keys(overrides, "overrides")
     refuse_retired(overrides)
     register_resolvers()
     check_config_dirs()
@@ -94,6 +95,26 @@ def override_list(overrides, argument: str) -> list[str]:
     if not isinstance(overrides, Sequence) or not all(isinstance(item, str) for item in overrides):
         raise WorkbenchError(f"{argument} must be a list of 'key=value' strings, got {overrides!r}")
     return list(overrides)
+
+
+def check_override_keys(overrides: Sequence[str], argument: str) -> None:
+    """A one-line :class:`WorkbenchError` naming ``argument`` and the override when one names no setting (``=1``,
+    ``+=x``, ``~``), which Hydra would take as a config group called '' and fail on deep inside; an override it
+    cannot parse is left to composing, which names it in the command line's words."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    parser = OverridesParser.create()
+    for override in overrides:
+        try:
+            parsed = parser.parse_override(override)
+        except HydraException:
+            continue
+        if not parsed.key_or_group:
+            raise WorkbenchError(
+                f"{argument}: the override {override!r} names no setting before its '=': write key=value, e.g. "
+                "'dataset.n_frames=2000'"
+            )
 
 
 def config_error_line(error: BaseException) -> str:

@@ -125,8 +125,20 @@ class StudyResult:
         """The capture's name and the data variant, e.g. ``ICT Live Link ... [markers m=n]``: distinct within a run."""
         return f"{self.capture.name} [{self.data}]"
 
+    @property
+    def m(self) -> int:
+        """The number of eigenfaces the bases were fitted with (``eigenfaces.n_components_``)."""
+        return int(self.eigenfaces.n_components_)
+
+    @property
+    def n_frames(self) -> int:
+        """The number of frames scored (``capture.eval``'s rows)."""
+        return int(self.capture.eval.shape[0])
+
+    @property
+    def n_rows(self) -> int:
+        """The number of rows of the alpha table (``len(rows)``)."""
+        return len(self.rows)
+
     def __repr__(self) -> str:
-        return (
-            f"StudyResult(name={self.name!r}, m={self.eigenfaces.n_components_}, "
-            f"frames={self.capture.eval.shape[0]}, rows={len(self.rows)})"
-        )
+        return f"StudyResult(name={self.name!r}, m={self.m}, n_frames={self.n_frames}, n_rows={self.n_rows})"
