@@ -33,7 +33,7 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.extras import has_module, install_hint
-from workbench.core.files import check_output_folder, inside, output_folder, write_atomic
+from workbench.core.files import FORCE_FLAG, check_output_folder, inside, output_folder, write_atomic
 from workbench.record.record import DONE
 from workbench.reporting.runs import (
     PCA_SOLVER,
@@ -232,6 +232,7 @@ def collect_and_write(
     extra: Sequence[str] = ("m",),
     over: Sequence[str] | None = None,
     known: Sequence[str] = (),
+    force: bool = False,
 ) -> dict:
     """Collect the records under ``paths`` and write the runs table, the summary, the paired comparisons, the
     alpha table and the findings to ``out``.
@@ -251,6 +252,8 @@ def collect_and_write(
     known : sequence of str
         Names accepted in ``out`` without the output marker (:func:`workbench.core.files.check_output_folder`):
         :data:`COLLECTED_FILES` where the workbench chose the folder itself (``<sweep>/collected``).
+    force : bool
+        Replace files of an earlier collect in ``out`` that were changed since (``--force``).
 
     Returns
     -------
@@ -293,7 +296,7 @@ def collect_and_write(
         files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
     else:  # the CSV files hold the same tables
         logging.getLogger("workbench").debug(f"parquet copies of the tables left out: {install_hint('parquet')}")
-    with output_folder(out, "--out", writer=WRITER, known=known) as staging:
+    with output_folder(out, "--out", writer=WRITER, known=known, force=force) as staging:
         for name, content in files.items():
             write_atomic(inside(staging, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)
@@ -380,11 +383,16 @@ def main(argv: Sequence[str]) -> int:
     parser.add_argument("--columns", default="basis", help="key whose values become the table's columns")
     parser.add_argument("--extra", default="m", help="comma-separated metrics shown beside the row keys")
     parser.add_argument("--over", help="comma-separated replicate columns (default: the config keys naming a seed)")
+    parser.add_argument(
+        FORCE_FLAG,
+        action="store_true",
+        help="replace files of an earlier output that were changed since it was written",
+    )
     args = parser.parse_args(list(argv))
     if args.out is None and len(args.paths) != 1:
         raise WorkbenchError("collect: give --out when collecting more than one path")
     if args.out is not None:  # refused before any record is read
-        check_output_folder(args.out, "--out", writer=WRITER)
+        check_output_folder(args.out, "--out", writer=WRITER, force=args.force)
     out = Path(args.out) if args.out is not None else inside(args.paths[0], COLLECTED)
     written = collect_and_write(
         args.paths,
@@ -395,6 +403,7 @@ def main(argv: Sequence[str]) -> int:
         extra=[name for name in args.extra.split(",") if name],
         over=None if args.over is None else [name for name in args.over.split(",") if name],
         known=COLLECTED_FILES if args.out is None else (),
+        force=args.force,
     )
     print(written["markdown"] + findings_text(written["findings"]), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""

@@ -36,6 +36,7 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import (
+    FORCE_FLAG,
     check_output_folder,
     inside,
     output_folder,
@@ -806,6 +807,7 @@ def export_run(
     bases: Sequence[str] | None = None,
     solver: str | None = None,
     obj_unit: str = "m",
+    force: bool = False,
 ) -> dict:
     """Export one data variant of a run: every chosen basis's files and ``manifest.json``.
 
@@ -824,6 +826,8 @@ def export_run(
         Solver whose weights are exported; default the run's first.
     obj_unit : {"m", "mm"}
         Unit of the OBJ files.
+    force : bool
+        Replace files of an earlier export in ``out`` that were changed since (``--force``).
 
     Returns
     -------
@@ -856,7 +860,7 @@ def export_run(
             for basis in chosen
         ],
     )
-    with output_folder(out, "--out", writer=WRITER) as staging:
+    with output_folder(out, "--out", writer=WRITER, force=force) as staging:
         manifest = export_manifest(
             [export_basis(staging, result, basis, takes, run_name=folder.name, obj_unit=obj_unit) for basis in chosen],
             folder,
@@ -918,12 +922,19 @@ def main(argv: Sequence[str]) -> int:
         default="m",
         help="unit of the OBJ files (default: m, as animation tools expect)",
     )
+    parser.add_argument(
+        FORCE_FLAG,
+        action="store_true",
+        help="replace files of an earlier output that were changed since it was written",
+    )
     args = parser.parse_args(list(argv))
     if args.out is not None:  # refused before the run is rebuilt
-        check_output_folder(args.out, "--out", writer=WRITER)
+        check_output_folder(args.out, "--out", writer=WRITER, force=args.force)
     out = Path(args.out) if args.out is not None else inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
-    manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit)
+    manifest = export_run(
+        args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit, force=args.force
+    )
     for entry in manifest["bases"]:
         alpha = entry["alpha"]["alpha_abs_mean"]
         print(
