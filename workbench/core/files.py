@@ -79,6 +79,38 @@ def naming(error: OSError, path: Path) -> OSError:
     return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
 
 
+DISK_FULL_TEXTS = ("disk is full", "No space left on device", "Disk quota exceeded")
+"""How a full disk reads in the errors of the C library, SQLite and the libraries above them."""
+
+
+def disk_full(error: BaseException) -> bool:
+    """Whether ``error``, or an error it was raised from (its cause, its context, a database driver's ``orig``),
+    says the disk is full: ``ENOSPC`` or ``EDQUOT``, or SQLite's "database or disk is full", whatever line of a
+    library's message holds it."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        seen.add(id(error))
+        if isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT):
+            return True
+        if any(text in str(error) for text in DISK_FULL_TEXTS):
+            return True
+        error = getattr(error, "orig", None) or error.__cause__ or error.__context__
+    return False
+
+
+def free_bytes(path: Path) -> int | None:
+    """Bytes free for an unprivileged user on the file system holding ``path`` (its nearest existing folder), or
+    None when it cannot be told."""
+    path = Path(path).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    try:
+        status = os.statvfs(path)
+    except OSError:
+        return None
+    return status.f_bavail * status.f_frsize
+
+
 def json_text(value) -> str:
     return json.dumps(value, indent=2, sort_keys=False, allow_nan=True) + "\n"
 
