@@ -349,3 +349,43 @@ def test_the_marker_lists_every_file_at_any_depth_with_its_digest(tmp_path):
         "index.html": hashlib.sha256(b"page").hexdigest(),
         "figures/faces/fig2.webp": hashlib.sha256(b"face").hexdigest(),
     }
+
+
+def test_a_move_into_place_that_fails_leaves_the_earlier_output_and_no_temporary_folder(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    written(out, "collect", {"runs.csv": "1\n"})
+    before = digests(out)
+    real_replace = os.replace
+
+    def refused_for_the_output(source, target):
+        if Path(target) == out and Path(source).name.endswith(TEMPORARY_SUFFIX) and ".old." not in Path(source).name:
+            raise OSError(28, "No space left on device")
+        return real_replace(source, target)
+
+    monkeypatch.setattr(os, "replace", refused_for_the_output)
+    with pytest.raises(OSError, match="No space left on device"):
+        written(out, "collect", {"runs.csv": "2\n"})
+    monkeypatch.undo()
+    assert digests(out) == before
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+
+
+def test_an_earlier_output_that_cannot_be_moved_back_is_kept_and_moved_back_by_the_next_command(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    written(out, "collect", {"runs.csv": "1\n"})
+    before = digests(out)
+    real_replace = os.replace
+
+    def refused_for_the_output(source, target):
+        if Path(target) == out and Path(source).name.endswith(TEMPORARY_SUFFIX):
+            raise OSError(5, "Input/output error")
+        return real_replace(source, target)
+
+    monkeypatch.setattr(os, "replace", refused_for_the_output)
+    with pytest.raises(OSError, match="Input/output error"):
+        written(out, "collect", {"runs.csv": "2\n"})
+    monkeypatch.undo()
+    [kept] = [name for name in os.listdir(tmp_path) if name != "out"]
+    assert kept.startswith(".out.") and kept.endswith(".old.tmp")
+    assert check_output_folder(out, "--out", writer="collect") == out  # the next command on the folder
+    assert digests(out) == before and sorted(os.listdir(tmp_path)) == ["out"]

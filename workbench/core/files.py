@@ -551,8 +551,9 @@ def output_folder(
 
 def _move_into_place(staging: Path, path: Path) -> None:
     """Replace ``path`` by ``staging`` (with the parent's lock held): the earlier output moves aside first and is
-    removed once the new one is in place, or moves back when the new one cannot."""
-    old = None
+    removed once the new one is in place, or moves back when the new one cannot. Should even that fail, the earlier
+    output is kept aside, and the next command on the folder moves it back (:func:`clear_stale_copies`)."""
+    old, placed = None, False
     try:
         if os.path.lexists(path):
             old = Path(
@@ -563,6 +564,7 @@ def _move_into_place(staging: Path, path: Path) -> None:
             os.replace(path, old)
         try:
             os.replace(staging, path)
+            placed = True
         except BaseException:
             if old is not None and not os.path.lexists(path):  # the earlier output back in place
                 os.replace(old, path)
@@ -573,7 +575,7 @@ def _move_into_place(staging: Path, path: Path) -> None:
             raise WorkbenchError(f"{path} cannot be replaced ({error.strerror}: a mount point, or in use)") from None
         raise naming(error, path) from None
     finally:
-        if old is not None:
+        if old is not None and (placed or not os.listdir(old)):  # never the earlier output while it is not replaced
             _remove(old)
 
 
