@@ -407,12 +407,6 @@ def folder_digests(folder: Path) -> dict[str, str]:
     return found
 
 
-def written_names(folder: Path) -> set[str] | None:
-    """The paths an output folder's marker lists (:func:`read_output_marker`), or None without a readable marker."""
-    marker = read_output_marker(folder)
-    return None if marker is None else set(marker.files)
-
-
 def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = (), force: bool = False) -> Path:
     """Refuse an output folder holding anything but an earlier output of the same command, before anything is
     written.
