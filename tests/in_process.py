@@ -25,7 +25,7 @@ from workbench.cli import sweep_failures
 from workbench.core import errors
 from workbench.dataset import cache
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 @dataclass

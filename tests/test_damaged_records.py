@@ -304,3 +304,94 @@ def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp
         f"inside the output folder {folder} (a symbolic link leads to {elsewhere})"
     )
     assert list(elsewhere.iterdir()) == []
+
+
+def set_cells(changes):
+    """Set ``(row, column) -> value`` in both ``metrics.json``'s rows and ``alpha_table.csv``, as a record changed and
+    signed again would have them (the two files agree, the checksums pass)."""
+
+    def damage(folder):
+        metrics = json.loads((folder / "metrics.json").read_text())
+        lines = (folder / "alpha_table.csv").read_text().splitlines()
+        header = lines[0].split(",")
+        for (row, column), value in changes(metrics["rows"]).items():
+            metrics["rows"][row][column] = value
+            cells = lines[row + 1].split(",")
+            cells[header.index(column)] = repr(value)
+            lines[row + 1] = ",".join(cells)
+        (folder / "metrics.json").write_text(json.dumps(metrics))
+        (folder / "alpha_table.csv").write_text("\n".join(lines) + "\n")
+
+    return damage
+
+
+def h_and_qe_swapped(rows):
+    """The alphas of the H and QE rows (lstsq, the first data variant) exchanged, the rows' names kept."""
+    first = rows[0]["data"]
+    h, qe = (
+        next(i for i, r in enumerate(rows) if (r["data"], r["basis"], r["solver"]) == (first, b, "lstsq"))
+        for b in ("H", "QE")
+    )
+    return {
+        (i, column): rows[j][column] for i, j in ((h, qe), (qe, h)) for column in ("alpha_abs_mean", "alpha_disp_mean")
+    }
+
+
+def without_per_frame_file(damage):
+    def both(folder):
+        damage(folder)
+        (folder / "alpha_per_frame.npz").unlink()
+
+    return both
+
+
+MEANINGLESS = {
+    "alpha -5": (
+        set_cells(lambda rows: {(0, "alpha_abs_mean"): -5.0}),
+        "alpha_table.csv: field 'alpha_abs_mean' of row 1",
+    ),
+    "alpha halved": (
+        set_cells(lambda rows: {(0, "alpha_abs_mean"): rows[0]["alpha_abs_mean"] / 2}),
+        "alpha_per_frame.npz: field 'markers.absolute' row 0",
+    ),
+    "H and QE swapped": (set_cells(h_and_qe_swapped), "alpha_per_frame.npz: field 'markers.absolute'"),
+    "H and QE swapped, no per-frame file": (
+        without_per_frame_file(set_cells(h_and_qe_swapped)),
+        "metrics.json: field 'data.markers.comparisons[0].estimate'",
+    ),
+    "n_frames -5": (
+        replace_in("config.yaml", "n_frames: 300", "n_frames: -5"),
+        "config.yaml: field 'dataset.n_frames' must be",
+    ),
+    "frames counted below zero": (
+        edit_json("metrics.json", lambda m: m["data"]["markers"].__setitem__("n_eval_frames", -5)),
+        "metrics.json: field 'data.markers.n_eval_frames' must be a whole number >= 0, got -5",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(MEANINGLESS))
+def test_a_record_signed_again_with_values_no_run_writes_is_refused_by_every_reader(record, tmp_path, case):
+    """collect took such records into its tables and findings (export refused them only because it recomputes)."""
+    damage, expected = MEANINGLESS[case]
+    folder = tmp_path / "sweep" / "run"
+    shutil.copytree(record, folder)
+    damage(folder)
+    reseal(folder)
+    commands = {
+        "collect": ["collect", str(tmp_path / "sweep"), "--out", str(tmp_path / "tables")],
+        "report": ["report", str(folder), "--out", str(tmp_path / "report")],
+        "export": ["export", str(folder), "--out", str(tmp_path / "export")],
+        "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
+    }
+    for command, arguments in commands.items():
+        result = run_workbench(*arguments, cwd=tmp_path)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1, (command, result.stderr)
+        assert lines[0].startswith(f"workbench {command}: error: {folder}") and expected in lines[0], (command, lines)
+        assert "the record cannot be trusted" in lines[0], lines
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["sweep"]
+
+
+def test_the_records_the_workbench_writes_pass_the_checks_of_meaning(record):
+    assert read_record(record).table["alpha_abs_mean"].min() > 0

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from in_process import run_workbench
 
@@ -197,3 +198,69 @@ def test_openblas_workers_stop_spinning_unless_the_user_set_it(preset, expected)
     script = "import workbench, numpy, os; print(os.environ['OPENBLAS_THREAD_TIMEOUT'])"
     shown = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
     assert shown.stdout.strip() == expected
+
+
+KERNELS = """
+from workbench.numerics.compiled import njit
+
+
+@njit(cache=True)
+def add_one(x):
+    return x + 1.0
+
+
+@njit(cache=True)
+def times_two(x):
+    return x * 2.0
+"""
+
+
+def damage(cache: Path, how: str) -> None:
+    """Damage the cache files of ``add_one`` as the probes did."""
+    index = next(cache.glob("*add_one-*.nbi"))
+    data = next(cache.glob("*add_one-*.nbc"))
+    if how == "truncated index":
+        index.write_bytes(index.read_bytes()[:20])
+    elif how == "empty data":
+        data.write_bytes(b"")
+    elif how == "garbage index":
+        index.write_bytes(bytes(np.random.default_rng(0).integers(0, 256, 64, dtype=np.uint8)))
+    elif how == "garbage data":
+        data.write_bytes(b"x" * 100)
+    elif how == "swapped data":  # add_one's machine code and times_two's, each under the other's name
+        other = next(cache.glob("*times_two-*.nbc"))
+        first, second = data.read_bytes(), other.read_bytes()
+        data.write_bytes(second)
+        other.write_bytes(first)
+
+
+@pytest.mark.parametrize("how", ["truncated index", "empty data", "garbage index", "garbage data", "swapped data"])
+def test_a_damaged_numba_cache_file_is_removed_and_compiled_again_in_one_line(tmp_path, monkeypatch, capsys, how):
+    """A damaged ``*.nbi`` / ``*.nbc`` made every run using the compiled kernels exit 3 with ``unexpected
+    UnpicklingError``, on every rerun; two swapped data files made each function run the other's code."""
+    import importlib
+
+    from workbench.numerics import compiled
+
+    (tmp_path / "robust_kernels.py").write_text(KERNELS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(compiled, "_reported", set())
+    kernels = importlib.import_module("robust_kernels")
+    monkeypatch.delitem(sys.modules, "robust_kernels")
+
+    def fresh():
+        """New dispatchers of the same functions: they read numba's cache files as a new process would."""
+        return [compiled.njit(cache=True)(function.py_func) for function in (kernels.add_one, kernels.times_two)]
+
+    assert [function(3.0) for function in fresh()] == [4.0, 6.0]
+    cache = Path(kernels.add_one._cache.cache_path)
+    capsys.readouterr()
+    damage(cache, how)
+    assert [function(3.0) for function in fresh()] == [4.0, 6.0]
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"workbench: numba's compiled cache {cache}: "), lines
+    assert "add_one" in lines[0] and "compiling again" in lines[0], lines
+    again = fresh()  # the cache written anew, read back without a word
+    assert [function(3.0) for function in again] == [4.0, 6.0]
+    assert [sum(function.stats.cache_hits.values()) for function in again] == [1, 1]
+    assert capsys.readouterr().err == ""

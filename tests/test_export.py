@@ -249,7 +249,7 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
     tampered = tmp_path / "tampered"
     shutil.copytree(record, tampered)
     table = pd.read_csv(tampered / "alpha_table.csv")
-    table.loc[1, "alpha_abs_mean"] *= 1.01
+    table.loc[1, "alpha_abs_pooled"] *= 1.01  # a pooled alpha: no per-frame array or comparison holds it
     table.to_csv(tampered / "alpha_table.csv", index=False)
     with pytest.raises(WorkbenchError, match=r"alpha_table\.csv was changed after the run"):
         export_run(tampered, tmp_path / "out")
@@ -261,7 +261,7 @@ def test_bad_requests_are_one_line_errors(record, tmp_path):
 
     # ... and whose metrics.json says the same (a record's values are read against its table first)
     metrics = json.loads((tampered / "metrics.json").read_text())
-    metrics["rows"][1]["alpha_abs_mean"] = float(table.loc[1, "alpha_abs_mean"])  # the table's row 1, as read
+    metrics["rows"][1]["alpha_abs_pooled"] = float(table.loc[1, "alpha_abs_pooled"])  # the table's row 1, as read
     (tampered / "metrics.json").write_text(json.dumps(metrics))
     done = json.loads((tampered / DONE).read_text())
     for name in ("alpha_table.csv", "metrics.json"):

@@ -228,3 +228,68 @@ def test_ctrl_c_held_back_is_acted_on_once_the_step_ends_and_an_ignored_one_stay
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, saved)
+
+
+def default_signals():
+    for signum in interrupt.SIGNALS:
+        signal.signal(signum, signal.SIG_DFL)
+
+
+@pytest.fixture(scope="module")
+def small_record(tmp_path_factory):
+    from workbench.api import run
+    from workbench.settings.config import compose
+
+    folder = tmp_path_factory.mktemp("signals") / "run"
+    run(compose("paper", ["dataset.n_frames=300", "basis.paper_regime=false"]), folder)
+    return folder
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_are_one_line_and_leave_the_earlier_output_and_no_copy(tmp_path, small_record, signum):
+    """What SLURM, ``timeout`` and systemd send (SIGTERM), or a closed terminal (SIGHUP), into a report replacing an
+    earlier one: it ended with no message and left its temporary copy of the report beside the folder."""
+    from workbench.core.files import output_folder, write_atomic
+
+    out = tmp_path / "report"
+    with output_folder(out, "--out", writer="a report") as staging:
+        write_atomic(staging / "index.html", "the earlier report\n")
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT), OPENBLAS_NUM_THREADS="1")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "workbench", "report", str(small_record), "--out", str(out)],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=default_signals,
+    )
+    deadline = time.monotonic() + 300
+    while not any(name.endswith(".tmp") for name in os.listdir(tmp_path)):  # the report is being written
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.005)
+    time.sleep(0.2)
+    process.send_signal(signum)
+    out_text, err = process.communicate(timeout=300)
+    assert process.returncode == interrupt.exit_status(signum) == 128 + signum, (process.returncode, err)
+    assert err.splitlines() == [
+        f"workbench report: stopped by {signal.Signals(signum).name}; rerun the same command to resume"
+    ]
+    assert sorted(os.listdir(tmp_path)) == ["report"]
+    assert (out / "index.html").read_text() == "the earlier report\n"
+
+
+def test_sigterm_and_sighup_held_back_are_acted_on_once_the_step_ends():
+    saved = {signum: signal.getsignal(signum) for signum in interrupt.SIGNALS}
+    try:
+        came = []
+        for signum in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(signum, lambda number, frame: came.append(number))
+            with interrupts_deferred():
+                os.kill(os.getpid(), signum)
+                time.sleep(0.05)
+                assert came == [signal.SIGTERM] * (signum == signal.SIGHUP)  # held back until the step ends
+            assert came[-1] == signum
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)

@@ -435,6 +435,43 @@ def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
         assert "No space left on device" in errors[0] or "disk is full" in errors[0], errors[0]
 
 
+def test_a_store_whose_disk_fills_while_logging_ends_in_one_line_that_says_so(swept, tmp_path):
+    """A store that exists, on a disk with 30 KB left: MLflow logged SQLAlchemy's traceback, and the line after it
+    named the autoflush, not the full disk. A child process: what the process prints is the point."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(disk)], capture_output=True).returncode:
+        pytest.skip("cannot mount a file system here")
+    try:
+        sweep = records_copy(swept, tmp_path)
+        records = find_records([sweep])[0]
+        assert workbench("mlflow", records[0], "--store", disk / "store", cwd=tmp_path).returncode == 0
+        free = shutil.disk_usage(disk).free
+        with open(disk / "filler", "wb") as filler:
+            filler.write(bytes(free - 30 * 1024))
+        result = subprocess.run(
+            [sys.executable, "-m", "workbench", "mlflow", str(sweep), "--store", str(disk / "store")],
+            cwd=tmp_path,
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1, result.stderr[-3000:]
+        assert lines[0].startswith(f"workbench mlflow: error: MLflow store sqlite:///{disk / 'store'}"), lines
+        assert "the disk is full (" in lines[0] and "KB left on" in lines[0], lines
+        (disk / "filler").unlink()
+        again = workbench("mlflow", sweep, "--store", disk / "store", cwd=tmp_path)
+        assert again.returncode == 0, again.stderr
+        rows = stored_runs(disk / "store" / "mlflow.db")
+        assert sorted(record for record, status, _ in rows if record and status == "FINISHED") == sorted(
+            str(folder.resolve()) for folder in records
+        )
+    finally:
+        subprocess.run(["umount", "--lazy", str(disk)], check=True)  # the in-process store may hold the file open
+
+
 def test_metric_names_from_a_record_never_leave_their_place(swept, tmp_path):
     """A record whose data variant reads '../../x' (edited by hand): its metrics are logged under a plain name."""
     sweep = records_copy(swept, tmp_path)

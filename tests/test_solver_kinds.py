@@ -11,8 +11,8 @@ from workbench.api import read_record, run
 from workbench.core.errors import WorkbenchError
 from workbench.core.solvers import SOLVER_KINDS, SolverKind, solver_text
 from workbench.numerics import solve
-from workbench.reporting.findings import run_findings
-from workbench.reporting.report_figures import draw_alpha_per_solver
+from workbench.reporting.findings.run import run_findings
+from workbench.reporting.report.run_figures import draw_alpha_per_solver
 from workbench.settings.config import compose
 from workbench.settings.typed import study_settings
 

@@ -11,12 +11,13 @@ import traceback
 
 from workbench.core.extras import missing_extra
 from workbench.core.interrupt import (
-    INTERRUPTED,
     caused_by_interrupt,
+    exit_status,
     forget_handled_interrupt,
     ignore_further_interrupts,
+    signal_that_came,
 )
-from workbench.core.interrupt import MESSAGE as INTERRUPTED_MESSAGE
+from workbench.core.interrupt import message as interrupted_message
 
 VERBOSE_FLAG = "--verbose"
 _verbose = False
@@ -46,7 +47,8 @@ def exit_on_error(program: str, error: BaseException) -> None:
     """Print one line for ``error`` (the traceback too with ``--verbose``) and exit non-zero.
 
     A :class:`WorkbenchError` is bad input or configuration, and a fault of the environment (a file that cannot
-    be read or written, a full disk, too little memory) is named with its path: both exit 2. Ctrl-C exits 130.
+    be read or written, a full disk, too little memory) is named with its path: both exit 2. Ctrl-C exits 130,
+    SIGTERM 143 and SIGHUP 129 (128 + the signal).
     Anything else is unexpected (exit 3) and names its type, since its message alone may not say where it came
     from.
     """
@@ -56,9 +58,9 @@ def exit_on_error(program: str, error: BaseException) -> None:
         traceback.print_exception(error, file=sys.stderr)
     if caused_by_interrupt(error):
         ignore_further_interrupts()  # a signal still pending (a compiled loop's) must not cut the exit short
-        print(INTERRUPTED_MESSAGE.replace("workbench", program, 1), file=sys.stderr)
+        print(interrupted_message(signal_that_came(), program), file=sys.stderr)
         forget_handled_interrupt()
-        sys.exit(INTERRUPTED)
+        sys.exit(exit_status(signal_that_came()))
     fault = environment_fault(error)
     if fault is not None:
         print(f"{program}: error: {single_line(fault)}", file=sys.stderr)

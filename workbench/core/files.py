@@ -15,11 +15,14 @@ import io
 import json
 import math
 import os
+import re
 import shutil
 import struct
+import sys
 import tempfile
 import zipfile
 from contextlib import contextmanager, suppress
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
@@ -28,8 +31,9 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 
 TEMPORARY_SUFFIX = ".tmp"
-"""A file being written is ``.<name>.<random>.tmp`` beside its final name; a kill can leave one behind, never a
-part of a final file. Readers look only at final names; a rerun clears a killed run's folder."""
+"""A file being written is ``.<name>.<random>.tmp`` beside its final name (the name cut short where the whole would
+not fit: :func:`temporary_prefix`); a kill can leave one behind, never a part of a final file. Readers look only at
+final names; a rerun clears a killed run's folder."""
 
 
 def _umask() -> int:
@@ -51,7 +55,9 @@ def write_atomic(path: Path, data: bytes | str) -> None:
     payload = data.encode() if isinstance(data, str) else data
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX)
+        handle, temporary = tempfile.mkstemp(
+            dir=path.parent, prefix=temporary_prefix(path.name), suffix=TEMPORARY_SUFFIX
+        )
     except OSError as error:
         raise naming(error, path) from None
     try:
@@ -71,6 +77,38 @@ def write_atomic(path: Path, data: bytes | str) -> None:
 def naming(error: OSError, path: Path) -> OSError:
     """``error`` naming the file being written (a full disk fails a write on an open file, which names none)."""
     return type(error)(error.errno, f"cannot write ({error.strerror})", str(path))
+
+
+DISK_FULL_TEXTS = ("disk is full", "No space left on device", "Disk quota exceeded")
+"""How a full disk reads in the errors of the C library, SQLite and the libraries above them."""
+
+
+def disk_full(error: BaseException) -> bool:
+    """Whether ``error``, or an error it was raised from (its cause, its context, a database driver's ``orig``),
+    says the disk is full: ``ENOSPC`` or ``EDQUOT``, or SQLite's "database or disk is full", whatever line of a
+    library's message holds it."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        seen.add(id(error))
+        if isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT):
+            return True
+        if any(text in str(error) for text in DISK_FULL_TEXTS):
+            return True
+        error = getattr(error, "orig", None) or error.__cause__ or error.__context__
+    return False
+
+
+def free_bytes(path: Path) -> int | None:
+    """Bytes free for an unprivileged user on the file system holding ``path`` (its nearest existing folder), or
+    None when it cannot be told."""
+    path = Path(path).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    try:
+        status = os.statvfs(path)
+    except OSError:
+        return None
+    return status.f_bavail * status.f_frsize
 
 
 def json_text(value) -> str:
@@ -264,25 +302,120 @@ def check_folder_setting(folder, setting: str, writer: str = "a run") -> Path:
 
 
 OUTPUT_MARKER = ".workbench-output"
-"""Written into a report, export or collected-tables folder with the rest of it: the names the workbench wrote
-there (JSON). A later report, export or collect may replace a folder holding only those names and the marker."""
+"""Written into a report, export or collected-tables folder with the rest of it (JSON): which command wrote the
+folder (``written_by``) and the SHA-256 of every file it wrote there, at any depth (``files``: path relative to the
+folder -> digest). A later run of the same command replaces a folder holding only those files, unchanged; a file
+changed since is replaced only when forced, and another command's folder, or a folder holding a file the marker
+does not list, never. An earlier version's marker lists the top-level names only (``files`` a list)."""
+FORCE_FLAG = "--force"
+"""The option of ``report``, ``export`` and ``collect`` that replaces files the user changed since they wrote them."""
+NAME_MAX = 255
+"""The longest file name, in bytes, the file systems the workbench runs on take (Linux's, macOS's)."""
+_RANDOM = r"[A-Za-z0-9_]+"
+"""The random part ``tempfile`` puts into a temporary name."""
+_OLD_COPY = ".old"
+"""Ends the random part of an earlier output moved aside while its replacement moves in."""
 
 
-def written_names(folder: Path) -> set[str] | None:
-    """The names an output folder's marker lists, or None when it has no readable marker (the workbench did not
-    write the folder, or wrote it before folders were marked)."""
+def temporary_prefix(name: str) -> str:
+    """The start of a temporary name beside ``name`` (``tempfile`` adds 8 random characters and the suffix):
+    ``.<name>.``, or, where that would not fit in :data:`NAME_MAX` bytes, ``.<the name cut short>~<its digest>.``,
+    so that a temporary name fits wherever the final name fits and still tells whose it is."""
+    room = NAME_MAX - len(".") - len(".") - 8 - len(_OLD_COPY) - len(TEMPORARY_SUFFIX)
+    encoded = name.encode("utf-8", "surrogateescape")
+    if len(encoded) <= room:
+        return f".{name}."
+    tag = "~" + hashlib.sha256(encoded).hexdigest()[:12]
+    cut = encoded[: room - len(tag)].decode("utf-8", "ignore")  # never half a character
+    return f".{cut}{tag}."
+
+
+@dataclass(frozen=True)
+class OutputMarker:
+    """What :data:`OUTPUT_MARKER` says of an output folder.
+
+    Attributes
+    ----------
+    writer : str or None
+        The command that wrote the folder (``a report``, ``an export``, ``collect``); None when the marker does not
+        say.
+    files : dict of str to str
+        Path relative to the folder (``/``-separated) -> SHA-256 of what the command wrote there; for an earlier
+        version's marker, the top-level names, without digests (empty strings).
+    recursive : bool
+        Whether ``files`` lists every file at any depth with its digest (False for an earlier version's marker).
+    """
+
+    writer: str | None
+    files: dict
+    recursive: bool
+
+
+def read_output_marker(folder: Path) -> OutputMarker | None:
+    """The marker of an output folder, or None when it has none or it cannot be read (the workbench did not write
+    the folder, or wrote it before folders were marked)."""
     try:
-        names = json.loads((Path(folder) / OUTPUT_MARKER).read_text())["files"]
+        marker = json.loads((Path(folder) / OUTPUT_MARKER).read_text())
+        files = marker["files"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return {name for name in names if isinstance(name, str)} if isinstance(names, list) else None
+    writer = marker.get("written_by") if isinstance(marker.get("written_by"), str) else None
+    if isinstance(files, dict):
+        return OutputMarker(writer, {str(k): str(v) for k, v in files.items()}, recursive=True)
+    if isinstance(files, list):
+        return OutputMarker(writer, dict.fromkeys((name for name in files if isinstance(name, str)), ""), False)
+    return None
 
 
-def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = ()) -> Path:
-    """Refuse an output folder holding anything the workbench did not write there, before anything is written.
+_digests: dict[tuple, str] = {}
+"""SHA-256 of files already read, by device, inode, size and modification time: an output folder is checked before
+its command starts, before it writes and before it moves the new output in."""
 
-    The folder may be new, empty, or hold only what an earlier run of the command wrote (the names its
-    :data:`OUTPUT_MARKER` lists). The current directory, by an empty name or any other, is never one.
+
+def _entry_digest(path: Path) -> str:
+    """SHA-256 of a file's content, or of where a symbolic link leads (``link:<target>``), or ``other`` for a device,
+    pipe or socket."""
+    status = os.lstat(path)
+    if os.path.islink(path):
+        return "link:" + hashlib.sha256(os.readlink(path).encode("utf-8", "surrogateescape")).hexdigest()
+    if not os.path.isfile(path):
+        return "other"
+    key = (status.st_dev, status.st_ino, status.st_size, status.st_mtime_ns)
+    if key not in _digests:
+        _digests[key] = sha256_of_file(path)
+    return _digests[key]
+
+
+def folder_digests(folder: Path) -> dict[str, str]:
+    """Every file under ``folder`` (symbolic links not followed; folders themselves not listed) -> its digest
+    (:func:`_entry_digest`), by path relative to ``folder``, ``/``-separated; the marker itself left out.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+
+    Returns
+    -------
+    dict of str to str
+    """
+    found = {}
+    for root, folders, names in os.walk(folder):
+        for name in names + [name for name in folders if os.path.islink(os.path.join(root, name))]:
+            relative = os.path.relpath(os.path.join(root, name), folder).replace(os.sep, "/")
+            if relative != OUTPUT_MARKER:
+                found[relative] = _entry_digest(Path(root) / name)
+    return found
+
+
+def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = (), force: bool = False) -> Path:
+    """Refuse an output folder holding anything but an earlier output of the same command, before anything is
+    written.
+
+    The folder may be new, empty, or hold only what an earlier run of the same command wrote there, unchanged (the
+    digests its :data:`OUTPUT_MARKER` lists); with ``force``, files of that output changed since are replaced too.
+    The current directory, by an empty name or any other, is never one; nor is a mount point (it cannot be
+    replaced as a whole), or a name with a control character (a newline in a folder name breaks every listing).
+    Temporary copies of the folder that a killed command left are cleared first (:func:`clear_stale_copies`).
 
     Parameters
     ----------
@@ -291,10 +424,12 @@ def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[st
     setting : str
         The option that names it, for the message (``--out``, ``--name``).
     writer : str
-        What writes it, for the message (``a report``).
+        What writes it, for the message and the marker (``a report``).
     known : iterable of str
         Names the command writes, accepted without a marker where the workbench chose the folder itself (a
         default folder inside a record, or a reference report, written before folders were marked).
+    force : bool
+        Replace files of an earlier output of the command that were changed since (:data:`FORCE_FLAG`).
 
     Returns
     -------
@@ -305,12 +440,18 @@ def check_output_folder(folder, setting: str, *, writer: str, known: Iterable[st
     WorkbenchError
     """
     path = check_folder_setting(folder, setting, writer)
+    control = [character for character in str(folder) if ord(character) < 0x20 or ord(character) == 0x7F]
+    if control:
+        raise WorkbenchError(
+            f"{setting}={str(folder)!r} holds a control character ({control[0]!r}); name the folder without one"
+        )
     with _folder_locked(path.parent):
-        _refuse_foreign(path, setting, writer, known)
+        clear_stale_copies(path)
+        _refuse_foreign(path, setting, writer, known, force)
     return path
 
 
-def _refuse_foreign(path: Path, setting: str, writer: str, known: Iterable[str]) -> None:
+def _refuse_foreign(path: Path, setting: str, writer: str, known: Iterable[str], force: bool) -> None:
     """:func:`check_output_folder` of a checked path, with the lock of its parent held."""
     if path.is_symlink():
         raise WorkbenchError(
@@ -320,28 +461,54 @@ def _refuse_foreign(path: Path, setting: str, writer: str, known: Iterable[str])
         return
     if not path.is_dir():
         raise WorkbenchError(f"{path} is a file, not a folder; name a new or empty folder ({setting}=...)")
-    names = set(os.listdir(path))
-    listed = written_names(path)
-    foreign = names - ({OUTPUT_MARKER, *listed} if listed is not None else set(known))
+    if os.path.ismount(path):
+        raise WorkbenchError(
+            f"{path} is a mount point, which {writer} cannot replace as a whole; name a folder inside it "
+            f"({setting}={path / 'out'})"
+        )
+    marker = read_output_marker(path)
+    if marker is not None and marker.writer not in (None, writer):
+        raise WorkbenchError(
+            f"{path} holds the output of {marker.writer} (its {OUTPUT_MARKER} says so); {writer} goes only into a new "
+            f"or empty folder or one it wrote before, and replaces nothing else: name another folder ({setting}=...)"
+        )
+    if marker is None or not marker.recursive:  # no digests: the top-level names, as an earlier version wrote them
+        listed = set(known) if marker is None else {OUTPUT_MARKER, *marker.files}
+        foreign, changed = set(os.listdir(path)) - listed, set()
+    else:
+        found = folder_digests(path)
+        foreign = {name for name in found if name not in marker.files}
+        changed = {name for name in found if name in marker.files and found[name] != marker.files[name]}
     if foreign:
         raise WorkbenchError(
             f"{path} holds files the workbench did not write there ({shown_names(foreign)}); {writer} goes only into "
             f"a new or empty folder or one it wrote before, and touches nothing else: name another folder ({setting}=...)"
+            " or move them away"
+        )
+    if changed and not force:
+        raise WorkbenchError(
+            f"{path}: {shown_names(changed)} changed since {writer} wrote {'it' if len(changed) == 1 else 'them'} "
+            f"(SHA-256 no longer the one in {OUTPUT_MARKER}); rerun with {FORCE_FLAG} to overwrite, or move "
+            f"{'it' if len(changed) == 1 else 'them'} away first"
         )
 
 
 @contextmanager
-def output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = ()) -> Iterator[Path]:
+def output_folder(
+    folder, setting: str, *, writer: str, known: Iterable[str] = (), force: bool = False
+) -> Iterator[Path]:
     """A report's, export's or collect's folder, written whole or not at all.
 
     The folder is checked (:func:`check_output_folder`); what the command writes goes into a new temporary folder
-    beside it, which, once complete and marked (:data:`OUTPUT_MARKER`), takes the folder's place, and an earlier
-    output there is removed. A failure or an interrupt removes the temporary folder and leaves the old one as it was.
-    Two processes replacing one folder take turns (the lock of its parent folder).
+    beside it, which, once complete and marked (:data:`OUTPUT_MARKER`, every file's digest), takes the folder's
+    place, and an earlier output there is removed. A failure or an interrupt removes the temporary folder and
+    leaves the old one as it was; one a killed command left (``kill -9``) is removed by the next command writing
+    that folder (:func:`clear_stale_copies`). Two processes replacing one folder take turns (the lock of its parent
+    folder); of two commands writing one new folder at once, the second to finish is refused.
 
     Parameters
     ----------
-    folder, setting, writer, known
+    folder, setting, writer, known, force
         As :func:`check_output_folder`.
 
     Yields
@@ -349,33 +516,132 @@ def output_folder(folder, setting: str, *, writer: str, known: Iterable[str] = (
     pathlib.Path
         The temporary folder to write into (beside ``folder``, so relative links to its neighbours hold).
     """
-    path = check_output_folder(folder, setting, writer=writer, known=known)
+    path = check_output_folder(folder, setting, writer=writer, known=known, force=force)
+    staging, held = None, None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
+        with _folder_locked(path.parent):  # a copy is held from the moment it exists, so no other command clears it
+            staging = Path(
+                tempfile.mkdtemp(dir=path.parent, prefix=temporary_prefix(path.name), suffix=TEMPORARY_SUFFIX)
+            )
+            held = _hold(staging)
     except OSError as error:
+        if staging is not None:
+            _remove(staging)
         raise naming(error, path) from None
-    old = None
     try:
         os.chmod(staging, FOLDER_MODE)
         yield staging
-        write_json(staging / OUTPUT_MARKER, {"written_by": writer, "files": sorted(os.listdir(staging))})
+        write_json(staging / OUTPUT_MARKER, {"written_by": writer, "files": folder_digests(staging)})
         with _folder_locked(path.parent):
-            _refuse_foreign(path, setting, writer, known)  # nothing came in meanwhile
-            if os.path.lexists(path):
-                old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX))
-                os.replace(path, old)
-            try:
-                os.replace(staging, path)
-            except BaseException:
-                if old is not None:  # the earlier output back in place
-                    os.replace(old, path)
-                    old = None
-                raise
+            _refuse_foreign(path, setting, writer, known, force)  # nothing came in meanwhile
+            _move_into_place(staging, path)
     finally:
-        for leftover in (staging, old):
-            if leftover is not None and os.path.lexists(leftover):
-                shutil.rmtree(leftover, ignore_errors=True)
+        if held is not None:
+            os.close(held)
+        if os.path.lexists(staging):
+            _remove(staging)
+
+
+def _move_into_place(staging: Path, path: Path) -> None:
+    """Replace ``path`` by ``staging`` (with the parent's lock held): the earlier output moves aside first and is
+    removed once the new one is in place, or moves back when the new one cannot. Should even that fail, the earlier
+    output is kept aside, and the next command on the folder moves it back (:func:`clear_stale_copies`)."""
+    old, placed = None, False
+    try:
+        if os.path.lexists(path):
+            old = Path(
+                tempfile.mkdtemp(
+                    dir=path.parent, prefix=temporary_prefix(path.name), suffix=_OLD_COPY + TEMPORARY_SUFFIX
+                )
+            )
+            os.replace(path, old)
+        try:
+            os.replace(staging, path)
+            placed = True
+        except BaseException:
+            if old is not None and not os.path.lexists(path):  # the earlier output back in place
+                os.replace(old, path)
+                old = None
+            raise
+    except OSError as error:
+        if error.errno == errno.EBUSY:
+            raise WorkbenchError(f"{path} cannot be replaced ({error.strerror}: a mount point, or in use)") from None
+        raise naming(error, path) from None
+    finally:
+        if old is not None and (placed or not os.listdir(old)):  # never the earlier output while it is not replaced
+            _remove(old)
+
+
+def _hold(folder: Path) -> int | None:
+    """Open ``folder`` and take its advisory lock, held while the command writes into it (the lock tells
+    :func:`clear_stale_copies` it is not a killed command's); None where the file system refuses the lock."""
+    handle = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(handle)
+        return None
+    return handle
+
+
+def clear_stale_copies(path: Path) -> list[Path]:
+    """Remove the temporary copies of output folder ``path`` that a killed command left beside it (``kill -9``, a
+    power cut): every ``.<name>.<random>.tmp`` no running command holds (:func:`_hold`). An earlier output that was
+    moved aside when the kill came is moved back where the folder is missing. Call it with the parent's lock held.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The copies removed or moved back.
+    """
+    pattern = re.compile(
+        re.escape(temporary_prefix(path.name)) + _RANDOM + f"({re.escape(_OLD_COPY)})?" + re.escape(TEMPORARY_SUFFIX)
+    )
+    cleared = []
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return cleared
+    for name in sorted(names):
+        match = pattern.fullmatch(name)
+        copy = path.parent / name
+        if match is None or copy.is_symlink() or not copy.is_dir():
+            continue
+        handle = _hold(copy)
+        if handle is None:  # a running command's, or a file system without locks: left alone
+            continue
+        try:
+            if match.group(1) and not os.path.lexists(path):
+                os.replace(copy, path)
+            else:
+                _remove(copy)
+        finally:
+            os.close(handle)
+        cleared.append(copy)
+    return cleared
+
+
+def _remove(folder: Path) -> None:
+    """Remove a temporary folder of the workbench's, making the folders in it writable first where it cannot (an
+    earlier output the user made read-only); a failure is one line on stderr, never the command's error in its
+    place."""
+    shutil.rmtree(folder, ignore_errors=True)
+    if os.path.lexists(folder):
+        _make_writable(folder)
+        shutil.rmtree(folder, ignore_errors=True)
+    if os.path.lexists(folder):
+        print(f"workbench: could not remove the temporary folder {folder}; remove it by hand", file=sys.stderr)
+
+
+def _make_writable(folder: Path) -> None:
+    """Give the owner every permission on ``folder`` and the folders in it (symbolic links not followed)."""
+    with suppress(OSError):
+        os.chmod(folder, 0o700)
+    with suppress(OSError), os.scandir(folder) as entries:
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                _make_writable(Path(entry.path))
 
 
 @contextmanager

@@ -1,11 +1,14 @@
-"""Ctrl-C on the command line: one line and exit status 130, whenever it comes.
+"""Ctrl-C on the command line: one line and exit status 130, whenever it comes; SIGTERM (what ``kill``, ``timeout``,
+SLURM and systemd send) and SIGHUP (the terminal closed) likewise, with their own status (143, 129).
 
 Starting the command takes seconds of imports (Hydra, pandas, SciPy, numba) before the command's own error handling
 is in place; a Ctrl-C then would print Python's traceback of whatever was being imported. So the package installs
 :func:`exit_at_once` first thing when it is started as the ``workbench`` command (nothing has been written yet, so
 there is nothing to clean up), and the command switches back to Python's ``KeyboardInterrupt`` (:func:`raise_from_now_on`)
 where its handlers take over: from then on an interrupted run removes what it wrote before it exits. A SIGINT the
-parent process ignores (``nohup``, a background job) stays ignored. This module imports nothing beyond the
+parent process ignores (``nohup``, a background job) stays ignored. SIGTERM and SIGHUP take the same course: they
+too raise ``KeyboardInterrupt``, so every clean-up that Ctrl-C runs runs for them, and only the last line and the
+exit status say which signal came. This module imports nothing beyond the
 standard library, so that it is in place within milliseconds.
 """
 
@@ -17,6 +20,25 @@ from contextlib import contextmanager
 INTERRUPTED = 130
 """Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
 MESSAGE = "workbench: interrupted; rerun the same command to resume"
+SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+"""The signals that stop the command cleanly (SIGHUP does not exist on Windows)."""
+
+
+def exit_status(signum: int = signal.SIGINT) -> int:
+    """The exit status after signal ``signum``, as shells report a process it ended: 128 + its number."""
+    return 128 + int(signum)
+
+
+def message(signum: int = signal.SIGINT, program: str = "workbench") -> str:
+    """The one line after signal ``signum``: :data:`MESSAGE` for Ctrl-C, naming the signal for the others."""
+    if signum == signal.SIGINT:
+        return MESSAGE.replace("workbench", program, 1)
+    return f"{program}: stopped by {signal.Signals(signum).name}; rerun the same command to resume"
+
+
+def _default_handler(signum: int):
+    """The handler Python starts with for ``signum``."""
+    return signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
 
 
 def started_as_command() -> bool:
@@ -27,43 +49,56 @@ def started_as_command() -> bool:
 
 
 def exit_at_once(signum, frame) -> None:
-    """SIGINT handler while the command starts: the one line, exit 130, no traceback."""
-    os.write(2, (MESSAGE + "\n").encode())
-    os._exit(INTERRUPTED)
+    """Handler of :data:`SIGNALS` while the command starts: the one line, exit 128 + the signal, no traceback."""
+    os.write(2, (message(signum) + "\n").encode())
+    os._exit(exit_status(signum))
 
 
 def exit_at_once_while_starting() -> None:
-    """Install :func:`exit_at_once` unless SIGINT is ignored or handled by someone else."""
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, exit_at_once)
+    """Install :func:`exit_at_once` for each of :data:`SIGNALS` that is neither ignored nor handled by someone
+    else."""
+    for signum in SIGNALS:
+        if signal.getsignal(signum) is _default_handler(signum):
+            signal.signal(signum, exit_at_once)
 
 
 _interrupt_came = False
 """Whether :func:`raise_keyboard_interrupt` has run in this process."""
+_signal_came = signal.SIGINT
+"""The signal it ran for last (what the exit status and the last line name)."""
 
 
 def raise_keyboard_interrupt(signum, frame) -> None:
-    """SIGINT handler once the command's handlers are in place: Python's ``KeyboardInterrupt``, remembered, so that
-    an error a library makes of the interrupt is still reported as the interrupt (:func:`caused_by_interrupt`).
-    Seen: a Ctrl-C while numba's C extension loads becomes ``ImportError('numba._devicearray failed to import')``,
-    which Hydra reports as a config target it could not locate."""
-    global _interrupt_came
-    _interrupt_came = True
+    """Handler of :data:`SIGNALS` once the command's handlers are in place: Python's ``KeyboardInterrupt``,
+    remembered, so that an error a library makes of the interrupt is still reported as the interrupt
+    (:func:`caused_by_interrupt`), with the signal that came. Seen: a Ctrl-C while numba's C extension loads becomes
+    ``ImportError('numba._devicearray failed to import')``, which Hydra reports as a config target it could not
+    locate."""
+    global _interrupt_came, _signal_came
+    _interrupt_came, _signal_came = True, signum
     raise KeyboardInterrupt
 
 
+def signal_that_came() -> int:
+    """The signal :func:`raise_keyboard_interrupt` last ran for (SIGINT when none came: a ``KeyboardInterrupt``
+    raised in Python, a test's)."""
+    return _signal_came if _interrupt_came else signal.SIGINT
+
+
 def raise_from_now_on() -> None:
-    """Ctrl-C raises ``KeyboardInterrupt`` again (the command's handlers are in place)."""
-    if signal.getsignal(signal.SIGINT) is exit_at_once:
-        signal.signal(signal.SIGINT, raise_keyboard_interrupt)
+    """Ctrl-C, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` again (the command's handlers are in place)."""
+    for signum in SIGNALS:
+        if signal.getsignal(signum) is exit_at_once:
+            signal.signal(signum, raise_keyboard_interrupt)
 
 
 def ignore_further_interrupts() -> None:
-    """Ignore Ctrl-C from now on: the command has done its work (or cleaned up after an interrupt) and only its
-    last line and exit remain, which a Ctrl-C, or a signal still pending from a compiled loop, would only cut
+    """Ignore :data:`SIGNALS` from now on: the command has done its work (or cleaned up after an interrupt) and
+    only its last line and exit remain, which a signal, or one still pending from a compiled loop, would only cut
     short."""
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for signum in SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
     except ValueError:  # not the main thread: nothing to ignore here
         pass
 
@@ -103,26 +138,34 @@ def caused_by_interrupt(error: BaseException) -> bool:
 
 @contextmanager
 def interrupts_deferred():
-    """Hold Ctrl-C back while a step that must not be cut in two runs (a store's schema being set up, a compiled
-    function's results being handed back to Python), then act on it: a SIGINT that came meanwhile is handed to the
-    handler that was in place (``KeyboardInterrupt``, or the start-up's :func:`exit_at_once`) as the step ends, so
-    it is never lost, nor raised where a library would only print it as ignored. A SIGINT that is ignored stays
-    ignored; outside the main thread nothing is held back."""
+    """Hold :data:`SIGNALS` back while a step that must not be cut in two runs (a store's schema being set up, a
+    compiled function's results being handed back to Python), then act on the first that came: it is handed to
+    the handler that was in place (``KeyboardInterrupt``, or the start-up's :func:`exit_at_once`) as the step ends,
+    so it is never lost, nor raised where a library would only print it as ignored; a signal whose handler was the
+    default is sent again, to end the process as it would have. A signal that is ignored stays ignored; outside the
+    main thread nothing is held back."""
     came = []
-    previous = signal.getsignal(signal.SIGINT)
-    held = previous is not signal.SIG_IGN
-    if held:
+    previous = {}
+    for signum in SIGNALS:
+        handler = signal.getsignal(signum)
+        if handler is signal.SIG_IGN:
+            continue
         try:
-            signal.signal(signal.SIGINT, lambda signum, frame: came.append(frame))
+            signal.signal(signum, lambda number, frame: came.append((number, frame)))
         except ValueError:  # not the main thread: signals are handled there only
-            held = False
+            break
+        previous[signum] = handler
     try:
         yield
     finally:
-        if held:
-            signal.signal(signal.SIGINT, previous if previous is not None else signal.default_int_handler)
-            if came:
-                if callable(previous):
-                    previous(signal.SIGINT, came[0])
-                else:  # SIG_DFL, or a handler not installed from Python
-                    raise KeyboardInterrupt
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if handler is not None else _default_handler(signum))
+        if came:
+            signum, frame = came[0]
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, frame)
+            elif signum == signal.SIGINT:  # SIG_DFL, or a handler not installed from Python
+                raise KeyboardInterrupt
+            else:
+                os.kill(os.getpid(), signum)

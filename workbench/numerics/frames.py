@@ -18,7 +18,7 @@ from typing import Iterator
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, naming, sha256_of_file, write_atomic
+from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, naming, sha256_of_file, temporary_prefix, write_atomic
 
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
@@ -211,7 +211,7 @@ class FrameWriter:
         self.path, self.shape, self.dtype = Path(path), (int(n_frames), int(n_dims)), np.dtype(DTYPES[dtype])
         self.path.parent.mkdir(parents=True, exist_ok=True)
         handle, self._temporary = tempfile.mkstemp(
-            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=TEMPORARY_SUFFIX
+            dir=self.path.parent, prefix=temporary_prefix(self.path.name), suffix=TEMPORARY_SUFFIX
         )
         os.fchmod(handle, FILE_MODE)
         self._stream = os.fdopen(handle, "wb")

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import TEMPORARY_SUFFIX, lock_file, unlock_file
+from workbench.core.files import TEMPORARY_SUFFIX, disk_full, free_bytes, lock_file, unlock_file
 from workbench.core.interrupt import interrupts_deferred
 from workbench.settings.config import REPO_ROOT
 
@@ -66,6 +66,8 @@ def quiet_mlflow() -> None:
         logger = logging.getLogger(name)
         if logger.getEffectiveLevel() < logging.WARNING:
             logger.setLevel(logging.WARNING)
+    # it logs a database error with its whole traceback before raising it, which the command reports in one line
+    logging.getLogger("mlflow.store.db.utils").setLevel(logging.CRITICAL)
 
 
 @dataclass(frozen=True)
@@ -223,7 +225,7 @@ def open_store(target: Store) -> Iterator:
     except MlflowException as error:
         raise WorkbenchError(store_error(target, error)) from None
     except Exception as error:  # noqa: BLE001 - the database driver's own errors (a full disk, a locked file)
-        if type(error).__module__.split(".")[0] not in ("sqlalchemy", "sqlite3", "alembic"):
+        if type(error).__module__.split(".")[0] not in ("sqlalchemy", "sqlite3", "alembic") and not disk_full(error):
             raise
         raise WorkbenchError(store_error(target, error)) from None
     finally:
@@ -253,10 +255,20 @@ def check_reachable(target: Store, timeout: float = 10.0) -> None:
 
 
 def store_error(target: Store, error: Exception) -> str:
-    """One line for an error of the store: its first line, a full disk named as such."""
-    text = " ".join(str(error).split("\n")[0].split()) or type(error).__name__
-    if "disk is full" in text or "No space left" in text:
-        text = f"the disk is full ({text})"
+    """One line for an error of the store: the first line of its message that says what happened (not SQLAlchemy's
+    notes on how it happened), a full disk named as such with the space left."""
+    lines = [" ".join(line.split()) for line in str(error).splitlines()]
+    said = [
+        line
+        for line in lines
+        if line and not line.startswith(("(raised as a result of", "[SQL", "[parameters", "(Background"))
+    ]
+    text = (said or lines or [""])[0] or type(error).__name__
+    if disk_full(error):
+        database = sqlite_database(target.tracking_uri)
+        free = free_bytes(database.parent) if database is not None else None
+        left = f", {free // 1024:,} KB left on {database.parent}" if free is not None else ""
+        text = f"the disk is full ({text}{left}); free some space"
     return (
         f"MLflow store {target.tracking_uri}: {text[:300]}; records already logged are kept: rerun the same "
         "command to log the rest"

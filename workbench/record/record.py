@@ -44,6 +44,7 @@ from workbench.core.files import (
     sha256_of_file,
     write_atomic,
 )
+from workbench.record.meaning import check_meaning
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 if TYPE_CHECKING:
@@ -124,6 +125,8 @@ ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
 INPUTS_FILE = "inputs.npz"
 RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE, DONE)
 """The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
+MEANING_NAMES = {"config": CONFIG_FILE, "metrics": METRICS_FILE, "table": TABLE_FILE, "per_frame": ALPHA_PER_FRAME_FILE}
+"""The files :func:`workbench.record.meaning.check_meaning` names."""
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
 _VARIANT_INPUTS = re.compile(r"inputs_[^/]+\.npz")
 
@@ -529,7 +532,8 @@ def _check_values(folder: Path, rows: Sequence[Mapping], table) -> None:
 
 def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
     """Read and check a complete run record: every file against the checksum the run wrote into ``done``
-    (:func:`verify_record`), then the fields readers rely on.
+    (:func:`verify_record`), then the fields readers rely on, then what the values mean (an alpha below zero, a
+    setting that breaks its rule, rows the per-frame arrays contradict: :mod:`workbench.record.meaning`).
 
     Parameters
     ----------
@@ -591,7 +595,9 @@ def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
             f"{folder}: {TABLE_FILE} has {len(table)} rows but {METRICS_FILE} lists {len(metrics['rows'])}"
         )
     _check_values(folder, metrics["rows"], table)
-    return RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
+    record = RunRecord(folder=folder, config=config, table=table, metrics=metrics, timings=timings, checksums=checksums)
+    check_meaning(folder, config, metrics, table, record.load_alpha_per_frame(), MEANING_NAMES)
+    return record
 
 
 def find_records(paths: Iterable[Path]) -> tuple[list[Path], list[Path]]:

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import check_output_folder, inside
+from workbench.core.files import FORCE_FLAG, check_output_folder, inside
 from workbench.record.record import DONE
 from workbench.reporting.collect.sweep import COLLECTED, COLLECTED_FILES, WRITER, collect_and_write, findings_text
 
@@ -46,11 +46,16 @@ def main(argv: Sequence[str]) -> int:
     parser.add_argument("--columns", default="basis", help="key whose values become the table's columns")
     parser.add_argument("--extra", default="m", help="comma-separated metrics shown beside the row keys")
     parser.add_argument("--over", help="comma-separated replicate columns (default: the config keys naming a seed)")
+    parser.add_argument(
+        FORCE_FLAG,
+        action="store_true",
+        help="replace files of an earlier output that were changed since it was written",
+    )
     args = parser.parse_args(list(argv))
     if args.out is None and len(args.paths) != 1:
         raise WorkbenchError("collect: give --out when collecting more than one path")
     if args.out is not None:  # refused before any record is read
-        check_output_folder(args.out, "--out", writer=WRITER)
+        check_output_folder(args.out, "--out", writer=WRITER, force=args.force)
     out = Path(args.out) if args.out is not None else inside(args.paths[0], COLLECTED)
     written = collect_and_write(
         args.paths,
@@ -61,6 +66,7 @@ def main(argv: Sequence[str]) -> int:
         extra=[name for name in args.extra.split(",") if name],
         over=None if args.over is None else [name for name in args.over.split(",") if name],
         known=COLLECTED_FILES if args.out is None else (),
+        force=args.force,
     )
     print(written["markdown"] + findings_text(written["findings"]), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""

@@ -230,6 +230,7 @@ def collect_and_write(
     extra: Sequence[str] = ("m",),
     over: Sequence[str] | None = None,
     known: Sequence[str] = (),
+    force: bool = False,
 ) -> dict:
     """Collect the records under ``paths`` and write the runs table, the summary, the paired comparisons, the
     alpha table and the findings to ``out``.
@@ -249,6 +250,8 @@ def collect_and_write(
     known : sequence of str
         Names accepted in ``out`` without the output marker (:func:`workbench.core.files.check_output_folder`):
         :data:`COLLECTED_FILES` where the workbench chose the folder itself (``<sweep>/collected``).
+    force : bool
+        Replace files of an earlier collect in ``out`` that were changed since (``--force``).
 
     Returns
     -------
@@ -291,7 +294,7 @@ def collect_and_write(
         files.update({"runs.parquet": parquet_bytes(runs), "summary.parquet": parquet_bytes(summary)})
     else:  # the CSV files hold the same tables
         logging.getLogger("workbench").debug(f"parquet copies of the tables left out: {install_hint('parquet')}")
-    with output_folder(out, "--out", writer=WRITER, known=known) as staging:
+    with output_folder(out, "--out", writer=WRITER, known=known, force=force) as staging:
         for name, content in files.items():
             write_atomic(inside(staging, name), content)
     n_runs = int(runs.groupby(["sweep", "run"]).ngroups)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from workbench.core.files import check_output_folder, inside
+from workbench.core.files import FORCE_FLAG, check_output_folder, inside
 from workbench.reporting.export.run import OBJ_UNITS, WRITER, export_run
 
 
@@ -32,12 +32,19 @@ def main(argv: Sequence[str]) -> int:
         default="m",
         help="unit of the OBJ files (default: m, as animation tools expect)",
     )
+    parser.add_argument(
+        FORCE_FLAG,
+        action="store_true",
+        help="replace files of an earlier output that were changed since it was written",
+    )
     args = parser.parse_args(list(argv))
     if args.out is not None:  # refused before the run is rebuilt
-        check_output_folder(args.out, "--out", writer=WRITER)
+        check_output_folder(args.out, "--out", writer=WRITER, force=args.force)
     out = Path(args.out) if args.out is not None else inside(args.run, "export")
     bases = None if args.bases is None else [label for label in args.bases.split(",") if label]
-    manifest = export_run(args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit)
+    manifest = export_run(
+        args.run, out, data=args.data, bases=bases, solver=args.solver, obj_unit=args.obj_unit, force=args.force
+    )
     for entry in manifest["bases"]:
         alpha = entry["alpha"]["alpha_abs_mean"]
         print(

@@ -337,6 +337,7 @@ def export_run(
     bases: Sequence[str] | None = None,
     solver: str | None = None,
     obj_unit: str = "m",
+    force: bool = False,
 ) -> dict:
     """Export one data variant of a run: every chosen basis's files and ``manifest.json``.
 
@@ -355,6 +356,8 @@ def export_run(
         Solver whose weights are exported; default the run's first.
     obj_unit : {"m", "mm"}
         Unit of the OBJ files.
+    force : bool
+        Replace files of an earlier export in ``out`` that were changed since (``--force``).
 
     Returns
     -------
@@ -387,7 +390,7 @@ def export_run(
             for basis in chosen
         ],
     )
-    with output_folder(out, "--out", writer=WRITER) as staging:
+    with output_folder(out, "--out", writer=WRITER, force=force) as staging:
         manifest = export_manifest(
             [export_basis(staging, result, basis, takes, run_name=folder.name, obj_unit=obj_unit) for basis in chosen],
             folder,

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.core.files import check_output_folder, inside, output_folder, plain_name
+from workbench.core.files import FORCE_FLAG, check_output_folder, inside, output_folder, plain_name
 from workbench.record.record import DONE, RunRecord, is_complete, load_record
 from workbench.reporting.report.run import build_run_report
 from workbench.reporting.report.run_figures import FIGURE_FORMATS
@@ -110,6 +110,11 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
         "SVG), comma-separated: png, svg, pdf (default: none)",
     )
     parser.add_argument("--shapes", help="figure 2: four hand-shape names, comma-separated")
+    parser.add_argument(
+        FORCE_FLAG,
+        action="store_true",
+        help="replace files of an earlier output that were changed since it was written",
+    )
     return parser.parse_args(list(argv))
 
 
@@ -142,7 +147,7 @@ def main(argv: Sequence[str]) -> int:
     if unknown:
         raise WorkbenchError(f"--formats takes png, svg, pdf; got {unknown}")
     if args.out is not None:  # refused before any record is read
-        check_output_folder(args.out, "--out", writer=WRITER)
+        check_output_folder(args.out, "--out", writer=WRITER, force=args.force)
     folder = args.folder
     if not folder.is_dir():
         raise WorkbenchError(f"{folder} is not a folder")
@@ -156,13 +161,13 @@ def main(argv: Sequence[str]) -> int:
             "shared": out.parent / SHARED_FOLDER if args.reference else None,
         }
         known = REPORT_FILES if args.out is None else ()
-        with output_folder(out, setting, writer=WRITER, known=known) as staging:
+        with output_folder(out, setting, writer=WRITER, known=known, force=args.force) as staging:
             build_run_report(record, staging, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]
         out = report_folder(folder, first.config, out=args.out, reference=args.reference, name=args.name)
         known = SWEEP_REPORT_FILES if args.out is None else ()
-        with output_folder(out, setting, writer=WRITER, known=known) as staging:
+        with output_folder(out, setting, writer=WRITER, known=known, force=args.force) as staging:
             build_sweep_report(folder, staging, formats=formats, command=command)
     print(f"report: {out / 'index.html'}")
     return 0
