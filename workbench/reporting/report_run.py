@@ -34,6 +34,7 @@ from workbench.reporting.report_sections import (
     report_versions,
     versions_section,
 )
+from workbench.reporting.rig_panel import with_rig_panel
 
 
 def run_facts(record: RunRecord) -> list:
@@ -318,6 +319,7 @@ def build_run_report(
     entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
+    sections = with_rig_panel(sections, record, out, cache)
     headline = make_figures(
         [headline_spec(record, headline_column(record.config), dataset_label(record))], record, figures_dir, formats, {}
     )
