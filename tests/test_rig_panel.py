@@ -177,43 +177,51 @@ def test_sliders_pose_both_rigs_as_the_rigs_files_say(report, chromium, tmp_path
 
 
 def test_the_timeline_shows_the_weights_the_export_writes(report, chromium, tmp_path):
-    """Moving the timeline to a frame drives the sliders with each rig's solver's weights: those of the weights CSV
-    ``workbench export`` writes for that frame (H and QE of the mesh data, QE of its m = n variant); the faces are
-    the rig's neutral + sum w e, and the captured frame is drawn beside them."""
+    """Moving the timeline to a frame drives the rigs with the weights the chosen solver found: those of the weights
+    CSV ``workbench export`` writes for that frame (H and QE of the mesh data, QE of its m = n variant), for lstsq and
+    box; the faces are the rig's neutral + sum w e."""
     record, out = report
     data = panel_data(out)
+    assert data["solvers"] == ["lstsq", "nnls", "box"]  # the run's, the figures' lstsq first
+    read_back = (
+        "JSON.stringify([document.querySelector('#rigs').getAttribute('data-key'), Object.fromEntries("
+        "workbenchRigs.rigs.map((k) => [k, [workbenchRigs.rawWeights(k), workbenchRigs.positions(k)]]))])"
+    )
     steps = [{"wait": "#rigs", "attribute": "data-status", "not": "loading"}]
-    for x in (0.3, 0.85):
-        steps += [
-            {"click": "#rigs-key", "x": x},
-            {"eval": "document.querySelector('#rigs').getAttribute('data-key')"},
-            {
-                "eval": "JSON.stringify(Object.fromEntries(workbenchRigs.rigs.map((k) => [k, [workbenchRigs.rawWeights(k), workbenchRigs.positions(k)]])))"
-            },
-        ]
+    for solver, x in (("lstsq", 0.3), ("box", 0.85)):
+        choose = (
+            "(() => { const s = document.querySelector('#rigs-solver'); "
+            f"s.value = '{solver}'; s.dispatchEvent(new Event('change')); return s.value; }})()"
+        )
+        steps += [{"eval": choose}, {"click": "#rigs-key", "x": x}, {"eval": read_back}]
     seen = browser_steps(chromium, out / "index.html", steps, tmp_path)
     assert not page_problems(seen), page_problems(seen)
-    csv = {}
-    for variant, bases, keys in (("mesh", ["H", "QE"], ["H", "QE"]), ("mesh m=n", ["QE"], ["QE m=n"])):
-        folder = tmp_path / variant.replace(" ", "_").replace("=", "")
-        export_run(record, folder, data=variant, bases=bases, solver=data["solver"])
-        for basis, key in zip(bases, keys):
-            csv[key] = pd.read_csv(folder / f"{basis}_weights.csv")
     meshes = {key: workbench.read_gltf(path) for key, path in rig_files(data, tmp_path).items()}
     keys_seen = []
-    for at in (2, 5):
-        key = int(seen["results"][at])
+    for solver, at in (("lstsq", 3), ("box", 6)):
+        assert seen["results"][at - 2] == solver
+        csv = {}
+        for variant, bases, keys in (("mesh", ["H", "QE"], ["H", "QE"]), ("mesh m=n", ["QE"], ["QE m=n"])):
+            folder = tmp_path / f"{variant.replace(' ', '_').replace('=', '')}_{solver}"
+            export_run(record, folder, data=variant, bases=bases, solver=solver)
+            for basis, key in zip(bases, keys):
+                csv[key] = pd.read_csv(folder / f"{basis}_weights.csv")
+        key, state = json.loads(seen["results"][at])
+        key = int(key)
         keys_seen.append(key)
-        assert key >= 0
         frame = data["timeline"]["frame"][key]
-        state = json.loads(seen["results"][at + 1])
         for rig, table in csv.items():
             row = table[table["frame"] == frame]
             assert len(row) == 1, (rig, frame)
             np.testing.assert_allclose(state[rig][0], row[data["shapes"]].to_numpy()[0], rtol=1e-6, atol=1e-9)
-            weights = np.asarray(data["rigs"][[r["key"] for r in data["rigs"]].index(rig)]["weights"][key])
+            spec = data["rigs"][[r["key"] for r in data["rigs"]].index(rig)]
+            weights = np.asarray(spec["weights"][solver][key])
             np.testing.assert_allclose(state[rig][1], posed(meshes[rig], weights), rtol=0, atol=1e-4)
-    assert keys_seen[0] < keys_seen[1]
+        if solver == "box":
+            assert all(0 <= w <= 1 for rig in csv for w in state[rig][0])
+        else:
+            assert any(not 0 <= w <= 1 for rig in csv for w in state[rig][0])  # lstsq leaves the slider range
+    assert 0 <= keys_seen[0] < keys_seen[1]
 
 
 def test_a_copied_report_poses_its_rigs_with_no_network(report, chromium, tmp_path):

@@ -124,6 +124,18 @@ def panel_rigs(record: RunRecord, data: str, inputs, cache: dict) -> list[tuple[
     return rigs
 
 
+def run_solvers(config) -> dict:
+    """Solver name -> keyword arguments of :func:`workbench.numerics.solve.solve_weights`, every solver the run
+    had, the figures' solver first (lstsq when the run had it)."""
+    from workbench.reporting.report_data import figure_solver
+    from workbench.settings.schema import SolverSchema
+    from workbench.settings.typed import solver_options, typed
+
+    first, options = figure_solver(config)
+    rest = {name: solver_options(typed(SolverSchema, config["solver"][name])) for name in config["solver"]}
+    return {first: options, **{name: value for name, value in rest.items() if name != first}}
+
+
 def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
     """The data of the panel, ready for JSON: each rig's ``.glb`` (compressed), the shapes' names and slider
     ranges, the timeline's frames with each rig's error and the captured frames (quantised)."""
@@ -133,43 +145,48 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
     from workbench.reporting.figures.faces import ERROR_CMAP
     from workbench.reporting.figures.interactive import byte_planes, colour_table
     from workbench.reporting.figures.render import PLAIN_COLOUR
-    from workbench.reporting.report_data import figure_solver, frame_alpha, record_timeline, short_label
+    from workbench.reporting.report_data import frame_alpha, record_timeline, short_label
     from workbench.reporting.rig import rig_bytes
 
-    solver_name, solver = figure_solver(record.config)
-    names = [str(name) for name in inputs["hand_names"]] if "hand_names" in inputs else None
+    solvers = run_solvers(record.config)
+    names = [str(name) for name in inputs["hand_names"]]
     timeline = record_timeline(record, inputs)
     keys = panel_keys(np.isfinite(inputs["eval"]).all(axis=1))
     captured = inputs["eval"][keys]
     points = inputs["neutral"].reshape(-1, 3)
     mesh = decimate(points, inputs["faces"], min(1.0, PANEL_VERTICES / len(points)))
     rows = (3 * mesh.kept[:, None] + np.arange(3)).ravel()
-    rigs, ranges, errors = [], [], {}
-    difference = []
+    rigs, ranges, difference = [], [], []
     for key, label, shapes in panel_rigs(record, data, inputs, cache):
-        names = names or [f"shape_{i + 1}" for i in range(len(inputs["hand"]))]
         shape_names = tuple(names) + tuple(f"pca_{i}" for i in range(len(names) + 1, len(shapes) + 1))
-        weights = solve_weights(shapes, captured, **solver).weights
         basis = ExportedBasis(
             label=key.replace(" ", "_").replace("=", ""),
             names=shape_names,
             shapes=shapes[:, rows],
             weights=np.zeros((1, len(shapes))),  # a rig without animations: one target per shape
-            solver=solver_name,
+            solver="none",
             alpha={},
             sculpted=tuple(i < len(names) for i in range(len(shapes))),
         )
         glb = rig_bytes(basis, points[mesh.kept], mesh.faces, (), {"units": "metres", "run": record.folder.name})
-        alpha = frame_alpha(inputs["neutral"], captured, weights @ shapes)
-        errors[key] = {"alpha": np.round(alpha["absolute"], 4).tolist(), "rms": np.round(alpha["rms"], 4).tolist()}
-        ranges.append(np.stack([weights[:, : len(names)].min(axis=0), weights[:, : len(names)].max(axis=0)]))
+        weights, errors = {}, {}
+        for solver, options in solvers.items():
+            found = solve_weights(shapes, captured, **options).weights
+            alpha = frame_alpha(inputs["neutral"], captured, found @ shapes)
+            weights[solver] = [[float(f"{w:.9g}") for w in row] for row in found]
+            errors[solver] = {
+                "alpha": np.round(alpha["absolute"], 4).tolist(),
+                "rms": np.round(alpha["rms"], 4).tolist(),
+            }
+            ranges.append(np.stack([found[:, : len(names)].min(axis=0), found[:, : len(names)].max(axis=0)]))
         difference.append(shapes[: len(names), rows])
         rigs.append(
             {
                 "key": key,
                 "label": label,
                 "targets": list(shape_names),
-                "weights": [[float(f"{w:.9g}") for w in row] for row in weights],
+                "weights": weights,
+                "errors": errors,
                 "glb": base64.b64encode(zlib.compress(glb, 9)).decode("ascii"),
             }
         )
@@ -179,7 +196,7 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
     quantised = np.round(captured[:, rows] / STEP_MM).astype("<i2")
     return {
         "title": f"{short_label(record)}; data {data}",
-        "solver": solver_name,
+        "solvers": list(solvers),
         "shapes": list(names),
         "ranges": [[float(a), float(b)] for a, b in zip(low, high)],
         "rigs": rigs,
@@ -192,7 +209,6 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
             "take": [str(timeline.take[k]) for k in keys],
             "frame": [int(timeline.frame[k]) for k in keys],
             "seconds": [round(float(timeline.seconds[k]), 6) for k in keys],
-            "errors": errors,
         },
         "difference": {"clim": [0.0, float(np.percentile(solo, 99.5)) or 1.0], "colours": colour_table(ERROR_CMAP)},
         "plain": PLAIN_COLOUR,

@@ -7,6 +7,7 @@
   if (!window.DecompressionStream) { status("error: this browser lacks DecompressionStream"); return; }
   const $ = (id) => document.getElementById(id);
   const n = data.shapes.length;
+  const solver = () => $("rigs-solver").value;
 
   async function inflate(text) {
     const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));
@@ -49,7 +50,7 @@
     rig.targets.forEach((t) => { if (t.shape >= 0) influences[t.index] = values[t.shape]; });
   }
   function playKey(rig, key) {
-    const influences = rig.mesh.morphTargetInfluences, weights = rig.spec.weights[key];
+    const influences = rig.mesh.morphTargetInfluences, weights = rig.spec.weights[solver()][key];
     rig.targets.forEach((t, i) => { influences[t.index] = weights[i]; });
   }
   function rawWeights(rig) {  // each hand shape's weight, as the sliders and the weights CSV give it
@@ -159,10 +160,10 @@
         for (let i = 0; i < 3 * nv; i++) position[i] = neutral[i] + captured[key * 3 * nv + i] * data.step / 1000;
         capturedGeometry.attributes.position.needsUpdate = true;
         capturedMesh.visible = true;
-        const e = t.errors;
-        $("rigs-frame").textContent = `${t.take[key]} frame ${t.frame[key]} (t = ${t.seconds[key].toFixed(2)} s): ` +
-          `error H alpha ${e[h.spec.key].alpha[key].toFixed(3)} %, RMS ${e[h.spec.key].rms[key].toFixed(2)} mm; ` +
-          `${qe.spec.key} alpha ${e[qe.spec.key].alpha[key].toFixed(3)} %, RMS ${e[qe.spec.key].rms[key].toFixed(2)} mm (solver ${data.solver})`;
+        const e = (rig) => rig.spec.errors[solver()];
+        $("rigs-frame").textContent = `${t.take[key]} frame ${t.frame[key]} (t = ${t.seconds[key].toFixed(2)} s), ` +
+          `solver ${solver()}: error H alpha ${e(h).alpha[key].toFixed(3)} %, RMS ${e(h).rms[key].toFixed(2)} mm; ` +
+          `${qe.spec.key} alpha ${e(qe).alpha[key].toFixed(3)} %, RMS ${e(qe).rms[key].toFixed(2)} mm`;
       }
       $("rigs-title-h").textContent = h.spec.label;
       $("rigs-title-qe").textContent = qe.spec.label;
@@ -179,13 +180,13 @@
 
     function curves() {  // the selected shape's weights over the timeline in H and in QE, a cursor at the frame
       const c = $("rigs-curves"), g = c.getContext("2d"), count = data.timeline.rows.length;
-      const series = [h, qe].map((rig) => rig.spec.weights.map((row) => row[rig.targets.findIndex((t) => t.shape === selected)]));
+      const series = [h, qe].map((rig) => rig.spec.weights[solver()].map((row) => row[rig.targets.findIndex((t) => t.shape === selected)]));
       const all = series.flat().concat([0, 1]);
       const low = Math.min(...all), high = Math.max(...all);
       const x = (k) => 40 + (c.width - 50) * k / Math.max(1, count - 1), y = (w) => 10 + (c.height - 30) * (high - w) / (high - low || 1);
       g.clearRect(0, 0, c.width, c.height);
       g.font = "12px sans-serif"; g.fillStyle = "#333";
-      g.fillText(`${data.shapes[selected]}: H (blue), ${qe.spec.key} (orange)`, 45, 12);
+      g.fillText(`${data.shapes[selected]}: H (blue), ${qe.spec.key} (orange), solver ${solver()}`, 45, 12);
       g.fillText(high.toPrecision(3), 0, 14); g.fillText(low.toPrecision(3), 0, c.height - 20);
       g.strokeStyle = "#bbb"; g.beginPath(); g.moveTo(40, y(0)); g.lineTo(c.width - 10, y(0)); g.stroke();
       series.forEach((s, r) => {
@@ -212,6 +213,12 @@
       option.value = String(r + 1); option.textContent = rig.spec.label;
       $("rigs-qe").appendChild(option);
     });
+    data.solvers.forEach((name) => {
+      const option = document.createElement("option");
+      option.value = name; option.textContent = name;
+      $("rigs-solver").appendChild(option);
+    });
+    $("rigs-solver").addEventListener("change", update);
     $("rigs-qe").addEventListener("change", () => { qe = rigs[parseInt($("rigs-qe").value, 10)]; update(); });
     $("rigs-raw").addEventListener("change", () => { raw = $("rigs-raw").checked; update(); });
     $("rigs-colour").addEventListener("change", update);
