@@ -238,3 +238,27 @@ def test_a_copied_report_poses_its_rigs_with_no_network(report, chromium, tmp_pa
         chromium, copy / "index.html", [{"wait": "#rigs", "attribute": "data-status", "not": "loading"}], tmp_path
     )
     assert seen["results"] == ["error: three.js (figures/three.min.js) did not load"]
+
+
+def test_a_run_on_markers_alone_poses_its_rigs_carried_onto_the_face_mesh(chromium, tmp_path):
+    """A run without a mesh variant (the default study: markers) gets the panel too: its marker shapes and frames
+    carried onto the synthetic actor's face mesh, as its other face figures are, the weights solved on the markers."""
+    record = tmp_path / "run"
+    run(compose("paper", ["dataset.n_frames=300", "save_inputs=true", "solver=box"]), record)
+    out = tmp_path / "report"
+    assert main([str(record), "--out", str(out)]) == 0
+    data = panel_data(out)
+    assert data["solvers"] == ["box"] and [rig["key"] for rig in data["rigs"]] == ["H", "QE", "QE m=n"]
+    assert "carried onto the mesh by RBF" in (out / "index.html").read_text()
+    with np.load(record / "inputs_markers.npz") as inputs:
+        n_markers = len(inputs["neutral"]) // 3
+    mesh = workbench.read_gltf(rig_files(data, tmp_path)["H"])
+    assert len(mesh.neutral) == data["n_vertices"] > 4 * n_markers  # a face mesh, not the markers
+    assert all(0 <= w <= 1 for rig in data["rigs"] for row in rig["weights"]["box"] for w in row)
+    seen = browser_steps(
+        chromium,
+        out / "index.html",
+        [{"wait": "#rigs", "attribute": "data-status", "not": "loading"}, {"click": "#rigs-key", "x": 0.5}],
+        tmp_path,
+    )
+    assert seen["results"][0] == "drawn" and not page_problems(seen), (seen["results"][0], page_problems(seen))

@@ -76,7 +76,9 @@ def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict) ->
 
 
 def build_rig_panel(record: RunRecord, out: Path, cache: dict) -> RigPanel | None:
-    """Write ``figures/rigs.js`` and ``figures/three.min.js`` for a run with a mesh data variant; None otherwise.
+    """Write ``figures/rigs.js`` and ``figures/three.min.js`` for a run with faces to draw: a mesh data variant, or
+    a marker variant carried onto the dataset's face mesh (:func:`workbench.reporting.report_data.face_data`, as the
+    other face figures draw a run on markers); None when it has neither.
 
     Parameters
     ----------
@@ -86,19 +88,21 @@ def build_rig_panel(record: RunRecord, out: Path, cache: dict) -> RigPanel | Non
     cache : dict
         Arrays shared with the figures.
     """
-    from workbench.reporting.report_data import mesh_variant
+    from workbench.reporting.report_data import face_data
 
-    found = mesh_variant(record, cache)
-    if found is None:
+    face = face_data(record, cache)
+    if isinstance(face, str):
         return None
-    data, inputs = found
-    payload = rig_payload(record, data, inputs, cache)
+    payload = rig_payload(record, face, cache)
     figures = out / "figures"
     write_atomic(figures / DATA_FILE, "window.WORKBENCH_RIGS = " + json.dumps(payload, separators=(",", ":")) + ";\n")
     for name in (LIBRARY_FILE, LICENCE_FILE):  # three.js and its licence, beside the page that loads it
         with resources.as_file(resources.files("workbench.reporting") / "static" / name) as source:
             shutil.copyfile(source, figures / name)
-    return RigPanel(data=f"figures/{DATA_FILE}", library=f"figures/{LIBRARY_FILE}")
+    more = face.caption("the weights, alpha and errors are the markers' own")
+    return RigPanel(
+        data=f"figures/{DATA_FILE}", library=f"figures/{LIBRARY_FILE}", caption=f"{CAPTION} {more}" if more else CAPTION
+    )
 
 
 def panel_keys(complete: np.ndarray, n_keys: int = PANEL_KEYS) -> np.ndarray:
@@ -136,7 +140,7 @@ def run_solvers(config) -> dict:
     return {first: options, **{name: value for name, value in rest.items() if name != first}}
 
 
-def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
+def rig_payload(record: RunRecord, face, cache: dict) -> dict:
     """The data of the panel, ready for JSON: each rig's ``.glb`` (compressed), the shapes' names and slider
     ranges, the timeline's frames with each rig's error and the captured frames (quantised)."""
     from workbench.dataset.decimate import decimate
@@ -148,13 +152,14 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
     from workbench.reporting.report_data import frame_alpha, record_timeline, short_label
     from workbench.reporting.rig import rig_bytes
 
+    data, inputs = face.data, face.inputs
     solvers = run_solvers(record.config)
     names = [str(name) for name in inputs["hand_names"]]
     timeline = record_timeline(record, inputs)
     keys = panel_keys(np.isfinite(inputs["eval"]).all(axis=1))
     captured = inputs["eval"][keys]
-    points = inputs["neutral"].reshape(-1, 3)
-    mesh = decimate(points, inputs["faces"], min(1.0, PANEL_VERTICES / len(points)))
+    points = face.neutral.reshape(-1, 3)
+    mesh = decimate(points, face.faces, min(1.0, PANEL_VERTICES / len(points)))
     rows = (3 * mesh.kept[:, None] + np.arange(3)).ravel()
     rigs, ranges, difference = [], [], []
     for key, label, shapes in panel_rigs(record, data, inputs, cache):
@@ -162,7 +167,7 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
         basis = ExportedBasis(
             label=key.replace(" ", "_").replace("=", ""),
             names=shape_names,
-            shapes=shapes[:, rows],
+            shapes=face.carry(shapes)[:, rows],  # a marker variant's shapes carried onto the mesh
             weights=np.zeros((1, len(shapes))),  # a rig without animations: one target per shape
             solver="none",
             alpha={},
@@ -179,7 +184,7 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
                 "rms": np.round(alpha["rms"], 4).tolist(),
             }
             ranges.append(np.stack([found[:, : len(names)].min(axis=0), found[:, : len(names)].max(axis=0)]))
-        difference.append(shapes[: len(names), rows])
+        difference.append(face.carry(shapes[: len(names)])[:, rows])
         rigs.append(
             {
                 "key": key,
@@ -193,7 +198,7 @@ def rig_payload(record: RunRecord, data: str, inputs, cache: dict) -> dict:
     low = np.minimum(0.0, np.min([r[0] for r in ranges], axis=0))
     high = np.maximum(1.0, np.max([r[1] for r in ranges], axis=0))
     solo = np.linalg.norm((difference[1] - difference[0]).reshape(len(names), -1, 3), axis=2)
-    quantised = np.round(captured[:, rows] / STEP_MM).astype("<i2")
+    quantised = np.round(face.carry(captured)[:, rows] / STEP_MM).astype("<i2")
     return {
         "title": f"{short_label(record)}; data {data}",
         "solvers": list(solvers),
