@@ -319,7 +319,7 @@ def build_run_report(
     entries = make_figures(RUN_FIGURES, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
-    sections = with_rig_panel(sections, record, out, cache)
+    sections = with_rig_panel(sections, record, out, cache, (options or {}).get("shared"))
     headline = make_figures(
         [headline_spec(record, headline_column(record.config), dataset_label(record))], record, figures_dir, formats, {}
     )

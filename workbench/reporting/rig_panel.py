@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import base64
 import json
-import shutil
+import os
 import zlib
 from dataclasses import dataclass
 from importlib import resources
@@ -63,11 +63,12 @@ class RigPanel:
         }
 
 
-def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict) -> list:
-    """``sections`` with "Pose the rigs" after "Faces you can turn" (or at the end), for runs on mesh data."""
+def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict, shared: Path | None = None) -> list:
+    """``sections`` with "Pose the rigs" after "Faces you can turn" (or at the end), for runs with faces to draw;
+    ``shared`` as :func:`build_rig_panel`."""
     from workbench.reporting.report_sections import Section
 
-    panel = build_rig_panel(record, out, cache)
+    panel = build_rig_panel(record, out, cache, shared)
     if panel is None:
         return sections
     headings = [section.heading for section in sections]
@@ -75,7 +76,7 @@ def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict) ->
     return [*sections[:at], Section("Pose the rigs", [panel]), *sections[at:]]
 
 
-def build_rig_panel(record: RunRecord, out: Path, cache: dict) -> RigPanel | None:
+def build_rig_panel(record: RunRecord, out: Path, cache: dict, shared: Path | None = None) -> RigPanel | None:
     """Write ``figures/rigs.js`` and ``figures/three.min.js`` for a run with faces to draw: a mesh data variant, or
     a marker variant carried onto the dataset's face mesh (:func:`workbench.reporting.report_data.face_data`, as the
     other face figures draw a run on markers); None when it has neither.
@@ -87,6 +88,9 @@ def build_rig_panel(record: RunRecord, out: Path, cache: dict) -> RigPanel | Non
         The report folder.
     cache : dict
         Arrays shared with the figures.
+    shared : pathlib.Path, optional
+        The folder the reference reports share (``reports/shared``, ``--reference``): three.js goes there once, as
+        figure 1 does, instead of into each report's ``figures/``.
     """
     from workbench.reporting.report_data import face_data
 
@@ -96,12 +100,16 @@ def build_rig_panel(record: RunRecord, out: Path, cache: dict) -> RigPanel | Non
     payload = rig_payload(record, face, cache)
     figures = out / "figures"
     write_atomic(figures / DATA_FILE, "window.WORKBENCH_RIGS = " + json.dumps(payload, separators=(",", ":")) + ";\n")
+    library = figures if shared is None else Path(shared)
+    library.mkdir(parents=True, exist_ok=True)
     for name in (LIBRARY_FILE, LICENCE_FILE):  # three.js and its licence, beside the page that loads it
         with resources.as_file(resources.files("workbench.reporting") / "static" / name) as source:
-            shutil.copyfile(source, figures / name)
+            write_atomic(library / name, source.read_bytes())
     more = face.caption("the weights, alpha and errors are the markers' own")
     return RigPanel(
-        data=f"figures/{DATA_FILE}", library=f"figures/{LIBRARY_FILE}", caption=f"{CAPTION} {more}" if more else CAPTION
+        data=f"figures/{DATA_FILE}",
+        library=Path(os.path.relpath(library / LIBRARY_FILE, out)).as_posix(),
+        caption=f"{CAPTION} {more}" if more else CAPTION,
     )
 
 
