@@ -186,7 +186,7 @@
       const x = (k) => 40 + (c.width - 50) * k / Math.max(1, count - 1), y = (w) => 10 + (c.height - 30) * (high - w) / (high - low || 1);
       g.clearRect(0, 0, c.width, c.height);
       g.font = "12px sans-serif"; g.fillStyle = "#333";
-      g.fillText(`${data.shapes[selected]}: H (blue), ${qe.spec.key} (orange), solver ${solver()}`, 45, 12);
+      g.fillText(`${data.shapes[selected]}: H (blue), ${qe.spec.key} (orange), solver ${solver()}`, 70, 12);
       g.fillText(high.toPrecision(3), 0, 14); g.fillText(low.toPrecision(3), 0, c.height - 20);
       g.strokeStyle = "#bbb"; g.beginPath(); g.moveTo(40, y(0)); g.lineTo(c.width - 10, y(0)); g.stroke();
       series.forEach((s, r) => {
