@@ -142,6 +142,10 @@ def test_write_rig_refuses_files_it_did_not_write_and_bad_input(fitted, rigs, tm
     ):
         with pytest.raises(WorkbenchError, match=message):
             workbench.write_rig(tmp_path / "new.glb", qe, **kwargs)
+    with pytest.raises(WorkbenchError, match="estimator must be a fitted QuasiEigenFaces, got dict"):
+        workbench.write_rig(tmp_path / "new.glb", {}, triangles=triangles)
+    with pytest.raises(workbench.NotFittedError):
+        workbench.write_rig(tmp_path / "new.glb", workbench.QuasiEigenFaces(), triangles=triangles)
     with pytest.raises(WorkbenchError, match=r"must end in \.glb"):
         workbench.write_rig(tmp_path / "rig.gltf", qe, triangles=triangles)
     assert not (tmp_path / "new.glb").exists()

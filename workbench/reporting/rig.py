@@ -113,11 +113,13 @@ def estimator_basis(estimator, basis: str, frames, solver: str | None) -> Export
     ``pca_mean`` (weight 1 in every frame) then the eigenfaces, as the export writes PCA. With no frames the
     weights are one row of zeros (a rig without animations).
     """
-    from workbench.numerics.estimator import BASES
+    from workbench.numerics.estimator import BASES, QuasiEigenFaces
 
+    if not isinstance(estimator, QuasiEigenFaces):
+        raise WorkbenchError(f"write_rig: estimator must be a fitted QuasiEigenFaces, got {type(estimator).__name__}")
     if basis not in BASES:
         raise WorkbenchError(f"write_rig: basis must be one of {', '.join(map(repr, BASES))}; got {basis!r}")
-    estimator._check_fitted()
+    estimator._check_fitted()  # NotFittedError, as the estimator's own methods raise it
     n_hand = len(estimator.hand_shapes_)
     if basis == "PCA":
         if solver is not None:
@@ -161,15 +163,14 @@ def check_rig_path(path: str | os.PathLike) -> Path:
     if path.is_symlink() or (path.exists() and not path.is_file()):
         raise WorkbenchError(f"write_rig: {path} is a folder or a symbolic link; give a new file's path")
     if path.exists():
-        head = path.read_bytes()[:20]
         ours = False
-        if len(head) == 20 and head[:4] == b"glTF":
-            (length,) = struct.unpack_from("<I", head, 12)
-            with open(path, "rb") as stream:
-                stream.seek(20)
+        with open(path, "rb") as stream:
+            head = stream.read(20)
+            if len(head) == 20 and head[:4] == b"glTF":
+                (length,) = struct.unpack_from("<I", head, 12)
                 try:
                     ours = json.loads(stream.read(length)).get("asset", {}).get("generator") == GENERATOR
-                except (ValueError, AttributeError):
+                except (ValueError, AttributeError):  # not JSON, or not an object: not a rig of ours
                     ours = False
         if not ours:
             raise WorkbenchError(
@@ -194,13 +195,13 @@ def write_estimator_rig(
     from workbench.core.files import write_atomic
 
     path = check_rig_path(path)
+    exported = estimator_basis(estimator, basis, frames, solver)
     if estimator.neutral_ is None:
         raise WorkbenchError(
             "write_rig needs the neutral face: fit with QuasiEigenFaces(neutral=<array of shape (n_dims,)>)"
         )
     if not (isinstance(frame_rate, (int, float)) and not isinstance(frame_rate, bool) and frame_rate > 0):
         raise WorkbenchError(f"write_rig: frame_rate must be a positive number, got {frame_rate!r}")
-    exported = estimator_basis(estimator, basis, frames, solver)
     takes = []
     if frames is not None:
         n_frames = len(exported.weights)
