@@ -47,6 +47,7 @@ _PUBLIC = {
     "run_study": "workbench.api",
     "record_study": "workbench.api",
     "read_record": "workbench.api",
+    "write_rig": "workbench.api",
 }
 
 __all__ = list(_PUBLIC)

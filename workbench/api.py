@@ -617,3 +617,78 @@ def run_owned(
         raise
     finally:
         release_run_dir(output_dir, lock)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Rigs
+# ---------------------------------------------------------------------------------------------------------------
+
+
+def write_rig(
+    path: str | os.PathLike,
+    estimator,
+    *,
+    triangles,
+    basis: str = "QE",
+    frames=None,
+    seconds=None,
+    frame_rate: float = 60.0,
+    solver: str | None = None,
+    take: str = "take",
+) -> dict:
+    """Write a fitted :class:`~workbench.numerics.estimator.QuasiEigenFaces` basis as a glTF 2.0 rig (``.glb``), the
+    file ``workbench export`` writes for a run's basis (:func:`workbench.reporting.export.rig.rig_mesh`): the neutral mesh,
+    morph targets whose weights stay in [0, 1] and, given frames, one morph-weight animation of their weights.
+
+    Blender, three.js and game engines import it; read it back with ``workbench.read_gltf``. Lengths are written in
+    metres from the estimator's millimetres (the workbench's unit), +Y up as the data lie.
+
+    Parameters
+    ----------
+    path : path-like
+        A new ``.glb`` file, or one this function or the export wrote before (replaced); any other existing file is
+        refused and left alone.
+    estimator : QuasiEigenFaces
+        Fitted, with ``neutral`` (the rig's rest mesh, ``n_dims = 3 * n_vertices``, mm).
+    triangles : array-like of shape (n_triangles, 3) of int
+        The mesh's triangles, 0-based vertex indices.
+    basis : {"QE", "H", "PCA"}, default "QE"
+        The quasi-eigen faces (``shape_names_``), the hand shapes, or ``pca_mean`` then the eigenfaces.
+    frames : array-like of shape (n_frames, n_dims), optional
+        Displacements from neutral whose weights (:meth:`QuasiEigenFaces.transform`) the animation plays; without
+        them the rig has no animation.
+    seconds : array-like of shape (n_frames,), optional
+        Key times, increasing (default ``arange(n_frames) / frame_rate``); the animation starts at 0.
+    frame_rate : float, default 60.0
+        Frames per second of ``frames`` (for the default times; recorded in the file).
+    solver : {"lstsq", "nnls", "box"}, optional
+        The weights' solver (default the estimator's); None for ``PCA``.
+    take : str, default "take"
+        The animation is named ``<basis>_<solver>_<take>``.
+
+    Returns
+    -------
+    dict
+        ``path``, ``basis``, ``solver``, ``shapes`` (names), ``targets`` (each morph target's name, the shape it is
+        a multiple of and the multiple: raw weight = sum of scale x target weight), ``animations`` (names) and
+        ``weights`` (ndarray of shape (n_frames, n_shapes), the raw weights animated, or None).
+
+    Raises
+    ------
+    WorkbenchError
+        The estimator is not fitted or has no neutral, the path is not a ``.glb`` file it may write, triangles or
+        times do not fit the mesh and frames.
+    """
+    from workbench.reporting.export.rig import write_estimator_rig
+
+    return write_estimator_rig(
+        path,
+        estimator,
+        triangles=triangles,
+        basis=basis,
+        frames=frames,
+        seconds=seconds,
+        frame_rate=frame_rate,
+        solver=solver,
+        take=take,
+    )

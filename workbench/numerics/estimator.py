@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import warnings
+from typing import Mapping
 
 import numpy as np
 
@@ -531,6 +532,53 @@ class QuasiEigenFaces(ScikitLearnManners, *ESTIMATOR_BASES, **ESTIMATOR_OPTIONS)
                 }
             )
         return pd.DataFrame(rows)
+
+    def pose(self, weights, basis: str = "QE", *, positions: bool = False) -> np.ndarray:
+        """The face a rig shows at slider values ``weights``: ``sum_i w_i e_i`` (eq. 1), plus ``v0`` for positions.
+
+        Parameters
+        ----------
+        weights : array-like of shape (n_shapes,) or (n_poses, n_shapes), or mapping of str to float
+            One value per shape of the basis, in the order of its names (``shape_names_`` for ``QE``, the hand
+            shapes' names for ``H``, the eigenfaces' order for ``PCA``); or a mapping from shape name to value,
+            shapes it leaves out at 0 (``{"jawOpen": 1.0}``: the paper's figure 2, one shape alone).
+        basis : {"QE", "H", "PCA"}, default "QE"
+            ``PCA`` poses ``mean_ + sum_j w_j eigenfaces_j`` (its sliders are the eigenface coordinates).
+        positions : bool, default False
+            False: displacements from neutral; True: vertex positions ``neutral + displacement`` (needs ``neutral``
+            given to :meth:`fit`).
+
+        Returns
+        -------
+        ndarray of shape (n_dims,) or (n_poses, n_dims)
+            One row per pose, 1-D for 1-D weights or a mapping; ``[x0, y0, z0, x1, ...]`` in the frames' units.
+        """
+        self._check_fitted()
+        basis = _check_choice("basis", basis, BASES)
+        shapes = self.eigenfaces_ if basis == "PCA" else self._shapes(basis)
+        names = (
+            tuple(f"pca_{j + 1}" for j in range(self.m_)) if basis == "PCA" else tuple(self.shape_names_[: len(shapes)])
+        )
+        if isinstance(weights, Mapping):
+            unknown = sorted(set(weights) - set(names))
+            if unknown:
+                raise WorkbenchError(f"pose: basis {basis!r} has no shape {unknown[0]!r}; its shapes are {list(names)}")
+            weights = [weights.get(name, 0.0) for name in names]
+        try:
+            one_pose = np.ndim(weights) == 1
+        except ValueError:  # ragged rows: check_matrix words it
+            one_pose = False
+        values = check_matrix("weights", [weights] if one_pose else weights, CAPTURE)
+        if values.shape[1] != len(names):
+            raise WorkbenchError(
+                f"pose: weights must hold one value per shape of basis {basis!r} ({len(names)}), got {values.shape[1]}"
+            )
+        if positions and self.neutral_ is None:
+            raise WorkbenchError("pose(positions=True) needs the neutral positions: pass neutral= to fit")
+        posed = values @ shapes + (self.mean_ if basis == "PCA" else 0.0)
+        if positions:
+            posed = posed + self.neutral_
+        return posed[0] if one_pose else posed
 
     def _summary(self, frames, *, solver: str | None = None, basis: str = "QE") -> AlphaSummary:
         """Every variant of eq. 6, per frame too, and the RMS point error of one basis's reconstruction

@@ -1,2 +1,3 @@
 """Everything read from records, in rooms from the ground up: tables, findings, then text | figures | collect, then
-report | export. The layers contract in pyproject.toml names them."""
+export, then report (whose "Pose the rigs" panel draws the export's rigs). The layers contract in pyproject.toml
+names them."""

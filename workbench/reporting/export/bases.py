@@ -15,6 +15,16 @@ from workbench.core.errors import WorkbenchError
 ALPHA_COLUMNS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
 
 
+AXES = "+Y up, the face looking along +Z (glTF's convention), coordinates as the data's"
+TARGETS_TEXT = (
+    "the glTF file's morph-target weights all stay in [0, 1] (the shape-key slider range Blender's "
+    "importer sets, which Blender clamps to). A hand-made or quasi-eigen shape '<s>' keeps its own "
+    "target '<s>' (weight clipped into [0, 1]); weights above 1 go to '<s>_over' (the shape times "
+    "max weight - 1), weights below 0 to '<s>_neg' (the shape times the min weight); a PCA eigenface "
+    "'<e>' becomes '<e>_pos' and '<e>_neg', scaled by the largest positive and negative coefficient. "
+    "Raw weight of a shape = sum over its targets of scale x target weight (each target's 'scale'); the "
+    "raw weights are also in the weights CSV files"
+)
 PCA_MEAN = "pca_mean"
 
 

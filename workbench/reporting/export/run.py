@@ -41,9 +41,10 @@ from workbench.core.files import (
 )
 from workbench.record.replay import replay
 from workbench.reporting.export.bases import (
+    AXES,
+    TARGETS_TEXT,
     ExportedBasis,
     exported_bases,
-    playback_targets,
 )
 from workbench.reporting.export.takes import (
     ExportTake,
@@ -56,18 +57,8 @@ from workbench.reporting.export.takes import (
     weights_csv,
 )
 
-AXES = "+Y up, the face looking along +Z (glTF's convention), coordinates as the data's"
 OBJ_UNITS = {"m": 1000.0, "mm": 1.0}
 """OBJ unit -> millimetres per unit."""
-TARGETS_TEXT = (
-    "the glTF file's morph-target weights all stay in [0, 1] (the shape-key slider range Blender's "
-    "importer sets, which Blender clamps to). A hand-made or quasi-eigen shape '<s>' keeps its own "
-    "target '<s>' (weight clipped into [0, 1]); weights above 1 go to '<s>_over' (the shape times "
-    "max weight - 1), weights below 0 to '<s>_neg' (the shape times the min weight); a PCA eigenface "
-    "'<e>' becomes '<e>_pos' and '<e>_neg', scaled by the largest positive and negative coefficient. "
-    "Raw weight of a shape = sum over its targets of scale x target weight (each target's 'scale'); the "
-    "raw weights are also in the weights CSV files"
-)
 
 
 REPLAY_REFUSED = "rerun the study and export the new record"
@@ -201,7 +192,7 @@ def export_basis(
     out: Path, result, basis: ExportedBasis, takes: Sequence[ExportTake], *, run_name: str, obj_unit: str
 ) -> dict:
     """Write one basis's files into ``out`` and return their manifest entry."""
-    from workbench.formats.gltf import MM_PER_METRE, MorphAnimation, MorphMesh, glb_bytes
+    from workbench.formats.gltf import MM_PER_METRE
 
     capture = result.capture
     n_points = capture.n_points
@@ -254,12 +245,14 @@ def export_basis(
         files[plan["npz"]] = "neutral (n_markers, 3), shapes (n_shapes, n_markers, 3), names, labels; mm"
         files[plan["csv"]] = "row 'neutral' then one row per shape; <marker>_x|y|z columns, mm"
         return entry
-    targets = playback_targets(basis.names, basis.weights, basis.sculpted)
-    animations = tuple(
-        MorphAnimation(
-            name=f"{basis.label}_{basis.solver}_{take.name}",
+    from workbench.formats.gltf import glb_bytes
+    from workbench.reporting.export.rig import GENERATOR, RigTake, rig_mesh, target_rows
+
+    rig_takes = [
+        RigTake(
+            name=take.name,
+            rows=take.rows,
             seconds=take.seconds,
-            weights=targets.weights[take.rows],
             extras={
                 "take": take.name,
                 "frame_rate": take.frame_rate,
@@ -267,40 +260,28 @@ def export_basis(
             },
         )
         for take in takes
-    )
-    facts = [dict(take_facts(take), animation=animation.name) for take, animation in zip(takes, animations)]
-    mesh = MorphMesh(
-        neutral=neutral,
-        triangles=capture.faces,
-        names=targets.names,
-        deltas=targets.deltas(basis.shapes).reshape(len(targets.names), n_points, 3),
-        animations=animations,
-        extras={
-            "units": "metres",
-            "axes": AXES,
-            "frame_rate": capture.frame_rate,
-            "takes": facts,
-            "basis": basis.label,
-            "solver": basis.solver,
-            "run": run_name,
-            "data": result.data,
-            "source": capture.name,
-            "targets": TARGETS_TEXT,
-            "credits": capture.provenance.get("credits", []),
-        },
-        mesh_extras={"targetShapes": [basis.names[i] for i in targets.shapes], "targetScales": targets.scales.tolist()},
-    )
-    write_atomic(export_path(out, plan["glb"]), glb_bytes(mesh, mesh_name="face"))
+    ]
+    animation_names = [f"{basis.label}_{basis.solver}_{take.name}" for take in takes]
+    facts = [dict(take_facts(take), animation=name) for take, name in zip(takes, animation_names)]
+    extras = {
+        "units": "metres",
+        "axes": AXES,
+        "frame_rate": capture.frame_rate,
+        "takes": facts,
+        "run": run_name,
+        "data": result.data,
+        "source": capture.name,
+        "credits": capture.provenance.get("credits", []),
+    }
+    mesh, targets = rig_mesh(basis, neutral, capture.faces, rig_takes, extras)
+    write_atomic(export_path(out, plan["glb"]), glb_bytes(mesh, mesh_name="face", generator=GENERATOR))
     files[plan["glb"]] = (
         f"glTF 2.0: neutral mesh, {len(targets.names)} morph targets (weights in [0, 1]) for "
         f"{len(basis.names)} shapes, one animation per take keyed at the frames' own times "
         f"({capture.frame_rate:g} fps); metres ({MM_PER_METRE:g} mm), {AXES}"
     )
-    entry["animations"] = [animation.name for animation in animations]
-    entry["targets"] = [
-        {"target": name, "shape": basis.names[shape], "scale": float(scale)}
-        for name, shape, scale in zip(targets.names, targets.shapes, targets.scales)
-    ]
+    entry["animations"] = animation_names
+    entry["targets"] = target_rows(targets, basis.names)
     folder, per_unit = plan["obj"], OBJ_UNITS[obj_unit]
     write_atomic(export_path(out, folder, "neutral.obj"), obj_text(neutral / per_unit, capture.faces))
     for name, shape in zip(basis.names, shapes):

@@ -112,6 +112,8 @@ def _block(block, markdown: bool) -> dict:
             "caption": block.caption,
             "missing": block.missing,
         }
+    if hasattr(block, "page_block"):  # a block that says how the templates show it (the rig panel)
+        return block.page_block(markdown)
     if isinstance(block, pd.DataFrame):
         return _table_block(block, markdown)
     if isinstance(block, list):
@@ -145,6 +147,8 @@ def render_html(title: str, sections: Sequence[Section]) -> str:
             figure_check=static_text("figure_check.js"),
             view_style=static_text("view3d.css"),
             view_script=static_text("view3d.js"),
+            rig_style=static_text("rig_panel.css"),
+            rig_script=static_text("rig_panel.js"),
         )
     )
 

@@ -17,6 +17,7 @@ from workbench.reporting.report.bases import bases_figure_rows, other_bases, wit
 from workbench.reporting.report.data import dataset_label, figure_bases, qe_label, record_inputs
 from workbench.reporting.report.faces import FacesBlock, build_faces
 from workbench.reporting.report.page import write_documents
+from workbench.reporting.report.rig_panel import with_rig_panel
 from workbench.reporting.report.run_figures import (
     FIGURE_FORMATS,
     FIGURES_SECTION,
@@ -328,6 +329,7 @@ def build_run_report(
     entries = make_figures(rows, record, figures_dir, formats, {**(options or {}), "cache": cache})
     faces = build_faces(record, out, cache)
     title, sections = run_sections(record, entries, command, faces, left_right(record, cache))
+    sections = with_rig_panel(sections, record, out, cache, (options or {}).get("shared"))
     sections = fit_findings(with_bases_section(sections, bases, entries))
     write_documents(out, title, sections)
     write_atomic(inside(out, "alpha_table.csv"), (record.folder / "alpha_table.csv").read_bytes())
