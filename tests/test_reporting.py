@@ -362,6 +362,9 @@ def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_sav
         "vertex_rms",
         "animation",
         "view3d",
+        "rigs",  # the rig panel's data, and three.js with its licence beside it
+        "three.min",
+        "three-LICENSE",
     }, figures
     assert "Marker versus mesh" not in readme
     assert not any(path.name.startswith("inputs") for path in record.iterdir())  # the record is left as it was

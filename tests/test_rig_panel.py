@@ -18,8 +18,8 @@ from test_export import validate
 
 import workbench
 from workbench.api import run
-from workbench.reporting.export import export_run
-from workbench.reporting.pages import main
+from workbench.reporting.export.run import export_run
+from workbench.reporting.report.command import main
 from workbench.settings.config import REPO_ROOT, compose
 
 TINY = [

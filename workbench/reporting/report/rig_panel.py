@@ -66,7 +66,7 @@ class RigPanel:
 def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict, shared: Path | None = None) -> list:
     """``sections`` with "Pose the rigs" after "Faces you can turn" (or at the end), for runs with faces to draw;
     ``shared`` as :func:`build_rig_panel`."""
-    from workbench.reporting.report_sections import Section
+    from workbench.reporting.report.sections import Section
 
     panel = build_rig_panel(record, out, cache, shared)
     if panel is None:
@@ -92,7 +92,7 @@ def build_rig_panel(record: RunRecord, out: Path, cache: dict, shared: Path | No
         The folder the reference reports share (``reports/shared``, ``--reference``): three.js goes there once, as
         figure 1 does, instead of into each report's ``figures/``.
     """
-    from workbench.reporting.report_data import face_data
+    from workbench.reporting.report.data import face_data
 
     face = face_data(record, cache)
     if isinstance(face, str):
@@ -121,7 +121,7 @@ def panel_keys(complete: np.ndarray, n_keys: int = PANEL_KEYS) -> np.ndarray:
 
 def panel_rigs(record: RunRecord, data: str, inputs, cache: dict) -> list[tuple[str, str, np.ndarray]]:
     """``(key, label, shapes)`` of the rigs shown: H, the run's QE and, in the paper's regime, QE at m = n."""
-    from workbench.reporting.report_data import figure_bases, qe_label, record_inputs
+    from workbench.reporting.report.data import figure_bases, qe_label, record_inputs
 
     qe = qe_label(record)
     bases = figure_bases(record, data, inputs, cache)
@@ -139,7 +139,7 @@ def panel_rigs(record: RunRecord, data: str, inputs, cache: dict) -> list[tuple[
 def run_solvers(config) -> dict:
     """Solver name -> keyword arguments of :func:`workbench.numerics.solve.solve_weights`, every solver the run
     had, the figures' solver first (lstsq when the run had it)."""
-    from workbench.reporting.report_data import figure_solver
+    from workbench.reporting.report.data import figure_solver
     from workbench.settings.schema import SolverSchema
     from workbench.settings.typed import solver_options, typed
 
@@ -153,12 +153,12 @@ def rig_payload(record: RunRecord, face, cache: dict) -> dict:
     ranges, the timeline's frames with each rig's error and the captured frames (quantised)."""
     from workbench.dataset.decimate import decimate
     from workbench.numerics.solve import solve_weights
-    from workbench.reporting.export import ExportedBasis
+    from workbench.reporting.export.bases import ExportedBasis
     from workbench.reporting.export.rig import rig_bytes
     from workbench.reporting.figures.faces import ERROR_CMAP
     from workbench.reporting.figures.interactive import byte_planes, colour_table
     from workbench.reporting.figures.render import PLAIN_COLOUR
-    from workbench.reporting.report_data import frame_alpha, record_timeline, short_label
+    from workbench.reporting.report.data import frame_alpha, record_timeline, short_label
 
     data, inputs = face.data, face.inputs
     solvers = run_solvers(record.config)
