@@ -14,8 +14,10 @@ DURATIONS = Path(__file__).with_name("durations.json")
 """Seconds each scope of the suite took (a test file, or a class of one, as pytest-xdist's ``--dist loadscope``
 hands them out), as ``pytest --record-durations`` measured them."""
 
-TINY_STUDY = ("dataset.n_frames=300", "solver=lstsq")
-"""The smallest synthetic study that still fits and scores every basis: the settings of ``tiny_study``."""
+TINY_STUDY = ("dataset.n_frames=300",)
+"""The size of the smallest synthetic study that still fits and scores every basis with every solver: the
+settings of ``tiny_study``. A test adds the settings it is
+about (a solver, a sweep, an output folder) after these."""
 
 
 def pytest_addoption(parser):
@@ -141,8 +143,8 @@ def require_or_skip(variable: str, reason: str) -> None:
 
 @pytest.fixture(scope="session")
 def tiny_study() -> tuple[str, ...]:
-    """The overrides of the smallest synthetic study that fits and scores every basis (:data:`TINY_STUDY`): what a
-    test runs when it needs a run, not a particular size."""
+    """The overrides of the smallest synthetic study (:data:`TINY_STUDY`): what a test runs when it needs a run,
+    not a particular size."""
     return TINY_STUDY
 
 

@@ -7,9 +7,13 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from workbench.record.record import DONE, load_record
 from workbench.record.tracking import LOCK_FILE, lock_run_dir, unlock_run_dir
 from workbench.settings.config import REPO_ROOT
+
+pytestmark = pytest.mark.process  # every test here starts the command as a child process
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 

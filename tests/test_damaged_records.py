@@ -12,7 +12,6 @@ import sys
 import zipfile
 
 import pytest
-from in_process import run_workbench
 
 from workbench.api import read_record, run
 from workbench.cli import main as cli
@@ -150,7 +149,7 @@ def test_damaged_record_is_refused_in_one_line_naming_file_and_field(
     assert str(folder) in lines[0]
 
 
-def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(record, tmp_path):
+def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(record, tmp_path, cli):
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     set_row("alpha_abs_mean", float("nan"))(folder)
@@ -164,7 +163,7 @@ def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(rec
         "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
     }
     for command, arguments in commands.items():
-        result = workbench_process(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         assert result.returncode == 2, (command, result.stderr)
         assert "field 'rows[0].alpha_abs_mean' must be a finite number" in result.stderr, (command, result.stderr)
         assert len(result.stderr.strip().splitlines()) == 1, result.stderr
@@ -264,12 +263,8 @@ TAMPERED = {
 }
 
 
-def workbench_process(*arguments, cwd):
-    return run_workbench(*arguments, cwd=cwd)
-
-
 @pytest.mark.parametrize("case", list(TAMPERED))
-def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_path, case):
+def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_path, case, cli):
     damage, expected = TAMPERED[case]
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
@@ -282,7 +277,7 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
     }
     # every reader checks every file of the record, archives included, before it uses or copies any of them
     for command, arguments in commands.items():
-        result = workbench_process(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2, (command, result.stderr)
         assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: run record {folder}"), lines
@@ -291,13 +286,13 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
         assert not (tmp_path / name).exists() or not any((tmp_path / name).iterdir()), name
 
 
-def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp_path):
+def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp_path, cli):
     folder = tmp_path / "run"
     shutil.copytree(record, folder)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     (folder / "report").symlink_to(elsewhere)
-    result = workbench_process("report", str(folder), cwd=tmp_path)
+    result = cli("report", str(folder), cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     assert result.stderr.strip() == (
         f"workbench report: error: refusing to write {folder / 'report'}: it is not "

@@ -408,6 +408,7 @@ def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     assert tables(tmp_path) == built  # a hit: read back memory-mapped
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_a_hit_in_another_process_writes_the_same_alpha_table(tmp_path):
     small = [

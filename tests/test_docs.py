@@ -170,6 +170,7 @@ def commands_test_class(doc: str) -> type:
     tests, and its module fixtures, on one."""
 
     @pytest.mark.slow
+    @pytest.mark.process
     class TestDocumentedCommands:
         def test_commands_run(self, shared_data, tmp_path, compiled_solvers, reused_outputs):
             check_documented_commands(doc, tmp_path, reused_outputs)

@@ -35,6 +35,7 @@ def contract_layers() -> list[list[str]]:
     return [[name.strip() for name in layer.replace("|", ":").split(":")] for layer in contract["layers"]]
 
 
+@pytest.mark.process
 def test_imports_only_go_down_the_layers():
     done = lint_imports(ROOT)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
@@ -54,6 +55,7 @@ def test_every_module_is_in_a_layer():
     assert listed - found == set(), "layers naming no module"
 
 
+@pytest.mark.process
 def test_an_upward_import_in_a_function_breaks_the_contract(tmp_path):
     """The check is not vacuous: a function-level import from a lower layer up to a higher one is found."""
     package = tmp_path / "toy"

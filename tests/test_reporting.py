@@ -204,6 +204,7 @@ def assert_both_halves_drawn(status: str) -> None:
     assert 0.05 < left / half < 0.9 and 0.05 < right / half < 0.9, status
 
 
+@pytest.mark.process
 def test_interactive_view_draws_the_face_in_a_browser_from_file(tiny_report, chromium):
     """The page opened from file:// with no server and no network: the viewer and the mesh data load, the captured
     and the reconstructed face are drawn side by side (the page counts each half's non-background pixels), and the
@@ -225,6 +226,7 @@ def test_interactive_view_draws_the_face_in_a_browser_from_file(tiny_report, chr
     assert 'id="view3d-left">captured: most displaced' in dom and 'id="view3d-right">reconstructed with H' in dom
 
 
+@pytest.mark.process
 def test_a_report_folder_copied_anywhere_still_draws_its_3d_view(tiny_report, chromium, tmp_path):
     """Everything the page needs is inside the report folder: a copy elsewhere, away from every other report, opened
     from file:// with no network, loads every figure and the animation and draws its 3-D view, and a link to
@@ -251,6 +253,7 @@ def assert_every_figure_loaded(dom: str, page) -> None:
     assert not broken, broken
 
 
+@pytest.mark.process
 def test_a_copied_report_missing_a_figure_says_so(tiny_report, chromium, tmp_path):
     """The browser check can fail: a copy without one of its figures marks that image as not loaded and names the
     file under it."""
@@ -555,6 +558,7 @@ def test_varying_keys_leave_out_paths_and_identical_settings():
     assert flatten(configs[0])["basis.projections"] == "[affine]"
 
 
+@pytest.mark.process
 def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
     assert COMMANDS["report"] == "workbench.reporting.pages:main"
     with pytest.raises(WorkbenchError, match="not a folder"):
@@ -981,6 +985,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     assert weight.size == mesh.kept.size and (weight == 0).any() and (weight == 255).any()
 
 
+@pytest.mark.process
 def test_rebuilding_reports_does_not_mark_the_code_as_changed(tmp_path):
     """A reference report rewritten under reports/ is output, not code: the commit stays clean for the next run."""
     from workbench.record.record import git_state
