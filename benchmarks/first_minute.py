@@ -74,7 +74,8 @@ def measure(steps: list[tuple[str, str]], clone: Path, log: Path) -> None:
     for name, command in steps:
         wall, cpu, load, code = timed(command, clone, log)
         status = "" if code == 0 else f" (exit code {code})"
-        print(f"| {name} | `{command}`{status} | {wall:.0f} s | {cpu:.0f} s | {load:.1f} |", flush=True)
+        shown = command.replace("|", "\\|")  # a cell of a Markdown table
+        print(f"| {name} | `{shown}`{status} | {wall:.0f} s | {cpu:.0f} s | {load:.1f} |", flush=True)
         if code != 0 and not command.startswith(".venv/bin/pytest"):
             sys.exit(f"first_minute: '{command}' failed with exit code {code}; its output is in {log}")
 

@@ -56,12 +56,38 @@ def measured_durations() -> dict[str, float]:
     return json.loads(DURATIONS.read_text())["seconds"] if DURATIONS.is_file() else {}
 
 
+LONGEST_FIRST = (
+    "tests/test_reporting.py",  # the reference reports redone: about ten minutes in all
+    "tests/test_docs.py::TestCommandsOf_docs_studies_md",
+    "tests/test_docs.py::TestCommandsOf_docs_reports_md",
+    "tests/test_docs.py::TestCommandsOf_README_md",
+    "tests/test_docs.py::TestCommandsOf_docs_performance_md",
+    "tests/test_docs.py::TestCommandsOf_docs_formats_md",
+    "tests/test_studies.py",
+    "tests/test_docs.py::TestCommandsOf_docs_export_md",
+    "tests/test_mlflow_store.py",
+    "tests/test_docs.py::TestCommandsOf_docs_tracking_md",
+    "tests/test_kill.py",
+)
+"""The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
+seconds were kept): handed out before every other scope until a full run's ``--record-durations`` has measured
+them."""
+
+
 def pytest_collection_modifyitems(items):
-    """Hand out the scopes that took longest first (pytest-xdist gives out scopes in collection order, and a long
-    one given out last keeps one process busy alone at the end); scopes not measured yet keep their order after the
-    measured ones, and every scope stays in one block, so its module fixtures are built once."""
+    """Hand out the scopes that take longest first (pytest-xdist gives out scopes in collection order, and a long
+    one given out last keeps one process busy alone at the end): those of :data:`LONGEST_FIRST`, then the others by
+    their seconds in :data:`DURATIONS`, scopes not measured yet last. Every scope stays in one block, so its module
+    fixtures are built once."""
     seconds = measured_durations()
-    items.sort(key=lambda item: -seconds.get(scope_of(item.nodeid), 0.0))
+
+    def rank(item) -> tuple[int, float]:
+        scope = scope_of(item.nodeid)
+        if scope in LONGEST_FIRST:
+            return LONGEST_FIRST.index(scope), 0.0
+        return len(LONGEST_FIRST), -seconds.get(scope, 0.0)
+
+    items.sort(key=rank)
 
 
 _measured: dict[str, float] = {}
@@ -81,6 +107,8 @@ def pytest_sessionfinish(session):
         json.dumps(
             {
                 "recorded": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+                "command": "pytest " + " ".join(session.config.invocation_params.args),
+                "load": round(os.getloadavg()[0], 1),
                 "seconds": dict(sorted(seconds.items(), key=lambda pair: (-pair[1], pair[0]))),
             },
             indent=1,

@@ -43,6 +43,7 @@ def start(arguments, cwd: Path) -> subprocess.Popen:
     )
 
 
+@pytest.mark.slow
 def test_identical_sweeps_into_one_folder_do_every_run_exactly_once(tmp_path):
     sweep = tmp_path / "sweep"
     arguments = [
@@ -89,6 +90,7 @@ def test_a_plain_run_into_a_locked_folder_stops_with_one_line_and_touches_nothin
     assert (folder / "alpha_table.csv").read_text() == "a live run's file"
 
 
+@pytest.mark.slow
 def test_two_identical_plain_runs_leave_one_complete_record(tmp_path):
     folder = tmp_path / "run"
     processes = [start([*SMALL, f"hydra.run.dir={folder}"], tmp_path)]

@@ -255,6 +255,7 @@ def test_two_rows_of_one_name_are_refused(swept):
 # --- real processes: concurrent imports, Ctrl-C, a full disk, names from a record, report figures -------------
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what_the_sweep_was(tmp_path):
     """MLFLOW_TRACKING_URI=sqlite:///<folder>/t.db, run from another folder: the artifacts go beside the database
@@ -415,6 +416,7 @@ def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record
     assert 130 in outcomes, outcomes
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
     """The store on a 3 MB file system: full before the store exists, and full while artifacts are written."""
@@ -508,6 +510,7 @@ def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
 # --- a tracking server ----------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_path):
     """MLFLOW_TRACKING_URI alone sends the sweep to the server; the runs are found there through the REST API."""

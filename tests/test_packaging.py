@@ -102,6 +102,7 @@ def test_the_slurm_launcher_without_its_plugin_names_the_cluster_extra(monkeypat
     assert missing_extra(error) is None
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
     result = python(without(OPTIONAL_MODULES, ["dataset.n_frames=1000", "solver=lstsq"]), cwd=tmp_path)
@@ -112,6 +113,7 @@ def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
     assert list((tmp_path / "outputs" / "paper").iterdir())
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_a_report_without_the_report_extra_is_one_line_exit_2(tmp_path):
     made = python(

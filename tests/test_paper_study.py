@@ -58,6 +58,7 @@ def test_quasi_eigen_beats_hand_basis_under_least_squares(small_run):
         assert table.loc[("QE", "lstsq"), column] < 0.6 * table.loc[("H", "lstsq"), column]
 
 
+@pytest.mark.slow
 def test_table_recomputed_independently_from_inputs(small_run):
     """Recompute H, QE and PCA rows from inputs.npz with plain NumPy/SciPy (SVD, per-frame lsq_linear)."""
     output, _ = small_run

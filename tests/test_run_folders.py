@@ -69,6 +69,7 @@ def test_a_run_into_a_folder_of_the_users_is_refused_and_touches_nothing(tmp_pat
     assert snapshot(folder) == before
 
 
+@pytest.mark.slow
 @pytest.mark.process
 def test_the_current_directory_is_never_a_run_folder_even_in_a_copy_of_the_checkout(tmp_path):
     checkout = tmp_path / "checkout"
