@@ -8,13 +8,11 @@ between a malformed file and the tables.
 
 import json
 import shutil
-import sys
 import zipfile
 
 import pytest
 
 from workbench.api import read_record, run
-from workbench.cli import main as cli
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import inside, mapped_npz, npz_bytes
 from workbench.core.files import sha256_of_file as file_checksum
@@ -124,27 +122,18 @@ DAMAGE = {
 }
 
 
-def cli_main(monkeypatch, capsys, *arguments):
-    monkeypatch.setattr(sys, "argv", ["workbench", *arguments])
-    with pytest.raises(SystemExit) as stopped:
-        cli.main()
-    return stopped.value.code, capsys.readouterr()
-
-
 @pytest.mark.parametrize("command", ["report", "collect"])
 @pytest.mark.parametrize("case", list(DAMAGE))
-def test_damaged_record_is_refused_in_one_line_naming_file_and_field(
-    record, tmp_path, monkeypatch, capsys, command, case
-):
+def test_damaged_record_is_refused_in_one_line_naming_file_and_field(record, tmp_path, cli, command, case):
     damage, expected = DAMAGE[case]
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     damage(folder)
     reseal(folder)
     out = tmp_path / "out"
-    code, captured = cli_main(monkeypatch, capsys, command, str(tmp_path / "sweep"), "--out", str(out))
-    lines = captured.err.strip().splitlines()
-    assert code == 2, captured.err
+    result = cli(command, str(tmp_path / "sweep"), "--out", str(out))
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2, result.stderr
     assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: ") and expected in lines[0], lines
     assert str(folder) in lines[0]
 
@@ -182,9 +171,9 @@ def test_a_record_with_undefined_values_in_both_files_is_read(record, tmp_path):
     assert read_record(folder).metrics["rows"][0]["alpha_disp_mean"] is None
 
 
-def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, tmp_path, monkeypatch, capsys):
-    code, captured = cli_main(monkeypatch, capsys, "report", str(record), "--reference", "--name", "../../x")
-    assert code == 2 and "--name must be a plain folder name" in captured.err
+def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, cli):
+    result = cli("report", str(record), "--reference", "--name", "../../x")
+    assert result.returncode == 2 and "--name must be a plain folder name" in result.stderr
 
 
 def test_inside_refuses_paths_leaving_the_folder(tmp_path):
