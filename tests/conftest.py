@@ -15,9 +15,8 @@ DURATIONS = Path(__file__).with_name("durations.json")
 hands them out), as ``pytest --record-durations`` measured them."""
 
 TINY_STUDY = ("dataset.n_frames=300",)
-"""The size of the smallest synthetic study that still fits and scores every basis with every solver: the
-settings of ``tiny_study``. A test adds the settings it is
-about (a solver, a sweep, an output folder) after these."""
+"""The size of the smallest synthetic study that still fits and scores every basis with every solver: the settings
+of ``tiny_study``. A test adds the settings it is about (a solver, a sweep, an output folder) after these."""
 
 
 def pytest_addoption(parser):
@@ -70,8 +69,7 @@ LONGEST_FIRST = (
     "tests/test_kill.py",
 )
 """The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
-seconds were kept): handed out before every other scope until a full run's ``--record-durations`` has measured
-them."""
+seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""
 
 
 def pytest_collection_modifyitems(items):

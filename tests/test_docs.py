@@ -89,6 +89,7 @@ def test_the_same_command_is_its_text_without_comments_and_unset_variables_the_e
     assert ".venv/bin/python benchmarks/run.py markers" in repeated  # twice in performance.md, once with env -u
 
 
+@pytest.mark.process
 def test_a_command_run_again_has_its_output_copied_into_the_new_scratch_copy(tmp_path):
     text = (
         ".venv/bin/python - <<'PY'\nimport os, pathlib\npathlib.Path('outputs').mkdir()\n"
