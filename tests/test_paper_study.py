@@ -94,16 +94,16 @@ def test_same_config_gives_identical_tables(small_run, tmp_path):
     assert (tmp_path / "alpha_table.csv").read_bytes() == (small_run[0] / "alpha_table.csv").read_bytes()
 
 
-def test_cli_runs_and_prints_the_table(tmp_path, cli):
-    result = cli("dataset.n_frames=300", "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+def test_cli_runs_and_prints_the_table(tmp_path, cli, tiny_study):
+    result = cli(*tiny_study, "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     basis_cells = [line.split("|")[2].strip() for line in result.stdout.splitlines() if line.startswith("|")]
     assert basis_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(basis_cells)
     assert (tmp_path / "run" / DONE).is_file()
 
 
-def test_cli_bad_parameter_is_one_line(tmp_path, cli):
-    result = cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+def test_cli_bad_parameter_is_one_line(tmp_path, cli, tiny_study):
+    result = cli(*tiny_study, "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 2
     assert result.stderr.strip() == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
     assert not (tmp_path / "run" / DONE).exists()
