@@ -78,14 +78,15 @@ def pytest_collection_modifyitems(items):
     their seconds in :data:`DURATIONS`, scopes not measured yet last. Every scope stays in one block, so its module
     fixtures are built once."""
     seconds = measured_durations()
+    items.sort(key=lambda item: hand_out_rank(item.nodeid, seconds))
 
-    def rank(item) -> tuple[int, float]:
-        scope = scope_of(item.nodeid)
-        if scope in LONGEST_FIRST:
-            return LONGEST_FIRST.index(scope), 0.0
-        return len(LONGEST_FIRST), -seconds.get(scope, 0.0)
 
-    items.sort(key=rank)
+def hand_out_rank(nodeid: str, seconds: dict[str, float]) -> tuple[int, float]:
+    """Where a test's scope goes in the order scopes are handed out (lowest first), given each scope's seconds."""
+    scope = scope_of(nodeid)
+    if scope in LONGEST_FIRST:
+        return LONGEST_FIRST.index(scope), 0.0
+    return len(LONGEST_FIRST), -seconds.get(scope, 0.0)
 
 
 _measured: dict[str, float] = {}
