@@ -188,10 +188,11 @@ def main(arguments: list[str]) -> int:
     """``guard --owner PID:START [--owner ...] -- COMMAND...``"""
     split = arguments.index("--")
     options, command = arguments[:split], arguments[split + 1 :]
-    if options[:1] != ["guard"] or not command:
+    flags, values = options[1::2], options[2::2]
+    if options[:1] != ["guard"] or not command or len(flags) != len(values) or set(flags) - {"--owner"}:
         sys.exit(f"usage: {sys.argv[0]} guard --owner PID:START [--owner PID:START] -- COMMAND")
     owners = []
-    for flag, value in zip(options[1::2], options[2::2]):
+    for value in values:
         pid, _, started = value.partition(":")
         owners.append((int(pid), None if started in ("", "None") else int(started)))
     return guard(owners, command)
