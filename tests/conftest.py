@@ -100,13 +100,14 @@ def pytest_sessionfinish(session):
     if not session.config.getoption("--record-durations") or os.environ.get("PYTEST_XDIST_WORKER"):
         return
     import datetime
+    import shlex
 
     seconds = {**measured_durations(), **{scope: round(value, 1) for scope, value in _measured.items()}}
     DURATIONS.write_text(
         json.dumps(
             {
                 "recorded": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-                "command": "pytest " + " ".join(session.config.invocation_params.args),
+                "command": shlex.join(["pytest", *session.config.invocation_params.args]),
                 "load": round(os.getloadavg()[0], 1),
                 "seconds": dict(sorted(seconds.items(), key=lambda pair: (-pair[1], pair[0]))),
             },
