@@ -1,38 +1,120 @@
-"""Shared fixtures: where the shared face data lives (``../shared/data`` or ``WORKBENCH_DATA_ROOT``)."""
+"""Shared fixtures: where the shared face data lives (``../shared/data`` or ``WORKBENCH_DATA_ROOT``), the tiny study
+most tests run, the ``cli`` command run in-process, the suite's servers, and the order test scopes are handed out."""
 
+import json
 import os
+import signal
 from pathlib import Path
 
 import pytest
 
 from workbench.settings.config import REPO_ROOT
 
+DURATIONS = Path(__file__).with_name("durations.json")
+"""Seconds each scope of the suite took (a test file, or a class of one, as pytest-xdist's ``--dist loadscope``
+hands them out), as ``pytest --record-durations`` measured them."""
+
+TINY_STUDY = ("dataset.n_frames=300",)
+"""The size of the smallest synthetic study that still fits and scores every basis with every solver: the settings
+of ``tiny_study``. A test adds the settings it is about (a solver, a sweep, an output folder) after these."""
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--record-durations",
+        action="store_true",
+        help=f"write the seconds each test scope took into {DURATIONS.name} (kept for scopes that did not run), "
+        "from which the longest scopes are handed out first",
+    )
+
+
+def pytest_configure(config):
+    """Before any test: end the servers a killed earlier run of the suite left, and let SIGTERM end this run as
+    Ctrl-C does, through the fixtures' teardown (which stops the servers this run started)."""
+    from servers import clean_stale
+
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        for server_id in clean_stale():
+            print(f"ended the server {server_id} a killed earlier test run left")
+    if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _interrupt)
+
+
+def _interrupt(number, frame):
+    raise KeyboardInterrupt(f"signal {number}")
+
+
+def scope_of(nodeid: str) -> str:
+    """The scope pytest-xdist's ``--dist loadscope`` hands out whole: the class of a method, else the file."""
+    parts = nodeid.split("[", 1)[0].split("::")
+    return "::".join(parts[:2]) if len(parts) > 2 else parts[0]
+
+
+def measured_durations() -> dict[str, float]:
+    """The seconds of each scope in :data:`DURATIONS` (empty when there is no such file)."""
+    return json.loads(DURATIONS.read_text())["seconds"] if DURATIONS.is_file() else {}
+
+
 LONGEST_FIRST = (
-    "tests/test_reporting.py::",  # the reference reports redone: about ten minutes in all
-    "tests/test_docs.py::TestCommandsOf_docs_studies_md::",
-    "tests/test_docs.py::TestCommandsOf_docs_reports_md::",
-    "tests/test_docs.py::TestCommandsOf_README_md::",
-    "tests/test_docs.py::TestCommandsOf_docs_performance_md::",
-    "tests/test_docs.py::TestCommandsOf_docs_formats_md::",
-    "tests/test_studies.py::",
-    "tests/test_docs.py::TestCommandsOf_docs_export_md::",
-    "tests/test_mlflow_store.py::",
-    "tests/test_docs.py::TestCommandsOf_docs_tracking_md::",
-    "tests/test_kill.py::",
+    "tests/test_reporting.py",  # the reference reports redone: about ten minutes in all
+    "tests/test_docs.py::TestCommandsOf_docs_studies_md",
+    "tests/test_docs.py::TestCommandsOf_docs_reports_md",
+    "tests/test_docs.py::TestCommandsOf_README_md",
+    "tests/test_docs.py::TestCommandsOf_docs_performance_md",
+    "tests/test_docs.py::TestCommandsOf_docs_formats_md",
+    "tests/test_studies.py",
+    "tests/test_docs.py::TestCommandsOf_docs_export_md",
+    "tests/test_mlflow_store.py",
+    "tests/test_docs.py::TestCommandsOf_docs_tracking_md",
+    "tests/test_kill.py",
 )
-"""The longest scopes of the suite (a file, or a document's commands in tests/test_docs.py), longest first, as CI
-measured them: pytest-xdist hands scopes out in the order they are collected, and a long one handed out last keeps
-one process busy alone at the end."""
+"""The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
+seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""
 
 
 def pytest_collection_modifyitems(items):
-    """Collect the scopes of :data:`LONGEST_FIRST` first, in that order; everything else after them, as before
-    (every scope stays in one block, so its module fixtures are built once)."""
+    """Hand out the scopes that take longest first (pytest-xdist gives out scopes in collection order, and a long
+    one given out last keeps one process busy alone at the end): those of :data:`LONGEST_FIRST`, then the others by
+    their seconds in :data:`DURATIONS`, scopes not measured yet last. Every scope stays in one block, so its module
+    fixtures are built once."""
+    seconds = measured_durations()
+    items.sort(key=lambda item: hand_out_rank(item.nodeid, seconds))
 
-    def rank(item) -> int:
-        return next((i for i, prefix in enumerate(LONGEST_FIRST) if item.nodeid.startswith(prefix)), len(LONGEST_FIRST))
 
-    items.sort(key=rank)
+def hand_out_rank(nodeid: str, seconds: dict[str, float]) -> tuple[int, float]:
+    """Where a test's scope goes in the order scopes are handed out (lowest first), given each scope's seconds."""
+    scope = scope_of(nodeid)
+    if scope in LONGEST_FIRST:
+        return LONGEST_FIRST.index(scope), 0.0
+    return len(LONGEST_FIRST), -seconds.get(scope, 0.0)
+
+
+_measured: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report):
+    _measured[scope_of(report.nodeid)] = _measured.get(scope_of(report.nodeid), 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    if not session.config.getoption("--record-durations") or os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    import datetime
+    import shlex
+
+    seconds = {**measured_durations(), **{scope: round(value, 1) for scope, value in _measured.items()}}
+    DURATIONS.write_text(
+        json.dumps(
+            {
+                "recorded": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+                "command": shlex.join(["pytest", *session.config.invocation_params.args]),
+                "load": round(os.getloadavg()[0], 1),
+                "seconds": dict(sorted(seconds.items(), key=lambda pair: (-pair[1], pair[0]))),
+            },
+            indent=1,
+        )
+        + "\n"
+    )
 
 
 def shared_data_root() -> Path:
@@ -88,16 +170,37 @@ def require_or_skip(variable: str, reason: str) -> None:
 
 
 @pytest.fixture(scope="session")
+def tiny_study() -> tuple[str, ...]:
+    """The overrides of the smallest synthetic study (:data:`TINY_STUDY`): what a test runs when it needs a run,
+    not a particular size."""
+    return TINY_STUDY
+
+
+@pytest.fixture
+def cli(tmp_path):
+    """``cli(*args, cwd=tmp_path, env=None)``: the ``workbench`` command run inside the test process
+    (:func:`in_process.run_workbench`), in the test's own folder unless ``cwd`` says otherwise; returns its exit
+    code and what it printed as ``returncode``, ``stdout`` and ``stderr``."""
+    from in_process import run_workbench
+
+    def call(*args, cwd=None, env=None):
+        return run_workbench(*args, cwd=tmp_path if cwd is None else cwd, env=env)
+
+    return call
+
+
+@pytest.fixture(scope="session")
 def mlflow_server(tmp_path_factory):
     """URL of an MLflow tracking server: ``WORKBENCH_MLFLOW_SERVER`` (CI starts one beside the test run), else
     one started here for the session (SQLite backend, local artifact folder, loopback only); needs the mlflow
-    extra."""
-    import signal
+    extra. It runs under the suite's guard (``tests/servers.py``): stopped at the session's end, on SIGINT and
+    SIGTERM, and when pytest is killed."""
     import socket
-    import subprocess
     import sys
     import time
     import urllib.request
+
+    from servers import start_guarded, stop_guarded
 
     pytest.importorskip("mlflow", reason="the mlflow extra is not installed (pip install -e '.[mlflow]')")
 
@@ -119,29 +222,12 @@ def mlflow_server(tmp_path_factory):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     url = f"http://127.0.0.1:{port}"
-    with open(folder / "server.log", "wb") as server_log:
-        server = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "mlflow",
-                "server",
-                "--backend-store-uri",
-                f"sqlite:///{folder / 'mlflow.db'}",
-                "--artifacts-destination",
-                str(folder / "artifacts"),
-                "--host",
-                "127.0.0.1",
-                "--port",
-                str(port),
-                "--workers",
-                "1",
-            ],
-            env=dict(os.environ, MLFLOW_SERVER_ENABLE_JOB_EXECUTION="false"),
-            stdout=server_log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+    command = [sys.executable, "-m", "mlflow", "server", "--backend-store-uri", f"sqlite:///{folder / 'mlflow.db'}"]
+    command += ["--artifacts-destination", str(folder / "artifacts"), "--host", "127.0.0.1", "--port", str(port)]
+    command += ["--workers", "1"]
+    server, server_id = start_guarded(
+        command, folder / "server.log", env=dict(os.environ, MLFLOW_SERVER_ENABLE_JOB_EXECUTION="false")
+    )
     try:
         deadline = time.monotonic() + 300
         while not healthy(url):
@@ -152,12 +238,7 @@ def mlflow_server(tmp_path_factory):
             time.sleep(0.5)
         yield url
     finally:
-        os.killpg(server.pid, signal.SIGTERM)  # the server and the workers it started, in their own session
-        try:
-            server.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)
-            server.wait()
+        stop_guarded(server, server_id)
 
 
 @pytest.fixture(scope="session")

@@ -430,6 +430,7 @@ def test_a_rank_deficient_basis_is_warned_about_as_the_command_line_notes_it():
 # --- the package's namespace --------------------------------------------------------------------------------------
 
 
+@pytest.mark.process
 def test_the_public_names_are_listed_and_load_lazily():
     expected = {
         "QuasiEigenFaces",

@@ -56,6 +56,7 @@ def bases_sweep(tmp_path_factory):
     return sweep, pd.read_parquet(sweep / "collected" / "runs.parquet"), result.stdout
 
 
+@pytest.mark.slow
 def test_bases_preset_scores_every_basis_with_every_solver(bases_sweep):
     sweep, runs, stdout = bases_sweep
     assert runs.groupby("run").ngroups == 5
@@ -78,6 +79,7 @@ def test_bases_preset_scores_every_basis_with_every_solver(bases_sweep):
     assert (runs["basis.alternatives_seed"] == runs["dataset.seed"]).all()
 
 
+@pytest.mark.slow
 def test_intuitiveness_is_in_the_run_record(bases_sweep):
     sweep, _, _ = bases_sweep
     metrics = json.loads(next(sweep.glob("*/metrics.json")).read_text())
@@ -94,6 +96,7 @@ def test_intuitiveness_is_in_the_run_record(bases_sweep):
     assert entries["SPCA"]["locality"] < entries["PCA"]["locality"]
 
 
+@pytest.mark.slow
 def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     sweep, _, _ = bases_sweep
     assert report_main([str(sweep), "--out", str(tmp_path / "bases_small"), "--formats", "png,svg"]) == 0
@@ -112,6 +115,7 @@ def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
     assert 'src="figures/alpha_vs_intuitiveness.svg"' in (report / "index.html").read_text()  # shown as vector
 
 
+@pytest.mark.slow
 def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_sweep, tmp_path):
     """Closeness and locality are rows of the sweep's one comparisons table beside alpha; QE <= PCA, which holds by
     construction in every take, is an identity there (no p-value, no test), never re-tested in a second table."""
@@ -143,6 +147,7 @@ def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_sw
     assert f"'secondary' (every other tested row: {len(secondary)} rows)" in caption
 
 
+@pytest.mark.slow
 def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_sweep, tmp_path):
     sweep, _, _ = bases_sweep
     assert report_main([str(sweep), "--out", str(tmp_path / "summary"), "--formats", "svg"]) == 0
@@ -158,6 +163,7 @@ def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_sweep, tmp_pa
     assert "4 degrees of freedom" in summary and "one metric, `alpha_abs_mean`, at a time" in summary
 
 
+@pytest.mark.slow
 def test_a_run_report_of_other_bases_keeps_one_comparison_table(bases_sweep, tmp_path):
     """One run has nothing to pair over runs: its report shows only its paired per-frame comparisons."""
     sweep, _, _ = bases_sweep

@@ -171,6 +171,7 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     np.testing.assert_array_equal(capture.train[n_frames - 3 :], reference[n_frames - 3 :])
 
 
+@pytest.mark.slow
 def test_ict_livelink_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
     monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     check_storages(
@@ -200,6 +201,7 @@ def test_ict_livelink_tail_split_on_disk_is_two_parts_of_one_file(shared_data, t
     np.testing.assert_array_equal(np.asarray(on_disk.eval), reference.eval)
 
 
+@pytest.mark.slow
 def test_animface_mesh_in_float32_and_on_disk_matches_float64_in_memory(shared_data, tmp_path, monkeypatch):
     monkeypatch.setattr(workbench.numerics.frames, "CHUNK_ENTRIES", 1 << 20)  # 37 frames of the mesh a chunk
     overrides = [

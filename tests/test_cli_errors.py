@@ -1,33 +1,27 @@
 """The command line's error behaviour: one line naming the problem, non-zero exit, the traceback only with
 ``--verbose``."""
 
-from in_process import run_workbench
+import pytest
 
 
-def run_cli(*args, cwd):
-    return run_workbench(*args, cwd=cwd)
-
-
-def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path):
-    quiet = run_cli("basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path)
+def test_bad_setting_is_one_line_and_verbose_adds_the_traceback(tmp_path, cli, tiny_study):
+    quiet = cli("basis.coverage=1.5", *tiny_study, f"paths.output_root={tmp_path}", cwd=tmp_path)
     assert quiet.returncode == 2
     assert quiet.stderr.strip().splitlines() == ["workbench: error: basis.coverage must be in (0, 1], got 1.5"]
     assert "Traceback" not in quiet.stdout + quiet.stderr
 
-    verbose = run_cli(
-        "--verbose", "basis.coverage=1.5", "dataset.n_frames=300", f"paths.output_root={tmp_path}", cwd=tmp_path
-    )
+    verbose = cli("--verbose", "basis.coverage=1.5", *tiny_study, f"paths.output_root={tmp_path}", cwd=tmp_path)
     assert verbose.returncode == 2
     assert "Traceback (most recent call last)" in verbose.stderr and "schema.py" in verbose.stderr
     assert verbose.stderr.strip().splitlines()[-1] == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
 
 
-def test_bad_solver_bounds_name_the_setting(tmp_path):
-    result = run_cli(
+def test_bad_solver_bounds_name_the_setting(tmp_path, cli, tiny_study):
+    result = cli(
         "solver=box",
         "solver.box.lower=2",
         "solver.box.upper=1",
-        "dataset.n_frames=300",
+        *tiny_study,
         f"paths.output_root={tmp_path}",
         cwd=tmp_path,
     )
@@ -35,19 +29,19 @@ def test_bad_solver_bounds_name_the_setting(tmp_path):
     assert result.stderr.strip() == "workbench: error: solver.box.lower (2.0) must not exceed solver.box.upper (1.0)"
 
 
-def test_subcommand_errors_are_one_line(tmp_path):
-    result = run_cli("report", str(tmp_path / "nowhere"), cwd=tmp_path)
+def test_subcommand_errors_are_one_line(tmp_path, cli):
+    result = cli("report", str(tmp_path / "nowhere"), cwd=tmp_path)
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
     assert result.stderr.startswith("workbench report: error: ") and "nowhere" in result.stderr
 
 
-def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
+def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path, cli, tiny_study):
     """argparse's usage block, a figure that needs four shapes, an unknown table layout: one line each, exit 2."""
     from workbench.api import run
     from workbench.settings.config import compose
 
     record = tmp_path / "sweep" / "run"
-    run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
+    run(compose("paper", [*tiny_study, "solver=lstsq"]), record)
     cases = {
         ("collect",): "workbench collect: error: the following arguments are required: paths (see workbench "
         "collect --help)",
@@ -61,12 +55,13 @@ def test_every_subcommand_error_is_one_line_naming_the_problem(tmp_path):
         "be 'metric' or a key of the runs",
     }
     for arguments, expected in cases.items():
-        result = run_cli(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         assert result.returncode == 2, (arguments, result.stderr)
         assert len(result.stderr.splitlines()) == 1 and result.stderr.startswith(expected), (arguments, result.stderr)
     assert not (record / "report").exists() and not (tmp_path / "sweep" / "collected").exists()
 
 
+@pytest.mark.process
 def test_a_removed_current_folder_is_named_in_one_line(tmp_path):
     """A child process: its own working folder is what is tested (removed while the shell was in it)."""
     import os

@@ -139,6 +139,7 @@ def local_sweep(tmp_path_factory, mlflow_server):
     return root / "out" / "local", seconds
 
 
+@pytest.mark.process
 def test_a_sweep_on_slurm_equals_the_local_sweep_and_its_runs_are_on_the_server(
     slurm_cluster, mlflow_server, local_sweep, tmp_path, capsys
 ):
@@ -192,6 +193,7 @@ def test_a_sweep_on_slurm_equals_the_local_sweep_and_its_runs_are_on_the_server(
         )
 
 
+@pytest.mark.process
 def test_an_interrupted_slurm_sweep_resumes_with_only_the_missing_runs(
     slurm_cluster, mlflow_server, local_sweep, tmp_path, capsys
 ):

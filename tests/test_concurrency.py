@@ -7,9 +7,13 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from workbench.record.record import DONE, load_record
 from workbench.record.tracking import LOCK_FILE, lock_run_dir, unlock_run_dir
 from workbench.settings.config import REPO_ROOT
+
+pytestmark = pytest.mark.process  # every test here starts the command as a child process
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
 
@@ -39,6 +43,7 @@ def start(arguments, cwd: Path) -> subprocess.Popen:
     )
 
 
+@pytest.mark.slow
 def test_identical_sweeps_into_one_folder_do_every_run_exactly_once(tmp_path):
     sweep = tmp_path / "sweep"
     arguments = [
@@ -85,6 +90,7 @@ def test_a_plain_run_into_a_locked_folder_stops_with_one_line_and_touches_nothin
     assert (folder / "alpha_table.csv").read_text() == "a live run's file"
 
 
+@pytest.mark.slow
 def test_two_identical_plain_runs_leave_one_complete_record(tmp_path):
     folder = tmp_path / "run"
     processes = [start([*SMALL, f"hydra.run.dir={folder}"], tmp_path)]

@@ -8,14 +8,11 @@ between a malformed file and the tables.
 
 import json
 import shutil
-import sys
 import zipfile
 
 import pytest
-from in_process import run_workbench
 
 from workbench.api import read_record, run
-from workbench.cli import main as cli
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import inside, mapped_npz, npz_bytes
 from workbench.core.files import sha256_of_file as file_checksum
@@ -125,32 +122,23 @@ DAMAGE = {
 }
 
 
-def cli_main(monkeypatch, capsys, *arguments):
-    monkeypatch.setattr(sys, "argv", ["workbench", *arguments])
-    with pytest.raises(SystemExit) as stopped:
-        cli.main()
-    return stopped.value.code, capsys.readouterr()
-
-
 @pytest.mark.parametrize("command", ["report", "collect"])
 @pytest.mark.parametrize("case", list(DAMAGE))
-def test_damaged_record_is_refused_in_one_line_naming_file_and_field(
-    record, tmp_path, monkeypatch, capsys, command, case
-):
+def test_damaged_record_is_refused_in_one_line_naming_file_and_field(record, tmp_path, cli, command, case):
     damage, expected = DAMAGE[case]
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     damage(folder)
     reseal(folder)
     out = tmp_path / "out"
-    code, captured = cli_main(monkeypatch, capsys, command, str(tmp_path / "sweep"), "--out", str(out))
-    lines = captured.err.strip().splitlines()
-    assert code == 2, captured.err
+    result = cli(command, str(tmp_path / "sweep"), "--out", str(out))
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2, result.stderr
     assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: ") and expected in lines[0], lines
     assert str(folder) in lines[0]
 
 
-def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(record, tmp_path):
+def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(record, tmp_path, cli):
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
     set_row("alpha_abs_mean", float("nan"))(folder)
@@ -164,7 +152,7 @@ def test_a_value_of_metrics_json_unlike_its_table_is_refused_by_every_reader(rec
         "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
     }
     for command, arguments in commands.items():
-        result = workbench_process(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         assert result.returncode == 2, (command, result.stderr)
         assert "field 'rows[0].alpha_abs_mean' must be a finite number" in result.stderr, (command, result.stderr)
         assert len(result.stderr.strip().splitlines()) == 1, result.stderr
@@ -183,9 +171,9 @@ def test_a_record_with_undefined_values_in_both_files_is_read(record, tmp_path):
     assert read_record(folder).metrics["rows"][0]["alpha_disp_mean"] is None
 
 
-def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, tmp_path, monkeypatch, capsys):
-    code, captured = cli_main(monkeypatch, capsys, "report", str(record), "--reference", "--name", "../../x")
-    assert code == 2 and "--name must be a plain folder name" in captured.err
+def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, cli):
+    result = cli("report", str(record), "--reference", "--name", "../../x")
+    assert result.returncode == 2 and "--name must be a plain folder name" in result.stderr
 
 
 def test_inside_refuses_paths_leaving_the_folder(tmp_path):
@@ -264,12 +252,8 @@ TAMPERED = {
 }
 
 
-def workbench_process(*arguments, cwd):
-    return run_workbench(*arguments, cwd=cwd)
-
-
 @pytest.mark.parametrize("case", list(TAMPERED))
-def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_path, case):
+def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_path, case, cli):
     damage, expected = TAMPERED[case]
     folder = tmp_path / "sweep" / "run"
     shutil.copytree(record, folder)
@@ -282,7 +266,7 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
     }
     # every reader checks every file of the record, archives included, before it uses or copies any of them
     for command, arguments in commands.items():
-        result = workbench_process(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2, (command, result.stderr)
         assert len(lines) == 1 and lines[0].startswith(f"workbench {command}: error: run record {folder}"), lines
@@ -291,13 +275,13 @@ def test_a_record_changed_after_its_run_is_refused_by_every_reader(record, tmp_p
         assert not (tmp_path / name).exists() or not any((tmp_path / name).iterdir()), name
 
 
-def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp_path):
+def test_a_record_whose_report_folder_is_a_link_out_of_it_is_refused(record, tmp_path, cli):
     folder = tmp_path / "run"
     shutil.copytree(record, folder)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     (folder / "report").symlink_to(elsewhere)
-    result = workbench_process("report", str(folder), cwd=tmp_path)
+    result = cli("report", str(folder), cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     assert result.stderr.strip() == (
         f"workbench report: error: refusing to write {folder / 'report'}: it is not "

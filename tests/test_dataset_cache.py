@@ -353,6 +353,7 @@ def test_changed_arrays_are_detected_and_rebuilt(tmp_path, capsys, damage):
     assert build.calls == 3 and capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, capsys):
     cfg = dict(CONFIG, train_on="mesh", storage="disk", dtype="float32")
     built = build_captures(cfg, tmp_path)["mesh"]
@@ -377,6 +378,7 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     from workbench.settings.config import resolved_without_hydra
     from workbench.settings.typed import study_settings
@@ -408,6 +410,7 @@ def test_a_hit_gives_the_tables_of_a_build_on_real_data(shared_data, tmp_path):
     assert tables(tmp_path) == built  # a hit: read back memory-mapped
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_a_hit_in_another_process_writes_the_same_alpha_table(tmp_path):
     small = [

@@ -89,6 +89,7 @@ def test_the_same_command_is_its_text_without_comments_and_unset_variables_the_e
     assert ".venv/bin/python benchmarks/run.py markers" in repeated  # twice in performance.md, once with env -u
 
 
+@pytest.mark.process
 def test_a_command_run_again_has_its_output_copied_into_the_new_scratch_copy(tmp_path):
     text = (
         ".venv/bin/python - <<'PY'\nimport os, pathlib\npathlib.Path('outputs').mkdir()\n"
@@ -170,6 +171,7 @@ def commands_test_class(doc: str) -> type:
     tests, and its module fixtures, on one."""
 
     @pytest.mark.slow
+    @pytest.mark.process
     class TestDocumentedCommands:
         def test_commands_run(self, shared_data, tmp_path, compiled_solvers, reused_outputs):
             check_documented_commands(doc, tmp_path, reused_outputs)

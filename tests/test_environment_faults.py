@@ -6,21 +6,15 @@ import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from in_process import run_workbench
 
 from workbench.core import errors
 from workbench.core.files import write_atomic
 from workbench.settings.config import REPO_ROOT
 
 SMALL = ["dataset.n_frames=300", "dataset.mesh_rows=20", "dataset.mesh_cols=20", "solver=lstsq"]
-
-
-def workbench(cwd: Path, *arguments: str):
-    return run_workbench(*arguments, cwd=cwd)
 
 
 def one_line(result) -> str:
@@ -46,15 +40,17 @@ def small_tmpfs(tmp_path):
     subprocess.run(["umount", str(folder)], check=True)
 
 
-def test_a_full_disk_names_the_file_and_leaves_no_partial_record(small_tmpfs, tmp_path):
+@pytest.mark.process
+def test_a_full_disk_names_the_file_and_leaves_no_partial_record(small_tmpfs, tmp_path, cli):
     folder = small_tmpfs / "run"
-    line = one_line(workbench(tmp_path, *SMALL, f"hydra.run.dir={folder}"))
+    line = one_line(cli(*SMALL, f"hydra.run.dir={folder}"))
     assert line.startswith(f"workbench: error: {folder}/") and line.endswith(
         ": cannot write (No space left on device)"
     ), line
     assert not folder.exists()
 
 
+@pytest.mark.process
 def test_a_full_disk_for_the_job_log_is_one_warning_line(tmp_path):
     """The log is written after the record: the record stays complete, and the full disk is named once."""
     import logging
@@ -139,14 +135,13 @@ def test_environment_faults_are_one_line_exit_2(error, expected, capsys):
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root reads any file regardless of its permissions")
-def test_an_unreadable_data_file_is_named(shared_data, tmp_path):
+def test_an_unreadable_data_file_is_named(shared_data, tmp_path, cli):
     root = tmp_path / "data"
     shutil.copytree(shared_data / "livelinkface", root / "livelinkface")
     (root / "ict-facekit").symlink_to(shared_data / "ict-facekit")
     (root / "livelinkface" / "alex_rom_3.csv").chmod(0)
     line = one_line(
-        workbench(
-            tmp_path,
+        cli(
             "dataset=ict_livelink",
             f"paths.data_root={root}",
             "dataset.max_frames=40",
@@ -156,8 +151,8 @@ def test_an_unreadable_data_file_is_named(shared_data, tmp_path):
     assert "alex_rom_3.csv" in line and "Permission denied" in line
 
 
-def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path):
-    line = one_line(workbench(tmp_path, "dataset.n_frames=100000000", f"hydra.run.dir={tmp_path / 'run'}"))
+def test_a_dataset_too_large_for_memory_is_refused_before_allocating(tmp_path, cli):
+    line = one_line(cli("dataset.n_frames=100000000", f"hydra.run.dir={tmp_path / 'run'}"))
     assert "the synthetic dataset would need about 163.2 GiB of memory but" in line
     assert "reduce dataset.n_frames" in line
     assert not (tmp_path / "run").exists()
@@ -178,17 +173,16 @@ def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
     assert synthetic_values(on_disk, ["mesh_rbf"]) == markers
 
 
-def test_a_cache_path_that_is_a_file_is_one_line(tmp_path):
+def test_a_cache_path_that_is_a_file_is_one_line(tmp_path, cli):
     (tmp_path / "cache").write_text("")
-    line = one_line(
-        workbench(tmp_path, *SMALL, f"paths.cache_dir={tmp_path / 'cache'}", f"hydra.run.dir={tmp_path / 'run'}")
-    )
+    line = one_line(cli(*SMALL, f"paths.cache_dir={tmp_path / 'cache'}", f"hydra.run.dir={tmp_path / 'run'}"))
     assert (
         line == f"workbench: error: paths.cache_dir {tmp_path / 'cache'} is not a folder (a file is in the way); "
         "give a folder or null"
     )
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("preset, expected", [(None, "16"), ("28", "28")])
 def test_openblas_workers_stop_spinning_unless_the_user_set_it(preset, expected):
     # OpenBLAS reads the variable once, when NumPy loads it: the workbench must set it on import, before NumPy

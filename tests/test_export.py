@@ -399,6 +399,8 @@ def every_solver(tmp_path_factory):
     return exports, result.capture.neutral.reshape(-1, 3)
 
 
+@pytest.mark.slow
+@pytest.mark.process
 @pytest.mark.parametrize("basis", ["H", "QE", "PCA"])
 def test_glb_passes_the_khronos_validator(mesh_export, every_solver, basis):
     out, _ = mesh_export
@@ -408,6 +410,8 @@ def test_glb_passes_the_khronos_validator(mesh_export, every_solver, basis):
         assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, (path, issues["messages"][:5])
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(every_solver, tmp_path):
     """The stock importer in Blender 3.4, the docs' recipe, the mesh evaluated through the depsgraph at keys spread
     over the take (and the one furthest outside [0, 1]): every vertex within 1e-3 mm of the workbench's
@@ -462,6 +466,7 @@ def animface_export(shared_data, tmp_path_factory):
     return out, manifest, exported_bases(result, None, "lstsq", record.table), result.capture.neutral.reshape(-1, 3)
 
 
+@pytest.mark.slow
 def test_takes_get_their_own_animation_files_and_times(animface_export):
     from workbench.formats.livelink import read_livelink_csv
 
@@ -483,6 +488,8 @@ def test_takes_get_their_own_animation_files_and_times(animface_export):
     assert not list(out.glob("H_weights.csv")) and not list(out.glob("H_livelink.csv"))
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_takes_play_back_in_blender_at_7_5_fps(animface_export, tmp_path):
     require_tool(shutil.which("blender") is not None, "blender")
     out, manifest, bases, neutral = animface_export

@@ -217,6 +217,7 @@ def test_render_meshes_gives_one_shaded_coloured_image_per_mesh():
     assert cropped[0].shape == cropped[1].shape and cropped[0].shape[0] <= 100
 
 
+@pytest.mark.process
 def test_rendering_works_in_a_plain_subprocess_without_a_display(tmp_path):
     script = (
         "import numpy as np\n"

@@ -232,6 +232,7 @@ def run_cli(*args, cwd):
     )
 
 
+@pytest.mark.process
 @pytest.mark.parametrize(
     "arguments, line",
     [
@@ -295,6 +296,8 @@ def test_a_sweep_with_a_bad_value_is_refused_in_one_line_before_any_run(tmp_path
     assert list(tmp_path.iterdir()) == []  # no run started, no folder made
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_sweep_runs_every_other_run_when_one_fails_once_started_and_then_names_it(tmp_path):
     from workbench.record.record import DONE
 

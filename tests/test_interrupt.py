@@ -82,6 +82,7 @@ def check_interrupted(process, folder=None):
     return "interrupted"
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_here):
     outcomes, signalled = [], 0
@@ -99,6 +100,7 @@ def test_ctrl_c_at_any_moment_is_one_line_and_exit_130(tmp_path, sigint_ignored_
     assert outcomes.count("interrupted") >= signalled - 2 and signalled >= len(DELAYS) - 1, outcomes
 
 
+@pytest.mark.process
 def test_ctrl_c_while_the_run_writes_into_its_folder_leaves_no_partial_record(tmp_path, sigint_ignored_here):
     folder = tmp_path / "run"
     process = start([*RUN, f"hydra.run.dir={folder}"], tmp_path)
@@ -137,6 +139,7 @@ SOLVER_CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.process
 def test_ctrl_c_inside_the_compiled_solver_is_one_line_and_exit_130(tmp_path, sigint_ignored_here):
     """Python reports the interrupt when the compiled call returns, as ``SystemError: CPUDispatcher(<function
     primal_active_set_frames>) returned a result with an exception set`` (seen here: its cause chain ends in the
@@ -180,6 +183,7 @@ FLAGGED_CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.process
 @pytest.mark.skipif(
     not hasattr(ctypes.pythonapi, "_Py_UnhandledKeyboardInterrupt"), reason="CPython 3.8-3.12 only have the flag"
 )

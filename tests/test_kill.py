@@ -316,6 +316,7 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
     assert snapshot(folders[0]) == before, f"{folders[0]}: a complete record was touched"
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
     rng = np.random.default_rng(SEED)
@@ -359,6 +360,7 @@ def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
     assert "empty" in states, f"no kill fell before a record: {outcomes}"
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(tmp_path):
     rng = np.random.default_rng(SEED + 1)

@@ -40,6 +40,7 @@ def contract_layers(container: str | None = None) -> list[list[str]]:
     return [[name.strip() for name in layer.replace("|", ":").split(":")] for layer in contract["layers"]]
 
 
+@pytest.mark.process
 def test_imports_only_go_down_the_layers():
     done = lint_imports(ROOT)
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
@@ -70,6 +71,7 @@ def test_the_reporting_wing_is_folders_each_a_layer():
     assert {path.parent.name for path in wing.glob("*/__init__.py")} == listed
 
 
+@pytest.mark.process
 def test_an_upward_import_in_a_function_breaks_the_contract(tmp_path):
     """The check is not vacuous: a function-level import from a lower layer up to a higher one is found."""
     package = tmp_path / "toy"

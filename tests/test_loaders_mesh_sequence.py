@@ -137,6 +137,7 @@ def test_bad_sequences_are_one_line_errors(scan):
         build_captures(config(tmp_path, tmp_path / "bad.npz", "null"))
 
 
+@pytest.mark.slow
 def test_ict_performance_as_a_sequence_gives_the_ict_livelink_mesh_table(tmp_path, shared_data):
     """Known answer on real data: the ICT face driven by the Live Link take, saved as a VOCASET-style sequence
     (metres, triangles, separate neutral OBJ) with FaceXModel as the hand basis, gives ict_livelink's table."""

@@ -244,6 +244,8 @@ def test_two_rows_of_one_name_are_refused(swept):
 # --- real processes: concurrent imports, Ctrl-C, a full disk, names from a record, report figures -------------
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_sweep_into_a_sqlite_uri_writes_only_where_named_and_its_run_says_what_the_sweep_was(tmp_path):
     """MLFLOW_TRACKING_URI=sqlite:///<folder>/t.db, run from another folder: the artifacts go beside the database
     (not into ./mlruns), nothing is written anywhere else (the home folder included: no telemetry id), MLflow's own
@@ -331,6 +333,7 @@ def stored_runs(database):
         ).fetchall()
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_path):
     sweep = records_copy(swept, tmp_path)
@@ -352,6 +355,7 @@ def test_two_imports_started_together_into_a_new_store_both_succeed(swept, tmp_p
         )
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record(swept, tmp_path):
     """SIGINT (as Ctrl-C sends) while the runs are being written, at several moments; the same command again
@@ -401,6 +405,8 @@ def test_ctrl_c_during_an_import_then_the_same_command_leaves_one_run_per_record
     assert 130 in outcomes, outcomes
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
     """The store on a 3 MB file system: full before the store exists, and full while artifacts are written."""
     if shutil.which("unshare") is None:
@@ -530,6 +536,8 @@ def test_per_frame_alpha_and_report_figures_are_logged(tmp_path):
 # --- a tracking server ----------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_sweep_logs_to_the_server_named_by_the_environment(mlflow_server, tmp_path):
     """MLFLOW_TRACKING_URI alone sends the sweep to the server; the runs are found there through the REST API."""
     args = [arg.replace("coverage_small/default", "coverage_small/server") for arg in SWEEP]
@@ -620,6 +628,7 @@ def test_a_new_store_is_set_up_in_a_temporary_file_and_a_failure_leaves_none(tmp
     assert (tmp_path / "store" / "mlflow.db").read_bytes() == before
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_ctrl_c_while_a_new_store_is_set_up_leaves_one_the_same_command_completes(swept, tmp_path):
     """SIGINT at several moments from when the import takes a new store's lock, over the seconds MLflow's schema

@@ -189,6 +189,7 @@ def replace_many_times(out: Path, writer: int) -> int:
     return failures
 
 
+@pytest.mark.process
 def test_two_processes_replacing_one_output_folder_take_turns(tmp_path):
     """As two identical sweeps ending together both collect their tables into <sweep>/collected."""
     import multiprocessing

@@ -102,6 +102,8 @@ def test_the_slurm_launcher_without_its_plugin_names_the_cluster_extra(monkeypat
     assert missing_extra(error) is None
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
     result = python(without(OPTIONAL_MODULES, ["dataset.n_frames=1000", "solver=lstsq"]), cwd=tmp_path)
     assert result.returncode == 0, result.stderr
@@ -111,6 +113,8 @@ def test_the_core_runs_the_paper_study_without_any_extra(tmp_path):
     assert list((tmp_path / "outputs" / "paper").iterdir())
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_report_without_the_report_extra_is_one_line_exit_2(tmp_path):
     made = python(
         without(OPTIONAL_MODULES, ["dataset.n_frames=600", "solver=lstsq", "hydra.run.dir=outputs/run"]), cwd=tmp_path
@@ -140,6 +144,7 @@ def imported_by(args, cwd, env=None):
 HEAVY = {"numpy", "pandas", "scipy", "numba", "matplotlib", "pyvista", "sklearn", "pyarrow", "h5py", "mlflow"}
 
 
+@pytest.mark.process
 @pytest.mark.parametrize(
     "args, env",
     [
@@ -152,6 +157,7 @@ def test_version_and_completions_without_config_import_neither_hydra_nor_numeric
     assert not imported_by(args, tmp_path, env) & (HEAVY | {"hydra", "omegaconf"})
 
 
+@pytest.mark.process
 @pytest.mark.parametrize(
     "args, env",
     [
@@ -167,6 +173,7 @@ def test_help_and_completions_import_hydra_but_no_numerics(tmp_path, args, env):
     assert "hydra" in imported and not imported & HEAVY
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_an_installed_package_finds_its_configs_inside_it_and_runs_from_any_folder(tmp_path):
     """The layout of the wheel (conf/ and studies/ inside the package), run from a folder outside the checkout:

@@ -5,7 +5,6 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from in_process import run_workbench
 from scipy.optimize import lsq_linear
 
 from workbench.api import run
@@ -59,6 +58,7 @@ def test_quasi_eigen_beats_hand_basis_under_least_squares(small_run):
         assert table.loc[("QE", "lstsq"), column] < 0.6 * table.loc[("H", "lstsq"), column]
 
 
+@pytest.mark.slow
 def test_table_recomputed_independently_from_inputs(small_run):
     """Recompute H, QE and PCA rows from inputs.npz with plain NumPy/SciPy (SVD, per-frame lsq_linear)."""
     output, _ = small_run
@@ -94,27 +94,23 @@ def test_same_config_gives_identical_tables(small_run, tmp_path):
     assert (tmp_path / "alpha_table.csv").read_bytes() == (small_run[0] / "alpha_table.csv").read_bytes()
 
 
-def run_cli(*overrides, cwd):
-    return run_workbench(*overrides, cwd=cwd)
-
-
-def test_cli_runs_and_prints_the_table(tmp_path):
-    result = run_cli("dataset.n_frames=300", "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+def test_cli_runs_and_prints_the_table(tmp_path, cli, tiny_study):
+    result = cli(*tiny_study, "solver=box", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     basis_cells = [line.split("|")[2].strip() for line in result.stdout.splitlines() if line.startswith("|")]
     assert basis_cells[0] == "basis" and {"H", "QE", "QE-linear", "PCA"} <= set(basis_cells)
     assert (tmp_path / "run" / DONE).is_file()
 
 
-def test_cli_bad_parameter_is_one_line(tmp_path):
-    result = run_cli("dataset.n_frames=300", "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+def test_cli_bad_parameter_is_one_line(tmp_path, cli, tiny_study):
+    result = cli(*tiny_study, "basis.coverage=1.5", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 2
     assert result.stderr.strip() == "workbench: error: basis.coverage must be in (0, 1], got 1.5"
     assert not (tmp_path / "run" / DONE).exists()
 
 
-def test_cli_multirun_sweeps(tmp_path):
-    result = run_cli(
+def test_cli_multirun_sweeps(tmp_path, cli):
+    result = cli(
         "-m",
         "dataset.n_frames=300",
         "solver=box",
@@ -136,9 +132,9 @@ def test_cli_multirun_sweeps(tmp_path):
 
 
 @pytest.mark.slow
-def test_paper_scale_default_study(tmp_path):
+def test_paper_scale_default_study(tmp_path, cli):
     """The README's run command at paper scale (35,000 frames, 66 markers)."""
-    result = run_cli(f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    result = cli(f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     table = pd.read_csv(tmp_path / "run" / "alpha_table.csv")
     table = table[table["data"] == "markers"].set_index(["basis", "solver"])  # the coverage rule's variant

@@ -46,6 +46,7 @@ def same_alpha(frames, hand, neutral, capture):
     assert abs(alphas[0] - alphas[2]) <= 1e-12 and abs(alphas[1] - alphas[3]) <= 1e-12
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:QuasiEigenFaces. the quasi-eigen basis is rank-deficient")  # m < 18, as in a run
 def test_a_notebook_builds_the_ict_livelink_arrays(shared_data, tmp_path):
     overrides = [
@@ -76,6 +77,7 @@ def test_a_notebook_builds_the_ict_livelink_arrays(shared_data, tmp_path):
         same_alpha(frames, point_deltas[hand_rows], face.neutral[points].reshape(-1), captures[name])
 
 
+@pytest.mark.slow
 def test_a_notebook_builds_the_animface_arrays(shared_data, tmp_path):
     overrides = [
         "dataset=animface",

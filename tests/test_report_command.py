@@ -113,6 +113,7 @@ def test_the_report_of_a_run_that_saved_no_inputs_draws_every_figure(run_without
         assert any(path.stem == name for path in (out / "figures").iterdir()), name
 
 
+@pytest.mark.slow
 def test_a_placeholder_remains_only_where_the_data_cannot_be_had_and_names_why(
     run_without_inputs, tmp_path, monkeypatch
 ):

@@ -71,6 +71,7 @@ def tiny_report(tmp_path_factory):
     return record, out / "paper"
 
 
+@pytest.mark.slow
 def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
     record, _ = tiny_report
     table = pd.read_csv(record / "alpha_table.csv")
@@ -91,6 +92,7 @@ def test_run_writes_per_frame_alpha_that_matches_the_table(tiny_report):
     assert read["w_max_abs"].dtype == float and read.loc[read["basis"] == "PCA", "w_max_abs"].isna().all()
 
 
+@pytest.mark.slow
 def test_recorded_comparisons_are_those_of_the_recorded_per_frame_alpha(tiny_report):
     """Every paired comparison in metrics.json is the block bootstrap of the per-frame alpha the record keeps."""
     from workbench.stats.statistics import paired_mean_difference
@@ -112,6 +114,7 @@ RENDERED = ("fig2", "fig3", "vertex_rms", "weight_statistics")  # rendered faces
 # the rest are line plots: SVG
 
 
+@pytest.mark.slow
 def test_every_figure_exists_and_is_non_trivial(tiny_report):
     _, report = tiny_report
     for stem in FIGURE_STEMS:
@@ -129,6 +132,7 @@ def test_every_figure_exists_and_is_non_trivial(tiny_report):
         assert "<text" in text  # labels are text, sharp at any zoom
 
 
+@pytest.mark.slow
 def test_report_documents_hold_tables_figures_provenance_choices_and_versions(tiny_report):
     record, report = tiny_report
     page = (report / "index.html").read_text()
@@ -204,6 +208,8 @@ def assert_both_halves_drawn(status: str) -> None:
     assert 0.05 < left / half < 0.9 and 0.05 < right / half < 0.9, status
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_interactive_view_draws_the_face_in_a_browser_from_file(tiny_report, chromium):
     """The page opened from file:// with no server and no network: the viewer and the mesh data load, the captured
     and the reconstructed face are drawn side by side (the page counts each half's non-background pixels), and the
@@ -225,6 +231,8 @@ def test_interactive_view_draws_the_face_in_a_browser_from_file(tiny_report, chr
     assert 'id="view3d-left">captured: most displaced' in dom and 'id="view3d-right">reconstructed with H' in dom
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_report_folder_copied_anywhere_still_draws_its_3d_view(tiny_report, chromium, tmp_path):
     """Everything the page needs is inside the report folder: a copy elsewhere, away from every other report, opened
     from file:// with no network, loads every figure and the animation and draws its 3-D view, and a link to
@@ -251,6 +259,8 @@ def assert_every_figure_loaded(dom: str, page) -> None:
     assert not broken, broken
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_copied_report_missing_a_figure_says_so(tiny_report, chromium, tmp_path):
     """The browser check can fail: a copy without one of its figures marks that image as not loaded and names the
     file under it."""
@@ -264,6 +274,7 @@ def test_a_copied_report_missing_a_figure_says_so(tiny_report, chromium, tmp_pat
     assert "Figure file not found beside this page: figures/coverage_curve.svg" in dom
 
 
+@pytest.mark.slow
 def test_animation_and_report_text(tiny_report):
     _, report = tiny_report
     animation = Image.open(report / "figures" / "animation.webp")
@@ -285,6 +296,7 @@ def table_after(marker: str, text: str) -> str:
     return "\n".join(lines[start:end])
 
 
+@pytest.mark.slow
 def test_headline_table_puts_the_paper_beside_the_measured_values(tiny_report):
     record, _ = tiny_report
     table = load_record(record).table
@@ -307,6 +319,7 @@ def test_headline_table_puts_the_paper_beside_the_measured_values(tiny_report):
     assert "|        0.72 |" in text and "| QE-linear |           - |" in text
 
 
+@pytest.mark.slow
 def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
     """The arrays behind figures 3-4, recomputed from inputs with the core, give the run's per-frame alpha."""
     record, _ = tiny_report
@@ -393,6 +406,7 @@ def make_sweep(root, coverages=(0.99, 0.999), seeds=(0, 1)):
     return root
 
 
+@pytest.mark.slow
 def test_sweep_report_summarises_seeds_and_plots_every_swept_setting(tmp_path):
     root = make_sweep(tmp_path / "sweep")
     assert [path.name for path in find_records([root])[0]] == ["0", "1", "2", "3"]
@@ -558,6 +572,7 @@ def test_varying_keys_leave_out_paths_and_identical_settings():
     assert flatten(configs[0])["basis.projections"] == "[affine]"
 
 
+@pytest.mark.process
 def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
     assert COMMANDS["report"] == "workbench.reporting.report.command:main"
     with pytest.raises(WorkbenchError, match="not a folder"):
@@ -985,6 +1000,7 @@ def test_animface_faces_have_no_holes_and_no_masked_vertices(animface_run):
     assert weight.size == mesh.kept.size and (weight == 0).any() and (weight == 255).any()
 
 
+@pytest.mark.process
 def test_rebuilding_reports_does_not_mark_the_code_as_changed(tmp_path):
     """A reference report rewritten under reports/ is output, not code: the commit stays clean for the next run."""
     from workbench.record.record import git_state

@@ -55,6 +55,7 @@ def comparable(table: pd.DataFrame) -> pd.DataFrame:
     return table.drop(columns=[column for column in table.columns if column == "sweep" or column.startswith("time_")])
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
     sweep = tmp_path / "killed"
@@ -109,6 +110,7 @@ def test_killed_sweep_resumes_without_redoing_or_losing_runs(tmp_path):
     assert sorted(path.name for path in sweep.iterdir()) == sorted(path.name for path in uninterrupted.iterdir())
 
 
+@pytest.mark.process
 @pytest.mark.slow
 def test_parallel_sweep_with_joblib_launcher(tmp_path):
     """The sweep through Hydra's joblib launcher (two worker processes) names and records its runs the same way."""

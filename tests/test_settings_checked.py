@@ -201,6 +201,7 @@ def test_a_key_hydras_own_settings_do_not_have_is_refused(override):
         check_hydra_settings(compose("paper", [override]).hydra)
 
 
+@pytest.mark.slow
 def test_hydras_own_settings_of_every_study_and_launcher_pass_and_free_mappings_take_any_key():
     from workbench.settings.config import STUDIES_DIR
     from workbench.settings.schema import check_hydra_settings

@@ -111,6 +111,7 @@ def test_point_transfers():
     assert nearest.method == "nearest" and nearest.max_distance == pytest.approx(np.sqrt(3) * 0.5)
 
 
+@pytest.mark.slow
 def test_mesh_frames_at_kept_vertices_are_rows_of_the_full_mesh():
     cfg = plain_config(overrides=["dataset.n_frames=120", "dataset.train_on=mesh", "dataset.mesh_fraction=0.1"])
     capture = build_captures(cfg["dataset"])["mesh"]
@@ -181,6 +182,7 @@ def test_face_region_is_the_dense_mesh_inside_the_markers_at_full_resolution():
     assert face.faces.max() == vertices.size - 1 and face.point_labels[0] == f"v{vertices[0]}"
 
 
+@pytest.mark.slow
 def test_marker_mesh_scores_every_basis_on_the_same_evaluation_points():
     """Fitted on markers, RBF mesh or (decimated) mesh: each evaluation set, the markers and the face region, is
     scored on the same points and frames, so the study compares bases and never point sets."""

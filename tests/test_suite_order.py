@@ -1,0 +1,36 @@
+"""The order the suite's scopes are handed out to pytest-xdist's processes: the longest first, as measured."""
+
+from conftest import LONGEST_FIRST, hand_out_rank, scope_of
+
+
+def test_a_scope_is_a_methods_class_or_else_its_file():
+    assert scope_of("tests/test_docs.py::TestCommandsOf_README_md::test_commands_run") == (
+        "tests/test_docs.py::TestCommandsOf_README_md"
+    )
+    assert scope_of("tests/test_a.py::test_b[x::y-1]") == "tests/test_a.py"
+    assert scope_of("tests/test_a.py::test_b") == "tests/test_a.py"
+
+
+def test_scopes_go_out_longest_first_and_unmeasured_ones_last_each_in_one_block():
+    seconds = {"tests/test_short.py": 2.0, "tests/test_long.py::TestBig": 30.0, "tests/test_middle.py": 10.0}
+    collected = [
+        "tests/test_new.py::test_one",
+        "tests/test_short.py::test_one",
+        "tests/test_short.py::test_two",
+        "tests/test_long.py::TestBig::test_one",
+        "tests/test_long.py::test_outside_the_class",
+        f"{LONGEST_FIRST[1]}::test_commands_run",
+        "tests/test_middle.py::test_one",
+        "tests/test_long.py::TestBig::test_two",
+    ]
+    ordered = sorted(collected, key=lambda nodeid: hand_out_rank(nodeid, seconds))
+    assert ordered == [
+        f"{LONGEST_FIRST[1]}::test_commands_run",
+        "tests/test_long.py::TestBig::test_one",
+        "tests/test_long.py::TestBig::test_two",
+        "tests/test_middle.py::test_one",
+        "tests/test_short.py::test_one",
+        "tests/test_short.py::test_two",
+        "tests/test_new.py::test_one",
+        "tests/test_long.py::test_outside_the_class",
+    ]
