@@ -249,6 +249,7 @@ def small_record(tmp_path_factory):
     return folder
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_sigterm_and_sighup_are_one_line_and_leave_the_earlier_output_and_no_copy(tmp_path, small_record, signum):
     """What SLURM, ``timeout`` and systemd send (SIGTERM), or a closed terminal (SIGHUP), into a report replacing an

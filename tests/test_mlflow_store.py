@@ -441,6 +441,8 @@ def test_a_store_on_a_full_disk_ends_in_one_line(swept, tmp_path):
         assert "No space left on device" in errors[0] or "disk is full" in errors[0], errors[0]
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_a_store_whose_disk_fills_while_logging_ends_in_one_line_that_says_so(swept, tmp_path):
     """A store that exists, on a disk with 30 KB left: MLflow logged SQLAlchemy's traceback, and the line after it
     named the autoflush, not the full disk. A child process: what the process prints is the point."""

@@ -321,6 +321,7 @@ def mount_point(tmp_path):
     subprocess.run(["umount", str(point)], check=True)
 
 
+@pytest.mark.process
 def test_an_empty_mount_point_as_out_is_refused_naming_it(record, tmp_path, mount_point):
     """It was refused naming the workbench's temporary folder, after the work was done."""
     line = one_line_refusal(run_workbench("collect", record, "--out", mount_point, cwd=tmp_path))

@@ -151,6 +151,7 @@ def test_write_rig_refuses_files_it_did_not_write_and_bad_input(fitted, rigs, tm
     assert not (tmp_path / "new.glb").exists()
 
 
+@pytest.mark.process
 def test_written_rig_passes_the_khronos_validator(rigs):
     out, _ = rigs
     for name in ("H", "QE", "bare"):
@@ -158,6 +159,8 @@ def test_written_rig_passes_the_khronos_validator(rigs):
         assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, (name, issues["messages"][:5])
 
 
+@pytest.mark.slow
+@pytest.mark.process
 def test_written_rig_plays_back_in_blender_as_the_estimator_poses(fitted, rigs, tmp_path):
     """Blender's stock importer and the docs' recipe, as for the export: every vertex within 1e-3 mm."""
     from workbench.reporting.export.rig import estimator_basis

@@ -31,6 +31,7 @@ TINY = [
 ]
 NODE_MODULES = Path(os.environ.get("WORKBENCH_NODE_MODULES", REPO_ROOT / ".ci" / "node" / "node_modules"))
 STEPS_SCRIPT = REPO_ROOT / "tests" / "tools" / "browser_steps.js"
+pytestmark = [pytest.mark.slow, pytest.mark.process]  # a report built, then node and Chromium drive its page
 
 
 @pytest.fixture(scope="module")
