@@ -355,7 +355,7 @@ MEANINGLESS = {
 
 
 @pytest.mark.parametrize("case", list(MEANINGLESS))
-def test_a_record_signed_again_with_values_no_run_writes_is_refused_by_every_reader(record, tmp_path, case):
+def test_a_record_signed_again_with_values_no_run_writes_is_refused_by_every_reader(record, tmp_path, case, cli):
     """collect took such records into its tables and findings (export refused them only because it recomputes)."""
     damage, expected = MEANINGLESS[case]
     folder = tmp_path / "sweep" / "run"
@@ -369,7 +369,7 @@ def test_a_record_signed_again_with_values_no_run_writes_is_refused_by_every_rea
         "mlflow": ["mlflow", str(tmp_path / "sweep"), "--store", str(tmp_path / "store")],
     }
     for command, arguments in commands.items():
-        result = run_workbench(*arguments, cwd=tmp_path)
+        result = cli(*arguments, cwd=tmp_path)
         lines = result.stderr.strip().splitlines()
         assert result.returncode == 2 and len(lines) == 1, (command, result.stderr)
         assert lines[0].startswith(f"workbench {command}: error: {folder}") and expected in lines[0], (command, lines)
