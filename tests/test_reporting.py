@@ -889,7 +889,8 @@ def test_animface_report_times_and_figure_4_frame(animface_run, shared_data):
 
 
 def face_panels(figure) -> list[np.ndarray]:
-    """The rendered faces shown in a figure's panels."""
+    """The rendered faces shown in a figure's panels (a draw's (figure, caption) pair or a figure)."""
+    figure = figure[0] if isinstance(figure, tuple) else figure
     return [np.asarray(ax.images[0].get_array()) for ax in figure.axes if ax.images]
 
 
