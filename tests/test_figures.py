@@ -789,3 +789,25 @@ def test_intuitiveness_bars_draw_the_paper_regime_and_say_which_m(monkeypatch):
     assert "m = 18 (m = n, the paper's regime)" in seen["title"] and "'mesh m=n', m = 18" in caption
     _, caption = draw_intuitiveness_bars(regime_record({"mesh": (13, 0.1)}), {})
     assert seen["args"][2]["affine"] == [0.1, 0.1] and "m = 13 (the coverage rule)" in caption
+
+
+def test_vtk_log_reaches_python_logging_as_plain_lines_and_no_terminal_codes(capfd, caplog):
+    """VTK writes its log (a headless machine's X server warning, any error) with colour codes; a render passes it
+    to Python logging instead, one plain line each, and nothing of it reaches the terminal."""
+    import logging
+
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    triangle = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0])
+    render_meshes([triangle], np.array([[0, 1, 2]]), None, MeshView())
+    capfd.readouterr()
+    with caplog.at_level(logging.INFO, logger="workbench.render.vtk"):
+        vtkLogger.Log(vtkLogger.VERBOSITY_WARNING, "probe.cxx", 7, "a warning of the probe")
+        vtkLogger.Log(vtkLogger.VERBOSITY_ERROR, "probe.cxx", 8, "an error of the probe")
+        render_meshes([triangle], np.array([[0, 1, 2]]), None, MeshView())
+    out, err = capfd.readouterr()
+    assert "\x1b[" not in out + err and "probe" not in out + err
+    logged = {(record.levelno, record.getMessage()) for record in caplog.records}
+    assert (logging.INFO, "VTK (probe.cxx): a warning of the probe") in logged
+    assert (logging.WARNING, "VTK (probe.cxx): an error of the probe") in logged
+    assert not any("\x1b" in message for _, message in logged)

@@ -344,17 +344,26 @@ def test_figures_recompute_exactly_what_the_run_measured(tiny_report):
 
 
 @pytest.mark.slow
-def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_save_those_of_a_missing_variant(tmp_path):
+def test_figures_of_a_run_without_saved_inputs_are_drawn_from_rebuilt_inputs_save_those_of_a_missing_variant(
+    tmp_path, capfd
+):
     record = tmp_path / "run"
     run(compose("paper", ["dataset.n_frames=300", "solver=lstsq"]), record)
+    capfd.readouterr()
     assert main([str(record), "--out", str(tmp_path / "reports" / "paper"), "--formats", "png"]) == 0
+    # rendering off-screen (VTK's warning about the X server on a headless machine): no raw terminal codes
+    printed = "".join(capfd.readouterr())
+    assert "\x1b[" not in printed, printed
     readme = (tmp_path / "reports" / "paper" / "README.md").read_text()
     # a run on markers only has no mesh variant: its faces are the markers carried onto the mesh, and they say so
     assert "not drawn" not in readme and "could not be read again" not in readme
     assert (
         "Markers carried onto the mesh by RBF (as in the paper); the run has no mesh data variant: the faces "
-        "drawn are the displacement fields of the 'markers' variant"
+        "drawn are the displacement fields of the 'markers m=n' variant"
     ) in readme
+    # the faces and the markers are those of the paper's regime m = n, the variant the summary's verdict is about
+    assert "data variant 'markers m=n', m = 18 (m = n, the paper's regime)" in readme
+    assert "data variant 'markers'," not in readme
     figures = sorted(path.name for path in (tmp_path / "reports" / "paper" / "figures").iterdir())
     # what the record holds is drawn from metrics.json (the headline figure too); the rest from the inputs rebuilt
     # from its config; marker versus mesh is no figure of a run on one data variant

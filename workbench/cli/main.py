@@ -153,7 +153,9 @@ def _hydra_main(cfg: DictConfig) -> None:
             f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
         )
     elif multirun:
-        log.info(f"done {output_dir}: {first_headline(text)}")
+        from workbench.reporting.tables.width import printed
+
+        log.info(printed(f"done {output_dir}: {first_headline(text)}"))
     else:
         log.info(text + f"\nrecord: {output_dir}")
 
@@ -247,6 +249,9 @@ def main() -> None:
     global _wide
     _wide = WIDE_FLAG in sys.argv[1:] and not (len(sys.argv) > 1 and sys.argv[1] in COMMANDS)
     if _wide:
+        from workbench.reporting.tables.width import print_whole
+
+        print_whole(True)  # a sweep's summary too (printed when it ends, by the collect callback)
         sys.argv = [arg for arg in sys.argv if arg != WIDE_FLAG]
     if VERBOSE_FLAG in sys.argv[1:]:
         show_tracebacks()
