@@ -811,3 +811,26 @@ def test_vtk_log_reaches_python_logging_as_plain_lines_and_no_terminal_codes(cap
     assert (logging.INFO, "VTK (probe.cxx): a warning of the probe") in logged
     assert (logging.WARNING, "VTK (probe.cxx): an error of the probe") in logged
     assert not any("\x1b" in message for _, message in logged)
+
+
+def test_marker_versus_mesh_compares_the_paper_regime_variants_when_the_run_has_both(monkeypatch):
+    import workbench.reporting.figures.studies as studies
+    from workbench.reporting.report.run_figures import draw_marker_vs_mesh
+
+    seen = {}
+    monkeypatch.setattr(
+        studies, "plot_marker_vs_mesh", lambda table, *args, **kwargs: seen.update(table=table, **kwargs)
+    )
+    variants = {"markers": (13, 0.1), "mesh": (12, 0.1), "markers m=n": (18, 0.2), "mesh m=n": (18, 0.2)}
+    record = regime_record(variants)
+    record.config = {"solver": {"lstsq": {}}}
+    record.table = pd.DataFrame(
+        [{"data": data, "basis": "QE", "solver": "lstsq", "rms_mm": 1.0, "alpha_disp_pooled": 1.0} for data in variants]
+    )
+    _, caption = draw_marker_vs_mesh(record)
+    assert sorted(seen["table"]["data"]) == ["markers m=n", "mesh m=n"] and "m = n" in seen["title"]
+    assert "'markers m=n', 'mesh m=n'" in caption
+    record.table = record.table[~record.table["data"].str.endswith("m=n")]
+    record.metrics["data"] = {name: values for name, values in record.metrics["data"].items() if "m=n" not in name}
+    _, caption = draw_marker_vs_mesh(record)  # no m = n variants: the coverage rule's m, and said
+    assert sorted(seen["table"]["data"]) == ["markers", "mesh"] and "the coverage rule's m" in caption
