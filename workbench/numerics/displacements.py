@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
+from workbench.numerics.frames import frame_chunks
 
 POSITIONS_ABOVE = 5.0
 """Frames whose :func:`shape_over_motion` exceeds this look like positions. Measured on the workbench's captures
@@ -31,13 +32,13 @@ def motion_rms(total_variance: float, n_points: int) -> float:
     return float(np.sqrt(total_variance / n_points))
 
 
-def frames_mean_and_motion(frames: np.ndarray, rows_per_chunk: int = 512) -> tuple[np.ndarray, float]:
-    """The mean frame and :func:`motion_rms` of ``frames``, a block of rows at a time (frames on disk stay there).
+def frames_mean_and_motion(frames) -> tuple[np.ndarray, float]:
+    """The mean frame and :func:`motion_rms` of ``frames``, a chunk of frames at a time
+    (:func:`workbench.numerics.frames.frame_chunks`: frames on disk stay there, and memory stays within a chunk).
 
     Parameters
     ----------
-    frames : array-like of shape (n_frames, 3 * n_points)
-    rows_per_chunk : int
+    frames : ndarray of shape (n_frames, 3 * n_points) or FramesOnDisk
 
     Returns
     -------
@@ -45,9 +46,8 @@ def frames_mean_and_motion(frames: np.ndarray, rows_per_chunk: int = 512) -> tup
     motion : float
     """
     n_frames = frames.shape[0]
-    chunks = [slice(start, start + rows_per_chunk) for start in range(0, n_frames, rows_per_chunk)]
-    mean = sum(np.asarray(frames[rows], dtype=np.float64).sum(axis=0) for rows in chunks) / n_frames
-    total = sum(float(np.sum((np.asarray(frames[rows], dtype=np.float64) - mean) ** 2)) for rows in chunks)
+    mean = sum(chunk.sum(axis=0) for _, chunk in frame_chunks(frames)) / n_frames
+    total = sum(float(np.sum((chunk - mean) ** 2)) for _, chunk in frame_chunks(frames))
     return mean, motion_rms(total / n_frames, frames.shape[1] // 3)
 
 
