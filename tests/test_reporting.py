@@ -744,8 +744,10 @@ def assert_reference_is_small_and_clean(reference, readme: str) -> None:
 # figures of the weights and errors added since; then 7.40 MB once the three paper reports gained the paper's regime
 # m = n as a data variant of its own beside each coverage-rule variant (its lines in every plot and table); then
 # 9.0 MB once every held-out protocol got its m = n variant and the paper and ICT runs blocked k-fold beside the tail
-# (AnimFace: k-fold and leave-one-take-out in place of its last take): 8.80 MB measured at that rebuild.
-REPORTS_BUDGET = 9_000_000
+# (AnimFace: k-fold and leave-one-take-out in place of its last take): 8.80 MB measured at that rebuild; then 12.5 MB
+# once the three paper reports gained the "Pose the rigs" panel (its rigs and weights, 0.69-1.04 MB a report, and one
+# shared three.js of 0.64 MB with its licence): 12.19 MB measured at that rebuild.
+REPORTS_BUDGET = 12_500_000
 
 
 def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_show():
