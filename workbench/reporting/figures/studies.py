@@ -1,7 +1,7 @@
 """Plots of the studies: coverage curve, alpha against a swept setting, marker versus mesh, alpha over time.
 
 The sweep plots read one tidy table (a :class:`pandas.DataFrame`, one row per swept value x data variant x
-basis x solver), the schema ``workbench collect`` and :func:`workbench.reporting.summarise_runs` produce:
+basis x solver), the schema ``workbench collect`` and :func:`workbench.reporting.tables.runs.summarise` produce:
 
 ========================  ====================================================================================
 column                    meaning

@@ -53,7 +53,7 @@ class RigPanel:
     missing: str = ""
 
     def page_block(self, markdown: bool) -> dict:
-        """The block the report's templates read (:func:`workbench.reporting.page.page_sections`)."""
+        """The block the report's templates read (:func:`workbench.reporting.report.page.page_sections`)."""
         return {
             "kind": "rigs",
             "data": self.data,
@@ -78,7 +78,7 @@ def with_rig_panel(sections: list, record: RunRecord, out: Path, cache: dict, sh
 
 def build_rig_panel(record: RunRecord, out: Path, cache: dict, shared: Path | None = None) -> RigPanel | None:
     """Write ``figures/rigs.js`` and ``figures/three.min.js`` for a run with faces to draw: a mesh data variant, or
-    a marker variant carried onto the dataset's face mesh (:func:`workbench.reporting.report_data.face_data`, as the
+    a marker variant carried onto the dataset's face mesh (:func:`workbench.reporting.report.data.face_data`, as the
     other face figures draw a run on markers); None when it has neither.
 
     Parameters
