@@ -44,6 +44,19 @@ def _interrupt(number, frame):
     raise KeyboardInterrupt(f"signal {number}")
 
 
+@pytest.fixture(autouse=True)
+def signal_handlers_kept():
+    """Each test leaves SIGINT, SIGTERM and SIGHUP as it found them: a command run in the test process ignores them
+    once its work is done (``workbench.core.interrupt.ignore_further_interrupts``), and an ignored SIGTERM left
+    behind is inherited by every child process a later test starts, which then cannot be terminated."""
+    numbers = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+    saved = {number: signal.getsignal(number) for number in numbers}
+    yield
+    for number, handler in saved.items():
+        if handler is not None and signal.getsignal(number) is not handler:
+            signal.signal(number, handler)
+
+
 def scope_of(nodeid: str) -> str:
     """The scope pytest-xdist's ``--dist loadscope`` hands out whole: the class of a method, else the file."""
     parts = nodeid.split("[", 1)[0].split("::")
