@@ -508,9 +508,9 @@ def run(
         headline,
         printed_tables,
         reproduced_sentence,
-        result_identities,
         study_header,
     )
+    from workbench.study.claims import CLAIM_MARGIN, claims_at_m_equals_n, result_identities
     from workbench.study.run import run_study
     from workbench.study.summary import (
         alpha_per_frame_arrays,
@@ -551,14 +551,15 @@ def run(
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
         ratios = {result.data: claim_ratios(result, plain["metric"]) for result in results}
-    sentence = reproduced_sentence(results, plain, ratios)
+        claims = claims_at_m_equals_n(results, plain["metric"], plain["metric"].get("claim_margin", CLAIM_MARGIN))
+    sentence = reproduced_sentence(claims)
     opening = fit_width(sentence) + "\n" if sentence else ""
     header = study_header(results, plain)
     closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(
-        results_metrics(results, table, comparisons, ratios),
+        results_metrics(results, table, comparisons, ratios, claims),
         study=plain["study"],
         resolved_yaml=resolved_yaml,
         overrides=overrides,

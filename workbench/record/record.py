@@ -5,7 +5,7 @@ A run record is a folder holding
 - ``config.yaml``: the resolved config (without Hydra's own node);
 - ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the full text the run printed (``--wide``);
 - ``metrics.json``: study, config hash, overrides, dataset facts, per-data-variant metrics, every table row with
-  its solver diagnostics, versions, git state and times;
+  its solver diagnostics, the paper's two claims at m = n (``claims``), versions, git state and times;
 - ``timings.json``: seconds per stage;
 - optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
 - ``done``: written last, holding the SHA-256 of every other file of the record; a folder without it is not a
@@ -45,6 +45,7 @@ from workbench.core.files import (
     write_atomic,
 )
 from workbench.record.meaning import check_meaning
+from workbench.study.claims import CLAIMS_FORMAT
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS
 
 if TYPE_CHECKING:
@@ -171,8 +172,8 @@ def run_metrics(
     Parameters
     ----------
     results_metrics : mapping
-        What the run found: ``dataset``, ``data`` and ``rows``
-        (:func:`workbench.study.summary.results_metrics`).
+        What the run found: ``dataset``, ``data``, ``rows`` and the paper's ``claims`` (format
+        :data:`CLAIMS_FORMAT`; :func:`workbench.study.summary.results_metrics`).
     study : str
     resolved_yaml : str
         The resolved config as written to ``config.yaml`` (its hash identifies the run).
@@ -199,6 +200,7 @@ def run_metrics(
         "dataset": results_metrics["dataset"],
         "data": results_metrics["data"],
         "rows": results_metrics["rows"],
+        **({"claims": results_metrics["claims"]} if "claims" in results_metrics else {}),
         "versions": versions(),
         "git": git_state(repository),
         "started_at": started_at,
@@ -313,6 +315,13 @@ class RunRecord:
     @property
     def data_variants(self) -> list[str]:
         return list(self.metrics["data"])
+
+    @property
+    def claims(self) -> dict | None:
+        """The paper's two claims as the run computed them (``metrics.json``'s ``claims``,
+        :func:`workbench.study.claims.claims_at_m_equals_n`), or None for a record written before they were kept."""
+        found = self.metrics.get("claims")
+        return dict(found) if isinstance(found, dict) else None
 
     def rows(self) -> list[dict]:
         """Every row of the alpha table with its solver diagnostics (``metrics.json``'s ``rows``)."""
@@ -497,6 +506,14 @@ def _check_metrics(path: Path, metrics: Mapping) -> None:
     _check_field(path, "git", metrics.get("git") or {}, (dict,), "an object")
     for variant, facts in metrics["data"].items():
         _check_field(path, f"data.{variant}", facts, (dict,), "an object")
+    if "claims" in metrics:
+        claims = metrics["claims"]
+        _check_field(path, "claims", claims, (dict,), "an object")
+        if claims.get("format") != CLAIMS_FORMAT:
+            raise WorkbenchError(
+                f"{path}: field 'claims.format' must be {CLAIMS_FORMAT}, got {claims.get('format')!r:.60}"
+            )
+        _check_field(path, "claims.entries", claims.get("entries"), (list,), "a list of objects")
     for i, row in enumerate(metrics["rows"]):
         if not isinstance(row, dict):
             raise WorkbenchError(f"{path}: rows[{i}] must be an object")

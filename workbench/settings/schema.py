@@ -175,6 +175,7 @@ class MetricSchema:
     headline_normalisation: str = meta(MISSING, one_of("absolute", "displacement"))
     headline_aggregate: str = meta(MISSING, one_of("mean", "pooled"))
     score_clean: Any = meta(False, BOOLEAN)
+    claim_margin: float = meta(1.5, interval(1, 100, low_open=True))
 
 
 @dataclass

@@ -285,6 +285,7 @@ def results_metrics(
     table,
     comparisons: Mapping[str, list] | None = None,
     ratios: Mapping[str, dict] | None = None,
+    claims: Mapping | None = None,
 ) -> dict:
     """What a run found, as ``metrics.json`` keeps it: ``dataset`` (the first variant's capture), ``data`` (each
     data variant's :func:`data_metrics` and its comparisons) and ``rows`` (every table row with its solver
@@ -300,6 +301,8 @@ def results_metrics(
         Data variant -> its :func:`frame_comparisons`, kept as ``data.<variant>.comparisons``.
     ratios : mapping, optional
         Data variant -> its :func:`claim_ratios`, kept as ``data.<variant>.ratios``.
+    claims : mapping, optional
+        The paper's claims (:func:`workbench.study.claims.claims_at_m_equals_n`), kept as ``claims``.
 
     Returns
     -------
@@ -341,6 +344,7 @@ def results_metrics(
             )
             for i, (result, row) in enumerate(rows)
         ],
+        **({"claims": dict(claims)} if claims is not None else {}),
     }
 
 

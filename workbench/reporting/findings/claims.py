@@ -1,127 +1,220 @@
-"""The paper's two claims and the verdicts a report states on them, from the intervals of its two ratios.
+"""The paper's two claims as a report states them: the text of the verdicts the run stored (``metrics.json``
+``claims``, :func:`workbench.study.claims.claims_at_m_equals_n`). Nothing here decides or computes a verdict; the
+first printed sentence, the summary, the findings, the comparisons table's primary rows, the headline figure and
+sweep summaries all read them through this module, so that each claim has one verdict per protocol everywhere.
 
-Kim & Ko report, with least squares at m = n = 18, H 5.2, QE 0.72 and PCA 0.62 % (alpha): QE far better than the
-hand basis H (H/QE 7.2) and nearly as accurate as PCA (QE/PCA 1.16). A report opens with what its data say on each:
-
-- claim 1, "QE better than H": reproduced when the interval of H/QE lies wholly above 1, not reproduced when wholly
-  below 1, else not decided; and where the paper's 7.2 lies relative to that interval;
-- claim 2, "QE nearly as accurate as PCA (QE/PCA <= 1.16)": reproduced when the interval of QE/PCA lies wholly at or
-  below 1.16, not reproduced when wholly above it, else not decided; when QE <= PCA holds by construction (QE spans
-  PCA's reconstruction, :mod:`workbench.stats.identities`) it is said so and not tested.
-
-:func:`claim_verdicts` is the one place that decides them; a run's summary and a sweep's summary both call it.
+Claim 1 ("QE better than H") is superiority of QE over H: its direction (H/QE above 1) and, apart, where the
+paper's 7.2 lies. Claim 2 ("QE nearly as accurate as PCA") is non-inferiority against the declared margin
+(``metric.claim_margin``) and, apart, whether the paper's 1.16 lies inside the interval.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
-from typing import NamedTuple
+from typing import Mapping, Sequence
 
-from workbench.stats.statistics import Interval
+from workbench.study.claims import (
+    ABOVE,
+    BELOW,
+    NOT_DECIDED,
+    NOT_ESTIMABLE,
+    NOT_REPRODUCED,
+    NOT_TESTED,
+    PAPER_RATIOS,
+    REPRODUCED,
+    REVERSED,
+    TRAINING,
+)
 
-PAPER_ALPHA = {"H": 5.2, "QE": 0.72, "PCA": 0.62}
-"""The paper's alpha (%) of the hand basis, the quasi-eigen faces and PCA, with least squares at m = n = 18."""
-PAPER_RATIOS = {"H/QE": PAPER_ALPHA["H"] / PAPER_ALPHA["QE"], "QE/PCA": PAPER_ALPHA["QE"] / PAPER_ALPHA["PCA"]}
-"""The paper's ratios, from its absolute alpha: H/QE 7.2, QE/PCA 1.16."""
-REPRODUCED = "reproduced"
-NOT_REPRODUCED = "not reproduced"
-NOT_DECIDED = "not decided"
-BY_CONSTRUCTION = "holds by construction"
+__all__ = [
+    "CLAIM_1",
+    "CLAIM_2",
+    "NOT_DECIDED",
+    "NOT_ESTIMABLE",
+    "NOT_REPRODUCED",
+    "NOT_TESTED",
+    "PAPER_RATIOS",
+    "REPRODUCED",
+    "REVERSED",
+    "NO_CLAIMS",
+]
+
 CLAIM_1 = "QE better than H"
-CLAIM_2 = f"QE nearly as accurate as PCA (QE/PCA <= {PAPER_RATIOS['QE/PCA']:.3g})"
+CLAIM_2 = "QE nearly as accurate as PCA"
+NO_CLAIMS = "the record keeps no claims (written before runs stored them): rerun it for the paper's claims"
 
 
-class ClaimVerdicts(NamedTuple):
-    """The two verdict texts (each begins with the claim and its decision), and the decisions alone."""
-
-    h_over_qe: str
-    qe_over_pca: str
-    h_over_qe_decision: str
-    qe_over_pca_decision: str
+def number(value: float) -> str:
+    """Three significant digits, trailing zeros kept (``1.00``, ``2.05``, ``746``); ``-`` for NaN."""
+    if not math.isfinite(value):
+        return "-" if math.isnan(value) else str(value)
+    return f"{value:#.3g}".rstrip(".") if abs(value) < 1e3 else f"{value:.3g}"
 
 
-def ratio_interval_text(interval: Interval, name: str, brief: bool = False) -> str:
-    """``H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log ratios, n = 5)``, with ``Holm p`` where the interval
-    carries a Holm-adjusted p-value, and ``no interval`` where its bounds are not finite; ``brief``: without the
-    parenthesis (for a text that says once how its intervals are made)."""
-    estimate = "-" if math.isnan(interval.estimate) else f"{interval.estimate:.3g}"
-    how = ", ".join(part for part in (interval.method, f"n = {interval.n}") if part)
-    if not interval.defined:
-        return f"{name} {estimate} (no interval" + ("" if brief else f": {how}") + ")"
-    adjusted = f", Holm p {interval.p_adjusted:.2g}" if math.isfinite(interval.p_adjusted) else ""
-    bounds = f"{name} {estimate} [{interval.low:.3g}, {interval.high:.3g}]"
-    return bounds if brief else f"{bounds} ({100 * interval.confidence:g} % interval, {how}{adjusted})"
+def ratio_text(entry: Mapping, name: str) -> str:
+    """``H/QE 2.05 [1.31, 3.23]``, or ``H/QE not estimable: <why>`` (no numbers) when the interval cannot inform."""
+    if entry.get("why_not_estimable"):
+        return f"{name} {NOT_ESTIMABLE}: {entry['why_not_estimable']}"
+    return f"{name} {number(entry['estimate'])} [{number(entry['low'])}, {number(entry['high'])}]"
 
 
-def where_paper_lies(interval: Interval, paper: float) -> str:
-    """``the paper's 7.2 lies above it``: the paper's value against the interval (against the estimate when the
-    interval has no finite bounds)."""
-    if not interval.defined:
-        side = "above" if paper > interval.estimate else "below"
-        return f"the paper's {paper:.2g} lies {side} the estimate"
-    if paper > interval.high:
-        return f"the paper's {paper:.2g} lies above it"
-    if paper < interval.low:
-        return f"the paper's {paper:.2g} lies below it"
-    return f"the paper's {paper:.2g} lies within it"
+def first_claim_text(entry: Mapping) -> str:
+    """Claim 1 on one protocol: ``QE better than H: reproduced, H/QE 2.05 [1.31, 3.23] above 1; the paper's 7.2 lies
+    above the interval`` (direction, then size)."""
+    if entry["verdict"] == NOT_ESTIMABLE:
+        return f"{CLAIM_1}: {NOT_ESTIMABLE} (H/QE: {entry['why_not_estimable']})"
+    where = {REPRODUCED: "above 1", REVERSED: "below 1", NOT_DECIDED: "holds 1"}[entry["verdict"]]
+    size = {ABOVE: "above", BELOW: "below"}.get(entry["size"], "inside")
+    return (
+        f"{CLAIM_1}: {entry['verdict']}, {ratio_text(entry, 'H/QE')} {where}; "
+        f"the paper's {PAPER_RATIOS['H/QE']:.2g} lies {size} the interval"
+    )
 
 
-def first_claim(h_over_qe: Interval) -> str:
-    """Claim 1's decision from the interval of H/QE (null 1): above 1 reproduced, below 1 not; where the interval
-    carries a Holm-adjusted p-value, it decides whether 1 is excluded (:attr:`Interval.excludes_null`)."""
-    interval = replace(h_over_qe, null=1.0)
-    if math.isnan(interval.estimate) or not interval.excludes_null:
-        return NOT_DECIDED
-    return REPRODUCED if interval.estimate > 1.0 else NOT_REPRODUCED
+def second_claim_text(entry: Mapping) -> str:
+    """Claim 2 on one protocol: ``QE nearly as accurate as PCA (QE/PCA <= 1.5): reproduced, QE/PCA 1.10 [1.02,
+    1.19]; the paper's 1.16 lies inside the interval`` (non-inferiority, then consistency with the paper)."""
+    head = f"{CLAIM_2} (QE/PCA <= {entry['margin']:g})"
+    if entry["verdict"] == NOT_TESTED:
+        return f"{CLAIM_2}: {NOT_TESTED}: {entry['not_tested']}"
+    if entry["verdict"] == NOT_ESTIMABLE:
+        return f"{head}: {NOT_ESTIMABLE} (QE/PCA: {entry['why_not_estimable']})"
+    consistency = (
+        "lies inside the interval"
+        if entry["consistency"] not in (ABOVE, BELOW)
+        else f"lies {entry['consistency']} the interval"
+    )
+    return (
+        f"{head}: {entry['verdict']}, {ratio_text(entry, 'QE/PCA')}; "
+        f"the paper's {PAPER_RATIOS['QE/PCA']:.3g} {consistency}"
+    )
 
 
-def second_claim(qe_over_pca: Interval, bound: float = PAPER_RATIOS["QE/PCA"]) -> str:
-    """Claim 2's decision from the interval of QE/PCA against the paper's ``bound``: wholly at or below it
-    reproduced, wholly above it not, else (or without finite bounds) not decided."""
-    if not qe_over_pca.defined:
-        return NOT_DECIDED
-    if qe_over_pca.high <= bound:
-        return REPRODUCED
-    return NOT_REPRODUCED if qe_over_pca.low > bound else NOT_DECIDED
+def entry_text(entry: Mapping) -> str:
+    """Both claims on one protocol (:func:`first_claim_text`; :func:`second_claim_text`)."""
+    return f"{first_claim_text(entry['H/QE'])}; {second_claim_text(entry['QE/PCA'])}"
 
 
-def claim_verdicts(
-    h_over_qe: Interval, qe_over_pca: Interval, qe_below_pca_by_construction: bool, brief: bool = False
-) -> ClaimVerdicts:
-    """The verdicts on the paper's two claims, each as text with its interval.
+def short_ratio_text(stored: Mapping, name: str) -> str:
+    """``H/QE 2.05 [1.31, 3.23] reproduced``, or ``H/QE not estimable (fewer than 3 degrees of freedom)``, or
+    ``QE/PCA not tested at m = n``: one claim on one protocol in a few words."""
+    if stored["verdict"] == NOT_TESTED:
+        return f"{name} {NOT_TESTED}"
+    if stored["verdict"] == NOT_ESTIMABLE:
+        return f"{name} {NOT_ESTIMABLE} ({stored['why_not_estimable'].split(' (', 1)[0]})"
+    return f"{ratio_text(stored, name)} {stored['verdict']}"
+
+
+def short_entry_text(entry: Mapping) -> str:
+    """Both claims on one protocol in a few words (:func:`short_ratio_text`)."""
+    return f"{short_ratio_text(entry['H/QE'], 'H/QE')}, {short_ratio_text(entry['QE/PCA'], 'QE/PCA')}"
+
+
+def m_text(entry: Mapping) -> str:
+    """``m = 18``, or ``m = [18, 17, 18]`` when a cross-validated protocol's folds differ."""
+    values = list(entry["m"])
+    return f"m = {values[0]}" if len(set(values)) == 1 else f"m = {values}"
+
+
+def lead_entries(claims: Mapping | None, base: str | None = None) -> list[dict]:
+    """The stored claims of one data variant (``base``, else the first variant's) on every protocol, training
+    frames first."""
+    entries = list((claims or {}).get("entries") or [])
+    if not entries:
+        return []
+    base = base if base is not None and any(e["base"] == base for e in entries) else entries[0]["base"]
+    chosen = [entry for entry in entries if entry["base"] == base]
+    return sorted(chosen, key=lambda entry: entry["protocol"] != TRAINING)
+
+
+def verdict_word(entry: Mapping, name: str) -> str:
+    """The decision alone (``reproduced``, ``not decided``, ``not estimable``, ...) of one claim on one protocol."""
+    return entry[name]["verdict"]
+
+
+def claims_sentence(claims: Mapping | None, base: str | None = None) -> str:
+    """The first sentence a run prints: both claims on the training frames with their intervals, then each
+    held-out protocol's verdicts.
 
     Parameters
     ----------
-    h_over_qe : Interval
-        H/QE (a ratio of alphas, least squares) with its 95 % interval; its ``p_adjusted``, where finite, decides
-        whether 1 is excluded (a Holm family), else its bounds do.
-    qe_over_pca : Interval
-        QE/PCA with its 95 % interval.
-    qe_below_pca_by_construction : bool
-        Whether QE <= PCA holds by construction in every run the interval rests on: then claim 2 holds whatever
-        the data, is not tested, and only the size of QE/PCA is stated.
-    brief : bool
-        Intervals without their method and n (:func:`ratio_interval_text`).
+    claims : mapping or None
+        ``metrics.json`` ``claims``.
+    base : str, optional
+        The data variant (default: the first with claims).
 
     Returns
     -------
-    ClaimVerdicts
-        ``h_over_qe``: ``QE better than H: reproduced, H/QE 2.1 [1.7, 2.6] (95 % interval, paired t on log
-        ratios, n = 5); the paper's 7.2 lies above it``; ``qe_over_pca`` likewise against 1.16; and the two
-        decisions (:data:`REPRODUCED`, :data:`NOT_REPRODUCED`, :data:`NOT_DECIDED`, :data:`BY_CONSTRUCTION`).
+    str
+        Empty when there are no claims at all.
     """
-    first = first_claim(h_over_qe)
-    one = (
-        f"{CLAIM_1}: {first}, {ratio_interval_text(h_over_qe, 'H/QE', brief)}; "
-        f"{where_paper_lies(h_over_qe, PAPER_RATIOS['H/QE'])}"
+    if not claims:
+        return ""
+    entries = lead_entries(claims, base)
+    if not entries:
+        return f"The paper's claims: {claims.get('not_tested') or NOT_TESTED}."
+    head = f"The paper's claims at m = n ({claims['solver']}, {claims['column']})"
+    parts = []
+    for entry in entries:
+        if entry["protocol"] == TRAINING:
+            parts.append(f"on {entry['data']} ({m_text(entry)}): {entry_text(entry)}")
+        else:
+            parts.append(f"{entry['protocol_text']} ({m_text(entry)}): {short_entry_text(entry)}")
+    return f"{head}, {'; '.join(parts)}."
+
+
+def agreement_sentence(entries: Sequence[Mapping]) -> str:
+    """One sentence: whether each held-out protocol gives the training frames' verdicts, and where not."""
+    training = next((entry for entry in entries if entry["protocol"] == TRAINING), None)
+    held = [entry for entry in entries if entry["protocol"] != TRAINING]
+    if training is None or not held:
+        return ""
+    differ = []
+    for entry in held:
+        for name, claim in (("H/QE", "claim 1"), ("QE/PCA", "claim 2")):
+            if entry[name]["verdict"] != training[name]["verdict"]:
+                differ.append(
+                    f"{claim} {entry[name]['verdict']} on the {entry['protocol_text'].removeprefix('held-out ')}"
+                )
+    if not differ:
+        return "Held out, every protocol gives the training frames' verdicts."
+    return (
+        f"Held out differs from the training frames ({CLAIM_1} {training['H/QE']['verdict']}, {CLAIM_2} "
+        f"{training['QE/PCA']['verdict']}): " + ", ".join(differ) + "."
     )
-    # claim 2 is decided against 1.16 by the interval alone: a Holm p-value (a test against 1) is not its evidence
-    size = ratio_interval_text(replace(qe_over_pca, p_adjusted=math.nan), "QE/PCA", brief)
-    if qe_below_pca_by_construction:
-        second = BY_CONSTRUCTION
-        two = f"{CLAIM_2}: {second} (QE <= PCA in every run whatever the data), not tested; its size {size}"
-    else:
-        second = second_claim(qe_over_pca)
-        two = f"{CLAIM_2}: {second}, {size}"
-    return ClaimVerdicts(one, two, first, second)
+
+
+def rests_on_sentence(entries: Sequence[Mapping], confidence: float = 0.95) -> str:
+    """``Intervals (95 %) rest on: training frames: H/QE 300 frames of 1 take, ...; QE/PCA ...``: each interval's
+    own frames, batches (or folds) and degrees of freedom."""
+    parts = []
+    for entry in entries:
+        one, two = entry["H/QE"]["rests_on"], entry["QE/PCA"]["rests_on"]
+        said = f"H/QE and QE/PCA {one}" if one == two else f"H/QE {one}; QE/PCA {two}"
+        parts.append(f"{entry['protocol_text']}: {said}")
+    return f"Intervals ({100 * confidence:g} %) rest on: " + "; ".join(parts) + "." if parts else ""
+
+
+def primary_verdicts(claims: Mapping | None, data: str) -> dict:
+    """``(a, b)`` rows -> the stored claim of one data variant that tests that contrast: ``(("H", "lstsq"), ("QE",
+    "lstsq"))`` -> the H/QE entry, ``(("QE", "lstsq"), ("PCA", "projection"))`` -> the QE/PCA entry (either order
+    of the pair). Empty when the variant has no stored claims."""
+    entry = next((e for e in (claims or {}).get("entries") or [] if e["data"] == data), None)
+    if entry is None:
+        return {}
+    found = {}
+    for name, pair in (
+        ("H/QE", (("H", "lstsq"), ("QE", "lstsq"))),
+        ("QE/PCA", (("QE", "lstsq"), ("PCA", "projection"))),
+    ):
+        found[pair] = found[pair[::-1]] = dict(entry[name], ratio=name)
+    return found
+
+
+def claim_cell(stored: Mapping) -> str:
+    """A stored claim as one table cell: ``H/QE 2.05 [1.31, 3.23]: reproduced``."""
+    if stored["verdict"] == NOT_TESTED:
+        return f"{stored['ratio']}: {NOT_TESTED}"
+    if stored["verdict"] == NOT_ESTIMABLE:
+        return f"{stored['ratio']}: {NOT_ESTIMABLE}"
+    return f"{ratio_text(stored, stored['ratio'])}: {stored['verdict']}"

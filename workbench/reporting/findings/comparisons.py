@@ -9,6 +9,7 @@ from typing import Mapping
 
 import pandas as pd
 
+from workbench.reporting.findings.claims import NOT_ESTIMABLE, NOT_TESTED, claim_cell
 from workbench.stats.identities import identity_lookup, run_identities
 from workbench.stats.statistics import (
     Interval,
@@ -30,13 +31,50 @@ def primary_data(metrics: Mapping) -> str | None:
     return next(iter(metrics.get("data") or {}), None)
 
 
-def adjusted_comparisons(metrics: Mapping) -> dict:
-    """Data variant -> its stored comparisons, every one but the primary contrasts (:data:`PRIMARY_CONTRASTS` on
-    :func:`primary_data`) with its Holm-adjusted p-value (:func:`workbench.stats.statistics.holm_adjusted`)
-    over the run's family; comparisons of records without p-values keep their unadjusted interval."""
-    lead = primary_data(metrics)
+def claim_comparison(stored: Mapping, pair: tuple, column: str) -> dict:
+    """A stored claim (:mod:`workbench.study.claims`) as the comparison of its two rows: the ratio with its
+    interval (null 1; no bounds where it is not estimable or not tested), marked ``claim``."""
+    informs = stored["verdict"] not in (NOT_ESTIMABLE, NOT_TESTED)
+    interval = Interval(
+        stored["estimate"],
+        stored["low"] if informs else math.nan,
+        stored["high"] if informs else math.nan,
+        n=stored["n"],
+        method=stored["method"],
+        confidence=stored["confidence"],
+        null=1.0,
+        block_frames=stored.get("block_frames", 0),
+        block_seconds=stored.get("block_seconds", math.nan),
+        degrees=stored.get("degrees", math.nan),
+    )
+    return {"a": list(pair[0]), "b": list(pair[1]), "column": column, **interval.as_dict(), "claim": dict(stored)}
+
+
+def with_claims(metrics: Mapping) -> dict:
+    """Data variant -> its stored comparisons, the primary contrasts of a variant with stored claims replaced by
+    the claims themselves (:func:`claim_comparison`): a primary contrast is tested once, by its claim's ratio."""
     data_facts = metrics.get("data") or {}
     stored = {data: list(facts.get("comparisons") or []) for data, facts in data_facts.items()}
+    claims = metrics.get("claims") or {}
+    for entry in claims.get("entries") or []:
+        if entry["data"] not in stored:
+            continue
+        kept = [c for c in stored[entry["data"]] if frozenset({tuple(c["a"]), tuple(c["b"])}) not in PRIMARY_CONTRASTS]
+        pairs = {"H/QE": (("H", "lstsq"), ("QE", "lstsq")), "QE/PCA": (("QE", "lstsq"), ("PCA", "projection"))}
+        stored[entry["data"]] = [
+            claim_comparison(dict(entry[name], ratio=name), pair, claims["column"]) for name, pair in pairs.items()
+        ] + kept
+    return stored
+
+
+def adjusted_comparisons(metrics: Mapping) -> dict:
+    """Data variant -> its stored comparisons (:func:`with_claims`), every one but the primary contrasts (the
+    stored claims; on a record without them :data:`PRIMARY_CONTRASTS` on :func:`primary_data`) with its
+    Holm-adjusted p-value (:func:`workbench.stats.statistics.holm_adjusted`) over the run's family; comparisons of
+    records without p-values keep their unadjusted interval."""
+    lead = primary_data(metrics)
+    data_facts = metrics.get("data") or {}
+    stored = with_claims(metrics)
     identities = {
         data: run_identities(
             [row for row in metrics.get("rows") or [] if row.get("data") == data], data_facts.get(data) or {}
@@ -49,7 +87,8 @@ def adjusted_comparisons(metrics: Mapping) -> dict:
         a, b = tuple(entry["a"]), tuple(entry["b"])
         lookup = identity_lookup(identities[data], entry.get("column", ""))
         return (
-            (data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS)
+            "claim" in entry
+            or (not metrics.get("claims") and data == lead and frozenset({a, b}) in PRIMARY_CONTRASTS)
             or lookup(a, b) is not None
             or lookup(b, a) is not None
             or Interval.from_dict(entry).tied
@@ -107,6 +146,9 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
             lookup = identity_lookup(identities, column or entry.get("column", ""))
             found = lookup(a, b) or lookup(b, a)
             tested = found is None and not interval.tied
+            if "claim" in entry:  # the paper's claim: its stored ratio test, no difference test beside it
+                records.append(claim_row(data, a, b, entry["claim"]))
+                continue
             if found is not None:
                 verdict = f"{'a <= b' if lookup(a, b) else 'b <= a'} by construction ({found.reason})"
             elif interval.tied:
@@ -129,6 +171,25 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                 }
             )
     return pd.DataFrame.from_records(records)
+
+
+def claim_row(data: str, a: tuple, b: tuple, stored: Mapping) -> dict:
+    """A primary contrast's row of :func:`comparison_table`: no difference, its stored claim as the verdict."""
+    return {
+        "data": data,
+        "a": " ".join(a),
+        "b": " ".join(b),
+        "a - b": math.nan,
+        "low": math.nan,
+        "high": math.nan,
+        "confidence": 100 * stored["confidence"],
+        "p": math.nan,
+        "p (Holm)": math.nan,
+        "frames": stored.get("frames", stored["n"]),
+        "batch (frames)": stored.get("batch_frames", 0),
+        "batch (s)": stored.get("block_seconds", math.nan),
+        "verdict": f"the paper's claim, {claim_cell(stored)} ({stored['rests_on']})",
+    }
 
 
 def shown_interval(interval: Interval, tested: bool) -> dict:
@@ -160,7 +221,9 @@ def comparison_method_text(metrics: Mapping) -> str:
         "take is a batch, the variance made unbiased for an AR(1) of the series' persistence, Student-t quantiles "
         "with 1.5 (n / L - 1) degrees of freedom (coverage and width measured on AR(1) series in "
         "docs/statistics.md). H vs QE and QE vs PCA with lstsq "
-        f"on {lead} are the primary contrasts, at their own 95 %; every other row's verdict uses its "
+        f"on {lead} are the primary contrasts: where the run stored the paper's claims, each of their rows is "
+        "that claim's ratio test (its ratio, interval and verdict; no difference beside it); every other row's "
+        "verdict uses its "
         "Holm-adjusted p-value over the run (p (Holm) < 0.05), and its interval (low, high) is shown at its "
         "Holm step's confidence, so that it excludes 0 exactly when the verdict says '<'. Orderings that hold by "
         "construction are marked so and not tested (no p-value; the interval is their size, at 95 %); "

@@ -1,11 +1,7 @@
-"""The summary a run's report opens with: the paper's two claims, each as a ratio with its interval and a verdict,
-on the training frames and held out at m = n, with what the design rests on (at most about 200 words).
-
-Claim 1, QE far better than H (the paper's H/QE 7.2): reproduced when the interval of H/QE lies wholly above 1.
-Claim 2, QE nearly as accurate as PCA (the paper's QE/PCA 1.16): reproduced when the interval of QE/PCA lies wholly
-at or below 1.16, not reproduced when wholly above. Either is "not decided" when its interval holds the threshold
-(:func:`workbench.stats.ratios.claim_verdict`); where QE <= PCA holds by construction, claim 2 is stated so, not
-tested. Both claims are one metric, the run's headline alpha with least squares.
+"""The summary a run's report opens with: the paper's two claims as the run stored them
+(:mod:`workbench.study.claims`), on the training frames and on each held-out protocol at m = n, whether held out
+agrees with the training frames, and what each interval rests on (at most about 200 words). Nothing here decides a
+verdict: the text renders the record's ``claims`` (:mod:`workbench.reporting.findings.claims`).
 """
 
 from __future__ import annotations
@@ -15,63 +11,46 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
-from workbench.reporting.findings.claims import PAPER_RATIOS, claim_verdicts, ratio_interval_text
+from workbench.reporting.findings.claims import (
+    NO_CLAIMS,
+    NOT_TESTED,
+    PAPER_RATIOS,
+    agreement_sentence,
+    entry_text,
+    lead_entries,
+    m_text,
+    number,
+    rests_on_sentence,
+    short_entry_text,
+)
 from workbench.reporting.findings.comparisons import primary_data
 from workbench.reporting.findings.run import PAPER_BASES, _alpha, caveat_texts
 from workbench.stats.identities import identity_lookup, run_identities
-from workbench.stats.statistics import Interval
-from workbench.study.protocols import HELD_OUT
+from workbench.study.claims import TRAINING, base_variant
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
 SUMMARY_WORDS = 200
 """The summary's length limit in words."""
 
 
-def claims_text(ratios: Mapping[str, Mapping], qe_spans_pca: bool = False) -> str:
-    """The two claims' verdicts with their ratios and intervals (:func:`workbench.reporting.findings.claims.claim_verdicts`,
-    brief), e.g. ``QE better than H: reproduced, H/QE 5.51 [4.54, 6.47]; the paper's 7.2 lies above it; QE nearly as
-    accurate as PCA (QE/PCA <= 1.16): not reproduced, QE/PCA 3.12 [2.33, 3.92]``.
-
-    Parameters
-    ----------
-    ratios : mapping
-        ``H/QE`` and ``QE/PCA`` -> stored :class:`Interval` fields (``metrics.json`` ``data.<variant>.ratios``).
-    qe_spans_pca : bool
-        Whether QE <= PCA holds by construction.
-
-    Returns
-    -------
-    str
-        Empty unless both ratios are there.
-    """
-    if not {"H/QE", "QE/PCA"} <= set(ratios):
-        return ""
-    found = claim_verdicts(
-        Interval.from_dict(ratios["H/QE"]), Interval.from_dict(ratios["QE/PCA"]), qe_spans_pca, brief=True
-    )
-    return f"{found.h_over_qe}; {found.qe_over_pca}"
+def claims_text(claims: Mapping | None, data: str) -> str:
+    """The stored claims of one variant's training frames
+    (:func:`workbench.reporting.findings.claims.entry_text`), e.g. ``QE better than H: reproduced, H/QE 5.51
+    [4.54, 6.47] above 1; the paper's 7.2 lies above the interval; QE nearly as accurate as PCA (QE/PCA <= 1.5):
+    ...``; empty when the record keeps none for it."""
+    entry = next((e for e in lead_entries(claims, base_variant(data)) if e["protocol"] == TRAINING), None)
+    return entry_text(entry) if entry else ""
 
 
-def ratios_text(ratios: Mapping[str, Mapping]) -> str:
-    """``H/QE 2.9 [2.1, 3.7]; QE/PCA 1.4 [0.9, 1.8]``: the ratios alone, with their intervals."""
-    return "; ".join(ratio_interval_text(Interval.from_dict(value), key, brief=True) for key, value in ratios.items())
-
-
-def design_text(facts: Mapping) -> str:
-    """What the lead variant's ratio intervals rest on: frames, takes, batches and degrees of freedom."""
-    interval = Interval.from_dict(next(iter((facts.get("ratios") or {}).values()), {"estimate": math.nan}))
-    frames, takes = facts.get("n_eval_frames"), facts.get("n_eval_takes")
-    if not frames:
-        return ""
-    text = f"{frames} frames" + (f" of {takes} take{'s' if takes != 1 else ''}" if takes else "")
-    degrees = getattr(interval, "degrees", math.nan)
-    if interval.block_frames:
-        batches = f"batches of {interval.block_frames} frames" + (
-            f", {degrees:.2g} degrees of freedom" if math.isfinite(degrees) else ""
-        )
-        text += f", {batches}"
-    takes_said = interval_by_take(facts)
-    return text + (f"; {takes_said}" if takes_said else "")
+def held_out_claims_text(entries: Sequence[Mapping]) -> str:
+    """``Held out at m = n: held-out tail of each take (m = 18): QE better than H: ...; ...``: every held-out
+    protocol's stored claims."""
+    parts = [
+        f"{entry['protocol_text'].removeprefix('held-out ')} ({m_text(entry)}): {short_entry_text(entry)}"
+        for entry in entries
+        if entry["protocol"] != TRAINING
+    ]
+    return "Held out at m = n: " + "; ".join(parts) + "." if parts else ""
 
 
 def interval_by_take(facts: Mapping) -> str:
@@ -80,7 +59,7 @@ def interval_by_take(facts: Mapping) -> str:
     per_take = ((facts.get("ratios") or {}).get("H/QE") or {}).get("per_take") or {}
     if len(per_take) < 2:
         return ""
-    ratios = ", ".join(f"{value['ratio']:.3g}" for value in per_take.values())
+    ratios = ", ".join(number(value["ratio"]) for value in per_take.values())
     low, high = (100 * f(value["share_above"] for value in per_take.values()) for f in (min, max))
     shares = f"{low:.0f} %" if round(low) == round(high) else f"{low:.0f}-{high:.0f} %"
     return f"H/QE per take {ratios}, H worse than QE on {shares} of each take's frames"
@@ -108,24 +87,6 @@ def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
         )
         found.append(f"{basis} {cond}, largest |w| {largest:.3g}")
     return "; ".join(found) + " (the least-squares weights an animator gets)"
-
-
-def held_out_regime_text(metrics: Mapping, data: str) -> str:
-    """The claims on the held-out variants at m = n of the lead variant's data (``<data> held-out ... m=n``)."""
-    base = data[: -len(PAPER_REGIME_SUFFIX) - 1] if is_paper_regime(data) else data
-    parts = []
-    for name, facts in (metrics.get("data") or {}).items():
-        if name == data or not is_paper_regime(name) or not name.startswith(f"{base} held-out"):
-            continue
-        ratios = facts.get("ratios") or {}
-        if ratios:
-            shown = ratios_text(ratios)
-            replicates = next(iter(ratios.values())).get("n")
-            unit = "folds" if facts.get("folds") else "frames"
-            protocol = name[len(f"{base} held-out ") : -len(PAPER_REGIME_SUFFIX) - 1]
-            protocol = HELD_OUT.get(protocol, protocol).removeprefix("held-out ")
-            parts.append(f"{protocol} ({replicates} {unit}) {shown.replace('; ', ', ')}")
-    return "Held out at m = n: " + "; ".join(parts) + "." if parts else ""
 
 
 def beside_regime_text(table: pd.DataFrame, data: str, column: str, metrics: Mapping | None = None) -> str:
@@ -175,31 +136,36 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         return ""
     facts = (metrics.get("data") or {}).get(data) or {}
     rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
-    spans = identity_lookup(run_identities(rows, facts), column)(("QE", "lstsq"), ("PCA", "projection"))
-    ratios = facts.get("ratios") or {
-        key: {"estimate": values[a] / values[b], "low": math.nan, "high": math.nan, "null": 1.0}
-        for key, (a, b) in {"H/QE": ("H", "QE"), "QE/PCA": ("QE", "PCA")}.items()
-    }
+    claims = metrics.get("claims")
+    entries = lead_entries(claims, base_variant(data))
     m, n = int(part["m"].iloc[0]), int(part.loc[part["basis"] == "H", "n"].iloc[0])
     regime = "the paper's regime m = n" if m == n else f"not the paper's regime (basis.n_components={n} gives it)"
     coverage = (facts.get("pca") or {}).get("coverage_reached")
     reach = f", coverage {coverage:.4f}" if coverage is not None else ""
     caveats = caveat_texts(metrics)
-    conditioning, design = conditioning_text(part, rows), design_text(facts)
+    conditioning = conditioning_text(part, rows)
+    training = claims_text(claims, data) if claims else ""
+    if not claims:
+        said = f"{NO_CLAIMS}."
+    elif training:
+        said = f"On {data} (m = {m}, n = {n}: {regime}{reach}), `{claims['column']}` with least squares: {training}."
+    else:
+        said = f"On {data} (m = {m}, n = {n}: {regime}{reach}): {claims.get('not_tested') or NOT_TESTED}."
+    takes_said = interval_by_take(facts)
     sentences = [
         f"Kim & Ko claim QE far better than H (H/QE {PAPER_RATIOS['H/QE']:.2g}) and nearly as accurate as PCA "
         f"(QE/PCA {PAPER_RATIOS['QE/PCA']:.3g}) at m = n = 18.",
-        f"On {data} (m = {m}, n = {n}: {regime}{reach}), `{column}` with least squares: "
-        f"{claims_text(ratios, spans is not None)}.",
-        held_out_regime_text(metrics, data),
+        said,
+        held_out_claims_text(entries),
+        agreement_sentence(entries),
         beside_regime_text(table, data, column, metrics).strip(),
         f"{conditioning}." if conditioning else "",
-        f"Intervals (95 %) rest on {design}." if design else "",
+        rests_on_sentence(entries) + (f" {takes_said[0].upper()}{takes_said[1:]}." if takes_said else ""),
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
     # within the budget: the coverage rule's sentence goes first, then the caveat's last clause, then its reason
     if len(" ".join(sentences).split()) > SUMMARY_WORDS:
-        sentences[3] = ""
+        sentences[4] = ""
     if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
         sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
     if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:  # what the data are, without why it matters

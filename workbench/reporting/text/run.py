@@ -118,52 +118,24 @@ def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
     return "\n".join(lines)
 
 
-def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Mapping]) -> str:
-    """One sentence on the paper's two claims, first in what a run prints, each decided by the interval of its
-    ratio (:func:`workbench.reporting.findings.run_summary.claims_text`): QE better than H (H/QE above 1) and QE within the
-    paper's 1.16 of PCA (QE/PCA at most 1.16).
-
-    Taken on the variants at the paper's regime m = n scored on their training frames (those of
-    ``basis.paper_regime``), else on the first variant scored on its training frames, with least squares and the
-    headline alpha (``metric.headline_*``).
+def reproduced_sentence(claims: Mapping | None) -> str:
+    """One sentence on the paper's two claims, first in what a run prints: the verdicts the run stored
+    (:func:`workbench.study.claims.claims_at_m_equals_n`) on the training frames at m = n, with their intervals,
+    and each held-out protocol's (:func:`workbench.reporting.findings.claims.claims_sentence`).
 
     Parameters
     ----------
-    results : sequence of workbench.study.results.StudyResult
-    cfg : mapping
-        The resolved study config (``metric``).
-    ratios : mapping
-        Data variant -> its claims' ratios (:func:`workbench.study.summary.claim_ratios`).
+    claims : mapping or None
+        The run's ``claims`` (as ``metrics.json`` keeps them).
 
     Returns
     -------
     str
-        One line (empty when no chosen variant has both ratios).
+        One line (empty without claims).
     """
-    from workbench.reporting.findings.run_summary import claims_text
-    from workbench.study.summary import headline_column
+    from workbench.reporting.findings.claims import claims_sentence
 
-    column = headline_column(cfg)
-    trained = [result for result in results if result.protocol == "training frames"]
-    chosen = [r for r in trained if r.eigenfaces.n_components_ == len(r.capture.hand_names)] or trained[:1]
-    identities = result_identities(chosen)
-    parts = []
-    for result in chosen:
-        found = ratios.get(result.data) or {}
-        if not found:
-            continue
-        spans = next(
-            (
-                item.reason
-                for item in identities[result.data]
-                if (item.smaller, item.larger) == (("QE", "lstsq"), ("PCA", "projection"))
-            ),
-            None,
-        )
-        parts.append(
-            f"on {result.data} (m = {result.eigenfaces.n_components_}, lstsq, {column}): {claims_text(found, spans is not None)}"
-        )
-    return f"The paper's claims, {'; '.join(parts)}." if parts else ""
+    return claims_sentence(claims)
 
 
 def study_header(results: Sequence, cfg: Mapping) -> str:
@@ -403,38 +375,6 @@ def conditioning_lines(rows: Sequence) -> list[str]:
     return ([f"  bases: {'; '.join(parts)}"] if parts else []) + warnings
 
 
-def result_identities(results: Sequence) -> dict:
-    """Data variant -> the orderings its rows hold by construction
-    (:func:`workbench.stats.identities.run_identities`), from the results as ``metrics.json`` would keep them.
-
-    Parameters
-    ----------
-    results : sequence of workbench.study.results.StudyResult
-    """
-    from workbench.stats.identities import run_identities
-
-    found = {}
-    for result in results:
-        rows = [
-            {
-                "basis": row.basis,
-                "solver": row.solver,
-                "n": row.n_shapes,
-                "train_on": result.train_on or result.data,
-                "eval_on": result.eval_on or result.data,
-                "basis_conditioning": row.conditioning.as_dict() if row.conditioning else None,
-            }
-            for row in result.rows
-        ]
-        facts = {
-            "pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
-            "protocol": result.protocol,
-            "notes": list(result.capture.notes),
-        }
-        found[result.data] = run_identities(rows, facts)
-    return found
-
-
 PAPER_ALPHA_NOTE = (
     "paper_alpha is Kim & Ko's own capture (35,000 frames, 66 markers), its own coordinate origin and "
     "absolute alpha: absolute alpha divides by |v*| and so moves with where the origin lies, and "
@@ -465,7 +405,7 @@ def headline(
     comparisons : mapping, optional
         Data variant -> its paired comparisons (:func:`workbench.study.summary.frame_comparisons`).
     identities : mapping, optional
-        Data variant -> the orderings that hold by construction (:func:`result_identities`): printed ``<=`` with
+        Data variant -> the orderings that hold by construction (:func:`workbench.study.claims.result_identities`): printed ``<=`` with
         their reason, never tested.
 
     Returns
