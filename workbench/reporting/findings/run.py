@@ -21,6 +21,8 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.core.solvers import constrained_solvers, solver_text
+from workbench.reporting.findings.claims import NO_CLAIMS, NOT_TESTED, entry_text, lead_entries
+from workbench.reporting.findings.claims import m_text as claims_m_text
 from workbench.reporting.findings.comparisons import (
     adjusted_comparisons,
     finite_value,
@@ -35,6 +37,7 @@ from workbench.stats.statistics import (
     short_interval_text,
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
+from workbench.study.claims import base_variant
 from workbench.study.regime import is_paper_regime, paper_regime_name
 
 PAPER_BASES = ("H", "QE", "PCA")
@@ -521,6 +524,7 @@ def run_findings(
     parts = dict(list(table.groupby("data", sort=False)))
     adjusted = adjusted_comparisons(metrics)
     lines = [multiplicity_text(metrics)] if adjusted else []
+    lines += claims_lines(metrics)
     trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
     detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 else None
     said = {"paper": False}  # the paper's ratios: said on the first line that gives ratios
@@ -569,6 +573,24 @@ def run_findings(
         lines += _detail_lines(data, part, column, solvers, compare, facts, rows, intuitiveness.get(data, []), settings)
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
+
+
+def claims_lines(metrics: Mapping) -> list[str]:
+    """The paper's two claims as the run stored them (:mod:`workbench.study.claims`), one line per protocol of the
+    lead variant: the same verdicts as the summary and the first printed sentence; nothing is decided here."""
+    claims = metrics.get("claims")
+    if not metrics.get("rows"):
+        return []
+    if not claims:
+        return [f"**the paper's claims**: {NO_CLAIMS}."]
+    entries = lead_entries(claims, base_variant(primary_data(metrics) or ""))
+    if not entries:
+        return [f"**the paper's claims**: {claims.get('not_tested') or NOT_TESTED}."]
+    return [
+        f"**the paper's claims** on {entry['data']} ({entry['protocol_text']}, {claims_m_text(entry)}, "
+        f"`{claims['column']}`, {claims['solver']}): {entry_text(entry)}."
+        for entry in entries
+    ]
 
 
 def _ratios(part: pd.DataFrame, paper: Mapping, column: str, spread: bool, said: dict, error="", settings=None) -> str:
