@@ -4,6 +4,7 @@ most tests run, the ``cli`` command run in-process, the suite's servers, and the
 import json
 import os
 import signal
+import sys
 from pathlib import Path
 
 import pytest
@@ -51,10 +52,12 @@ def signal_handlers_kept():
     behind is inherited by every child process a later test starts, which then cannot be terminated."""
     numbers = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     saved = {number: signal.getsignal(number) for number in numbers}
+    hook = sys.unraisablehook
     yield
     for number, handler in saved.items():
         if handler is not None and signal.getsignal(number) is not handler:
             signal.signal(number, handler)
+    sys.unraisablehook = hook
 
 
 def scope_of(nodeid: str) -> str:
