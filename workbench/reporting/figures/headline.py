@@ -3,10 +3,10 @@
 Left, the headline alpha of H, QE and PCA with least squares (PCA by projection) at the paper's regime (m = n, the
 record's lead data variant) and, beside it, with the coverage rule, each level with the 95 % batch-means interval
 of its mean over the frames (:func:`workbench.stats.statistics.batch_means_interval`; mean-of-frames columns only).
-Right, the paper's two claims as paired differences on the same frames, QE - H and QE - PCA, with the intervals
-the report's comparisons table holds; a difference that holds by construction (:mod:`workbench.stats.identities`)
-is drawn at its measured size with its interval too, as a diamond marked "by construction": its sign is no test
-verdict, its size is measured.
+Right, the paper's two claims as the run stored them (``metrics.json`` ``claims``, :mod:`workbench.study.claims`):
+H/QE and QE/PCA at m = n on a log axis with 1, the paper's 7.2 and 1.16 and claim 2's margin marked, the training
+frames and each held-out protocol side by side, each with its interval and its verdict word, the same as the
+summary's (nothing is decided here). A ratio that is not estimable is drawn as an open marker without bounds.
 """
 
 from __future__ import annotations
@@ -20,17 +20,15 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 from workbench.reporting.figures import OKABE_ITO, basis_colour, new_figure, wrap_title
-from workbench.stats.identities import identity_lookup, run_identities
-from workbench.stats.statistics import Interval, batch_means_interval, comparison_lookup
+from workbench.reporting.findings.claims import NOT_ESTIMABLE, NOT_TESTED, PAPER_RATIOS, lead_entries
+from workbench.stats.statistics import Interval, batch_means_interval
+from workbench.study.claims import base_variant
 from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
 
 HEADLINE_BASES = (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
-CONTRASTS = ((("QE", "lstsq"), ("H", "lstsq")), (("QE", "lstsq"), ("PCA", "projection")))
 PER_FRAME = {"alpha_abs_mean": "absolute", "alpha_disp_mean": "displacement"}
 """Headline columns that are means over frames, and the per-frame array (``alpha_per_frame.npz``) behind each."""
 VARIANT_MARKERS = ("o", "s")
-IDENTITY_MARKER = "D"
-"""The marker of a paired difference that holds by construction (drawn at its measured size, not tested)."""
 
 
 def headline_variants(metrics: Mapping) -> list[str]:
@@ -82,8 +80,7 @@ def headline_tables(
         ``data``, ``contrast`` (``QE - H``), ``estimate``, ``low``, ``high``, ``identity`` (the reason it holds by
         construction, or empty).
     """
-    levels, contrasts = [], []
-    rows = metrics.get("rows") or []
+    levels = []
     for data in headline_variants(metrics):
         part = table[table["data"] == data]
         if part.empty:
@@ -106,25 +103,31 @@ def headline_tables(
                     "high": interval.high if interval else math.nan,
                 }
             )
-        facts = (metrics.get("data") or {}).get(data) or {}
-        compare = comparison_lookup(facts.get("comparisons") or [])
-        identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
-        for a, b in CONTRASTS:
-            found = identity(a, b)
-            interval = compare(a, b)
-            if interval is None and found is None:
-                continue
-            contrasts.append(
+    return pd.DataFrame.from_records(levels), claim_table(metrics)
+
+
+def claim_table(metrics: Mapping) -> pd.DataFrame:
+    """The stored claims of the lead variant, one row per ratio and protocol: ``ratio`` (``H/QE``, ``QE/PCA``),
+    ``protocol`` (its text), ``estimate``, ``low``, ``high`` (NaN where not estimable or not tested), ``verdict``
+    and ``margin`` (claim 2's)."""
+    records = []
+    data = headline_variants(metrics)[:1]
+    for entry in lead_entries(metrics.get("claims"), base_variant(data[0]) if data else None):
+        for name in ("H/QE", "QE/PCA"):
+            stored = entry[name]
+            informs = stored["verdict"] not in (NOT_ESTIMABLE, NOT_TESTED)
+            records.append(
                 {
-                    "data": data,
-                    "contrast": f"{a[0]} - {b[0]}",
-                    "estimate": interval.estimate if interval else math.nan,
-                    "low": interval.low if interval else math.nan,
-                    "high": interval.high if interval else math.nan,
-                    "identity": "" if found is None else "by construction",
+                    "ratio": name,
+                    "protocol": entry["protocol_text"],
+                    "estimate": stored["estimate"],
+                    "low": stored["low"] if informs else math.nan,
+                    "high": stored["high"] if informs else math.nan,
+                    "verdict": stored["verdict"],
+                    "margin": stored.get("margin", math.nan),
                 }
             )
-    return pd.DataFrame.from_records(levels), pd.DataFrame.from_records(contrasts)
+    return pd.DataFrame.from_records(records)
 
 
 def variant_label(levels: pd.DataFrame, data: str) -> str:
@@ -141,8 +144,8 @@ def variant_label(levels: pd.DataFrame, data: str) -> str:
 
 
 def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, title: str) -> Figure:
-    """The two panels: levels with their intervals per basis and variant (log scale), and the paired differences
-    QE - H and QE - PCA with theirs (an identity as a diamond at its measured size, labelled so)."""
+    """The two panels: levels with their intervals per basis and variant (log scale), and the stored claims, H/QE
+    and QE/PCA per protocol on a log axis with 1, 7.2, 1.16 and the margin marked (:func:`draw_claims`)."""
     figure = new_figure(9.0, 4.2)
     left, right = figure.subplots(1, 2, width_ratios=[1.1, 1.0])
     variants = list(dict.fromkeys(levels["data"]))
@@ -186,59 +189,71 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     left.yaxis.set_minor_formatter(NullFormatter())
     left.grid(axis="y", which="both", alpha=0.3)
     figure.legend(loc="outside lower center", ncols=len(variants), fontsize=9, frameon=False)
-    names = list(dict.fromkeys(contrasts["contrast"])) if len(contrasts) else []
-    for k, data in enumerate(variants):
-        part = contrasts[contrasts["data"] == data] if len(contrasts) else contrasts
-        for row in part.to_dict("records"):
-            draw_contrast(right, row, names.index(row["contrast"]) - offsets[k], k)
-    if len(contrasts) and contrasts["identity"].astype(bool).any():
-        right.plot(
-            [], [], IDENTITY_MARKER, color=OKABE_ITO["black"], mfc="#999999", label="holds by construction, not tested"
-        )
-        right.legend(loc="best", fontsize=8, frameon=False, handletextpad=0.3)
-    right.axvline(0.0, color=OKABE_ITO["black"], lw=0.8)
-    right.set_yticks(range(len(names)), names)
-    right.set_ylim(len(names) - 0.5, -0.5)
-    right.set_xlabel(f"paired difference in {column} (%)")
-    right.set_title("the paper's claims: below 0 = QE better", fontsize=10)
-    right.grid(axis="x", alpha=0.3)
+    draw_claims(right, contrasts)
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
 
 
-def draw_contrast(ax, row: Mapping, y: float, k: int) -> None:
-    """One paired difference at its measured estimate with its 95 % interval; one that holds by construction
-    (``row["identity"]``) with a diamond and the words beside it, as an identity has a size too (only when the
-    run stored no interval for it is it named at 0 without a marker)."""
+def draw_claims(ax, claims: pd.DataFrame) -> None:
+    """The stored claims (:func:`claim_table`) on a log axis: one line per ratio and protocol, the estimate with its
+    interval and the verdict word beside it; vertical lines at 1, the paper's 7.2 and 1.16, and claim 2's margin."""
+    if claims.empty:
+        ax.text(0.5, 0.5, "no stored claims", ha="center", va="center", transform=ax.transAxes, fontsize=9)
+        ax.set_axis_off()
+        return
     shade = OKABE_ITO["black"]
-    measured = not math.isnan(row["estimate"])
-    if row["identity"]:
+    labels = [f"{row['ratio']}, {row['protocol']}" for row in claims.to_dict("records")]
+    for y, row in enumerate(claims.to_dict("records")):
+        informs = math.isfinite(row["low"]) and math.isfinite(row["high"])
+        estimate = row["estimate"] if math.isfinite(row["estimate"]) and row["estimate"] > 0 else 1.0
+        bounds = np.array([[estimate - row["low"]], [row["high"] - estimate]]) if informs else None
+        ax.errorbar(
+            estimate,
+            y,
+            xerr=bounds,
+            fmt="o" if row["ratio"] == "H/QE" else "s",
+            color=shade,
+            mfc=shade if informs else "white",
+            mew=1.5,
+            ms=7,
+            capsize=4,
+            lw=1.5,
+        )
         ax.annotate(
-            "by construction" if measured else "<= 0 by construction (not measured)",
-            (row["estimate"] if measured else 0.0, y),
-            # outward from the other variant's marker of the same difference (the lead variant is drawn lower)
-            xytext=(0, -8 if k == 0 else 8),
+            row["verdict"],
+            (row["high"] if informs else estimate, y),
+            xytext=(6, 0),
             textcoords="offset points",
-            ha="center" if measured else "right",
-            va="top" if k == 0 else "bottom",
+            va="center",
             fontsize=8,
             color=shade,
         )
-    if not measured:
-        return
-    bounds = np.array([[row["estimate"] - row["low"]], [row["high"] - row["estimate"]]])
-    ax.errorbar(
-        row["estimate"],
-        y,
-        xerr=None if math.isnan(row["low"]) else bounds,
-        fmt=IDENTITY_MARKER if row["identity"] else VARIANT_MARKERS[k % 2],
-        color=shade,
-        mfc=shade if k == 0 else "white",
-        mew=1.5,
-        ms=7,
-        capsize=4,
-        lw=1.5,
+    ax.axvline(1.0, color=shade, lw=0.9)
+    ax.axvline(PAPER_RATIOS["H/QE"], color=OKABE_ITO["vermillion"], lw=1.0, ls="--", label="paper H/QE 7.2")
+    ax.axvline(PAPER_RATIOS["QE/PCA"], color=OKABE_ITO["blue"], lw=1.0, ls=":", label="paper QE/PCA 1.16")
+    margins = claims["margin"].dropna()
+    if len(margins):
+        ax.axvline(
+            float(margins.iloc[0]),
+            color=OKABE_ITO["blue"],
+            lw=1.0,
+            ls="-.",
+            label=f"claim 2 margin {margins.iloc[0]:g}",
+        )
+    ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    ax.set_ylim(len(labels) - 0.5, -0.5)
+    ax.set_xlabel("ratio of alphas at m = n (log scale)")
+    values = pd.concat([claims["low"], claims["high"], claims["estimate"]]).dropna()
+    values = values[values > 0]
+    ax.set_xlim(
+        min(0.5, 0.7 * values.min()) if len(values) else 0.5, max(12.0, 1.4 * values.max()) if len(values) else 12.0
     )
+    ax.set_title("the paper's claims (stored), m = n", fontsize=10)
+    ax.grid(axis="x", which="major", alpha=0.3)
+    ax.legend(loc="lower right", fontsize=7, frameon=True, framealpha=0.9)
 
 
 def headline_spec(record, column: str, label: str) -> tuple:
@@ -265,9 +280,9 @@ def headline_spec(record, column: str, label: str) -> tuple:
         f"`{column}` of H, QE (lstsq) and PCA (projection) on the lead data variant (filled: the paper's "
         "regime m = n when the run has it) and with the coverage rule beside it (open); left: each level with "
         "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only); right: "
-        "the paired differences QE - H and QE - PCA on the same frames with their 95 % intervals (the primary "
-        "contrasts; every number in the table 'Paired comparisons within the run'). A diamond marks a difference "
-        "that holds by construction (an identity such as QE spanning PCA's subspace): drawn at its measured size with "
-        "its interval, its sign is no test verdict."
+        "the paper's two claims as the run stored them, H/QE (circles) and QE/PCA (squares) at m = n on the training "
+        "frames and each held-out protocol, with their 95 % intervals and verdicts (the summary's; log scale; "
+        "lines at 1, the paper's 7.2 and 1.16, and claim 2's margin). An open marker without bounds: not "
+        "estimable or not tested (the summary says why)."
     )
     return ("headline", "The paper's comparison, with intervals", caption, draw)
