@@ -206,13 +206,13 @@ def _fold_ratio(result, pair, metric: Mapping) -> tuple[Interval, dict]:
 
 
 def rests_on_text(interval: Interval, rests: Mapping) -> str:
-    """``800 frames of 1 take, 3 batches of 267 frames, 3 degrees of freedom``: what one interval rests on."""
+    """``800 frames of 1 take, 3 batches of 267, 2.996 degrees of freedom``: what one interval rests on."""
     takes = rests.get("takes") or 0
     of_takes = f" of {takes} take{'s' if takes != 1 else ''}" if takes else ""
     degrees = f", {interval.degrees:.4g} degrees of freedom" if math.isfinite(interval.degrees) else ""
     if rests.get("unit") == "folds":
         return f"{rests['folds']} folds ({rests['frames']} held-out frames{of_takes}), paired t on log ratios{degrees}"
-    return f"{rests['frames']} frames{of_takes}, {rests['batches']} batches of {rests['batch_frames']} frames{degrees}"
+    return f"{rests['frames']} frames{of_takes}, {rests['batches']} batches of {rests['batch_frames']}{degrees}"
 
 
 def not_estimable_reason(interval: Interval, rests: Mapping, min_degrees: float = MIN_DEGREES) -> str:

@@ -58,11 +58,16 @@ def ratio_text(entry: Mapping, name: str) -> str:
     return f"{name} {number(entry['estimate'])} [{number(entry['low'])}, {number(entry['high'])}]"
 
 
+def why_short(stored: Mapping) -> str:
+    """Why a ratio is not estimable, without what its interval rests on (said once, per interval, elsewhere)."""
+    return stored["why_not_estimable"].split(" (", 1)[0]
+
+
 def first_claim_text(entry: Mapping) -> str:
     """Claim 1 on one protocol: ``QE better than H: reproduced, H/QE 2.05 [1.31, 3.23] above 1; the paper's 7.2 lies
     above the interval`` (direction, then size)."""
     if entry["verdict"] == NOT_ESTIMABLE:
-        return f"{CLAIM_1}: {NOT_ESTIMABLE} (H/QE: {entry['why_not_estimable']})"
+        return f"{CLAIM_1}: {NOT_ESTIMABLE}: H/QE {why_short(entry)}"
     where = {REPRODUCED: "above 1", REVERSED: "below 1", NOT_DECIDED: "holds 1"}[entry["verdict"]]
     size = {ABOVE: "above", BELOW: "below"}.get(entry["size"], "inside")
     return (
@@ -78,7 +83,7 @@ def second_claim_text(entry: Mapping) -> str:
     if entry["verdict"] == NOT_TESTED:
         return f"{CLAIM_2}: {NOT_TESTED}: {entry['not_tested']}"
     if entry["verdict"] == NOT_ESTIMABLE:
-        return f"{head}: {NOT_ESTIMABLE} (QE/PCA: {entry['why_not_estimable']})"
+        return f"{head}: {NOT_ESTIMABLE}: QE/PCA {why_short(entry)}"
     consistency = (
         "lies inside the interval"
         if entry["consistency"] not in (ABOVE, BELOW)
@@ -101,12 +106,15 @@ def short_ratio_text(stored: Mapping, name: str) -> str:
     if stored["verdict"] == NOT_TESTED:
         return f"{name} {NOT_TESTED}"
     if stored["verdict"] == NOT_ESTIMABLE:
-        return f"{name} {NOT_ESTIMABLE} ({stored['why_not_estimable'].split(' (', 1)[0]})"
+        return f"{name} {NOT_ESTIMABLE}: {why_short(stored)}"
     return f"{ratio_text(stored, name)} {stored['verdict']}"
 
 
 def short_entry_text(entry: Mapping) -> str:
     """Both claims on one protocol in a few words (:func:`short_ratio_text`)."""
+    one, two = entry["H/QE"], entry["QE/PCA"]
+    if one["verdict"] == two["verdict"] == NOT_ESTIMABLE and why_short(one) == why_short(two):
+        return f"H/QE and QE/PCA {NOT_ESTIMABLE}: {why_short(one)}"
     return f"{short_ratio_text(entry['H/QE'], 'H/QE')}, {short_ratio_text(entry['QE/PCA'], 'QE/PCA')}"
 
 
@@ -170,28 +178,38 @@ def agreement_sentence(entries: Sequence[Mapping]) -> str:
     if training is None or not held:
         return ""
     differ = []
-    for entry in held:
-        for name, claim in (("H/QE", "claim 1"), ("QE/PCA", "claim 2")):
-            if entry[name]["verdict"] != training[name]["verdict"]:
-                differ.append(
-                    f"{claim} {entry[name]['verdict']} on the {entry['protocol_text'].removeprefix('held-out ')}"
-                )
+    for name, claim in (("H/QE", "claim 1"), ("QE/PCA", "claim 2")):
+        where = [
+            entry["protocol_text"].removeprefix("held-out ")
+            for entry in held
+            if entry[name]["verdict"] != training[name]["verdict"]
+        ]
+        if where:
+            differ.append(f"{claim} ({training[name]['verdict']} there) on the " + " and the ".join(where))
     if not differ:
         return "Held out, every protocol gives the training frames' verdicts."
-    return (
-        f"Held out differs from the training frames ({CLAIM_1} {training['H/QE']['verdict']}, {CLAIM_2} "
-        f"{training['QE/PCA']['verdict']}): " + ", ".join(differ) + "."
-    )
+    return "Held out disagrees with the training frames on " + "; ".join(differ) + "."
+
+
+def compact_rests_on(stored: Mapping) -> str:
+    """``1500 frames, 17 batches, 24.3 degrees of freedom`` / ``5 folds of 1500 frames, 4 degrees of freedom``."""
+    degrees = stored.get("degrees", math.nan)
+    said = f", {degrees:.4g} degrees of freedom" if math.isfinite(degrees) else ", no degrees of freedom"
+    if stored.get("unit") == "folds":
+        return f"{stored['folds']} folds of {stored['frames']} frames{said}"
+    takes = stored.get("takes") or 0
+    of_takes = f" of {takes} takes" if takes > 1 else ""
+    return f"{stored['frames']} frames{of_takes}, {stored['batches']} batches{said}"
 
 
 def rests_on_sentence(entries: Sequence[Mapping], confidence: float = 0.95) -> str:
-    """``Intervals (95 %) rest on: training frames: H/QE 300 frames of 1 take, ...; QE/PCA ...``: each interval's
-    own frames, batches (or folds) and degrees of freedom."""
+    """``Intervals (95 %) rest on: training frames H/QE 1500 frames, 17 batches, 24.3 degrees of freedom, QE/PCA
+    ...``: each interval's own frames, batches (or folds) and degrees of freedom."""
     parts = []
     for entry in entries:
-        one, two = entry["H/QE"]["rests_on"], entry["QE/PCA"]["rests_on"]
-        said = f"H/QE and QE/PCA {one}" if one == two else f"H/QE {one}; QE/PCA {two}"
-        parts.append(f"{entry['protocol_text']}: {said}")
+        one, two = compact_rests_on(entry["H/QE"]), compact_rests_on(entry["QE/PCA"])
+        said = f"both {one}" if one == two else f"H/QE {one}, QE/PCA {two}"
+        parts.append(f"{entry['protocol_text'].removeprefix('held-out ')} {said}")
     return f"Intervals ({100 * confidence:g} %) rest on: " + "; ".join(parts) + "." if parts else ""
 
 

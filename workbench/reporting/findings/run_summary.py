@@ -46,7 +46,9 @@ def held_out_claims_text(entries: Sequence[Mapping]) -> str:
     """``Held out at m = n: held-out tail of each take (m = 18): QE better than H: ...; ...``: every held-out
     protocol's stored claims."""
     parts = [
-        f"{entry['protocol_text'].removeprefix('held-out ')} ({m_text(entry)}): {short_entry_text(entry)}"
+        f"{entry['protocol_text'].removeprefix('held-out ')}"
+        + (f" ({m_text(entry)})" if len(set(entry["m"])) > 1 else "")
+        + f": {short_entry_text(entry)}"
         for entry in entries
         if entry["protocol"] != TRAINING
     ]
@@ -163,11 +165,15 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         rests_on_sentence(entries) + (f" {takes_said[0].upper()}{takes_said[1:]}." if takes_said else ""),
         f"Caveat: {caveats[0]}." if caveats else "",
     ]
-    # within the budget: the coverage rule's sentence goes first, then the caveat's last clause, then its reason
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS:
-        sentences[4] = ""
+    # within the budget: the coverage rule's sentence goes first, then the conditioning, then the caveat's last
+    # clause, then its reason; the claims and what each interval rests on stay
+    for index in (4, 5):
+        if len(" ".join(sentences).split()) > SUMMARY_WORDS:
+            sentences[index] = ""
     if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
         sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
     if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:  # what the data are, without why it matters
         sentences[-1] = f"Caveat: {caveats[0].split(': ', 1)[0]}."
+    if len(" ".join(sentences).split()) > SUMMARY_WORDS:  # the findings keep every caveat
+        sentences[-1] = ""
     return " ".join(sentence for sentence in sentences if sentence)
