@@ -176,7 +176,10 @@ def test_single_run_job_name_and_log(tmp_path, cli):
     assert result.returncode == 0, result.stderr
     [run_dir] = (tmp_path / "out" / "paper").iterdir()
     assert (run_dir / "workbench.log").read_text() == result.stdout
-    assert result.stdout.startswith("The paper's claims, on markers m=n") and "| QE " in result.stdout
+    assert (
+        result.stdout.startswith("The paper's claims at m = n (lstsq, alpha_abs_mean), on markers m=n")
+        and "| QE " in result.stdout
+    )
     assert "\nStudy 'paper' on synthetic actor" in result.stdout
     assert result.stdout.endswith(f"\nrecord: {run_dir}\n")
     assert not (run_dir / ".hydra").exists(), "the record keeps the config; Hydra writes nothing into a run folder"

@@ -1,72 +1,86 @@
-"""What a run prints first: one sentence on the paper's two claims, each decided by the interval of its ratio, and
-text that fits in 120 columns unless ``--wide`` is asked for."""
-
-from types import SimpleNamespace
+"""What a run prints first: one sentence on the paper's two claims as the run stored them, and text that fits in 120
+columns unless ``--wide`` is asked for."""
 
 import pytest
 from in_process import run_workbench
 
 from workbench.reporting.text.run import PRINT_WIDTH, fit_width, reproduced_sentence
+from workbench.stats.statistics import Interval
+from workbench.study.claims import CLAIM_MARGIN, claim_entry
 
-PAPER = {"paper": {"alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}, "metric": {}}
-
-
-def result(data, m, protocol="training frames", n=18, rank=18):
-    rows = [
-        SimpleNamespace(
-            basis=basis, solver=solver, n_shapes=n, conditioning=SimpleNamespace(as_dict=lambda: {"rank": rank})
-        )
-        for basis, solver in (("H", "lstsq"), ("QE", "lstsq"), ("PCA", "projection"))
-    ]
-    return SimpleNamespace(
-        data=data,
-        protocol=protocol,
-        rows=rows,
-        train_on=data,
-        eval_on=data,
-        eigenfaces=SimpleNamespace(n_components_=m, method_="covariance"),
-        capture=SimpleNamespace(hand_names=("shape",) * n, notes=()),
-    )
+RESTS = {"unit": "frames", "frames": 900, "takes": 1, "batch_frames": 90, "batches": 10, "folds": 0, "persistence": 0.9}
 
 
-def ratios(h_over_qe, qe_over_pca):
+def entry(data, protocol, h_over_qe, qe_over_pca, construction=""):
+    def stored(name, bounds):
+        interval = Interval(sum(bounds) / 2, *bounds, n=900, null=1.0, degrees=12.0)
+        return claim_entry(name, interval, RESTS, "alpha_abs_mean", CLAIM_MARGIN, construction)
+
     return {
-        name: {"estimate": sum(bounds) / 2, "low": bounds[0], "high": bounds[1], "null": 1.0}
-        for name, bounds in (("H/QE", h_over_qe), ("QE/PCA", qe_over_pca))
+        "data": data,
+        "base": "markers",
+        "protocol": protocol,
+        "protocol_text": {"training": "training frames", "tail": "held-out tail of each take"}[protocol],
+        "m": [18],
+        "n": 18,
+        "H/QE": stored("H/QE", h_over_qe),
+        "QE/PCA": stored("QE/PCA", qe_over_pca),
     }
+
+
+def claims(*entries):
+    return {"column": "alpha_abs_mean", "solver": "lstsq", "margin": CLAIM_MARGIN, "entries": list(entries)}
 
 
 @pytest.mark.parametrize(
     "h_over_qe, first, qe_over_pca, second",
     [
-        ((1.5, 2.5), "reproduced, H/QE 2 [1.5, 2.5]; the paper's 7.2 lies above it", (1.0, 1.1), "reproduced"),
-        ((0.9, 3.1), "not decided, H/QE 2 [0.9, 3.1]; the paper's 7.2 lies above it", (1.1, 1.3), "not decided"),
+        (
+            (1.5, 2.5),
+            "reproduced, H/QE 2.00 [1.50, 2.50] above 1; the paper's 7.2 lies above",
+            (1.0, 1.1),
+            "reproduced",
+        ),
+        (
+            (0.9, 3.1),
+            "not decided, H/QE 2.00 [0.900, 3.10] holds 1; the paper's 7.2 lies above",
+            (1.1, 1.6),
+            "not decided",
+        ),
         (
             (0.5, 0.9),
-            "not reproduced, H/QE 0.7 [0.5, 0.9]; the paper's 7.2 lies above it",
-            (1.2, 1.4),
+            "reversed, H/QE 0.700 [0.500, 0.900] below 1; the paper's 7.2 lies above",
+            (1.6, 1.8),
             "not reproduced",
         ),
-        ((5.0, 9.0), "reproduced, H/QE 7 [5, 9]; the paper's 7.2 lies within it", (1.2, 1.4), "not reproduced"),
+        (
+            (5.0, 9.0),
+            "reproduced, H/QE 7.00 [5.00, 9.00] above 1; the paper's 7.2 lies inside",
+            (1.2, 1.4),
+            "reproduced",
+        ),
     ],
 )
-def test_each_claim_is_decided_by_the_interval_of_its_ratio(h_over_qe, first, qe_over_pca, second):
-    results = [result("markers m=n", 18), result("markers", 13)]
-    sentence = reproduced_sentence(results, PAPER, {"markers m=n": ratios(h_over_qe, qe_over_pca)})
+def test_the_first_sentence_states_the_stored_verdicts(h_over_qe, first, qe_over_pca, second):
+    sentence = reproduced_sentence(claims(entry("markers m=n", "training", h_over_qe, qe_over_pca)))
     assert sentence.startswith(
-        f"The paper's claims, on markers m=n (m = 18, lstsq, alpha_abs_mean): QE better than H: {first}; "
-        f"QE nearly as accurate as PCA (QE/PCA <= 1.16): {second}, QE/PCA "
+        f"The paper's claims at m = n (lstsq, alpha_abs_mean), on markers m=n (m = 18): QE better than H: {first} "
+        f"the interval; QE nearly as accurate as PCA (QE/PCA <= 1.5): {second}, QE/PCA "
     )
 
 
-def test_qe_within_pca_by_construction_is_not_tested_and_held_out_variants_are_left_out():
-    held_out = result("markers held-out tail", 18, protocol="held-out tail of each take")
-    found = {"markers": ratios((1.5, 2.5), (0.9, 0.95)), "markers held-out tail": ratios((9, 10), (9, 10))}
-    # no variant at m = n: the first one scored on its training frames; QE's rank 14 = m + 1 spans PCA's subspace
-    sentence = reproduced_sentence([result("markers", 13, rank=14), held_out], PAPER, found)
-    assert "on markers (m = 13," in sentence and "held-out" not in sentence
-    assert "QE nearly as accurate as PCA (QE/PCA <= 1.16): holds by construction" in sentence
-    assert reproduced_sentence([result("markers", 13)], PAPER, {}) == ""
+def test_qe_within_pca_by_construction_is_not_tested_and_held_out_protocols_follow():
+    spans = "QE <= PCA holds by construction (rank m + 1)"
+    found = claims(
+        entry("markers m=n", "training", (1.5, 2.5), (0.9, 0.95), spans),
+        entry("markers held-out tail m=n", "tail", (0.8, 1.3), (1.0, 1.2)),
+    )
+    sentence = reproduced_sentence(found)
+    assert f"QE nearly as accurate as PCA: not tested at m = n: {spans}" in sentence
+    assert sentence.endswith(
+        "held-out tail of each take (m = 18): H/QE 1.05 [0.800, 1.30] not decided, QE/PCA 1.10 [1.00, 1.20] reproduced."
+    )
+    assert reproduced_sentence(None) == ""
 
 
 def test_long_lines_are_wrapped_and_tables_are_not():
@@ -81,7 +95,9 @@ def test_a_run_prints_its_verdict_first_within_120_columns_and_wide_on_request(t
     narrow = run_workbench(*arguments, "hydra.run.dir=narrow", cwd=tmp_path)
     assert narrow.returncode == 0, narrow.stderr
     lines = narrow.stdout.splitlines()
-    assert lines[0].startswith("The paper's claims, on markers m=n (m = 18, lstsq, alpha_abs_mean): QE better than H: ")
+    assert lines[0].startswith(
+        "The paper's claims at m = n (lstsq, alpha_abs_mean), on markers m=n (m = 18): QE better "
+    )
     assert max(len(line) for line in lines[:-1]) <= PRINT_WIDTH  # all but the record's path
     assert "| markers m=n | QE        | lstsq      | 18 |" in narrow.stdout and "err_mm_median" not in narrow.stdout
     wide = run_workbench(*arguments, "hydra.run.dir=wide", "--wide", cwd=tmp_path)
