@@ -727,13 +727,37 @@ def test_weights_of_a_rank_deficient_basis_are_labelled_minimum_norm():
 
 def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words():
     from workbench.reporting.findings.run_summary import run_summary
+    from workbench.stats.statistics import Interval
+    from workbench.study.claims import claim_entry
 
     metrics = known_metrics()
     facts = metrics["data"]["mesh"]
     facts.update(n_eval_frames=100, n_eval_takes=2, pca={"m": 10, "coverage_reached": 0.995})
-    facts["ratios"] = {
-        "H/QE": {"estimate": 4.0, "low": 3.0, "high": 5.0, "null": 1.0, "n": 100, "block_frames": 20},
-        "QE/PCA": {"estimate": 1.25, "low": 1.2, "high": 1.3, "null": 1.0, "n": 100, "block_frames": 20},
+    rests = {"unit": "frames", "frames": 100, "takes": 2, "batch_frames": 20, "batches": 5, "folds": 0}
+    metrics["claims"] = {
+        "column": "alpha_abs_mean",
+        "solver": "lstsq",
+        "margin": 1.5,
+        "entries": [
+            {
+                "data": "mesh",
+                "base": "mesh",
+                "protocol": "training",
+                "protocol_text": "training frames",
+                "m": [10],
+                "n": 18,
+                **{
+                    name: claim_entry(
+                        name,
+                        Interval(sum(bounds) / 2, *bounds, n=100, null=1.0, degrees=12.0),
+                        dict(rests, persistence=0.9),
+                        "alpha_abs_mean",
+                        1.5,
+                    )
+                    for name, bounds in (("H/QE", (3.0, 5.0)), ("QE/PCA", (1.2, 1.3)))
+                },
+            }
+        ],
     }
     for row in metrics["rows"]:
         if row["basis"] in ("H", "QE"):
@@ -749,11 +773,15 @@ def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words(
     assert len(text.split()) <= 200
     assert "On mesh (m = 10, n = 18: not the paper's regime (basis.n_components=18 gives it), coverage 0.9950)" in text
     assert (
-        "QE better than H: reproduced, H/QE 4 [3, 5]; the paper's 7.2 lies above it; QE nearly as accurate as PCA "
-        "(QE/PCA <= 1.16): not reproduced, QE/PCA 1.25 [1.2, 1.3]." in text
+        "QE better than H: reproduced, H/QE 4.00 [3.00, 5.00] above 1; the paper's 7.2 lies above the interval; QE "
+        "nearly as accurate as PCA (QE/PCA <= 1.5): reproduced, QE/PCA 1.25 [1.20, 1.30]; the paper's 1.16 lies "
+        "below the interval." in text
     )
     assert "H condition number 30, largest |w| 2; QE condition number 5e+04, largest |w| 4.8e+03" in text
-    assert "Intervals (95 %) rest on 100 frames of 2 takes, batches of 20 frames" in text
+    assert (
+        "Intervals (95 %) rest on: training frames both 100 frames of 2 takes, 5 batches, 12 degrees of freedom."
+        in text
+    )
     assert "mm" not in text  # one metric: the headline alpha's ratios
     assert text.endswith(
         "Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
@@ -869,36 +897,40 @@ def test_headline_figure_shows_the_paper_regime_and_the_coverage_rule_with_inter
             for basis, alpha in (("H", 1.8), ("QE", 0.7), ("PCA", 0.52))
         ]
     )
-    contrasts = pd.DataFrame(
+    claims = pd.DataFrame(
         [
-            {"data": "markers m=n", "contrast": "QE - H", "estimate": -1.1, "low": -1.3, "high": -0.9, "identity": ""},
-            {"data": "markers m=n", "contrast": "QE - PCA", "estimate": 0.18, "low": 0.1, "high": 0.26, "identity": ""},
-            {"data": "markers", "contrast": "QE - H", "estimate": -1.2, "low": -1.4, "high": -1.0, "identity": ""},
+            {"ratio": "H/QE", "protocol": "training frames", "estimate": 2.6, "low": 2.2, "high": 3.1},
+            {"ratio": "QE/PCA", "protocol": "training frames", "estimate": 1.35, "low": 1.2, "high": 1.5},
+            {"ratio": "H/QE", "protocol": "held-out blocked k-fold", "estimate": 1.1, "low": 0.55, "high": 2.2},
             {
-                "data": "markers",
-                "contrast": "QE - PCA",
-                "estimate": -0.0094,
-                "low": -0.0153,
-                "high": -0.0036,
-                "identity": "by construction",
+                "ratio": "QE/PCA",
+                "protocol": "held-out blocked k-fold",
+                "estimate": 1.0,
+                "low": math.nan,
+                "high": math.nan,
             },
         ]
+    ).assign(
+        verdict=["reproduced", "reproduced", "not decided", "not estimable"],
+        margin=[math.nan, 1.5, math.nan, 1.5],
     )
     assert variant_label(levels, "markers m=n") == "m = n = 18 (H/QE 2.57, QE/PCA 1.35)"
     assert variant_label(levels, "markers") == "coverage rule, m = 10 (H/QE 2.57, QE/PCA 1.35)"
-    figure = figure_headline(levels, contrasts, "alpha_abs_mean", "The paper's comparison, with intervals: test")
+    figure = figure_headline(levels, claims, "alpha_abs_mean", "The paper's comparison, with intervals: test")
     left, right = figure.axes
     bars = [segment for collection in left.collections for segment in collection.get_segments()]
     assert len(bars) == 6 and all(segment[:, 1].min() > 0 for segment in bars)  # every level with its interval
     assert sorted(
         round(float(segment[:, 1].max()) / float(segment[:, 1].min()), 6) for segment in bars
     ) == pytest.approx([1.5] * 6)
-    # the identity is drawn at its measured size with its interval, as a diamond named so, not at 0
-    assert any(text.get_text() == "by construction" for text in right.texts)
-    diamonds = [line for line in right.lines if line.get_marker() == "D" and len(line.get_xdata())]
-    assert len(diamonds) == 1 and float(diamonds[0].get_xdata()[0]) == pytest.approx(-0.0094, abs=1e-12)
+    # the stored claims on a log axis: each verdict beside its ratio, 1, 7.2, 1.16 and the margin marked
+    assert right.get_xscale() == "log"
+    assert [text.get_text() for text in right.texts] == claims["verdict"].tolist()
+    vertical = sorted(round(float(line.get_xdata()[0]), 2) for line in right.lines if line.get_linestyle() != "None")
+    assert vertical == [1.0, 1.16, 1.5, 7.22]
     spans = [segment[:, 0] for collection in right.collections for segment in collection.get_segments()]
-    assert any(span.min() == pytest.approx(-0.0153) and span.max() == pytest.approx(-0.0036) for span in spans)
+    assert len(spans) == 3  # not estimable: no bounds drawn
+    assert any(span.min() == pytest.approx(0.55) and span.max() == pytest.approx(2.2) for span in spans)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     renderer = FigureCanvasAgg(figure).get_renderer()

@@ -21,7 +21,7 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.core.solvers import constrained_solvers, solver_text
-from workbench.reporting.findings.claims import NO_CLAIMS, NOT_TESTED, entry_text, lead_entries
+from workbench.reporting.findings.claims import NOT_TESTED, entry_text, lead_entries
 from workbench.reporting.findings.claims import m_text as claims_m_text
 from workbench.reporting.findings.comparisons import (
     adjusted_comparisons,
@@ -579,10 +579,8 @@ def claims_lines(metrics: Mapping) -> list[str]:
     """The paper's two claims as the run stored them (:mod:`workbench.study.claims`), one line per protocol of the
     lead variant: the same verdicts as the summary and the first printed sentence; nothing is decided here."""
     claims = metrics.get("claims")
-    if not metrics.get("rows"):
+    if not claims:  # a record written before claims were kept: its summary says so
         return []
-    if not claims:
-        return [f"**the paper's claims**: {NO_CLAIMS}."]
     entries = lead_entries(claims, base_variant(primary_data(metrics) or ""))
     if not entries:
         return [f"**the paper's claims**: {claims.get('not_tested') or NOT_TESTED}."]
