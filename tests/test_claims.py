@@ -223,3 +223,26 @@ def test_every_ratio_and_interval_the_summary_prints_recomputes_from_the_per_fra
             recomputed.append((name, *(number(v) for v in value)))
     printed = FOUND.findall(summary)
     assert printed and sorted(printed) == sorted(recomputed), (printed, recomputed)
+
+
+def test_a_round_off_difference_is_an_equal_sign_without_an_interval():
+    from workbench.reporting.findings.comparisons import comparison_table
+
+    tie = Interval(-7.98e-19, -1.6e-18, 2.5e-20, n=800, method="batch means", null=0.0, scale=0.3, p_value=0.1)
+    metrics = {
+        "data": {"markers": {"comparisons": [{"a": ["QE", "nnls"], "b": ["QE-linear", "nnls"], **tie.as_dict()}]}},
+        "rows": [],
+    }
+    row = comparison_table(metrics).iloc[0]
+    assert row["verdict"] == "a = b (within the tie tolerance)"
+    assert all(math.isnan(row[key]) for key in ("a - b", "low", "high", "p"))
+
+
+def test_a_k_fold_variant_whose_folds_differ_names_every_fold_s_m():
+    import pandas as pd
+
+    from workbench.reporting.findings.run import fitted_m_text
+
+    part = pd.DataFrame({"m": [8.4]})
+    assert fitted_m_text(part, {"folds": {"m": [8, 9, 8, 8, 9]}}) == "m = [8, 9, 8, 8, 9]"
+    assert fitted_m_text(pd.DataFrame({"m": [8]}), {"folds": {"m": [8, 8]}}) == "m = 8"

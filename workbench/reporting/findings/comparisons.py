@@ -151,8 +151,10 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                 continue
             if found is not None:
                 verdict = f"{'a <= b' if lookup(a, b) else 'b <= a'} by construction ({found.reason})"
-            elif interval.tied:
+            elif interval.tied:  # round-off: '=', no interval beside it
                 verdict = "a = b (within the tie tolerance)"
+                records.append(tie_row(data, a, b, interval, verdict))
+                continue
             else:
                 verdict = {-1: "a < b", 1: "a > b", 0: "not distinguishable"}[interval.sign]
             records.append(
@@ -171,6 +173,25 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
                 }
             )
     return pd.DataFrame.from_records(records)
+
+
+def tie_row(data: str, a: tuple, b: tuple, interval: Interval, verdict: str) -> dict:
+    """A row of :func:`comparison_table` whose difference is round-off: '=' with no difference and no interval."""
+    return {
+        "data": data,
+        "a": " ".join(a),
+        "b": " ".join(b),
+        "a - b": math.nan,
+        "low": math.nan,
+        "high": math.nan,
+        "confidence": math.nan,
+        "p": math.nan,
+        "p (Holm)": math.nan,
+        "frames": interval.n,
+        "batch (frames)": interval.block_frames,
+        "batch (s)": interval.block_seconds,
+        "verdict": verdict,
+    }
 
 
 def claim_row(data: str, a: tuple, b: tuple, stored: Mapping) -> dict:

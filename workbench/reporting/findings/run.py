@@ -552,7 +552,7 @@ def run_findings(
             m_base = f"; training frames: m = {float(parts[base]['m'].iloc[0]):g}" if base in parts else ""
             lines.append(
                 Detail(
-                    f"**{data}** (m = {float(part['m'].iloc[0]):g}{m_base}): `{column}` from best to "
+                    f"**{data}** ({fitted_m_text(part, facts)}{m_base}): `{column}` from best to "
                     f"worst{claim}, {ordering}" + (f"; {text}" if text else "") + ".",
                     1,
                     "the table 'Training frames and held-out frames'",
@@ -573,6 +573,14 @@ def run_findings(
         lines += _detail_lines(data, part, column, solvers, compare, facts, rows, intuitiveness.get(data, []), settings)
     lines += [f"**caveat**: {caveat}." for caveat in caveat_texts(metrics)]
     return lines
+
+
+def fitted_m_text(part: pd.DataFrame, facts: Mapping) -> str:
+    """``m = 8``, or ``m = [8, 9, 8, 8, 9]`` for a cross-validated variant whose folds kept different m."""
+    folds = [int(m) for m in (facts.get("folds") or {}).get("m") or []]
+    if len(set(folds)) > 1:
+        return f"m = {folds}"
+    return f"m = {float(part['m'].iloc[0]):g}"
 
 
 def claims_lines(metrics: Mapping) -> list[str]:
