@@ -171,7 +171,7 @@ def _frame_ratio(result, pair, metric: Mapping) -> tuple[Interval, dict]:
     return interval, rests
 
 
-def _fold_means(result, pair, metric: Mapping) -> tuple[np.ndarray, np.ndarray]:
+def fold_headline_alphas(result, pair, metric: Mapping) -> tuple[np.ndarray, np.ndarray]:
     """Each fold's headline alpha of two rows, of shape (n_folds,): the mean of the fold's per-frame alphas (the
     pooled rows keep the folds' held-out frames in fold order), or the fold's pooled alpha."""
     normalisation, aggregate = metric["headline_normalisation"], metric["headline_aggregate"]
@@ -191,7 +191,7 @@ def _fold_means(result, pair, metric: Mapping) -> tuple[np.ndarray, np.ndarray]:
 def _fold_ratio(result, pair, metric: Mapping) -> tuple[Interval, dict]:
     """The ratio of two rows over the folds (paired t on log ratios of the folds' headline alphas), and what it
     rests on."""
-    a, b = _fold_means(result, pair, metric)
+    a, b = fold_headline_alphas(result, pair, metric)
     interval = paired_ratio_interval(a, b)
     rests = {
         "unit": "folds",

@@ -11,6 +11,7 @@ import numpy as np
 from workbench.numerics.intuitiveness import intuitiveness
 from workbench.stats.ratios import ratio_of_means, ratio_of_pooled
 from workbench.stats.statistics import paired_mean_difference, paired_pooled_difference, paired_ratio_interval
+from workbench.study.claims import fold_headline_alphas
 from workbench.study.results import StudyResult
 
 
@@ -149,7 +150,7 @@ CLAIM_ROWS = {"H/QE": (("H", "lstsq"), ("QE", "lstsq")), "QE/PCA": (("QE", "lsts
 
 def claim_ratios(result, metric: Mapping) -> dict:
     """``H/QE`` and ``QE/PCA`` (least squares) of a result in the run's headline alpha, each with its interval: over
-    the folds for a cross-validated variant (paired t on log ratios, pooled alpha), else batch means over the
+    the folds for a cross-validated variant (paired t on log ratios of each fold's headline alpha), else batch means over the
     evaluated frames (:mod:`workbench.stats.ratios`).
 
     Parameters
@@ -172,14 +173,9 @@ def claim_ratios(result, metric: Mapping) -> dict:
         if a not in index or b not in index:
             continue
         first, second = result.rows[index[a]].alpha, result.rows[index[b]].alpha
-        if result.folds:
-            column = headline_alpha_column(metric, "pooled")
-            fold_rows = [(basis, solver) for basis, _, solver in result.folds["rows"]]
-            values = result.folds[column]
-            found[claim] = {
-                "column": column,
-                **paired_ratio_interval(values[fold_rows.index(a)], values[fold_rows.index(b)]).as_dict(),
-            }
+        if result.folds:  # each fold's headline alpha, as the claims take it (workbench.study.claims)
+            values = fold_headline_alphas(result, (index[a], index[b]), metric)
+            found[claim] = {"column": headline_alpha_column(metric), **paired_ratio_interval(*values).as_dict()}
         elif aggregate == "mean":
             per_frame = [getattr(alpha, f"{normalisation}_per_frame") for alpha in (first, second)]
             found[claim] = {
