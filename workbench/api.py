@@ -555,7 +555,7 @@ def run(
     sentence = reproduced_sentence(claims)
     opening = fit_width(sentence) + "\n" if sentence else ""
     header = study_header(results, plain)
-    closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results))
+    closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results), claims)
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(

@@ -356,9 +356,12 @@ def headline(
     paper_alpha: Mapping[str, float],
     comparisons: Mapping[str, Sequence[Mapping]] | None = None,
     identities: Mapping[str, Sequence] | None = None,
+    claims: Mapping | None = None,
 ) -> str:
     """One line per solver: the configured alpha of every basis beside the paper's values; with ``comparisons``
-    the bases from best to worst, ``<`` only where the paired per-frame difference's interval excludes zero.
+    the bases from best to worst, ``<`` only where the paired per-frame difference's interval excludes zero, and,
+    with ``claims``, H against QE and QE against PCA (lstsq) of a variant with stored claims by the claim's ratio
+    test (:func:`workbench.reporting.findings.comparisons.with_claims`), as every other surface states them.
 
     Parameters
     ----------
@@ -374,6 +377,8 @@ def headline(
     identities : mapping, optional
         Data variant -> the orderings that hold by construction (:func:`workbench.study.claims.result_identities`): printed ``<=`` with
         their reason, never tested.
+    claims : mapping, optional
+        The run's stored claims (:func:`workbench.study.claims.claims_at_m_equals_n`).
 
     Returns
     -------
@@ -388,6 +393,10 @@ def headline(
             f"mean|pooled, got {normalisation!r}, {aggregate!r}"
         )
     column = headline_alpha_column(metric)
+    if comparisons is not None and claims:
+        from workbench.reporting.findings.comparisons import with_claims
+
+        comparisons = with_claims({"data": {d: {"comparisons": c} for d, c in comparisons.items()}, "claims": claims})
     lines = []
     several = table["data"].nunique() > 1
     for data, part in table.groupby("data", sort=False):
@@ -420,7 +429,8 @@ def headline(
             )
     if comparisons is not None:
         lines.append(
-            "'<': the paired per-frame difference's 95 % batch-means interval excludes 0; '~': it does "
+            "'<': the paired per-frame difference's 95 % batch-means interval excludes 0 (H against QE and QE "
+            "against PCA with lstsq at m = n: the paper's claim, its ratio's interval excludes 1); '~': it does "
             "not (the two are not distinguishable on these frames); '=': equal within the tie tolerance; "
             "'<= by construction': an identity of the bases and solvers, not a finding (docs/statistics.md)"
         )
