@@ -72,17 +72,17 @@ def measured_durations() -> dict[str, float]:
 
 
 LONGEST_FIRST = (
-    "tests/test_reporting.py",  # the reference reports redone: about ten minutes in all
-    "tests/test_docs.py::TestCommandsOf_docs_studies_md",
-    "tests/test_docs.py::TestCommandsOf_docs_reports_md",
-    "tests/test_docs.py::TestCommandsOf_README_md",
-    "tests/test_docs.py::TestCommandsOf_docs_performance_md",
-    "tests/test_docs.py::TestCommandsOf_docs_formats_md",
-    "tests/test_studies.py",
-    "tests/test_docs.py::TestCommandsOf_docs_export_md",
-    "tests/test_mlflow_store.py",
-    "tests/test_docs.py::TestCommandsOf_docs_tracking_md",
-    "tests/test_kill.py",
+    "tests/reporting/test_reporting.py",  # the reference reports redone: about ten minutes in all
+    "tests/project/test_docs.py::TestCommandsOf_docs_studies_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_reports_md",
+    "tests/project/test_docs.py::TestCommandsOf_README_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_performance_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_formats_md",
+    "tests/study/test_studies.py",
+    "tests/project/test_docs.py::TestCommandsOf_docs_export_md",
+    "tests/record/test_mlflow_store.py",
+    "tests/project/test_docs.py::TestCommandsOf_docs_tracking_md",
+    "tests/cli/test_kill.py",
 )
 """The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
 seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""

@@ -137,7 +137,10 @@ def _hydra_main(cfg: DictConfig) -> None:
         if not multirun:
             exit_on_error("workbench", error)
         # to the console only: the folder belongs to another process
-        logging.getLogger("workbench.skip").info(f"skip {output_dir}: in use by another workbench process")
+        from workbench.reporting.tables.width import printed
+
+        skipped = f"skip {shown_folder(output_dir)}: in use by another workbench process"
+        logging.getLogger("workbench.skip").info(printed(skipped))
         return
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
         if multirun and isinstance(error, Exception) and not caused_by_interrupt(error):
@@ -149,9 +152,12 @@ def _hydra_main(cfg: DictConfig) -> None:
         exit_on_error("workbench", error)
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
-        logging.getLogger("workbench.skip").info(
-            f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
+        from workbench.reporting.tables.width import printed
+
+        skipped = (
+            f"skip {shown_folder(output_dir)}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
         )
+        logging.getLogger("workbench.skip").info(printed(skipped))
     elif multirun:
         from workbench.reporting.tables.width import printed
 

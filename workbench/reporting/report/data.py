@@ -197,12 +197,9 @@ def figure_order(variants: Sequence[str], preferred: str) -> list[str]:
     """Data variants in the order a figure looks for its own: ``preferred`` (e.g. ``mesh``) first, and each
     variant's paper regime (``mesh m=n``, m = n, the variant the summary's verdict is about) before its coverage
     rule's."""
-    from workbench.study.regime import PAPER_REGIME_SUFFIX, is_paper_regime
+    from workbench.study.regime import coverage_rule_name, is_paper_regime
 
-    def base(data: str) -> str:
-        return data[: -len(PAPER_REGIME_SUFFIX) - 1] if is_paper_regime(data) else data
-
-    return sorted(variants, key=lambda d: (base(d) != preferred, not is_paper_regime(d)))
+    return sorted(variants, key=lambda d: (coverage_rule_name(d) != preferred, not is_paper_regime(d)))
 
 
 def figure_m(record: RunRecord, data: str) -> str:

@@ -13,7 +13,8 @@ _whole = {"wide": False}
 
 def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
     """``text`` with every line longer than ``width`` wrapped at spaces, its continuations indented two spaces more
-    than it; table lines (starting with ``|``) are left whole.
+    than it; table lines (starting with ``|``) are left whole, and so is a word longer than ``width`` (a folder's
+    name); one that would leave the line's first word alone (``done``) joins it.
 
     Parameters
     ----------
@@ -30,7 +31,7 @@ def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
             lines.append(line)
             continue
         indent = line[: len(line) - len(line.lstrip(" "))]
-        lines += textwrap.wrap(
+        wrapped = textwrap.wrap(
             line.strip(),
             width,
             initial_indent=indent,
@@ -38,6 +39,9 @@ def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
             break_long_words=False,
             break_on_hyphens=False,
         )
+        if len(wrapped) > 1 and " " not in wrapped[0].strip():  # "done" alone: the name after it is too long anyway
+            wrapped[:2] = [wrapped[0] + " " + wrapped[1].strip()]
+        lines += wrapped
     return "\n".join(lines)
 
 

@@ -211,7 +211,7 @@ def test_after_the_commands_ctrl_c_any_error_counts_as_ctrl_c(monkeypatch):
     assert caused_by_interrupt(lost)
 
 
-def test_a_ctrl_c_python_would_swallow_is_raised_again_and_nothing_is_printed(capfd):
+def test_a_ctrl_c_python_would_swallow_is_raised_again_and_nothing_is_printed(capfd, monkeypatch):
     """A Ctrl-C whose handler runs inside a weak-reference callback (as importlib's module-lock callback, seen on
     CI) is not lost: the command's hook raises it at the next call, and Python prints no "Exception ignored"."""
     import weakref
@@ -228,6 +228,8 @@ def test_a_ctrl_c_python_would_swallow_is_raised_again_and_nothing_is_printed(ca
         del held
         return sum(range(3))
 
+    monkeypatch.setattr(interrupt, "_interrupt_came", False)  # put back after the test: later commands in-process
+    monkeypatch.setattr(interrupt, "_signal_came", signal.SIGINT)
     signal.signal(signal.SIGINT, interrupt.exit_at_once)  # as at the command's start
     interrupt.raise_from_now_on()
     assert sys.unraisablehook is interrupt.keep_swallowed_interrupt

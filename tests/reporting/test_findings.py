@@ -1052,7 +1052,7 @@ def test_the_glossary_the_reports_point_to_defines_every_term_they_use():
 
     from workbench.reporting.report.sections import GLOSSARY_NOTE
 
-    text = (Path(__file__).resolve().parents[1] / "docs" / "reports.md").read_text(encoding="utf-8")
+    text = (Path(__file__).resolve().parents[2] / "docs" / "reports.md").read_text(encoding="utf-8")
     assert "docs/reports.md" in GLOSSARY_NOTE and "glossary" in GLOSSARY_NOTE
     glossary = text.split("\n## Glossary\n", 1)[1].split("\n## ", 1)[0]
     defined = {term.lower() for term in re.findall(r"\*\*([^*]+)\*\*", glossary)}
