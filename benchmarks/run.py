@@ -757,6 +757,15 @@ def main() -> None:
     parser.add_argument("--replications", type=int, default=1000, help="AR(1) series per cell of the coverage table")
     parser.add_argument("--seed", type=int, default=0, help="seed of the coverage scenario's series")
     parser.add_argument(
+        "--design-replications",
+        type=int,
+        default=2000,
+        help="coverage: series per cell of the table on series like the workbench's (rows sharing frame difficulty)",
+    )
+    parser.add_argument(
+        "--designs-only", action="store_true", help="coverage: only the table on series like the workbench's"
+    )
+    parser.add_argument(
         "--with-bootstrap",
         action="store_true",
         help="coverage: also the circular block bootstrap the batch means replaced (slow)",
