@@ -397,6 +397,11 @@ def result_identities(results: Sequence) -> dict:
             "pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
             "protocol": result.protocol,
             "notes": list(result.capture.notes),
+            "quasi_eigen": {
+                projection: {"hand_residual": qe.hand_residual, "appended_axes": list(qe.appended_axes)}
+                for projection, qe in result.quasi_eigen.items()
+            },
+            **({"folds": result.folds} if result.folds else {}),
         }
         found[result.data] = run_identities(rows, facts)
     return found
