@@ -399,9 +399,9 @@ def result_identities(results: Sequence) -> dict:
             "notes": list(result.capture.notes),
             "quasi_eigen": {
                 projection: {"hand_residual": qe.hand_residual, "appended_axes": list(qe.appended_axes)}
-                for projection, qe in result.quasi_eigen.items()
+                for projection, qe in (getattr(result, "quasi_eigen", None) or {}).items()
             },
-            **({"folds": result.folds} if result.folds else {}),
+            **({"folds": result.folds} if getattr(result, "folds", None) else {}),
         }
         found[result.data] = run_identities(rows, facts)
     return found
