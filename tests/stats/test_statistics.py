@@ -502,7 +502,7 @@ def test_the_workbench_like_designs_run_and_hold_their_true_values():
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     try:
         import interval_coverage
         import workbench_designs
