@@ -16,8 +16,11 @@ Run from the repository root (not part of the test suite):
                                           #   times, the path svd_solver="auto" takes, their agreement
     python benchmarks/run.py coverage     # coverage and width (over the known-variance width) of the within-run
                                           #   intervals on AR(1) series, and of the five-seed intervals on skewed
-                                          #   log ratios (--replications, --seed, --with-bootstrap); not part of
-                                          #   "all": it times nothing
+                                          #   log ratios (--replications, --seed, --with-bootstrap), then their
+                                          #   coverage on series like the workbench's (rows sharing the frame's
+                                          #   difficulty, several takes; --design-replications, --designs-only);
+                                          #   not part of "all": it times nothing. Run it with the checkout's
+                                          #   workbench importable (PYTHONPATH=. from the repository root)
     python benchmarks/run.py all
 
 The run starts by printing the BLAS library, its kernel and threads (threadpoolctl) and the OpenBLAS variables of
@@ -756,6 +759,15 @@ def main() -> None:
     parser.add_argument("--with-exact-pca", action="store_true", help="also time the exact PCA at mesh scale")
     parser.add_argument("--replications", type=int, default=1000, help="AR(1) series per cell of the coverage table")
     parser.add_argument("--seed", type=int, default=0, help="seed of the coverage scenario's series")
+    parser.add_argument(
+        "--design-replications",
+        type=int,
+        default=2000,
+        help="coverage: series per cell of the table on series like the workbench's (rows sharing frame difficulty)",
+    )
+    parser.add_argument(
+        "--designs-only", action="store_true", help="coverage: only the table on series like the workbench's"
+    )
     parser.add_argument(
         "--with-bootstrap",
         action="store_true",

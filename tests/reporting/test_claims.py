@@ -3,6 +3,7 @@ verdict rules, "not estimable", and a run whose surfaces used to disagree."""
 
 import math
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -71,6 +72,14 @@ def test_an_interval_that_cannot_inform_is_not_estimable_and_shows_no_numbers():
     assert floor["verdict"] == NOT_ESTIMABLE
     capped = entry("QE/PCA", 1.0, 0.9, 1.1, rests=dict(RESTS, unit="frames", persistence=0.999))
     assert capped["verdict"] == NOT_ESTIMABLE and "persistence is at its cap 0.999" in capped["why_not_estimable"]
+    over_time = claim_entry(
+        "H/QE",
+        replace(ratio(2.0, 1.5, 2.6), not_estimable="3 degrees of freedom, below 6"),
+        dict(RESTS, unit="frames"),
+        "alpha_abs_mean",
+        CLAIM_MARGIN,
+    )
+    assert over_time["verdict"] == NOT_ESTIMABLE and over_time["why_not_estimable"].startswith("3 degrees of freedom")
     none = entry("H/QE", 2.0, math.nan, math.nan)
     assert none["verdict"] == NOT_ESTIMABLE and none["why_not_estimable"].startswith("no interval")
     text = short_entry_text({"H/QE": dict(few), "QE/PCA": entry("QE/PCA", 1.1, 1.0, 1.2)})

@@ -664,7 +664,9 @@ def test_identities_of_the_solvers_and_of_eckart_young():
     found = run_identities(rows, facts)
     mean, pooled = identity_lookup(found, "alpha_abs_mean"), identity_lookup(found, "alpha_abs_pooled")
     assert mean(("H", "lstsq"), ("H", "box")) is not None and mean(("H", "box"), ("H", "lstsq")) is None
-    assert mean(("QE", "nnls"), ("QE", "box")).reason == "nnls minimises the error over a superset of box's weights"
+    assert (
+        mean(("QE", "nnls"), ("QE", "box")).reason == "nnls minimises the error over a superset of box's weights [0, 1]"
+    )
     # m = 20 >= n = 18 on the training frames: PCA's pooled error is the smallest, its per-frame mean need not be
     assert pooled(("PCA", "projection"), ("H", "nnls")) is not None
     assert mean(("PCA", "projection"), ("H", "nnls")) is None

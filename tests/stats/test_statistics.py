@@ -433,3 +433,95 @@ def test_ratio_intervals_are_made_on_the_log_ratio_and_have_positive_bounds():
     assert zero.estimate == 0.0 and math.isnan(zero.low)
     with pytest.raises(WorkbenchError, match="the second is not 0"):
         ratio_of_means(a, np.zeros(400))
+
+
+# --- intervals on series like the workbench's: persistence on normal scores, widening, "not estimable" -----------
+
+
+def test_normal_scores_are_the_ranks_taken_to_normal_quantiles():
+    from scipy.stats import norm
+
+    scores = time_series.normal_scores(np.array([10.0, 1.0, 5.0, 5.0]))
+    # ranks 4, 1, 2.5, 2.5 of 4: quantiles at 3.5/4, 0.5/4, 2/4, 2/4
+    assert scores == pytest.approx(norm.ppf([3.5 / 4, 0.5 / 4, 0.5, 0.5]), abs=1e-12)
+
+
+def test_a_long_tail_does_not_hide_the_persistence():
+    # exp(3 x) of an AR(1) of phi 0.95: a few large values dominate the autocorrelations of the values, the ranks
+    # keep the memory; the estimate is at least that of the normal scores, which are those of x itself
+    x = stationary_ar1(np.random.default_rng(41), 2000, 0.95, 1)[0]
+    tail = np.exp(3.0 * x)
+    spans = time_series.take_spans(None, 2000)
+    of_scores = time_series._ar1_persistence(time_series.normal_scores(x), spans)
+    assert time_series._ar1_persistence(time_series.normal_scores(tail), spans) == pytest.approx(of_scores, abs=1e-12)
+    assert time_series._ar1_persistence(tail, spans) < 0.9 < of_scores <= time_series.persistence(tail)
+
+
+def test_not_estimable_below_the_degrees_threshold_or_at_the_persistence_cap():
+    assert time_series.not_estimable_reason(time_series.MIN_DEGREES, 0.5) == ""
+    assert "below 6" in time_series.not_estimable_reason(5.9, 0.5)
+    assert "cap" in time_series.not_estimable_reason(40.0, time_series.PERSISTENCE_MAX)
+
+
+def test_a_difference_over_time_is_the_direct_formula_widened():
+    # the mean difference of two series over two takes, recomputed from the pieces: influence d - mean(d),
+    # persistence, overlapping batch means within takes, t quantile, standard error widened by TAIL_WIDENING
+    from scipy.stats import t as student
+
+    rng = np.random.default_rng(42)
+    a, b = stationary_ar1(rng, 600, 0.6, 2) + 5.0
+    takes = np.repeat([0, 1], [350, 250])
+    found = paired_mean_difference(a, b, takes=takes)
+    d = a - b
+    influence = d - d.mean()
+    phi = time_series.persistence(influence, takes)
+    variance, degrees, length = time_series.mean_variance(influence, time_series.take_spans(takes, 600), phi)
+    half = student.ppf(0.975, degrees) * statistics.TAIL_WIDENING * math.sqrt(variance)
+    assert found.estimate == pytest.approx(d.mean(), rel=1e-12)
+    assert (found.low, found.high) == pytest.approx((d.mean() - half, d.mean() + half), rel=1e-6)
+    assert found.degrees == degrees and found.block_frames == length and found.persistence == phi
+    assert found.batches == pytest.approx(600 / length) and found.estimable
+    statistic = d.mean() / (statistics.TAIL_WIDENING * math.sqrt(variance))
+    assert found.p_value == pytest.approx(2.0 * student.sf(abs(statistic), degrees), rel=1e-6)
+
+
+def test_an_interval_that_is_not_estimable_decides_nothing_and_says_why():
+    # 300 frames of a random walk: the persistence reaches its cap
+    walk = np.cumsum(np.random.default_rng(43).standard_normal(300)) + 50.0
+    found = paired_mean_difference(walk + 1000.0, np.full(300, 40.0))
+    assert not found.estimable and "cap" in found.not_estimable
+    assert found.defined and not found.low <= 0.0 <= found.high  # its bounds are kept (in the record) ...
+    assert not found.excludes_null and found.sign == 0  # ... but decide nothing
+    assert "not estimable: persistence at its cap" in interval_text(found, "A - B", SIGNED)
+    assert "[" not in statistics.short_interval_text(found, "A - B", SIGNED)
+    assert Interval.from_dict(found.as_dict()) == found
+    assert Interval.from_dict({"estimate": 1.0, "low": 0.5, "high": 1.5}).estimable  # a record before the field
+
+
+def test_the_workbench_like_designs_run_and_hold_their_true_values():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    try:
+        import interval_coverage
+        import workbench_designs
+    finally:
+        sys.path.pop(0)
+    rng = np.random.default_rng(44)
+    error_a, error_b, reference = workbench_designs.design_series(rng, (398, 375, 226), 0.0, 1.0, 40)
+    assert error_a.shape == error_b.shape == reference.shape == (40, 999)
+    # the rows share the frame's difficulty: their log errors correlate SHARED
+    together = np.corrcoef(np.log(error_a).ravel(), np.log(error_b).ravel())[0, 1]
+    assert together == pytest.approx(workbench_designs.SHARED, abs=0.02)
+    alpha_a, alpha_b = workbench_designs.alphas(error_a, reference), workbench_designs.alphas(error_b, reference)
+    assert alpha_a.mean() / alpha_b.mean() == pytest.approx(workbench_designs.true_value("ratio", 1.0), rel=0.03)
+    assert (alpha_a - alpha_b).mean() == pytest.approx(workbench_designs.true_value("mean", 1.0), rel=0.03)
+    pooled = 100.0 * (np.sqrt(error_a.mean() / reference.mean()) - np.sqrt(error_b.mean() / reference.mean()))
+    assert pooled == pytest.approx(workbench_designs.true_value("pooled", 1.0), rel=0.03)
+    # takes restart: no memory across a take's edge even at persistence 0.99
+    walks = workbench_designs.ar1_takes(rng, (300, 300), 0.99, 400)
+    assert abs(np.corrcoef(walks[:, 299], walks[:, 300])[0, 1]) < 0.2 < np.corrcoef(walks[:, 298], walks[:, 299])[0, 1]
+    for kind, _ in interval_coverage.DESIGN_KINDS:
+        row = interval_coverage.design_row(kind, 1.0, "398+375+226", 0.5, 10, rng)
+        assert 0.0 <= row["coverage"] <= 1.0 and row["replications"] == 10 and 0.0 <= row["estimable"] <= 1.0

@@ -93,8 +93,49 @@ def test_kfold_scores_every_basis_on_the_same_frames_and_keeps_per_fold_values()
         assert len(per_fold) == 4 and min(per_fold) <= row.alpha.absolute_pooled <= max(per_fold)
     from workbench.study.summary import data_metrics
 
-    comparisons = data_metrics(held)["fold_comparisons"]
+    facts = data_metrics(held)
+    comparisons = facts["fold_comparisons"]
     assert comparisons and all(c["n"] == 4 and c["method"] == "paired t on log ratios" for c in comparisons)
+    # each fold's rank of every basis is kept, so that QE <= PCA and QE <= QE-linear are identities where QE's
+    # affine shapes have rank m + 1 in every fold, as in a run on its training frames
+    from workbench.stats.identities import run_identities
+
+    keys = [tuple(row) for row in held.folds["rows"]]
+    qe_ranks = held.folds["rank"][keys.index(("QE", "affine", "lstsq"))]
+    pca = next(i for i, key in enumerate(keys) if key[0] == "PCA")
+    assert len(qe_ranks) == 4 and held.folds["rank"][pca] == [None] * 4
+    spans = all(rank >= m + 1 for rank, m in zip(qe_ranks, held.folds["m"]))
+    rows = [{"basis": row.basis, "solver": row.solver, "n": row.n_shapes} for row in held.rows]
+    found = {(item.smaller, item.larger) for item in run_identities(rows, facts)}
+    # here m = n = 18 in the first fold (and m = 63 in the last): QE's 18 shapes cannot span m + 1 dimensions
+    assert not spans and (("QE", "lstsq"), ("PCA", "projection")) not in found
+
+
+def test_kfold_variants_state_qe_below_pca_and_qe_linear_as_identities_when_every_fold_spans():
+    from workbench.stats.identities import identity_lookup, run_identities
+    from workbench.study.summary import data_metrics
+
+    results = run_study(
+        compose(
+            "paper",
+            [
+                "dataset.n_frames=500",
+                "solver=lstsq",
+                "dataset.held_out=kfold",
+                "dataset.folds=3",
+                "basis.coverage=0.9",
+                "basis.paper_regime=false",
+            ],
+        )
+    )
+    held = next(result for result in results if result.data == "markers held-out kfold")
+    keys = [tuple(row) for row in held.folds["rows"]]
+    qe_ranks = held.folds["rank"][keys.index(("QE", "affine", "lstsq"))]
+    assert all(rank == m + 1 for rank, m in zip(qe_ranks, held.folds["m"])), (qe_ranks, held.folds["m"])
+    rows = [{"basis": row.basis, "solver": row.solver, "n": row.n_shapes} for row in held.rows]
+    lookup = identity_lookup(run_identities(rows, data_metrics(held)), "alpha_abs_mean")
+    assert "in each of the 3 folds" in lookup(("QE", "lstsq"), ("PCA", "projection")).reason
+    assert lookup(("QE", "lstsq"), ("QE-linear", "lstsq")) is not None
 
 
 def test_animface_take_out_gives_a_fold_per_take(shared_data):

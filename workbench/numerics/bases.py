@@ -559,6 +559,11 @@ class QuasiEigenBasis:
         ``sum_i |w_ij|`` per axis.
     thresholds : ndarray of shape (m,)
         ``epsilon`` per axis in data units.
+    hand_residual : float
+        The largest distance of a quasi-eigen face from its hand shape, relative to the hand shape's norm: the part
+        of a hand shape outside the eigenface hyperplane (``mu + span(eigenfaces)``, affine; ``span(eigenfaces)``,
+        linear). 0 when every hand shape lies in it (m large enough): then QE is H
+        (:func:`workbench.stats.identities.run_identities`). NaN: not measured.
     """
 
     shapes: np.ndarray
@@ -569,6 +574,7 @@ class QuasiEigenBasis:
     appended_axes: tuple[int, ...]
     axis_sums: np.ndarray
     thresholds: np.ndarray
+    hand_residual: float = float("nan")
 
 
 def build_quasi_eigen_basis(
@@ -630,6 +636,7 @@ def build_quasi_eigen_basis(
     components, mean = eigenfaces.components_, eigenfaces.mean_
     weights = pca_to_qe_weights(hand, components, mean, projection)
     shapes = quasi_eigen_faces(weights, components, mean, projection)
+    residual = float(np.max(np.linalg.norm(shapes - hand, axis=1) / np.linalg.norm(hand, axis=1)))
     m = components.shape[0]
     if empty_axis_scale == "axis_std":
         thresholds = empty_axis_eps * np.sqrt(eigenfaces.explained_variance_[:m])
@@ -649,4 +656,5 @@ def build_quasi_eigen_basis(
         appended_axes=tuple(int(j) for j in appended),
         axis_sums=np.abs(weights).sum(axis=0),
         thresholds=thresholds,
+        hand_residual=residual,
     )

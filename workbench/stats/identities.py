@@ -2,9 +2,11 @@
 
 Some orderings of a run's rows follow from how the bases and solvers are made, whatever the data:
 
-- **the solvers' nesting**: per frame, least squares minimises the error over every weight vector, non-negative
-  weights over a subset of them and box [0, 1] weights over a subset of that, so for any basis
-  ``lstsq <= nnls <= box`` frame by frame, hence in every alpha;
+- **the solvers' nesting**: per frame, a solver minimises the error over the weights its bounds allow, so of two
+  solvers whose allowed weights nest (the bounds of one contain the other's: least squares none, non-negative
+  weights ``[0, inf)``, a box ``[lower, upper]`` as its settings give it, :data:`workbench.core.solvers.SOLVER_KINDS`)
+  the one allowing more is never worse, for any basis, frame by frame, hence in every alpha: ``lstsq <= nnls <= box``
+  for a box with ``lower >= 0``, but only ``lstsq <= box`` for a box reaching below 0;
 - **QE spans PCA**: PCA reconstructs a frame as ``mu + E^T E (x - mu)``, a point of ``mu + span(E^PCA)``; the
   affine QE shapes ``P e_i^H + (I - P) mu`` lie in ``span(mu, E^PCA)``, of dimension ``m + 1`` (``m`` when the
   mean's displacement lies in the eigenfaces' span), and when their rank reaches it (generically when
@@ -12,6 +14,10 @@ Some orderings of a run's rows follow from how the bases and solvers are made, w
 - **QE spans QE-linear**: the linear QE shapes ``P e_i^H`` lie in ``span(eigenfaces)``, inside ``span(mu,
   eigenfaces)``, which the affine QE shapes span when their rank is ``m + 1``: QE with least squares is never worse
   than QE-linear under any solver, frame by frame;
+- **QE is H**: when every hand shape lies in the eigenface hyperplane (``mu + span(eigenfaces)``, to within
+  :data:`QE_IS_H` of its norm: m large enough to hold them), projecting it there leaves it where it is, so QE's
+  shapes are H's and QE = H under every solver (QE-linear likewise, with ``span(eigenfaces)``), as long as no
+  eigenface was appended; a difference between them is the hand shapes' residual, not a finding;
 - **carried bases**: bases carried onto other points (``dataset.eval_on``) by a linear transfer ``T`` keep both
   inclusions, ``T`` of a span being the span of the images: the carried PCA reconstruction lies in
   ``T mu + span(T eigenfaces)`` and the carried QE shapes span ``span(T mu, T eigenfaces)``;
@@ -37,11 +43,17 @@ as "A <= B by construction (reason)" and spend no interval on them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
-SOLVER_ORDER = ("lstsq", "nnls", "box")
+from workbench.core.solvers import solver_kind
+
 EXACT_PCA = ("covariance", "gram")
+QE_IS_H = 1e-3
+"""QE is H when every hand shape lies in the eigenface hyperplane to within this fraction of its norm
+(:attr:`workbench.numerics.bases.QuasiEigenBasis.hand_residual`)."""
+QE_LABELS = {"affine": "QE", "linear": "QE-linear"}
 POOLED_COLUMNS = ("alpha_abs_pooled", "alpha_disp_pooled")
 
 
@@ -78,26 +90,87 @@ def scored_on_training_frames(facts: Mapping) -> bool:
     )
 
 
-def _solver_nesting(rows: Sequence[Mapping]) -> list[Identity]:
-    keys = {(row["basis"], row["solver"]) for row in rows}
+def solver_bounds(name: str, settings: Mapping | None = None) -> tuple[float, float] | None:
+    """The weights the solver ``name`` allows, ``(lower, upper)`` (open sides infinite), from its kind's entry of
+    :data:`workbench.core.solvers.SOLVER_KINDS` and the run's solver settings (``solver``: a box's bounds); None
+    for a solver of no known kind (PCA's projection).
+
+    Parameters
+    ----------
+    name : str
+    settings : mapping, optional
+        The run's ``solver`` settings (``solver.<name>.kind``, ``.lower``, ``.upper``); without them, the kind's
+        defaults (a box ``[0, 1]``).
+    """
+    _, entry = solver_kind(name, settings)
+    if entry is None:
+        return None
+    given = (settings or {}).get(name) or {}
+    low, high = entry.bounds(given.get("lower", entry.lower), given.get("upper", entry.upper))
+    return (-math.inf if low is None else float(low)), (math.inf if high is None else float(high))
+
+
+def solver_contains(first: str, second: str, settings: Mapping | None = None) -> bool:
+    """Whether the solver ``first`` allows every weight vector ``second`` allows (its bounds contain the other's),
+    so that it is never worse on any basis; False for two solvers of which one has no known kind."""
+    a, b = solver_bounds(first, settings), solver_bounds(second, settings)
+    return a is not None and b is not None and first != second and a[0] <= b[0] and a[1] >= b[1]
+
+
+def _nesting_reason(first: str, second: str, settings: Mapping | None) -> str:
+    low, high = solver_bounds(second, settings)
+    return f"{first} minimises the error over a superset of {second}'s weights [{low:g}, {high:g}]"
+
+
+def _solver_nesting(rows: Sequence[Mapping], settings: Mapping | None = None) -> list[Identity]:
+    """Every pair of one basis's rows whose solvers' allowed weights nest (:func:`solver_contains`)."""
     found = []
-    for basis in dict.fromkeys(row["basis"] for row in rows if row["solver"] in SOLVER_ORDER):
-        nested = [solver for solver in SOLVER_ORDER if (basis, solver) in keys]
+    for basis in dict.fromkeys(row["basis"] for row in rows):
+        solvers = [row["solver"] for row in rows if row["basis"] == basis]
         found += [
-            Identity((basis, a), (basis, b), f"{a} minimises the error over a superset of {b}'s weights")
-            for a, b in zip(nested, nested[1:])
+            Identity((basis, a), (basis, b), _nesting_reason(a, b, settings))
+            for a in solvers
+            for b in solvers
+            if solver_contains(a, b, settings) and not solver_contains(b, a, settings)
         ]
     return found
 
 
-def _qe_spans(rows: Sequence[Mapping], m: int | None) -> list[Identity]:
+def _fold_spans(folds: Mapping) -> str | None:
+    """Why QE with least squares spans mu + span(eigenfaces) in every fold of a cross-validated variant (its
+    affine shapes' rank is m + 1 for each fold's m, :func:`workbench.study.crossval.fold_values`), or None."""
+    keys = [tuple(row) for row in folds.get("rows") or []]
+    ranks, ms = folds.get("rank"), folds.get("m")
+    if ("QE", "affine", "lstsq") not in keys or not ranks or not ms:
+        return None
+    index = keys.index(("QE", "affine", "lstsq"))
+    per_fold = ranks[index]
+    if len(per_fold) != len(ms) or any(rank is None or rank < m + 1 for rank, m in zip(per_fold, ms)):
+        return None
+    n = (folds.get("n_shapes") or [None] * len(keys))[index]
+    shapes = f"the {n:g} affine QE shapes" if n is not None else "the affine QE shapes"
+    return (
+        f"in each of the {len(ms)} folds {shapes} have rank m + 1 (m = {list(ms)}, rank = {list(per_fold)}): "
+        "they span mu + span(eigenfaces)"
+    )
+
+
+def _qe_spans(rows: Sequence[Mapping], m: int | None, folds: Mapping | None = None) -> list[Identity]:
     """QE with least squares against PCA and QE-linear, when the affine QE shapes have rank m + 1 (on the same
-    points or carried onto others: a linear transfer keeps both inclusions)."""
+    points or carried onto others: a linear transfer keeps both inclusions); for a cross-validated variant, when
+    they have it in every fold (the pooled rows keep no rank of their own)."""
     qe = next((row for row in rows if row["basis"] == "QE" and row["solver"] == "lstsq"), None)
-    rank = ((qe or {}).get("basis_conditioning") or {}).get("rank")
-    if qe is None or qe.get("n") is None or m is None or rank is None or rank < m + 1:
+    if qe is None:
         return []
-    spans = f"the {qe['n']:g} affine QE shapes have rank {rank} = m + 1: they span mu + span(eigenfaces)"
+    rank = (qe.get("basis_conditioning") or {}).get("rank")
+    if folds:
+        spans = _fold_spans(folds)
+        if spans is None:
+            return []
+    else:
+        if qe.get("n") is None or m is None or rank is None or rank < m + 1:
+            return []
+        spans = f"the {qe['n']:g} affine QE shapes have rank {rank} = m + 1: they span mu + span(eigenfaces)"
     carried = " (carried by a linear transfer, which keeps it)" if _carried(rows) else ""
     found = []
     for row in rows:
@@ -111,6 +184,35 @@ def _qe_spans(rows: Sequence[Mapping], m: int | None) -> list[Identity]:
                     ("QE", "lstsq"), ("QE-linear", row["solver"]), f"{spans}, which holds QE-linear's span{carried}"
                 )
             )
+    return found
+
+
+def _qe_is_h(rows: Sequence[Mapping], facts: Mapping) -> list[Identity]:
+    """QE = H (both ways) under every solver both have, when every hand shape lies in the eigenface hyperplane to
+    within :data:`QE_IS_H` (in every fold of a cross-validated variant) and no eigenface was appended."""
+    m = (facts.get("pca") or {}).get("m")
+    folds = facts.get("folds") or {}
+    found = []
+    for projection, label in QE_LABELS.items():
+        facts_qe = (facts.get("quasi_eigen") or {}).get(projection) or {}
+        residuals = (folds.get("hand_residual") or {}).get(projection) if folds else [facts_qe.get("hand_residual")]
+        if not residuals or any(value is None or not value <= QE_IS_H for value in residuals):
+            continue
+        if facts_qe.get("appended_axes"):
+            continue
+        where = f"in each of the {len(residuals)} folds" if folds else f"at m = {m}"
+        reason = (
+            f"every hand shape lies in the eigenface hyperplane {where} (to {max(residuals):.1g} of its norm): "
+            f"{label}'s shapes are H's, {label} = H"
+        )
+        solvers = {row["solver"] for row in rows if row["basis"] == label} & {
+            row["solver"] for row in rows if row["basis"] == "H"
+        }
+        for solver in sorted(solvers):
+            found += [
+                Identity((label, solver), ("H", solver), reason),
+                Identity(("H", solver), (label, solver), reason),
+            ]
     return found
 
 
@@ -170,7 +272,7 @@ def _pooled_optima(rows: Sequence[Mapping], facts: Mapping, m: int | None) -> li
     return found
 
 
-def run_identities(rows: Sequence[Mapping], facts: Mapping) -> list[Identity]:
+def run_identities(rows: Sequence[Mapping], facts: Mapping, solvers: Mapping | None = None) -> list[Identity]:
     """The orderings one data variant of a run holds by construction.
 
     Parameters
@@ -179,37 +281,39 @@ def run_identities(rows: Sequence[Mapping], facts: Mapping) -> list[Identity]:
         The variant's rows (``metrics.json`` ``rows``): ``basis``, ``solver``, ``n`` and, where recorded,
         ``basis_conditioning`` (``rank``, ``n_shapes``), ``train_on`` and ``eval_on``.
     facts : mapping
-        The variant's part of ``metrics.json`` ``data``: ``pca`` (``m``, ``method``), ``protocol``, ``notes``.
+        The variant's part of ``metrics.json`` ``data``: ``pca`` (``m``, ``method``), ``protocol``, ``notes``,
+        ``quasi_eigen`` (per projection its ``hand_residual`` and ``appended_axes``), and
+        for a cross-validated variant ``folds`` (each fold's ``m`` and every row's ``rank``,
+        :func:`workbench.study.crossval.fold_values`): its identities are those that hold in every fold.
+    solvers : mapping, optional
+        The run's ``solver`` settings (each solver's kind and bounds): the solvers' nesting is decided by their
+        bounds (:func:`solver_contains`). Without them, ``facts["solvers"]`` where a record keeps them, else each
+        kind's defaults (a box ``[0, 1]``).
 
     Returns
     -------
     list of Identity
     """
     m = (facts.get("pca") or {}).get("m")
-    return _solver_nesting(rows) + _qe_spans(rows, m) + _pooled_optima(rows, facts, m)
+    settings = solvers if solvers is not None else facts.get("solvers")
+    return (
+        _solver_nesting(rows, settings)
+        + _qe_spans(rows, m, facts.get("folds"))
+        + _qe_is_h(rows, facts)
+        + _pooled_optima(rows, facts, m)
+    )
 
 
 def identity_lookup(identities: Sequence[Identity], column: str) -> Callable[[tuple, tuple], Identity | None]:
     """``lookup(a, b)``: the identity saying ``a <= b`` for ``column``, or None.
 
-    Chains of the solvers' nesting are followed (``lstsq <= box`` through ``nnls``).
+    The solvers' nesting is listed pair by pair (:func:`run_identities`, by the solvers' bounds), so no chain is
+    followed here.
     """
     direct = {(tuple(item.smaller), tuple(item.larger)): item for item in identities if item.applies(column)}
-    nested = {item.smaller[0] for item in identities if item.smaller[0] == item.larger[0]}
 
     def lookup(a, b) -> Identity | None:
-        a, b = tuple(a), tuple(b)
-        if (a, b) in direct:
-            return direct[a, b]
-        if (
-            a[0] == b[0]
-            and a[0] in nested
-            and a[1] in SOLVER_ORDER
-            and b[1] in SOLVER_ORDER
-            and SOLVER_ORDER.index(a[1]) < SOLVER_ORDER.index(b[1])
-        ):
-            return Identity(a, b, f"{a[1]} minimises the error over a superset of {b[1]}'s weights")
-        return None
+        return direct.get((tuple(a), tuple(b)))
 
     return lookup
 

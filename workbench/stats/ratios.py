@@ -4,7 +4,8 @@ each compares with the ratio Kim & Ko report.
 Within a run the ratio of two rows' alphas on the same frames gets the batch-means interval over time of
 :func:`workbench.stats.statistics.batch_means_interval` on the log ratio (delta method: the log of the ratio of two
 means, or of two pooled alphas, linearised at the means), taken back, so that the bounds are positive as the ratio
-is. Across replicates (folds, seeds) the ratios get the paired t-interval on log
+is; an interval resting on too few degrees of freedom, or on a persistence at its cap, is not estimable
+(:attr:`workbench.stats.statistics.Interval.not_estimable`) and decides nothing. Across replicates (folds, seeds) the ratios get the paired t-interval on log
 ratios (:func:`workbench.stats.statistics.paired_ratio_interval`). A ratio's null value is 1; no p-value is
 computed, because the claims are read against the paper's ratios, not against 1 alone
 (``workbench.reporting.findings.claims``).
@@ -19,7 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.stats.statistics import CONFIDENCE, Interval, batch_means_interval
+from workbench.stats.statistics import CONFIDENCE, TAIL_WIDENING, Interval, batch_means_interval
 
 
 def _ratio(log_interval: Interval) -> Interval:
@@ -88,7 +89,8 @@ def ratio_of_pooled(
     confidence: float = CONFIDENCE,
 ) -> Interval:
     """The ratio of two pooled alphas of the same frames, ``sqrt(sum |err_a|^2 / sum |err_b|^2)`` (the reference
-    of eq. 6 cancels), with its batch-means interval.
+    of eq. 6 cancels), with its batch-means interval, its standard error widened by
+    :data:`workbench.stats.statistics.TAIL_WIDENING` (means of squared errors have long tails).
 
     Parameters
     ----------
@@ -117,5 +119,6 @@ def ratio_of_pooled(
             takes=takes,
             seconds=seconds,
             confidence=confidence,
+            widening=TAIL_WIDENING,
         )
     )

@@ -26,6 +26,10 @@ PERSISTENCE_MAX = 0.999
 """The persistence used for the batches and their correction is at most this (a unit root has no mean)."""
 OVERLAP_DEGREES = 1.5
 """Degrees of freedom per batch length of overlapping batch means (Meketon & Schmeiser 1984: ``1.5 (n / b - 1)``)."""
+MIN_DEGREES = 6.0
+"""An interval resting on fewer degrees of freedom than this is not estimable (:func:`not_estimable_reason`): its
+t quantile exceeds 2.45, and on series like the workbench's (rows sharing the frame's difficulty, persistence 0.96
+and more; ``benchmarks/run.py coverage``, docs/statistics.md) such intervals no longer hold their 95 %."""
 
 
 def take_spans(takes: Sequence | None, n: int) -> list[tuple[int, int]]:
@@ -65,14 +69,40 @@ def autocovariances(series: np.ndarray, spans: Sequence[tuple[int, int]], max_la
     return values / len(series)
 
 
+def _ar1_persistence(series: np.ndarray, spans: Sequence[tuple[int, int]]) -> float:
+    """The larger of the raised lag-1 estimate and Geyer's ``tau`` as an AR(1)'s ``phi`` (:func:`persistence`)."""
+    n = series.size
+    acv = autocovariances(series, spans, n - 1)
+    if acv[0] <= 0.0:
+        return 0.0
+    rho = acv / acv[0]
+    lag1 = float(rho[1]) + (1.0 + 3.0 * float(rho[1])) / n
+    lag1 += PERSISTENCE_SE * math.sqrt(max(1.0 - lag1**2, 0.0) / n)
+    pairs = rho[1 : (n - 1) // 2 * 2 + 1].reshape(-1, 2).sum(axis=1)
+    positive = pairs[: int(np.argmax(pairs <= 0.0))] if np.any(pairs <= 0.0) else pairs
+    tau = 1.0 + 2.0 * float(positive.sum())
+    return max(lag1, (tau - 1.0) / (tau + 1.0), 0.0)
+
+
+def normal_scores(series: np.ndarray) -> np.ndarray:
+    """The series' ranks taken to standard normal quantiles, ``Phi^-1((rank - 1/2) / n)`` (ties share their mean
+    rank): the same order, without the long tail."""
+    from scipy.special import ndtri
+    from scipy.stats import rankdata
+
+    return ndtri((rankdata(series) - 0.5) / series.size)
+
+
 def persistence(series: np.ndarray, takes: Sequence | None = None) -> float:
     """A deliberately high estimate of the series' persistence, as the lag-1 coefficient ``phi`` of an AR(1).
 
     The larger of (a) the lag-1 autocorrelation within takes, corrected for its bias (Kendall 1954,
     ``+ (1 + 3 phi) / n``) and raised by :data:`PERSISTENCE_SE` standard errors ``sqrt((1 - phi^2) / n)``, and (b)
     the ``phi`` of an AR(1) with the integrated autocorrelation time ``tau`` of Geyer's initial positive sequence
-    (1992), ``(tau - 1) / (tau + 1)``, which catches memory longer than lag 1 says. Erring high costs width; erring
-    low costs coverage.
+    (1992), ``(tau - 1) / (tau + 1)``, which catches memory longer than lag 1 says; each computed on the series and
+    on its :func:`normal_scores`. A long right tail (errors that share the frame's difficulty, log-normal) hides
+    memory from the autocorrelations of the values, which a few large ones dominate; the ranks keep it. Erring high
+    costs width; erring low costs coverage.
 
     Parameters
     ----------
@@ -86,18 +116,11 @@ def persistence(series: np.ndarray, takes: Sequence | None = None) -> float:
     """
     series = np.asarray(series, dtype=float)
     n = series.size
-    if n < 4:
+    if n < 4 or not np.ptp(series) > 0.0:
         return 0.0
-    acv = autocovariances(series, take_spans(takes, n), n - 1)
-    if acv[0] <= 0.0:
-        return 0.0
-    rho = acv / acv[0]
-    lag1 = float(rho[1]) + (1.0 + 3.0 * float(rho[1])) / n
-    lag1 += PERSISTENCE_SE * math.sqrt(max(1.0 - lag1**2, 0.0) / n)
-    pairs = rho[1 : (n - 1) // 2 * 2 + 1].reshape(-1, 2).sum(axis=1)
-    positive = pairs[: int(np.argmax(pairs <= 0.0))] if np.any(pairs <= 0.0) else pairs
-    tau = 1.0 + 2.0 * float(positive.sum())
-    return float(min(max(lag1, (tau - 1.0) / (tau + 1.0), 0.0), PERSISTENCE_MAX))
+    spans = take_spans(takes, n)
+    found = max(_ar1_persistence(series, spans), _ar1_persistence(normal_scores(series), spans))
+    return float(min(found, PERSISTENCE_MAX))
 
 
 def batch_length(n: int, phi: float) -> int:
@@ -230,3 +253,26 @@ def mean_variance(influence: np.ndarray, spans: Sequence[tuple[int, int]], phi: 
     raw = overlapping_batch_sum(influence, spans, length)
     variance = raw * ar1_overlapping_bias(spans, length, phi)
     return variance, overlapping_degrees(spans, length), length
+
+
+def not_estimable_reason(degrees: float, phi: float) -> str:
+    """Why an interval over time cannot inform ("" when it can): fewer than :data:`MIN_DEGREES` degrees of
+    freedom, or the persistence at its cap :data:`PERSISTENCE_MAX` (memory as long as the takes: the frames hold
+    too few independent values to estimate the spread from).
+
+    Parameters
+    ----------
+    degrees : float
+        The interval's degrees of freedom (:func:`mean_variance`).
+    phi : float
+        The persistence it was made with (:func:`persistence`).
+
+    Returns
+    -------
+    str
+    """
+    if phi >= PERSISTENCE_MAX:
+        return f"persistence at its cap {PERSISTENCE_MAX:g}"
+    if not degrees >= MIN_DEGREES:
+        return f"{degrees:.2g} degrees of freedom, below {MIN_DEGREES:g}"
+    return ""

@@ -15,9 +15,10 @@ Kim & Ko report, with least squares at m = n = 18, H 5.2, QE 0.72 and PCA 0.62 %
   the paper is stated apart: its 1.16 lies inside the interval or not. Where QE <= PCA holds by construction the
   claim is "not tested at m = n" and says why.
 
-An interval that cannot inform gives "not estimable" instead of a verdict: no finite bounds, fewer than
-:data:`MIN_DEGREES` degrees of freedom, or the persistence of the log ratio's per-frame influence at its cap
-(:data:`workbench.stats.time_series.PERSISTENCE_MAX`). docs/statistics.md states the rule.
+An interval that cannot inform gives "not estimable" instead of a verdict: no finite bounds; over time, the
+workbench's rule (``Interval.not_estimable``: too few degrees of freedom, or the persistence at its cap
+:data:`workbench.stats.time_series.PERSISTENCE_MAX`); over folds, fewer than :data:`MIN_DEGREES` degrees of freedom.
+docs/statistics.md states the rule.
 """
 
 from __future__ import annotations
@@ -41,10 +42,9 @@ PAPER_ALPHA = {"H": 5.2, "QE": 0.72, "PCA": 0.62}
 PAPER_RATIOS = {"H/QE": PAPER_ALPHA["H"] / PAPER_ALPHA["QE"], "QE/PCA": PAPER_ALPHA["QE"] / PAPER_ALPHA["PCA"]}
 """The paper's ratios, from its absolute alpha: H/QE 7.2, QE/PCA 1.16."""
 MIN_DEGREES = 3.0
-"""An interval on fewer degrees of freedom than this is not estimable: its t quantile exceeds 3.2 (4.3 at 2, 12.7 at
-1), so its width says more about the quantile than about the data. Overlapping batch means at their floor of three
-batches per series give ``3 - 1/L`` degrees, just under it: a series whose memory spans a third of its frames has no
-usable mean error."""
+"""An interval over folds on fewer degrees of freedom than this is not estimable: its t quantile exceeds 3.2 (4.3 at
+2 degrees, leave-one-take-out over three takes; 12.7 at 1), so its width says more about the quantile than about the
+data. Intervals over time follow the workbench's own rule (``workbench.stats.time_series.MIN_DEGREES``)."""
 CLAIM_MARGIN = 1.5
 """The default non-inferiority margin of claim 2 (``metric.claim_margin``): about ``7.2 ** 0.2``, PCA's advantage
 over QE at most a fifth of QE's advantage over H in the paper, on the log scale (docs/statistics.md)."""
@@ -107,6 +107,11 @@ def result_identities(results: Sequence) -> dict:
             "pca": {"m": result.eigenfaces.n_components_, "method": result.eigenfaces.method_},
             "protocol": result.protocol,
             "notes": list(result.capture.notes),
+            "quasi_eigen": {
+                projection: {"hand_residual": qe.hand_residual, "appended_axes": list(qe.appended_axes)}
+                for projection, qe in (getattr(result, "quasi_eigen", None) or {}).items()
+            },
+            **({"folds": result.folds} if getattr(result, "folds", None) else {}),
         }
         found[result.data] = run_identities(rows, facts)
     return found
@@ -216,11 +221,15 @@ def rests_on_text(interval: Interval, rests: Mapping) -> str:
 
 
 def not_estimable_reason(interval: Interval, rests: Mapping, min_degrees: float = MIN_DEGREES) -> str:
-    """Why an interval cannot inform a verdict (empty when it can): no finite bounds, fewer than ``min_degrees``
-    degrees of freedom, or the persistence of the frames at its cap."""
+    """Why an interval cannot inform a verdict (empty when it can): no finite bounds; for an interval over time,
+    the workbench's rule (:attr:`workbench.stats.statistics.Interval.not_estimable`: too few degrees of freedom or
+    the persistence at its cap); for one over folds, fewer than ``min_degrees`` degrees of freedom."""
     if not interval.defined:
         return "no interval (a ratio with a side at 0, or too few frames or folds)"
-    if not interval.degrees >= min_degrees:
+    stated = getattr(interval, "not_estimable", "")
+    if stated:
+        return f"{stated} ({rests_on_text(interval, rests)})"
+    if rests.get("unit") == "folds" and not interval.degrees >= min_degrees:
         return f"fewer than {min_degrees:g} degrees of freedom ({rests_on_text(interval, rests)})"
     phi = rests.get("persistence", math.nan)
     if math.isfinite(phi) and phi >= PERSISTENCE_MAX:

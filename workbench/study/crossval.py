@@ -235,14 +235,22 @@ def pooled_weights(fold_weights: Sequence[Mapping]) -> dict:
 
 
 def fold_values(parts: Sequence) -> dict:
-    """Per fold: its m, coverage, frames and every row's pooled alphas (absolute and displacement), in row order.
+    """Per fold: its m, coverage, frames, every row's basis rank and pooled alphas (absolute and displacement), in
+    row order.
+
+    The ranks let the identities of each fold be decided as those of a run are
+    (:func:`workbench.stats.identities.run_identities`): QE with least squares spans PCA's reconstruction and
+    QE-linear's shapes in a fold where its affine shapes have rank ``m + 1`` for that fold's ``m``.
 
     Returns
     -------
     dict
         ``n_folds``, ``m``, ``coverage``, ``n_train_frames``, ``n_eval_frames`` (lists over folds), ``rows``
-        (``[basis, projection, solver]`` per row) and ``alpha_abs_pooled`` / ``alpha_disp_pooled`` of shape
-        (n_rows, n_folds) as nested lists.
+        (``[basis, projection, solver]`` per row), ``n_shapes`` (per row, the most over the folds), ``rank`` of
+        shape (n_rows, n_folds) (the numerical rank of the row's basis in each fold, None where it was not
+        measured, as for PCA), ``hand_residual`` (projection -> each fold's
+        :attr:`workbench.numerics.bases.QuasiEigenBasis.hand_residual`) and ``alpha_abs_pooled`` / ``alpha_disp_pooled`` of shape (n_rows, n_folds) as
+        nested lists.
     """
     return {
         "n_folds": len(parts),
@@ -251,6 +259,15 @@ def fold_values(parts: Sequence) -> dict:
         "n_train_frames": [len(part.capture.train) for part in parts],
         "n_eval_frames": [len(part.capture.eval) for part in parts],
         "rows": [[row.basis, row.projection, row.solver] for row in parts[0].rows],
+        "n_shapes": [max(int(part.rows[i].n_shapes) for part in parts) for i in range(len(parts[0].rows))],
+        "rank": [
+            [None if part.rows[i].conditioning is None else int(part.rows[i].conditioning.rank) for part in parts]
+            for i in range(len(parts[0].rows))
+        ],
+        "hand_residual": {
+            projection: [float(part.quasi_eigen[projection].hand_residual) for part in parts]
+            for projection in parts[0].quasi_eigen
+        },
         "alpha_abs_pooled": [
             [float(part.rows[i].alpha.absolute_pooled) for part in parts] for i in range(len(parts[0].rows))
         ],

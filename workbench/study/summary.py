@@ -239,6 +239,7 @@ def data_metrics(result) -> dict:
                 "appended_axes": [j + 1 for j in qe.appended_axes],
                 "axis_sums": qe.axis_sums.tolist(),
                 "thresholds": qe.thresholds.tolist(),
+                "hand_residual": qe.hand_residual,
             }
             for projection, qe in result.quasi_eigen.items()
         },

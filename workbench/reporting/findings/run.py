@@ -539,7 +539,9 @@ def run_findings(
                 f"{_ratios(part, paper, column, False, said, settings=settings)}; {m_text(part, paper)}."
             )
             continue
-        identity = identity_lookup(run_identities([row for row in rows if row.get("data") == data], facts), column)
+        identity = identity_lookup(
+            run_identities([row for row in rows if row.get("data") == data], facts, settings), column
+        )
         lead = detailed is None or data == detailed
         shown = solvers if lead or "lstsq" not in solvers else ["lstsq"]  # the others' are in the tables
         ordering = "; ".join(

@@ -20,6 +20,7 @@ import pandas as pd
 from workbench.reporting.findings.run import Detail
 from workbench.reporting.tables.cells import cell_text
 from workbench.reporting.tables.runs import NOT_DISTINGUISHABLE
+from workbench.stats.replicates import PSEUDO_REPLICATES
 from workbench.stats.statistics import (
     CONFIDENCE,
     Interval,
@@ -99,6 +100,8 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
         family = [k for k, found in enumerate(families) if found == name]
         adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
         for k in family:
+            if table["verdict"].iloc[k] == PSEUDO_REPLICATES:  # no test over pseudo-replicates
+                continue
             interval = Interval(
                 float(table["ratio"].iloc[k]),
                 float(table["ratio_low"].iloc[k]),
@@ -149,6 +152,7 @@ def comparison_interval(comparisons: pd.DataFrame, first: str, second: str) -> I
         if len(found):
             row = found.iloc[0]
             adjusted = float(row[HOLM_COLUMN]) if HOLM_COLUMN in row.index else math.nan
+            pseudo = row.get("pseudo_replicates")
             interval = Interval(
                 float(row["ratio"]),
                 float(row["ratio_low"]),
@@ -157,6 +161,7 @@ def comparison_interval(comparisons: pd.DataFrame, first: str, second: str) -> I
                 str(row["method"]),
                 null=1.0,
                 p_adjusted=adjusted,
+                not_estimable=f"not replicates: {pseudo}" if isinstance(pseudo, str) and pseudo else "",
             )
             return reversed_interval(interval) if flip else interval
     return Interval(math.nan, math.nan, math.nan, 0, "no paired values", null=1.0)

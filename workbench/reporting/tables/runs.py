@@ -18,6 +18,7 @@ from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE, RunRecord, find_records, load_record
 from workbench.reporting.tables.cells import is_missing
 from workbench.stats.identities import run_identities
+from workbench.stats.replicates import PSEUDO_REPLICATES, pseudo_replicate_reason
 from workbench.stats.statistics import GEOMETRIC, geometric_interval, paired_ratio_interval, reversed_interval
 from workbench.study.table import ALPHA_COLUMNS, CLEAN_COLUMNS
 
@@ -370,17 +371,21 @@ COMPARISON_COLUMNS = (
     "verdict",
     "p",
     "by_construction",
+    "pseudo_replicates",
 )
 """Columns of :func:`paired_comparisons` after the condition and row keys."""
 NOT_DISTINGUISHABLE = "not distinguishable"
 BY_CONSTRUCTION = "<= by construction"
 
 
-def construction_reason(smaller: str) -> str:
+def construction_reason(smaller: str, larger: str = "PCA") -> str:
     """Why a basis comparison holds by construction in every replicate (:func:`holds_by_construction`): QE spans
-    PCA's affine subspace, or PCA is the Eckart-Young optimum."""
+    PCA's affine subspace, or QE-linear's shapes (which lie in PCA's eigenface span), or PCA is the Eckart-Young
+    optimum."""
     if smaller == "PCA":
         return "Eckart-Young on the training frames, n <= m in every run"
+    if larger == "QE-linear":
+        return "QE's affine shapes span mu + span(eigenfaces), which holds QE-linear's shapes, rank m + 1 in every run"
     return "QE spans PCA's affine subspace, rank m + 1 in every run"
 
 
@@ -435,7 +440,9 @@ def paired_comparisons(
         ``second`` the smaller and the larger by their geometric mean ratio (values of ``between``), ``n`` the
         replicates both have, ``verdict`` ``<`` (the interval lies below 1), :data:`NOT_DISTINGUISHABLE` or
         :data:`BY_CONSTRUCTION` (the ordering holds in every replicate whatever the data,
-        :func:`holds_by_construction`: its reason in ``by_construction``, no test and no p-value), ``p`` the
+        :func:`holds_by_construction`: its reason in ``by_construction``, no test and no p-value), or
+        :data:`workbench.stats.replicates.PSEUDO_REPLICATES` when the runs differ only in seeds that leave the data
+        the same (an optimiser's start: its reason in ``pseudo_replicates``, no test and no p-value), ``p`` the
         two-sided p-value of the same paired t on the log ratios (for :func:`workbench.stats.statistics.holm`).
     """
     if metric not in runs.columns:
@@ -453,6 +460,8 @@ def paired_comparisons(
             index="_replicate", columns=between, values=metric, aggfunc="first", sort=False, dropna=False
         )
         bases = list(dict.fromkeys(group[between]))
+        varying = [column for column in over if group[column].nunique(dropna=False) > 1]
+        pseudo = pseudo_replicate_reason(varying, group.iloc[0].to_dict())
         for i, first in enumerate(bases):
             for second in bases[i + 1 :]:
                 interval = paired_ratio_interval(table[first].to_numpy(float), table[second].to_numpy(float))
@@ -461,10 +470,12 @@ def paired_comparisons(
                     interval = reversed_interval(interval)
                 verdict = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
                 reason, p_value = None, interval.p_value
+                if pseudo:  # the spread is an optimiser's jitter on one data set: no "<", no test
+                    verdict, p_value = PSEUDO_REPLICATES, math.nan
                 if holds_by_construction(group, higher, lower, metric, between):  # equal within rounding
                     lower, higher, interval = higher, lower, reversed_interval(interval)
                 if holds_by_construction(group, lower, higher, metric, between):
-                    verdict, reason, p_value = BY_CONSTRUCTION, construction_reason(lower), math.nan
+                    verdict, reason, p_value = BY_CONSTRUCTION, construction_reason(lower, higher), math.nan
                 records.append(
                     dict(
                         zip(keys, group_values),
@@ -479,6 +490,7 @@ def paired_comparisons(
                         verdict=verdict,
                         p=p_value,
                         by_construction=reason,
+                        pseudo_replicates=pseudo or None,
                     )
                 )
     return pd.DataFrame.from_records(records, columns=[*keys, *COMPARISON_COLUMNS])
