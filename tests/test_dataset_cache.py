@@ -22,6 +22,7 @@ from workbench.dataset.cache import cached_captures, clear_memory, dataset_key, 
 from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.numerics.frames import FramesOnDisk
 from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
+from workbench.settings.typed import dataset_settings
 
 CONFIG = {
     "kind": "synthetic",
@@ -47,7 +48,8 @@ class CountingBuilder:
 
     def __call__(self, cfg):
         self.calls += 1
-        return build_synthetic(cfg)
+        # the synthetic builder takes its own settings: the source files some tests name are for the key alone
+        return build_synthetic(dataset_settings({key: value for key, value in cfg.items() if key in CONFIG}))
 
 
 def assert_one_note(capsys, start: str, end: str) -> str:

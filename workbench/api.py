@@ -387,7 +387,7 @@ def build_captures(config, *, cache_dir: str | None = None) -> dict[str, "Captur
     from workbench.settings.typed import dataset_settings
 
     plain = OmegaConf.to_container(config, resolve=True) if OmegaConf.is_config(config) else dict(config)
-    return build(dataset_settings(plain, check=True), cache_dir=cache_dir)
+    return build(dataset_settings(plain), cache_dir=cache_dir)
 
 
 def run_study(config) -> list["StudyResult"]:

@@ -111,8 +111,15 @@ SHAPE_NAMES = rule(
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
 HELD_OUT = names("tail", "take", "kfold", "take_out", optional=True)
 """``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
-SYNTHETIC_VARIANTS = ("markers", "mesh", "mesh_rbf", "face")
-"""The synthetic actor's data variants (``workbench.dataset.TRAIN_ON``)."""
+DATA_VARIANTS = {
+    "synthetic": ("markers", "mesh", "mesh_rbf", "face"),
+    "ict_livelink": ("mesh", "markers"),
+    "animface": ("markers", "mesh"),
+    "mesh_sequence": ("mesh",),
+}
+"""``dataset.kind`` -> the data variants its builder makes (the names ``dataset.train_on`` and ``dataset.eval_on``
+take), in the order they are listed in messages."""
+SYNTHETIC_VARIANTS = DATA_VARIANTS["synthetic"]
 PLAUSIBILITY = one_of("error", "warn")
 STORAGE = one_of("memory", "disk")
 DTYPE = one_of("float64", "float32")
@@ -273,7 +280,7 @@ class IctLivelinkSchema:
     hand_shapes: List[str] = meta(MISSING, SHAPE_NAMES)
     marker_table: str = meta(MISSING, TEXT)
     mesh_vertex_step: int = meta(1, integer(1))
-    train_on: Any = meta(MISSING, names("mesh", "markers"))
+    train_on: Any = meta(MISSING, names(*DATA_VARIANTS["ict_livelink"]))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
@@ -315,7 +322,7 @@ class AnimfaceSchema:
     gap_mean_frames: float = meta(12, interval(1))
     gap_seed: int = meta(0, SEED)
     mesh_vertex_step: int = meta(1, integer(1))
-    train_on: Any = meta(MISSING, names("markers", "mesh"))
+    train_on: Any = meta(MISSING, names(*DATA_VARIANTS["animface"]))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
@@ -350,7 +357,7 @@ class MeshSequenceSchema:
     frame_step: int = meta(1, integer(1))
     max_frames: Optional[int] = meta(None, integer(2, optional=True))
     plausibility: str = meta("error", PLAUSIBILITY)
-    train_on: Any = meta("mesh", names("mesh"))
+    train_on: Any = meta("mesh", names(*DATA_VARIANTS["mesh_sequence"]))
     split: str = meta("same", one_of("same", "tail"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
@@ -410,6 +417,7 @@ DATASET_EXTRA_RULES = {
     ),
     "weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
     "weight_curves": OPTIONAL_TEXT,
+    "eval_on": lambda kind: names(*DATA_VARIANTS[kind], optional=True),
 }
 """The rules of the dataset settings added with ``+`` (the rate numbers the frames of weight curves, as
 :data:`FRAME_RATE` does a capture's)."""
@@ -621,6 +629,7 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
     _check_known(values, schema, prefix, extras)
     for key in extras & set(values):
         spec = DATASET_EXTRA_RULES.get(key)
+        spec = spec(values.get("kind")) if callable(spec) else spec  # a rule that depends on the dataset's kind
         if spec is not None:
             checked(values[key], prefix + key, spec)
         if key in DATASET_EXTRA_SCHEMAS and values[key]:

@@ -13,7 +13,7 @@ from dataclasses import MISSING as NO_DEFAULT
 from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from typing import Any, Mapping, Optional, Sequence
 
-from omegaconf import MISSING
+from omegaconf import MISSING, OmegaConf
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.solvers import BOUNDS, SOLVER_KINDS
@@ -74,11 +74,11 @@ for _settings in DATASET_SETTINGS.values():  # module attributes, so that pickle
     globals()[_settings.__name__] = _settings
 
 
-def dataset_settings(values, *, check: bool = False) -> Any:
-    """The ``dataset`` group as its kind's typed settings (:data:`DATASET_SETTINGS`); typed settings are returned as
-    they are. With ``check``, a plain group is checked first (:func:`~workbench.settings.schema.check_dataset_group`:
-    :func:`workbench.api.build_captures` does); :func:`study_settings` checks the whole study instead, and a builder
-    called with a plain group (a test's) types it unchecked, as it read it before.
+def dataset_settings(values) -> Any:
+    """A ``dataset`` group given alone (the Python API's :func:`workbench.api.build_captures`, a test's builder call)
+    as its kind's typed settings (:data:`DATASET_SETTINGS`), checked first
+    (:func:`~workbench.settings.schema.check_dataset_group`); typed settings are returned as they are (they were
+    checked when they were made). :func:`study_settings` checks and types the whole study instead.
 
     Raises
     ------
@@ -87,10 +87,16 @@ def dataset_settings(values, *, check: bool = False) -> Any:
     """
     if is_dataclass(values):
         return values
+    if OmegaConf.is_config(values):
+        values = OmegaConf.to_container(values, resolve=True)
     if not isinstance(values, Mapping):
         raise WorkbenchError(f"the dataset settings must be a mapping, got {type(values).__name__}")
-    if check:
-        check_dataset_group(values)
+    check_dataset_group(values)
+    return _typed_dataset(values)
+
+
+def _typed_dataset(values: Mapping) -> Any:
+    """A checked ``dataset`` group as its kind's typed settings."""
     kind = values.get("kind")
     if kind not in DATASET_SETTINGS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SETTINGS)}, got {kind!r}")
@@ -157,7 +163,7 @@ def study_settings(cfg, overrides: Sequence[str] = ()) -> StudySettings:
     plain, _ = checked_settings(cfg, overrides)
     metric, paths, paper = plain.get("metric") or {}, plain.get("paths") or {}, plain.get("paper")
     return StudySettings(
-        dataset=dataset_settings(plain["dataset"], check=False),
+        dataset=_typed_dataset(plain["dataset"]),
         basis=typed(BasisSchema, plain["basis"]),
         solvers={name: typed(SolverSchema, spec) for name, spec in plain["solver"].items()},
         metric=typed(MetricSchema, metric),

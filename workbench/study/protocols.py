@@ -10,9 +10,9 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset import variant_names
 from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
+from workbench.dataset.common import name_list
 from workbench.settings.schema import BasisSchema
 from workbench.study.fitting import fit_eigenfaces
 
@@ -196,10 +196,10 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
 
 def data_variants(dataset) -> tuple[list[str], list[str] | None]:
     """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
-    train_names, eval_names = variant_names(dataset, "train_on"), variant_names(dataset, "eval_on")
-    if eval_names is not None and train_names is None:
+    train_on, eval_on = dataset.train_on, getattr(dataset, "eval_on", None)
+    if eval_on is not None and train_on is None:
         raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
-    return train_names or [], eval_names
+    return [] if train_on is None else name_list(train_on), None if eval_on is None else name_list(eval_on)
 
 
 def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
