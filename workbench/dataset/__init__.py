@@ -10,7 +10,7 @@ from dataclasses import replace
 from typing import Mapping
 
 from workbench.dataset.animface import build_animface
-from workbench.dataset.cache import cached_captures, dataset_key, without_settings
+from workbench.dataset.cache import cached_captures, dataset_key
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import apply_hand_basis
 from workbench.dataset.ict_livelink import build_ict_livelink
@@ -18,7 +18,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import build_synthetic
-from workbench.settings.typed import dataset_settings
+from workbench.settings.typed import built_settings, canonical_settings, dataset_settings
 
 BUILDERS = {
     "synthetic": build_synthetic,
@@ -28,9 +28,6 @@ BUILDERS = {
 }
 """``dataset.kind`` -> builder taking the typed ``dataset`` settings and the :class:`FrameStorage` its dense frames
 are written into, returning ``{train_on name: Capture}``."""
-SCORING_ONLY = ("held_out", "folds", "fold_gap_s")
-"""Dataset settings that choose which built frames are held out and scored, not what is built: left out of the
-build and of its cache key, so the same data are built once whatever is held out of them."""
 
 
 def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capture]:
@@ -61,22 +58,21 @@ def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capt
     """:func:`build_captures` of typed dataset settings (:func:`workbench.settings.typed.dataset_settings`), as the
     study passes them: taken as they are, neither typed nor checked again."""
     storage = frame_storage(dataset.storage, dataset.dtype, cache_dir)
-    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
-    keyed = without_settings(dataset, ("hand_basis", *SCORING_ONLY))
+    keyed = built_settings(dataset)  # the hand-basis file is read outside the cache, after the build
 
-    def build(plain: Mapping):
+    def build(values: Mapping):
         captures = BUILDERS[keyed.kind](keyed, storage)
-        files = data_file_checksums(plain)  # what the run read, for its provenance
+        files = data_file_checksums(values)  # what the run read, for its provenance
         return {
             name: stored_frames(
                 replace(capture, provenance={**capture.provenance, "data_files": files}) if files else capture,
                 storage,
-                (dataset_key(plain), name),
+                (dataset_key(values), name),
             )
             for name, capture in captures.items()
         }
 
-    return apply_hand_basis(cached_captures(keyed.plain, build, cache_dir), dataset)
+    return apply_hand_basis(cached_captures(canonical_settings(keyed), build, cache_dir), dataset)
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

@@ -10,10 +10,10 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import name_list
 from workbench.settings.schema import BasisSchema
+from workbench.settings.typed import changed_dataset
 from workbench.study.fitting import fit_eigenfaces
 
 HELD_OUT = {

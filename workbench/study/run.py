@@ -13,11 +13,10 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_from_settings
-from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
-from workbench.settings.typed import StudySettings, solver_options
+from workbench.settings.typed import StudySettings, changed_dataset, solver_options
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (
@@ -63,7 +62,7 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     dataset, basis = settings.dataset, settings.basis
     train_names, eval_names = data_variants(dataset)
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
-    # the same built data whatever is held out of it (build_captures leaves out dataset.SCORING_ONLY)
+    # the same built data whatever is held out of it (build_captures leaves out settings.typed.SCORING_ONLY)
     built = changed_dataset(dataset, train_on=build_names) if eval_names else dataset
     score_clean = settings.metric.score_clean is True
     with timings.stage("dataset"):
