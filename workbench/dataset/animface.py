@@ -548,7 +548,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     take_files = list(cfg.takes or [])
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
-    takes = [read_take(data_path(cfg, name, "takes")) for name in take_files]
+    takes = [read_take(data_path(cfg.data_root, name, "takes")) for name in take_files]
     check_distinct_takes(take_files, takes)
     warnings = settle(take_problems(takes), cfg.plausibility)
     if len({take.frame_rate for take in takes}) != 1:
@@ -556,7 +556,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
             f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
             "concatenating them needs one"
         )
-    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
     hand_names = hand_shape_names(cfg, expression_names(folder, cfg.blendshapes.neutral))
     basis = load_basis(cfg, hand_names)
     warnings += settle(

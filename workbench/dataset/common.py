@@ -15,8 +15,6 @@ from workbench.dataset.transfer import apply_point_operator
 from workbench.numerics.frames import FramesOnDisk, frame_chunks
 from workbench.numerics.metrics import point_norms
 
-SPLITS = ("same", "tail")
-
 
 def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:
     """Choose training and evaluation frames.

@@ -81,7 +81,7 @@ def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str,
     check_hand_shapes(
         basis.deltas[hand_index].reshape(len(hand_names), -1),
         hand_names,
-        f"dataset.blendshapes.folder {data_path(cfg, cfg.blendshapes.folder, 'blendshapes.folder')}",
+        f"dataset.blendshapes.folder {data_path(cfg.data_root, cfg.blendshapes.folder, 'blendshapes.folder')}",
     )
     mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, basis.deltas[hand_index], hand_names)
     points = {"mesh": mesh_points, "markers": marker_vertices}
@@ -158,13 +158,13 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
     shapes they drive and the hand shapes."""
     timecode_rate = float(cfg.timecode_rate)
     curves_key = "weight_curves" if cfg.weight_curves else "livelink_csv"
-    curves_path = data_path(cfg, getattr(cfg, curves_key), curves_key)
+    curves_path = data_path(cfg.data_root, getattr(cfg, curves_key), curves_key)
     take_name = curves_path.stem
     if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.formats.weight_curves)
         take = read_weight_curves(curves_path, frame_rate=cfg.weight_frame_rate, timecode_rate=timecode_rate)
     else:
         take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
-    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
     available = expression_names(folder, cfg.blendshapes.neutral)
     hand_names = hand_shape_names(cfg, available)
     folder_mapping = map_arkit_channels(take.names, available, cfg.arkit_overrides or {})

@@ -51,7 +51,7 @@ def build_mesh_sequence(cfg, storage: FrameStorage = FrameStorage()) -> dict[str
     dict
         ``{"mesh": Capture}``.
     """
-    path = data_path(cfg, cfg.sequence, "sequence")
+    path = data_path(cfg.data_root, cfg.sequence, "sequence")
     unit_mm = float(cfg.unit_mm)
     frame_rate = float(cfg.frame_rate)
     with open_mesh_sequence(path, str(cfg.vertices_key or "vertices"), cfg.faces_key) as sequence:
@@ -64,7 +64,7 @@ def _mesh_sequence_capture(
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     warnings = settle(sequence.problems, cfg.plausibility)
     if cfg.neutral:
-        neutral_path = data_path(cfg, cfg.neutral, "neutral")
+        neutral_path = data_path(cfg.data_root, cfg.neutral, "neutral")
         neutral_mesh = read_obj(neutral_path)
         if neutral_mesh.n_vertices != n_vertices:
             raise WorkbenchError(
@@ -86,7 +86,7 @@ def _mesh_sequence_capture(
             "dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
             "(a blendshape folder or a .glb)"
         )
-    basis_path = data_path(cfg, spec.path, "blendshapes.path")
+    basis_path = data_path(cfg.data_root, spec.path, "blendshapes.path")
     if not basis_path.exists():
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
     basis = read_shape_file(

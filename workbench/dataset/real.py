@@ -23,9 +23,8 @@ ANIMFACE_CREDIT = (
 )
 
 
-def data_root(cfg: Mapping) -> Path:
+def data_root(root: str | None) -> Path:
     """The configured data root (``dataset.data_root``, usually ``paths.data_root``), which must exist."""
-    root = cfg.data_root
     if not root:
         raise WorkbenchError("dataset.data_root is not set (it defaults to ${paths.data_root})")
     path = Path(root).expanduser()
@@ -37,12 +36,13 @@ def data_root(cfg: Mapping) -> Path:
     return path
 
 
-def data_path(cfg: Mapping, relative: str, key: str) -> Path:
-    """A file or folder named by ``dataset.<key>``, relative to the data root unless absolute."""
+def data_path(root: str | None, relative: str, key: str) -> Path:
+    """A file or folder named by ``dataset.<key>``, relative to the data root ``root`` (``dataset.data_root``)
+    unless absolute."""
     if not relative:
         raise WorkbenchError(f"dataset.{key} is not set")
     path = Path(relative).expanduser()
-    return path if path.is_absolute() else data_root(cfg) / path
+    return path if path.is_absolute() else data_root(root) / path
 
 
 def conf_path(relative: str, key: str) -> Path:
@@ -127,7 +127,7 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
     region = spec.region_vertices
     region = None if region is None else int(region)
     return load_blendshapes(
-        data_path(cfg, spec.folder, "blendshapes.folder"),
+        data_path(cfg.data_root, spec.folder, "blendshapes.folder"),
         neutral_file=spec.neutral,
         names=names,
         region_vertices=region,

@@ -23,6 +23,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError, check_utf8
+from workbench.core.frames import FRAME_DTYPES
 from workbench.core.solvers import SOLVER_KINDS
 from workbench.settings.bases import ALTERNATIVE_BASES
 from workbench.settings.ineffective import (
@@ -109,8 +110,16 @@ SHAPE_NAMES = rule(
     "a non-empty list of distinct shape names (plain names: each names a file in an export)",
 )
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
-HELD_OUT = names("tail", "take", "kfold", "take_out", optional=True)
-"""``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
+HELD_OUT_PROTOCOLS = {
+    "tail": "held-out tail of each take",
+    "take": "held-out last take",
+    "kfold": "held-out blocked k-fold",
+    "take_out": "held-out leave-one-take-out",
+}
+"""``dataset.held_out`` protocol -> how its frames are described (``workbench.study.protocols.HELD_OUT``; the
+cross-validated ones are ``workbench.study.crossval.FOLDED``)."""
+HELD_OUT = names(*HELD_OUT_PROTOCOLS, optional=True)
+"""``dataset.held_out``: the held-out protocols scored beside the paper's."""
 DATA_VARIANTS = {
     "synthetic": ("markers", "mesh", "mesh_rbf", "face"),
     "ict_livelink": ("mesh", "markers"),
@@ -120,9 +129,16 @@ DATA_VARIANTS = {
 """``dataset.kind`` -> the data variants its builder makes (the names ``dataset.train_on`` and ``dataset.eval_on``
 take), in the order they are listed in messages."""
 SYNTHETIC_VARIANTS = DATA_VARIANTS["synthetic"]
-PLAUSIBILITY = one_of("error", "warn")
-STORAGE = one_of("memory", "disk")
-DTYPE = one_of("float64", "float32")
+PLAUSIBILITY_POLICIES = ("error", "warn")
+"""``dataset.plausibility``: what implausible input does (``workbench.formats.plausibility.settle``)."""
+PLAUSIBILITY = one_of(*PLAUSIBILITY_POLICIES)
+STORAGES = ("memory", "disk")
+"""``dataset.storage``: frames kept in memory or in files of ``paths.cache_dir`` (``workbench.dataset.storage``)."""
+STORAGE = one_of(*STORAGES)
+DTYPE = one_of(*FRAME_DTYPES)
+SPLITS = ("same", "tail")
+"""``dataset.split`` of every kind; the synthetic actor adds ``other_take`` (a second take of the same actor)."""
+SPLIT = one_of(*SPLITS)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -244,7 +260,7 @@ class SyntheticSchema:
     train_on: Any = meta("markers", names(*SYNTHETIC_VARIANTS))
     eval_on: Any = meta(None, names(*SYNTHETIC_VARIANTS, optional=True))
     stabilise: Any = meta(True, BOOLEAN)
-    split: str = meta("same", one_of("same", "tail", "other_take"))
+    split: str = meta("same", one_of(*SPLITS, "other_take"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -281,7 +297,7 @@ class IctLivelinkSchema:
     marker_table: str = meta(MISSING, TEXT)
     mesh_vertex_step: int = meta(1, integer(1))
     train_on: Any = meta(MISSING, names(*DATA_VARIANTS["ict_livelink"]))
-    split: str = meta("same", one_of("same", "tail"))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -323,7 +339,7 @@ class AnimfaceSchema:
     gap_seed: int = meta(0, SEED)
     mesh_vertex_step: int = meta(1, integer(1))
     train_on: Any = meta(MISSING, names(*DATA_VARIANTS["animface"]))
-    split: str = meta("same", one_of("same", "tail"))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -358,7 +374,7 @@ class MeshSequenceSchema:
     max_frames: Optional[int] = meta(None, integer(2, optional=True))
     plausibility: str = meta("error", PLAUSIBILITY)
     train_on: Any = meta("mesh", names(*DATA_VARIANTS["mesh_sequence"]))
-    split: str = meta("same", one_of("same", "tail"))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))

@@ -12,17 +12,12 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import name_list
-from workbench.settings.schema import BasisSchema
+from workbench.settings.schema import HELD_OUT_PROTOCOLS, BasisSchema
 from workbench.settings.typed import changed_dataset
 from workbench.study.fitting import fit_eigenfaces
 
-HELD_OUT = {
-    "tail": "held-out tail of each take",
-    "take": "held-out last take",
-    "kfold": "held-out blocked k-fold",
-    "take_out": "held-out leave-one-take-out",
-}
-"""``dataset.held_out`` protocol -> how its frames are described."""
+HELD_OUT = HELD_OUT_PROTOCOLS
+"""``dataset.held_out`` protocol -> how its frames are described (:data:`workbench.settings.schema.HELD_OUT_PROTOCOLS`)."""
 
 
 def held_out_protocols(dataset) -> list[str]:
@@ -250,9 +245,9 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
     return np.array(sorted(names.index(name) for name in spec), dtype=int)
 
 
-def subset_hand_shapes(capture: Capture, basis: BasisSchema) -> Capture:
-    """The capture with only the hand shapes ``basis.hand_subset`` keeps."""
-    index = hand_subset_indices(capture.hand_names, basis.hand_subset, basis.subset_seed)
+def subset_hand_shapes(capture: Capture, hand_subset, subset_seed: int) -> Capture:
+    """The capture with only the hand shapes ``basis.hand_subset`` keeps (drawn with ``basis.subset_seed``)."""
+    index = hand_subset_indices(capture.hand_names, hand_subset, subset_seed)
     if index.size == len(capture.hand_names):
         return capture
     return select_shapes(capture, [capture.hand_names[i] for i in index])

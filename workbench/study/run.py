@@ -73,11 +73,13 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
             else None
         )
     if eval_names:
-        return carried_results(captures, clean, train_names, eval_names, settings, solvers, timings)
+        return carried_results(captures, clean, train_names, eval_names, basis, score_clean, solvers, timings)
     results = []
     for data, capture in captures.items():
         capture, fitted = with_clean_m(
-            subset_hand_shapes(capture, basis), basis, clean[data] if basis.coverage_on == "clean" else None
+            subset_hand_shapes(capture, basis.hand_subset, basis.subset_seed),
+            basis,
+            clean[data] if basis.coverage_on == "clean" else None,
         )
         score = scorer(solvers, timings, clean[data] if score_clean else None)
         trained = with_paper_regime(score(data, capture, fitted), fitted, score)
@@ -197,13 +199,14 @@ def carried_results(
     clean: Mapping[str, Capture] | None,
     train_names: Sequence[str],
     eval_names: Sequence[str],
-    settings: StudySettings,
+    basis: BasisSchema,
+    score_clean: bool,
     solvers: Mapping[str, Mapping],
     timings: Timings,
 ) -> list[StudyResult]:
     """``dataset.eval_on``: the bases fitted on each training variant, carried onto the points of each evaluated
-    variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair."""
-    basis, score_clean = settings.basis, settings.metric.score_clean is True
+    variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair (also
+    against the clean frames with ``score_clean``, ``metric.score_clean``)."""
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
     if masked:
         raise WorkbenchError(
@@ -214,7 +217,7 @@ def carried_results(
     results = []
     for train_on in train_names:
         source, fitted = with_clean_m(
-            subset_hand_shapes(captures[train_on], basis),
+            subset_hand_shapes(captures[train_on], basis.hand_subset, basis.subset_seed),
             basis,
             clean[train_on] if basis.coverage_on == "clean" else None,
         )
