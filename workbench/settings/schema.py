@@ -520,7 +520,7 @@ def check_dataset_group(values: Mapping) -> None:
         values, DATASET_SCHEMAS[kind], "dataset.", extras={k for k, kinds in DATASET_EXTRAS.items() if kind in kinds}
     )
     if kind == "synthetic":
-        _check_marker_count(values)
+        _check_synthetic(values)
 
 
 def resolved_settings(cfg) -> dict:
@@ -706,7 +706,7 @@ def _check_relations(plain: Mapping) -> None:
         )
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
-        _check_marker_count(plain["dataset"])
+        _check_synthetic(plain["dataset"])
     _check_held_out(plain)
     coverage_on_setting(basis)
     for key, wants_clean in (
@@ -736,6 +736,18 @@ def _check_held_out(plain: Mapping) -> None:
         raise WorkbenchError(
             "basis.alternatives are fitted and scored on each data variant's own points; "
             "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset"
+        )
+
+
+def _check_synthetic(dataset: Mapping) -> None:
+    """The rules between the synthetic actor's settings: its markers fit its mesh, and a second take (split
+    ``other_take``) has a seed of its own."""
+    _check_marker_count(dataset)
+    seed, eval_seed = dataset.get("seed", 0), dataset.get("eval_seed")
+    if dataset.get("split") == "other_take" and _integer(seed) and eval_seed is not None and eval_seed == seed:
+        raise WorkbenchError(
+            f"dataset.eval_seed {eval_seed} equals dataset.seed: split 'other_take' evaluates on "
+            "another take, so the two seeds must differ (null: seed + 1)"
         )
 
 

@@ -118,6 +118,23 @@ def without_settings(settings, names: Sequence[str]) -> Any:
     return replace(settings, **{spec.name: default_value(spec) for spec in fields(settings) if spec.name in names})
 
 
+def clean_dataset(dataset) -> Any:
+    """The dataset settings of the clean capture of the same take: the synthetic actor without marker noise and
+    without marker dropout (same seed, so the same performance and head motion).
+
+    Raises
+    ------
+    WorkbenchError
+        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
+    """
+    if dataset.kind != "synthetic":
+        raise WorkbenchError(
+            f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
+            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {dataset.kind!r}"
+        )
+    return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
+
+
 def built_settings(settings) -> Any:
     """The typed dataset settings a build reads: without :data:`SCORING_ONLY` and ``hand_basis`` (its file is read
     after the build, outside the cache: the same data are cached once, a changed file read afresh)."""

@@ -13,7 +13,6 @@ from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import name_list
 from workbench.settings.schema import HELD_OUT_PROTOCOLS, BasisSchema
-from workbench.settings.typed import changed_dataset
 from workbench.study.fitting import fit_eigenfaces
 
 HELD_OUT = HELD_OUT_PROTOCOLS
@@ -108,23 +107,6 @@ def select_frames(frames, index: np.ndarray):
 CLEAN_M_NOTE = "m chosen on the clean capture"
 
 
-def clean_dataset_config(dataset):
-    """The dataset settings of the clean capture of the same take: the synthetic actor without marker noise and
-    without marker dropout (same seed, so the same performance and head motion).
-
-    Raises
-    ------
-    WorkbenchError
-        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
-    """
-    if dataset.kind != "synthetic":
-        raise WorkbenchError(
-            f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
-            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {dataset.kind!r}"
-        )
-    return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
-
-
 def with_clean_m(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
     """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
     fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
@@ -134,7 +116,7 @@ def with_clean_m(capture: Capture, basis: BasisSchema, clean: Capture | None) ->
     capture : Capture
     basis : BasisSchema
     clean : Capture or None
-        The same data variant of the clean capture (:func:`clean_dataset_config`).
+        The same data variant of the clean capture (:func:`workbench.settings.typed.clean_dataset`).
 
     Returns
     -------
@@ -161,7 +143,7 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
     capture : Capture
         The evaluated capture (noise, dropout; its frames may be a subset of the take's).
     clean : Capture
-        The same data variant of the clean capture (:func:`clean_dataset_config`), same points.
+        The same data variant of the clean capture (:func:`workbench.settings.typed.clean_dataset`), same points.
 
     Returns
     -------

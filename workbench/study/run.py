@@ -16,13 +16,12 @@ from workbench.dataset import build_from_settings
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
-from workbench.settings.typed import StudySettings, changed_dataset, solver_options
+from workbench.settings.typed import StudySettings, changed_dataset, clean_dataset, solver_options
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (
     CLEAN_M_NOTE,
     HELD_OUT,
-    clean_dataset_config,
     clean_frames,
     data_variants,
     held_out_capture,
@@ -68,7 +67,7 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     with timings.stage("dataset"):
         captures = build_from_settings(built, cache_dir=settings.paths.cache_dir)
         clean = (
-            build_from_settings(clean_dataset_config(built), cache_dir=settings.paths.cache_dir)
+            build_from_settings(clean_dataset(built), cache_dir=settings.paths.cache_dir)
             if basis.coverage_on == "clean" or score_clean
             else None
         )
