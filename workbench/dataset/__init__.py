@@ -18,7 +18,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
 from workbench.dataset.synthetic_builder import build_synthetic
-from workbench.settings.typed import built_settings, canonical_settings, dataset_settings
+from workbench.settings.typed import built_settings, dataset_settings
 
 BUILDERS = {
     "synthetic": build_synthetic,
@@ -58,7 +58,7 @@ def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capt
     """:func:`build_captures` of typed dataset settings (:func:`workbench.settings.typed.dataset_settings`), as the
     study passes them: taken as they are, neither typed nor checked again."""
     storage = frame_storage(dataset.storage, dataset.dtype, cache_dir)
-    keyed = built_settings(dataset)  # the hand-basis file is read outside the cache, after the build
+    keyed, key_settings = built_settings(dataset)  # the hand-basis file is read outside the cache, after the build
 
     def build(values: Mapping):
         captures = BUILDERS[keyed.kind](keyed, storage)
@@ -72,7 +72,7 @@ def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capt
             for name, capture in captures.items()
         }
 
-    return apply_hand_basis(cached_captures(canonical_settings(keyed), build, cache_dir), dataset)
+    return apply_hand_basis(cached_captures(key_settings, build, cache_dir), dataset)
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

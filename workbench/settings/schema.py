@@ -42,7 +42,6 @@ from workbench.settings.rules import (
     _integer,
     _number,
     checked,
-    coverage_on_setting,
     integer,
     interval,
     key_of,
@@ -708,7 +707,11 @@ def _check_relations(plain: Mapping) -> None:
     if kind == "synthetic":
         _check_synthetic(plain["dataset"])
     _check_held_out(plain)
-    coverage_on_setting(basis)
+    if given(basis, BasisSchema, "coverage_on") == "clean" and basis.get("n_components") is not None:
+        raise WorkbenchError(
+            f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
+            f"be null, got {basis['n_components']}"
+        )
     for key, wants_clean in (
         ("basis.coverage_on", basis.get("coverage_on") == "clean"),
         ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True),
@@ -717,11 +720,20 @@ def _check_relations(plain: Mapping) -> None:
             raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
 
 
+def given(values: Mapping, schema, name: str):
+    """The setting ``name`` of ``values`` as given, else ``schema``'s default for it (None where it has none): a
+    rule between settings reads a setting left out as the run will, without restating its default."""
+    if name in values:
+        return values[name]
+    spec = {spec.name: spec for spec in fields(schema)}[name]
+    return None if spec.default is NO_DEFAULT or spec.default == MISSING else spec.default
+
+
 def _check_held_out(plain: Mapping) -> None:
     """What ``dataset.held_out`` and ``dataset.eval_on`` (bases carried onto other points) cannot be combined with."""
     dataset, carried = plain["dataset"], plain["dataset"].get("eval_on") is not None
     held_out = _held_out(plain)
-    if held_out and dataset.get("split", "same") != "same":
+    if held_out and given(dataset, DATASET_SCHEMAS[dataset["kind"]], "split") != "same":
         raise WorkbenchError(
             f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
             f"with dataset.split {dataset.get('split')!r} the run is already held out: leave "
@@ -743,7 +755,7 @@ def _check_synthetic(dataset: Mapping) -> None:
     """The rules between the synthetic actor's settings: its markers fit its mesh, and a second take (split
     ``other_take``) has a seed of its own."""
     _check_marker_count(dataset)
-    seed, eval_seed = dataset.get("seed", 0), dataset.get("eval_seed")
+    seed, eval_seed = given(dataset, SyntheticSchema, "seed"), dataset.get("eval_seed")
     if dataset.get("split") == "other_take" and _integer(seed) and eval_seed is not None and eval_seed == seed:
         raise WorkbenchError(
             f"dataset.eval_seed {eval_seed} equals dataset.seed: split 'other_take' evaluates on "

@@ -135,10 +135,12 @@ def clean_dataset(dataset) -> Any:
     return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
 
 
-def built_settings(settings) -> Any:
-    """The typed dataset settings a build reads: without :data:`SCORING_ONLY` and ``hand_basis`` (its file is read
-    after the build, outside the cache: the same data are cached once, a changed file read afresh)."""
-    return without_settings(settings, ("hand_basis", *SCORING_ONLY))
+def built_settings(settings) -> tuple[Any, dict]:
+    """The typed dataset settings a build reads, without :data:`SCORING_ONLY` and ``hand_basis`` (its file is read
+    after the build, outside the cache: the same data are cached once, a changed file read afresh), and their
+    canonical form (:func:`canonical_settings`), what the dataset cache keys the build by."""
+    built = without_settings(settings, ("hand_basis", *SCORING_ONLY))
+    return built, canonical_settings(built)
 
 
 def canonical_settings(settings) -> dict:

@@ -19,9 +19,8 @@ HELD_OUT = HELD_OUT_PROTOCOLS
 """``dataset.held_out`` protocol -> how its frames are described (:data:`workbench.settings.schema.HELD_OUT_PROTOCOLS`)."""
 
 
-def held_out_protocols(dataset) -> list[str]:
-    """``dataset.held_out`` (typed dataset settings) as a list of protocols of :data:`HELD_OUT` (empty when null)."""
-    value = dataset.held_out
+def held_out_protocols(value) -> list[str]:
+    """``dataset.held_out`` (one protocol of :data:`HELD_OUT`, a list of them, or None) as a list (empty when null)."""
     return [] if value is None else [value] if isinstance(value, str) else list(value)
 
 
@@ -171,9 +170,9 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
     return np.asarray(clean.eval)[index]
 
 
-def data_variants(dataset) -> tuple[list[str], list[str] | None]:
-    """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
-    train_on, eval_on = dataset.train_on, getattr(dataset, "eval_on", None)
+def data_variants(train_on, eval_on) -> tuple[list[str], list[str] | None]:
+    """``dataset.train_on`` and ``dataset.eval_on`` (a name or a list of them) as lists of names (``eval_on`` None
+    when not set)."""
     if eval_on is not None and train_on is None:
         raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
     return [] if train_on is None else name_list(train_on), None if eval_on is None else name_list(eval_on)

@@ -59,7 +59,7 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     timings = Timings()
     solvers = {name: solver_options(solver) for name, solver in settings.solvers.items()}
     dataset, basis = settings.dataset, settings.basis
-    train_names, eval_names = data_variants(dataset)
+    train_names, eval_names = data_variants(dataset.train_on, getattr(dataset, "eval_on", None))  # not every kind's
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
     # the same built data whatever is held out of it (build_captures leaves out settings.typed.SCORING_ONLY)
     built = changed_dataset(dataset, train_on=build_names) if eval_names else dataset
@@ -83,7 +83,7 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
         score = scorer(solvers, timings, clean[data] if score_clean else None)
         trained = with_paper_regime(score(data, capture, fitted), fitted, score)
         results += trained
-        for protocol in held_out_protocols(dataset):
+        for protocol in held_out_protocols(dataset.held_out):
             results += held_out_results(data, capture, protocol, dataset, fitted, score, len(trained) > 1)
     return results
 
