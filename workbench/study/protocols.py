@@ -12,7 +12,7 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.capture import Capture
 from workbench.dataset.common import name_list
-from workbench.settings.schema import HELD_OUT_PROTOCOLS, BasisSchema
+from workbench.settings.schema import HELD_OUT_PROTOCOLS
 from workbench.study.fitting import fit_eigenfaces
 
 HELD_OUT = HELD_OUT_PROTOCOLS
@@ -106,32 +106,34 @@ def select_frames(frames, index: np.ndarray):
 CLEAN_M_NOTE = "m chosen on the clean capture"
 
 
-def with_clean_m(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
-    """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
-    fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
+def with_clean_m(capture: Capture, coverage: float, clean: Capture | None) -> tuple[Capture, int | None]:
+    """The capture to fit and the number of eigenfaces to fit it with: unchanged and None (the coverage rule's m)
+    without a clean capture; with one, the m the coverage threshold keeps on the clean capture's training frames,
+    said in a note.
 
     Parameters
     ----------
     capture : Capture
-    basis : BasisSchema
+    coverage : float
+        ``basis.coverage``.
     clean : Capture or None
         The same data variant of the clean capture (:func:`workbench.settings.typed.clean_dataset`).
 
     Returns
     -------
     capture : Capture
-    basis : BasisSchema
+    m : int or None
     """
     if clean is None:
-        return capture, basis
-    clean_pca = fit_eigenfaces(clean, basis.coverage)
+        return capture, None
+    clean_pca = fit_eigenfaces(clean, coverage)
     m = int(clean_pca.n_components_)
     note = (
-        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis.coverage} "
+        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {coverage} "
         "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
         "capture with that m (basis.coverage_on clean)"
     )
-    return replace(capture, notes=capture.notes + (note,)), replace(basis, n_components=m)
+    return replace(capture, notes=capture.notes + (note,)), m
 
 
 def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:

@@ -75,17 +75,21 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
         return carried_results(captures, clean, train_names, eval_names, basis, score_clean, solvers, timings)
     results = []
     for data, capture in captures.items():
-        capture, fitted = with_clean_m(
-            subset_hand_shapes(capture, basis.hand_subset, basis.subset_seed),
-            basis,
-            clean[data] if basis.coverage_on == "clean" else None,
-        )
+        capture, fitted = fitted_capture(capture, basis, clean[data] if basis.coverage_on == "clean" else None)
         score = scorer(solvers, timings, clean[data] if score_clean else None)
         trained = with_paper_regime(score(data, capture, fitted), fitted, score)
         results += trained
         for protocol in held_out_protocols(dataset.held_out):
             results += held_out_results(data, capture, protocol, dataset, fitted, score, len(trained) > 1)
     return results
+
+
+def fitted_capture(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
+    """The capture a data variant's bases are fitted on (the hand shapes ``basis.hand_subset`` keeps) and the basis
+    settings they are fitted with: ``n_components`` the m chosen on ``clean``, the same data variant of the clean
+    capture (``basis.coverage_on`` clean; :func:`workbench.study.protocols.with_clean_m`), when given."""
+    capture, m = with_clean_m(subset_hand_shapes(capture, basis.hand_subset, basis.subset_seed), basis.coverage, clean)
+    return capture, basis if m is None else replace(basis, n_components=m)
 
 
 Score = Callable[[str, Capture, BasisSchema, "StudyResult | None"], StudyResult]
@@ -215,10 +219,8 @@ def carried_results(
         )
     results = []
     for train_on in train_names:
-        source, fitted = with_clean_m(
-            subset_hand_shapes(captures[train_on], basis.hand_subset, basis.subset_seed),
-            basis,
-            clean[train_on] if basis.coverage_on == "clean" else None,
+        source, fitted = fitted_capture(
+            captures[train_on], basis, clean[train_on] if basis.coverage_on == "clean" else None
         )
         eigenfaces, quasi_eigen = fit_bases(source, fitted, timings)
         for eval_on in eval_names:
