@@ -4,6 +4,7 @@ most tests run, the ``cli`` command run in-process, the suite's servers, and the
 import json
 import os
 import signal
+import sys
 from pathlib import Path
 
 import pytest
@@ -51,10 +52,12 @@ def signal_handlers_kept():
     behind is inherited by every child process a later test starts, which then cannot be terminated."""
     numbers = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     saved = {number: signal.getsignal(number) for number in numbers}
+    hook = sys.unraisablehook
     yield
     for number, handler in saved.items():
         if handler is not None and signal.getsignal(number) is not handler:
             signal.signal(number, handler)
+    sys.unraisablehook = hook
 
 
 def scope_of(nodeid: str) -> str:
@@ -69,17 +72,17 @@ def measured_durations() -> dict[str, float]:
 
 
 LONGEST_FIRST = (
-    "tests/test_reporting.py",  # the reference reports redone: about ten minutes in all
-    "tests/test_docs.py::TestCommandsOf_docs_studies_md",
-    "tests/test_docs.py::TestCommandsOf_docs_reports_md",
-    "tests/test_docs.py::TestCommandsOf_README_md",
-    "tests/test_docs.py::TestCommandsOf_docs_performance_md",
-    "tests/test_docs.py::TestCommandsOf_docs_formats_md",
-    "tests/test_studies.py",
-    "tests/test_docs.py::TestCommandsOf_docs_export_md",
-    "tests/test_mlflow_store.py",
-    "tests/test_docs.py::TestCommandsOf_docs_tracking_md",
-    "tests/test_kill.py",
+    "tests/reporting/test_reporting.py",  # the reference reports redone: about ten minutes in all
+    "tests/project/test_docs.py::TestCommandsOf_docs_studies_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_reports_md",
+    "tests/project/test_docs.py::TestCommandsOf_README_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_performance_md",
+    "tests/project/test_docs.py::TestCommandsOf_docs_formats_md",
+    "tests/study/test_studies.py",
+    "tests/project/test_docs.py::TestCommandsOf_docs_export_md",
+    "tests/record/test_mlflow_store.py",
+    "tests/project/test_docs.py::TestCommandsOf_docs_tracking_md",
+    "tests/cli/test_kill.py",
 )
 """The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
 seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""

@@ -1,6 +1,6 @@
 """The shell commands of the README and of ``docs/``: read, run in a scratch copy of the checkout, and timed.
 
-``tests/test_docs.py`` runs every command of every shell block (``bash``, ``sh``, ``shell``) as a reader would:
+``tests/project/test_docs.py`` runs every command of every shell block (``bash``, ``sh``, ``shell``) as a reader would:
 in a copy of the checkout with ``../shared`` beside it and the test's virtual environment as ``.venv``, in the
 order of its document, after the commands of other documents that write the output folders it reads (its
 prerequisites). Placeholders are filled (``<date-time>`` is the newest run of ``outputs/paper``, ``workbench
@@ -47,7 +47,7 @@ NOT_RUN = {
     r"\bmlflow (?:ui|server)\b": "a server that runs until it is stopped",
     r"<partition>": "needs a SLURM cluster's partition",
     r"slurm-cluster|hydra/launcher=slurm": "needs the one-machine SLURM cluster (started as root): "
-    "tests/test_cluster.py runs these steps in CI (.ci/run)",
+    "tests/cli/test_cluster.py runs these steps in CI (.ci/run)",
     r"mylab|~/quasi-eigen-workbench": "a lab's own cluster, configs and MLflow server",
     r"(?<!-)\bpip install (?!-e)": "installs into an environment: CI builds, installs and runs the wheel and the "
     "sdist (.ci/run)",

@@ -209,8 +209,11 @@ def launch(launcher, job_overrides: Sequence[Sequence[str]], initial_job_idx: in
     sweep_dir.mkdir(parents=True, exist_ok=True)
 
     complete = complete_runs(launcher, job_overrides)
+    from workbench.cli.main import shown_folder
+    from workbench.reporting.tables.width import printed
+
     for index, run_folder in complete.items():
-        log.info(f"skip {run_folder}: complete record, not submitted")
+        log.info(printed(f"skip {shown_folder(run_folder)}: complete record, not submitted"))
     pending = [index for index in range(len(job_overrides)) if index not in complete]
     jobs = []
     if pending:

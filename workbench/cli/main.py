@@ -137,7 +137,10 @@ def _hydra_main(cfg: DictConfig) -> None:
         if not multirun:
             exit_on_error("workbench", error)
         # to the console only: the folder belongs to another process
-        logging.getLogger("workbench.skip").info(f"skip {output_dir}: in use by another workbench process")
+        from workbench.reporting.tables.width import printed
+
+        skipped = f"skip {shown_folder(output_dir)}: in use by another workbench process"
+        logging.getLogger("workbench.skip").info(printed(skipped))
         return
     except BaseException as error:  # noqa: BLE001 - one line for any failure; --verbose shows the traceback
         if multirun and isinstance(error, Exception) and not caused_by_interrupt(error):
@@ -149,13 +152,27 @@ def _hydra_main(cfg: DictConfig) -> None:
         exit_on_error("workbench", error)
     if text is None:
         # to the console only: a resumed sweep never touches a complete record's log
-        logging.getLogger("workbench.skip").info(
-            f"skip {output_dir}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
+        from workbench.reporting.tables.width import printed
+
+        skipped = (
+            f"skip {shown_folder(output_dir)}: complete record (config hash {config_hash(resolved_yaml_text(cfg))})"
         )
+        logging.getLogger("workbench.skip").info(printed(skipped))
     elif multirun:
-        log.info(f"done {output_dir}: {first_headline(text)}")
+        from workbench.reporting.tables.width import printed
+
+        log.info(printed(f"done {shown_folder(output_dir)}: {first_headline(text)}"))
     else:
         log.info(text + f"\nrecord: {output_dir}")
+
+
+def shown_folder(folder: Path) -> str:
+    """A sweep's run folder as its lines name it: relative to the working folder when inside it (a line within
+    120 columns), else whole."""
+    try:
+        return Path(folder).resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(folder)
 
 
 def sweep_run_error(error: Exception, output_dir: Path) -> None:
@@ -246,6 +263,9 @@ def main() -> None:
         sys.exit(0)
     global _wide
     _wide = WIDE_FLAG in sys.argv[1:] and not (len(sys.argv) > 1 and sys.argv[1] in COMMANDS)
+    from workbench.reporting.tables.width import print_whole
+
+    print_whole(_wide)  # a sweep's summary too (printed when it ends, by the collect callback)
     if _wide:
         sys.argv = [arg for arg in sys.argv if arg != WIDE_FLAG]
     if VERBOSE_FLAG in sys.argv[1:]:

@@ -86,10 +86,44 @@ def signal_that_came() -> int:
 
 
 def raise_from_now_on() -> None:
-    """Ctrl-C, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` again (the command's handlers are in place)."""
+    """Ctrl-C, SIGTERM and SIGHUP raise ``KeyboardInterrupt`` again (the command's handlers are in place), and an
+    interrupt that Python would swallow is raised again where it can be caught (:func:`keep_swallowed_interrupt`)."""
+    switched = False
     for signum in SIGNALS:
         if signal.getsignal(signum) is exit_at_once:
             signal.signal(signum, raise_keyboard_interrupt)
+            switched = True
+    if switched and sys.unraisablehook is not keep_swallowed_interrupt:
+        global _previous_unraisablehook
+        _previous_unraisablehook, sys.unraisablehook = sys.unraisablehook, keep_swallowed_interrupt
+
+
+_previous_unraisablehook = sys.__unraisablehook__
+"""The hook :func:`keep_swallowed_interrupt` hands every other unraisable exception to."""
+
+
+def keep_swallowed_interrupt(unraisable) -> None:
+    """``sys.unraisablehook`` of the command: a ``KeyboardInterrupt`` raised where Python cannot propagate it is
+    raised again as soon as Python code runs outside this hook, instead of being printed as ignored and lost.
+
+    Seen: a Ctrl-C while a module is imported came while importlib's weak-reference callback that drops the
+    module's lock ran; Python printed "Exception ignored in: <function _get_module_lock.<locals>.cb>" with a
+    traceback and the command went on as if no Ctrl-C had come. A signal cannot be sent again from here (its handler
+    would run inside this hook, whose exceptions Python also ignores), so a one-shot profile function raises it at
+    the next call or return. Any other unraisable exception goes to the hook that was in place."""
+    if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        sys.setprofile(_raise_swallowed_interrupt)
+    else:
+        _previous_unraisablehook(unraisable)
+
+
+def _raise_swallowed_interrupt(frame, event, arg) -> None:
+    """One-shot profile function of :func:`keep_swallowed_interrupt`: raise the interrupt at the first event
+    outside that hook (its own return is the first event it sees)."""
+    if frame.f_code is keep_swallowed_interrupt.__code__:
+        return
+    sys.setprofile(None)
+    raise KeyboardInterrupt
 
 
 def ignore_further_interrupts() -> None:

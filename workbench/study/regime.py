@@ -32,6 +32,11 @@ def is_paper_regime(data: str) -> bool:
     return str(data).endswith(f" {PAPER_REGIME_SUFFIX}")
 
 
+def coverage_rule_name(data: str) -> str:
+    """The coverage rule's data variant of ``data``: ``mesh`` for ``mesh m=n``, ``data`` itself otherwise."""
+    return data[: -len(PAPER_REGIME_SUFFIX) - 1] if is_paper_regime(data) else data
+
+
 def paper_regime_fit(
     capture: Capture,
     basis: BasisSchema,

@@ -11,6 +11,7 @@ from workbench.core.errors import WorkbenchError
 from workbench.core.files import FORCE_FLAG, check_output_folder, inside
 from workbench.record.record import DONE
 from workbench.reporting.collect.sweep import COLLECTED, COLLECTED_FILES, WRITER, collect_and_write, findings_text
+from workbench.reporting.tables.width import PRINT_WIDTH, fit_width
 
 
 def parse_where(items: Sequence[str]) -> dict:
@@ -51,7 +52,11 @@ def main(argv: Sequence[str]) -> int:
         action="store_true",
         help="replace files of an earlier output that were changed since it was written",
     )
+    parser.add_argument(
+        "--wide", action="store_true", help=f"print long lines whole (default: within {PRINT_WIDTH} columns)"
+    )
     args = parser.parse_args(list(argv))
+    fit = (lambda text: text) if args.wide else fit_width
     if args.out is None and len(args.paths) != 1:
         raise WorkbenchError("collect: give --out when collecting more than one path")
     if args.out is not None:  # refused before any record is read
@@ -68,7 +73,7 @@ def main(argv: Sequence[str]) -> int:
         known=COLLECTED_FILES if args.out is None else (),
         force=args.force,
     )
-    print(written["markdown"] + findings_text(written["findings"]), end="")
+    print(fit(written["markdown"] + findings_text(written["findings"])), end="")
     note = f"; {written['n_incomplete']} incomplete run folders left out" if written["n_incomplete"] else ""
-    print(f"collected {written['n_runs']} runs into {out}{note}")
+    print(fit(f"collected {written['n_runs']} runs into {out}{note}"))
     return 0

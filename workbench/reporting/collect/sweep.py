@@ -43,6 +43,7 @@ from workbench.reporting.tables.runs import (
     sweep_comparisons,
     wide,
 )
+from workbench.reporting.tables.width import printed
 from workbench.stats.statistics import GEOMETRIC
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
@@ -372,9 +373,9 @@ class CollectSweep(Callback):
             written = collect_and_write([sweep_dir], inside(sweep_dir, COLLECTED), **self.layout, known=COLLECTED_FILES)
         except WorkbenchError as error:  # the records are complete; say why the tables are not, and how to retry
             print(
-                f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')",
+                printed(f"workbench collect: error: {error} (records kept; rerun 'workbench collect {sweep_dir}')"),
                 file=sys.stderr,
             )
             return
-        print(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}")
-        print(written["markdown"] + findings_text(written["findings"]), end="")
+        print(printed(f"collected {written['n_runs']} runs into {sweep_dir / 'collected'}"))
+        print(printed(written["markdown"] + findings_text(written["findings"])), end="")

@@ -1,7 +1,7 @@
 """Figure 1: the analogical drawing, a point cloud near a plane in 3-D, computed by the core.
 
-Kim & Ko draw the capture as points near a hyperplane, the PCA axes (red), hand-made vectors off the plane
-(blue) and their quasi-eigen projections (purple). Here the same picture is computed, not drawn: a seeded cloud
+Kim & Ko draw the capture as points near a hyperplane, the PCA axes, hand-made vectors off the plane and their
+quasi-eigen projections, in the colours of the plots' palette (:func:`analogy_colours`). Here the same picture is computed, not drawn: a seeded cloud
 near a plane, :class:`workbench.numerics.bases.Eigenfaces` for the axes and :func:`workbench.numerics.bases.quasi_eigen_faces`
 (eq. 3-4, affine, through the mean) for the projections.
 """
@@ -15,10 +15,21 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from workbench.numerics.bases import Eigenfaces, pca_to_qe_weights, quasi_eigen_faces
-from workbench.reporting.figures import BASIS_COLOURS, new_figure
+from workbench.reporting.figures import BASIS_COLOURS, OKABE_ITO, new_figure
 
 COVERAGE = 0.95
-PCA_RED, HAND_BLUE, QE_PURPLE = BASIS_COLOURS["PCA"], BASIS_COLOURS["H"], BASIS_COLOURS["QE"]  # the plots' palette
+PCA_COLOUR, HAND_COLOUR, QE_COLOUR = BASIS_COLOURS["PCA"], BASIS_COLOURS["H"], BASIS_COLOURS["QE"]  # the plots' palette
+POINT_GREY, PROJECTION_GREY = "0.45", "0.2"
+
+
+def analogy_colours() -> str:
+    """The colours figure 1 draws, named for its caption (the names of the palette, :data:`OKABE_ITO`)."""
+    names = {colour.lower(): name for name, colour in OKABE_ITO.items()}
+    return (
+        f"Colours: PCA axes and their plane {names[PCA_COLOUR.lower()]}, hand vectors {names[HAND_COLOUR.lower()]}, "
+        f"quasi-eigen projections {names[QE_COLOUR.lower()]}; the points grey, the projection lines dark grey "
+        "dotted, the mean and the origin black."
+    )
 
 
 @dataclass(frozen=True)
@@ -94,25 +105,25 @@ def figure_analogy(example: AnalogyExample) -> Figure:
 
     figure = new_figure(7.6, 6.4)
     ax = figure.add_subplot(projection="3d")
-    ax.scatter(*example.points.T, s=5, color="0.45", alpha=0.4, depthshade=False)
+    ax.scatter(*example.points.T, s=5, color=POINT_GREY, alpha=0.4, depthshade=False)
     _draw_plane(ax, mean, axes[:2], 1.3 * half_lengths[:2])
     for j, (axis, length) in enumerate(zip(axes, half_lengths), start=1):
-        ax.quiver(*mean, *(axis * length), color=PCA_RED, linewidth=2.4, arrow_length_ratio=0.12)
-        ax.text(*(mean + axis * length * 1.1 - [0, 0, 0.45]), f"$e_{j}^{{PCA}}$", color=PCA_RED, fontsize=13)
+        ax.quiver(*mean, *(axis * length), color=PCA_COLOUR, linewidth=2.4, arrow_length_ratio=0.12)
+        ax.text(*(mean + axis * length * 1.1 - [0, 0, 0.45]), f"$e_{j}^{{PCA}}$", color=PCA_COLOUR, fontsize=13)
     ax.scatter(*mean, s=40, color="black", depthshade=False)
     ax.text(*(mean + [-0.35, -0.3, 0.25]), r"$\mu$", fontsize=15)
     origin = np.zeros(3)
     ax.scatter(*origin, s=40, color="black", depthshade=False)
     ax.text(*(origin + [-0.6, 0.0, 0.3]), "$v_0$ (neutral)", fontsize=11)
     for i, (hand, projected) in enumerate(zip(example.hand, example.quasi_eigen), start=1):
-        ax.quiver(*origin, *hand, color=HAND_BLUE, linewidth=1.8, arrow_length_ratio=0.05)
-        ax.quiver(*origin, *projected, color=QE_PURPLE, linewidth=1.8, arrow_length_ratio=0.05)
-        ax.plot(*np.c_[hand, projected], color="0.2", linestyle=":", linewidth=1.4)
+        ax.quiver(*origin, *hand, color=HAND_COLOUR, linewidth=1.8, arrow_length_ratio=0.05)
+        ax.quiver(*origin, *projected, color=QE_COLOUR, linewidth=1.8, arrow_length_ratio=0.05)
+        ax.plot(*np.c_[hand, projected], color=PROJECTION_GREY, linestyle=":", linewidth=1.4)
         # Labels beyond each tip, pushed away from the mean so they do not sit on the cloud.
         away = np.r_[(hand - mean)[:2], 0.0]
         away = 0.3 * away / np.linalg.norm(away)
-        ax.text(*(hand + away + [0, 0, 0.15]), f"$e_{i}^H$", color=HAND_BLUE, fontsize=13)
-        ax.text(*(projected + away + [0, 0, 0.1]), f"$e_{i}^{{QE}}$", color=QE_PURPLE, fontsize=13)
+        ax.text(*(hand + away + [0, 0, 0.15]), f"$e_{i}^H$", color=HAND_COLOUR, fontsize=13)
+        ax.text(*(projected + away + [0, 0, 0.1]), f"$e_{i}^{{QE}}$", color=QE_COLOUR, fontsize=13)
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_zlabel("z")
@@ -120,23 +131,30 @@ def figure_analogy(example: AnalogyExample) -> Figure:
     ax.set_box_aspect(np.ptp(np.vstack([example.points, example.hand, origin[None]]), axis=0))
     figure.legend(
         handles=[
-            Line2D([], [], color="0.45", marker="o", linestyle="", markersize=4, label="captured frames (points)"),
+            Line2D([], [], color=POINT_GREY, marker="o", linestyle="", markersize=4, label="captured frames (points)"),
             Line2D(
                 [],
                 [],
-                color=PCA_RED,
+                color=PCA_COLOUR,
                 linewidth=2.4,
                 label=f"PCA axes $e_j^{{PCA}}$ (2 std; m = {eigen.n_components_}, coverage {eigen.coverage_:.3f})",
             ),
-            Line2D([], [], color=HAND_BLUE, linewidth=1.8, label="hand vectors $e_i^H$ (off the plane)"),
+            Line2D([], [], color=HAND_COLOUR, linewidth=1.8, label="hand vectors $e_i^H$ (off the plane)"),
             Line2D(
                 [],
                 [],
-                color=QE_PURPLE,
+                color=QE_COLOUR,
                 linewidth=1.8,
                 label=r"quasi-eigen $e_i^{QE} = \mu + \Sigma_j\, w_{ij}\, e_j^{PCA}$ (eq. 3-4)",
             ),
-            Line2D([], [], color="0.2", linestyle=":", linewidth=1.4, label="projection: least distance to the plane"),
+            Line2D(
+                [],
+                [],
+                color=PROJECTION_GREY,
+                linestyle=":",
+                linewidth=1.4,
+                label="projection: least distance to the plane",
+            ),
         ],
         loc="outside lower center",
         ncols=2,
@@ -158,5 +176,11 @@ def _draw_plane(ax, centre: np.ndarray, axes: np.ndarray, half_lengths: np.ndarr
         centre[None, None, :] + s[..., None] * half_lengths[0] * axes[0] + t[..., None] * half_lengths[1] * axes[1]
     )
     ax.plot_surface(
-        corners[..., 0], corners[..., 1], corners[..., 2], color=PCA_RED, alpha=0.08, edgecolor=PCA_RED, linewidth=0.4
+        corners[..., 0],
+        corners[..., 1],
+        corners[..., 2],
+        color=PCA_COLOUR,
+        alpha=0.08,
+        edgecolor=PCA_COLOUR,
+        linewidth=0.4,
     )

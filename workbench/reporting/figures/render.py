@@ -5,12 +5,17 @@ coloured by per-vertex scalars with a colour map over a fixed range; the figure 
 matplotlib axes and draws the colour bar there (same map, same range), so labels and colour bars stay vector text.
 Where a capture has no data (points beyond the markers' reach), the colour fades into the plain shade over a band
 of the surface: such regions are drawn as plain geometry, never as holes or masks. Rendering needs no display:
-pyvista runs off-screen and VTK picks EGL or OSMesa when there is no X server (a warning about the X server
-connection is expected and harmless).
+pyvista runs off-screen and VTK picks EGL or OSMesa when there is no X server. VTK's own log (such as its warning
+about the missing X server connection, expected and harmless) would reach the terminal with colour codes; it goes to
+Python logging instead, one plain line per message (:func:`pass_vtk_log`).
 """
 
 from __future__ import annotations
 
+import logging
+import os
+import re
+import tempfile
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -188,6 +193,7 @@ def render_meshes(
         return images
     finally:
         plotter.close()
+        pass_vtk_log()
 
 
 def hole_loops(faces: np.ndarray) -> list[np.ndarray]:
@@ -270,4 +276,41 @@ def _pyvista():
 
         raise WorkbenchError(f"rendering meshes needs pyvista ({error}): {install_hint('report')}") from None
     pyvista.OFF_SCREEN = True
+    route_vtk_log()
     return pyvista
+
+
+VTK_LOG = logging.getLogger("workbench.render.vtk")
+VTK_LINE = re.compile(r"^\d{4}-\d\d-\d\d [^\]]*\]\s*(?P<source>\S+?)[.:]*\d*\s+(?P<level>\w+)\|\s*(?P<message>.*)$")
+"""A line of VTK's log file: ``date time (uptime) [thread]source:line  WARN| message``."""
+_vtk_log: dict = {}
+
+
+def route_vtk_log() -> None:
+    """Send VTK's log (once per process) to an unnamed plain file that :func:`pass_vtk_log` reads, instead of the
+    terminal, where VTK writes it with raw colour codes even into a pipe or a file."""
+    if _vtk_log:
+        return
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)  # first: opening the file is logged too
+    handle, path = tempfile.mkstemp(prefix="workbench-vtk-", suffix=".log")
+    os.close(handle)
+    try:
+        vtkLogger.LogToFile(path, vtkLogger.TRUNCATE, vtkLogger.VERBOSITY_WARNING)
+        _vtk_log["reader"] = open(path, encoding="utf-8", errors="replace")  # noqa: SIM115 (read for the process)
+    finally:
+        os.unlink(path)  # both ends keep it open: no file is left behind
+
+
+def pass_vtk_log() -> None:
+    """Pass the messages VTK logged since the last call to Python logging, one plain line each: its warnings at
+    INFO (shown by ``--verbose``; the X server one is expected off-screen), its errors at WARNING."""
+    reader = _vtk_log.get("reader")
+    if reader is None:
+        return
+    for line in reader.read().splitlines():
+        found = VTK_LINE.search(line)
+        if found:
+            level = logging.WARNING if found["level"].startswith("ERR") else logging.INFO
+            VTK_LOG.log(level, f"VTK ({found['source']}): {found['message'].strip()}")

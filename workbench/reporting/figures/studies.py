@@ -34,6 +34,7 @@ from workbench.core.errors import WorkbenchError
 from workbench.core.solvers import solver_hatch
 from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
 from workbench.reporting.tables.runs import interval_label
+from workbench.study.regime import PAPER_REGIME_SUFFIX
 
 BASIS_ORDER = ("H", "QE", "QE-linear", "PCA")
 AXIS_LABELS = {
@@ -409,7 +410,7 @@ def plot_marker_vs_mesh(
                 if ci is not None and part[list(ci)].notna().all(axis=None):
                     errors = np.vstack([part[measure] - part[ci[0]], part[ci[1]] - part[measure]])
                 positions = np.arange(len(bases)) + (k - (len(parts) - 1) / 2) * width
-                colour = DATA_COLOURS.get(train, f"C{trained.index(train)}")
+                colour = DATA_COLOURS.get(train.removesuffix(f" {PAPER_REGIME_SUFFIX}"), f"C{trained.index(train)}")
                 bars = ax.bar(
                     positions,
                     part[measure],

@@ -193,9 +193,28 @@ def rebuilt_arrays(record: RunRecord, cache: dict) -> dict:
     return cache[key]
 
 
+def figure_order(variants: Sequence[str], preferred: str) -> list[str]:
+    """Data variants in the order a figure looks for its own: ``preferred`` (e.g. ``mesh``) first, and each
+    variant's paper regime (``mesh m=n``, m = n, the variant the summary's verdict is about) before its coverage
+    rule's."""
+    from workbench.study.regime import coverage_rule_name, is_paper_regime
+
+    return sorted(variants, key=lambda d: (coverage_rule_name(d) != preferred, not is_paper_regime(d)))
+
+
+def figure_m(record: RunRecord, data: str) -> str:
+    """Which m a figure drawn from data variant ``data`` shows, for its title: ``m = 18 (m = n, the paper's
+    regime)`` or ``m = 13 (the coverage rule)``."""
+    from workbench.study.regime import is_paper_regime
+
+    regime = "m = n, the paper's regime" if is_paper_regime(data) else "the coverage rule"
+    return f"m = {record.metrics['data'][data]['pca']['m']} ({regime})"
+
+
 def mesh_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
-    """The data variant whose points are mesh vertices (saved with triangles), preferring ``mesh``."""
-    for data in sorted(record.data_variants, key=lambda d: d != "mesh"):
+    """The data variant whose points are mesh vertices (saved with triangles), preferring ``mesh m=n`` (the
+    paper's regime), then ``mesh`` (:func:`figure_order`)."""
+    for data in figure_order(record.data_variants, "mesh"):
         inputs = record_inputs(record, data, cache)
         if inputs is not None and "faces" in inputs:
             return data, inputs
@@ -315,8 +334,9 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
 
 
 def marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
-    """The data variant of markers (no triangles), preferring ``markers``."""
-    for data in sorted(record.data_variants, key=lambda d: d != "markers"):
+    """The data variant of markers (no triangles), preferring ``markers m=n`` (the paper's regime), then
+    ``markers`` (:func:`figure_order`)."""
+    for data in figure_order(record.data_variants, "markers"):
         inputs = record_inputs(record, data, cache)
         if inputs is not None and "faces" not in inputs:
             return data, inputs

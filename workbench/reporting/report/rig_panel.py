@@ -122,17 +122,25 @@ def panel_keys(complete: np.ndarray, n_keys: int = PANEL_KEYS) -> np.ndarray:
 def panel_rigs(record: RunRecord, data: str, inputs, cache: dict) -> list[tuple[str, str, np.ndarray]]:
     """``(key, label, shapes)`` of the rigs shown: H, the run's QE and, in the paper's regime, QE at m = n."""
     from workbench.reporting.report.data import figure_bases, qe_label, record_inputs
+    from workbench.study.regime import coverage_rule_name, paper_regime_name
 
     qe = qe_label(record)
-    bases = figure_bases(record, data, inputs, cache)
-    m = int(record.metrics["data"][data].get("m", len(inputs["components"])))
-    rigs = [("H", "H, the hand shapes", bases["H"]), (qe, f"{qe} at the coverage rule (m = {m})", bases[qe])]
-    regime = f"{data} m=n"
-    if regime in record.data_variants:
-        regime_inputs = record_inputs(record, regime, cache)
-        if regime_inputs is not None and len(regime_inputs["eval"]) == len(inputs["eval"]):
-            shapes = figure_bases(record, regime, regime_inputs, cache)[qe]
-            rigs.append((f"{qe} m=n", f"{qe} at m = n (m = {len(inputs['hand'])})", shapes))
+    coverage, regime = coverage_rule_name(data), paper_regime_name(coverage_rule_name(data))
+    found = {data: inputs}
+    for variant in (coverage, regime):
+        if variant not in found and variant in record.data_variants:
+            found[variant] = record_inputs(record, variant, cache)
+    same_frames = {v: i for v, i in found.items() if i is not None and len(i["eval"]) == len(inputs["eval"])}
+    rigs = []
+    if coverage in same_frames:
+        bases = figure_bases(record, coverage, same_frames[coverage], cache)
+        m = int(record.metrics["data"][coverage].get("m", len(same_frames[coverage]["components"])))
+        rigs += [("H", "H, the hand shapes", bases["H"]), (qe, f"{qe} at the coverage rule (m = {m})", bases[qe])]
+    if regime in same_frames:
+        bases = figure_bases(record, regime, same_frames[regime], cache)
+        if not rigs:
+            rigs.append(("H", "H, the hand shapes", bases["H"]))
+        rigs.append((f"{qe} m=n", f"{qe} at m = n (m = {len(inputs['hand'])})", bases[qe]))
     return rigs
 
 

@@ -19,6 +19,8 @@ from workbench.reporting.report.data import (
     face_data,
     figure3_frames,
     figure_bases,
+    figure_m,
+    figure_order,
     figure_solver,
     frame_alpha,
     frame_caption,
@@ -51,10 +53,16 @@ def needs(text: str, cache: dict | None) -> str:
     return f"{text}; {reason}" if reason else text
 
 
-def with_caption(figure, face: FaceData, numbers: str):
-    """A drawn face figure, with what its caption adds when its faces are carried markers (:meth:`FaceData.caption`,
-    a (figure, text) pair that :func:`make_figures` reads)."""
-    return (figure, face.caption(numbers)) if face.carried else figure
+def drawn_from(record: RunRecord, data: str) -> str:
+    """The sentence a figure's caption adds to say which data variant and which m it draws."""
+    return f"Drawn from the data variant '{data}', {figure_m(record, data)}."
+
+
+def with_caption(figure, record: RunRecord, face: FaceData, numbers: str):
+    """A drawn face figure with what its caption adds (a (figure, text) pair that :func:`make_figures` reads): the
+    variant and m it draws (:func:`drawn_from`), and, when its faces are carried markers,
+    :meth:`FaceData.caption`."""
+    return figure, " ".join(filter(None, [drawn_from(record, face.data), face.caption(numbers)]))
 
 
 def carried_title(face: FaceData, numbers: str) -> str:
@@ -84,9 +92,9 @@ def placed(entries: Sequence[FigureEntry], section: str) -> list[FigureEntry]:
 
 
 def draw_analogy():
-    from workbench.reporting.figures.analogy import figure_analogy, make_analogy_example
+    from workbench.reporting.figures.analogy import analogy_colours, figure_analogy, make_analogy_example
 
-    return figure_analogy(make_analogy_example(np.random.default_rng(ANALOGY_SEED)))
+    return figure_analogy(make_analogy_example(np.random.default_rng(ANALOGY_SEED))), analogy_colours()
 
 
 def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = None, cache: dict | None = None):
@@ -112,7 +120,6 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
     else:
         chosen = spread_by_rank([distance[name] for name in names], 4)
     quasi_eigen = quasi_eigen_shapes(inputs, projection)
-    m = record.metrics["data"][data]["pca"]["m"]
     figure = figure_hand_vs_quasi_eigen(
         face.neutral,
         face.faces,
@@ -123,12 +130,13 @@ def draw_hand_vs_quasi_eigen(record: RunRecord, shapes: Sequence[str] | None = N
         [cosine[names[i]] for i in chosen],
         title=(
             f"Figure 2 (reproduced): hand shapes above their quasi-eigen faces\n{short_label(record)}; "
-            f"data {data}, m = {m}, {projection} projection" + carried_title(face, "distance and cosine are")
+            f"data {data}, {figure_m(record, data)}, {projection} projection"
+            + carried_title(face, "distance and cosine are")
         ),
         qe_label=f"quasi-eigen $e_i^{{QE}}$ ({projection})",
         support=face.support,
     )
-    return with_caption(figure, face, "the relative distance and cosine under each pair are the markers' own")
+    return with_caption(figure, record, face, "the relative distance and cosine under each pair are the markers' own")
 
 
 def draw_reconstructions(record: RunRecord, cache: dict | None = None):
@@ -172,13 +180,13 @@ def draw_reconstructions(record: RunRecord, cache: dict | None = None):
         notes,
         title=(
             f"Figure 3 (reproduced): captured frames and their reconstructions\n{short_label(record)}; data "
-            f"{data}, solver {solver_name}; the most displaced frame of each region of the face"
+            f"{data}, {figure_m(record, data)}, solver {solver_name}; the most displaced frame of each region of the face"
             + carried_title(face, "alpha values are")
         ),
         support=face.support,
     )
     return with_caption(
-        figure, face, "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)"
+        figure, record, face, "the alphas under the reconstructions are the markers' own (eq. 6 on the markers)"
     )
 
 
@@ -235,7 +243,7 @@ def draw_marker_errors(record: RunRecord, cache: dict | None = None):
             f"{alpha['displacement'][0]:.1f} %, RMS {alpha['rms'][0]:.3f} mm"
         )
     n_markers = inputs["neutral"].size // 3
-    return figure_marker_errors(
+    figure = figure_marker_errors(
         inputs["neutral"],
         captured[0],
         reconstructed,
@@ -243,10 +251,11 @@ def draw_marker_errors(record: RunRecord, cache: dict | None = None):
         units=record.metrics["dataset"]["units"],
         title=(
             f"Figure 4 (reproduced): reconstruction error at the {n_markers} markers, "
-            f"{record_timeline(record, inputs).label(frame)}, {why}\n{short_label(record)}; data {data}, solver "
-            f"{solver_name}; captured red, reconstructed blue"
+            f"{record_timeline(record, inputs).label(frame)}, {why}\n{short_label(record)}; data {data}, "
+            f"{figure_m(record, data)}, solver {solver_name}; captured red, reconstructed blue"
         ),
     )
+    return figure, drawn_from(record, data)
 
 
 def draw_vertex_rms(record: RunRecord, cache: dict):
@@ -277,10 +286,11 @@ def draw_vertex_rms(record: RunRecord, cache: dict):
         support=face.support,
         title=(
             f"Per-vertex RMS error over the take ({int(complete.sum())} frames)\n{short_label(record)}; data "
-            f"{data}, solver {solver_name} (PCA: projection)" + ("\n" + face.note if face.carried else "")
+            f"{data}, {figure_m(record, data)}, solver {solver_name} (PCA: projection)"
+            + ("\n" + face.note if face.carried else "")
         ),
     )
-    return with_caption(figure, face, "each vertex's RMS is that of the markers' errors carried onto the mesh")
+    return with_caption(figure, record, face, "each vertex's RMS is that of the markers' errors carried onto the mesh")
 
 
 def draw_alpha_per_solver(record: RunRecord, cache: dict):
@@ -393,32 +403,34 @@ def draw_weight_curves(record: RunRecord, cache: dict, seconds_around: float = 3
             + [index for index in shown if index not in pairs]
         )
     )
-    return plot_weight_curves(
+    figure = plot_weight_curves(
         windows,
         names,
         shown,
         title=(
             f"Weights w_i(t) around figure 3's frames (marked), solver {solver_name}\n{short_label(record)}; "
-            f"data {data}; the {per_frame} hand shapes contributing most at each frame, with their left/right "
+            f"data {data}, {figure_m(record, data)}; the {per_frame} hand shapes contributing most at each frame, with their left/right "
             "partners"
         ),
     )
+    return figure, drawn_from(record, data)
 
 
 def draw_intuitiveness_bars(record: RunRecord, cache: dict):
     from workbench.reporting.figures.shapes import plot_intuitiveness_bars
 
-    data = next((d for d in sorted(record.data_variants, key=lambda d: d != "mesh")), None)
+    data = next(iter(figure_order(training_variants(record), "mesh")), None)
     rows = record.metrics["data"][data]["intuitiveness"]
     names = list(dict.fromkeys(row["shape"] for row in rows))
     projections = list(dict.fromkeys(row["projection"] for row in rows))
     values = {(row["projection"], row["shape"]): row for row in rows}
-    return plot_intuitiveness_bars(
+    figure = plot_intuitiveness_bars(
         names,
         {p: [values[p, n]["cosine"] for n in names] for p in projections},
         {p: [values[p, n]["relative_distance"] for n in names] for p in projections},
-        title=f"How far each hand shape moves when projected (data {data})\n{short_label(record)}",
+        title=f"How far each hand shape moves when projected (data {data}, {figure_m(record, data)})\n{short_label(record)}",
     )
+    return figure, drawn_from(record, data)
 
 
 def draw_coverage_curve(record: RunRecord):
@@ -472,28 +484,33 @@ def draw_marker_vs_mesh(record: RunRecord):
     from workbench.reporting.figures.studies import plot_marker_vs_mesh
     from workbench.study.regime import is_paper_regime
 
-    # the variants at the coverage rule's m: a paper-regime variant (m = n) differs in m, not in the points
-    compared = [data for data in training_variants(record) if not is_paper_regime(data)]
+    # one m per panel: the paper's regime (m = n, the variants the summary's verdict is about) when the run has it
+    # on both point sets, else the coverage rule's m (a paper-regime variant differs in m, not in the points)
+    variants = training_variants(record)
+    paper = [data for data in variants if is_paper_regime(data)]
+    compared = paper if len(paper) >= 2 else [data for data in variants if not is_paper_regime(data)]
+    which = "m = n, the paper's regime" if compared is paper else "the coverage rule's m"
     table = record.table[record.table["data"].isin(compared)]
     if len(compared) == 1:
         return None  # a run on one data variant: no figure of it, not a missing one
     if table["data"].nunique() < 2:
         return "needs a run on two data variants (dataset.train_on=[markers,mesh])"
     solver_name, _ = figure_solver(record.config)
-    return plot_marker_vs_mesh(
+    figure = plot_marker_vs_mesh(
         table,
         ("rms_mm", "alpha_disp_pooled"),
         solver=solver_name,
-        title=f"Marker versus mesh data: the method on each\n{short_label(record)}",
+        title=f"Marker versus mesh data: the method on each, at {which}\n{short_label(record)}",
     )
+    return figure, f"Drawn from the data variants {', '.join(repr(data) for data in compared)}, at {which}."
 
 
 RUN_FIGURES: tuple[tuple[str, str, str, Callable, str], ...] = (
     (
         "fig1_analogy",
         "Figure 1: the analogical drawing",
-        "A seeded cloud of 300 points near a plane; PCA axes (red) from Eigenfaces, hand vectors (blue) off the "
-        "plane and their affine quasi-eigen projections (purple, eq. 3-4), all computed by the workbench core.",
+        "A seeded cloud of 300 points near a plane; PCA axes from Eigenfaces, hand vectors off the plane and their "
+        "affine quasi-eigen projections (eq. 3-4), all computed by the workbench core.",
         lambda record, options: draw_analogy(),
         FIGURES_SECTION,
     ),

@@ -3,12 +3,12 @@ within :data:`PRINT_WIDTH` columns (:func:`fit_width`) or, with ``--wide`` and i
 
 from __future__ import annotations
 
-import textwrap
 from typing import Mapping, Sequence
 
 import pandas as pd
 
 from workbench.core.errors import WorkbenchError
+from workbench.reporting.tables.width import PRINT_WIDTH, fit_width  # noqa: F401 (part of what a run prints)
 from workbench.study.table import ALPHA_TABLE_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, ROW_NAME_COLUMNS
 
 
@@ -47,9 +47,6 @@ def printed_tables(table: pd.DataFrame) -> str:
     return text
 
 
-PRINT_WIDTH = 120
-"""The columns a run's printed text fits in by default; ``workbench --wide`` prints the full tables unwrapped (the
-record's ``alpha_table.md`` holds that text)."""
 COMPACT_NAMES = {
     "alpha_abs_mean": "abs_mean",
     "alpha_abs_pooled": "abs_pooled",
@@ -86,36 +83,6 @@ def compact_tables(table: pd.DataFrame) -> str:
         "n, coverage, the per-frame errors and the weights: workbench --wide, or the record's alpha_table.md\n\n"
         + markdown_table([COMPACT_NAMES.get(name, name) for name in header], rows, numeric)
     )
-
-
-def fit_width(text: str, width: int = PRINT_WIDTH) -> str:
-    """``text`` with every line longer than ``width`` wrapped at spaces, its continuations indented two spaces more
-    than it; table lines (starting with ``|``) are left whole.
-
-    Parameters
-    ----------
-    text : str
-    width : int
-
-    Returns
-    -------
-    str
-    """
-    lines = []
-    for line in text.split("\n"):
-        if len(line) <= width or line.startswith("|"):
-            lines.append(line)
-            continue
-        indent = line[: len(line) - len(line.lstrip(" "))]
-        lines += textwrap.wrap(
-            line.strip(),
-            width,
-            initial_indent=indent,
-            subsequent_indent=indent + "  ",
-            break_long_words=False,
-            break_on_hyphens=False,
-        )
-    return "\n".join(lines)
 
 
 def reproduced_sentence(results: Sequence, cfg: Mapping, ratios: Mapping[str, Mapping]) -> str:

@@ -75,6 +75,45 @@ def test_analogy_figure_is_labelled_and_saved(tmp_path):
     assert [path.name for path in save_figure(figure, tmp_path / "only", "fig1")] == ["fig1.svg"]
 
 
+def drawn_colours(figure) -> set[str]:
+    """Every colour (hex, no alpha) the axes of a figure draw: collections' faces and edges, lines and texts."""
+    from matplotlib.colors import to_hex
+
+    colours = set()
+    for ax in figure.axes:
+        for artist in ax.collections:
+            for rgba in [*artist.get_facecolor(), *artist.get_edgecolor()]:
+                colours.add(to_hex(rgba, keep_alpha=False))
+        colours |= {to_hex(artist.get_color()) for artist in [*ax.lines, *ax.texts]}
+    return colours
+
+
+def test_figure_1_caption_names_only_the_colours_the_figure_draws():
+    import re
+
+    from workbench.reporting.figures import OKABE_ITO
+    from workbench.reporting.figures.analogy import analogy_colours
+    from workbench.reporting.report.run_figures import RUN_FIGURES, draw_analogy
+
+    figure, more = draw_analogy()
+    caption = next(row[2] for row in RUN_FIGURES if row[0] == "fig1_analogy") + " " + more
+    named = {colour.lower(): name for name, colour in OKABE_ITO.items()}
+    drawn = {named[colour] for colour in drawn_colours(figure) if colour in named}
+    rest, said = caption, set()
+    for name in sorted([*OKABE_ITO, "red", "purple", "green", "violet", "pink"], key=len, reverse=True):
+        if re.search(rf"\b{name}\b", rest):
+            said.add(name)
+            rest = re.sub(rf"\b{name}\b", "", rest)
+    assert said == drawn, (said, drawn)  # the palette's colours, named exactly as drawn (the greys are no names)
+    # each basis is named with the colour its legend line has
+    legend = {
+        handle.get_label().split(" ")[0]: named.get(handle.get_color().lower())
+        for handle in figure.legends[0].legend_handles
+    }
+    assert f"PCA axes and their plane {legend['PCA']}" in more and f"hand vectors {legend['hand']}" in more
+    assert f"quasi-eigen projections {legend['quasi-eigen']}" in analogy_colours()
+
+
 def test_svg_and_png_are_byte_identical_when_rebuilt(tmp_path):
     example = make_analogy_example(np.random.default_rng(1))
     first = save_figure(figure_analogy(example), tmp_path / "a", "fig", ["png"])
@@ -703,3 +742,95 @@ def test_wrapping_measures_only_near_the_width_and_wraps_as_measuring_every_line
     ]
     for text, width, fontsize in texts:
         assert wrap_to_width(text, width, fontsize) == measured_wrap(text, width, fontsize)
+
+
+def regime_record(variants: dict) -> object:
+    """A record of data variants (name -> (m, relative distance of every hand shape)), with what the figures'
+    variant choice and the intuitiveness bars read."""
+    from types import SimpleNamespace
+
+    data = {
+        name: {
+            "pca": {"m": m},
+            "intuitiveness": [
+                {"projection": "affine", "shape": shape, "cosine": 1 - distance, "relative_distance": distance}
+                for shape in ("jaw_open", "brow_up")
+            ],
+        }
+        for name, (m, distance) in variants.items()
+    }
+    return SimpleNamespace(
+        metrics={"data": data, "dataset": {"name": "constructed"}}, data_variants=list(variants), config={}
+    )
+
+
+def test_face_and_marker_figures_draw_the_paper_regime_variant_first():
+    from workbench.reporting.report.data import figure_order, marker_variant, mesh_variant
+
+    record = regime_record({"markers": (13, 0.1), "mesh": (12, 0.1), "markers m=n": (18, 0.2), "mesh m=n": (18, 0.2)})
+    assert figure_order(record.data_variants, "mesh") == ["mesh m=n", "mesh", "markers m=n", "markers"]
+    cache = {("inputs", name): {"faces": 1} if "mesh" in name else {} for name in record.data_variants}
+    assert mesh_variant(record, cache)[0] == "mesh m=n" and marker_variant(record, cache)[0] == "markers m=n"
+    cache[("inputs", "markers m=n")] = None  # a variant whose inputs cannot be had: the coverage rule's next
+    assert marker_variant(record, cache)[0] == "markers"
+    alone = regime_record({"markers": (13, 0.1)})  # no m = n variant (the coverage rule kept m = n, or it is off)
+    assert marker_variant(alone, {("inputs", "markers"): {}})[0] == "markers"
+
+
+def test_intuitiveness_bars_draw_the_paper_regime_and_say_which_m(monkeypatch):
+    import workbench.reporting.figures.shapes as shapes
+    from workbench.reporting.report.run_figures import draw_intuitiveness_bars
+
+    seen = {}
+    monkeypatch.setattr(shapes, "plot_intuitiveness_bars", lambda *args, **kwargs: seen.update(args=args, **kwargs))
+    record = regime_record({"mesh": (13, 0.1), "mesh m=n": (18, 0.3)})
+    _, caption = draw_intuitiveness_bars(record, {})
+    assert seen["args"][2]["affine"] == [0.3, 0.3]  # the m = n variant's relative distances
+    assert "m = 18 (m = n, the paper's regime)" in seen["title"] and "'mesh m=n', m = 18" in caption
+    _, caption = draw_intuitiveness_bars(regime_record({"mesh": (13, 0.1)}), {})
+    assert seen["args"][2]["affine"] == [0.1, 0.1] and "m = 13 (the coverage rule)" in caption
+
+
+def test_vtk_log_reaches_python_logging_as_plain_lines_and_no_terminal_codes(capfd, caplog):
+    """VTK writes its log (a headless machine's X server warning, any error) with colour codes; a render passes it
+    to Python logging instead, one plain line each, and nothing of it reaches the terminal."""
+    import logging
+
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    triangle = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0])
+    render_meshes([triangle], np.array([[0, 1, 2]]), None, MeshView())
+    capfd.readouterr()
+    with caplog.at_level(logging.INFO, logger="workbench.render.vtk"):
+        vtkLogger.Log(vtkLogger.VERBOSITY_WARNING, "probe.cxx", 7, "a warning of the probe")
+        vtkLogger.Log(vtkLogger.VERBOSITY_ERROR, "probe.cxx", 8, "an error of the probe")
+        render_meshes([triangle], np.array([[0, 1, 2]]), None, MeshView())
+    out, err = capfd.readouterr()
+    assert "\x1b[" not in out + err and "probe" not in out + err
+    logged = {(record.levelno, record.getMessage()) for record in caplog.records}
+    assert (logging.INFO, "VTK (probe.cxx): a warning of the probe") in logged
+    assert (logging.WARNING, "VTK (probe.cxx): an error of the probe") in logged
+    assert not any("\x1b" in message for _, message in logged)
+
+
+def test_marker_versus_mesh_compares_the_paper_regime_variants_when_the_run_has_both(monkeypatch):
+    import workbench.reporting.figures.studies as studies
+    from workbench.reporting.report.run_figures import draw_marker_vs_mesh
+
+    seen = {}
+    monkeypatch.setattr(
+        studies, "plot_marker_vs_mesh", lambda table, *args, **kwargs: seen.update(table=table, **kwargs)
+    )
+    variants = {"markers": (13, 0.1), "mesh": (12, 0.1), "markers m=n": (18, 0.2), "mesh m=n": (18, 0.2)}
+    record = regime_record(variants)
+    record.config = {"solver": {"lstsq": {}}}
+    record.table = pd.DataFrame(
+        [{"data": data, "basis": "QE", "solver": "lstsq", "rms_mm": 1.0, "alpha_disp_pooled": 1.0} for data in variants]
+    )
+    _, caption = draw_marker_vs_mesh(record)
+    assert sorted(seen["table"]["data"]) == ["markers m=n", "mesh m=n"] and "m = n" in seen["title"]
+    assert "'markers m=n', 'mesh m=n'" in caption
+    record.table = record.table[~record.table["data"].str.endswith("m=n")]
+    record.metrics["data"] = {name: values for name, values in record.metrics["data"].items() if "m=n" not in name}
+    _, caption = draw_marker_vs_mesh(record)  # no m = n variants: the coverage rule's m, and said
+    assert sorted(seen["table"]["data"]) == ["markers", "mesh"] and "the coverage rule's m" in caption

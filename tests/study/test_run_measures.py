@@ -20,7 +20,7 @@ SMALL = [
     "dataset.mesh_rows=35",
     "dataset.mesh_cols=30",
     "basis.paper_regime=false",
-]  # the coverage rule's variants alone (the m = n variant: tests/test_regime.py)
+]  # the coverage rule's variants alone (the m = n variant: tests/study/test_regime.py)
 
 
 @pytest.fixture(scope="module")

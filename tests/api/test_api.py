@@ -134,7 +134,7 @@ def test_a_clear_error_before_fit(use):
 
 def test_the_estimator_needs_no_scikit_learn(monkeypatch):
     """The core without the bases extra: the same estimator, its own NotFittedError (scikit-learn's when installed,
-    tests/test_sklearn.py)."""
+    tests/numerics/test_sklearn.py)."""
     for name in [name for name in sys.modules if name == "sklearn" or name.startswith("sklearn.")] + ["sklearn"]:
         monkeypatch.setitem(sys.modules, name, None)  # import sklearn... raises ImportError
     path = REPO_ROOT / "workbench" / "numerics" / "estimator.py"

@@ -211,6 +211,35 @@ def test_after_the_commands_ctrl_c_any_error_counts_as_ctrl_c(monkeypatch):
     assert caused_by_interrupt(lost)
 
 
+def test_a_ctrl_c_python_would_swallow_is_raised_again_and_nothing_is_printed(capfd, monkeypatch):
+    """A Ctrl-C whose handler runs inside a weak-reference callback (as importlib's module-lock callback, seen on
+    CI) is not lost: the command's hook raises it at the next call, and Python prints no "Exception ignored"."""
+    import weakref
+
+    class Held:
+        pass
+
+    def callback(reference):
+        interrupt.raise_keyboard_interrupt(signal.SIGINT, None)
+
+    def work():
+        held = Held()
+        reference = weakref.ref(held, callback)  # noqa: F841 - the callback runs when ``held`` goes
+        del held
+        return sum(range(3))
+
+    monkeypatch.setattr(interrupt, "_interrupt_came", False)  # put back after the test: later commands in-process
+    monkeypatch.setattr(interrupt, "_signal_came", signal.SIGINT)
+    signal.signal(signal.SIGINT, interrupt.exit_at_once)  # as at the command's start
+    interrupt.raise_from_now_on()
+    assert sys.unraisablehook is interrupt.keep_swallowed_interrupt
+    with pytest.raises(KeyboardInterrupt):
+        work()
+    assert sys.getprofile() is None  # one interrupt, raised once
+    assert sum(range(3)) == 3
+    assert "Exception ignored" not in capfd.readouterr().err
+
+
 def test_ctrl_c_held_back_is_acted_on_once_the_step_ends_and_an_ignored_one_stays_ignored():
     saved = signal.getsignal(signal.SIGINT)
     try:

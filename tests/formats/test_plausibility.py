@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from tests.test_bad_input import write_c3d
+from tests.cli.test_bad_input import write_c3d
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_captures

@@ -312,7 +312,9 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
     before.pop(LOCK_FILE, None)
     again = Job(RUN + [f"hydra.run.dir={folders[0]}"], root, root / "logs" / f"chain{number}_again.log")
     yield again
-    assert again.output["returncode"] == 0 and again.output["stdout"].startswith(f"skip {folders[0]}")
+    assert again.output["returncode"] == 0 and again.output["stdout"].startswith("skip "), again.output["stdout"]
+    named = again.output["stdout"].split(":")[0].removeprefix("skip ")  # relative to the working folder
+    assert (root / named).resolve() == Path(folders[0]).resolve(), again.output["stdout"]
     assert snapshot(folders[0]) == before, f"{folders[0]}: a complete record was touched"
 
 

@@ -334,6 +334,25 @@ def run_preset(study, tmp_path):
     return sweep, runs, result.stdout
 
 
+def test_a_sweep_prints_every_line_within_120_columns_and_its_full_text_with_wide(tmp_path):
+    """A study's sweep prints a line per run, then the collected alpha table and findings: every line within 120
+    columns; ``--wide`` prints the same text with its long lines whole."""
+    small = ["--config-name", "coverage_small", "dataset.n_frames=300", "dataset.seed=0", "basis.coverage=0.95,0.995"]
+
+    def printed(folder, *more):
+        result = run_workbench(*small, f"hydra.sweep.dir={folder}", "-m", *more, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr[-3000:]
+        return (result.stdout + result.stderr).splitlines()
+
+    fitted, whole = printed("fitted"), printed("whole", "--wide")
+    assert "Findings (comparisons.md has every pair):" in fitted and any(line.startswith("done ") for line in fitted)
+    assert max(len(line) for line in fitted) <= 120, max(fitted, key=len)
+    assert max(len(line) for line in whole) > 120  # the findings' long lines, whole
+    findings = whole[whole.index("Findings (comparisons.md has every pair):") + 1 :]
+    start = fitted.index("Findings (comparisons.md has every pair):") + 1
+    assert " ".join(line.strip() for line in fitted[start:]) == " ".join(line.strip() for line in findings)
+
+
 def lstsq_alpha(runs, basis, **conditions):
     keep = (runs["basis"] == basis) & runs["solver"].isin(["lstsq", "projection"])
     for key, value in conditions.items():

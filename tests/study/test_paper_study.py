@@ -12,7 +12,7 @@ from workbench.record.record import DONE
 from workbench.settings.config import compose
 
 SMALL = ["dataset.n_frames=4000", "save_inputs=true", "basis.paper_regime=false"]  # 33 s of performance: enough
-# motion above the noise; the coverage rule's run alone (the m = n variant: tests/test_regime.py)
+# motion above the noise; the coverage rule's run alone (the m = n variant: tests/study/test_regime.py)
 
 
 @pytest.fixture(scope="module")

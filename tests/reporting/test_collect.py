@@ -251,7 +251,7 @@ def test_metrics_as_columns_table(sweep, tmp_path):
 
 def test_cli_collect_writes_next_to_the_sweep(sweep, capsys):
     assert main([str(sweep), "--where", "solver=lstsq", "--metric", "alpha_disp_pooled"]) == 0
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())  # lines wrapped within 120 columns, joined
     assert "alpha_disp_pooled (%)" in out and "1 incomplete run folders left out" in out
     assert (sweep / "collected" / "runs.parquet").is_file()
 

@@ -1,6 +1,7 @@
 """Concurrent runs and interruptions, with real processes: a run folder belongs to one live process."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -58,10 +59,11 @@ def test_identical_sweeps_into_one_folder_do_every_run_exactly_once(tmp_path):
     outputs = [process.communicate(timeout=300) for process in processes]
     for process, (out, err) in zip(processes, outputs):
         assert process.returncode == 0, err
-    done_lines = [line for out, _ in outputs for line in out.splitlines() if line.startswith("done ")]
+    done = [re.findall(r"^done\s+(\S+):", out, flags=re.MULTILINE) for out, _ in outputs]  # a long name wraps
     runs = sorted(path.parent for path in sweep.glob(f"*/{DONE}"))
     assert len(runs) == 6
-    assert sorted(line.split(":")[0].removeprefix("done ") for line in done_lines) == sorted(map(str, runs))
+    named = sorted(str(tmp_path / folder) for folders in done for folder in folders)  # relative to the cwd
+    assert named == sorted(map(str, runs)), outputs
     for run in runs:
         load_record(run)
 

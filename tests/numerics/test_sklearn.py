@@ -175,7 +175,7 @@ def test_tags_are_a_transformers_on_every_supported_version():
 
 # scikit-learn's estimator checks fit on arrays they make themselves, of 1 to 10 columns. Each check below fits on
 # a width that no basis-projection estimator can take: the hand shapes (a constructor parameter) fix n_dims, and
-# frames are x, y, z per point. The properties those checks test are tested above and in tests/test_api.py on real
+# frames are x, y, z per point. The properties those checks test are tested above and in tests/api/test_api.py on real
 # shapes (fit returns self, refits give the same result, check_is_fitted, n_features_in_, parameters untouched).
 WIDTH = "fits on X whose column count differs from the hand shapes' n_dims (or is not 3 * n_points)"
 # Two checks grep for scikit-learn's own wording of a refusal; the workbench's one line names the argument and

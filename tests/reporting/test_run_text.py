@@ -76,6 +76,13 @@ def test_long_lines_are_wrapped_and_tables_are_not():
     assert lines[0].startswith("  word") and lines[1].startswith("    word") and len(lines) == 4
 
 
+def test_a_folder_name_longer_than_a_line_stays_on_the_line_of_the_word_before_it():
+    folder = "sweep/" + ",".join(f"dataset.setting{i}=value" for i in range(8))  # 6 + 8 * 23 columns
+    lines = fit_width(f"done {folder}: " + " ".join(["word"] * 40)).split("\n")
+    assert lines[0] == f"done {folder}:" and all(len(line) <= PRINT_WIDTH for line in lines[1:])
+    assert lines[1].startswith("  word")
+
+
 def test_a_run_prints_its_verdict_first_within_120_columns_and_wide_on_request(tmp_path):
     arguments = ["dataset.n_frames=400", "solver=lstsq"]
     narrow = run_workbench(*arguments, "hydra.run.dir=narrow", cwd=tmp_path)

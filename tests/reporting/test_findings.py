@@ -364,7 +364,11 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert qe[0] > SEEDS[0.95]["H"][0] and qe[1] < SEEDS[0.95]["H"][1]
     assert (sum(qe) / 2 - stats.t.ppf(0.975, 1) * stats.tstd(qe) / 2**0.5) < -1.2
     assert main([str(sweep), "--where", "solver=lstsq"]) == 0
+    fitted = capsys.readouterr().out
+    assert max(len(line) for line in fitted.splitlines()) <= 120  # the full lines: --wide
+    assert main([str(sweep), "--where", "solver=lstsq", "--wide"]) == 0
     printed = capsys.readouterr().out
+    assert " ".join(printed.split()) == " ".join(fitted.split())  # the same text, its long lines whole
     finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
     assert "QE 0.267 ~ H 0.32 ~" in finding and "QE/H 0.835 [0.00179, 389]" in finding
     assert "QE < H" not in finding and "H < QE" not in finding
@@ -1016,7 +1020,7 @@ def test_the_glossary_the_reports_point_to_defines_every_term_they_use():
 
     from workbench.reporting.report.sections import GLOSSARY_NOTE
 
-    text = (Path(__file__).resolve().parents[1] / "docs" / "reports.md").read_text(encoding="utf-8")
+    text = (Path(__file__).resolve().parents[2] / "docs" / "reports.md").read_text(encoding="utf-8")
     assert "docs/reports.md" in GLOSSARY_NOTE and "glossary" in GLOSSARY_NOTE
     glossary = text.split("\n## Glossary\n", 1)[1].split("\n## ", 1)[0]
     defined = {term.lower() for term in re.findall(r"\*\*([^*]+)\*\*", glossary)}

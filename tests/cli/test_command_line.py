@@ -156,8 +156,12 @@ def test_adhoc_sweep_with_trailing_flag_resumes_and_logs(tmp_path, cli):
         "dataset.n_frames=400,dataset.seed=1,solver=lstsq",
     ]
     log = (sweep_dir / runs[0] / "workbench.log").read_text()
-    assert log.startswith(f"done {sweep_dir / runs[0]}: markers m=n: alpha_abs_mean with lstsq: ")  # paper regime first
+    folder = (sweep_dir / runs[0]).relative_to(tmp_path).as_posix()  # named from the working folder
+    unwrapped = " ".join(line.strip() for line in log.splitlines())
+    assert unwrapped.startswith(f"done {folder}: markers m=n: alpha_abs_mean with lstsq: ")  # paper regime first
     assert log.splitlines()[0] in first.stdout
+    printed = (first.stdout + first.stderr).splitlines()  # each run's line within 120 columns
+    assert max(len(line) for line in printed) <= 120, max(printed, key=len)
 
     done_times = [(sweep_dir / run / DONE).stat().st_mtime_ns for run in runs]
     again = cli("-m", *reversed(sweep), cwd=tmp_path)  # the same sweep, typed in another order
