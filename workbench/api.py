@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import asdict
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping, Sequence
 
 from workbench.core.errors import WorkbenchError
-from workbench.settings.config import CHECKOUT, resolved_without_hydra, resolved_yaml_text
+from workbench.settings.config import CHECKOUT, resolved_yaml_text
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -387,7 +388,7 @@ def build_captures(config, *, cache_dir: str | None = None) -> dict[str, "Captur
     from workbench.settings.typed import dataset_settings
 
     plain = OmegaConf.to_container(config, resolve=True) if OmegaConf.is_config(config) else dict(config)
-    return build(dataset_settings(plain, check=True), cache_dir=cache_dir)
+    return build(dataset_settings(plain), cache_dir=cache_dir)
 
 
 def run_study(config) -> list["StudyResult"]:
@@ -528,13 +529,14 @@ def run(
             f"{output_dir} already holds a complete record ('{DONE}' exists); records are never "
             "overwritten: write the run elsewhere"
         )
+    from workbench.settings.schema import resolved_settings
     from workbench.settings.typed import study_settings
 
-    settings = study_settings(cfg)  # checked once, before the run
-    plain = resolved_without_hydra(cfg)
-    resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(plain))
+    resolved = resolved_settings(cfg)  # resolved once: checked and typed before the run, written as YAML after it
+    settings = study_settings(resolved)
+    resolved_yaml = OmegaConf.to_yaml(OmegaConf.create(resolved))
     results = run_study(settings)
-    paper_alpha = plain["paper"]["alpha"]
+    metric, paper_alpha = asdict(settings.metric), asdict(settings.paper.alpha)
     table = pd.concat(
         [
             alpha_table(
@@ -549,18 +551,18 @@ def run(
         ignore_index=True,
     )
     with results[0].timings.stage("comparisons"):
-        comparisons = {result.data: frame_comparisons(result, plain["metric"]) for result in results}
-        ratios = {result.data: claim_ratios(result, plain["metric"]) for result in results}
-        claims = claims_at_m_equals_n(results, plain["metric"], plain["metric"].get("claim_margin", CLAIM_MARGIN))
+        comparisons = {result.data: frame_comparisons(result, metric) for result in results}
+        ratios = {result.data: claim_ratios(result, metric) for result in results}
+        claims = claims_at_m_equals_n(results, metric, metric.get("claim_margin", CLAIM_MARGIN))
     sentence = reproduced_sentence(claims)
     opening = fit_width(sentence) + "\n" if sentence else ""
-    header = study_header(results, plain)
-    closing = headline(table, plain["metric"], paper_alpha, comparisons, result_identities(results), claims)
+    header = study_header(results, resolved)
+    closing = headline(table, metric, paper_alpha, comparisons, result_identities(results), claims)
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(
         results_metrics(results, table, comparisons, ratios, claims),
-        study=plain["study"],
+        study=settings.study,
         resolved_yaml=resolved_yaml,
         overrides=overrides,
         job_num=job_num,

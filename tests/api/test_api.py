@@ -18,6 +18,7 @@ from workbench.numerics.bases import Eigenfaces
 from workbench.numerics.estimator_manners import ScikitLearnManners
 from workbench.numerics.metrics import alpha_per_frame
 from workbench.settings.config import REPO_ROOT
+from workbench.settings.typed import study_settings
 
 PARAMETERS = {
     "hand_shapes": None,
@@ -547,6 +548,7 @@ def test_the_estimator_gives_the_alpha_of_a_run_on_the_synthetic_actor(tmp_path)
     config = workbench.compose_config("paper", overrides)
     record = workbench.record_study(config, tmp_path / "run", overrides=overrides)
     assert record.overrides == overrides and (tmp_path / "run" / "done").is_file()
+    assert record.settings == study_settings(config)  # a record read back gives the run's typed settings
     assert not (tmp_path / "run" / ".lock").exists(), "a complete record keeps no lock file"
     captures = workbench.build_captures(config)
     # markers at the coverage rule's m and markers m=n (the paper's regime), 4 alpha variants, 2 projections

@@ -20,10 +20,8 @@ import scipy.sparse
 from in_process import run_workbench
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset import build_captures
-from workbench.dataset.animface import build_animface
+from workbench.dataset import animface, build_captures, ict_livelink
 from workbench.dataset.correspondence import read_marker_table
-from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.formats.c3d import read_c3d_markers
 from workbench.formats.livelink import ARKIT_NAMES, read_livelink_csv
 from workbench.formats.obj import load_blendshapes, read_obj
@@ -32,6 +30,18 @@ from workbench.numerics.intuitiveness import intuitiveness
 from workbench.numerics.metrics import alpha_per_frame, rms_point_error, summarise_alpha
 from workbench.numerics.solve import kkt_violation, solve_weights
 from workbench.settings.config import REPO_ROOT
+from workbench.settings.typed import dataset_settings
+
+
+def build_animface(cfg):
+    """The animface builder of a dataset group, checked and typed first (as the study's are)."""
+    return animface.build_animface(dataset_settings(cfg))
+
+
+def build_ict_livelink(cfg):
+    """The ICT Live Link builder of a dataset group, checked and typed first (as the study's are)."""
+    return ict_livelink.build_ict_livelink(dataset_settings(cfg))
+
 
 # ----------------------------------------------------------------------------------------------------------
 # The numerical core
@@ -617,7 +627,8 @@ def tiny_config(root, kind="animface", **changes):
             max_frames_per_take=None,
             refine_iterations=0,
             train_on="markers",
-            rbf={"metric": "euclidean", "kernel": "thin_plate_spline", "epsilon": None, "smoothing": 0.0, "degree": 1},
+            # epsilon 1: what a scale-free kernel takes when it is not set (the schema asks for a number)
+            rbf={"metric": "euclidean", "kernel": "thin_plate_spline", "epsilon": 1.0, "smoothing": 0.0, "degree": 1},
         )
     else:
         cfg = dict(
@@ -772,24 +783,24 @@ def test_all_zero_and_duplicate_hand_shapes_in_a_dataset(tiny_root, tmp_path):
             r"dataset\.hand_shapes names \['smirk'\], which the blendshape folder "
             r"does not have",
         ),
-        ({"hand_shapes": []}, r"dataset\.hand_shapes is empty"),
-        ({"takes": []}, r"dataset\.takes is empty"),
+        ({"hand_shapes": []}, r"dataset\.hand_shapes must be a non-empty list of distinct shape names"),
+        ({"takes": []}, r"dataset\.takes must be a non-empty list of C3D files, got \[\]"),
         ({"neutral_frame": 40}, r"dataset\.neutral_take 0 / neutral_frame 40 is not a frame of the 1 takes"),
-        ({"neutral_frame": "first"}, r"dataset\.neutral_frame must be an integer >= 0, got 'first'"),
+        ({"neutral_frame": "first"}, r"dataset\.neutral_frame must be an integer >= 0 or null, got 'first'"),
         ({"frame_step": 0}, r"dataset\.frame_step must be an integer >= 1, got 0"),
         ({"frame_step": "x"}, r"dataset\.frame_step must be an integer >= 1, got 'x'"),
         (
             {"max_frames_per_take": 1},
-            r"dataset\.max_frames_per_take \(or null for all\) must be an integer >= 2, got 1",
+            r"dataset\.max_frames_per_take must be an integer >= 2 or null, got 1",
         ),
         ({"refine_iterations": -1}, r"dataset\.refine_iterations must be an integer >= 0, got -1"),
         (
             {"blendshapes": {"unit_mm": "cm"}},
-            r"dataset\.blendshapes\.unit_mm must be a positive, finite number, got 'cm'",
+            r"dataset\.blendshapes\.unit_mm must be in \(0, 10000\], got 'cm'",
         ),
         (
             {"blendshapes": {"region_vertices": 2}},
-            r"dataset\.blendshapes\.region_vertices must be an integer >= 3, got 2",
+            r"dataset\.blendshapes\.region_vertices must be an integer >= 3 or null, got 2",
         ),
         ({"train_on": "scan"}, r"dataset\.train_on must be one of \('markers', 'mesh'\)"),
         ({"split": "random"}, r"dataset\.split must be one of"),
@@ -805,9 +816,9 @@ def test_animface_builder_bad_configs(tiny_root, changes, message):
     "changes,message",
     [
         ({"livelink_csv": "missing.csv"}, r"missing\.csv: Live Link Face CSV not found"),
-        ({"timecode_rate": "fast"}, r"dataset\.timecode_rate must be a positive, finite number, got 'fast'"),
+        ({"timecode_rate": "fast"}, r"dataset\.timecode_rate must be in \(0, 10000\], got 'fast'"),
         ({"mesh_vertex_step": 0}, r"dataset\.mesh_vertex_step must be an integer >= 1, got 0"),
-        ({"max_frames": 1}, r"dataset\.max_frames \(or null for all\) must be an integer >= 2, got 1"),
+        ({"max_frames": 1}, r"dataset\.max_frames must be an integer >= 2 or null, got 1"),
         ({"arkit_overrides": {"JawOpen": ["jaw"]}}, r"arkit_overrides\.JawOpen names shape\(s\) \['jaw'\]"),
     ],
 )
@@ -857,21 +868,24 @@ SYNTHETIC = {
             r"dataset\.kind must be one of \['animface', 'ict_livelink', 'mesh_sequence', 'synthetic'\], "
             r"got 'scan'",
         ),
-        ({"n_frames": 0}, r"n_frames must be a positive integer, got 0"),
-        ({"n_frames": "many"}, r"n_frames must be a positive integer, got 'many'"),
-        ({"marker_noise_mm": -1.0}, r"marker_noise_mm must be >= 0, got -1"),
-        ({"marker_noise_mm": np.nan}, r"marker_noise_mm must be a finite number, got nan"),
-        ({"n_head_markers": 2}, r"n_head_markers must be an integer between 3 and 32, got 2"),
+        ({"n_frames": 0}, r"dataset\.n_frames must be an integer >= 2, got 0"),
+        ({"n_frames": "many"}, r"dataset\.n_frames must be an integer >= 2, got 'many'"),
+        ({"marker_noise_mm": -1.0}, r"dataset\.marker_noise_mm must be in \[0, 10\] \(mm; .*\), got -1\.0"),
+        ({"marker_noise_mm": np.nan}, r"dataset\.marker_noise_mm must be in \[0, 10\] \(mm; .*\), got nan"),
+        ({"n_head_markers": 2}, r"dataset\.n_head_markers must be an integer in \[3, 32\], got 2"),
         ({"mesh_fraction": 0.0}, r"dataset\.mesh_fraction must be in \(0, 1\], got 0"),
         ({"train_on": "scan"}, r"dataset\.train_on must be one of \('markers', 'mesh', 'mesh_rbf', 'face'\)"),
         (
             {"split": "tail", "eval_fraction": 1.5},
-            r"dataset\.eval_fraction must be in \(0, 1\) for split 'tail', got 1\.5",
+            r"dataset\.eval_fraction must be in \(0, 1\), got 1\.5",
         ),
         ({"gap_rate": 1.0}, r"dataset\.gap_rate must be in \[0, 1\), got 1\.0"),
         ({"seed": "abc"}, r"dataset\.seed must be a non-negative integer, got 'abc'"),
         ({"split": "tail", "eval_fraction": "half"}, r"dataset\.eval_fraction must be in \(0, 1\)"),
-        ({"split": "other_take", "eval_seed": "next"}, r"dataset\.eval_seed must be a non-negative integer"),
+        (
+            {"split": "other_take", "eval_seed": "next"},
+            r"dataset\.eval_seed must be an integer >= 0 or null, got 'next'",
+        ),
         ({"gap_rate": "some"}, r"dataset\.gap_rate must be in \[0, 1\), got 'some'"),
         ({"stabilise": "abc"}, r"dataset\.stabilise must be true or false, got 'abc'"),
     ],

@@ -343,3 +343,15 @@ def test_ctrl_c_after_a_command_has_finished_is_ignored(monkeypatch):
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_a_second_take_with_the_first_takes_seed_is_refused_when_the_settings_are_checked():
+    """split other_take evaluates on another take: its seed (eval_seed) must differ from dataset.seed; the study's
+    check says so before anything is built, as the Python API's build_captures does."""
+    message = r"^dataset\.eval_seed 3 equals dataset\.seed: split 'other_take' evaluates on another take"
+    cfg = compose("paper", ["dataset.split=other_take", "dataset.seed=3", "dataset.eval_seed=3"])
+    with pytest.raises(WorkbenchError, match=message):
+        check_study_config(cfg)
+    with pytest.raises(WorkbenchError, match=message):
+        build_captures({"kind": "synthetic", "split": "other_take", "seed": 3, "eval_seed": 3})
+    check_study_config(compose("paper", ["dataset.split=other_take", "dataset.seed=3"]))  # null: seed + 1

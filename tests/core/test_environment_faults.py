@@ -165,8 +165,8 @@ def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
     from workbench.dataset.synthetic_builder import synthetic_values
     from workbench.settings.typed import dataset_settings
 
-    size = dict(kind="synthetic", n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=10, mesh_cols=20)
-    markers, mesh = 1000 * 73 * 3, 1000 * 200 * 3
+    size = dict(kind="synthetic", n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=20, mesh_cols=20)
+    markers, mesh = 1000 * 73 * 3, 1000 * 400 * 3
     assert synthetic_values(dataset_settings(size), ["markers"]) == markers
     assert synthetic_values(dataset_settings(size), ["mesh"]) == markers + mesh
     assert synthetic_values(dataset_settings(dict(size, dtype="float32")), ["mesh"]) == markers + mesh // 2

@@ -14,6 +14,7 @@ from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.numerics.frames import FramesOnDisk
 from workbench.reporting.export.run import obj_text
 from workbench.settings.config import compose
+from workbench.settings.typed import dataset_settings
 
 STORAGES = {
     "memory": [],
@@ -167,7 +168,7 @@ def test_a_mesh_sequence_larger_than_a_chunk_is_built_on_disk_without_its_whole_
     assert isinstance(capture.train, FramesOnDisk) and capture.train.shape == (n_frames, 3 * n_vertices)
     print(f"peak traced memory {peak / 1e6:.2f} MB for a {whole / 1e6:.1f} MB float64 capture")
     assert peak < whole / 6
-    reference = build_mesh_sequence(dict(cfg, storage="memory"))["mesh"].train
+    reference = build_mesh_sequence(dataset_settings(dict(cfg, storage="memory")))["mesh"].train
     np.testing.assert_array_equal(capture.train[n_frames - 3 :], reference[n_frames - 3 :])
 
 

@@ -22,6 +22,7 @@ from workbench.dataset.cache import cached_captures, clear_memory, dataset_key, 
 from workbench.dataset.synthetic_builder import build_synthetic
 from workbench.numerics.frames import FramesOnDisk
 from workbench.settings.config import CONF_DIR, REPO_ROOT, compose
+from workbench.settings.typed import built_settings, dataset_settings
 
 CONFIG = {
     "kind": "synthetic",
@@ -47,7 +48,8 @@ class CountingBuilder:
 
     def __call__(self, cfg):
         self.calls += 1
-        return build_synthetic(cfg)
+        # the synthetic builder takes its own settings: the source files some tests name are for the key alone
+        return build_synthetic(dataset_settings({key: value for key, value in cfg.items() if key in CONFIG}))
 
 
 def assert_one_note(capsys, start: str, end: str) -> str:
@@ -369,7 +371,8 @@ def test_an_edited_frames_file_stored_on_disk_is_detected_and_rebuilt(tmp_path, 
     again = build_captures(cfg, tmp_path)["mesh"]
     assert_one_note(
         capsys,
-        f"workbench: cache entry {tmp_path / dataset_key(cfg)}: frames file {path} does not match its checksum",
+        f"workbench: cache entry {tmp_path / dataset_key(built_settings(dataset_settings(cfg))[1])}: "
+        f"frames file {path} does not match its checksum",
         "rebuilding it",
     )
     np.testing.assert_array_equal(np.asarray(again.train), original)  # the file was written anew, not reused

@@ -129,10 +129,11 @@ def test_gap_policies_on_known_trajectories():
     np.testing.assert_array_equal(masked.visible, ~np.isnan(holed).any(axis=2))
     np.testing.assert_allclose(masked.positions, positions)  # filled for training
 
-    with pytest.raises(WorkbenchError, match="gap_policy must be one of"):
-        apply_gap_policy(holed, "spline")
-    with pytest.raises(WorkbenchError, match="gap_max_fill_frames"):
-        apply_gap_policy(holed, "linear", max_fill_frames=0)
+    # the two settings are checked with the others, before anything is built
+    with pytest.raises(WorkbenchError, match=r"^dataset\.gap_policy must be one of \('drop', 'linear', 'masked'\)"):
+        build_captures({"kind": "synthetic", "gap_policy": "spline"})
+    with pytest.raises(WorkbenchError, match=r"^dataset\.gap_max_fill_frames must be an integer >= 1 or null"):
+        build_captures({"kind": "synthetic", "gap_max_fill_frames": 0})
 
 
 def test_masked_policy_on_the_synthetic_actor():

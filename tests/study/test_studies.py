@@ -256,8 +256,8 @@ def test_noise_study_holds_m_at_the_clean_value_at_its_largest_noise():
 
 
 def test_clean_frames_are_matched_by_take_and_frame_number():
-    from workbench.settings.typed import dataset_settings
-    from workbench.study.protocols import clean_dataset_config, clean_frames
+    from workbench.settings.typed import clean_dataset, dataset_settings
+    from workbench.study.protocols import clean_frames
 
     # dropout without noise, frames with a gap dropped: the kept frames are exactly the clean frames of the same number
     cfg = plain_config(
@@ -269,7 +269,7 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
         ]
     )
     dropped = build_captures(cfg["dataset"])["markers"]
-    clean = build_captures(clean_dataset_config(dataset_settings(cfg["dataset"])))["markers"]
+    clean = build_captures(clean_dataset(dataset_settings(cfg["dataset"])))["markers"]
     assert len(dropped.eval) < len(clean.eval) == 600
     truth = clean_frames(dropped, clean)
     np.testing.assert_allclose(truth, dropped.eval, rtol=0, atol=1e-9)
@@ -280,7 +280,7 @@ def test_clean_frames_are_matched_by_take_and_frame_number():
     with pytest.raises(WorkbenchError, match="not among the clean capture's evaluated frames"):
         clean_frames(
             build_captures(tail["dataset"])["markers"],
-            build_captures(clean_dataset_config(dataset_settings(tail["dataset"])))["markers"],
+            build_captures(clean_dataset(dataset_settings(tail["dataset"])))["markers"],
         )
 
 
@@ -292,10 +292,9 @@ def test_clean_scores_need_the_synthetic_actor_and_leave_n_components_to_the_rul
     ):
         run_study(plain_config(overrides=["dataset.n_frames=100", "basis.coverage_on=clean", "basis.n_components=5"]))
     with pytest.raises(WorkbenchError, match="only the synthetic actor has"):
-        from workbench.settings.typed import dataset_settings
-        from workbench.study.protocols import clean_dataset_config
+        from workbench.settings.typed import clean_dataset, dataset_settings
 
-        clean_dataset_config(dataset_settings({"kind": "animface"}))
+        clean_dataset(dataset_settings({"kind": "animface"}))
 
 
 def test_eval_on_needs_train_on():

@@ -9,19 +9,16 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Mapping
 
-from workbench.core.errors import WorkbenchError
-from workbench.dataset.animface import TRAIN_ON as ANIMFACE_VARIANTS
 from workbench.dataset.animface import build_animface
-from workbench.dataset.cache import cached_captures, dataset_key, without_settings
+from workbench.dataset.cache import cached_captures, dataset_key
 from workbench.dataset.capture import Capture
 from workbench.dataset.hand_basis import apply_hand_basis
-from workbench.dataset.ict_livelink import TRAIN_ON as ICT_LIVELINK_VARIANTS
 from workbench.dataset.ict_livelink import build_ict_livelink
 from workbench.dataset.mesh_sequence import build_mesh_sequence
 from workbench.dataset.real import data_file_checksums
 from workbench.dataset.storage import FrameStorage, frame_storage
-from workbench.dataset.synthetic_builder import TRAIN_ON, build_synthetic
-from workbench.settings.typed import dataset_settings
+from workbench.dataset.synthetic_builder import build_synthetic
+from workbench.settings.typed import built_settings, dataset_settings
 
 BUILDERS = {
     "synthetic": build_synthetic,
@@ -31,26 +28,6 @@ BUILDERS = {
 }
 """``dataset.kind`` -> builder taking the typed ``dataset`` settings and the :class:`FrameStorage` its dense frames
 are written into, returning ``{train_on name: Capture}``."""
-VARIANTS = {"synthetic": TRAIN_ON, "ict_livelink": ICT_LIVELINK_VARIANTS, "animface": ANIMFACE_VARIANTS}
-"""``dataset.kind`` -> the data variants it builds (the names ``dataset.train_on`` and ``dataset.eval_on`` take)."""
-
-
-def variant_names(cfg: Mapping, key: str) -> list[str] | None:
-    """``dataset.<key>`` (``train_on`` or ``eval_on``) as a list of distinct data variants of the dataset's kind,
-    or None when not set; the message names ``key``."""
-    value = getattr(cfg, key, None)
-    if value is None:
-        return None
-    names = [value] if isinstance(value, str) else list(value)
-    allowed = VARIANTS.get(cfg.kind, ())
-    if not names or len(set(names)) != len(names) or (allowed and any(name not in allowed for name in names)):
-        raise WorkbenchError(f"dataset.{key} must be one of {tuple(allowed)} or a list of distinct ones, got {value!r}")
-    return names
-
-
-SCORING_ONLY = ("held_out", "folds", "fold_gap_s")
-"""Dataset settings that choose which built frames are held out and scored, not what is built: left out of the
-build and of its cache key, so the same data are built once whatever is held out of them."""
 
 
 def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capture]:
@@ -80,23 +57,22 @@ def build_captures(cfg: Mapping, cache_dir: str | None = None) -> dict[str, Capt
 def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capture]:
     """:func:`build_captures` of typed dataset settings (:func:`workbench.settings.typed.dataset_settings`), as the
     study passes them: taken as they are, neither typed nor checked again."""
-    storage = frame_storage(dataset, cache_dir)
-    # the hand-basis file is read outside the cache: the same data are cached once, a changed file read afresh
-    keyed = without_settings(dataset, ("hand_basis", *SCORING_ONLY))
+    storage = frame_storage(dataset.storage, dataset.dtype, cache_dir)
+    keyed, key_settings = built_settings(dataset)  # the hand-basis file is read outside the cache, after the build
 
-    def build(plain: Mapping):
+    def build(values: Mapping):
         captures = BUILDERS[keyed.kind](keyed, storage)
-        files = data_file_checksums(plain)  # what the run read, for its provenance
+        files = data_file_checksums(values)  # what the run read, for its provenance
         return {
             name: stored_frames(
                 replace(capture, provenance={**capture.provenance, "data_files": files}) if files else capture,
                 storage,
-                (dataset_key(plain), name),
+                (dataset_key(values), name),
             )
             for name, capture in captures.items()
         }
 
-    return apply_hand_basis(cached_captures(keyed.plain, build, cache_dir), dataset)
+    return apply_hand_basis(cached_captures(key_settings, build, cache_dir), dataset)
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

@@ -26,9 +26,9 @@ from workbench.dataset.common import (
     marker_jitter_rms,
     masked_frames,
     masked_training_frames,
+    name_list,
     point_operator_matrix,
     split_frames,
-    train_on_list,
 )
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
@@ -62,10 +62,7 @@ from workbench.formats.plausibility import (
     with_warnings,
 )
 from workbench.formats.registry import format_for
-from workbench.settings.rules import integer_setting, number_setting, seed_setting
-from workbench.settings.typed import dataset_settings
 
-TRAIN_ON = ("markers", "mesh")
 DIFFERENT_FACES = (
     "performer and basis come from different faces: the motion is the AnimFace performer's, the hand "
     "shapes are the ICT FaceKit generic face's"
@@ -328,7 +325,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     of the table), per take.
     """
     rigid_labels = list(cfg.rigid_markers or [])
-    neutral_take = integer_setting(cfg.neutral_take, "dataset.neutral_take", minimum=0)
+    neutral_take = int(cfg.neutral_take)
     if not 0 <= neutral_take < len(takes):
         raise WorkbenchError(f"dataset.neutral_take {neutral_take} is not one of the {len(takes)} takes")
     first = takes[neutral_take]
@@ -337,7 +334,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     if cfg.neutral_frame is None:
         neutral_frame = rest_frame(first, rigid_index, table_index, table.labels)
     else:
-        neutral_frame = integer_setting(cfg.neutral_frame, "dataset.neutral_frame", minimum=0)
+        neutral_frame = int(cfg.neutral_frame)
     if not 0 <= neutral_frame < first.n_frames:
         raise WorkbenchError(
             f"dataset.neutral_take {neutral_take} / neutral_frame {neutral_frame} is not a frame of "
@@ -358,8 +355,8 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
     )
 
     policy = cfg.gap_policy
-    rate = number_setting(cfg.gap_rate, "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
-    gap_seed = seed_setting(cfg.gap_seed, "dataset.gap_seed")
+    rate = float(cfg.gap_rate)
+    gap_seed = int(cfg.gap_seed)
     pieces, visible, notes, record, timelines, problems, residuals, trajectories = [], [], [], {}, [], [], [], []
     for number, take in enumerate(takes):
         selected = frame_selection(
@@ -503,8 +500,8 @@ def build_animface(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Cap
 
     Parameters
     ----------
-    cfg : typed dataset settings or mapping
-        The ``dataset`` config group (see ``conf/dataset/animface.yaml``).
+    cfg : AnimfaceSettings
+        The typed ``dataset`` settings, checked (see ``conf/dataset/animface.yaml``).
     storage : FrameStorage
         Where the interpolated mesh frames are written, a chunk of frames at a time (``dataset.storage``,
         ``dataset.dtype``); the markers' frames are kept as it says once built.
@@ -514,8 +511,7 @@ def build_animface(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Cap
     dict
         ``train_on`` name (``markers`` or ``mesh``) -> :class:`Capture`, from the same takes.
     """
-    cfg = dataset_settings(cfg)
-    names = train_on_list(cfg, TRAIN_ON)
+    names = name_list(cfg.train_on)
     placed = _placed_takes(cfg)
     shared = _shared_facts(cfg, placed)
     return {name: _variant_capture(name, cfg, placed, shared, storage) for name in names}
@@ -552,7 +548,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
     take_files = list(cfg.takes or [])
     if not take_files:
         raise WorkbenchError("dataset.takes is empty: list the C3D files to use (relative to the data root)")
-    takes = [read_take(data_path(cfg, name, "takes")) for name in take_files]
+    takes = [read_take(data_path(cfg.data_root, name, "takes")) for name in take_files]
     check_distinct_takes(take_files, takes)
     warnings = settle(take_problems(takes), cfg.plausibility)
     if len({take.frame_rate for take in takes}) != 1:
@@ -560,7 +556,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
             f"the takes have different frame rates {[take.frame_rate for take in takes]} Hz; "
             "concatenating them needs one"
         )
-    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
     hand_names = hand_shape_names(cfg, expression_names(folder, cfg.blendshapes.neutral))
     basis = load_basis(cfg, hand_names)
     warnings += settle(
@@ -575,7 +571,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
         table,
         stable.neutral,
         basis.neutral,
-        refine_iterations=integer_setting(cfg.refine_iterations, "dataset.refine_iterations", minimum=0),
+        refine_iterations=int(cfg.refine_iterations),
     )
     similarity, scale = placement.mesh_to_capture, placement.mesh_to_capture.scale
     if not FACE_SCALE_RANGE[0] <= scale <= FACE_SCALE_RANGE[1]:
@@ -616,7 +612,7 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
     rbf = {**RBF_DEFAULTS, **{key: value for key, value in given.items() if value is not None}}
     rigid_labels = list(cfg.rigid_markers or [])
     neutral_name = f"{takes[int(cfg.neutral_take)].path.stem} frame {stable.neutral_rest.frame}"
-    frame_step = integer_setting(cfg.frame_step, "dataset.frame_step", minimum=1)
+    frame_step = int(cfg.frame_step)
     frame_rate = takes[0].frame_rate / frame_step
     notes_common = [
         DIFFERENT_FACES + f" (scaled by {scale:.3f} into the performer's frame)",

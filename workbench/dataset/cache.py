@@ -1,6 +1,7 @@
 """Captures cached by content hash, so a sweep builds each dataset once and a later process reads it back.
 
-The key is a hash of the ``dataset`` config group (order of keys ignored), of the source of ``workbench/dataset``
+The key is a hash of the typed ``dataset`` settings in canonical form
+(:func:`workbench.settings.typed.canonical_settings`: every setting, keys sorted), of the source of ``workbench/dataset``
 (a code change invalidates it) and of the content of every file the config names, under the data root or the
 workbench's ``conf/`` folder (editing the marker table invalidates it): :func:`key_inputs`. Captures are kept in
 memory for the process (the last ``MEMORY_SLOTS`` datasets: a Hydra sweep runs its jobs in one process, a joblib
@@ -29,10 +30,9 @@ import sys
 import time
 import zipfile
 from collections import OrderedDict
-from dataclasses import fields, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -41,7 +41,6 @@ from workbench.core.files import sha256_of_file, write_atomic
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.storage import FRAMES_FOLDER, FrameStorage
 from workbench.numerics.frames import DTYPES, FramesOnDisk
-from workbench.settings.typed import default_value
 
 MEMORY_SLOTS = 2
 SETTLED_SECONDS = 2.0
@@ -123,22 +122,6 @@ def dataset_key(cfg: Mapping) -> str:
     """Content hash of a dataset config (order of keys does not matter), of the dataset code and of the content of
     every source file the config names (:func:`key_inputs`)."""
     return _sha256(_canonical(key_inputs(cfg)).encode())[:24]
-
-
-def changed_dataset(settings, **changes) -> Any:
-    """The typed dataset settings with some plain values changed (a name, a number, a list), in ``plain`` too (what
-    the cache keys by: :func:`dataset_key`). The settings are not typed or checked again: the changes are the
-    study's own."""
-    return replace(settings, **changes, plain={**settings.plain, **changes})
-
-
-def without_settings(settings, names: Sequence[str]) -> Any:
-    """The typed dataset settings without ``names`` (back at their schema defaults), left out of ``plain`` too (what
-    the cache keys by: :func:`dataset_key`)."""
-    defaults = {spec.name: default_value(spec) for spec in fields(settings) if spec.name in names}
-    return replace(
-        settings, **defaults, plain={key: value for key, value in settings.plain.items() if key not in names}
-    )
 
 
 def source_files(cfg: Mapping) -> list[Path]:

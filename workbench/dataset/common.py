@@ -4,7 +4,7 @@ frames, content hashes of arrays, the markers' jitter."""
 from __future__ import annotations
 
 import hashlib
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -14,9 +14,6 @@ from workbench.dataset.storage import FrameStorage
 from workbench.dataset.transfer import apply_point_operator
 from workbench.numerics.frames import FramesOnDisk, frame_chunks
 from workbench.numerics.metrics import point_norms
-from workbench.settings.rules import GAP_FIT_ON, checked, number_setting, one_of
-
-SPLITS = ("same", "tail")
 
 
 def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[np.ndarray, np.ndarray]:
@@ -27,7 +24,7 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
     frames : ndarray of shape (n_frames, n_dims) or FramesOnDisk
     split : {"same", "tail"}
         ``same`` trains and evaluates on every frame, as the paper does; ``tail`` holds out the last
-        ``eval_fraction`` of the take for evaluation.
+        ``eval_fraction`` of the take for evaluation (checked with the settings).
     eval_fraction : float
         In (0, 1), used by ``tail``.
 
@@ -35,14 +32,9 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
     -------
     train, eval : ndarray
     """
-    if split not in SPLITS:
-        raise WorkbenchError(f"dataset.split must be one of {SPLITS}, got {split!r}")
     if split == "same":
         return frames, frames
     take = frames.rows if isinstance(frames, FramesOnDisk) else lambda start, stop: frames[start:stop]
-    eval_fraction = number_setting(
-        eval_fraction, "dataset.eval_fraction", "in (0, 1) for split 'tail'", lambda value: 0.0 < value < 1.0
-    )
     n_eval = int(round(eval_fraction * len(frames)))
     if n_eval < 1 or n_eval > len(frames) - 2:
         raise WorkbenchError(
@@ -52,15 +44,9 @@ def split_frames(frames: np.ndarray, split: str, eval_fraction: float) -> tuple[
     return take(0, len(frames) - n_eval), take(len(frames) - n_eval, len(frames))
 
 
-def train_on_list(cfg: Mapping, allowed: Sequence[str]) -> list[str]:
-    """``dataset.train_on`` as a list of distinct names (one name or a list of them), each in ``allowed``."""
-    value = cfg.train_on
-    names = [value] if isinstance(value, str) else list(value)
-    if not names or any(name not in allowed for name in names) or len(set(names)) != len(names):
-        raise WorkbenchError(
-            f"dataset.train_on must be one of {tuple(allowed)} or a list of distinct ones, got {value!r}"
-        )
-    return names
+def name_list(value) -> list[str]:
+    """A checked setting that takes one name or a list of them (``dataset.train_on``) as a list."""
+    return [value] if isinstance(value, str) else list(value)
 
 
 def interpolated_frames(operator: np.ndarray, points: np.ndarray, storage: FrameStorage):
@@ -118,11 +104,6 @@ def point_operator_matrix(operator: np.ndarray) -> np.ndarray:
     return np.kron(operator, np.eye(3))
 
 
-def gap_fit_on_setting(fit_on: str) -> str:
-    """``dataset.gap_fit_on``, checked (one of :data:`workbench.settings.rules.GAP_FIT_ON`)."""
-    return checked(fit_on, "dataset.gap_fit_on", one_of(*GAP_FIT_ON))
-
-
 def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) -> tuple[np.ndarray, str]:
     """The frames the bases are fitted on under the ``masked`` gap policy, and a note saying which.
 
@@ -141,7 +122,7 @@ def masked_training_frames(train: np.ndarray, visible: np.ndarray, fit_on: str) 
     train : ndarray of shape (n_fit, 3 * n_points)
     note : str
     """
-    if gap_fit_on_setting(fit_on) == "filled":
+    if fit_on == "filled":
         return train, f"the bases are fitted on all {len(train)} training frames, their gaps filled linearly"
     complete = visible.all(axis=1)
     if complete.sum() < 2:

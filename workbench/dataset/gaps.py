@@ -2,7 +2,7 @@
 
 An optical system loses a marker when it is occluded, for a run of frames at a time. :func:`make_gap_mask` draws
 such runs; :func:`apply_gap_policy` handles trajectories with missing (NaN) samples by one of
-:data:`GAP_POLICIES`:
+:data:`workbench.settings.rules.GAP_POLICIES`:
 
 ``drop``
     keep only the frames that saw every marker;
@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.settings.rules import GAP_POLICIES, checked, integer, one_of
 
 
 @dataclass(frozen=True)
@@ -156,20 +155,15 @@ class GapOutcome:
     report: GapReport
 
 
-def gap_policy_setting(policy: str, max_fill_frames: int | None = None) -> str:
-    """``dataset.gap_policy`` and ``dataset.gap_max_fill_frames``, checked (whether or not the data has gaps)."""
-    checked(max_fill_frames, "dataset.gap_max_fill_frames", integer(1, optional=True, whole_floats=True))
-    return checked(policy, "dataset.gap_policy", one_of(*GAP_POLICIES))
-
-
 def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | None = None) -> GapOutcome:
-    """Handle missing (NaN) samples of marker trajectories by one of :data:`GAP_POLICIES`.
+    """Handle missing (NaN) samples of marker trajectories by one of :data:`workbench.settings.rules.GAP_POLICIES`.
 
     Parameters
     ----------
     positions : ndarray of shape (n_frames, n_markers, 3)
         NaN where a marker is missing.
     policy : {"drop", "linear", "masked"}
+        ``dataset.gap_policy``, checked with the settings.
     max_fill_frames : int, optional
         ``linear``: gaps longer than this are not filled (their frames are dropped). None: no limit.
 
@@ -177,7 +171,6 @@ def apply_gap_policy(positions: np.ndarray, policy: str, max_fill_frames: int | 
     -------
     GapOutcome
     """
-    gap_policy_setting(policy, max_fill_frames)
     missing = np.isnan(positions).any(axis=2)
     if policy == "drop":
         filled, kept = positions, ~missing.any(axis=1)

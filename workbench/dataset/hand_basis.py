@@ -175,7 +175,7 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg) -> dict[str, Capture]
     if spec is None or spec.path is None:  # the schema asks for a path in every group that is set
         return dict(captures)
     key = "dataset.hand_basis"
-    path = data_path(cfg, spec.path, "hand_basis.path")
+    path = data_path(getattr(cfg, "data_root", None), spec.path, "hand_basis.path")  # synthetic: none
     if not path.exists():
         raise WorkbenchError(f"{key}.path {path}: not found")
     basis = read_shape_file(

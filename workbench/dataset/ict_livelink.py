@@ -15,7 +15,7 @@ import numpy as np
 
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture, Timeline
-from workbench.dataset.common import array_digest, split_frames, train_on_list
+from workbench.dataset.common import array_digest, name_list, split_frames
 from workbench.dataset.correspondence import read_marker_table
 from workbench.dataset.hand_basis import check_hand_shapes
 from workbench.dataset.real import (
@@ -41,10 +41,6 @@ from workbench.formats.plausibility import (
     with_warnings,
 )
 from workbench.formats.weight_curves import read_weight_curves
-from workbench.settings.rules import positive_setting
-from workbench.settings.typed import dataset_settings
-
-TRAIN_ON = ("mesh", "markers")
 
 
 def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
@@ -63,8 +59,7 @@ def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str,
     dict
         ``train_on`` name (``mesh`` or ``markers``) -> :class:`Capture`, from the same performance.
     """
-    cfg = dataset_settings(cfg)
-    names = train_on_list(cfg, TRAIN_ON)
+    names = name_list(cfg.train_on)
     driven_take = _driven_take(cfg)
     curves_key, curves_path, take_name, take = (
         driven_take.curves_key,
@@ -86,7 +81,7 @@ def build_ict_livelink(cfg, storage: FrameStorage = FrameStorage()) -> dict[str,
     check_hand_shapes(
         basis.deltas[hand_index].reshape(len(hand_names), -1),
         hand_names,
-        f"dataset.blendshapes.folder {data_path(cfg, cfg.blendshapes.folder, 'blendshapes.folder')}",
+        f"dataset.blendshapes.folder {data_path(cfg.data_root, cfg.blendshapes.folder, 'blendshapes.folder')}",
     )
     mesh_points = mesh_point_indices(len(basis.neutral), cfg.mesh_vertex_step, basis.deltas[hand_index], hand_names)
     points = {"mesh": mesh_points, "markers": marker_vertices}
@@ -161,15 +156,15 @@ class _DrivenTake:
 def _driven_take(cfg: Mapping) -> _DrivenTake:
     """Read the take's weight curves (Live Link CSV or ``dataset.weight_curves``), check them, and load the ICT
     shapes they drive and the hand shapes."""
-    timecode_rate = positive_setting(cfg.timecode_rate, "dataset.timecode_rate")
+    timecode_rate = float(cfg.timecode_rate)
     curves_key = "weight_curves" if cfg.weight_curves else "livelink_csv"
-    curves_path = data_path(cfg, getattr(cfg, curves_key), curves_key)
+    curves_path = data_path(cfg.data_root, getattr(cfg, curves_key), curves_key)
     take_name = curves_path.stem
     if curves_key == "weight_curves":  # MediaPipe or generic named weights (workbench.formats.weight_curves)
         take = read_weight_curves(curves_path, frame_rate=cfg.weight_frame_rate, timecode_rate=timecode_rate)
     else:
         take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
-    folder = data_path(cfg, cfg.blendshapes.folder, "blendshapes.folder")
+    folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
     available = expression_names(folder, cfg.blendshapes.neutral)
     hand_names = hand_shape_names(cfg, available)
     folder_mapping = map_arkit_channels(take.names, available, cfg.arkit_overrides or {})

@@ -21,7 +21,7 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.dataset.cache import code_fingerprint
 from workbench.dataset.capture import Capture
-from workbench.dataset.common import array_digest, split_frames, train_on_list
+from workbench.dataset.common import array_digest, split_frames
 from workbench.dataset.hand_basis import check_same_points, read_shape_file, shape_subset
 from workbench.dataset.real import data_path, frame_selection, origin_text
 from workbench.dataset.storage import FrameStorage
@@ -33,10 +33,6 @@ from workbench.formats.plausibility import (
     with_warnings,
 )
 from workbench.numerics.displacements import frames_mean_and_motion, positions_problem
-from workbench.settings.rules import integer_setting, positive_setting
-from workbench.settings.typed import dataset_settings
-
-TRAIN_ON = ("mesh",)
 
 
 def build_mesh_sequence(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Capture]:
@@ -55,11 +51,9 @@ def build_mesh_sequence(cfg, storage: FrameStorage = FrameStorage()) -> dict[str
     dict
         ``{"mesh": Capture}``.
     """
-    cfg = dataset_settings(cfg)
-    train_on_list(cfg, TRAIN_ON)
-    path = data_path(cfg, cfg.sequence, "sequence")
-    unit_mm = positive_setting(cfg.unit_mm, "dataset.unit_mm")
-    frame_rate = positive_setting(cfg.frame_rate, "dataset.frame_rate")
+    path = data_path(cfg.data_root, cfg.sequence, "sequence")
+    unit_mm = float(cfg.unit_mm)
+    frame_rate = float(cfg.frame_rate)
     with open_mesh_sequence(path, str(cfg.vertices_key or "vertices"), cfg.faces_key) as sequence:
         return _mesh_sequence_capture(cfg, storage, path, sequence, unit_mm, frame_rate)
 
@@ -70,7 +64,7 @@ def _mesh_sequence_capture(
     n_frames, n_vertices, faces = sequence.n_frames, sequence.n_vertices, sequence.faces
     warnings = settle(sequence.problems, cfg.plausibility)
     if cfg.neutral:
-        neutral_path = data_path(cfg, cfg.neutral, "neutral")
+        neutral_path = data_path(cfg.data_root, cfg.neutral, "neutral")
         neutral_mesh = read_obj(neutral_path)
         if neutral_mesh.n_vertices != n_vertices:
             raise WorkbenchError(
@@ -80,7 +74,7 @@ def _mesh_sequence_capture(
         faces = faces if faces is not None else triangulate(neutral_mesh.polygon_sizes, neutral_mesh.polygon_vertices)
         neutral_text = f"neutral: {neutral_path.name}"
     else:
-        frame = integer_setting(cfg.neutral_frame, "dataset.neutral_frame", minimum=0)
+        frame = int(cfg.neutral_frame)
         if frame >= n_frames:
             raise WorkbenchError(f"dataset.neutral_frame {frame} is outside the sequence's {n_frames} frames")
         neutral = sequence.frames(frame, frame + 1)[0] * unit_mm
@@ -92,7 +86,7 @@ def _mesh_sequence_capture(
             "dataset.blendshapes.path is not set: a mesh sequence needs a hand basis on its vertices "
             "(a blendshape folder or a .glb)"
         )
-    basis_path = data_path(cfg, spec.path, "blendshapes.path")
+    basis_path = data_path(cfg.data_root, spec.path, "blendshapes.path")
     if not basis_path.exists():
         raise WorkbenchError(f"dataset.blendshapes.path {basis_path}: not found")
     basis = read_shape_file(

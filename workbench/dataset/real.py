@@ -10,7 +10,6 @@ import numpy as np
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import sha256_of_file
 from workbench.formats.obj import Blendshapes, load_blendshapes
-from workbench.settings.rules import integer_setting, positive_setting
 
 ICT_CREDIT = "ICT FaceKit generic face (USC Institute for Creative Technologies, ICT-VGL/ICT-FaceKit), MIT licence"
 LIVELINK_CREDIT = (
@@ -24,9 +23,8 @@ ANIMFACE_CREDIT = (
 )
 
 
-def data_root(cfg: Mapping) -> Path:
+def data_root(root: str | None) -> Path:
     """The configured data root (``dataset.data_root``, usually ``paths.data_root``), which must exist."""
-    root = cfg.data_root
     if not root:
         raise WorkbenchError("dataset.data_root is not set (it defaults to ${paths.data_root})")
     path = Path(root).expanduser()
@@ -38,12 +36,13 @@ def data_root(cfg: Mapping) -> Path:
     return path
 
 
-def data_path(cfg: Mapping, relative: str, key: str) -> Path:
-    """A file or folder named by ``dataset.<key>``, relative to the data root unless absolute."""
+def data_path(root: str | None, relative: str, key: str) -> Path:
+    """A file or folder named by ``dataset.<key>``, relative to the data root ``root`` (``dataset.data_root``)
+    unless absolute."""
     if not relative:
         raise WorkbenchError(f"dataset.{key} is not set")
     path = Path(relative).expanduser()
-    return path if path.is_absolute() else data_root(cfg) / path
+    return path if path.is_absolute() else data_root(root) / path
 
 
 def conf_path(relative: str, key: str) -> Path:
@@ -126,13 +125,13 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
         if spec is None or getattr(spec, key) is None:
             raise WorkbenchError(f"dataset.blendshapes.{key} is not set")
     region = spec.region_vertices
-    region = None if region is None else integer_setting(region, "dataset.blendshapes.region_vertices", minimum=3)
+    region = None if region is None else int(region)
     return load_blendshapes(
-        data_path(cfg, spec.folder, "blendshapes.folder"),
+        data_path(cfg.data_root, spec.folder, "blendshapes.folder"),
         neutral_file=spec.neutral,
         names=names,
         region_vertices=region,
-        unit_mm=positive_setting(spec.unit_mm, "dataset.blendshapes.unit_mm"),
+        unit_mm=float(spec.unit_mm),
     )
 
 
@@ -158,10 +157,10 @@ def frame_selection(n_frames: int, frame_step: int, max_frames: int | None, what
     -------
     ndarray of shape (n_selected,) of int
     """
-    frame_step = integer_setting(frame_step, "dataset.frame_step", minimum=1)
+    frame_step = int(frame_step)
     index = np.arange(0, n_frames, frame_step)
     if max_frames is not None:
-        index = index[: integer_setting(max_frames, f"{what} (or null for all)", minimum=2)]
+        index = index[: int(max_frames)]
     if index.size < 2:
         raise WorkbenchError(f"{n_frames} frames with frame_step {frame_step} leave {index.size}; need at least 2")
     return index
@@ -174,7 +173,7 @@ def mesh_point_indices(n_vertices: int, vertex_step: int, hand: np.ndarray | Non
     that keeps too few vertices for the hand shapes (one that no longer moves any kept vertex, or shapes no longer
     independent there, while the whole mesh has them all) is refused naming the largest step that keeps them.
     """
-    step = integer_setting(vertex_step, "dataset.mesh_vertex_step", minimum=1)
+    step = int(vertex_step)
     points = np.arange(0, n_vertices, step)
     if hand is None or step == 1 or _hand_basis_holds(hand, names, points):
         return points

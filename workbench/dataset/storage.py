@@ -15,7 +15,7 @@ import sys
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable
 
 import numpy as np
 
@@ -23,7 +23,6 @@ from workbench.core.errors import WorkbenchError
 from workbench.core.progress import progress
 from workbench.numerics.frames import DTYPES, FramesOnDisk, FrameWriter, chunk_frames, written_intact
 
-STORAGES = ("memory", "disk")
 FRAMES_FOLDER = "frames"
 """Sub-folder of ``paths.cache_dir`` holding captures stored on disk."""
 
@@ -156,13 +155,9 @@ class FrameSink:
         return self.writer.close()
 
 
-def frame_storage(cfg: Mapping, cache_dir: str | None) -> FrameStorage:
-    """The ``dataset.storage`` and ``dataset.dtype`` settings, checked; disk storage lives in ``cache_dir``."""
-    storage, dtype = cfg.storage, cfg.dtype
-    if storage not in STORAGES:
-        raise WorkbenchError(f"dataset.storage must be one of {STORAGES}, got {storage!r}")
-    if dtype not in DTYPES:
-        raise WorkbenchError(f"dataset.dtype must be one of {tuple(DTYPES)}, got {dtype!r}")
+def frame_storage(storage: str, dtype: str, cache_dir: str | None) -> FrameStorage:
+    """Where the frames of ``dataset.storage`` (``memory`` or ``disk``) and ``dataset.dtype`` (checked with the
+    settings) are kept: disk storage lives in ``cache_dir``."""
     if storage == "disk" and not cache_dir:
         raise WorkbenchError(
             "dataset.storage=disk keeps the frames in paths.cache_dir, which is not set: add paths.cache_dir=<folder>"

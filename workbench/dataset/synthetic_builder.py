@@ -9,29 +9,23 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.errors import WorkbenchError
 from workbench.core.resources import require_memory
 from workbench.dataset.cache import code_fingerprint, kept_in_memory, on_forget
 from workbench.dataset.capture import Capture, Timeline
 from workbench.dataset.common import (
-    SPLITS,
-    gap_fit_on_setting,
     interpolated_frames,
     masked_frames,
     masked_training_frames,
+    name_list,
     point_operator_matrix,
     split_frames,
-    train_on_list,
 )
 from workbench.dataset.decimate import Decimation, decimate
-from workbench.dataset.gaps import apply_gap_policy, gap_policy_setting, make_gap_mask
+from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage
-from workbench.settings.rules import bool_setting, number_setting, seed_setting
-from workbench.settings.typed import dataset_settings
 
-TRAIN_ON = ("markers", "mesh", "mesh_rbf", "face")
 KEPT_BYTES = 1 << 30
 """Takes kept in memory beyond the last two, and face markers at all, only while each kind holds at most 1 GiB."""
 
@@ -41,8 +35,8 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
 
     Parameters
     ----------
-    cfg : typed dataset settings or mapping
-        The ``dataset`` config group (see ``conf/dataset/synthetic.yaml``).
+    cfg : SyntheticSettings
+        The typed ``dataset`` settings, checked (see ``conf/dataset/synthetic.yaml``); nothing is checked again.
     storage : FrameStorage
         Where the dense mesh frames are written, chunk by chunk (``dataset.storage``, ``dataset.dtype``).
 
@@ -52,20 +46,8 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
         ``train_on`` name (``markers``, ``mesh`` or ``mesh_rbf``) -> :class:`Capture`, all from the same take
         (with ``split: other_take``, the evaluated frames come from a second take of the same actor).
     """
-    cfg = dataset_settings(cfg)
-    names = train_on_list(cfg, TRAIN_ON)
-    split = cfg.split
-    if split not in SPLITS + ("other_take",):
-        raise WorkbenchError(f"dataset.split must be one of {SPLITS + ('other_take',)}, got {split!r}")
-    bool_setting(cfg.stabilise, "dataset.stabilise")
-    gap_policy_setting(cfg.gap_policy, cfg.gap_max_fill_frames)  # checked even without gaps
-    gap_fit_on_setting(cfg.gap_fit_on)
-    seeds = [seed_setting(cfg.seed, "dataset.seed")] + ([_eval_seed(cfg)] if split == "other_take" else [])
-    if len(set(seeds)) != len(seeds):
-        raise WorkbenchError(
-            f"dataset.eval_seed {seeds[1]} equals dataset.seed: split 'other_take' evaluates on "
-            "another take, so the two seeds must differ (null: seed + 1)"
-        )
+    names = name_list(cfg.train_on)
+    seeds = [cfg.seed] + ([_eval_seed(cfg)] if cfg.split == "other_take" else [])  # two seeds differ: checked
     require_memory(
         synthetic_values(cfg, names) * len(seeds),
         "the synthetic dataset",
@@ -211,8 +193,7 @@ def forget_kept_frames() -> None:
 
 
 def _eval_seed(cfg: Mapping) -> int:
-    seed = cfg.eval_seed
-    return seed_setting(cfg.seed, "dataset.seed") + 1 if seed is None else seed_setting(seed, "dataset.eval_seed")
+    return cfg.seed + 1 if cfg.eval_seed is None else cfg.eval_seed
 
 
 @dataclass(frozen=True)
@@ -246,7 +227,7 @@ def _face_marker_frames(take, cfg) -> "MarkerFrames":
     """
     positions, notes, gaps, visible = take.markers, [], {}, None
     kept = np.ones(len(positions), dtype=bool)
-    rate = number_setting(cfg.gap_rate, "dataset.gap_rate", "in [0, 1)", lambda value: 0 <= value < 1)
+    rate = float(cfg.gap_rate)
     policy = cfg.gap_policy
     max_fill = cfg.gap_max_fill_frames
     head = np.asarray(take.head_marker_index)

@@ -18,8 +18,6 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 
-POLICIES = ("error", "warn")
-
 
 @dataclass(frozen=True)
 class Limits:

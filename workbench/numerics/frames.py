@@ -19,6 +19,7 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import FILE_MODE, TEMPORARY_SUFFIX, naming, sha256_of_file, temporary_prefix, write_atomic
+from workbench.core.frames import FRAME_DTYPES
 
 CHUNK_ENTRIES = 1 << 24
 """Matrix entries per chunk of frames (128 MB as float64): a chunk holds ``CHUNK_ENTRIES // n_dims`` frames."""
@@ -31,7 +32,7 @@ they were: the weights of a rank-deficient basis are not unique and move by roun
 (up to 3e-7 in the paper's reference run, ``w_max_abs``), so the smaller runs, and the reference reports, keep the
 numbers they had."""
 
-DTYPES = {"float64": np.float64, "float32": np.float32}
+DTYPES = {name: getattr(np, name) for name in FRAME_DTYPES}
 
 
 def chunk_frames(n_dims: int) -> int:

@@ -297,6 +297,14 @@ class RunRecord:
         return str(self.metrics.get("study") or self.config.get("study"))
 
     @property
+    def settings(self):
+        """The run's settings, checked and typed as the run had them (:func:`workbench.settings.typed.study_settings`
+        of ``config``; the retired settings an earlier version's record holds left out)."""
+        from workbench.settings.typed import study_settings
+
+        return study_settings(self.config)
+
+    @property
     def config_hash(self) -> str | None:
         return self.metrics.get("config_hash")
 

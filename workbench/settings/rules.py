@@ -162,19 +162,6 @@ def number_setting(value, key: str, text: str, check: Callable[[float], bool]) -
     return float(checked(value, key, rule(lambda number: _number(number) and check(float(number)), text)))
 
 
-def coverage_on_setting(basis_cfg: Mapping) -> str:
-    """``basis.coverage_on``, checked: ``training`` (the coverage rule on the training frames) or ``clean`` (on
-    the clean capture of the same take, then held fixed); ``clean`` chooses m itself, so ``basis.n_components``
-    must be null."""
-    value = checked(basis_cfg.get("coverage_on", "training"), "basis.coverage_on", one_of(*COVERAGE_ON))
-    if value == "clean" and basis_cfg.get("n_components") is not None:
-        raise WorkbenchError(
-            f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
-            f"be null, got {basis_cfg['n_components']}"
-        )
-    return value
-
-
 def meta(default, check: dict) -> Any:
     """A dataclass field with a default (or ``MISSING``) and its rule."""
     if isinstance(default, (list, dict)):

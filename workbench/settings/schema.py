@@ -23,6 +23,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence
 from omegaconf import MISSING
 
 from workbench.core.errors import WorkbenchError, check_utf8
+from workbench.core.frames import FRAME_DTYPES
 from workbench.core.solvers import SOLVER_KINDS
 from workbench.settings.bases import ALTERNATIVE_BASES
 from workbench.settings.ineffective import (
@@ -41,7 +42,6 @@ from workbench.settings.rules import (
     _integer,
     _number,
     checked,
-    coverage_on_setting,
     integer,
     interval,
     key_of,
@@ -109,13 +109,35 @@ SHAPE_NAMES = rule(
     "a non-empty list of distinct shape names (plain names: each names a file in an export)",
 )
 EVAL_FRACTION = interval(0, 1, low_open=True, high_open=True)
-HELD_OUT = names("tail", "take", "kfold", "take_out", optional=True)
-"""``dataset.held_out``: the held-out protocols scored beside the paper's (``workbench.study.protocols.HELD_OUT``)."""
-SYNTHETIC_VARIANTS = ("markers", "mesh", "mesh_rbf", "face")
-"""The synthetic actor's data variants (``workbench.dataset.TRAIN_ON``)."""
-PLAUSIBILITY = one_of("error", "warn")
-STORAGE = one_of("memory", "disk")
-DTYPE = one_of("float64", "float32")
+HELD_OUT_PROTOCOLS = {
+    "tail": "held-out tail of each take",
+    "take": "held-out last take",
+    "kfold": "held-out blocked k-fold",
+    "take_out": "held-out leave-one-take-out",
+}
+"""``dataset.held_out`` protocol -> how its frames are described (``workbench.study.protocols.HELD_OUT``; the
+cross-validated ones are ``workbench.study.crossval.FOLDED``)."""
+HELD_OUT = names(*HELD_OUT_PROTOCOLS, optional=True)
+"""``dataset.held_out``: the held-out protocols scored beside the paper's."""
+DATA_VARIANTS = {
+    "synthetic": ("markers", "mesh", "mesh_rbf", "face"),
+    "ict_livelink": ("mesh", "markers"),
+    "animface": ("markers", "mesh"),
+    "mesh_sequence": ("mesh",),
+}
+"""``dataset.kind`` -> the data variants its builder makes (the names ``dataset.train_on`` and ``dataset.eval_on``
+take), in the order they are listed in messages."""
+SYNTHETIC_VARIANTS = DATA_VARIANTS["synthetic"]
+PLAUSIBILITY_POLICIES = ("error", "warn")
+"""``dataset.plausibility``: what implausible input does (``workbench.formats.plausibility.settle``)."""
+PLAUSIBILITY = one_of(*PLAUSIBILITY_POLICIES)
+STORAGES = ("memory", "disk")
+"""``dataset.storage``: frames kept in memory or in files of ``paths.cache_dir`` (``workbench.dataset.storage``)."""
+STORAGE = one_of(*STORAGES)
+DTYPE = one_of(*FRAME_DTYPES)
+SPLITS = ("same", "tail")
+"""``dataset.split`` of every kind; the synthetic actor adds ``other_take`` (a second take of the same actor)."""
+SPLIT = one_of(*SPLITS)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -238,7 +260,7 @@ class SyntheticSchema:
     train_on: Any = meta("markers", names(*SYNTHETIC_VARIANTS))
     eval_on: Any = meta(None, names(*SYNTHETIC_VARIANTS, optional=True))
     stabilise: Any = meta(True, BOOLEAN)
-    split: str = meta("same", one_of("same", "tail", "other_take"))
+    split: str = meta("same", one_of(*SPLITS, "other_take"))
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -274,8 +296,8 @@ class IctLivelinkSchema:
     hand_shapes: List[str] = meta(MISSING, SHAPE_NAMES)
     marker_table: str = meta(MISSING, TEXT)
     mesh_vertex_step: int = meta(1, integer(1))
-    train_on: Any = meta(MISSING, names("mesh", "markers"))
-    split: str = meta("same", one_of("same", "tail"))
+    train_on: Any = meta(MISSING, names(*DATA_VARIANTS["ict_livelink"]))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -316,8 +338,8 @@ class AnimfaceSchema:
     gap_mean_frames: float = meta(12, interval(1))
     gap_seed: int = meta(0, SEED)
     mesh_vertex_step: int = meta(1, integer(1))
-    train_on: Any = meta(MISSING, names("markers", "mesh"))
-    split: str = meta("same", one_of("same", "tail"))
+    train_on: Any = meta(MISSING, names(*DATA_VARIANTS["animface"]))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -351,8 +373,8 @@ class MeshSequenceSchema:
     frame_step: int = meta(1, integer(1))
     max_frames: Optional[int] = meta(None, integer(2, optional=True))
     plausibility: str = meta("error", PLAUSIBILITY)
-    train_on: Any = meta("mesh", names("mesh"))
-    split: str = meta("same", one_of("same", "tail"))
+    train_on: Any = meta("mesh", names(*DATA_VARIANTS["mesh_sequence"]))
+    split: str = meta("same", SPLIT)
     eval_fraction: float = meta(0.2, EVAL_FRACTION)
     held_out: Any = meta(None, HELD_OUT)
     folds: int = meta(5, integer(2))
@@ -411,6 +433,7 @@ DATASET_EXTRA_RULES = {
     ),
     "weight_frame_rate": interval(0, 10_000, low_open=True, optional=True),
     "weight_curves": OPTIONAL_TEXT,
+    "eval_on": lambda kind: names(*DATA_VARIANTS[kind], optional=True),
 }
 """The rules of the dataset settings added with ``+`` (the rate numbers the frames of weight curves, as
 :data:`FRAME_RATE` does a capture's)."""
@@ -497,7 +520,7 @@ def check_dataset_group(values: Mapping) -> None:
         values, DATASET_SCHEMAS[kind], "dataset.", extras={k for k, kinds in DATASET_EXTRAS.items() if kind in kinds}
     )
     if kind == "synthetic":
-        _check_marker_count(values)
+        _check_synthetic(values)
 
 
 def resolved_settings(cfg) -> dict:
@@ -622,6 +645,7 @@ def _check_node(values: Mapping, schema, prefix: str, extras: set = frozenset())
     _check_known(values, schema, prefix, extras)
     for key in extras & set(values):
         spec = DATASET_EXTRA_RULES.get(key)
+        spec = spec(values.get("kind")) if callable(spec) else spec  # a rule that depends on the dataset's kind
         if spec is not None:
             checked(values[key], prefix + key, spec)
         if key in DATASET_EXTRA_SCHEMAS and values[key]:
@@ -682,9 +706,13 @@ def _check_relations(plain: Mapping) -> None:
         )
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
-        _check_marker_count(plain["dataset"])
+        _check_synthetic(plain["dataset"])
     _check_held_out(plain)
-    coverage_on_setting(basis)
+    if given(basis, BasisSchema, "coverage_on") == "clean" and basis.get("n_components") is not None:
+        raise WorkbenchError(
+            f"basis.coverage_on=clean chooses m from the clean capture, so basis.n_components must "
+            f"be null, got {basis['n_components']}"
+        )
     for key, wants_clean in (
         ("basis.coverage_on", basis.get("coverage_on") == "clean"),
         ("metric.score_clean", (plain.get("metric") or {}).get("score_clean") is True),
@@ -693,11 +721,20 @@ def _check_relations(plain: Mapping) -> None:
             raise WorkbenchError(f"{key} needs the clean capture, which only dataset.kind synthetic has, got {kind!r}")
 
 
+def given(values: Mapping, schema, name: str):
+    """The setting ``name`` of ``values`` as given, else ``schema``'s default for it (None where it has none): a
+    rule between settings reads a setting left out as the run will, without restating its default."""
+    if name in values:
+        return values[name]
+    spec = {spec.name: spec for spec in fields(schema)}[name]
+    return None if spec.default is NO_DEFAULT or spec.default == MISSING else spec.default
+
+
 def _check_held_out(plain: Mapping) -> None:
     """What ``dataset.held_out`` and ``dataset.eval_on`` (bases carried onto other points) cannot be combined with."""
     dataset, carried = plain["dataset"], plain["dataset"].get("eval_on") is not None
     held_out = _held_out(plain)
-    if held_out and dataset.get("split", "same") != "same":
+    if held_out and given(dataset, DATASET_SCHEMAS[dataset["kind"]], "split") != "same":
         raise WorkbenchError(
             f"dataset.held_out adds held-out frames beside the paper's protocol (split 'same'); "
             f"with dataset.split {dataset.get('split')!r} the run is already held out: leave "
@@ -712,6 +749,18 @@ def _check_held_out(plain: Mapping) -> None:
         raise WorkbenchError(
             "basis.alternatives are fitted and scored on each data variant's own points; "
             "carrying them onto others (dataset.eval_on) is not supported: leave one of them unset"
+        )
+
+
+def _check_synthetic(dataset: Mapping) -> None:
+    """The rules between the synthetic actor's settings: its markers fit its mesh, and a second take (split
+    ``other_take``) has a seed of its own."""
+    _check_marker_count(dataset)
+    seed, eval_seed = given(dataset, SyntheticSchema, "seed"), dataset.get("eval_seed")
+    if dataset.get("split") == "other_take" and _integer(seed) and eval_seed is not None and eval_seed == seed:
+        raise WorkbenchError(
+            f"dataset.eval_seed {eval_seed} equals dataset.seed: split 'other_take' evaluates on "
+            "another take, so the two seeds must differ (null: seed + 1)"
         )
 
 

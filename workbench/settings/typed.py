@@ -3,17 +3,18 @@
 :func:`study_settings` checks a composed or resolved config (:func:`workbench.settings.schema.check_study_config`)
 and turns it into the schema's own dataclasses, every setting the config leaves out at its schema default, so that
 below it settings are attributes (``settings.basis.coverage``, ``settings.dataset.eval_fraction``) and no default is
-restated. The resolved config as checked travels beside them (``plain``): the record writes it as YAML and the
-dataset cache keys its captures by it, both as before.
+restated. The operations on settings a study makes (:func:`changed_dataset`, :func:`without_settings`) and the
+canonical form the dataset cache keys captures by (:func:`canonical_settings`) live here too.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import MISSING as NO_DEFAULT
-from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, make_dataclass, replace
 from typing import Any, Mapping, Optional, Sequence
 
-from omegaconf import MISSING
+from omegaconf import MISSING, OmegaConf
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.solvers import BOUNDS, SOLVER_KINDS
@@ -55,14 +56,11 @@ def default_value(spec):
 def _dataset_class(kind: str) -> type:
     """The typed settings of a dataset kind: its schema, then the settings only added with ``+``
     (:data:`~workbench.settings.schema.DATASET_EXTRAS`, None when not given; a group of them typed by its schema,
-    :data:`~workbench.settings.schema.DATASET_EXTRA_SCHEMAS`) and the group as given (``plain``)."""
+    :data:`~workbench.settings.schema.DATASET_EXTRA_SCHEMAS`)."""
     extras = [name for name, kinds in DATASET_EXTRAS.items() if kind in kinds]
     return make_dataclass(
         f"{DATASET_SCHEMAS[kind].__name__.removesuffix('Schema')}Settings",
-        [
-            *((name, DATASET_EXTRA_SCHEMAS.get(name, Any), field(default=None)) for name in extras),
-            ("plain", dict, field(default_factory=dict, repr=False, compare=False)),
-        ],
+        [(name, DATASET_EXTRA_SCHEMAS.get(name, Any), field(default=None)) for name in extras],
         bases=(DATASET_SCHEMAS[kind],),
     )
 
@@ -74,11 +72,11 @@ for _settings in DATASET_SETTINGS.values():  # module attributes, so that pickle
     globals()[_settings.__name__] = _settings
 
 
-def dataset_settings(values, *, check: bool = False) -> Any:
-    """The ``dataset`` group as its kind's typed settings (:data:`DATASET_SETTINGS`); typed settings are returned as
-    they are. With ``check``, a plain group is checked first (:func:`~workbench.settings.schema.check_dataset_group`:
-    :func:`workbench.api.build_captures` does); :func:`study_settings` checks the whole study instead, and a builder
-    called with a plain group (a test's) types it unchecked, as it read it before.
+def dataset_settings(values) -> Any:
+    """A ``dataset`` group given alone (the Python API's :func:`workbench.api.build_captures`, a test's builder call)
+    as its kind's typed settings (:data:`DATASET_SETTINGS`), checked first
+    (:func:`~workbench.settings.schema.check_dataset_group`); typed settings are returned as they are (they were
+    checked when they were made). :func:`study_settings` checks and types the whole study instead.
 
     Raises
     ------
@@ -87,16 +85,68 @@ def dataset_settings(values, *, check: bool = False) -> Any:
     """
     if is_dataclass(values):
         return values
+    if OmegaConf.is_config(values):
+        values = OmegaConf.to_container(values, resolve=True)
     if not isinstance(values, Mapping):
         raise WorkbenchError(f"the dataset settings must be a mapping, got {type(values).__name__}")
-    if check:
-        check_dataset_group(values)
+    check_dataset_group(values)
+    return _typed_dataset(values)
+
+
+def _typed_dataset(values: Mapping) -> Any:
+    """A checked ``dataset`` group as its kind's typed settings."""
     kind = values.get("kind")
     if kind not in DATASET_SETTINGS:
         raise WorkbenchError(f"dataset.kind must be one of {sorted(DATASET_SETTINGS)}, got {kind!r}")
-    settings = typed(DATASET_SETTINGS[kind], {key: value for key, value in values.items() if key != "plain"})
-    settings.plain = dict(values)
-    return settings
+    return typed(DATASET_SETTINGS[kind], values)
+
+
+SCORING_ONLY = ("held_out", "folds", "fold_gap_s")
+"""Dataset settings that choose which built frames are held out and scored, not what is built: left out of the
+build and of its cache key, so the same data are built once whatever is held out of them."""
+
+
+def changed_dataset(settings, **changes) -> Any:
+    """The typed dataset settings with some values changed (a name, a number, a list): the study's own changes
+    (the clean capture, the variants built for ``eval_on``), neither typed nor checked again."""
+    return replace(settings, **changes)
+
+
+def without_settings(settings, names: Sequence[str]) -> Any:
+    """The typed dataset settings with ``names`` back at their schema defaults (None for a setting added with
+    ``+``): what a build does not depend on (:data:`SCORING_ONLY`, ``hand_basis``)."""
+    return replace(settings, **{spec.name: default_value(spec) for spec in fields(settings) if spec.name in names})
+
+
+def clean_dataset(dataset) -> Any:
+    """The dataset settings of the clean capture of the same take: the synthetic actor without marker noise and
+    without marker dropout (same seed, so the same performance and head motion).
+
+    Raises
+    ------
+    WorkbenchError
+        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
+    """
+    if dataset.kind != "synthetic":
+        raise WorkbenchError(
+            f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
+            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {dataset.kind!r}"
+        )
+    return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
+
+
+def built_settings(settings) -> tuple[Any, dict]:
+    """The typed dataset settings a build reads, without :data:`SCORING_ONLY` and ``hand_basis`` (its file is read
+    after the build, outside the cache: the same data are cached once, a changed file read afresh), and their
+    canonical form (:func:`canonical_settings`), what the dataset cache keys the build by."""
+    built = without_settings(settings, ("hand_basis", *SCORING_ONLY))
+    return built, canonical_settings(built)
+
+
+def canonical_settings(settings) -> dict:
+    """Typed settings as plain JSON values (every field, nested groups as mappings, keys sorted): what the dataset
+    cache keys captures by (:func:`workbench.dataset.cache.dataset_key`)."""
+    return json.loads(json.dumps(asdict(settings), sort_keys=True, default=str))
 
 
 def solver_options(solver: SolverSchema) -> dict:
@@ -122,8 +172,6 @@ class StudySettings:
     study : str
     save_inputs : bool
     paper : PaperSchema or None
-    plain : dict
-        The resolved config as checked (without Hydra's node and retired settings).
     """
 
     dataset: Any
@@ -134,7 +182,6 @@ class StudySettings:
     study: Optional[str] = None
     save_inputs: bool = False
     paper: Optional[PaperSchema] = None
-    plain: dict = field(default_factory=dict, repr=False, compare=False)
 
 
 def study_settings(cfg, overrides: Sequence[str] = ()) -> StudySettings:
@@ -157,7 +204,7 @@ def study_settings(cfg, overrides: Sequence[str] = ()) -> StudySettings:
     plain, _ = checked_settings(cfg, overrides)
     metric, paths, paper = plain.get("metric") or {}, plain.get("paths") or {}, plain.get("paper")
     return StudySettings(
-        dataset=dataset_settings(plain["dataset"], check=False),
+        dataset=_typed_dataset(plain["dataset"]),
         basis=typed(BasisSchema, plain["basis"]),
         solvers={name: typed(SolverSchema, spec) for name, spec in plain["solver"].items()},
         metric=typed(MetricSchema, metric),
@@ -165,5 +212,4 @@ def study_settings(cfg, overrides: Sequence[str] = ()) -> StudySettings:
         study=plain.get("study"),
         save_inputs=plain.get("save_inputs") is True,
         paper=typed(PaperSchema, paper) if isinstance(paper, Mapping) else None,
-        plain=plain,
     )

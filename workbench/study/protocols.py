@@ -10,24 +10,17 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset import variant_names
-from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
-from workbench.settings.schema import BasisSchema
+from workbench.dataset.common import name_list
+from workbench.settings.schema import HELD_OUT_PROTOCOLS
 from workbench.study.fitting import fit_eigenfaces
 
-HELD_OUT = {
-    "tail": "held-out tail of each take",
-    "take": "held-out last take",
-    "kfold": "held-out blocked k-fold",
-    "take_out": "held-out leave-one-take-out",
-}
-"""``dataset.held_out`` protocol -> how its frames are described."""
+HELD_OUT = HELD_OUT_PROTOCOLS
+"""``dataset.held_out`` protocol -> how its frames are described (:data:`workbench.settings.schema.HELD_OUT_PROTOCOLS`)."""
 
 
-def held_out_protocols(dataset) -> list[str]:
-    """``dataset.held_out`` (typed dataset settings) as a list of protocols of :data:`HELD_OUT` (empty when null)."""
-    value = dataset.held_out
+def held_out_protocols(value) -> list[str]:
+    """``dataset.held_out`` (one protocol of :data:`HELD_OUT`, a list of them, or None) as a list (empty when null)."""
     return [] if value is None else [value] if isinstance(value, str) else list(value)
 
 
@@ -113,49 +106,34 @@ def select_frames(frames, index: np.ndarray):
 CLEAN_M_NOTE = "m chosen on the clean capture"
 
 
-def clean_dataset_config(dataset):
-    """The dataset settings of the clean capture of the same take: the synthetic actor without marker noise and
-    without marker dropout (same seed, so the same performance and head motion).
-
-    Raises
-    ------
-    WorkbenchError
-        For a dataset whose clean version is unknown (a real capture's noise cannot be switched off).
-    """
-    if dataset.kind != "synthetic":
-        raise WorkbenchError(
-            f"basis.coverage_on 'clean' and metric.score_clean need the clean version of the "
-            f"capture, which only the synthetic actor has (dataset.kind synthetic), got {dataset.kind!r}"
-        )
-    return changed_dataset(dataset, marker_noise_mm=0.0, gap_rate=0.0)
-
-
-def with_clean_m(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
-    """The capture and basis settings to fit with: unchanged without a clean capture; with one, ``n_components``
-    fixed to the m the coverage threshold keeps on the clean capture's training frames, said in a note.
+def with_clean_m(capture: Capture, coverage: float, clean: Capture | None) -> tuple[Capture, int | None]:
+    """The capture to fit and the number of eigenfaces to fit it with: unchanged and None (the coverage rule's m)
+    without a clean capture; with one, the m the coverage threshold keeps on the clean capture's training frames,
+    said in a note.
 
     Parameters
     ----------
     capture : Capture
-    basis : BasisSchema
+    coverage : float
+        ``basis.coverage``.
     clean : Capture or None
-        The same data variant of the clean capture (:func:`clean_dataset_config`).
+        The same data variant of the clean capture (:func:`workbench.settings.typed.clean_dataset`).
 
     Returns
     -------
     capture : Capture
-    basis : BasisSchema
+    m : int or None
     """
     if clean is None:
-        return capture, basis
-    clean_pca = fit_eigenfaces(clean, basis.coverage)
+        return capture, None
+    clean_pca = fit_eigenfaces(clean, coverage)
     m = int(clean_pca.n_components_)
     note = (
-        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {basis.coverage} "
+        f"{CLEAN_M_NOTE}: m = {m} eigenfaces reach coverage {clean_pca.coverage_:.4f} >= {coverage} "
         "on the clean capture of the same take (no marker noise, no dropout); the eigenfaces are fitted on this "
         "capture with that m (basis.coverage_on clean)"
     )
-    return replace(capture, notes=capture.notes + (note,)), replace(basis, n_components=m)
+    return replace(capture, notes=capture.notes + (note,)), m
 
 
 def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
@@ -166,7 +144,7 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
     capture : Capture
         The evaluated capture (noise, dropout; its frames may be a subset of the take's).
     clean : Capture
-        The same data variant of the clean capture (:func:`clean_dataset_config`), same points.
+        The same data variant of the clean capture (:func:`workbench.settings.typed.clean_dataset`), same points.
 
     Returns
     -------
@@ -194,12 +172,12 @@ def clean_frames(capture: Capture, clean: Capture) -> np.ndarray:
     return np.asarray(clean.eval)[index]
 
 
-def data_variants(dataset) -> tuple[list[str], list[str] | None]:
-    """``dataset.train_on`` and ``dataset.eval_on`` as lists of names (``eval_on`` None when not set)."""
-    train_names, eval_names = variant_names(dataset, "train_on"), variant_names(dataset, "eval_on")
-    if eval_names is not None and train_names is None:
+def data_variants(train_on, eval_on) -> tuple[list[str], list[str] | None]:
+    """``dataset.train_on`` and ``dataset.eval_on`` (a name or a list of them) as lists of names (``eval_on`` None
+    when not set)."""
+    if eval_on is not None and train_on is None:
         raise WorkbenchError("dataset.eval_on needs dataset.train_on to name the variants the bases are fitted on")
-    return train_names or [], eval_names
+    return [] if train_on is None else name_list(train_on), None if eval_on is None else name_list(eval_on)
 
 
 def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
@@ -250,9 +228,9 @@ def hand_subset_indices(names: Sequence[str], spec, seed: int) -> np.ndarray:
     return np.array(sorted(names.index(name) for name in spec), dtype=int)
 
 
-def subset_hand_shapes(capture: Capture, basis: BasisSchema) -> Capture:
-    """The capture with only the hand shapes ``basis.hand_subset`` keeps."""
-    index = hand_subset_indices(capture.hand_names, basis.hand_subset, basis.subset_seed)
+def subset_hand_shapes(capture: Capture, hand_subset, subset_seed: int) -> Capture:
+    """The capture with only the hand shapes ``basis.hand_subset`` keeps (drawn with ``basis.subset_seed``)."""
+    index = hand_subset_indices(capture.hand_names, hand_subset, subset_seed)
     if index.size == len(capture.hand_names):
         return capture
     return select_shapes(capture, [capture.hand_names[i] for i in index])

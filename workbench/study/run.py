@@ -13,17 +13,15 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.dataset import build_from_settings
-from workbench.dataset.cache import changed_dataset
 from workbench.dataset.capture import Capture
 from workbench.dataset.transfer import point_transfer
 from workbench.settings.schema import BasisSchema
-from workbench.settings.typed import StudySettings, solver_options
+from workbench.settings.typed import StudySettings, changed_dataset, clean_dataset, solver_options
 from workbench.study.crossval import FOLDED, cross_validated
 from workbench.study.fitting import fit_alternative_bases, fit_bases, pca_subspace
 from workbench.study.protocols import (
     CLEAN_M_NOTE,
     HELD_OUT,
-    clean_dataset_config,
     clean_frames,
     data_variants,
     held_out_capture,
@@ -61,31 +59,37 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     timings = Timings()
     solvers = {name: solver_options(solver) for name, solver in settings.solvers.items()}
     dataset, basis = settings.dataset, settings.basis
-    train_names, eval_names = data_variants(dataset)
+    train_names, eval_names = data_variants(dataset.train_on, getattr(dataset, "eval_on", None))  # not every kind's
     build_names = train_names + [name for name in eval_names or () if name not in train_names]
-    # the same built data whatever is held out of it (build_captures leaves out dataset.SCORING_ONLY)
+    # the same built data whatever is held out of it (build_captures leaves out settings.typed.SCORING_ONLY)
     built = changed_dataset(dataset, train_on=build_names) if eval_names else dataset
     score_clean = settings.metric.score_clean is True
     with timings.stage("dataset"):
         captures = build_from_settings(built, cache_dir=settings.paths.cache_dir)
         clean = (
-            build_from_settings(clean_dataset_config(built), cache_dir=settings.paths.cache_dir)
+            build_from_settings(clean_dataset(built), cache_dir=settings.paths.cache_dir)
             if basis.coverage_on == "clean" or score_clean
             else None
         )
     if eval_names:
-        return carried_results(captures, clean, train_names, eval_names, settings, solvers, timings)
+        return carried_results(captures, clean, train_names, eval_names, basis, score_clean, solvers, timings)
     results = []
     for data, capture in captures.items():
-        capture, fitted = with_clean_m(
-            subset_hand_shapes(capture, basis), basis, clean[data] if basis.coverage_on == "clean" else None
-        )
+        capture, fitted = fitted_capture(capture, basis, clean[data] if basis.coverage_on == "clean" else None)
         score = scorer(solvers, timings, clean[data] if score_clean else None)
         trained = with_paper_regime(score(data, capture, fitted), fitted, score)
         results += trained
-        for protocol in held_out_protocols(dataset):
+        for protocol in held_out_protocols(dataset.held_out):
             results += held_out_results(data, capture, protocol, dataset, fitted, score, len(trained) > 1)
     return results
+
+
+def fitted_capture(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
+    """The capture a data variant's bases are fitted on (the hand shapes ``basis.hand_subset`` keeps) and the basis
+    settings they are fitted with: ``n_components`` the m chosen on ``clean``, the same data variant of the clean
+    capture (``basis.coverage_on`` clean; :func:`workbench.study.protocols.with_clean_m`), when given."""
+    capture, m = with_clean_m(subset_hand_shapes(capture, basis.hand_subset, basis.subset_seed), basis.coverage, clean)
+    return capture, basis if m is None else replace(basis, n_components=m)
 
 
 Score = Callable[[str, Capture, BasisSchema, "StudyResult | None"], StudyResult]
@@ -198,13 +202,14 @@ def carried_results(
     clean: Mapping[str, Capture] | None,
     train_names: Sequence[str],
     eval_names: Sequence[str],
-    settings: StudySettings,
+    basis: BasisSchema,
+    score_clean: bool,
     solvers: Mapping[str, Mapping],
     timings: Timings,
 ) -> list[StudyResult]:
     """``dataset.eval_on``: the bases fitted on each training variant, carried onto the points of each evaluated
-    variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair."""
-    basis, score_clean = settings.basis, settings.metric.score_clean is True
+    variant (:func:`workbench.dataset.transfer.point_transfer`) and scored there, one result per pair (also
+    against the clean frames with ``score_clean``, ``metric.score_clean``)."""
     masked = [name for name in eval_names if captures[name].eval_visible is not None]
     if masked:
         raise WorkbenchError(
@@ -214,10 +219,8 @@ def carried_results(
         )
     results = []
     for train_on in train_names:
-        source, fitted = with_clean_m(
-            subset_hand_shapes(captures[train_on], basis),
-            basis,
-            clean[train_on] if basis.coverage_on == "clean" else None,
+        source, fitted = fitted_capture(
+            captures[train_on], basis, clean[train_on] if basis.coverage_on == "clean" else None
         )
         eigenfaces, quasi_eigen = fit_bases(source, fitted, timings)
         for eval_on in eval_names:

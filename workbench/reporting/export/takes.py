@@ -240,7 +240,7 @@ def livelink_source(dataset_cfg: Mapping) -> LiveLinkSource | None:
         or not dataset_cfg.get("livelink_csv")
     ):
         return None
-    path = data_path(dataset_settings(dataset_cfg), dataset_cfg["livelink_csv"], "livelink_csv")
+    path = data_path(dataset_settings(dataset_cfg).data_root, dataset_cfg["livelink_csv"], "livelink_csv")
     take = read_livelink_csv(path, timecode_rate=dataset_cfg.get("timecode_rate", 60.0))
     column = pd.read_csv(path, usecols=["Timecode"], dtype=str, skipinitialspace=True)["Timecode"]
     return LiveLinkSource(timecodes=column.str.strip().to_numpy(), rotations=take.rotations)
