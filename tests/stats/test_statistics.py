@@ -21,7 +21,6 @@ from workbench.stats.statistics import (
     PAIRED_T,
     SIGNED,
     Interval,
-    comparison_lookup,
     geometric_interval,
     interval_text,
     ordering_text,
@@ -32,6 +31,7 @@ from workbench.stats.statistics import (
     reversed_interval,
     t_interval,
 )
+from workbench.stats.stored import comparison_lookup
 
 T_975_2 = 4.302652729749462  # Student t, 97.5 % quantile, 2 degrees of freedom (tables: 4.3027)
 T_975_4 = 2.7764451051977934  # 4 degrees of freedom (tables: 2.7764)

@@ -13,8 +13,8 @@ from workbench.reporting.findings.claims import NOT_ESTIMABLE, NOT_TESTED, claim
 from workbench.stats.identities import identity_lookup, run_identities
 from workbench.stats.statistics import (
     Interval,
-    holm_adjusted,
 )
+from workbench.stats.stored import holm_adjusted
 
 
 def finite_value(value) -> bool:
@@ -70,7 +70,7 @@ def with_claims(metrics: Mapping) -> dict:
 def adjusted_comparisons(metrics: Mapping) -> dict:
     """Data variant -> its stored comparisons (:func:`with_claims`), every one but the primary contrasts (the
     stored claims; on a record without them :data:`PRIMARY_CONTRASTS` on :func:`primary_data`) with its
-    Holm-adjusted p-value (:func:`workbench.stats.statistics.holm_adjusted`) over the run's family; comparisons of
+    Holm-adjusted p-value (:func:`workbench.stats.stored.holm_adjusted`) over the run's family; comparisons of
     records without p-values keep their unadjusted interval."""
     lead = primary_data(metrics)
     data_facts = metrics.get("data") or {}

@@ -32,11 +32,11 @@ from workbench.reporting.findings.comparisons import (
 from workbench.stats.identities import identity_lookup, run_identities, scored_on_training_frames
 from workbench.stats.statistics import (
     SIGNED,
-    comparison_lookup,
     comparison_name,
     short_interval_text,
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
+from workbench.stats.stored import comparison_lookup
 from workbench.study.claims import base_variant
 from workbench.study.regime import is_paper_regime, paper_regime_name
 

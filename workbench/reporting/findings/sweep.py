@@ -24,12 +24,12 @@ from workbench.stats.replicates import PSEUDO_REPLICATES
 from workbench.stats.statistics import (
     CONFIDENCE,
     Interval,
-    comparison_lookup,
     holm,
     reversed_interval,
     short_interval_text,
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
+from workbench.stats.stored import comparison_lookup
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
 """The paper's claims: QE against H and against PCA (least squares, the headline alpha, the lead data variant) at

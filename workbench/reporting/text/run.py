@@ -410,7 +410,8 @@ def headline(
                 )
                 continue
             from workbench.stats.identities import identity_lookup
-            from workbench.stats.statistics import comparison_lookup, ordering_text
+            from workbench.stats.statistics import ordering_text
+            from workbench.stats.stored import comparison_lookup
 
             values = {
                 **{(basis, solver): float(rows[basis]) for basis in rows.index},
