@@ -61,7 +61,7 @@ REFERENCES = {
         ["dataset=animface", "dataset.frame_step=4", "dataset.held_out=[tail,kfold,take_out]", "save_inputs=true"],
     ),
 }
-PAPER_SIZE = {"paper": {"dataset.n_frames": 35000, "dataset.held_out": ["tail", "kfold"]}}
+PAPER_SIZE = {"paper": {"dataset.n_frames": 35000, "dataset.held_out": "[tail, kfold]"}}
 """Settings of the committed reports at the paper's size, beside the run each is checked by."""
 FIGURE_STEMS = [spec[0] for spec in RUN_FIGURES]
 
@@ -762,8 +762,10 @@ def assert_reference_is_small_and_clean(reference, readme: str) -> None:
 # 9.0 MB once every held-out protocol got its m = n variant and the paper and ICT runs blocked k-fold beside the tail
 # (AnimFace: k-fold and leave-one-take-out in place of its last take): 8.80 MB measured at that rebuild; then 12.5 MB
 # once the three paper reports gained the "Pose the rigs" panel (its rigs and weights, 0.69-1.04 MB a report, and one
-# shared three.js of 0.64 MB with its licence): 12.19 MB measured at that rebuild.
-REPORTS_BUDGET = 12_500_000
+# shared three.js of 0.64 MB with its licence): 12.19 MB measured at that rebuild; then 14.0 MB once the panel drew
+# QE at m = n beside QE at the coverage rule and H (a third rig, 0.37-0.41 MB more a report) and the reports carried
+# their stored claims, the synthetic one at the paper's 35,000 frames: 13.46 MB measured at that rebuild.
+REPORTS_BUDGET = 14_000_000
 
 
 def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_show():
@@ -801,7 +803,12 @@ def test_committed_reports_open_with_both_claims_and_test_no_identity():
         pytest.skip("no committed reference reports")
     for name, readme in readmes.items():
         summary = section_text("## Summary", readme).split("\n### ")[0]
-        assert "QE better than H: " in summary and "QE nearly as accurate as PCA" in summary, name
+        assert "QE nearly as accurate as PCA" in summary, name
+        # each claim has its verdict, or the summary says it was not tested at m = n (the bases study's m = 8-10)
+        assert (
+            "QE better than H: " in summary
+            or "QE better than H and QE nearly as accurate as PCA not tested at m = n" in summary
+        ), name
         assert len(summary.split()) - 2 <= 200, name  # the heading's two words aside
         tables = [heading for heading in re.findall(r"^## (.*)$", readme, re.M) if "comparisons" in heading.lower()]
         assert len(tables) == 1, (name, tables)  # one comparison table, one Holm family

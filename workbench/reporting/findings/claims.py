@@ -172,29 +172,33 @@ def claims_sentence(claims: Mapping | None, base: str | None = None) -> str:
 
 
 def agreement_sentence(entries: Sequence[Mapping]) -> str:
-    """One sentence: whether each held-out protocol gives the training frames' verdicts, and where not."""
+    """One sentence: whether each held-out protocol gives the training frames' verdicts, and where not, with the
+    verdicts on both sides (``Against the training frames (claim 1 reproduced, claim 2 not decided), held out
+    differs on the blocked k-fold (claim 1 not decided, claim 2 reproduced).``)."""
     training = next((entry for entry in entries if entry["protocol"] == TRAINING), None)
     held = [entry for entry in entries if entry["protocol"] != TRAINING]
     if training is None or not held:
         return ""
+    claims = (("H/QE", "claim 1"), ("QE/PCA", "claim 2"))
     differ = []
-    for name, claim in (("H/QE", "claim 1"), ("QE/PCA", "claim 2")):
-        where = [
-            entry["protocol_text"].removeprefix("held-out ")
-            for entry in held
+    for entry in held:
+        changed = [
+            f"{claim} {entry[name]['verdict']}"
+            for name, claim in claims
             if entry[name]["verdict"] != training[name]["verdict"]
         ]
-        if where:
-            differ.append(f"{claim} ({training[name]['verdict']} there) on the " + " and the ".join(where))
+        if changed:
+            differ.append(f"the {entry['protocol_text'].removeprefix('held-out ')} ({', '.join(changed)})")
     if not differ:
         return "Held out, every protocol gives the training frames' verdicts."
-    return "Held out disagrees with the training frames on " + "; ".join(differ) + "."
+    there = ", ".join(f"{claim} {training[name]['verdict']}" for name, claim in claims)
+    return f"Against the training frames ({there}), held out differs on " + " and ".join(differ) + "."
 
 
 def compact_rests_on(stored: Mapping) -> str:
     """``1500 frames, 17 batches, 24.3 degrees of freedom`` / ``5 folds of 1500 frames, 4 degrees of freedom``."""
     degrees = stored.get("degrees", math.nan)
-    said = f", {degrees:.4g} degrees of freedom" if math.isfinite(degrees) else ", no degrees of freedom"
+    said = f", {degrees:.3g} degrees of freedom" if math.isfinite(degrees) else ", no degrees of freedom"
     if stored.get("unit") == "folds":
         return f"{stored['folds']} folds of {stored['frames']} frames{said}"
     takes = stored.get("takes") or 0
@@ -204,12 +208,19 @@ def compact_rests_on(stored: Mapping) -> str:
 
 def rests_on_sentence(entries: Sequence[Mapping], confidence: float = 0.95) -> str:
     """``Intervals (95 %) rest on: training frames H/QE 1500 frames, 17 batches, 24.3 degrees of freedom, QE/PCA
-    ...``: each interval's own frames, batches (or folds) and degrees of freedom."""
+    ...``: each interval's own frames, batches (or folds) and degrees of freedom; a claim that is not estimable or
+    not tested has no interval, and says why where its verdict stands."""
     parts = []
     for entry in entries:
-        one, two = compact_rests_on(entry["H/QE"]), compact_rests_on(entry["QE/PCA"])
-        said = f"both {one}" if one == two else f"H/QE {one}, QE/PCA {two}"
-        parts.append(f"{entry['protocol_text'].removeprefix('held-out ')} {said}")
+        stated = [name for name in ("H/QE", "QE/PCA") if entry[name]["verdict"] not in (NOT_ESTIMABLE, NOT_TESTED)]
+        said = [(name, compact_rests_on(entry[name])) for name in stated]  # a claim not estimable says why in place
+        if not said:
+            continue
+        if len(said) == 2 and said[0][1] == said[1][1]:
+            text = f"both {said[0][1]}"
+        else:
+            text = ", ".join(f"{name} {basis}" for name, basis in said)
+        parts.append(f"{entry['protocol_text'].removeprefix('held-out ')} {text}")
     return f"Intervals ({100 * confidence:g} %) rest on: " + "; ".join(parts) + "." if parts else ""
 
 
