@@ -196,9 +196,9 @@ def agreement_sentence(entries: Sequence[Mapping]) -> str:
 
 
 def compact_rests_on(stored: Mapping) -> str:
-    """``1500 frames, 17 batches, 24.3 degrees of freedom`` / ``5 folds of 1500 frames, 4 degrees of freedom``."""
+    """``1500 frames, 17 batches, 24.3 d.f.`` / ``5 folds of 1500 frames, 4 d.f.`` (degrees of freedom)."""
     degrees = stored.get("degrees", math.nan)
-    said = f", {degrees:.3g} degrees of freedom" if math.isfinite(degrees) else ", no degrees of freedom"
+    said = f", {degrees:.3g} d.f." if math.isfinite(degrees) else ", no d.f."  # degrees of freedom
     if stored.get("unit") == "folds":
         return f"{stored['folds']} folds of {stored['frames']} frames{said}"
     takes = stored.get("takes") or 0
@@ -207,7 +207,7 @@ def compact_rests_on(stored: Mapping) -> str:
 
 
 def rests_on_sentence(entries: Sequence[Mapping], confidence: float = 0.95) -> str:
-    """``Intervals (95 %) rest on: training frames H/QE 1500 frames, 17 batches, 24.3 degrees of freedom, QE/PCA
+    """``Intervals (95 %) rest on: training frames H/QE 1500 frames, 17 batches, 24.3 d.f., QE/PCA
     ...``: each interval's own frames, batches (or folds) and degrees of freedom; a claim that is not estimable or
     not tested has no interval, and says why where its verdict stands."""
     parts = []
