@@ -780,10 +780,7 @@ def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words(
         "below the interval." in text
     )
     assert "H condition number 30, largest |w| 2; QE condition number 5e+04, largest |w| 4.8e+03" in text
-    assert (
-        "Intervals (95 %) rest on: training frames both 100 frames of 2 takes, 5 batches, 12 d.f."
-        in text
-    )
+    assert "Intervals (95 %) rest on: training frames both 100 frames of 2 takes, 5 batches, 12 d.f." in text
     assert "mm" not in text  # one metric: the headline alpha's ratios
     assert text.endswith(
         "Caveat: mesh is scored on the training frames (split 'same', the paper's protocol): PCA "
