@@ -775,6 +775,8 @@ def test_committed_reports_are_small_share_figure_1_and_hold_what_their_pages_sh
         pytest.skip("no committed reference reports")
     total = sum(path.stat().st_size for path in files)
     assert total <= REPORTS_BUDGET, f"reports/ holds {total / 1e6:.2f} MB, over {REPORTS_BUDGET / 1e6} MB"
+    for readme in [*root.glob("*/README.md"), *REFERENCE_RUNS.glob("*/README.md")]:  # made from clean commits
+        assert "uncommitted changes: True" not in readme.read_text(), readme
     assert not (root / "vendor").exists()
     assert [path.relative_to(root).as_posix() for path in files if path.stem == "fig1_analogy"] == [
         "shared/fig1_analogy.svg"
