@@ -9,6 +9,7 @@ import pytest
 
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.findings.run import facts_frame, run_findings, shared_notes
+from workbench.reporting.findings.run_summary import SUMMARY_WORDS as RUN_SUMMARY_WORDS
 
 PAPER = {"m": 18, "alpha": {"H": 5.2, "QE": 0.72, "PCA": 0.62}}
 ALPHA = {
@@ -772,7 +773,7 @@ def test_the_summary_states_both_claims_with_ratio_intervals_in_under_200_words(
     table.loc[table["basis"] != "PCA", "w_max_abs"] = 2.0
     table.loc[table["basis"] == "QE", "w_max_abs"] = 4.8e3
     text = run_summary(table, "alpha_abs_mean", metrics)
-    assert len(text.split()) <= 200
+    assert len(text.split()) <= RUN_SUMMARY_WORDS
     assert "On mesh (m = 10, n = 18: not the paper's regime (basis.n_components=18 gives it), coverage 0.9950)" in text
     assert (
         "QE better than H: reproduced, H/QE 4.00 [3.00, 5.00] above 1; the paper's 7.2 lies above the interval; QE "

@@ -221,7 +221,7 @@ def rests_on_sentence(entries: Sequence[Mapping], confidence: float = 0.95) -> s
         else:
             text = ", ".join(f"{name} {basis}" for name, basis in said)
         parts.append(f"{entry['protocol_text'].removeprefix('held-out ')} {text}")
-    return f"Intervals ({100 * confidence:g} %) rest on: " + "; ".join(parts) + "." if parts else ""
+    return f"Intervals ({100 * confidence:g} %) rest on: " + "; ".join(parts).removesuffix(".") + "." if parts else ""
 
 
 def primary_verdicts(claims: Mapping | None, data: str) -> dict:
