@@ -511,7 +511,7 @@ def run(
         reproduced_sentence,
         study_header,
     )
-    from workbench.study.claims import CLAIM_MARGIN, claims_at_m_equals_n, result_identities
+    from workbench.study.claims import claims_at_m_equals_n, result_identities
     from workbench.study.run import run_study
     from workbench.study.summary import (
         alpha_per_frame_arrays,
@@ -553,10 +553,10 @@ def run(
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, metric) for result in results}
         ratios = {result.data: claim_ratios(result, metric) for result in results}
-        claims = claims_at_m_equals_n(results, metric, metric.get("claim_margin", CLAIM_MARGIN))
+        claims = claims_at_m_equals_n(results, metric, settings.metric.claim_margin)
     sentence = reproduced_sentence(claims)
     opening = fit_width(sentence) + "\n" if sentence else ""
-    header = study_header(results, resolved)
+    header = study_header(results, settings)
     closing = headline(table, metric, paper_alpha, comparisons, result_identities(results), claims)
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 

@@ -56,6 +56,6 @@ def test_hand_basis_with_a_duplicate_shape_gets_a_warning_above_the_table():
     from workbench.settings.typed import study_settings
 
     result = run_on_capture("markers", duplicated, study_settings(cfg).basis, solvers, Timings())
-    header = study_header([result], cfg)
+    header = study_header([result], study_settings(cfg))
     assert "WARNING: basis H is ill-conditioned: near-duplicate shapes 0~18 (cos 1.0000)" in header
     assert "H condition number" in header and "largest |w|" in header

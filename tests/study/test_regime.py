@@ -1,8 +1,6 @@
 """The paper's regime (basis.paper_regime): eigenfaces also fitted at m = n beside the coverage rule, leading the
 printed header and the summary."""
 
-from dataclasses import replace
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -56,7 +54,9 @@ def test_the_m_equal_n_variant_reuses_the_coverage_rule_s_decomposition(regime_r
 
 def test_the_header_leads_with_the_m_equal_n_comparison(regime_run):
     cfg, results = regime_run
-    lines = study_header(results, cfg).splitlines()
+    from workbench.settings.typed import study_settings
+
+    lines = study_header(results, study_settings(cfg)).splitlines()
     assert lines[1].startswith("  the paper's regime m = n (paper: H/QE 7.2, QE/PCA 1.16")
     assert lines[2].startswith("    markers m=n (m = 18, n = 18): H/QE ")
     assert "QE cond " in lines[2] and "max |w| " in lines[2]
@@ -78,11 +78,13 @@ def test_no_extra_fit_when_the_coverage_rule_already_gives_m_equal_n(regime_run)
     from workbench.settings.typed import study_settings
 
     capture, basis = results[1].capture, study_settings(cfg).basis
-    same, fitted, note = paper_regime_fit(capture, basis, len(capture.hand_names))
+    regime = (basis.paper_regime, basis.n_components)
+    same, fitted, note = paper_regime_fit(capture, *regime, len(capture.hand_names))
     assert fitted is None and same is capture and "already keeps m = n = 18" in note
-    assert paper_regime_fit(capture, replace(basis, paper_regime=False), 9) == (capture, None, None)
-    _, fitted, _ = paper_regime_fit(capture, basis, 9)
-    assert fitted.n_components == 18 and fitted.alternatives == []
+    assert paper_regime_fit(capture, False, basis.n_components, 9) == (capture, None, None)
+    assert paper_regime_fit(capture, True, 12, 9) == (capture, None, None)
+    _, fitted, _ = paper_regime_fit(capture, *regime, 9)
+    assert fitted == 18
 
 
 def test_the_summary_states_the_coverage_rule_beside_the_m_equal_n_run():
@@ -138,14 +140,15 @@ def test_held_out_folds_get_the_no_extra_fit_notes(regime_run):
     from workbench.settings.typed import study_settings
 
     capture, basis = results[1].capture, study_settings(cfg).basis
-    same, fitted, note = paper_regime_fit(capture, basis, [18, 18, 18], [400, 400, 400], held_out=True)
+    regime = (basis.paper_regime, basis.n_components)
+    same, fitted, note = paper_regime_fit(capture, *regime, [18, 18, 18], [400, 400, 400], held_out=True)
     assert fitted is None and same is capture
     assert note.startswith("the paper's regime on held-out frames: the coverage rule already keeps m = n = 18")
     assert "in every fold" in note
-    _, fitted, note = paper_regime_fit(capture, basis, [5, 6, 7], [400, 12, 400], held_out=True)
+    _, fitted, note = paper_regime_fit(capture, *regime, [5, 6, 7], [400, 12, 400], held_out=True)
     assert fitted is None and "the training frames of the smallest fold have at most 11: no m = n fit" in note
-    regime, fitted, note = paper_regime_fit(capture, basis, [5, 6, 7], [400, 400, 400], held_out=True)
-    assert note is None and fitted.n_components == 18
+    regime, fitted, note = paper_regime_fit(capture, *regime, [5, 6, 7], [400, 400, 400], held_out=True)
+    assert note is None and fitted == 18
     assert regime.notes[-1].startswith("the paper's regime on held-out frames: m = n = 18 eigenfaces")
     assert "coverage rule's m = [5, 6, 7] (per fold), scored on the same held-out frames" in regime.notes[-1]
 

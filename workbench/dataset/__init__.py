@@ -72,7 +72,19 @@ def build_from_settings(dataset, cache_dir: str | None = None) -> dict[str, Capt
             for name, capture in captures.items()
         }
 
-    return apply_hand_basis(cached_captures(key_settings, build, cache_dir), dataset)
+    captures, spec = cached_captures(key_settings, build, cache_dir), dataset.hand_basis
+    if spec is None:
+        return dict(captures)
+    return apply_hand_basis(
+        captures,
+        spec.path,
+        spec.shapes,
+        data_root=getattr(dataset, "data_root", None),  # the synthetic actor has none
+        neutral=spec.neutral,
+        unit_mm=spec.unit_mm,
+        mesh=spec.mesh,
+        region_vertices=spec.region_vertices,
+    )
 
 
 def stored_frames(capture: Capture, storage: FrameStorage, key) -> Capture:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -153,17 +153,32 @@ def check_same_points(points: np.ndarray, neutral: np.ndarray, key: str, path: P
     return float(np.sqrt(np.mean(distance**2)))
 
 
-def apply_hand_basis(captures: Mapping[str, Capture], cfg) -> dict[str, Capture]:
+def apply_hand_basis(
+    captures: Mapping[str, Capture],
+    path: str | None,
+    shapes: Sequence[str] | None = None,
+    *,
+    data_root: str | None = None,
+    neutral: str | None = None,
+    unit_mm: float | None = None,
+    mesh: str | None = None,
+    region_vertices: int | None = None,
+) -> dict[str, Capture]:
     """The captures with their hand basis read from ``dataset.hand_basis`` (unchanged when it is not set).
 
     Parameters
     ----------
     captures : mapping
         Data variant -> :class:`Capture`.
-    cfg : typed dataset settings
-        Its ``hand_basis`` (:class:`~workbench.settings.schema.HandBasisSchema`, checked with the study) has ``path``
-        (relative to the data root unless absolute) and optionally ``shapes`` (default: the capture's hand shape
-        names), plus the settings :func:`read_shape_file` reads.
+    path : str or None
+        ``dataset.hand_basis.path``, relative to ``data_root`` unless absolute; None: no hand basis of a file.
+    shapes : sequence of str, optional
+        ``dataset.hand_basis.shapes`` (default: the capture's hand shape names).
+    data_root : str, optional
+        ``dataset.data_root`` (the synthetic actor has none).
+    neutral, unit_mm, mesh, region_vertices
+        Those of ``dataset.hand_basis``, as :func:`read_shape_file` takes them (checked with the study:
+        :class:`~workbench.settings.schema.HandBasisSchema`).
 
     Returns
     -------
@@ -171,25 +186,22 @@ def apply_hand_basis(captures: Mapping[str, Capture], cfg) -> dict[str, Capture]
     """
     from workbench.dataset.real import data_path
 
-    spec = cfg.hand_basis
-    if spec is None or spec.path is None:  # the schema asks for a path in every group that is set
+    if path is None:  # the schema asks for a path in every group that is set
         return dict(captures)
     key = "dataset.hand_basis"
-    path = data_path(getattr(cfg, "data_root", None), spec.path, "hand_basis.path")  # synthetic: none
+    path = data_path(data_root, path, "hand_basis.path")
     if not path.exists():
         raise WorkbenchError(f"{key}.path {path}: not found")
-    basis = read_shape_file(
-        path, key, neutral=spec.neutral, unit_mm=spec.unit_mm, mesh=spec.mesh, region_vertices=spec.region_vertices
-    )
+    basis = read_shape_file(path, key, neutral=neutral, unit_mm=unit_mm, mesh=mesh, region_vertices=region_vertices)
     replaced = {}
     for name, capture in captures.items():
-        names, shapes = shape_subset(basis, spec.shapes or capture.hand_names, key)
-        check_hand_shapes(shapes.reshape(len(names), -1), names, f"{key}.path {path}")
+        names, chosen = shape_subset(basis, shapes or capture.hand_names, key)
+        check_hand_shapes(chosen.reshape(len(names), -1), names, f"{key}.path {path}")
         rms = check_same_points(capture.neutral.reshape(-1, 3), basis.neutral, key, path, f"data variant '{name}'")
         note = f"hand basis: {len(names)} shapes read from {path} (its neutral {rms:.3g} mm RMS from the data's)"
         replaced[name] = replace(
             capture,
-            hand=shapes.reshape(len(names), -1),
+            hand=chosen.reshape(len(names), -1),
             hand_names=names,
             notes=capture.notes + (note,),
             provenance=dict(capture.provenance, hand_basis=str(path)),

@@ -47,7 +47,8 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
         (with ``split: other_take``, the evaluated frames come from a second take of the same actor).
     """
     names = name_list(cfg.train_on)
-    seeds = [cfg.seed] + ([_eval_seed(cfg)] if cfg.split == "other_take" else [])  # two seeds differ: checked
+    eval_seed = cfg.seed + 1 if cfg.eval_seed is None else cfg.eval_seed
+    seeds = [cfg.seed] + ([eval_seed] if cfg.split == "other_take" else [])  # two seeds differ: checked
     require_memory(
         synthetic_values(cfg, names) * len(seeds),
         "the synthetic dataset",
@@ -61,7 +62,23 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
         cfg.gap_rate, cfg.gap_policy, cfg.gap_max_fill_frames, cfg.gap_mean_frames, cfg.stabilise
     )
     markers = [_marker_frames(key, marker_settings) for key in keys] if {"markers", "mesh_rbf"} & set(names) else None
-    return {name: _synthetic_capture(takes, hand_mesh, decimation, markers, name, cfg, storage) for name in names}
+    return {
+        name: _synthetic_capture(
+            takes,
+            keys,
+            hand_mesh,
+            decimation,
+            markers,
+            name,
+            storage,
+            mesh_fraction=cfg.mesh_fraction,
+            split=cfg.split,
+            eval_fraction=cfg.eval_fraction,
+            frame_rate=cfg.frame_rate,
+            gap_fit_on=cfg.gap_fit_on,
+        )
+        for name in names
+    }
 
 
 def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
@@ -192,10 +209,6 @@ def forget_kept_frames() -> None:
     _face_region_frames.cache_clear()
 
 
-def _eval_seed(cfg: Mapping) -> int:
-    return cfg.seed + 1 if cfg.eval_seed is None else cfg.eval_seed
-
-
 @dataclass(frozen=True)
 class MarkerSettings:
     """The dataset settings the face markers of a take depend on (the cache key of :func:`_marker_frames`)."""
@@ -290,12 +303,18 @@ class MarkerFrames:
 
 def _synthetic_capture(
     takes: Sequence,
+    keys: Sequence[tuple],
     hand_mesh: np.ndarray,
     decimation: Decimation,
     markers,
     train_on: str,
-    cfg: Mapping,
     storage: FrameStorage = FrameStorage(),
+    *,
+    mesh_fraction: float,
+    split: str,
+    eval_fraction: float,
+    frame_rate: float,
+    gap_fit_on: str,
 ) -> Capture:
     """One data variant of the synthetic take(s).
 
@@ -303,30 +322,32 @@ def _synthetic_capture(
     ----------
     takes : sequence of SyntheticTake
         The take, and with ``split: other_take`` the take the evaluated frames come from.
+    keys : sequence of tuple
+        Each take's generation parameters (:func:`_take_key`).
     hand_mesh : ndarray of shape (18, n_vertices, 3)
     decimation : Decimation
         The kept mesh vertices (all of them at ``mesh_fraction`` 1).
     markers : list of the results of :func:`_face_marker_frames`, one per take, or None
     train_on : {"markers", "mesh", "mesh_rbf", "face"}
-    cfg : mapping
     storage : FrameStorage
+    mesh_fraction, split, eval_fraction, frame_rate, gap_fit_on
+        Those of the ``dataset`` settings, checked.
     """
     take, notes = takes[0], []
     vertices = take.mesh.vertices
     provenance = dict(take.provenance, train_on=train_on)
     points, faces, labels, per_take, visible, source, operator = _variant_frames(
-        takes, decimation, markers, train_on, cfg, storage, notes, provenance
+        takes, keys, decimation, markers, train_on, mesh_fraction, storage, notes, provenance
     )
     if markers is not None and markers[0].gaps and train_on != "mesh":
         provenance["gaps"] = markers[0].gaps
-    split = cfg.split
     eval_visible = None
     mapped = {}
     timelines = [
         Timeline.uniform(
             f"synthetic seed {t.provenance['seed']}",
             np.flatnonzero(part.kept) if markers is not None else np.arange(t.n_frames),
-            float(cfg.frame_rate),
+            float(frame_rate),
         )
         for t, part in zip(takes, markers or [None] * len(takes))
     ]
@@ -342,7 +363,7 @@ def _synthetic_capture(
         )
         provenance["eval_seed"] = takes[1].provenance["seed"]
     else:
-        train, evaluate = split_frames(per_take[0], split, cfg.eval_fraction)
+        train, evaluate = split_frames(per_take[0], split, eval_fraction)
         timeline = timelines[0][len(timelines[0]) - len(evaluate) :]
         eval_visible = visible[0][len(visible[0]) - len(evaluate) :] if visible else None
         if source is not None:
@@ -350,7 +371,7 @@ def _synthetic_capture(
         notes.append(f"split '{split}': {len(train)} training frames, {len(evaluate)} evaluated")
     if eval_visible is not None:
         evaluate = masked_frames(evaluate, eval_visible)
-        train, note = masked_training_frames(train, visible[0][: len(train)], cfg.gap_fit_on)
+        train, note = masked_training_frames(train, visible[0][: len(train)], gap_fit_on)
         notes.append(
             f"masked solve: each evaluated frame's weights and alpha use only the markers it saw "
             f"({int((~eval_visible).sum())} of {eval_visible.size} evaluated marker samples missing); " + note
@@ -366,7 +387,7 @@ def _synthetic_capture(
         point_labels=labels,
         units="mm",
         origin="centre of the synthetic head (face points lie 60-110 mm from it)",
-        frame_rate=float(cfg.frame_rate),
+        frame_rate=float(frame_rate),
         provenance=provenance,
         notes=tuple(notes),
         faces=faces,
@@ -378,10 +399,11 @@ def _synthetic_capture(
 
 def _variant_frames(
     takes: Sequence,
+    keys: Sequence[tuple],
     decimation: Decimation,
     markers,
     train_on: str,
-    cfg: Mapping,
+    mesh_fraction: float,
     storage: FrameStorage,
     notes: list,
     provenance: dict,
@@ -405,9 +427,9 @@ def _variant_frames(
         labels = tuple(take.marker_labels[i] for i in take.face_marker_index)
         visible = [part.visible for part in markers] if markers[0].visible is not None else None
     elif train_on == "face":
-        points, faces = face_region(int(cfg.mesh_rows), int(cfg.mesh_cols), len(take.face_marker_vertices))
+        points, faces = face_region(*take.mesh.grid_shape, len(take.face_marker_vertices))
         labels = tuple(f"v{i}" for i in points)
-        per_take = [_face_region_frames(_take_key(cfg, t.provenance["seed"]), storage) for t in takes]
+        per_take = [_face_region_frames(key, storage) for key in keys]
         if markers is not None:  # the frames the markers' gap policy kept
             per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
         provenance.update(n_face_region_points=int(points.size))
@@ -427,7 +449,7 @@ def _variant_frames(
             )
         provenance.update(mesh_fraction=decimation.fraction, n_mesh_points=int(points.size))
         if train_on == "mesh":
-            per_take = [_mesh_frames(_take_key(cfg, t.provenance["seed"]), cfg.mesh_fraction, storage) for t in takes]
+            per_take = [_mesh_frames(key, mesh_fraction, storage) for key in keys]
             if markers is not None:  # the frames the markers' gap policy kept
                 per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
             notes.append("the dense ground-truth mesh (no head motion, no marker noise)")

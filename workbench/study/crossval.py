@@ -101,7 +101,8 @@ def cross_validated(
     data: str,
     capture: Capture,
     protocol: str,
-    dataset,
+    folds: int,
+    fold_gap_s: float,
     fit_and_score: Callable[[str, Capture], object],
     name: str | None = None,
 ):
@@ -114,8 +115,10 @@ def cross_validated(
     capture : Capture
         Trained and evaluated on the same frames (split 'same').
     protocol : {"kfold", "take_out"}
-    dataset : typed dataset settings
-        ``folds`` and ``fold_gap_s`` are read from it (:func:`workbench.settings.typed.dataset_settings`).
+    folds : int
+        ``dataset.folds``: blocks per take (``kfold``), checked with the study's settings.
+    fold_gap_s : float
+        ``dataset.fold_gap_s``: seconds left out of training at each block's edges, checked likewise.
     fit_and_score : callable
         ``(name, capture) -> StudyResult`` (the run's method on one capture).
     name : str, optional
@@ -135,8 +138,8 @@ def cross_validated(
             "dataset.held_out needs the training and evaluated frames to be the same frames "
             "(split 'same'; with gap_policy masked, gap_fit_on filled)"
         )
-    gap_s = dataset.fold_gap_s
-    folds = fold_indices(capture.timeline(), protocol, dataset.folds, gap_s)
+    gap_s = fold_gap_s
+    folds = fold_indices(capture.timeline(), protocol, folds, gap_s)
     name = name or f"{data} held-out {protocol}"
     parts = []
     for k, (train, held) in enumerate(folds):

@@ -9,7 +9,6 @@ from typing import Sequence
 import numpy as np
 
 from workbench.dataset.capture import Capture
-from workbench.settings.schema import BasisSchema
 
 PAPER_REGIME_SUFFIX = "m=n"
 """The paper-regime variant of data variant ``markers`` is named ``markers m=n``."""
@@ -39,11 +38,12 @@ def coverage_rule_name(data: str) -> str:
 
 def paper_regime_fit(
     capture: Capture,
-    basis: BasisSchema,
+    paper_regime: bool,
+    n_components: int | None,
     fitted_m: int | Sequence[int],
     n_train: Sequence[int] | None = None,
     held_out: bool = False,
-) -> tuple[Capture, BasisSchema | None, str | None]:
+) -> tuple[Capture, int | None, str | None]:
     """Whether and how a data variant is also fitted at m = n (``basis.paper_regime``).
 
     Parameters
@@ -51,8 +51,10 @@ def paper_regime_fit(
     capture : Capture
         The capture the coverage rule's bases were fitted on (hand shapes already subset); for a cross-validated
         variant, the capture its folds are cut from.
-    basis : BasisSchema
-        The ``basis`` settings the coverage rule's bases were fitted with.
+    paper_regime : bool
+        ``basis.paper_regime``, checked.
+    n_components : int or None
+        ``basis.n_components`` of the coverage rule's fit (set explicitly: no m = n fit).
     fitted_m : int or sequence of int
         The m the coverage rule kept (one per fold for a cross-validated variant).
     n_train : sequence of int, optional
@@ -64,15 +66,15 @@ def paper_regime_fit(
     -------
     capture : Capture
         The capture of the m = n variant, with a note saying what it is (``capture`` itself when there is none).
-    basis : BasisSchema or None
-        The settings of the m = n fit (``n_components`` = the hand basis size, no alternative bases), or None when
-        there is no extra fit: ``paper_regime`` off, ``n_components`` set explicitly, the coverage rule already at
+    n : int or None
+        The m of the m = n fit (the hand basis size; it is fitted without alternative bases), or None when there
+        is no extra fit: ``paper_regime`` off, ``n_components`` set explicitly, the coverage rule already at
         m = n (in every fold), or fewer directions in the (smallest fold's) training frames than hand shapes.
     note : str or None
         Why no extra fit was made, for the coverage rule's variant (None when made or when the setting is off or m
         is fixed).
     """
-    if basis.paper_regime is not True or basis.n_components is not None:
+    if paper_regime is not True or n_components is not None:
         return capture, None, None
     n = len(capture.hand_names)
     fitted = [int(m) for m in np.atleast_1d(fitted_m)]
@@ -91,7 +93,7 @@ def paper_regime_fit(
         + (", scored on the same held-out frames" if held_out else "")
         + " (basis.paper_regime)"
     )
-    return (replace(capture, notes=capture.notes + (note,)), replace(basis, n_components=n, alternatives=[]), None)
+    return replace(capture, notes=capture.notes + (note,)), n, None
 
 
 def regime_skip_note(n: int, fitted: Sequence[int], rank: int, folds: bool, regime: str) -> str | None:

@@ -80,7 +80,17 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
         trained = with_paper_regime(score(data, capture, fitted), fitted, score)
         results += trained
         for protocol in held_out_protocols(dataset.held_out):
-            results += held_out_results(data, capture, protocol, dataset, fitted, score, len(trained) > 1)
+            results += held_out_results(
+                data,
+                capture,
+                protocol,
+                fitted,
+                score,
+                len(trained) > 1,
+                eval_fraction=dataset.eval_fraction,
+                folds=dataset.folds,
+                fold_gap_s=dataset.fold_gap_s,
+            )
     return results
 
 
@@ -109,7 +119,16 @@ def scorer(solvers: Mapping[str, Mapping], timings: Timings, clean: Capture | No
 
 
 def held_out_results(
-    data: str, capture: Capture, protocol: str, dataset, basis: BasisSchema, score: Score, trained_regime: bool
+    data: str,
+    capture: Capture,
+    protocol: str,
+    basis: BasisSchema,
+    score: Score,
+    trained_regime: bool,
+    *,
+    eval_fraction: float,
+    folds: int,
+    fold_gap_s: float,
 ) -> list[StudyResult]:
     """One ``dataset.held_out`` protocol of a data variant: the coverage rule's result, named
     ``<data> held-out <protocol>``, after its m = n variant (:func:`with_paper_regime`) fitted on the same training
@@ -122,13 +141,15 @@ def held_out_results(
         Trained and evaluated on the same frames (split 'same').
     protocol : str
         Of :data:`workbench.study.protocols.HELD_OUT`.
-    dataset : typed dataset settings
     basis : BasisSchema
         The settings the coverage rule's bases are fitted with.
     score : Score
     trained_regime : bool
         Whether the run has the variant ``<data> m=n`` on the training frames: the m = n variant's held-out frames
         are then compared with that variant's (its ``train_on``), else with ``data``'s.
+    eval_fraction, folds, fold_gap_s
+        ``dataset.eval_fraction`` (the held-out tail's share of the frames), ``dataset.folds`` and
+        ``dataset.fold_gap_s`` (the cross-validated protocols' folds and the seconds left out at their edges).
     """
     if protocol in FOLDED:
         source = capture
@@ -136,11 +157,11 @@ def held_out_results(
         def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
             # each fold is fitted on frames of its own: nothing of ``previous`` (the pooled folds) serves them
             return cross_validated(
-                data, part, protocol, dataset, lambda fold, frames: score(fold, frames, fit_basis), name=name
+                data, part, protocol, folds, fold_gap_s, lambda fold, frames: score(fold, frames, fit_basis), name=name
             )
 
     else:
-        source = held_out_capture(capture, protocol, dataset.eval_fraction)
+        source = held_out_capture(capture, protocol, eval_fraction)
 
         def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
             return replace(
@@ -182,18 +203,19 @@ def with_paper_regime(
     """
     folds = result.folds or {}
     handed, result = result, replace(result, span_pass=None)  # the pass serves the refit only
-    capture, regime_basis, note = paper_regime_fit(
+    capture, n, note = paper_regime_fit(
         result.capture if source is None else source,
-        basis,
+        basis.paper_regime,
+        basis.n_components,
         folds.get("m", result.eigenfaces.n_components_),
         folds.get("n_train_frames"),
         held_out=result.protocol != "training frames",
     )
-    if regime_basis is None:
+    if n is None:
         return [
             replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
         ]
-    regime = refit(paper_regime_name(result.data), capture, regime_basis, handed)
+    regime = refit(paper_regime_name(result.data), capture, replace(basis, n_components=n, alternatives=[]), handed)
     return [replace(regime, span_pass=None), result]
 
 
@@ -317,7 +339,15 @@ def run_on_capture(
         more_rows, more_weights = score_alternative_bases(capture, alternatives, solvers, timings, truth=truth)
         rows, weights = rows + more_rows, {**weights, **more_weights}
         with timings.stage("intuitiveness"):
-            measured = basis_intuitiveness(capture, eigenfaces, quasi_eigen, alternatives, weights, basis.intuitiveness)
+            measured = basis_intuitiveness(
+                capture,
+                eigenfaces,
+                quasi_eigen,
+                alternatives,
+                weights,
+                basis.intuitiveness.locality_energy,
+                basis.intuitiveness.usage_threshold,
+            )
     return StudyResult(
         data=data,
         capture=capture,

@@ -25,7 +25,6 @@ from workbench.numerics.metrics import (
 )
 from workbench.numerics.reduced import FrameProjections, SpanPass, Subspace, project_frames, region_error_sq
 from workbench.numerics.solve import in_span_difference, reconstruct, reduce_basis, solve_projected, solve_weights
-from workbench.settings.schema import IntuitivenessSchema
 from workbench.study.results import QE_LABELS, Row, Timings
 
 
@@ -628,7 +627,8 @@ def basis_intuitiveness(
     quasi_eigen: Mapping,
     alternatives: Mapping[str, np.ndarray],
     weights: Mapping,
-    settings: IntuitivenessSchema,
+    locality_energy: float,
+    usage_threshold: float,
 ) -> dict:
     """Closeness to the hand shapes, locality and usage of H, each quasi-eigen basis, PCA and the alternatives
     (:mod:`workbench.numerics.intuitiveness`), as plain values for the run record.
@@ -643,8 +643,8 @@ def basis_intuitiveness(
         Label -> shapes of shape (n, n_dims).
     weights : mapping
         ``(basis, solver)`` -> weights of the evaluated frames, shape (n_eval_frames, n).
-    settings : IntuitivenessSchema
-        ``locality_energy`` and ``usage_threshold`` (``basis.intuitiveness``).
+    locality_energy, usage_threshold : float
+        ``basis.intuitiveness.locality_energy`` and ``basis.intuitiveness.usage_threshold``.
 
     Returns
     -------
@@ -661,7 +661,7 @@ def basis_intuitiveness(
         usage,
     )
 
-    energy, threshold = float(settings.locality_energy), float(settings.usage_threshold)
+    energy, threshold = float(locality_energy), float(usage_threshold)
     areas = point_areas(capture.neutral, capture.faces)
     bases = {
         "H": capture.hand,

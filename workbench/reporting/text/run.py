@@ -9,6 +9,7 @@ import pandas as pd
 
 from workbench.core.errors import WorkbenchError
 from workbench.reporting.tables.width import PRINT_WIDTH, fit_width  # noqa: F401 (part of what a run prints)
+from workbench.settings.typed import StudySettings
 from workbench.study.table import ALPHA_TABLE_COLUMNS, CLEAN_COLUMNS, FRAME_COLUMNS, ROW_NAME_COLUMNS
 
 
@@ -105,38 +106,38 @@ def reproduced_sentence(claims: Mapping | None) -> str:
     return claims_sentence(claims)
 
 
-def study_header(results: Sequence, cfg: Mapping) -> str:
+def study_header(results: Sequence, settings: StudySettings) -> str:
     """The lines printed above the alpha table: data, m, coverage, and the choices the paper leaves open.
 
     Parameters
     ----------
     results : sequence of workbench.study.results.StudyResult
         One per data variant, all from the same dataset.
-    cfg : mapping
-        The resolved study config.
+    settings : StudySettings
+        The study's checked, typed settings (:func:`workbench.settings.typed.study_settings`).
 
     Returns
     -------
     str
     """
-    paper, basis = cfg["paper"], cfg["basis"]
+    paper, basis = settings.paper, settings.basis
     first = results[0].capture
     rule = (
-        f"fixed m = {basis['n_components']}"
-        if basis["n_components"] is not None
-        else f"m of the clean capture at coverage threshold {basis['coverage']}"
-        if basis.get("coverage_on", "training") == "clean"
-        else f"coverage threshold {basis['coverage']}"
+        f"fixed m = {basis.n_components}"
+        if basis.n_components is not None
+        else f"m of the clean capture at coverage threshold {basis.coverage}"
+        if basis.coverage_on == "clean"
+        else f"coverage threshold {basis.coverage}"
     )
     lines = [
-        f"Study '{cfg['study']}' on {first.name}",
+        f"Study '{settings.study}' on {first.name}",
         f"  alpha in % (eq. 6). abs: 100|v*-v|/|v*|, positions with the origin at the {first.origin}; "
         "disp: 100|d*-d|/|d*|; mean: of per-frame values; pooled: over all frames",
         "  QE: affine projects through the capture mean (eq. 3-4 as written), linear through the neutral face",
         "  PCA: mean plus orthogonal projection; paper_alpha: Kim & Ko's reported values on their own capture and "
         "coordinate origin, not a target for these data (compare ratios; see the note under the table)",
     ]
-    lines[1:1] = regime_lines(results, cfg)
+    lines[1:1] = regime_lines(results, settings)
     for result in results:
         capture, eigenfaces = result.capture, result.eigenfaces
         empty = "; ".join(
@@ -152,8 +153,8 @@ def study_header(results: Sequence, cfg: Mapping) -> str:
                 f"{capture.n_points} points, {len(capture.hand_names)} hand shapes",
                 f"  m = {eigenfaces.n_components_} eigenfaces reach coverage {eigenfaces.coverage_:.4f} "
                 f"({'m = n, basis.paper_regime' if is_paper_regime(result.data) else rule}); "
-                f"paper: m = {paper['m']} at {paper['coverage']}",
-                f"  empty PCA axes (1-based, eps {basis['empty_axis_eps']} x {basis['empty_axis_scale']}): {empty}",
+                f"paper: m = {paper.m} at {paper.coverage}",
+                f"  empty PCA axes (1-based, eps {basis.empty_axis_eps} x {basis.empty_axis_scale}): {empty}",
             ]
             if not result.folds
             else fold_lines(result)
@@ -208,7 +209,7 @@ HEADLINE_COLUMNS = {
 """``metric.headline_normalisation`` and ``headline_aggregate`` -> the :class:`workbench.numerics.metrics.AlphaSummary` field."""
 
 
-def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
+def regime_lines(results: Sequence, settings: StudySettings) -> list[str]:
     """The header's first comparison: H/QE and QE/PCA with least squares at the paper's regime m = n (the variants
     ``basis.paper_regime`` adds, or a variant whose m already equals n), each with QE's and H's conditioning
     and largest weight, then the coverage rule's variants beside them.
@@ -216,18 +217,16 @@ def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
     Parameters
     ----------
     results : sequence of workbench.study.results.StudyResult
-    cfg : mapping
-        The resolved study config (``metric``, ``paper``).
+    settings : StudySettings
+        The study's checked, typed settings (``metric``, ``paper``).
 
     Returns
     -------
     list of str
         Empty when no variant has H, QE and PCA with lstsq scored on its training frames.
     """
-    metric, paper = cfg.get("metric") or {}, cfg["paper"]
-    field = HEADLINE_COLUMNS.get(
-        (metric.get("headline_normalisation", "absolute"), metric.get("headline_aggregate", "mean")), "absolute_mean"
-    )
+    metric, paper = settings.metric, settings.paper
+    field = HEADLINE_COLUMNS[metric.headline_normalisation, metric.headline_aggregate]
     regime, rule = [], []
     for result in results:
         if result.protocol != "training frames":
@@ -238,11 +237,11 @@ def regime_lines(results: Sequence, cfg: Mapping) -> list[str]:
             (regime if m == n else rule).append(f"    {result.data} (m = {m}, n = {n}): {text}")
     if not regime and not rule:
         return []
-    reported = paper["alpha"]
+    reported = paper.alpha
     head = (
-        f"  the paper's regime m = n (paper: H/QE {reported['H'] / reported['QE']:.2g}, QE/PCA "
-        f"{reported['QE'] / reported['PCA']:.3g} at m = n = "
-        f"{paper['m']}; alpha {field}, lstsq; cond: the basis's condition number, or its rank when deficient):"
+        f"  the paper's regime m = n (paper: H/QE {reported.H / reported.QE:.2g}, QE/PCA "
+        f"{reported.QE / reported.PCA:.3g} at m = n = "
+        f"{paper.m}; alpha {field}, lstsq; cond: the basis's condition number, or its rank when deficient):"
     )
     lines = [head] + (regime or ["    none in this run (basis.n_components fixes m, or paper_regime is off)"])
     if rule:
