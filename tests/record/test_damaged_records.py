@@ -91,6 +91,10 @@ DAMAGE = {
         edit_json("metrics.json", lambda m: m["data"].__setitem__("markers", [])),
         "field 'data.markers' must be an object",
     ),
+    "format of a later workbench": (
+        edit_json("metrics.json", lambda m: m.__setitem__("format", 99)),
+        "field 'format' must be an integer from 0 to 1",
+    ),
     "study a path": (edit_json("metrics.json", lambda m: m.__setitem__("study", "../../../x")), "field 'study'"),
     "job_num a string": (edit_json("metrics.json", lambda m: m.__setitem__("job_num", "3")), "field 'job_num'"),
     "overrides a string": (edit_json("metrics.json", lambda m: m.__setitem__("overrides", "a=1")), "field 'overrides'"),
@@ -169,6 +173,28 @@ def test_a_record_with_undefined_values_in_both_files_is_read(record, tmp_path):
     set_row("alpha_disp_mean", None)(folder)
     reseal(folder)
     assert read_record(folder).metrics["rows"][0]["alpha_disp_mean"] is None
+
+
+def test_a_record_of_the_layout_before_the_format_field_is_read_in_the_current_layout(record, tmp_path):
+    from workbench.record.record import METRICS_FORMAT
+
+    assert read_record(record).metrics["format"] == METRICS_FORMAT
+    folder = tmp_path / "run"
+    shutil.copytree(record, folder)
+
+    def earlier(metrics):  # what a record of an earlier version leaves out
+        del metrics["format"], metrics["versions"], metrics["dataset"]["provenance"]
+        for facts in metrics["data"].values():
+            del facts["protocol"], facts["notes"], facts["face_region"]
+        for row in metrics["rows"]:
+            del row["train_on"], row["eval_on"]
+
+    edit_json("metrics.json", earlier)(folder)
+    reseal(folder)
+    metrics = read_record(folder).metrics
+    assert metrics["format"] == METRICS_FORMAT and metrics["versions"] == {} and metrics["dataset"]["provenance"] == {}
+    assert metrics["data"]["markers"]["protocol"] == "training frames" and metrics["data"]["markers"]["notes"] == []
+    assert all(row["train_on"] == row["eval_on"] == row["data"] for row in metrics["rows"])
 
 
 def test_a_study_name_cannot_lead_a_reference_report_out_of_reports(record, cli):

@@ -752,6 +752,7 @@ def regime_record(variants: dict) -> object:
     data = {
         name: {
             "pca": {"m": m},
+            "protocol": "training frames",
             "intuitiveness": [
                 {"projection": "affine", "shape": shape, "cosine": 1 - distance, "relative_distance": distance}
                 for shape in ("jaw_open", "brow_up")
@@ -760,7 +761,9 @@ def regime_record(variants: dict) -> object:
         for name, (m, distance) in variants.items()
     }
     return SimpleNamespace(
-        metrics={"data": data, "dataset": {"name": "constructed"}}, data_variants=list(variants), config={}
+        metrics={"data": data, "dataset": {"name": "constructed", "provenance": {}}},
+        data_variants=list(variants),
+        config={},
     )
 
 

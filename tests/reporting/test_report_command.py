@@ -9,7 +9,7 @@ from workbench.reporting.report.command import main, report_folder
 from workbench.reporting.report.sections import commit_text, versions_section
 from workbench.settings.config import REPO_ROOT
 
-CONFIG = {"study": "paper", "dataset": {"kind": "synthetic"}}
+CONFIG = ("paper", "synthetic")  # study, dataset.kind
 
 
 def texts(section):
@@ -34,7 +34,7 @@ def test_a_run_and_a_report_outside_a_git_checkout_say_so():
 
 def test_a_checkout_names_its_commit_as_before():
     assert commit_text({"commit": "0123abc", "dirty": False}) == "at commit `0123abc` (uncommitted changes: False)"
-    metrics = {"git": {"commit": "0123abc", "dirty": True}, "config_hash": "abc"}
+    metrics = {"git": {"commit": "0123abc", "dirty": True}, "config_hash": "abc", "versions": {}}
     run_line, _ = texts(versions_section(metrics, {"git": {"commit": "4567def", "dirty": False}, "packages": {}}))
     assert "at commit `0123abc` (uncommitted changes: True), config hash `abc`." in run_line
 
@@ -42,7 +42,7 @@ def test_a_checkout_names_its_commit_as_before():
 @pytest.mark.parametrize("name", ["", ".", "..", "a/b", " ", "\t"])
 def test_a_reference_report_name_that_is_no_plain_folder_name_is_refused(name, tmp_path):
     with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name \(not empty"):
-        report_folder(tmp_path, CONFIG, out=None, reference=True, name=name)
+        report_folder(tmp_path, *CONFIG, out=None, reference=True, name=name)
     # refused before the folder is read: an empty folder (no record) gets the same line
     with pytest.raises(WorkbenchError, match=r"^--name must be a plain folder name"):
         main([str(tmp_path), "--reference", "--name", name])
@@ -58,7 +58,7 @@ def test_an_empty_name_is_never_taken_as_the_default_and_exits_2_with_one_line(t
     after = sorted(path.relative_to(reports) for path in reports.rglob("*")) if reports.is_dir() else []
     assert after == before
     # the default name still works as before when --name is not given
-    assert report_folder(tmp_path, CONFIG, out=None, reference=True, name=None).name == "paper"
+    assert report_folder(tmp_path, *CONFIG, out=None, reference=True, name=None).name == "paper"
 
 
 @pytest.mark.parametrize("name", [" ", "\t", "shared"])
@@ -74,7 +74,7 @@ def test_a_blank_or_reserved_reference_name_exits_2_with_one_line_and_writes_not
     assert after == before
     # a study of that name is refused the same way as the default name of its reference report
     with pytest.raises(WorkbenchError, match="--name"):
-        report_folder(tmp_path, {**CONFIG, "study": name}, out=None, reference=True, name=None)
+        report_folder(tmp_path, name, "synthetic", out=None, reference=True, name=None)
 
 
 # A small run on both data variants (5 s of performance on a coarse mesh), without save_inputs.

@@ -479,7 +479,7 @@ def log_records(
         store=store,
         tracking_uri=tracking_uri,
         artifact_location=artifact_location,
-        output_root=records[0].config.get("paths", {}).get("output_root", "outputs"),
+        output_root=records[0].settings.paths.output_root,
     )
     groups: dict[tuple, list[RunRecord]] = {}
     for record in records:

@@ -28,6 +28,7 @@ import subprocess
 import sys
 import zipfile
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterable, Mapping, Sequence
@@ -126,6 +127,11 @@ ALPHA_PER_FRAME_FILE = "alpha_per_frame.npz"
 INPUTS_FILE = "inputs.npz"
 RECORD_FILES = (CONFIG_FILE, TABLE_FILE, TEXT_FILE, METRICS_FILE, TIMINGS_FILE, ALPHA_PER_FRAME_FILE, INPUTS_FILE, DONE)
 """The names of a record's files (besides ``inputs_<data>.npz``, one per data variant)."""
+METRICS_FORMAT = 1
+"""The layout of ``metrics.json`` (its field ``format``): 1 states every variant's ``protocol``, ``notes`` and
+``face_region``, the dataset's ``provenance``, the ``versions`` and each row's ``train_on`` and ``eval_on``. A record
+without the field is of the layout before (0), read through :func:`current_metrics`; readers take every field of
+the current layout as given."""
 MEANING_NAMES = {"config": CONFIG_FILE, "metrics": METRICS_FILE, "table": TABLE_FILE, "per_frame": ALPHA_PER_FRAME_FILE}
 """The files :func:`workbench.record.meaning.check_meaning` names."""
 _TEMPORARY = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9_]+" + re.escape(TEMPORARY_SUFFIX))
@@ -193,6 +199,7 @@ def run_metrics(
     from datetime import datetime, timezone
 
     return {
+        "format": METRICS_FORMAT,
         "study": study,
         "config_hash": config_hash(resolved_yaml),
         "overrides": list(overrides),
@@ -296,7 +303,7 @@ class RunRecord:
     def study(self) -> str:
         return str(self.metrics.get("study") or self.config.get("study"))
 
-    @property
+    @cached_property
     def settings(self):
         """The run's settings, checked and typed as the run had them (:func:`workbench.settings.typed.study_settings`
         of ``config``; the retired settings an earlier version's record holds left out)."""
@@ -499,6 +506,43 @@ def _check_field(path: Path, where: str, value, kinds: tuple, rule: str) -> None
         raise WorkbenchError(f"{path}: field '{where}' must be {rule}, got {value!r:.60}")
 
 
+def current_metrics(path: Path, metrics: dict) -> dict:
+    """``metrics.json`` in the current layout (:data:`METRICS_FORMAT`): a record of an earlier version (no field
+    ``format``) is still read, given here, in one place, what its writer left unsaid (a variant scored on its
+    training frames, without notes or face region; a dataset without provenance; no versions; each row trained and
+    evaluated on its own data variant).
+
+    Raises
+    ------
+    WorkbenchError
+        Naming the file, for a format this version does not know (a record of a later workbench).
+    """
+    found = metrics.get("format", 0)
+    if found == METRICS_FORMAT:
+        return metrics
+    if isinstance(found, bool) or not isinstance(found, int) or not 0 <= found < METRICS_FORMAT:
+        raise WorkbenchError(
+            f"{path}: field 'format' must be an integer from 0 to {METRICS_FORMAT} (this workbench's layout), got "
+            f"{found!r:.60}: a record of a later version of the workbench; read it with that version or rerun the run"
+        )
+    upgraded = dict(metrics, format=METRICS_FORMAT, versions=metrics.get("versions") or {})
+    if isinstance(metrics.get("dataset"), dict):
+        upgraded["dataset"] = dict(metrics["dataset"], provenance=metrics["dataset"].get("provenance") or {})
+    if isinstance(metrics.get("data"), dict):
+        upgraded["data"] = {
+            variant: {"protocol": "training frames", "notes": [], "face_region": "", **facts}
+            if isinstance(facts, dict)
+            else facts
+            for variant, facts in metrics["data"].items()
+        }
+    if isinstance(metrics.get("rows"), list):
+        upgraded["rows"] = [
+            {"train_on": row.get("data"), "eval_on": row.get("data"), **row} if isinstance(row, dict) else row
+            for row in metrics["rows"]
+        ]
+    return upgraded
+
+
 def _check_metrics(path: Path, metrics: Mapping) -> None:
     """The fields of ``metrics.json`` that readers rely on, with their types."""
     for key, kind in (("study", str), ("config_hash", str), ("rows", list), ("data", dict), ("dataset", dict)):
@@ -592,7 +636,7 @@ def load_record(folder: Path, *, check_archives: bool = True) -> RunRecord:
         )
     if not isinstance(config.get("dataset", {}), dict):
         raise WorkbenchError(f"{folder / CONFIG_FILE}: field 'dataset' must be a mapping")
-    metrics = _read_json(folder / METRICS_FILE)
+    metrics = current_metrics(folder / METRICS_FILE, _read_json(folder / METRICS_FILE))
     _check_metrics(folder / METRICS_FILE, metrics)
     timings = _read_json(folder / TIMINGS_FILE) if (folder / TIMINGS_FILE).exists() else {}
     for stage, seconds in timings.items():

@@ -50,7 +50,7 @@ def check_replayed(record: RunRecord, results, consequence: str) -> None:
     """Refuse results rerun from a record that are not the record's: a data file whose SHA-256 is not the one the
     record names, a data variant whose rows (basis, projection, solver) differ, or an alpha column
     (:data:`~workbench.study.table.ALPHA_COLUMNS`) that differs by more than :data:`TABLE_CHECK_RTOL`."""
-    recorded_files = (record.metrics.get("dataset", {}).get("provenance") or {}).get("data_files") or {}
+    recorded_files = record.metrics["dataset"]["provenance"].get("data_files") or {}
     found_files = (results[0].capture.provenance.get("data_files") or {}) if results else {}
     for path, entry in recorded_files.items():
         if (found_files.get(path) or {}).get("sha256") != entry.get("sha256"):

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Sequence
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.files import FORCE_FLAG, check_output_folder, inside, output_folder, plain_name
@@ -29,10 +29,9 @@ from workbench.reporting.report.run_figures import FIGURE_FORMATS
 from workbench.reporting.report.sweep import build_sweep_report, sweep_records
 
 
-def default_report_name(config: Mapping) -> str:
+def default_report_name(study: str, kind: str) -> str:
     """``<study>`` for the synthetic actor, ``<study>-<dataset kind>`` for other data."""
-    kind = config.get("dataset", {}).get("kind", "synthetic")
-    return config["study"] if kind == "synthetic" else f"{config['study']}-{kind}"
+    return study if kind == "synthetic" else f"{study}-{kind}"
 
 
 REPORT_FOLDER = "report"
@@ -60,9 +59,10 @@ def check_report_name(name: str) -> None:
         )
 
 
-def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference: bool, name: str | None) -> Path:
-    """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference``, else
-    ``<folder>/report`` beside the runs."""
+def report_folder(folder: Path, study: str, kind: str, *, out: Path | None, reference: bool, name: str | None) -> Path:
+    """Where a report goes: ``--out`` as given, the checkout's ``reports/<name>`` with ``--reference`` (by default
+    named by the run's ``study`` and ``dataset.kind``: :func:`default_report_name`), else ``<folder>/report`` beside
+    the runs."""
     from workbench.settings.config import CHECKOUT
 
     if out is not None and reference:
@@ -72,7 +72,7 @@ def report_folder(folder: Path, config: Mapping, *, out: Path | None, reference:
     if name is not None:
         check_report_name(name)
     if reference:
-        name = default_report_name(config) if name is None else name
+        name = default_report_name(study, kind) if name is None else name
         check_report_name(name)
         if CHECKOUT is None:
             raise WorkbenchError(
@@ -155,7 +155,10 @@ def main(argv: Sequence[str]) -> int:
     setting = "--name" if args.reference else "--out"
     if is_complete(folder):
         record = load_record(folder, check_archives=True)
-        out = report_folder(folder, record.config, out=args.out, reference=args.reference, name=args.name)
+        settings = record.settings
+        out = report_folder(
+            folder, settings.study, settings.dataset.kind, out=args.out, reference=args.reference, name=args.name
+        )
         options = {
             "shapes": figure_2_shapes(args.shapes, record) if args.shapes is not None else None,
             "shared": out.parent / SHARED_FOLDER if args.reference else None,
@@ -165,7 +168,10 @@ def main(argv: Sequence[str]) -> int:
             build_run_report(record, staging, formats=formats, options=options, command=command)
     else:
         first = sweep_records(folder)[0]
-        out = report_folder(folder, first.config, out=args.out, reference=args.reference, name=args.name)
+        settings = first.settings
+        out = report_folder(
+            folder, settings.study, settings.dataset.kind, out=args.out, reference=args.reference, name=args.name
+        )
         known = SWEEP_REPORT_FILES if args.out is None else ()
         with output_folder(out, setting, writer=WRITER, known=known, force=args.force) as staging:
             build_sweep_report(folder, staging, formats=formats, command=command)

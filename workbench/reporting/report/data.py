@@ -99,7 +99,7 @@ def frame_alpha(neutral: np.ndarray, captured: np.ndarray, reconstructed: np.nda
 
 
 def dataset_label(record: RunRecord) -> str:
-    provenance = record.metrics["dataset"].get("provenance", {})
+    provenance = record.metrics["dataset"]["provenance"]
     if provenance.get("kind") == "synthetic":
         return "synthetic actor (generated, not real capture)"
     return record.metrics["dataset"]["name"]
@@ -114,7 +114,7 @@ SHORT_DATASET_LABELS = {
 
 def short_label(record: RunRecord) -> str:
     """The dataset in a few words, for figure titles."""
-    kind = record.metrics["dataset"].get("provenance", {}).get("kind")
+    kind = record.metrics["dataset"]["provenance"].get("kind")
     return SHORT_DATASET_LABELS.get(kind, record.metrics["dataset"]["name"])
 
 
@@ -365,11 +365,7 @@ def record_timeline(record: RunRecord, inputs: Mapping) -> Timeline:
 
 def training_variants(record: RunRecord) -> list[str]:
     """The data variants scored on their training frames (the paper's protocol), not on held-out frames."""
-    return [
-        data
-        for data, values in record.metrics["data"].items()
-        if values.get("protocol", "training frames") == "training frames"
-    ]
+    return [data for data, values in record.metrics["data"].items() if values["protocol"] == "training frames"]
 
 
 def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, every: bool = False) -> dict:

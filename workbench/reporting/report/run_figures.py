@@ -320,7 +320,7 @@ def draw_error_cdf(record: RunRecord, cache: dict | None = None):
             curves.setdefault(row["data"], {})[(row["basis"], row["solver"])] = np.asarray(row["error_mm_quantiles"])
     if not curves:
         return "needs per-frame errors in the record (runs made before they were recorded have none)"
-    regions = {data: values.get("face_region", "") for data, values in record.metrics["data"].items()}
+    regions = {data: values["face_region"] for data, values in record.metrics["data"].items()}
     return plot_error_cdf(
         curves,
         ERROR_QUANTILES,
@@ -437,14 +437,14 @@ def draw_coverage_curve(record: RunRecord):
     from workbench.reporting.figures.studies import plot_coverage_curve
 
     pca = {data: values["pca"] for data, values in record.metrics["data"].items()}
-    basis = record.config["basis"]
-    threshold = basis["coverage"] if basis.get("n_components") is None else None
+    settings = record.settings
+    threshold = settings.basis.coverage if settings.basis.n_components is None else None
     hand = record.table[record.table["basis"] == "H"]
     return plot_coverage_curve(
         {data: np.asarray(p["explained_variance_ratio"]) for data, p in pca.items()},
         {data: p["m"] for data, p in pca.items()},
         threshold=threshold,
-        paper_m=record.config.get("paper", {}).get("m"),
+        paper_m=None if settings.paper is None else settings.paper.m,
         basis_size=int(hand["n"].iloc[0]) if len(hand) else None,
         title=f"Coverage: cumulative explained variance of the leading eigenvalues\n{short_label(record)}",
     )
@@ -457,7 +457,7 @@ def draw_alpha_over_time(record: RunRecord, cache: dict | None = None):
     if arrays is None:
         return needs("needs alpha_per_frame.npz, written by runs with save_inputs=true", cache)
     solver_name, _ = figure_solver(record.config)
-    normalisation = record.config.get("metric", {}).get("headline_normalisation", "absolute")
+    normalisation = record.settings.metric.headline_normalisation
     series = {}
     for data in training_variants(record):  # held-out frames are another timeline
         bases, solvers = arrays[f"{data}.basis"], arrays[f"{data}.solver"]

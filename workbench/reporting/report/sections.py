@@ -156,11 +156,9 @@ def provenance_section(metrics: Mapping, heading: str = "Dataset provenance and 
     dataset = metrics["dataset"]
     # The record keeps the first data variant's train_on here; the variants are listed under the choices.
     provenance = {
-        key: value
-        for key, value in dataset.get("provenance", {}).items()
-        if key not in ("train_on", "data_root", "data_files")
+        key: value for key, value in dataset["provenance"].items() if key not in ("train_on", "data_root", "data_files")
     }
-    files = dataset.get("provenance", {}).get("data_files") or {}
+    files = dataset["provenance"].get("data_files") or {}
     return Section(
         heading,
         [
@@ -220,7 +218,7 @@ def commit_text(git: Mapping | None) -> str:
 def versions_section(metrics: Mapping, builder: Mapping) -> Section:
     from datetime import datetime, timezone
 
-    record_versions = metrics.get("versions", {})
+    record_versions = metrics["versions"]
     return Section(
         "Versions and commit",
         [
