@@ -557,7 +557,7 @@ def _placed_takes(cfg: Mapping) -> _Placed:
             "concatenating them needs one"
         )
     folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
-    hand_names = hand_shape_names(cfg, expression_names(folder, cfg.blendshapes.neutral))
+    hand_names = hand_shape_names(cfg.hand_shapes, expression_names(folder, cfg.blendshapes.neutral))
     basis = load_basis(cfg, hand_names)
     warnings += settle(
         face_size_problems(basis.neutral, str(folder), "dataset.blendshapes.unit_mm", basis.unit_mm),

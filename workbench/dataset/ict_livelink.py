@@ -166,7 +166,7 @@ def _driven_take(cfg: Mapping) -> _DrivenTake:
         take = read_livelink_csv(curves_path, timecode_rate=timecode_rate)
     folder = data_path(cfg.data_root, cfg.blendshapes.folder, "blendshapes.folder")
     available = expression_names(folder, cfg.blendshapes.neutral)
-    hand_names = hand_shape_names(cfg, available)
+    hand_names = hand_shape_names(cfg.hand_shapes, available)
     folder_mapping = map_arkit_channels(take.names, available, cfg.arkit_overrides or {})
     frames = frame_selection(take.n_frames, cfg.frame_step, cfg.max_frames, "dataset.max_frames")
     dropped = [channel for channel, shapes in (cfg.arkit_overrides or {}).items() if not shapes]

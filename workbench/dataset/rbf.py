@@ -97,6 +97,30 @@ def rbf_operator(
     """
     metric = "euclidean" if centre_distances is None else "geodesic"
     epsilon = check_rbf_settings(kernel, epsilon, degree, smoothing, metric)
+    return _rbf_matrix(
+        centres,
+        targets,
+        kernel=kernel,
+        smoothing=smoothing,
+        epsilon=epsilon,
+        degree=degree,
+        centre_distances=centre_distances,
+        target_distances=target_distances,
+    )
+
+
+def _rbf_matrix(
+    centres: np.ndarray,
+    targets: np.ndarray,
+    *,
+    kernel: str,
+    smoothing: float,
+    epsilon: float,
+    degree: int,
+    centre_distances: np.ndarray | None = None,
+    target_distances: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`rbf_operator` of settings already checked (:func:`check_rbf_settings`; ``epsilon`` as it returns)."""
     centres, targets = np.asarray(centres, dtype=np.float64), np.asarray(targets, dtype=np.float64)
     n_centres = len(centres)
     if centre_distances is None:
@@ -184,7 +208,34 @@ def mesh_rbf_operator(
     -------
     ndarray of shape (n_targets, n_centres)
     """
-    check_rbf_settings(kernel, epsilon, degree, smoothing, metric)
+    epsilon = check_rbf_settings(kernel, epsilon, degree, smoothing, metric)
+    return mesh_rbf_matrix(
+        vertices,
+        triangles,
+        centre_vertices,
+        target_vertices,
+        metric=metric,
+        kernel=kernel,
+        smoothing=smoothing,
+        epsilon=epsilon,
+        degree=degree,
+    )
+
+
+def mesh_rbf_matrix(
+    vertices: np.ndarray,
+    triangles: np.ndarray | None,
+    centre_vertices: np.ndarray,
+    target_vertices: np.ndarray,
+    *,
+    metric: str,
+    kernel: str,
+    smoothing: float,
+    epsilon: float,
+    degree: int,
+) -> np.ndarray:
+    """:func:`mesh_rbf_operator` of settings already checked (:func:`check_rbf_settings`, whose ``epsilon`` it
+    takes): what the workbench's own interpolations call with settings it states itself."""
     centre_vertices, target_vertices = np.asarray(centre_vertices), np.asarray(target_vertices)
     if len(np.unique(centre_vertices)) != len(centre_vertices):
         values, counts = np.unique(centre_vertices, return_counts=True)
@@ -195,7 +246,7 @@ def mesh_rbf_operator(
     centres, targets = vertices[centre_vertices], vertices[target_vertices]
     options = dict(kernel=kernel, smoothing=smoothing, epsilon=epsilon, degree=degree)
     if metric == "euclidean":
-        return rbf_operator(centres, targets, **options)
+        return _rbf_matrix(centres, targets, **options)
     if triangles is None or len(triangles) == 0:
         raise WorkbenchError("rbf.metric geodesic needs the mesh's polygons, and this mesh has none")
     distances = geodesic_distances(vertices, triangles, centre_vertices)
@@ -207,7 +258,7 @@ def mesh_rbf_operator(
             f"{int(centre_vertices[centre])} on the mesh ({int(unreachable.any(axis=0).sum())} "
             "such vertices); use rbf.metric=euclidean or a connected region"
         )
-    return rbf_operator(
+    return _rbf_matrix(
         centres,
         targets,
         centre_distances=distances[:, centre_vertices],

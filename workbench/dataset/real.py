@@ -135,13 +135,12 @@ def load_basis(cfg: Mapping, names: Sequence[str] | None = None) -> Blendshapes:
     )
 
 
-def hand_shape_names(cfg: Mapping, available: Sequence[str]) -> list[str]:
-    """``dataset.hand_shapes``: distinct names of shapes the basis folder has."""
-    names = list(cfg.hand_shapes or [])
+def hand_shape_names(hand_shapes: Sequence[str] | None, available: Sequence[str]) -> list[str]:
+    """``dataset.hand_shapes`` (distinct plain names, checked with the settings), each a shape the basis folder
+    has; a dataset group given alone may leave it out."""
+    names = list(hand_shapes or [])
     if not names:
         raise WorkbenchError("dataset.hand_shapes is empty: list the blendshape names that form the hand basis")
-    if len(set(names)) != len(names):
-        raise WorkbenchError(f"dataset.hand_shapes must be distinct, got {names}")
     unknown = [name for name in names if name not in available]
     if unknown:
         raise WorkbenchError(

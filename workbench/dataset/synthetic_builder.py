@@ -22,7 +22,7 @@ from workbench.dataset.common import (
 )
 from workbench.dataset.decimate import Decimation, decimate
 from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
-from workbench.dataset.rbf import mesh_rbf_operator
+from workbench.dataset.rbf import mesh_rbf_matrix
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage
 
@@ -124,9 +124,9 @@ def _synthetic_take(key: tuple):
 
 @lru_cache(maxsize=4)
 def _mesh_decimation(mesh_rows: int, mesh_cols: int, fraction: float) -> Decimation:
-    from workbench.dataset.synthetic import make_face_mesh
+    from workbench.dataset.synthetic import face_mesh_of
 
-    mesh = make_face_mesh(mesh_rows, mesh_cols)
+    mesh = face_mesh_of(mesh_rows, mesh_cols)  # dataset.mesh_rows/mesh_cols, checked
     return decimate(mesh.vertices, mesh.faces, fraction)
 
 
@@ -167,10 +167,10 @@ def face_region(mesh_rows: int, mesh_cols: int, n_face_markers: int) -> tuple[np
     """
     from scipy.spatial import Delaunay
 
-    from workbench.dataset.synthetic import make_face_mesh
+    from workbench.dataset.synthetic import face_mesh_of
     from workbench.dataset.synthetic.actor import place_face_markers
 
-    mesh = make_face_mesh(mesh_rows, mesh_cols)
+    mesh = face_mesh_of(mesh_rows, mesh_cols)  # dataset.mesh_rows/mesh_cols, checked
     markers = mesh.face_plane[place_face_markers(mesh, n_face_markers)]
     inside = Delaunay(markers).find_simplex(mesh.face_plane) >= 0
     vertices = np.flatnonzero(inside)
@@ -454,8 +454,16 @@ def _variant_frames(
                 per_take = [frames[part.kept] for frames, part in zip(per_take, markers)]
             notes.append("the dense ground-truth mesh (no head motion, no marker noise)")
         else:
-            operator = mesh_rbf_operator(
-                vertices, take.mesh.faces, take.face_marker_vertices, points, metric="euclidean"
+            operator = mesh_rbf_matrix(  # the thin-plate spline with a linear polynomial, as the note says
+                vertices,
+                take.mesh.faces,
+                take.face_marker_vertices,
+                points,
+                metric="euclidean",
+                kernel="thin_plate_spline",
+                smoothing=0.0,
+                epsilon=1.0,
+                degree=1,
             )
             per_take = [interpolated_frames(operator, part.frames, storage) for part in markers]
             source = [part.frames.reshape(len(part.frames), -1) for part in markers]

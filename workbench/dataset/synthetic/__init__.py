@@ -6,7 +6,7 @@ in the lab with rigid head motion and noise (:mod:`.actor`).
 """
 
 from workbench.dataset.synthetic.actor import HeadMotion, SyntheticTake, make_synthetic_take
-from workbench.dataset.synthetic.face_mesh import FaceMesh, make_face_mesh
+from workbench.dataset.synthetic.face_mesh import FaceMesh, face_mesh_of, make_face_mesh
 from workbench.dataset.synthetic.muscles import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements
 from workbench.dataset.synthetic.performance import make_activations
 
@@ -20,6 +20,7 @@ __all__ = [
     "deform",
     "deform_displacements",
     "make_activations",
+    "face_mesh_of",
     "make_face_mesh",
     "make_synthetic_take",
 ]

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.errors import WorkbenchError
-from workbench.dataset.synthetic.face_mesh import FaceMesh, eye_opening_mask, head_shell_point, make_face_mesh
+from workbench.dataset.synthetic.face_mesh import FaceMesh, eye_opening_mask, face_mesh_of, head_shell_point
 from workbench.dataset.synthetic.muscles import MUSCLE_NAMES, N_MUSCLES, deform
 from workbench.dataset.synthetic.performance import make_activations
 
@@ -230,7 +230,7 @@ def make_synthetic_take(
     _check_int("seed", seed, 0)
     _check_int("mesh_rows", mesh_rows, 20)
     _check_int("mesh_cols", mesh_cols, 20)
-    mesh = make_face_mesh(int(mesh_rows), int(mesh_cols))
+    mesh = face_mesh_of(int(mesh_rows), int(mesh_cols))  # checked above
     n_usable = int(face_marker_candidates(mesh).sum())
     _check_int("n_face_markers", n_face_markers, 1, n_usable, note=" (usable face vertices of this mesh)")
 

@@ -176,6 +176,12 @@ def make_face_mesh(n_rows: int = 70, n_cols: int = 60) -> FaceMesh:
     """
     for name, value in (("n_rows", n_rows), ("n_cols", n_cols)):
         checked(value, name, integer(20))
+    return face_mesh_of(int(n_rows), int(n_cols))
+
+
+def face_mesh_of(n_rows: int, n_cols: int) -> FaceMesh:
+    """:func:`make_face_mesh` of a grid size already checked (``dataset.mesh_rows`` and ``dataset.mesh_cols``, or
+    :func:`workbench.dataset.synthetic.make_synthetic_take`'s arguments)."""
     azimuth, height = _grid_parameters(int(n_rows), int(n_cols))
     vertices, face_plane = _surface(azimuth.ravel(), height.ravel())
     faces = _grid_triangles(int(n_rows), int(n_cols))
