@@ -38,10 +38,9 @@ def replay(record: RunRecord, consequence: str) -> list:
     WorkbenchError
         One line naming the record, from :func:`check_replayed`; or the study's own refusal (data not found).
     """
-    from workbench.settings.typed import study_settings
     from workbench.study.run import run_study
 
-    results = run_study(study_settings(record.config))
+    results = run_study(record.settings)
     check_replayed(record, results, consequence)
     return results
 

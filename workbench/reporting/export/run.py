@@ -47,6 +47,7 @@ from workbench.reporting.export.bases import (
     exported_bases,
 )
 from workbench.reporting.export.takes import (
+    LIVELINK_TIMECODE_RATE,
     ExportTake,
     csv_text,
     export_takes,
@@ -349,7 +350,8 @@ def export_run(
         raise WorkbenchError(f"export --obj-unit {obj_unit}: must be one of {sorted(OBJ_UNITS)}")
     out = Path(out)
     record = read_run_record(folder)
-    solvers = list(record.config.get("solver") or {})
+    settings = record.settings
+    solvers = list(settings.solvers)
     solver = solver or (solvers[0] if solvers else None)
     if solver not in solvers:
         raise WorkbenchError(f"export --solver {solver}: the run's solvers are {solvers}")
@@ -361,8 +363,9 @@ def export_run(
     result = results[data]
     capture = result.capture
     chosen = exported_bases(result, bases, solver, record.table)
-    dataset_cfg = record.config.get("dataset") or {}
-    takes = export_takes(capture, livelink_source(dataset_cfg), float(dataset_cfg.get("timecode_rate") or 60.0))
+    dataset = settings.dataset
+    rate = dataset.timecode_rate if dataset.kind == "ict_livelink" else LIVELINK_TIMECODE_RATE
+    takes = export_takes(capture, livelink_source(dataset), float(rate))
     mesh = capture.faces is not None
     check_plan(
         out,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import io
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -198,7 +198,12 @@ def livelink_csv(
     return csv_text(table, LIVELINK_DECIMALS), clipped
 
 
-def timecode(seconds: float, rate: float = 60.0) -> str:
+LIVELINK_TIMECODE_RATE = 60.0
+"""The timecode rate of the takes exported from data without one of their own (every kind but ``ict_livelink``,
+whose ``dataset.timecode_rate`` the source take states): Live Link Face's 60 frames per second."""
+
+
+def timecode(seconds: float, rate: float = LIVELINK_TIMECODE_RATE) -> str:
     """``HH:MM:SS:FF.fff``: whole seconds, then ``FF.fff`` frames at ``rate`` (Live Link Face's timecode).
 
     The frame field is rounded to the thousandth it is printed with, carrying into the seconds, so it stays below
@@ -227,21 +232,16 @@ class LiveLinkSource:
     rotations: np.ndarray | None
 
 
-def livelink_source(dataset_cfg: Mapping) -> LiveLinkSource | None:
-    """The source Live Link Face take of a dataset config (``dataset=ict_livelink`` driven by a Live Link CSV), or
-    None for other data."""
+def livelink_source(dataset) -> LiveLinkSource | None:
+    """The source Live Link Face take of a run's typed dataset settings (``dataset=ict_livelink`` driven by a Live
+    Link CSV), or None for other data."""
     from workbench.dataset.real import data_path
     from workbench.formats.livelink import read_livelink_csv
-    from workbench.settings.typed import dataset_settings
 
-    if (
-        dataset_cfg.get("kind") != "ict_livelink"
-        or dataset_cfg.get("weight_curves")
-        or not dataset_cfg.get("livelink_csv")
-    ):
+    if dataset.kind != "ict_livelink" or dataset.weight_curves or not dataset.livelink_csv:
         return None
-    path = data_path(dataset_settings(dataset_cfg).data_root, dataset_cfg["livelink_csv"], "livelink_csv")
-    take = read_livelink_csv(path, timecode_rate=dataset_cfg.get("timecode_rate", 60.0))
+    path = data_path(dataset.data_root, dataset.livelink_csv, "livelink_csv")
+    take = read_livelink_csv(path, timecode_rate=dataset.timecode_rate)
     column = pd.read_csv(path, usecols=["Timecode"], dtype=str, skipinitialspace=True)["Timecode"]
     return LiveLinkSource(timecodes=column.str.strip().to_numpy(), rotations=take.rotations)
 

@@ -179,8 +179,8 @@ def intuitiveness_comparisons(records: Sequence[RunRecord], runs: pd.DataFrame, 
         frames.append(
             found.assign(
                 study=record.study,
-                train_on=[scored.get(data, {}).get("train_on", data) for data in found["data"]],
-                eval_on=[scored.get(data, {}).get("eval_on", data) for data in found["data"]],
+                train_on=[scored[data]["train_on"] for data in found["data"]],
+                eval_on=[scored[data]["eval_on"] for data in found["data"]],
                 solver=NO_SOLVER,
                 **{key: flat.get(key) for key in keys},
             )

@@ -315,7 +315,6 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
     from workbench.core.errors import WorkbenchError
     from workbench.dataset.rest_mesh import rest_mesh
     from workbench.dataset.transfer import point_transfer
-    from workbench.settings.typed import dataset_settings
 
     found = mesh_variant(record, cache)
     if found is not None:
@@ -326,7 +325,7 @@ def _face_data(record: RunRecord, cache: dict) -> FaceData | str:
         return NEEDS_FACE
     data, inputs = found
     try:
-        mesh = rest_mesh(dataset_settings(record.config["dataset"]), record.metrics["dataset"].get("provenance"))
+        mesh = rest_mesh(record.settings.dataset, record.metrics["dataset"]["provenance"])
     except (WorkbenchError, OSError) as error:
         return f"{NEEDS_FACE}: the run has no mesh data variant and the dataset's face mesh cannot be read ({error})"
     transfer = point_transfer(inputs["neutral"].reshape(-1, 3), mesh.vertices)
@@ -344,7 +343,7 @@ def marker_variant(record: RunRecord, cache: dict) -> tuple[str, dict] | None:
 
 
 def qe_label(record: RunRecord) -> str:
-    projections = record.config["basis"]["projections"]
+    projections = record.settings.basis.projections
     return "QE" if "affine" in projections else "QE-linear"
 
 
@@ -373,7 +372,7 @@ def figure_bases(record: RunRecord, data: str, inputs: Mapping, cache: dict, *, 
     key = ("bases", data, every)
     if key not in cache:
         labels = [
-            label for label, projection in QE_PROJECTIONS.items() if projection in record.config["basis"]["projections"]
+            label for label, projection in QE_PROJECTIONS.items() if projection in record.settings.basis.projections
         ]
         labels = labels if every else [qe_label(record)]
         cache[key] = {

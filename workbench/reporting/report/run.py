@@ -128,7 +128,7 @@ def run_sections(
     from workbench.reporting.findings.run_summary import run_summary
 
     column = headline_column(record.config)
-    title = f"Study '{record.config['study']}' on the {dataset_label(record)}"
+    title = f"Study '{record.settings.study}' on the {dataset_label(record)}"
     intuitiveness = {data: values["intuitiveness"] for data, values in record.metrics["data"].items()}
     has_sides = sides is not None and sides.table is not None
     summary = run_summary(record.table, column, record.metrics)
@@ -171,7 +171,7 @@ def run_sections(
         Section("Full alpha table", [alpha_columns(record.table)]),
         *error_and_weight_sections(record),
         *comparison_sections(record),
-        Section("Choices the run made", [pd.DataFrame(choices_rows(record.config), columns=["question", "choice"])]),
+        Section("Choices the run made", [pd.DataFrame(choices_rows(record.settings), columns=["question", "choice"])]),
         provenance_section(record.metrics),
         versions_section(record.metrics, report_versions()),
         Section(

@@ -54,43 +54,38 @@ def headline_table(table: pd.DataFrame, column: str) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-def choices_rows(config: Mapping) -> list[tuple[str, str]]:
-    """The settings a run chose where the paper is silent, as (question, choice) pairs."""
-    basis, dataset, metric = config["basis"], config["dataset"], config.get("metric", {})
+def choices_rows(settings) -> list[tuple[str, str]]:
+    """The settings a run chose where the paper is silent, as (question, choice) pairs, from its typed settings
+    (:attr:`workbench.record.record.RunRecord.settings`)."""
+    basis, dataset, metric = settings.basis, settings.dataset, settings.metric
     solvers = ", ".join(
-        f"{name} ({spec['kind']}"
-        + (f", bounds [{spec.get('lower')}, {spec.get('upper')}]" if spec["kind"] != "lstsq" else "")
-        + ")"
-        for name, spec in config["solver"].items()
+        f"{name} ({spec.kind}" + (f", bounds [{spec.lower}, {spec.upper}]" if spec.kind != "lstsq" else "") + ")"
+        for name, spec in settings.solvers.items()
     )
-    rule = (
-        f"coverage {basis['coverage']}" if basis.get("n_components") is None else f"fixed m = {basis['n_components']}"
-    )
+    rule = f"coverage {basis.coverage}" if basis.n_components is None else f"fixed m = {basis.n_components}"
     return [
         (
             "projection of the hand shapes (eq. 3-4)",
-            ", ".join(basis["projections"])
+            ", ".join(basis.projections)
             + " (affine: through the capture mean, as written; linear: through the neutral face)",
         ),
         ("mu", "mean displacement from neutral"),
         ("solver of eq. 5", solvers),
         (
             "alpha normalisation and aggregation in the headline",
-            f"{metric.get('headline_normalisation', 'absolute')}, {metric.get('headline_aggregate', 'mean')} "
-            "(every variant is in the full table)",
+            f"{metric.headline_normalisation}, {metric.headline_aggregate} (every variant is in the full table)",
         ),
         ("eigenfaces kept", rule),
         (
             "post-treatment",
-            f"empty axis if sum_i |w_ij| < {basis['empty_axis_eps']} x {basis['empty_axis_scale']}; "
-            f"append empty axes: {basis['append_empty_axes']}",
+            f"empty axis if sum_i |w_ij| < {basis.empty_axis_eps} x {basis.empty_axis_scale}; "
+            f"append empty axes: {basis.append_empty_axes}",
         ),
         (
             "frames trained on / evaluated",
-            f"split {dataset.get('split', 'same')}"
-            + (f", eval fraction {dataset.get('eval_fraction')}" if dataset.get("split") == "tail" else ""),
+            f"split {dataset.split}" + (f", eval fraction {dataset.eval_fraction}" if dataset.split == "tail" else ""),
         ),
-        ("data variants", str(dataset.get("train_on"))),
+        ("data variants", str(dataset.train_on)),
     ]
 
 

@@ -203,7 +203,7 @@ def sweep_sections(
     first = records[0]
     column = headline_column(first.config)
     solver = figure_solver(first.config)[0]
-    title = f"Study '{first.config['study']}': sweep over {', '.join(swept) or 'seeds'} on the {dataset_label(first)}"
+    title = f"Study '{first.settings.study}': sweep over {', '.join(swept) or 'seeds'} on the {dataset_label(first)}"
     replicates = "; ".join(
         f"{key} " + ", ".join(sorted({str(value) for value in per_run[key].dropna()}, key=_natural))
         for key in per_run.columns
@@ -253,7 +253,7 @@ def sweep_sections(
         Section("Runs", [runs.astype(str)]),
         Section(
             "Choices the runs made (first run)",
-            [pd.DataFrame(choices_rows(first.config), columns=["question", "choice"])],
+            [pd.DataFrame(choices_rows(first.settings), columns=["question", "choice"])],
         ),
         provenance_section(first.metrics, "Dataset provenance and licence (first run)"),
         versions_section(first.metrics, report_versions()),
