@@ -62,3 +62,16 @@ def test_the_held_out_protocols_are_described_once():
     assert HELD_OUT is HELD_OUT_PROTOCOLS
     assert FOLDED == {protocol: HELD_OUT_PROTOCOLS[protocol] for protocol in FOLDED}
     assert str(tuple(HELD_OUT_PROTOCOLS)) in field_of(DATASET_SCHEMAS["synthetic"], "held_out").metadata["rule"]
+
+
+def test_the_claim_margin_and_the_paper_s_values_are_the_settings():
+    from dataclasses import asdict
+
+    from workbench.settings.config import compose
+    from workbench.settings.schema import MetricSchema
+    from workbench.settings.typed import study_settings
+    from workbench.study.claims import CLAIM_MARGIN, PAPER_ALPHA
+
+    assert field_of(MetricSchema, "claim_margin").default == CLAIM_MARGIN
+    paper = study_settings(compose("paper")).paper
+    assert asdict(paper.alpha) == PAPER_ALPHA

@@ -31,7 +31,7 @@ from workbench.dataset.common import (
     split_frames,
 )
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
-from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
+from workbench.dataset.gaps import apply_gap_policy, gap_mask
 from workbench.dataset.hand_basis import check_hand_shapes
 from workbench.dataset.rbf import mesh_rbf_operator
 from workbench.dataset.real import (
@@ -369,7 +369,7 @@ def stabilised_takes(takes: Sequence[MarkerTake], table: MarkerTable, cfg: Mappi
         problems += outlier_problems(markers, table.labels, str(take.path), frames=selected)
         if rate > 0:
             rng = np.random.default_rng(np.random.SeedSequence(gap_seed, spawn_key=(number,)))
-            mask = make_gap_mask(len(markers), markers.shape[1], rate, float(cfg.gap_mean_frames), rng)
+            mask = gap_mask(len(markers), markers.shape[1], rate, float(cfg.gap_mean_frames), rng)
             markers = np.where(mask[:, :, None], np.nan, markers)
         outcome = apply_gap_policy(markers, policy, cfg.gap_max_fill_frames)
         pieces.append(outcome.positions)

@@ -100,6 +100,12 @@ def make_gap_mask(
         raise WorkbenchError(f"dataset.gap_rate must be in [0, 1), got {rate}")
     if not mean_length >= 1.0:
         raise WorkbenchError(f"dataset.gap_mean_frames must be >= 1, got {mean_length}")
+    return gap_mask(n_frames, n_markers, rate, mean_length, rng)
+
+
+def gap_mask(n_frames: int, n_markers: int, rate: float, mean_length: float, rng: np.random.Generator) -> np.ndarray:
+    """:func:`make_gap_mask` of a rate and a mean length already checked (``dataset.gap_rate`` and
+    ``dataset.gap_mean_frames``, as the builders take them)."""
     mask = np.zeros((n_frames, n_markers), dtype=bool)
     if rate == 0.0:
         return mask

@@ -21,7 +21,7 @@ from workbench.dataset.common import (
     split_frames,
 )
 from workbench.dataset.decimate import Decimation, decimate
-from workbench.dataset.gaps import apply_gap_policy, make_gap_mask
+from workbench.dataset.gaps import apply_gap_policy, gap_mask
 from workbench.dataset.rbf import mesh_rbf_matrix
 from workbench.dataset.rigid import stabilise
 from workbench.dataset.storage import FrameStorage
@@ -58,10 +58,16 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
     takes = [_synthetic_take(key) for key in keys]
     decimation = _mesh_decimation(int(cfg.mesh_rows), int(cfg.mesh_cols), cfg.mesh_fraction)
     hand_mesh = takes[0].hand_shapes_mesh()
-    marker_settings = MarkerSettings(
-        cfg.gap_rate, cfg.gap_policy, cfg.gap_max_fill_frames, cfg.gap_mean_frames, cfg.stabilise
+    markers = (
+        [
+            _marker_frames(
+                key, cfg.gap_rate, cfg.gap_policy, cfg.gap_max_fill_frames, cfg.gap_mean_frames, cfg.stabilise
+            )
+            for key in keys
+        ]
+        if {"markers", "mesh_rbf"} & set(names)
+        else None
     )
-    markers = [_marker_frames(key, marker_settings) for key in keys] if {"markers", "mesh_rbf"} & set(names) else None
     return {
         name: _synthetic_capture(
             takes,
@@ -117,9 +123,9 @@ def _synthetic_take(key: tuple):
     with ``split: other_take`` at two sizes (the ``generalisation`` study) reads takes seed and seed + 1 at each
     size, and two kept made it generate 20 takes for its 30 runs, against the 12 it has (a take of 35,000 frames
     holds 70 MB)."""
-    from workbench.dataset.synthetic import make_synthetic_take
+    from workbench.dataset.synthetic import synthetic_take_of
 
-    return make_synthetic_take(**dict(key))
+    return synthetic_take_of(**dict(key))  # the dataset settings, checked
 
 
 @lru_cache(maxsize=4)
@@ -209,29 +215,24 @@ def forget_kept_frames() -> None:
     _face_region_frames.cache_clear()
 
 
-@dataclass(frozen=True)
-class MarkerSettings:
-    """The dataset settings the face markers of a take depend on (the cache key of :func:`_marker_frames`)."""
-
-    gap_rate: float
-    gap_policy: str
-    gap_max_fill_frames: int | None
-    gap_mean_frames: float
-    stabilise: bool
-
-
 @kept_in_memory(slots=4, always=0, max_bytes=KEPT_BYTES)
-def _marker_frames(key: tuple, settings: MarkerSettings) -> "MarkerFrames":
+def _marker_frames(
+    key: tuple, rate: float, policy: str, max_fill: int | None, mean_frames: float, stabilised: bool
+) -> "MarkerFrames":
     """:func:`_face_marker_frames` of the take of ``key``, kept for the next run of a sweep in the same process
-    (read-only, as the take's): the runs of a sweep over other settings, such as ``dataset.split``, share them."""
-    found = _face_marker_frames(_synthetic_take(key), settings)
+    (read-only, as the take's): the runs of a sweep over other settings, such as ``dataset.split``, share them.
+    The dataset settings the markers depend on (``gap_rate``, ``gap_policy``, ``gap_max_fill_frames``,
+    ``gap_mean_frames``, ``stabilise``) are part of the key."""
+    found = _face_marker_frames(_synthetic_take(key), rate, policy, max_fill, mean_frames, stabilised)
     for array in (found.frames, found.kept, found.visible):
         if array is not None:
             array.flags.writeable = False
     return found
 
 
-def _face_marker_frames(take, cfg) -> "MarkerFrames":
+def _face_marker_frames(
+    take, rate: float, policy: str, max_fill: int | None, mean_frames: float, stabilised: bool
+) -> "MarkerFrames":
     """Stabilised face markers of one take as displacements from rest, after the gap policy.
 
     With ``drop`` and ``linear`` the policy acts on all markers before head-motion removal (gaps filled or frames
@@ -240,20 +241,18 @@ def _face_marker_frames(take, cfg) -> "MarkerFrames":
     """
     positions, notes, gaps, visible = take.markers, [], {}, None
     kept = np.ones(len(positions), dtype=bool)
-    rate = float(cfg.gap_rate)
-    policy = cfg.gap_policy
-    max_fill = cfg.gap_max_fill_frames
+    rate = float(rate)
     head = np.asarray(take.head_marker_index)
     face_index = np.setdiff1d(np.arange(take.markers.shape[1]), head)
     if rate > 0:
         # the take draws from the first three children of its seed; gaps use the fourth
         rng = np.random.default_rng(np.random.SeedSequence(take.provenance["seed"], spawn_key=(3,)))
-        mask = make_gap_mask(positions.shape[0], positions.shape[1], rate, float(cfg.gap_mean_frames), rng)
+        mask = gap_mask(positions.shape[0], positions.shape[1], rate, float(mean_frames), rng)
         positions = np.where(mask[:, :, None], np.nan, positions)
         if policy != "masked":
             outcome = apply_gap_policy(positions, policy, max_fill)
             positions, kept, report = outcome.positions, outcome.kept, outcome.report
-    if cfg.stabilise:
+    if stabilised:
         stable = stabilise(positions, head, take.head_marker_rest)
         positions = stable.markers
         notes.append(
@@ -268,7 +267,7 @@ def _face_marker_frames(take, cfg) -> "MarkerFrames":
     else:
         positions = positions[:, face_index]
     if rate > 0:
-        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(cfg.gap_mean_frames))
+        gaps = dict(report.as_dict(), rate=rate, mean_frames=float(mean_frames))
         where = "before" if policy != "masked" else "after"
         notes.append(
             f"marker dropout (seed {take.provenance['seed']}): {report.describe()} ({where} head-motion removal)"

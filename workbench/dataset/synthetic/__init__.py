@@ -5,7 +5,7 @@ non-linearly (:mod:`.muscles`), a performance of expressions and speech (:mod:`.
 in the lab with rigid head motion and noise (:mod:`.actor`).
 """
 
-from workbench.dataset.synthetic.actor import HeadMotion, SyntheticTake, make_synthetic_take
+from workbench.dataset.synthetic.actor import HeadMotion, SyntheticTake, make_synthetic_take, synthetic_take_of
 from workbench.dataset.synthetic.face_mesh import FaceMesh, face_mesh_of, make_face_mesh
 from workbench.dataset.synthetic.muscles import LOWER_FACE, MUSCLE_NAMES, UPPER_FACE, deform, deform_displacements
 from workbench.dataset.synthetic.performance import make_activations
@@ -23,4 +23,5 @@ __all__ = [
     "face_mesh_of",
     "make_face_mesh",
     "make_synthetic_take",
+    "synthetic_take_of",
 ]

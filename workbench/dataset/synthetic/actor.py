@@ -230,7 +230,37 @@ def make_synthetic_take(
     _check_int("seed", seed, 0)
     _check_int("mesh_rows", mesh_rows, 20)
     _check_int("mesh_cols", mesh_cols, 20)
-    mesh = face_mesh_of(int(mesh_rows), int(mesh_cols))  # checked above
+    return synthetic_take_of(
+        n_frames=n_frames,
+        frame_rate=frame_rate,
+        n_face_markers=n_face_markers,
+        n_head_markers=n_head_markers,
+        head_rotation_deg=head_rotation_deg,
+        head_translation_mm=head_translation_mm,
+        marker_noise_mm=marker_noise_mm,
+        seed=seed,
+        mesh_rows=mesh_rows,
+        mesh_cols=mesh_cols,
+    )
+
+
+def synthetic_take_of(
+    *,
+    n_frames: int,
+    frame_rate: float,
+    n_face_markers: int,
+    n_head_markers: int,
+    head_rotation_deg: float,
+    head_translation_mm: float,
+    marker_noise_mm: float,
+    seed: int,
+    mesh_rows: int,
+    mesh_cols: int,
+) -> SyntheticTake:
+    """:func:`make_synthetic_take` of parameters already checked (the ``dataset`` settings of the synthetic actor,
+    as its builder takes them); only the face markers are checked here, against the usable vertices of the mesh
+    (which the settings cannot know)."""
+    mesh = face_mesh_of(int(mesh_rows), int(mesh_cols))
     n_usable = int(face_marker_candidates(mesh).sum())
     _check_int("n_face_markers", n_face_markers, 1, n_usable, note=" (usable face vertices of this mesh)")
 
