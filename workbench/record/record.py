@@ -4,8 +4,9 @@ A run record is a folder holding
 
 - ``config.yaml``: the resolved config (without Hydra's own node);
 - ``alpha_table.csv`` / ``alpha_table.md``: the alpha table and the full text the run printed (``--wide``);
-- ``metrics.json``: study, config hash, overrides, dataset facts, per-data-variant metrics, every table row with
-  its solver diagnostics, the paper's two claims at m = n (``claims``), versions, git state and times;
+- ``metrics.json``: its layout's version (``format``, :data:`METRICS_FORMAT`), study, config hash, overrides,
+  dataset facts, per-data-variant metrics, every table row with its solver diagnostics, the paper's two claims at
+  m = n (``claims``), versions, git state and times;
 - ``timings.json``: seconds per stage;
 - optionally ``inputs.npz`` (``save_inputs=true``) and ``alpha_per_frame.npz``;
 - ``done``: written last, holding the SHA-256 of every other file of the record; a folder without it is not a
