@@ -39,8 +39,8 @@ too small, together. On series like the workbench's (``benchmarks/run.py coverag
 that were estimable covered only 0.57-0.93 in the designs whose memory is as long as the run (persistence 0.96-0.99
 with 800 or 4,000 frames, or the three takes of 398, 375 and 226); a sharper threshold on the same estimate (more
 degrees of freedom, or an effective sample size ``n (1 - phi) / (1 + phi)`` of 40-120) selected those series even
-more strictly and covered less (0.59-0.91). With this widening every cell's estimable intervals cover 0.93 or more;
-at 50 the lowest was 0.941 and at 40 0.914 (seed 0, 2,000 series per cell)."""
+more strictly and covered less (0.59-0.91). With this widening the estimable intervals cover 0.946 or more in every
+cell where 30 or more are estimable; at 50 the lowest was 0.941 and at 40 0.914 (seed 0, 2,000 series per cell)."""
 
 
 def take_spans(takes: Sequence | None, n: int) -> list[tuple[int, int]]:
