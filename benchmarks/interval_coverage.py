@@ -32,8 +32,9 @@ of the per-frame alphas, the paper's claims), ``ratio of pooled`` (:func:`workbe
 ``pooled difference`` (:func:`workbench.stats.statistics.paired_pooled_difference`) and ``mean difference``
 (:func:`workbench.stats.statistics.paired_mean_difference` of the alphas). Printed per cell: the share of intervals
 that are estimable (:attr:`workbench.stats.statistics.Interval.estimable`), the coverage of the statements made (an
-interval that is "not estimable" states nothing and counts as holding the truth), the coverage of the estimable
-intervals alone, the coverage of every interval's bounds whether estimable or not, and the binomial standard error.
+interval that is "not estimable" states nothing and counts as holding the truth) and its binomial standard error,
+the coverage of the estimable intervals alone and its binomial standard error (over the estimable intervals only),
+and the coverage of every interval's bounds whether estimable or not.
 
 A binomial standard error of a coverage near 0.95 over R replications is ``sqrt(0.95 * 0.05 / R)`` (0.0069 at
 R = 1,000, 0.0049 at 2,000).
@@ -243,6 +244,7 @@ def design_row(kind: str, sigma: float, geometry: str, phi: float, replications:
         "estimable": float(estimable.mean()),
         "coverage": float(np.where(estimable, held, True).mean()),
         "estimable coverage": float(held[estimable].mean()) if estimable.any() else math.nan,
+        "estimable count": int(estimable.sum()),
         "bounds coverage": float(held.mean()),
         "degrees": float(np.nanmean(np.where(estimable, degrees, np.nan))) if estimable.any() else math.nan,
         "replications": replications,
@@ -260,18 +262,20 @@ def bench_design_coverage(args) -> None:
         f"statements made (not estimable: no statement, counted as holding)"
     )
     print(
-        "| interval | sigma | takes | phi | estimable | coverage | s.e. | estimable coverage | bounds coverage | "
+        "| interval | sigma | takes | phi | estimable | coverage | s.e. | estimable coverage | s.e. | bounds coverage | "
         "t dof | replications |"
     )
-    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for kind, sigma in DESIGN_KINDS:
         for geometry in workbench_designs.GEOMETRIES:
             for phi in DESIGN_PERSISTENCES:
                 row = design_row(kind, sigma, geometry, phi, replications, rng)
                 error = math.sqrt(row["coverage"] * (1.0 - row["coverage"]) / replications)
+                held, count = row["estimable coverage"], row["estimable count"]
+                estimable_error = math.sqrt(held * (1.0 - held) / count) if count else math.nan
                 print(
                     f"| {kind} | {sigma:g} | {geometry} | {phi:g} | {row['estimable']:.2f} | {row['coverage']:.3f} | "
-                    f"{error:.4f} | {row['estimable coverage']:.3f} | {row['bounds coverage']:.3f} | "
+                    f"{error:.4f} | {held:.3f} | {estimable_error:.4f} | {row['bounds coverage']:.3f} | "
                     f"{row['degrees']:.3g} | {replications} |",
                     flush=True,
                 )

@@ -18,7 +18,8 @@ of the alpha table gets an overlapping-batch-means interval (:func:`batch_means_
 batch, ``L`` six integrated autocorrelation times of a deliberately high estimate of the series' persistence (between
 n/30 and n/3 frames), the variance of the mean comes from the batch means' spread, made unbiased for an AR(1) of that
 persistence, and the interval uses Student-t quantiles with about ``1.5 (n / L - 1)`` degrees of freedom (half as many
-again as non-overlapping batches of the same length; :attr:`Interval.degrees`). Its coverage and its width over the
+again as non-overlapping batches of the same length; :attr:`Interval.degrees`), the standard error widened by
+``1 + 60 / d^2`` on ``d`` degrees (:data:`workbench.stats.time_series.THIN_DESIGN`: where few batches fit). Its coverage and its width over the
 width a known variance would give are measured on AR(1) series by ``benchmarks/run.py coverage``
 (docs/statistics.md). Each interval carries the p-value of its t statistic, for :func:`holm`; :func:`holm_intervals`
 gives each member of a family the interval at the confidence of its Holm step, which excludes the null value exactly
@@ -46,6 +47,7 @@ from workbench.stats.time_series import (  # noqa: F401  (autocovariances: re-ex
     not_estimable_reason,
     persistence,
     take_spans,
+    thin_design_widening,
 )
 
 CONFIDENCE = 0.95
@@ -63,7 +65,8 @@ a difference of long-tailed levels that share the frame's difficulty, and pooled
 excursion, so misses fall on one side. Unwidened, on series like the workbench's (``benchmarks/run.py coverage``,
 docs/statistics.md), the pooled difference covered 0.88-0.92 and the ratio of pooled alphas 0.92 at persistence
 0.9-0.96; the ratio of mean alphas (:func:`workbench.stats.ratios.ratio_of_means`, the paper's claims) covered 0.935
-or more wherever it was estimable and is not widened."""
+or more where it was estimable with many batches and is not widened by it (every interval over time is widened where
+few batches fit: :data:`workbench.stats.time_series.THIN_DESIGN`)."""
 POOLED_DIFFERENCE_WIDENING = 1.35
 """The same for a difference of pooled alphas (:func:`paired_pooled_difference`): means of squared errors, whose
 shared difficulty no log ratio cancels; at 1.2 it still covered 0.915-0.925 with squared errors of log-normal sigma
@@ -463,9 +466,10 @@ def batch_means_interval(
     frame's influence ``grad . (x_t - mean)`` is that of overlapping batch means within takes
     (:func:`workbench.stats.time_series.mean_variance`: every run of ``L`` consecutive frames of a take is a batch,
     ``L`` six integrated autocorrelation times of the series' :func:`persistence`, the sum of squares made
-    unbiased for an AR(1) of that persistence), and the interval is ``estimate +- t_{(1+c)/2, d} sqrt(variance)``
-    with ``d`` the overlapping batch means' degrees of freedom (about ``1.5 (n / L - 1)`` for one take); the p-value is
-    that of the t statistic.
+    unbiased for an AR(1) of that persistence), and the interval is ``estimate +- t_{(1+c)/2, d} w sqrt(variance)``
+    with ``d`` the overlapping batch means' degrees of freedom (about ``1.5 (n / L - 1)`` for one take) and
+    ``w = widening (1 + THIN_DESIGN / d^2)`` (``time_series.THIN_DESIGN``: wider where few batches fit); the p-value
+    is that of the t statistic.
 
     Parameters
     ----------
@@ -481,7 +485,9 @@ def batch_means_interval(
     widening : float
         The standard error is multiplied by this (and the p-value is that of the widened t statistic):
         :data:`TAIL_WIDENING` for a difference of mean alphas or a ratio of pooled alphas,
-        :data:`POOLED_DIFFERENCE_WIDENING` for a difference of pooled alphas, 1 for a ratio of mean alphas.
+        :data:`POOLED_DIFFERENCE_WIDENING` for a difference of pooled alphas, 1 for a ratio of mean alphas; and,
+        for every statistic, by :func:`workbench.stats.time_series.thin_design_widening` of its degrees of freedom
+        (``1 + 60 / d^2``: about 1 where many batches fit, 2.67 at the not-estimable threshold of 6).
 
     Returns
     -------
@@ -528,7 +534,7 @@ def batch_means_interval(
     found = replace(found, degrees=degrees)
     if variance <= 0.0:  # the same in every batch: the estimate is exact
         return replace(found, low=estimate, high=estimate, p_value=0.0 if estimate else 1.0)
-    error = widening * math.sqrt(variance)
+    error = widening * thin_design_widening(degrees) * math.sqrt(variance)
     half = _t_quantile(confidence, degrees) * error
     return replace(found, low=estimate - half, high=estimate + half, p_value=_t_p_value(estimate / error, degrees))
 

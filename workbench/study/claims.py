@@ -18,7 +18,9 @@ Kim & Ko report, with least squares at m = n = 18, H 5.2, QE 0.72 and PCA 0.62 %
 An interval that cannot inform gives "not estimable" instead of a verdict: no finite bounds; over time, the
 workbench's rule (``Interval.not_estimable``: too few degrees of freedom, or the persistence at its cap
 :data:`workbench.stats.time_series.PERSISTENCE_MAX`); over folds, fewer than :data:`MIN_DEGREES` degrees of freedom.
-docs/statistics.md states the rule.
+An interval over time that is estimable is the workbench's own, widened where few batches fit
+(:data:`workbench.stats.time_series.THIN_DESIGN`), so a verdict rests only on an interval whose design covers.
+docs/statistics.md states the rule and its measured coverage.
 """
 
 from __future__ import annotations
