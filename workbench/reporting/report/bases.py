@@ -298,9 +298,9 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     return [
         f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second ({method}; "
-        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (the primary "
-        "contrasts QE/H and QE/PCA on the first data variant, or the other rows); '<' only where p_holm is below "
-        "0.05.",
+        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (every tested "
+        "row: QE/H and QE/PCA among them are comparisons at the runs' m, not the paper's claims, which each run "
+        "stored at m = n); '<' only where p_holm is below 0.05.",
         comparisons.drop(columns=["study", "method"]),
     ]
 

@@ -229,6 +229,12 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     incomplete : list of pathlib.Path
         Run folders without a completion marker (left out).
     """
+    runs, incomplete, _ = collect_records(paths)
+    return runs, incomplete
+
+
+def collect_records(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path], list[RunRecord]]:
+    """:func:`collect_runs` with the records it read (their stored claims, for the findings)."""
     from workbench.core.progress import progress
 
     paths = [Path(path) for path in paths]
@@ -237,7 +243,7 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
         raise WorkbenchError(f"no complete run record (a folder with '{DONE}') under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in progress(complete, desc="records")]
     root = paths[0] if len(paths) == 1 and paths[0] not in complete else None
-    return runs_table(records, root), incomplete
+    return runs_table(records, root), incomplete, records
 
 
 def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:

@@ -1,0 +1,72 @@
+"""A sweep's paper claims are judged once, by each run (``metrics.json`` ``claims``): its summary, its report's
+findings and ``workbench collect``'s findings all count the same stored verdicts per sweep cell, and none
+decides a claim again from the sweep's own ratios."""
+
+import pandas as pd
+from test_collect import ALPHA, M, write_record
+
+from workbench.record import record
+from workbench.reporting.collect.sweep import collect_and_write
+from workbench.reporting.findings.claims import RATIOS, counted_verdicts
+from workbench.reporting.findings.sweep import holm_verdicts
+from workbench.reporting.findings.sweep_summary import sweep_summary
+from workbench.reporting.report.sweep import hand_basis_size, sweep_sections
+from workbench.reporting.tables.runs import runs_table, summarise, sweep_comparisons, wide
+from workbench.study.claims import NOT_TESTED
+
+
+def verdict_phrases(records) -> list[str]:
+    """``QE better than H reproduced in 3``, ... : each claim's verdicts counted over the records, from the stored
+    claims themselves."""
+    counted = counted_verdicts([item.claims for item in records], "markers")
+    return [
+        f"{RATIOS[name]} " + ", ".join(f"{verdict} in {count}" for verdict, count in verdicts.items())
+        for (_, name), verdicts in counted.items()
+    ]
+
+
+def test_every_sweep_surface_states_each_cells_stored_claims(tmp_path, monkeypatch):
+    monkeypatch.setitem(M, 0.99, (18, 18, 18))  # at 0.99 every run keeps m = n = 18 and stores its claims
+    folder = tmp_path / "sweep"
+    for job, (coverage, seed) in enumerate(ALPHA):
+        write_record(folder / f"basis.coverage={coverage},dataset.seed={seed}", coverage, seed, job)
+    records = [record.load_record(path) for path in sorted(folder.iterdir())]
+    per_run = runs_table(records, folder)
+    over, swept, column = ["dataset.seed"], ["basis.coverage"], "alpha_abs_mean"
+    comparisons = holm_verdicts(sweep_comparisons(per_run, [column], over), column)
+    summary = wide(summarise(per_run, over=over))
+    summary["paper_alpha"] = summary["basis"].map(per_run.groupby("basis", sort=False)["paper_alpha"].first())
+    summary["n_hand"] = hand_basis_size(summary, swept)
+
+    at_n = [item for item in records if item.config["basis"]["coverage"] == 0.99]
+    expected = verdict_phrases(at_n)
+    # the fixture's stored verdicts: H/QE 7.5, 5, 3.75 all above 1; QE/PCA 2, 1.5, 1.33 against the margin 1.5
+    assert expected == [
+        "QE better than H reproduced in 3",
+        "QE nearly as accurate as PCA not reproduced in 1, not decided in 1, reproduced in 1",
+    ]
+    text = sweep_summary(records, per_run, comparisons, swept, over, column)
+    # the fixture's records keep no solver settings: the report's findings use least squares, as they would, and
+    # its table of choices is left empty (it is not a surface of the claims)
+    monkeypatch.setattr("workbench.reporting.report.sweep.figure_solver", lambda config: ("lstsq", {}))
+    for name in ("choices_rows", "provenance_section", "versions_section"):  # nor its provenance and versions
+        monkeypatch.setattr(f"workbench.reporting.report.sweep.{name}", lambda *args: [])
+    _, sections = sweep_sections(folder, records, per_run, summary, comparisons, swept, [], "test", over)
+    report = [str(line) for line in next(s for s in sections if s.heading == "Findings").blocks[1]]
+    collected = collect_and_write([folder], tmp_path / "out", where={"solver": "lstsq"})["findings"]
+    for surface, lines in (("report", report), ("collect", collected)):
+        cell = [line for line in lines if line.startswith("basis.coverage = 0.99, **markers**: the paper's claims")]
+        assert len(cell) == 1, (surface, lines)
+        assert all(phrase in cell[0] for phrase in expected), (surface, cell)
+        # at m = n the sweep's own QE/H and QE/PCA would judge the claims a second time: not stated, not tested
+        assert not any("QE/H" in line for line in lines if line.startswith("basis.coverage = 0.99")), surface
+        other = [line for line in lines if line.startswith("basis.coverage = 0.9, **markers**: ")]
+        assert len(other) == 1 and f"{NOT_TESTED} in all 3 runs" in other[0], (surface, other)
+        # at the coverage rule's m the sweep's QE/H and QE/PCA are labelled as secondary, not the claims
+        pairs = [line for line in lines if "QE/H" in line and line.startswith("basis.coverage = 0.9,")]
+        assert pairs and all("secondary comparisons at m = 4-6 (not the paper's claims)" in p for p in pairs)
+    assert all(phrase in text for phrase in expected), text
+    # no surface decides a claim from the sweep's ratios: the comparisons table holds no primary family
+    assert "primary" not in set(comparisons["family"])
+    table = pd.read_csv(tmp_path / "out" / "comparisons.csv")
+    assert "primary" not in set(table["family"])
