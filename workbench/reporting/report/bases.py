@@ -16,10 +16,13 @@ from workbench.reporting.tables.runs import (
     config_columns,
     flatten,
     interval_label,
+    is_replicate_key,
     level_statistics,
     paired_comparisons,
     typed_columns,
+    varying_keys,
 )
+from workbench.stats.replicates import pseudo_replicate_reason
 from workbench.stats.statistics import GEOMETRIC
 from workbench.study.summary import headline_column
 
@@ -229,6 +232,8 @@ def bases_figure_rows(bases: OtherBases | None) -> list[tuple]:
     solver, _ = figure_solver(record.config)
     settings = intuitiveness_settings(record)
     note = interval_label(summary, "runs")
+    seeds = [key for key in varying_keys([item.config for item, _ in bases.found]) if is_replicate_key(key)]
+    pseudo = pseudo_replicate_reason(seeds, flatten(record.config))
     caption = (
         f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
         f"shapes, its locality and its usage"
@@ -247,6 +252,7 @@ def bases_figure_rows(bases: OtherBases | None) -> list[tuple]:
                 energy=settings["locality_energy"],
                 threshold=settings["usage_threshold"],
                 title=title,
+                not_replicates=pseudo,
             ),
             BASES_SECTION,
         )

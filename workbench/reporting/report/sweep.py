@@ -42,6 +42,7 @@ from workbench.reporting.report.sections import (
 from workbench.reporting.tables.runs import (
     interval_label,
     is_replicate_key,
+    not_replicates_reason,
     runs_table,
     summarise,
     sweep_comparisons,
@@ -109,6 +110,7 @@ def sweep_figures(
     column = headline_column(first.config)
     solver, _ = figure_solver(first.config)
     label = dataset_label(first)
+    pseudo = not_replicates_reason(per_run, over) if per_run is not None and over else ""
     specs = [
         (
             "coverage_curve",
@@ -150,6 +152,7 @@ def sweep_figures(
                         by=others,
                         panels=[p for p in panels if p != x],
                         points=per_run if per_run is not None and x in per_run.columns else None,
+                        not_replicates=pseudo,
                         title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
                         f"{axis_label(x)}\n{label}",
                     ),
@@ -176,6 +179,7 @@ def sweep_figures(
                         ("rms_mm", "alpha_disp_pooled"),
                         solver=solver,
                         title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}",
+                        not_replicates=pseudo,
                     ),
                     FIGURES_SECTION,
                 )

@@ -302,6 +302,19 @@ def condition_keys(runs: pd.DataFrame, over: Sequence[str] | None) -> tuple[list
     return [column for column in conditions if column not in over], over
 
 
+def not_replicates_reason(runs: pd.DataFrame, over: Sequence[str] | None = None) -> str:
+    """Why the runs of a table are not replicates, "" when they are: per condition, the replicate columns that vary
+    within it (:func:`workbench.stats.replicates.pseudo_replicate_reason`), each distinct reason once. A figure
+    of these runs says it beside its bands and bars, as the comparisons table does in ``pseudo_replicates``."""
+    conditions, over = condition_keys(runs, over)
+    groups = runs.groupby(conditions, sort=False, dropna=False) if conditions else [((), runs)]
+    reasons = []
+    for _, group in groups:
+        varying = [column for column in over if group[column].nunique(dropna=False) > 1]
+        reasons.append(pseudo_replicate_reason(varying, group.iloc[0].to_dict()))
+    return "; ".join(dict.fromkeys(reason for reason in reasons if reason))
+
+
 def summarise(
     runs: pd.DataFrame,
     over: Sequence[str] | None = None,
