@@ -522,8 +522,8 @@ def run_findings(
     data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     parts = dict(list(table.groupby("data", sort=False)))
-    adjusted = adjusted_comparisons(metrics)
-    lines = [multiplicity_text(metrics)] if adjusted else []
+    adjusted = adjusted_comparisons(metrics, settings)
+    lines = [multiplicity_text(metrics, settings)] if adjusted else []
     lines += claims_lines(metrics)
     trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
     detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 else None

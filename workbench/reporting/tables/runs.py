@@ -155,9 +155,10 @@ def never_worse_than(record: RunRecord) -> dict:
         CSV file keeps, where an empty text would come back as a missing value).
     """
     rows = record.rows()
+    solvers = record.config.get("solver")  # each solver's kind and bounds: they decide the solvers' nesting
     found: dict = {}
     for data, facts in (record.metrics.get("data") or {}).items():
-        for identity in run_identities([row for row in rows if row.get("data") == data], facts):
+        for identity in run_identities([row for row in rows if row.get("data") == data], facts, solvers):
             key = (data, *identity.smaller)
             item = "/".join(identity.larger) + (POOLED_ONLY if identity.pooled_only else "")
             found[key] = f"{found[key]};{item}" if key in found else item
