@@ -170,17 +170,23 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping, solvers: Map
         beside_regime_text(table, data, column, metrics, solvers).strip(),
         f"{conditioning}." if conditioning else "",
         rests_on_sentence(entries) + (f" {takes_said[0].upper()}{takes_said[1:]}." if takes_said else ""),
-        f"Caveat: {caveats[0]}." if caveats else "",
+        caveat_sentence(caveats, caveats[0] if caveats else ""),
     ]
     # within the budget: the coverage rule's sentence goes first, then the conditioning, then the caveat's last
-    # clause, then its reason; the claims and what each interval rests on stay
+    # clause, then its reason, then the caveat itself (the summary still says how many the findings hold); the
+    # claims and what each interval rests on stay
     for index in (4, 5):
         if len(" ".join(sentences).split()) > SUMMARY_WORDS:
             sentences[index] = ""
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
-        sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:  # what the data are, without why it matters
-        sentences[-1] = f"Caveat: {caveats[0].split(': ', 1)[0]}."
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS:  # the findings keep every caveat
-        sentences[-1] = ""
+    for shorter in (lambda text: text.rsplit("; ", 1)[0], lambda text: text.split(": ", 1)[0], lambda text: ""):
+        if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
+            sentences[-1] = caveat_sentence(caveats, shorter(caveats[0]))
     return " ".join(sentence for sentence in sentences if sentence)
+
+
+def caveat_sentence(caveats: Sequence[str], first: str) -> str:
+    """``Caveat: <first>. 2 more caveats in the findings.``, or ``3 caveats in the findings.`` when the first is
+    left out to keep the summary within its words: the summary always says that caveats exist."""
+    more = len(caveats) - (1 if first else 0)
+    rest = f"{more}{' more' if first else ''} caveat{'s' if more != 1 else ''} in the findings." if more else ""
+    return " ".join(part for part in (f"Caveat: {first}." if first else "", rest) if part)
