@@ -2,6 +2,8 @@
 forehead markers, about 2 mm in its eyebrows take) and quasi-eigen weights no animator could set (ICT's largest
 |w| about 4.79e3); the summary says that caveats exist even when it has no room for them."""
 
+import pytest
+
 from workbench.reporting.findings.caveats import (
     QE_WEIGHT_BOUND,
     STABILISATION_RESIDUAL_MM,
@@ -65,3 +67,25 @@ def test_the_summary_says_caveats_exist_when_it_states_only_the_first_or_none():
     assert caveat_sentence(caveats, "") == "3 caveats in the findings."
     assert caveat_sentence(caveats[:1], caveats[0]) == "Caveat: the capture is a blend."
     assert caveat_sentence([], "") == ""
+
+
+@pytest.mark.slow
+def test_the_animface_record_shows_its_rigid_set_moving_and_its_report_says_so(shared_data, tmp_path):
+    """On the real AnimFace takes (every 20th frame, least squares) the record's own stabilisation residuals put the
+    caveat into the findings, and the summary says how many caveats the findings hold."""
+    from workbench.api import run
+    from workbench.record.record import load_record
+    from workbench.reporting.findings.run_summary import SUMMARY_WORDS, run_summary
+    from workbench.settings.config import compose
+    from workbench.study.summary import headline_column
+
+    folder = tmp_path / "run"
+    overrides = ["dataset=animface", f"paths.data_root={shared_data}", "dataset.frame_step=20", "solver=lstsq"]
+    run(compose("paper", overrides), folder)
+    record = load_record(folder)
+    caveats = caveat_texts(record.metrics)
+    moving = next(text for text in caveats if text.startswith("the rigid set that removes head motion"))
+    assert "ForeHead_M" in moving and "animface_eyebrows (" in moving, moving
+    summary = run_summary(record.table, headline_column(record.config), record.metrics, record.config["solver"])
+    assert len(summary.split()) <= SUMMARY_WORDS
+    assert f"{len(caveats) - 1} more caveats in the findings." in summary or f"{len(caveats)} caveats" in summary
