@@ -370,7 +370,7 @@ def summary_inputs(folder):
 
     records = [record.load_record(path) for path in sorted(folder.iterdir()) if (path / record.DONE).exists()]
     runs = runs_table(records, folder)
-    comparisons = holm_verdicts(sweep_comparisons(runs, ["alpha_abs_mean"], ["dataset.seed"]), "alpha_abs_mean")
+    comparisons = holm_verdicts(sweep_comparisons(runs, ["alpha_abs_mean"], ["dataset.seed"]))
     return records, runs, comparisons
 
 

@@ -522,7 +522,7 @@ def test_sweep_comparisons_are_holm_adjusted_within_one_family_and_identities_ar
             for data, first, second, ratio, low, high, p in rows
         ]
     )
-    adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
+    adjusted = holm_verdicts(comparisons)
     assert adjusted[FAMILY_COLUMN].tolist() == ["secondary"] * 6 + ["identity"]
     at = list(adjusted.columns).index("p")
     assert list(adjusted.columns[at : at + 3]) == ["p", HOLM_COLUMN, FAMILY_COLUMN]
@@ -537,7 +537,7 @@ def test_sweep_comparisons_are_holm_adjusted_within_one_family_and_identities_ar
         "**mesh**, lstsq, `alpha_abs_mean`: secondary comparisons at the runs' own m (not the paper's claims): QE/H "
         "0.25 [0.2, 0.3], Holm p 0.12, QE/PCA 0.33 [0.3, 0.37], Holm p 0.12.",
     ]
-    text = holm_text(adjusted, "alpha_abs_mean")
+    text = holm_text(adjusted)
     assert "Holm over every tested row (6 rows; QE/H and QE/PCA among them" in text, text
     assert "intervals: 95 % interval, unadjusted; verdict by Holm" in text and "(1 row)" in text
 
@@ -864,8 +864,8 @@ def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
             for b in bases[i + 1 :]
         ]
     )
-    comparisons = holm_verdicts(comparisons, "alpha_abs_mean")
-    lines = [holm_text(comparisons, "alpha_abs_mean")] + [
+    comparisons = holm_verdicts(comparisons)
+    lines = [holm_text(comparisons)] + [
         line
         for solver in ("lstsq", "nnls")
         for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)

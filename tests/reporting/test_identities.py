@@ -120,7 +120,7 @@ def test_a_sweep_over_an_optimisers_seed_draws_no_ordering():
     row = pseudo.iloc[0]
     assert row["verdict"] == PSEUDO_REPLICATES and math.isnan(row["p"])
     assert "basis.alternatives_seed" in row["pseudo_replicates"] and row["ratio_high"] < 1.0  # the bounds stay
-    adjusted = holm_verdicts(pseudo, "alpha_abs_mean")
+    adjusted = holm_verdicts(pseudo)
     assert adjusted["verdict"].iloc[0] == PSEUDO_REPLICATES
     interval = comparison_interval(adjusted, "ICA", "H-fit")
     assert not interval.excludes_null and "not replicates" in interval.not_estimable

@@ -33,7 +33,7 @@ def test_every_sweep_surface_states_each_cells_stored_claims(tmp_path, monkeypat
     records = [record.load_record(path) for path in sorted(folder.iterdir())]
     per_run = runs_table(records, folder)
     over, swept, column = ["dataset.seed"], ["basis.coverage"], "alpha_abs_mean"
-    comparisons = holm_verdicts(sweep_comparisons(per_run, [column], over), column)
+    comparisons = holm_verdicts(sweep_comparisons(per_run, [column], over))
     summary = wide(summarise(per_run, over=over))
     summary["paper_alpha"] = summary["basis"].map(per_run.groupby("basis", sort=False)["paper_alpha"].first())
     summary["n_hand"] = hand_basis_size(summary, swept)

@@ -278,7 +278,7 @@ def collect_and_write(
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
-    comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where), metric)
+    comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where))
     solvers = (
         [(where or {}).get("solver")]
         if (where or {}).get("solver")
@@ -287,7 +287,7 @@ def collect_and_write(
     swept = [key for key in conditions if key != "dataset.train_on"]
     lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
     claims = cell_claims(records, swept, base_variant(lead if lead is not None else str(runs["data"].iloc[0])))
-    findings = [holm_text(comparisons, metric), *replicate_caveat(over)] + [
+    findings = [holm_text(comparisons), *replicate_caveat(over)] + [
         line
         for solver in solvers
         for line in sweep_statements(wide(summary), comparisons, swept, compared, solver, claims)

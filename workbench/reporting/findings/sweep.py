@@ -62,7 +62,7 @@ def comparison_families(comparisons: pd.DataFrame) -> list[str]:
     ]
 
 
-def holm_verdicts(comparisons: pd.DataFrame, column: str | None = None, solver: str = "lstsq") -> pd.DataFrame:
+def holm_verdicts(comparisons: pd.DataFrame) -> pd.DataFrame:
     """A sweep's comparisons table with its families (:func:`comparison_families`) and Holm's adjustment over every
     tested row together; each row's Holm-adjusted p-value goes into :data:`HOLM_COLUMN`
     (:func:`workbench.stats.statistics.holm`) and its ``verdict`` is ``<`` only where that is below 0.05. An
@@ -74,8 +74,6 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str | None = None, solver: 
     comparisons : pandas.DataFrame
         :func:`workbench.reporting.tables.runs.sweep_comparisons`: ``first``, ``second``, ``metric``, ``ratio``,
         ``ratio_low``, ``ratio_high``, ``verdict``, ``p`` and, per row, its condition, ``data`` and ``solver``.
-    column, solver : str
-        Kept for the callers' sake; the family no longer depends on them.
 
     Returns
     -------
@@ -118,7 +116,7 @@ def rows_text(count: int) -> str:
     return f"{count} row{'' if count == 1 else 's'}"
 
 
-def holm_text(comparisons: pd.DataFrame, column: str | None = None, solver: str = "lstsq") -> str:
+def holm_text(comparisons: pd.DataFrame) -> str:
     """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the one Holm
     family and its size, the identities (:func:`holm_verdicts`), and that the paper's claims are the runs' own."""
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"

@@ -339,7 +339,7 @@ def with_bases_section(
             paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
             for name in (column, *COMPARED_INTUITIVENESS)
         ]
-        comparisons = holm_verdicts(pd.concat(compared, ignore_index=True), column, solver)
+        comparisons = holm_verdicts(pd.concat(compared, ignore_index=True))
     several = int(summary["n_seeds"].max()) > 1
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons

@@ -233,7 +233,7 @@ def sweep_sections(
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
     claims = cell_claims(records, swept, base_variant(summary_lead(per_run, comparisons)))
     findings = [
-        holm_text(comparisons, column),
+        holm_text(comparisons),
         *replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]),
     ] + [
         line
@@ -313,7 +313,7 @@ def build_sweep_report(
     intuitiveness = intuitiveness_comparisons(records, per_run, over)
     if len(intuitiveness):
         compared = pd.concat([compared, intuitiveness], ignore_index=True)
-    comparisons = holm_verdicts(compared, column)
+    comparisons = holm_verdicts(compared)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     bases = other_bases(records)
