@@ -230,8 +230,8 @@ def test_alpha_table_exact_text(sweep, tmp_path):
     assert findings[0].startswith(
         "- **how to read**: the paper's claims are those each run stored at m = n (its own interval), counted per "
         "condition; levels: geometric means over the replicates; 'A < B': A/B per replicate (paired t on log "
-        "ratios, n = 3) below 1 by its p_holm < 0.05, Holm over every tested row (6 rows; QE/H and QE/PCA among "
-        "them: secondary comparisons at the cell's m (not the paper's claims))"
+        "ratios, n = 3) below 1 by its p_holm < 0.05, Holm over every tested row (6 rows, QE/H and QE/PCA at each "
+        "cell's m among them: secondary, not the paper's claims)"
     )
     # no run is at m = n: each cell says so from its runs' stored claims, and QE/H, QE/PCA at the coverage rule's
     # m are secondary comparisons, Holm-adjusted with every other row (QE/H at 0.99: p 0.0146 * 6 = 0.087)

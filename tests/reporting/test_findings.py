@@ -538,7 +538,7 @@ def test_sweep_comparisons_are_holm_adjusted_within_one_family_and_identities_ar
         "0.25 [0.2, 0.3], Holm p 0.12, QE/PCA 0.33 [0.3, 0.37], Holm p 0.12.",
     ]
     text = holm_text(adjusted)
-    assert "Holm over every tested row (6 rows; QE/H and QE/PCA among them" in text, text
+    assert "Holm over every tested row (6 rows, QE/H and QE/PCA at each cell's m among them" in text, text
     assert "intervals: 95 % interval, unadjusted; verdict by Holm" in text and "(1 row)" in text
 
 

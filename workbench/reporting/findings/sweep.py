@@ -126,9 +126,8 @@ def holm_text(comparisons: pd.DataFrame) -> str:
         f"**how to read**: the paper's claims are those each run stored at m = n (its own interval), counted per "
         f"condition; levels: geometric means over the replicates; 'A < B': A/B per replicate ({method}, n = {n}) "
         f"below 1 by its {HOLM_COLUMN} < {1 - CONFIDENCE:.2g}, Holm over every tested row "
-        f"({rows_text(sizes[SECONDARY])}; QE/H and QE/PCA among them: "
-        + SECONDARY_NOTE.format(m="the cell's m")
-        + "); "
+        f"({rows_text(sizes[SECONDARY])}, QE/H and QE/PCA at each cell's m among them: secondary, not the paper's "
+        "claims); "
         f"intervals: {INTERVAL_NOTE}; '~': not distinguishable; '=': a tie; 'A <= B by construction' "
         f"({rows_text(sizes[IDENTITY])}): holds in every replicate, not tested; each number is a row of "
         "comparisons.csv."
