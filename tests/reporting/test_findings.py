@@ -452,7 +452,7 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     ]
     # with the cell's stored claims: a line of its own before the ordering, never left out (a plain line)
     stated = sweep_findings(
-        summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", claims={("0.99",): "the claims"}
+        summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", claims={(("0.99",), "mesh"): "the claims"}
     )
     assert stated[0] == "basis.coverage = 0.99, **mesh**: the claims." and type(stated[0]) is str
     # at m = n the sweep's own QE/H and QE/PCA would judge the claims a second time: left out

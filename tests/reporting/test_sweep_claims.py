@@ -2,7 +2,10 @@
 findings and ``workbench collect``'s findings all count the same stored verdicts per sweep cell, and none
 decides a claim again from the sweep's own ratios."""
 
+import re
+
 import pandas as pd
+import pytest
 from test_collect import ALPHA, M, write_record
 
 from workbench.record import record
@@ -15,10 +18,10 @@ from workbench.reporting.tables.runs import runs_table, summarise, sweep_compari
 from workbench.study.claims import NOT_TESTED
 
 
-def verdict_phrases(records) -> list[str]:
+def verdict_phrases(records, base="markers") -> list[str]:
     """``QE better than H reproduced in 3``, ... : each claim's verdicts counted over the records, from the stored
     claims themselves."""
-    counted = counted_verdicts([item.claims for item in records], "markers")
+    counted = counted_verdicts([item.claims for item in records], base)
     return [
         f"{RATIOS[name]} " + ", ".join(f"{verdict} in {count}" for verdict, count in verdicts.items())
         for (_, name), verdicts in counted.items()
@@ -70,3 +73,36 @@ def test_every_sweep_surface_states_each_cells_stored_claims(tmp_path, monkeypat
     assert "primary" not in set(comparisons["family"])
     table = pd.read_csv(tmp_path / "out" / "comparisons.csv")
     assert "primary" not in set(table["family"])
+
+
+@pytest.mark.slow
+def test_a_real_sweep_with_the_papers_regime_states_its_runs_claims_alike_everywhere(tmp_path):
+    """Four tiny runs (two coverages, two seeds) with the m = n variant: the summary, the report's findings and
+    collect's findings count the same stored verdicts, and no ordering at m = n puts its own '<' between QE and H
+    or PCA."""
+    from workbench.api import run
+    from workbench.reporting.report.sweep import build_sweep_report
+    from workbench.settings.config import compose
+
+    root = tmp_path / "sweep"
+    for k, (coverage, seed) in enumerate((c, s) for c in (0.99, 0.999) for s in (0, 1)):
+        overrides = ["dataset.n_frames=300", f"basis.coverage={coverage}", f"dataset.seed={seed}", "solver=lstsq"]
+        run(compose("paper", overrides), root / str(k))
+    records = [record.load_record(root / str(k)) for k in range(4)]
+    build_sweep_report(root, tmp_path / "report", formats=("svg",))
+    readme = (tmp_path / "report" / "README.md").read_text()
+    summary = readme.split("## Summary\n\n", 1)[1].split("\n## ", 1)[0]
+    report = [
+        line[2:] for line in readme.split("## Findings", 1)[1].split("\n## ", 1)[0].splitlines() if line[:2] == "- "
+    ]
+    collected = collect_and_write([root], tmp_path / "out")["findings"]
+    cell = [item for item in records if item.config["basis"]["coverage"] == 0.99]
+    phrases = verdict_phrases(cell)
+    assert all(phrase in summary for phrase in phrases), (phrases, summary)
+    for lines in (report, collected):
+        said = [line for line in lines if line.startswith("basis.coverage = 0.99, **markers m=n**: the paper's")]
+        assert len(said) == 1 and all(phrase in said[0] for phrase in phrases), (phrases, said)
+        for line in lines:
+            if "**markers m=n** (" in line and ", lstsq) `alpha_abs_mean`" in line:
+                assert not re.search(r"QE [0-9.]+ < (H|PCA) |(H|PCA) [0-9.]+ < QE ", line), line
+                assert line.endswith("(QE against H and PCA: the runs' stored claims)."), line

@@ -45,7 +45,6 @@ from workbench.reporting.tables.runs import (
 )
 from workbench.reporting.tables.width import printed
 from workbench.stats.statistics import GEOMETRIC
-from workbench.study.claims import base_variant
 
 EXTRA_FORMATS = {"m": "{:.0f}", "n": "{:.0f}", "coverage": "{:.4f}", "n_points": "{:.0f}", "time_total": "{:.1f}"}
 ALPHA_METRICS = ("alpha_abs_mean", "alpha_abs_pooled", "alpha_disp_mean", "alpha_disp_pooled")
@@ -286,7 +285,7 @@ def collect_and_write(
     )
     swept = [key for key in conditions if key != "dataset.train_on"]
     lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
-    claims = cell_claims(records, swept, base_variant(lead if lead is not None else str(runs["data"].iloc[0])))
+    claims = cell_claims(records, swept, lead if lead is not None else str(runs["data"].iloc[0]))
     findings = [holm_text(comparisons), *replicate_caveat(over)] + [
         line
         for solver in solvers

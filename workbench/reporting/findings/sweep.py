@@ -32,6 +32,7 @@ from workbench.stats.statistics import (
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
 from workbench.stats.stored import comparison_lookup
+from workbench.study.claims import base_variant
 from workbench.study.regime import is_paper_regime
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
@@ -183,7 +184,12 @@ def _range_text(row, column: str) -> str:
 
 
 def ordering_with_intervals(
-    part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis", primary: str = ""
+    part: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    column: str,
+    key: str = "basis",
+    primary: str = "",
+    judged: Sequence[tuple] = (),
 ) -> str:
     """The bases of one condition from best to worst by their geometric mean, each neighbouring pair joined by its
     verdict in the comparisons table (``<``, ``~`` not distinguishable, ``=`` a tie, ``,`` no comparison), then
@@ -205,6 +211,8 @@ def ordering_with_intervals(
         What is ordered: ``basis``, or ``train_on`` (one basis fitted on each data variant).
     primary : str
         The label of :data:`PRIMARY_PAIRS`' intervals at this condition (empty: not stated).
+    judged : sequence of tuple
+        Pairs judged elsewhere (the runs' stored claims at m = n): joined by ``,``, no verdict of the sweep's own.
     """
     ranked = part.dropna(subset=[column]).sort_values(column, kind="stable")
     hand = ranked[ranked["basis"] == "H"] if key == "basis" else ranked.iloc[:0]
@@ -216,6 +224,8 @@ def ordering_with_intervals(
         names[row[key]] = f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''}"
 
     def compare(first, second):
+        if {first, second} in [set(pair) for pair in judged]:
+            return None
         interval = comparison_interval(comparisons, first, second)
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
@@ -296,23 +306,28 @@ def condition_key(values: Sequence) -> tuple:
     return tuple(str(value) for value in values)
 
 
-def cell_claims(records: Sequence, swept: Sequence[str], base: str) -> dict:
-    """Each sweep cell's claims: :func:`condition_key` of its swept values -> the claims its runs stored at m = n,
-    counted (:func:`workbench.reporting.findings.claims.counted_claims_text`).
+def cell_claims(records: Sequence, swept: Sequence[str], lead: str) -> dict:
+    """Each sweep cell's claims per data variant: ``(condition_key, base)`` -> the claims its runs stored at m = n
+    for that base variant, counted (:func:`workbench.reporting.findings.claims.counted_claims_text`): for the lead
+    variant's base always (saying "not tested at m = n" and why where no run has them), for another base only where
+    some run stored claims for it.
 
     Parameters
     ----------
     records : sequence of workbench.record.record.RunRecord
     swept : sequence of str
         The condition keys (dotted config names).
-    base : str
-        The data variant the claims are of (the lead variant's base).
+    lead : str
+        The lead data variant (that of the sweep's summary).
     """
     cells: dict = {}
     for record in records:
         flat = flatten(record.config)
         cells.setdefault(condition_key([flat.get(key) for key in swept]), []).append(record.claims)
-    return {key: counted_claims_text(claims, base) for key, claims in cells.items()}
+    bases = {base_variant(lead)} | {
+        entry["base"] for record in records for entry in (record.claims or {}).get("entries") or []
+    }
+    return {(key, base): counted_claims_text(claims, base) for key, claims in cells.items() for base in bases}
 
 
 def sweep_findings(
@@ -326,10 +341,11 @@ def sweep_findings(
 ) -> list[str]:
     """Findings of a sweep, one per swept condition and data variant: m over the runs and the bases from best to
     worst by their geometric mean over the replicates, each neighbouring pair joined by its verdict in the
-    comparisons table (:func:`ordering_with_intervals`); on the lead (first) data variant, with least squares and
-    the headline column, the paper's claims as the cell's runs stored them (``claims``, a line never left out) and,
-    where the cell is not at m = n, QE/H and QE/PCA over the replicates labelled :data:`SECONDARY_NOTE` (at m = n
-    they would judge the claims a second time, and are left out). Every number is a cell of the summary, of the
+    comparisons table (:func:`ordering_with_intervals`); with least squares and the headline column, the paper's
+    claims as the cell's runs stored them (``claims``, a line never left out, before the first line of each base
+    variant that has them), no verdict of the sweep's own on QE against H and PCA in a variant at m = n (the claims
+    judge those), and on the lead (first) variant, where the cell is not at m = n, QE/H and QE/PCA over the
+    replicates labelled :data:`SECONDARY_NOTE`. Every number is a cell of the summary, of the
     comparisons table or of a run's stored claims; each ordering a :class:`workbench.reporting.findings.run.Detail`
     (those of another solver or column go first when the findings run over their words).
 
@@ -348,7 +364,8 @@ def sweep_findings(
     headline : bool
         Whether ``column`` is the headline alpha (that of the paper's claims).
     claims : mapping, optional
-        :func:`cell_claims`: each cell's stored claims as text (none: not stated).
+        :func:`cell_claims`: each cell's stored claims per base variant as text (none: not stated, and the
+        orderings at m = n judge QE against H and PCA themselves, as before the runs stored claims).
 
     Returns
     -------
@@ -359,7 +376,7 @@ def sweep_findings(
     lead = next(iter(summary["data"]), None)
     primary = headline and solver == "lstsq"
     rank = 1 if primary else 2
-    lines = []
+    lines, told = [], set()
     for values, part in rows.groupby(keys, sort=False, dropna=False):
         values = values if isinstance(values, tuple) else (values,)
         mine = _matching(comparisons, keys, values)
@@ -368,12 +385,23 @@ def sweep_findings(
         m = f"m = {_range_text(first, 'm')}; " if _has(part, "m") else ""
         on_lead = primary and values[-1] == lead
         head = f"{setting + ', ' if setting else ''}**{values[-1]}**"
-        if on_lead and claims is not None and claims.get(condition_key(values[:-1])):
-            lines.append(f"{head}: {claims[condition_key(values[:-1])]}.")
+        said = (condition_key(values[:-1]), base_variant(values[-1]))
+        stated = (claims or {}).get(said) if primary and said not in told else None
+        if stated:  # the cell's stored claims of this variant's base, once, before its first line
+            lines.append(f"{head}: {stated}.")
+            told.add(said)
+        # at m = n the runs' stored claims judge QE against H and PCA: the sweep's own ratios do not a second time
+        at_n = primary and claims is not None and (is_paper_regime(values[-1]) or at_m_equals_n(part))
+        ordering = ordering_with_intervals(part, mine, column, judged=PRIMARY_PAIRS if at_n else ())
         where = f"the tables 'Paired comparisons' and '{column} over seeds'"
-        ordering = ordering_with_intervals(part, mine, column)
         lines.append(
-            Detail(f"{head} ({m}{int(part['n_seeds'].max())} seeds, {solver}) `{column}`: {ordering}.", rank, where)
+            Detail(
+                f"{head} ({m}{int(part['n_seeds'].max())} seeds, {solver}) `{column}`: {ordering}"
+                + (" (QE against H and PCA: the runs' stored claims)" if at_n else "")
+                + ".",
+                rank,
+                where,
+            )
         )
         pairs = claim_pairs_text(mine, set(part["basis"])) if on_lead else ""
         if pairs and not is_paper_regime(values[-1]) and not at_m_equals_n(part):

@@ -49,7 +49,6 @@ from workbench.reporting.tables.runs import (
     varying_keys,
     wide,
 )
-from workbench.study.claims import base_variant
 from workbench.study.regime import is_paper_regime
 from workbench.study.summary import headline_column
 
@@ -231,7 +230,7 @@ def sweep_sections(
     hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
     compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
-    claims = cell_claims(records, swept, base_variant(summary_lead(per_run, comparisons)))
+    claims = cell_claims(records, swept, summary_lead(per_run, comparisons))
     findings = [
         holm_text(comparisons),
         *replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]),
