@@ -106,3 +106,20 @@ def test_a_real_sweep_with_the_papers_regime_states_its_runs_claims_alike_everyw
             if "**markers m=n** (" in line and ", lstsq) `alpha_abs_mean`" in line:
                 assert not re.search(r"QE [0-9.]+ < (H|PCA) |(H|PCA) [0-9.]+ < QE ", line), line
                 assert line.endswith("(QE against H and PCA: the runs' stored claims)."), line
+
+
+def test_a_run_without_claims_for_a_variant_counts_as_not_tested_for_it():
+    """A run that stored claims for mesh only is not tested at m = n on markers: no other variant's verdicts stand
+    in for the one asked."""
+    from test_collect import stored_claims
+
+    mesh = stored_claims(18, 5.0, 1.2)
+    mesh["entries"] = [dict(entry, data="mesh m=n", base="mesh") for entry in mesh["entries"]]
+    assert counted_verdicts([mesh], "mesh") == {
+        ("training frames", "H/QE"): {"reproduced": 1},
+        ("training frames", "QE/PCA"): {"reproduced": 1},
+    }
+    assert counted_verdicts([mesh], "markers") == {
+        ("training frames", "H/QE"): {NOT_TESTED: 1},
+        ("training frames", "QE/PCA"): {NOT_TESTED: 1},
+    }

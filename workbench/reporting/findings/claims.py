@@ -271,13 +271,20 @@ def why_not_tested(claims: Mapping) -> str:
     return f"{head}; {hint}" if hint else head
 
 
+def base_entries(claims: Mapping | None, base: str) -> list[dict]:
+    """The stored claims of the base variant ``base`` on every protocol, training frames first; empty when the run
+    stored none for it (unlike :func:`lead_entries`, no other variant's stand in)."""
+    chosen = [entry for entry in (claims or {}).get("entries") or [] if entry["base"] == base]
+    return sorted(chosen, key=lambda entry: entry["protocol"] != TRAINING)
+
+
 def counted_verdicts(claims: Sequence[Mapping | None], base: str) -> dict:
     """The verdicts a group of runs stored, counted: ``(protocol text, "H/QE" or "QE/PCA")`` -> verdict -> runs,
     training frames first; a run that stored no claim at m = n counts as :data:`NOT_TESTED` on the training frames.
     Every sweep surface (its summary, its findings, ``workbench collect``) states these counts and decides none."""
     counted: dict = {}
     for stored in claims:
-        entries = lead_entries(stored, base) if stored else []
+        entries = base_entries(stored, base) if stored else []
         if stored and not entries:
             entries = [{"protocol_text": PROTOCOL_TRAINING, **{name: {"verdict": NOT_TESTED} for name in RATIOS}}]
         for entry in entries:
@@ -302,7 +309,7 @@ def counted_claims_text(claims: Sequence[Mapping | None], base: str) -> str:
     """
     if not claims or any(stored is None for stored in claims):
         return f"{NO_CLAIMS[0].upper()}{NO_CLAIMS[1:]} (some of these runs)"
-    if not any(lead_entries(stored, base) for stored in claims):
+    if not any(base_entries(stored, base) for stored in claims):
         reasons = list(dict.fromkeys(why_not_tested(stored) for stored in claims))
         runs = len(claims)
         return (
@@ -311,7 +318,7 @@ def counted_claims_text(claims: Sequence[Mapping | None], base: str) -> str:
         )
     estimates: dict = {}
     for stored in claims:
-        for entry in lead_entries(stored, base):
+        for entry in base_entries(stored, base):
             for name in RATIOS:
                 if entry[name]["verdict"] not in (NOT_ESTIMABLE, NOT_TESTED):
                     estimates.setdefault((entry["protocol_text"], name), []).append(entry[name]["estimate"])
