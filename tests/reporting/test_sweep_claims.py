@@ -10,7 +10,7 @@ from test_collect import ALPHA, M, write_record
 
 from workbench.record import record
 from workbench.reporting.collect.sweep import collect_and_write
-from workbench.reporting.findings.claims import RATIOS, counted_verdicts
+from workbench.reporting.findings.claims import RATIOS, counted_claims_text, counted_verdicts
 from workbench.reporting.findings.sweep import holm_verdicts
 from workbench.reporting.findings.sweep_summary import sweep_summary
 from workbench.reporting.report.sweep import hand_basis_size, sweep_sections
@@ -123,3 +123,7 @@ def test_a_run_without_claims_for_a_variant_counts_as_not_tested_for_it():
         ("training frames", "H/QE"): {NOT_TESTED: 1},
         ("training frames", "QE/PCA"): {NOT_TESTED: 1},
     }
+    assert counted_claims_text([mesh], "markers") == (
+        "the paper's claims (QE better than H; QE nearly as accurate as PCA): not tested at m = n in 1 run: the "
+        "run's claims are of mesh (its variants at m = n), not of markers"
+    )

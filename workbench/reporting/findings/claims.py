@@ -262,9 +262,13 @@ def _span(values: Sequence[float]) -> str:
     return low if low == high else f"{low}-{high}"
 
 
-def why_not_tested(claims: Mapping) -> str:
-    """Why a run stored no claim at m = n, without the per-variant m it lists (those differ between runs):
-    ``no variant is fitted at m = n with H, QE and PCA under least squares; basis.paper_regime=true adds one``."""
+def why_not_tested(claims: Mapping, base: str = "") -> str:
+    """Why a run stored no claim at m = n for ``base``, without the per-variant m it lists (those differ between
+    runs): ``no variant is fitted at m = n with H, QE and PCA under least squares; basis.paper_regime=true adds
+    one``, or, where it stored claims of other variants only, which."""
+    others = list(dict.fromkeys(entry["base"] for entry in claims.get("entries") or [] if entry["base"] != base))
+    if others:
+        return f"the run's claims are of {', '.join(others)} (its variants at m = n), not of {base}"
     reason = str(claims.get("not_tested") or NOT_TESTED).removeprefix(f"{NOT_TESTED}: ")
     head, _, rest = reason.partition(" (")
     hint = rest.rsplit("; ", 1)[-1].removesuffix(")") if "; " in rest else ""
@@ -310,7 +314,7 @@ def counted_claims_text(claims: Sequence[Mapping | None], base: str) -> str:
     if not claims or any(stored is None for stored in claims):
         return f"{NO_CLAIMS[0].upper()}{NO_CLAIMS[1:]} (some of these runs)"
     if not any(base_entries(stored, base) for stored in claims):
-        reasons = list(dict.fromkeys(why_not_tested(stored) for stored in claims))
+        reasons = list(dict.fromkeys(why_not_tested(stored, base) for stored in claims))
         runs = len(claims)
         return (
             f"the paper's claims ({CLAIM_1}; {CLAIM_2}): {NOT_TESTED} in {'all ' if runs > 1 else ''}{runs} "
