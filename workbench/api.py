@@ -553,11 +553,11 @@ def run(
     with results[0].timings.stage("comparisons"):
         comparisons = {result.data: frame_comparisons(result, metric) for result in results}
         ratios = {result.data: claim_ratios(result, metric) for result in results}
-        claims = claims_at_m_equals_n(results, metric, settings.metric.claim_margin)
+        claims = claims_at_m_equals_n(results, metric, settings.metric.claim_margin, resolved["solver"])
     sentence = reproduced_sentence(claims)
     opening = fit_width(sentence) + "\n" if sentence else ""
     header = study_header(results, settings)
-    closing = headline(table, metric, paper_alpha, comparisons, result_identities(results), claims)
+    closing = headline(table, metric, paper_alpha, comparisons, result_identities(results, resolved["solver"]), claims)
     text = opening + header + "\n" + printed_tables(table) + "\n" + closing
 
     metrics = run_metrics(

@@ -370,13 +370,14 @@ def test_a_sweep_whose_seeds_disagree_is_not_distinguishable_and_no_interval_goe
     assert main([str(sweep), "--where", "solver=lstsq", "--wide"]) == 0
     printed = capsys.readouterr().out
     assert " ".join(printed.split()) == " ".join(fitted.split())  # the same text, its long lines whole
-    finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95"))
+    finding = next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95, **markers** (m"))
+    finding += next(line for line in printed.splitlines() if line.startswith("- basis.coverage = 0.95, **markers**, "))
     assert "QE 0.267 ~ H 0.32 ~" in finding and "QE/H 0.835 [0.00179, 389]" in finding
     assert "QE < H" not in finding and "H < QE" not in finding
     assert "A/B per replicate (paired t on log ratios, n = 2)" in printed  # the method, said once
     # every interval printed, in the table and in the findings, lies above zero, and names its method and n
     bounds = [float(value) for pair in re.findall(r"\[([-0-9.e]+), ([-0-9.e]+)\]", printed) for value in pair]
-    # 7 cells of the table (QE at 0.995 is 0.16 on both seeds: no interval), the 2 primary contrasts at each coverage
+    # 7 cells of the table (QE at 0.995 is 0.16 on both seeds: no interval), QE/H and QE/PCA at each coverage
     assert len(bounds) >= 2 * (7 + 2 * 2) and min(bounds) > 0
     assert "geometric mean, t-interval on log values, n = 2 per cell" in printed
     comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
@@ -445,9 +446,19 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     )
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq") == [
         "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
-        "0.169 < H 0.312; QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]."
+        "0.169 < H 0.312.",
+        "basis.coverage = 0.99, **mesh**, lstsq, `alpha_abs_mean`: secondary comparisons at m = 9-11 (not the "
+        "paper's claims): QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02].",
     ]
-    # another solver or column: the ordering only (the primary contrasts are those of lstsq and the headline)
+    # with the cell's stored claims: a line of its own before the ordering, never left out (a plain line)
+    stated = sweep_findings(
+        summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", claims={(("0.99",), "mesh"): "the claims"}
+    )
+    assert stated[0] == "basis.coverage = 0.99, **mesh**: the claims." and type(stated[0]) is str
+    # at m = n the sweep's own QE/H and QE/PCA would judge the claims a second time: left out
+    at_n = summary.assign(m_min=18, m_max=18, n_min=18, n_max=18)
+    assert "QE/H" not in " ".join(sweep_findings(at_n, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq"))
+    # another solver or column: the ordering only (the claims are those of lstsq and the headline)
     assert sweep_findings(summary, comparisons, ["basis.coverage"], "alpha_abs_mean", "lstsq", headline=False) == [
         "basis.coverage = 0.99, **mesh** (m = 9-11; 5 seeds, lstsq) `alpha_abs_mean`: QE 0.162 ~ PCA (n = 9-11) "
         "0.169 < H 0.312."
@@ -458,11 +469,11 @@ def test_sweep_findings_state_each_neighbouring_pair_from_its_interval():
     )
 
 
-def test_sweep_comparisons_are_holm_adjusted_within_two_families_and_identities_are_not_tested():
-    """Known p-values through the sweep path: QE/H and QE/PCA (lstsq, headline, first data variant) are the primary
-    family, p (0.04, 0.03) -> (0.06, 0.06); the four other tested rows are the secondary family, p (0.01, 0.02,
-    0.03, 0.04) -> (0.04, 0.06, 0.06, 0.06), so only their first stays '<' although every raw p is below 0.05 and
-    every interval excludes 1; an ordering by construction is neither, with no p-value."""
+def test_sweep_comparisons_are_holm_adjusted_within_one_family_and_identities_are_not_tested():
+    """Known p-values through the sweep path: QE/H and QE/PCA at the sweep's m are no primary contrast (the paper's
+    claims are the runs' stored ones) and join the other tested rows in one Holm family, p (0.04, 0.03, 0.01,
+    0.02, 0.03, 0.04) -> (0.12, 0.12, 0.06, 0.1, 0.12, 0.12), so none stays '<' although every raw p is below 0.05
+    and every interval excludes 1; an ordering by construction is not tested, with no p-value."""
     from workbench.reporting.findings.sweep import (
         FAMILY_COLUMN,
         HOLM_COLUMN,
@@ -511,31 +522,23 @@ def test_sweep_comparisons_are_holm_adjusted_within_two_families_and_identities_
             for data, first, second, ratio, low, high, p in rows
         ]
     )
-    adjusted = holm_verdicts(comparisons, "alpha_abs_mean")
-    assert adjusted[FAMILY_COLUMN].tolist() == ["primary"] * 2 + ["secondary"] * 4 + ["identity"]
+    adjusted = holm_verdicts(comparisons)
+    assert adjusted[FAMILY_COLUMN].tolist() == ["secondary"] * 6 + ["identity"]
     at = list(adjusted.columns).index("p")
     assert list(adjusted.columns[at : at + 3]) == ["p", HOLM_COLUMN, FAMILY_COLUMN]
-    assert adjusted[HOLM_COLUMN].iloc[:2].tolist() == pytest.approx([0.06, 0.06])  # the primaries together
-    assert adjusted[HOLM_COLUMN].iloc[2:6].tolist() == pytest.approx([0.04, 0.06, 0.06, 0.06])
+    assert adjusted[HOLM_COLUMN].iloc[:6].tolist() == pytest.approx([0.12, 0.12, 0.06, 0.1, 0.12, 0.12])
     assert math.isnan(adjusted[HOLM_COLUMN].iloc[6])  # an identity spends no test
-    assert adjusted["verdict"].tolist() == [
-        "not distinguishable",
-        "not distinguishable",
-        "<",
-        "not distinguishable",
-        "not distinguishable",
-        "not distinguishable",
-        "<= by construction",
-    ]
+    assert adjusted["verdict"].tolist() == ["not distinguishable"] * 6 + ["<= by construction"]
     assert comparisons["verdict"].tolist()[:6] == ["<"] * 6  # the input is left as it was
-    assert family_sizes(adjusted) == {"primary": 2, "secondary": 4, "identity": 1}
+    assert family_sizes(adjusted) == {"secondary": 6, "identity": 1}
     lines = sweep_findings(summary, adjusted, [], "alpha_abs_mean", "lstsq")
-    assert lines[0] == (
-        "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 < QE-linear 0.2 ~ PCA 0.3, H 0.4; QE/H 0.25 [0.2, 0.3], "
-        "Holm p 0.06, QE/PCA 0.33 [0.3, 0.37], Holm p 0.06."
-    )
-    text = holm_text(adjusted, "alpha_abs_mean")
-    assert "each condition; 2 rows) or the others (4 rows)" in text, text
+    assert lines[:2] == [
+        "**mesh** (5 seeds, lstsq) `alpha_abs_mean`: QE 0.1 ~ QE-linear 0.2 ~ PCA 0.3, H 0.4.",
+        "**mesh**, lstsq, `alpha_abs_mean`: secondary comparisons at the runs' own m (not the paper's claims): QE/H "
+        "0.25 [0.2, 0.3], Holm p 0.12, QE/PCA 0.33 [0.3, 0.37], Holm p 0.12.",
+    ]
+    text = holm_text(adjusted)
+    assert "Holm over every tested row (6 rows, QE/H and QE/PCA at each cell's m among them" in text, text
     assert "intervals: 95 % interval, unadjusted; verdict by Holm" in text and "(1 row)" in text
 
 
@@ -566,8 +569,8 @@ def test_bases_findings_mark_sizes_and_state_closeness_only_where_the_interval_a
     columns = ["data", "metric", "first", "second", "n", "ratio", "ratio_low", "ratio_high", "method", "verdict"]
     comparisons = pd.DataFrame([dict(zip(columns, row)) for row in rows])
     assert bases_findings(summary, comparisons, "alpha_abs_mean") == [
-        "**mesh** (5 runs) `alpha_abs_mean`: SPCA 0.1 < PCA (n = 10) 0.15 < QE 0.2 < H 1; QE/H 0.2 [0.18, 0.22], "
-        "QE/PCA 1.33 [1.25, 1.43].",
+        "**mesh** (5 runs) `alpha_abs_mean`: SPCA 0.1 < PCA (n = 10) 0.15 < QE 0.2 < H 1; secondary comparisons at "
+        "the runs' m (not the paper's claims): QE/H 0.2 [0.18, 0.22], QE/PCA 1.33 [1.25, 1.43].",
         "**mesh**: bases of other sizes than the hand basis's n = 18: PCA n = 10; their alpha is not that of a basis "
         "of the same size.",
         "**mesh**: closest to the hand shapes (mean matched |cosine|): QE 0.660, then SPCA 0.450 (the hand shapes' "
@@ -861,8 +864,8 @@ def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
             for b in bases[i + 1 :]
         ]
     )
-    comparisons = holm_verdicts(comparisons, "alpha_abs_mean")
-    lines = [holm_text(comparisons, "alpha_abs_mean")] + [
+    comparisons = holm_verdicts(comparisons)
+    lines = [holm_text(comparisons)] + [
         line
         for solver in ("lstsq", "nnls")
         for line in sweep_statements(summary, comparisons, ["basis.coverage"], ["alpha_abs_mean"], solver)
@@ -872,10 +875,13 @@ def test_a_sweep_of_many_conditions_keeps_its_findings_within_800_words():
     fitted = fit_findings([section])[0].blocks[1]
     assert words(section.blocks) <= 800
     assert fitted[0].startswith("**how to read**") and fitted[-1].startswith("**left out**: ")
-    # another solver's lines go before any of the lead solver's, the latest first
+    # another solver's lines go before any of the lead solver's orderings, the latest first, and QE/H and QE/PCA
+    # at the sweep's m (secondary comparisons, not the paper's claims) next
     assert all(line in fitted for line in lines if ", lstsq) " in line)
     left_out = [line for line in lines if line not in fitted]
-    assert left_out and all(", nnls) " in line for line in left_out) and left_out == lines[-len(left_out) :]
+    nnls = [line for line in lines if ", nnls) " in line]
+    assert left_out and all(line in left_out for line in nnls)
+    assert all("secondary comparisons at m = 8-10" in line for line in left_out if line not in nnls)
     assert fitted[1].startswith("basis.coverage = 0.9, **markers** (m = 8-10; 5 seeds, lstsq) `alpha_abs_mean`: ")
 
 

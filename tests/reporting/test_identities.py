@@ -120,7 +120,7 @@ def test_a_sweep_over_an_optimisers_seed_draws_no_ordering():
     row = pseudo.iloc[0]
     assert row["verdict"] == PSEUDO_REPLICATES and math.isnan(row["p"])
     assert "basis.alternatives_seed" in row["pseudo_replicates"] and row["ratio_high"] < 1.0  # the bounds stay
-    adjusted = holm_verdicts(pseudo, "alpha_abs_mean")
+    adjusted = holm_verdicts(pseudo)
     assert adjusted["verdict"].iloc[0] == PSEUDO_REPLICATES
     interval = comparison_interval(adjusted, "ICA", "H-fit")
     assert not interval.excludes_null and "not replicates" in interval.not_estimable
@@ -165,3 +165,37 @@ def test_qe_is_h_when_every_hand_shape_lies_in_the_eigenface_hyperplane():
     # a cross-validated variant: in every fold
     folded = dict(facts(0.0), folds={"hand_residual": {"affine": [1e-12, 0.2]}})
     assert identity_lookup(run_identities(rows, folded), "alpha_abs_mean")(("QE", "lstsq"), ("H", "lstsq")) is None
+
+
+def test_the_sweep_figures_say_in_their_legends_when_the_runs_are_not_replicates():
+    """Runs that differ only in an optimiser's seed: every sweep figure's legend says they are not replicates, and
+    no figure text orders them; over a seed of the data the legend says nothing of it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workbench.reporting.figures.bases import plot_alpha_against_intuitiveness
+    from workbench.reporting.figures.studies import plot_alpha_against, plot_marker_vs_mesh
+    from workbench.reporting.tables.runs import not_replicates_reason, summarise, wide
+
+    def texts(figure):
+        return [text.get_text() for text in figure.findobj(matplotlib.text.Text)]
+
+    for seed_key, pseudo in (("basis.alternatives_seed", True), ("dataset.seed", False)):
+        runs = sweep_runs(seed_key).assign(study="bases")
+        reason = not_replicates_reason(runs, [seed_key])
+        assert bool(reason) == pseudo and (not pseudo or "basis.alternatives_seed" in reason)
+        summary = wide(summarise(runs, over=[seed_key])).assign(
+            **{"basis.hand_subset": "all", "matched_abs_cosine": 0.5, "locality": 0.2, "usage": 0.5}
+        )
+        figures = [
+            plot_alpha_against(summary, "basis.hand_subset", title="t", not_replicates=reason),
+            plot_marker_vs_mesh(summary, "alpha_abs_mean", title="t", not_replicates=reason),
+            plot_alpha_against_intuitiveness(summary, title="t", not_replicates=reason),
+        ]
+        for figure in figures:
+            title = figure.legends[0].get_title().get_text().replace("\n", " ")
+            assert title.startswith("not replicates: the runs differ only in basis.alternatives_seed") == pseudo
+            assert not any("<" in text for text in texts(figure)), texts(figure)
+            plt.close(figure)

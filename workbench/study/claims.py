@@ -84,13 +84,15 @@ def base_variant(data: str) -> str:
     return data.split(" held-out ", 1)[0].removesuffix(" m=n")
 
 
-def result_identities(results: Sequence) -> dict:
+def result_identities(results: Sequence, solvers: Mapping | None = None) -> dict:
     """Data variant -> the orderings its rows hold by construction
     (:func:`workbench.stats.identities.run_identities`), from the results as ``metrics.json`` would keep them.
 
     Parameters
     ----------
     results : sequence of workbench.study.results.StudyResult
+    solvers : mapping, optional
+        The run's ``solver`` settings (each solver's kind and bounds), which decide the solvers' nesting.
     """
     found = {}
     for result in results:
@@ -115,7 +117,7 @@ def result_identities(results: Sequence) -> dict:
             },
             **({"folds": result.folds} if getattr(result, "folds", None) else {}),
         }
-        found[result.data] = run_identities(rows, facts)
+        found[result.data] = run_identities(rows, facts, solvers)
     return found
 
 
@@ -336,7 +338,9 @@ def _qe_spans_pca(identities: Sequence) -> str:
     return ""
 
 
-def claims_at_m_equals_n(results: Sequence, metric: Mapping, margin: float = CLAIM_MARGIN) -> dict:
+def claims_at_m_equals_n(
+    results: Sequence, metric: Mapping, margin: float = CLAIM_MARGIN, solvers: Mapping | None = None
+) -> dict:
     """The paper's two claims of a run, as ``metrics.json`` keeps them (``claims``).
 
     Parameters
@@ -348,6 +352,8 @@ def claims_at_m_equals_n(results: Sequence, metric: Mapping, margin: float = CLA
         The ``metric`` config group: the headline's normalisation and aggregate.
     margin : float
         Claim 2's non-inferiority margin (``metric.claim_margin``).
+    solvers : mapping, optional
+        The run's ``solver`` settings (:func:`result_identities`).
 
     Returns
     -------
@@ -359,7 +365,7 @@ def claims_at_m_equals_n(results: Sequence, metric: Mapping, margin: float = CLA
     """
     normalisation = "abs" if metric["headline_normalisation"] == "absolute" else "disp"
     column = f"alpha_{normalisation}_{metric['headline_aggregate']}"
-    identities = result_identities(results)
+    identities = result_identities(results, solvers)
     entries, seen_m = [], []
     for result in results:
         if result.transfer != "identity":

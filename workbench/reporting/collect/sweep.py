@@ -37,7 +37,7 @@ from workbench.reporting.tables.cells import FLOAT_FORMATS, frame_cells, is_miss
 from workbench.reporting.tables.runs import (
     PCA_SOLVER,
     STATISTICS,
-    collect_runs,
+    collect_records,
     condition_keys,
     summarise,
     sweep_comparisons,
@@ -260,10 +260,16 @@ def collect_and_write(
         ``n_runs``, ``n_incomplete``, ``markdown`` (the alpha table's text), ``findings`` (lines) and ``files``
         (paths written).
     """
-    from workbench.reporting.findings.sweep import holm_text, holm_verdicts, replicate_caveat, sweep_statements
+    from workbench.reporting.findings.sweep import (
+        cell_claims,
+        holm_text,
+        holm_verdicts,
+        replicate_caveat,
+        sweep_statements,
+    )
 
     paths = [Path(path) for path in paths]
-    runs, incomplete = collect_runs(paths)
+    runs, incomplete, records = collect_records(paths)
     conditions, over = condition_keys(runs, over)
     summary = summarise(runs, over)
     header, rows, n_text = alpha_grid(summary, metric=metric, columns=columns, where=where, extra=extra)
@@ -271,15 +277,19 @@ def collect_and_write(
     numeric = [i >= n_text for i in range(len(header))]
     markdown = title + "\n\n" + markdown_table(header, rows, numeric)
     compared = [name for name in (metric, f"clean_{metric}") if name in runs.columns]
-    comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where), metric)
+    comparisons = holm_verdicts(filtered(sweep_comparisons(runs, compared, over), where))
     solvers = (
         [(where or {}).get("solver")]
         if (where or {}).get("solver")
         else [solver for solver in dict.fromkeys(runs["solver"]) if solver != PCA_SOLVER] or [PCA_SOLVER]
     )
     swept = [key for key in conditions if key != "dataset.train_on"]
-    findings = [holm_text(comparisons, metric), *replicate_caveat(over)] + [
-        line for solver in solvers for line in sweep_statements(wide(summary), comparisons, swept, compared, solver)
+    lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
+    claims = cell_claims(records, swept, lead if lead is not None else str(runs["data"].iloc[0]))
+    findings = [holm_text(comparisons), *replicate_caveat(over)] + [
+        line
+        for solver in solvers
+        for line in sweep_statements(wide(summary), comparisons, swept, compared, solver, claims)
     ]
     out = Path(out)
     files = {
@@ -337,10 +347,10 @@ def comparisons_markdown(comparisons: pd.DataFrame, over: Sequence[str]) -> str:
     return (
         f"{metrics}: per pair of bases, the geometric mean of the per-replicate ratio first / second and its "
         f"interval ({method} over {', '.join(over) or 'no replicate key'}; {INTERVAL_NOTE}), the smaller first; "
-        "'<' only where p_holm, Holm's adjustment within the row's family, is below 0.05: 'primary' (QE/H and "
-        "QE/PCA, lstsq, the headline alpha, the first data variant, every condition) or 'secondary' (every other "
-        "tested row); 'identity', '<= by construction': holds in every replicate whatever the data, not tested, no "
-        "p-value (the reason in by_construction)\n\n" + markdown_table(header, rows, numeric)
+        "'<' only where p_holm, Holm's adjustment within the row's family, is below 0.05: 'secondary' (every tested "
+        "row, QE/H and QE/PCA among them: comparisons at the row's m, not the paper's claims, which each run stored "
+        "at m = n and findings.md counts); 'identity', '<= by construction': holds in every replicate whatever the "
+        "data, not tested, no p-value (the reason in by_construction)\n\n" + markdown_table(header, rows, numeric)
     )
 
 

@@ -81,6 +81,20 @@ def wrap_title(text: str, width_inches: float, fontsize: float = 11) -> str:
     return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
 
 
+def replicates_legend(figure, handles, labels, not_replicates: str, width_inches: float, **options):
+    """The figure's legend below its panels; where the runs behind its bands or bars are not replicates (they differ
+    only in an optimiser's seed: ``not_replicates`` says so, :func:`workbench.stats.replicates.pseudo_replicate_reason`)
+    the legend's title says it, and that no ordering is drawn from them."""
+    title = (
+        wrap_title(f"not replicates: {not_replicates}; the spread is that seed's, no ordering", width_inches, 8)
+        if not_replicates
+        else None
+    )
+    return figure.legend(
+        handles, labels, loc="outside lower center", frameon=False, title=title, title_fontsize=8, **options
+    )
+
+
 def text_width(text: str, fontsize: float) -> float:
     """The width in inches of one line of text drawn in the figures' font (DejaVu Sans) at ``fontsize`` points."""
     from matplotlib.font_manager import FontProperties

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from workbench.reporting.figures import basis_colour, new_figure, wrap_title
+from workbench.reporting.figures import basis_colour, new_figure, replicates_legend, wrap_title
 from workbench.reporting.figures.studies import axis_label, check_columns, ordered_bases
 from workbench.settings.bases import ALTERNATIVE_BASES
 
@@ -38,7 +38,13 @@ INTUITIVENESS_AXES = (
 
 
 def plot_alpha_against_intuitiveness(
-    table: pd.DataFrame, y: str = "alpha_abs_mean", *, title: str, energy: float = 0.9, threshold: float = 0.1
+    table: pd.DataFrame,
+    y: str = "alpha_abs_mean",
+    *,
+    title: str,
+    energy: float = 0.9,
+    threshold: float = 0.1,
+    not_replicates: str = "",
 ) -> Figure:
     """Alpha against each measure of intuitiveness, one point per basis: the trade-off in one picture.
 
@@ -53,6 +59,8 @@ def plot_alpha_against_intuitiveness(
     title : str
     energy, threshold : float
         The locality energy and usage threshold the measures used (for the axis labels).
+    not_replicates : str
+        Why the runs behind the error bars are not replicates, said in the legend; empty when they are.
 
     Returns
     -------
@@ -107,7 +115,7 @@ def plot_alpha_against_intuitiveness(
         row[0].set_ylabel(f"{axis_label(y)}{', log scale' if log_y else ''}\n(lower: more accurate)", fontsize=9)
         row[0].set_title(f"data: {data}", fontsize=10, loc="left")
     handles, labels = grid[0, 0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 9), fontsize=9, frameon=False)
+    replicates_legend(figure, handles, labels, not_replicates, width, ncols=min(len(labels), 9), fontsize=9)
     figure.suptitle(wrap_title(title, width), fontsize=11)
     figure.draw_without_rendering()  # the final layout, so labels are placed where the points are drawn
     for ax in grid.ravel():

@@ -32,7 +32,15 @@ from matplotlib.figure import Figure
 
 from workbench.core.errors import WorkbenchError
 from workbench.core.solvers import solver_hatch
-from workbench.reporting.figures import DATA_COLOURS, basis_colour, basis_label, fixed_decimals, new_figure, wrap_title
+from workbench.reporting.figures import (
+    DATA_COLOURS,
+    basis_colour,
+    basis_label,
+    fixed_decimals,
+    new_figure,
+    replicates_legend,
+    wrap_title,
+)
 from workbench.reporting.tables.runs import interval_label
 from workbench.study.regime import PAPER_REGIME_SUFFIX
 
@@ -197,10 +205,11 @@ def plot_alpha_against(
     log_x: bool = False,
     points: pd.DataFrame | None = None,
     panels: Sequence[str] = ("data",),
+    not_replicates: str = "",
 ) -> Figure:
     """Alpha against a swept setting, one line per basis and one panel per data variant, with the 95 % interval
     over seeds as a band where the table has one (its method and n in the title) and every seed's own value as a
-    small point.
+    small point; where the runs are not replicates, the legend says so.
 
     Parameters
     ----------
@@ -222,6 +231,9 @@ def plot_alpha_against(
         One row per run and table row (columns as ``table``): every seed's value, drawn as small points.
     panels : sequence of str
         Columns whose combinations get a panel each (default: the data variant).
+    not_replicates : str
+        Why the seeds are not replicates (:func:`workbench.reporting.tables.runs.not_replicates_reason`), said in
+        the legend; empty when they are.
 
     Returns
     -------
@@ -272,7 +284,7 @@ def plot_alpha_against(
     handles, labels = axes[-1].get_legend_handles_labels()
     # As many legend columns as the longest label leaves room for (about 5 points per character at size 8).
     columns = max(1, min(4, int(width * 72 / (5.0 * max(len(label) for label in labels) + 40))))
-    figure.legend(handles, labels, loc="outside lower center", ncols=columns, fontsize=8, frameon=False)
+    replicates_legend(figure, handles, labels, not_replicates, width, ncols=columns, fontsize=8)
     figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", width), fontsize=11)
     return figure
 
@@ -357,7 +369,12 @@ def _draw_basis(
 
 
 def plot_marker_vs_mesh(
-    table: pd.DataFrame, y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"), *, solver: str = "lstsq", title: str
+    table: pd.DataFrame,
+    y: str | Sequence[str] = ("rms_mm", "alpha_disp_pooled"),
+    *,
+    solver: str = "lstsq",
+    title: str,
+    not_replicates: str = "",
 ) -> Figure:
     """Each basis fitted on each data variant, scored on one evaluation set per panel (bars, with the 95 %
     interval where the table has one): values compare within a panel, never across panels, whose points differ.
@@ -373,6 +390,8 @@ def plot_marker_vs_mesh(
         depend on where the coordinate origin is).
     solver : str
     title : str
+    not_replicates : str
+        Why the seeds are not replicates, said in the legend (:func:`plot_alpha_against`); empty when they are.
 
     Returns
     -------
@@ -432,13 +451,8 @@ def plot_marker_vs_mesh(
         if ci is not None and rows[list(ci)].notna().any(axis=None):
             notes.append(interval_label(rows))
     # every colour drawn in any panel has its entry (a panel alone may hold only some of the variants)
-    figure.legend(
-        list(legend.values()),
-        list(legend),
-        loc="outside lower center",
-        ncols=max(1, len(legend)),
-        fontsize=8,
-        frameon=False,
+    replicates_legend(
+        figure, list(legend.values()), list(legend), not_replicates, figure_width, ncols=max(1, len(legend)), fontsize=8
     )
     band = f", error bars: {notes[0]}" if notes else ""
     figure.suptitle(wrap_title(f"{title}\nsolver {solver}{band}", figure_width), fontsize=10)

@@ -21,6 +21,7 @@ from workbench.study.claims import (
     NOT_REPRODUCED,
     NOT_TESTED,
     PAPER_RATIOS,
+    PROTOCOL_TEXT,
     REPRODUCED,
     REVERSED,
     TRAINING,
@@ -42,6 +43,9 @@ __all__ = [
 CLAIM_1 = "QE better than H"
 CLAIM_2 = "QE nearly as accurate as PCA"
 NO_CLAIMS = "the record keeps no claims (written before runs stored them): rerun it for the paper's claims"
+RATIOS = {"H/QE": CLAIM_1, "QE/PCA": CLAIM_2}
+"""Each claim's ratio -> its name."""
+PROTOCOL_TRAINING = PROTOCOL_TEXT[TRAINING]
 
 
 def number(value: float) -> str:
@@ -247,3 +251,89 @@ def claim_cell(stored: Mapping) -> str:
     if stored["verdict"] == NOT_ESTIMABLE:
         return f"{stored['ratio']}: {NOT_ESTIMABLE}"
     return f"{ratio_text(stored, stored['ratio'])}: {stored['verdict']}"
+
+
+def _span(values: Sequence[float]) -> str:
+    """``1.55-1.97`` over the runs (three significant digits), or one value where they agree; ``-`` for none."""
+    values = [float(value) for value in values if value is not None and math.isfinite(float(value))]
+    if not values:
+        return "-"
+    low, high = f"{min(values):.3g}", f"{max(values):.3g}"
+    return low if low == high else f"{low}-{high}"
+
+
+def why_not_tested(claims: Mapping, base: str = "") -> str:
+    """Why a run stored no claim at m = n for ``base``, without the per-variant m it lists (those differ between
+    runs): ``no variant is fitted at m = n with H, QE and PCA under least squares; basis.paper_regime=true adds
+    one``, or, where it stored claims of other variants only, which."""
+    others = list(dict.fromkeys(entry["base"] for entry in claims.get("entries") or [] if entry["base"] != base))
+    if others:
+        return f"the run's claims are of {', '.join(others)} (its variants at m = n), not of {base}"
+    reason = str(claims.get("not_tested") or NOT_TESTED).removeprefix(f"{NOT_TESTED}: ")
+    head, _, rest = reason.partition(" (")
+    hint = rest.rsplit("; ", 1)[-1].removesuffix(")") if "; " in rest else ""
+    return f"{head}; {hint}" if hint else head
+
+
+def base_entries(claims: Mapping | None, base: str) -> list[dict]:
+    """The stored claims of the base variant ``base`` on every protocol, training frames first; empty when the run
+    stored none for it (unlike :func:`lead_entries`, no other variant's stand in)."""
+    chosen = [entry for entry in (claims or {}).get("entries") or [] if entry["base"] == base]
+    return sorted(chosen, key=lambda entry: entry["protocol"] != TRAINING)
+
+
+def counted_verdicts(claims: Sequence[Mapping | None], base: str) -> dict:
+    """The verdicts a group of runs stored, counted: ``(protocol text, "H/QE" or "QE/PCA")`` -> verdict -> runs,
+    training frames first; a run that stored no claim at m = n counts as :data:`NOT_TESTED` on the training frames.
+    Every sweep surface (its summary, its findings, ``workbench collect``) states these counts and decides none."""
+    counted: dict = {}
+    for stored in claims:
+        entries = base_entries(stored, base) if stored else []
+        if stored and not entries:
+            entries = [{"protocol_text": PROTOCOL_TRAINING, **{name: {"verdict": NOT_TESTED} for name in RATIOS}}]
+        for entry in entries:
+            for name in RATIOS:
+                verdicts = counted.setdefault((entry["protocol_text"], name), {})
+                verdicts[entry[name]["verdict"]] = verdicts.get(entry[name]["verdict"], 0) + 1
+    return counted
+
+
+def counted_claims_text(claims: Sequence[Mapping | None], base: str) -> str:
+    """The paper's claims as a group of runs (a sweep cell) stored them, counted over the runs per protocol, each
+    claim's ratio as a range over the runs where estimable: ``the paper's claims at m = n, as each run stored them
+    (its own interval; claim 2 against the margin 1.5): training frames: QE better than H reproduced in 4, not
+    decided in 1 (H/QE 1.55-1.97); ...``, or ``... not tested at m = n in all 5 runs: <why>``.
+
+    Parameters
+    ----------
+    claims : sequence of mapping or None
+        Each run's ``metrics.json`` ``claims`` (None: a record written before runs kept them).
+    base : str
+        The data variant the claims are of (:func:`workbench.study.claims.base_variant` of the lead variant).
+    """
+    if not claims or any(stored is None for stored in claims):
+        return f"{NO_CLAIMS[0].upper()}{NO_CLAIMS[1:]} (some of these runs)"
+    if not any(base_entries(stored, base) for stored in claims):
+        reasons = list(dict.fromkeys(why_not_tested(stored, base) for stored in claims))
+        runs = len(claims)
+        return (
+            f"the paper's claims ({CLAIM_1}; {CLAIM_2}): {NOT_TESTED} in {'all ' if runs > 1 else ''}{runs} "
+            f"run{'s' if runs != 1 else ''}: {' / '.join(reasons)}"
+        )
+    estimates: dict = {}
+    for stored in claims:
+        for entry in base_entries(stored, base):
+            for name in RATIOS:
+                if entry[name]["verdict"] not in (NOT_ESTIMABLE, NOT_TESTED):
+                    estimates.setdefault((entry["protocol_text"], name), []).append(entry[name]["estimate"])
+    parts: dict = {}
+    for (protocol, name), verdicts in counted_verdicts(claims, base).items():
+        counted = ", ".join(f"{verdict} in {count}" for verdict, count in verdicts.items())
+        values = estimates.get((protocol, name))
+        sizes = f" ({name} {_span(values)})" if values else ""
+        parts.setdefault(protocol, []).append(f"{RATIOS[name]} {counted}{sizes}")
+    margin = next(stored.get("margin") for stored in claims)
+    return (
+        f"the paper's claims at m = n, as each run stored them (its own interval; claim 2 against the margin "
+        f"{margin:g}): " + ". ".join(f"{protocol}: {'; '.join(said)}" for protocol, said in parts.items())
+    )

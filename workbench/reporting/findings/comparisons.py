@@ -67,17 +67,18 @@ def with_claims(metrics: Mapping) -> dict:
     return stored
 
 
-def adjusted_comparisons(metrics: Mapping) -> dict:
+def adjusted_comparisons(metrics: Mapping, solvers: Mapping | None = None) -> dict:
     """Data variant -> its stored comparisons (:func:`with_claims`), every one but the primary contrasts (the
     stored claims; on a record without them :data:`PRIMARY_CONTRASTS` on :func:`primary_data`) with its
     Holm-adjusted p-value (:func:`workbench.stats.stored.holm_adjusted`) over the run's family; comparisons of
-    records without p-values keep their unadjusted interval."""
+    records without p-values keep their unadjusted interval. ``solvers``: the run's ``solver`` settings (its
+    config), whose bounds decide which solvers nest (an identity, not tested)."""
     lead = primary_data(metrics)
     data_facts = metrics.get("data") or {}
     stored = with_claims(metrics)
     identities = {
         data: run_identities(
-            [row for row in metrics.get("rows") or [] if row.get("data") == data], data_facts.get(data) or {}
+            [row for row in metrics.get("rows") or [] if row.get("data") == data], data_facts.get(data) or {}, solvers
         )
         for data in stored
     }
@@ -97,9 +98,10 @@ def adjusted_comparisons(metrics: Mapping) -> dict:
     return holm_adjusted(stored, untested) if any(stored.values()) else {}
 
 
-def multiplicity_text(metrics: Mapping) -> str:
-    """The sentence that says how the run's orderings are decided, once, above them."""
-    adjusted = adjusted_comparisons(metrics)
+def multiplicity_text(metrics: Mapping, solvers: Mapping | None = None) -> str:
+    """The sentence that says how the run's orderings are decided, once, above them (``solvers``: the run's
+    ``solver`` settings, :func:`adjusted_comparisons`)."""
+    adjusted = adjusted_comparisons(metrics, solvers)
     family = sum(1 for entries in adjusted.values() for entry in entries if "holm_family" in entry)
     without = sum(
         1
@@ -117,7 +119,7 @@ def multiplicity_text(metrics: Mapping) -> str:
     return text + "."
 
 
-def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFrame:
+def comparison_table(metrics: Mapping, column: str | None = None, solvers: Mapping | None = None) -> pd.DataFrame:
     """The run's paired comparisons as the report's table 'Paired comparisons within the run', with what decides
     each verdict: an identity (``a <= b by construction``, no test), a tie (``a = b``), or the interval, at its
     own 95 % for a primary contrast and Holm-adjusted otherwise (``p (Holm)``).
@@ -128,6 +130,8 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
         The run's ``metrics.json``.
     column : str, optional
         The alpha column compared (the comparisons' own ``column`` when not given).
+    solvers : mapping, optional
+        The run's ``solver`` settings (its config): their bounds decide which solvers nest.
 
     Returns
     -------
@@ -136,10 +140,10 @@ def comparison_table(metrics: Mapping, column: str | None = None) -> pd.DataFram
         ``p (Holm)`` (NaN for a primary contrast; both NaN for an identity or a tie, which are not tested), ``frames``, ``batch (frames)``, ``batch (s)``, ``verdict``.
     """
     records = []
-    for data, entries in adjusted_comparisons(metrics).items():
+    for data, entries in adjusted_comparisons(metrics, solvers).items():
         facts = (metrics.get("data") or {}).get(data) or {}
         rows = [row for row in metrics.get("rows") or [] if row.get("data") == data]
-        identities = run_identities(rows, facts)
+        identities = run_identities(rows, facts, solvers)
         for entry in entries:
             interval = Interval.from_dict(entry)
             a, b = tuple(entry["a"]), tuple(entry["b"])

@@ -21,6 +21,7 @@ from typing import Mapping, Sequence
 import pandas as pd
 
 from workbench.core.solvers import constrained_solvers, solver_text
+from workbench.reporting.findings.caveats import stabilisation_caveat, weights_caveat
 from workbench.reporting.findings.claims import NOT_TESTED, entry_text, lead_entries
 from workbench.reporting.findings.claims import m_text as claims_m_text
 from workbench.reporting.findings.comparisons import (
@@ -413,8 +414,9 @@ def closeness_line(intuitiveness: Sequence[Mapping]) -> str:
 
 
 def caveat_texts(metrics: Mapping) -> list[str]:
-    """The caveats that apply to a run, from its facts: what the data are made of, and which data variants were
-    scored on the frames their bases were fitted on."""
+    """The caveats that apply to a run, from its facts: what the data are made of, a stabilisation the face moves
+    and quasi-eigen weights no animator could use (:mod:`workbench.reporting.findings.caveats`, each against its
+    stated threshold), and which data variants were scored on the frames their bases were fitted on."""
     dataset = metrics.get("dataset") or {}
     provenance = dataset.get("provenance") or {}
     kind = provenance.get("kind")
@@ -444,6 +446,7 @@ def caveat_texts(metrics: Mapping) -> list[str]:
             "built from H's own shapes, which flatters H against a real capture; H against QE here weighs the "
             "generator's non-linearity against PCA's truncation, not a sculpted basis"
         )
+    caveats += [text for text in (stabilisation_caveat(metrics), weights_caveat(metrics)) if text]
     trained = [
         data
         for data, facts in (metrics.get("data") or {}).items()
@@ -522,8 +525,8 @@ def run_findings(
     data_facts, rows = metrics.get("data") or {}, metrics.get("rows") or []
     solvers = [solver for solver in dict.fromkeys(table["solver"]) if solver != "projection"]
     parts = dict(list(table.groupby("data", sort=False)))
-    adjusted = adjusted_comparisons(metrics)
-    lines = [multiplicity_text(metrics)] if adjusted else []
+    adjusted = adjusted_comparisons(metrics, settings)
+    lines = [multiplicity_text(metrics, settings)] if adjusted else []
     lines += claims_lines(metrics)
     trained = [data for data in parts if scored_on_training_frames(data_facts.get(data) or {})]
     detailed = (primary_data(metrics) if primary_data(metrics) in trained else trained[0]) if len(trained) > 1 else None

@@ -94,7 +94,9 @@ def conditioning_text(part: pd.DataFrame, rows: Sequence[Mapping]) -> str:
     return "; ".join(found) + " (the least-squares weights an animator gets)"
 
 
-def beside_regime_text(table: pd.DataFrame, data: str, column: str, metrics: Mapping | None = None) -> str:
+def beside_regime_text(
+    table: pd.DataFrame, data: str, column: str, metrics: Mapping | None = None, solvers: Mapping | None = None
+) -> str:
     """The summary's sentence on the coverage rule's run beside the paper's regime: its m, H/QE and QE/PCA with
     least squares, and (given the run's ``metrics``) whether QE <= PCA holds there by construction (empty unless
     ``data`` is an m = n variant of ``basis.paper_regime`` whose coverage-rule variant is in the table)."""
@@ -107,7 +109,7 @@ def beside_regime_text(table: pd.DataFrame, data: str, column: str, metrics: Map
         return ""
     rows = [row for row in (metrics or {}).get("rows") or [] if row.get("data") == base]
     facts = ((metrics or {}).get("data") or {}).get(base) or {}
-    spans = identity_lookup(run_identities(rows, facts), column)(("QE", "lstsq"), ("PCA", "projection"))
+    spans = identity_lookup(run_identities(rows, facts, solvers), column)(("QE", "lstsq"), ("PCA", "projection"))
     return (
         f" Beside it, the coverage rule on {base} (m = {int(part['m'].iloc[0])}): H/QE "
         f"{values['H'] / values['QE']:.3g}, QE/PCA {values['QE'] / values['PCA']:.3g}"
@@ -115,7 +117,7 @@ def beside_regime_text(table: pd.DataFrame, data: str, column: str, metrics: Map
     )
 
 
-def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
+def run_summary(table: pd.DataFrame, column: str, metrics: Mapping, solvers: Mapping | None = None) -> str:
     """The summary a report opens with (at most about 250 words): the paper's two claims and their verdicts on the
     lead variant (the paper's regime when the run has it), held out at m = n, the coverage m reaches, H's and QE's
     conditioning, what the intervals rest on, and the caveat that matters most. Pages put it above the findings.
@@ -128,6 +130,8 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         The headline alpha column.
     metrics : mapping
         The run's ``metrics.json``.
+    solvers : mapping, optional
+        The run's ``solver`` settings (its config): their bounds decide which solvers nest.
 
     Returns
     -------
@@ -163,20 +167,26 @@ def run_summary(table: pd.DataFrame, column: str, metrics: Mapping) -> str:
         said,
         held_out_claims_text(entries),
         agreement_sentence(entries),
-        beside_regime_text(table, data, column, metrics).strip(),
+        beside_regime_text(table, data, column, metrics, solvers).strip(),
         f"{conditioning}." if conditioning else "",
         rests_on_sentence(entries) + (f" {takes_said[0].upper()}{takes_said[1:]}." if takes_said else ""),
-        f"Caveat: {caveats[0]}." if caveats else "",
+        caveat_sentence(caveats, caveats[0] if caveats else ""),
     ]
     # within the budget: the coverage rule's sentence goes first, then the conditioning, then the caveat's last
-    # clause, then its reason; the claims and what each interval rests on stay
+    # clause, then its reason, then the caveat itself (the summary still says how many the findings hold); the
+    # claims and what each interval rests on stay
     for index in (4, 5):
         if len(" ".join(sentences).split()) > SUMMARY_WORDS:
             sentences[index] = ""
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
-        sentences[-1] = f"Caveat: {caveats[0].rsplit('; ', 1)[0]}."
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:  # what the data are, without why it matters
-        sentences[-1] = f"Caveat: {caveats[0].split(': ', 1)[0]}."
-    if len(" ".join(sentences).split()) > SUMMARY_WORDS:  # the findings keep every caveat
-        sentences[-1] = ""
+    for shorter in (lambda text: text.rsplit("; ", 1)[0], lambda text: text.split(": ", 1)[0], lambda text: ""):
+        if len(" ".join(sentences).split()) > SUMMARY_WORDS and caveats:
+            sentences[-1] = caveat_sentence(caveats, shorter(caveats[0]))
     return " ".join(sentence for sentence in sentences if sentence)
+
+
+def caveat_sentence(caveats: Sequence[str], first: str) -> str:
+    """``Caveat: <first>. 2 more caveats in the findings.``, or ``3 caveats in the findings.`` when the first is
+    left out to keep the summary within its words: the summary always says that caveats exist."""
+    more = len(caveats) - (1 if first else 0)
+    rest = f"{more}{' more' if first else ''} caveat{'s' if more != 1 else ''} in the findings." if more else ""
+    return " ".join(part for part in (f"Caveat: {first}." if first else "", rest) if part)

@@ -2,11 +2,12 @@
 
 :func:`sweep_statements` says, per swept condition and data variant, the bases from best to worst by their
 geometric means over the replicates, each neighbouring pair "A < B" only where the paired per-replicate ratio's
-verdict allows it and "A ~ B" otherwise, and the primary contrasts (QE against H and against PCA) with their
-intervals; every other ratio, interval and p-value is a row of the sweep's comparisons table. :func:`holm_verdicts`
-decides the verdicts by Holm's adjustment within two families: the primary contrasts of every condition together,
-every other tested comparison of the table together; orderings that hold by construction are a third kind, not
-tested. :func:`bases_findings` adds the other bases' sizes, closeness and locality.
+verdict allows it and "A ~ B" otherwise, and per sweep cell the paper's two claims as its runs stored them at
+m = n (counted, never decided again: :mod:`workbench.study.claims` judges each once); QE/H and QE/PCA over the
+replicates at a cell's own m (not m = n) are stated as secondary comparisons at that m, and every other ratio,
+interval and p-value is a row of the sweep's comparisons table. :func:`holm_verdicts` decides the verdicts by
+Holm's adjustment over every tested row together; orderings that hold by construction are not tested.
+:func:`bases_findings` adds the other bases' sizes, closeness and locality.
 The findings of one run are in :mod:`workbench.reporting.findings.run`.
 """
 
@@ -17,9 +18,10 @@ from typing import Mapping, Sequence
 
 import pandas as pd
 
+from workbench.reporting.findings.claims import counted_claims_text
 from workbench.reporting.findings.run import Detail
 from workbench.reporting.tables.cells import cell_text
-from workbench.reporting.tables.runs import NOT_DISTINGUISHABLE
+from workbench.reporting.tables.runs import NOT_DISTINGUISHABLE, flatten
 from workbench.stats.replicates import PSEUDO_REPLICATES
 from workbench.stats.statistics import (
     CONFIDENCE,
@@ -30,61 +32,49 @@ from workbench.stats.statistics import (
 )
 from workbench.stats.statistics import ordering_text as stated_ordering
 from workbench.stats.stored import comparison_lookup
+from workbench.study.claims import base_variant
+from workbench.study.regime import is_paper_regime
 
 PRIMARY_PAIRS = (("QE", "H"), ("QE", "PCA"))
-"""The paper's claims: QE against H and against PCA (least squares, the headline alpha, the lead data variant) at
-every swept condition, one pre-declared Holm family; every other comparison is a second family."""
+"""The pairs of the paper's claims. Their verdicts are the runs' own, stored at m = n
+(:mod:`workbench.study.claims`) and stated per sweep cell (:func:`workbench.reporting.findings.claims.counted_claims_text`);
+the sweep's paired ratios of these pairs at another m are secondary comparisons, tested with every other row."""
 HOLM_COLUMN = "p_holm"
 """The comparisons table's column with the p-value Holm-adjusted within its family (NaN for an identity)."""
 FAMILY_COLUMN = "family"
-"""The comparisons table's column naming each row's family: :data:`PRIMARY`, :data:`SECONDARY` or :data:`IDENTITY`."""
-PRIMARY, SECONDARY, IDENTITY = "primary", "secondary", "identity"
-"""The families: the primary contrasts (Holm over the conditions together), every other test (Holm within the
-report), and the orderings that hold by construction (no test, no p-value)."""
+"""The comparisons table's column naming each row's family: :data:`SECONDARY` or :data:`IDENTITY`."""
+SECONDARY, IDENTITY = "secondary", "identity"
+"""The families: every tested comparison (one Holm family: the paper's claims are not among them, each run judged
+those once), and the orderings that hold by construction (no test, no p-value)."""
 INTERVAL_NOTE = "95 % interval, unadjusted; verdict by Holm"
 """What the comparisons' intervals are, said beside them: their verdicts use the Holm-adjusted p-value."""
+SECONDARY_NOTE = "secondary comparisons at {m} (not the paper's claims)"
+"""How a sweep's QE/H and QE/PCA over the replicates at a condition's m (not m = n) are labelled."""
 
 
-def is_primary(row: Mapping, column: str, lead: str | None, solver: str = "lstsq") -> bool:
-    """Whether a row of a sweep's comparisons table is a primary contrast (:data:`PRIMARY_PAIRS`)."""
-    pair = {row.get("first"), row.get("second")}
-    return (
-        row.get("metric") == column
-        and row.get("solver", solver) == solver
-        and row.get("data") == lead
-        and any(pair == set(primary) for primary in PRIMARY_PAIRS)
-    )
-
-
-def comparison_families(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> list[str]:
-    """Each row's family: :data:`IDENTITY` where it holds by construction (its ``by_construction`` reason),
-    :data:`PRIMARY` for a primary contrast (:func:`is_primary`, on the table's first data variant), else
-    :data:`SECONDARY`."""
-    lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
+def comparison_families(comparisons: pd.DataFrame) -> list[str]:
+    """Each row's family: :data:`IDENTITY` where it holds by construction (its ``by_construction`` reason), else
+    :data:`SECONDARY` (QE/H and QE/PCA included: the paper's claims are the runs' stored ones)."""
     return [
         IDENTITY
         if isinstance(row.get("by_construction"), str) and row["by_construction"] not in ("", "-")
-        else PRIMARY
-        if is_primary(row, column, lead, solver)
         else SECONDARY
         for row in comparisons.to_dict("records")
     ]
 
 
-def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> pd.DataFrame:
-    """A sweep's comparisons table with its families (:func:`comparison_families`) and Holm's adjustment within
-    each: the primary contrasts of every condition are one family, every other tested row the other; each row's
-    Holm-adjusted p-value goes into :data:`HOLM_COLUMN` (:func:`workbench.stats.statistics.holm`) and its
-    ``verdict`` is ``<`` only where that is below 0.05. An identity keeps its verdict, and has no p-value.
+def holm_verdicts(comparisons: pd.DataFrame) -> pd.DataFrame:
+    """A sweep's comparisons table with its families (:func:`comparison_families`) and Holm's adjustment over every
+    tested row together; each row's Holm-adjusted p-value goes into :data:`HOLM_COLUMN`
+    (:func:`workbench.stats.statistics.holm`) and its ``verdict`` is ``<`` only where that is below 0.05. An
+    identity keeps its verdict, and has no p-value. The paper's two claims are no row's verdict: each run stored
+    them at m = n, and the findings state those.
 
     Parameters
     ----------
     comparisons : pandas.DataFrame
         :func:`workbench.reporting.tables.runs.sweep_comparisons`: ``first``, ``second``, ``metric``, ``ratio``,
         ``ratio_low``, ``ratio_high``, ``verdict``, ``p`` and, per row, its condition, ``data`` and ``solver``.
-    column : str
-        The headline alpha column (that of the primary contrasts).
-    solver : str
 
     Returns
     -------
@@ -94,22 +84,21 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
     table = comparisons.copy()
     if table.empty or "p" not in table.columns:
         return table.assign(**{HOLM_COLUMN: pd.Series(dtype=float), FAMILY_COLUMN: pd.Series(dtype=str)})
-    families = comparison_families(table, column, solver)
+    families = comparison_families(table)
     adjusted = pd.Series(math.nan, index=table.index)
-    for name in (PRIMARY, SECONDARY):
-        family = [k for k, found in enumerate(families) if found == name]
-        adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
-        for k in family:
-            if table["verdict"].iloc[k] == PSEUDO_REPLICATES:  # no test over pseudo-replicates
-                continue
-            interval = Interval(
-                float(table["ratio"].iloc[k]),
-                float(table["ratio_low"].iloc[k]),
-                float(table["ratio_high"].iloc[k]),
-                null=1.0,
-                p_adjusted=float(adjusted.iloc[k]),
-            )
-            table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
+    family = [k for k, found in enumerate(families) if found == SECONDARY]
+    adjusted.iloc[family] = holm(table["p"].iloc[family].to_numpy(float))
+    for k in family:
+        if table["verdict"].iloc[k] == PSEUDO_REPLICATES:  # no test over pseudo-replicates
+            continue
+        interval = Interval(
+            float(table["ratio"].iloc[k]),
+            float(table["ratio_low"].iloc[k]),
+            float(table["ratio_high"].iloc[k]),
+            null=1.0,
+            p_adjusted=float(adjusted.iloc[k]),
+        )
+        table.iloc[k, table.columns.get_loc("verdict")] = "<" if interval.excludes_null else NOT_DISTINGUISHABLE
     at = table.columns.get_loc("p") + 1
     table.insert(at, HOLM_COLUMN, adjusted)
     table.insert(at + 1, FAMILY_COLUMN, families)
@@ -117,10 +106,10 @@ def holm_verdicts(comparisons: pd.DataFrame, column: str, solver: str = "lstsq")
 
 
 def family_sizes(comparisons: pd.DataFrame) -> dict:
-    """Rows per family of a comparisons table (:data:`FAMILY_COLUMN`): ``{"primary": k, "secondary": k,
-    "identity": k}``, zero for a family without rows."""
+    """Rows per family of a comparisons table (:data:`FAMILY_COLUMN`): ``{"secondary": k, "identity": k}``, zero
+    for a family without rows."""
     found = comparisons[FAMILY_COLUMN].value_counts() if FAMILY_COLUMN in comparisons.columns else {}
-    return {name: int(found.get(name, 0)) for name in (PRIMARY, SECONDARY, IDENTITY)}
+    return {name: int(found.get(name, 0)) for name in (SECONDARY, IDENTITY)}
 
 
 def rows_text(count: int) -> str:
@@ -128,20 +117,21 @@ def rows_text(count: int) -> str:
     return f"{count} row{'' if count == 1 else 's'}"
 
 
-def holm_text(comparisons: pd.DataFrame, column: str, solver: str = "lstsq") -> str:
-    """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the two
-    Holm families and their sizes, and the identities (:func:`holm_verdicts`)."""
+def holm_text(comparisons: pd.DataFrame) -> str:
+    """The sentence that says, once, how a sweep's orderings are decided: the method of the intervals, the one Holm
+    family and its size, the identities (:func:`holm_verdicts`), and that the paper's claims are the runs' own."""
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     n = int(comparisons["n"].max()) if len(comparisons) else 0
     sizes = family_sizes(comparisons)
-    lead = next(iter(comparisons["data"].dropna()), "-") if "data" in comparisons.columns else "-"
     return (
-        f"**how to read**: levels: geometric means over the replicates; 'A < B': A/B per replicate ({method}, "
-        f"n = {n}) below 1 by its {HOLM_COLUMN} < {1 - CONFIDENCE:.2g}, Holm within its family: the primary QE/H "
-        f"and QE/PCA (`{column}`, {solver}, {lead}, each condition; {rows_text(sizes[PRIMARY])}) or the others "
-        f"({rows_text(sizes[SECONDARY])}); intervals: {INTERVAL_NOTE}; '~': not distinguishable; '=': a tie; "
-        f"'A <= B by construction' ({rows_text(sizes[IDENTITY])}): holds in every replicate, not tested; each "
-        "number is a row of comparisons.csv."
+        f"**how to read**: the paper's claims are those each run stored at m = n (its own interval), counted per "
+        f"condition; levels: geometric means over the replicates; 'A < B': A/B per replicate ({method}, n = {n}) "
+        f"below 1 by its {HOLM_COLUMN} < {1 - CONFIDENCE:.2g}, Holm over every tested row "
+        f"({rows_text(sizes[SECONDARY])}, QE/H and QE/PCA at each cell's m among them: secondary, not the paper's "
+        "claims); "
+        f"intervals: {INTERVAL_NOTE}; '~': not distinguishable; '=': a tie; 'A <= B by construction' "
+        f"({rows_text(sizes[IDENTITY])}): holds in every replicate, not tested; each number is a row of "
+        "comparisons.csv."
     )
 
 
@@ -194,12 +184,18 @@ def _range_text(row, column: str) -> str:
 
 
 def ordering_with_intervals(
-    part: pd.DataFrame, comparisons: pd.DataFrame, column: str, key: str = "basis", primary: bool = False
+    part: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    column: str,
+    key: str = "basis",
+    primary: str = "",
+    judged: Sequence[tuple] = (),
 ) -> str:
     """The bases of one condition from best to worst by their geometric mean, each neighbouring pair joined by its
     verdict in the comparisons table (``<``, ``~`` not distinguishable, ``=`` a tie, ``,`` no comparison), then
-    (with ``primary``) the primary contrasts with their intervals: ``QE 0.162 ~ PCA (n = 9-11) 0.169 < H 0.312;
-    QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9, 1.02]``.
+    (with ``primary``, their label) QE/H and QE/PCA with their intervals: ``QE 0.162 ~ PCA (n = 9-11) 0.169 < H
+    0.312; secondary comparisons at this m, not the paper's claims: QE/H 0.52 [0.46, 0.58], QE/PCA 0.959 [0.9,
+    1.02]``.
 
     Parameters
     ----------
@@ -213,8 +209,10 @@ def ordering_with_intervals(
     column : str
     key : str
         What is ordered: ``basis``, or ``train_on`` (one basis fitted on each data variant).
-    primary : bool
-        Whether this condition holds the primary contrasts (:data:`PRIMARY_PAIRS`), stated with their intervals.
+    primary : str
+        The label of :data:`PRIMARY_PAIRS`' intervals at this condition (empty: not stated).
+    judged : sequence of tuple
+        Pairs judged elsewhere (the runs' stored claims at m = n): joined by ``,``, no verdict of the sweep's own.
     """
     ranked = part.dropna(subset=[column]).sort_values(column, kind="stable")
     hand = ranked[ranked["basis"] == "H"] if key == "basis" else ranked.iloc[:0]
@@ -226,6 +224,8 @@ def ordering_with_intervals(
         names[row[key]] = f"{row[key]}{f' (n = {size})' if usual is not None and size != usual else ''}"
 
     def compare(first, second):
+        if {first, second} in [set(pair) for pair in judged]:
+            return None
         interval = comparison_interval(comparisons, first, second)
         return None if interval.n == 0 and math.isnan(interval.estimate) else interval
 
@@ -238,19 +238,24 @@ def ordering_with_intervals(
         detail=lambda *args: "",
         identity=lambda first, second: construction(comparisons, first, second),
     )
-    if primary:
-        stated = [
+    stated = claim_pairs_text(comparisons, set(values)) if primary else ""
+    return text + (f"; {primary}: {stated}" if stated else "")
+
+
+def claim_pairs_text(comparisons: pd.DataFrame, bases: set) -> str:
+    """QE/H and QE/PCA (:data:`PRIMARY_PAIRS`) of one condition with their intervals from its comparisons:
+    ``QE/H 0.52 [0.46, 0.58], Holm p 0.01, QE/PCA 0.959 [0.9, 1.02]``; empty without them."""
+    stated = []
+    for a, b in PRIMARY_PAIRS:
+        found = comparison_interval(comparisons, a, b)
+        if a not in bases or b not in bases or (found.n == 0 and math.isnan(found.estimate)):
+            continue
+        built = construction(comparisons, a, b) or construction(comparisons, b, a)
+        stated.append(
             short_interval_text(found, f"{a}/{b}", "{:.3g}")
-            + (
-                " (by construction: its size, not its sign)"
-                if construction(comparisons, a, b) or construction(comparisons, b, a)
-                else ""
-            )
-            for a, b in PRIMARY_PAIRS
-            if a in values and b in values and (found := compare(a, b)) is not None
-        ]
-        text += "; " + ", ".join(stated) if stated else ""
-    return text
+            + (" (by construction: its size, not its sign)" if built else "")
+        )
+    return ", ".join(stated)
 
 
 def construction(comparisons: pd.DataFrame, first: str, second: str) -> str | None:
@@ -280,6 +285,51 @@ def _matching(comparisons: pd.DataFrame, keys: Sequence[str], values: Sequence) 
     return comparisons
 
 
+SECONDARY_RANK = 1.5
+"""QE/H and QE/PCA at a cell's m are left out of findings over their words after other solvers' and columns'
+orderings (rank 2), before the lead orderings (rank 1): the paper's claims are the stored ones."""
+
+
+def at_m_equals_n(part: pd.DataFrame) -> bool:
+    """Whether every run of a condition's rows kept m = n (the hand basis's n): the paper's regime, where the runs'
+    stored claims test QE/H and QE/PCA and the sweep's own ratios of them would judge them a second time."""
+    hand = part[part["basis"] == "H"]
+    if not (_has(part, "m") and _has(hand, "n") and len(hand)):
+        return False
+    return _range_text(part.iloc[0], "m") == _range_text(hand.iloc[0], "n") and "-" not in _range_text(
+        hand.iloc[0], "n"
+    )
+
+
+def condition_key(values: Sequence) -> tuple:
+    """A sweep cell's swept values as text (``0.99`` and ``"0.99"`` alike), to look its claims up."""
+    return tuple(str(value) for value in values)
+
+
+def cell_claims(records: Sequence, swept: Sequence[str], lead: str) -> dict:
+    """Each sweep cell's claims per data variant: ``(condition_key, base)`` -> the claims its runs stored at m = n
+    for that base variant, counted (:func:`workbench.reporting.findings.claims.counted_claims_text`): for the lead
+    variant's base always (saying "not tested at m = n" and why where no run has them), for another base only where
+    some run stored claims for it.
+
+    Parameters
+    ----------
+    records : sequence of workbench.record.record.RunRecord
+    swept : sequence of str
+        The condition keys (dotted config names).
+    lead : str
+        The lead data variant (that of the sweep's summary).
+    """
+    cells: dict = {}
+    for record in records:
+        flat = flatten(record.config)
+        cells.setdefault(condition_key([flat.get(key) for key in swept]), []).append(record.claims)
+    bases = {base_variant(lead)} | {
+        entry["base"] for record in records for entry in (record.claims or {}).get("entries") or []
+    }
+    return {(key, base): counted_claims_text(claims, base) for key, claims in cells.items() for base in bases}
+
+
 def sweep_findings(
     summary: pd.DataFrame,
     comparisons: pd.DataFrame,
@@ -287,13 +337,17 @@ def sweep_findings(
     column: str,
     solver: str,
     headline: bool = True,
+    claims: Mapping[tuple, str] | None = None,
 ) -> list[str]:
     """Findings of a sweep, one per swept condition and data variant: m over the runs and the bases from best to
     worst by their geometric mean over the replicates, each neighbouring pair joined by its verdict in the
-    comparisons table (:func:`ordering_with_intervals`), and on the lead (first) data variant, with least squares
-    and the headline column, the primary contrasts with their intervals. Every number is a cell of the summary or
-    of the comparisons table; each line a :class:`workbench.reporting.findings.run.Detail` (those of another solver or
-    column go first when the findings run over their words).
+    comparisons table (:func:`ordering_with_intervals`); with least squares and the headline column, the paper's
+    claims as the cell's runs stored them (``claims``, a line never left out, before the first line of each base
+    variant that has them), no verdict of the sweep's own on QE against H and PCA in a variant at m = n (the claims
+    judge those), and on the lead (first) variant, where the cell is not at m = n, QE/H and QE/PCA over the
+    replicates labelled :data:`SECONDARY_NOTE`. Every number is a cell of the summary, of the
+    comparisons table or of a run's stored claims; each ordering a :class:`workbench.reporting.findings.run.Detail`
+    (those of another solver or column go first when the findings run over their words).
 
     Parameters
     ----------
@@ -308,7 +362,10 @@ def sweep_findings(
     solver : str
         The solver of the findings (PCA is compared beside it).
     headline : bool
-        Whether ``column`` is the headline alpha (that of the primary contrasts).
+        Whether ``column`` is the headline alpha (that of the paper's claims).
+    claims : mapping, optional
+        :func:`cell_claims`: each cell's stored claims per base variant as text (none: not stated, and the
+        orderings at m = n judge QE against H and PCA themselves, as before the runs stored claims).
 
     Returns
     -------
@@ -318,22 +375,38 @@ def sweep_findings(
     keys = [*swept, "data"]
     lead = next(iter(summary["data"]), None)
     primary = headline and solver == "lstsq"
-    lines = []
+    rank = 1 if primary else 2
+    lines, told = [], set()
     for values, part in rows.groupby(keys, sort=False, dropna=False):
         values = values if isinstance(values, tuple) else (values,)
         mine = _matching(comparisons, keys, values)
         setting = ", ".join(f"{key} = {value}" for key, value in zip(swept, values[:-1]))
         first = part.iloc[0]
         m = f"m = {_range_text(first, 'm')}; " if _has(part, "m") else ""
-        ordering = ordering_with_intervals(part, mine, column, primary=primary and values[-1] == lead)
+        on_lead = primary and values[-1] == lead
+        head = f"{setting + ', ' if setting else ''}**{values[-1]}**"
+        said = (condition_key(values[:-1]), base_variant(values[-1]))
+        stated = (claims or {}).get(said) if primary and said not in told else None
+        if stated:  # the cell's stored claims of this variant's base, once, before its first line
+            lines.append(f"{head}: {stated}.")
+            told.add(said)
+        # at m = n the runs' stored claims judge QE against H and PCA: the sweep's own ratios do not a second time
+        at_n = primary and claims is not None and (is_paper_regime(values[-1]) or at_m_equals_n(part))
+        ordering = ordering_with_intervals(part, mine, column, judged=PRIMARY_PAIRS if at_n else ())
+        where = f"the tables 'Paired comparisons' and '{column} over seeds'"
         lines.append(
             Detail(
-                f"{setting + ', ' if setting else ''}**{values[-1]}** ({m}{int(part['n_seeds'].max())} "
-                f"seeds, {solver}) `{column}`: {ordering}.",
-                1 if primary else 2,
-                f"the tables 'Paired comparisons' and '{column} over seeds'",
+                f"{head} ({m}{int(part['n_seeds'].max())} seeds, {solver}) `{column}`: {ordering}"
+                + (" (QE against H and PCA: the runs' stored claims)" if at_n else "")
+                + ".",
+                rank,
+                where,
             )
         )
+        pairs = claim_pairs_text(mine, set(part["basis"])) if on_lead else ""
+        if pairs and not is_paper_regime(values[-1]) and not at_m_equals_n(part):
+            label = SECONDARY_NOTE.format(m=m.removesuffix("; ") or "the runs' own m")
+            lines.append(Detail(f"{head}, {solver}, `{column}`: {label}: {pairs}.", SECONDARY_RANK, where))
     return lines
 
 
@@ -426,7 +499,12 @@ def bases_findings(
             lines.append(
                 f"**{data}** ({int(part['n_seeds'].max())} runs) `{column}`: "
                 + ordering_with_intervals(
-                    part, mine[mine["metric"] == column], column, primary=data == lead and solver == "lstsq"
+                    part,
+                    mine[mine["metric"] == column],
+                    column,
+                    primary=SECONDARY_NOTE.format(m="the runs' m")
+                    if data == lead and solver == "lstsq" and not is_paper_regime(data)
+                    else "",
                 )
                 + "."
             )
@@ -485,10 +563,16 @@ def replicate_caveat(replicates: Sequence[str]) -> list[str]:
 
 
 def sweep_statements(
-    summary: pd.DataFrame, comparisons: pd.DataFrame, swept: Sequence[str], columns: Sequence[str], solver: str
+    summary: pd.DataFrame,
+    comparisons: pd.DataFrame,
+    swept: Sequence[str],
+    columns: Sequence[str],
+    solver: str,
+    claims: Mapping[tuple, str] | None = None,
 ) -> list[str]:
-    """Every finding of a sweep for each of ``columns``: the bases compared (:func:`sweep_findings`), then the
-    data variants fitted on where the comparisons hold those (:func:`training_findings`).
+    """Every finding of a sweep for each of ``columns``: the bases compared (:func:`sweep_findings`, with each
+    cell's stored claims), then the data variants fitted on where the comparisons hold those
+    (:func:`training_findings`).
 
     Parameters
     ----------
@@ -498,13 +582,17 @@ def sweep_statements(
     swept : sequence of str
     columns : sequence of str
     solver : str
+    claims : mapping, optional
+        :func:`cell_claims`.
     """
     by_basis = comparisons[comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
     by_variant = comparisons[~comparisons["first"].isin(summary["basis"])] if len(comparisons) else comparisons
     lines = [
         line
         for column in columns
-        for line in sweep_findings(summary, by_basis, swept, column, solver, headline=column == columns[0])
+        for line in sweep_findings(
+            summary, by_basis, swept, column, solver, headline=column == columns[0], claims=claims
+        )
     ]
     if len(by_variant):
         lines += [line for column in columns for line in training_findings(summary, by_variant, swept, column, solver)]

@@ -15,10 +15,10 @@ import numpy as np
 import pandas as pd
 
 from workbench.record.record import RunRecord
-from workbench.reporting.findings.claims import CLAIM_1, CLAIM_2, NO_CLAIMS, PAPER_RATIOS, lead_entries
+from workbench.reporting.findings.claims import PAPER_RATIOS, counted_claims_text
 from workbench.reporting.findings.sweep import comparison_interval
 from workbench.reporting.tables.runs import flatten
-from workbench.study.claims import TRAINING, base_variant
+from workbench.study.claims import base_variant
 from workbench.study.regime import is_paper_regime
 
 SUMMARY_WORDS = 200
@@ -149,32 +149,12 @@ def coverage_text(records: Sequence[RunRecord], data: str, n: int) -> str:
 
 
 def stored_claims_text(runs: Sequence[RunRecord], lead: str) -> str:
-    """The claims each run stored, counted over the runs per protocol: ``Each run's stored claims (its own
-    interval): training frames: QE better than H reproduced in 4, not decided in 1 (H/QE 1.55-1.97); ...``."""
-    if not runs or any(record.claims is None for record in runs):
-        return f"{NO_CLAIMS[0].upper()}{NO_CLAIMS[1:]} (some of these runs)."
-    per_protocol: dict = {}
-    for record in runs:
-        for entry in lead_entries(record.claims, base_variant(lead)):
-            per_protocol.setdefault((entry["protocol"] != TRAINING, entry["protocol_text"]), []).append(entry)
-    if not per_protocol:
-        return f"No run fits m = n with H, QE and PCA under least squares: {CLAIM_1} and {CLAIM_2} not tested at m = n."
-    parts = []
-    for (_, protocol), entries in sorted(per_protocol.items()):
-        said = []
-        for name, claim in (("H/QE", CLAIM_1), ("QE/PCA", CLAIM_2)):
-            verdicts = [entry[name]["verdict"] for entry in entries]
-            counted = ", ".join(f"{verdict} in {verdicts.count(verdict)}" for verdict in dict.fromkeys(verdicts))
-            values = [entry[name]["estimate"] for entry in entries if not entry[name]["why_not_estimable"]]
-            sizes = f" ({name} {_range(values, '{:.3g}')})" if values else ""
-            said.append(f"{claim} {counted}{sizes}")
-        parts.append(f"{protocol}: {'; '.join(said)}")
-    margin = runs[0].claims.get("margin")
-    return (
-        f"Each run's stored claims at m = n (its own interval; claim 2 against the margin {margin:g}): "
-        + ". ".join(parts)
-        + "."
-    )
+    """The claims each run stored, counted over the runs per protocol
+    (:func:`workbench.reporting.findings.claims.counted_claims_text`, as the sweep's findings state them): ``The
+    paper's claims at m = n, as each run stored them (...): training frames: QE better than H reproduced in 4, not
+    decided in 1 (H/QE 1.55-1.97); ...``."""
+    text = counted_claims_text([record.claims for record in runs], base_variant(lead))
+    return f"{text[0].upper()}{text[1:]}."
 
 
 def design_text(records: Sequence[RunRecord], data: str, over: Sequence[str], column: str, interval) -> str:
@@ -189,6 +169,13 @@ def design_text(records: Sequence[RunRecord], data: str, over: Sequence[str], co
         f"{runs} run{'s' if runs != 1 else ''} ({', '.join(over) or 'no replicate setting'}), {training} training "
         f"and {evaluated} evaluated frames each; intervals over the runs{degrees}; one metric, `{column}`, at a time"
     )
+
+
+def summary_lead(per_run: pd.DataFrame, comparisons: pd.DataFrame) -> str:
+    """The data variant a sweep's summary and findings state the paper's claims on: the comparisons table's first,
+    else the runs table's first."""
+    lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
+    return lead if lead is not None else str(per_run["data"].iloc[0])
 
 
 def sweep_summary(
@@ -218,8 +205,7 @@ def sweep_summary(
     -------
     str
     """
-    lead = next(iter(comparisons["data"].dropna()), None) if "data" in comparisons.columns else None
-    lead = lead if lead is not None else str(per_run["data"].iloc[0])
+    lead = summary_lead(per_run, comparisons)
     condition, where = summary_condition(per_run, swept, lead)
     text = _summary_text(records, per_run, comparisons, condition, where, lead, over, column)
     if len(text.split()) > SUMMARY_WORDS and condition:  # many swept settings: the condition named by its place

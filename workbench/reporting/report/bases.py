@@ -16,10 +16,13 @@ from workbench.reporting.tables.runs import (
     config_columns,
     flatten,
     interval_label,
+    is_replicate_key,
     level_statistics,
     paired_comparisons,
     typed_columns,
+    varying_keys,
 )
+from workbench.stats.replicates import pseudo_replicate_reason
 from workbench.stats.statistics import GEOMETRIC
 from workbench.study.summary import headline_column
 
@@ -229,6 +232,8 @@ def bases_figure_rows(bases: OtherBases | None) -> list[tuple]:
     solver, _ = figure_solver(record.config)
     settings = intuitiveness_settings(record)
     note = interval_label(summary, "runs")
+    seeds = [key for key in varying_keys([item.config for item, _ in bases.found]) if is_replicate_key(key)]
+    pseudo = pseudo_replicate_reason(seeds, flatten(record.config))
     caption = (
         f"`{column}` (solver {solver}; PCA by projection) of every basis against its closeness to the hand "
         f"shapes, its locality and its usage"
@@ -247,6 +252,7 @@ def bases_figure_rows(bases: OtherBases | None) -> list[tuple]:
                 energy=settings["locality_energy"],
                 threshold=settings["usage_threshold"],
                 title=title,
+                not_replicates=pseudo,
             ),
             BASES_SECTION,
         )
@@ -298,9 +304,9 @@ def comparisons_blocks(comparisons: pd.DataFrame, own: bool, column: str) -> lis
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     return [
         f"Paired comparisons over the runs: the geometric mean of the per-run ratio first / second ({method}; "
-        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (the primary "
-        "contrasts QE/H and QE/PCA on the first data variant, or the other rows); '<' only where p_holm is below "
-        "0.05.",
+        f"{INTERVAL_NOTE}); the smaller first; `p_holm`: its p-value Holm-adjusted within its family (every tested "
+        "row: QE/H and QE/PCA among them are comparisons at the runs' m, not the paper's claims, which each run "
+        "stored at m = n); '<' only where p_holm is below 0.05.",
         comparisons.drop(columns=["study", "method"]),
     ]
 
@@ -333,7 +339,7 @@ def with_bases_section(
             paired_comparisons(per_run, name, over=["run"], row_keys=("data", "basis"))
             for name in (column, *COMPARED_INTUITIVENESS)
         ]
-        comparisons = holm_verdicts(pd.concat(compared, ignore_index=True), column, solver)
+        comparisons = holm_verdicts(pd.concat(compared, ignore_index=True))
     several = int(summary["n_seeds"].max()) > 1
     findings = next((item for item in sections if item.heading == "Findings"), None)
     if findings is not None:  # one run: its ordering from its paired per-frame comparisons

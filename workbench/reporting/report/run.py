@@ -131,7 +131,7 @@ def run_sections(
     title = f"Study '{record.settings.study}' on the {dataset_label(record)}"
     intuitiveness = {data: values["intuitiveness"] for data, values in record.metrics["data"].items()}
     has_sides = sides is not None and sides.table is not None
-    summary = run_summary(record.table, column, record.metrics)
+    summary = run_summary(record.table, column, record.metrics, record.config.get("solver"))
     sections = [
         *([Section(SUMMARY_SECTION, [summary, *placed(figures, SUMMARY_SECTION)])] if summary else []),
         Section(
@@ -242,7 +242,7 @@ def comparison_sections(record: RunRecord) -> list[Section]:
     are made (:func:`workbench.reporting.findings.comparisons.comparison_table`)."""
     from workbench.reporting.findings.comparisons import comparison_method_text, comparison_table
 
-    frame = comparison_table(record.metrics)
+    frame = comparison_table(record.metrics, solvers=record.config.get("solver"))
     if frame.empty:
         return []
     return [Section("Paired comparisons within the run", [comparison_method_text(record.metrics), frame])]

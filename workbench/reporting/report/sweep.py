@@ -42,6 +42,7 @@ from workbench.reporting.report.sections import (
 from workbench.reporting.tables.runs import (
     interval_label,
     is_replicate_key,
+    not_replicates_reason,
     runs_table,
     summarise,
     sweep_comparisons,
@@ -108,6 +109,7 @@ def sweep_figures(
     column = headline_column(first.config)
     solver, _ = figure_solver(first.config)
     label = dataset_label(first)
+    pseudo = not_replicates_reason(per_run, over) if per_run is not None and over else ""
     specs = [
         (
             "coverage_curve",
@@ -149,6 +151,7 @@ def sweep_figures(
                         by=others,
                         panels=[p for p in panels if p != x],
                         points=per_run if per_run is not None and x in per_run.columns else None,
+                        not_replicates=pseudo,
                         title=f"Alpha{' scored on the clean frames,' if y != column else ''} against "
                         f"{axis_label(x)}\n{label}",
                     ),
@@ -175,6 +178,7 @@ def sweep_figures(
                         ("rms_mm", "alpha_disp_pooled"),
                         solver=solver,
                         title=f"Marker versus mesh{': ' + setting if setting else ''}\n{label}",
+                        not_replicates=pseudo,
                     ),
                     FIGURES_SECTION,
                 )
@@ -197,8 +201,8 @@ def sweep_sections(
     command: str,
     over: Sequence[str] = (),
 ) -> tuple[str, list[Section]]:
-    from workbench.reporting.findings.sweep import holm_text, replicate_caveat, sweep_statements
-    from workbench.reporting.findings.sweep_summary import sweep_summary
+    from workbench.reporting.findings.sweep import cell_claims, holm_text, replicate_caveat, sweep_statements
+    from workbench.reporting.findings.sweep_summary import summary_lead, sweep_summary
 
     first = records[0]
     column = headline_column(first.config)
@@ -226,13 +230,14 @@ def sweep_sections(
     hidden = ("study", "method", "train_on", "dataset.train_on", *(("solver",) if len(solvers) < 2 else ()))
     compared = comparisons.drop(columns=[key for key in hidden if key in comparisons.columns])
     runs = per_run.drop_duplicates("run")[["run", *[k for k in per_run.columns if "." in k]]]
+    claims = cell_claims(records, swept, summary_lead(per_run, comparisons))
     findings = [
-        holm_text(comparisons, column),
+        holm_text(comparisons),
         *replicate_caveat([key for key in per_run.columns if is_replicate_key(key)]),
     ] + [
         line
         for name in [solver, *(other for other in solvers if other != solver)]
-        for line in sweep_statements(summary, comparisons, swept, columns, name)
+        for line in sweep_statements(summary, comparisons, swept, columns, name, claims)
     ]
     summary_text = sweep_summary(records, per_run, comparisons, swept, over, column)
     sections = [
@@ -264,7 +269,7 @@ def sweep_sections(
 def comparisons_caption(comparisons: pd.DataFrame, column: str) -> str:
     """The paragraph above a sweep's one comparisons table: what a row is, which interval is shown, and the
     families its verdicts are decided in with their sizes (:func:`workbench.reporting.findings.sweep.holm_verdicts`)."""
-    from workbench.reporting.findings.sweep import IDENTITY, INTERVAL_NOTE, PRIMARY, SECONDARY, family_sizes, rows_text
+    from workbench.reporting.findings.sweep import IDENTITY, INTERVAL_NOTE, SECONDARY, family_sizes, rows_text
 
     method = comparisons["method"].iloc[0] if len(comparisons) else "-"
     metrics = ", ".join(f"`{name}`" for name in dict.fromkeys(comparisons["metric"])) if len(comparisons) else "-"
@@ -273,10 +278,10 @@ def comparisons_caption(comparisons: pd.DataFrame, column: str) -> str:
         f"Per condition, solver and pair of bases (PCA by projection), for each of {metrics}: the geometric mean "
         f"of the per-seed ratio first / second ({method}); the smaller first; `ratio_low`, `ratio_high`: "
         f"{INTERVAL_NOTE}. `p`: the p-value of the same test; `p_holm`: Holm's adjustment within the row's "
-        f"`family`: '{PRIMARY}' (QE/H and QE/PCA, lstsq, `{column}`, first data variant, every condition: "
-        f"{rows_text(sizes[PRIMARY])}), '{SECONDARY}' (every other tested row: {rows_text(sizes[SECONDARY])}), "
-        f"'{IDENTITY}' (holds by construction, its reason in `by_construction`: no test and no p-value, only its "
-        f"size: {rows_text(sizes[IDENTITY])}); 'verdict' '<' only where p_holm is below 0.05."
+        f"`family`: '{SECONDARY}' (every tested row, QE/H and QE/PCA among them: comparisons at the row's m, not "
+        f"the paper's claims, which each run stored at m = n: {rows_text(sizes[SECONDARY])}), '{IDENTITY}' (holds "
+        f"by construction, its reason in `by_construction`: no test and no p-value, only its size: "
+        f"{rows_text(sizes[IDENTITY])}); 'verdict' '<' only where p_holm is below 0.05."
     )
 
 
@@ -307,7 +312,7 @@ def build_sweep_report(
     intuitiveness = intuitiveness_comparisons(records, per_run, over)
     if len(intuitiveness):
         compared = pd.concat([compared, intuitiveness], ignore_index=True)
-    comparisons = holm_verdicts(compared, column)
+    comparisons = holm_verdicts(compared)
     figures_dir = inside(out, "figures")
     clear_figures(figures_dir)
     bases = other_bases(records)

@@ -155,9 +155,10 @@ def never_worse_than(record: RunRecord) -> dict:
         CSV file keeps, where an empty text would come back as a missing value).
     """
     rows = record.rows()
+    solvers = record.config.get("solver")  # each solver's kind and bounds: they decide the solvers' nesting
     found: dict = {}
     for data, facts in (record.metrics.get("data") or {}).items():
-        for identity in run_identities([row for row in rows if row.get("data") == data], facts):
+        for identity in run_identities([row for row in rows if row.get("data") == data], facts, solvers):
             key = (data, *identity.smaller)
             item = "/".join(identity.larger) + (POOLED_ONLY if identity.pooled_only else "")
             found[key] = f"{found[key]};{item}" if key in found else item
@@ -229,6 +230,12 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
     incomplete : list of pathlib.Path
         Run folders without a completion marker (left out).
     """
+    runs, incomplete, _ = collect_records(paths)
+    return runs, incomplete
+
+
+def collect_records(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path], list[RunRecord]]:
+    """:func:`collect_runs` with the records it read (their stored claims, for the findings)."""
     from workbench.core.progress import progress
 
     paths = [Path(path) for path in paths]
@@ -237,7 +244,7 @@ def collect_runs(paths: Iterable[Path]) -> tuple[pd.DataFrame, list[Path]]:
         raise WorkbenchError(f"no complete run record (a folder with '{DONE}') under {', '.join(map(str, paths))}")
     records = [load_record(folder) for folder in progress(complete, desc="records")]
     root = paths[0] if len(paths) == 1 and paths[0] not in complete else None
-    return runs_table(records, root), incomplete
+    return runs_table(records, root), incomplete, records
 
 
 def interval_label(table: pd.DataFrame, replicates: str = "seeds") -> str:
@@ -294,6 +301,19 @@ def condition_keys(runs: pd.DataFrame, over: Sequence[str] | None) -> tuple[list
     if unknown:
         raise WorkbenchError(f"--over: {unknown} are not config columns of these runs ({conditions})")
     return [column for column in conditions if column not in over], over
+
+
+def not_replicates_reason(runs: pd.DataFrame, over: Sequence[str] | None = None) -> str:
+    """Why the runs of a table are not replicates, "" when they are: per condition, the replicate columns that vary
+    within it (:func:`workbench.stats.replicates.pseudo_replicate_reason`), each distinct reason once. A figure
+    of these runs says it beside its bands and bars, as the comparisons table does in ``pseudo_replicates``."""
+    conditions, over = condition_keys(runs, over)
+    groups = runs.groupby(conditions, sort=False, dropna=False) if conditions else [((), runs)]
+    reasons = []
+    for _, group in groups:
+        varying = [column for column in over if group[column].nunique(dropna=False) > 1]
+        reasons.append(pseudo_replicate_reason(varying, group.iloc[0].to_dict()))
+    return "; ".join(dict.fromkeys(reason for reason in reasons if reason))
 
 
 def summarise(
