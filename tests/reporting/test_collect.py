@@ -1,5 +1,6 @@
 """workbench collect: records into tidy tables, intervals and paired comparisons by hand, exact table text."""
 
+import functools
 import math
 
 import pandas as pd
@@ -12,6 +13,8 @@ from workbench.reporting.collect.command import main
 from workbench.reporting.collect.sweep import collect_and_write, format_estimate, format_range
 from workbench.reporting.tables.cells import latex_table, markdown_table
 from workbench.reporting.tables.runs import collect_runs, level_statistics, natural_key, paired_comparisons, summarise
+from workbench.settings.config import compose
+from workbench.settings.schema import resolved_settings
 
 ALPHA = {  # (coverage, seed) -> alpha_abs_mean of H, QE, PCA
     (0.9, 0): (1.0, 0.5, 0.4),
@@ -63,6 +66,13 @@ def stored_claims(m, h_over_qe, qe_over_pca):
     }
 
 
+@functools.cache
+def study_config(coverage: float, seed: int) -> dict:
+    """The coverage study's resolved config at one cell, as a run writes it (``config.yaml``)."""
+    overrides = [f"dataset.seed={seed}", f"basis.coverage={coverage}", f"paths.output_root=/x{seed}"]
+    return resolved_settings(compose("coverage", overrides))
+
+
 def write_record(folder, coverage, seed, job_num, complete=True, qe_rank=None, alpha=ALPHA):
     """A run record as the workbench writes it (through workbench.record.record), with chosen numbers (rows: H and QE
     with lstsq, then PCA); with ``qe_rank``, the QE basis's rank and PCA's exact method are recorded too."""
@@ -90,12 +100,7 @@ def write_record(folder, coverage, seed, job_num, complete=True, qe_rank=None, a
             ("PCA", "-", "projection", m, pca, 0.62),
         )
     ]
-    config = {
-        "study": "coverage",
-        "dataset": {"kind": "synthetic", "seed": seed},
-        "basis": {"coverage": coverage},
-        "paths": {"output_root": f"/x{seed}"},
-    }
+    config = study_config(coverage, seed)
     metrics = {
         "study": "coverage",
         "config_hash": f"hash{coverage}{seed}",
