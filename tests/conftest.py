@@ -192,6 +192,52 @@ def tiny_study() -> tuple[str, ...]:
     return TINY_STUDY
 
 
+TINY_REPORT = (
+    "dataset.train_on=[markers,mesh]",
+    "dataset.n_frames=600",
+    "dataset.mesh_rows=35",
+    "dataset.mesh_cols=30",
+    "save_inputs=true",
+)
+"""The run of ``tiny_report``: both data variants, 5 s of performance on a coarse mesh (1,050 vertices), inputs
+saved."""
+
+
+def shared_temporary_folder(tmp_path_factory) -> Path:
+    """This test run's temporary folder that every test process sees: under pytest-xdist the folder above the
+    processes' own ones."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+@pytest.fixture(scope="session")
+def tiny_report(tmp_path_factory) -> tuple[Path, Path]:
+    """``(record, report)``: a run of :data:`TINY_REPORT` and its report (``workbench report``, every figure), built
+    once per test run, whichever test process asks first (the others wait for it and take it), for the tests that
+    read a report (tests/reporting/test_reporting.py, tests/reporting/test_rig_panel.py). Read only: a test that
+    changes a report changes a copy."""
+    import fcntl
+
+    from workbench.api import run
+    from workbench.reporting.report.command import main
+    from workbench.settings.config import compose
+
+    folder = shared_temporary_folder(tmp_path_factory) / "tiny-report"
+    record, report = folder / "run", folder / "reports" / "paper"
+    with open(folder.with_name("tiny-report.lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+        if not (folder / "built").is_file():
+            if folder.exists():  # a process that failed half way left it
+                import shutil
+
+                shutil.rmtree(folder)
+            folder.mkdir()
+            run(compose("paper", list(TINY_REPORT)), record)
+            assert main([str(record), "--out", str(report)]) == 0
+            (folder / "built").write_text("")
+    return record, report
+
+
 @pytest.fixture
 def cli(tmp_path):
     """``cli(*args, cwd=tmp_path, env=None)``: the ``workbench`` command run inside the test process

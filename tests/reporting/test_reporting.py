@@ -29,14 +29,6 @@ from workbench.reporting.tables.runs import flatten, summarise, varying_keys, wi
 from workbench.settings.config import REPO_ROOT, compose
 from workbench.settings.schema import RETIRED_SETTINGS
 
-# A small run on both data variants: 5 s of performance on a coarse mesh (1,050 vertices), inputs saved.
-TINY = [
-    "dataset.train_on=[markers,mesh]",
-    "dataset.n_frames=600",
-    "dataset.mesh_rows=35",
-    "dataset.mesh_cols=30",
-    "save_inputs=true",
-]
 # The committed reference reports and the overrides of the runs they were built from, each checked against a fresh
 # run. The real takes run at every 4th frame, so that this test can redo each run in a few minutes (most of it the
 # folds of kfold). The synthetic actor's report is at the paper's 35,000 frames, too large to redo here (its mesh
@@ -68,13 +60,7 @@ PAPER_SIZE = {"paper": {"dataset.n_frames": 35000, "dataset.held_out": "[tail, k
 FIGURE_STEMS = [spec[0] for spec in RUN_FIGURES]
 
 
-@pytest.fixture(scope="module")
-def tiny_report(tmp_path_factory):
-    record = tmp_path_factory.mktemp("run")
-    run(compose("paper", TINY), record)
-    out = tmp_path_factory.mktemp("reports")
-    assert main([str(record), "--out", str(out / "paper")]) == 0
-    return record, out / "paper"
+# tiny_report (tests/conftest.py): a small run on both data variants, inputs saved, and its report
 
 
 @pytest.mark.slow
