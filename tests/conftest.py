@@ -72,20 +72,27 @@ def measured_durations() -> dict[str, float]:
 
 
 LONGEST_FIRST = (
-    "tests/reporting/test_reporting.py",  # the reference reports redone: about ten minutes in all
     "tests/project/test_docs.py::TestCommandsOf_docs_studies_md",
     "tests/project/test_docs.py::TestCommandsOf_docs_reports_md",
     "tests/project/test_docs.py::TestCommandsOf_README_md",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper",  # the 4,000-frame reference run redone
+    "tests/reporting/test_reporting.py",
     "tests/project/test_docs.py::TestCommandsOf_docs_performance_md",
     "tests/project/test_docs.py::TestCommandsOf_docs_formats_md",
-    "tests/study/test_studies.py",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper_ict_livelink",
+    "tests/reporting/test_reporting.py::TestBasesReferenceRerun",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper_animface",
     "tests/project/test_docs.py::TestCommandsOf_docs_export_md",
     "tests/record/test_mlflow_store.py",
     "tests/project/test_docs.py::TestCommandsOf_docs_tracking_md",
-    "tests/cli/test_kill.py",
+    "tests/cli/test_kill.py::TestKilledRuns",  # its sweeps (TestKilledSweeps) go by their seconds
+    "tests/cli/test_cluster.py",  # no seconds: it needs CI's test cluster; not to be handed out last, unmeasured
 )
-"""The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
-seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""
+"""The longest scopes of the whole suite, slow tests included, longest first: handed out before every other
+scope. The documents' commands, tests/record/test_mlflow_store.py and tests/cli/test_kill.py's in the order CI measured
+them (no seconds were kept), the scopes of tests/reporting/test_reporting.py placed among them by their seconds
+(:data:`DURATIONS`, measured with ``-n 0``); then tests/cli/test_cluster.py, which only CI runs: a scope not
+measured is otherwise handed out last, where a long one keeps one process busy alone at the end."""
 
 
 def pytest_collection_modifyitems(items):

@@ -590,9 +590,21 @@ def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
     assert done.stderr.strip().splitlines()[-1].startswith("workbench report: error: ")
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", list(REFERENCES))
-def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_path, request):
+def reference_rerun_class(name: str) -> type:
+    """A test class of its own for one committed reference report's fresh run (a minute or two each): pytest-xdist
+    (``--dist loadscope``) sends each class to whichever process is free, so the reruns spread over both processes
+    while this file's other tests keep their module fixtures on one."""
+
+    @pytest.mark.slow
+    class TestReferenceRerun:
+        def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(self, tmp_path, request):
+            check_committed_reference_report(name, tmp_path, request)
+
+    TestReferenceRerun.__name__ = TestReferenceRerun.__qualname__ = "TestReferenceRerun_" + re.sub(r"\W", "_", name)
+    return TestReferenceRerun
+
+
+def check_committed_reference_report(name: str, tmp_path, request) -> None:
     reference, overrides = REFERENCES[name]
     if not (reference / "alpha_table.csv").is_file():
         pytest.skip(f"no committed reference report {reference}")
@@ -636,6 +648,11 @@ def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_
         "## Faces you can turn", committed_readme
     )
     assert_reference_is_small_and_clean(reference, committed_readme)
+
+
+for _name in REFERENCES:
+    _class = reference_rerun_class(_name)
+    globals()[_class.__name__] = _class
 
 
 def test_the_synthetic_reference_report_is_the_papers_size_and_otherwise_the_run_checked_in_its_place():
@@ -816,7 +833,12 @@ BASES_REFERENCE = ["dataset.n_frames=4000", "dataset.held_out=tail"]
 
 
 @pytest.mark.slow
-def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
+class TestBasesReferenceRerun:  # a class: a scope of its own for pytest-xdist, as the reruns above
+    def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(self, tmp_path):
+        check_committed_bases_report(tmp_path)
+
+
+def check_committed_bases_report(tmp_path) -> None:
     reference = REPO_ROOT / "reports" / "bases"
     if not (reference / "summary.csv").is_file():
         pytest.skip(f"no committed reference report {reference}")
