@@ -72,20 +72,27 @@ def measured_durations() -> dict[str, float]:
 
 
 LONGEST_FIRST = (
-    "tests/reporting/test_reporting.py",  # the reference reports redone: about ten minutes in all
     "tests/project/test_docs.py::TestCommandsOf_docs_studies_md",
     "tests/project/test_docs.py::TestCommandsOf_docs_reports_md",
     "tests/project/test_docs.py::TestCommandsOf_README_md",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper",  # the 4,000-frame reference run redone
+    "tests/reporting/test_reporting.py",
     "tests/project/test_docs.py::TestCommandsOf_docs_performance_md",
     "tests/project/test_docs.py::TestCommandsOf_docs_formats_md",
-    "tests/study/test_studies.py",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper_ict_livelink",
+    "tests/reporting/test_reporting.py::TestBasesReferenceRerun",
+    "tests/reporting/test_reporting.py::TestReferenceRerun_paper_animface",
     "tests/project/test_docs.py::TestCommandsOf_docs_export_md",
     "tests/record/test_mlflow_store.py",
     "tests/project/test_docs.py::TestCommandsOf_docs_tracking_md",
-    "tests/cli/test_kill.py",
+    "tests/cli/test_kill.py::TestKilledRuns",  # its sweeps (TestKilledSweeps) go by their seconds
+    "tests/cli/test_cluster.py",  # no seconds: it needs CI's test cluster; not to be handed out last, unmeasured
 )
-"""The longest scopes of the whole suite, slow tests included, longest first, in the order CI measured them (no
-seconds were kept; :data:`DURATIONS` holds the inner loop's): handed out before every other scope."""
+"""The longest scopes of the whole suite, slow tests included, longest first: handed out before every other
+scope. The documents' commands, tests/record/test_mlflow_store.py and tests/cli/test_kill.py's in the order CI measured
+them (no seconds were kept), the scopes of tests/reporting/test_reporting.py placed among them by their seconds
+(:data:`DURATIONS`, measured with ``-n 0``); then tests/cli/test_cluster.py, which only CI runs: a scope not
+measured is otherwise handed out last, where a long one keeps one process busy alone at the end."""
 
 
 def pytest_collection_modifyitems(items):
@@ -190,6 +197,52 @@ def tiny_study() -> tuple[str, ...]:
     """The overrides of the smallest synthetic study (:data:`TINY_STUDY`): what a test runs when it needs a run,
     not a particular size."""
     return TINY_STUDY
+
+
+TINY_REPORT = (
+    "dataset.train_on=[markers,mesh]",
+    "dataset.n_frames=600",
+    "dataset.mesh_rows=35",
+    "dataset.mesh_cols=30",
+    "save_inputs=true",
+)
+"""The run of ``tiny_report``: both data variants, 5 s of performance on a coarse mesh (1,050 vertices), inputs
+saved."""
+
+
+def shared_temporary_folder(tmp_path_factory) -> Path:
+    """This test run's temporary folder that every test process sees: under pytest-xdist the folder above the
+    processes' own ones."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+@pytest.fixture(scope="session")
+def tiny_report(tmp_path_factory) -> tuple[Path, Path]:
+    """``(record, report)``: a run of :data:`TINY_REPORT` and its report (``workbench report``, every figure), built
+    once per test run, whichever test process asks first (the others wait for it and take it), for the tests that
+    read a report (tests/reporting/test_reporting.py, tests/reporting/test_rig_panel.py). Read only: a test that
+    changes a report changes a copy."""
+    import fcntl
+
+    from workbench.api import run
+    from workbench.reporting.report.command import main
+    from workbench.settings.config import compose
+
+    folder = shared_temporary_folder(tmp_path_factory) / "tiny-report"
+    record, report = folder / "run", folder / "reports" / "paper"
+    with open(folder.with_name("tiny-report.lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+        if not (folder / "built").is_file():
+            if folder.exists():  # a process that failed half way left it
+                import shutil
+
+                shutil.rmtree(folder)
+            folder.mkdir()
+            run(compose("paper", list(TINY_REPORT)), record)
+            assert main([str(record), "--out", str(report)]) == 0
+            (folder / "built").write_text("")
+    return record, report
 
 
 @pytest.fixture

@@ -320,98 +320,100 @@ def kill_chain(number: int, root: Path, reference: Path, rules: list, outcomes: 
 
 @pytest.mark.process
 @pytest.mark.slow
-def test_runs_killed_at_random_points_leave_whole_records_or_none(tmp_path):
-    rng = np.random.default_rng(SEED)
-    # Complete runs side by side measure the duration and the record-writing window, and are the reference.
-    references = [
-        Job(RUN + [f"hydra.run.dir={tmp_path / f'reference{i}'}"], tmp_path, tmp_path / f"reference{i}.log")
-        for i in range(PARALLEL)
-    ]
-    run_jobs(references)
-    for job in references:
-        assert job.output["returncode"] == 0, job.output["stderr"]
-    reference = tmp_path / "reference0"
-    assert check_run_folder(reference, tmp_path / "reference1", hydra_files=True) == "complete"
-    duration = float(np.median([job.duration for job in references]))
-    writing = float(
-        np.median(
-            [
-                (
-                    (tmp_path / f"reference{i}" / DONE).stat().st_mtime_ns
-                    - (tmp_path / f"reference{i}" / "config.yaml").stat().st_mtime_ns
-                )
-                / 1e9
-                for i in range(PARALLEL)
-            ]
-        )
-    )
-    assert 0 < writing < duration
-
-    chains, outcomes = [], []
-    for number in range(PARALLEL):
-        rules = [("after", float(delay)) for delay in rng.uniform(0.0, 1.1 * duration, N_UNIFORM)] + [
-            ("writing", float(delay)) for delay in rng.uniform(0.0, writing, N_WRITING)
+class TestKilledRuns:  # a class: a scope of its own for pytest-xdist, as TestKilledSweeps (each of both processes)
+    def test_runs_killed_at_random_points_leave_whole_records_or_none(self, tmp_path):
+        rng = np.random.default_rng(SEED)
+        # Complete runs side by side measure the duration and the record-writing window, and are the reference.
+        references = [
+            Job(RUN + [f"hydra.run.dir={tmp_path / f'reference{i}'}"], tmp_path, tmp_path / f"reference{i}.log")
+            for i in range(PARALLEL)
         ]
-        rules = [rules[i] for i in rng.permutation(len(rules))]
-        chains.append(kill_chain(number, tmp_path, reference, rules, outcomes))
-    run_chains(chains)
+        run_jobs(references)
+        for job in references:
+            assert job.output["returncode"] == 0, job.output["stderr"]
+        reference = tmp_path / "reference0"
+        assert check_run_folder(reference, tmp_path / "reference1", hydra_files=True) == "complete"
+        duration = float(np.median([job.duration for job in references]))
+        writing = float(
+            np.median(
+                [
+                    (
+                        (tmp_path / f"reference{i}" / DONE).stat().st_mtime_ns
+                        - (tmp_path / f"reference{i}" / "config.yaml").stat().st_mtime_ns
+                    )
+                    / 1e9
+                    for i in range(PARALLEL)
+                ]
+            )
+        )
+        assert 0 < writing < duration
 
-    states = [state for _, _, state in outcomes]
-    assert len(states) == PARALLEL * (N_UNIFORM + N_WRITING) >= 20
-    assert "partial" in states, f"no kill fell while a record was written: {outcomes}"
-    assert "empty" in states, f"no kill fell before a record: {outcomes}"
+        chains, outcomes = [], []
+        for number in range(PARALLEL):
+            rules = [("after", float(delay)) for delay in rng.uniform(0.0, 1.1 * duration, N_UNIFORM)] + [
+                ("writing", float(delay)) for delay in rng.uniform(0.0, writing, N_WRITING)
+            ]
+            rules = [rules[i] for i in rng.permutation(len(rules))]
+            chains.append(kill_chain(number, tmp_path, reference, rules, outcomes))
+        run_chains(chains)
+
+        states = [state for _, _, state in outcomes]
+        assert len(states) == PARALLEL * (N_UNIFORM + N_WRITING) >= 20
+        assert "partial" in states, f"no kill fell while a record was written: {outcomes}"
+        assert "empty" in states, f"no kill fell before a record: {outcomes}"
 
 
 @pytest.mark.process
 @pytest.mark.slow
-def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(tmp_path):
-    rng = np.random.default_rng(SEED + 1)
-    reference_job = Job(SWEEP + [f"hydra.sweep.dir={tmp_path / 'reference'}"], tmp_path, tmp_path / "reference.log")
-    run_jobs([reference_job])
-    assert reference_job.output["returncode"] == 0, reference_job.output["stderr"]
-    reference = tmp_path / "reference"
-    run_names = sorted(path.name for path in reference.iterdir() if path.is_dir() and path.name != "collected")
-    assert len(run_names) == 2
-    for name in run_names:
-        assert check_run_folder(reference / name, reference / name, hydra_files=False) == "complete"
-
-    delays = rng.uniform(0.3, 1.0, N_SWEEPS) * reference_job.duration
-    sweeps = [
-        Job(
-            SWEEP + [f"hydra.sweep.dir={tmp_path / f'sweep{i}'}"],
-            tmp_path,
-            tmp_path / f"sweep{i}.log",
-            kill=("after", float(delay)),
-        )
-        for i, delay in enumerate(delays)
-    ]
-    run_jobs(sweeps)
-    before = {}
-    for i in range(N_SWEEPS):
-        sweep = tmp_path / f"sweep{i}"
+class TestKilledSweeps:
+    def test_killed_tracked_sweeps_resume_to_the_uninterrupted_result(self, tmp_path):
+        rng = np.random.default_rng(SEED + 1)
+        reference_job = Job(SWEEP + [f"hydra.sweep.dir={tmp_path / 'reference'}"], tmp_path, tmp_path / "reference.log")
+        run_jobs([reference_job])
+        assert reference_job.output["returncode"] == 0, reference_job.output["stderr"]
+        reference = tmp_path / "reference"
+        run_names = sorted(path.name for path in reference.iterdir() if path.is_dir() and path.name != "collected")
+        assert len(run_names) == 2
         for name in run_names:
-            if check_run_folder(sweep / name, reference / name, hydra_files=False) == "complete":
-                before[(i, name)] = snapshot(sweep / name)
-        collected = sweep / "collected"
-        if collected.exists():  # tables written so far are whole
-            for path in collected.iterdir():
-                if temporary_of(path.name) is None:
-                    assert path.name in COLLECTED_FILES, path
-                    parse(path)
+            assert check_run_folder(reference / name, reference / name, hydra_files=False) == "complete"
 
-    resumes = [Job(job.arguments, tmp_path, tmp_path / f"resume{i}.log") for i, job in enumerate(sweeps)]
-    run_jobs(resumes)
-    for i, job in enumerate(resumes):
-        sweep = tmp_path / f"sweep{i}"
-        assert job.output["returncode"] == 0, job.output["stderr"]
-        for name in run_names:
-            assert check_run_folder(sweep / name, reference / name, hydra_files=False) == "complete"
-            if (i, name) in before:
-                assert snapshot(sweep / name) == before[(i, name)], f"{sweep / name}: a complete record was touched"
-        assert sorted(path.name for path in (sweep / "collected").iterdir()) == sorted(COLLECTED_FILES)
-        assert (sweep / "collected" / "alpha_table.md").read_text() == (
-            reference / "collected" / "alpha_table.md"
-        ).read_text()
+        delays = rng.uniform(0.3, 1.0, N_SWEEPS) * reference_job.duration
+        sweeps = [
+            Job(
+                SWEEP + [f"hydra.sweep.dir={tmp_path / f'sweep{i}'}"],
+                tmp_path,
+                tmp_path / f"sweep{i}.log",
+                kill=("after", float(delay)),
+            )
+            for i, delay in enumerate(delays)
+        ]
+        run_jobs(sweeps)
+        before = {}
+        for i in range(N_SWEEPS):
+            sweep = tmp_path / f"sweep{i}"
+            for name in run_names:
+                if check_run_folder(sweep / name, reference / name, hydra_files=False) == "complete":
+                    before[(i, name)] = snapshot(sweep / name)
+            collected = sweep / "collected"
+            if collected.exists():  # tables written so far are whole
+                for path in collected.iterdir():
+                    if temporary_of(path.name) is None:
+                        assert path.name in COLLECTED_FILES, path
+                        parse(path)
+
+        resumes = [Job(job.arguments, tmp_path, tmp_path / f"resume{i}.log") for i, job in enumerate(sweeps)]
+        run_jobs(resumes)
+        for i, job in enumerate(resumes):
+            sweep = tmp_path / f"sweep{i}"
+            assert job.output["returncode"] == 0, job.output["stderr"]
+            for name in run_names:
+                assert check_run_folder(sweep / name, reference / name, hydra_files=False) == "complete"
+                if (i, name) in before:
+                    assert snapshot(sweep / name) == before[(i, name)], f"{sweep / name}: a complete record was touched"
+            assert sorted(path.name for path in (sweep / "collected").iterdir()) == sorted(COLLECTED_FILES)
+            assert (sweep / "collected" / "alpha_table.md").read_text() == (
+                reference / "collected" / "alpha_table.md"
+            ).read_text()
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from workbench.reporting.export.takes import livelink_channels, livelink_csv, ti
 from workbench.settings.config import REPO_ROOT, compose
 
 sys.path.insert(0, str(REPO_ROOT / "tests" / "tools"))
-from playback_check import playback_differences  # noqa: E402  (a helper script beside the Blender one)
+from playback_check import exports_played_back, playback_differences  # noqa: E402  (a helper script beside the Blender one)
 
 # One fit per data variant (the paper regime's extra m = n variants are the regime tests' concern).
 RUN = [
@@ -419,8 +419,9 @@ def test_every_solvers_glb_plays_back_in_blender_as_the_workbench_reconstructs(e
     require_tool(shutil.which("blender") is not None, "blender")
     exports, neutral = every_solver
     worst = {}
+    played_back = exports_played_back(exports, neutral, 12, tmp_path)  # every solver's files in one Blender
     for solver, out, manifest, bases in exports:
-        for label, found in playback_differences(out, manifest, bases, neutral, 12, tmp_path).items():
+        for label, found in played_back[solver].items():
             worst[(label, solver)] = found["max_abs_mm"]
             entry = next(entry for entry in manifest["bases"] if entry["basis"] == label)
             imported = found["imported"]

@@ -29,14 +29,6 @@ from workbench.reporting.tables.runs import flatten, summarise, varying_keys, wi
 from workbench.settings.config import REPO_ROOT, compose
 from workbench.settings.schema import RETIRED_SETTINGS
 
-# A small run on both data variants: 5 s of performance on a coarse mesh (1,050 vertices), inputs saved.
-TINY = [
-    "dataset.train_on=[markers,mesh]",
-    "dataset.n_frames=600",
-    "dataset.mesh_rows=35",
-    "dataset.mesh_cols=30",
-    "save_inputs=true",
-]
 # The committed reference reports and the overrides of the runs they were built from, each checked against a fresh
 # run. The real takes run at every 4th frame, so that this test can redo each run in a few minutes (most of it the
 # folds of kfold). The synthetic actor's report is at the paper's 35,000 frames, too large to redo here (its mesh
@@ -68,13 +60,7 @@ PAPER_SIZE = {"paper": {"dataset.n_frames": 35000, "dataset.held_out": "[tail, k
 FIGURE_STEMS = [spec[0] for spec in RUN_FIGURES]
 
 
-@pytest.fixture(scope="module")
-def tiny_report(tmp_path_factory):
-    record = tmp_path_factory.mktemp("run")
-    run(compose("paper", TINY), record)
-    out = tmp_path_factory.mktemp("reports")
-    assert main([str(record), "--out", str(out / "paper")]) == 0
-    return record, out / "paper"
+# tiny_report (tests/conftest.py): a small run on both data variants, inputs saved, and its report
 
 
 @pytest.mark.slow
@@ -598,9 +584,21 @@ def test_command_is_registered_and_reports_errors_in_one_line(tmp_path):
     assert done.stderr.strip().splitlines()[-1].startswith("workbench report: error: ")
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("name", list(REFERENCES))
-def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_path, request):
+def reference_rerun_class(name: str) -> type:
+    """A test class of its own for one committed reference report's fresh run (a minute or two each): pytest-xdist
+    (``--dist loadscope``) sends each class to whichever process is free, so the reruns spread over both processes
+    while this file's other tests keep their module fixtures on one."""
+
+    @pytest.mark.slow
+    class TestReferenceRerun:
+        def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(self, tmp_path, request):
+            check_committed_reference_report(name, tmp_path, request)
+
+    TestReferenceRerun.__name__ = TestReferenceRerun.__qualname__ = "TestReferenceRerun_" + re.sub(r"\W", "_", name)
+    return TestReferenceRerun
+
+
+def check_committed_reference_report(name: str, tmp_path, request) -> None:
     reference, overrides = REFERENCES[name]
     if not (reference / "alpha_table.csv").is_file():
         pytest.skip(f"no committed reference report {reference}")
@@ -644,6 +642,11 @@ def test_committed_reference_report_has_the_numbers_a_fresh_run_gives(name, tmp_
         "## Faces you can turn", committed_readme
     )
     assert_reference_is_small_and_clean(reference, committed_readme)
+
+
+for _name in REFERENCES:
+    _class = reference_rerun_class(_name)
+    globals()[_class.__name__] = _class
 
 
 def test_the_synthetic_reference_report_is_the_papers_size_and_otherwise_the_run_checked_in_its_place():
@@ -825,7 +828,12 @@ BASES_REFERENCE = ["dataset.n_frames=4000", "dataset.held_out=tail"]
 
 
 @pytest.mark.slow
-def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(tmp_path):
+class TestBasesReferenceRerun:  # a class: a scope of its own for pytest-xdist, as the reruns above
+    def test_committed_bases_report_has_the_numbers_a_fresh_sweep_gives(self, tmp_path):
+        check_committed_bases_report(tmp_path)
+
+
+def check_committed_bases_report(tmp_path) -> None:
     reference = REPO_ROOT / "reports" / "bases"
     if not (reference / "summary.csv").is_file():
         pytest.skip(f"no committed reference report {reference}")

@@ -22,25 +22,9 @@ from workbench.reporting.export.run import export_run
 from workbench.reporting.report.command import main
 from workbench.settings.config import REPO_ROOT, compose
 
-TINY = [
-    "dataset.train_on=[markers,mesh]",
-    "dataset.n_frames=600",
-    "dataset.mesh_rows=35",
-    "dataset.mesh_cols=30",
-    "save_inputs=true",
-]
 NODE_MODULES = Path(os.environ.get("WORKBENCH_NODE_MODULES", REPO_ROOT / ".ci" / "node" / "node_modules"))
 STEPS_SCRIPT = REPO_ROOT / "tests" / "tools" / "browser_steps.js"
 pytestmark = [pytest.mark.slow, pytest.mark.process]  # a report built, then node and Chromium drive its page
-
-
-@pytest.fixture(scope="module")
-def report(tmp_path_factory):
-    record = tmp_path_factory.mktemp("run") / "run"
-    run(compose("paper", TINY), record)
-    out = tmp_path_factory.mktemp("report") / "paper"
-    assert main([str(record), "--out", str(out)]) == 0
-    return record, out
 
 
 def panel_data(report_folder: Path) -> dict:
@@ -59,10 +43,10 @@ def rig_files(data: dict, folder: Path) -> dict:
     return files
 
 
-def test_report_on_a_mesh_run_writes_the_panel_with_the_exports_rigs(report, tmp_path):
+def test_report_on_a_mesh_run_writes_the_panel_with_the_exports_rigs(tiny_report, tmp_path):
     """The section, three.js with its licence beside the page, and every rig a .glb the workbench's reader reads
     and the Khronos validator passes: the H rig's targets are the hand shapes, the QE rigs' their projections."""
-    _, out = report
+    _, out = tiny_report
     page = (out / "index.html").read_text()
     assert "<h2>Pose the rigs</h2>" in page and "Pose the rigs" in (out / "README.md").read_text()
     assert 'src="figures/three.min.js"' in page and 'src="figures/rigs.js"' in page
@@ -71,7 +55,7 @@ def test_report_on_a_mesh_run_writes_the_panel_with_the_exports_rigs(report, tmp
     data = panel_data(out)
     assert [rig["key"] for rig in data["rigs"]] == ["H", "QE", "QE m=n"]
     assert data["shapes"][-1] == "jaw_open" and len(data["shapes"]) == 18
-    with _inputs(report) as inputs:
+    with _inputs(tiny_report) as inputs:
         hand, kept = inputs["hand"], np.asarray(data["kept"])
         rows = (3 * kept[:, None] + np.arange(3)).ravel()
         neutral = inputs["neutral"][rows]
@@ -131,11 +115,11 @@ def posed(mesh, weights: np.ndarray) -> np.ndarray:
     return mesh.neutral.ravel() + weights @ mesh.deltas.reshape(len(mesh.names), -1)
 
 
-def test_sliders_pose_both_rigs_as_the_rigs_files_say(report, chromium, tmp_path):
+def test_sliders_pose_both_rigs_as_the_rigs_files_say(tiny_report, chromium, tmp_path):
     """Loaded from file:// with no network: no console errors; dragging a slider changes the pixels of both faces;
     the vertices the page poses (read back from it) equal neutral + sum w e of the rig's .glb to 1e-4 mm, for H and
     both QE rigs, at the slider's value, after solo and after reset."""
-    _, out = report
+    _, out = tiny_report
     data = panel_data(out)
     jaw = data["shapes"].index("jaw_open")
     read_back = "JSON.stringify({w: Object.fromEntries(workbenchRigs.rigs.map((k) => [k, workbenchRigs.rawWeights(k)])), p: Object.fromEntries(workbenchRigs.rigs.map((k) => [k, workbenchRigs.positions(k)]))})"
@@ -177,11 +161,11 @@ def test_sliders_pose_both_rigs_as_the_rigs_files_say(report, chromium, tmp_path
     shutil.copy(tmp_path / "panel.png", Path(os.environ.get("WORKBENCH_PANEL_SCREENSHOT", tmp_path / "kept.png")))
 
 
-def test_the_timeline_shows_the_weights_the_export_writes(report, chromium, tmp_path):
+def test_the_timeline_shows_the_weights_the_export_writes(tiny_report, chromium, tmp_path):
     """Moving the timeline to a frame drives the rigs with the weights the chosen solver found: those of the weights
     CSV ``workbench export`` writes for that frame (H and QE of the mesh data, QE of its m = n variant), for lstsq and
     box; the faces are the rig's neutral + sum w e."""
-    record, out = report
+    record, out = tiny_report
     data = panel_data(out)
     assert data["solvers"] == ["lstsq", "nnls", "box"]  # the run's, the figures' lstsq first
     read_back = (
@@ -225,9 +209,9 @@ def test_the_timeline_shows_the_weights_the_export_writes(report, chromium, tmp_
     assert 0 <= keys_seen[0] < keys_seen[1]
 
 
-def test_a_copied_report_poses_its_rigs_with_no_network(report, chromium, tmp_path):
+def test_a_copied_report_poses_its_rigs_with_no_network(tiny_report, chromium, tmp_path):
     """Everything the panel needs is in the report's folder: a copy elsewhere loads three.js and the rigs."""
-    _, out = report
+    _, out = tiny_report
     copy = tmp_path / "elsewhere" / "a copy"
     shutil.copytree(out, copy)
     seen = browser_steps(

@@ -56,6 +56,15 @@ def bases_sweep(tmp_path_factory):
     return sweep, pd.read_parquet(sweep / "collected" / "runs.parquet"), result.stdout
 
 
+@pytest.fixture(scope="module")
+def bases_report(bases_sweep, tmp_path_factory):
+    """The sweep's report, each figure also as PNG (the tests below read it; none changes it)."""
+    sweep, _, _ = bases_sweep
+    report = tmp_path_factory.mktemp("bases_report") / "bases_small"
+    assert report_main([str(sweep), "--out", str(report), "--formats", "png,svg"]) == 0
+    return report
+
+
 @pytest.mark.slow
 def test_bases_preset_scores_every_basis_with_every_solver(bases_sweep):
     sweep, runs, stdout = bases_sweep
@@ -97,10 +106,8 @@ def test_intuitiveness_is_in_the_run_record(bases_sweep):
 
 
 @pytest.mark.slow
-def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
-    sweep, _, _ = bases_sweep
-    assert report_main([str(sweep), "--out", str(tmp_path / "bases_small"), "--formats", "png,svg"]) == 0
-    report = tmp_path / "bases_small"
+def test_bases_report_has_the_table_and_the_figure(bases_report):
+    report = bases_report
     readme = (report / "README.md").read_text()
     section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
     rows = [line for line in section.splitlines() if line.startswith("| markers")]
@@ -116,17 +123,15 @@ def test_bases_report_has_the_table_and_the_figure(bases_sweep, tmp_path):
 
 
 @pytest.mark.slow
-def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_sweep, tmp_path):
+def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_report):
     """Closeness and locality are rows of the sweep's one comparisons table beside alpha; QE <= PCA, which holds by
     construction in every take, is an identity there (no p-value, no test), never re-tested in a second table."""
-    sweep, _, _ = bases_sweep
-    assert report_main([str(sweep), "--out", str(tmp_path / "one"), "--formats", "svg"]) == 0
-    readme = (tmp_path / "one" / "README.md").read_text()
+    readme = (bases_report / "README.md").read_text()
     section = readme.split("## Other bases: alpha against intuitiveness", 1)[1].split("\n## ", 1)[0]
     assert "Paired comparisons over the runs" not in section and "| first " not in section
     assert "are rows of the table 'Paired comparisons'" in section
     assert readme.count("| first ") == 1  # one comparison table in the whole report
-    table = pd.read_csv(tmp_path / "one" / "comparisons.csv")
+    table = pd.read_csv(bases_report / "comparisons.csv")
     assert set(table["metric"]) == {"alpha_abs_mean", "matched_abs_cosine", "locality"}
     assert list(table.columns[list(table.columns).index("p") :][:3]) == ["p", "p_holm", "family"]
     qe_pca = table[(table["first"] == "QE") & (table["second"] == "PCA") & (table["metric"] == "alpha_abs_mean")]
@@ -148,10 +153,8 @@ def test_bases_report_has_one_comparison_table_and_one_holm_family_pair(bases_sw
 
 
 @pytest.mark.slow
-def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_sweep, tmp_path):
-    sweep, _, _ = bases_sweep
-    assert report_main([str(sweep), "--out", str(tmp_path / "summary"), "--formats", "svg"]) == 0
-    readme = (tmp_path / "summary" / "README.md").read_text()
+def test_bases_report_opens_with_a_summary_of_the_two_claims(bases_report):
+    readme = (bases_report / "README.md").read_text()
     assert readme.split("\n## ", 2)[1].startswith("Summary\n")
     summary = readme.split("## Summary\n\n", 1)[1].split("\n## ", 1)[0].strip()
     assert len(summary.split()) <= 200, len(summary.split())

@@ -320,6 +320,8 @@ def test_cluster_launcher_config_composes():
 
 
 # --- every study's small preset, end to end through the command line -------------------------------------------
+# Each preset's test is a class of its own: pytest-xdist (--dist loadscope) sends each class to whichever process is
+# free, so the sweeps spread over both processes (they share no fixture).
 
 
 def run_preset(study, tmp_path):
@@ -368,103 +370,109 @@ def test_every_preset_runs_five_seeds():
 
 
 @pytest.mark.slow
-def test_coverage_preset(tmp_path):
-    sweep, runs, stdout = run_preset("coverage", tmp_path)
-    assert runs.groupby("run").ngroups == 10 and "| basis.coverage |" in stdout
-    m = runs[runs["basis"] == "PCA"].set_index(["dataset.seed", "basis.coverage"])["m"]
-    for seed in range(5):
-        assert m[(seed, 0.95)] < m[(seed, 0.995)]
-    assert (
-        lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.995}).to_numpy()
-        < lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.95}).to_numpy()
-    ).all()
+class TestCoveragePreset:
+    def test_coverage_preset(self, tmp_path):
+        sweep, runs, stdout = run_preset("coverage", tmp_path)
+        assert runs.groupby("run").ngroups == 10 and "| basis.coverage |" in stdout
+        m = runs[runs["basis"] == "PCA"].set_index(["dataset.seed", "basis.coverage"])["m"]
+        for seed in range(5):
+            assert m[(seed, 0.95)] < m[(seed, 0.995)]
+        assert (
+            lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.995}).to_numpy()
+            < lstsq_alpha(runs, "PCA", **{"basis.coverage": 0.95}).to_numpy()
+        ).all()
 
 
 @pytest.mark.slow
-def test_basis_count_preset(tmp_path):
-    sweep, runs, _ = run_preset("basis_count", tmp_path)
-    assert runs.groupby("run").ngroups == 30
-    h = runs[runs["basis"] == "H"].set_index(["basis.hand_subset", "dataset.seed", "basis.append_empty_axes"])["n"]
-    assert h[("upper", 0, False)] == 6 and h[("random6", 1, True)] == 6 and h[("all", 0, False)] == 18
-    drawn = {}
-    for path in sweep.glob("*/metrics.json"):
-        metrics = json.loads(path.read_text())
-        if {"basis.hand_subset=random6", "basis.append_empty_axes=False"} <= set(metrics["overrides"]):
-            drawn[metrics["dataset"]["provenance"]["seed"]] = tuple(metrics["dataset"]["hand_names"])
-    assert sorted(drawn) == [0, 1, 2, 3, 4] and drawn[0] != drawn[1]  # a new draw per seed
-    upper = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "upper", "basis.append_empty_axes": False})
-    full = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "all", "basis.append_empty_axes": False})
-    assert upper.mean() > full.mean()
+class TestBasisCountPreset:
+    def test_basis_count_preset(self, tmp_path):
+        sweep, runs, _ = run_preset("basis_count", tmp_path)
+        assert runs.groupby("run").ngroups == 30
+        h = runs[runs["basis"] == "H"].set_index(["basis.hand_subset", "dataset.seed", "basis.append_empty_axes"])["n"]
+        assert h[("upper", 0, False)] == 6 and h[("random6", 1, True)] == 6 and h[("all", 0, False)] == 18
+        drawn = {}
+        for path in sweep.glob("*/metrics.json"):
+            metrics = json.loads(path.read_text())
+            if {"basis.hand_subset=random6", "basis.append_empty_axes=False"} <= set(metrics["overrides"]):
+                drawn[metrics["dataset"]["provenance"]["seed"]] = tuple(metrics["dataset"]["hand_names"])
+        assert sorted(drawn) == [0, 1, 2, 3, 4] and drawn[0] != drawn[1]  # a new draw per seed
+        upper = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "upper", "basis.append_empty_axes": False})
+        full = lstsq_alpha(runs, "QE", **{"basis.hand_subset": "all", "basis.append_empty_axes": False})
+        assert upper.mean() > full.mean()
 
 
 @pytest.mark.slow
-def test_marker_mesh_preset(tmp_path):
-    sweep, runs, stdout = run_preset("marker_mesh", tmp_path)
-    assert runs.groupby("run").ngroups == 20
-    assert set(runs["data"]) == {"markers->markers", "markers->face", "mesh->markers", "mesh->face"}
-    points = runs.drop_duplicates(["dataset.mesh_fraction", "eval_on"]).set_index(["dataset.mesh_fraction", "eval_on"])[
-        "n_points"
-    ]
-    # one evaluation set each, whatever the mesh density the bases were fitted on
-    assert points[(1.0, "markers")] == points[(0.25, "markers")] == 66
-    assert points[(1.0, "face")] == points[(0.25, "face")] > 2000
-    # fitted on the full dense mesh and scored on its face region, the quasi-eigen faces beat the hand shapes
-    full = {"dataset.mesh_fraction": 1.0}
-    assert (
-        lstsq_alpha(runs, "QE", data="mesh->face", **full).to_numpy()
-        < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()
-    ).all()
-    assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
-    # the findings compare the data each basis was fitted on, within one evaluation set
-    assert "scored on **face**, QE (5 seeds, lstsq) `alpha_disp_pooled` by the data fitted on: " in stdout
-    comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
-    fitted = comparisons[comparisons["eval_on"].notna() & comparisons["basis"].notna()]
-    assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
+class TestMarkerMeshPreset:
+    def test_marker_mesh_preset(self, tmp_path):
+        sweep, runs, stdout = run_preset("marker_mesh", tmp_path)
+        assert runs.groupby("run").ngroups == 20
+        assert set(runs["data"]) == {"markers->markers", "markers->face", "mesh->markers", "mesh->face"}
+        points = runs.drop_duplicates(["dataset.mesh_fraction", "eval_on"]).set_index(
+            ["dataset.mesh_fraction", "eval_on"]
+        )["n_points"]
+        # one evaluation set each, whatever the mesh density the bases were fitted on
+        assert points[(1.0, "markers")] == points[(0.25, "markers")] == 66
+        assert points[(1.0, "face")] == points[(0.25, "face")] > 2000
+        # fitted on the full dense mesh and scored on its face region, the quasi-eigen faces beat the hand shapes
+        full = {"dataset.mesh_fraction": 1.0}
+        assert (
+            lstsq_alpha(runs, "QE", data="mesh->face", **full).to_numpy()
+            < lstsq_alpha(runs, "H", data="mesh->face", **full).to_numpy()
+        ).all()
+        assert "alpha_disp_pooled (%)" in stdout and "n_points" in stdout and "time_total" in stdout
+        # the findings compare the data each basis was fitted on, within one evaluation set
+        assert "scored on **face**, QE (5 seeds, lstsq) `alpha_disp_pooled` by the data fitted on: " in stdout
+        comparisons = pd.read_csv(sweep / "collected" / "comparisons.csv")
+        fitted = comparisons[comparisons["eval_on"].notna() & comparisons["basis"].notna()]
+        assert set(fitted["first"]) | set(fitted["second"]) == {"markers", "mesh"} and (fitted["n"] == 5).all()
 
 
 @pytest.mark.slow
-def test_noise_preset(tmp_path):
-    sweep, runs, stdout = run_preset("noise", tmp_path)
-    assert runs.groupby("run").ngroups == 40
-    m = runs[runs["basis"] == "PCA"].set_index(
-        ["dataset.seed", "basis.coverage_on", "dataset.marker_noise_mm", "dataset.gap_rate"]
-    )["m"]
-    for seed in range(5):
-        assert m[(seed, "clean", 0.5, 0.05)] == m[(seed, "training", 0.0, 0.0)]  # m held at the clean capture's
-        assert m[(seed, "training", 0.5, 0.0)] > 10 * m[(seed, "training", 0.0, 0.0)]  # the rule keeps the noise
-    assert {"clean_alpha_abs_mean", "clean_rms_mm"} <= set(runs.columns)
-    assert "lstsq) `clean_alpha_abs_mean`: H " in stdout  # findings against the clean frames too
-    gapped = next(sweep.glob("*gap_rate=0.05*/metrics.json"))
-    gaps = json.loads(gapped.read_text())["dataset"]["provenance"]["gaps"]
-    assert gaps["policy"] == "linear" and gaps["n_missing_samples"] > 0
+class TestNoisePreset:
+    def test_noise_preset(self, tmp_path):
+        sweep, runs, stdout = run_preset("noise", tmp_path)
+        assert runs.groupby("run").ngroups == 40
+        m = runs[runs["basis"] == "PCA"].set_index(
+            ["dataset.seed", "basis.coverage_on", "dataset.marker_noise_mm", "dataset.gap_rate"]
+        )["m"]
+        for seed in range(5):
+            assert m[(seed, "clean", 0.5, 0.05)] == m[(seed, "training", 0.0, 0.0)]  # m held at the clean capture's
+            assert m[(seed, "training", 0.5, 0.0)] > 10 * m[(seed, "training", 0.0, 0.0)]  # the rule keeps the noise
+        assert {"clean_alpha_abs_mean", "clean_rms_mm"} <= set(runs.columns)
+        assert "lstsq) `clean_alpha_abs_mean`: H " in stdout  # findings against the clean frames too
+        gapped = next(sweep.glob("*gap_rate=0.05*/metrics.json"))
+        gaps = json.loads(gapped.read_text())["dataset"]["provenance"]["gaps"]
+        assert gaps["policy"] == "linear" and gaps["n_missing_samples"] > 0
 
 
 @pytest.mark.slow
-def test_choices_preset(tmp_path):
-    sweep, runs, stdout = run_preset("choices", tmp_path)
-    assert runs.groupby("run").ngroups == 5
-    assert set(runs["solver"]) == {"lstsq", "nnls", "box", "projection"}
-    assert set(runs["projection"]) == {"-", "affine", "linear"}
-    header = next(line for line in stdout.splitlines() if line.startswith("| basis"))
-    assert [cell.strip() for cell in header.strip("|").split("|")] == [
-        "basis",
-        "solver",
-        "m",
-        "alpha_abs_mean",
-        "alpha_abs_pooled",
-        "alpha_disp_mean",
-        "alpha_disp_pooled",
-    ]
+class TestChoicesPreset:
+    def test_choices_preset(self, tmp_path):
+        sweep, runs, stdout = run_preset("choices", tmp_path)
+        assert runs.groupby("run").ngroups == 5
+        assert set(runs["solver"]) == {"lstsq", "nnls", "box", "projection"}
+        assert set(runs["projection"]) == {"-", "affine", "linear"}
+        header = next(line for line in stdout.splitlines() if line.startswith("| basis"))
+        assert [cell.strip() for cell in header.strip("|").split("|")] == [
+            "basis",
+            "solver",
+            "m",
+            "alpha_abs_mean",
+            "alpha_abs_pooled",
+            "alpha_disp_mean",
+            "alpha_disp_pooled",
+        ]
 
 
 @pytest.mark.slow
-def test_generalisation_preset(tmp_path):
-    sweep, runs, stdout = run_preset("generalisation", tmp_path)
-    assert runs.groupby("run").ngroups == 15
-    frames = runs.drop_duplicates("dataset.split").set_index("dataset.split")[["n_train_frames", "n_eval_frames"]]
-    assert frames.loc["same"].tolist() == [1000, 1000] and frames.loc["tail"].tolist() == [500, 500]
-    assert frames.loc["other_take"].tolist() == [1000, 1000]
-    rows = [line.split("|")[1].strip() for line in stdout.splitlines() if line.startswith("| ")][1:]
-    assert rows == ["same", "tail", "other_take"]  # the study's order, not the alphabet's
-    held_out = lstsq_alpha(runs, "QE", **{"dataset.split": "other_take"}).mean()
-    assert held_out > lstsq_alpha(runs, "QE", **{"dataset.split": "same"}).mean()
+class TestGeneralisationPreset:
+    def test_generalisation_preset(self, tmp_path):
+        sweep, runs, stdout = run_preset("generalisation", tmp_path)
+        assert runs.groupby("run").ngroups == 15
+        frames = runs.drop_duplicates("dataset.split").set_index("dataset.split")[["n_train_frames", "n_eval_frames"]]
+        assert frames.loc["same"].tolist() == [1000, 1000] and frames.loc["tail"].tolist() == [500, 500]
+        assert frames.loc["other_take"].tolist() == [1000, 1000]
+        rows = [line.split("|")[1].strip() for line in stdout.splitlines() if line.startswith("| ")][1:]
+        assert rows == ["same", "tail", "other_take"]  # the study's order, not the alphabet's
+        held_out = lstsq_alpha(runs, "QE", **{"dataset.split": "other_take"}).mean()
+        assert held_out > lstsq_alpha(runs, "QE", **{"dataset.split": "same"}).mean()

@@ -99,34 +99,51 @@ def playback_differences(
     dict
         Basis label -> ``{"max_abs_mm", "keys", "imported"}`` (the Blender summary).
     """
-    scratch = Path(scratch or out)
-    takes = manifest.get("takes") or [{"rows": [0, manifest["n_frames"]]}]
-    spans = [tuple(take["rows"]) for take in takes]
-    files, rows = [], []
-    for basis in bases:
-        entry = next(entry for entry in manifest["bases"] if entry["basis"] == basis.label)
-        names = entry.get("animations") or [""]
-        keys = chosen_keys(basis.weights, spans, per_take)
-        files.append(
-            {
-                "glb": str(out / f"{basis.label}.glb"),
-                "out": str(scratch / f"{basis.label}.playback.npz"),
-                "keys": dict(zip(names, keys)),
-            }
-        )
-        rows.append(np.concatenate([np.asarray(k) + start for k, (start, _) in zip(keys, spans)]))
-    summaries = blender_play(files)
-    found = {}
-    for basis, file, frame_rows, summary in zip(bases, files, rows, summaries):
-        with np.load(file["out"]) as played:
-            blender = gltf_axes_mm(played["positions"])
-        expected = neutral[None] + (basis.weights[frame_rows] @ basis.shapes).reshape(len(frame_rows), -1, 3)
-        found[basis.label] = {
-            "max_abs_mm": float(np.abs(blender - expected).max()),
-            "keys": len(frame_rows),
-            "imported": summary,
-        }
+    ((_, found),) = exports_played_back([(None, out, manifest, bases)], neutral, per_take, scratch).items()
     return found
+
+
+def exports_played_back(exports: list[tuple], neutral: np.ndarray, per_take: int = 12, scratch: Path | None = None):
+    """:func:`playback_differences` of several exports of one capture, every .glb in one Blender process.
+
+    ``exports`` holds ``(key, out, manifest, bases)`` per export (``scratch`` is then required if two keys share
+    it: each export's played-back frames go to ``scratch / key``); returns key -> what
+    :func:`playback_differences` returns for that export."""
+    plans = []
+    for key, out, manifest, bases in exports:
+        folder = Path(scratch or out) / (key or "")
+        folder.mkdir(parents=True, exist_ok=True)
+        takes = manifest.get("takes") or [{"rows": [0, manifest["n_frames"]]}]
+        spans = [tuple(take["rows"]) for take in takes]
+        files, rows = [], []
+        for basis in bases:
+            entry = next(entry for entry in manifest["bases"] if entry["basis"] == basis.label)
+            names = entry.get("animations") or [""]
+            keys = chosen_keys(basis.weights, spans, per_take)
+            files.append(
+                {
+                    "glb": str(out / f"{basis.label}.glb"),
+                    "out": str(folder / f"{basis.label}.playback.npz"),
+                    "keys": dict(zip(names, keys)),
+                }
+            )
+            rows.append(np.concatenate([np.asarray(k) + start for k, (start, _) in zip(keys, spans)]))
+        plans.append((key, bases, files, rows))
+    summaries = iter(blender_play([file for _, _, files, _ in plans for file in files]))
+    played_back = {}
+    for key, bases, files, rows in plans:
+        found = {}
+        for basis, file, frame_rows, summary in zip(bases, files, rows, summaries):
+            with np.load(file["out"]) as played:
+                blender = gltf_axes_mm(played["positions"])
+            expected = neutral[None] + (basis.weights[frame_rows] @ basis.shapes).reshape(len(frame_rows), -1, 3)
+            found[basis.label] = {
+                "max_abs_mm": float(np.abs(blender - expected).max()),
+                "keys": len(frame_rows),
+                "imported": summary,
+            }
+        played_back[key] = found
+    return played_back
 
 
 def measure(run: Path, solvers: list[str] | None, data: str | None, per_take: int) -> list[tuple]:
