@@ -190,6 +190,56 @@ def test_the_two_statistics_that_used_to_disagree_now_give_one_verdict_everywher
     assert pair["verdict"].tolist() == ["the paper's claim, QE/PCA: not estimable (" + pair_rests(record, tail) + ")"]
 
 
+def test_the_headline_draws_no_level_interval_that_cannot_inform(claims_run):
+    from workbench.reporting.figures.headline import headline_tables, level_interval, variant_label
+
+    record, _ = claims_run
+    per_frame = record.load_alpha_per_frame()
+    levels, _ = headline_tables(record.table, record.metrics, per_frame, "alpha_abs_mean")
+    assert len(levels)
+    for row in levels.to_dict("records"):
+        solver = "projection" if row["basis"] == "PCA" else "lstsq"
+        interval = level_interval(per_frame, row["data"], row["basis"], solver, "alpha_abs_mean")
+        assert row["not_estimable"] == interval.not_estimable
+        drawn = math.isfinite(row["low"]) and math.isfinite(row["high"])
+        assert drawn == interval.estimable
+        assert ("no interval for " in variant_label(levels, row["data"])) == any(
+            levels.loc[levels["data"] == row["data"], "not_estimable"]
+        )
+
+
+def test_a_level_on_a_wandering_series_is_drawn_without_bounds():
+    import numpy as np
+    import pandas as pd
+
+    from workbench.reporting.figures.headline import headline_tables, variant_label
+
+    rng = np.random.default_rng(0)
+    frames = 600
+    wandering = 1.0 + np.abs(np.cumsum(rng.normal(0.0, 0.05, frames)))  # persistence near 1: batches cannot inform
+    steady = 0.5 + rng.normal(0.0, 0.05, frames) ** 2  # independent frames
+    per_frame = {
+        "markers m=n.basis": np.array(["H", "QE", "PCA"]),
+        "markers m=n.solver": np.array(["lstsq", "lstsq", "projection"]),
+        "markers m=n.absolute": np.stack([wandering, steady, steady * 0.9]),
+    }
+    table = pd.DataFrame(
+        {
+            "data": "markers m=n",
+            "basis": ["H", "QE", "PCA"],
+            "solver": ["lstsq", "lstsq", "projection"],
+            "m": 18,
+            "n": 18,
+            "alpha_abs_mean": [float(wandering.mean()), float(steady.mean()), float(steady.mean() * 0.9)],
+        }
+    )
+    levels, _ = headline_tables(table, {"data": {"markers m=n": {}}}, per_frame, "alpha_abs_mean")
+    found = levels.set_index("basis")
+    assert found.loc["H", "not_estimable"] and math.isnan(found.loc["H", "low"]) and math.isnan(found.loc["H", "high"])
+    assert not found.loc["QE", "not_estimable"] and found.loc["QE", "low"] < found.loc["QE", "alpha"]
+    assert variant_label(levels, "markers m=n").endswith("; no interval for H: not estimable")
+
+
 def pair_rests(record, data):
     return stored(record, data)["QE/PCA"]["rests_on"]
 

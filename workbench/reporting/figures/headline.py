@@ -75,7 +75,8 @@ def headline_tables(
     Returns
     -------
     levels : pandas.DataFrame
-        ``data``, ``m``, ``n``, ``basis``, ``alpha``, ``low``, ``high`` (NaN without an interval).
+        ``data``, ``m``, ``n``, ``basis``, ``alpha``, ``low``, ``high`` (NaN without an interval, or with one that
+        cannot inform), ``not_estimable`` (why it cannot, :attr:`workbench.stats.statistics.Interval.not_estimable`).
     contrasts : pandas.DataFrame
         ``data``, ``contrast`` (``QE - H``), ``estimate``, ``low``, ``high``, ``identity`` (the reason it holds by
         construction, or empty).
@@ -99,8 +100,10 @@ def headline_tables(
                     "n": n,
                     "basis": basis,
                     "alpha": float(found[column].iloc[0]),
-                    "low": interval.low if interval else math.nan,
-                    "high": interval.high if interval else math.nan,
+                    # the claims' rule: an interval that cannot inform is drawn without bounds
+                    "low": interval.low if interval and interval.estimable else math.nan,
+                    "high": interval.high if interval and interval.estimable else math.nan,
+                    "not_estimable": interval.not_estimable if interval else "",
                 }
             )
     return pd.DataFrame.from_records(levels), claim_table(metrics)
@@ -131,7 +134,8 @@ def claim_table(metrics: Mapping) -> pd.DataFrame:
 
 
 def variant_label(levels: pd.DataFrame, data: str) -> str:
-    """``markers m=n: m = n = 18`` / ``markers: coverage rule, m = 10``, with H/QE and QE/PCA."""
+    """``markers m=n: m = n = 18`` / ``markers: coverage rule, m = 10``, with H/QE and QE/PCA, and the bases whose
+    level interval is not estimable (drawn without bounds)."""
     part = levels[levels["data"] == data].set_index("basis")
     m, n = int(part["m"].iloc[0]), int(part["n"].iloc[0])
     regime = f"m = n = {m}" if m == n else f"coverage rule, m = {m}"
@@ -140,7 +144,12 @@ def variant_label(levels: pd.DataFrame, data: str) -> str:
         for a, b in (("H", "QE"), ("QE", "PCA"))
         if a in part.index and b in part.index
     ]
-    return f"{regime}" + (f" ({', '.join(ratios)})" if ratios else "")
+    bare = [basis for basis in part.index if part.loc[basis, "not_estimable"]] if "not_estimable" in part else []
+    return (
+        f"{regime}"
+        + (f" ({', '.join(ratios)})" if ratios else "")
+        + (f"; no interval for {', '.join(bare)}: not estimable" if bare else "")
+    )
 
 
 def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, title: str) -> Figure:
@@ -188,7 +197,8 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     left.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     left.yaxis.set_minor_formatter(NullFormatter())
     left.grid(axis="y", which="both", alpha=0.3)
-    figure.legend(loc="outside lower center", ncols=len(variants), fontsize=9, frameon=False)
+    long = any(len(variant_label(levels, data)) > 60 for data in variants)
+    figure.legend(loc="outside lower center", ncols=1 if long else len(variants), fontsize=9, frameon=False)
     draw_claims(right, contrasts)
     figure.suptitle(wrap_title(title, 9.0), fontsize=11)
     return figure
@@ -244,7 +254,7 @@ def draw_claims(ax, claims: pd.DataFrame) -> None:
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_yticks(range(len(labels)), labels, fontsize=8)
-    ax.set_ylim(len(labels) - 0.5, -0.5)
+    ax.set_ylim(len(labels) + 0.7, -0.5)  # a blank band under the last row holds the legend, clear of any verdict
     ax.set_xlabel("ratio of alphas at m = n (log scale)")
     values = pd.concat([claims["low"], claims["high"], claims["estimate"]]).dropna()
     values = values[values > 0]
@@ -253,7 +263,7 @@ def draw_claims(ax, claims: pd.DataFrame) -> None:
     )
     ax.set_title("the paper's claims (stored), m = n", fontsize=10)
     ax.grid(axis="x", which="major", alpha=0.3)
-    ax.legend(loc="lower right", fontsize=7, frameon=True, framealpha=0.9)
+    ax.legend(loc="lower center", ncols=3, fontsize=7, frameon=False, handlelength=1.6, columnspacing=0.8)
 
 
 def headline_spec(record, column: str, label: str) -> tuple:
@@ -279,7 +289,8 @@ def headline_spec(record, column: str, label: str) -> tuple:
     caption = (
         f"`{column}` of H, QE (lstsq) and PCA (projection) on the lead data variant (filled: the paper's "
         "regime m = n when the run has it) and with the coverage rule beside it (open); left: each level with "
-        "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only); right: "
+        "the 95 % batch-means interval of its mean over the frames (log scale; means of frames only; none where it "
+        "is not estimable, by the claims' rule); right: "
         "the paper's two claims as the run stored them, H/QE (circles) and QE/PCA (squares) at m = n on the training "
         "frames and each held-out protocol, with their 95 % intervals and verdicts (the summary's; log scale; "
         "lines at 1, the paper's 7.2 and 1.16, and claim 2's margin). An open marker without bounds: not "
