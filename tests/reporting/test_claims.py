@@ -240,6 +240,18 @@ def test_a_level_on_a_wandering_series_is_drawn_without_bounds():
     assert variant_label(levels, "markers m=n").endswith("; no interval for H: not estimable")
 
 
+def test_a_record_without_per_frame_alphas_says_why_its_levels_have_no_interval(claims_run):
+    from workbench.reporting.figures.headline import figure_headline, headline_tables
+
+    record, _ = claims_run
+    levels, claims = headline_tables(record.table, record.metrics, None, "alpha_abs_mean")
+    assert levels["low"].isna().all() and set(levels["no_interval"]) == {
+        "the record keeps no per-frame alphas (save_inputs=true keeps them)"
+    }
+    figure = figure_headline(levels, claims, "alpha_abs_mean", "test")
+    assert "(no interval: the record keeps no per-frame alphas" in figure.axes[0].get_title()
+
+
 def pair_rests(record, data):
     return stored(record, data)["QE/PCA"]["rests_on"]
 

@@ -67,6 +67,16 @@ def level_interval(per_frame: Mapping | None, data: str, basis: str, solver: str
     )
 
 
+def no_interval_reason(per_frame: Mapping | None, column: str) -> str:
+    """Why a level has no interval to draw at all: the record keeps no per-frame alphas, or the column is no mean
+    over frames (a pooled alpha)."""
+    if per_frame is None:
+        return "the record keeps no per-frame alphas (save_inputs=true keeps them)"
+    if column not in PER_FRAME:
+        return f"{column} is no mean over frames"
+    return "the per-frame alphas lack the row"
+
+
 def headline_tables(
     table: pd.DataFrame, metrics: Mapping, per_frame: Mapping | None, column: str
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -76,7 +86,8 @@ def headline_tables(
     -------
     levels : pandas.DataFrame
         ``data``, ``m``, ``n``, ``basis``, ``alpha``, ``low``, ``high`` (NaN without an interval, or with one that
-        cannot inform), ``not_estimable`` (why it cannot, :attr:`workbench.stats.statistics.Interval.not_estimable`).
+        cannot inform), ``not_estimable`` (why it cannot, :attr:`workbench.stats.statistics.Interval.not_estimable`),
+        ``no_interval`` (why there is none at all, :func:`no_interval_reason`).
     contrasts : pandas.DataFrame
         ``data``, ``contrast`` (``QE - H``), ``estimate``, ``low``, ``high``, ``identity`` (the reason it holds by
         construction, or empty).
@@ -104,6 +115,7 @@ def headline_tables(
                     "low": interval.low if interval and interval.estimable else math.nan,
                     "high": interval.high if interval and interval.estimable else math.nan,
                     "not_estimable": interval.not_estimable if interval else "",
+                    "no_interval": "" if interval else no_interval_reason(per_frame, column),
                 }
             )
     return pd.DataFrame.from_records(levels), claim_table(metrics)
@@ -192,7 +204,11 @@ def figure_headline(levels: pd.DataFrame, contrasts: pd.DataFrame, column: str, 
     left.set_xlim(-0.5, len(bases) - 0.5)
     left.set_yscale("log")
     left.set_ylabel(f"{column} (%)")
-    left.set_title("alpha (lstsq; PCA: projection), 95 % interval", fontsize=10)
+    missing = sorted(set(levels["no_interval"]) - {""}) if "no_interval" in levels else []
+    left.set_title(
+        "alpha (lstsq; PCA: projection), 95 % interval" + "".join(f"\n(no interval: {reason})" for reason in missing),
+        fontsize=10 if not missing else 8,
+    )
     left.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 3.0, 5.0)))
     left.yaxis.set_major_formatter(FormatStrFormatter("%g"))
     left.yaxis.set_minor_formatter(NullFormatter())
