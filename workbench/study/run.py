@@ -171,31 +171,32 @@ def held_out_results(
         ``dataset.eval_fraction`` (the held-out tail's share of the frames), ``dataset.folds`` and
         ``dataset.fold_gap_s`` (the cross-validated protocols' folds and the seconds left out at their edges).
     """
+
+    def at(n: int | None) -> BasisSchema:
+        """The basis settings of the coverage rule's fit (n None) or of the m = n fit."""
+        return basis if n is None else replace(basis, n_components=n, alternatives=[])
+
     if protocol in FOLDED:
         source = capture
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
+        def fit(name: str, part: Capture, n: int | None = None, previous: StudyResult | None = None) -> StudyResult:
             # each fold is fitted on frames of its own: nothing of ``previous`` (the pooled folds) serves them
             return cross_validated(
-                data, part, protocol, folds, fold_gap_s, lambda fold, frames: score(fold, frames, fit_basis), name=name
+                data, part, protocol, folds, fold_gap_s, lambda fold, frames: score(fold, frames, at(n)), name=name
             )
 
     else:
         source = held_out_capture(capture, protocol, eval_fraction)
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
-            return replace(
-                score(name, part, fit_basis, previous), train_on=data, eval_on=data, protocol=HELD_OUT[protocol]
-            )
+        def fit(name: str, part: Capture, n: int | None = None, previous: StudyResult | None = None) -> StudyResult:
+            return replace(score(name, part, at(n), previous), train_on=data, eval_on=data, protocol=HELD_OUT[protocol])
 
     base = paper_regime_name(data) if trained_regime else data
     return with_paper_regime(
-        fit(f"{data} held-out {protocol}", source, basis),
+        fit(f"{data} held-out {protocol}", source),
         basis.paper_regime,
         basis.n_components,
-        lambda name, part, n, previous: replace(
-            fit(name, part, replace(basis, n_components=n, alternatives=[]), previous), train_on=base, eval_on=base
-        ),
+        lambda name, part, n, previous: replace(fit(name, part, n, previous), train_on=base, eval_on=base),
         source,
     )
 
