@@ -272,7 +272,8 @@ def rbf_carry(
     target_vertices : sequence of int, optional
         The vertices wanted; all when None.
     metric, kernel, epsilon, smoothing, degree
-        ``dataset.rbf``: the defaults are the builder's without it; ``conf/dataset/animface.yaml`` sets
+        ``dataset.rbf``: the defaults are SciPy's ``RBFInterpolator``'s (a linear tail; the builder's without the
+        setting are the schema's, a constant tail); ``conf/dataset/animface.yaml`` sets
         ``metric="geodesic"``, ``kernel="inverse_multiquadric"``, ``epsilon=0.05`` (1/mm), ``degree=0``.
 
     Returns

@@ -163,15 +163,12 @@ def test_the_memory_estimate_counts_the_mesh_frames_where_they_are_kept():
     """Float32 mesh frames take half the memory and frames on disk none (the full-head run of docs/performance.md
     on a machine with less free memory than its float64 size)."""
     from workbench.dataset.synthetic_builder import synthetic_values
-    from workbench.settings.typed import dataset_settings
 
-    size = dict(kind="synthetic", n_frames=1000, n_face_markers=66, n_head_markers=7, mesh_rows=20, mesh_cols=20)
     markers, mesh = 1000 * 73 * 3, 1000 * 400 * 3
-    assert synthetic_values(dataset_settings(size), ["markers"]) == markers
-    assert synthetic_values(dataset_settings(size), ["mesh"]) == markers + mesh
-    assert synthetic_values(dataset_settings(dict(size, dtype="float32")), ["mesh"]) == markers + mesh // 2
-    on_disk = dataset_settings(dict(size, dtype="float32", storage="disk"))
-    assert synthetic_values(on_disk, ["mesh_rbf"]) == markers
+    assert synthetic_values(1000, 73, 0, "memory", "float64") == markers
+    assert synthetic_values(1000, 73, 400, "memory", "float64") == markers + mesh
+    assert synthetic_values(1000, 73, 400, "memory", "float32") == markers + mesh // 2
+    assert synthetic_values(1000, 73, 400, "disk", "float32") == markers
 
 
 def test_a_cache_path_that_is_a_file_is_one_line(tmp_path, cli):

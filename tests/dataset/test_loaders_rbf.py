@@ -1,5 +1,7 @@
 """Marker-to-mesh RBF interpolation: SciPy agreement, exact reproduction at the markers, geodesic distances."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.interpolate import RBFInterpolator
@@ -131,3 +133,30 @@ def test_rbf_setting_errors():
             kernel="inverse_multiquadric",
             epsilon=0.05,
         )
+
+
+def test_the_rbf_settings_have_one_set_of_defaults():
+    """The settings name every kernel the interpolation has; an AnimFace dataset group without ``rbf`` takes the
+    schema's defaults, and the shipped config's choice (a constant tail) is what its group says."""
+    from omegaconf import OmegaConf
+
+    from workbench.dataset.rbf import KERNELS
+    from workbench.settings.rules import RBF_KERNELS, RBF_SCALE_INVARIANT
+    from workbench.settings.schema import RbfSchema, check_dataset_group
+    from workbench.settings.typed import DATASET_SETTINGS, typed
+
+    assert sorted(KERNELS) == list(RBF_KERNELS) and set(RBF_SCALE_INVARIANT) <= set(KERNELS)
+    assert typed(DATASET_SETTINGS["animface"], {"kind": "animface"}).rbf == RbfSchema()
+    shipped = OmegaConf.to_container(OmegaConf.load(Path(__file__).parents[2] / "conf" / "dataset" / "animface.yaml"))[
+        "rbf"
+    ]
+    rbf = typed(RbfSchema, shipped)
+    assert (rbf.metric, rbf.kernel, rbf.epsilon, rbf.smoothing, rbf.degree) == (
+        "geodesic",
+        "inverse_multiquadric",
+        0.05,
+        0.0,
+        0,
+    )
+    with pytest.raises(WorkbenchError, match="dataset.rbf.epsilon must be set for the gaussian kernel"):
+        check_dataset_group({"kind": "animface", "rbf": {"kernel": "gaussian"}})

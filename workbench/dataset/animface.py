@@ -13,7 +13,7 @@ onto the mesh"; the rigid markers anchor the forehead and nose bridge there). Th
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -33,7 +33,7 @@ from workbench.dataset.common import (
 from workbench.dataset.correspondence import MarkerPlacement, MarkerTable, place_markers, read_marker_table
 from workbench.dataset.gaps import apply_gap_policy, gap_mask
 from workbench.dataset.hand_basis import check_hand_shapes
-from workbench.dataset.rbf import mesh_rbf_operator
+from workbench.dataset.rbf import mesh_rbf_matrix, rbf_epsilon
 from workbench.dataset.real import (
     ANIMFACE_CREDIT,
     ICT_CREDIT,
@@ -76,7 +76,6 @@ FACE_SCALE_RANGE = (0.5, 2.0)
 it the takes' ``POINT:UNITS`` and ``dataset.blendshapes.unit_mm`` disagree (a unit mismatch gives 10, 25.4 or 1000)."""
 JITTER_ESTIMATOR = "sqrt(mean |x[t-1] - 2 x[t] + x[t+1]|^2 / 6) over the face markers after stabilisation"
 """How the noise floor's marker jitter is estimated (:func:`workbench.dataset.common.marker_jitter_rms`)."""
-RBF_DEFAULTS = {"metric": "euclidean", "kernel": "thin_plate_spline", "smoothing": 0.0, "epsilon": None, "degree": 1}
 
 
 @dataclass(frozen=True)
@@ -451,24 +450,23 @@ def mesh_operator(
     marker_vertices : ndarray of shape (n_markers,) of int
     mesh_points : ndarray of shape (n_points,) of int
     rbf : mapping
-        ``dataset.rbf`` (metric, kernel, smoothing, epsilon, degree).
+        ``dataset.rbf`` (metric, kernel, smoothing, epsilon, degree), checked.
 
     Returns
     -------
     ndarray of shape (n_points, n_markers)
         Mesh displacements are ``operator @ marker_displacements`` per coordinate.
     """
-    settings = {**RBF_DEFAULTS, **rbf}
-    return mesh_rbf_operator(
+    return mesh_rbf_matrix(
         scale * basis.neutral,
         basis.triangles,
         marker_vertices,
         mesh_points,
-        metric=settings["metric"],
-        kernel=settings["kernel"],
-        smoothing=float(settings["smoothing"]),
-        epsilon=settings["epsilon"],
-        degree=int(settings["degree"]),
+        metric=rbf["metric"],
+        kernel=rbf["kernel"],
+        smoothing=float(rbf["smoothing"]),
+        epsilon=rbf_epsilon(rbf["epsilon"]),
+        degree=int(rbf["degree"]),
     )
 
 
@@ -608,8 +606,7 @@ def _shared_facts(cfg: Mapping, placed: _Placed) -> tuple[list[str], dict, float
     """What every data variant of the capture says about itself: notes, provenance, frame rate, RBF settings."""
     takes, stable, placement, similarity = placed.takes, placed.stable, placed.placement, placed.similarity
     scale, table, take_files = placed.scale, placed.table, placed.take_files
-    given = asdict(cfg.rbf) if cfg.rbf is not None else {}
-    rbf = {**RBF_DEFAULTS, **{key: value for key, value in given.items() if value is not None}}
+    rbf = {key: getattr(cfg.rbf, key) for key in ("metric", "kernel", "smoothing", "epsilon", "degree")}
     rigid_labels = list(cfg.rigid_markers or [])
     neutral_name = f"{takes[int(cfg.neutral_take)].path.stem} frame {stable.neutral_rest.frame}"
     frame_step = int(cfg.frame_step)

@@ -42,14 +42,13 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, fraction: float) -> Decima
     vertices : ndarray of shape (n_vertices, 3)
     faces : ndarray of shape (n_faces, 3) of int
     fraction : float
-        In (0, 1]; 1 keeps the mesh as it is.
+        In (0, 1] (``dataset.mesh_fraction``, checked with the settings, or a report's share of a mesh); 1 keeps the
+        mesh as it is.
 
     Returns
     -------
     Decimation
     """
-    if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 < fraction <= 1.0:
-        raise WorkbenchError(f"dataset.mesh_fraction must be in (0, 1], got {fraction!r}")
     vertices = np.array(vertices, dtype=np.float64, order="C")
     faces = np.array(faces, dtype=np.int32, order="C")
     if fraction == 1.0:

@@ -16,7 +16,7 @@ import numpy as np
 
 from workbench.core.errors import WorkbenchError
 from workbench.numerics.mesh_graph import mesh_edge_graph
-from workbench.settings.rules import RBF_METRICS, checked, integer, interval, one_of
+from workbench.settings.rules import RBF_KERNELS, RBF_METRICS, RBF_SCALE_INVARIANT, checked, integer, interval, one_of
 
 KERNELS = {
     "linear": lambda r: -r,
@@ -28,19 +28,23 @@ KERNELS = {
     "inverse_quadratic": lambda r: 1.0 / (r**2 + 1.0),
     "gaussian": lambda r: np.exp(-(r**2)),
 }
-"""SciPy ``RBFInterpolator``'s kernels of ``r = epsilon * distance``, with its signs."""
+"""SciPy ``RBFInterpolator``'s kernels of ``r = epsilon * distance``, with its signs (named by
+:data:`workbench.settings.rules.RBF_KERNELS`)."""
 
-SCALE_INVARIANT = ("linear", "thin_plate_spline", "cubic", "quintic")
+
+def rbf_epsilon(epsilon: float | None) -> float:
+    """The shape parameter an interpolation uses: ``epsilon``, or 1 when not given (a scale-invariant kernel,
+    :data:`workbench.settings.rules.RBF_SCALE_INVARIANT`, which needs none)."""
+    return 1.0 if epsilon is None else float(epsilon)
 
 
 def check_rbf_settings(kernel: str, epsilon: float | None, degree: int, smoothing: float, metric: str) -> float:
-    """Validate RBF settings and return the epsilon to use (1 for scale-invariant kernels when not given)."""
-    checked(kernel, "rbf.kernel", one_of(*sorted(KERNELS)))
+    """Validate RBF settings and return the epsilon to use (:func:`rbf_epsilon`)."""
+    checked(kernel, "rbf.kernel", one_of(*RBF_KERNELS))
     checked(metric, "rbf.metric", one_of(*RBF_METRICS))
-    if epsilon is None:
-        if kernel not in SCALE_INVARIANT:
-            raise WorkbenchError(f"rbf.epsilon must be set for the {kernel} kernel (a shape parameter in 1/mm)")
-        epsilon = 1.0
+    if epsilon is None and kernel not in RBF_SCALE_INVARIANT:
+        raise WorkbenchError(f"rbf.epsilon must be set for the {kernel} kernel (a shape parameter in 1/mm)")
+    epsilon = rbf_epsilon(epsilon)
     checked(epsilon, "rbf.epsilon", interval(0, low_open=True))
     checked(smoothing, "rbf.smoothing", interval(0))
     checked(degree, "rbf.degree", integer(-1, 2, whole_floats=True))

@@ -37,13 +37,13 @@ class RestMesh:
     description: str
 
 
-def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
+def rest_mesh(cfg, provenance: Mapping | None = None) -> RestMesh:
     """The face mesh of a dataset config at rest (rest geometry only: no frame is deformed or interpolated).
 
     Parameters
     ----------
-    cfg : mapping
-        The ``dataset`` config group.
+    cfg : typed dataset settings
+        The ``dataset`` group, checked and typed (a record's: :attr:`workbench.record.record.RunRecord.settings`).
     provenance : mapping, optional
         The dataset's provenance as a run recorded it; AnimFace needs its placement (the scale of the ICT face in
         the performer's frame and the markers' vertices).
@@ -84,18 +84,13 @@ def rest_mesh(cfg: Mapping, provenance: Mapping | None = None) -> RestMesh:
     raise WorkbenchError(f"dataset.kind {kind!r} has no face mesh to carry the markers onto")
 
 
-def _synthetic_rest_mesh(cfg: Mapping) -> RestMesh:
+def _synthetic_rest_mesh(cfg) -> RestMesh:
     """The synthetic actor's head mesh at rest; the face region (the vertices inside the face markers' convex
     hull in the face plane) is the markers' reach."""
     from workbench.dataset.synthetic import make_face_mesh
     from workbench.dataset.synthetic_builder import face_region
 
-    try:
-        rows, cols, n_markers = int(cfg.mesh_rows), int(cfg.mesh_cols), int(cfg.n_face_markers)
-    except (KeyError, TypeError, ValueError) as error:
-        raise WorkbenchError(
-            f"dataset synthetic: mesh_rows, mesh_cols and n_face_markers must be integers ({error})"
-        ) from None
+    rows, cols, n_markers = cfg.mesh_rows, cfg.mesh_cols, cfg.n_face_markers  # checked integers
     mesh = make_face_mesh(rows, cols)
     support = np.zeros(mesh.n_vertices, dtype=bool)
     support[face_region(rows, cols, n_markers)[0]] = True

@@ -50,7 +50,14 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
     eval_seed = cfg.seed + 1 if cfg.eval_seed is None else cfg.eval_seed
     seeds = [cfg.seed] + ([eval_seed] if cfg.split == "other_take" else [])  # two seeds differ: checked
     require_memory(
-        synthetic_values(cfg, names) * len(seeds),
+        synthetic_values(
+            cfg.n_frames,
+            cfg.n_face_markers + cfg.n_head_markers,
+            cfg.mesh_rows * cfg.mesh_cols if {"mesh", "mesh_rbf", "face"} & set(names) else 0,
+            cfg.storage,
+            cfg.dtype,
+        )
+        * len(seeds),
         "the synthetic dataset",
         "dataset.n_frames, dataset.mesh_rows/mesh_cols or dataset.train_on",
     )
@@ -87,17 +94,12 @@ def build_synthetic(cfg, storage: FrameStorage = FrameStorage()) -> dict[str, Ca
     }
 
 
-def synthetic_values(cfg: Mapping, names: Sequence[str]) -> int:
-    """Float64 values one synthetic take holds in memory: every marker's track, and the mesh's when a data variant
-    lives on the mesh (x, y and z per point and frame; in the storage's dtype, none with ``dataset.storage=disk``).
-    An estimate only: 0 when a size is not a number (the generator names the bad setting)."""
-    try:
-        n_frames, n_markers = int(cfg.n_frames), int(cfg.n_face_markers) + int(cfg.n_head_markers)
-        n_mesh = int(cfg.mesh_rows) * int(cfg.mesh_cols) if {"mesh", "mesh_rbf", "face"} & set(names) else 0
-    except (TypeError, ValueError):
-        return 0
-    stored = 0.0 if cfg.storage == "disk" else 0.5 if cfg.dtype == "float32" else 1.0
-    return int(max(n_frames, 0) * (max(n_markers, 0) + stored * max(n_mesh, 0)) * 3)
+def synthetic_values(n_frames: int, n_markers: int, n_mesh_points: int, storage: str, dtype: str) -> int:
+    """Float64 values one synthetic take holds in memory: every marker's track, and the mesh's (``n_mesh_points``,
+    0 when no data variant lives on the mesh; x, y and z per point and frame; in the storage's dtype, none with
+    ``dataset.storage=disk``)."""
+    stored = 0.0 if storage == "disk" else 0.5 if dtype == "float32" else 1.0
+    return int(n_frames * (n_markers + stored * n_mesh_points) * 3)
 
 
 def _take_key(cfg: Mapping, seed: int) -> tuple:

@@ -111,6 +111,19 @@ COVERAGE_ON = ("training", "clean")
 """``basis.coverage_on``: where the coverage rule chooses m (the training frames, or the clean capture)."""
 RBF_METRICS = ("euclidean", "geodesic")
 """``dataset.rbf.metric``: the distance the marker-to-mesh interpolation uses."""
+RBF_KERNELS = (
+    "cubic",
+    "gaussian",
+    "inverse_multiquadric",
+    "inverse_quadratic",
+    "linear",
+    "multiquadric",
+    "quintic",
+    "thin_plate_spline",
+)
+"""``dataset.rbf.kernel``: SciPy ``RBFInterpolator``'s kernels (:data:`workbench.dataset.rbf.KERNELS`)."""
+RBF_SCALE_INVARIANT = ("linear", "thin_plate_spline", "cubic", "quintic")
+"""The kernels of :data:`RBF_KERNELS` that need no shape parameter (``dataset.rbf.epsilon``)."""
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -37,7 +37,9 @@ from workbench.settings.rules import (
     GAP_FIT_ON,
     GAP_POLICIES,
     POSITIVE,
+    RBF_KERNELS,
     RBF_METRICS,
+    RBF_SCALE_INVARIANT,
     SEED,
     _integer,
     _number,
@@ -309,9 +311,9 @@ class IctLivelinkSchema:
 
 @dataclass
 class RbfSchema:
-    metric: str = meta(MISSING, one_of(*RBF_METRICS))
-    kernel: str = meta(MISSING, TEXT)
-    epsilon: float = meta(MISSING, interval(0, low_open=True))
+    metric: str = meta("euclidean", one_of(*RBF_METRICS))
+    kernel: str = meta("thin_plate_spline", one_of(*RBF_KERNELS))
+    epsilon: Optional[float] = meta(None, interval(0, low_open=True, optional=True))  # null: 1 (scale-free kernels)
     smoothing: float = meta(0.0, interval(0))
     degree: int = meta(0, integer(-1, 2))
 
@@ -330,7 +332,7 @@ class AnimfaceSchema:
     refine_iterations: int = meta(MISSING, integer(0))
     blendshapes: BlendshapesSchema = MISSING
     hand_shapes: List[str] = meta(MISSING, SHAPE_NAMES)
-    rbf: RbfSchema = MISSING
+    rbf: RbfSchema = field(default_factory=RbfSchema)
     gap_policy: str = meta("drop", one_of(*GAP_POLICIES))
     gap_max_fill_frames: Optional[int] = meta(None, integer(1, optional=True))
     gap_fit_on: str = meta("filled", one_of(*GAP_FIT_ON))
@@ -521,6 +523,15 @@ def check_dataset_group(values: Mapping) -> None:
     )
     if kind == "synthetic":
         _check_synthetic(values)
+    if kind == "animface":
+        _check_rbf(values.get("rbf") or {})
+
+
+def _check_rbf(rbf: Mapping) -> None:
+    """``dataset.rbf``: a kernel with a shape (not scale-free) needs its ``epsilon``."""
+    kernel = given(rbf, RbfSchema, "kernel")
+    if given(rbf, RbfSchema, "epsilon") is None and kernel not in RBF_SCALE_INVARIANT:
+        raise WorkbenchError(f"dataset.rbf.epsilon must be set for the {kernel} kernel (a shape parameter in 1/mm)")
 
 
 def resolved_settings(cfg) -> dict:
@@ -707,6 +718,8 @@ def _check_relations(plain: Mapping) -> None:
     basis, kind = plain["basis"], plain["dataset"].get("kind")
     if kind == "synthetic":
         _check_synthetic(plain["dataset"])
+    if kind == "animface":
+        _check_rbf(plain["dataset"].get("rbf") or {})
     _check_held_out(plain)
     if given(basis, BasisSchema, "coverage_on") == "clean" and basis.get("n_components") is not None:
         raise WorkbenchError(

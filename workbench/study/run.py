@@ -75,9 +75,23 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
         return carried_results(captures, clean, train_names, eval_names, basis, score_clean, solvers, timings)
     results = []
     for data, capture in captures.items():
-        capture, fitted = fitted_capture(capture, basis, clean[data] if basis.coverage_on == "clean" else None)
+        capture, m = fitted_capture(
+            capture,
+            basis.hand_subset,
+            basis.subset_seed,
+            basis.coverage,
+            clean[data] if basis.coverage_on == "clean" else None,
+        )
+        fitted = basis if m is None else replace(basis, n_components=m)
         score = scorer(solvers, timings, clean[data] if score_clean else None)
-        trained = with_paper_regime(score(data, capture, fitted), fitted, score)
+        trained = with_paper_regime(
+            score(data, capture, fitted),
+            basis.paper_regime,
+            fitted.n_components,
+            lambda name, part, n, previous: score(
+                name, part, replace(fitted, n_components=n, alternatives=[]), previous
+            ),
+        )
         results += trained
         for protocol in held_out_protocols(dataset.held_out):
             results += held_out_results(
@@ -94,17 +108,23 @@ def run_study(settings: StudySettings) -> list[StudyResult]:
     return results
 
 
-def fitted_capture(capture: Capture, basis: BasisSchema, clean: Capture | None) -> tuple[Capture, BasisSchema]:
-    """The capture a data variant's bases are fitted on (the hand shapes ``basis.hand_subset`` keeps) and the basis
-    settings they are fitted with: ``n_components`` the m chosen on ``clean``, the same data variant of the clean
-    capture (``basis.coverage_on`` clean; :func:`workbench.study.protocols.with_clean_m`), when given."""
-    capture, m = with_clean_m(subset_hand_shapes(capture, basis.hand_subset, basis.subset_seed), basis.coverage, clean)
-    return capture, basis if m is None else replace(basis, n_components=m)
+def fitted_capture(
+    capture: Capture, hand_subset, subset_seed: int, coverage: float, clean: Capture | None
+) -> tuple[Capture, int | None]:
+    """The capture a data variant's bases are fitted on (the hand shapes ``basis.hand_subset`` keeps, drawn with
+    ``basis.subset_seed``) and the number of eigenfaces they are fitted with: the m chosen by ``basis.coverage`` on
+    ``clean``, the same data variant of the clean capture (``basis.coverage_on`` clean;
+    :func:`workbench.study.protocols.with_clean_m`), when given; None (the basis settings' own m) otherwise."""
+    return with_clean_m(subset_hand_shapes(capture, hand_subset, subset_seed), coverage, clean)
 
 
 Score = Callable[[str, Capture, BasisSchema, "StudyResult | None"], StudyResult]
 """``(name, capture, basis, previous) -> StudyResult``: the run's method on one capture (:func:`scorer`), taking
 what it can from ``previous``, the result of a fit of the very same frames (or None)."""
+
+Refit = Callable[[str, Capture, int, StudyResult], StudyResult]
+"""``(name, capture, n, previous) -> StudyResult``: a :data:`Score` of the basis settings of ``previous``'s fit at
+``n_components`` n, without alternative bases (the paper's m = n variant, :func:`with_paper_regime`)."""
 
 
 def scorer(solvers: Mapping[str, Mapping], timings: Timings, clean: Capture | None) -> Score:
@@ -151,36 +171,42 @@ def held_out_results(
         ``dataset.eval_fraction`` (the held-out tail's share of the frames), ``dataset.folds`` and
         ``dataset.fold_gap_s`` (the cross-validated protocols' folds and the seconds left out at their edges).
     """
+
+    def at(n: int | None) -> BasisSchema:
+        """The basis settings of the coverage rule's fit (n None) or of the m = n fit."""
+        return basis if n is None else replace(basis, n_components=n, alternatives=[])
+
     if protocol in FOLDED:
         source = capture
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
+        def fit(name: str, part: Capture, n: int | None = None, previous: StudyResult | None = None) -> StudyResult:
             # each fold is fitted on frames of its own: nothing of ``previous`` (the pooled folds) serves them
             return cross_validated(
-                data, part, protocol, folds, fold_gap_s, lambda fold, frames: score(fold, frames, fit_basis), name=name
+                data, part, protocol, folds, fold_gap_s, lambda fold, frames: score(fold, frames, at(n)), name=name
             )
 
     else:
         source = held_out_capture(capture, protocol, eval_fraction)
 
-        def fit(name: str, part: Capture, fit_basis: BasisSchema, previous: StudyResult | None = None) -> StudyResult:
-            return replace(
-                score(name, part, fit_basis, previous), train_on=data, eval_on=data, protocol=HELD_OUT[protocol]
-            )
+        def fit(name: str, part: Capture, n: int | None = None, previous: StudyResult | None = None) -> StudyResult:
+            return replace(score(name, part, at(n), previous), train_on=data, eval_on=data, protocol=HELD_OUT[protocol])
 
     base = paper_regime_name(data) if trained_regime else data
     return with_paper_regime(
-        fit(f"{data} held-out {protocol}", source, basis),
-        basis,
-        lambda name, part, fit_basis, previous: replace(
-            fit(name, part, fit_basis, previous), train_on=base, eval_on=base
-        ),
+        fit(f"{data} held-out {protocol}", source),
+        basis.paper_regime,
+        basis.n_components,
+        lambda name, part, n, previous: replace(fit(name, part, n, previous), train_on=base, eval_on=base),
         source,
     )
 
 
 def with_paper_regime(
-    result: StudyResult, basis: BasisSchema, refit: Score, source: Capture | None = None
+    result: StudyResult,
+    paper_regime: bool,
+    n_components: int | None,
+    refit: Refit,
+    source: Capture | None = None,
 ) -> list[StudyResult]:
     """``basis.paper_regime``: the variant fitted at m = n (:func:`workbench.study.regime.paper_regime_fit`), named
     ``<data> m=n``, first, then the coverage rule's ``result``; only ``result`` (with a note saying why) when there
@@ -191,12 +217,14 @@ def with_paper_regime(
     result : StudyResult
         The coverage rule's, on training frames or on held-out frames (cross-validated: its ``folds`` give each
         fold's m and training frames).
-    basis : BasisSchema
-        The settings ``result`` was fitted with.
-    refit : Score
-        Fits and scores the m = n variant as ``result`` was: ``(name, capture, basis, previous)``, handed
-        ``result`` as ``previous`` (the same training and evaluated frames: its fit's decomposition and its scoring
-        pass serve the m = n fit).
+    paper_regime : bool
+        ``basis.paper_regime``, checked.
+    n_components : int or None
+        ``n_components`` of the basis settings ``result`` was fitted with (set: no m = n fit).
+    refit : Refit
+        Fits and scores the m = n variant as ``result`` was, with its basis settings at ``n_components`` n and
+        without alternative bases: ``(name, capture, n, previous)``, handed ``result`` as ``previous`` (the same
+        training and evaluated frames: its fit's decomposition and its scoring pass serve the m = n fit).
     source : Capture, optional
         The capture ``refit`` takes (``result.capture`` when not given; a cross-validated variant's folds are cut
         from the capture before pooling).
@@ -205,8 +233,8 @@ def with_paper_regime(
     handed, result = result, replace(result, span_pass=None)  # the pass serves the refit only
     capture, n, note = paper_regime_fit(
         result.capture if source is None else source,
-        basis.paper_regime,
-        basis.n_components,
+        paper_regime,
+        n_components,
         folds.get("m", result.eigenfaces.n_components_),
         folds.get("n_train_frames"),
         held_out=result.protocol != "training frames",
@@ -215,7 +243,7 @@ def with_paper_regime(
         return [
             replace(result, capture=replace(result.capture, notes=result.capture.notes + (note,))) if note else result
         ]
-    regime = refit(paper_regime_name(result.data), capture, replace(basis, n_components=n, alternatives=[]), handed)
+    regime = refit(paper_regime_name(result.data), capture, n, handed)
     return [replace(regime, span_pass=None), result]
 
 
@@ -241,9 +269,14 @@ def carried_results(
         )
     results = []
     for train_on in train_names:
-        source, fitted = fitted_capture(
-            captures[train_on], basis, clean[train_on] if basis.coverage_on == "clean" else None
+        source, m = fitted_capture(
+            captures[train_on],
+            basis.hand_subset,
+            basis.subset_seed,
+            basis.coverage,
+            clean[train_on] if basis.coverage_on == "clean" else None,
         )
+        fitted = basis if m is None else replace(basis, n_components=m)
         eigenfaces, quasi_eigen = fit_bases(source, fitted, timings)
         for eval_on in eval_names:
             target = select_shapes(captures[eval_on], source.hand_names)

@@ -201,11 +201,11 @@ def agreement_sentence(entries: Sequence[Mapping]) -> str:
 
 def compact_rests_on(stored: Mapping) -> str:
     """``1500 frames, 17 batches, 24.3 d.f.`` / ``5 folds of 1500 frames, 4 d.f.`` (degrees of freedom)."""
-    degrees = stored.get("degrees", math.nan)
+    degrees = stored["degrees"]
     said = f", {degrees:.3g} d.f." if math.isfinite(degrees) else ", no d.f."  # degrees of freedom
-    if stored.get("unit") == "folds":
+    if stored["unit"] == "folds":
         return f"{stored['folds']} folds of {stored['frames']} frames{said}"
-    takes = stored.get("takes") or 0
+    takes = stored["takes"]
     of_takes = f" of {takes} takes" if takes > 1 else ""
     return f"{stored['frames']} frames{of_takes}, {stored['batches']} batches{said}"
 

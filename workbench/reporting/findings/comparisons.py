@@ -43,9 +43,9 @@ def claim_comparison(stored: Mapping, pair: tuple, column: str) -> dict:
         method=stored["method"],
         confidence=stored["confidence"],
         null=1.0,
-        block_frames=stored.get("block_frames", 0),
-        block_seconds=stored.get("block_seconds", math.nan),
-        degrees=stored.get("degrees", math.nan),
+        block_frames=stored["block_frames"],
+        block_seconds=stored["block_seconds"],
+        degrees=stored["degrees"],
     )
     return {"a": list(pair[0]), "b": list(pair[1]), "column": column, **interval.as_dict(), "claim": dict(stored)}
 
@@ -210,9 +210,9 @@ def claim_row(data: str, a: tuple, b: tuple, stored: Mapping) -> dict:
         "confidence": 100 * stored["confidence"],
         "p": math.nan,
         "p (Holm)": math.nan,
-        "frames": stored.get("frames", stored["n"]),
-        "batch (frames)": stored.get("batch_frames", 0),
-        "batch (s)": stored.get("block_seconds", math.nan),
+        "frames": stored["frames"],
+        "batch (frames)": stored["batch_frames"],
+        "batch (s)": stored["block_seconds"],
         "verdict": f"the paper's claim, {claim_cell(stored)} ({stored['rests_on']})",
     }
 

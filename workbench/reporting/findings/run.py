@@ -416,7 +416,9 @@ def closeness_line(intuitiveness: Sequence[Mapping]) -> str:
 def caveat_texts(metrics: Mapping) -> list[str]:
     """The caveats that apply to a run, from its facts: what the data are made of, a stabilisation the face moves
     and quasi-eigen weights no animator could use (:mod:`workbench.reporting.findings.caveats`, each against its
-    stated threshold), and which data variants were scored on the frames their bases were fitted on."""
+    stated threshold), and which data variants were scored on the frames their bases were fitted on. ``metrics``
+    is a record's ``metrics.json`` in the current layout (:func:`workbench.record.record.current_metrics`: every
+    data variant states its protocol and notes), or a part of it."""
     dataset = metrics.get("dataset") or {}
     provenance = dataset.get("provenance") or {}
     kind = provenance.get("kind")
@@ -450,14 +452,11 @@ def caveat_texts(metrics: Mapping) -> list[str]:
     trained = [
         data
         for data, facts in (metrics.get("data") or {}).items()
-        if facts.get("protocol", "training frames") == "training frames"
-        and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts.get("notes", []))
+        if facts["protocol"] == "training frames"
+        and not any(note.startswith(("split 'tail'", "split 'other_take'")) for note in facts["notes"])
     ]
     if trained:
-        held = any(
-            facts.get("protocol", "training frames") != "training frames"
-            for facts in (metrics.get("data") or {}).values()
-        )
+        held = any(facts["protocol"] != "training frames" for facts in (metrics.get("data") or {}).values())
         caveats.append(
             f"{', '.join(trained)} {'is' if len(trained) == 1 else 'are'} scored on the training frames "
             "(split 'same', the paper's protocol): PCA and QE are fitted to the frames they reconstruct"
@@ -681,7 +680,8 @@ def facts_frame(metrics: Mapping) -> pd.DataFrame:
 
 
 def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
-    """The run's notes, those every data variant shares once and the rest per variant.
+    """The run's notes, those every data variant shares once and the rest per variant (``metrics`` in the current
+    layout, :func:`workbench.record.record.current_metrics`).
 
     Returns
     -------
@@ -689,7 +689,7 @@ def shared_notes(metrics: Mapping) -> tuple[list[str], dict[str, list[str]]]:
     own : dict
         Data variant -> its notes not in ``shared``.
     """
-    notes = {data: list(values.get("notes", [])) for data, values in metrics["data"].items()}
+    notes = {data: list(values["notes"]) for data, values in metrics["data"].items()}
     first = next(iter(notes.values()), [])
     shared = [note for note in first if all(note in other for other in notes.values())]
     return shared, {data: [note for note in own if note not in shared] for data, own in notes.items()}

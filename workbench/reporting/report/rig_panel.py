@@ -134,7 +134,7 @@ def panel_rigs(record: RunRecord, data: str, inputs, cache: dict) -> list[tuple[
     rigs = []
     if coverage in same_frames:
         bases = figure_bases(record, coverage, same_frames[coverage], cache)
-        m = int(record.metrics["data"][coverage].get("m", len(same_frames[coverage]["components"])))
+        m = len(same_frames[coverage]["components"])  # the eigenfaces the coverage rule kept
         rigs += [("H", "H, the hand shapes", bases["H"]), (qe, f"{qe} at the coverage rule (m = {m})", bases[qe])]
     if regime in same_frames:
         bases = figure_bases(record, regime, same_frames[regime], cache)
