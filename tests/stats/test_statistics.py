@@ -497,19 +497,25 @@ def test_a_ratio_of_means_over_takes_is_the_direct_formula_on_the_log_ratio():
     assert found.degrees == pytest.approx(degrees) and found.block_frames == length and found.estimable
 
 
-def test_the_estimable_intervals_of_a_long_memory_design_cover():
-    # pooled difference, squared errors of log-normal sigma 1.5, 4,000 frames at persistence 0.99 (about 20
-    # independent values): a third of the intervals are estimable, those whose persistence looked short. Without the
-    # thin-design widening those covered 0.80 here (0.818 over 2,000 series, docs/statistics.md); with it 0.95. 115
-    # estimable intervals give a binomial standard error of 0.02 at 0.95: the floor 0.89 is 3 of them below.
+def benchmark_module(name: str):
+    """A module of the repository's ``benchmarks/`` folder (not a package), imported by name."""
+    import importlib
     import sys
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     try:
-        import workbench_designs
+        return importlib.import_module(name)
     finally:
         sys.path.pop(0)
+
+
+def test_the_estimable_intervals_of_a_long_memory_design_cover():
+    # pooled difference, squared errors of log-normal sigma 1.5, 4,000 frames at persistence 0.99 (about 20
+    # independent values): a third of the intervals are estimable, those whose persistence looked short. Without the
+    # thin-design widening those covered 0.80 here (0.818 over 2,000 series, docs/statistics.md); with it 0.95. 115
+    # estimable intervals give a binomial standard error of 0.02 at 0.95: the floor 0.89 is 3 of them below.
+    workbench_designs = benchmark_module("workbench_designs")
     rng = np.random.default_rng(45)
     error_a, error_b, reference = workbench_designs.design_series(rng, (4000,), 0.99, 1.5, 300)
     truth = workbench_designs.true_value("pooled", 1.5)
@@ -556,15 +562,7 @@ def test_an_interval_that_is_not_estimable_decides_nothing_and_says_why():
 
 
 def test_the_workbench_like_designs_run_and_hold_their_true_values():
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    try:
-        import interval_coverage
-        import workbench_designs
-    finally:
-        sys.path.pop(0)
+    interval_coverage, workbench_designs = benchmark_module("interval_coverage"), benchmark_module("workbench_designs")
     rng = np.random.default_rng(44)
     error_a, error_b, reference = workbench_designs.design_series(rng, (398, 375, 226), 0.0, 1.0, 40)
     assert error_a.shape == error_b.shape == reference.shape == (40, 999)
