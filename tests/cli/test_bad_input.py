@@ -534,8 +534,8 @@ def test_complete_record_with_a_corrupt_metrics_file_is_named_not_overwritten(tm
     with pytest.raises(
         WorkbenchError,
         match=re.escape(
-            f"{tmp_path} holds a complete record ('done' exists) whose metrics.json is missing, unreadable or has "
-            "no config_hash; records are never overwritten"
+            f"{tmp_path} holds a complete record ('done' exists) whose metrics.json or config.yaml is missing or "
+            "unreadable, or whose metrics.json has no config_hash; records are never overwritten"
         ),
     ):
         prepare_run_dir(tmp_path, "abc")

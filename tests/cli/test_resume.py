@@ -10,12 +10,13 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 
 from workbench.api import run
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import DONE, config_hash
 from workbench.record.tracking import LOCK_FILE, clear_partial, prepare_run_dir, record_state
-from workbench.settings.config import REPO_ROOT, compose, run_dir_name
+from workbench.settings.config import REPO_ROOT, compose, resolved_yaml_text, run_dir_name
 
 SWEEP = ["--config-name", "coverage", "dataset.n_frames=500", "dataset.seed=0,1", "basis.coverage=0.9,0.95,0.99"]
 N_RUNS = 6
@@ -151,15 +152,42 @@ def test_complete_record_is_skipped_refused_or_never_cleared(tmp_path):
     (folder / ".metrics.json.x.tmp").write_text("")
     assert record_state(folder) == "partial"
     assert prepare_run_dir(folder, "abc") and list(folder.iterdir()) == []
-    (folder / "metrics.json").write_text(json.dumps({"config_hash": "abc"}))
+    settings = "dataset:\n  kind: synthetic\n"
+    (folder / "config.yaml").write_text(settings)
+    (folder / "metrics.json").write_text(json.dumps({"config_hash": config_hash(settings)}))
     (folder / DONE).write_text("")
     assert record_state(folder) == "complete"
-    assert prepare_run_dir(folder, "abc") is False
+    assert prepare_run_dir(folder, config_hash(settings)) is False
     with pytest.raises(WorkbenchError, match="another config .*never overwritten"):
         prepare_run_dir(folder, "def")
     with pytest.raises(WorkbenchError, match="never cleared"):
         clear_partial(folder)
-    assert sorted(path.name for path in folder.iterdir()) == [DONE, "metrics.json"]
+    assert sorted(path.name for path in folder.iterdir()) == ["config.yaml", DONE, "metrics.json"]
+
+
+def test_a_record_listing_its_settings_in_another_order_is_a_record_of_the_same_config(tmp_path):
+    """A record written before the dataset kinds shared their frames settings lists ``split`` ... ``dtype`` after
+    the kind's own settings, and its metrics.json holds a hash of that text: a run of the same settings skips it,
+    and a run of other settings is refused."""
+    import hashlib
+
+    new_text = resolved_yaml_text(compose("paper", ["dataset.n_frames=300"]))
+    settings = yaml.safe_load(new_text)
+    frames = ("split", "eval_fraction", "held_out", "folds", "fold_gap_s", "storage", "dtype")
+    own = {key: value for key, value in settings["dataset"].items() if key not in frames}
+    old_order = {**settings, "dataset": {**own, **{key: settings["dataset"][key] for key in frames}}}
+    old_text = yaml.safe_dump(old_order, sort_keys=False)
+    assert old_text != new_text and list(yaml.safe_load(old_text)["dataset"])[-1] == "dtype"
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "config.yaml").write_text(old_text)
+    text_hash = hashlib.sha256(old_text.encode()).hexdigest()[:16]  # what the record's metrics.json held
+    (folder / "metrics.json").write_text(json.dumps({"config_hash": text_hash}))
+    (folder / DONE).write_text("")
+    assert prepare_run_dir(folder, config_hash(new_text)) is False
+    other = resolved_yaml_text(compose("paper", ["dataset.n_frames=400"]))
+    with pytest.raises(WorkbenchError, match="another config .*never overwritten"):
+        prepare_run_dir(folder, config_hash(other))
 
 
 def test_run_refuses_to_overwrite_a_complete_record(tmp_path):

@@ -66,8 +66,13 @@ RECORD_PACKAGES = (
 
 
 def config_hash(resolved_yaml: str) -> str:
-    """Short content hash of a resolved config: the same settings give the same hash."""
-    return hashlib.sha256(resolved_yaml.encode()).hexdigest()[:16]
+    """Short content hash of a resolved config's settings: the same settings give the same hash in whatever order
+    the YAML lists them (a record written before the dataset kinds shared their frames settings lists those in
+    another place; its ``config.yaml`` hashes as a new run's does)."""
+    import yaml
+
+    settings = yaml.safe_load(resolved_yaml)
+    return hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
 def git_state(repository: Path | None) -> dict:

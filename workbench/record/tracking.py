@@ -27,16 +27,22 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+import yaml
+
 from workbench.core.errors import WorkbenchError, exit_on_error
 from workbench.core.files import check_folder_setting, lock_file, shown_names, unlock_file
-from workbench.record.record import DONE, METRICS_FILE, is_record_file, record_state
+from workbench.record.record import CONFIG_FILE, DONE, METRICS_FILE, config_hash, is_record_file, record_state
 
 
 def recorded_config_hash(folder: Path) -> str | None:
-    """The config hash a complete record was made with (from its ``metrics.json``), or None if unreadable."""
+    """The config hash of the settings a complete record was made with, or None when its ``metrics.json`` is
+    unreadable or names no hash. Made from its ``config.yaml`` (:func:`config_hash`), so a record whose
+    ``metrics.json`` holds a hash of the YAML's text (written before the hash was of the settings) still matches
+    a run of the same settings."""
     try:
-        return json.loads((Path(folder) / METRICS_FILE).read_text())["config_hash"]
-    except (OSError, ValueError, KeyError, TypeError):
+        stored = json.loads((Path(folder) / METRICS_FILE).read_text())["config_hash"]
+        return config_hash((Path(folder) / CONFIG_FILE).read_text()) if stored else None
+    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
         return None
 
 
@@ -87,8 +93,8 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
         recorded = recorded_config_hash(folder)
         if recorded is None:
             raise WorkbenchError(
-                f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json is missing, unreadable or "
-                "has no config_hash; records are never overwritten: move that record away or use another sweep "
+                f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json or config.yaml is missing "
+                "or unreadable, or whose metrics.json has no config_hash; records are never overwritten: move that record away or use another sweep "
                 "folder (hydra.sweep.dir=...)"
             )
         if recorded != config_hash:

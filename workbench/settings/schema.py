@@ -240,7 +240,23 @@ class StudySchema:
 
 
 @dataclass
-class SyntheticSchema:
+class FramesSchema:
+    """The settings every dataset kind shares: which frames score the bases (``split``, ``held_out`` and their
+    sizes) and how the frames are kept (``storage``, ``dtype``). Each kind's schema adds its own settings after
+    these and names its ``kind``, which a resolved config lists first."""
+
+    kind: str = MISSING
+    split: str = meta("same", SPLIT)
+    eval_fraction: float = meta(0.2, EVAL_FRACTION)
+    held_out: Any = meta(None, HELD_OUT)
+    folds: int = meta(5, integer(2))
+    fold_gap_s: float = meta(0.5, interval(0))
+    storage: str = meta("memory", STORAGE)
+    dtype: str = meta("float64", DTYPE)
+
+
+@dataclass
+class SyntheticSchema(FramesSchema):
     kind: str = "synthetic"
     n_frames: int = meta(MISSING, integer(2))
     frame_rate: float = meta(MISSING, FRAME_RATE)
@@ -262,19 +278,13 @@ class SyntheticSchema:
     train_on: Any = meta("markers", names(*SYNTHETIC_VARIANTS))
     eval_on: Any = meta(None, names(*SYNTHETIC_VARIANTS, optional=True))
     stabilise: Any = meta(True, BOOLEAN)
-    split: str = meta("same", one_of(*SPLITS, "other_take"))
-    eval_fraction: float = meta(0.2, EVAL_FRACTION)
-    held_out: Any = meta(None, HELD_OUT)
-    folds: int = meta(5, integer(2))
-    fold_gap_s: float = meta(0.5, interval(0))
+    split: str = meta("same", one_of(*SPLITS, "other_take"))  # a second take: the synthetic actor has one
     eval_seed: Optional[int] = meta(None, integer(0, optional=True))
     gap_rate: float = meta(0.0, interval(0, 1, high_open=True))
     gap_mean_frames: float = meta(12, interval(1))
     gap_policy: str = meta("linear", one_of(*GAP_POLICIES))
     gap_max_fill_frames: Optional[int] = meta(None, integer(1, optional=True))
     gap_fit_on: str = meta("filled", one_of(*GAP_FIT_ON))
-    storage: str = meta("memory", STORAGE)
-    dtype: str = meta("float64", DTYPE)
 
 
 @dataclass
@@ -286,7 +296,7 @@ class BlendshapesSchema:
 
 
 @dataclass
-class IctLivelinkSchema:
+class IctLivelinkSchema(FramesSchema):
     kind: str = "ict_livelink"
     data_root: str = meta(MISSING, TEXT)
     blendshapes: BlendshapesSchema = MISSING
@@ -299,14 +309,7 @@ class IctLivelinkSchema:
     marker_table: str = meta(MISSING, TEXT)
     mesh_vertex_step: int = meta(1, integer(1))
     train_on: Any = meta(MISSING, names(*DATA_VARIANTS["ict_livelink"]))
-    split: str = meta("same", SPLIT)
-    eval_fraction: float = meta(0.2, EVAL_FRACTION)
-    held_out: Any = meta(None, HELD_OUT)
-    folds: int = meta(5, integer(2))
-    fold_gap_s: float = meta(0.5, interval(0))
     plausibility: str = meta("error", PLAUSIBILITY)
-    storage: str = meta("memory", STORAGE)
-    dtype: str = meta("float64", DTYPE)
 
 
 @dataclass
@@ -319,7 +322,7 @@ class RbfSchema:
 
 
 @dataclass
-class AnimfaceSchema:
+class AnimfaceSchema(FramesSchema):
     kind: str = "animface"
     data_root: str = meta(MISSING, TEXT)
     takes: List[str] = meta(MISSING, rule(lambda value: len(value) > 0, "a non-empty list of C3D files"))
@@ -341,14 +344,7 @@ class AnimfaceSchema:
     gap_seed: int = meta(0, SEED)
     mesh_vertex_step: int = meta(1, integer(1))
     train_on: Any = meta(MISSING, names(*DATA_VARIANTS["animface"]))
-    split: str = meta("same", SPLIT)
-    eval_fraction: float = meta(0.2, EVAL_FRACTION)
-    held_out: Any = meta(None, HELD_OUT)
-    folds: int = meta(5, integer(2))
-    fold_gap_s: float = meta(0.5, interval(0))
     plausibility: str = meta("error", PLAUSIBILITY)
-    storage: str = meta("memory", STORAGE)
-    dtype: str = meta("float64", DTYPE)
 
 
 @dataclass
@@ -360,7 +356,7 @@ class MeshSequenceBasisSchema:
 
 
 @dataclass
-class MeshSequenceSchema:
+class MeshSequenceSchema(FramesSchema):
     kind: str = "mesh_sequence"
     data_root: str = meta(MISSING, TEXT)
     sequence: Optional[str] = meta(None, OPTIONAL_TEXT)
@@ -376,13 +372,6 @@ class MeshSequenceSchema:
     max_frames: Optional[int] = meta(None, integer(2, optional=True))
     plausibility: str = meta("error", PLAUSIBILITY)
     train_on: Any = meta("mesh", names(*DATA_VARIANTS["mesh_sequence"]))
-    split: str = meta("same", SPLIT)
-    eval_fraction: float = meta(0.2, EVAL_FRACTION)
-    held_out: Any = meta(None, HELD_OUT)
-    folds: int = meta(5, integer(2))
-    fold_gap_s: float = meta(0.5, interval(0))
-    storage: str = meta("memory", STORAGE)
-    dtype: str = meta("float64", DTYPE)
 
 
 DATASET_SCHEMAS = {
