@@ -105,6 +105,13 @@ def test_server_up(mlflow_server):
 """
 
 
+def interruptible() -> None:
+    """In the child, before it runs pytest: SIGINT as a terminal's Ctrl-C delivers it. A suite started as a
+    background job of a shell without job control inherits SIGINT ignored, and a process started with SIGINT
+    ignored keeps ignoring it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "number, processes",
@@ -123,7 +130,14 @@ def test_a_signal_to_pytest_leaves_no_server_of_the_suite(tmp_path, number, proc
     )
     command = [sys.executable, "-m", "pytest", "-c", os.devnull, "-p", "conftest", "-p", "no:cacheprovider"]
     command += ["-n", processes, "-q", str(tmp_path / "test_up.py")]
-    pytest_run = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    pytest_run = subprocess.Popen(
+        command,
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        preexec_fn=interruptible,
+    )
     try:
         assert wait_until(lambda: url_file.is_file() or pytest_run.poll() is not None, timeout=600)
         assert url_file.is_file(), pytest_run.communicate()[0].decode()[-3000:]
