@@ -446,6 +446,14 @@ def test_normal_scores_are_the_ranks_taken_to_normal_quantiles():
     assert scores == pytest.approx(norm.ppf([3.5 / 4, 0.5 / 4, 0.5, 0.5]), abs=1e-12)
 
 
+@pytest.mark.parametrize("distinct", [3, 50, 10_000])
+def test_mean_ranks_agree_with_scipy_rankdata(distinct):
+    from scipy.stats import rankdata
+
+    series = np.random.default_rng(distinct).integers(0, distinct, 2000).astype(float)
+    np.testing.assert_array_equal(time_series.mean_ranks(series), rankdata(series))
+
+
 def test_a_long_tail_does_not_hide_the_persistence():
     # exp(3 x) of an AR(1) of phi 0.95: a few large values dominate the autocorrelations of the values, the ranks
     # keep the memory; the estimate is at least that of the normal scores, which are those of x itself

@@ -99,9 +99,31 @@ def normal_scores(series: np.ndarray) -> np.ndarray:
     """The series' ranks taken to standard normal quantiles, ``Phi^-1((rank - 1/2) / n)`` (ties share their mean
     rank): the same order, without the long tail."""
     from scipy.special import ndtri
-    from scipy.stats import rankdata
 
-    return ndtri((rankdata(series) - 0.5) / series.size)
+    return ndtri((mean_ranks(series) - 0.5) / series.size)
+
+
+def mean_ranks(series: np.ndarray) -> np.ndarray:
+    """Ranks 1..n of a 1-D series, ties sharing their mean rank (``scipy.stats.rankdata``'s default, without
+    importing ``scipy.stats``: 0.4 s at every start of a run that prints an interval).
+
+    Parameters
+    ----------
+    series : ndarray of shape (n,)
+
+    Returns
+    -------
+    ndarray of shape (n,) of float
+    """
+    order = np.argsort(series, kind="stable")
+    ordered = series[order]
+    new_value = np.concatenate(([True], ordered[1:] != ordered[:-1]))
+    starts = np.flatnonzero(new_value)  # the first sorted position of each distinct value
+    ends = np.append(starts[1:], series.size)  # one past its last
+    mean_rank = (starts + ends + 1) / 2.0  # positions starts..ends-1 are ranks starts+1..ends
+    ranks = np.empty(series.size)
+    ranks[order] = np.repeat(mean_rank, ends - starts)
+    return ranks
 
 
 def persistence(series: np.ndarray, takes: Sequence | None = None) -> float:
