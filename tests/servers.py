@@ -29,6 +29,13 @@ POLL_SECONDS = 0.2
 GRACE_SECONDS = 10.0
 
 
+def sigint_at_default() -> None:
+    """A child's ``preexec_fn``: SIGINT at its default action, as a terminal's Ctrl-C finds a command, whatever the
+    test process has it set to (a suite started as a background job of a shell without job control inherits SIGINT
+    ignored, and a process started with SIGINT ignored keeps ignoring it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def registry() -> Path:
     """The folder of the pid files of the suite's servers, under the temporary folder, one per user."""
     return Path(tempfile.gettempdir()) / f"workbench-tests-{os.getuid()}" / "servers"

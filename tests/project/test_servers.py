@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
-from servers import MARK, clean_stale, processes_of, start_time
+from servers import MARK, clean_stale, processes_of, sigint_at_default, start_time
 
 from workbench.settings.config import REPO_ROOT
 
@@ -105,13 +105,6 @@ def test_server_up(mlflow_server):
 """
 
 
-def interruptible() -> None:
-    """In the child, before it runs pytest: SIGINT as a terminal's Ctrl-C delivers it. A suite started as a
-    background job of a shell without job control inherits SIGINT ignored, and a process started with SIGINT
-    ignored keeps ignoring it."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "number, processes",
@@ -136,7 +129,7 @@ def test_a_signal_to_pytest_leaves_no_server_of_the_suite(tmp_path, number, proc
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
-        preexec_fn=interruptible,
+        preexec_fn=sigint_at_default,
     )
     try:
         assert wait_until(lambda: url_file.is_file() or pytest_run.poll() is not None, timeout=600)

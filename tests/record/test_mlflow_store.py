@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 from in_process import run_workbench
 from mlflow_rest import rest
+from servers import sigint_at_default
 
 from workbench.core.errors import WorkbenchError
 from workbench.record.record import find_records, load_record
@@ -320,7 +321,7 @@ def interruptible(command: list[str], cwd) -> subprocess.Popen:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=sigint_at_default,
     )
 
 
