@@ -94,8 +94,8 @@ def prepare_run_dir(folder: Path, config_hash: str) -> bool:
         if recorded is None:
             raise WorkbenchError(
                 f"{folder} holds a complete record ('{DONE}' exists) whose metrics.json or config.yaml is missing "
-                "or unreadable, or whose metrics.json has no config_hash; records are never overwritten: move that record away or use another sweep "
-                "folder (hydra.sweep.dir=...)"
+                "or unreadable, or whose metrics.json has no config_hash; records are never overwritten: move that "
+                "record away or use another sweep folder (hydra.sweep.dir=...)"
             )
         if recorded != config_hash:
             raise WorkbenchError(
